@@ -1,0 +1,26 @@
+//! # hysid-backends
+//!
+//! The one place where identification back-ends are registered. Adding a
+//! back-end is one crate and one line in [`registry`].
+
+use hysid_core::backend::Registry;
+
+/// Every back-end hysid ships, in the order `hysid methods` lists them.
+pub fn registry() -> Registry {
+    Registry::new().with(hysid_arx::Arx)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn names_are_unique_and_documented() {
+        let r = super::registry();
+        assert!(r.get("arx").is_some());
+        for b in r.iter() {
+            assert!(!b.summary().is_empty());
+            for o in b.options() {
+                assert!(!o.doc.is_empty(), "{}.{} has no doc", b.name(), o.key);
+            }
+        }
+    }
+}

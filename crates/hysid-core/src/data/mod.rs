@@ -1,0 +1,390 @@
+//! Measured input/output records: reading CSV and MAT files, selecting
+//! signals by name, decimation, row ranges and standardisation.
+//!
+//! The contract is `shared/spec/interface.md` ("Data files"): columns (CSV)
+//! or variables (MAT) are chosen by name, `decimate` keeps samples
+//! `0, K, 2K, ...` without a filter, `rows` is applied after decimation, and
+//! the sampling time comes from a `t` signal when there is one.
+
+mod csv_reader;
+mod mat_reader;
+mod standardize;
+
+pub use standardize::{AffineScale, Standardization};
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// One named, uniformly sampled signal.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Signal {
+    /// Column or variable name it was read from.
+    pub name: String,
+    /// Samples, one per time step.
+    pub values: Vec<f64>,
+}
+
+/// A multi-input single-output (MISO) record: the inputs `u_1 .. u_m`,
+/// the output `y`, and the sampling time when known.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Dataset {
+    /// Input signals `u_1 .. u_m`, all of the output's length.
+    pub inputs: Vec<Signal>,
+    /// The output signal `y`.
+    pub output: Signal,
+    /// Sampling time in seconds (after decimation), when known.
+    pub ts: Option<f64>,
+}
+
+impl Dataset {
+    /// Builds a dataset from plain vectors, checking that every signal has
+    /// the same length and only finite values.
+    pub fn new(
+        inputs: Vec<Signal>,
+        output: Signal,
+        ts: Option<f64>,
+    ) -> Result<Self, DataError> {
+        let n = output.values.len();
+        for s in inputs.iter().chain(std::iter::once(&output)) {
+            if s.values.len() != n {
+                return Err(DataError::Shape(format!(
+                    "signal '{}' has {} samples, the output '{}' has {}",
+                    s.name,
+                    s.values.len(),
+                    output.name,
+                    n
+                )));
+            }
+            if let Some(k) = s.values.iter().position(|v| !v.is_finite()) {
+                return Err(DataError::Shape(format!(
+                    "signal '{}' has a non-finite value at sample {k}",
+                    s.name
+                )));
+            }
+        }
+        if let Some(t) = ts
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(DataError::Shape(format!(
+                "sampling time must be positive, got {t}"
+            )));
+        }
+        Ok(Self { inputs, output, ts })
+    }
+
+    /// A single-input dataset named `u`, `y`.
+    pub fn siso(u: Vec<f64>, y: Vec<f64>, ts: Option<f64>) -> Result<Self, DataError> {
+        Self::new(
+            vec![Signal { name: "u".into(), values: u }],
+            Signal { name: "y".into(), values: y },
+            ts,
+        )
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.output.values.len()
+    }
+
+    /// True when the record holds no sample.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Output samples.
+    pub fn y(&self) -> &[f64] {
+        &self.output.values
+    }
+
+    /// Samples of input `i`.
+    pub fn u(&self, i: usize) -> &[f64] {
+        &self.inputs[i].values
+    }
+
+    /// Input names, in order.
+    pub fn input_names(&self) -> Vec<String> {
+        self.inputs.iter().map(|s| s.name.clone()).collect()
+    }
+
+    /// Keeps rows `range` (clamped to the record).
+    pub fn slice(&self, range: RowRange) -> Result<Self, DataError> {
+        let (a, b) = range.resolve(self.len())?;
+        let cut = |s: &Signal| Signal {
+            name: s.name.clone(),
+            values: s.values[a..b].to_vec(),
+        };
+        Ok(Self {
+            inputs: self.inputs.iter().map(cut).collect(),
+            output: cut(&self.output),
+            ts: self.ts,
+        })
+    }
+}
+
+/// Which signals to read and which samples to keep.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DataSelection {
+    /// Input column/variable names (default `["u"]`).
+    pub inputs: Vec<String>,
+    /// Output column/variable name (default `"y"`).
+    pub output: String,
+    /// Keep every K-th sample, no filter (default 1).
+    pub decimate: usize,
+    /// Rows to keep, counted after decimation (default: all).
+    pub rows: RowRange,
+    /// Sampling time in seconds when the file has no `t` signal.
+    pub ts: Option<f64>,
+}
+
+impl Default for DataSelection {
+    fn default() -> Self {
+        Self {
+            inputs: vec!["u".into()],
+            output: "y".into(),
+            decimate: 1,
+            rows: RowRange::default(),
+            ts: None,
+        }
+    }
+}
+
+/// A half-open row range `A..B`; either bound may be left out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct RowRange {
+    /// First row kept (inclusive).
+    pub start: Option<usize>,
+    /// First row not kept (exclusive).
+    pub end: Option<usize>,
+}
+
+impl RowRange {
+    /// Resolves the bounds against a record of `n` rows.
+    pub fn resolve(&self, n: usize) -> Result<(usize, usize), DataError> {
+        let a = self.start.unwrap_or(0);
+        let b = self.end.unwrap_or(n).min(n);
+        if a >= b {
+            return Err(DataError::Selection(format!(
+                "rows {self} select no sample of a record with {n} rows"
+            )));
+        }
+        Ok((a, b))
+    }
+}
+
+impl fmt::Display for RowRange {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(a) = self.start {
+            write!(f, "{a}")?;
+        }
+        write!(f, "..")?;
+        if let Some(b) = self.end {
+            write!(f, "{b}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::str::FromStr for RowRange {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (a, b) = s
+            .split_once("..")
+            .ok_or_else(|| format!("row range '{s}' is not of the form A..B"))?;
+        let parse = |x: &str| -> Result<Option<usize>, String> {
+            let x = x.trim();
+            if x.is_empty() {
+                Ok(None)
+            } else {
+                x.parse::<usize>()
+                    .map(Some)
+                    .map_err(|_| format!("row range '{s}': '{x}' is not a row number"))
+            }
+        };
+        let r = RowRange { start: parse(a)?, end: parse(b)? };
+        if let (Some(a), Some(b)) = (r.start, r.end)
+            && a >= b
+        {
+            return Err(format!("row range '{s}' is empty"));
+        }
+        Ok(r)
+    }
+}
+
+impl TryFrom<String> for RowRange {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        s.parse()
+    }
+}
+
+impl From<RowRange> for String {
+    fn from(r: RowRange) -> String {
+        r.to_string()
+    }
+}
+
+/// Errors from reading or selecting data. Every message names the file and,
+/// where it applies, the row and column.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// The file could not be opened or read.
+    #[error("{path}: {source}")]
+    Io {
+        /// File concerned.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// A malformed cell, row or variable.
+    #[error("{path}: {location}{message}")]
+    Parse {
+        /// File concerned.
+        path: PathBuf,
+        /// "row R, column 'C': " or "variable 'v': " (may be empty).
+        location: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A requested column or variable does not exist.
+    #[error("{path}: no {what} '{name}' (available: {available})")]
+    Missing {
+        /// File concerned.
+        path: PathBuf,
+        /// "column" or "variable".
+        what: &'static str,
+        /// Name asked for.
+        name: String,
+        /// Names present.
+        available: String,
+    },
+    /// A file type that is not supported.
+    #[error("{0}: unsupported data file type (expected .csv or .mat)")]
+    UnsupportedFormat(PathBuf),
+    /// Signals of different lengths or other shape problems.
+    #[error("{0}")]
+    Shape(String),
+    /// Bad decimation or row selection.
+    #[error("{0}")]
+    Selection(String),
+}
+
+/// Named columns as read from a file, before selection.
+pub(crate) struct RawTable {
+    pub(crate) path: PathBuf,
+    pub(crate) what: &'static str,
+    pub(crate) columns: Vec<(String, Vec<f64>)>,
+}
+
+impl RawTable {
+    fn take(&self, name: &str) -> Result<&[f64], DataError> {
+        self.columns
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+            .ok_or_else(|| DataError::Missing {
+                path: self.path.clone(),
+                what: self.what,
+                name: name.to_string(),
+                available: self
+                    .columns
+                    .iter()
+                    .map(|(n, _)| n.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
+    }
+
+    fn has(&self, name: &str) -> bool {
+        self.columns.iter().any(|(n, _)| n == name)
+    }
+}
+
+/// Reads a `.csv` or `.mat` file and applies `sel`.
+pub fn load(path: &Path, sel: &DataSelection) -> Result<Dataset, DataError> {
+    if sel.decimate == 0 {
+        return Err(DataError::Selection("--decimate must be at least 1".into()));
+    }
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let wanted: Vec<&str> = sel
+        .inputs
+        .iter()
+        .map(String::as_str)
+        .chain([sel.output.as_str(), "t"])
+        .collect();
+    let table = match ext.as_deref() {
+        Some("csv") => csv_reader::read(path, &wanted)?,
+        Some("mat") => mat_reader::read(path, &wanted)?,
+        _ => return Err(DataError::UnsupportedFormat(path.to_path_buf())),
+    };
+    select(&table, sel)
+}
+
+fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
+    let pick = |v: &[f64]| -> Vec<f64> { v.iter().step_by(sel.decimate).copied().collect() };
+    let output = Signal {
+        name: sel.output.clone(),
+        values: pick(table.take(&sel.output)?),
+    };
+    let mut inputs = Vec::with_capacity(sel.inputs.len());
+    for name in &sel.inputs {
+        inputs.push(Signal { name: name.clone(), values: pick(table.take(name)?) });
+    }
+    let ts = if table.has("t") && !sel.inputs.iter().any(|n| n == "t") && sel.output != "t" {
+        let t = pick(table.take("t")?);
+        if t.len() >= 2 {
+            let dt = t[1] - t[0];
+            if !(dt.is_finite() && dt > 0.0) {
+                return Err(DataError::Parse {
+                    path: table.path.clone(),
+                    location: format!("{} 't': ", table.what),
+                    message: "time does not increase".into(),
+                });
+            }
+            Some(dt)
+        } else {
+            sel.ts
+        }
+    } else {
+        sel.ts
+    };
+    let ds = Dataset::new(inputs, output, ts)?;
+    let n = ds.len();
+    let (a, b) = sel.rows.resolve(n).map_err(|_| {
+        DataError::Selection(format!(
+            "{}: --rows {} selects no sample of the {} rows left after decimation by {}",
+            table.path.display(),
+            sel.rows,
+            n,
+            sel.decimate
+        ))
+    })?;
+    ds.slice(RowRange { start: Some(a), end: Some(b) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn row_range_parses_open_bounds() {
+        assert_eq!("..5".parse::<RowRange>().unwrap(), RowRange { start: None, end: Some(5) });
+        assert_eq!("5..".parse::<RowRange>().unwrap(), RowRange { start: Some(5), end: None });
+        assert_eq!("2..5".parse::<RowRange>().unwrap().to_string(), "2..5");
+        assert!("5..2".parse::<RowRange>().is_err());
+        assert!("x..2".parse::<RowRange>().is_err());
+        assert!("7".parse::<RowRange>().is_err());
+    }
+
+    #[test]
+    fn dataset_rejects_ragged_and_non_finite() {
+        assert!(Dataset::siso(vec![1.0], vec![1.0, 2.0], None).is_err());
+        assert!(Dataset::siso(vec![1.0, f64::NAN], vec![1.0, 2.0], None).is_err());
+        assert!(Dataset::siso(vec![1.0, 2.0], vec![1.0, 2.0], Some(0.0)).is_err());
+    }
+}

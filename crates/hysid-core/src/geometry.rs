@@ -1,0 +1,222 @@
+//! Polyhedra `{ z : A z <= b, A_eq z = b_eq }`: the regions of PWARX modes,
+//! the invariants of hybrid-automaton modes and their guard sets. Equality
+//! rows make a set lower-dimensional (for example the stop `y = 25`).
+
+use serde::{Deserialize, Serialize};
+
+/// Tolerance used for membership tests of equality rows and boundaries.
+pub const MEMBERSHIP_TOL: f64 = 1e-9;
+
+/// `{ z : a z <= b, a_eq z = b_eq }`, rows stored row-major. No rows means
+/// the whole space.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Polyhedron {
+    /// Inequality rows.
+    #[serde(default)]
+    pub a: Vec<Vec<f64>>,
+    /// Inequality right-hand sides.
+    #[serde(default)]
+    pub b: Vec<f64>,
+    /// Equality rows (a lower-dimensional set when non-empty).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub a_eq: Vec<Vec<f64>>,
+    /// Equality right-hand sides.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub b_eq: Vec<f64>,
+}
+
+fn dot(a: &[f64], z: &[f64]) -> f64 {
+    a.iter().zip(z).map(|(p, q)| p * q).sum()
+}
+
+fn norm(a: &[f64]) -> f64 {
+    a.iter().map(|v| v * v).sum::<f64>().sqrt().max(f64::MIN_POSITIVE)
+}
+
+impl Polyhedron {
+    /// The whole space.
+    pub fn everything() -> Self {
+        Self::default()
+    }
+
+    /// The half-spaces `a z <= b`.
+    pub fn from_inequalities(a: Vec<Vec<f64>>, b: Vec<f64>) -> Self {
+        Self { a, b, ..Self::default() }
+    }
+
+    /// True when it has equality rows (it then has no volume).
+    pub fn is_lower_dimensional(&self) -> bool {
+        !self.a_eq.is_empty()
+    }
+
+    /// Checks that every row has `dim` entries and all numbers are finite.
+    pub fn validate(&self, dim: usize) -> Result<(), String> {
+        if self.a.len() != self.b.len() || self.a_eq.len() != self.b_eq.len() {
+            return Err("the number of rows of a and b differ".into());
+        }
+        for (i, row) in self.a.iter().chain(&self.a_eq).enumerate() {
+            if row.len() != dim {
+                return Err(format!("row {} has {} entries, expected {dim}", i + 1, row.len()));
+            }
+            if row.iter().any(|v| !v.is_finite()) {
+                return Err(format!("row {} has a non-finite entry", i + 1));
+            }
+        }
+        if self.b.iter().chain(&self.b_eq).any(|v| !v.is_finite()) {
+            return Err("a right-hand side is not finite".into());
+        }
+        Ok(())
+    }
+
+    /// Largest Euclidean distance by which `z` violates a row (0 inside).
+    /// Inequality rows count `(a_i z - b_i)+ / |a_i|`, equality rows
+    /// `|a_i z - b_i| / |a_i|`.
+    pub fn violation(&self, z: &[f64]) -> f64 {
+        let ineq = self
+            .a
+            .iter()
+            .zip(&self.b)
+            .map(|(r, b)| ((dot(r, z) - b) / norm(r)).max(0.0));
+        let eq = self
+            .a_eq
+            .iter()
+            .zip(&self.b_eq)
+            .map(|(r, b)| ((dot(r, z) - b) / norm(r)).abs());
+        ineq.chain(eq).fold(0.0, f64::max)
+    }
+
+    /// Membership with tolerance [`MEMBERSHIP_TOL`] (relative to |z|).
+    pub fn contains(&self, z: &[f64]) -> bool {
+        let scale = 1.0 + z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        self.violation(z) <= MEMBERSHIP_TOL * scale
+    }
+
+    /// The first point of the segment `z0 -> z1` that lies in the set, as the
+    /// fraction `s` in `[0, 1]`, or `None`. The set is convex and the segment
+    /// affine in `s`, so every row is a linear condition in `s` and the
+    /// answer is exact: it is how guard crossings are located within a step.
+    pub fn first_hit_on_segment(&self, z0: &[f64], z1: &[f64]) -> Option<f64> {
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        let scale = 1.0 + z0.iter().chain(z1).fold(0.0f64, |m, v| m.max(v.abs()));
+        let tol = MEMBERSHIP_TOL * scale;
+        // Rows as  alpha + beta * s  <= 0  (inequalities), = 0 (equalities).
+        for (r, b) in self.a.iter().zip(&self.b) {
+            let n = norm(r);
+            let alpha = (dot(r, z0) - b) / n - tol;
+            let beta = (dot(r, z1) - dot(r, z0)) / n;
+            if beta.abs() < f64::EPSILON * (1.0 + alpha.abs()) {
+                if alpha > 0.0 {
+                    return None;
+                }
+            } else if beta > 0.0 {
+                hi = hi.min(-alpha / beta);
+            } else {
+                lo = lo.max(-alpha / beta);
+            }
+        }
+        for (r, b) in self.a_eq.iter().zip(&self.b_eq) {
+            let n = norm(r);
+            let alpha = (dot(r, z0) - b) / n;
+            let beta = (dot(r, z1) - dot(r, z0)) / n;
+            if beta.abs() <= tol {
+                if alpha.abs() > tol {
+                    return None;
+                }
+            } else {
+                let s = -alpha / beta;
+                let ds = tol / beta.abs();
+                lo = lo.max(s - ds);
+                hi = hi.min(s + ds);
+            }
+        }
+        (lo <= hi).then_some(lo)
+
+    }
+
+    /// The set in new coordinates `z = m + D w` (`D` diagonal, entries `d`):
+    /// `{ w : (A D) w <= b - A m }`. Used to express regions found on
+    /// standardised data in original units (with `w` the original
+    /// coordinates, pass the inverse map).
+    pub fn affine_preimage(&self, m: &[f64], d: &[f64]) -> Self {
+        let map = |rows: &[Vec<f64>], rhs: &[f64]| -> (Vec<Vec<f64>>, Vec<f64>) {
+            rows.iter()
+                .zip(rhs)
+                .map(|(r, b)| {
+                    let nr: Vec<f64> = r.iter().zip(d).map(|(a, di)| a * di).collect();
+                    (nr, b - dot(r, m))
+                })
+                .unzip()
+        };
+        let (a, b) = map(&self.a, &self.b);
+        let (a_eq, b_eq) = map(&self.a_eq, &self.b_eq);
+        Self { a, b, a_eq, b_eq }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn unit_box() -> Polyhedron {
+        Polyhedron::from_inequalities(
+            vec![vec![1.0, 0.0], vec![-1.0, 0.0], vec![0.0, 1.0], vec![0.0, -1.0]],
+            vec![1.0, 0.0, 1.0, 0.0],
+        )
+    }
+
+    #[test]
+    fn membership_and_violation() {
+        let p = unit_box();
+        assert!(p.contains(&[0.5, 0.5]));
+        assert!(p.contains(&[1.0, 0.0]));
+        assert!(!p.contains(&[1.5, 0.5]));
+        assert!((p.violation(&[3.0, 0.5]) - 2.0).abs() < 1e-12);
+        assert!(Polyhedron::everything().contains(&[1e9, -3.0]));
+    }
+
+    #[test]
+    fn segment_hits_lower_dimensional_guard() {
+        // y = 25 with v >= 0, z = [y, v]
+        let g = Polyhedron {
+            a: vec![vec![0.0, -1.0]],
+            b: vec![0.0],
+            a_eq: vec![vec![1.0, 0.0]],
+            b_eq: vec![25.0],
+        };
+        let s = g.first_hit_on_segment(&[20.0, 2.0], &[30.0, 2.0]).unwrap();
+        assert!((s - 0.5).abs() < 1e-6);
+        assert!(g.first_hit_on_segment(&[20.0, 2.0], &[24.0, 2.0]).is_none());
+        assert!(g.first_hit_on_segment(&[20.0, -2.0], &[30.0, -2.0]).is_none());
+    }
+
+    proptest! {
+        #[test]
+        fn segment_hit_point_is_in_the_set(x0 in -3.0f64..3.0, y0 in -3.0f64..3.0, x1 in -3.0f64..3.0, y1 in -3.0f64..3.0) {
+            let p = unit_box();
+            let (z0, z1) = ([x0, y0], [x1, y1]);
+            match p.first_hit_on_segment(&z0, &z1) {
+                Some(s) => {
+                    let z = [x0 + s * (x1 - x0), y0 + s * (y1 - y0)];
+                    prop_assert!(p.violation(&z) < 1e-6);
+                }
+                None => {
+                    for i in 1..=50 {
+                        let s = i as f64 / 50.0;
+                        let z = [x0 + s * (x1 - x0), y0 + s * (y1 - y0)];
+                        prop_assert!(p.violation(&z) > 0.0);
+                    }
+                }
+            }
+        }
+
+        #[test]
+        fn affine_preimage_preserves_membership(m0 in -2.0f64..2.0, d0 in 0.1f64..3.0, w0 in -2.0f64..2.0, w1 in -2.0f64..2.0) {
+            let p = unit_box();
+            let (m, d) = ([m0, -m0], [d0, 1.0 / d0]);
+            let q = p.affine_preimage(&m, &d);
+            let z = [m[0] + d[0] * w0, m[1] + d[1] * w1];
+            prop_assert!((p.violation(&z) > 1e-9) == (q.violation(&[w0, w1]) > 1e-9) || p.violation(&z) < 1e-6);
+        }
+    }
+}

@@ -1,0 +1,396 @@
+//! Hybrid automata with affine dynamics (Henzinger, "The theory of hybrid
+//! automata", LICS 1996; the PWA special case of Heemels, De Schutter,
+//! Bemporad, Automatica 2001).
+//!
+//! Everything geometric lives in the extended space `z = [x; u]` (state,
+//! then the current input), so guards such as "the motor pushes down" can
+//! be written. A mode has dynamics and an invariant; a transition has a
+//! [`GuardSet`], possibly lower-dimensional (the stop `y = 25`), and a
+//! [`ResetMap`] applied when it fires (the velocity reset `v := 0`).
+//! Saturations are modes of this kind, never full-dimensional regions.
+
+use super::{ModelInfo, PwarxModel};
+use crate::geometry::Polyhedron;
+use serde::{Deserialize, Serialize};
+
+/// Discrete or continuous time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeDomain {
+    /// `x(k+1) = A x(k) + B u(k) + f`, one step per sample.
+    #[default]
+    Discrete,
+    /// `dx/dt = A x + B u + f`, integrated with a fixed internal step.
+    Continuous,
+}
+
+/// Affine dynamics `A x + B u + f` (next state or derivative).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct AffineDynamics {
+    /// State matrix, rows.
+    pub a: Vec<Vec<f64>>,
+    /// Input matrix, rows (empty for no input).
+    #[serde(default)]
+    pub b: Vec<Vec<f64>>,
+    /// Constant term (empty means zero).
+    #[serde(default)]
+    pub f: Vec<f64>,
+}
+
+impl AffineDynamics {
+    /// `A x + B u + f`.
+    pub fn eval(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let mut v = self.f.get(i).copied().unwrap_or(0.0);
+            v += self.a[i].iter().zip(x).map(|(p, q)| p * q).sum::<f64>();
+            if let Some(row) = self.b.get(i) {
+                v += row.iter().zip(u).map(|(p, q)| p * q).sum::<f64>();
+            }
+            *o = v;
+        }
+    }
+}
+
+/// Output `y = c x + d u + e`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct OutputMap {
+    /// State weights.
+    pub c: Vec<f64>,
+    /// Input weights (empty means zero).
+    #[serde(default)]
+    pub d: Vec<f64>,
+    /// Offset.
+    #[serde(default)]
+    pub e: f64,
+}
+
+impl OutputMap {
+    /// `c x + d u + e`.
+    pub fn eval(&self, x: &[f64], u: &[f64]) -> f64 {
+        self.c.iter().zip(x).map(|(p, q)| p * q).sum::<f64>()
+            + self.d.iter().zip(u).map(|(p, q)| p * q).sum::<f64>()
+            + self.e
+    }
+}
+
+/// A guard set in `[x; u]`: a polyhedron that may have equality rows. A
+/// transition fires at the first point of a step's trajectory that lies in
+/// it, when the step did not start inside it.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct GuardSet(pub Polyhedron);
+
+/// Reset `x+ = r x + c` applied when a transition fires; an empty `r` means
+/// identity, an empty `c` zero.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ResetMap {
+    /// Linear part, rows (empty: identity).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub r: Vec<Vec<f64>>,
+    /// Offset (empty: zero).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub c: Vec<f64>,
+}
+
+impl ResetMap {
+    /// `x_i := value`, other states unchanged, in an `n`-dimensional state.
+    pub fn assign(n: usize, assignments: &[(usize, f64)]) -> Self {
+        let mut r: Vec<Vec<f64>> = (0..n)
+            .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+            .collect();
+        let mut c = vec![0.0; n];
+        for &(i, v) in assignments {
+            r[i][i] = 0.0;
+            c[i] = v;
+        }
+        Self { r, c }
+    }
+
+    /// Applies the map in place.
+    pub fn apply(&self, x: &mut [f64]) {
+        if !self.r.is_empty() {
+            let y: Vec<f64> = self
+                .r
+                .iter()
+                .map(|row| row.iter().zip(x.iter()).map(|(p, q)| p * q).sum())
+                .collect();
+            x.copy_from_slice(&y);
+        }
+        for (xi, ci) in x.iter_mut().zip(&self.c) {
+            *xi += ci;
+        }
+    }
+}
+
+/// One discrete mode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AutomatonMode {
+    /// Name, unique in the automaton.
+    pub name: String,
+    /// Dynamics in this mode.
+    pub flow: AffineDynamics,
+    /// Where the mode may be active, in `[x; u]` (no rows: everywhere).
+    #[serde(default)]
+    pub invariant: Polyhedron,
+}
+
+/// A discrete transition with guard and reset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Transition {
+    /// Source mode name.
+    pub from: String,
+    /// Target mode name.
+    pub to: String,
+    /// Guard set in `[x; u]`.
+    pub guard: GuardSet,
+    /// Reset applied on the transition.
+    #[serde(default)]
+    pub reset: ResetMap,
+}
+
+/// How the initial state of a simulation is obtained.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "from", rename_all = "snake_case")]
+pub enum InitialState {
+    /// The state is the ARX history `[y(k) .. y(k-n+1), u_i(k-1) .. u_i(k-nb+1)]`
+    /// with `n = max(na, 1)`, read from measured data.
+    ArxHistory {
+        /// Output lags.
+        na: usize,
+        /// Input lags.
+        nb: usize,
+    },
+    /// A fixed state.
+    Given {
+        /// The state.
+        state: Vec<f64>,
+    },
+}
+
+/// A hybrid automaton with affine dynamics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HybridAutomaton {
+    /// Discrete or continuous time.
+    #[serde(default)]
+    pub time: TimeDomain,
+    /// Internal integration step in seconds (continuous time only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub internal_step: Option<f64>,
+    /// State names (define the state dimension).
+    pub states: Vec<String>,
+    /// Input names.
+    #[serde(default)]
+    pub inputs: Vec<String>,
+    /// Output map.
+    pub output: OutputMap,
+    /// Modes.
+    pub modes: Vec<AutomatonMode>,
+    /// Transitions.
+    #[serde(default)]
+    pub transitions: Vec<Transition>,
+    /// Mode at the start (default: chosen by invariant).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_mode: Option<String>,
+    /// How to get the initial state.
+    pub initial_state: InitialState,
+    /// Provenance.
+    #[serde(default)]
+    pub info: ModelInfo,
+}
+
+fn check_rows(what: &str, rows: &[Vec<f64>], n_rows: usize, n_cols: usize) -> Result<(), String> {
+    if rows.len() != n_rows {
+        return Err(format!("{what} has {} rows, expected {n_rows}", rows.len()));
+    }
+    for (i, r) in rows.iter().enumerate() {
+        if r.len() != n_cols || r.iter().any(|v| !v.is_finite()) {
+            return Err(format!("{what} row {}: expected {n_cols} finite entries", i + 1));
+        }
+    }
+    Ok(())
+}
+
+impl HybridAutomaton {
+    /// Index of the mode named `name`.
+    pub fn mode_index(&self, name: &str) -> Option<usize> {
+        self.modes.iter().position(|m| m.name == name)
+    }
+
+    /// Structural checks.
+    pub fn validate(&self) -> Result<(), String> {
+        let n = self.states.len();
+        let m = self.inputs.len();
+        if n == 0 || self.modes.is_empty() {
+            return Err("an automaton needs at least one state and one mode".into());
+        }
+        if self.time == TimeDomain::Continuous {
+            match self.internal_step {
+                Some(h) if h.is_finite() && h > 0.0 => {}
+                _ => return Err("a continuous-time automaton needs internal_step > 0".into()),
+            }
+        }
+        if self.output.c.len() != n || !(self.output.d.is_empty() || self.output.d.len() == m) {
+            return Err(format!("output: c needs {n} entries and d none or {m}"));
+        }
+        for (i, q) in self.modes.iter().enumerate() {
+            if self.modes[..i].iter().any(|p| p.name == q.name) {
+                return Err(format!("mode name '{}' appears twice", q.name));
+            }
+            let w = |s: &str| format!("mode '{}': {s}", q.name);
+            check_rows(&w("flow.a"), &q.flow.a, n, n)?;
+            if !q.flow.b.is_empty() {
+                check_rows(&w("flow.b"), &q.flow.b, n, m)?;
+            }
+            if !(q.flow.f.is_empty() || q.flow.f.len() == n) {
+                return Err(w("flow.f needs none or one entry per state"));
+            }
+            q.invariant.validate(n + m).map_err(|e| w(&format!("invariant {e}")))?;
+        }
+        for t in &self.transitions {
+            let w = |s: &str| format!("transition {} -> {}: {s}", t.from, t.to);
+            for name in [&t.from, &t.to] {
+                if self.mode_index(name).is_none() {
+                    return Err(w(&format!("no mode named '{name}'")));
+                }
+            }
+            t.guard.0.validate(n + m).map_err(|e| w(&format!("guard {e}")))?;
+            if !t.reset.r.is_empty() {
+                check_rows(&w("reset.r"), &t.reset.r, n, n)?;
+            }
+            if !(t.reset.c.is_empty() || t.reset.c.len() == n) {
+                return Err(w("reset.c needs none or one entry per state"));
+            }
+        }
+        if let Some(q) = &self.initial_mode
+            && self.mode_index(q).is_none()
+        {
+            return Err(format!("initial_mode: no mode named '{q}'"));
+        }
+        match &self.initial_state {
+            InitialState::Given { state } if state.len() != n => {
+                Err(format!("initial_state has {} entries, expected {n}", state.len()))
+            }
+            InitialState::ArxHistory { na, nb } if na.max(&1) + nb.saturating_sub(1) * m != n => {
+                Err("initial_state: ARX history does not match the state dimension".into())
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The discrete-time automaton equivalent to a PWARX model.
+    ///
+    /// State `x(k) = [y(k) .. y(k-n+1), u_i(k-1) .. u_i(k-nb+1)]` with
+    /// `n = max(na, 1)`; input `u(k)`. Then `[x(k); u(k)]` holds the PWARX
+    /// regressor of `y(k+1)`, so each region becomes an invariant and each
+    /// mode's `theta` the first row of its dynamics; `y = x_1`.
+    pub fn from_pwarx(p: &PwarxModel) -> Self {
+        let (na, nb, m) = (p.na, p.nb, p.inputs);
+        let ny = na.max(1);
+        let nu = nb.saturating_sub(1);
+        let n = ny + nu * m;
+        let mut states: Vec<String> = (0..ny).map(|i| format!("y(k-{i})")).collect();
+        for i in 0..m {
+            for j in 1..=nu {
+                states.push(format!("u{}(k-{j})", i + 1));
+            }
+        }
+        // Position of each regressor entry of y(k+1) in z = [x; u].
+        let mut pos = Vec::with_capacity(p.spec().dim());
+        for j in 0..na {
+            pos.push(j); // y(k+1-(j+1)) = y(k-j) = x_j
+        }
+        for i in 0..m {
+            for j in 1..=nb {
+                // u_i(k+1-j): j = 1 is the current input, else state u_i(k-(j-1))
+                pos.push(if j == 1 { n + i } else { ny + i * nu + (j - 2) });
+            }
+        }
+        let d = p.spec().dim();
+        let modes = p
+            .modes
+            .iter()
+            .enumerate()
+            .map(|(qi, mode)| {
+                let mut a = vec![vec![0.0; n]; n];
+                let mut b = vec![vec![0.0; m]; n];
+                let mut f = vec![0.0; n];
+                for (r, &zi) in pos.iter().enumerate() {
+                    if zi < n {
+                        a[0][zi] += mode.theta[r];
+                    } else {
+                        b[0][zi - n] += mode.theta[r];
+                    }
+                }
+                f[0] = mode.theta[d];
+                for j in 1..ny {
+                    a[j][j - 1] = 1.0;
+                }
+                for i in 0..m {
+                    for j in 0..nu {
+                        let row = ny + i * nu + j;
+                        if j == 0 {
+                            b[row][i] = 1.0;
+                        } else {
+                            a[row][row - 1] = 1.0;
+                        }
+                    }
+                }
+                let remap = |rows: &[Vec<f64>]| -> Vec<Vec<f64>> {
+                    rows.iter()
+                        .map(|r| {
+                            let mut z = vec![0.0; n + m];
+                            for (c, &zi) in pos.iter().enumerate() {
+                                z[zi] += r[c];
+                            }
+                            z
+                        })
+                        .collect()
+                };
+                AutomatonMode {
+                    name: mode.name.clone().unwrap_or_else(|| qi.to_string()),
+                    flow: AffineDynamics { a, b, f },
+                    invariant: Polyhedron {
+                        a: remap(&mode.region.a),
+                        b: mode.region.b.clone(),
+                        a_eq: remap(&mode.region.a_eq),
+                        b_eq: mode.region.b_eq.clone(),
+                    },
+                }
+            })
+            .collect();
+        let mut c = vec![0.0; n];
+        c[0] = 1.0;
+        HybridAutomaton {
+            time: TimeDomain::Discrete,
+            internal_step: None,
+            states,
+            inputs: if p.info.input_names.len() == m {
+                p.info.input_names.clone()
+            } else {
+                (1..=m).map(|i| format!("u{i}")).collect()
+            },
+            output: OutputMap { c, d: vec![], e: 0.0 },
+            modes,
+            transitions: vec![],
+            initial_mode: None,
+            initial_state: InitialState::ArxHistory { na, nb },
+            info: p.info.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reset_assigns_and_keeps() {
+        let r = ResetMap::assign(2, &[(1, 0.0)]);
+        let mut x = [3.0, -7.0];
+        r.apply(&mut x);
+        assert_eq!(x, [3.0, 0.0]);
+        let mut y = [1.0, 2.0];
+        ResetMap::default().apply(&mut y);
+        assert_eq!(y, [1.0, 2.0]);
+    }
+}

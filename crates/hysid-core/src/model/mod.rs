@@ -1,0 +1,268 @@
+//! Identified and hand-written models, their JSON (and TOML) files.
+//!
+//! A model file is a JSON object tagged by `"kind"` (`shared/spec/interface.md`,
+//! "Model files"). Two kinds live here:
+//!
+//! - [`PwarxModel`] (`"pwarx"`): modes with a parameter vector and a
+//!   polyhedral region in regressor space;
+//! - [`HybridAutomaton`] (`"hybrid_automaton"`): discrete modes with affine
+//!   dynamics and invariants, and transitions whose guard sets may be
+//!   lower-dimensional, each with a reset map.
+
+mod automaton;
+mod pwarx;
+
+pub use automaton::{
+    AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
+    TimeDomain, Transition,
+};
+pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
+
+use crate::data::Standardization;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Any model hysid can simulate and validate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Model {
+    /// Piecewise ARX model.
+    Pwarx(PwarxModel),
+    /// Hybrid automaton with guards and resets.
+    HybridAutomaton(HybridAutomaton),
+}
+
+/// Where a model came from: written into every model file so that a result
+/// can be reproduced. Deterministic (no clock time), so the same inputs and
+/// seed give byte-identical files.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ModelInfo {
+    /// Back-end that identified it (empty for hand-written models).
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub method: String,
+    /// The back-end's options as used, after defaults.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub options: BTreeMap<String, serde_json::Value>,
+    /// Seed of the run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// Input names of the data it was identified on.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub input_names: Vec<String>,
+    /// Output name of the data it was identified on.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub output_name: String,
+    /// Sampling time of the data, seconds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ts: Option<f64>,
+    /// Standardisation used during identification. The parameters and
+    /// regions in the file are already in original units; this records how
+    /// the back-end saw the data.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scaling: Option<Standardization>,
+    /// Back-end diagnostics (counts, costs, statuses).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub diagnostics: BTreeMap<String, serde_json::Value>,
+}
+
+/// Errors reading, writing or checking a model.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    /// The file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// File concerned.
+        path: String,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The file is not a valid model.
+    #[error("{path}: {message}")]
+    Format {
+        /// File concerned.
+        path: String,
+        /// What is wrong (with line and column when the parser knows them).
+        message: String,
+    },
+    /// The model is structurally inconsistent.
+    #[error("invalid model: {0}")]
+    Invalid(String),
+}
+
+impl Model {
+    /// Short name of the kind, as in the file.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Model::Pwarx(_) => "pwarx",
+            Model::HybridAutomaton(_) => "hybrid_automaton",
+        }
+    }
+
+    /// Provenance of the model.
+    pub fn info(&self) -> &ModelInfo {
+        match self {
+            Model::Pwarx(m) => &m.info,
+            Model::HybridAutomaton(m) => &m.info,
+        }
+    }
+
+    /// Mutable provenance.
+    pub fn info_mut(&mut self) -> &mut ModelInfo {
+        match self {
+            Model::Pwarx(m) => &mut m.info,
+            Model::HybridAutomaton(m) => &mut m.info,
+        }
+    }
+
+    /// Number of inputs the model takes.
+    pub fn inputs(&self) -> usize {
+        match self {
+            Model::Pwarx(m) => m.inputs,
+            Model::HybridAutomaton(m) => m.inputs.len(),
+        }
+    }
+
+    /// Number of discrete modes.
+    pub fn mode_count(&self) -> usize {
+        match self {
+            Model::Pwarx(m) => m.modes.len(),
+            Model::HybridAutomaton(m) => m.modes.len(),
+        }
+    }
+
+    /// Mode names (index strings for unnamed PWARX modes).
+    pub fn mode_names(&self) -> Vec<String> {
+        match self {
+            Model::Pwarx(m) => (0..m.modes.len())
+                .map(|i| m.modes[i].name.clone().unwrap_or_else(|| i.to_string()))
+                .collect(),
+            Model::HybridAutomaton(m) => m.modes.iter().map(|q| q.name.clone()).collect(),
+        }
+    }
+
+    /// Structural checks: dimensions agree, numbers are finite, names resolve.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        match self {
+            Model::Pwarx(m) => m.validate(),
+            Model::HybridAutomaton(m) => m.validate(),
+        }
+        .map_err(ModelError::Invalid)
+    }
+
+    /// Parses a model from JSON text; `origin` names the source in errors.
+    pub fn from_json(text: &str, origin: &str) -> Result<Self, ModelError> {
+        let m: Model = serde_json::from_str(text).map_err(|e| ModelError::Format {
+            path: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        m.validate().map_err(|e| ModelError::Format {
+            path: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        Ok(m)
+    }
+
+    /// Parses a hand-written TOML model.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, ModelError> {
+        let m: Model = toml::from_str(text).map_err(|e| ModelError::Format {
+            path: origin.to_string(),
+            message: e.to_string().trim().replace('\n', " "),
+        })?;
+        m.validate().map_err(|e| ModelError::Format {
+            path: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        Ok(m)
+    }
+
+    /// Reads a `.json` or `.toml` model file.
+    pub fn load(path: &Path) -> Result<Self, ModelError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| ModelError::Io { path: origin.clone(), source })?;
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("toml") => Self::from_toml(&text, &origin),
+            _ => Self::from_json(&text, &origin),
+        }
+    }
+
+    /// Pretty JSON with a trailing newline (deterministic).
+    pub fn to_json(&self) -> String {
+        let mut s = serde_json::to_string_pretty(self).expect("models serialise");
+        s.push('\n');
+        s
+    }
+
+    /// Writes the model as JSON, atomically (temporary file then rename).
+    pub fn save(&self, path: &Path) -> Result<(), ModelError> {
+        crate::atomic::write(path, self.to_json().as_bytes()).map_err(|source| ModelError::Io {
+            path: path.display().to_string(),
+            source,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Polyhedron;
+    use proptest::prelude::*;
+
+    #[test]
+    fn spec_example_parses() {
+        let text = r#"{
+          "kind": "pwarx", "na": 2, "nb": 2, "inputs": 1,
+          "modes": [ { "theta": [0.9, -0.2, 0.1, 0.05, 1.3],
+                       "region": { "a": [[1.0, 0.0, 0.0, 0.0]], "b": [25.0] } } ] }"#;
+        let m = Model::from_json(text, "x.json").unwrap();
+        assert_eq!(m.kind(), "pwarx");
+        assert_eq!(m.mode_count(), 1);
+        let bad = text.replace("[0.9, -0.2, 0.1, 0.05, 1.3]", "[0.9]");
+        let e = Model::from_json(&bad, "x.json").unwrap_err().to_string();
+        assert!(e.contains("x.json") && e.contains("theta"), "{e}");
+    }
+
+    fn arb_pwarx() -> impl Strategy<Value = PwarxModel> {
+        (1usize..3, 0usize..3, 1usize..4).prop_flat_map(|(na, nb, s)| {
+            let d = na + nb;
+            proptest::collection::vec(
+                (
+                    proptest::collection::vec(-10.0f64..10.0, d + 1),
+                    proptest::collection::vec(proptest::collection::vec(-5.0f64..5.0, d), 0..3),
+                    any::<u64>(),
+                ),
+                s,
+            )
+            .prop_map(move |modes| PwarxModel {
+                na,
+                nb,
+                inputs: 1,
+                modes: modes
+                    .into_iter()
+                    .map(|(theta, a, seed)| PwarxMode {
+                        theta,
+                        region: Polyhedron::from_inequalities(
+                            a.clone(),
+                            a.iter().enumerate().map(|(i, _)| (seed % 7) as f64 + i as f64 * 0.1).collect(),
+                        ),
+                        name: None,
+                    })
+                    .collect(),
+                info: ModelInfo { method: "arx".into(), seed: Some(3), ..Default::default() },
+            })
+        })
+    }
+
+    proptest! {
+        /// Serde round trip is the identity (JSON, bit-exact floats).
+        #[test]
+        fn json_round_trip_is_identity(m in arb_pwarx()) {
+            let model = Model::Pwarx(m);
+            let back = Model::from_json(&model.to_json(), "mem").unwrap();
+            prop_assert_eq!(&back, &model);
+            prop_assert_eq!(back.to_json(), model.to_json());
+        }
+    }
+}

@@ -1,0 +1,312 @@
+//! Typed back-end options, mirrored 1:1 by `--set key=value`.
+//!
+//! A back-end declares its options once with [`backend_options!`]: the macro
+//! writes the struct (with `Default` holding the documented defaults), and
+//! the [`OptionSpec`] list that `hysid methods` prints. `--set` values are
+//! parsed as TOML scalars (`3`, `0.5`, `true`) or else taken as text, then
+//! deserialised into the struct, so a typo or a wrong type is an error
+//! naming the option.
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use std::collections::BTreeMap;
+
+/// Description of one option, for `hysid methods` and docs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OptionSpec {
+    /// Key used with `--set`.
+    pub key: &'static str,
+    /// Type as shown to users (`int`, `float`, `bool`, `fv|lpv`, ...).
+    pub ty: String,
+    /// Default value, as text.
+    pub default: String,
+    /// One-paragraph documentation.
+    pub doc: String,
+}
+
+/// Implemented by the options struct of every back-end (by [`backend_options!`]).
+pub trait BackendOptions: Default + Serialize + DeserializeOwned + Clone + Send + Sync {
+    /// The options' descriptions, in declaration order.
+    fn specs() -> Vec<OptionSpec>;
+
+    /// The options as a JSON map (recorded in model files).
+    fn to_map(&self) -> BTreeMap<String, serde_json::Value> {
+        match serde_json::to_value(self) {
+            Ok(serde_json::Value::Object(m)) => m.into_iter().collect(),
+            _ => BTreeMap::new(),
+        }
+    }
+}
+
+/// How an option's type is shown; implemented for the scalar types used in
+/// options and by enums with [`option_enum!`].
+pub trait OptionType {
+    /// Name shown in `hysid methods`.
+    fn type_name() -> String;
+}
+
+macro_rules! scalar_option_type {
+    ($($t:ty => $n:literal),*) => { $(impl OptionType for $t { fn type_name() -> String { $n.into() } })* };
+}
+scalar_option_type!(usize => "int", u64 => "int", u32 => "int", i64 => "int", f64 => "float", bool => "bool", String => "text");
+
+impl<T: OptionType> OptionType for Option<T> {
+    fn type_name() -> String {
+        format!("{} (optional)", T::type_name())
+    }
+}
+
+/// Text of a default value: TOML scalar syntax, `none` for `None`.
+pub fn show_default<T: Serialize>(v: &T) -> String {
+    match serde_json::to_value(v) {
+        Ok(serde_json::Value::String(s)) => s,
+        Ok(serde_json::Value::Null) => "none".into(),
+        Ok(x) => x.to_string(),
+        Err(_) => String::new(),
+    }
+}
+
+/// `key=value` pairs from the command line (or an experiment file).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Settings {
+    pairs: Vec<(String, String)>,
+}
+
+/// Errors in `--set` options.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum OptionError {
+    /// Not of the form key=value.
+    #[error("--set '{0}': expected key=value")]
+    Syntax(String),
+    /// Key given twice.
+    #[error("--set {0}: given twice")]
+    Duplicate(String),
+    /// Unknown key.
+    #[error("--set {key}: method '{method}' has no such option (options: {known})")]
+    Unknown {
+        /// Key.
+        key: String,
+        /// Back-end.
+        method: String,
+        /// Known keys.
+        known: String,
+    },
+    /// Bad value.
+    #[error("--set {key}={value}: {message} (method '{method}', expected {ty})")]
+    Value {
+        /// Key.
+        key: String,
+        /// Value as given.
+        value: String,
+        /// Back-end.
+        method: String,
+        /// Expected type.
+        ty: String,
+        /// Parser message.
+        message: String,
+    },
+}
+
+impl Settings {
+    /// Parses `key=value` strings.
+    pub fn parse<S: AsRef<str>>(items: &[S]) -> Result<Self, OptionError> {
+        let mut pairs: Vec<(String, String)> = Vec::new();
+        for it in items {
+            let it = it.as_ref();
+            let (k, v) = it.split_once('=').ok_or_else(|| OptionError::Syntax(it.to_string()))?;
+            let k = k.trim().to_string();
+            if k.is_empty() {
+                return Err(OptionError::Syntax(it.to_string()));
+            }
+            if pairs.iter().any(|(p, _)| *p == k) {
+                return Err(OptionError::Duplicate(k));
+            }
+            pairs.push((k, v.trim().to_string()));
+        }
+        Ok(Self { pairs })
+    }
+
+    /// From pairs already split.
+    pub fn from_pairs(pairs: Vec<(String, String)>) -> Self {
+        Self { pairs }
+    }
+
+    /// The pairs.
+    pub fn pairs(&self) -> &[(String, String)] {
+        &self.pairs
+    }
+
+    /// Value given for `key`, if any.
+    pub fn get(&self, key: &str) -> Option<&str> {
+        self.pairs.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+
+    /// A copy without `key`.
+    pub fn without(&self, key: &str) -> Self {
+        Self { pairs: self.pairs.iter().filter(|(k, _)| k != key).cloned().collect() }
+    }
+
+    /// Builds typed options: defaults, overridden by the given keys.
+    pub fn resolve<T: BackendOptions>(&self, method: &str) -> Result<T, OptionError> {
+        let specs = T::specs();
+        let mut table = toml::Table::new();
+        for (k, v) in &self.pairs {
+            if !specs.iter().any(|s| s.key == k) {
+                return Err(OptionError::Unknown {
+                    key: k.clone(),
+                    method: method.to_string(),
+                    known: specs.iter().map(|s| s.key).collect::<Vec<_>>().join(", "),
+                });
+            }
+            table.insert(k.clone(), scalar(v));
+        }
+        // Start from the defaults so that partial settings work.
+        let mut base = match toml::Table::try_from(T::default()) {
+            Ok(t) => t,
+            Err(_) => toml::Table::new(),
+        };
+        for (k, v) in table {
+            base.insert(k, v);
+        }
+        T::deserialize(toml::Value::Table(base)).map_err(|e| {
+            let msg = e.to_string().trim().replace('\n', " ");
+            // Attribute the failure to the first given key the message names,
+            // else to the first given key.
+            let (key, value) = self
+                .pairs
+                .iter()
+                .find(|(k, _)| msg.contains(k.as_str()))
+                .or(self.pairs.first())
+                .cloned()
+                .unwrap_or_default();
+            let ty = specs.iter().find(|s| s.key == key).map(|s| s.ty.clone()).unwrap_or_default();
+            OptionError::Value { key, value, method: method.to_string(), ty, message: msg }
+        })
+    }
+}
+
+fn scalar(v: &str) -> toml::Value {
+    match format!("v = {v}").parse::<toml::Table>() {
+        Ok(mut t) => match t.remove("v") {
+            Some(x @ (toml::Value::Integer(_) | toml::Value::Float(_) | toml::Value::Boolean(_))) => x,
+            Some(x @ toml::Value::String(_)) => x,
+            _ => toml::Value::String(v.to_string()),
+        },
+        Err(_) => toml::Value::String(v.to_string()),
+    }
+}
+
+/// Declares a back-end's options struct: fields with documented defaults.
+///
+/// ```
+/// hysid_core::backend_options! {
+///     /// Options of an example back-end.
+///     pub struct ExampleOptions {
+///         /// Ridge added to the normal equations.
+///         ridge: f64 = 0.0,
+///         /// Number of restarts.
+///         restarts: usize = 15,
+///     }
+/// }
+/// use hysid_core::options::BackendOptions;
+/// assert_eq!(ExampleOptions::default().restarts, 15);
+/// assert_eq!(ExampleOptions::specs()[1].default, "15");
+/// ```
+#[macro_export]
+macro_rules! backend_options {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident {
+            $( $(#[doc = $doc:literal])* $field:ident : $ty:ty = $default:expr ),* $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[serde(default, deny_unknown_fields)]
+        $vis struct $name {
+            $( $(#[doc = $doc])* #[doc = concat!("\n\nDefault: `", stringify!($default), "`.")] pub $field: $ty, )*
+        }
+        impl Default for $name {
+            fn default() -> Self { Self { $( $field: $default, )* } }
+        }
+        impl $crate::options::BackendOptions for $name {
+            fn specs() -> Vec<$crate::options::OptionSpec> {
+                let d = Self::default();
+                vec![ $( $crate::options::OptionSpec {
+                    key: stringify!($field),
+                    ty: <$ty as $crate::options::OptionType>::type_name(),
+                    default: $crate::options::show_default(&d.$field),
+                    doc: [$($doc),*].iter().map(|l: &&str| l.trim()).collect::<Vec<_>>().join(" ").trim().to_string(),
+                }, )* ]
+            }
+        }
+    };
+}
+
+/// Declares a unit-variant enum usable as an option value (`fv|lpv`),
+/// serialised in lower case.
+#[macro_export]
+macro_rules! option_enum {
+    (
+        $(#[$meta:meta])*
+        $vis:vis enum $name:ident { $( $(#[doc = $doc:literal])* $variant:ident => $text:literal ),+ $(,)? }
+    ) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+        $vis enum $name { $( $(#[doc = $doc])* #[serde(rename = $text)] $variant, )+ }
+        impl $crate::options::OptionType for $name {
+            fn type_name() -> String { [$($text),+].join("|") }
+        }
+    };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    option_enum! {
+        /// Feature kinds.
+        pub enum Features { /// both
+            Fv => "fv", /// theta only
+            Lpv => "lpv" }
+    }
+
+    backend_options! {
+        /// Test options.
+        pub struct T {
+            /// Size of local datasets.
+            c: usize = 20,
+            /// Ridge.
+            ridge: f64 = 1e-3,
+            /// Features.
+            features: Features = Features::Fv,
+            /// Optional bound.
+            delta: Option<f64> = None,
+        }
+    }
+
+    #[test]
+    fn defaults_types_and_docs() {
+        let s = T::specs();
+        assert_eq!(s.len(), 4);
+        assert_eq!((s[0].key, s[0].ty.as_str(), s[0].default.as_str()), ("c", "int", "20"));
+        assert_eq!(s[2].ty, "fv|lpv");
+        assert_eq!(s[2].default, "fv");
+        assert_eq!(s[3].default, "none");
+        assert_eq!(s[0].doc, "Size of local datasets.");
+    }
+
+    #[test]
+    fn set_overrides_and_errors_name_the_key() {
+        let t: T = Settings::parse(&["c=40", "features=lpv", "ridge=0", "delta=0.1"]).unwrap().resolve("m").unwrap();
+        assert_eq!(t, T { c: 40, ridge: 0.0, features: Features::Lpv, delta: Some(0.1) });
+        let e = Settings::parse(&["cc=4"]).unwrap().resolve::<T>("m").unwrap_err().to_string();
+        assert!(e.contains("cc") && e.contains("options: c, ridge"), "{e}");
+        let e = Settings::parse(&["c=abc"]).unwrap().resolve::<T>("m").unwrap_err().to_string();
+        assert!(e.contains("--set c=abc") && e.contains("int"), "{e}");
+        let e = Settings::parse(&["features=svm"]).unwrap().resolve::<T>("m").unwrap_err().to_string();
+        assert!(e.contains("features"), "{e}");
+        assert!(Settings::parse(&["novalue"]).is_err());
+        assert!(Settings::parse(&["c=1", "c=2"]).is_err());
+    }
+}

@@ -1,0 +1,314 @@
+//! Gray-box prior knowledge, one type for every back-end
+//! (`shared/spec/interface.md`, "Prior files"; `docs/priors.md`).
+//!
+//! Each back-end declares the [`PriorKind`]s it honours; a prior it cannot
+//! honour is refused with an error naming the entry, never dropped.
+
+use crate::regressors::RegressorSpec;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+
+/// The kinds of prior an entry of a prior file can be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PriorKind {
+    /// `modes = S`: exact number of modes.
+    Modes,
+    /// `max_modes = S`: an upper bound on the number of modes.
+    MaxModes,
+    /// `[[saturation]]`: a known stop, a mode on a lower-dimensional set.
+    Saturation,
+    /// `[[tie]]`: parameters sharing one value across modes.
+    Tie,
+    /// `[fixed]`: parameters with known values.
+    Fixed,
+    /// `[bounds]`: box constraints on parameters.
+    Bounds,
+    /// `switching = [...]`: regressors the regions may depend on.
+    Switching,
+}
+
+impl fmt::Display for PriorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            PriorKind::Modes => "modes",
+            PriorKind::MaxModes => "max_modes",
+            PriorKind::Saturation => "[[saturation]]",
+            PriorKind::Tie => "[[tie]]",
+            PriorKind::Fixed => "[fixed]",
+            PriorKind::Bounds => "[bounds]",
+            PriorKind::Switching => "switching",
+        })
+    }
+}
+
+/// Which side of the level the output stays on at a stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopBound {
+    /// The output never exceeds the level.
+    Max,
+    /// The output never goes below the level.
+    Min,
+}
+
+/// A known saturation: the output's value at a mechanical stop.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SaturationPrior {
+    /// Output value at the stop.
+    pub level: f64,
+    /// Side.
+    pub bound: StopBound,
+}
+
+/// Parameters that share one value across all non-saturation modes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tie {
+    /// Parameter names (`a1`, `b2`, `c`, ... for PWARX).
+    pub params: Vec<String>,
+}
+
+/// All priors of a run.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Priors {
+    /// Exact number of modes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub modes: Option<usize>,
+    /// Upper bound on the number of modes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_modes: Option<usize>,
+    /// Known stops.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub saturation: Vec<SaturationPrior>,
+    /// Parameter ties.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub tie: Vec<Tie>,
+    /// Fixed parameter values.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub fixed: BTreeMap<String, f64>,
+    /// Box constraints `[low, high]`.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub bounds: BTreeMap<String, [f64; 2]>,
+    /// Regressors the regions may depend on.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub switching: Vec<String>,
+}
+
+/// Errors in priors.
+#[derive(Debug, thiserror::Error)]
+pub enum PriorError {
+    /// The prior file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// File.
+        path: String,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// The prior file is malformed or inconsistent.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// File (or "--modes").
+        path: String,
+        /// What is wrong, naming the entry.
+        message: String,
+    },
+    /// A back-end cannot honour an entry.
+    #[error("method '{method}' does not honour the prior {kind}{origin}; it honours: {honoured}")]
+    NotHonoured {
+        /// Back-end name.
+        method: String,
+        /// The entry.
+        kind: PriorKind,
+        /// " (in FILE)" or empty.
+        origin: String,
+        /// What it does honour.
+        honoured: String,
+    },
+}
+
+impl Priors {
+    /// Parses a prior file's text; `origin` names it in errors.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, PriorError> {
+        let p: Priors = toml::from_str(text).map_err(|e| PriorError::Invalid {
+            path: origin.to_string(),
+            message: e.to_string().trim().replace('\n', " "),
+        })?;
+        p.check().map_err(|message| PriorError::Invalid { path: origin.to_string(), message })?;
+        Ok(p)
+    }
+
+    /// Reads a prior file.
+    pub fn load(path: &Path) -> Result<Self, PriorError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| PriorError::Io { path: origin.clone(), source })?;
+        Self::from_toml(&text, &origin)
+    }
+
+    /// Internal consistency (independent of the model structure).
+    pub fn check(&self) -> Result<(), String> {
+        if self.modes == Some(0) || self.max_modes == Some(0) {
+            return Err("modes and max_modes must be at least 1".into());
+        }
+        if let (Some(s), Some(m)) = (self.modes, self.max_modes)
+            && s > m
+        {
+            return Err(format!("modes = {s} exceeds max_modes = {m}"));
+        }
+        for (i, s) in self.saturation.iter().enumerate() {
+            if !s.level.is_finite() {
+                return Err(format!("[[saturation]] #{}: level must be finite", i + 1));
+            }
+        }
+        for (i, t) in self.tie.iter().enumerate() {
+            if t.params.is_empty() {
+                return Err(format!("[[tie]] #{}: params is empty", i + 1));
+            }
+        }
+        for (k, v) in &self.fixed {
+            if !v.is_finite() {
+                return Err(format!("[fixed] {k}: value must be finite"));
+            }
+        }
+        for (k, [lo, hi]) in &self.bounds {
+            if lo.is_nan() || hi.is_nan() || lo > hi {
+                return Err(format!("[bounds] {k}: need low <= high, got [{lo}, {hi}]"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The kinds of entry present.
+    pub fn kinds(&self) -> Vec<PriorKind> {
+        let mut k = Vec::new();
+        if self.modes.is_some() {
+            k.push(PriorKind::Modes);
+        }
+        if self.max_modes.is_some() {
+            k.push(PriorKind::MaxModes);
+        }
+        if !self.saturation.is_empty() {
+            k.push(PriorKind::Saturation);
+        }
+        if !self.tie.is_empty() {
+            k.push(PriorKind::Tie);
+        }
+        if !self.fixed.is_empty() {
+            k.push(PriorKind::Fixed);
+        }
+        if !self.bounds.is_empty() {
+            k.push(PriorKind::Bounds);
+        }
+        if !self.switching.is_empty() {
+            k.push(PriorKind::Switching);
+        }
+        k
+    }
+
+    /// Refuses the run when an entry is not in `honoured`.
+    pub fn ensure_honoured(
+        &self,
+        method: &str,
+        honoured: &[PriorKind],
+        origin: Option<&str>,
+    ) -> Result<(), PriorError> {
+        for kind in self.kinds() {
+            if !honoured.contains(&kind) {
+                return Err(PriorError::NotHonoured {
+                    method: method.to_string(),
+                    kind,
+                    origin: origin.map(|o| format!(" (in {o})")).unwrap_or_default(),
+                    honoured: if honoured.is_empty() {
+                        "none".into()
+                    } else {
+                        honoured.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+                    },
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks parameter and regressor names against a PWARX structure.
+    pub fn check_pwarx_names(&self, spec: &RegressorSpec) -> Result<(), String> {
+        let params = spec.param_names();
+        let regs = spec.regressor_names();
+        let known = |n: &str, list: &[String], entry: &str| -> Result<(), String> {
+            if list.iter().any(|p| p == n) {
+                Ok(())
+            } else {
+                Err(format!("{entry}: unknown name '{n}' (known: {})", list.join(", ")))
+            }
+        };
+        for t in &self.tie {
+            for p in &t.params {
+                known(p, &params, "[[tie]] params")?;
+            }
+        }
+        for p in self.fixed.keys() {
+            known(p, &params, "[fixed]")?;
+        }
+        for p in self.bounds.keys() {
+            known(p, &params, "[bounds]")?;
+        }
+        for r in &self.switching {
+            known(r, &regs, "switching")?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SPEC_EXAMPLE: &str = r#"
+modes = 4
+[[saturation]]
+level = 25.0
+bound = "max"
+[[saturation]]
+level = 0.0
+bound = "min"
+[[tie]]
+params = ["a1", "a2"]
+[fixed]
+c = 0.0
+[bounds]
+b1 = [0.0, 1.0e3]
+"#;
+
+    #[test]
+    fn spec_example_parses_and_names_check() {
+        let p = Priors::from_toml(&format!("switching = [\"y1\"]\n{SPEC_EXAMPLE}"), "p.toml").unwrap();
+        assert_eq!(p.modes, Some(4));
+        assert_eq!(p.saturation.len(), 2);
+        assert_eq!(p.saturation[0].bound, StopBound::Max);
+        assert_eq!(p.kinds().len(), 7 - 1);
+        p.check_pwarx_names(&RegressorSpec::new(2, 2, 1)).unwrap();
+        let e = p.check_pwarx_names(&RegressorSpec::new(1, 1, 1)).unwrap_err();
+        assert!(e.contains("a2"), "{e}");
+    }
+
+    #[test]
+    fn refusal_names_the_entry() {
+        let p = Priors::from_toml(SPEC_EXAMPLE, "p.toml").unwrap();
+        let e = p.ensure_honoured("arx", &[PriorKind::Fixed], Some("p.toml")).unwrap_err().to_string();
+        assert!(e.contains("'arx'") && e.contains("modes") && e.contains("p.toml"), "{e}");
+    }
+
+    #[test]
+    fn typos_and_inconsistencies_are_errors() {
+        let e = Priors::from_toml("mdoes = 3", "p.toml").unwrap_err().to_string();
+        assert!(e.contains("p.toml") && e.contains("mdoes"), "{e}");
+        assert!(Priors::from_toml("modes = 5\nmax_modes = 3", "p").is_err());
+        assert!(Priors::from_toml("[bounds]\nb1 = [2.0, 1.0]", "p").is_err());
+        assert!(Priors::from_toml("[[saturation]]\nlevel = 1.0\nbound = \"up\"", "p").is_err());
+    }
+}

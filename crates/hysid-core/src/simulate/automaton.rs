@@ -1,0 +1,381 @@
+//! Hybrid-automaton simulation: mode selection by invariant, affine flow,
+//! guard crossings located within the step, resets.
+//!
+//! Discrete time, one step `k -> k+1` in mode `q`:
+//! 1. if `[x; u]` left `q`'s invariant, `q` becomes the first mode whose
+//!    invariant holds it, else the one of least violation (uncovered);
+//! 2. `x+ = A_q x + B_q u + f_q`;
+//! 3. the transition of `q` whose guard the segment `[x; u] -> [x+; u]`
+//!    meets first (and that did not hold at the start) fires: `x+` is reset
+//!    and `q` becomes its target.
+//!
+//! Continuous time: classical RK4 with the model's fixed internal step and
+//! the input held over each sample; a crossing is located by bisection on
+//! the step length (to 1e-12 of the step), the reset applied there and the
+//! rest of the step integrated in the new mode. At most
+//! [`MAX_EVENTS_PER_STEP`] events per internal step (a Zeno guard).
+
+use super::{SimError, Simulation, SimulationOptions};
+use crate::data::Dataset;
+use crate::model::{HybridAutomaton, InitialState, TimeDomain};
+
+/// Bound on the events processed within one internal step.
+pub const MAX_EVENTS_PER_STEP: usize = 16;
+
+struct Runner<'a> {
+    m: &'a HybridAutomaton,
+    n: usize,
+    z: Vec<f64>,
+}
+
+impl<'a> Runner<'a> {
+    fn new(m: &'a HybridAutomaton) -> Self {
+        let n = m.states.len();
+        Self { m, n, z: vec![0.0; n + m.inputs.len()] }
+    }
+
+    fn ext(&mut self, x: &[f64], u: &[f64]) -> &[f64] {
+        self.z[..self.n].copy_from_slice(x);
+        self.z[self.n..].copy_from_slice(u);
+        &self.z
+    }
+
+    /// Mode for `[x; u]`, keeping `q` while its invariant holds.
+    fn select(&mut self, q: Option<usize>, x: &[f64], u: &[f64]) -> (usize, bool) {
+        let m = self.m;
+        let z = self.ext(x, u).to_vec();
+        if let Some(q) = q
+            && m.modes[q].invariant.contains(&z)
+        {
+            return (q, true);
+        }
+        let mut best = (f64::INFINITY, 0usize);
+        for (i, mode) in m.modes.iter().enumerate() {
+            if mode.invariant.contains(&z) {
+                return (i, true);
+            }
+            let v = mode.invariant.violation(&z);
+            if v < best.0 {
+                best = (v, i);
+            }
+        }
+        (best.1, false)
+    }
+
+    /// First transition from `q` met on the segment `x0 -> x1` under `u`.
+    fn first_crossing(&mut self, q: usize, x0: &[f64], x1: &[f64], u: &[f64]) -> Option<(f64, usize)> {
+        let z0 = self.ext(x0, u).to_vec();
+        let z1 = self.ext(x1, u).to_vec();
+        let from = &self.m.modes[q].name;
+        let mut best: Option<(f64, usize)> = None;
+        for (ti, t) in self.m.transitions.iter().enumerate() {
+            if &t.from != from || t.guard.0.contains(&z0) {
+                continue;
+            }
+            if let Some(s) = t.guard.0.first_hit_on_segment(&z0, &z1)
+                && best.is_none_or(|(b, _)| s < b)
+            {
+                best = Some((s, ti));
+            }
+        }
+        best
+    }
+
+    fn fire(&self, ti: usize, x: &mut [f64]) -> usize {
+        let t = &self.m.transitions[ti];
+        t.reset.apply(x);
+        self.m.mode_index(&t.to).expect("validated")
+    }
+}
+
+fn rk4(m: &HybridAutomaton, q: usize, x: &[f64], u: &[f64], h: f64) -> Vec<f64> {
+    let n = x.len();
+    let f = |xs: &[f64], out: &mut [f64]| m.modes[q].flow.eval(xs, u, out);
+    let (mut k1, mut k2, mut k3, mut k4) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut tmp = vec![0.0; n];
+    f(x, &mut k1);
+    for i in 0..n {
+        tmp[i] = x[i] + 0.5 * h * k1[i];
+    }
+    f(&tmp, &mut k2);
+    for i in 0..n {
+        tmp[i] = x[i] + 0.5 * h * k2[i];
+    }
+    f(&tmp, &mut k3);
+    for i in 0..n {
+        tmp[i] = x[i] + h * k3[i];
+    }
+    f(&tmp, &mut k4);
+    (0..n).map(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])).collect()
+}
+
+/// The ARX history state at sample `k` read from `y` and the inputs.
+fn arx_state(na: usize, nb: usize, y: &[f64], data: &Dataset, k: usize) -> Vec<f64> {
+    let mut x: Vec<f64> = (0..na.max(1)).map(|i| y[k - i]).collect();
+    for i in 0..data.inputs.len() {
+        for j in 1..nb {
+            x.push(data.u(i)[k - j]);
+        }
+    }
+    x
+}
+
+fn inputs_at(data: &Dataset, k: usize) -> Vec<f64> {
+    (0..data.inputs.len()).map(|i| data.u(i)[k]).collect()
+}
+
+/// Initial sample index and state.
+fn initial(m: &HybridAutomaton, data: &Dataset) -> Result<(usize, Vec<f64>), SimError> {
+    match &m.initial_state {
+        InitialState::ArxHistory { na, nb } => {
+            let lag = (*na).max(*nb).max(1);
+            if data.len() <= lag {
+                return Err(SimError::TooShort { samples: data.len(), needed: lag });
+            }
+            Ok((lag - 1, arx_state(*na, *nb, data.y(), data, lag - 1)))
+        }
+        InitialState::Given { state } => {
+            if data.is_empty() {
+                return Err(SimError::TooShort { samples: 0, needed: 0 });
+            }
+            Ok((0, state.clone()))
+        }
+    }
+}
+
+pub(super) fn simulate(m: &HybridAutomaton, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+    let (k0, mut x) = initial(m, data)?;
+    let h = match m.time {
+        TimeDomain::Discrete => None,
+        TimeDomain::Continuous => {
+            let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
+            Some((ts, m.internal_step.expect("validated")))
+        }
+    };
+    let mut run = Runner::new(m);
+    let mut sim = Simulation {
+        y: data.y().to_vec(),
+        modes: vec![None; data.len()],
+        start: k0 + 1,
+        covered: vec![true; data.len()],
+        diverged_at: None,
+    };
+    let mut q = m.initial_mode.as_deref().and_then(|n| m.mode_index(n));
+    let u0 = inputs_at(data, k0);
+    if matches!(m.initial_state, InitialState::Given { .. }) {
+        // A given initial state: its output is the first simulated sample.
+        sim.start = 0;
+        let (q0, covered) = run.select(q, &x, &u0);
+        q = Some(q0);
+        sim.covered[0] = covered;
+        sim.modes[0] = Some(q0);
+        if !sim.push_checked(0, m.output.eval(&x, &u0), opts.bound) {
+            return Ok(sim);
+        }
+    }
+    for k in k0..data.len() - 1 {
+        let u = inputs_at(data, k);
+        let (mut qk, covered) = run.select(q, &x, &u);
+        sim.covered[k + 1] = covered;
+        match h {
+            None => {
+                let mut x1 = vec![0.0; run.n];
+                m.modes[qk].flow.eval(&x, &u, &mut x1);
+                if let Some((_, ti)) = run.first_crossing(qk, &x, &x1, &u) {
+                    qk = run.fire(ti, &mut x1);
+                }
+                x = x1;
+            }
+            Some((ts, step)) => {
+                let substeps = (ts / step).ceil().max(1.0) as usize;
+                let hh = ts / substeps as f64;
+                for _ in 0..substeps {
+                    let mut left = hh;
+                    let mut events = 0;
+                    while left > 0.0 {
+                        let x1 = rk4(m, qk, &x, &u, left);
+                        match run.first_crossing(qk, &x, &x1, &u) {
+                            Some(_) if events < MAX_EVENTS_PER_STEP => {
+                                // Bisection on the step length for the first crossing.
+                                let (mut lo, mut hi) = (0.0, left);
+                                for _ in 0..60 {
+                                    let mid = 0.5 * (lo + hi);
+                                    let xm = rk4(m, qk, &x, &u, mid);
+                                    if run.first_crossing(qk, &x, &xm, &u).is_some() {
+                                        hi = mid;
+                                    } else {
+                                        lo = mid;
+                                    }
+                                    if hi - lo <= 1e-12 * hh {
+                                        break;
+                                    }
+                                }
+                                let mut xe = rk4(m, qk, &x, &u, hi);
+                                let ti = run
+                                    .first_crossing(qk, &x, &xe, &u)
+                                    .map(|(_, ti)| ti)
+                                    .expect("crossing found by bisection");
+                                qk = run.fire(ti, &mut xe);
+                                x = xe;
+                                left -= hi;
+                                events += 1;
+                            }
+                            _ => {
+                                x = x1;
+                                left = 0.0;
+                            }
+                        }
+                    }
+                    let (qn, _) = run.select(Some(qk), &x, &u);
+                    qk = qn;
+                }
+            }
+        }
+        q = Some(qk);
+        sim.modes[k + 1] = Some(qk);
+        let u1 = inputs_at(data, k + 1);
+        if !sim.push_checked(k + 1, m.output.eval(&x, &u1), opts.bound) {
+            break;
+        }
+    }
+    Ok(sim)
+}
+
+pub(super) fn predict(m: &HybridAutomaton, data: &Dataset) -> Result<Simulation, SimError> {
+    let InitialState::ArxHistory { na, nb } = m.initial_state else {
+        unreachable!("prediction needs a state readable from data")
+    };
+    let (k0, _) = initial(m, data)?;
+    let mut run = Runner::new(m);
+    let mut sim = Simulation {
+        y: data.y().to_vec(),
+        modes: vec![None; data.len()],
+        start: k0 + 1,
+        covered: vec![true; data.len()],
+        diverged_at: None,
+    };
+    for k in k0..data.len() - 1 {
+        let x = arx_state(na, nb, data.y(), data, k);
+        let u = inputs_at(data, k);
+        let (mut qk, covered) = run.select(None, &x, &u);
+        sim.covered[k + 1] = covered;
+        let mut x1 = vec![0.0; run.n];
+        m.modes[qk].flow.eval(&x, &u, &mut x1);
+        if let Some((_, ti)) = run.first_crossing(qk, &x, &x1, &u) {
+            qk = run.fire(ti, &mut x1);
+        }
+        sim.modes[k + 1] = Some(qk);
+        sim.y[k + 1] = m.output.eval(&x1, &inputs_at(data, k + 1));
+    }
+    Ok(sim)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::Dataset;
+    use crate::geometry::Polyhedron;
+    use crate::model::{
+        AffineDynamics, AutomatonMode, GuardSet, Model, ModelInfo, OutputMap, PwarxMode, PwarxModel,
+        ResetMap, Transition,
+    };
+    use crate::simulate::{SimulationOptions, simulate as sim_any};
+    use proptest::prelude::*;
+
+    /// The bouncing ball of CORA (algorithms.md, C1): y'' = -9.81, guard
+    /// y = 0 with v <= 0, reset v := -0.75 v.
+    fn ball() -> HybridAutomaton {
+        HybridAutomaton {
+            time: TimeDomain::Continuous,
+            internal_step: Some(1e-3),
+            states: vec!["y".into(), "v".into()],
+            inputs: vec!["u".into()],
+            output: OutputMap { c: vec![1.0, 0.0], d: vec![], e: 0.0 },
+            modes: vec![AutomatonMode {
+                name: "fly".into(),
+                flow: AffineDynamics {
+                    a: vec![vec![0.0, 1.0], vec![0.0, 0.0]],
+                    b: vec![],
+                    f: vec![0.0, -9.81],
+                },
+                invariant: Polyhedron::from_inequalities(vec![vec![-1.0, 0.0, 0.0]], vec![0.0]),
+            }],
+            transitions: vec![Transition {
+                from: "fly".into(),
+                to: "fly".into(),
+                guard: GuardSet(Polyhedron {
+                    a: vec![vec![0.0, 1.0, 0.0]],
+                    b: vec![0.0],
+                    a_eq: vec![vec![1.0, 0.0, 0.0]],
+                    b_eq: vec![0.0],
+                }),
+                reset: ResetMap { r: vec![vec![1.0, 0.0], vec![0.0, -0.75]], c: vec![] },
+            }],
+            initial_mode: None,
+            initial_state: InitialState::Given { state: vec![2.0, 0.0] },
+            info: ModelInfo::default(),
+        }
+    }
+
+    #[test]
+    fn bouncing_ball_never_goes_below_ground_and_loses_energy() {
+        let m = ball();
+        m.validate().unwrap();
+        let n = 301;
+        let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.01)).unwrap();
+        let s = sim_any(&Model::HybridAutomaton(m), &data, SimulationOptions::default()).unwrap();
+        assert!(s.y.iter().all(|&y| y >= -1e-9), "min {}", s.y.iter().cloned().fold(f64::INFINITY, f64::min));
+        // First impact at t = sqrt(2*2/9.81) = 0.6386 s; apex after it is 2 * 0.75^2 = 1.125.
+        let apex = s.y[70..140].iter().cloned().fold(0.0, f64::max);
+        assert!((apex - 1.125).abs() < 0.01, "apex {apex}");
+        assert_eq!(s.diverged_at, None);
+    }
+
+    /// Random PWARX models whose regions are slabs `t_i <= w x <= t_(i+1)`
+    /// along one direction: a partition, so the mode is unambiguous.
+    fn arb_pwarx() -> impl Strategy<Value = PwarxModel> {
+        (1usize..3, 1usize..3, 1usize..4, proptest::collection::vec(-0.4f64..0.4, 40), proptest::collection::vec(-1.0f64..1.0, 8))
+            .prop_map(|(na, nb, s, th, w)| {
+                let d = na + nb;
+                let w: Vec<f64> = w[..d].to_vec();
+                let neg: Vec<f64> = w.iter().map(|v| -v).collect();
+                let modes = (0..s)
+                    .map(|i| {
+                        let (mut a, mut b) = (vec![], vec![]);
+                        if i > 0 {
+                            a.push(neg.clone());
+                            b.push(-0.2 * i as f64);
+                        }
+                        if i + 1 < s {
+                            a.push(w.clone());
+                            b.push(0.2 * (i + 1) as f64);
+                        }
+                        PwarxMode {
+                            theta: (0..=d).map(|j| th[(i * 7 + j) % 40]).collect(),
+                            region: Polyhedron::from_inequalities(a, b),
+                            name: None,
+                        }
+                    })
+                    .collect();
+                PwarxModel { na, nb, inputs: 1, modes, info: ModelInfo::default() }
+            })
+    }
+
+    proptest! {
+        /// A PWARX model and its automaton form simulate to the same output.
+        #[test]
+        fn automaton_form_of_pwarx_simulates_identically(p in arb_pwarx(), u in proptest::collection::vec(-1.0f64..1.0, 30)) {
+            let n = u.len();
+            let y: Vec<f64> = (0..n).map(|k| (k as f64 * 0.3).sin()).collect();
+            let data = Dataset::siso(u, y, None).unwrap();
+            let a = HybridAutomaton::from_pwarx(&p);
+            a.validate().unwrap();
+            let sp = sim_any(&Model::Pwarx(p), &data, SimulationOptions::default()).unwrap();
+            let sa = sim_any(&Model::HybridAutomaton(a), &data, SimulationOptions::default()).unwrap();
+            prop_assert_eq!(sp.start, sa.start);
+            for k in sp.start..n {
+                prop_assert!((sp.y[k] - sa.y[k]).abs() < 1e-9 * (1.0 + sp.y[k].abs()), "k={} {} {}", k, sp.y[k], sa.y[k]);
+            }
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! Free-run simulation and one-step prediction of every model kind.
+//!
+//! Policies, the same for every model (documented in `docs/simulation.md`):
+//!
+//! - **Outside every region/invariant**: the mode of least violation
+//!   (smallest Euclidean distance) is used, never NaN; the step is counted
+//!   in [`Simulation::covered`].
+//! - **Divergence**: when the output leaves `[-bound, bound]` or is not
+//!   finite, the simulation stops there, the output is held at the clamped
+//!   value and [`Simulation::diverged_at`] reports the sample.
+//! - **Initial conditions**: PWARX models start from the first `max(na, nb)`
+//!   measured outputs; automata from their [`InitialState`] rule.
+
+mod automaton;
+mod pwarx;
+
+use crate::data::Dataset;
+use crate::model::{InitialState, Model};
+
+/// Options of a simulation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimulationOptions {
+    /// Output magnitude beyond which the simulation counts as diverged.
+    pub bound: f64,
+}
+
+impl Default for SimulationOptions {
+    fn default() -> Self {
+        Self { bound: 1e9 }
+    }
+}
+
+impl SimulationOptions {
+    /// A bound of 1000 times the measured output's scale (max |y| plus its range).
+    pub fn for_data(data: &Dataset) -> Self {
+        let y = data.y();
+        let (lo, hi) = y.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let scale = if y.is_empty() { 1.0 } else { hi.abs().max(lo.abs()) + (hi - lo) };
+        Self { bound: 1e3 * scale.max(1.0) }
+    }
+}
+
+/// Result of a simulation or prediction over a record of N samples.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Simulation {
+    /// Output, N samples; entries before `start` are the measured initial
+    /// outputs (or the output of the initial state).
+    pub y: Vec<f64>,
+    /// Active mode per sample (`None` before `start`).
+    pub modes: Vec<Option<usize>>,
+    /// First simulated sample.
+    pub start: usize,
+    /// Per sample: false when the step that produced it used the
+    /// least-violation policy (outside every region/invariant).
+    pub covered: Vec<bool>,
+    /// Sample at which the output diverged, if it did.
+    pub diverged_at: Option<usize>,
+}
+
+impl Simulation {
+    /// Records a new output sample, detecting divergence. Returns false when
+    /// the simulation must stop.
+    pub(crate) fn push_checked(&mut self, k: usize, v: f64, bound: f64) -> bool {
+        if v.is_finite() && v.abs() <= bound {
+            self.y[k] = v;
+            true
+        } else {
+            let held = if v.is_nan() { 0.0 } else { v.clamp(-bound, bound) };
+            self.diverged_at.get_or_insert(k);
+            for yk in &mut self.y[k..] {
+                *yk = held;
+            }
+            false
+        }
+    }
+}
+
+/// Errors of simulation set-up (bad data for this model).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// Wrong number of inputs.
+    #[error("the model has {expected} input(s), the data {found}")]
+    Inputs {
+        /// Model's.
+        expected: usize,
+        /// Data's.
+        found: usize,
+    },
+    /// Too few samples for the initial condition.
+    #[error("the record has {samples} samples; the model needs more than {needed}")]
+    TooShort {
+        /// Samples.
+        samples: usize,
+        /// Needed for the initial condition.
+        needed: usize,
+    },
+    /// A continuous-time model needs the sampling time.
+    #[error("a continuous-time model needs the sampling time: give a 't' signal or --ts")]
+    NoSamplingTime,
+}
+
+fn check_inputs(model: &Model, data: &Dataset) -> Result<(), SimError> {
+    if model.inputs() != data.inputs.len() {
+        return Err(SimError::Inputs { expected: model.inputs(), found: data.inputs.len() });
+    }
+    Ok(())
+}
+
+/// Free-run simulation driven by the inputs of `data`; measured outputs are
+/// used only for the initial condition.
+pub fn simulate(model: &Model, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+    check_inputs(model, data)?;
+    match model {
+        Model::Pwarx(m) => pwarx::simulate(m, data, opts),
+        Model::HybridAutomaton(m) => automaton::simulate(m, data, opts),
+    }
+}
+
+/// One-step-ahead prediction: every step starts from the measured state.
+/// For automata whose state cannot be read from data (a fixed initial
+/// state), this is the free-run simulation.
+pub fn predict(model: &Model, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+    check_inputs(model, data)?;
+    match model {
+        Model::Pwarx(m) => pwarx::predict(m, data),
+        Model::HybridAutomaton(m) => match m.initial_state {
+            InitialState::ArxHistory { .. } => automaton::predict(m, data),
+            InitialState::Given { .. } => automaton::simulate(m, data, opts),
+        },
+    }
+}
