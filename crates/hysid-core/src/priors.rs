@@ -139,15 +139,20 @@ impl Priors {
             path: origin.to_string(),
             message: e.to_string().trim().replace('\n', " "),
         })?;
-        p.check().map_err(|message| PriorError::Invalid { path: origin.to_string(), message })?;
+        p.check().map_err(|message| PriorError::Invalid {
+            path: origin.to_string(),
+            message,
+        })?;
         Ok(p)
     }
 
     /// Reads a prior file.
     pub fn load(path: &Path) -> Result<Self, PriorError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| PriorError::Io { path: origin.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| PriorError::Io {
+            path: origin.clone(),
+            source,
+        })?;
         Self::from_toml(&text, &origin)
     }
 
@@ -227,7 +232,11 @@ impl Priors {
                     honoured: if honoured.is_empty() {
                         "none".into()
                     } else {
-                        honoured.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+                        honoured
+                            .iter()
+                            .map(ToString::to_string)
+                            .collect::<Vec<_>>()
+                            .join(", ")
                     },
                 });
             }
@@ -243,7 +252,10 @@ impl Priors {
             if list.iter().any(|p| p == n) {
                 Ok(())
             } else {
-                Err(format!("{entry}: unknown name '{n}' (known: {})", list.join(", ")))
+                Err(format!(
+                    "{entry}: unknown name '{n}' (known: {})",
+                    list.join(", ")
+                ))
             }
         };
         for t in &self.tie {
@@ -286,26 +298,37 @@ b1 = [0.0, 1.0e3]
 
     #[test]
     fn spec_example_parses_and_names_check() {
-        let p = Priors::from_toml(&format!("switching = [\"y1\"]\n{SPEC_EXAMPLE}"), "p.toml").unwrap();
+        let p =
+            Priors::from_toml(&format!("switching = [\"y1\"]\n{SPEC_EXAMPLE}"), "p.toml").unwrap();
         assert_eq!(p.modes, Some(4));
         assert_eq!(p.saturation.len(), 2);
         assert_eq!(p.saturation[0].bound, StopBound::Max);
         assert_eq!(p.kinds().len(), 7 - 1);
         p.check_pwarx_names(&RegressorSpec::new(2, 2, 1)).unwrap();
-        let e = p.check_pwarx_names(&RegressorSpec::new(1, 1, 1)).unwrap_err();
+        let e = p
+            .check_pwarx_names(&RegressorSpec::new(1, 1, 1))
+            .unwrap_err();
         assert!(e.contains("a2"), "{e}");
     }
 
     #[test]
     fn refusal_names_the_entry() {
         let p = Priors::from_toml(SPEC_EXAMPLE, "p.toml").unwrap();
-        let e = p.ensure_honoured("arx", &[PriorKind::Fixed], Some("p.toml")).unwrap_err().to_string();
-        assert!(e.contains("'arx'") && e.contains("modes") && e.contains("p.toml"), "{e}");
+        let e = p
+            .ensure_honoured("arx", &[PriorKind::Fixed], Some("p.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("'arx'") && e.contains("modes") && e.contains("p.toml"),
+            "{e}"
+        );
     }
 
     #[test]
     fn typos_and_inconsistencies_are_errors() {
-        let e = Priors::from_toml("mdoes = 3", "p.toml").unwrap_err().to_string();
+        let e = Priors::from_toml("mdoes = 3", "p.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("p.toml") && e.contains("mdoes"), "{e}");
         assert!(Priors::from_toml("modes = 5\nmax_modes = 3", "p").is_err());
         assert!(Priors::from_toml("[bounds]\nb1 = [2.0, 1.0]", "p").is_err());

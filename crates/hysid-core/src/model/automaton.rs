@@ -204,7 +204,10 @@ fn check_rows(what: &str, rows: &[Vec<f64>], n_rows: usize, n_cols: usize) -> Re
     }
     for (i, r) in rows.iter().enumerate() {
         if r.len() != n_cols || r.iter().any(|v| !v.is_finite()) {
-            return Err(format!("{what} row {}: expected {n_cols} finite entries", i + 1));
+            return Err(format!(
+                "{what} row {}: expected {n_cols} finite entries",
+                i + 1
+            ));
         }
     }
     Ok(())
@@ -244,7 +247,9 @@ impl HybridAutomaton {
             if !(q.flow.f.is_empty() || q.flow.f.len() == n) {
                 return Err(w("flow.f needs none or one entry per state"));
             }
-            q.invariant.validate(n + m).map_err(|e| w(&format!("invariant {e}")))?;
+            q.invariant
+                .validate(n + m)
+                .map_err(|e| w(&format!("invariant {e}")))?;
         }
         for t in &self.transitions {
             let w = |s: &str| format!("transition {} -> {}: {s}", t.from, t.to);
@@ -253,7 +258,10 @@ impl HybridAutomaton {
                     return Err(w(&format!("no mode named '{name}'")));
                 }
             }
-            t.guard.0.validate(n + m).map_err(|e| w(&format!("guard {e}")))?;
+            t.guard
+                .0
+                .validate(n + m)
+                .map_err(|e| w(&format!("guard {e}")))?;
             if !t.reset.r.is_empty() {
                 check_rows(&w("reset.r"), &t.reset.r, n, n)?;
             }
@@ -267,9 +275,10 @@ impl HybridAutomaton {
             return Err(format!("initial_mode: no mode named '{q}'"));
         }
         match &self.initial_state {
-            InitialState::Given { state } if state.len() != n => {
-                Err(format!("initial_state has {} entries, expected {n}", state.len()))
-            }
+            InitialState::Given { state } if state.len() != n => Err(format!(
+                "initial_state has {} entries, expected {n}",
+                state.len()
+            )),
             InitialState::ArxHistory { na, nb } if na.max(&1) + nb.saturating_sub(1) * m != n => {
                 Err("initial_state: ARX history does not match the state dimension".into())
             }
@@ -283,6 +292,8 @@ impl HybridAutomaton {
     /// `n = max(na, 1)`; input `u(k)`. Then `[x(k); u(k)]` holds the PWARX
     /// regressor of `y(k+1)`, so each region becomes an invariant and each
     /// mode's `theta` the first row of its dynamics; `y = x_1`.
+    // Index arithmetic over state blocks reads clearer than iterators here.
+    #[allow(clippy::needless_range_loop)]
     pub fn from_pwarx(p: &PwarxModel) -> Self {
         let (na, nb, m) = (p.na, p.nb, p.inputs);
         let ny = na.max(1);
@@ -369,7 +380,11 @@ impl HybridAutomaton {
             } else {
                 (1..=m).map(|i| format!("u{i}")).collect()
             },
-            output: OutputMap { c, d: vec![], e: 0.0 },
+            output: OutputMap {
+                c,
+                d: vec![],
+                e: 0.0,
+            },
             modes,
             transitions: vec![],
             initial_mode: None,

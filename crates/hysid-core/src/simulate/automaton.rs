@@ -31,7 +31,11 @@ struct Runner<'a> {
 impl<'a> Runner<'a> {
     fn new(m: &'a HybridAutomaton) -> Self {
         let n = m.states.len();
-        Self { m, n, z: vec![0.0; n + m.inputs.len()] }
+        Self {
+            m,
+            n,
+            z: vec![0.0; n + m.inputs.len()],
+        }
     }
 
     fn ext(&mut self, x: &[f64], u: &[f64]) -> &[f64] {
@@ -63,7 +67,13 @@ impl<'a> Runner<'a> {
     }
 
     /// First transition from `q` met on the segment `x0 -> x1` under `u`.
-    fn first_crossing(&mut self, q: usize, x0: &[f64], x1: &[f64], u: &[f64]) -> Option<(f64, usize)> {
+    fn first_crossing(
+        &mut self,
+        q: usize,
+        x0: &[f64],
+        x1: &[f64],
+        u: &[f64],
+    ) -> Option<(f64, usize)> {
         let z0 = self.ext(x0, u).to_vec();
         let z1 = self.ext(x1, u).to_vec();
         let from = &self.m.modes[q].name;
@@ -106,7 +116,9 @@ fn rk4(m: &HybridAutomaton, q: usize, x: &[f64], u: &[f64], h: f64) -> Vec<f64> 
         tmp[i] = x[i] + h * k3[i];
     }
     f(&tmp, &mut k4);
-    (0..n).map(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])).collect()
+    (0..n)
+        .map(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+        .collect()
 }
 
 /// The ARX history state at sample `k` read from `y` and the inputs.
@@ -130,20 +142,30 @@ fn initial(m: &HybridAutomaton, data: &Dataset) -> Result<(usize, Vec<f64>), Sim
         InitialState::ArxHistory { na, nb } => {
             let lag = (*na).max(*nb).max(1);
             if data.len() <= lag {
-                return Err(SimError::TooShort { samples: data.len(), needed: lag });
+                return Err(SimError::TooShort {
+                    samples: data.len(),
+                    needed: lag,
+                });
             }
             Ok((lag - 1, arx_state(*na, *nb, data.y(), data, lag - 1)))
         }
         InitialState::Given { state } => {
             if data.is_empty() {
-                return Err(SimError::TooShort { samples: 0, needed: 0 });
+                return Err(SimError::TooShort {
+                    samples: 0,
+                    needed: 0,
+                });
             }
             Ok((0, state.clone()))
         }
     }
 }
 
-pub(super) fn simulate(m: &HybridAutomaton, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+pub(super) fn simulate(
+    m: &HybridAutomaton,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
     let (k0, mut x) = initial(m, data)?;
     let h = match m.time {
         TimeDomain::Discrete => None,
@@ -276,8 +298,8 @@ mod tests {
     use crate::data::Dataset;
     use crate::geometry::Polyhedron;
     use crate::model::{
-        AffineDynamics, AutomatonMode, GuardSet, Model, ModelInfo, OutputMap, PwarxMode, PwarxModel,
-        ResetMap, Transition,
+        AffineDynamics, AutomatonMode, GuardSet, Model, ModelInfo, OutputMap, PwarxMode,
+        PwarxModel, ResetMap, Transition,
     };
     use crate::simulate::{SimulationOptions, simulate as sim_any};
     use proptest::prelude::*;
@@ -290,7 +312,11 @@ mod tests {
             internal_step: Some(1e-3),
             states: vec!["y".into(), "v".into()],
             inputs: vec!["u".into()],
-            output: OutputMap { c: vec![1.0, 0.0], d: vec![], e: 0.0 },
+            output: OutputMap {
+                c: vec![1.0, 0.0],
+                d: vec![],
+                e: 0.0,
+            },
             modes: vec![AutomatonMode {
                 name: "fly".into(),
                 flow: AffineDynamics {
@@ -309,10 +335,15 @@ mod tests {
                     a_eq: vec![vec![1.0, 0.0, 0.0]],
                     b_eq: vec![0.0],
                 }),
-                reset: ResetMap { r: vec![vec![1.0, 0.0], vec![0.0, -0.75]], c: vec![] },
+                reset: ResetMap {
+                    r: vec![vec![1.0, 0.0], vec![0.0, -0.75]],
+                    c: vec![],
+                },
             }],
             initial_mode: None,
-            initial_state: InitialState::Given { state: vec![2.0, 0.0] },
+            initial_state: InitialState::Given {
+                state: vec![2.0, 0.0],
+            },
             info: ModelInfo::default(),
         }
     }
@@ -323,8 +354,17 @@ mod tests {
         m.validate().unwrap();
         let n = 301;
         let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.01)).unwrap();
-        let s = sim_any(&Model::HybridAutomaton(m), &data, SimulationOptions::default()).unwrap();
-        assert!(s.y.iter().all(|&y| y >= -1e-9), "min {}", s.y.iter().cloned().fold(f64::INFINITY, f64::min));
+        let s = sim_any(
+            &Model::HybridAutomaton(m),
+            &data,
+            SimulationOptions::default(),
+        )
+        .unwrap();
+        assert!(
+            s.y.iter().all(|&y| y >= -1e-9),
+            "min {}",
+            s.y.iter().cloned().fold(f64::INFINITY, f64::min)
+        );
         // First impact at t = sqrt(2*2/9.81) = 0.6386 s; apex after it is 2 * 0.75^2 = 1.125.
         let apex = s.y[70..140].iter().cloned().fold(0.0, f64::max);
         assert!((apex - 1.125).abs() < 0.01, "apex {apex}");
@@ -334,7 +374,13 @@ mod tests {
     /// Random PWARX models whose regions are slabs `t_i <= w x <= t_(i+1)`
     /// along one direction: a partition, so the mode is unambiguous.
     fn arb_pwarx() -> impl Strategy<Value = PwarxModel> {
-        (1usize..3, 1usize..3, 1usize..4, proptest::collection::vec(-0.4f64..0.4, 40), proptest::collection::vec(-1.0f64..1.0, 8))
+        (
+            1usize..3,
+            1usize..3,
+            1usize..4,
+            proptest::collection::vec(-0.4f64..0.4, 40),
+            proptest::collection::vec(-1.0f64..1.0, 8),
+        )
             .prop_map(|(na, nb, s, th, w)| {
                 let d = na + nb;
                 let w: Vec<f64> = w[..d].to_vec();
@@ -357,7 +403,13 @@ mod tests {
                         }
                     })
                     .collect();
-                PwarxModel { na, nb, inputs: 1, modes, info: ModelInfo::default() }
+                PwarxModel {
+                    na,
+                    nb,
+                    inputs: 1,
+                    modes,
+                    info: ModelInfo::default(),
+                }
             })
     }
 

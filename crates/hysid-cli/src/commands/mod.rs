@@ -1,0 +1,6 @@
+//! One module per subcommand.
+
+pub mod identify;
+pub mod methods;
+pub mod simulate;
+pub mod validate;
