@@ -31,6 +31,8 @@ enum Command {
     Validate(commands::validate::Args),
     /// Simulate a model on measured inputs or on a generated excitation.
     Simulate(commands::simulate::Args),
+    /// Run several back-ends on one experiment and report them side by side.
+    Compare(commands::compare::Args),
 }
 
 fn main() {
@@ -58,6 +60,7 @@ fn main() {
         Command::Identify(a) => commands::identify::run(a),
         Command::Validate(a) => commands::validate::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
+        Command::Compare(a) => commands::compare::run(a),
     };
     if let Err(e) = result {
         eprintln!("hysid: error: {}", e.one_line());

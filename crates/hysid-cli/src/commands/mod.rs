@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod compare;
 pub mod identify;
 pub mod methods;
 pub mod simulate;
