@@ -335,3 +335,77 @@ b1 = [0.0, 1.0e3]
         assert!(Priors::from_toml("[[saturation]]\nlevel = 1.0\nbound = \"up\"", "p").is_err());
     }
 }
+
+/// Linear equalities `E theta = f` over the stacked parameters
+/// `theta = [theta_1; ..; theta_s]` of `s` PWARX modes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StackedEqualities {
+    /// Rows of `E`, each of length `s * n_params`.
+    pub e: Vec<Vec<f64>>,
+    /// Right-hand sides.
+    pub f: Vec<f64>,
+}
+
+impl Priors {
+    /// The `[[tie]]` and `[fixed]` entries as equalities over the stacked
+    /// parameters of `s` modes with structure `spec`: a tie of parameter `p`
+    /// is `theta_i[p] = theta_1[p]` for `i = 2..s`, a fixed value
+    /// `theta_i[p] = v` for every mode. Names must have been checked with
+    /// [`Priors::check_pwarx_names`].
+    pub fn pwarx_equalities(&self, spec: &RegressorSpec, s: usize) -> StackedEqualities {
+        let names = spec.param_names();
+        let np = names.len();
+        let idx = |p: &str| names.iter().position(|n| n == p).expect("names checked");
+        let mut e = Vec::new();
+        let mut f = Vec::new();
+        for t in &self.tie {
+            for p in &t.params {
+                let j = idx(p);
+                for i in 1..s {
+                    let mut row = vec![0.0; s * np];
+                    row[i * np + j] = 1.0;
+                    row[j] = -1.0;
+                    e.push(row);
+                    f.push(0.0);
+                }
+            }
+        }
+        for (p, v) in &self.fixed {
+            let j = idx(p);
+            for i in 0..s {
+                let mut row = vec![0.0; s * np];
+                row[i * np + j] = 1.0;
+                e.push(row);
+                f.push(*v);
+            }
+        }
+        StackedEqualities { e, f }
+    }
+
+    /// The stop whose level `y` sits on (within `tol`), if any.
+    pub fn stop_at(&self, y: f64, tol: f64) -> Option<usize> {
+        self.saturation
+            .iter()
+            .position(|s| (y - s.level).abs() <= tol)
+    }
+}
+
+#[cfg(test)]
+mod stacked_tests {
+    use super::*;
+
+    #[test]
+    fn ties_and_fixed_values_as_equalities() {
+        let p = Priors::from_toml("[[tie]]\nparams = [\"a1\"]\n[fixed]\nc = 2.0\n", "p").unwrap();
+        let spec = RegressorSpec::new(1, 1, 1); // a1 b1 c
+        let eq = p.pwarx_equalities(&spec, 3);
+        assert_eq!(eq.e.len(), 2 + 3);
+        // theta_2[a1] - theta_1[a1] = 0
+        assert_eq!(eq.e[0], vec![-1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!((eq.e[4][8], eq.f[4]), (1.0, 2.0));
+        let sat =
+            Priors::from_toml("[[saturation]]\nlevel = 25.0\nbound = \"max\"\n", "p").unwrap();
+        assert_eq!(sat.stop_at(25.004, 0.005), Some(0));
+        assert_eq!(sat.stop_at(24.9, 0.005), None);
+    }
+}

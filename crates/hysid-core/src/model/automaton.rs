@@ -11,6 +11,7 @@
 
 use super::{ModelInfo, PwarxModel};
 use crate::geometry::Polyhedron;
+use crate::priors::{SaturationPrior, StopBound};
 use serde::{Deserialize, Serialize};
 
 /// Discrete or continuous time.
@@ -391,6 +392,88 @@ impl HybridAutomaton {
             initial_state: InitialState::ArxHistory { na, nb },
             info: p.info.clone(),
         }
+    }
+}
+
+impl HybridAutomaton {
+    /// A PWARX model with known stops, as a discrete-time automaton in
+    /// which every stop is a mode on a **lower-dimensional guard set**
+    /// (`y = level`), not a full-dimensional region.
+    ///
+    /// For a stop at level `L` with bound `max` (the output never exceeds
+    /// `L`; `min` mirrors every inequality):
+    /// - mode `sat_max_L`: invariant `{ y(k) = L }`, flow holds the output at
+    ///   `L` and shifts the lags;
+    /// - from every ordinary mode, a crossing transition on the guard
+    ///   `y = L` with the reset `y(k) := L, y(k-1) := L`: the position is held
+    ///   at the stop and the velocity `y(k) - y(k-1)` is reset to zero (the
+    ///   inelastic stop of Juloski et al., IFAC ADHS 2003, section 2);
+    /// - back to ordinary mode `q`, a condition transition on
+    ///   `region_q ∩ { theta_q . [x; 1] <= L }`: the dynamics of `q` pull away
+    ///   from the stop.
+    ///
+    /// So a simulation never passes a known stop, and saturated segments
+    /// are reproduced exactly.
+    pub fn from_pwarx_with_stops(p: &PwarxModel, stops: &[SaturationPrior]) -> Self {
+        let mut a = Self::from_pwarx(p);
+        let n = a.states.len();
+        let m = a.inputs.len();
+        let ny = p.na.max(1);
+        let ordinary: Vec<AutomatonMode> = a.modes.clone();
+        for stop in stops {
+            let (tag, sigma) = match stop.bound {
+                StopBound::Max => ("max", 1.0),
+                StopBound::Min => ("min", -1.0),
+            };
+            let name = format!("sat_{tag}_{}", stop.level);
+            // Hold: the shift structure of any ordinary mode with row 0 = L.
+            let mut flow = ordinary[0].flow.clone();
+            flow.a[0] = vec![0.0; n];
+            flow.b[0] = vec![0.0; m];
+            flow.f = vec![0.0; n];
+            flow.f[0] = stop.level;
+            let mut on_stop = vec![0.0; n + m];
+            on_stop[0] = 1.0;
+            a.modes.push(AutomatonMode {
+                name: name.clone(),
+                flow,
+                invariant: Polyhedron {
+                    a: vec![],
+                    b: vec![],
+                    a_eq: vec![on_stop.clone()],
+                    b_eq: vec![stop.level],
+                },
+            });
+            let mut hold: Vec<(usize, f64)> = vec![(0, stop.level)];
+            if ny >= 2 {
+                hold.push((1, stop.level));
+            }
+            for q in &ordinary {
+                a.transitions.push(Transition {
+                    from: q.name.clone(),
+                    to: name.clone(),
+                    guard: GuardSet(Polyhedron {
+                        a: vec![],
+                        b: vec![],
+                        a_eq: vec![on_stop.clone()],
+                        b_eq: vec![stop.level],
+                    }),
+                    reset: ResetMap::assign(n, &hold),
+                });
+                let mut release: Vec<f64> = q.flow.a[0].iter().map(|v| sigma * v).collect();
+                release.extend(q.flow.b[0].iter().map(|v| sigma * v));
+                let mut guard = q.invariant.clone();
+                guard.a.push(release);
+                guard.b.push(sigma * (stop.level - q.flow.f[0]));
+                a.transitions.push(Transition {
+                    from: name.clone(),
+                    to: q.name.clone(),
+                    guard: GuardSet(guard),
+                    reset: ResetMap::default(),
+                });
+            }
+        }
+        a
     }
 }
 
