@@ -1,0 +1,1 @@
+//! Choosing delta: identification over a list of bounds.
