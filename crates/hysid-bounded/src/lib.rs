@@ -28,12 +28,13 @@ pub mod sweep;
 pub mod systems;
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::geometry::Polyhedron;
 use hysid_core::model::{Model, ModelInfo, PwarxMode, PwarxModel};
 use hysid_core::options::OptionType;
 use hysid_core::priors::PriorKind;
 use procedure::{Classification, ProcedureSettings, RefitKind, SampleClass};
 use samples::Samples;
+use hysid_regions::{RegionMethod, RegionOptions};
+use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 /// The keyword `auto` of `--set delta=auto`.
@@ -98,6 +99,10 @@ hysid_core::backend_options! {
         /// Upper bound on the number of modes (also taken from the prior max_modes);
         /// none: no bound.
         max_modes: Option<usize> = None,
+        /// Region estimation from the classified samples (hysid-regions): mrlp
+        /// (multicategory robust LP, complete partition), msvm (multicategory SVM,
+        /// complete partition) or psvc (pairwise proximal SVM, may leave holes).
+        regions: RegionMethod = RegionMethod::Mrlp,
     }
 }
 
@@ -210,7 +215,10 @@ impl Identifier for Bounded {
     ) -> Result<Model, IdentifyError> {
         let spec = problem.orders;
         let (c, s, set) = Self::classify(problem, options, ctx)?;
-        let regions = estimate_regions(&s, &c)?;
+        let ropt = RegionOptions { method: options.regions, ..Default::default() };
+        let part = hysid_regions::estimate(&regressor_rows(&s, &c), &labelled(&c), c.thetas.len(), &ropt)
+            .map_err(|e| IdentifyError::Failed { method: "bounded".into(), message: format!("regions: {e}") })?;
+        let regions = part.regions;
         let mut info = ModelInfo::default();
         let dg = &mut info.diagnostics;
         dg.insert("delta".into(), set.delta.into());
@@ -231,6 +239,8 @@ impl Identifier for Bounded {
             counts[*l] += 1;
         }
         dg.insert("samples_per_mode".into(), serde_json::json!(counts));
+        dg.insert("region_training_accuracy".into(), part.training_accuracy.into());
+        dg.insert("partition_complete".into(), part.complete.into());
         if c.stopped_by_deadline {
             dg.insert("stopped_by_deadline".into(), true.into());
         }
@@ -249,8 +259,139 @@ impl Identifier for Bounded {
     }
 }
 
-/// Regions of the modes from the labelled samples.
-fn estimate_regions(_s: &Samples, c: &Classification) -> Result<Vec<Polyhedron>, IdentifyError> {
-    // Placeholder until hysid-regions is merged.
-    Ok(vec![Polyhedron::everything(); c.thetas.len()])
+/// Regressors (without the constant) of the labelled samples, as rows.
+fn regressor_rows(s: &Samples, c: &Classification) -> DMatrix<f64> {
+    let rows: Vec<usize> = (0..s.len()).filter(|&k| c.labels[k].is_some()).collect();
+    let d = s.p - 1;
+    DMatrix::from_fn(rows.len(), d, |r, j| s.row(rows[r])[j])
+}
+
+/// Labels of the labelled samples (infeasible samples are left out).
+fn labelled(c: &Classification) -> Vec<usize> {
+    c.labels.iter().flatten().copied().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hysid_core::backend::Backend;
+    use hysid_core::data::Dataset;
+    use hysid_core::metrics::validate;
+    use hysid_core::options::Settings;
+    use hysid_core::priors::Priors;
+    use hysid_core::regressors::RegressorSpec;
+
+    fn run(data: &Dataset, priors: &Priors, set: &[&str], seed: u64) -> Result<Model, IdentifyError> {
+        let problem = Problem { data, orders: RegressorSpec::new(1, 1, 1), priors, priors_origin: None };
+        Bounded.run(&problem, &Settings::parse(set).unwrap(), &RunContext::quiet(seed))
+    }
+
+    fn pwarx(m: &Model) -> &PwarxModel {
+        match m {
+            Model::Pwarx(p) => p,
+            _ => unreachable!(),
+        }
+    }
+
+    #[test]
+    fn delta_parses_as_number_or_auto() {
+        let r = |v: &[&str]| Settings::parse(v).unwrap().resolve::<BoundedOptions>("bounded");
+        assert_eq!(r(&["delta=0.1"]).unwrap().delta, Some(Delta::Value(0.1)));
+        assert_eq!(r(&["delta=1"]).unwrap().delta, Some(Delta::Value(1.0)));
+        assert_eq!(r(&["delta=auto"]).unwrap().delta, Some(Delta::Auto(AutoKeyword::Auto)));
+        let e = r(&["delta=foo"]).unwrap_err().to_string();
+        assert!(e.contains("delta=foo") && e.contains("float|auto"), "{e}");
+        assert_eq!(r(&["refit=ls"]).unwrap().refit, Refit::Ls);
+        assert_eq!(r(&["regions=psvc"]).unwrap().regions, RegionMethod::Psvc);
+        assert!(r(&["refit=l2"]).is_err());
+        // Provenance records the value as given.
+        use hysid_core::options::BackendOptions;
+        assert_eq!(r(&["delta=auto"]).unwrap().to_map()["delta"], "auto");
+        assert_eq!(r(&["delta=0.25"]).unwrap().to_map()["delta"], 0.25);
+    }
+
+    #[test]
+    fn b1_model_with_regions_in_original_units() {
+        let g = systems::b1(300, 0.1, 7);
+        let m = run(&g.data, &Priors::default(), &["delta=0.1"], 7).unwrap();
+        let p = pwarx(&m);
+        assert_eq!(p.modes.len(), 3);
+        let dg = &m.info().diagnostics;
+        assert_eq!(dg["modes_found"], 3);
+        assert!(dg["region_training_accuracy"].as_f64().unwrap() > 0.95, "{dg:?}");
+        for r in dg["max_residual"].as_array().unwrap() {
+            assert!(r.as_f64().unwrap() <= 0.1 + 1e-9);
+        }
+        // Parameters close to the truth after matching.
+        let truth: Vec<Vec<f64>> = systems::B1_THETA.iter().map(|t| t.to_vec()).collect();
+        let ident: Vec<Vec<f64>> = p.modes.iter().map(|m| m.theta.clone()).collect();
+        let pe = hysid_core::metrics::parameter_error(&truth, &ident);
+        assert!(pe.max_relative_error < 0.05, "{pe:?}");
+        // The regions classify fresh data from the same system: at least 97 %
+        // of the regressors in the right mode (a misclassified sample costs a
+        // prediction error of several units in B1, so FIT is not the measure).
+        let v = systems::b1(300, 0.1, 99);
+        let reg = RegressorSpec::new(1, 1, 1).build(&v.data).unwrap();
+        let got: Vec<usize> = (0..reg.len()).map(|k| p.mode_of(&[reg.x[(k, 0)], reg.x[(k, 1)]]).mode).collect();
+        let acc = hysid_core::metrics::mode_accuracy(&v.modes, &got).accuracy;
+        assert!(acc >= 0.97, "fresh-data mode accuracy {acc}");
+        let (rep, _, _) = validate(&m, &v.data, 1).unwrap();
+        assert_eq!(rep.coverage, 1.0);
+        assert_eq!(m.info().method, "bounded");
+    }
+
+    #[test]
+    fn same_seed_same_model() {
+        let g = systems::b1(200, 0.1, 3);
+        let a = run(&g.data, &Priors::default(), &["delta=0.1"], 5).unwrap();
+        let b = run(&g.data, &Priors::default(), &["delta=0.1"], 5).unwrap();
+        assert_eq!(a.to_json(), b.to_json());
+    }
+
+    #[test]
+    fn delta_auto_is_near_the_noise_bound() {
+        let g = systems::b1(400, 0.1, 11);
+        let m = run(&g.data, &Priors::default(), &["delta=auto"], 1).unwrap();
+        let d = m.info().diagnostics["delta"].as_f64().unwrap();
+        // Uniform noise U[-0.1, 0.1]: sigma = 0.0577, 3 sigma = 0.173.
+        assert!((0.1..0.3).contains(&d), "auto delta {d}");
+        assert_eq!(pwarx(&m).modes.len(), 3);
+    }
+
+    #[test]
+    fn priors_modes_and_max_modes() {
+        let g = systems::b1(300, 0.1, 4);
+        // Upper bound below the truth: at most 2 modes.
+        let pri = Priors { max_modes: Some(2), ..Default::default() };
+        assert!(pwarx(&run(&g.data, &pri, &["delta=0.1"], 1).unwrap()).modes.len() <= 2);
+        assert!(pwarx(&run(&g.data, &Priors::default(), &["delta=0.1", "max_modes=1"], 1).unwrap()).modes.len() == 1);
+        // Exact count met.
+        let pri = Priors { modes: Some(3), ..Default::default() };
+        assert_eq!(pwarx(&run(&g.data, &pri, &["delta=0.1"], 1).unwrap()).modes.len(), 3);
+        // Exact count that delta cannot produce: an error naming both.
+        let pri = Priors { modes: Some(3), ..Default::default() };
+        let e = run(&g.data, &pri, &["delta=50"], 1).unwrap_err().to_string();
+        assert!(e.contains("modes = 3") && e.contains("delta"), "{e}");
+    }
+
+    #[test]
+    fn refuses_bad_options_and_priors() {
+        let g = systems::b1(100, 0.1, 4);
+        let e = run(&g.data, &Priors::default(), &[], 1).unwrap_err().to_string();
+        assert!(e.contains("delta"), "{e}");
+        assert!(run(&g.data, &Priors::default(), &["delta=-1"], 1).is_err());
+        assert!(run(&g.data, &Priors::default(), &["delta=0.1", "beta=1.5"], 1).is_err());
+        assert!(run(&g.data, &Priors::default(), &["delta=0.1", "cycles=0"], 1).is_err());
+        let mut pri = Priors::default();
+        pri.fixed.insert("c".into(), 0.0);
+        let e = run(&g.data, &pri, &["delta=0.1"], 1).unwrap_err().to_string();
+        assert!(e.contains("does not honour"), "{e}");
+    }
+
+    #[test]
+    fn least_squares_refit_runs() {
+        let g = systems::b1(300, 0.1, 2);
+        let m = run(&g.data, &Priors::default(), &["delta=0.1", "refit=ls"], 1).unwrap();
+        assert_eq!(pwarx(&m).modes.len(), 3);
+    }
 }

@@ -255,14 +255,28 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         }
         prev = Some(assigned);
     }
+    // 3. Final classification; a mode left without samples (possible when
+    // the round bound stopped the refinement) is removed, since no region
+    // can be estimated for it.
+    let (mut labels, mut classes) = final_labels(s, &thetas, set.delta);
+    for _ in 0..thetas.len() {
+        let mut counts = vec![0usize; thetas.len()];
+        for l in labels.iter().flatten() {
+            counts[*l] += 1;
+        }
+        let Some(empty) = counts.iter().position(|&c| c == 0) else { break };
+        if thetas.len() == 1 {
+            break;
+        }
+        thetas.remove(empty);
+        dropped += 1;
+        (labels, classes) = final_labels(s, &thetas, set.delta);
+    }
     if let Some(want) = set.exact_modes
         && thetas.len() < want
     {
         return Err(ProcedureError::TooFewModes { delta: set.delta, found: thetas.len(), wanted: want });
     }
-
-    // 3. Final classification.
-    let (labels, classes) = final_labels(s, &thetas, set.delta);
     let mut maxr = vec![0.0; thetas.len()];
     for k in 0..n {
         if let Some(i) = labels[k] {
