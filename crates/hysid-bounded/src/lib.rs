@@ -86,9 +86,9 @@ hysid_core::backend_options! {
         /// Initial temperature T0 as a multiple of max(median |residual of the LS
         /// start|, delta); the temperature falls linearly to 0 over the cycles.
         t0: f64 = 2.0,
-        /// Starts of each MAX FS problem besides the least-squares fit of the remaining
-        /// samples: least-squares fits of random local neighbourhoods (3p nearest samples
-        /// in standardised regressor space); the start satisfying the most pairs wins.
+        /// Candidate starts of each MAX FS problem besides the least-squares fit of the
+        /// remaining samples: least-squares fits of random local neighbourhoods (3p nearest
+        /// samples in standardised regressor space); the best candidate is relaxed too.
         restarts: usize = 8,
         /// Merge two modes when |theta_i - theta_j| / min(|theta_i|, |theta_j|) <= alpha.
         alpha: f64 = 0.05,

@@ -36,10 +36,63 @@ pub fn max_residual(s: &Samples, idx: &[usize], theta: &[f64]) -> f64 {
     idx.iter().map(|&k| s.residual(k, theta).abs()).fold(0.0, f64::max)
 }
 
-/// Chebyshev (minimax) fit on samples `idx`. `None` when the solver does
-/// not report `Solved`/`AlmostSolved` (callers then keep their previous,
-/// already certified, parameters).
+/// Initial working set of [`chebyshev`], in multiples of `p`.
+pub const WORKING_FACTOR: usize = 10;
+/// Bound on the working-set rounds of [`chebyshev`].
+pub const WORKING_ROUNDS: usize = 50;
+
+/// Chebyshev (minimax) fit on samples `idx`, by constraint generation: the
+/// LP is solved on a working set (the `WORKING_FACTOR * p` samples of
+/// largest least-squares residual), then the samples whose residual exceeds
+/// the working set's minimax error are added (the worst ones first, at most
+/// that many per round) until none does; the working-set optimum is then
+/// optimal for all of `idx` (same objective, feasible everywhere). `None`
+/// when the solver does not report `Solved`/`AlmostSolved` (callers then
+/// keep their previous, already certified, parameters).
 pub fn chebyshev(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
+    let n = idx.len();
+    let m = (WORKING_FACTOR * s.p).max(1);
+    if n <= 2 * m {
+        return chebyshev_lp(s, idx);
+    }
+    let start = least_squares(s, idx).unwrap_or_else(|| vec![0.0; s.p]);
+    let mut by_r: Vec<(f64, usize)> = idx.iter().map(|&k| (s.residual(k, &start).abs(), k)).collect();
+    by_r.select_nth_unstable_by(m - 1, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut work: Vec<usize> = by_r[..m].iter().map(|&(_, k)| k).collect();
+    let mut inside = vec![false; s.len()];
+    for &k in &work {
+        inside[k] = true;
+    }
+    for _ in 0..WORKING_ROUNDS {
+        let fit = chebyshev_lp(s, &work)?;
+        let t = fit.max_residual;
+        let tol = 1e-9 * (1.0 + t);
+        let mut viol: Vec<(f64, usize)> = idx
+            .iter()
+            .filter(|&&k| !inside[k])
+            .filter_map(|&k| {
+                let r = s.residual(k, &fit.theta).abs();
+                (r > t + tol).then_some((r, k))
+            })
+            .collect();
+        if viol.is_empty() {
+            let max_residual = max_residual(s, idx, &fit.theta);
+            return Some(ChebyshevFit { theta: fit.theta, max_residual });
+        }
+        if viol.len() > m {
+            viol.select_nth_unstable_by(m - 1, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            viol.truncate(m);
+        }
+        for &(_, k) in &viol {
+            inside[k] = true;
+            work.push(k);
+        }
+    }
+    chebyshev_lp(s, idx)
+}
+
+/// The Chebyshev LP on all of `idx` at once.
+fn chebyshev_lp(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
     let p = s.p;
     let n = idx.len();
     if n == 0 {
@@ -137,6 +190,25 @@ mod tests {
             phi.extend([r[0], r[1], 1.0]);
         }
         Samples::new(3, phi, y.to_vec())
+    }
+
+    #[test]
+    fn working_set_matches_the_full_lp() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let n = 500;
+        let mut phi = Vec::new();
+        let mut y = Vec::new();
+        for _ in 0..n {
+            let (a, b): (f64, f64) = (rng.random_range(-2.0..2.0), rng.random_range(-1.0..1.0));
+            phi.extend([a, b, 1.0]);
+            y.push(0.7 * a - 0.2 * b + 0.3 + rng.random_range(-0.1..0.1));
+        }
+        let s = Samples::new(3, phi, y);
+        let idx: Vec<usize> = (0..n).collect();
+        let ws = chebyshev(&s, &idx).unwrap();
+        let full = chebyshev_lp(&s, &idx).unwrap();
+        assert!((ws.max_residual - full.max_residual).abs() < 1e-7, "{ws:?} {full:?}");
     }
 
     #[test]
