@@ -17,9 +17,21 @@ fn main() {
 fn identify(bencher: divan::Bencher, n: usize) {
     let g = systems::b1(n, 0.1, 1);
     let pri = Priors::default();
-    let problem = Problem { data: &g.data, orders: RegressorSpec::new(1, 1, 1), priors: &pri, priors_origin: None };
-    let opts = BoundedOptions { delta: Some(Delta::Value(0.1)), ..Default::default() };
-    bencher.bench(|| Bounded.identify(&problem, &opts, &RunContext::quiet(1)).unwrap());
+    let problem = Problem {
+        data: &g.data,
+        orders: RegressorSpec::new(1, 1, 1),
+        priors: &pri,
+        priors_origin: None,
+    };
+    let opts = BoundedOptions {
+        delta: Some(Delta::Value(0.1)),
+        ..Default::default()
+    };
+    bencher.bench(|| {
+        Bounded
+            .identify(&problem, &opts, &RunContext::quiet(1))
+            .unwrap()
+    });
 }
 
 /// Classification only (MIN PFS and refinement, no regions).
@@ -27,7 +39,15 @@ fn identify(bencher: divan::Bencher, n: usize) {
 fn classify(bencher: divan::Bencher, n: usize) {
     let g = systems::b1(n, 0.1, 1);
     let pri = Priors::default();
-    let problem = Problem { data: &g.data, orders: RegressorSpec::new(1, 1, 1), priors: &pri, priors_origin: None };
-    let opts = BoundedOptions { delta: Some(Delta::Value(0.1)), ..Default::default() };
+    let problem = Problem {
+        data: &g.data,
+        orders: RegressorSpec::new(1, 1, 1),
+        priors: &pri,
+        priors_origin: None,
+    };
+    let opts = BoundedOptions {
+        delta: Some(Delta::Value(0.1)),
+        ..Default::default()
+    };
     bencher.bench(|| Bounded::classify(&problem, &opts, &RunContext::quiet(1)).unwrap());
 }

@@ -16,37 +16,84 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../models/pick-and-place/headdata_1v6.mat");
-    let sel = |rows: &str| DataSelection { decimate: 10, rows: rows.parse().unwrap_or(RowRange::default()), ..Default::default() };
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../models/pick-and-place/headdata_1v6.mat");
+    let sel = |rows: &str| DataSelection {
+        decimate: 10,
+        rows: rows.parse().unwrap_or(RowRange::default()),
+        ..Default::default()
+    };
     let ident = load(&path, &sel("0..5000"))?;
     let valid = load(&path, &sel("5000..6001"))?;
     let orders = RegressorSpec::new(2, 2, 1);
     let priors = Priors::default();
-    let problem = Problem { data: &ident, orders, priors: &priors, priors_origin: None };
-    let args: Vec<f64> = std::env::args().skip(1).filter_map(|a| a.parse().ok()).collect();
-    let deltas = if args.is_empty() { vec![0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0] } else { args };
+    let problem = Problem {
+        data: &ident,
+        orders,
+        priors: &priors,
+        priors_origin: None,
+    };
+    let args: Vec<f64> = std::env::args()
+        .skip(1)
+        .filter_map(|a| a.parse().ok())
+        .collect();
+    let deltas = if args.is_empty() {
+        vec![0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0]
+    } else {
+        args
+    };
     let reg = orders.build(&ident)?;
     let auto = noise::auto_delta(&Samples::from_regressors(&reg));
-    println!("identification rows: {}, validation rows: {}, delta=auto would be {auto:.4}", ident.len(), valid.len());
+    println!(
+        "identification rows: {}, validation rows: {}, delta=auto would be {auto:.4}",
+        ident.len(),
+        valid.len()
+    );
     let t = Instant::now();
     let mut options = BoundedOptions::default();
     if std::env::args().any(|a| a == "ls") {
         options.refit = hysid_bounded::Refit::Ls;
     }
     println!("options: {options:?}");
-    let points = delta_sweep(&problem, &valid, 10, &deltas, &options, &RunContext::quiet(1))?;
-    println!("sweep of {} bounds in {:.1} s (seed 1)\n", deltas.len(), t.elapsed().as_secs_f64());
+    let points = delta_sweep(
+        &problem,
+        &valid,
+        10,
+        &deltas,
+        &options,
+        &RunContext::quiet(1),
+    )?;
+    println!(
+        "sweep of {} bounds in {:.1} s (seed 1)\n",
+        deltas.len(),
+        t.elapsed().as_secs_f64()
+    );
     print!("{}", table(&points));
-    println!("\n| delta | greedy modes | merged | dropped | rounds | max residual per mode |\n|---|---|---|---|---|---|");
+    println!(
+        "\n| delta | greedy modes | merged | dropped | rounds | max residual per mode |\n|---|---|---|---|---|---|"
+    );
     for p in &points {
         if let Some(m) = &p.model {
             let d = &m.info().diagnostics;
-            println!("| {} | {} | {} | {} | {} | {} |", p.delta, d["greedy_modes"], d["merged"], d["dropped"], d["rounds"], d["max_residual"]);
+            println!(
+                "| {} | {} | {} | {} | {} | {} |",
+                p.delta,
+                d["greedy_modes"],
+                d["merged"],
+                d["dropped"],
+                d["rounds"],
+                d["max_residual"]
+            );
         }
     }
     if let Some(i) = best(&points) {
         let p = &points[i];
-        println!("\nbest fit_sim: {:.2} % at delta = {} with {} modes", p.fit_sim.unwrap_or(f64::NAN), p.delta, p.modes);
+        println!(
+            "\nbest fit_sim: {:.2} % at delta = {} with {} modes",
+            p.fit_sim.unwrap_or(f64::NAN),
+            p.delta,
+            p.modes
+        );
         if let Some(m) = &p.model {
             for (k, mode) in m.info().diagnostics.iter() {
                 println!("  {k}: {mode}");

@@ -31,10 +31,10 @@ use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::{Model, ModelInfo, PwarxMode, PwarxModel};
 use hysid_core::options::OptionType;
 use hysid_core::priors::PriorKind;
-use procedure::{Classification, ProcedureSettings, RefitKind, SampleClass};
-use samples::Samples;
 use hysid_regions::{RegionMethod, RegionOptions};
 use nalgebra::DMatrix;
+use procedure::{Classification, ProcedureSettings, RefitKind, SampleClass};
+use samples::Samples;
 use serde::{Deserialize, Serialize};
 
 /// The keyword `auto` of `--set delta=auto`.
@@ -125,19 +125,30 @@ impl Bounded {
                 return bad("method 'bounded' needs an error bound: --set delta=<bound in output units> or --set delta=auto".into());
             }
             Some(Delta::Value(d)) if !(d.is_finite() && d > 0.0) => {
-                return bad(format!("--set delta={d}: must be a finite number > 0 (or auto)"));
+                return bad(format!(
+                    "--set delta={d}: must be a finite number > 0 (or auto)"
+                ));
             }
             Some(Delta::Value(d)) => d,
             Some(Delta::Auto(_)) => noise::auto_delta(s),
         };
         if options.cycles == 0 || options.cycles > 100_000 {
-            return bad(format!("--set cycles={}: must be in 1..=100000", options.cycles));
+            return bad(format!(
+                "--set cycles={}: must be in 1..=100000",
+                options.cycles
+            ));
         }
         if !(options.t0.is_finite() && options.t0 > 0.0) {
-            return bad(format!("--set t0={}: must be a finite number > 0", options.t0));
+            return bad(format!(
+                "--set t0={}: must be a finite number > 0",
+                options.t0
+            ));
         }
         if !(options.alpha.is_finite() && options.alpha >= 0.0) {
-            return bad(format!("--set alpha={}: must be a finite number >= 0", options.alpha));
+            return bad(format!(
+                "--set alpha={}: must be a finite number >= 0",
+                options.alpha
+            ));
         }
         if !(options.beta.is_finite() && (0.0..1.0).contains(&options.beta)) {
             return bad(format!("--set beta={}: must be in [0, 1)", options.beta));
@@ -156,7 +167,9 @@ impl Bounded {
         if let (Some(s_), Some(m)) = (pri.modes, max_modes)
             && s_ > m
         {
-            return bad(format!("prior modes = {s_} exceeds the bound max_modes = {m}"));
+            return bad(format!(
+                "prior modes = {s_} exceeds the bound max_modes = {m}"
+            ));
         }
         Ok(ProcedureSettings {
             delta,
@@ -184,17 +197,23 @@ impl Bounded {
         ctx: &RunContext<'_>,
     ) -> Result<(Classification, Samples, ProcedureSettings), IdentifyError> {
         let spec = problem.orders;
-        let reg = spec.build(problem.data).map_err(|e| IdentifyError::BadData(e.to_string()))?;
+        let reg = spec
+            .build(problem.data)
+            .map_err(|e| IdentifyError::BadData(e.to_string()))?;
         let s = Samples::from_regressors(&reg);
         if s.y.iter().chain(&s.phi).any(|v| !v.is_finite()) {
-            return Err(IdentifyError::BadData("the record has non-finite samples".into()));
+            return Err(IdentifyError::BadData(
+                "the record has non-finite samples".into(),
+            ));
         }
         let set = Self::settings(problem, options, &s, ctx)?;
         let c = procedure::run(&s, &set).map_err(|e| match e {
-            procedure::ProcedureError::TooFewSamples { .. } | procedure::ProcedureError::Setting(_) => {
-                IdentifyError::BadData(e.to_string())
-            }
-            _ => IdentifyError::Failed { method: "bounded".into(), message: e.to_string() },
+            procedure::ProcedureError::TooFewSamples { .. }
+            | procedure::ProcedureError::Setting(_) => IdentifyError::BadData(e.to_string()),
+            _ => IdentifyError::Failed {
+                method: "bounded".into(),
+                message: e.to_string(),
+            },
         })?;
         Ok((c, s, set))
     }
@@ -203,8 +222,7 @@ impl Bounded {
 impl Identifier for Bounded {
     type Options = BoundedOptions;
     const NAME: &'static str = "bounded";
-    const SUMMARY: &'static str =
-        "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
+    const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
     const HONOURS: &'static [PriorKind] = &[PriorKind::Modes, PriorKind::MaxModes];
 
     fn identify(
@@ -215,19 +233,36 @@ impl Identifier for Bounded {
     ) -> Result<Model, IdentifyError> {
         let spec = problem.orders;
         let (c, s, set) = Self::classify(problem, options, ctx)?;
-        let ropt = RegionOptions { method: options.regions, ..Default::default() };
-        let part = hysid_regions::estimate(&regressor_rows(&s, &c), &labelled(&c), c.thetas.len(), &ropt)
-            .map_err(|e| IdentifyError::Failed { method: "bounded".into(), message: format!("regions: {e}") })?;
+        let ropt = RegionOptions {
+            method: options.regions,
+            ..Default::default()
+        };
+        let part = hysid_regions::estimate(
+            &regressor_rows(&s, &c),
+            &labelled(&c),
+            c.thetas.len(),
+            &ropt,
+        )
+        .map_err(|e| IdentifyError::Failed {
+            method: "bounded".into(),
+            message: format!("regions: {e}"),
+        })?;
         let regions = part.regions;
         let mut info = ModelInfo::default();
         let dg = &mut info.diagnostics;
         dg.insert("delta".into(), set.delta.into());
-        dg.insert("delta_auto".into(), matches!(options.delta, Some(Delta::Auto(_))).into());
+        dg.insert(
+            "delta_auto".into(),
+            matches!(options.delta, Some(Delta::Auto(_))).into(),
+        );
         dg.insert("modes_found".into(), c.thetas.len().into());
         dg.insert("greedy_modes".into(), c.greedy_modes.into());
         dg.insert("samples".into(), s.len().into());
         dg.insert("assigned".into(), c.count(SampleClass::Assigned).into());
-        dg.insert("undecidable".into(), c.count(SampleClass::Undecidable).into());
+        dg.insert(
+            "undecidable".into(),
+            c.count(SampleClass::Undecidable).into(),
+        );
         dg.insert("infeasible".into(), c.count(SampleClass::Infeasible).into());
         dg.insert("rounds".into(), c.rounds.into());
         dg.insert("converged".into(), c.converged.into());
@@ -239,7 +274,10 @@ impl Identifier for Bounded {
             counts[*l] += 1;
         }
         dg.insert("samples_per_mode".into(), serde_json::json!(counts));
-        dg.insert("region_training_accuracy".into(), part.training_accuracy.into());
+        dg.insert(
+            "region_training_accuracy".into(),
+            part.training_accuracy.into(),
+        );
         dg.insert("partition_complete".into(), part.complete.into());
         if c.stopped_by_deadline {
             dg.insert("stopped_by_deadline".into(), true.into());
@@ -252,7 +290,11 @@ impl Identifier for Bounded {
                 .thetas
                 .iter()
                 .zip(regions)
-                .map(|(t, r)| PwarxMode { theta: t.clone(), region: r, name: None })
+                .map(|(t, r)| PwarxMode {
+                    theta: t.clone(),
+                    region: r,
+                    name: None,
+                })
                 .collect(),
             info,
         }))
@@ -281,9 +323,23 @@ mod tests {
     use hysid_core::priors::Priors;
     use hysid_core::regressors::RegressorSpec;
 
-    fn run(data: &Dataset, priors: &Priors, set: &[&str], seed: u64) -> Result<Model, IdentifyError> {
-        let problem = Problem { data, orders: RegressorSpec::new(1, 1, 1), priors, priors_origin: None };
-        Bounded.run(&problem, &Settings::parse(set).unwrap(), &RunContext::quiet(seed))
+    fn run(
+        data: &Dataset,
+        priors: &Priors,
+        set: &[&str],
+        seed: u64,
+    ) -> Result<Model, IdentifyError> {
+        let problem = Problem {
+            data,
+            orders: RegressorSpec::new(1, 1, 1),
+            priors,
+            priors_origin: None,
+        };
+        Bounded.run(
+            &problem,
+            &Settings::parse(set).unwrap(),
+            &RunContext::quiet(seed),
+        )
     }
 
     fn pwarx(m: &Model) -> &PwarxModel {
@@ -295,10 +351,17 @@ mod tests {
 
     #[test]
     fn delta_parses_as_number_or_auto() {
-        let r = |v: &[&str]| Settings::parse(v).unwrap().resolve::<BoundedOptions>("bounded");
+        let r = |v: &[&str]| {
+            Settings::parse(v)
+                .unwrap()
+                .resolve::<BoundedOptions>("bounded")
+        };
         assert_eq!(r(&["delta=0.1"]).unwrap().delta, Some(Delta::Value(0.1)));
         assert_eq!(r(&["delta=1"]).unwrap().delta, Some(Delta::Value(1.0)));
-        assert_eq!(r(&["delta=auto"]).unwrap().delta, Some(Delta::Auto(AutoKeyword::Auto)));
+        assert_eq!(
+            r(&["delta=auto"]).unwrap().delta,
+            Some(Delta::Auto(AutoKeyword::Auto))
+        );
         let e = r(&["delta=foo"]).unwrap_err().to_string();
         assert!(e.contains("delta=foo") && e.contains("float|auto"), "{e}");
         assert_eq!(r(&["refit=ls"]).unwrap().refit, Refit::Ls);
@@ -318,7 +381,10 @@ mod tests {
         assert_eq!(p.modes.len(), 3);
         let dg = &m.info().diagnostics;
         assert_eq!(dg["modes_found"], 3);
-        assert!(dg["region_training_accuracy"].as_f64().unwrap() > 0.95, "{dg:?}");
+        assert!(
+            dg["region_training_accuracy"].as_f64().unwrap() > 0.95,
+            "{dg:?}"
+        );
         for r in dg["max_residual"].as_array().unwrap() {
             assert!(r.as_f64().unwrap() <= 0.1 + 1e-9);
         }
@@ -332,7 +398,9 @@ mod tests {
         // prediction error of several units in B1, so FIT is not the measure).
         let v = systems::b1(300, 0.1, 99);
         let reg = RegressorSpec::new(1, 1, 1).build(&v.data).unwrap();
-        let got: Vec<usize> = (0..reg.len()).map(|k| p.mode_of(&[reg.x[(k, 0)], reg.x[(k, 1)]]).mode).collect();
+        let got: Vec<usize> = (0..reg.len())
+            .map(|k| p.mode_of(&[reg.x[(k, 0)], reg.x[(k, 1)]]).mode)
+            .collect();
         let acc = hysid_core::metrics::mode_accuracy(&v.modes, &got).accuracy;
         assert!(acc >= 0.97, "fresh-data mode accuracy {acc}");
         let (rep, _, _) = validate(&m, &v.data, 1).unwrap();
@@ -362,29 +430,67 @@ mod tests {
     fn priors_modes_and_max_modes() {
         let g = systems::b1(300, 0.1, 4);
         // Upper bound below the truth: at most 2 modes.
-        let pri = Priors { max_modes: Some(2), ..Default::default() };
-        assert!(pwarx(&run(&g.data, &pri, &["delta=0.1"], 1).unwrap()).modes.len() <= 2);
-        assert!(pwarx(&run(&g.data, &Priors::default(), &["delta=0.1", "max_modes=1"], 1).unwrap()).modes.len() == 1);
+        let pri = Priors {
+            max_modes: Some(2),
+            ..Default::default()
+        };
+        assert!(
+            pwarx(&run(&g.data, &pri, &["delta=0.1"], 1).unwrap())
+                .modes
+                .len()
+                <= 2
+        );
+        assert!(
+            pwarx(
+                &run(
+                    &g.data,
+                    &Priors::default(),
+                    &["delta=0.1", "max_modes=1"],
+                    1
+                )
+                .unwrap()
+            )
+            .modes
+            .len()
+                == 1
+        );
         // Exact count met.
-        let pri = Priors { modes: Some(3), ..Default::default() };
-        assert_eq!(pwarx(&run(&g.data, &pri, &["delta=0.1"], 1).unwrap()).modes.len(), 3);
+        let pri = Priors {
+            modes: Some(3),
+            ..Default::default()
+        };
+        assert_eq!(
+            pwarx(&run(&g.data, &pri, &["delta=0.1"], 1).unwrap())
+                .modes
+                .len(),
+            3
+        );
         // Exact count that delta cannot produce: an error naming both.
-        let pri = Priors { modes: Some(3), ..Default::default() };
-        let e = run(&g.data, &pri, &["delta=50"], 1).unwrap_err().to_string();
+        let pri = Priors {
+            modes: Some(3),
+            ..Default::default()
+        };
+        let e = run(&g.data, &pri, &["delta=50"], 1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("modes = 3") && e.contains("delta"), "{e}");
     }
 
     #[test]
     fn refuses_bad_options_and_priors() {
         let g = systems::b1(100, 0.1, 4);
-        let e = run(&g.data, &Priors::default(), &[], 1).unwrap_err().to_string();
+        let e = run(&g.data, &Priors::default(), &[], 1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("delta"), "{e}");
         assert!(run(&g.data, &Priors::default(), &["delta=-1"], 1).is_err());
         assert!(run(&g.data, &Priors::default(), &["delta=0.1", "beta=1.5"], 1).is_err());
         assert!(run(&g.data, &Priors::default(), &["delta=0.1", "cycles=0"], 1).is_err());
         let mut pri = Priors::default();
         pri.fixed.insert("c".into(), 0.0);
-        let e = run(&g.data, &pri, &["delta=0.1"], 1).unwrap_err().to_string();
+        let e = run(&g.data, &pri, &["delta=0.1"], 1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("does not honour"), "{e}");
     }
 

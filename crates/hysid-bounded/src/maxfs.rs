@@ -71,7 +71,12 @@ pub struct FeasibleSubsystem {
 }
 
 /// Greedy MAX FS on samples `idx` (see the module documentation).
-pub fn max_fs<R: Rng>(s: &Samples, idx: &[usize], set: &MaxFsSettings, rng: &mut R) -> FeasibleSubsystem {
+pub fn max_fs<R: Rng>(
+    s: &Samples,
+    idx: &[usize],
+    set: &MaxFsSettings,
+    rng: &mut R,
+) -> FeasibleSubsystem {
     let p = s.p;
     let delta = set.delta;
     let mut order: Vec<usize> = idx.to_vec();
@@ -83,7 +88,9 @@ pub fn max_fs<R: Rng>(s: &Samples, idx: &[usize], set: &MaxFsSettings, rng: &mut
     }
     let mut best_local: Option<(usize, Vec<f64>)> = None;
     for _ in 0..set.restarts {
-        let Some(start) = local_start(s, idx, rng) else { continue };
+        let Some(start) = local_start(s, idx, rng) else {
+            continue;
+        };
         let (count, theta) = polish(s, idx, start, delta, false);
         if best_local.as_ref().is_none_or(|b| count > b.0) {
             best_local = Some((count, theta));
@@ -99,7 +106,11 @@ pub fn max_fs<R: Rng>(s: &Samples, idx: &[usize], set: &MaxFsSettings, rng: &mut
         }
     }
     let theta = best.map(|b| b.1).unwrap_or_else(|| vec![0.0; p]);
-    let theta = if set.chebyshev_polish { polish(s, idx, theta, delta, true).1 } else { theta };
+    let theta = if set.chebyshev_polish {
+        polish(s, idx, theta, delta, true).1
+    } else {
+        theta
+    };
     let members = s.satisfied(idx, &theta, delta);
     FeasibleSubsystem { theta, members }
 }
@@ -138,7 +149,11 @@ fn relax<R: Rng>(
     rng: &mut R,
 ) -> Vec<f64> {
     let delta = set.delta;
-    let count = |theta: &[f64]| idx.iter().filter(|&&k| s.residual(k, theta).abs() <= delta).count();
+    let count = |theta: &[f64]| {
+        idx.iter()
+            .filter(|&&k| s.residual(k, theta).abs() <= delta)
+            .count()
+    };
     let mut abs_r: Vec<f64> = idx.iter().map(|&k| s.residual(k, start).abs()).collect();
     let mut best = (count(start), start.to_vec());
     if abs_r.is_empty() || best.0 == idx.len() {
@@ -185,7 +200,13 @@ fn relax<R: Rng>(
 /// Alternates "refit on the satisfied set" and "recompute the satisfied
 /// set" (at most [`POLISH_ITERATIONS`] times); returns the best count and
 /// parameters. With the Chebyshev fit the set never shrinks.
-fn polish(s: &Samples, idx: &[usize], theta: Vec<f64>, delta: f64, chebyshev_fit: bool) -> (usize, Vec<f64>) {
+fn polish(
+    s: &Samples,
+    idx: &[usize],
+    theta: Vec<f64>,
+    delta: f64,
+    chebyshev_fit: bool,
+) -> (usize, Vec<f64>) {
     let p = s.p;
     let mut members = s.satisfied(idx, &theta, delta);
     let mut theta = theta;
@@ -193,7 +214,11 @@ fn polish(s: &Samples, idx: &[usize], theta: Vec<f64>, delta: f64, chebyshev_fit
         if members.len() < p {
             break;
         }
-        let next = if chebyshev_fit { chebyshev(s, &members).map(|f| f.theta) } else { least_squares(s, &members) };
+        let next = if chebyshev_fit {
+            chebyshev(s, &members).map(|f| f.theta)
+        } else {
+            least_squares(s, &members)
+        };
         let Some(next) = next else { break };
         let grown = s.satisfied(idx, &next, delta);
         let better = grown.len() > members.len();

@@ -27,19 +27,7 @@ pub fn noise_sigma(s: &Samples) -> f64 {
     if local <= p {
         return 0.0;
     }
-    let mut mean = vec![0.0; d];
-    let mut var = vec![0.0; d];
-    for k in 0..n {
-        for j in 0..d {
-            mean[j] += s.row(k)[j] / n as f64;
-        }
-    }
-    for k in 0..n {
-        for j in 0..d {
-            var[j] += (s.row(k)[j] - mean[j]).powi(2) / n as f64;
-        }
-    }
-    let inv: Vec<f64> = var.iter().map(|v| if v.sqrt() > 1e-12 { 1.0 / v.sqrt() } else { 0.0 }).collect();
+    let inv = &s.inv_std;
     let centres = CENTRES.min(n);
     let mut sig = Vec::with_capacity(centres);
     let mut dist: Vec<(f64, usize)> = Vec::with_capacity(n);
@@ -47,7 +35,9 @@ pub fn noise_sigma(s: &Samples) -> f64 {
         let k0 = c * n / centres;
         dist.clear();
         dist.extend((0..n).map(|k| {
-            let dd: f64 = (0..d).map(|j| ((s.row(k)[j] - s.row(k0)[j]) * inv[j]).powi(2)).sum();
+            let dd: f64 = (0..d)
+                .map(|j| ((s.row(k)[j] - s.row(k0)[j]) * inv[j]).powi(2))
+                .sum();
             (dd, k)
         }));
         dist.select_nth_unstable_by(local - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
@@ -69,5 +59,7 @@ pub fn auto_delta(s: &Samples) -> f64 {
     let n = s.len().max(1) as f64;
     let my = s.y.iter().sum::<f64>() / n;
     let sy = (s.y.iter().map(|v| (v - my).powi(2)).sum::<f64>() / n).sqrt();
-    (SIGMAS * noise_sigma(s)).max(1e-6 * sy).max(f64::MIN_POSITIVE)
+    (SIGMAS * noise_sigma(s))
+        .max(1e-6 * sy)
+        .max(f64::MIN_POSITIVE)
 }

@@ -120,7 +120,9 @@ pub enum ProcedureError {
     #[error("{0}")]
     Setting(String),
     /// Prior `modes = s` cannot be met at this delta.
-    #[error("delta = {delta} explains the data with {found} mode(s), fewer than the prior modes = {wanted}: lower delta")]
+    #[error(
+        "delta = {delta} explains the data with {found} mode(s), fewer than the prior modes = {wanted}: lower delta"
+    )]
     TooFewModes {
         /// Delta used.
         delta: f64,
@@ -153,10 +155,16 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
     let n = s.len();
     let p = s.p;
     if !(set.delta.is_finite() && set.delta > 0.0) {
-        return Err(ProcedureError::Setting(format!("delta = {} must be a finite number > 0", set.delta)));
+        return Err(ProcedureError::Setting(format!(
+            "delta = {} must be a finite number > 0",
+            set.delta
+        )));
     }
     if n < p {
-        return Err(ProcedureError::TooFewSamples { samples: n, params: p });
+        return Err(ProcedureError::TooFewSamples {
+            samples: n,
+            params: p,
+        });
     }
     let cap = match (set.max_modes, set.exact_modes) {
         (Some(a), Some(b)) => a.min(b),
@@ -195,7 +203,10 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         thetas.push(fs.theta);
     }
     if thetas.is_empty() {
-        return Err(ProcedureError::NoMode { delta: set.delta, min: min_size });
+        return Err(ProcedureError::NoMode {
+            delta: set.delta,
+            min: min_size,
+        });
     }
     let greedy_modes = thetas.len();
 
@@ -215,8 +226,11 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         }
         // Drop the smallest mode below the minimum size (one per round).
         if thetas.len() > floor
-            && let Some((i, _)) =
-                counts.iter().enumerate().filter(|&(_, &c)| c < min_size).min_by_key(|&(i, &c)| (c, i))
+            && let Some((i, _)) = counts
+                .iter()
+                .enumerate()
+                .filter(|&(_, &c)| c < min_size)
+                .min_by_key(|&(i, &c)| (c, i))
         {
             thetas.remove(i);
             dropped += 1;
@@ -261,7 +275,9 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         for l in labels.iter().flatten() {
             counts[*l] += 1;
         }
-        let Some(empty) = counts.iter().position(|&c| c == 0) else { break };
+        let Some(empty) = counts.iter().position(|&c| c == 0) else {
+            break;
+        };
         if thetas.len() == 1 {
             break;
         }
@@ -272,11 +288,15 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
     if let Some(want) = set.exact_modes
         && thetas.len() < want
     {
-        return Err(ProcedureError::TooFewModes { delta: set.delta, found: thetas.len(), wanted: want });
+        return Err(ProcedureError::TooFewModes {
+            delta: set.delta,
+            found: thetas.len(),
+            wanted: want,
+        });
     }
     let mut maxr = vec![0.0; thetas.len()];
-    for k in 0..n {
-        if let Some(i) = labels[k] {
+    for (k, l) in labels.iter().enumerate() {
+        if let Some(i) = *l {
             maxr[i] = f64::max(maxr[i], s.residual(k, &thetas[i]).abs());
         }
     }
@@ -328,7 +348,12 @@ fn assign(s: &Samples, thetas: &[Vec<f64>], delta: f64) -> Vec<Option<usize>> {
 /// Relative distance `|theta_i - theta_j| / min(|theta_i|, |theta_j|)`.
 pub fn relative_distance(a: &[f64], b: &[f64]) -> f64 {
     let norm = |t: &[f64]| t.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
+    let d: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).powi(2))
+        .sum::<f64>()
+        .sqrt();
     let m = norm(a).min(norm(b));
     if m > 0.0 {
         d / m
@@ -362,9 +387,14 @@ fn mergeable_pair(
     }
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
     for (_, i, j) in pairs {
-        let members: Vec<usize> =
-            (0..s.len()).filter(|&k| assigned[k] == Some(i) || assigned[k] == Some(j)).collect();
-        let bound = if set.refit == RefitKind::Linf { set.delta } else { f64::INFINITY };
+        let members: Vec<usize> = (0..s.len())
+            .filter(|&k| assigned[k] == Some(i) || assigned[k] == Some(j))
+            .collect();
+        let bound = if set.refit == RefitKind::Linf {
+            set.delta
+        } else {
+            f64::INFINITY
+        };
         match refit(s, &members, set.refit, bound) {
             Some(t) => return Some((i, j, t)),
             None if set.refit == RefitKind::Ls => return Some((i, j, thetas[i].clone())),
@@ -375,13 +405,22 @@ fn mergeable_pair(
 }
 
 /// Final labels: assigned, undecidable (kNN among candidates), infeasible.
-fn final_labels(s: &Samples, thetas: &[Vec<f64>], delta: f64) -> (Vec<Option<usize>>, Vec<SampleClass>) {
+fn final_labels(
+    s: &Samples,
+    thetas: &[Vec<f64>],
+    delta: f64,
+) -> (Vec<Option<usize>>, Vec<SampleClass>) {
     let n = s.len();
     let d = s.p - 1;
     let cands: Vec<Vec<usize>> = (0..n)
-        .map(|k| (0..thetas.len()).filter(|&i| s.residual(k, &thetas[i]).abs() <= delta).collect())
+        .map(|k| {
+            (0..thetas.len())
+                .filter(|&i| s.residual(k, &thetas[i]).abs() <= delta)
+                .collect()
+        })
         .collect();
-    let mut labels: Vec<Option<usize>> = cands.iter().map(|c| (c.len() == 1).then(|| c[0])).collect();
+    let mut labels: Vec<Option<usize>> =
+        cands.iter().map(|c| (c.len() == 1).then(|| c[0])).collect();
     let classes: Vec<SampleClass> = cands
         .iter()
         .map(|c| match c.len() {
@@ -391,20 +430,10 @@ fn final_labels(s: &Samples, thetas: &[Vec<f64>], delta: f64) -> (Vec<Option<usi
         })
         .collect();
     // Standardised regressors for the neighbour search.
-    let mut mean = vec![0.0; d];
-    let mut sd = vec![0.0; d];
-    for k in 0..n {
-        for j in 0..d {
-            mean[j] += s.row(k)[j] / n as f64;
-        }
-    }
-    for k in 0..n {
-        for j in 0..d {
-            sd[j] += (s.row(k)[j] - mean[j]).powi(2) / n as f64;
-        }
-    }
-    let inv: Vec<f64> = sd.iter().map(|v| if v.sqrt() > 1e-12 { 1.0 / v.sqrt() } else { 0.0 }).collect();
-    let assigned: Vec<usize> = (0..n).filter(|&k| classes[k] == SampleClass::Assigned).collect();
+    let inv = &s.inv_std;
+    let assigned: Vec<usize> = (0..n)
+        .filter(|&k| classes[k] == SampleClass::Assigned)
+        .collect();
     for k in 0..n {
         if classes[k] != SampleClass::Undecidable {
             continue;
@@ -415,8 +444,9 @@ fn final_labels(s: &Samples, thetas: &[Vec<f64>], delta: f64) -> (Vec<Option<usi
             .filter_map(|&m| {
                 let l = labels[m]?;
                 c.contains(&l).then(|| {
-                    let dist: f64 =
-                        (0..d).map(|j| ((s.row(k)[j] - s.row(m)[j]) * inv[j]).powi(2)).sum();
+                    let dist: f64 = (0..d)
+                        .map(|j| ((s.row(k)[j] - s.row(m)[j]) * inv[j]).powi(2))
+                        .sum();
                     (dist, l)
                 })
             })
@@ -424,7 +454,11 @@ fn final_labels(s: &Samples, thetas: &[Vec<f64>], delta: f64) -> (Vec<Option<usi
         let pick = if near.is_empty() {
             // No assigned neighbour among the candidates: smallest residual.
             *c.iter()
-                .min_by(|&&a, &&b| s.residual(k, &thetas[a]).abs().total_cmp(&s.residual(k, &thetas[b]).abs()))
+                .min_by(|&&a, &&b| {
+                    s.residual(k, &thetas[a])
+                        .abs()
+                        .total_cmp(&s.residual(k, &thetas[b]).abs())
+                })
                 .expect("undecidable has candidates")
         } else {
             let kk = KNN.min(near.len());
@@ -436,7 +470,11 @@ fn final_labels(s: &Samples, thetas: &[Vec<f64>], delta: f64) -> (Vec<Option<usi
             // Most votes; ties to the nearest voter's mode.
             let top = *votes.iter().max().expect("modes");
             near[..kk].sort_by(|a, b| a.0.total_cmp(&b.0));
-            near[..kk].iter().find(|&&(_, l)| votes[l] == top).map(|&(_, l)| l).expect("a voter")
+            near[..kk]
+                .iter()
+                .find(|&&(_, l)| votes[l] == top)
+                .map(|&(_, l)| l)
+                .expect("a voter")
         };
         labels[k] = Some(pick);
     }

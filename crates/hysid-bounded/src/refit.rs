@@ -14,7 +14,9 @@
 
 use crate::samples::Samples;
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus};
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
+};
 use hysid_core::linalg;
 use nalgebra::{DMatrix, DVector};
 
@@ -33,7 +35,9 @@ pub struct ChebyshevFit {
 
 /// Largest absolute residual of `theta` on `idx`.
 pub fn max_residual(s: &Samples, idx: &[usize], theta: &[f64]) -> f64 {
-    idx.iter().map(|&k| s.residual(k, theta).abs()).fold(0.0, f64::max)
+    idx.iter()
+        .map(|&k| s.residual(k, theta).abs())
+        .fold(0.0, f64::max)
 }
 
 /// Initial working set of [`chebyshev`], in multiples of `p`.
@@ -56,7 +60,10 @@ pub fn chebyshev(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
         return chebyshev_lp(s, idx);
     }
     let start = least_squares(s, idx).unwrap_or_else(|| vec![0.0; s.p]);
-    let mut by_r: Vec<(f64, usize)> = idx.iter().map(|&k| (s.residual(k, &start).abs(), k)).collect();
+    let mut by_r: Vec<(f64, usize)> = idx
+        .iter()
+        .map(|&k| (s.residual(k, &start).abs(), k))
+        .collect();
     by_r.select_nth_unstable_by(m - 1, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
     let mut work: Vec<usize> = by_r[..m].iter().map(|&(_, k)| k).collect();
     let mut inside = vec![false; s.len()];
@@ -77,7 +84,10 @@ pub fn chebyshev(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
             .collect();
         if viol.is_empty() {
             let max_residual = max_residual(s, idx, &fit.theta);
-            return Some(ChebyshevFit { theta: fit.theta, max_residual });
+            return Some(ChebyshevFit {
+                theta: fit.theta,
+                max_residual,
+            });
         }
         if viol.len() > m {
             viol.select_nth_unstable_by(m - 1, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
@@ -113,7 +123,11 @@ fn chebyshev_lp(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
     }
     let rows = 2 * n + 2 * nslope;
     let nnz = 2 * n * (p + 1) + 4 * nslope;
-    let (mut ii, mut jj, mut vv) = (Vec::with_capacity(nnz), Vec::with_capacity(nnz), Vec::with_capacity(nnz));
+    let (mut ii, mut jj, mut vv) = (
+        Vec::with_capacity(nnz),
+        Vec::with_capacity(nnz),
+        Vec::with_capacity(nnz),
+    );
     let mut b = Vec::with_capacity(rows);
     for (r, &k) in idx.iter().enumerate() {
         let phi = s.row(k);
@@ -152,7 +166,11 @@ fn chebyshev_lp(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
         q[p + 1 + j] = TIE_BREAK * scale[j];
     }
     let cones = [NonnegativeConeT(rows)];
-    let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().ok()?;
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .max_iter(200)
+        .build()
+        .ok()?;
     let mut solver = DefaultSolver::new(&pm, &q, &a, &b, &cones, settings).ok()?;
     solver.solve();
     match solver.solution.status {
@@ -164,7 +182,10 @@ fn chebyshev_lp(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
         return None;
     }
     let max_residual = max_residual(s, idx, &theta);
-    Some(ChebyshevFit { theta, max_residual })
+    Some(ChebyshevFit {
+        theta,
+        max_residual,
+    })
 }
 
 /// Least-squares fit on samples `idx` (minimum-norm when rank deficient).
@@ -208,22 +229,37 @@ mod tests {
         let idx: Vec<usize> = (0..n).collect();
         let ws = chebyshev(&s, &idx).unwrap();
         let full = chebyshev_lp(&s, &idx).unwrap();
-        assert!((ws.max_residual - full.max_residual).abs() < 1e-7, "{ws:?} {full:?}");
+        assert!(
+            (ws.max_residual - full.max_residual).abs() < 1e-7,
+            "{ws:?} {full:?}"
+        );
     }
 
     #[test]
     fn chebyshev_is_minimax() {
         // y = x exactly except one point off by 0.3: minimax error 0.15.
-        let s = samples(&[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]], &[0.0, 1.0, 2.3, 3.0]);
+        let s = samples(
+            &[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]],
+            &[0.0, 1.0, 2.3, 3.0],
+        );
         let f = chebyshev(&s, &[0, 1, 2, 3]).unwrap();
-        assert!(f.max_residual < 0.15 + 1e-6 && f.max_residual > 0.15 - 1e-6, "{f:?}");
+        assert!(
+            f.max_residual < 0.15 + 1e-6 && f.max_residual > 0.15 - 1e-6,
+            "{f:?}"
+        );
     }
 
     #[test]
     fn constant_segment_gets_zero_slopes() {
         // y = 2 on points where y(k-1) = 2 too: theta = [0, 0, 2] and [1, 0, 0] are both exact.
-        let s = samples(&[[2.0, 0.5], [2.0, -1.0], [2.0, 0.3], [2.0, 0.9]], &[2.0; 4]);
+        let s = samples(
+            &[[2.0, 0.5], [2.0, -1.0], [2.0, 0.3], [2.0, 0.9]],
+            &[2.0; 4],
+        );
         let f = chebyshev(&s, &[0, 1, 2, 3]).unwrap();
-        assert!((f.theta[0]).abs() < 1e-6 && f.theta[1].abs() < 1e-6 && (f.theta[2] - 2.0).abs() < 1e-5, "{f:?}");
+        assert!(
+            (f.theta[0]).abs() < 1e-6 && f.theta[1].abs() < 1e-6 && (f.theta[2] - 2.0).abs() < 1e-5,
+            "{f:?}"
+        );
     }
 }

@@ -49,7 +49,16 @@ impl Samples {
                 var[j] += (phi[k * p + j] - mean[j]).powi(2) / n as f64;
             }
         }
-        let inv_std = var.iter().map(|v| if v.sqrt() > 1e-12 { 1.0 / v.sqrt() } else { 0.0 }).collect();
+        let inv_std = var
+            .iter()
+            .map(|v| {
+                if v.sqrt() > 1e-12 {
+                    1.0 / v.sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         Self { p, phi, y, inv_std }
     }
 
@@ -75,7 +84,10 @@ impl Samples {
 
     /// Indices among `idx` whose residual is within `delta` of zero.
     pub fn satisfied(&self, idx: &[usize], theta: &[f64], delta: f64) -> Vec<usize> {
-        idx.iter().copied().filter(|&k| self.residual(k, theta).abs() <= delta).collect()
+        idx.iter()
+            .copied()
+            .filter(|&k| self.residual(k, theta).abs() <= delta)
+            .collect()
     }
 }
 

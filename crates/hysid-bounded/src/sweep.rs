@@ -52,14 +52,26 @@ pub fn delta_sweep(
         return Err(IdentifyError::BadData("delta sweep: no bound given".into()));
     }
     if let Some(d) = deltas.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
-        return Err(IdentifyError::BadData(format!("delta sweep: bound {d} must be a finite number > 0")));
+        return Err(IdentifyError::BadData(format!(
+            "delta sweep: bound {d} must be a finite number > 0"
+        )));
     }
-    problem.priors.ensure_honoured(Bounded::NAME, Bounded::HONOURS, problem.priors_origin)?;
-    ctx.progress.start(deltas.len() as u64, "bounded: delta sweep");
-    let inner = RunContext { seed: ctx.seed, progress: &NoProgress, deadline: ctx.deadline };
+    problem
+        .priors
+        .ensure_honoured(Bounded::NAME, Bounded::HONOURS, problem.priors_origin)?;
+    ctx.progress
+        .start(deltas.len() as u64, "bounded: delta sweep");
+    let inner = RunContext {
+        seed: ctx.seed,
+        progress: &NoProgress,
+        deadline: ctx.deadline,
+    };
     let mut out = Vec::with_capacity(deltas.len());
     for &delta in deltas {
-        let opts = BoundedOptions { delta: Some(Delta::Value(delta)), ..options.clone() };
+        let opts = BoundedOptions {
+            delta: Some(Delta::Value(delta)),
+            ..options.clone()
+        };
         let mut point = SweepPoint {
             delta,
             modes: 0,
@@ -118,7 +130,9 @@ pub fn best(points: &[SweepPoint]) -> Option<usize> {
 
 /// The sweep as a Markdown table.
 pub fn table(points: &[SweepPoint]) -> String {
-    let mut s = String::from("| delta | modes | undecidable | infeasible | fit_sim % | fit_pred % | note |\n|---|---|---|---|---|---|---|\n");
+    let mut s = String::from(
+        "| delta | modes | undecidable | infeasible | fit_sim % | fit_pred % | note |\n|---|---|---|---|---|---|---|\n",
+    );
     let f = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.2}"));
     for p in points {
         let note = match (&p.error, p.diverged_at) {

@@ -39,11 +39,18 @@ pub fn b1(n: usize, noise: f64, seed: u64) -> Generated {
     for k in 1..n {
         let i = b1_mode(y[k - 1], u[k - 1]);
         let t = B1_THETA[i];
-        let e = if noise > 0.0 { rng.random_range(-noise..noise) } else { 0.0 };
+        let e = if noise > 0.0 {
+            rng.random_range(-noise..noise)
+        } else {
+            0.0
+        };
         y[k] = t[0] * y[k - 1] + t[1] * u[k - 1] + t[2] + e;
         modes.push(i);
     }
-    Generated { data: Dataset::siso(u, y, None).expect("equal lengths"), modes }
+    Generated {
+        data: Dataset::siso(u, y, None).expect("equal lengths"),
+        modes,
+    }
 }
 
 /// A static-switching PWARX with `na = nb = 1` and parameters `thetas`
@@ -59,10 +66,17 @@ pub fn sliced(thetas: &[[f64; 3]], n: usize, noise: f64, seed: u64) -> Generated
     for k in 1..n {
         let i = (((u[k - 1] + 2.0) / 4.0 * s as f64) as usize).min(s - 1);
         let t = thetas[i];
-        let e = if noise > 0.0 { rng.random_range(-noise..noise) } else { 0.0 };
+        let e = if noise > 0.0 {
+            rng.random_range(-noise..noise)
+        } else {
+            0.0
+        };
         // Keep the output bounded whatever the draw.
         y[k] = (t[0] * y[k - 1] + t[1] * u[k - 1] + t[2] + e).clamp(-50.0, 50.0);
         modes.push(i);
     }
-    Generated { data: Dataset::siso(u, y, None).expect("equal lengths"), modes }
+    Generated {
+        data: Dataset::siso(u, y, None).expect("equal lengths"),
+        modes,
+    }
 }

@@ -12,10 +12,22 @@ fn b1_three_modes_ninety_percent() {
     for seed in [1u64, 2, 3] {
         let g = systems::b1(300, 0.1, seed);
         let pri = Priors::default();
-        let problem = Problem { data: &g.data, orders: RegressorSpec::new(1, 1, 1), priors: &pri, priors_origin: None };
-        let opts = BoundedOptions { delta: Some(Delta::Value(0.1)), ..Default::default() };
+        let problem = Problem {
+            data: &g.data,
+            orders: RegressorSpec::new(1, 1, 1),
+            priors: &pri,
+            priors_origin: None,
+        };
+        let opts = BoundedOptions {
+            delta: Some(Delta::Value(0.1)),
+            ..Default::default()
+        };
         let (c, _, _) = Bounded::classify(&problem, &opts, &RunContext::quiet(seed)).unwrap();
-        let labels: Vec<usize> = c.labels.iter().map(|l| l.unwrap_or(usize::MAX / 2)).collect();
+        let labels: Vec<usize> = c
+            .labels
+            .iter()
+            .map(|l| l.unwrap_or(usize::MAX / 2))
+            .collect();
         let known: Vec<usize> = labels.iter().map(|&l| l.min(c.thetas.len())).collect();
         let acc = mode_accuracy(&g.modes, &known).accuracy;
         eprintln!(

@@ -13,15 +13,33 @@ use rand_chacha::ChaCha8Rng;
 
 fn classify(data: &Dataset, delta: f64, seed: u64) -> hysid_bounded::procedure::Classification {
     let pri = Priors::default();
-    let problem = Problem { data, orders: RegressorSpec::new(1, 1, 1), priors: &pri, priors_origin: None };
-    let opts = BoundedOptions { delta: Some(Delta::Value(delta)), ..Default::default() };
-    Bounded::classify(&problem, &opts, &RunContext::quiet(seed)).unwrap().0
+    let problem = Problem {
+        data,
+        orders: RegressorSpec::new(1, 1, 1),
+        priors: &pri,
+        priors_origin: None,
+    };
+    let opts = BoundedOptions {
+        delta: Some(Delta::Value(delta)),
+        ..Default::default()
+    };
+    Bounded::classify(&problem, &opts, &RunContext::quiet(seed))
+        .unwrap()
+        .0
 }
 
 /// Random stable parameters `[a1, b1, c]`.
 fn random_thetas(s: usize, seed: u64) -> Vec<[f64; 3]> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    (0..s).map(|_| [rng.random_range(-0.8..0.8), rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0)]).collect()
+    (0..s)
+        .map(|_| {
+            [
+                rng.random_range(-0.8..0.8),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+            ]
+        })
+        .collect()
 }
 
 proptest! {
