@@ -2,7 +2,7 @@
 //! with a delta sweep: decimate by 10 without a filter, identify on rows
 //! 0..5000, validate on rows 5000..6001 with warm-up 10, PWARX na = nb = 2.
 //!
-//! `cargo run --release -p hysid-bounded --example pick_and_place [delta ...] [ls]`
+//! `cargo run --release -p hysid-bounded --example pick_and_place [delta ...] [ls] [seed=N]`
 //! (`ls`: least-squares refit instead of the Chebyshev LP)
 //! prints the sweep as a Markdown table (the one in `docs/bounded.md`).
 
@@ -50,6 +50,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         valid.len()
     );
     let t = Instant::now();
+    let seed: u64 = std::env::args()
+        .find_map(|a| a.strip_prefix("seed=").and_then(|v| v.parse().ok()))
+        .unwrap_or(1);
     let mut options = BoundedOptions::default();
     if std::env::args().any(|a| a == "ls") {
         options.refit = hysid_bounded::Refit::Ls;
@@ -61,10 +64,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         10,
         &deltas,
         &options,
-        &RunContext::quiet(1),
+        &RunContext::quiet(seed),
     )?;
     println!(
-        "sweep of {} bounds in {:.1} s (seed 1)\n",
+        "sweep of {} bounds in {:.1} s (seed {seed})\n",
         deltas.len(),
         t.elapsed().as_secs_f64()
     );
