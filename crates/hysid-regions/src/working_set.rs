@@ -22,8 +22,12 @@ use clarabel::solver::SupportedConeT::{NonnegativeConeT, ZeroConeT};
 const MARGIN_TOL: f64 = 1e-7;
 /// Bound on the working-set rounds; past it the full program is solved.
 const MAX_ROUNDS: usize = 40;
-/// Points per mode in the first working set (evenly spaced by index).
-const INITIAL_PER_MODE_FACTOR: usize = 40;
+/// Points per mode in the first working set (evenly spaced by index), per
+/// unknown of a mode's score.
+const INITIAL_PER_MODE_FACTOR: usize = 5;
+/// Points whose softmax margin (log-odds against the best other mode) is
+/// below this join the first working set.
+const SOFTMAX_BAND: f64 = 2.0;
 
 /// Per mode `[w (p); g]` and statistics.
 pub(crate) fn solve(
@@ -49,12 +53,12 @@ pub(crate) fn solve(
         })
         .collect();
 
+    let mut stats = SolveStats::default();
     let mut in_set = vec![false; prep.n];
-    let mut set = initial_set(prep, labels, modes);
+    let mut set = initial_set(prep, labels, modes, &mut stats)?;
     for &r in &set {
         in_set[r] = true;
     }
-    let mut stats = SolveStats::default();
     let mut round = 0;
     loop {
         round += 1;
@@ -72,10 +76,17 @@ pub(crate) fn solve(
         stats.solves += 1;
         stats.solver_iterations += u64::from(sol.iterations);
         stats.working_points = set.len();
-        let blocks: Vec<Vec<f64>> = sol.x[..modes * (prep.p + 1)]
+        let mut blocks: Vec<Vec<f64>> = sol.x[..modes * (prep.p + 1)]
             .chunks(prep.p + 1)
             .map(<[f64]>::to_vec)
             .collect();
+        // The normalised entries are 0 by a ZeroCone row; clarabel returns
+        // them to ~1e-20, store them exactly.
+        if quadratic {
+            blocks[modes - 1][prep.p] = 0.0;
+        } else {
+            blocks[modes - 1].iter_mut().for_each(|v| *v = 0.0);
+        }
         if full {
             return Ok((blocks, stats));
         }
@@ -110,22 +121,45 @@ pub(crate) fn solve(
     }
 }
 
-/// First working set: up to `INITIAL_PER_MODE_FACTOR (p + 1)` points of each
-/// mode, evenly spaced in row order (deterministic).
-fn initial_set(prep: &Prepared, labels: &[usize], modes: usize) -> Vec<usize> {
+/// First working set: the points near the boundaries of a softmax fit
+/// (margin below [`SOFTMAX_BAND`]), which predicts the hinge-active points
+/// of the LP/QP well, plus up to `INITIAL_PER_MODE_FACTOR (p + 1)` points of
+/// each mode evenly spaced in row order. Deterministic; it only affects the
+/// speed, not the optimum (the loop adds every point with non-zero loss).
+fn initial_set(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    stats: &mut SolveStats,
+) -> Result<Vec<usize>, RegionError> {
+    let (wg, steps) = crate::softmax::fit(prep, labels, modes)?;
+    stats.newton_steps = steps;
     let per_mode = INITIAL_PER_MODE_FACTOR * (prep.p + 1);
     let mut seen = vec![0usize; modes];
     let mut set = Vec::new();
+    let mut f = vec![0.0; modes];
     for (r, &l) in labels.iter().enumerate() {
         let c = prep.counts[l];
         // take point number k of mode l when floor(k * per_mode / c) advances
         let k = seen[l];
         seen[l] += 1;
-        if c <= per_mode || (k * per_mode) / c != ((k + 1) * per_mode) / c {
+        let stride = c <= per_mode || (k * per_mode) / c != ((k + 1) * per_mode) / c;
+        let z = prep.row(r);
+        for (i, fi) in f.iter_mut().enumerate() {
+            let v = &wg[i];
+            *fi = z.iter().zip(v).map(|(a, b)| a * b).sum::<f64>() - v[prep.p];
+        }
+        let worst = f
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != l)
+            .map(|(_, &v)| v)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if stride || f[l] - worst < SOFTMAX_BAND {
             set.push(r);
         }
     }
-    set
+    Ok(set)
 }
 
 /// Builds the LP (MRLP) or QP (MSVM) on the points `set`.
