@@ -43,9 +43,8 @@ pub(crate) fn fit(
     let mut prob = vec![0.0; modes];
 
     let scores = |theta: &DVector<f64>, z: &[f64], f: &mut [f64]| {
-        for i in 0..modes - 1 {
-            let t = &theta.as_slice()[i * b..(i + 1) * b];
-            f[i] = z.iter().zip(t).map(|(a, c)| a * c).sum::<f64>() - t[p];
+        for (fi, t) in f.iter_mut().zip(theta.as_slice().chunks(b)) {
+            *fi = z.iter().zip(t).map(|(a, c)| a * c).sum::<f64>() - t[p];
         }
         f[modes - 1] = 0.0;
     };

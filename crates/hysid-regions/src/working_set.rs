@@ -235,3 +235,103 @@ fn program(
         cones: vec![ZeroConeT(zero_rows), NonnegativeConeT(nonneg)],
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::DMatrix;
+    use rand::{Rng, SeedableRng};
+
+    /// Full objective `R(w) + sum c_r hinge` of per-mode blocks.
+    fn objective(
+        prep: &Prepared,
+        labels: &[usize],
+        weight: &[f64],
+        quadratic: bool,
+        wg: &[Vec<f64>],
+    ) -> f64 {
+        let p = prep.p;
+        let mut total = 0.0;
+        if quadratic {
+            total += 0.5
+                * wg.iter()
+                    .map(|v| v[..p].iter().map(|a| a * a).sum::<f64>())
+                    .sum::<f64>();
+        }
+        for (r, &i) in labels.iter().enumerate() {
+            let z = prep.row(r);
+            let f = |v: &Vec<f64>| z.iter().zip(v).map(|(a, b)| a * b).sum::<f64>() - v[p];
+            for j in (0..wg.len()).filter(|&j| j != i) {
+                total += weight[i] * (1.0 - (f(&wg[i]) - f(&wg[j]))).max(0.0);
+            }
+        }
+        total
+    }
+
+    /// The working-set optimum has the objective of the LP/QP on all points.
+    #[test]
+    fn working_set_reaches_the_full_optimum() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let n = 600;
+        let mut x = DMatrix::zeros(n, 2);
+        let mut labels = Vec::new();
+        for r in 0..n {
+            let (a, b): (f64, f64) = (rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
+            x[(r, 0)] = a;
+            x[(r, 1)] = b;
+            let mut l = if a < -0.3 {
+                0
+            } else if b < 0.2 {
+                1
+            } else {
+                2
+            };
+            if rng.random::<f64>() < 0.05 {
+                l = (l + 1) % 3;
+            }
+            labels.push(l);
+        }
+        for method in [RegionMethod::Mrlp, RegionMethod::Msvm] {
+            let opts = RegionOptions {
+                method,
+                ..RegionOptions::default()
+            };
+            let prep = crate::prepare(&x, &labels, 3, &opts).unwrap();
+            let quadratic = method == RegionMethod::Msvm;
+            let weight: Vec<f64> = prep
+                .counts
+                .iter()
+                .map(|&c| {
+                    if quadratic {
+                        n as f64 / (3.0 * c as f64)
+                    } else {
+                        1.0 / c as f64
+                    }
+                })
+                .collect();
+            let (wg, stats) = solve(&prep, &labels, 3, &opts).unwrap();
+            assert!(
+                stats.working_points < n,
+                "{method}: the working set should be a subset"
+            );
+            let all: Vec<usize> = (0..n).collect();
+            let ctx = Context {
+                method: "test",
+                points: n,
+                round: 1,
+            };
+            let full =
+                solver::solve(program(&prep, &labels, 3, &weight, quadratic, &all), &ctx).unwrap();
+            let full_blocks: Vec<Vec<f64>> = full.x[..3 * (prep.p + 1)]
+                .chunks(prep.p + 1)
+                .map(<[f64]>::to_vec)
+                .collect();
+            let a = objective(&prep, &labels, &weight, quadratic, &wg);
+            let b = objective(&prep, &labels, &weight, quadratic, &full_blocks);
+            assert!(
+                (a - b).abs() <= 1e-6 * (1.0 + b.abs()),
+                "{method}: working set {a} vs full {b}"
+            );
+        }
+    }
+}
