@@ -1,7 +1,7 @@
 //! The ARX baseline on the pick-and-place benchmark protocol, through the
 //! library API (the CLI does the same with `hysid identify` / `validate`).
 //!
-//! Run: `cargo run --release -p hysid-arx --example pick_and_place`
+//! Run: `cargo run --release -p hysid-arx --example arx_pick_and_place`
 
 use hysid_arx::Arx;
 use hysid_core::backend::{Backend, Problem, RunContext};
