@@ -45,6 +45,7 @@ use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 
 mod psvc;
+mod softmax;
 mod solver;
 mod working_set;
 
@@ -53,7 +54,8 @@ hysid_core::option_enum! {
     pub enum RegionMethod { /// multicategory robust LP (Bredensteiner & Bennett), complete partition (default)
         Mrlp => "mrlp", /// soft-margin multicategory SVM (Weston & Watkins QP), complete partition
         Msvm => "msvm", /// pairwise proximal SVM (Fung & Mangasarian), HIT parity, may leave holes
-        Psvc => "psvc" }
+        Psvc => "psvc", /// multinomial logistic regression (softmax, damped Newton), complete partition, fastest
+        Softmax => "softmax" }
 }
 
 // `#[default]` cannot be put on a variant through `option_enum!`.
@@ -70,6 +72,7 @@ impl std::fmt::Display for RegionMethod {
             RegionMethod::Mrlp => "mrlp",
             RegionMethod::Msvm => "msvm",
             RegionMethod::Psvc => "psvc",
+            RegionMethod::Softmax => "softmax",
         })
     }
 }
@@ -112,6 +115,9 @@ pub struct SolveStats {
     pub working_points: usize,
     /// Total clarabel interior-point iterations.
     pub solver_iterations: u64,
+    /// Newton steps of the softmax fit (also used to seed the working set
+    /// of mrlp and msvm).
+    pub newton_steps: usize,
 }
 
 /// One region per mode.
@@ -357,9 +363,8 @@ pub fn estimate(
             complete: true,
             scores: vec![vec![0.0; d + 1]],
             stats: SolveStats {
-                solves: 0,
                 working_points: prep.n,
-                solver_iterations: 0,
+                ..SolveStats::default()
             },
         });
     }
@@ -369,12 +374,21 @@ pub fn estimate(
             let scores = scores_in_original_units(&prep, &wg, d);
             (argmax_regions(&scores), true, scores, stats)
         }
+        RegionMethod::Softmax => {
+            let (wg, steps) = softmax::fit(&prep, labels, modes)?;
+            let scores = scores_in_original_units(&prep, &wg, d);
+            let stats = SolveStats {
+                working_points: prep.n,
+                newton_steps: steps,
+                ..SolveStats::default()
+            };
+            (argmax_regions(&scores), true, scores, stats)
+        }
         RegionMethod::Psvc => {
             let regions = psvc::regions(&prep, labels, modes, d)?;
             let stats = SolveStats {
-                solves: 0,
                 working_points: prep.n,
-                solver_iterations: 0,
+                ..SolveStats::default()
             };
             (regions, modes <= 2, Vec::new(), stats)
         }

@@ -80,10 +80,11 @@ pub(crate) fn regions(
                 c0 -= ck * prep.mean[k];
             }
             // region i: h >= 0  <=>  -c.x <= c0 ; region j: h <= 0 <=> c.x <= -c0
-            rows[i].0.push(c.iter().map(|v| -v).collect());
+            // `0.0 - v` rather than `-v`: no negative zeros in unused columns.
+            rows[i].0.push(c.iter().map(|v| 0.0 - v).collect());
             rows[i].1.push(c0);
             rows[j].0.push(c);
-            rows[j].1.push(-c0);
+            rows[j].1.push(0.0 - c0);
         }
     }
     Ok(rows

@@ -2,7 +2,7 @@
 //! with a delta sweep: decimate by 10 without a filter, identify on rows
 //! 0..5000, validate on rows 5000..6001 with warm-up 10, PWARX na = nb = 2.
 //!
-//! `cargo run --release -p hysid-bounded --example pick_and_place [delta ...] [ls] [seed=N]`
+//! `cargo run --release -p hysid-bounded --example bounded_pick_and_place [delta ...] [ls] [seed=N]`
 //! (`ls`: least-squares refit instead of the Chebyshev LP)
 //! prints the sweep as a Markdown table (the one in `docs/bounded.md`).
 
