@@ -101,7 +101,8 @@ hysid_core::backend_options! {
         max_modes: Option<usize> = None,
         /// Region estimation from the classified samples (hysid-regions): mrlp
         /// (multicategory robust LP, complete partition), msvm (multicategory SVM,
-        /// complete partition) or psvc (pairwise proximal SVM, may leave holes).
+        /// complete partition), psvc (pairwise proximal SVM, may leave holes) or
+        /// softmax (multinomial logistic regression, complete partition).
         regions: RegionMethod = RegionMethod::Mrlp,
     }
 }
