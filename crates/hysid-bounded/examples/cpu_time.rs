@@ -2,7 +2,7 @@
 //! `bounded` back-end on B1 for growing N: a measure that, unlike wall
 //! time, is not inflated by other processes sharing the cores.
 //!
-//! `taskset -c 0 cargo run --release -p hysid-bounded --example cpu_time`
+//! `taskset -c 0 cargo run --release -p hysid-bounded --example cpu_time [regions=METHOD]`
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta, systems};
 use hysid_core::backend::{Identifier, Problem, RunContext};
