@@ -2,7 +2,7 @@
 //! `bounded` back-end on B1 for growing N: a measure that, unlike wall
 //! time, is not inflated by other processes sharing the cores.
 //!
-//! `taskset -c 0 cargo run --release -p hysid-bounded --example cpu_time`
+//! `taskset -c 0 cargo run --release -p hysid-bounded --example cpu_time [regions=METHOD]`
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta, systems};
 use hysid_core::backend::{Identifier, Problem, RunContext};
@@ -23,21 +23,37 @@ fn cpu_seconds() -> f64 {
 
 fn main() {
     let reps = 5;
-    println!("| N | classify CPU s | identify CPU s | identify wall s | modes |\n|---|---|---|---|---|");
+    println!(
+        "| N | classify CPU s | identify CPU s | identify wall s | modes |\n|---|---|---|---|---|"
+    );
     for n in [1000, 2000, 4000, 8000, 16000] {
         let g = systems::b1(n, 0.1, 1);
         let pri = Priors::default();
-        let problem = Problem { data: &g.data, orders: RegressorSpec::new(1, 1, 1), priors: &pri, priors_origin: None };
-        let opts = BoundedOptions { delta: Some(Delta::Value(0.1)), ..Default::default() };
+        let problem = Problem {
+            data: &g.data,
+            orders: RegressorSpec::new(1, 1, 1),
+            priors: &pri,
+            priors_origin: None,
+        };
+        let opts = BoundedOptions {
+            delta: Some(Delta::Value(0.1)),
+            ..Default::default()
+        };
         let c0 = cpu_seconds();
         let mut modes = 0;
         for _ in 0..reps {
-            modes = Bounded::classify(&problem, &opts, &RunContext::quiet(1)).unwrap().0.thetas.len();
+            modes = Bounded::classify(&problem, &opts, &RunContext::quiet(1))
+                .unwrap()
+                .0
+                .thetas
+                .len();
         }
         let c1 = cpu_seconds();
         let w = Instant::now();
         for _ in 0..reps {
-            Bounded.identify(&problem, &opts, &RunContext::quiet(1)).unwrap();
+            Bounded
+                .identify(&problem, &opts, &RunContext::quiet(1))
+                .unwrap();
         }
         let wall = w.elapsed().as_secs_f64() / reps as f64;
         let c2 = cpu_seconds();

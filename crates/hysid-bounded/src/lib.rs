@@ -83,8 +83,8 @@ hysid_core::backend_options! {
         /// Thermal relaxation cycles per MAX FS problem (each visits all remaining
         /// samples once in a random order).
         cycles: usize = 100,
-        /// Initial temperature T0 as a multiple of max(median |residual of the LS
-        /// start|, delta); the temperature falls linearly to 0 over the cycles.
+        /// Initial temperature T0 as a multiple of max(median |residual of the start|,
+        /// delta), per relaxed start; the temperature falls linearly to 0 over the cycles.
         t0: f64 = 2.0,
         /// Candidate starts of each MAX FS problem besides the least-squares fit of the
         /// remaining samples: least-squares fits of random local neighbourhoods (3p nearest
@@ -101,7 +101,8 @@ hysid_core::backend_options! {
         max_modes: Option<usize> = None,
         /// Region estimation from the classified samples (hysid-regions): mrlp
         /// (multicategory robust LP, complete partition), msvm (multicategory SVM,
-        /// complete partition) or psvc (pairwise proximal SVM, may leave holes).
+        /// complete partition), psvc (pairwise proximal SVM, may leave holes) or
+        /// softmax (multinomial logistic regression, complete partition).
         regions: RegionMethod = RegionMethod::Mrlp,
     }
 }
