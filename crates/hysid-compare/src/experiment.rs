@@ -94,7 +94,8 @@ pub struct RunSpec {
     pub seed: Option<u64>,
 }
 
-/// A sweep: one run repeated over values of one parameter.
+/// A sweep: one run repeated over values of one parameter (`vary`,
+/// `values`) or over the cartesian product of several (`grid`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SweepSpec {
@@ -102,9 +103,44 @@ pub struct SweepSpec {
     #[serde(flatten)]
     pub run: RunSpec,
     /// What varies: a back-end option key, or `modes`, `na`, `nb`.
-    pub vary: String,
-    /// The values.
+    #[serde(default)]
+    pub vary: Option<String>,
+    /// The values of `vary`.
+    #[serde(default)]
     pub values: Vec<toml::Value>,
+    /// Several keys at once: `{ c = [20, 40], modes = [2, 3] }` (all
+    /// combinations, keys in alphabetical order, the last varying fastest).
+    #[serde(default)]
+    pub grid: BTreeMap<String, Vec<toml::Value>>,
+}
+
+impl SweepSpec {
+    /// The varied keys with their values, `vary` first.
+    pub fn axes(&self) -> Vec<(String, Vec<toml::Value>)> {
+        let mut axes = Vec::new();
+        if let Some(v) = &self.vary {
+            axes.push((v.clone(), self.values.clone()));
+        }
+        axes.extend(self.grid.iter().map(|(k, v)| (k.clone(), v.clone())));
+        axes
+    }
+
+    /// Every combination of values, in order.
+    pub fn points(&self) -> Vec<Vec<(String, toml::Value)>> {
+        let mut points: Vec<Vec<(String, toml::Value)>> = vec![vec![]];
+        for (key, values) in self.axes() {
+            let mut next = Vec::with_capacity(points.len() * values.len());
+            for p in &points {
+                for v in &values {
+                    let mut q = p.clone();
+                    q.push((key.clone(), v.clone()));
+                    next.push(q);
+                }
+            }
+            points = next;
+        }
+        points
+    }
 }
 
 /// An experiment file.
@@ -222,8 +258,18 @@ impl Experiment {
             }
         }
         for s in &self.sweeps {
-            if s.values.is_empty() {
-                return Err(format!("[[sweep]] '{}': values is empty", s.run.name));
+            let axes = s.axes();
+            if axes.is_empty() {
+                return Err(format!(
+                    "[[sweep]] '{}': give vary and values, or grid",
+                    s.run.name
+                ));
+            }
+            if s.vary.is_none() && !s.values.is_empty() {
+                return Err(format!("[[sweep]] '{}': values without vary", s.run.name));
+            }
+            if let Some((k, _)) = axes.iter().find(|(_, v)| v.is_empty()) {
+                return Err(format!("[[sweep]] '{}': no values for '{k}'", s.run.name));
             }
         }
         if self.data.decimate == 0 {
@@ -257,7 +303,17 @@ values = [1, 2]
 "#;
         let e = Experiment::from_toml(text, "x.toml").unwrap();
         assert_eq!(e.runs[0].set["ridge"], toml::Value::Float(0.1));
-        assert_eq!(e.sweeps[0].vary, "na");
+        assert_eq!(e.sweeps[0].vary.as_deref(), Some("na"));
+        assert_eq!(e.sweeps[0].points().len(), 2);
+        let grid = text.replace(
+            "vary = \"na\"\nvalues = [1, 2]",
+            "grid = { na = [1, 2], modes = [1, 2, 3] }",
+        );
+        let g = Experiment::from_toml(&grid, "x.toml").unwrap();
+        let pts = g.sweeps[0].points();
+        assert_eq!(pts.len(), 6);
+        assert_eq!(pts[1][0].0, "modes");
+        assert_eq!(pts[1][1], ("na".to_string(), toml::Value::Integer(2)));
         let bad = text.replace("method = \"arx\"\nset", "method = \"nope\"\nset");
         assert!(
             Experiment::from_toml(&bad, "x")

@@ -50,10 +50,8 @@ pub struct Job {
 pub struct SweepPoint {
     /// Sweep name.
     pub sweep: String,
-    /// Varied key.
-    pub vary: String,
-    /// Value, as text.
-    pub value: String,
+    /// Varied keys and their values (as text), in axis order.
+    pub values: Vec<(String, String)>,
 }
 
 /// What a run produced.
@@ -164,39 +162,43 @@ impl Experiment {
             .map(|r| job(r, r.name.clone(), None))
             .collect();
         for s in &self.sweeps {
-            for v in &s.values {
-                let text = value_text(v);
+            for point in s.points() {
                 let mut r = s.run.clone();
-                let as_count = || -> Result<usize, ExperimentError> {
-                    v.as_integer()
-                        .filter(|&i| i >= 0)
-                        .map(|i| i as usize)
-                        .ok_or_else(|| ExperimentError::Invalid {
-                            path: "experiment".into(),
-                            message: format!(
-                                "[[sweep]] '{}': {} = {text} is not a count",
-                                s.run.name, s.vary
-                            ),
-                        })
-                };
-                match s.vary.as_str() {
-                    "modes" => r.modes = Some(as_count()?),
-                    "na" => r.na = Some(as_count()?),
-                    "nb" => r.nb = Some(as_count()?),
-                    key => {
-                        r.set.insert(key.to_string(), v.clone());
+                let mut shown = Vec::with_capacity(point.len());
+                for (key, v) in point {
+                    let text = value_text(&v);
+                    let as_count = || -> Result<usize, ExperimentError> {
+                        v.as_integer()
+                            .filter(|&i| i >= 0)
+                            .map(|i| i as usize)
+                            .ok_or_else(|| ExperimentError::Invalid {
+                                path: "experiment".into(),
+                                message: format!(
+                                    "[[sweep]] '{}': {key} = {text} is not a count",
+                                    s.run.name
+                                ),
+                            })
+                    };
+                    match key.as_str() {
+                        "modes" => r.modes = Some(as_count()?),
+                        "na" => r.na = Some(as_count()?),
+                        "nb" => r.nb = Some(as_count()?),
+                        _ => {
+                            r.set.insert(key.clone(), v.clone());
+                        }
                     }
+                    shown.push((key, text));
                 }
+                let label = shown
+                    .iter()
+                    .map(|(k, v)| format!("{k}={v}"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
                 let point = SweepPoint {
                     sweep: s.run.name.clone(),
-                    vary: s.vary.clone(),
-                    value: text.clone(),
+                    values: shown,
                 };
-                jobs.push(job(
-                    &r,
-                    format!("{} [{}={}]", s.run.name, s.vary, text),
-                    Some(point),
-                ));
+                jobs.push(job(&r, format!("{} [{label}]", s.run.name), Some(point)));
             }
         }
         Ok(jobs)
