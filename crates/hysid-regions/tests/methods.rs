@@ -141,7 +141,16 @@ fn psvc_leaves_holes_and_coverage_reports_them() {
             (0..200).map(move |j| [-2.0 + 8.0 * i as f64 / 199.0, -2.0 + 7.0 * j as f64 / 199.0])
         })
         .find(|z| hysid_regions::classify(&p.regions, z).is_none());
-    assert!(hole.is_some());
+    let hole = hole.expect("a hole point");
+    // the nearest-region policy still gives it a mode, one whose region is close
+    let nearest = hysid_regions::classify_nearest(&p.regions, &hole).unwrap();
+    let v = p.regions[nearest].violation(&hole);
+    assert!(p.regions.iter().all(|r| r.violation(&hole) >= v) && v > 0.0);
+    assert_eq!(
+        hysid_regions::classify_nearest(&p.regions, &[4.0, 0.0]),
+        Some(1)
+    );
+    assert_eq!(hysid_regions::classify_nearest(&[], &[4.0, 0.0]), None);
     // the argmax methods cover the same box completely
     for method in [
         RegionMethod::Mrlp,
