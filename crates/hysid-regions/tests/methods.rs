@@ -356,3 +356,29 @@ fn typed_errors() {
             .contains("mode 1")
     );
 }
+
+#[test]
+fn degenerate_inputs_still_give_partitions() {
+    // all points identical, two labels: no separation possible
+    let x = DMatrix::from_element(10, 2, 3.0);
+    let labels = [0, 1, 0, 1, 0, 1, 0, 1, 0, 0];
+    // a constant column next to an informative one
+    let y = DMatrix::from_fn(12, 2, |r, c| if c == 0 { r as f64 } else { 7.0 });
+    let ly: Vec<usize> = (0..12).map(|r| usize::from(r >= 6)).collect();
+    for method in ALL {
+        let p = estimate(&x, &labels, 2, &opts(method)).unwrap();
+        assert_eq!(p.regions.len(), 2);
+        let c = coverage(&p.regions, &[0.0, 0.0], &[6.0, 6.0], 500, 1);
+        assert_eq!(c.uncovered_fraction, 0.0, "{method}");
+        let q = estimate(&y, &ly, 2, &opts(method)).unwrap();
+        assert!(q.training_accuracy >= 0.9, "{method}: {}", q.training_accuracy);
+        // no switching column at all: offsets only, one mode everywhere
+        let o = RegionOptions { method, switching: Some(vec![]), ..RegionOptions::default() };
+        let r = estimate(&y, &ly, 2, &o).unwrap();
+        assert!(r.regions.iter().flat_map(|p| &p.a).flatten().all(|v| *v == 0.0), "{method}");
+        if r.complete {
+            let c = coverage(&r.regions, &[-5.0, -5.0], &[20.0, 20.0], 500, 2);
+            assert_eq!(c.uncovered_fraction, 0.0, "{method}");
+        }
+    }
+}
