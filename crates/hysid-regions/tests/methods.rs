@@ -371,11 +371,26 @@ fn degenerate_inputs_still_give_partitions() {
         let c = coverage(&p.regions, &[0.0, 0.0], &[6.0, 6.0], 500, 1);
         assert_eq!(c.uncovered_fraction, 0.0, "{method}");
         let q = estimate(&y, &ly, 2, &opts(method)).unwrap();
-        assert!(q.training_accuracy >= 0.9, "{method}: {}", q.training_accuracy);
+        assert!(
+            q.training_accuracy >= 0.9,
+            "{method}: {}",
+            q.training_accuracy
+        );
         // no switching column at all: offsets only, one mode everywhere
-        let o = RegionOptions { method, switching: Some(vec![]), ..RegionOptions::default() };
+        let o = RegionOptions {
+            method,
+            switching: Some(vec![]),
+            ..RegionOptions::default()
+        };
         let r = estimate(&y, &ly, 2, &o).unwrap();
-        assert!(r.regions.iter().flat_map(|p| &p.a).flatten().all(|v| *v == 0.0), "{method}");
+        assert!(
+            r.regions
+                .iter()
+                .flat_map(|p| &p.a)
+                .flatten()
+                .all(|v| *v == 0.0),
+            "{method}"
+        );
         if r.complete {
             let c = coverage(&r.regions, &[-5.0, -5.0], &[20.0, 20.0], 500, 2);
             assert_eq!(c.uncovered_fraction, 0.0, "{method}");
