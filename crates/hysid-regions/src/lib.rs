@@ -50,6 +50,9 @@ use hysid_core::geometry::Polyhedron;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 
+pub use adjacency::adjacency;
+
+mod adjacency;
 mod psvc;
 mod softmax;
 mod solver;
