@@ -55,17 +55,22 @@ fn run(bencher: divan::Bencher, n: usize, method: RegionMethod) {
     bencher.bench_local(|| estimate(&x, &labels, 3, &opts).unwrap());
 }
 
-#[divan::bench(args = SIZES, sample_count = 10)]
+#[divan::bench(args = SIZES, sample_count = 3, sample_size = 1)]
 fn mrlp(bencher: divan::Bencher, n: usize) {
     run(bencher, n, RegionMethod::Mrlp);
 }
 
-#[divan::bench(args = SIZES, sample_count = 10)]
+#[divan::bench(args = SIZES, sample_count = 3, sample_size = 1)]
 fn msvm(bencher: divan::Bencher, n: usize) {
     run(bencher, n, RegionMethod::Msvm);
 }
 
-#[divan::bench(args = SIZES, sample_count = 10)]
+#[divan::bench(args = SIZES, sample_count = 3, sample_size = 1)]
 fn psvc(bencher: divan::Bencher, n: usize) {
     run(bencher, n, RegionMethod::Psvc);
+}
+
+#[divan::bench(args = SIZES, sample_count = 3, sample_size = 1)]
+fn softmax(bencher: divan::Bencher, n: usize) {
+    run(bencher, n, RegionMethod::Softmax);
 }

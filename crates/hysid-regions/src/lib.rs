@@ -4,7 +4,7 @@
 //! This is step 4 of the clustering procedure of Ferrari-Trecate et al.
 //! (the founding paper of hysid, Juloski, Heemels and Ferrari-Trecate,
 //! ADHS 2003, uses it for the pick-and-place head) and the last step of the
-//! bounded-error procedure of Bemporad et al. (2005). Three methods
+//! bounded-error procedure of Bemporad et al. (2005). Four methods
 //! ([`RegionMethod`]):
 //!
 //! * [`RegionMethod::Mrlp`] (default): the multicategory robust linear
@@ -20,13 +20,19 @@
 //!   2001) in closed form, HIT's default. The regions are intersections of
 //!   pairwise half-spaces and may leave holes (`complete = false`); use
 //!   [`coverage`] to measure them.
+//! * [`RegionMethod::Softmax`]: multinomial logistic regression (the
+//!   multinomial-logistic separator of PARC, Bemporad 2023) by damped
+//!   Newton: an argmax partition again, linear in `N` and by far the fastest
+//!   complete method, but it does not minimise the MRLP objective.
 //!
 //! The LP and QP are solved by an exact working-set (cutting-plane) scheme:
 //! only points whose hinge loss is active matter, so the solver sees a
 //! subset and points outside it are checked afterwards; the scheme stops
 //! only when every point outside the subset has zero loss, which certifies
 //! that the subset optimum is an optimum of the full problem (see
-//! `docs/regions.md`).
+//! `docs/regions.md`). The working set is seeded with the points near the
+//! boundaries of a softmax fit; measured times are in
+//! `docs/performance-regions.md`.
 //!
 //! ```
 //! use hysid_regions::{estimate, RegionOptions};
@@ -44,6 +50,9 @@ use hysid_core::geometry::Polyhedron;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 
+pub use adjacency::adjacency;
+
+mod adjacency;
 mod psvc;
 mod softmax;
 mod solver;
@@ -445,6 +454,24 @@ pub fn argmax_regions(scores: &[Vec<f64>]) -> Vec<Polyhedron> {
 /// The first region (lowest index) that contains `z`, as HIT's `hit_pwa`.
 pub fn classify(regions: &[Polyhedron], z: &[f64]) -> Option<usize> {
     regions.iter().position(|r| r.contains(z))
+}
+
+/// The first region containing `z`, or else the region it violates least
+/// ([`Polyhedron::violation`], Euclidean distance to the violated rows; ties
+/// to the lowest index): a "nearest region" policy for points in holes.
+/// `None` only when `regions` is empty.
+pub fn classify_nearest(regions: &[Polyhedron], z: &[f64]) -> Option<usize> {
+    classify(regions, z).or_else(|| {
+        regions
+            .iter()
+            .map(|r| r.violation(z))
+            .enumerate()
+            .fold(None, |best: Option<(usize, f64)>, (i, v)| match best {
+                Some((_, bv)) if bv <= v => best,
+                _ => Some((i, v)),
+            })
+            .map(|(i, _)| i)
+    })
 }
 
 /// Fraction of rows of `x` whose first-match region is their label.

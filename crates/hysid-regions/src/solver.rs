@@ -13,6 +13,7 @@ pub(crate) fn quiet_settings() -> DefaultSettings<f64> {
     DefaultSettingsBuilder::default()
         .verbose(false)
         .max_iter(300)
+        .iterative_refinement_max_iter(3)
         .build()
         .expect("static clarabel settings are valid")
 }
