@@ -33,6 +33,8 @@ enum Command {
     Simulate(commands::simulate::Args),
     /// Run several back-ends on one experiment and report them side by side.
     Compare(commands::compare::Args),
+    /// Sweep one back-end over a grid of option values, scored by validation simulation FIT.
+    Sweep(commands::sweep::Args),
 }
 
 fn main() {
@@ -61,6 +63,7 @@ fn main() {
         Command::Validate(a) => commands::validate::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Compare(a) => commands::compare::run(a),
+        Command::Sweep(a) => commands::sweep::run(a),
     };
     if let Err(e) = result {
         eprintln!("hysid: error: {}", e.one_line());

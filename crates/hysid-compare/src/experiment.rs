@@ -227,7 +227,8 @@ impl Experiment {
         Ok(e)
     }
 
-    fn check(&self) -> Result<(), String> {
+    /// Consistency checks (also for experiments built in code).
+    pub fn check(&self) -> Result<(), String> {
         if self.runs.is_empty() && self.sweeps.is_empty() {
             return Err("no [[run]] and no [[sweep]]".into());
         }

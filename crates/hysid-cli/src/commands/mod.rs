@@ -4,4 +4,5 @@ pub mod compare;
 pub mod identify;
 pub mod methods;
 pub mod simulate;
+pub mod sweep;
 pub mod validate;

@@ -1,0 +1,177 @@
+//! `hysid sweep`: one back-end over a grid of option values (for example
+//! the local dataset size `c` and the mode count of `cluster`, or `delta`
+//! of `bounded`), each point scored by validation simulation FIT. It is an
+//! experiment with one `[[sweep]]`, built from the command line.
+
+use crate::Result;
+use crate::error::CliError;
+use crate::progress::TerminalProgress;
+use hysid_compare::{DataSpec, Experiment, RunSpec, SweepSpec};
+use hysid_core::data::RowRange;
+use hysid_core::priors::Priors;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// Arguments of `hysid sweep`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Data file (.csv or .mat).
+    pub data: PathBuf,
+    /// Back-end (see `hysid methods`).
+    #[arg(short = 'm', long = "method")]
+    pub method: String,
+    /// Grid axis KEY=V1,V2,... (repeatable): a back-end option, or modes, na, nb.
+    #[arg(long = "grid", value_name = "KEY=V1,V2,..", required = true)]
+    pub grid: Vec<String>,
+    /// Rows used for identification (after decimation).
+    #[arg(long = "identify-rows", value_parser = parse_rows)]
+    pub identify_rows: RowRange,
+    /// Rows used for validation (after decimation).
+    #[arg(long = "validate-rows", value_parser = parse_rows)]
+    pub validate_rows: RowRange,
+    /// Validation samples not scored.
+    #[arg(long, default_value_t = 10)]
+    pub warmup: usize,
+    /// Output lags.
+    #[arg(long, default_value_t = 2)]
+    pub na: usize,
+    /// Input lags.
+    #[arg(long, default_value_t = 2)]
+    pub nb: usize,
+    /// Number of modes (the prior `modes`), unless swept.
+    #[arg(long)]
+    pub modes: Option<usize>,
+    /// Prior file (TOML).
+    #[arg(long)]
+    pub prior: Option<PathBuf>,
+    /// Fixed back-end option KEY=VALUE (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Seed of every run.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Also write report.md, report.json and the models into this folder.
+    #[arg(short = 'o', long = "out")]
+    pub out: Option<PathBuf>,
+    /// Input column/variable name(s), comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "u")]
+    pub input: Vec<String>,
+    /// Output column/variable name.
+    #[arg(long, default_value = "y")]
+    pub output: String,
+    /// Keep every K-th sample (no filter).
+    #[arg(long, default_value_t = 1)]
+    pub decimate: usize,
+    /// Sampling time in seconds when the file has no `t` signal.
+    #[arg(long)]
+    pub ts: Option<f64>,
+}
+
+fn parse_rows(s: &str) -> std::result::Result<RowRange, String> {
+    s.parse()
+}
+
+fn scalar(text: &str) -> toml::Value {
+    format!("v = {text}")
+        .parse::<toml::Table>()
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .filter(|v| !v.is_table() && !v.is_array())
+        .unwrap_or_else(|| toml::Value::String(text.to_string()))
+}
+
+fn key_values(items: &[String], flag: &str) -> Result<BTreeMap<String, Vec<toml::Value>>> {
+    let mut out = BTreeMap::new();
+    for it in items {
+        let (k, v) = it
+            .split_once('=')
+            .ok_or_else(|| CliError::input(format!("{flag} '{it}': expected KEY=VALUE")))?;
+        let values: Vec<toml::Value> = v
+            .split(',')
+            .map(str::trim)
+            .filter(|x| !x.is_empty())
+            .map(scalar)
+            .collect();
+        if values.is_empty() {
+            return Err(CliError::input(format!("{flag} {k}: no value")));
+        }
+        if out.insert(k.trim().to_string(), values).is_some() {
+            return Err(CliError::input(format!("{flag} {k}: given twice")));
+        }
+    }
+    Ok(out)
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> Result<()> {
+    let mut priors = match &args.prior {
+        Some(p) => Priors::load(p)?,
+        None => Priors::default(),
+    };
+    if args.modes.is_some() {
+        priors.modes = args.modes;
+    }
+    let set = key_values(&args.set, "--set")?
+        .into_iter()
+        .map(|(k, mut v)| (k, v.remove(0)))
+        .collect();
+    let grid = key_values(&args.grid, "--grid")?;
+    let exp = Experiment {
+        title: format!("{} sweep on {}", args.method, args.data.display()),
+        description: String::new(),
+        data: DataSpec {
+            file: args.data.clone(),
+            input: args.input.clone(),
+            output: args.output.clone(),
+            decimate: args.decimate,
+            ts: args.ts,
+            identification: args.identify_rows,
+            validation: args.validate_rows,
+            warmup: args.warmup,
+        },
+        na: args.na,
+        nb: args.nb,
+        seed: args.seed,
+        priors,
+        runs: vec![],
+        sweeps: vec![SweepSpec {
+            run: RunSpec {
+                name: args.method.clone(),
+                method: args.method.clone(),
+                na: None,
+                nb: None,
+                modes: None,
+                use_priors: true,
+                priors: None,
+                set,
+                seed: None,
+            },
+            vary: None,
+            values: vec![],
+            grid,
+        }],
+    };
+    exp.check().map_err(|m| CliError::input(m))?;
+    let progress = TerminalProgress::new();
+    let mut comparison = exp
+        .run(&progress)
+        .map_err(|e| CliError::input(e.to_string()))?;
+    if let Some(dir) = &args.out {
+        hysid_compare::write_report(&mut comparison, dir)
+            .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
+        eprintln!(
+            "hysid: report written to {}",
+            dir.join("report.md").display()
+        );
+    }
+    print!("{}", hysid_compare::report::markdown(&comparison));
+    if let Some(best) = comparison
+        .results
+        .iter()
+        .filter_map(|r| r.report.as_ref().map(|v| (r, v.fit_sim)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+    {
+        eprintln!("hysid: best fit_sim {:.2} % at {}", best.1, best.0.name);
+    }
+    Ok(())
+}
