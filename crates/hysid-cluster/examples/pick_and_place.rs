@@ -22,9 +22,14 @@ use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let file = args.iter().find(|a| a.ends_with(".mat")).map(PathBuf::from).unwrap_or_else(|| {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../models/pick-and-place/headdata_1v6.mat")
-    });
+    let file = args
+        .iter()
+        .find(|a| a.ends_with(".mat"))
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("../../models/pick-and-place/headdata_1v6.mat")
+        });
     let list = |i: usize, default: &[usize]| -> Vec<usize> {
         args.iter()
             .filter(|a| !a.ends_with(".mat") && !a.contains('='))
@@ -35,14 +40,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let cs = list(0, &[6, 10, 20, 40, 80, 120, 160, 240]);
     let modes = list(1, &[2, 3, 4]);
     let sets: Vec<&String> = args.iter().filter(|a| a.contains('=')).collect();
-    let options: ClusterOptions = Settings::parse(&sets).map_err(|e| e.to_string())?.resolve("cluster")?;
-    let sel = |a, b| DataSelection { decimate: 10, rows: RowRange { start: Some(a), end: Some(b) }, ..Default::default() };
+    let options: ClusterOptions = Settings::parse(&sets)
+        .map_err(|e| e.to_string())?
+        .resolve("cluster")?;
+    let sel = |a, b| DataSelection {
+        decimate: 10,
+        rows: RowRange {
+            start: Some(a),
+            end: Some(b),
+        },
+        ..Default::default()
+    };
     let ident = load(&file, &sel(0, 5000))?;
     let valid = load(&file, &sel(5000, 6001))?;
     let priors = Priors::default();
-    let problem = Problem { data: &ident, orders: RegressorSpec::new(2, 2, 1), priors: &priors, priors_origin: None };
+    let problem = Problem {
+        data: &ident,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors: &priors,
+        priors_origin: None,
+    };
     let t0 = std::time::Instant::now();
-    let points = sweep(&problem, &valid, 10, &cs, &modes, &options, &RunContext::quiet(1));
+    let points = sweep(
+        &problem,
+        &valid,
+        10,
+        &cs,
+        &modes,
+        &options,
+        &RunContext::quiet(1),
+    );
     println!("| c | modes | modes found | fit_sim % | fit_pred % | coverage_sim |");
     println!("|---|---|---|---|---|---|");
     for p in &points {
@@ -64,10 +91,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ),
         }
     }
-    let best = points.iter().filter_map(|p| p.fit_sim.map(|f| (f, p))).max_by(|a, b| a.0.total_cmp(&b.0));
+    let best = points
+        .iter()
+        .filter_map(|p| p.fit_sim.map(|f| (f, p)))
+        .max_by(|a, b| a.0.total_cmp(&b.0));
     if let Some((f, p)) = best {
-        println!("best: c = {:?}, modes = {}: fit_sim = {f:.1} %", p.c, p.modes);
+        println!(
+            "best: c = {:?}, modes = {}: fit_sim = {f:.1} %",
+            p.c, p.modes
+        );
     }
-    eprintln!("{} identifications in {:.1} s", points.len(), t0.elapsed().as_secs_f64());
+    eprintln!(
+        "{} identifications in {:.1} s",
+        points.len(),
+        t0.elapsed().as_secs_f64()
+    );
     Ok(())
 }

@@ -80,7 +80,13 @@ pub(crate) fn mean_diag(a: &[f64], p: usize) -> f64 {
 /// `rel * mean_diag(a)` and at least `floor`, else of `a + floor I`
 /// (`floor > 0`). Returns `true` when the ridge was needed. The factor
 /// replaces `a`; `scratch` holds a copy.
-pub(crate) fn regularised_cholesky(a: &mut [f64], p: usize, rel: f64, floor: f64, scratch: &mut [f64]) -> bool {
+pub(crate) fn regularised_cholesky(
+    a: &mut [f64],
+    p: usize,
+    rel: f64,
+    floor: f64,
+    scratch: &mut [f64],
+) -> bool {
     if p == 0 {
         return false;
     }

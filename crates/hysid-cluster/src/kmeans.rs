@@ -50,7 +50,14 @@ pub struct Clusters {
 
 /// Centre update `mu_i = (sum R_j^-1)^-1 sum R_j^-1 xi_j` for every cluster
 /// with members; others keep their centre. `av` holds `R_j^-1 xi_j`.
-fn update_centres(f: &FeatureVectors, av: &[f64], labels: &[usize], members: Option<&[usize]>, centres: &mut [f64], s: usize) {
+fn update_centres(
+    f: &FeatureVectors,
+    av: &[f64],
+    labels: &[usize],
+    members: Option<&[usize]>,
+    centres: &mut [f64],
+    s: usize,
+) {
     let (p, q) = (f.p, f.q);
     let d = p + q;
     let mut sa = vec![0.0; s * p * p];
@@ -59,13 +66,22 @@ fn update_centres(f: &FeatureVectors, av: &[f64], labels: &[usize], members: Opt
     let mut count = vec![0usize; s];
     let mut visit = |j: usize, i: usize| {
         count[i] += 1;
-        for (a, b) in sa[i * p * p..(i + 1) * p * p].iter_mut().zip(&f.v_inv[j * p * p..(j + 1) * p * p]) {
+        for (a, b) in sa[i * p * p..(i + 1) * p * p]
+            .iter_mut()
+            .zip(&f.v_inv[j * p * p..(j + 1) * p * p])
+        {
             *a += b;
         }
-        for (a, b) in sb[i * q * q..(i + 1) * q * q].iter_mut().zip(&f.q_inv[j * q * q..(j + 1) * q * q]) {
+        for (a, b) in sb[i * q * q..(i + 1) * q * q]
+            .iter_mut()
+            .zip(&f.q_inv[j * q * q..(j + 1) * q * q])
+        {
             *a += b;
         }
-        for (a, b) in rhs[i * d..(i + 1) * d].iter_mut().zip(&av[j * d..(j + 1) * d]) {
+        for (a, b) in rhs[i * d..(i + 1) * d]
+            .iter_mut()
+            .zip(&av[j * d..(j + 1) * d])
+        {
             *a += b;
         }
     };
@@ -200,7 +216,10 @@ pub fn weighted_kmeans(
             let cost = assign(f, &centres, s, &mut labels);
             let old = centres.clone();
             update_centres(f, &av, &labels, None, &mut centres, s);
-            let shift = old.iter().zip(&centres).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            let shift = old
+                .iter()
+                .zip(&centres)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
             if it > 0 && shift < 1e-4 && (cost - old_cost).abs() < 1e-4 {
                 converged = true;
                 break;
@@ -233,7 +252,12 @@ pub fn single_linkage(f: &FeatureVectors, s: usize, threshold: Option<f64>) -> C
     let n = f.n_samples;
     let d = f.dim();
     let dist = |a: usize, b: usize| -> f64 {
-        f.xi(a).iter().zip(f.xi(b)).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
+        f.xi(a)
+            .iter()
+            .zip(f.xi(b))
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum::<f64>()
+            .sqrt()
     };
     let mut in_tree = vec![false; n];
     let mut best = vec![f64::INFINITY; n];
@@ -298,13 +322,20 @@ pub fn single_linkage(f: &FeatureVectors, s: usize, threshold: Option<f64>) -> C
     let mut id = vec![usize::MAX; n];
     let mut labels = vec![0; n];
     let mut count = 0;
-    for j in 0..n {
+    for (j, l) in labels.iter_mut().enumerate() {
         let r = find(&mut root, j);
         if id[r] == usize::MAX {
             id[r] = count;
             count += 1;
         }
-        labels[j] = id[r];
+        *l = id[r];
     }
-    Clusters { labels, count, cost: 0.0, restart_costs: vec![], iterations: 0, converged: true }
+    Clusters {
+        labels,
+        count,
+        cost: 0.0,
+        restart_costs: vec![],
+        iterations: 0,
+        converged: true,
+    }
 }

@@ -9,13 +9,22 @@
 //! all coincide is simply not split further.
 
 use std::cmp::Ordering;
+use std::collections::BinaryHeap;
 
 const LEAF: usize = 16;
 
 #[derive(Debug, Clone)]
 enum Node {
-    Leaf { start: usize, end: usize },
-    Split { dim: usize, value: f64, left: usize, right: usize },
+    Leaf {
+        start: usize,
+        end: usize,
+    },
+    Split {
+        dim: usize,
+        value: f64,
+        left: usize,
+        right: usize,
+    },
 }
 
 /// A k-d tree over the rows of a point matrix (`n` points of dimension `d`,
@@ -41,15 +50,22 @@ impl PartialOrd for Candidate {
 }
 impl Ord for Candidate {
     fn cmp(&self, other: &Self) -> Ordering {
-        self.dist.total_cmp(&other.dist).then(self.index.cmp(&other.index))
+        self.dist
+            .total_cmp(&other.dist)
+            .then(self.index.cmp(&other.index))
     }
 }
 
 impl<'a> KdTree<'a> {
     /// Builds the tree over `points` (row-major, `d` columns, finite values).
     pub fn new(points: &'a [f64], d: usize) -> Self {
-        let n = if d == 0 { 0 } else { points.len() / d };
-        let mut t = KdTree { points, d, order: (0..n).collect(), nodes: Vec::new() };
+        let n = points.len().checked_div(d).unwrap_or(0);
+        let mut t = KdTree {
+            points,
+            d,
+            order: (0..n).collect(),
+            nodes: Vec::new(),
+        };
         if n > 0 {
             t.build(0, n);
         }
@@ -85,12 +101,18 @@ impl<'a> KdTree<'a> {
         }
         let mid = start + (end - start) / 2;
         let (pts, d) = (self.points, self.d);
-        self.order[start..end]
-            .select_nth_unstable_by(mid - start, |&a, &b| pts[a * d + best].total_cmp(&pts[b * d + best]));
+        self.order[start..end].select_nth_unstable_by(mid - start, |&a, &b| {
+            pts[a * d + best].total_cmp(&pts[b * d + best])
+        });
         let value = self.coord(self.order[mid], best);
         let left = self.build(start, mid);
         let right = self.build(mid, end);
-        self.nodes[id] = Node::Split { dim: best, value, left, right };
+        self.nodes[id] = Node::Split {
+            dim: best,
+            value,
+            left,
+            right,
+        };
         id
     }
 
@@ -101,38 +123,93 @@ impl<'a> KdTree<'a> {
         if self.nodes.is_empty() || k == 0 {
             return;
         }
-        let mut best: Vec<Candidate> = Vec::with_capacity(k + 1);
-        self.search(0, q, k, &mut best);
-        out.extend(best.iter().map(|c| c.index));
+        let mut best = Best::new(k);
+        self.search(0, q, &mut best);
+        out.extend(best.into_sorted().into_iter().map(|c| c.index));
     }
 
-    fn search(&self, node: usize, q: &[f64], k: usize, best: &mut Vec<Candidate>) {
+    fn search(&self, node: usize, q: &[f64], best: &mut Best) {
         match self.nodes[node] {
             Node::Leaf { start, end } => {
                 for &i in &self.order[start..end] {
                     let row = &self.points[i * self.d..(i + 1) * self.d];
                     let dist: f64 = row.iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum();
-                    let c = Candidate { dist, index: i };
-                    if best.len() == k {
-                        if c >= best[k - 1] {
-                            continue;
-                        }
-                        best.pop();
-                    }
-                    // Sorted insertion (k is small).
-                    let pos = best.partition_point(|b| *b < c);
-                    best.insert(pos, c);
+                    best.offer(Candidate { dist, index: i });
                 }
             }
-            Node::Split { dim, value, left, right } => {
+            Node::Split {
+                dim,
+                value,
+                left,
+                right,
+            } => {
                 let diff = q[dim] - value;
-                let (near, far) = if diff < 0.0 { (left, right) } else { (right, left) };
-                self.search(near, q, k, best);
+                let (near, far) = if diff < 0.0 {
+                    (left, right)
+                } else {
+                    (right, left)
+                };
+                self.search(near, q, best);
                 // Points equal to the split value may sit on either side.
-                if best.len() < k || diff * diff <= best[k - 1].dist {
-                    self.search(far, q, k, best);
+                if best.accepts(diff * diff) {
+                    self.search(far, q, best);
                 }
             }
+        }
+    }
+}
+
+/// The best `k` candidates so far: a sorted vector for small `k`, a
+/// max-heap for large `k`.
+enum Best {
+    Sorted(Vec<Candidate>, usize),
+    Heap(BinaryHeap<Candidate>, usize),
+}
+
+impl Best {
+    fn new(k: usize) -> Self {
+        if k <= 32 {
+            Best::Sorted(Vec::with_capacity(k + 1), k)
+        } else {
+            Best::Heap(BinaryHeap::with_capacity(k + 1), k)
+        }
+    }
+
+    /// Could a point at squared distance `bound` still enter?
+    fn accepts(&self, bound: f64) -> bool {
+        match self {
+            Best::Sorted(v, k) => v.len() < *k || bound <= v[k - 1].dist,
+            Best::Heap(h, k) => h.len() < *k || bound <= h.peek().map_or(f64::INFINITY, |c| c.dist),
+        }
+    }
+
+    fn offer(&mut self, c: Candidate) {
+        match self {
+            Best::Sorted(v, k) => {
+                if v.len() == *k {
+                    if c >= v[*k - 1] {
+                        return;
+                    }
+                    v.pop();
+                }
+                let pos = v.partition_point(|b| *b < c);
+                v.insert(pos, c);
+            }
+            Best::Heap(h, k) => {
+                if h.len() < *k {
+                    h.push(c);
+                } else if h.peek().is_some_and(|top| c < *top) {
+                    h.pop();
+                    h.push(c);
+                }
+            }
+        }
+    }
+
+    fn into_sorted(self) -> Vec<Candidate> {
+        match self {
+            Best::Sorted(v, _) => v,
+            Best::Heap(h, _) => h.into_sorted_vec(),
         }
     }
 }
@@ -146,7 +223,11 @@ mod tests {
         let n = points.len() / d;
         let mut c: Vec<Candidate> = (0..n)
             .map(|i| Candidate {
-                dist: points[i * d..(i + 1) * d].iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum(),
+                dist: points[i * d..(i + 1) * d]
+                    .iter()
+                    .zip(q)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum(),
                 index: i,
             })
             .collect();
@@ -160,7 +241,7 @@ mod tests {
         /// The tree returns exactly the brute-force neighbours, duplicates
         /// and ties included (coordinates on a coarse grid make many ties).
         #[test]
-        fn matches_brute_force(d in 1usize..5, n in 1usize..300, k in 1usize..20, seed in any::<u64>()) {
+        fn matches_brute_force(d in 1usize..5, n in 1usize..300, k in 1usize..60, seed in any::<u64>()) {
             use rand::{Rng, SeedableRng};
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
             let pts: Vec<f64> = (0..n * d).map(|_| (rng.random_range(0..6) as f64) * 0.5).collect();

@@ -21,7 +21,7 @@
 //!    ([`procedure`]);
 //! 5. regions by `hysid-regions` (MRLP by default: a complete partition).
 //!
-//! [`sweep`] scores a grid of `c` and mode counts by validation simulation
+//! [`sweep()`] scores a grid of `c` and mode counts by validation simulation
 //! FIT.
 //!
 //! Priors honoured: `modes` (required unless `max_modes` is given, in which
@@ -94,7 +94,7 @@ hysid_core::backend_options! {
     /// Options of the `cluster` back-end.
     pub struct ClusterOptions {
         /// Local dataset size c (each sample and its c-1 nearest neighbours); at least
-        /// n+2 with n the regressor dimension. none: automatic, max(n+2, 4(n+1)) capped at N/(2s).
+        /// n+2 with n the regressor dimension. none: automatic, max(4(n+1), ceil(sqrt(N)/2)) capped at N/(2s).
         c: Option<usize> = None,
         /// K-means restarts with different seeds; the run of least cost is kept (HIT: 15).
         restarts: usize = 15,
@@ -147,8 +147,7 @@ pub struct Cluster;
 impl Identifier for Cluster {
     type Options = ClusterOptions;
     const NAME: &'static str = "cluster";
-    const SUMMARY: &'static str =
-        "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
+    const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
     const HONOURS: &'static [PriorKind] = &[PriorKind::Modes, PriorKind::MaxModes];
 
     fn identify(
@@ -170,9 +169,12 @@ impl Identifier for Cluster {
     }
 }
 
-/// Resolved `c` for regressor dimension `n`, `big_n` samples and `s` modes.
+/// The default `c`: `max(4(n+1), ceil(sqrt(N)/2))`, capped at `N/(2s)`, at
+/// least `n+2` (`n` regressors, `big_n` samples, `s` modes). It grows with N
+/// so that the local scatter does not dominate the K-means distance
+/// (`docs/cluster.md`).
 pub fn default_c(n: usize, big_n: usize, s: usize) -> usize {
-    let want = (n + 2).max(4 * (n + 1));
+    let want = (4 * (n + 1)).max(((big_n as f64).sqrt() / 2.0).ceil() as usize);
     want.min(big_n / (2 * s.max(1))).max(n + 2)
 }
 
@@ -185,31 +187,52 @@ fn check_options(o: &ClusterOptions) -> Result<(), IdentifyError> {
         return Err(bad("--set restarts=0: need at least one K-means run".into()));
     }
     if o.max_iter == 0 {
-        return Err(bad("--set max_iter=0: need at least one K-means sweep".into()));
+        return Err(bad(
+            "--set max_iter=0: need at least one K-means sweep".into()
+        ));
     }
     if !(o.discard.is_finite() && o.discard >= 0.0) {
-        return Err(bad(format!("--set discard={}: must be a finite number >= 0", o.discard)));
+        return Err(bad(format!(
+            "--set discard={}: must be a finite number >= 0",
+            o.discard
+        )));
     }
     if !(o.regularization.is_finite() && o.regularization > 0.0) {
-        return Err(bad(format!("--set regularization={}: must be a finite number > 0", o.regularization)));
+        return Err(bad(format!(
+            "--set regularization={}: must be a finite number > 0",
+            o.regularization
+        )));
     }
     if !(o.min_weight.is_finite() && o.min_weight > 0.0 && o.min_weight <= 1.0) {
-        return Err(bad(format!("--set min_weight={}: must be in (0, 1]", o.min_weight)));
+        return Err(bad(format!(
+            "--set min_weight={}: must be in (0, 1]",
+            o.min_weight
+        )));
     }
     if !(o.svm_c.is_finite() && o.svm_c > 0.0) {
-        return Err(bad(format!("--set svm_c={}: must be a finite number > 0", o.svm_c)));
+        return Err(bad(format!(
+            "--set svm_c={}: must be a finite number > 0",
+            o.svm_c
+        )));
     }
     if let Some(t) = o.sl_distance
         && !(t.is_finite() && t >= 0.0)
     {
-        return Err(bad(format!("--set sl_distance={t}: must be a finite number >= 0")));
+        return Err(bad(format!(
+            "--set sl_distance={t}: must be a finite number >= 0"
+        )));
     }
     Ok(())
 }
 
 /// Identifies a PWARX model with `s` modes (the whole procedure), in
 /// original units.
-pub fn identify_with(problem: &Problem<'_>, o: &ClusterOptions, s: usize, seed: u64) -> Result<Model, IdentifyError> {
+pub fn identify_with(
+    problem: &Problem<'_>,
+    o: &ClusterOptions,
+    s: usize,
+    seed: u64,
+) -> Result<Model, IdentifyError> {
     check_options(o)?;
     if s == 0 {
         return Err(bad("the number of modes must be at least 1".into()));
@@ -217,12 +240,21 @@ pub fn identify_with(problem: &Problem<'_>, o: &ClusterOptions, s: usize, seed: 
     let spec = problem.orders;
     let n = spec.dim();
     if n == 0 {
-        return Err(bad("method 'cluster' needs at least one regressor (na + nb > 0)".into()));
+        return Err(bad(
+            "method 'cluster' needs at least one regressor (na + nb > 0)".into(),
+        ));
     }
     if n > local::MAX_DIM {
-        return Err(bad(format!("method 'cluster' supports regressors of dimension up to {}, got {n}", local::MAX_DIM)));
+        return Err(bad(format!(
+            "method 'cluster' supports regressors of dimension up to {}, got {n}",
+            local::MAX_DIM
+        )));
     }
-    let scale = if o.scale { Standardization::of(problem.data) } else { Standardization::identity(problem.data.inputs.len()) };
+    let scale = if o.scale {
+        Standardization::of(problem.data)
+    } else {
+        Standardization::identity(problem.data.inputs.len())
+    };
     let work = scale.apply(problem.data);
     let reg = spec.build(&work).map_err(|e| bad(e.to_string()))?;
     let big_n = reg.len();
@@ -238,10 +270,15 @@ pub fn identify_with(problem: &Problem<'_>, o: &ClusterOptions, s: usize, seed: 
         )));
     }
     if c > big_n {
-        return Err(bad(format!("--set c={c}: larger than the {big_n} regressors of the data")));
+        return Err(bad(format!(
+            "--set c={c}: larger than the {big_n} regressors of the data"
+        )));
     }
     if big_n < s * (n + 1) {
-        return Err(bad(format!("{big_n} regressors cannot identify {s} modes of {} parameters", n + 1)));
+        return Err(bad(format!(
+            "{big_n} regressors cannot identify {s} modes of {} parameters",
+            n + 1
+        )));
     }
     // Row-major regressors.
     let mut x = Vec::with_capacity(big_n * n);
@@ -270,10 +307,11 @@ pub fn identify_with(problem: &Problem<'_>, o: &ClusterOptions, s: usize, seed: 
         weights: o.weights,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let fit = procedure::run(&x, n, &y, &settings, &mut rng).map_err(|e| IdentifyError::Failed {
-        method: "cluster".into(),
-        message: e.to_string(),
-    })?;
+    let fit =
+        procedure::run(&x, n, &y, &settings, &mut rng).map_err(|e| IdentifyError::Failed {
+            method: "cluster".into(),
+            message: e.to_string(),
+        })?;
     let modes = fit.theta.len();
     let mut theta = fit.theta.clone();
     let mut region_moved = 0;
@@ -286,9 +324,11 @@ pub fn identify_with(problem: &Problem<'_>, o: &ClusterOptions, s: usize, seed: 
             switching: None,
             standardize: !o.scale,
         };
-        let part = hysid_regions::estimate(&reg.x, &fit.labels, modes, &ropts).map_err(|e| IdentifyError::Failed {
-            method: "cluster".into(),
-            message: format!("region estimation: {e}"),
+        let part = hysid_regions::estimate(&reg.x, &fit.labels, modes, &ropts).map_err(|e| {
+            IdentifyError::Failed {
+                method: "cluster".into(),
+                message: format!("region estimation: {e}"),
+            }
         })?;
         if o.region_refit {
             // Mode datasets made consistent with the partition, then the
@@ -296,11 +336,19 @@ pub fn identify_with(problem: &Problem<'_>, o: &ClusterOptions, s: usize, seed: 
             let mut labels = fit.labels.clone();
             for (j, l) in labels.iter_mut().enumerate() {
                 let xj = &x[j * n..(j + 1) * n];
-                let r = part.regions.iter().position(|p| p.contains(xj)).unwrap_or_else(|| {
-                    (0..modes)
-                        .min_by(|&a, &b| part.regions[a].violation(xj).total_cmp(&part.regions[b].violation(xj)))
-                        .unwrap_or(*l)
-                });
+                let r = part
+                    .regions
+                    .iter()
+                    .position(|p| p.contains(xj))
+                    .unwrap_or_else(|| {
+                        (0..modes)
+                            .min_by(|&a, &b| {
+                                part.regions[a]
+                                    .violation(xj)
+                                    .total_cmp(&part.regions[b].violation(xj))
+                            })
+                            .unwrap_or(*l)
+                    });
                 if r != *l {
                     region_moved += 1;
                     *l = r;
@@ -308,8 +356,20 @@ pub fn identify_with(problem: &Problem<'_>, o: &ClusterOptions, s: usize, seed: 
             }
             let sizes = (0..modes).map(|i| labels.iter().filter(|&&l| l == i).count());
             if sizes.clone().all(|k| k > n) {
-                theta = procedure::fit_modes(&x, n, &y, &fit.features, &labels, modes, o.min_weight, o.weights)
-                    .map_err(|e| IdentifyError::Failed { method: "cluster".into(), message: e.to_string() })?;
+                theta = procedure::fit_modes(
+                    &x,
+                    n,
+                    &y,
+                    &fit.features,
+                    &labels,
+                    modes,
+                    o.min_weight,
+                    o.weights,
+                )
+                .map_err(|e| IdentifyError::Failed {
+                    method: "cluster".into(),
+                    message: e.to_string(),
+                })?;
             }
         }
         (part.regions, part.training_accuracy, part.complete)
@@ -346,11 +406,19 @@ pub fn identify_with(problem: &Problem<'_>, o: &ClusterOptions, s: usize, seed: 
         modes: theta
             .into_iter()
             .zip(regions)
-            .map(|(theta, region)| PwarxMode { theta, region, name: None })
+            .map(|(theta, region)| PwarxMode {
+                theta,
+                region,
+                name: None,
+            })
             .collect(),
         info,
     };
-    let model = if o.scale { working.to_original_units(&scale) } else { working };
+    let model = if o.scale {
+        working.to_original_units(&scale)
+    } else {
+        working
+    };
     Ok(Model::Pwarx(model))
 }
 
@@ -368,13 +436,22 @@ fn choose_modes(
     let cut = len * 3 / 4;
     let ident = problem
         .data
-        .slice(hysid_core::data::RowRange { start: None, end: Some(cut) })
+        .slice(hysid_core::data::RowRange {
+            start: None,
+            end: Some(cut),
+        })
         .map_err(|e| bad(e.to_string()))?;
     let valid = problem
         .data
-        .slice(hysid_core::data::RowRange { start: Some(cut), end: None })
+        .slice(hysid_core::data::RowRange {
+            start: Some(cut),
+            end: None,
+        })
         .map_err(|e| bad(e.to_string()))?;
-    let sub = Problem { data: &ident, ..*problem };
+    let sub = Problem {
+        data: &ident,
+        ..*problem
+    };
     let points = sweep::sweep(&sub, &valid, 0, &[], &(1..=max).collect::<Vec<_>>(), o, ctx);
     let best = points
         .iter()
@@ -385,12 +462,19 @@ fn choose_modes(
         })
         .ok_or_else(|| IdentifyError::Failed {
             method: "cluster".into(),
-            message: format!("no mode count in 1..={max} could be identified and simulated on the hold-out part"),
+            message: format!(
+                "no mode count in 1..={max} could be identified and simulated on the hold-out part"
+            ),
         })?;
     let mut model = identify_with(problem, o, best.modes, ctx.seed)?;
     model.info_mut().diagnostics.insert(
         "mode_choice".into(),
-        serde_json::json!(points.iter().map(|p| (p.modes, p.fit_sim)).collect::<Vec<_>>()),
+        serde_json::json!(
+            points
+                .iter()
+                .map(|p| (p.modes, p.fit_sim))
+                .collect::<Vec<_>>()
+        ),
     );
     Ok(model)
 }

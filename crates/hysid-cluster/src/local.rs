@@ -135,7 +135,14 @@ fn median(v: &mut [f64]) -> f64 {
 /// Builds the local datasets and feature vectors of the regression problem
 /// `y_k = theta' [x_k; 1]` (`x` row-major with `n` columns). Requires
 /// `n + 2 <= c <= N` and `n <= MAX_DIM` (checked by the caller).
-pub fn feature_vectors(x: &[f64], n: usize, y: &[f64], c: usize, features: Features, eps: f64) -> FeatureVectors {
+pub fn feature_vectors(
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    c: usize,
+    features: Features,
+    eps: f64,
+) -> FeatureVectors {
     let big_n = y.len();
     let p = n + 1;
     let q = if features == Features::Fv { n } else { 0 };
@@ -184,7 +191,13 @@ pub fn feature_vectors(x: &[f64], n: usize, y: &[f64], c: usize, features: Featu
         }
         let mut l = g.to_vec();
         let t = dense::mean_diag(g, p);
-        collinear[j] = dense::regularised_cholesky(&mut l, p, 1e-10, eps * t.max(f64::MIN_POSITIVE), &mut scratch);
+        collinear[j] = dense::regularised_cholesky(
+            &mut l,
+            p,
+            1e-10,
+            eps * t.max(f64::MIN_POSITIVE),
+            &mut scratch,
+        );
         if collinear[j] {
             for r in 0..p {
                 g[r * p + r] += eps * t.max(f64::MIN_POSITIVE);
@@ -231,10 +244,16 @@ pub fn feature_vectors(x: &[f64], n: usize, y: &[f64], c: usize, features: Featu
         let t = t / n.max(1) as f64;
         if t > 0.0 { t } else { 1.0 }
     };
-    let sigma_floor = (eps * var_y).max(0.01 * median(&mut sigma2.clone())).max(f64::MIN_POSITIVE);
+    let sigma_floor = (eps * var_y)
+        .max(0.01 * median(&mut sigma2.clone()))
+        .max(f64::MIN_POSITIVE);
     let scatter_floor = {
-        let mut tr: Vec<f64> = (0..big_n).map(|j| dense::mean_diag(&scatter[j * n * n..(j + 1) * n * n], n)).collect();
-        (eps * tr_x).max(0.01 * median(&mut tr)).max(f64::MIN_POSITIVE)
+        let mut tr: Vec<f64> = (0..big_n)
+            .map(|j| dense::mean_diag(&scatter[j * n * n..(j + 1) * n * n], n))
+            .collect();
+        (eps * tr_x)
+            .max(0.01 * median(&mut tr))
+            .max(f64::MIN_POSITIVE)
     };
     // Pass 2: regularise, invert, confidence.
     let d = p + q;
@@ -265,7 +284,11 @@ pub fn feature_vectors(x: &[f64], n: usize, y: &[f64], c: usize, features: Featu
         }
         lg.copy_from_slice(g);
         // log det V_j = p ln s2 - ln det G_j (G_j already regularised, so SPD).
-        let ld_g = if dense::cholesky(&mut lg, p).is_some() { dense::cholesky_log_det(&lg, p) } else { 0.0 };
+        let ld_g = if dense::cholesky(&mut lg, p).is_some() {
+            dense::cholesky_log_det(&lg, p)
+        } else {
+            0.0
+        };
         let mut log_det_r = p as f64 * s2.ln() - ld_g;
         xi[j * d..j * d + p].copy_from_slice(&theta[j * p..(j + 1) * p]);
         if q > 0 {
@@ -283,7 +306,19 @@ pub fn feature_vectors(x: &[f64], n: usize, y: &[f64], c: usize, features: Featu
         }
         log_w[j] = -0.5 * (d as f64 * ln2pi + log_det_r);
     }
-    FeatureVectors { n_samples: big_n, p, q, xi, v_inv, q_inv, log_w, theta, members, c, degenerate }
+    FeatureVectors {
+        n_samples: big_n,
+        p,
+        q,
+        xi,
+        v_inv,
+        q_inv,
+        log_w,
+        theta,
+        members,
+        c,
+        degenerate,
+    }
 }
 
 #[cfg(test)]
@@ -310,6 +345,12 @@ mod tests {
         assert_eq!(f.degenerate.total, 40);
         assert_eq!(f.degenerate.collinear, 40);
         assert_eq!(f.degenerate.flat_scatter, 40);
-        assert!(f.xi.iter().chain(&f.v_inv).chain(&f.q_inv).chain(&f.log_w).all(|v| v.is_finite()));
+        assert!(
+            f.xi.iter()
+                .chain(&f.v_inv)
+                .chain(&f.q_inv)
+                .chain(&f.log_w)
+                .all(|v| v.is_finite())
+        );
     }
 }

@@ -102,7 +102,9 @@ pub struct Diagnostics {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ProcedureError {
     /// Every cluster was smaller than the discard size.
-    #[error("every cluster has fewer than {0} points (the discard size max(c, alpha (n+1))): lower c or the mode count, or set discard=0")]
+    #[error(
+        "every cluster has fewer than {0} points (the discard size max(c, alpha (n+1))): lower c or the mode count, or set discard=0"
+    )]
     AllDiscarded(usize),
     /// Least squares failed (non-finite data).
     #[error("least squares failed: {0}")]
@@ -117,6 +119,7 @@ fn residual2(x: &[f64], y: f64, th: &[f64]) -> f64 {
 
 /// Weighted least squares per mode (step 4) on the mode datasets given by
 /// `labels` (`0..modes`).
+#[allow(clippy::too_many_arguments)]
 pub fn fit_modes(
     x: &[f64],
     n: usize,
@@ -131,7 +134,10 @@ pub fn fit_modes(
     for i in 0..modes {
         let rows: Vec<usize> = (0..labels.len()).filter(|&j| labels[j] == i).collect();
         let top = match weights {
-            Weights::Confidence => rows.iter().map(|&j| f.log_w[j]).fold(f64::NEG_INFINITY, f64::max),
+            Weights::Confidence => rows
+                .iter()
+                .map(|&j| f.log_w[j])
+                .fold(f64::NEG_INFINITY, f64::max),
             Weights::Capped => {
                 let mut lw: Vec<f64> = rows.iter().map(|&j| f.log_w[j]).collect();
                 if lw.is_empty() {
@@ -156,7 +162,8 @@ pub fn fit_modes(
                 _ => (f.log_w[j] - top).exp().clamp(min_weight, 1.0),
             });
         }
-        let sol = linalg::weighted_lstsq(&phi, &t, &w).map_err(|e| ProcedureError::LeastSquares(e.to_string()))?;
+        let sol = linalg::weighted_lstsq(&phi, &t, &w)
+            .map_err(|e| ProcedureError::LeastSquares(e.to_string()))?;
         out.push(sol.theta.iter().copied().collect());
     }
     Ok(out)
@@ -187,14 +194,26 @@ fn discard_small(labels: &mut [usize], modes: usize, min_size: usize) -> (usize,
 }
 
 /// Runs steps 1-5 and 7 on `x` (N x n, row-major) and `y`.
-pub fn run(x: &[f64], n: usize, y: &[f64], s: &Settings, rng: &mut ChaCha8Rng) -> Result<ModeFit, ProcedureError> {
+pub fn run(
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    s: &Settings,
+    rng: &mut ChaCha8Rng,
+) -> Result<ModeFit, ProcedureError> {
     let big_n = y.len();
     let f = local::feature_vectors(x, n, y, s.c, s.features, s.regularization);
     let clusters: Clusters = match s.clustering {
-        Clustering::Kmeans => kmeans::weighted_kmeans(&f, s.modes, s.restarts, s.max_iter, s.init, rng),
+        Clustering::Kmeans => {
+            kmeans::weighted_kmeans(&f, s.modes, s.restarts, s.max_iter, s.init, rng)
+        }
         Clustering::SingleLinkage => kmeans::single_linkage(&f, s.modes, s.sl_distance),
     };
-    let discard_size = if s.discard > 0.0 { s.c.max((s.discard * (n + 1) as f64).ceil() as usize) } else { 1 };
+    let discard_size = if s.discard > 0.0 {
+        s.c.max((s.discard * (n + 1) as f64).ceil() as usize)
+    } else {
+        1
+    };
     let mut labels = clusters.labels.clone();
     let (mut modes, mut discarded) = discard_small(&mut labels, clusters.count, discard_size);
     if modes == 0 {
@@ -202,21 +221,22 @@ pub fn run(x: &[f64], n: usize, y: &[f64], s: &Settings, rng: &mut ChaCha8Rng) -
     }
     let outliers = labels.iter().filter(|&&l| l == usize::MAX).count();
     let mut theta = fit_modes(x, n, y, &f, &labels, modes, s.min_weight, s.weights)?;
-    let best_mode = |j: usize, cands: &mut dyn Iterator<Item = usize>, theta: &[Vec<f64>]| -> usize {
-        let xj = &x[j * n..(j + 1) * n];
-        let mut best = (f64::INFINITY, usize::MAX);
-        for i in cands {
-            let r = residual2(xj, y[j], &theta[i]);
-            if r < best.0 || (r == best.0 && i < best.1) {
-                best = (r, i);
+    let best_mode =
+        |j: usize, cands: &mut dyn Iterator<Item = usize>, theta: &[Vec<f64>]| -> usize {
+            let xj = &x[j * n..(j + 1) * n];
+            let mut best = (f64::INFINITY, usize::MAX);
+            for i in cands {
+                let r = residual2(xj, y[j], &theta[i]);
+                if r < best.0 || (r == best.0 && i < best.1) {
+                    best = (r, i);
+                }
             }
-        }
-        best.1
-    };
+            best.1
+        };
     // Outliers: least residual over all modes.
-    for j in 0..big_n {
-        if labels[j] == usize::MAX {
-            labels[j] = best_mode(j, &mut (0..modes), &theta);
+    for (j, l) in labels.iter_mut().enumerate() {
+        if *l == usize::MAX {
+            *l = best_mode(j, &mut (0..modes), &theta);
         }
     }
     let mut reattributed = 0;
@@ -254,9 +274,9 @@ pub fn run(x: &[f64], n: usize, y: &[f64], s: &Settings, rng: &mut ChaCha8Rng) -
         }
         if dropped > 0 {
             theta = fit_modes(x, n, y, &f, &labels, kept, s.min_weight, s.weights)?;
-            for j in 0..big_n {
-                if labels[j] == usize::MAX {
-                    labels[j] = best_mode(j, &mut (0..kept), &theta);
+            for (j, l) in labels.iter_mut().enumerate() {
+                if *l == usize::MAX {
+                    *l = best_mode(j, &mut (0..kept), &theta);
                 }
             }
             discarded += dropped;

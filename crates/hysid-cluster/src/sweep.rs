@@ -46,18 +46,38 @@ pub fn sweep(
     base: &ClusterOptions,
     ctx: &RunContext<'_>,
 ) -> Vec<SweepPoint> {
-    let grid: Vec<Option<usize>> = if cs.is_empty() { vec![base.c] } else { cs.iter().map(|&c| Some(c)).collect() };
-    ctx.progress.start((grid.len() * modes.len()) as u64, "cluster: sweeping c and the mode count");
+    let grid: Vec<Option<usize>> = if cs.is_empty() {
+        vec![base.c]
+    } else {
+        cs.iter().map(|&c| Some(c)).collect()
+    };
+    ctx.progress.start(
+        (grid.len() * modes.len()) as u64,
+        "cluster: sweeping c and the mode count",
+    );
     let mut out = Vec::with_capacity(grid.len() * modes.len());
     for &c in &grid {
         for &s in modes {
             let opts = ClusterOptions { c, ..base.clone() };
-            let mut point =
-                SweepPoint { c, modes: s, modes_found: None, fit_sim: None, fit_pred: None, report: None, error: None };
+            let mut point = SweepPoint {
+                c,
+                modes: s,
+                modes_found: None,
+                fit_sim: None,
+                fit_pred: None,
+                report: None,
+                error: None,
+            };
             match identify_with(problem, &opts, s, ctx.seed) {
                 Ok(model) => {
                     point.modes_found = Some(model.mode_count());
-                    point.c = model.info().diagnostics.get("c").and_then(|v| v.as_u64()).map(|v| v as usize).or(c);
+                    point.c = model
+                        .info()
+                        .diagnostics
+                        .get("c")
+                        .and_then(|v| v.as_u64())
+                        .map(|v| v as usize)
+                        .or(c);
                     match validate(&model, validation, warmup) {
                         Ok((r, _, _)) => {
                             point.fit_sim = Some(r.fit_sim);

@@ -37,11 +37,23 @@ impl Example {
 }
 
 fn gauss(rng: &mut ChaCha8Rng, var: f64) -> f64 {
-    Normal::new(0.0, var.sqrt()).expect("finite variance").sample(rng)
+    Normal::new(0.0, var.sqrt())
+        .expect("finite variance")
+        .sample(rng)
 }
 
 /// A static map of one input: `x ~ U[lo, hi]`, `y = theta_mode(x) . [x; 1] + N(0, var)`.
-fn static_1d(n: usize, lo: f64, hi: f64, var: f64, theta: &[[f64; 2]], mode: impl Fn(f64) -> usize, c: usize, seed: u64) -> Example {
+#[allow(clippy::too_many_arguments)]
+fn static_1d(
+    n: usize,
+    lo: f64,
+    hi: f64,
+    var: f64,
+    theta: &[[f64; 2]],
+    mode: impl Fn(f64) -> usize,
+    c: usize,
+    seed: u64,
+) -> Example {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut u = Vec::with_capacity(n + 1);
     let mut y = vec![0.0];
@@ -68,13 +80,36 @@ fn static_1d(n: usize, lo: f64, hi: f64, var: f64, theta: &[[f64; 2]], mode: imp
 /// Modes are numbered by region, so `theta[0] == theta[2]`.
 pub fn h1(n: usize, seed: u64) -> Example {
     let th = [[1.0, 0.2], [-1.0, 2.0], [1.0, 0.2]];
-    static_1d(n, -4.0, 4.0, 0.01, &th, |x| if x <= -1.0 { 0 } else if x <= 2.0 { 1 } else { 2 }, 6, seed)
+    static_1d(
+        n,
+        -4.0,
+        4.0,
+        0.01,
+        &th,
+        |x| {
+            if x <= -1.0 {
+                0
+            } else if x <= 2.0 {
+                1
+            } else {
+                2
+            }
+        },
+        6,
+        seed,
+    )
 }
 
 /// H2 (`ex_pwarx_1d_5modes.m`): five modes on `u ~ U[-4, 8]`, N = 100,
 /// noise variance 0.01, c = 8.
 pub fn h2(n: usize, seed: u64) -> Example {
-    let th = [[1.0, 0.2], [-1.0, 2.0], [1.0, -1.0], [0.0, 2.0], [2.0, -10.0]];
+    let th = [
+        [1.0, 0.2],
+        [-1.0, 2.0],
+        [1.0, -1.0],
+        [0.0, 2.0],
+        [2.0, -10.0],
+    ];
     let mode = |x: f64| {
         if x <= -1.0 {
             0
@@ -132,7 +167,11 @@ pub fn h4(n: usize, seed: u64) -> Example {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let th = [[4.0, 2.0, 3.0], [-6.0, 6.0, -5.0], [4.0, -2.0, -2.0]];
     let s3 = 3f64.sqrt();
-    let (mut u1, mut u2, mut y) = (Vec::with_capacity(n + 1), Vec::with_capacity(n + 1), vec![0.0]);
+    let (mut u1, mut u2, mut y) = (
+        Vec::with_capacity(n + 1),
+        Vec::with_capacity(n + 1),
+        vec![0.0],
+    );
     let mut modes = Vec::with_capacity(n);
     for _ in 0..n {
         let (a, b): (f64, f64) = (rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
@@ -151,12 +190,30 @@ pub fn h4(n: usize, seed: u64) -> Example {
     u1.push(0.0);
     u2.push(0.0);
     let data = Dataset::new(
-        vec![Signal { name: "u1".into(), values: u1 }, Signal { name: "u2".into(), values: u2 }],
-        Signal { name: "y".into(), values: y },
+        vec![
+            Signal {
+                name: "u1".into(),
+                values: u1,
+            },
+            Signal {
+                name: "u2".into(),
+                values: u2,
+            },
+        ],
+        Signal {
+            name: "y".into(),
+            values: y,
+        },
         None,
     )
     .expect("same lengths");
-    Example { data, orders: RegressorSpec::new(0, 1, 2), theta: th.iter().map(|t| t.to_vec()).collect(), modes, c: 6 }
+    Example {
+        data,
+        orders: RegressorSpec::new(0, 1, 2),
+        theta: th.iter().map(|t| t.to_vec()).collect(),
+        modes,
+        c: 6,
+    }
 }
 
 /// True mode of B1 at `phi = [y(k-1), u(k-1), 1]`.

@@ -14,9 +14,24 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 fn identify(data: &Dataset, orders: RegressorSpec, modes: usize, set: &[&str]) -> PwarxModel {
-    let priors = Priors { modes: Some(modes), ..Default::default() };
-    let problem = Problem { data, orders, priors: &priors, priors_origin: None };
-    match Cluster.run(&problem, &Settings::parse(set).unwrap(), &RunContext::quiet(7)).unwrap() {
+    let priors = Priors {
+        modes: Some(modes),
+        ..Default::default()
+    };
+    let problem = Problem {
+        data,
+        orders,
+        priors: &priors,
+        priors_origin: None,
+    };
+    match Cluster
+        .run(
+            &problem,
+            &Settings::parse(set).unwrap(),
+            &RunContext::quiet(7),
+        )
+        .unwrap()
+    {
         Model::Pwarx(m) => m,
         _ => unreachable!(),
     }
@@ -57,8 +72,20 @@ fn static_dataset(x: &[[f64; 2]], y: &[f64], order: &[usize]) -> Dataset {
     u1.push(0.0);
     u2.push(0.0);
     Dataset::new(
-        vec![Signal { name: "u1".into(), values: u1 }, Signal { name: "u2".into(), values: u2 }],
-        Signal { name: "y".into(), values: yy },
+        vec![
+            Signal {
+                name: "u1".into(),
+                values: u1,
+            },
+            Signal {
+                name: "u2".into(),
+                values: u2,
+            },
+        ],
+        Signal {
+            name: "y".into(),
+            values: yy,
+        },
         None,
     )
     .unwrap()
@@ -139,36 +166,72 @@ proptest! {
 fn degenerate_local_datasets_are_regularised_and_counted() {
     let n = 400;
     let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let u: Vec<f64> = (0..n).map(|k| if (k / 50) % 2 == 0 { 1.0 } else { rng.random_range(-1.0..0.0) }).collect();
+    let u: Vec<f64> = (0..n)
+        .map(|k| {
+            if (k / 50) % 2 == 0 {
+                1.0
+            } else {
+                rng.random_range(-1.0..0.0)
+            }
+        })
+        .collect();
     let mut y = vec![0.0; n];
     for k in 1..n {
         // Saturates at 1 while the input is held at 1.
-        y[k] = if u[k - 1] >= 1.0 { 1.0 } else { 0.5 * y[k - 1] + u[k - 1] };
+        y[k] = if u[k - 1] >= 1.0 {
+            1.0
+        } else {
+            0.5 * y[k - 1] + u[k - 1]
+        };
     }
     let data = Dataset::siso(u, y, None).unwrap();
     let m = identify(&data, RegressorSpec::new(1, 1, 1), 2, &[]);
     let d = &m.info.diagnostics;
-    assert!(d["degenerate_local_datasets"].as_u64().unwrap() > 0, "{d:?}");
-    assert!(m.modes.iter().all(|q| q.theta.iter().all(|v| v.is_finite())));
+    assert!(
+        d["degenerate_local_datasets"].as_u64().unwrap() > 0,
+        "{d:?}"
+    );
+    assert!(
+        m.modes
+            .iter()
+            .all(|q| q.theta.iter().all(|v| v.is_finite()))
+    );
 }
 
 #[test]
 fn errors_are_clear() {
     let ex = hysid_cluster::systems::b1(200, 1);
     let run = |p: &Priors, set: &[&str]| {
-        let problem = Problem { data: &ex.data, orders: ex.orders, priors: p, priors_origin: None };
-        Cluster.run(&problem, &Settings::parse(set).unwrap(), &RunContext::quiet(1)).map(|_| ())
+        let problem = Problem {
+            data: &ex.data,
+            orders: ex.orders,
+            priors: p,
+            priors_origin: None,
+        };
+        Cluster
+            .run(
+                &problem,
+                &Settings::parse(set).unwrap(),
+                &RunContext::quiet(1),
+            )
+            .map(|_| ())
     };
     let none = Priors::default();
     let e = run(&none, &[]).unwrap_err().to_string();
     assert!(e.contains("modes"), "{e}");
-    let three = Priors { modes: Some(3), ..Default::default() };
+    let three = Priors {
+        modes: Some(3),
+        ..Default::default()
+    };
     let e = run(&three, &["c=2"]).unwrap_err().to_string();
     assert!(e.contains("c=2") && e.contains("n+2"), "{e}");
     assert!(run(&three, &["restarts=0"]).is_err());
     assert!(run(&three, &["features=xyz"]).is_err());
     assert!(run(&three, &["regions=svc"]).is_err());
-    let mut sw = Priors { modes: Some(2), ..Default::default() };
+    let mut sw = Priors {
+        modes: Some(2),
+        ..Default::default()
+    };
     sw.switching = vec!["y1".into()];
     let e = run(&sw, &[]).unwrap_err().to_string();
     assert!(e.contains("does not honour"), "{e}");
@@ -178,9 +241,19 @@ fn errors_are_clear() {
 #[test]
 fn max_modes_chooses_a_count() {
     let ex = hysid_cluster::systems::b1(600, 5);
-    let priors = Priors { max_modes: Some(4), ..Default::default() };
-    let problem = Problem { data: &ex.data, orders: ex.orders, priors: &priors, priors_origin: None };
-    let m = Cluster.run(&problem, &Settings::default(), &RunContext::quiet(1)).unwrap();
+    let priors = Priors {
+        max_modes: Some(4),
+        ..Default::default()
+    };
+    let problem = Problem {
+        data: &ex.data,
+        orders: ex.orders,
+        priors: &priors,
+        priors_origin: None,
+    };
+    let m = Cluster
+        .run(&problem, &Settings::default(), &RunContext::quiet(1))
+        .unwrap();
     assert!((2..=4).contains(&m.mode_count()), "{}", m.mode_count());
     assert!(m.info().diagnostics.contains_key("mode_choice"));
 }

@@ -11,9 +11,24 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 
 fn identify(ex: &Example, modes: usize, set: &[&str], seed: u64) -> PwarxModel {
-    let priors = Priors { modes: Some(modes), ..Default::default() };
-    let problem = Problem { data: &ex.data, orders: ex.orders, priors: &priors, priors_origin: None };
-    match Cluster.run(&problem, &Settings::parse(set).unwrap(), &RunContext::quiet(seed)).unwrap() {
+    let priors = Priors {
+        modes: Some(modes),
+        ..Default::default()
+    };
+    let problem = Problem {
+        data: &ex.data,
+        orders: ex.orders,
+        priors: &priors,
+        priors_origin: None,
+    };
+    match Cluster
+        .run(
+            &problem,
+            &Settings::parse(set).unwrap(),
+            &RunContext::quiet(seed),
+        )
+        .unwrap()
+    {
         Model::Pwarx(m) => m,
         _ => unreachable!(),
     }
@@ -23,8 +38,12 @@ fn identify(ex: &Example, modes: usize, set: &[&str], seed: u64) -> PwarxModel {
 /// the largest relative parameter error after matching.
 fn score(ex: &Example, m: &PwarxModel) -> (f64, f64) {
     let reg = ex.orders.build(&ex.data).unwrap();
-    let ident: Vec<usize> =
-        (0..reg.len()).map(|r| m.mode_of(&reg.x.row(r).iter().copied().collect::<Vec<_>>()).mode).collect();
+    let ident: Vec<usize> = (0..reg.len())
+        .map(|r| {
+            m.mode_of(&reg.x.row(r).iter().copied().collect::<Vec<_>>())
+                .mode
+        })
+        .collect();
     let acc = mode_accuracy(&ex.modes, &ident).accuracy;
     let theta: Vec<Vec<f64>> = m.modes.iter().map(|q| q.theta.clone()).collect();
     (acc, parameter_error(&ex.theta, &theta).max_relative_error)
@@ -39,7 +58,8 @@ fn oracle_error(ex: &Example) -> f64 {
     let theta: Vec<Vec<f64>> = (0..ex.mode_count())
         .map(|i| {
             let rows: Vec<usize> = (0..reg.len()).filter(|&r| ex.modes[r] == i).collect();
-            let sol = hysid_core::linalg::lstsq(&phi.select_rows(&rows), &reg.y.select_rows(&rows)).unwrap();
+            let sol = hysid_core::linalg::lstsq(&phi.select_rows(&rows), &reg.y.select_rows(&rows))
+                .unwrap();
             sol.theta.iter().copied().collect()
         })
         .collect();
@@ -52,7 +72,10 @@ fn report(name: &str, ex: &Example, valid: &Example, m: &PwarxModel) -> (f64, f6
     eprintln!("{name}: oracle parameter error {oracle:.3}");
     let (acc, perr) = score(valid, m);
     let (acc_id, _) = score(ex, m);
-    eprintln!("{name}: validation mode accuracy {acc:.3}, identification {acc_id:.3}, parameter error {perr:.3}, diagnostics {:?}", m.info.diagnostics);
+    eprintln!(
+        "{name}: validation mode accuracy {acc:.3}, identification {acc_id:.3}, parameter error {perr:.3}, diagnostics {:?}",
+        m.info.diagnostics
+    );
     (acc, perr, oracle)
 }
 
@@ -76,7 +99,10 @@ fn h1_equal_parameters_on_two_regions() {
     let (acc, perr, oracle) = report("H1", &ex, &valid, &m);
     assert_eq!(m.modes.len(), 3);
     assert!(acc >= 0.95, "mode accuracy {acc}");
-    assert!(perr <= oracle + 0.1, "parameter error {perr} (oracle {oracle})");
+    assert!(
+        perr <= oracle + 0.1,
+        "parameter error {perr} (oracle {oracle})"
+    );
 }
 
 #[test]
@@ -86,7 +112,10 @@ fn h2_five_modes() {
     let m = identify(&ex, 5, &[&format!("c={}", ex.c)], 1);
     let (acc, perr, oracle) = report("H2", &ex, &valid, &m);
     assert!(acc >= 0.95, "mode accuracy {acc}");
-    assert!(perr <= oracle + 0.1, "parameter error {perr} (oracle {oracle})");
+    assert!(
+        perr <= oracle + 0.1,
+        "parameter error {perr} (oracle {oracle})"
+    );
 }
 
 #[test]
@@ -96,7 +125,10 @@ fn h3_two_dimensional_repeated_parameters() {
     let m = identify(&ex, 3, &[&format!("c={}", ex.c)], 1);
     let (acc, perr, oracle) = report("H3", &ex, &valid, &m);
     assert!(acc >= 0.9, "mode accuracy {acc}");
-    assert!(perr <= oracle + 0.45, "parameter error {perr} (oracle {oracle})");
+    assert!(
+        perr <= oracle + 0.45,
+        "parameter error {perr} (oracle {oracle})"
+    );
 }
 
 #[test]
@@ -106,5 +138,8 @@ fn h4_static_three_wedges() {
     let m = identify(&ex, 3, &[&format!("c={}", ex.c)], 1);
     let (acc, perr, oracle) = report("H4", &ex, &valid, &m);
     assert!(acc >= 0.95, "mode accuracy {acc}");
-    assert!(perr <= oracle + 0.15, "parameter error {perr} (oracle {oracle})");
+    assert!(
+        perr <= oracle + 0.15,
+        "parameter error {perr} (oracle {oracle})"
+    );
 }
