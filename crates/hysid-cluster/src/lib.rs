@@ -315,6 +315,7 @@ pub fn identify_with(
     let modes = fit.theta.len();
     let mut theta = fit.theta.clone();
     let mut region_moved = 0;
+    let mut holes = None;
     let (regions, accuracy, complete) = if modes == 1 {
         (vec![Polyhedron::everything()], 1.0, true)
     } else {
@@ -372,6 +373,13 @@ pub fn identify_with(
                 })?;
             }
         }
+        if !part.complete {
+            // Holes report (pairwise PSVC): uncovered fraction of the data's bounding box.
+            let lo: Vec<f64> = (0..n).map(|k| reg.x.column(k).min()).collect();
+            let hi: Vec<f64> = (0..n).map(|k| reg.x.column(k).max()).collect();
+            let rep = hysid_regions::coverage(&part.regions, &lo, &hi, 10_000, seed);
+            holes = Some(rep.uncovered_fraction);
+        }
         (part.regions, part.training_accuracy, part.complete)
     };
     let d = &fit.diagnostics;
@@ -399,6 +407,9 @@ pub fn identify_with(
     put("region_training_accuracy", accuracy.into());
     put("region_refit_moved", region_moved.into());
     put("regions_complete", complete.into());
+    if let Some(h) = holes {
+        put("uncovered_fraction_of_data_box", h.into());
+    }
     let working = PwarxModel {
         na: spec.na,
         nb: spec.nb,

@@ -257,3 +257,39 @@ fn max_modes_chooses_a_count() {
     assert!((2..=4).contains(&m.mode_count()), "{}", m.mode_count());
     assert!(m.info().diagnostics.contains_key("mode_choice"));
 }
+
+/// Every option variant runs on B1 and returns a valid model; the
+/// pairwise PSVC partition comes with a holes report.
+#[test]
+fn option_variants_run() {
+    let ex = hysid_cluster::systems::b1(300, 9);
+    for set in [
+        &["features=lpv"][..],
+        &["clustering=single_linkage"],
+        &["clustering=single_linkage", "sl_distance=0.5"],
+        &["init=plusplus"],
+        &["regions=msvm"],
+        &["regions=psvc"],
+        &[
+            "scale=false",
+            "weights=confidence",
+            "region_refit=false",
+            "regions=psvc",
+        ],
+        &["weights=capped"],
+        &["weights=uniform", "reattribute=false", "discard=0"],
+    ] {
+        let m = identify(&ex.data, ex.orders, 3, set);
+        Model::Pwarx(m.clone())
+            .validate()
+            .unwrap_or_else(|e| panic!("{set:?}: {e}"));
+        if set.contains(&"regions=psvc") {
+            assert!(
+                m.info
+                    .diagnostics
+                    .contains_key("uncovered_fraction_of_data_box"),
+                "{set:?}"
+            );
+        }
+    }
+}
