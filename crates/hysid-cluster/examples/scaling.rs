@@ -3,7 +3,7 @@
 //! `docs/performance-cluster.md`. One run per N, single-threaded.
 //!
 //! ```text
-//! cargo run --release -p hysid-cluster --example scaling [-- N N ...]
+//! cargo run --release -p hysid-cluster --example scaling [-- N N ... [c=K]]
 //! ```
 
 use hysid_cluster::kmeans::{KmeansInit, weighted_kmeans};
@@ -24,6 +24,10 @@ fn main() {
         .skip(1)
         .filter_map(|a| a.parse().ok())
         .collect();
+    // `c=K` fixes the local dataset size instead of the default rule.
+    let fixed_c: Option<usize> = std::env::args()
+        .skip(1)
+        .find_map(|a| a.strip_prefix("c=").and_then(|v| v.parse().ok()));
     let ns = if ns.is_empty() {
         vec![1_000, 3_000, 10_000, 30_000, 100_000, 300_000, 1_000_000]
     } else {
@@ -43,7 +47,7 @@ fn main() {
             .map(|(r, k)| reg.x[(r, k)])
             .collect();
         let y: Vec<f64> = reg.y.iter().copied().collect();
-        let c = hysid_cluster::default_c(d, reg.len(), 3);
+        let c = fixed_c.unwrap_or_else(|| hysid_cluster::default_c(d, reg.len(), 3));
         let t = Instant::now();
         let f = feature_vectors(&x, d, &y, c, Features::Fv, 1e-6);
         let t_local = t.elapsed().as_secs_f64();

@@ -124,11 +124,16 @@ impl<'a> KdTree<'a> {
             return;
         }
         let mut best = Best::new(k);
-        self.search(0, q, &mut best);
+        let mut off = vec![0.0; self.d];
+        self.search(0, q, &mut best, 0.0, &mut off);
         out.extend(best.into_sorted().into_iter().map(|c| c.index));
     }
 
-    fn search(&self, node: usize, q: &[f64], best: &mut Best) {
+    /// Descends near child first; `rd` is the squared distance from `q` to
+    /// the node's cell and `off` its per-coordinate offsets (Arya and
+    /// Mount's incremental distance), which prunes far cells tighter than
+    /// the distance to the splitting plane alone.
+    fn search(&self, node: usize, q: &[f64], best: &mut Best, rd: f64, off: &mut [f64]) {
         match self.nodes[node] {
             Node::Leaf { start, end } => {
                 for &i in &self.order[start..end] {
@@ -149,10 +154,14 @@ impl<'a> KdTree<'a> {
                 } else {
                     (right, left)
                 };
-                self.search(near, q, best);
+                self.search(near, q, best, rd, off);
                 // Points equal to the split value may sit on either side.
-                if best.accepts(diff * diff) {
-                    self.search(far, q, best);
+                let old = off[dim];
+                let far_rd = rd - old * old + diff * diff;
+                if best.accepts(far_rd) {
+                    off[dim] = diff;
+                    self.search(far, q, best, far_rd, off);
+                    off[dim] = old;
                 }
             }
         }
