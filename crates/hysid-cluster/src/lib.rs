@@ -100,8 +100,10 @@ hysid_core::backend_options! {
         restarts: usize = 15,
         /// Bound on K-means sweeps per restart (HIT: 100).
         max_iter: usize = 100,
-        /// K-means initialisation: blocks (HIT) or plusplus (k-means++).
-        init: Init = Init::Blocks,
+        /// K-means initialisation: plusplus (k-means++ on the weighted distance) or blocks
+        /// (HIT: weighted means of random blocks, nearly equal centres that can all fall
+        /// into one bad optimum).
+        init: Init = Init::Plusplus,
         /// Feature vectors: fv = [theta_j; m_j] (HIT default) or lpv = theta_j.
         features: Features = Features::Fv,
         /// Clustering: kmeans (weighted by the confidences) or single_linkage.

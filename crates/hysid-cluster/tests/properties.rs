@@ -293,3 +293,25 @@ fn option_variants_run() {
         }
     }
 }
+
+/// The case the property test found (seed kept): a noise-free two-mode
+/// PWARX on which every restart of HIT's block initialisation ends in the
+/// same wrong optimum, while the default k-means++ recovers the modes.
+#[test]
+fn kmeans_plusplus_escapes_the_block_initialisation_trap() {
+    let th = [[0.0, 0.5, 0.0], [0.0, -0.5, 2.8637975064419523]];
+    let mut rng = ChaCha8Rng::seed_from_u64(11232757085378686);
+    let n = 300;
+    let u: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        let t = if u[k - 1] < 0.0 { th[0] } else { th[1] };
+        y[k] = t[0] * y[k - 1] + t[1] * u[k - 1] + t[2];
+    }
+    let data = Dataset::siso(u, y, None).unwrap();
+    let truth: Vec<Vec<f64>> = th.iter().map(|t| t.to_vec()).collect();
+    let good = identify(&data, RegressorSpec::new(1, 1, 1), 2, &[]);
+    assert!(parameter_error(&truth, &thetas(&good)).max_relative_error < 1e-6);
+    let hit = identify(&data, RegressorSpec::new(1, 1, 1), 2, &["init=blocks"]);
+    assert!(parameter_error(&truth, &thetas(&hit)).max_relative_error > 0.5);
+}
