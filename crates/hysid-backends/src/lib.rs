@@ -7,7 +7,9 @@ use hysid_core::backend::Registry;
 
 /// Every back-end hysid ships, in the order `hysid methods` lists them.
 pub fn registry() -> Registry {
-    Registry::new().with(hysid_arx::Arx).with(hysid_cluster::Cluster)
+    Registry::new()
+        .with(hysid_arx::Arx)
+        .with(hysid_cluster::Cluster)
 }
 
 #[cfg(test)]
