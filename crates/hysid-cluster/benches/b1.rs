@@ -1,0 +1,39 @@
+//! End-to-end identification of the classic three-mode PWARX B1
+//! (na = 1, nb = 1, regions included) with the default options.
+//!
+//! ```text
+//! cargo bench -p hysid-cluster --bench b1
+//! ```
+//! Scaling from N = 10^3 to 10^6 with a per-stage breakdown:
+//! `cargo run --release -p hysid-cluster --example scaling`.
+
+use hysid_cluster::Cluster;
+use hysid_cluster::systems::b1;
+use hysid_core::backend::{Backend, Problem, RunContext};
+use hysid_core::options::Settings;
+use hysid_core::priors::Priors;
+
+fn main() {
+    divan::main();
+}
+
+#[divan::bench(args = [1000, 8000], sample_count = 10, sample_size = 1)]
+fn b1_end_to_end(bencher: divan::Bencher, n: usize) {
+    let ex = b1(n, 1);
+    let priors = Priors {
+        modes: Some(3),
+        ..Default::default()
+    };
+    let settings = Settings::default();
+    bencher.bench(|| {
+        let problem = Problem {
+            data: &ex.data,
+            orders: ex.orders,
+            priors: &priors,
+            priors_origin: None,
+        };
+        Cluster
+            .run(&problem, &settings, &RunContext::quiet(1))
+            .expect("B1 identifies")
+    });
+}

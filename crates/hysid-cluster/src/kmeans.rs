@@ -1,0 +1,341 @@
+//! Step 2 of the procedure: clustering the feature vectors.
+//!
+//! **Weighted K-means** (Ferrari-Trecate et al., Automatica 2003, section
+//! 3.2; HIT `hit_kmeans.m`, adapted from NetLab): minimises
+//! `J = sum_i sum_{j in D_i} (xi_j - mu_i)' R_j^-1 (xi_j - mu_i)`.
+//! Each sweep assigns every `xi_j` to the centre of least distance and
+//! moves the centres to `mu_i = (sum_{j in D_i} R_j^-1)^-1 sum_{j in D_i} R_j^-1 xi_j`.
+//! It stops when `max |delta mu| < 1e-4` and `|delta J| < 1e-4`, or after
+//! `max_iter` sweeps. HIT's initialisation cuts a random permutation of
+//! the points into `s` blocks and takes the same weighted mean per block;
+//! `plusplus` seeds the centres instead with k-means++ (Arthur and
+//! Vassilvitskii, SODA 2007) on the same distance. The restart of least
+//! cost is kept. An empty cluster keeps its centre (it is discarded later).
+//!
+//! **Single linkage** (HIT `'SL'`): agglomerative clustering on the plain
+//! Euclidean distance between feature vectors, by Prim's minimum spanning
+//! tree, cut at a distance threshold or into a given number of clusters.
+
+use crate::dense;
+use crate::local::FeatureVectors;
+use rand::Rng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+
+/// Initialisation of the K-means centres.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KmeansInit {
+    /// HIT: weighted means of `s` random blocks of the points.
+    Blocks,
+    /// k-means++ seeding on the weighted distance.
+    PlusPlus,
+}
+
+/// Outcome of clustering.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Clusters {
+    /// Cluster of every feature vector.
+    pub labels: Vec<usize>,
+    /// Number of clusters (some may be empty).
+    pub count: usize,
+    /// Cost of the kept run (K-means), 0 for single linkage.
+    pub cost: f64,
+    /// Cost of every restart, in order.
+    pub restart_costs: Vec<f64>,
+    /// Sweeps of the kept run.
+    pub iterations: usize,
+    /// True when the kept run met the stopping rule before `max_iter`.
+    pub converged: bool,
+}
+
+/// Centre update `mu_i = (sum R_j^-1)^-1 sum R_j^-1 xi_j` for every cluster
+/// with members; others keep their centre. `av` holds `R_j^-1 xi_j`.
+fn update_centres(
+    f: &FeatureVectors,
+    av: &[f64],
+    labels: &[usize],
+    members: Option<&[usize]>,
+    centres: &mut [f64],
+    s: usize,
+) {
+    let (p, q) = (f.p, f.q);
+    let d = p + q;
+    let mut sa = vec![0.0; s * p * p];
+    let mut sb = vec![0.0; s * q * q];
+    let mut rhs = vec![0.0; s * d];
+    let mut count = vec![0usize; s];
+    let mut visit = |j: usize, i: usize| {
+        count[i] += 1;
+        for (a, b) in sa[i * p * p..(i + 1) * p * p]
+            .iter_mut()
+            .zip(&f.v_inv[j * p * p..(j + 1) * p * p])
+        {
+            *a += b;
+        }
+        for (a, b) in sb[i * q * q..(i + 1) * q * q]
+            .iter_mut()
+            .zip(&f.q_inv[j * q * q..(j + 1) * q * q])
+        {
+            *a += b;
+        }
+        for (a, b) in rhs[i * d..(i + 1) * d]
+            .iter_mut()
+            .zip(&av[j * d..(j + 1) * d])
+        {
+            *a += b;
+        }
+    };
+    match members {
+        Some(order) => {
+            for (k, &j) in order.iter().enumerate() {
+                visit(j, labels[k]);
+            }
+        }
+        None => {
+            for (j, &i) in labels.iter().enumerate() {
+                visit(j, i);
+            }
+        }
+    }
+    let mut scratch = vec![0.0; p.max(q) * p.max(q)];
+    for i in 0..s {
+        if count[i] == 0 {
+            continue;
+        }
+        let a = &mut sa[i * p * p..(i + 1) * p * p];
+        let t = dense::mean_diag(a, p).max(f64::MIN_POSITIVE);
+        dense::regularised_cholesky(a, p, 1e-14, 1e-14 * t, &mut scratch);
+        let mu = &mut centres[i * d..(i + 1) * d];
+        mu[..p].copy_from_slice(&rhs[i * d..i * d + p]);
+        dense::cholesky_solve(a, p, &mut mu[..p]);
+        if q > 0 {
+            let b = &mut sb[i * q * q..(i + 1) * q * q];
+            let t = dense::mean_diag(b, q).max(f64::MIN_POSITIVE);
+            dense::regularised_cholesky(b, q, 1e-14, 1e-14 * t, &mut scratch);
+            mu[p..].copy_from_slice(&rhs[i * d + p..(i + 1) * d]);
+            dense::cholesky_solve(b, q, &mut mu[p..]);
+        }
+    }
+}
+
+/// `R_j^-1 xi_j` for every `j`.
+fn weighted_features(f: &FeatureVectors) -> Vec<f64> {
+    let (p, q) = (f.p, f.q);
+    let d = p + q;
+    let mut av = vec![0.0; f.n_samples * d];
+    for j in 0..f.n_samples {
+        let x = f.xi(j);
+        let a = &f.v_inv[j * p * p..(j + 1) * p * p];
+        for r in 0..p {
+            av[j * d + r] = (0..p).map(|k| a[r * p + k] * x[k]).sum();
+        }
+        let b = &f.q_inv[j * q * q..(j + 1) * q * q];
+        for r in 0..q {
+            av[j * d + p + r] = (0..q).map(|k| b[r * q + k] * x[p + k]).sum();
+        }
+    }
+    av
+}
+
+/// Assigns every point to its nearest centre; returns the cost.
+fn assign(f: &FeatureVectors, centres: &[f64], s: usize, labels: &mut [usize]) -> f64 {
+    let d = f.dim();
+    let mut cost = 0.0;
+    for (j, l) in labels.iter_mut().enumerate() {
+        let (mut best, mut bi) = (f64::INFINITY, 0);
+        for i in 0..s {
+            let v = f.mahalanobis(j, &centres[i * d..(i + 1) * d]);
+            if v < best {
+                best = v;
+                bi = i;
+            }
+        }
+        *l = bi;
+        cost += best;
+    }
+    cost
+}
+
+/// Weighted K-means with `restarts` seeded restarts (at least one).
+pub fn weighted_kmeans(
+    f: &FeatureVectors,
+    s: usize,
+    restarts: usize,
+    max_iter: usize,
+    init: KmeansInit,
+    rng: &mut ChaCha8Rng,
+) -> Clusters {
+    let n = f.n_samples;
+    let d = f.dim();
+    let av = weighted_features(f);
+    let mut best: Option<Clusters> = None;
+    let mut restart_costs = Vec::with_capacity(restarts.max(1));
+    let mut labels = vec![0usize; n];
+    for _ in 0..restarts.max(1) {
+        let mut centres = vec![0.0; s * d];
+        match init {
+            KmeansInit::Blocks => {
+                let mut perm: Vec<usize> = (0..n).collect();
+                perm.shuffle(rng);
+                let block = (n / s).max(1);
+                let block_labels: Vec<usize> = (0..n).map(|k| (k / block).min(s - 1)).collect();
+                update_centres(f, &av, &block_labels, Some(&perm), &mut centres, s);
+            }
+            KmeansInit::PlusPlus => {
+                let first = rng.random_range(0..n);
+                centres[..d].copy_from_slice(f.xi(first));
+                let mut dmin: Vec<f64> = (0..n).map(|j| f.mahalanobis(j, &centres[..d])).collect();
+                for i in 1..s {
+                    let total: f64 = dmin.iter().sum();
+                    let pick = if total > 0.0 && total.is_finite() {
+                        let mut r = rng.random::<f64>() * total;
+                        let mut k = n - 1;
+                        for (j, &v) in dmin.iter().enumerate() {
+                            if r < v {
+                                k = j;
+                                break;
+                            }
+                            r -= v;
+                        }
+                        k
+                    } else {
+                        rng.random_range(0..n)
+                    };
+                    centres[i * d..(i + 1) * d].copy_from_slice(f.xi(pick));
+                    for (j, m) in dmin.iter_mut().enumerate() {
+                        *m = m.min(f.mahalanobis(j, &centres[i * d..(i + 1) * d]));
+                    }
+                }
+            }
+        }
+        let mut old_cost = f64::INFINITY;
+        let mut iterations = 0;
+        let mut converged = false;
+        for it in 0..max_iter.max(1) {
+            iterations = it + 1;
+            let cost = assign(f, &centres, s, &mut labels);
+            let old = centres.clone();
+            update_centres(f, &av, &labels, None, &mut centres, s);
+            let shift = old
+                .iter()
+                .zip(&centres)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            if it > 0 && shift < 1e-4 && (cost - old_cost).abs() < 1e-4 {
+                converged = true;
+                break;
+            }
+            old_cost = cost;
+        }
+        let cost = assign(f, &centres, s, &mut labels);
+        restart_costs.push(cost);
+        if best.as_ref().is_none_or(|b| cost < b.cost) {
+            best = Some(Clusters {
+                labels: labels.clone(),
+                count: s,
+                cost,
+                restart_costs: vec![],
+                iterations,
+                converged,
+            });
+        }
+    }
+    let mut best = best.expect("at least one restart");
+    best.restart_costs = restart_costs;
+    best
+}
+
+/// Single linkage on the Euclidean distance between feature vectors: the
+/// minimum spanning tree (Prim, O(N^2)) cut at edges longer than
+/// `threshold`, or, without a threshold, at its `s - 1` longest edges.
+/// Clusters are numbered by their first member.
+pub fn single_linkage(f: &FeatureVectors, s: usize, threshold: Option<f64>) -> Clusters {
+    let n = f.n_samples;
+    let d = f.dim();
+    let dist = |a: usize, b: usize| -> f64 {
+        f.xi(a)
+            .iter()
+            .zip(f.xi(b))
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let mut in_tree = vec![false; n];
+    let mut best = vec![f64::INFINITY; n];
+    let mut parent = vec![usize::MAX; n];
+    let mut edges: Vec<(f64, usize, usize)> = Vec::with_capacity(n.saturating_sub(1));
+    if n > 0 {
+        let mut cur = 0;
+        in_tree[0] = true;
+        for _ in 1..n {
+            let mut next = usize::MAX;
+            let mut nd = f64::INFINITY;
+            for j in 0..n {
+                if in_tree[j] {
+                    continue;
+                }
+                let v = dist(cur, j);
+                if v < best[j] {
+                    best[j] = v;
+                    parent[j] = cur;
+                }
+                if best[j] < nd || next == usize::MAX {
+                    nd = best[j];
+                    next = j;
+                }
+            }
+            in_tree[next] = true;
+            edges.push((best[next], parent[next], next));
+            cur = next;
+        }
+    }
+    let _ = d;
+    // Edges kept: all below the threshold, or all but the s - 1 longest.
+    let mut order: Vec<usize> = (0..edges.len()).collect();
+    order.sort_by(|&a, &b| edges[a].0.total_cmp(&edges[b].0).then(a.cmp(&b)));
+    let keep: Vec<bool> = match threshold {
+        Some(t) => edges.iter().map(|e| e.0 <= t).collect(),
+        None => {
+            let mut k = vec![true; edges.len()];
+            for &e in order.iter().rev().take(s.saturating_sub(1)) {
+                k[e] = false;
+            }
+            k
+        }
+    };
+    // Union-find over kept edges.
+    let mut root: Vec<usize> = (0..n).collect();
+    fn find(r: &mut [usize], mut a: usize) -> usize {
+        while r[a] != a {
+            r[a] = r[r[a]];
+            a = r[a];
+        }
+        a
+    }
+    for (e, &(_, a, b)) in edges.iter().enumerate() {
+        if keep[e] {
+            let (ra, rb) = (find(&mut root, a), find(&mut root, b));
+            if ra != rb {
+                root[ra.max(rb)] = ra.min(rb);
+            }
+        }
+    }
+    let mut id = vec![usize::MAX; n];
+    let mut labels = vec![0; n];
+    let mut count = 0;
+    for (j, l) in labels.iter_mut().enumerate() {
+        let r = find(&mut root, j);
+        if id[r] == usize::MAX {
+            id[r] = count;
+            count += 1;
+        }
+        *l = id[r];
+    }
+    Clusters {
+        labels,
+        count,
+        cost: 0.0,
+        restart_costs: vec![],
+        iterations: 0,
+        converged: true,
+    }
+}

@@ -1,0 +1,356 @@
+//! Step 1 of the procedure (Ferrari-Trecate et al., Automatica 2003,
+//! section 3.1): local datasets, local least squares and feature vectors.
+//!
+//! For every sample `j` the local dataset `C_j` holds `j` and its `c - 1`
+//! nearest neighbours in regressor space. On `C_j`:
+//!
+//! - `theta_j = (Phi_j' Phi_j)^-1 Phi_j' y_j` with `Phi_j = [X_Cj, 1]`;
+//! - `sigma_j^2 = SSR_j / (c - n - 1)` and `V_j = sigma_j^2 (Phi_j' Phi_j)^-1`;
+//! - `m_j` the mean of the regressors of `C_j`, `Q_j` their covariance
+//!   (normalised by `c - 1`);
+//! - feature vector `xi_j = [theta_j; m_j]` with `R_j = blkdiag(V_j, Q_j)`
+//!   (`fv`), or `xi_j = theta_j` with `R_j = V_j` (`lpv`);
+//! - confidence `w_j = 1 / sqrt((2 pi)^d det R_j)`, `d = dim xi_j`.
+//!
+//! **Degenerate local datasets.** HIT aborts when `V_j` or `Q_j` is not
+//! invertible. Here they are regularised (and counted):
+//!
+//! - *noise-free fit* (`sigma_j^2` below the floor): `sigma_j^2` is raised
+//!   to `max(eps var(y), 0.01 median_k sigma_k^2)`;
+//! - *collinear regressors* (`Phi_j' Phi_j` with a squared Cholesky pivot
+//!   below `1e-10` times its mean diagonal): the ridge
+//!   `eps mean_diag(Phi_j' Phi_j) I` is added;
+//! - *flat scatter* (`Q_j` with a squared pivot below the floor, e.g. all
+//!   regressors equal in a saturation or a stuck phase): `Q_j` gets
+//!   `max(eps tr(Sigma_x)/n, 0.01 median_k tr(Q_k)/n) I` added,
+//!
+//! with `eps` the `regularization` option. The floors relative to the
+//! median local dataset keep degenerate local datasets from being trusted
+//! millions of times more than ordinary ones.
+
+use crate::Features;
+use crate::dense;
+use crate::knn::KdTree;
+
+/// Counts of regularised local datasets.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Degeneracy {
+    /// Local fits with (numerically) zero residual.
+    pub noise_free: usize,
+    /// Local datasets with collinear regressors (`Phi' Phi` singular).
+    pub collinear: usize,
+    /// Local datasets with a singular regressor scatter `Q_j`.
+    pub flat_scatter: usize,
+    /// Local datasets with at least one of the above.
+    pub total: usize,
+}
+
+/// The feature vectors of all samples with their confidence.
+#[derive(Debug, Clone)]
+pub struct FeatureVectors {
+    /// Number of samples.
+    pub n_samples: usize,
+    /// Size of the parameter block, `n + 1`.
+    pub p: usize,
+    /// Size of the mean block (`n` with `fv`, 0 with `lpv`).
+    pub q: usize,
+    /// `xi_j` rows (`p + q` columns), row-major.
+    pub xi: Vec<f64>,
+    /// `V_j^-1` blocks (`p x p` each), row-major.
+    pub v_inv: Vec<f64>,
+    /// `Q_j^-1` blocks (`q x q` each), row-major.
+    pub q_inv: Vec<f64>,
+    /// `ln w_j`, the log-confidence.
+    pub log_w: Vec<f64>,
+    /// Local parameter vectors `theta_j` (`p` each).
+    pub theta: Vec<f64>,
+    /// Local dataset members, `c` per sample (the sample itself first).
+    pub members: Vec<usize>,
+    /// Local dataset size `c`.
+    pub c: usize,
+    /// Regularised local datasets.
+    pub degenerate: Degeneracy,
+}
+
+impl FeatureVectors {
+    /// Dimension of `xi`.
+    pub fn dim(&self) -> usize {
+        self.p + self.q
+    }
+
+    /// `xi_j`.
+    pub fn xi(&self, j: usize) -> &[f64] {
+        let d = self.dim();
+        &self.xi[j * d..(j + 1) * d]
+    }
+
+    /// Members of `C_j`.
+    pub fn members(&self, j: usize) -> &[usize] {
+        &self.members[j * self.c..(j + 1) * self.c]
+    }
+
+    /// `(xi_j - mu)' R_j^-1 (xi_j - mu)` (both blocks symmetric).
+    #[inline]
+    pub fn mahalanobis(&self, j: usize, mu: &[f64]) -> f64 {
+        let (p, q) = (self.p, self.q);
+        let x = self.xi(j);
+        let a = &self.v_inv[j * p * p..(j + 1) * p * p];
+        let mut s = 0.0;
+        for r in 0..p {
+            let dr = x[r] - mu[r];
+            let mut t = 0.5 * a[r * p + r] * dr;
+            for k in 0..r {
+                t += a[r * p + k] * (x[k] - mu[k]);
+            }
+            s += dr * t;
+        }
+        if q > 0 {
+            let b = &self.q_inv[j * q * q..(j + 1) * q * q];
+            let (x, mu) = (&x[p..], &mu[p..]);
+            for r in 0..q {
+                let dr = x[r] - mu[r];
+                let mut t = 0.5 * b[r * q + r] * dr;
+                for k in 0..r {
+                    t += b[r * q + k] * (x[k] - mu[k]);
+                }
+                s += dr * t;
+            }
+        }
+        2.0 * s
+    }
+}
+
+/// Largest regressor dimension supported (feature vectors live on the stack).
+pub const MAX_DIM: usize = 31;
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let m = v.len() / 2;
+    v.select_nth_unstable_by(m, f64::total_cmp);
+    v[m]
+}
+
+/// Builds the local datasets and feature vectors of the regression problem
+/// `y_k = theta' [x_k; 1]` (`x` row-major with `n` columns). Requires
+/// `n + 2 <= c <= N` and `n <= MAX_DIM` (checked by the caller).
+pub fn feature_vectors(
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    c: usize,
+    features: Features,
+    eps: f64,
+) -> FeatureVectors {
+    let big_n = y.len();
+    let p = n + 1;
+    let q = if features == Features::Fv { n } else { 0 };
+    let tree = KdTree::new(x, n);
+    let mut members = Vec::with_capacity(big_n * c);
+    let mut theta = vec![0.0; big_n * p];
+    let mut gram = vec![0.0; big_n * p * p];
+    let mut scatter = vec![0.0; big_n * n * n];
+    let mut sigma2 = vec![0.0; big_n];
+    let mut mean = vec![0.0; big_n * n];
+    let mut degenerate = Degeneracy::default();
+    let mut collinear = vec![false; big_n];
+    let mut nb = Vec::with_capacity(c);
+    let mut scratch = vec![0.0; p * p];
+    let mut rhs = vec![0.0; p];
+    let mut phi = vec![0.0; p];
+    // Pass 1: neighbours, local least squares, local scatter.
+    for j in 0..big_n {
+        tree.nearest(&x[j * n..(j + 1) * n], c, &mut nb);
+        // C_j contains j itself (with many duplicates it may not be among
+        // the c nearest by the index tie-break): put it first.
+        if let Some(pos) = nb.iter().position(|&i| i == j) {
+            nb.remove(pos);
+        } else {
+            nb.pop();
+        }
+        members.push(j);
+        members.extend_from_slice(&nb);
+        let mem = &members[j * c..(j + 1) * c];
+        let g = &mut gram[j * p * p..(j + 1) * p * p];
+        rhs.iter_mut().for_each(|v| *v = 0.0);
+        for &i in mem {
+            phi[..n].copy_from_slice(&x[i * n..(i + 1) * n]);
+            phi[n] = 1.0;
+            for r in 0..p {
+                rhs[r] += phi[r] * y[i];
+                for k in 0..=r {
+                    g[r * p + k] += phi[r] * phi[k];
+                }
+            }
+        }
+        for r in 0..p {
+            for k in 0..r {
+                g[k * p + r] = g[r * p + k];
+            }
+        }
+        let mut l = g.to_vec();
+        let t = dense::mean_diag(g, p);
+        collinear[j] = dense::regularised_cholesky(
+            &mut l,
+            p,
+            1e-10,
+            eps * t.max(f64::MIN_POSITIVE),
+            &mut scratch,
+        );
+        if collinear[j] {
+            for r in 0..p {
+                g[r * p + r] += eps * t.max(f64::MIN_POSITIVE);
+            }
+        }
+        let th = &mut theta[j * p..(j + 1) * p];
+        th.copy_from_slice(&rhs);
+        dense::cholesky_solve(&l, p, th);
+        let mut ssr = 0.0;
+        let m = &mut mean[j * n..(j + 1) * n];
+        for &i in mem {
+            let xi = &x[i * n..(i + 1) * n];
+            let pred: f64 = xi.iter().zip(&th[..n]).map(|(a, b)| a * b).sum::<f64>() + th[n];
+            ssr += (y[i] - pred).powi(2);
+            for k in 0..n {
+                m[k] += xi[k];
+            }
+        }
+        m.iter_mut().for_each(|v| *v /= c as f64);
+        sigma2[j] = ssr / (c - p) as f64;
+        let s = &mut scatter[j * n * n..(j + 1) * n * n];
+        for &i in mem {
+            let xi = &x[i * n..(i + 1) * n];
+            for r in 0..n {
+                for k in 0..n {
+                    s[r * n + k] += (xi[r] - m[r]) * (xi[k] - m[k]);
+                }
+            }
+        }
+        s.iter_mut().for_each(|v| *v /= (c - 1) as f64);
+    }
+    // Floors relative to the data and to the median local dataset.
+    let var_y = {
+        let my = y.iter().sum::<f64>() / big_n as f64;
+        let v = y.iter().map(|v| (v - my).powi(2)).sum::<f64>() / big_n as f64;
+        if v > 0.0 { v } else { 1.0 }
+    };
+    let tr_x = {
+        let mut t = 0.0;
+        for k in 0..n {
+            let mk = (0..big_n).map(|j| x[j * n + k]).sum::<f64>() / big_n as f64;
+            t += (0..big_n).map(|j| (x[j * n + k] - mk).powi(2)).sum::<f64>() / big_n as f64;
+        }
+        let t = t / n.max(1) as f64;
+        if t > 0.0 { t } else { 1.0 }
+    };
+    let sigma_floor = (eps * var_y)
+        .max(0.01 * median(&mut sigma2.clone()))
+        .max(f64::MIN_POSITIVE);
+    let scatter_floor = {
+        let mut tr: Vec<f64> = (0..big_n)
+            .map(|j| dense::mean_diag(&scatter[j * n * n..(j + 1) * n * n], n))
+            .collect();
+        (eps * tr_x)
+            .max(0.01 * median(&mut tr))
+            .max(f64::MIN_POSITIVE)
+    };
+    // Pass 2: regularise, invert, confidence.
+    let d = p + q;
+    let mut xi = vec![0.0; big_n * d];
+    let mut v_inv = vec![0.0; big_n * p * p];
+    let mut q_inv = vec![0.0; big_n * q * q];
+    let mut log_w = vec![0.0; big_n];
+    let mut qscratch = vec![0.0; n * n];
+    let mut col = vec![0.0; n.max(1)];
+    let mut lg = vec![0.0; p * p];
+    let ln2pi = (2.0 * std::f64::consts::PI).ln();
+    for j in 0..big_n {
+        let mut any = collinear[j];
+        if collinear[j] {
+            degenerate.collinear += 1;
+        }
+        let s2 = if sigma2[j] < sigma_floor {
+            degenerate.noise_free += 1;
+            any = true;
+            sigma_floor
+        } else {
+            sigma2[j]
+        };
+        let g = &gram[j * p * p..(j + 1) * p * p];
+        let vi = &mut v_inv[j * p * p..(j + 1) * p * p];
+        for k in 0..p * p {
+            vi[k] = g[k] / s2;
+        }
+        lg.copy_from_slice(g);
+        // log det V_j = p ln s2 - ln det G_j (G_j already regularised, so SPD).
+        let ld_g = if dense::cholesky(&mut lg, p).is_some() {
+            dense::cholesky_log_det(&lg, p)
+        } else {
+            0.0
+        };
+        let mut log_det_r = p as f64 * s2.ln() - ld_g;
+        xi[j * d..j * d + p].copy_from_slice(&theta[j * p..(j + 1) * p]);
+        if q > 0 {
+            let mut lq = scatter[j * n * n..(j + 1) * n * n].to_vec();
+            if dense::regularised_cholesky(&mut lq, n, 1e-10, scatter_floor, &mut qscratch) {
+                degenerate.flat_scatter += 1;
+                any = true;
+            }
+            log_det_r += dense::cholesky_log_det(&lq, n);
+            dense::cholesky_inverse(&lq, n, &mut q_inv[j * n * n..(j + 1) * n * n], &mut col);
+            xi[j * d + p..(j + 1) * d].copy_from_slice(&mean[j * n..(j + 1) * n]);
+        }
+        if any {
+            degenerate.total += 1;
+        }
+        log_w[j] = -0.5 * (d as f64 * ln2pi + log_det_r);
+    }
+    FeatureVectors {
+        n_samples: big_n,
+        p,
+        q,
+        xi,
+        v_inv,
+        q_inv,
+        log_w,
+        theta,
+        members,
+        c,
+        degenerate,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exact_local_fits_and_degenerate_counts() {
+        // y = 2 x + 1 on a line: every local fit is exact (noise-free).
+        let x: Vec<f64> = (0..50).map(|k| k as f64 / 10.0).collect();
+        let y: Vec<f64> = x.iter().map(|v| 2.0 * v + 1.0).collect();
+        let f = feature_vectors(&x, 1, &y, 5, Features::Fv, 1e-6);
+        assert_eq!(f.dim(), 3);
+        for j in 0..50 {
+            assert!((f.theta[2 * j] - 2.0).abs() < 1e-6 && (f.theta[2 * j + 1] - 1.0).abs() < 1e-6);
+            assert_eq!(f.members(j)[0], j);
+            assert!(f.log_w[j].is_finite());
+        }
+        assert_eq!(f.degenerate.noise_free, 50);
+        // Constant regressors and output (a stop): no abort, all counted.
+        let x = vec![3.0; 40];
+        let y = vec![1.0; 40];
+        let f = feature_vectors(&x, 1, &y, 6, Features::Fv, 1e-6);
+        assert_eq!(f.degenerate.total, 40);
+        assert_eq!(f.degenerate.collinear, 40);
+        assert_eq!(f.degenerate.flat_scatter, 40);
+        assert!(
+            f.xi.iter()
+                .chain(&f.v_inv)
+                .chain(&f.q_inv)
+                .chain(&f.log_w)
+                .all(|v| v.is_finite())
+        );
+    }
+}

@@ -1,0 +1,305 @@
+//! Steps 1 to 5 and 7 of the procedure on a regression problem
+//! `y_k = theta_i' [x_k; 1]`, in working units (region estimation, step 6,
+//! is done by the caller with `hysid-regions`).
+//!
+//! 1. local datasets and feature vectors ([`crate::local`]);
+//! 2. clustering of the feature vectors ([`crate::kmeans`]);
+//! 3. mode datasets `F_i`; a cluster with fewer than `max(c, alpha (n+1))`
+//!    points is discarded and its points become outliers
+//!    (Ferrari-Trecate et al. 2003, section 3.3; HIT `discard_threshold_factor`);
+//! 4. weighted least squares per mode with the confidences `w_j`
+//!    (section 3.4): `theta_i = argmin sum_{j in F_i} w_j (y_j - [x_j' 1] theta)^2`;
+//! 5. outliers go to the mode of least squared residual, and *mixed*
+//!    points (a point whose local dataset holds points of another mode) to
+//!    the mode of least squared residual among their own and the modes
+//!    present in their local dataset (HIT `mix_detect`); the discard check
+//!    runs again and the parameters are re-estimated.
+//!
+//! HIT restricts the mixed-point candidates to the modes whose *regions*
+//! are adjacent to the point's. The modes present in the point's local
+//! dataset are its neighbours in regressor space, which is what adjacency
+//! stands for, and they do not need a first region estimate.
+
+use crate::kmeans::{self, Clusters, KmeansInit};
+use crate::local::{self, Degeneracy, FeatureVectors};
+use crate::{Clustering, Features, Weights};
+use hysid_core::linalg;
+use nalgebra::{DMatrix, DVector};
+use rand_chacha::ChaCha8Rng;
+
+/// Settings of the procedure (the back-end's options, resolved).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// Local dataset size `c`.
+    pub c: usize,
+    /// Number of clusters `s`.
+    pub modes: usize,
+    /// Feature vectors.
+    pub features: Features,
+    /// Clustering algorithm.
+    pub clustering: Clustering,
+    /// Single-linkage distance threshold.
+    pub sl_distance: Option<f64>,
+    /// K-means restarts.
+    pub restarts: usize,
+    /// K-means sweeps per restart.
+    pub max_iter: usize,
+    /// K-means initialisation.
+    pub init: KmeansInit,
+    /// Discard factor `alpha` (0: only empty clusters are discarded).
+    pub discard: f64,
+    /// Mixed-point reattribution.
+    pub reattribute: bool,
+    /// Regularisation `eps` of degenerate local datasets.
+    pub regularization: f64,
+    /// Smallest relative confidence weight in the per-mode least squares.
+    pub min_weight: f64,
+    /// Weights of the per-mode least squares.
+    pub weights: Weights,
+}
+
+/// What the procedure found, in working units.
+#[derive(Debug, Clone)]
+pub struct ModeFit {
+    /// Mode of every sample, `0..theta.len()`.
+    pub labels: Vec<usize>,
+    /// Parameters `[theta_slopes; constant]` per mode.
+    pub theta: Vec<Vec<f64>>,
+    /// Diagnostics.
+    pub diagnostics: Diagnostics,
+    /// The feature vectors (kept for the final refit).
+    pub features: FeatureVectors,
+}
+
+/// Diagnostics of one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Diagnostics {
+    /// Regularised local datasets.
+    pub degenerate: Degeneracy,
+    /// Clusters produced by the clustering step.
+    pub clusters: usize,
+    /// K-means cost of the kept restart.
+    pub kmeans_cost: f64,
+    /// K-means cost of every restart.
+    pub restart_costs: Vec<f64>,
+    /// Sweeps of the kept restart.
+    pub kmeans_iterations: usize,
+    /// Whether the kept restart met the stopping rule.
+    pub kmeans_converged: bool,
+    /// Clusters discarded (first and second check).
+    pub discarded_clusters: usize,
+    /// Points of discarded clusters, reattributed by residual.
+    pub outliers: usize,
+    /// Points moved by mixed-point reattribution.
+    pub reattributed: usize,
+    /// `reattributed / N` (HIT's `stat_reattr`).
+    pub reattributed_fraction: f64,
+    /// Minimum discard size `max(c, alpha (n+1))`.
+    pub discard_size: usize,
+}
+
+/// Why the procedure could not produce modes.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ProcedureError {
+    /// Every cluster was smaller than the discard size.
+    #[error(
+        "every cluster has fewer than {0} points (the discard size max(c, alpha (n+1))): lower c or the mode count, or set discard=0"
+    )]
+    AllDiscarded(usize),
+    /// Least squares failed (non-finite data).
+    #[error("least squares failed: {0}")]
+    LeastSquares(String),
+}
+
+fn residual2(x: &[f64], y: f64, th: &[f64]) -> f64 {
+    let n = x.len();
+    let pred: f64 = x.iter().zip(&th[..n]).map(|(a, b)| a * b).sum::<f64>() + th[n];
+    (y - pred).powi(2)
+}
+
+/// Weighted least squares per mode (step 4) on the mode datasets given by
+/// `labels` (`0..modes`).
+#[allow(clippy::too_many_arguments)]
+pub fn fit_modes(
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    f: &FeatureVectors,
+    labels: &[usize],
+    modes: usize,
+    min_weight: f64,
+    weights: Weights,
+) -> Result<Vec<Vec<f64>>, ProcedureError> {
+    let mut out = Vec::with_capacity(modes);
+    for i in 0..modes {
+        let rows: Vec<usize> = (0..labels.len()).filter(|&j| labels[j] == i).collect();
+        let top = match weights {
+            Weights::Confidence => rows
+                .iter()
+                .map(|&j| f.log_w[j])
+                .fold(f64::NEG_INFINITY, f64::max),
+            Weights::Capped => {
+                let mut lw: Vec<f64> = rows.iter().map(|&j| f.log_w[j]).collect();
+                if lw.is_empty() {
+                    0.0
+                } else {
+                    let m = lw.len() / 2;
+                    *lw.select_nth_unstable_by(m, f64::total_cmp).1
+                }
+            }
+            Weights::Uniform => 0.0,
+        };
+        let mut phi = DMatrix::from_element(rows.len(), n + 1, 1.0);
+        let mut t = DVector::zeros(rows.len());
+        let mut w = Vec::with_capacity(rows.len());
+        for (r, &j) in rows.iter().enumerate() {
+            for k in 0..n {
+                phi[(r, k)] = x[j * n + k];
+            }
+            t[r] = y[j];
+            w.push(match weights {
+                Weights::Uniform => 1.0,
+                _ => (f.log_w[j] - top).exp().clamp(min_weight, 1.0),
+            });
+        }
+        let sol = linalg::weighted_lstsq(&phi, &t, &w)
+            .map_err(|e| ProcedureError::LeastSquares(e.to_string()))?;
+        out.push(sol.theta.iter().copied().collect());
+    }
+    Ok(out)
+}
+
+/// Drops modes with fewer than `min_size` points, renumbering the rest in
+/// order; returns the number dropped. Points of dropped modes get
+/// `usize::MAX`.
+fn discard_small(labels: &mut [usize], modes: usize, min_size: usize) -> (usize, usize) {
+    let mut size = vec![0usize; modes];
+    for &l in labels.iter() {
+        if l < modes {
+            size[l] += 1;
+        }
+    }
+    let mut map = vec![usize::MAX; modes];
+    let mut kept = 0;
+    for i in 0..modes {
+        if size[i] >= min_size.max(1) {
+            map[i] = kept;
+            kept += 1;
+        }
+    }
+    for l in labels.iter_mut() {
+        *l = if *l < modes { map[*l] } else { usize::MAX };
+    }
+    (kept, modes - kept)
+}
+
+/// Runs steps 1-5 and 7 on `x` (N x n, row-major) and `y`.
+pub fn run(
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    s: &Settings,
+    rng: &mut ChaCha8Rng,
+) -> Result<ModeFit, ProcedureError> {
+    let big_n = y.len();
+    let f = local::feature_vectors(x, n, y, s.c, s.features, s.regularization);
+    let clusters: Clusters = match s.clustering {
+        Clustering::Kmeans => {
+            kmeans::weighted_kmeans(&f, s.modes, s.restarts, s.max_iter, s.init, rng)
+        }
+        Clustering::SingleLinkage => kmeans::single_linkage(&f, s.modes, s.sl_distance),
+    };
+    let discard_size = if s.discard > 0.0 {
+        s.c.max((s.discard * (n + 1) as f64).ceil() as usize)
+    } else {
+        1
+    };
+    let mut labels = clusters.labels.clone();
+    let (mut modes, mut discarded) = discard_small(&mut labels, clusters.count, discard_size);
+    if modes == 0 {
+        return Err(ProcedureError::AllDiscarded(discard_size));
+    }
+    let outliers = labels.iter().filter(|&&l| l == usize::MAX).count();
+    let mut theta = fit_modes(x, n, y, &f, &labels, modes, s.min_weight, s.weights)?;
+    let best_mode =
+        |j: usize, cands: &mut dyn Iterator<Item = usize>, theta: &[Vec<f64>]| -> usize {
+            let xj = &x[j * n..(j + 1) * n];
+            let mut best = (f64::INFINITY, usize::MAX);
+            for i in cands {
+                let r = residual2(xj, y[j], &theta[i]);
+                if r < best.0 || (r == best.0 && i < best.1) {
+                    best = (r, i);
+                }
+            }
+            best.1
+        };
+    // Outliers: least residual over all modes.
+    for (j, l) in labels.iter_mut().enumerate() {
+        if *l == usize::MAX {
+            *l = best_mode(j, &mut (0..modes), &theta);
+        }
+    }
+    let mut reattributed = 0;
+    if s.reattribute {
+        let before = labels.clone();
+        let mut cand = Vec::with_capacity(s.c);
+        for j in 0..big_n {
+            let own = before[j];
+            cand.clear();
+            cand.push(own);
+            for &m in f.members(j) {
+                let l = before[m];
+                if !cand.contains(&l) {
+                    cand.push(l);
+                }
+            }
+            if cand.len() > 1 {
+                // Own mode wins ties: it is listed first and compared strictly.
+                let xj = &x[j * n..(j + 1) * n];
+                let mut best = (residual2(xj, y[j], &theta[own]), own);
+                for &i in &cand[1..] {
+                    let r = residual2(xj, y[j], &theta[i]);
+                    if r < best.0 {
+                        best = (r, i);
+                    }
+                }
+                labels[j] = best.1;
+            }
+        }
+        reattributed = labels.iter().zip(&before).filter(|(a, b)| a != b).count();
+        // Second discard check, then points of dropped modes go by residual.
+        let (kept, dropped) = discard_small(&mut labels, modes, discard_size);
+        if kept == 0 {
+            return Err(ProcedureError::AllDiscarded(discard_size));
+        }
+        if dropped > 0 {
+            theta = fit_modes(x, n, y, &f, &labels, kept, s.min_weight, s.weights)?;
+            for (j, l) in labels.iter_mut().enumerate() {
+                if *l == usize::MAX {
+                    *l = best_mode(j, &mut (0..kept), &theta);
+                }
+            }
+            discarded += dropped;
+            modes = kept;
+        }
+        theta = fit_modes(x, n, y, &f, &labels, modes, s.min_weight, s.weights)?;
+    }
+    Ok(ModeFit {
+        labels,
+        theta,
+        diagnostics: Diagnostics {
+            degenerate: f.degenerate,
+            clusters: clusters.count,
+            kmeans_cost: clusters.cost,
+            restart_costs: clusters.restart_costs,
+            kmeans_iterations: clusters.iterations,
+            kmeans_converged: clusters.converged,
+            discarded_clusters: discarded,
+            outliers,
+            reattributed,
+            reattributed_fraction: reattributed as f64 / big_n.max(1) as f64,
+            discard_size,
+        },
+        features: f,
+    })
+}

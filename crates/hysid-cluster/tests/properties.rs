@@ -1,0 +1,317 @@
+//! Invariants of the `cluster` back-end (issue 3), as property tests with
+//! small case counts (each case is a whole identification).
+
+use hysid_cluster::Cluster;
+use hysid_core::backend::{Backend, Problem, RunContext};
+use hysid_core::data::{Dataset, Signal};
+use hysid_core::metrics::parameter_error;
+use hysid_core::model::{Model, PwarxModel};
+use hysid_core::options::Settings;
+use hysid_core::priors::Priors;
+use hysid_core::regressors::RegressorSpec;
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+fn identify(data: &Dataset, orders: RegressorSpec, modes: usize, set: &[&str]) -> PwarxModel {
+    let priors = Priors {
+        modes: Some(modes),
+        ..Default::default()
+    };
+    let problem = Problem {
+        data,
+        orders,
+        priors: &priors,
+        priors_origin: None,
+    };
+    match Cluster
+        .run(
+            &problem,
+            &Settings::parse(set).unwrap(),
+            &RunContext::quiet(7),
+        )
+        .unwrap()
+    {
+        Model::Pwarx(m) => m,
+        _ => unreachable!(),
+    }
+}
+
+fn thetas(m: &PwarxModel) -> Vec<Vec<f64>> {
+    m.modes.iter().map(|q| q.theta.clone()).collect()
+}
+
+/// Static three-wedge map (H4's parameters) with two inputs, as PWARX
+/// `na = 0, nb = 1`: the pairs (u(k-1), y(k)) are independent samples.
+fn wedges(n: usize, noise: f64, seed: u64) -> (Vec<[f64; 2]>, Vec<f64>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let th = [[4.0, 2.0, 3.0], [-6.0, 6.0, -5.0], [4.0, -2.0, -2.0]];
+    let s3 = 3f64.sqrt();
+    let mut x = Vec::with_capacity(n);
+    let mut y = Vec::with_capacity(n);
+    for _ in 0..n {
+        let (a, b): (f64, f64) = (rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let m = if a <= -b.abs() / s3 {
+            1
+        } else if b >= 0.0 {
+            0
+        } else {
+            2
+        };
+        x.push([a, b]);
+        y.push(th[m][0] * a + th[m][1] * b + th[m][2] + noise * rng.random_range(-1.0..1.0));
+    }
+    (x, y)
+}
+
+fn static_dataset(x: &[[f64; 2]], y: &[f64], order: &[usize]) -> Dataset {
+    let mut u1: Vec<f64> = order.iter().map(|&k| x[k][0]).collect();
+    let mut u2: Vec<f64> = order.iter().map(|&k| x[k][1]).collect();
+    let mut yy = vec![0.0];
+    yy.extend(order.iter().map(|&k| y[k]));
+    u1.push(0.0);
+    u2.push(0.0);
+    Dataset::new(
+        vec![
+            Signal {
+                name: "u1".into(),
+                values: u1,
+            },
+            Signal {
+                name: "u2".into(),
+                values: u2,
+            },
+        ],
+        Signal {
+            name: "y".into(),
+            values: yy,
+        },
+        None,
+    )
+    .unwrap()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(8))]
+
+    /// Permuting the samples of a static map (the regressor/target pairs)
+    /// does not change the identified model beyond tolerance.
+    #[test]
+    fn sample_order_does_not_matter(seed in any::<u64>(), perm_seed in any::<u64>()) {
+        let (x, y) = wedges(300, 0.1, seed);
+        let id: Vec<usize> = (0..x.len()).collect();
+        let mut perm = id.clone();
+        use rand::seq::SliceRandom;
+        perm.shuffle(&mut ChaCha8Rng::seed_from_u64(perm_seed));
+        let orders = RegressorSpec::new(0, 1, 2);
+        let a = identify(&static_dataset(&x, &y, &id), orders, 3, &["c=12"]);
+        let b = identify(&static_dataset(&x, &y, &perm), orders, 3, &["c=12"]);
+        prop_assert_eq!(a.modes.len(), b.modes.len());
+        let e = parameter_error(&thetas(&a), &thetas(&b)).max_relative_error;
+        prop_assert!(e < 1e-3, "models differ by {e}: {:?} vs {:?}", thetas(&a), thetas(&b));
+    }
+
+    /// Scaling the output by `k` scales the input and constant parameters
+    /// by `k` and leaves the autoregressive ones unchanged.
+    #[test]
+    fn output_scaling_scales_the_affine_part(seed in any::<u64>(), k in prop_oneof![0.2f64..5.0, -5.0f64..-0.2]) {
+        let ex = hysid_cluster::systems::b1(400, seed);
+        let scaled = Dataset::siso(ex.data.u(0).to_vec(), ex.data.y().iter().map(|v| k * v).collect(), None).unwrap();
+        let a = identify(&ex.data, ex.orders, 3, &[]);
+        let b = identify(&scaled, ex.orders, 3, &[]);
+        let expect: Vec<Vec<f64>> = thetas(&a).into_iter().map(|t| vec![t[0], k * t[1], k * t[2]]).collect();
+        prop_assert_eq!(a.modes.len(), b.modes.len());
+        let e = parameter_error(&expect, &thetas(&b)).max_relative_error;
+        prop_assert!(e < 1e-6, "scaled model differs by {e}: {:?} vs {:?}", expect, thetas(&b));
+    }
+
+    /// The default partition (MRLP) covers random points of (and beyond)
+    /// the regressor domain: no holes.
+    #[test]
+    fn default_partition_covers_the_domain(seed in any::<u64>(), modes in 2usize..5) {
+        let ex = hysid_cluster::systems::b1(300, seed);
+        let m = identify(&ex.data, ex.orders, modes, &[]);
+        let regions: Vec<_> = m.modes.iter().map(|q| q.region.clone()).collect();
+        let rep = hysid_regions::coverage(&regions, &[-20.0, -10.0], &[20.0, 10.0], 2000, seed);
+        prop_assert_eq!(rep.uncovered_fraction, 0.0);
+    }
+
+    /// Noise-free PWARX data with well-separated modes is recovered
+    /// exactly (parameters to 1e-6).
+    #[test]
+    fn noise_free_pwarx_is_recovered_exactly(
+        a1 in -0.8f64..0.8, b1 in 0.5f64..2.0, c1 in -1.0f64..1.0, dc in 1.5f64..3.0, seed in any::<u64>()
+    ) {
+        // Mode 1 for u(k-1) < 0, mode 2 for u(k-1) >= 0; very different slopes.
+        let th = [[a1, b1, c1], [-a1 * 0.5, -b1, c1 + dc]];
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let n = 300;
+        let u: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let mut y = vec![0.0; n];
+        for k in 1..n {
+            let t = if u[k - 1] < 0.0 { th[0] } else { th[1] };
+            y[k] = t[0] * y[k - 1] + t[1] * u[k - 1] + t[2];
+        }
+        let data = Dataset::siso(u, y, None).unwrap();
+        let m = identify(&data, RegressorSpec::new(1, 1, 1), 2, &[]);
+        prop_assert_eq!(m.modes.len(), 2);
+        let e = parameter_error(&th.iter().map(|t| t.to_vec()).collect::<Vec<_>>(), &thetas(&m)).max_relative_error;
+        prop_assert!(e < 1e-6, "error {e}: {:?} vs {:?} ({:?})", th, thetas(&m), m.info.diagnostics);
+    }
+}
+
+/// Degenerate data (a stop: constant output over long stretches, and
+/// noise-free local fits) do not abort; the count is reported.
+#[test]
+fn degenerate_local_datasets_are_regularised_and_counted() {
+    let n = 400;
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let u: Vec<f64> = (0..n)
+        .map(|k| {
+            if (k / 50) % 2 == 0 {
+                1.0
+            } else {
+                rng.random_range(-1.0..0.0)
+            }
+        })
+        .collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        // Saturates at 1 while the input is held at 1.
+        y[k] = if u[k - 1] >= 1.0 {
+            1.0
+        } else {
+            0.5 * y[k - 1] + u[k - 1]
+        };
+    }
+    let data = Dataset::siso(u, y, None).unwrap();
+    let m = identify(&data, RegressorSpec::new(1, 1, 1), 2, &[]);
+    let d = &m.info.diagnostics;
+    assert!(
+        d["degenerate_local_datasets"].as_u64().unwrap() > 0,
+        "{d:?}"
+    );
+    assert!(
+        m.modes
+            .iter()
+            .all(|q| q.theta.iter().all(|v| v.is_finite()))
+    );
+}
+
+#[test]
+fn errors_are_clear() {
+    let ex = hysid_cluster::systems::b1(200, 1);
+    let run = |p: &Priors, set: &[&str]| {
+        let problem = Problem {
+            data: &ex.data,
+            orders: ex.orders,
+            priors: p,
+            priors_origin: None,
+        };
+        Cluster
+            .run(
+                &problem,
+                &Settings::parse(set).unwrap(),
+                &RunContext::quiet(1),
+            )
+            .map(|_| ())
+    };
+    let none = Priors::default();
+    let e = run(&none, &[]).unwrap_err().to_string();
+    assert!(e.contains("modes"), "{e}");
+    let three = Priors {
+        modes: Some(3),
+        ..Default::default()
+    };
+    let e = run(&three, &["c=2"]).unwrap_err().to_string();
+    assert!(e.contains("c=2") && e.contains("n+2"), "{e}");
+    assert!(run(&three, &["restarts=0"]).is_err());
+    assert!(run(&three, &["features=xyz"]).is_err());
+    assert!(run(&three, &["regions=svc"]).is_err());
+    let mut sw = Priors {
+        modes: Some(2),
+        ..Default::default()
+    };
+    sw.switching = vec!["y1".into()];
+    let e = run(&sw, &[]).unwrap_err().to_string();
+    assert!(e.contains("does not honour"), "{e}");
+}
+
+/// `max_modes` alone: the mode count is chosen by hold-out simulation FIT.
+#[test]
+fn max_modes_chooses_a_count() {
+    let ex = hysid_cluster::systems::b1(600, 5);
+    let priors = Priors {
+        max_modes: Some(4),
+        ..Default::default()
+    };
+    let problem = Problem {
+        data: &ex.data,
+        orders: ex.orders,
+        priors: &priors,
+        priors_origin: None,
+    };
+    let m = Cluster
+        .run(&problem, &Settings::default(), &RunContext::quiet(1))
+        .unwrap();
+    assert!((2..=4).contains(&m.mode_count()), "{}", m.mode_count());
+    assert!(m.info().diagnostics.contains_key("mode_choice"));
+}
+
+/// Every option variant runs on B1 and returns a valid model; the
+/// pairwise PSVC partition comes with a holes report.
+#[test]
+fn option_variants_run() {
+    let ex = hysid_cluster::systems::b1(300, 9);
+    for set in [
+        &["features=lpv"][..],
+        &["clustering=single_linkage"],
+        &["clustering=single_linkage", "sl_distance=0.5"],
+        &["init=plusplus"],
+        &["regions=msvm"],
+        &["regions=psvc"],
+        &[
+            "scale=false",
+            "weights=confidence",
+            "region_refit=false",
+            "regions=psvc",
+        ],
+        &["weights=capped"],
+        &["weights=uniform", "reattribute=false", "discard=0"],
+    ] {
+        let m = identify(&ex.data, ex.orders, 3, set);
+        Model::Pwarx(m.clone())
+            .validate()
+            .unwrap_or_else(|e| panic!("{set:?}: {e}"));
+        if set.contains(&"regions=psvc") {
+            assert!(
+                m.info
+                    .diagnostics
+                    .contains_key("uncovered_fraction_of_data_box"),
+                "{set:?}"
+            );
+        }
+    }
+}
+
+/// The case the property test found (seed kept): a noise-free two-mode
+/// PWARX on which every restart of HIT's block initialisation ends in the
+/// same wrong optimum, while the default k-means++ recovers the modes.
+#[test]
+fn kmeans_plusplus_escapes_the_block_initialisation_trap() {
+    let th = [[0.0, 0.5, 0.0], [0.0, -0.5, 2.8637975064419523]];
+    let mut rng = ChaCha8Rng::seed_from_u64(11232757085378686);
+    let n = 300;
+    let u: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        let t = if u[k - 1] < 0.0 { th[0] } else { th[1] };
+        y[k] = t[0] * y[k - 1] + t[1] * u[k - 1] + t[2];
+    }
+    let data = Dataset::siso(u, y, None).unwrap();
+    let truth: Vec<Vec<f64>> = th.iter().map(|t| t.to_vec()).collect();
+    let good = identify(&data, RegressorSpec::new(1, 1, 1), 2, &[]);
+    assert!(parameter_error(&truth, &thetas(&good)).max_relative_error < 1e-6);
+    let hit = identify(&data, RegressorSpec::new(1, 1, 1), 2, &["init=blocks"]);
+    assert!(parameter_error(&truth, &thetas(&hit)).max_relative_error > 0.5);
+}
