@@ -12,6 +12,7 @@
 //!   measured outputs; automata from their [`InitialState`] rule.
 
 mod automaton;
+pub mod mechanical;
 mod pwarx;
 
 use crate::data::Dataset;
@@ -113,6 +114,7 @@ pub fn simulate(model: &Model, data: &Dataset, opts: SimulationOptions) -> Resul
     match model {
         Model::Pwarx(m) => pwarx::simulate(m, data, opts),
         Model::HybridAutomaton(m) => automaton::simulate(m, data, opts),
+        Model::Mechanical(m) => mechanical::simulate(m, data, opts),
     }
 }
 
@@ -127,5 +129,6 @@ pub fn predict(model: &Model, data: &Dataset, opts: SimulationOptions) -> Result
             InitialState::ArxHistory { .. } => automaton::predict(m, data),
             InitialState::Given { .. } => automaton::simulate(m, data, opts),
         },
+        Model::Mechanical(m) => mechanical::predict(m, data),
     }
 }
