@@ -1,7 +1,8 @@
 //! The pick-and-place protocol with the `physical` back-end: decimate by 10,
 //! identify on rows 0..5000, validate on rows 5000..6001 with warm-up 10.
 //!
-//! `cargo run --release -p hysid-physical --example pick_and_place [-- OUT_DIR]`
+//! `cargo run --release -p hysid-physical --example pick_and_place [-- OUT_DIR [KEY=VALUE..]]`
+//! (environment: `PHYS_SEED=N`, `PHYS_FIX_STOP=1` to fix the lower stop at 25 mm)
 //!
 //! Prints the fitted parameters, the fit time, `fit_sim` on both records and
 //! the simulation throughput; writes `OUT_DIR/physical_traces.csv` (measured
@@ -28,17 +29,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let sel = |rows: RowRange| DataSelection { decimate: 10, rows, ..DataSelection::default() };
     let ident = data::load(&root, &sel(RowRange { start: Some(0), end: Some(5000) }))?;
     let valid = data::load(&root, &sel(RowRange { start: Some(5000), end: Some(6001) }))?;
-    let priors = Priors::default();
+    // With `PHYS_FIX_STOP=1`, the lower stop is fixed at the paper's 25 mm
+    // (a `[fixed]` prior); by default every non-fixed parameter is fitted.
+    let mut priors = Priors::default();
+    if std::env::var_os("PHYS_FIX_STOP").is_some() {
+        priors.fixed.insert("y_low".into(), 25.0);
+    }
+    let seed: u64 = std::env::var("PHYS_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+    println!("seed {seed}, priors: {}", if priors.fixed.is_empty() { "none" } else { "[fixed] y_low = 25" });
     let problem = Problem { data: &ident, orders: RegressorSpec::new(2, 2, 1), priors: &priors, priors_origin: None };
     let t0 = Instant::now();
-    let model = Physical.run(&problem, &Settings::parse(&sets)?, &RunContext::quiet(1))?;
+    let model = Physical.run(&problem, &Settings::parse(&sets)?, &RunContext::quiet(seed))?;
     let fit_seconds = t0.elapsed().as_secs_f64();
     let Model::Mechanical(m) = &model else { unreachable!() };
     println!("fit time: {fit_seconds:.2} s ({} simulations)", m.info.diagnostics["evaluations"]);
     println!("final cost (MSE, identification): {:.5}", m.info.diagnostics["cost"]);
     for p in &m.parameters {
         let d = &m.info.diagnostics["parameters"].get(&p.name);
-        let se = d.and_then(|d| d["std_error"].as_f64()).map(|s| format!("± {s:.4}")).unwrap_or_else(|| "(fixed)".into());
+        let se = d.and_then(|d| d["std_error"].as_f64()).map(|s| format!("± {s:.4}")).unwrap_or_else(|| if p.fixed { "(fixed)".into() } else { "(zero local sensitivity)".into() });
         println!("  {:6} = {:>12.4} {se:>14}  {:18} bounds [{}, {}]", p.name, p.value, p.unit, p.bounds[0], p.bounds[1]);
     }
     let (ri, _, _) = metrics::validate(&model, &ident, 10)?;

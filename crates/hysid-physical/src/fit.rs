@@ -156,6 +156,9 @@ impl ParameterMap {
 
 /// The simulation-error cost of a parameter vector.
 struct SimulationCost<'a> {
+    /// 0: free-run cost; else the segmented (multiple-shooting) cost.
+    segment: usize,
+    velocity_tol: f64,
     model: &'a MechanicalModel,
     data: &'a Dataset,
     map: &'a ParameterMap,
@@ -166,21 +169,220 @@ struct SimulationCost<'a> {
 /// Cost of a diverged or failed simulation.
 const FAILED: f64 = 1e30;
 
-/// Mean squared simulation error over the samples after the initial state.
-pub fn simulation_mse(model: &MechanicalModel, values: &[f64], data: &Dataset) -> f64 {
-    match mechanical::run(model, values, data) {
-        Ok(r) => {
-            let y = data.y();
-            let n = y.len() - (r.start + 1);
-            if n == 0 {
-                return FAILED;
-            }
-            let s: f64 = y[r.start + 1..].iter().zip(&r.y[r.start + 1..]).map(|(a, b)| (a - b) * (a - b)).sum();
-            let m = s / n as f64;
-            if m.is_finite() { m } else { FAILED }
-        }
-        Err(_) => FAILED,
+/// Free-run simulation residuals `y(k) - yhat(k)` after the initial state
+/// (`None` when the simulation fails).
+pub fn simulation_residuals(model: &MechanicalModel, values: &[f64], data: &Dataset) -> Option<Vec<f64>> {
+    let r = mechanical::run(model, values, data).ok()?;
+    let y = data.y();
+    let e: Vec<f64> = y[r.start + 1..].iter().zip(&r.y[r.start + 1..]).map(|(a, b)| a - b).collect();
+    (!e.is_empty() && e.iter().all(|x| x.is_finite())).then_some(e)
+}
+
+fn mse(e: Option<Vec<f64>>) -> f64 {
+    match e {
+        Some(e) => e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64,
+        None => FAILED,
     }
+}
+
+/// Mean squared free-run simulation error over the samples after the initial state.
+pub fn simulation_mse(model: &MechanicalModel, values: &[f64], data: &Dataset) -> f64 {
+    mse(simulation_residuals(model, values, data))
+}
+
+/// Velocity thresholds below which an estimated velocity counts as zero
+/// (the mass is taken to be at rest), from the measurement noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VelocityTolerances {
+    /// Output noise standard deviation, estimated.
+    pub noise: f64,
+    /// For [`segment_velocity`] (a 3-point slope).
+    pub centred: f64,
+    /// For the initial-state estimator of the simulator (backward quadratic).
+    pub backward: f64,
+}
+
+/// Estimates the output noise robustly from second differences
+/// (`1.4826 median |d2 y| / sqrt(6)`; quantised records whose samples
+/// repeat while stuck give 0) and sets the thresholds at three standard
+/// deviations of each velocity estimator, plus a floor of `1e-6` of the
+/// output range per second against rounding.
+pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
+    let mut d2: Vec<f64> = y.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).collect();
+    let noise = if d2.is_empty() {
+        0.0
+    } else {
+        let mid = d2.len() / 2;
+        let (_, m, _) = d2.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+        1.4826 * *m / 6f64.sqrt()
+    };
+    let (lo, hi) = y.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    let floor = 1e-6 * (hi - lo).max(0.0) / ts;
+    // Noise gain of an estimator: the norm of its weights (unit impulses).
+    let gain = |f: &dyn Fn(&[f64]) -> f64| -> f64 {
+        (0..5)
+            .map(|j| {
+                let mut e = [0.0; 5];
+                e[j] = 1.0;
+                f(&e).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt()
+    };
+    let g_c = 0.5f64.sqrt() / ts;
+    let g_b = gain(&|e| mechanical::estimate_velocity(e, 4, ts));
+    VelocityTolerances { noise, centred: 3.0 * noise * g_c + floor, backward: 3.0 * noise * g_b + floor }
+}
+
+/// Velocity at sample `k` for re-initialising a segment (offline, so it
+/// may look ahead): the slopes `b` over `k-2..=k` and `f` over `k..=k+2`
+/// (clipped to the record) are compared. Both within `tol`, or of opposite
+/// signs: at rest (0). Within a factor 2 of each other: smooth motion,
+/// their mean (the centred slope). Otherwise an event lies in the window
+/// (break-away, impact on a stop) and the smaller one is the velocity at
+/// `k` (0 at a break-away, the stop's 0 after an impact).
+pub fn segment_velocity(y: &[f64], k: usize, ts: f64, tol: f64) -> f64 {
+    let n = y.len();
+    let slope = |a: usize, b: usize| if b > a { (y[b] - y[a]) / ((b - a) as f64 * ts) } else { 0.0 };
+    let b = slope(k.saturating_sub(2), k);
+    let f = slope(k, (k + 2).min(n - 1));
+    let (ab, af) = (b.abs(), f.abs());
+    if (ab <= tol && af <= tol) || b * f < 0.0 {
+        return 0.0;
+    }
+    if k < 2 {
+        return f;
+    }
+    if k + 2 >= n {
+        return b;
+    }
+    let (lo, hi) = if ab < af { (ab, af) } else { (af, ab) };
+    if hi <= 2.0 * lo {
+        0.5 * (b + f)
+    } else if ab < af {
+        b
+    } else {
+        f
+    }
+}
+
+/// The segmented (multiple-shooting) simulation error: the record is cut
+/// into segments of `segment` samples, each simulated from the state
+/// measured at its start (position, [`segment_velocity`]). Errors do not
+/// accumulate across segments, so the cost is much smoother in the
+/// parameters than the free-run error; it serves the global stage.
+pub fn segmented_mse(model: &MechanicalModel, values: &[f64], data: &Dataset, segment: usize, velocity_tol: f64) -> f64 {
+    mse(segmented_residuals(model, values, data, segment, velocity_tol))
+}
+
+/// The residuals of [`segmented_mse`].
+pub fn segmented_residuals(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+    segment: usize,
+    velocity_tol: f64,
+) -> Option<Vec<f64>> {
+    let ts = data.ts?;
+    let r = model.resolve_with(values);
+    let n_sub = mechanical::substeps(ts, model.internal_step);
+    let y = data.y();
+    let n = y.len();
+    let mut u = vec![0.0; data.inputs.len()];
+    let mut e = Vec::with_capacity(n);
+    let mut s = 0;
+    while s + 1 < n {
+        for (i, x) in u.iter_mut().enumerate() {
+            *x = data.inputs[i].values[s];
+        }
+        let v = segment_velocity(y, s, ts, velocity_tol);
+        let mut st = r.state_at(y[s], v, &u);
+        for k in s..(s + segment.max(1)).min(n - 1) {
+            for (i, x) in u.iter_mut().enumerate() {
+                *x = data.inputs[i].values[k];
+            }
+            r.advance(&mut st, &u, ts, n_sub);
+            e.push(y[k + 1] - st.y);
+        }
+        s += segment.max(1);
+    }
+    (!e.is_empty() && e.iter().all(|x| x.is_finite())).then_some(e)
+}
+
+/// Levenberg-Marquardt (Marquardt 1963) on residuals `res(z)` in the
+/// normalised box `[0, 1]^d` (steps projected onto it), with a central
+/// finite-difference Jacobian of step `fd`; at most `iters` iterations.
+/// Returns the best point and its sum of squares.
+pub fn levenberg_marquardt(
+    res: &dyn Fn(&[f64]) -> Option<Vec<f64>>,
+    z0: &[f64],
+    fd: f64,
+    iters: usize,
+    deadline: Option<Instant>,
+    evals: &AtomicU64,
+) -> (Vec<f64>, f64) {
+    let d = z0.len();
+    let sse = |e: &[f64]| e.iter().map(|x| x * x).sum::<f64>();
+    let mut z = z0.to_vec();
+    let Some(mut r) = res(&z) else { return (z, f64::INFINITY) };
+    evals.fetch_add(1, Ordering::Relaxed);
+    let mut cost = sse(&r);
+    let mut mu = 1e-3;
+    let mut jac: Option<DMatrix<f64>> = None;
+    for _ in 0..iters {
+        if deadline.is_some_and(|t| Instant::now() >= t) {
+            break;
+        }
+        if jac.is_none() {
+            let mut j = DMatrix::zeros(r.len(), d);
+            for c in 0..d {
+                let (mut zp, mut zm) = (z.clone(), z.clone());
+                zp[c] = (z[c] + fd).min(1.0);
+                zm[c] = (z[c] - fd).max(0.0);
+                evals.fetch_add(2, Ordering::Relaxed);
+                let (Some(rp), Some(rm)) = (res(&zp), res(&zm)) else { continue };
+                let h = zp[c] - zm[c];
+                for k in 0..r.len().min(rp.len()).min(rm.len()) {
+                    j[(k, c)] = (rp[k] - rm[k]) / h;
+                }
+            }
+            jac = Some(j);
+        }
+        let j = jac.as_ref().expect("set above");
+        let jtj = j.transpose() * j;
+        let g = j.transpose() * nalgebra::DVector::from_column_slice(&r);
+        let mut a = jtj.clone();
+        for c in 0..d {
+            a[(c, c)] += mu * (jtj[(c, c)] + 1e-12);
+        }
+        let Some(ch) = a.cholesky() else {
+            mu *= 10.0;
+            continue;
+        };
+        let step = ch.solve(&(-g));
+        let zn: Vec<f64> = z.iter().zip(step.iter()).map(|(a, b)| (a + b).clamp(0.0, 1.0)).collect();
+        evals.fetch_add(1, Ordering::Relaxed);
+        match res(&zn) {
+            Some(rn) if sse(&rn) < cost => {
+                let improvement = (cost - sse(&rn)) / cost.max(f64::MIN_POSITIVE);
+                z = zn;
+                r = rn;
+                cost = sse(&r);
+                mu = (mu / 3.0).max(1e-12);
+                jac = None;
+                if improvement < 1e-9 {
+                    break;
+                }
+            }
+            _ => {
+                mu *= 4.0;
+                if mu > 1e8 {
+                    break;
+                }
+            }
+        }
+    }
+    (z, cost)
 }
 
 impl CostFunction for SimulationCost<'_> {
@@ -193,7 +395,12 @@ impl CostFunction for SimulationCost<'_> {
         // Outside the box: the clamped point's cost plus a penalty that
         // points back inside (Nelder-Mead is unconstrained).
         let out: f64 = z.iter().map(|x| (x - x.clamp(0.0, 1.0)).powi(2)).sum();
-        let c = simulation_mse(self.model, &self.map.values(z), self.data);
+        let v = self.map.values(z);
+        let c = if self.segment == 0 {
+            simulation_mse(self.model, &v, self.data)
+        } else {
+            segmented_mse(self.model, &v, self.data, self.segment, self.velocity_tol)
+        };
         Ok(c * (1.0 + 10.0 * out) + out)
     }
 }
@@ -249,12 +456,13 @@ pub fn fit_mechanical(
         return Err(IdentifyError::BadData(format!("--set fd_step={}: must be in (0, 0.5)", options.fd_step)));
     }
     let mut model = model.clone();
+    let tols = velocity_tolerances(data.y(), data.ts.unwrap_or(1.0));
     if options.init_samples > 0 {
         model.initial_state = MechanicalInitialState::Measured {
             samples: options.init_samples,
             velocity_tol: match model.initial_state {
-                MechanicalInitialState::Measured { velocity_tol, .. } => velocity_tol,
-                _ => 0.0,
+                MechanicalInitialState::Measured { velocity_tol, .. } => velocity_tol.max(tols.backward),
+                _ => tols.backward,
             },
         };
     }
@@ -271,19 +479,20 @@ pub fn fit_mechanical(
         )));
     }
     let evals = AtomicU64::new(0);
-    let problem = || SimulationCost { model: &model, data, map: &map, progress: ctx.progress, evals: &evals };
+    let problem = |segment: usize| SimulationCost { segment, velocity_tol: tols.centred, model: &model, data, map: &map, progress: ctx.progress, evals: &evals };
     let nominal_z = map.coords(&map.base);
     let nominal_cost = simulation_mse(&model, &map.values(&nominal_z), data);
     let timeout = |ex_deadline: Option<Instant>| ex_deadline.map(|t| t.saturating_duration_since(Instant::now()));
 
     let mut best_z = nominal_z.clone();
-    let mut best_cost = nominal_cost;
     let mut swarm_cost = None;
+    let mut segmented_cost = None;
+    let mut extra_starts: Vec<Vec<f64>> = Vec::new();
     if d > 0 && options.particles > 0 && options.swarm_iters > 0 {
         ctx.progress.start((options.particles * (options.swarm_iters + 1)) as u64, "physical: particle swarm");
         let pso: ParticleSwarm<Vec<f64>, f64, ChaCha8Rng> = ParticleSwarm::new((vec![0.0; d], vec![1.0; d]), options.particles)
             .with_rng_generator(ChaCha8Rng::seed_from_u64(ctx.seed));
-        let mut ex = Executor::new(problem(), pso).configure(|s| s.max_iters(options.swarm_iters as u64));
+        let mut ex = Executor::new(problem(options.segment), pso).configure(|s| s.max_iters(options.swarm_iters as u64));
         if let Some(t) = timeout(ctx.deadline) {
             ex = ex.timeout(t);
         }
@@ -292,39 +501,110 @@ pub fn fit_mechanical(
         if let Some(p) = res.state().get_best_param() {
             let c = p.cost;
             swarm_cost = Some(c);
-            if c < best_cost {
-                best_cost = c;
-                best_z = p.position.clone();
+            // The swarm's best (on its own cost) replaces the nominal start
+            // when its free-run cost is lower.
+            let z: Vec<f64> = p.position.iter().map(|x| x.clamp(0.0, 1.0)).collect();
+            if options.segment > 0 || c < nominal_cost {
+                best_z = z;
             }
         }
-    }
-    if d > 0 && options.local_iters > 0 && options.restarts > 0 {
-        ctx.progress.start((options.local_iters * options.restarts) as u64, "physical: Nelder-Mead");
-        for _ in 0..options.restarts {
-            if ctx.deadline.is_some_and(|t| Instant::now() >= t) {
+        // Further starts for the first local stage: the nominal values and
+        // the best other particles (distinct positions), by cost.
+        let mut pop: Vec<(f64, Vec<f64>)> = res
+            .state()
+            .get_population()
+            .map(|ps| ps.iter().map(|p| (p.cost, p.position.iter().map(|x| x.clamp(0.0, 1.0)).collect())).collect())
+            .unwrap_or_default();
+        pop.sort_by(|a, b| a.0.total_cmp(&b.0));
+        extra_starts.push(nominal_z.clone());
+        for (_, z) in pop {
+            if extra_starts.len() + 1 >= options.starts {
                 break;
             }
-            let mut simplex = vec![best_z.clone()];
-            for j in 0..d {
-                let mut p = best_z.clone();
-                // Step inwards so the simplex stays in the box.
-                p[j] += if p[j] + options.simplex <= 1.0 { options.simplex } else { -options.simplex };
-                simplex.push(p);
+            if z != best_z && !extra_starts.contains(&z) {
+                extra_starts.push(z);
             }
-            let nm: NelderMead<Vec<f64>, f64> = NelderMead::new(simplex)
-                .with_sd_tolerance(1e-12)
-                .map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
-            let mut ex = Executor::new(problem(), nm).configure(|s| s.max_iters(options.local_iters as u64));
-            if let Some(t) = timeout(ctx.deadline) {
-                ex = ex.timeout(t);
+        }
+        extra_starts.truncate(options.starts.saturating_sub(1));
+    }
+    if d > 0 && options.local_iters > 0 && options.restarts > 0 {
+        // Stage 2 (segmented cost, when enabled), then stage 3 (free run).
+        let stages: Vec<usize> = if options.segment > 0 { vec![options.segment, 0] } else { vec![0] };
+        ctx.progress.start((options.local_iters * options.restarts * stages.len()) as u64, "physical: Nelder-Mead");
+        for &segment in &stages {
+            let cost_of = |z: &[f64]| {
+                let v = map.values(z);
+                if segment == 0 {
+                    simulation_mse(&model, &v, data)
+                } else {
+                    segmented_mse(&model, &v, data, segment, tols.centred)
+                }
+            };
+            let mut stage_z = best_z.clone();
+            let mut stage_cost = cost_of(&stage_z);
+            // The first stage starts from every start, the later ones from the best.
+            let starts: Vec<Vec<f64>> = if segment == stages[0] {
+                std::iter::once(best_z.clone()).chain(extra_starts.iter().cloned()).collect()
+            } else {
+                vec![best_z.clone()]
+            };
+            for start in starts {
+                let c0 = cost_of(&start);
+                if c0 < stage_cost {
+                    stage_cost = c0;
+                    stage_z = start.clone();
+                }
+                if options.lm_iters == 0 {
+                    continue;
+                }
+                let res = |z: &[f64]| {
+                    let v = map.values(z);
+                    if segment == 0 {
+                        simulation_residuals(&model, &v, data)
+                    } else {
+                        segmented_residuals(&model, &v, data, segment, tols.centred)
+                    }
+                };
+                let (z, _) = levenberg_marquardt(&res, &start, options.fd_step, options.lm_iters, ctx.deadline, &evals);
+                let c = cost_of(&z);
+                if c < stage_cost {
+                    stage_cost = c;
+                    stage_z = z;
+                }
             }
-            let res = ex.run().map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
-            let st = res.state();
-            if let Some(p) = st.get_best_param()
-                && st.get_best_cost() < best_cost
-            {
-                best_cost = st.get_best_cost();
-                best_z = p.iter().map(|x| x.clamp(0.0, 1.0)).collect();
+            for _ in 0..options.restarts {
+                if ctx.deadline.is_some_and(|t| Instant::now() >= t) {
+                    break;
+                }
+                let mut simplex = vec![stage_z.clone()];
+                for j in 0..d {
+                    let mut p = stage_z.clone();
+                    // Step inwards so the simplex stays in the box.
+                    p[j] += if p[j] + options.simplex <= 1.0 { options.simplex } else { -options.simplex };
+                    simplex.push(p);
+                }
+                let nm: NelderMead<Vec<f64>, f64> = NelderMead::new(simplex)
+                    .with_sd_tolerance(1e-12)
+                    .map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
+                let mut ex =
+                    Executor::new(problem(segment), nm).configure(|s| s.max_iters(options.local_iters as u64));
+                if let Some(t) = timeout(ctx.deadline) {
+                    ex = ex.timeout(t);
+                }
+                let res = ex.run().map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
+                let st = res.state();
+                if let Some(p) = st.get_best_param() {
+                    let z: Vec<f64> = p.iter().map(|x| x.clamp(0.0, 1.0)).collect();
+                    let c = cost_of(&z);
+                    if c < stage_cost {
+                        stage_cost = c;
+                        stage_z = z;
+                    }
+                }
+            }
+            best_z = stage_z;
+            if segment > 0 {
+                segmented_cost = Some(stage_cost);
             }
         }
         ctx.progress.finish();
@@ -341,9 +621,6 @@ pub fn fit_mechanical(
         p.value = *v;
         p.bounds = *b;
     }
-    for g in &map.groups {
-        let _ = g;
-    }
     let fixed: Vec<bool> = (0..values.len()).map(|i| !map.groups.iter().any(|g| g.contains(&i))).collect();
     for (p, f) in fitted.parameters.iter_mut().zip(&fixed) {
         p.fixed = *f;
@@ -358,7 +635,12 @@ pub fn fit_mechanical(
     if let Some(c) = swarm_cost {
         diag.insert("swarm_cost".into(), json!(c));
     }
+    if let Some(c) = segmented_cost {
+        diag.insert("segmented_cost".into(), json!(c));
+        diag.insert("segment".into(), json!(options.segment));
+    }
     diag.insert("evaluations".into(), json!(n_eval));
+    diag.insert("noise_estimate".into(), json!(tols.noise));
     diag.insert("samples".into(), json!(data.len()));
     diag.insert("free_parameters".into(), json!(d));
     let mut at_bound = Vec::new();
@@ -387,6 +669,19 @@ pub fn fit_mechanical(
         json!("Gauss-Newton s^2 (J^T J)^-1 from a central finite-difference Jacobian of the simulation residuals; local, and optimistic since the residuals are correlated"),
     );
     diag.insert("jacobian_condition".into(), json!(sens.condition));
+    let silent: Vec<String> = map
+        .groups
+        .iter()
+        .zip(&sens.sensitivity)
+        .filter(|(_, s)| **s == 0.0)
+        .flat_map(|(g, _)| g.iter().map(|&i| map.names[i].clone()))
+        .collect();
+    if !silent.is_empty() {
+        // No effect on the simulated output under a small change: not
+        // identifiable from this record (a stop never reached), or a
+        // threshold (static friction) that no small change flips.
+        diag.insert("zero_sensitivity".into(), json!(silent));
+    }
     if !at_bound.is_empty() {
         diag.insert("at_bound".into(), json!(at_bound));
     }
@@ -442,14 +737,27 @@ fn sensitivity(model: &MechanicalModel, map: &ParameterMap, values: &[f64], data
     }
     let sse: f64 = r0.iter().map(|e| e * e).sum();
     let s2 = sse / (n.saturating_sub(d).max(1)) as f64;
-    let jtj = jac.transpose() * &jac;
-    let sv = jtj.clone().svd(false, false).singular_values;
-    let (smax, smin) = (sv.max(), sv.min());
-    let condition = if smin > 0.0 { (smax / smin).sqrt() } else { f64::INFINITY };
-    let std_errors = match hysid_core::linalg::pinv(&jtj) {
-        Ok(inv) if smin > 1e-14 * smax => (0..d).map(|j| (s2 * inv[(j, j)]).max(0.0).sqrt()).collect(),
-        _ => vec![f64::NAN; d],
-    };
+    // Columns with no effect on the output (e.g. a stop never reached) are
+    // not identifiable from this record: left out, their error undefined.
+    let norms: Vec<f64> = (0..d).map(|j| jac.column(j).norm()).collect();
+    let top = norms.iter().copied().fold(0.0, f64::max);
+    let keep: Vec<usize> = (0..d).filter(|&j| norms[j] > 1e-9 * top && top > 0.0).collect();
+    let mut std_errors = vec![f64::NAN; d];
+    let mut condition = f64::NAN;
+    if !keep.is_empty() {
+        let jk = DMatrix::from_fn(n, keep.len(), |k, c| jac[(k, keep[c])]);
+        let jtj = jk.transpose() * &jk;
+        let sv = jtj.clone().svd(false, false).singular_values;
+        let (smax, smin) = (sv.max(), sv.min());
+        condition = if smin > 0.0 { (smax / smin).sqrt() } else { f64::INFINITY };
+        if let Ok(inv) = hysid_core::linalg::pinv(&jtj)
+            && smin > 1e-14 * smax
+        {
+            for (c, &j) in keep.iter().enumerate() {
+                std_errors[j] = (s2 * inv[(c, c)]).max(0.0).sqrt();
+            }
+        }
+    }
     // Scaled sensitivity: RMS change of the output per relative change of the parameter.
     let sensitivity = (0..d)
         .map(|j| {

@@ -62,6 +62,16 @@ hysid_core::backend_options! {
         local_iters: usize = 400,
         /// Nelder-Mead runs, each restarted from the previous best with a fresh simplex.
         restarts: usize = 3,
+        /// Segment length (samples) of the multiple-shooting cost used by the swarm and
+        /// the first local stage: each segment is simulated from the state measured at
+        /// its start, which smooths the cost; 0: free-run cost only.
+        segment: usize = 100,
+        /// Starts of the first local stage: the swarm's best, the nominal values and the
+        /// next best particles.
+        starts: usize = 6,
+        /// Iterations of the Levenberg-Marquardt step (finite-difference Jacobian of the
+        /// residuals) that opens each local stage; 0 skips it.
+        lm_iters: usize = 30,
         /// Initial simplex size, as a fraction of each parameter's range.
         simplex: f64 = 0.05,
         /// Samples used to estimate the initial state (position and velocity) of the
