@@ -685,7 +685,6 @@ pub fn fit_mechanical(
     if !at_bound.is_empty() {
         diag.insert("at_bound".into(), json!(at_bound));
     }
-    diag.insert("seconds".into(), json!(seconds));
     let report = FitReport {
         nominal_cost,
         swarm_cost,

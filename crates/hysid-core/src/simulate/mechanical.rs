@@ -457,3 +457,207 @@ pub(super) fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation,
     }
     Ok(sim)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::excitation::Excitation;
+    use crate::model::{MechanicalModeKind, Model};
+    use proptest::prelude::*;
+
+    const HEAD: &str = include_str!("../../../../models/pick-and-place/head.toml");
+    const TS: f64 = 0.0025;
+
+    fn head() -> MechanicalModel {
+        match Model::from_toml(HEAD, "head.toml").unwrap() {
+            Model::Mechanical(m) => m,
+            _ => unreachable!(),
+        }
+    }
+
+    /// The head with every parameter at fraction `z` of its bounds.
+    fn head_at(z: &[f64]) -> MechanicalModel {
+        let mut m = head();
+        for (p, zi) in m.parameters.iter_mut().zip(z) {
+            if !p.fixed {
+                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
+            }
+        }
+        m
+    }
+
+    fn given(m: &mut MechanicalModel, y: f64, v: f64) {
+        m.initial_state = MechanicalInitialState::Given { position: y, velocity: v };
+    }
+
+    fn value(m: &MechanicalModel, name: &str) -> f64 {
+        m.parameters[m.parameter_index(name).unwrap()].value
+    }
+
+    /// Potential energy per unit mass with u = 0: springs, constant force and
+    /// the engaged-or-not contact spring (counted whenever penetrating).
+    fn energy(m: &MechanicalModel, y: f64, v: f64) -> f64 {
+        let (c1, f0, c2, yc) = (value(m, "c1"), value(m, "f0"), value(m, "c2"), value(m, "yc"));
+        0.5 * v * v + 0.5 * c1 * y * y - f0 * y + if y > yc { 0.5 * c2 * (y - yc).powi(2) } else { 0.0 }
+    }
+
+    #[test]
+    fn head_model_parses_with_its_five_modes() {
+        let m = head();
+        let names: Vec<&str> = m.modes.iter().map(|q| q.name.as_str()).collect();
+        assert_eq!(names, ["upper_saturation", "free", "impact", "lower_saturation", "stick"]);
+        assert_eq!(m.mode_of(None, false, 1), Some(2));
+        assert_eq!(m.mode_of(None, true, 1), Some(4));
+        assert_eq!(m.mode_of(Some(1), true, 0), Some(3));
+        let mut bad = m.clone();
+        bad.modes.retain(|q| q.kind != MechanicalModeKind::Stick);
+        assert!(bad.validate().unwrap_err().contains("stick"));
+        let json = Model::Mechanical(m.clone()).to_json();
+        assert_eq!(Model::from_json(&json, "mem").unwrap(), Model::Mechanical(m));
+    }
+
+    /// Without friction, contacts or stops reached, the simulator matches
+    /// the closed-form step response of a damped oscillator.
+    #[test]
+    fn linear_regime_matches_closed_form() {
+        let mut m = head();
+        for (n, v) in [("f1", 0.0), ("fs", 0.0), ("yc", 17.0)] {
+            let i = m.parameter_index(n).unwrap();
+            m.parameters[i].bounds[0] = 0.0;
+            m.parameters[i].value = v;
+        }
+        given(&mut m, 5.0, 0.0);
+        let (k, d, ku, f0) = (value(&m, "c1"), value(&m, "d1"), value(&m, "ku"), value(&m, "f0"));
+        let u = -0.05;
+        let n = 400;
+        let data = Dataset::siso(vec![u; n], vec![0.0; n], Some(TS)).unwrap();
+        let r = run(&m, &m.values(), &data).unwrap();
+        let yss = (ku * u + f0) / k;
+        let wn = k.sqrt();
+        let zeta = d / (2.0 * wn);
+        let wd = wn * (1.0 - zeta * zeta).sqrt();
+        let (a, b) = (5.0 - yss, zeta * wn * (5.0 - yss) / wd);
+        let mut worst = 0.0f64;
+        for (i, y) in r.y.iter().enumerate() {
+            let t = i as f64 * TS;
+            let exact = yss + (-zeta * wn * t).exp() * (a * (wd * t).cos() + b * (wd * t).sin());
+            assert!(exact > 0.0 && exact < 17.0);
+            worst = worst.max((y - exact).abs());
+        }
+        assert!(worst < 1e-7, "max error {worst}");
+        assert!(r.modes.iter().all(|q| *q == Some(1)));
+    }
+
+    /// A frictionless free fall onto the lower stop: the impact is located
+    /// within the step (the sample after it reads the stop exactly, with
+    /// the closed-form impact time) and the velocity is reset to zero.
+    #[test]
+    fn stop_is_hit_at_the_right_time_and_resets_velocity() {
+        let mut m = head();
+        m.forces.retain(|f| matches!(f, crate::model::ForceElement::Constant { .. }));
+        m.contacts.clear();
+        m.modes.retain(|q| q.contacts.as_ref().is_none_or(|c| c.is_empty()));
+        for (n, v) in [("f1", 0.0), ("fs", 0.0), ("f0", 1000.0)] {
+            let i = m.parameter_index(n).unwrap();
+            m.parameters[i].bounds[0] = 0.0;
+            m.parameters[i].value = v;
+        }
+        m.validate().unwrap();
+        given(&mut m, 0.0, 0.0);
+        let n = 200;
+        let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(TS)).unwrap();
+        let r = run(&m, &m.values(), &data).unwrap();
+        // y = 500 t^2 reaches 25 at t = sqrt(0.05).
+        let t_hit = 0.05f64.sqrt();
+        for (k, y) in r.y.iter().enumerate() {
+            let t = k as f64 * TS;
+            if t < t_hit {
+                assert!((y - 500.0 * t * t).abs() < 1e-9, "k {k}: {y}");
+            } else {
+                assert_eq!(*y, 25.0);
+                assert_eq!(r.v[k], 0.0);
+                assert_eq!(r.modes[k], Some(2), "lower_saturation after the reset");
+            }
+        }
+    }
+
+    fn unit() -> impl Strategy<Value = Vec<f64>> {
+        proptest::collection::vec(0.0f64..=1.0, 12)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+
+        /// The position never leaves [y_up, y_low], and resting at a stop
+        /// means exactly the stop's position with zero velocity.
+        #[test]
+        fn position_stays_between_the_stops(z in unit(), seed in any::<u64>(), low in -0.3f64..-0.1) {
+            let mut m = head_at(&z);
+            given(&mut m, 0.0, 0.0);
+            let ex = Excitation { n: 600, hold: 40, low, high: 0.05, ts: Some(TS), inputs: 1 };
+            let data = Dataset::siso(ex.generate(seed).remove(0), vec![0.0; 600], Some(TS)).unwrap();
+            let r = run(&m, &m.values(), &data).unwrap();
+            let (up, lowstop) = (value(&m, "y_up"), value(&m, "y_low"));
+            for k in 0..600 {
+                prop_assert!(r.y[k] >= up && r.y[k] <= lowstop, "k {}: y {}", k, r.y[k]);
+                match r.modes[k].map(|q| m.modes[q].name.as_str()) {
+                    Some("upper_saturation") => prop_assert!(r.y[k] == up && r.v[k] == 0.0),
+                    Some("lower_saturation") => prop_assert!(r.y[k] == lowstop && r.v[k] == 0.0),
+                    Some("stick") => prop_assert!(r.v[k] == 0.0),
+                    Some(_) => {}
+                    None => prop_assert!(false, "no mode at {}", k),
+                }
+                // Entering a stop (a reset) leaves zero velocity.
+                if k > 0 && (r.y[k] == up || r.y[k] == lowstop) && r.y[k - 1] != r.y[k] {
+                    prop_assert_eq!(r.v[k], 0.0);
+                }
+            }
+        }
+
+        /// Without input the energy never grows (dampers, friction and the
+        /// inelastic stops only dissipate).
+        #[test]
+        fn energy_does_not_grow_without_input(z in unit(), y0 in 0.0f64..1.0, v0 in -400.0f64..400.0) {
+            let mut m = head_at(&z);
+            let y0 = y0 * value(&m, "y_low");
+            given(&mut m, y0, v0);
+            let n = 400;
+            let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(TS)).unwrap();
+            let r = run(&m, &m.values(), &data).unwrap();
+            let scale = energy(&m, y0, v0).abs() + 1.0;
+            let mut e_prev = energy(&m, r.y[0], r.v[0]);
+            prop_assert!(e_prev <= energy(&m, y0, v0) + 1e-9 * scale);
+            for k in 1..n {
+                let e = energy(&m, r.y[k], r.v[k]);
+                prop_assert!(e <= e_prev + 1e-9 * scale, "k {}: {} > {}", k, e, e_prev);
+                e_prev = e;
+            }
+        }
+
+        /// A stuck head stays stuck while the net force is below the static
+        /// level, and breaks away when it exceeds it.
+        #[test]
+        fn stuck_stays_stuck_below_static_friction(z in unit(), y0 in 0.05f64..0.95, frac in -0.98f64..0.98) {
+            let mut m = head_at(&z);
+            let y0 = y0 * value(&m, "y_low");
+            let r = m.resolve();
+            let engaged = r.engaged_at(y0, 0.0);
+            let (_, fs) = r.friction(engaged);
+            let ku = value(&m, "ku");
+            // u such that the net smooth force is frac * fs.
+            let f_at_zero_u = r.smooth_force(y0, 0.0, &[0.0], engaged);
+            let u = (frac * fs - f_at_zero_u) / ku;
+            given(&mut m, y0, 0.0);
+            let n = 200;
+            let data = Dataset::siso(vec![u; n], vec![0.0; n], Some(TS)).unwrap();
+            let run1 = run(&m, &m.values(), &data).unwrap();
+            prop_assert!(run1.y.iter().all(|y| *y == y0));
+            prop_assert!(run1.modes.iter().all(|q| *q == Some(4)));
+            // Beyond the static level it moves.
+            let u2 = ((1.05 * fs).copysign(frac) - f_at_zero_u) / ku;
+            let data2 = Dataset::siso(vec![u2; n], vec![0.0; n], Some(TS)).unwrap();
+            let run2 = run(&m, &m.values(), &data2).unwrap();
+            prop_assert!(run2.y[1] != y0);
+        }
+    }
+}
