@@ -7,7 +7,9 @@ use hysid_core::backend::Registry;
 
 /// Every back-end hysid ships, in the order `hysid methods` lists them.
 pub fn registry() -> Registry {
-    Registry::new().with(hysid_arx::Arx)
+    Registry::new()
+        .with(hysid_arx::Arx)
+        .with(hysid_physical::Physical)
 }
 
 #[cfg(test)]
@@ -16,6 +18,7 @@ mod tests {
     fn names_are_unique_and_documented() {
         let r = super::registry();
         assert!(r.get("arx").is_some());
+        assert!(r.get("physical").is_some());
         for b in r.iter() {
             assert!(!b.summary().is_empty());
             for o in b.options() {

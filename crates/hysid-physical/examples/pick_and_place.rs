@@ -25,34 +25,92 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let out_dir = args.first().cloned();
     let sets: Vec<String> = args.iter().skip(1).cloned().collect();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pick-and-place/headdata_1v6.mat");
-    let sel = |rows: RowRange| DataSelection { decimate: 10, rows, ..DataSelection::default() };
-    let ident = data::load(&root, &sel(RowRange { start: Some(0), end: Some(5000) }))?;
-    let valid = data::load(&root, &sel(RowRange { start: Some(5000), end: Some(6001) }))?;
+    let root =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pick-and-place/headdata_1v6.mat");
+    let sel = |rows: RowRange| DataSelection {
+        decimate: 10,
+        rows,
+        ..DataSelection::default()
+    };
+    let ident = data::load(
+        &root,
+        &sel(RowRange {
+            start: Some(0),
+            end: Some(5000),
+        }),
+    )?;
+    let valid = data::load(
+        &root,
+        &sel(RowRange {
+            start: Some(5000),
+            end: Some(6001),
+        }),
+    )?;
     // With `PHYS_FIX_STOP=1`, the lower stop is fixed at the paper's 25 mm
     // (a `[fixed]` prior); by default every non-fixed parameter is fitted.
     let mut priors = Priors::default();
     if std::env::var_os("PHYS_FIX_STOP").is_some() {
         priors.fixed.insert("y_low".into(), 25.0);
     }
-    let seed: u64 = std::env::var("PHYS_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
-    println!("seed {seed}, priors: {}", if priors.fixed.is_empty() { "none" } else { "[fixed] y_low = 25" });
-    let problem = Problem { data: &ident, orders: RegressorSpec::new(2, 2, 1), priors: &priors, priors_origin: None };
+    let seed: u64 = std::env::var("PHYS_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    println!(
+        "seed {seed}, priors: {}",
+        if priors.fixed.is_empty() {
+            "none"
+        } else {
+            "[fixed] y_low = 25"
+        }
+    );
+    let problem = Problem {
+        data: &ident,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors: &priors,
+        priors_origin: None,
+    };
     let t0 = Instant::now();
     let model = Physical.run(&problem, &Settings::parse(&sets)?, &RunContext::quiet(seed))?;
     let fit_seconds = t0.elapsed().as_secs_f64();
-    let Model::Mechanical(m) = &model else { unreachable!() };
-    println!("fit time: {fit_seconds:.2} s ({} simulations)", m.info.diagnostics["evaluations"]);
-    println!("final cost (MSE, identification): {:.5}", m.info.diagnostics["cost"]);
+    let Model::Mechanical(m) = &model else {
+        unreachable!()
+    };
+    println!(
+        "fit time: {fit_seconds:.2} s ({} simulations)",
+        m.info.diagnostics["evaluations"]
+    );
+    println!(
+        "final cost (MSE, identification): {:.5}",
+        m.info.diagnostics["cost"]
+    );
     for p in &m.parameters {
         let d = &m.info.diagnostics["parameters"].get(&p.name);
-        let se = d.and_then(|d| d["std_error"].as_f64()).map(|s| format!("± {s:.4}")).unwrap_or_else(|| if p.fixed { "(fixed)".into() } else { "(zero local sensitivity)".into() });
-        println!("  {:6} = {:>12.4} {se:>14}  {:18} bounds [{}, {}]", p.name, p.value, p.unit, p.bounds[0], p.bounds[1]);
+        let se = d
+            .and_then(|d| d["std_error"].as_f64())
+            .map(|s| format!("± {s:.4}"))
+            .unwrap_or_else(|| {
+                if p.fixed {
+                    "(fixed)".into()
+                } else {
+                    "(zero local sensitivity)".into()
+                }
+            });
+        println!(
+            "  {:6} = {:>12.4} {se:>14}  {:18} bounds [{}, {}]",
+            p.name, p.value, p.unit, p.bounds[0], p.bounds[1]
+        );
     }
     let (ri, _, _) = metrics::validate(&model, &ident, 10)?;
     let (rv, sim, _) = metrics::validate(&model, &valid, 10)?;
-    println!("fit_sim identification (rows 0..5000, warm-up 10): {:.2} %", ri.fit_sim);
-    println!("fit_sim validation (rows 5000..6001, warm-up 10): {:.2} %  rmse {:.3}", rv.fit_sim, rv.rmse_sim);
+    println!(
+        "fit_sim identification (rows 0..5000, warm-up 10): {:.2} %",
+        ri.fit_sim
+    );
+    println!(
+        "fit_sim validation (rows 5000..6001, warm-up 10): {:.2} %  rmse {:.3}",
+        rv.fit_sim, rv.rmse_sim
+    );
     println!("fit_pred validation: {:.2} %", rv.fit_pred);
     // Throughput: simulate the identification record repeatedly.
     let values = m.values();
@@ -77,7 +135,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for k in 0..valid.len() {
             let t = (5000 + k) as f64 * valid.ts.unwrap_or(0.0025);
             let mode = sim.modes[k].map(|q| names[q].clone()).unwrap_or_default();
-            s.push_str(&format!("{t:.4},{},{},{:.5},{mode}\n", valid.u(0)[k], valid.y()[k], sim.y[k]));
+            s.push_str(&format!(
+                "{t:.4},{},{},{:.5},{mode}\n",
+                valid.u(0)[k],
+                valid.y()[k],
+                sim.y[k]
+            ));
         }
         std::fs::write(Path::new(&dir).join("physical_traces.csv"), s)?;
         println!("wrote {dir}/physical_model.json and {dir}/physical_traces.csv");

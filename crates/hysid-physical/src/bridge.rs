@@ -34,7 +34,10 @@ pub fn zoh(a: &DMatrix<f64>, b: &DMatrix<f64>, ts: f64) -> (DMatrix<f64>, DMatri
     big.view_mut((0, 0), (n, n)).copy_from(&(a * ts));
     big.view_mut((0, n), (n, m)).copy_from(&(b * ts));
     let e = big.exp();
-    (e.view((0, 0), (n, n)).into_owned(), e.view((0, n), (n, m)).into_owned())
+    (
+        e.view((0, 0), (n, n)).into_owned(),
+        e.view((0, n), (n, m)).into_owned(),
+    )
 }
 
 /// `theta = [a1, a2, b_11, b_12, .., b_m1, b_m2, c]` of a sliding regime.
@@ -121,7 +124,12 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
     stick[0] = 1.0;
     modes.push(PwarxMode {
         theta: stick,
-        region: Polyhedron { a: vec![], b: vec![], a_eq: vec![row(1.0, -1.0)], b_eq: vec![0.0] },
+        region: Polyhedron {
+            a: vec![],
+            b: vec![],
+            a_eq: vec![row(1.0, -1.0)],
+            b_eq: vec![0.0],
+        },
         name: Some("stick".into()),
     });
     for (i, s) in r.stops.iter().enumerate() {
@@ -129,15 +137,29 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
         theta[2 + 2 * m] = s.position;
         modes.push(PwarxMode {
             theta,
-            region: Polyhedron { a: vec![], b: vec![], a_eq: vec![row(1.0, 0.0)], b_eq: vec![s.position] },
+            region: Polyhedron {
+                a: vec![],
+                b: vec![],
+                a_eq: vec![row(1.0, 0.0)],
+                b_eq: vec![s.position],
+            },
             name: Some(format!("stop[{}]", model.stops[i].name)),
         });
     }
-    let mut info = ModelInfo { ts: Some(ts), ..ModelInfo::default() };
+    let mut info = ModelInfo {
+        ts: Some(ts),
+        ..ModelInfo::default()
+    };
     info.method = model.info.method.clone();
     info.diagnostics.insert(
         "bridge".into(),
         serde_json::json!("per-mode ZOH discretisation of a mechanical model; regions indicative"),
     );
-    PwarxModel { na: 2, nb: 2, inputs: m, modes, info }
+    PwarxModel {
+        na: 2,
+        nb: 2,
+        inputs: m,
+        modes,
+        info,
+    }
 }

@@ -39,9 +39,12 @@ impl ParameterMap {
     pub fn new(model: &MechanicalModel, priors: &Priors) -> Result<Self, String> {
         let names = model.parameter_names();
         let idx = |n: &str, entry: &str| {
-            model
-                .parameter_index(n)
-                .ok_or_else(|| format!("prior {entry}: unknown parameter '{n}' (known: {})", names.join(", ")))
+            model.parameter_index(n).ok_or_else(|| {
+                format!(
+                    "prior {entry}: unknown parameter '{n}' (known: {})",
+                    names.join(", ")
+                )
+            })
         };
         let mut base = model.values();
         let mut bounds: Vec<[f64; 2]> = model.parameters.iter().map(|p| p.bounds).collect();
@@ -66,7 +69,11 @@ impl ParameterMap {
             r
         }
         for t in &priors.tie {
-            let ids: Vec<usize> = t.params.iter().map(|n| idx(n, "[[tie]]")).collect::<Result<_, _>>()?;
+            let ids: Vec<usize> = t
+                .params
+                .iter()
+                .map(|n| idx(n, "[[tie]]"))
+                .collect::<Result<_, _>>()?;
             for w in ids.windows(2) {
                 let (a, b) = (find(&mut parent, w[0]), find(&mut parent, w[1]));
                 if a != b {
@@ -105,11 +112,20 @@ impl ParameterMap {
                 }
                 continue;
             }
-            let lo = g.iter().map(|&i| bounds[i][0]).fold(f64::NEG_INFINITY, f64::max);
-            let hi = g.iter().map(|&i| bounds[i][1]).fold(f64::INFINITY, f64::min);
+            let lo = g
+                .iter()
+                .map(|&i| bounds[i][0])
+                .fold(f64::NEG_INFINITY, f64::max);
+            let hi = g
+                .iter()
+                .map(|&i| bounds[i][1])
+                .fold(f64::INFINITY, f64::min);
             if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
                 let who: Vec<&str> = g.iter().map(|&i| names[i].as_str()).collect();
-                return Err(format!("prior: the bounds of [{}] leave no admissible value", who.join(", ")));
+                return Err(format!(
+                    "prior: the bounds of [{}] leave no admissible value",
+                    who.join(", ")
+                ));
             }
             // A tied group starts from the mean of its nominal values, clamped.
             let start = (g.iter().map(|&i| base[i]).sum::<f64>() / g.len() as f64).clamp(lo, hi);
@@ -124,7 +140,13 @@ impl ParameterMap {
                 bounds[i] = *b;
             }
         }
-        Ok(Self { base, groups: free_groups, bounds: free_bounds, param_bounds: bounds, names })
+        Ok(Self {
+            base,
+            groups: free_groups,
+            bounds: free_bounds,
+            param_bounds: bounds,
+            names,
+        })
     }
 
     /// Number of free coordinates.
@@ -149,7 +171,13 @@ impl ParameterMap {
         self.groups
             .iter()
             .zip(&self.bounds)
-            .map(|(g, [lo, hi])| if hi > lo { ((values[g[0]] - lo) / (hi - lo)).clamp(0.0, 1.0) } else { 0.5 })
+            .map(|(g, [lo, hi])| {
+                if hi > lo {
+                    ((values[g[0]] - lo) / (hi - lo)).clamp(0.0, 1.0)
+                } else {
+                    0.5
+                }
+            })
             .collect()
     }
 }
@@ -171,10 +199,18 @@ const FAILED: f64 = 1e30;
 
 /// Free-run simulation residuals `y(k) - yhat(k)` after the initial state
 /// (`None` when the simulation fails).
-pub fn simulation_residuals(model: &MechanicalModel, values: &[f64], data: &Dataset) -> Option<Vec<f64>> {
+pub fn simulation_residuals(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+) -> Option<Vec<f64>> {
     let r = mechanical::run(model, values, data).ok()?;
     let y = data.y();
-    let e: Vec<f64> = y[r.start + 1..].iter().zip(&r.y[r.start + 1..]).map(|(a, b)| a - b).collect();
+    let e: Vec<f64> = y[r.start + 1..]
+        .iter()
+        .zip(&r.y[r.start + 1..])
+        .map(|(a, b)| a - b)
+        .collect();
     (!e.is_empty() && e.iter().all(|x| x.is_finite())).then_some(e)
 }
 
@@ -208,7 +244,10 @@ pub struct VelocityTolerances {
 /// deviations of each velocity estimator, plus a floor of `1e-6` of the
 /// output range per second against rounding.
 pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
-    let mut d2: Vec<f64> = y.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).collect();
+    let mut d2: Vec<f64> = y
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
     let noise = if d2.is_empty() {
         0.0
     } else {
@@ -216,7 +255,11 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
         let (_, m, _) = d2.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
         1.4826 * *m / 6f64.sqrt()
     };
-    let (lo, hi) = y.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
     let floor = 1e-6 * (hi - lo).max(0.0) / ts;
     // Noise gain of an estimator: the norm of its weights (unit impulses).
     let gain = |f: &dyn Fn(&[f64]) -> f64| -> f64 {
@@ -231,7 +274,11 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
     };
     let g_c = 0.5f64.sqrt() / ts;
     let g_b = gain(&|e| mechanical::estimate_velocity(e, 4, ts));
-    VelocityTolerances { noise, centred: 3.0 * noise * g_c + floor, backward: 3.0 * noise * g_b + floor }
+    VelocityTolerances {
+        noise,
+        centred: 3.0 * noise * g_c + floor,
+        backward: 3.0 * noise * g_b + floor,
+    }
 }
 
 /// Velocity at sample `k` for re-initialising a segment (offline, so it
@@ -243,7 +290,13 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
 /// `k` (0 at a break-away, the stop's 0 after an impact).
 pub fn segment_velocity(y: &[f64], k: usize, ts: f64, tol: f64) -> f64 {
     let n = y.len();
-    let slope = |a: usize, b: usize| if b > a { (y[b] - y[a]) / ((b - a) as f64 * ts) } else { 0.0 };
+    let slope = |a: usize, b: usize| {
+        if b > a {
+            (y[b] - y[a]) / ((b - a) as f64 * ts)
+        } else {
+            0.0
+        }
+    };
     let b = slope(k.saturating_sub(2), k);
     let f = slope(k, (k + 2).min(n - 1));
     let (ab, af) = (b.abs(), f.abs());
@@ -271,8 +324,20 @@ pub fn segment_velocity(y: &[f64], k: usize, ts: f64, tol: f64) -> f64 {
 /// measured at its start (position, [`segment_velocity`]). Errors do not
 /// accumulate across segments, so the cost is much smoother in the
 /// parameters than the free-run error; it serves the global stage.
-pub fn segmented_mse(model: &MechanicalModel, values: &[f64], data: &Dataset, segment: usize, velocity_tol: f64) -> f64 {
-    mse(segmented_residuals(model, values, data, segment, velocity_tol))
+pub fn segmented_mse(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+    segment: usize,
+    velocity_tol: f64,
+) -> f64 {
+    mse(segmented_residuals(
+        model,
+        values,
+        data,
+        segment,
+        velocity_tol,
+    ))
 }
 
 /// The residuals of [`segmented_mse`].
@@ -324,7 +389,9 @@ pub fn levenberg_marquardt(
     let d = z0.len();
     let sse = |e: &[f64]| e.iter().map(|x| x * x).sum::<f64>();
     let mut z = z0.to_vec();
-    let Some(mut r) = res(&z) else { return (z, f64::INFINITY) };
+    let Some(mut r) = res(&z) else {
+        return (z, f64::INFINITY);
+    };
     evals.fetch_add(1, Ordering::Relaxed);
     let mut cost = sse(&r);
     let mut mu = 1e-3;
@@ -340,7 +407,9 @@ pub fn levenberg_marquardt(
                 zp[c] = (z[c] + fd).min(1.0);
                 zm[c] = (z[c] - fd).max(0.0);
                 evals.fetch_add(2, Ordering::Relaxed);
-                let (Some(rp), Some(rm)) = (res(&zp), res(&zm)) else { continue };
+                let (Some(rp), Some(rm)) = (res(&zp), res(&zm)) else {
+                    continue;
+                };
                 let h = zp[c] - zm[c];
                 for k in 0..r.len().min(rp.len()).min(rm.len()) {
                     j[(k, c)] = (rp[k] - rm[k]) / h;
@@ -360,7 +429,11 @@ pub fn levenberg_marquardt(
             continue;
         };
         let step = ch.solve(&(-g));
-        let zn: Vec<f64> = z.iter().zip(step.iter()).map(|(a, b)| (a + b).clamp(0.0, 1.0)).collect();
+        let zn: Vec<f64> = z
+            .iter()
+            .zip(step.iter())
+            .map(|(a, b)| (a + b).clamp(0.0, 1.0))
+            .collect();
         evals.fetch_add(1, Ordering::Relaxed);
         match res(&zn) {
             Some(rn) if sse(&rn) < cost => {
@@ -423,7 +496,10 @@ pub struct FitReport {
 }
 
 fn failed(message: impl Into<String>) -> IdentifyError {
-    IdentifyError::Failed { method: "physical".into(), message: message.into() }
+    IdentifyError::Failed {
+        method: "physical".into(),
+        message: message.into(),
+    }
 }
 
 /// Fits `model`'s parameters to `data`. Returns the fitted model (values
@@ -436,7 +512,9 @@ pub fn fit_mechanical(
     ctx: &RunContext<'_>,
 ) -> Result<(MechanicalModel, FitReport), IdentifyError> {
     let t0 = Instant::now();
-    model.validate().map_err(|e| IdentifyError::BadData(format!("model: {e}")))?;
+    model
+        .validate()
+        .map_err(|e| IdentifyError::BadData(format!("model: {e}")))?;
     if data.inputs.len() != model.inputs.len() {
         return Err(IdentifyError::BadData(format!(
             "the model has {} input(s), the data {}",
@@ -450,10 +528,16 @@ pub fn fit_mechanical(
         ));
     }
     if !(options.simplex > 0.0 && options.simplex <= 1.0) {
-        return Err(IdentifyError::BadData(format!("--set simplex={}: must be in (0, 1]", options.simplex)));
+        return Err(IdentifyError::BadData(format!(
+            "--set simplex={}: must be in (0, 1]",
+            options.simplex
+        )));
     }
     if !(options.fd_step > 0.0 && options.fd_step < 0.5) {
-        return Err(IdentifyError::BadData(format!("--set fd_step={}: must be in (0, 0.5)", options.fd_step)));
+        return Err(IdentifyError::BadData(format!(
+            "--set fd_step={}: must be in (0, 0.5)",
+            options.fd_step
+        )));
     }
     let mut model = model.clone();
     let tols = velocity_tolerances(data.y(), data.ts.unwrap_or(1.0));
@@ -461,7 +545,9 @@ pub fn fit_mechanical(
         model.initial_state = MechanicalInitialState::Measured {
             samples: options.init_samples,
             velocity_tol: match model.initial_state {
-                MechanicalInitialState::Measured { velocity_tol, .. } => velocity_tol.max(tols.backward),
+                MechanicalInitialState::Measured { velocity_tol, .. } => {
+                    velocity_tol.max(tols.backward)
+                }
                 _ => tols.backward,
             },
         };
@@ -479,24 +565,41 @@ pub fn fit_mechanical(
         )));
     }
     let evals = AtomicU64::new(0);
-    let problem = |segment: usize| SimulationCost { segment, velocity_tol: tols.centred, model: &model, data, map: &map, progress: ctx.progress, evals: &evals };
+    let problem = |segment: usize| SimulationCost {
+        segment,
+        velocity_tol: tols.centred,
+        model: &model,
+        data,
+        map: &map,
+        progress: ctx.progress,
+        evals: &evals,
+    };
     let nominal_z = map.coords(&map.base);
     let nominal_cost = simulation_mse(&model, &map.values(&nominal_z), data);
-    let timeout = |ex_deadline: Option<Instant>| ex_deadline.map(|t| t.saturating_duration_since(Instant::now()));
+    let timeout = |ex_deadline: Option<Instant>| {
+        ex_deadline.map(|t| t.saturating_duration_since(Instant::now()))
+    };
 
     let mut best_z = nominal_z.clone();
     let mut swarm_cost = None;
     let mut segmented_cost = None;
     let mut extra_starts: Vec<Vec<f64>> = Vec::new();
     if d > 0 && options.particles > 0 && options.swarm_iters > 0 {
-        ctx.progress.start((options.particles * (options.swarm_iters + 1)) as u64, "physical: particle swarm");
-        let pso: ParticleSwarm<Vec<f64>, f64, ChaCha8Rng> = ParticleSwarm::new((vec![0.0; d], vec![1.0; d]), options.particles)
-            .with_rng_generator(ChaCha8Rng::seed_from_u64(ctx.seed));
-        let mut ex = Executor::new(problem(options.segment), pso).configure(|s| s.max_iters(options.swarm_iters as u64));
+        ctx.progress.start(
+            (options.particles * (options.swarm_iters + 1)) as u64,
+            "physical: particle swarm",
+        );
+        let pso: ParticleSwarm<Vec<f64>, f64, ChaCha8Rng> =
+            ParticleSwarm::new((vec![0.0; d], vec![1.0; d]), options.particles)
+                .with_rng_generator(ChaCha8Rng::seed_from_u64(ctx.seed));
+        let mut ex = Executor::new(problem(options.segment), pso)
+            .configure(|s| s.max_iters(options.swarm_iters as u64));
         if let Some(t) = timeout(ctx.deadline) {
             ex = ex.timeout(t);
         }
-        let res = ex.run().map_err(|e| failed(format!("particle swarm: {e}")))?;
+        let res = ex
+            .run()
+            .map_err(|e| failed(format!("particle swarm: {e}")))?;
         ctx.progress.finish();
         if let Some(p) = res.state().get_best_param() {
             let c = p.cost;
@@ -513,7 +616,16 @@ pub fn fit_mechanical(
         let mut pop: Vec<(f64, Vec<f64>)> = res
             .state()
             .get_population()
-            .map(|ps| ps.iter().map(|p| (p.cost, p.position.iter().map(|x| x.clamp(0.0, 1.0)).collect())).collect())
+            .map(|ps| {
+                ps.iter()
+                    .map(|p| {
+                        (
+                            p.cost,
+                            p.position.iter().map(|x| x.clamp(0.0, 1.0)).collect(),
+                        )
+                    })
+                    .collect()
+            })
             .unwrap_or_default();
         pop.sort_by(|a, b| a.0.total_cmp(&b.0));
         extra_starts.push(nominal_z.clone());
@@ -529,8 +641,15 @@ pub fn fit_mechanical(
     }
     if d > 0 && options.local_iters > 0 && options.restarts > 0 {
         // Stage 2 (segmented cost, when enabled), then stage 3 (free run).
-        let stages: Vec<usize> = if options.segment > 0 { vec![options.segment, 0] } else { vec![0] };
-        ctx.progress.start((options.local_iters * options.restarts * stages.len()) as u64, "physical: Nelder-Mead");
+        let stages: Vec<usize> = if options.segment > 0 {
+            vec![options.segment, 0]
+        } else {
+            vec![0]
+        };
+        ctx.progress.start(
+            (options.local_iters * options.restarts * stages.len()) as u64,
+            "physical: Nelder-Mead",
+        );
         for &segment in &stages {
             let cost_of = |z: &[f64]| {
                 let v = map.values(z);
@@ -544,7 +663,9 @@ pub fn fit_mechanical(
             let mut stage_cost = cost_of(&stage_z);
             // The first stage starts from every start, the later ones from the best.
             let starts: Vec<Vec<f64>> = if segment == stages[0] {
-                std::iter::once(best_z.clone()).chain(extra_starts.iter().cloned()).collect()
+                std::iter::once(best_z.clone())
+                    .chain(extra_starts.iter().cloned())
+                    .collect()
             } else {
                 vec![best_z.clone()]
             };
@@ -565,7 +686,14 @@ pub fn fit_mechanical(
                         segmented_residuals(&model, &v, data, segment, tols.centred)
                     }
                 };
-                let (z, _) = levenberg_marquardt(&res, &start, options.fd_step, options.lm_iters, ctx.deadline, &evals);
+                let (z, _) = levenberg_marquardt(
+                    &res,
+                    &start,
+                    options.fd_step,
+                    options.lm_iters,
+                    ctx.deadline,
+                    &evals,
+                );
                 let c = cost_of(&z);
                 if c < stage_cost {
                     stage_cost = c;
@@ -580,14 +708,18 @@ pub fn fit_mechanical(
                 for j in 0..d {
                     let mut p = stage_z.clone();
                     // Step inwards so the simplex stays in the box.
-                    p[j] += if p[j] + options.simplex <= 1.0 { options.simplex } else { -options.simplex };
+                    p[j] += if p[j] + options.simplex <= 1.0 {
+                        options.simplex
+                    } else {
+                        -options.simplex
+                    };
                     simplex.push(p);
                 }
                 let nm: NelderMead<Vec<f64>, f64> = NelderMead::new(simplex)
                     .with_sd_tolerance(1e-12)
                     .map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
-                let mut ex =
-                    Executor::new(problem(segment), nm).configure(|s| s.max_iters(options.local_iters as u64));
+                let mut ex = Executor::new(problem(segment), nm)
+                    .configure(|s| s.max_iters(options.local_iters as u64));
                 if let Some(t) = timeout(ctx.deadline) {
                     ex = ex.timeout(t);
                 }
@@ -617,11 +749,17 @@ pub fn fit_mechanical(
     let sens = sensitivity(&model, &map, &values, data, options.fd_step);
 
     let mut fitted = model.clone();
-    for (p, (v, b)) in fitted.parameters.iter_mut().zip(values.iter().zip(&map.param_bounds)) {
+    for (p, (v, b)) in fitted
+        .parameters
+        .iter_mut()
+        .zip(values.iter().zip(&map.param_bounds))
+    {
         p.value = *v;
         p.bounds = *b;
     }
-    let fixed: Vec<bool> = (0..values.len()).map(|i| !map.groups.iter().any(|g| g.contains(&i))).collect();
+    let fixed: Vec<bool> = (0..values.len())
+        .map(|i| !map.groups.iter().any(|g| g.contains(&i)))
+        .collect();
     for (p, f) in fitted.parameters.iter_mut().zip(&fixed) {
         p.fixed = *f;
     }
@@ -629,7 +767,10 @@ pub fn fit_mechanical(
     let n_eval = evals.load(Ordering::Relaxed);
     let diag = &mut fitted.info.diagnostics;
     diag.insert("cost".into(), json!(cost));
-    diag.insert("cost_definition".into(), json!("mean squared free-run simulation error after the initial state"));
+    diag.insert(
+        "cost_definition".into(),
+        json!("mean squared free-run simulation error after the initial state"),
+    );
     diag.insert("rmse_fit".into(), json!(cost.sqrt()));
     diag.insert("nominal_cost".into(), json!(nominal_cost));
     if let Some(c) = swarm_cost {
@@ -704,14 +845,32 @@ struct Sensitivity {
 
 /// Central finite-difference Jacobian of the residuals with respect to each
 /// free coordinate (in physical units), Gauss-Newton covariance.
-fn sensitivity(model: &MechanicalModel, map: &ParameterMap, values: &[f64], data: &Dataset, step: f64) -> Sensitivity {
+fn sensitivity(
+    model: &MechanicalModel,
+    map: &ParameterMap,
+    values: &[f64],
+    data: &Dataset,
+    step: f64,
+) -> Sensitivity {
     let d = map.dim();
     let residuals = |v: &[f64]| -> Option<Vec<f64>> {
         let r = mechanical::run(model, v, data).ok()?;
-        Some(data.y()[r.start + 1..].iter().zip(&r.y[r.start + 1..]).map(|(a, b)| a - b).collect())
+        Some(
+            data.y()[r.start + 1..]
+                .iter()
+                .zip(&r.y[r.start + 1..])
+                .map(|(a, b)| a - b)
+                .collect(),
+        )
     };
-    let nan = || Sensitivity { std_errors: vec![f64::NAN; d], sensitivity: vec![f64::NAN; d], condition: f64::NAN };
-    let Some(r0) = residuals(values) else { return nan() };
+    let nan = || Sensitivity {
+        std_errors: vec![f64::NAN; d],
+        sensitivity: vec![f64::NAN; d],
+        condition: f64::NAN,
+    };
+    let Some(r0) = residuals(values) else {
+        return nan();
+    };
     let n = r0.len();
     let mut jac = DMatrix::zeros(n, d);
     for (j, (g, [lo, hi])) in map.groups.iter().zip(&map.bounds).enumerate() {
@@ -728,7 +887,9 @@ fn sensitivity(model: &MechanicalModel, map: &ParameterMap, values: &[f64], data
             }
             v
         };
-        let (Some(rp), Some(rm)) = (residuals(&set(xp)), residuals(&set(xm))) else { return nan() };
+        let (Some(rp), Some(rm)) = (residuals(&set(xp)), residuals(&set(xm))) else {
+            return nan();
+        };
         for k in 0..n {
             // d yhat / d theta = - d r / d theta
             jac[(k, j)] = -(rp[k] - rm[k]) / (xp - xm);
@@ -740,7 +901,9 @@ fn sensitivity(model: &MechanicalModel, map: &ParameterMap, values: &[f64], data
     // not identifiable from this record: left out, their error undefined.
     let norms: Vec<f64> = (0..d).map(|j| jac.column(j).norm()).collect();
     let top = norms.iter().copied().fold(0.0, f64::max);
-    let keep: Vec<usize> = (0..d).filter(|&j| norms[j] > 1e-9 * top && top > 0.0).collect();
+    let keep: Vec<usize> = (0..d)
+        .filter(|&j| norms[j] > 1e-9 * top && top > 0.0)
+        .collect();
     let mut std_errors = vec![f64::NAN; d];
     let mut condition = f64::NAN;
     if !keep.is_empty() {
@@ -748,7 +911,11 @@ fn sensitivity(model: &MechanicalModel, map: &ParameterMap, values: &[f64], data
         let jtj = jk.transpose() * &jk;
         let sv = jtj.clone().svd(false, false).singular_values;
         let (smax, smin) = (sv.max(), sv.min());
-        condition = if smin > 0.0 { (smax / smin).sqrt() } else { f64::INFINITY };
+        condition = if smin > 0.0 {
+            (smax / smin).sqrt()
+        } else {
+            f64::INFINITY
+        };
         if let Ok(inv) = hysid_core::linalg::pinv(&jtj)
             && smin > 1e-14 * smax
         {
@@ -764,5 +931,9 @@ fn sensitivity(model: &MechanicalModel, map: &ParameterMap, values: &[f64], data
             jac.column(j).norm() / (n as f64).sqrt() * x.abs()
         })
         .collect();
-    Sensitivity { std_errors, sensitivity, condition }
+    Sensitivity {
+        std_errors,
+        sensitivity,
+        condition,
+    }
 }

@@ -90,8 +90,7 @@ pub struct Physical;
 impl Identifier for Physical {
     type Options = PhysicalOptions;
     const NAME: &'static str = "physical";
-    const SUMMARY: &'static str =
-        "physical parameters of a mass-spring-friction hybrid automaton (mounting head) by simulation error: swarm + Nelder-Mead";
+    const SUMMARY: &'static str = "physical parameters of a mass-spring-friction hybrid automaton (mounting head) by simulation error: swarm + Nelder-Mead";
     const HONOURS: &'static [PriorKind] = &[PriorKind::Fixed, PriorKind::Bounds, PriorKind::Tie];
 
     fn identify(

@@ -46,7 +46,10 @@ fn truth() -> MechanicalModel {
 /// Noise-free simulation from rest at the upper stop (y = 0, v = 0).
 fn from_rest(m: &MechanicalModel, u: &[f64]) -> mechanical::MechanicalRun {
     let mut m = m.clone();
-    m.initial_state = MechanicalInitialState::Given { position: 0.0, velocity: 0.0 };
+    m.initial_state = MechanicalInitialState::Given {
+        position: 0.0,
+        velocity: 0.0,
+    };
     let d = Dataset::siso(u.to_vec(), vec![0.0; u.len()], Some(TS)).unwrap();
     mechanical::run(&m, &m.values(), &d).unwrap()
 }
@@ -54,7 +57,14 @@ fn from_rest(m: &MechanicalModel, u: &[f64]) -> mechanical::MechanicalRun {
 /// A record driven by the paper's input (random levels held 0.3 s), from
 /// rest at the upper stop, with Gaussian measurement noise.
 fn record(m: &MechanicalModel, n: usize, seed: u64, noise: f64) -> Dataset {
-    let ex = Excitation { n, hold: 120, low: -0.2, high: 0.0, ts: Some(TS), inputs: 1 };
+    let ex = Excitation {
+        n,
+        hold: 120,
+        low: -0.2,
+        high: 0.0,
+        ts: Some(TS),
+        inputs: 1,
+    };
     let u = ex.generate(seed).remove(0);
     let run = from_rest(m, &u);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
@@ -73,15 +83,38 @@ fn recovers_parameters_and_validates() {
     // Both saturations are excited in the identification record.
     let clean = from_rest(&truth, ident.u(0));
     let names = Model::Mechanical(truth.clone()).mode_names();
-    let count = |name: &str| clean.modes.iter().filter(|q| q.map(|q| names[q] == name).unwrap_or(false)).count();
+    let count = |name: &str| {
+        clean
+            .modes
+            .iter()
+            .filter(|q| q.map(|q| names[q] == name).unwrap_or(false))
+            .count()
+    };
     let (us, ls) = (count("upper_saturation"), count("lower_saturation"));
-    assert!(us > 50 && ls > 50, "saturations excited: upper {us}, lower {ls} samples");
+    assert!(
+        us > 50 && ls > 50,
+        "saturations excited: upper {us}, lower {ls} samples"
+    );
 
     let priors = Priors::default();
-    let problem = Problem { data: &ident, orders: RegressorSpec::new(2, 2, 1), priors: &priors, priors_origin: None };
-    let model = Physical.run(&problem, &Settings::default(), &RunContext::quiet(7)).unwrap();
-    eprintln!("cost at truth {:.6}, fitted {:.6}, evals {}", hysid_physical::fit::simulation_mse(&truth, &truth.values(), &ident), model.info().diagnostics["cost"], model.info().diagnostics["evaluations"]);
-    let Model::Mechanical(fitted) = &model else { panic!("kind {}", model.kind()) };
+    let problem = Problem {
+        data: &ident,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors: &priors,
+        priors_origin: None,
+    };
+    let model = Physical
+        .run(&problem, &Settings::default(), &RunContext::quiet(7))
+        .unwrap();
+    eprintln!(
+        "cost at truth {:.6}, fitted {:.6}, evals {}",
+        hysid_physical::fit::simulation_mse(&truth, &truth.values(), &ident),
+        model.info().diagnostics["cost"],
+        model.info().diagnostics["evaluations"]
+    );
+    let Model::Mechanical(fitted) = &model else {
+        panic!("kind {}", model.kind())
+    };
     let counts: Vec<(String, usize)> = names.iter().map(|n| (n.clone(), count(n))).collect();
     eprintln!("modes in the clean identification record: {counts:?}");
     let mut worst = (0.0f64, String::new());
@@ -91,15 +124,22 @@ fn recovers_parameters_and_validates() {
             continue;
         }
         let rel = ((p.value - t.value) / t.value).abs();
-        eprintln!("{:6} true {:>12.4} fitted {:>12.4} rel {:.4}", p.name, t.value, p.value, rel);
+        eprintln!(
+            "{:6} true {:>12.4} fitted {:>12.4} rel {:.4}",
+            p.name, t.value, p.value, rel
+        );
         if rel > worst.0 {
             worst = (rel, p.name.clone());
         }
     }
-    assert!(worst.0 <= 0.05, "worst relative error {:.4} on {}", worst.0, worst.1);
+    assert!(
+        worst.0 <= 0.05,
+        "worst relative error {:.4} on {}",
+        worst.0,
+        worst.1
+    );
     let fresh = record(&truth, 2000, 99, 0.02);
     let (rep, _, _) = metrics::validate(&model, &fresh, 10).unwrap();
     eprintln!("fit_sim on a fresh record: {:.2} %", rep.fit_sim);
     assert!(rep.fit_sim >= 97.0, "fit_sim {:.2}", rep.fit_sim);
 }
-

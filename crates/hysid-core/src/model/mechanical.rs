@@ -350,7 +350,10 @@ impl MechanicalModel {
     fn quantity(&self, q: &Quantity, values: &[f64]) -> f64 {
         match q {
             Quantity::Value(v) => *v,
-            Quantity::Param(n) => self.parameter_index(n).map(|i| values[i]).unwrap_or(f64::NAN),
+            Quantity::Param(n) => self
+                .parameter_index(n)
+                .map(|i| values[i])
+                .unwrap_or(f64::NAN),
         }
     }
 
@@ -361,11 +364,14 @@ impl MechanicalModel {
             .forces
             .iter()
             .map(|f| match f {
-                ForceElement::Input { input, gain } => {
-                    ResolvedForce::Input(self.inputs.iter().position(|n| n == input).unwrap_or(0), q(gain))
-                }
+                ForceElement::Input { input, gain } => ResolvedForce::Input(
+                    self.inputs.iter().position(|n| n == input).unwrap_or(0),
+                    q(gain),
+                ),
                 ForceElement::Constant { value } => ResolvedForce::Constant(q(value)),
-                ForceElement::Spring { stiffness, rest } => ResolvedForce::Spring(q(stiffness), q(rest)),
+                ForceElement::Spring { stiffness, rest } => {
+                    ResolvedForce::Spring(q(stiffness), q(rest))
+                }
                 ForceElement::Damper { coefficient } => ResolvedForce::Damper(q(coefficient)),
             })
             .collect();
@@ -390,7 +396,11 @@ impl MechanicalModel {
             stops: self
                 .stops
                 .iter()
-                .map(|s| ResolvedStop { position: q(&s.position), sign: s.direction.sign(), restitution: s.restitution })
+                .map(|s| ResolvedStop {
+                    position: q(&s.position),
+                    sign: s.direction.sign(),
+                    restitution: s.restitution,
+                })
                 .collect(),
         }
     }
@@ -404,7 +414,9 @@ impl MechanicalModel {
     /// or stick with the engaged contacts as a bit mask.
     pub fn mode_of(&self, stop: Option<usize>, stuck: bool, engaged: u32) -> Option<usize> {
         self.modes.iter().position(|m| match (m.kind, stop) {
-            (MechanicalModeKind::Stop, Some(s)) => m.stop.as_deref() == Some(self.stops[s].name.as_str()),
+            (MechanicalModeKind::Stop, Some(s)) => {
+                m.stop.as_deref() == Some(self.stops[s].name.as_str())
+            }
             (MechanicalModeKind::Stop, None) | (_, Some(_)) => false,
             (MechanicalModeKind::Slip, None) if stuck => false,
             (MechanicalModeKind::Stick, None) if !stuck => false,
@@ -436,10 +448,16 @@ impl MechanicalModel {
             }
             let [lo, hi] = p.bounds;
             if !(p.value.is_finite() && lo.is_finite() && hi.is_finite() && lo <= hi) {
-                return Err(format!("parameter '{}': need finite value and bounds low <= high", p.name));
+                return Err(format!(
+                    "parameter '{}': need finite value and bounds low <= high",
+                    p.name
+                ));
             }
             if p.value < lo || p.value > hi {
-                return Err(format!("parameter '{}': value {} outside its bounds [{lo}, {hi}]", p.name, p.value));
+                return Err(format!(
+                    "parameter '{}': value {} outside its bounds [{lo}, {hi}]",
+                    p.name, p.value
+                ));
             }
         }
         let check = |q: &Quantity, what: &str| -> Result<(), String> {
@@ -515,7 +533,10 @@ impl MechanicalModel {
         // Every regime needs a mode.
         for s in 0..self.stops.len() {
             if self.mode_of(Some(s), true, 0).is_none() {
-                return Err(format!("no mode for resting at stop '{}'", self.stops[s].name));
+                return Err(format!(
+                    "no mode for resting at stop '{}'",
+                    self.stops[s].name
+                ));
             }
         }
         for mask in 0..(1u32 << self.contacts.len()) {
@@ -606,7 +627,11 @@ impl MechanicalModel {
                     inv_b.push(c.sign * c.position);
                 }
             }
-            let suffix = if nc == 0 { String::new() } else { format!("[{}]", contact_names(mask)) };
+            let suffix = if nc == 0 {
+                String::new()
+            } else {
+                format!("[{}]", contact_names(mask))
+            };
             for (dir, name) in [(1.0, "slip+"), (-1.0, "slip-")] {
                 let mut a = inv_a.clone();
                 let mut bb = inv_b.clone();
@@ -624,7 +649,11 @@ impl MechanicalModel {
             }
             modes.push(AutomatonMode {
                 name: format!("stick{suffix}"),
-                flow: AffineDynamics { a: vec![vec![0.0; 2]; 2], b: vec![], f: vec![] },
+                flow: AffineDynamics {
+                    a: vec![vec![0.0; 2]; 2],
+                    b: vec![],
+                    f: vec![],
+                },
                 invariant: Polyhedron {
                     a: inv_a.clone(),
                     b: inv_b.clone(),
@@ -637,7 +666,11 @@ impl MechanicalModel {
             let name = format!("stop[{}]", self.stops[si].name);
             modes.push(AutomatonMode {
                 name: name.clone(),
-                flow: AffineDynamics { a: vec![vec![0.0; 2]; 2], b: vec![], f: vec![] },
+                flow: AffineDynamics {
+                    a: vec![vec![0.0; 2]; 2],
+                    b: vec![],
+                    f: vec![],
+                },
                 invariant: Polyhedron {
                     a: vec![],
                     b: vec![],
@@ -649,14 +682,21 @@ impl MechanicalModel {
                 // Guard: y = position with s v > 0 (moving into the stop).
                 transitions.push(Transition {
                     from: q.name.clone(),
-                    to: if s.restitution > 0.0 { q.name.clone() } else { name.clone() },
+                    to: if s.restitution > 0.0 {
+                        q.name.clone()
+                    } else {
+                        name.clone()
+                    },
                     guard: GuardSet(Polyhedron {
                         a: vec![row(0.0, -s.sign)],
                         b: vec![0.0],
                         a_eq: vec![row(1.0, 0.0)],
                         b_eq: vec![s.position],
                     }),
-                    reset: ResetMap { r: vec![vec![1.0, 0.0], vec![0.0, -s.restitution]], c: vec![] },
+                    reset: ResetMap {
+                        r: vec![vec![1.0, 0.0], vec![0.0, -s.restitution]],
+                        c: vec![],
+                    },
                 });
             }
         }
@@ -669,11 +709,17 @@ impl MechanicalModel {
             internal_step: Some(self.internal_step),
             states: vec!["y".into(), "v".into()],
             inputs: self.inputs.clone(),
-            output: OutputMap { c: vec![1.0, 0.0], d: vec![], e: 0.0 },
+            output: OutputMap {
+                c: vec![1.0, 0.0],
+                d: vec![],
+                e: 0.0,
+            },
             modes,
             transitions,
             initial_mode: None,
-            initial_state: InitialState::Given { state: vec![position, velocity] },
+            initial_state: InitialState::Given {
+                state: vec![position, velocity],
+            },
             info: self.info.clone(),
         }
     }

@@ -159,7 +159,10 @@ impl ResolvedMechanics {
         if f.abs() <= fs {
             Regime::Stuck { engaged }
         } else {
-            Regime::Slip { dir: if f > 0.0 { 1 } else { -1 }, engaged }
+            Regime::Slip {
+                dir: if f > 0.0 { 1 } else { -1 },
+                engaged,
+            }
         }
     }
 
@@ -176,11 +179,25 @@ impl ResolvedMechanics {
     /// The state of a mass at `(y, v)`: position clamped, regime chosen.
     pub fn state_at(&self, y: f64, v: f64, u: &[f64]) -> MechanicalState {
         let y = self.clamp_position(y);
-        let on_stop = self.stops.iter().any(|s| y == s.position && s.sign * v >= 0.0);
+        let on_stop = self
+            .stops
+            .iter()
+            .any(|s| y == s.position && s.sign * v >= 0.0);
         if v == 0.0 || on_stop {
-            MechanicalState { y, v: 0.0, regime: self.rest_regime(y, u) }
+            MechanicalState {
+                y,
+                v: 0.0,
+                regime: self.rest_regime(y, u),
+            }
         } else {
-            MechanicalState { y, v, regime: Regime::Slip { dir: if v > 0.0 { 1 } else { -1 }, engaged: self.engaged_at(y, v) } }
+            MechanicalState {
+                y,
+                v,
+                regime: Regime::Slip {
+                    dir: if v > 0.0 { 1 } else { -1 },
+                    engaged: self.engaged_at(y, v),
+                },
+            }
         }
     }
 
@@ -194,7 +211,10 @@ impl ResolvedMechanics {
         let a3 = self.slip_accel(y3, v3, u, dir, engaged);
         let (y4, v4) = (y + h * v3, v + h * a3);
         let a4 = self.slip_accel(y4, v4, u, dir, engaged);
-        (y + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4), v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
+        (
+            y + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
+            v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        )
     }
 
     /// True when `(y, v)` has left the sliding regime `(dir, engaged)`.
@@ -213,7 +233,13 @@ impl ResolvedMechanics {
 
     /// Advances the state by `dt` with input `u` held. Returns
     /// (internal steps, events).
-    pub fn advance(&self, st: &mut MechanicalState, u: &[f64], dt: f64, n_sub: usize) -> (usize, usize) {
+    pub fn advance(
+        &self,
+        st: &mut MechanicalState,
+        u: &[f64],
+        dt: f64,
+        n_sub: usize,
+    ) -> (usize, usize) {
         let h = dt / n_sub as f64;
         let (mut steps, mut events) = (0, 0);
         // At rest: a constant net force over the interval.
@@ -281,7 +307,14 @@ impl ResolvedMechanics {
                 let vr = -s.restitution * v;
                 if vr * dir < 0.0 && vr.abs() > 0.0 {
                     let nd = if vr > 0.0 { 1 } else { -1 };
-                    return MechanicalState { y: s.position, v: vr, regime: Regime::Slip { dir: nd, engaged: self.engaged_at(s.position, vr) } };
+                    return MechanicalState {
+                        y: s.position,
+                        v: vr,
+                        regime: Regime::Slip {
+                            dir: nd,
+                            engaged: self.engaged_at(s.position, vr),
+                        },
+                    };
                 }
                 let regime = match self.rest_regime(s.position, u) {
                     Regime::Slip { dir: nd, engaged } if nd as f64 * s.sign > 0.0 => {
@@ -291,14 +324,29 @@ impl ResolvedMechanics {
                     }
                     r => r,
                 };
-                return MechanicalState { y: s.position, v: 0.0, regime };
+                return MechanicalState {
+                    y: s.position,
+                    v: 0.0,
+                    regime,
+                };
             }
         }
         if dir * v <= 0.0 {
             // Velocity reached zero: stick or slide off (Karnopp).
-            return MechanicalState { y, v: 0.0, regime: self.rest_regime(y, u) };
+            return MechanicalState {
+                y,
+                v: 0.0,
+                regime: self.rest_regime(y, u),
+            };
         }
-        MechanicalState { y, v, regime: Regime::Slip { dir: dir as i8, engaged: self.engaged_at(y, v) } }
+        MechanicalState {
+            y,
+            v,
+            regime: Regime::Slip {
+                dir: dir as i8,
+                engaged: self.engaged_at(y, v),
+            },
+        }
     }
 }
 
@@ -332,20 +380,32 @@ pub fn estimate_velocity(y: &[f64], s: usize, ts: f64) -> f64 {
                 r2 += t * t * yy;
             }
             // Solve the 3x3 normal equations by Cramer's rule for b.
-            let det = s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2);
+            let det =
+                s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2);
             let db = s0 * (r1 * s4 - s3 * r2) - r0 * (s1 * s4 - s3 * s2) + s2 * (s1 * r2 - r1 * s2);
-            if det.abs() < 1e-300 { 0.0 } else { db / det / ts }
+            if det.abs() < 1e-300 {
+                0.0
+            } else {
+                db / det / ts
+            }
         }
     }
 }
 
 /// Runs a mechanical model with parameter values `values` on the inputs of
 /// `data` (sampling time `data.ts`), from the model's initial-state rule.
-pub fn run(model: &MechanicalModel, values: &[f64], data: &Dataset) -> Result<MechanicalRun, SimError> {
+pub fn run(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+) -> Result<MechanicalRun, SimError> {
     let r = model.resolve_with(values);
     let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
     if data.inputs.len() != model.inputs.len() {
-        return Err(SimError::Inputs { expected: model.inputs.len(), found: data.inputs.len() });
+        return Err(SimError::Inputs {
+            expected: model.inputs.len(),
+            found: data.inputs.len(),
+        });
     }
     let n = data.len();
     let ym = data.y();
@@ -356,10 +416,16 @@ pub fn run(model: &MechanicalModel, values: &[f64], data: &Dataset) -> Result<Me
         }
     };
     let (start, mut st) = match model.initial_state {
-        MechanicalInitialState::Measured { samples, velocity_tol } => {
+        MechanicalInitialState::Measured {
+            samples,
+            velocity_tol,
+        } => {
             let s = samples.max(1) - 1;
             if n <= s {
-                return Err(SimError::TooShort { samples: n, needed: s + 1 });
+                return Err(SimError::TooShort {
+                    samples: n,
+                    needed: s + 1,
+                });
             }
             let mut v = estimate_velocity(ym, s, ts);
             if v.abs() <= velocity_tol {
@@ -370,7 +436,10 @@ pub fn run(model: &MechanicalModel, values: &[f64], data: &Dataset) -> Result<Me
         }
         MechanicalInitialState::Given { position, velocity } => {
             if n == 0 {
-                return Err(SimError::TooShort { samples: 0, needed: 1 });
+                return Err(SimError::TooShort {
+                    samples: 0,
+                    needed: 1,
+                });
             }
             input_at(0, &mut u);
             (0, r.state_at(position, velocity, &u))
@@ -405,10 +474,20 @@ pub fn run(model: &MechanicalModel, values: &[f64], data: &Dataset) -> Result<Me
     Ok(out)
 }
 
-pub(super) fn simulate(m: &MechanicalModel, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+pub(super) fn simulate(
+    m: &MechanicalModel,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
     let r = run(m, &m.values(), data)?;
     let n = data.len();
-    let mut sim = Simulation { y: r.y.clone(), modes: r.modes, start: r.start, covered: vec![true; n], diverged_at: None };
+    let mut sim = Simulation {
+        y: r.y.clone(),
+        modes: r.modes,
+        start: r.start,
+        covered: vec![true; n],
+        diverged_at: None,
+    };
     for k in r.start..n {
         if !sim.push_checked(k, r.y[k], opts.bound) {
             break;
@@ -426,14 +505,26 @@ pub(super) fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation,
     let n = data.len();
     let ym = data.y();
     let (first, tol) = match m.initial_state {
-        MechanicalInitialState::Measured { samples, velocity_tol } => (samples.max(1) - 1, velocity_tol),
+        MechanicalInitialState::Measured {
+            samples,
+            velocity_tol,
+        } => (samples.max(1) - 1, velocity_tol),
         MechanicalInitialState::Given { .. } => (0, 0.0),
     };
     if n <= first {
-        return Err(SimError::TooShort { samples: n, needed: first + 1 });
+        return Err(SimError::TooShort {
+            samples: n,
+            needed: first + 1,
+        });
     }
     let n_sub = substeps(ts, m.internal_step);
-    let mut sim = Simulation { y: ym.to_vec(), modes: vec![None; n], start: first + 1, covered: vec![true; n], diverged_at: None };
+    let mut sim = Simulation {
+        y: ym.to_vec(),
+        modes: vec![None; n],
+        start: first + 1,
+        covered: vec![true; n],
+        diverged_at: None,
+    };
     let mut u = vec![0.0; m.inputs.len()];
     for k in first..n.saturating_sub(1) {
         for (i, x) in u.iter_mut().enumerate() {
@@ -487,7 +578,10 @@ mod tests {
     }
 
     fn given(m: &mut MechanicalModel, y: f64, v: f64) {
-        m.initial_state = MechanicalInitialState::Given { position: y, velocity: v };
+        m.initial_state = MechanicalInitialState::Given {
+            position: y,
+            velocity: v,
+        };
     }
 
     fn value(m: &MechanicalModel, name: &str) -> f64 {
@@ -497,15 +591,34 @@ mod tests {
     /// Potential energy per unit mass with u = 0: springs, constant force and
     /// the engaged-or-not contact spring (counted whenever penetrating).
     fn energy(m: &MechanicalModel, y: f64, v: f64) -> f64 {
-        let (c1, f0, c2, yc) = (value(m, "c1"), value(m, "f0"), value(m, "c2"), value(m, "yc"));
-        0.5 * v * v + 0.5 * c1 * y * y - f0 * y + if y > yc { 0.5 * c2 * (y - yc).powi(2) } else { 0.0 }
+        let (c1, f0, c2, yc) = (
+            value(m, "c1"),
+            value(m, "f0"),
+            value(m, "c2"),
+            value(m, "yc"),
+        );
+        0.5 * v * v + 0.5 * c1 * y * y - f0 * y
+            + if y > yc {
+                0.5 * c2 * (y - yc).powi(2)
+            } else {
+                0.0
+            }
     }
 
     #[test]
     fn head_model_parses_with_its_five_modes() {
         let m = head();
         let names: Vec<&str> = m.modes.iter().map(|q| q.name.as_str()).collect();
-        assert_eq!(names, ["upper_saturation", "free", "impact", "lower_saturation", "stick"]);
+        assert_eq!(
+            names,
+            [
+                "upper_saturation",
+                "free",
+                "impact",
+                "lower_saturation",
+                "stick"
+            ]
+        );
         assert_eq!(m.mode_of(None, false, 1), Some(2));
         assert_eq!(m.mode_of(None, true, 1), Some(4));
         assert_eq!(m.mode_of(Some(1), true, 0), Some(3));
@@ -513,7 +626,10 @@ mod tests {
         bad.modes.retain(|q| q.kind != MechanicalModeKind::Stick);
         assert!(bad.validate().unwrap_err().contains("stick"));
         let json = Model::Mechanical(m.clone()).to_json();
-        assert_eq!(Model::from_json(&json, "mem").unwrap(), Model::Mechanical(m));
+        assert_eq!(
+            Model::from_json(&json, "mem").unwrap(),
+            Model::Mechanical(m)
+        );
     }
 
     /// Without friction, contacts or stops reached, the simulator matches
@@ -527,7 +643,12 @@ mod tests {
             m.parameters[i].value = v;
         }
         given(&mut m, 5.0, 0.0);
-        let (k, d, ku, f0) = (value(&m, "c1"), value(&m, "d1"), value(&m, "ku"), value(&m, "f0"));
+        let (k, d, ku, f0) = (
+            value(&m, "c1"),
+            value(&m, "d1"),
+            value(&m, "ku"),
+            value(&m, "f0"),
+        );
         let u = -0.05;
         let n = 400;
         let data = Dataset::siso(vec![u; n], vec![0.0; n], Some(TS)).unwrap();
@@ -554,9 +675,11 @@ mod tests {
     #[test]
     fn stop_is_hit_at_the_right_time_and_resets_velocity() {
         let mut m = head();
-        m.forces.retain(|f| matches!(f, crate::model::ForceElement::Constant { .. }));
+        m.forces
+            .retain(|f| matches!(f, crate::model::ForceElement::Constant { .. }));
         m.contacts.clear();
-        m.modes.retain(|q| q.contacts.as_ref().is_none_or(|c| c.is_empty()));
+        m.modes
+            .retain(|q| q.contacts.as_ref().is_none_or(|c| c.is_empty()));
         for (n, v) in [("f1", 0.0), ("fs", 0.0), ("f0", 1000.0)] {
             let i = m.parameter_index(n).unwrap();
             m.parameters[i].bounds[0] = 0.0;
