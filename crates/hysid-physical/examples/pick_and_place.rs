@@ -112,6 +112,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         rv.fit_sim, rv.rmse_sim
     );
     println!("fit_pred validation: {:.2} %", rv.fit_pred);
+    // The bridge: per-mode ARX(2,2) form at the data's rate.
+    let pw = hysid_physical::bridge::to_pwarx(m, ident.ts.unwrap_or(0.0025));
+    println!("per-mode ARX(2,2) form, theta = [a1, a2, b1, b2, c]:");
+    for q in &pw.modes {
+        let t: Vec<String> = q.theta.iter().map(|v| format!("{v:.6}")).collect();
+        println!("  {:14} [{}]", q.name.clone().unwrap_or_default(), t.join(", "));
+    }
     // Throughput: simulate the identification record repeatedly.
     let values = m.values();
     let reps = 50;
