@@ -33,8 +33,12 @@ impl Identifier for Arx {
     type Options = ArxOptions;
     const NAME: &'static str = "arx";
     const SUMMARY: &'static str = "one affine ARX model by least squares: the linear baseline";
-    const HONOURS: &'static [PriorKind] =
-        &[PriorKind::Modes, PriorKind::MaxModes, PriorKind::Fixed, PriorKind::Tie];
+    const HONOURS: &'static [PriorKind] = &[
+        PriorKind::Modes,
+        PriorKind::MaxModes,
+        PriorKind::Fixed,
+        PriorKind::Tie,
+    ];
 
     fn identify(
         &self,
@@ -60,7 +64,9 @@ impl Identifier for Arx {
         priors
             .check_pwarx_names(&spec)
             .map_err(|e| IdentifyError::BadData(format!("prior {e}")))?;
-        let reg = spec.build(problem.data).map_err(|e| IdentifyError::BadData(e.to_string()))?;
+        let reg = spec
+            .build(problem.data)
+            .map_err(|e| IdentifyError::BadData(e.to_string()))?;
         let p = spec.n_params();
         let free = p - priors.fixed.len();
         if reg.len() < free {
@@ -88,10 +94,11 @@ impl Identifier for Arx {
             e[(r, j)] = 1.0;
             f[r] = *value;
         }
-        let sol = linalg::lstsq_equality(&phi, &y, &e, &f).map_err(|err| IdentifyError::Failed {
-            method: "arx".into(),
-            message: format!("least squares failed: {err}"),
-        })?;
+        let sol =
+            linalg::lstsq_equality(&phi, &y, &e, &f).map_err(|err| IdentifyError::Failed {
+                method: "arx".into(),
+                message: format!("least squares failed: {err}"),
+            })?;
         let mut theta: Vec<f64> = sol.theta.iter().copied().collect();
         // Fixed values come back exactly as given.
         for (name, value) in &priors.fixed {
@@ -103,13 +110,19 @@ impl Identifier for Arx {
         info.diagnostics.insert("samples".into(), reg.len().into());
         info.diagnostics.insert(
             "rmse_fit".into(),
-            ((reg.phi() * DVector::from_vec(theta.clone()) - &reg.y).norm() / (reg.len() as f64).sqrt()).into(),
+            ((reg.phi() * DVector::from_vec(theta.clone()) - &reg.y).norm()
+                / (reg.len() as f64).sqrt())
+            .into(),
         );
         Ok(Model::Pwarx(PwarxModel {
             na: spec.na,
             nb: spec.nb,
             inputs: spec.inputs,
-            modes: vec![PwarxMode { theta, region: Polyhedron::everything(), name: None }],
+            modes: vec![PwarxMode {
+                theta,
+                region: Polyhedron::everything(),
+                name: None,
+            }],
             info,
         }))
     }
@@ -136,18 +149,45 @@ mod tests {
             na,
             nb,
             inputs: 1,
-            modes: vec![PwarxMode { theta: theta.to_vec(), region: Polyhedron::everything(), name: None }],
+            modes: vec![PwarxMode {
+                theta: theta.to_vec(),
+                region: Polyhedron::everything(),
+                name: None,
+            }],
             info: ModelInfo::default(),
         };
-        let y0: Vec<f64> = (0..n).map(|k| if k < na.max(nb) { rng.random_range(-1.0..1.0) } else { 0.0 }).collect();
+        let y0: Vec<f64> = (0..n)
+            .map(|k| {
+                if k < na.max(nb) {
+                    rng.random_range(-1.0..1.0)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         let d = Dataset::siso(u, y0, None).unwrap();
         let s = simulate(&Model::Pwarx(one), &d, SimulationOptions::default()).unwrap();
         Dataset::siso(d.u(0).to_vec(), s.y, None).unwrap()
     }
 
-    fn run(data: &Dataset, na: usize, nb: usize, priors: &Priors, set: &[&str]) -> Result<Model, IdentifyError> {
-        let problem = Problem { data, orders: RegressorSpec::new(na, nb, 1), priors, priors_origin: None };
-        Arx.run(&problem, &Settings::parse(set).unwrap(), &RunContext::quiet(1))
+    fn run(
+        data: &Dataset,
+        na: usize,
+        nb: usize,
+        priors: &Priors,
+        set: &[&str],
+    ) -> Result<Model, IdentifyError> {
+        let problem = Problem {
+            data,
+            orders: RegressorSpec::new(na, nb, 1),
+            priors,
+            priors_origin: None,
+        };
+        Arx.run(
+            &problem,
+            &Settings::parse(set).unwrap(),
+            &RunContext::quiet(1),
+        )
     }
 
     fn theta_of(m: &Model) -> Vec<f64> {
@@ -186,15 +226,28 @@ mod tests {
     #[test]
     fn refuses_what_it_cannot_honour() {
         let d = data_from(&[0.5, 1.0, 0.0], 1, 1, 50, 3);
-        let mut pri = Priors::default();
-        pri.switching = vec!["y1".into()];
+        let pri = Priors {
+            switching: vec!["y1".into()],
+            ..Default::default()
+        };
         let e = run(&d, 1, 1, &pri, &[]).unwrap_err().to_string();
-        assert!(e.contains("does not honour") && e.contains("switching"), "{e}");
-        let pri = Priors { modes: Some(3), ..Default::default() };
+        assert!(
+            e.contains("does not honour") && e.contains("switching"),
+            "{e}"
+        );
+        let pri = Priors {
+            modes: Some(3),
+            ..Default::default()
+        };
         assert!(run(&d, 1, 1, &pri, &[]).is_err());
         let mut pri = Priors::default();
         pri.fixed.insert("a7".into(), 0.0);
-        assert!(run(&d, 1, 1, &pri, &[]).unwrap_err().to_string().contains("a7"));
+        assert!(
+            run(&d, 1, 1, &pri, &[])
+                .unwrap_err()
+                .to_string()
+                .contains("a7")
+        );
         assert!(run(&d, 1, 1, &Priors::default(), &["ridge=-1"]).is_err());
         assert!(run(&d, 1, 1, &Priors::default(), &["rigde=1"]).is_err());
     }

@@ -9,6 +9,7 @@ use hysid_core::backend::Registry;
 pub fn registry() -> Registry {
     Registry::new()
         .with(hysid_arx::Arx)
+        .with(hysid_bounded::Bounded)
         .with(hysid_physical::Physical)
 }
 
@@ -18,6 +19,7 @@ mod tests {
     fn names_are_unique_and_documented() {
         let r = super::registry();
         assert!(r.get("arx").is_some());
+        assert!(r.get("bounded").is_some());
         assert!(r.get("physical").is_some());
         for b in r.iter() {
             assert!(!b.summary().is_empty());

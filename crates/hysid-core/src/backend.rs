@@ -55,7 +55,11 @@ pub struct RunContext<'a> {
 impl<'a> RunContext<'a> {
     /// A quiet context with `seed` and no deadline.
     pub fn quiet(seed: u64) -> RunContext<'static> {
-        RunContext { seed, progress: &NoProgress, deadline: None }
+        RunContext {
+            seed,
+            progress: &NoProgress,
+            deadline: None,
+        }
     }
 }
 
@@ -158,7 +162,9 @@ impl<T: Identifier> Backend for T {
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let options: T::Options = settings.resolve(T::NAME)?;
-        problem.priors.ensure_honoured(T::NAME, T::HONOURS, problem.priors_origin)?;
+        problem
+            .priors
+            .ensure_honoured(T::NAME, T::HONOURS, problem.priors_origin)?;
         let mut model = self.identify(problem, &options, ctx)?;
         let info = model.info_mut();
         info.method = T::NAME.to_string();
@@ -215,5 +221,38 @@ impl Registry {
             name: name.to_string(),
             known: self.names().join(", "),
         })
+    }
+}
+
+/// Runs `backend` on standardised data (zero mean, unit standard deviation
+/// per signal) and returns the model in original units, with the statistics
+/// recorded in `info.scaling`. Priors holding values in data units
+/// (`[[saturation]]`, `[fixed]`, `[bounds]`) are refused here: their
+/// meaning would change with the scaling.
+pub fn run_standardized(
+    backend: &dyn Backend,
+    problem: &Problem<'_>,
+    settings: &Settings,
+    ctx: &RunContext<'_>,
+) -> Result<Model, IdentifyError> {
+    let p = problem.priors;
+    if !p.saturation.is_empty() || !p.fixed.is_empty() || !p.bounds.is_empty() {
+        return Err(IdentifyError::BadData(
+            "--standardize cannot be combined with priors in data units ([[saturation]], [fixed], [bounds])".into(),
+        ));
+    }
+    let scale = crate::data::Standardization::of(problem.data);
+    let scaled = scale.apply(problem.data);
+    let inner = Problem {
+        data: &scaled,
+        ..*problem
+    };
+    match backend.run(&inner, settings, ctx)? {
+        Model::Pwarx(m) => Ok(Model::Pwarx(m.to_original_units(&scale))),
+        other => Err(IdentifyError::BadData(format!(
+            "--standardize: method '{}' returns a {} model, which cannot be mapped back to original units",
+            backend.name(),
+            other.kind()
+        ))),
     }
 }

@@ -55,7 +55,9 @@ impl std::str::FromStr for Excitation {
         }
         let e: Excitation = toml::Value::Table(t)
             .try_into()
-            .map_err(|e: toml::de::Error| format!("--excite: {}", e.to_string().trim().replace('\n', " ")))?;
+            .map_err(|e: toml::de::Error| {
+                format!("--excite: {}", e.to_string().trim().replace('\n', " "))
+            })?;
         e.check()?;
         Ok(e)
     }
@@ -68,7 +70,10 @@ impl Excitation {
             return Err("--excite: n, hold and inputs must be at least 1".into());
         }
         if !(self.low.is_finite() && self.high.is_finite() && self.low <= self.high) {
-            return Err(format!("--excite: need finite low <= high, got {} and {}", self.low, self.high));
+            return Err(format!(
+                "--excite: need finite low <= high, got {} and {}",
+                self.low, self.high
+            ));
         }
         if let Some(ts) = self.ts
             && !(ts.is_finite() && ts > 0.0)
@@ -87,7 +92,11 @@ impl Excitation {
                 let mut level = 0.0;
                 for k in 0..self.n {
                     if k % self.hold == 0 {
-                        level = if self.high > self.low { rng.random_range(self.low..=self.high) } else { self.low };
+                        level = if self.high > self.low {
+                            rng.random_range(self.low..=self.high)
+                        } else {
+                            self.low
+                        };
                     }
                     u.push(level);
                 }
@@ -113,6 +122,11 @@ mod tests {
         assert_ne!(u, e.generate(8));
         assert!("n=10,hold=0,low=0,high=1".parse::<Excitation>().is_err());
         assert!("n=10,hold=2,low=2,high=1".parse::<Excitation>().is_err());
-        assert!("n=10,hld=2,low=0,high=1".parse::<Excitation>().unwrap_err().contains("hld"));
+        assert!(
+            "n=10,hld=2,low=0,high=1"
+                .parse::<Excitation>()
+                .unwrap_err()
+                .contains("hld")
+        );
     }
 }

@@ -30,7 +30,11 @@ fn dot(a: &[f64], z: &[f64]) -> f64 {
 }
 
 fn norm(a: &[f64]) -> f64 {
-    a.iter().map(|v| v * v).sum::<f64>().sqrt().max(f64::MIN_POSITIVE)
+    a.iter()
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt()
+        .max(f64::MIN_POSITIVE)
 }
 
 impl Polyhedron {
@@ -41,7 +45,11 @@ impl Polyhedron {
 
     /// The half-spaces `a z <= b`.
     pub fn from_inequalities(a: Vec<Vec<f64>>, b: Vec<f64>) -> Self {
-        Self { a, b, ..Self::default() }
+        Self {
+            a,
+            b,
+            ..Self::default()
+        }
     }
 
     /// True when it has equality rows (it then has no volume).
@@ -56,7 +64,11 @@ impl Polyhedron {
         }
         for (i, row) in self.a.iter().chain(&self.a_eq).enumerate() {
             if row.len() != dim {
-                return Err(format!("row {} has {} entries, expected {dim}", i + 1, row.len()));
+                return Err(format!(
+                    "row {} has {} entries, expected {dim}",
+                    i + 1,
+                    row.len()
+                ));
             }
             if row.iter().any(|v| !v.is_finite()) {
                 return Err(format!("row {} has a non-finite entry", i + 1));
@@ -130,7 +142,6 @@ impl Polyhedron {
             }
         }
         (lo <= hi).then_some(lo)
-
     }
 
     /// The set in new coordinates `z = m + D w` (`D` diagonal, entries `d`):
@@ -160,7 +171,12 @@ mod tests {
 
     fn unit_box() -> Polyhedron {
         Polyhedron::from_inequalities(
-            vec![vec![1.0, 0.0], vec![-1.0, 0.0], vec![0.0, 1.0], vec![0.0, -1.0]],
+            vec![
+                vec![1.0, 0.0],
+                vec![-1.0, 0.0],
+                vec![0.0, 1.0],
+                vec![0.0, -1.0],
+            ],
             vec![1.0, 0.0, 1.0, 0.0],
         )
     }
@@ -187,7 +203,10 @@ mod tests {
         let s = g.first_hit_on_segment(&[20.0, 2.0], &[30.0, 2.0]).unwrap();
         assert!((s - 0.5).abs() < 1e-6);
         assert!(g.first_hit_on_segment(&[20.0, 2.0], &[24.0, 2.0]).is_none());
-        assert!(g.first_hit_on_segment(&[20.0, -2.0], &[30.0, -2.0]).is_none());
+        assert!(
+            g.first_hit_on_segment(&[20.0, -2.0], &[30.0, -2.0])
+                .is_none()
+        );
     }
 
     proptest! {

@@ -50,7 +50,12 @@ fn thin_svd(a: &DMatrix<f64>) -> Result<ThinSvd, LinalgError> {
     }
     let (m, n) = a.shape();
     if m == 0 || n == 0 {
-        return Ok(ThinSvd { u: DMatrix::zeros(m, 0), s: vec![], v: DMatrix::zeros(n, 0), rank: 0 });
+        return Ok(ThinSvd {
+            u: DMatrix::zeros(m, 0),
+            s: vec![],
+            v: DMatrix::zeros(n, 0),
+            rank: 0,
+        });
     }
     let fa: faer::MatRef<'_, f64> = a.view_range(.., ..).into_faer();
     let svd = fa.thin_svd().map_err(|_| LinalgError::NoConvergence)?;
@@ -66,7 +71,11 @@ fn thin_svd(a: &DMatrix<f64>) -> Result<ThinSvd, LinalgError> {
 /// Solves `min |Phi theta - y|`.
 pub fn lstsq(phi: &DMatrix<f64>, y: &DVector<f64>) -> Result<LeastSquares, LinalgError> {
     if phi.nrows() != y.len() {
-        return Err(LinalgError::Shape(format!("{} rows, {} targets", phi.nrows(), y.len())));
+        return Err(LinalgError::Shape(format!(
+            "{} rows, {} targets",
+            phi.nrows(),
+            y.len()
+        )));
     }
     if y.iter().any(|v| !v.is_finite()) {
         return Err(LinalgError::NonFinite);
@@ -78,7 +87,11 @@ pub fn lstsq(phi: &DMatrix<f64>, y: &DVector<f64>) -> Result<LeastSquares, Linal
         theta.axpy(coef, &svd.v.column(i), 1.0);
     }
     let rss = (phi * &theta - y).norm_squared();
-    Ok(LeastSquares { theta, rank: svd.rank, rss })
+    Ok(LeastSquares {
+        theta,
+        rank: svd.rank,
+        rss,
+    })
 }
 
 /// Solves `min sum_k w_k (y_k - phi_k theta)^2` with `w_k >= 0`.
@@ -88,7 +101,9 @@ pub fn weighted_lstsq(
     w: &[f64],
 ) -> Result<LeastSquares, LinalgError> {
     if w.len() != y.len() || w.iter().any(|v| !v.is_finite() || *v < 0.0) {
-        return Err(LinalgError::Shape("weights must be finite, non-negative, one per row".into()));
+        return Err(LinalgError::Shape(
+            "weights must be finite, non-negative, one per row".into(),
+        ));
     }
     let mut p = phi.clone();
     let mut t = y.clone();
@@ -98,7 +113,9 @@ pub fn weighted_lstsq(
         t[k] *= s;
     }
     let mut sol = lstsq(&p, &t)?;
-    sol.rss = (phi * &sol.theta - y).component_mul(&(phi * &sol.theta - y)).dot(&DVector::from_column_slice(w));
+    sol.rss = (phi * &sol.theta - y)
+        .component_mul(&(phi * &sol.theta - y))
+        .dot(&DVector::from_column_slice(w));
     Ok(sol)
 }
 
@@ -139,7 +156,9 @@ pub fn lstsq_equality(
         return lstsq(phi, y);
     }
     if e.ncols() != phi.ncols() || e.nrows() != f.len() {
-        return Err(LinalgError::Shape("constraints do not match the parameters".into()));
+        return Err(LinalgError::Shape(
+            "constraints do not match the parameters".into(),
+        ));
     }
     let theta_p = pinv(e)? * f;
     let res = (e * &theta_p - f).amax();
@@ -150,12 +169,20 @@ pub fn lstsq_equality(
     let rank_e = phi.ncols() - n.ncols();
     if n.ncols() == 0 {
         let rss = (phi * &theta_p - y).norm_squared();
-        return Ok(LeastSquares { theta: theta_p, rank: rank_e, rss });
+        return Ok(LeastSquares {
+            theta: theta_p,
+            rank: rank_e,
+            rss,
+        });
     }
     let reduced = lstsq(&(phi * &n), &(y - phi * &theta_p))?;
     let theta = theta_p + &n * reduced.theta;
     let rss = (phi * &theta - y).norm_squared();
-    Ok(LeastSquares { theta, rank: reduced.rank + rank_e, rss })
+    Ok(LeastSquares {
+        theta,
+        rank: reduced.rank + rank_e,
+        rss,
+    })
 }
 
 #[cfg(test)]
@@ -175,7 +202,11 @@ mod tests {
 
     #[test]
     fn equality_constraints_hold_exactly() {
-        let phi = DMatrix::from_row_slice(4, 3, &[1.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 2.0, -1.0, 1.0]);
+        let phi = DMatrix::from_row_slice(
+            4,
+            3,
+            &[1.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 2.0, -1.0, 1.0],
+        );
         let y = DVector::from_vec(vec![1.0, 2.0, 3.0, 0.5]);
         let e = DMatrix::from_row_slice(1, 3, &[1.0, -1.0, 0.0]); // theta0 = theta1
         let f = DVector::from_vec(vec![0.0]);

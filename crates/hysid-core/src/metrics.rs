@@ -15,7 +15,12 @@ use serde::{Deserialize, Serialize};
 pub fn fit(y: &[f64], yhat: &[f64]) -> f64 {
     let n = y.len().max(1) as f64;
     let mean = y.iter().sum::<f64>() / n;
-    let err: f64 = y.iter().zip(yhat).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+    let err: f64 = y
+        .iter()
+        .zip(yhat)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        .sqrt();
     let den: f64 = y.iter().map(|a| (a - mean).powi(2)).sum::<f64>().sqrt();
     if den <= f64::MIN_POSITIVE {
         return if err == 0.0 { 100.0 } else { 0.0 };
@@ -26,7 +31,12 @@ pub fn fit(y: &[f64], yhat: &[f64]) -> f64 {
 /// Root-mean-square error, in the output's units.
 pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
     let n = y.len().max(1) as f64;
-    (y.iter().zip(yhat).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / n).sqrt()
+    (y.iter()
+        .zip(yhat)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt()
 }
 
 /// What `hysid validate --json` prints (`shared/spec/interface.md`).
@@ -56,14 +66,21 @@ pub struct ValidationReport {
 
 /// Scores `model` on `data`, leaving out the first `warmup` samples (and
 /// any before the simulation can start).
-pub fn validate(model: &Model, data: &Dataset, warmup: usize) -> Result<(ValidationReport, Simulation, Simulation), SimError> {
+pub fn validate(
+    model: &Model,
+    data: &Dataset,
+    warmup: usize,
+) -> Result<(ValidationReport, Simulation, Simulation), SimError> {
     let opts = SimulationOptions::for_data(data);
     let sim = simulate(model, data, opts)?;
     let pred = predict(model, data, opts)?;
     let first = warmup.max(sim.start).max(pred.start);
     let n_all = data.len();
     if first >= n_all {
-        return Err(SimError::TooShort { samples: n_all, needed: first });
+        return Err(SimError::TooShort {
+            samples: n_all,
+            needed: first,
+        });
     }
     let y = &data.y()[first..];
     let frac = |s: &Simulation| {
@@ -114,7 +131,10 @@ pub fn mode_accuracy(truth: &[usize], identified: &[usize]) -> ModeMatch {
         Err(_) => vec![],
     };
     let agree: f64 = pairs.iter().map(|&(t, i)| count[t * ni + i]).sum();
-    ModeMatch { pairs, accuracy: agree / truth.len().max(1) as f64 }
+    ModeMatch {
+        pairs,
+        accuracy: agree / truth.len().max(1) as f64,
+    }
 }
 
 /// Parameter error after matching.
@@ -133,7 +153,12 @@ pub struct ParameterMatch {
 pub fn parameter_error(truth: &[Vec<f64>], identified: &[Vec<f64>]) -> ParameterMatch {
     let (nt, ni) = (truth.len(), identified.len());
     let rel = |t: &[f64], i: &[f64]| -> f64 {
-        let d = t.iter().zip(i).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+        let d = t
+            .iter()
+            .zip(i)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
         let n = t.iter().map(|a| a * a).sum::<f64>().sqrt();
         d / n.max(f64::MIN_POSITIVE)
     };
@@ -153,7 +178,11 @@ pub fn parameter_error(truth: &[Vec<f64>], identified: &[Vec<f64>]) -> Parameter
     } else {
         relative_errors.iter().fold(0.0, |a: f64, &b| a.max(b))
     };
-    ParameterMatch { pairs, relative_errors, max_relative_error }
+    ParameterMatch {
+        pairs,
+        relative_errors,
+        max_relative_error,
+    }
 }
 
 #[cfg(test)]
@@ -200,8 +229,14 @@ mod tests {
         let truth = vec![vec![1.0, 0.0], vec![0.0, 1.0], vec![1.0, 1.0]];
         let id = vec![vec![1.0, 1.01], vec![1.0, 0.0], vec![0.0, 0.98]];
         let m = parameter_error(&truth, &id);
-        assert!(m.pairs.contains(&(0, 1)) && m.pairs.contains(&(1, 2)) && m.pairs.contains(&(2, 0)));
+        assert!(
+            m.pairs.contains(&(0, 1)) && m.pairs.contains(&(1, 2)) && m.pairs.contains(&(2, 0))
+        );
         assert!(m.max_relative_error < 0.021);
-        assert!(parameter_error(&truth, &id[..2]).max_relative_error.is_infinite());
+        assert!(
+            parameter_error(&truth, &id[..2])
+                .max_relative_error
+                .is_infinite()
+        );
     }
 }

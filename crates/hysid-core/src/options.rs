@@ -1,6 +1,6 @@
 //! Typed back-end options, mirrored 1:1 by `--set key=value`.
 //!
-//! A back-end declares its options once with [`backend_options!`]: the macro
+//! A back-end declares its options once with [`backend_options!`](crate::backend_options): the macro
 //! writes the struct (with `Default` holding the documented defaults), and
 //! the [`OptionSpec`] list that `hysid methods` prints. `--set` values are
 //! parsed as TOML scalars (`3`, `0.5`, `true`) or else taken as text, then
@@ -24,7 +24,7 @@ pub struct OptionSpec {
     pub doc: String,
 }
 
-/// Implemented by the options struct of every back-end (by [`backend_options!`]).
+/// Implemented by the options struct of every back-end (by [`backend_options!`](crate::backend_options)).
 pub trait BackendOptions: Default + Serialize + DeserializeOwned + Clone + Send + Sync {
     /// The options' descriptions, in declaration order.
     fn specs() -> Vec<OptionSpec>;
@@ -39,7 +39,7 @@ pub trait BackendOptions: Default + Serialize + DeserializeOwned + Clone + Send 
 }
 
 /// How an option's type is shown; implemented for the scalar types used in
-/// options and by enums with [`option_enum!`].
+/// options and by enums with [`option_enum!`](crate::option_enum).
 pub trait OptionType {
     /// Name shown in `hysid methods`.
     fn type_name() -> String;
@@ -113,7 +113,9 @@ impl Settings {
         let mut pairs: Vec<(String, String)> = Vec::new();
         for it in items {
             let it = it.as_ref();
-            let (k, v) = it.split_once('=').ok_or_else(|| OptionError::Syntax(it.to_string()))?;
+            let (k, v) = it
+                .split_once('=')
+                .ok_or_else(|| OptionError::Syntax(it.to_string()))?;
             let k = k.trim().to_string();
             if k.is_empty() {
                 return Err(OptionError::Syntax(it.to_string()));
@@ -138,12 +140,22 @@ impl Settings {
 
     /// Value given for `key`, if any.
     pub fn get(&self, key: &str) -> Option<&str> {
-        self.pairs.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+        self.pairs
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
     }
 
     /// A copy without `key`.
     pub fn without(&self, key: &str) -> Self {
-        Self { pairs: self.pairs.iter().filter(|(k, _)| k != key).cloned().collect() }
+        Self {
+            pairs: self
+                .pairs
+                .iter()
+                .filter(|(k, _)| k != key)
+                .cloned()
+                .collect(),
+        }
     }
 
     /// Builds typed options: defaults, overridden by the given keys.
@@ -179,8 +191,18 @@ impl Settings {
                 .or(self.pairs.first())
                 .cloned()
                 .unwrap_or_default();
-            let ty = specs.iter().find(|s| s.key == key).map(|s| s.ty.clone()).unwrap_or_default();
-            OptionError::Value { key, value, method: method.to_string(), ty, message: msg }
+            let ty = specs
+                .iter()
+                .find(|s| s.key == key)
+                .map(|s| s.ty.clone())
+                .unwrap_or_default();
+            OptionError::Value {
+                key,
+                value,
+                method: method.to_string(),
+                ty,
+                message: msg,
+            }
         })
     }
 }
@@ -188,7 +210,9 @@ impl Settings {
 fn scalar(v: &str) -> toml::Value {
     match format!("v = {v}").parse::<toml::Table>() {
         Ok(mut t) => match t.remove("v") {
-            Some(x @ (toml::Value::Integer(_) | toml::Value::Float(_) | toml::Value::Boolean(_))) => x,
+            Some(
+                x @ (toml::Value::Integer(_) | toml::Value::Float(_) | toml::Value::Boolean(_)),
+            ) => x,
             Some(x @ toml::Value::String(_)) => x,
             _ => toml::Value::String(v.to_string()),
         },
@@ -289,7 +313,10 @@ mod tests {
     fn defaults_types_and_docs() {
         let s = T::specs();
         assert_eq!(s.len(), 4);
-        assert_eq!((s[0].key, s[0].ty.as_str(), s[0].default.as_str()), ("c", "int", "20"));
+        assert_eq!(
+            (s[0].key, s[0].ty.as_str(), s[0].default.as_str()),
+            ("c", "int", "20")
+        );
         assert_eq!(s[2].ty, "fv|lpv");
         assert_eq!(s[2].default, "fv");
         assert_eq!(s[3].default, "none");
@@ -298,13 +325,36 @@ mod tests {
 
     #[test]
     fn set_overrides_and_errors_name_the_key() {
-        let t: T = Settings::parse(&["c=40", "features=lpv", "ridge=0", "delta=0.1"]).unwrap().resolve("m").unwrap();
-        assert_eq!(t, T { c: 40, ridge: 0.0, features: Features::Lpv, delta: Some(0.1) });
-        let e = Settings::parse(&["cc=4"]).unwrap().resolve::<T>("m").unwrap_err().to_string();
+        let t: T = Settings::parse(&["c=40", "features=lpv", "ridge=0", "delta=0.1"])
+            .unwrap()
+            .resolve("m")
+            .unwrap();
+        assert_eq!(
+            t,
+            T {
+                c: 40,
+                ridge: 0.0,
+                features: Features::Lpv,
+                delta: Some(0.1)
+            }
+        );
+        let e = Settings::parse(&["cc=4"])
+            .unwrap()
+            .resolve::<T>("m")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("cc") && e.contains("options: c, ridge"), "{e}");
-        let e = Settings::parse(&["c=abc"]).unwrap().resolve::<T>("m").unwrap_err().to_string();
+        let e = Settings::parse(&["c=abc"])
+            .unwrap()
+            .resolve::<T>("m")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("--set c=abc") && e.contains("int"), "{e}");
-        let e = Settings::parse(&["features=svm"]).unwrap().resolve::<T>("m").unwrap_err().to_string();
+        let e = Settings::parse(&["features=svm"])
+            .unwrap()
+            .resolve::<T>("m")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("features"), "{e}");
         assert!(Settings::parse(&["novalue"]).is_err());
         assert!(Settings::parse(&["c=1", "c=2"]).is_err());

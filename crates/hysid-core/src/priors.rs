@@ -139,15 +139,20 @@ impl Priors {
             path: origin.to_string(),
             message: e.to_string().trim().replace('\n', " "),
         })?;
-        p.check().map_err(|message| PriorError::Invalid { path: origin.to_string(), message })?;
+        p.check().map_err(|message| PriorError::Invalid {
+            path: origin.to_string(),
+            message,
+        })?;
         Ok(p)
     }
 
     /// Reads a prior file.
     pub fn load(path: &Path) -> Result<Self, PriorError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| PriorError::Io { path: origin.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| PriorError::Io {
+            path: origin.clone(),
+            source,
+        })?;
         Self::from_toml(&text, &origin)
     }
 
@@ -227,7 +232,11 @@ impl Priors {
                     honoured: if honoured.is_empty() {
                         "none".into()
                     } else {
-                        honoured.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+                        honoured
+                            .iter()
+                            .map(ToString::to_string)
+                            .collect::<Vec<_>>()
+                            .join(", ")
                     },
                 });
             }
@@ -243,7 +252,10 @@ impl Priors {
             if list.iter().any(|p| p == n) {
                 Ok(())
             } else {
-                Err(format!("{entry}: unknown name '{n}' (known: {})", list.join(", ")))
+                Err(format!(
+                    "{entry}: unknown name '{n}' (known: {})",
+                    list.join(", ")
+                ))
             }
         };
         for t in &self.tie {
@@ -286,29 +298,114 @@ b1 = [0.0, 1.0e3]
 
     #[test]
     fn spec_example_parses_and_names_check() {
-        let p = Priors::from_toml(&format!("switching = [\"y1\"]\n{SPEC_EXAMPLE}"), "p.toml").unwrap();
+        let p =
+            Priors::from_toml(&format!("switching = [\"y1\"]\n{SPEC_EXAMPLE}"), "p.toml").unwrap();
         assert_eq!(p.modes, Some(4));
         assert_eq!(p.saturation.len(), 2);
         assert_eq!(p.saturation[0].bound, StopBound::Max);
         assert_eq!(p.kinds().len(), 7 - 1);
         p.check_pwarx_names(&RegressorSpec::new(2, 2, 1)).unwrap();
-        let e = p.check_pwarx_names(&RegressorSpec::new(1, 1, 1)).unwrap_err();
+        let e = p
+            .check_pwarx_names(&RegressorSpec::new(1, 1, 1))
+            .unwrap_err();
         assert!(e.contains("a2"), "{e}");
     }
 
     #[test]
     fn refusal_names_the_entry() {
         let p = Priors::from_toml(SPEC_EXAMPLE, "p.toml").unwrap();
-        let e = p.ensure_honoured("arx", &[PriorKind::Fixed], Some("p.toml")).unwrap_err().to_string();
-        assert!(e.contains("'arx'") && e.contains("modes") && e.contains("p.toml"), "{e}");
+        let e = p
+            .ensure_honoured("arx", &[PriorKind::Fixed], Some("p.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("'arx'") && e.contains("modes") && e.contains("p.toml"),
+            "{e}"
+        );
     }
 
     #[test]
     fn typos_and_inconsistencies_are_errors() {
-        let e = Priors::from_toml("mdoes = 3", "p.toml").unwrap_err().to_string();
+        let e = Priors::from_toml("mdoes = 3", "p.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("p.toml") && e.contains("mdoes"), "{e}");
         assert!(Priors::from_toml("modes = 5\nmax_modes = 3", "p").is_err());
         assert!(Priors::from_toml("[bounds]\nb1 = [2.0, 1.0]", "p").is_err());
         assert!(Priors::from_toml("[[saturation]]\nlevel = 1.0\nbound = \"up\"", "p").is_err());
+    }
+}
+
+/// Linear equalities `E theta = f` over the stacked parameters
+/// `theta = [theta_1; ..; theta_s]` of `s` PWARX modes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StackedEqualities {
+    /// Rows of `E`, each of length `s * n_params`.
+    pub e: Vec<Vec<f64>>,
+    /// Right-hand sides.
+    pub f: Vec<f64>,
+}
+
+impl Priors {
+    /// The `[[tie]]` and `[fixed]` entries as equalities over the stacked
+    /// parameters of `s` modes with structure `spec`: a tie of parameter `p`
+    /// is `theta_i[p] = theta_1[p]` for `i = 2..s`, a fixed value
+    /// `theta_i[p] = v` for every mode. Names must have been checked with
+    /// [`Priors::check_pwarx_names`].
+    pub fn pwarx_equalities(&self, spec: &RegressorSpec, s: usize) -> StackedEqualities {
+        let names = spec.param_names();
+        let np = names.len();
+        let idx = |p: &str| names.iter().position(|n| n == p).expect("names checked");
+        let mut e = Vec::new();
+        let mut f = Vec::new();
+        for t in &self.tie {
+            for p in &t.params {
+                let j = idx(p);
+                for i in 1..s {
+                    let mut row = vec![0.0; s * np];
+                    row[i * np + j] = 1.0;
+                    row[j] = -1.0;
+                    e.push(row);
+                    f.push(0.0);
+                }
+            }
+        }
+        for (p, v) in &self.fixed {
+            let j = idx(p);
+            for i in 0..s {
+                let mut row = vec![0.0; s * np];
+                row[i * np + j] = 1.0;
+                e.push(row);
+                f.push(*v);
+            }
+        }
+        StackedEqualities { e, f }
+    }
+
+    /// The stop whose level `y` sits on (within `tol`), if any.
+    pub fn stop_at(&self, y: f64, tol: f64) -> Option<usize> {
+        self.saturation
+            .iter()
+            .position(|s| (y - s.level).abs() <= tol)
+    }
+}
+
+#[cfg(test)]
+mod stacked_tests {
+    use super::*;
+
+    #[test]
+    fn ties_and_fixed_values_as_equalities() {
+        let p = Priors::from_toml("[[tie]]\nparams = [\"a1\"]\n[fixed]\nc = 2.0\n", "p").unwrap();
+        let spec = RegressorSpec::new(1, 1, 1); // a1 b1 c
+        let eq = p.pwarx_equalities(&spec, 3);
+        assert_eq!(eq.e.len(), 2 + 3);
+        // theta_2[a1] - theta_1[a1] = 0
+        assert_eq!(eq.e[0], vec![-1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!((eq.e[4][8], eq.f[4]), (1.0, 2.0));
+        let sat =
+            Priors::from_toml("[[saturation]]\nlevel = 25.0\nbound = \"max\"\n", "p").unwrap();
+        assert_eq!(sat.stop_at(25.004, 0.005), Some(0));
+        assert_eq!(sat.stop_at(24.9, 0.005), None);
     }
 }

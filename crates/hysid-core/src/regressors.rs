@@ -102,7 +102,11 @@ impl RegressorSpec {
         let mut v = Vec::new();
         for i in 1..=self.inputs {
             for j in 1..=self.nb {
-                v.push(if self.inputs == 1 { format!("{p}{j}") } else { format!("{p}{i}_{j}") });
+                v.push(if self.inputs == 1 {
+                    format!("{p}{j}")
+                } else {
+                    format!("{p}{i}_{j}")
+                });
             }
         }
         v
@@ -128,7 +132,10 @@ impl RegressorSpec {
     /// too short or its input count differs from the spec.
     pub fn build(&self, data: &Dataset) -> Result<Regressors, RegressorError> {
         if data.inputs.len() != self.inputs {
-            return Err(RegressorError::Inputs { expected: self.inputs, found: data.inputs.len() });
+            return Err(RegressorError::Inputs {
+                expected: self.inputs,
+                found: data.inputs.len(),
+            });
         }
         let lag = self.lag();
         let n = data.len();
@@ -220,7 +227,13 @@ mod tests {
     #[test]
     fn too_short_and_wrong_inputs() {
         let d = Dataset::siso(vec![0.0; 2], vec![0.0; 2], None).unwrap();
-        assert!(matches!(RegressorSpec::new(2, 2, 1).build(&d), Err(RegressorError::TooShort { .. })));
-        assert!(matches!(RegressorSpec::new(1, 1, 2).build(&d), Err(RegressorError::Inputs { .. })));
+        assert!(matches!(
+            RegressorSpec::new(2, 2, 1).build(&d),
+            Err(RegressorError::TooShort { .. })
+        ));
+        assert!(matches!(
+            RegressorSpec::new(1, 1, 2).build(&d),
+            Err(RegressorError::Inputs { .. })
+        ));
     }
 }

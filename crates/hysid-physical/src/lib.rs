@@ -77,8 +77,8 @@ hysid_core::backend_options! {
         /// Samples used to estimate the initial state (position and velocity) of the
         /// simulation; the cost is scored after them. 0: the model file's rule.
         init_samples: usize = 10,
-        /// Relative step (fraction of the range) of the finite-difference Jacobian
-        /// used for the sensitivity and confidence estimate.
+        /// Step (fraction of each range) of the central finite-difference Jacobians of
+        /// the Levenberg-Marquardt stages and of the sensitivity and confidence estimate.
         fd_step: f64 = 1e-3,
     }
 }

@@ -66,7 +66,10 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
         }
     }
     if cols.first().is_some_and(Vec::is_empty) || (keep.is_empty() && names.is_empty()) {
-        return Err(parse_err(String::new(), "no data rows after the header".into()));
+        return Err(parse_err(
+            String::new(),
+            "no data rows after the header".into(),
+        ));
     }
     Ok(RawTable {
         path: path.to_path_buf(),
@@ -78,7 +81,16 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
             names
                 .iter()
                 .enumerate()
-                .map(|(i, n)| (n.clone(), if keep.contains(&i) { cols.next().unwrap_or_default() } else { Vec::new() }))
+                .map(|(i, n)| {
+                    (
+                        n.clone(),
+                        if keep.contains(&i) {
+                            cols.next().unwrap_or_default()
+                        } else {
+                            Vec::new()
+                        },
+                    )
+                })
                 .collect()
         },
     })
@@ -97,7 +109,9 @@ mod tests {
 
     fn err(text: &str) -> String {
         let f = csv(text);
-        load(f.path(), &DataSelection::default()).unwrap_err().to_string()
+        load(f.path(), &DataSelection::default())
+            .unwrap_err()
+            .to_string()
     }
 
     #[test]
@@ -112,13 +126,22 @@ mod tests {
     #[test]
     fn errors_name_row_and_column() {
         let e = err("u,y\n1,2\n3,NaN\n");
-        assert!(e.contains("row 2") && e.contains("column 'y'") && e.contains("non-finite"), "{e}");
+        assert!(
+            e.contains("row 2") && e.contains("column 'y'") && e.contains("non-finite"),
+            "{e}"
+        );
         let e = err("u,y\n1,2\n3,abc\n");
-        assert!(e.contains("row 2") && e.contains("'abc' is not a number"), "{e}");
+        assert!(
+            e.contains("row 2") && e.contains("'abc' is not a number"),
+            "{e}"
+        );
         let e = err("u,y\n1,2\n3\n");
         assert!(e.contains("row 2") && e.contains("1 fields"), "{e}");
         let e = err("u,x\n1,2\n");
-        assert!(e.contains("no column 'y'") && e.contains("available: u, x"), "{e}");
+        assert!(
+            e.contains("no column 'y'") && e.contains("available: u, x"),
+            "{e}"
+        );
         let e = err("u,y\n1,\n");
         assert!(e.contains("empty cell"), "{e}");
         let e = err("u,y\n");
@@ -135,7 +158,10 @@ mod tests {
         };
         let d = load(f.path(), &sel).unwrap();
         assert_eq!(d.y(), &[2.0, 4.0]);
-        let sel = DataSelection { rows: "9..".parse().unwrap(), ..Default::default() };
+        let sel = DataSelection {
+            rows: "9..".parse().unwrap(),
+            ..Default::default()
+        };
         assert!(matches!(load(f.path(), &sel), Err(DataError::Selection(_))));
     }
 }

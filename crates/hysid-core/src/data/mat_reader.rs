@@ -18,13 +18,21 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
         message,
     };
     if bytes.len() < 128 {
-        return Err(perr(String::new(), "too short for a MAT-file header (128 bytes)".into()));
+        return Err(perr(
+            String::new(),
+            "too short for a MAT-file header (128 bytes)".into(),
+        ));
     }
     // matrw is a third-party parser: a malformed file must still end in an
     // error, never in a crash of the caller.
     let parsed = std::panic::catch_unwind(|| matrw::load_matfile_from_u8(&bytes))
         .map_err(|_| perr(String::new(), "not a readable level-5 MAT-file".into()))?
-        .map_err(|e| perr(String::new(), format!("not a readable level-5 MAT-file: {e}")))?;
+        .map_err(|e| {
+            perr(
+                String::new(),
+                format!("not a readable level-5 MAT-file: {e}"),
+            )
+        })?;
     let mut columns = Vec::new();
     let available: Vec<String> = parsed.iter().map(|(k, _)| k.clone()).collect();
     for (name, var) in parsed.iter() {
@@ -35,14 +43,21 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
         let dim = var.dim();
         let n: usize = dim.iter().product();
         if dim.iter().filter(|&&d| d != 1).count() > 1 {
-            return Err(perr(loc, format!("is {dims}, expected a vector", dims = dims(&dim))));
+            return Err(perr(
+                loc,
+                format!("is {dims}, expected a vector", dims = dims(&dim)),
+            ));
         }
         if var.is_complex() == Some(true) {
             return Err(perr(loc, "is complex, expected real values".into()));
         }
-        let values = to_f64(var).ok_or_else(|| perr(loc.clone(), "is not a numeric array".into()))?;
+        let values =
+            to_f64(var).ok_or_else(|| perr(loc.clone(), "is not a numeric array".into()))?;
         if values.len() != n {
-            return Err(perr(loc, "data length does not match its dimensions".into()));
+            return Err(perr(
+                loc,
+                "data length does not match its dimensions".into(),
+            ));
         }
         if let Some(k) = values.iter().position(|v| !v.is_finite()) {
             return Err(perr(
@@ -62,7 +77,11 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
             columns.push((name, Vec::new()));
         }
     }
-    Ok(RawTable { path: path.to_path_buf(), what: "variable", columns })
+    Ok(RawTable {
+        path: path.to_path_buf(),
+        what: "variable",
+        columns,
+    })
 }
 
 fn dims(d: &[usize]) -> String {
@@ -72,13 +91,34 @@ fn dims(d: &[usize]) -> String {
 /// Any real numeric class, widened to f64.
 fn to_f64(v: &MatVariable) -> Option<Vec<f64>> {
     v.to_vec_f64()
-        .or_else(|| v.to_vec_f32().map(|x| x.into_iter().map(f64::from).collect()))
-        .or_else(|| v.to_vec_i32().map(|x| x.into_iter().map(f64::from).collect()))
-        .or_else(|| v.to_vec_i16().map(|x| x.into_iter().map(f64::from).collect()))
-        .or_else(|| v.to_vec_i8().map(|x| x.into_iter().map(f64::from).collect()))
-        .or_else(|| v.to_vec_u8().map(|x| x.into_iter().map(f64::from).collect()))
-        .or_else(|| v.to_vec_u16().map(|x| x.into_iter().map(f64::from).collect()))
-        .or_else(|| v.to_vec_u32().map(|x| x.into_iter().map(f64::from).collect()))
+        .or_else(|| {
+            v.to_vec_f32()
+                .map(|x| x.into_iter().map(f64::from).collect())
+        })
+        .or_else(|| {
+            v.to_vec_i32()
+                .map(|x| x.into_iter().map(f64::from).collect())
+        })
+        .or_else(|| {
+            v.to_vec_i16()
+                .map(|x| x.into_iter().map(f64::from).collect())
+        })
+        .or_else(|| {
+            v.to_vec_i8()
+                .map(|x| x.into_iter().map(f64::from).collect())
+        })
+        .or_else(|| {
+            v.to_vec_u8()
+                .map(|x| x.into_iter().map(f64::from).collect())
+        })
+        .or_else(|| {
+            v.to_vec_u16()
+                .map(|x| x.into_iter().map(f64::from).collect())
+        })
+        .or_else(|| {
+            v.to_vec_u32()
+                .map(|x| x.into_iter().map(f64::from).collect())
+        })
 }
 
 #[cfg(test)]
@@ -87,7 +127,11 @@ mod tests {
     use matrw::{MatFile, matvar};
 
     fn write(compress: bool, y: Vec<f64>) -> tempfile::TempPath {
-        let path = tempfile::Builder::new().suffix(".mat").tempfile().unwrap().into_temp_path();
+        let path = tempfile::Builder::new()
+            .suffix(".mat")
+            .tempfile()
+            .unwrap()
+            .into_temp_path();
         let mut m = MatFile::new();
         m.insert("u", matvar!(vec![1.0, 2.0, 3.0]));
         m.insert("y", matvar!(y));
@@ -110,18 +154,28 @@ mod tests {
     fn missing_variable_and_non_finite_are_named() {
         let p = write(false, vec![4.0, f64::INFINITY, 6.0]);
         let e = load(&p, &DataSelection::default()).unwrap_err().to_string();
-        assert!(e.contains("variable 'y', row 2") && e.contains("non-finite"), "{e}");
-        let sel = DataSelection { output: "z".into(), ..Default::default() };
+        assert!(
+            e.contains("variable 'y', row 2") && e.contains("non-finite"),
+            "{e}"
+        );
+        let sel = DataSelection {
+            output: "z".into(),
+            ..Default::default()
+        };
         let p = write(false, vec![4.0, 5.0, 6.0]);
         let e = load(&p, &sel).unwrap_err().to_string();
-        assert!(e.contains("no variable 'z'") && e.contains("u") , "{e}");
+        assert!(e.contains("no variable 'z'") && e.contains("u"), "{e}");
     }
 
     #[test]
     fn garbage_is_an_error_not_a_crash() {
         let mut bytes = vec![0u8; 300];
         bytes[..6].copy_from_slice(b"MATLAB");
-        let path = tempfile::Builder::new().suffix(".mat").tempfile().unwrap().into_temp_path();
+        let path = tempfile::Builder::new()
+            .suffix(".mat")
+            .tempfile()
+            .unwrap()
+            .into_temp_path();
         std::fs::write(&path, &bytes).unwrap();
         assert!(load(&path, &DataSelection::default()).is_err());
         std::fs::write(&path, b"short").unwrap();

@@ -40,11 +40,7 @@ pub struct Dataset {
 impl Dataset {
     /// Builds a dataset from plain vectors, checking that every signal has
     /// the same length and only finite values.
-    pub fn new(
-        inputs: Vec<Signal>,
-        output: Signal,
-        ts: Option<f64>,
-    ) -> Result<Self, DataError> {
+    pub fn new(inputs: Vec<Signal>, output: Signal, ts: Option<f64>) -> Result<Self, DataError> {
         let n = output.values.len();
         for s in inputs.iter().chain(std::iter::once(&output)) {
             if s.values.len() != n {
@@ -76,8 +72,14 @@ impl Dataset {
     /// A single-input dataset named `u`, `y`.
     pub fn siso(u: Vec<f64>, y: Vec<f64>, ts: Option<f64>) -> Result<Self, DataError> {
         Self::new(
-            vec![Signal { name: "u".into(), values: u }],
-            Signal { name: "y".into(), values: y },
+            vec![Signal {
+                name: "u".into(),
+                values: u,
+            }],
+            Signal {
+                name: "y".into(),
+                values: y,
+            },
             ts,
         )
     }
@@ -203,7 +205,10 @@ impl std::str::FromStr for RowRange {
                     .map_err(|_| format!("row range '{s}': '{x}' is not a row number"))
             }
         };
-        let r = RowRange { start: parse(a)?, end: parse(b)? };
+        let r = RowRange {
+            start: parse(a)?,
+            end: parse(b)?,
+        };
         if let (Some(a), Some(b)) = (r.start, r.end)
             && a >= b
         {
@@ -333,7 +338,10 @@ fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
     };
     let mut inputs = Vec::with_capacity(sel.inputs.len());
     for name in &sel.inputs {
-        inputs.push(Signal { name: name.clone(), values: pick(table.take(name)?) });
+        inputs.push(Signal {
+            name: name.clone(),
+            values: pick(table.take(name)?),
+        });
     }
     let ts = if table.has("t") && !sel.inputs.iter().any(|n| n == "t") && sel.output != "t" {
         let t = pick(table.take("t")?);
@@ -364,7 +372,10 @@ fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
             sel.decimate
         ))
     })?;
-    ds.slice(RowRange { start: Some(a), end: Some(b) })
+    ds.slice(RowRange {
+        start: Some(a),
+        end: Some(b),
+    })
 }
 
 #[cfg(test)]
@@ -373,8 +384,20 @@ mod tests {
 
     #[test]
     fn row_range_parses_open_bounds() {
-        assert_eq!("..5".parse::<RowRange>().unwrap(), RowRange { start: None, end: Some(5) });
-        assert_eq!("5..".parse::<RowRange>().unwrap(), RowRange { start: Some(5), end: None });
+        assert_eq!(
+            "..5".parse::<RowRange>().unwrap(),
+            RowRange {
+                start: None,
+                end: Some(5)
+            }
+        );
+        assert_eq!(
+            "5..".parse::<RowRange>().unwrap(),
+            RowRange {
+                start: Some(5),
+                end: None
+            }
+        );
         assert_eq!("2..5".parse::<RowRange>().unwrap().to_string(), "2..5");
         assert!("5..2".parse::<RowRange>().is_err());
         assert!("x..2".parse::<RowRange>().is_err());

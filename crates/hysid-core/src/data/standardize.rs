@@ -16,7 +16,10 @@ pub struct AffineScale {
 
 impl AffineScale {
     /// The identity scale.
-    pub const IDENTITY: Self = Self { mean: 0.0, std: 1.0 };
+    pub const IDENTITY: Self = Self {
+        mean: 0.0,
+        std: 1.0,
+    };
 
     /// Statistics of `v`; a constant signal gets `std = 1`.
     pub fn of(v: &[f64]) -> Self {
@@ -24,7 +27,11 @@ impl AffineScale {
         let mean = v.iter().sum::<f64>() / n;
         let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
         let std = var.sqrt();
-        let std = if std > 1e-12 * mean.abs().max(1.0) { std } else { 1.0 };
+        let std = if std > 1e-12 * mean.abs().max(1.0) {
+            std
+        } else {
+            1.0
+        };
         Self { mean, std }
     }
 
@@ -52,14 +59,21 @@ impl Standardization {
     /// Statistics of `data`.
     pub fn of(data: &Dataset) -> Self {
         Self {
-            inputs: data.inputs.iter().map(|s| AffineScale::of(&s.values)).collect(),
+            inputs: data
+                .inputs
+                .iter()
+                .map(|s| AffineScale::of(&s.values))
+                .collect(),
             output: AffineScale::of(&data.output.values),
         }
     }
 
     /// No scaling, for `m` inputs.
     pub fn identity(m: usize) -> Self {
-        Self { inputs: vec![AffineScale::IDENTITY; m], output: AffineScale::IDENTITY }
+        Self {
+            inputs: vec![AffineScale::IDENTITY; m],
+            output: AffineScale::IDENTITY,
+        }
     }
 
     /// The record in scaled units.
@@ -69,7 +83,12 @@ impl Standardization {
             values: s.values.iter().map(|&x| a.apply(x)).collect(),
         };
         Dataset {
-            inputs: data.inputs.iter().zip(&self.inputs).map(|(s, a)| map(s, a)).collect(),
+            inputs: data
+                .inputs
+                .iter()
+                .zip(&self.inputs)
+                .map(|(s, a)| map(s, a))
+                .collect(),
             output: map(&data.output, &self.output),
             ts: data.ts,
         }
@@ -82,7 +101,8 @@ mod tests {
 
     #[test]
     fn scaled_record_has_zero_mean_unit_std() {
-        let d = Dataset::siso(vec![1.0, 2.0, 3.0, 4.0], vec![10.0, 10.0, 30.0, 50.0], None).unwrap();
+        let d =
+            Dataset::siso(vec![1.0, 2.0, 3.0, 4.0], vec![10.0, 10.0, 30.0, 50.0], None).unwrap();
         let s = Standardization::of(&d);
         let z = s.apply(&d);
         let st = AffineScale::of(z.y());

@@ -11,6 +11,7 @@
 
 use super::{ModelInfo, PwarxModel};
 use crate::geometry::Polyhedron;
+use crate::priors::{SaturationPrior, StopBound};
 use serde::{Deserialize, Serialize};
 
 /// Discrete or continuous time.
@@ -204,7 +205,10 @@ fn check_rows(what: &str, rows: &[Vec<f64>], n_rows: usize, n_cols: usize) -> Re
     }
     for (i, r) in rows.iter().enumerate() {
         if r.len() != n_cols || r.iter().any(|v| !v.is_finite()) {
-            return Err(format!("{what} row {}: expected {n_cols} finite entries", i + 1));
+            return Err(format!(
+                "{what} row {}: expected {n_cols} finite entries",
+                i + 1
+            ));
         }
     }
     Ok(())
@@ -244,7 +248,9 @@ impl HybridAutomaton {
             if !(q.flow.f.is_empty() || q.flow.f.len() == n) {
                 return Err(w("flow.f needs none or one entry per state"));
             }
-            q.invariant.validate(n + m).map_err(|e| w(&format!("invariant {e}")))?;
+            q.invariant
+                .validate(n + m)
+                .map_err(|e| w(&format!("invariant {e}")))?;
         }
         for t in &self.transitions {
             let w = |s: &str| format!("transition {} -> {}: {s}", t.from, t.to);
@@ -253,7 +259,10 @@ impl HybridAutomaton {
                     return Err(w(&format!("no mode named '{name}'")));
                 }
             }
-            t.guard.0.validate(n + m).map_err(|e| w(&format!("guard {e}")))?;
+            t.guard
+                .0
+                .validate(n + m)
+                .map_err(|e| w(&format!("guard {e}")))?;
             if !t.reset.r.is_empty() {
                 check_rows(&w("reset.r"), &t.reset.r, n, n)?;
             }
@@ -267,9 +276,10 @@ impl HybridAutomaton {
             return Err(format!("initial_mode: no mode named '{q}'"));
         }
         match &self.initial_state {
-            InitialState::Given { state } if state.len() != n => {
-                Err(format!("initial_state has {} entries, expected {n}", state.len()))
-            }
+            InitialState::Given { state } if state.len() != n => Err(format!(
+                "initial_state has {} entries, expected {n}",
+                state.len()
+            )),
             InitialState::ArxHistory { na, nb } if na.max(&1) + nb.saturating_sub(1) * m != n => {
                 Err("initial_state: ARX history does not match the state dimension".into())
             }
@@ -283,6 +293,8 @@ impl HybridAutomaton {
     /// `n = max(na, 1)`; input `u(k)`. Then `[x(k); u(k)]` holds the PWARX
     /// regressor of `y(k+1)`, so each region becomes an invariant and each
     /// mode's `theta` the first row of its dynamics; `y = x_1`.
+    // Index arithmetic over state blocks reads clearer than iterators here.
+    #[allow(clippy::needless_range_loop)]
     pub fn from_pwarx(p: &PwarxModel) -> Self {
         let (na, nb, m) = (p.na, p.nb, p.inputs);
         let ny = na.max(1);
@@ -369,13 +381,99 @@ impl HybridAutomaton {
             } else {
                 (1..=m).map(|i| format!("u{i}")).collect()
             },
-            output: OutputMap { c, d: vec![], e: 0.0 },
+            output: OutputMap {
+                c,
+                d: vec![],
+                e: 0.0,
+            },
             modes,
             transitions: vec![],
             initial_mode: None,
             initial_state: InitialState::ArxHistory { na, nb },
             info: p.info.clone(),
         }
+    }
+}
+
+impl HybridAutomaton {
+    /// A PWARX model with known stops, as a discrete-time automaton in
+    /// which every stop is a mode on a **lower-dimensional guard set**
+    /// (`y = level`), not a full-dimensional region.
+    ///
+    /// For a stop at level `L` with bound `max` (the output never exceeds
+    /// `L`; `min` mirrors every inequality):
+    /// - mode `sat_max_L`: invariant `{ y(k) = L }`, flow holds the output at
+    ///   `L` and shifts the lags;
+    /// - from every ordinary mode, a crossing transition on the guard
+    ///   `y = L` with the reset `y(k) := L, y(k-1) := L`: the position is held
+    ///   at the stop and the velocity `y(k) - y(k-1)` is reset to zero (the
+    ///   inelastic stop of Juloski et al., IFAC ADHS 2003, section 2);
+    /// - back to ordinary mode `q`, a condition transition on
+    ///   `region_q ∩ { theta_q . [x; 1] <= L }`: the dynamics of `q` pull away
+    ///   from the stop.
+    ///
+    /// So a simulation never passes a known stop, and saturated segments
+    /// are reproduced exactly.
+    pub fn from_pwarx_with_stops(p: &PwarxModel, stops: &[SaturationPrior]) -> Self {
+        let mut a = Self::from_pwarx(p);
+        let n = a.states.len();
+        let m = a.inputs.len();
+        let ny = p.na.max(1);
+        let ordinary: Vec<AutomatonMode> = a.modes.clone();
+        for stop in stops {
+            let (tag, sigma) = match stop.bound {
+                StopBound::Max => ("max", 1.0),
+                StopBound::Min => ("min", -1.0),
+            };
+            let name = format!("sat_{tag}_{}", stop.level);
+            // Hold: the shift structure of any ordinary mode with row 0 = L.
+            let mut flow = ordinary[0].flow.clone();
+            flow.a[0] = vec![0.0; n];
+            flow.b[0] = vec![0.0; m];
+            flow.f = vec![0.0; n];
+            flow.f[0] = stop.level;
+            let mut on_stop = vec![0.0; n + m];
+            on_stop[0] = 1.0;
+            a.modes.push(AutomatonMode {
+                name: name.clone(),
+                flow,
+                invariant: Polyhedron {
+                    a: vec![],
+                    b: vec![],
+                    a_eq: vec![on_stop.clone()],
+                    b_eq: vec![stop.level],
+                },
+            });
+            let mut hold: Vec<(usize, f64)> = vec![(0, stop.level)];
+            if ny >= 2 {
+                hold.push((1, stop.level));
+            }
+            for q in &ordinary {
+                a.transitions.push(Transition {
+                    from: q.name.clone(),
+                    to: name.clone(),
+                    guard: GuardSet(Polyhedron {
+                        a: vec![],
+                        b: vec![],
+                        a_eq: vec![on_stop.clone()],
+                        b_eq: vec![stop.level],
+                    }),
+                    reset: ResetMap::assign(n, &hold),
+                });
+                let mut release: Vec<f64> = q.flow.a[0].iter().map(|v| sigma * v).collect();
+                release.extend(q.flow.b[0].iter().map(|v| sigma * v));
+                let mut guard = q.invariant.clone();
+                guard.a.push(release);
+                guard.b.push(sigma * (stop.level - q.flow.f[0]));
+                a.transitions.push(Transition {
+                    from: name.clone(),
+                    to: q.name.clone(),
+                    guard: GuardSet(guard),
+                    reset: ResetMap::default(),
+                });
+            }
+        }
+        a
     }
 }
 

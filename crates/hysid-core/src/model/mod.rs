@@ -197,8 +197,10 @@ impl Model {
     /// Reads a `.json` or `.toml` model file.
     pub fn load(path: &Path) -> Result<Self, ModelError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ModelError::Io { path: origin.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+            path: origin.clone(),
+            source,
+        })?;
         match path.extension().and_then(|e| e.to_str()) {
             Some("toml") => Self::from_toml(&text, &origin),
             _ => Self::from_json(&text, &origin),
@@ -262,12 +264,19 @@ mod tests {
                         theta,
                         region: Polyhedron::from_inequalities(
                             a.clone(),
-                            a.iter().enumerate().map(|(i, _)| (seed % 7) as f64 + i as f64 * 0.1).collect(),
+                            a.iter()
+                                .enumerate()
+                                .map(|(i, _)| (seed % 7) as f64 + i as f64 * 0.1)
+                                .collect(),
                         ),
                         name: None,
                     })
                     .collect(),
-                info: ModelInfo { method: "arx".into(), seed: Some(3), ..Default::default() },
+                info: ModelInfo {
+                    method: "arx".into(),
+                    seed: Some(3),
+                    ..Default::default()
+                },
             })
         })
     }

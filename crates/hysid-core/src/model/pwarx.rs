@@ -90,13 +90,19 @@ impl PwarxModel {
         for (i, m) in self.modes.iter().enumerate() {
             let v = m.region.violation(x);
             if m.region.contains(x) {
-                return RegionChoice { mode: i, covered: true };
+                return RegionChoice {
+                    mode: i,
+                    covered: true,
+                };
             }
             if v < best.0 {
                 best = (v, i);
             }
         }
-        RegionChoice { mode: best.1, covered: false }
+        RegionChoice {
+            mode: best.1,
+            covered: false,
+        }
     }
 
     /// `theta_i . [x; 1]`.
@@ -163,7 +169,10 @@ impl PwarxModel {
             nb: self.nb,
             inputs: self.inputs,
             modes,
-            info: ModelInfo { scaling: Some(scale.clone()), ..self.info.clone() },
+            info: ModelInfo {
+                scaling: Some(scale.clone()),
+                ..self.info.clone()
+            },
         }
     }
 }
@@ -197,19 +206,49 @@ mod tests {
     #[test]
     fn mode_policy_first_region_then_least_violation() {
         let m = two_mode();
-        assert_eq!(m.mode_of(&[-1.0, 0.0]), RegionChoice { mode: 0, covered: true });
-        assert_eq!(m.mode_of(&[2.0, 0.0]), RegionChoice { mode: 1, covered: true });
+        assert_eq!(
+            m.mode_of(&[-1.0, 0.0]),
+            RegionChoice {
+                mode: 0,
+                covered: true
+            }
+        );
+        assert_eq!(
+            m.mode_of(&[2.0, 0.0]),
+            RegionChoice {
+                mode: 1,
+                covered: true
+            }
+        );
         // Hole (0, 1): nearest region wins, uncovered.
-        assert_eq!(m.mode_of(&[0.2, 0.0]), RegionChoice { mode: 0, covered: false });
-        assert_eq!(m.mode_of(&[0.9, 0.0]), RegionChoice { mode: 1, covered: false });
+        assert_eq!(
+            m.mode_of(&[0.2, 0.0]),
+            RegionChoice {
+                mode: 0,
+                covered: false
+            }
+        );
+        assert_eq!(
+            m.mode_of(&[0.9, 0.0]),
+            RegionChoice {
+                mode: 1,
+                covered: false
+            }
+        );
     }
 
     #[test]
     fn original_units_reproduce_scaled_predictions() {
         let m = two_mode();
         let sc = Standardization {
-            inputs: vec![AffineScale { mean: 3.0, std: 0.5 }],
-            output: AffineScale { mean: -2.0, std: 4.0 },
+            inputs: vec![AffineScale {
+                mean: 3.0,
+                std: 0.5,
+            }],
+            output: AffineScale {
+                mean: -2.0,
+                std: 4.0,
+            },
         };
         let o = m.to_original_units(&sc);
         for &(y1, u1) in &[(-5.0, 2.0), (10.0, 4.0), (-1.0, 3.1)] {
@@ -217,7 +256,11 @@ mod tests {
             let (ys, cs) = m.predict(&xs);
             let (yo, co) = o.predict(&[y1, u1]);
             assert_eq!(cs.mode, co.mode);
-            assert!((sc.output.invert(ys) - yo).abs() < 1e-9, "{} vs {yo}", sc.output.invert(ys));
+            assert!(
+                (sc.output.invert(ys) - yo).abs() < 1e-9,
+                "{} vs {yo}",
+                sc.output.invert(ys)
+            );
         }
     }
 }

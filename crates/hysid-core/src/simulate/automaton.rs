@@ -1,13 +1,23 @@
 //! Hybrid-automaton simulation: mode selection by invariant, affine flow,
 //! guard crossings located within the step, resets.
 //!
+//! Guard sets come in two kinds. A guard with equality rows (a
+//! lower-dimensional set such as the stop `y = 25`) is a **crossing guard**:
+//! it fires at the first point of a step's trajectory that lies in it, when
+//! the step did not start inside it. A full-dimensional guard is a
+//! **condition guard**: in discrete time it fires at the start of a step
+//! when `[x; u]` lies in it (the release of a saturation: "the motor pulls
+//! away from the stop"); in continuous time it fires when the trajectory
+//! enters it.
+//!
 //! Discrete time, one step `k -> k+1` in mode `q`:
 //! 1. if `[x; u]` left `q`'s invariant, `q` becomes the first mode whose
 //!    invariant holds it, else the one of least violation (uncovered);
-//! 2. `x+ = A_q x + B_q u + f_q`;
-//! 3. the transition of `q` whose guard the segment `[x; u] -> [x+; u]`
-//!    meets first (and that did not hold at the start) fires: `x+` is reset
-//!    and `q` becomes its target.
+//! 2. condition guards of `q` holding at `[x; u]` fire (first in file order,
+//!    chained at most [`MAX_EVENTS_PER_STEP`] times);
+//! 3. `x+ = A_q x + B_q u + f_q`;
+//! 4. the crossing guard of `q` that the segment `[x; u] -> [x+; u]` meets
+//!    first fires: `x+` is reset and `q` becomes its target.
 //!
 //! Continuous time: classical RK4 with the model's fixed internal step and
 //! the input held over each sample; a crossing is located by bisection on
@@ -31,7 +41,11 @@ struct Runner<'a> {
 impl<'a> Runner<'a> {
     fn new(m: &'a HybridAutomaton) -> Self {
         let n = m.states.len();
-        Self { m, n, z: vec![0.0; n + m.inputs.len()] }
+        Self {
+            m,
+            n,
+            z: vec![0.0; n + m.inputs.len()],
+        }
     }
 
     fn ext(&mut self, x: &[f64], u: &[f64]) -> &[f64] {
@@ -62,14 +76,25 @@ impl<'a> Runner<'a> {
         (best.1, false)
     }
 
-    /// First transition from `q` met on the segment `x0 -> x1` under `u`.
-    fn first_crossing(&mut self, q: usize, x0: &[f64], x1: &[f64], u: &[f64]) -> Option<(f64, usize)> {
+    /// First transition from `q` met on the segment `x0 -> x1` under `u`;
+    /// with `crossing_only`, only guards with equality rows count.
+    fn first_crossing(
+        &mut self,
+        q: usize,
+        x0: &[f64],
+        x1: &[f64],
+        u: &[f64],
+        crossing_only: bool,
+    ) -> Option<(f64, usize)> {
         let z0 = self.ext(x0, u).to_vec();
         let z1 = self.ext(x1, u).to_vec();
         let from = &self.m.modes[q].name;
         let mut best: Option<(f64, usize)> = None;
         for (ti, t) in self.m.transitions.iter().enumerate() {
-            if &t.from != from || t.guard.0.contains(&z0) {
+            if &t.from != from
+                || (crossing_only && !t.guard.0.is_lower_dimensional())
+                || t.guard.0.contains(&z0)
+            {
                 continue;
             }
             if let Some(s) = t.guard.0.first_hit_on_segment(&z0, &z1)
@@ -85,6 +110,32 @@ impl<'a> Runner<'a> {
         let t = &self.m.transitions[ti];
         t.reset.apply(x);
         self.m.mode_index(&t.to).expect("validated")
+    }
+
+    /// First full-dimensional guard of `q` that holds at `[x; u]`.
+    fn condition_guard(&mut self, q: usize, x: &[f64], u: &[f64]) -> Option<usize> {
+        let z = self.ext(x, u).to_vec();
+        let from = &self.m.modes[q].name;
+        self.m.transitions.iter().position(|t| {
+            &t.from == from && !t.guard.0.is_lower_dimensional() && t.guard.0.contains(&z)
+        })
+    }
+
+    /// Steps 2-4 of a discrete-time step (see the module docs).
+    fn discrete_step(&mut self, mut q: usize, x: &[f64], u: &[f64]) -> (usize, Vec<f64>) {
+        let mut x = x.to_vec();
+        for _ in 0..MAX_EVENTS_PER_STEP {
+            match self.condition_guard(q, &x, u) {
+                Some(ti) => q = self.fire(ti, &mut x),
+                None => break,
+            }
+        }
+        let mut x1 = vec![0.0; self.n];
+        self.m.modes[q].flow.eval(&x, u, &mut x1);
+        if let Some((_, ti)) = self.first_crossing(q, &x, &x1, u, true) {
+            q = self.fire(ti, &mut x1);
+        }
+        (q, x1)
     }
 }
 
@@ -106,7 +157,9 @@ fn rk4(m: &HybridAutomaton, q: usize, x: &[f64], u: &[f64], h: f64) -> Vec<f64> 
         tmp[i] = x[i] + h * k3[i];
     }
     f(&tmp, &mut k4);
-    (0..n).map(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])).collect()
+    (0..n)
+        .map(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+        .collect()
 }
 
 /// The ARX history state at sample `k` read from `y` and the inputs.
@@ -130,20 +183,30 @@ fn initial(m: &HybridAutomaton, data: &Dataset) -> Result<(usize, Vec<f64>), Sim
         InitialState::ArxHistory { na, nb } => {
             let lag = (*na).max(*nb).max(1);
             if data.len() <= lag {
-                return Err(SimError::TooShort { samples: data.len(), needed: lag });
+                return Err(SimError::TooShort {
+                    samples: data.len(),
+                    needed: lag,
+                });
             }
             Ok((lag - 1, arx_state(*na, *nb, data.y(), data, lag - 1)))
         }
         InitialState::Given { state } => {
             if data.is_empty() {
-                return Err(SimError::TooShort { samples: 0, needed: 0 });
+                return Err(SimError::TooShort {
+                    samples: 0,
+                    needed: 0,
+                });
             }
             Ok((0, state.clone()))
         }
     }
 }
 
-pub(super) fn simulate(m: &HybridAutomaton, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+pub(super) fn simulate(
+    m: &HybridAutomaton,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
     let (k0, mut x) = initial(m, data)?;
     let h = match m.time {
         TimeDomain::Discrete => None,
@@ -179,11 +242,8 @@ pub(super) fn simulate(m: &HybridAutomaton, data: &Dataset, opts: SimulationOpti
         sim.covered[k + 1] = covered;
         match h {
             None => {
-                let mut x1 = vec![0.0; run.n];
-                m.modes[qk].flow.eval(&x, &u, &mut x1);
-                if let Some((_, ti)) = run.first_crossing(qk, &x, &x1, &u) {
-                    qk = run.fire(ti, &mut x1);
-                }
+                let (q1, x1) = run.discrete_step(qk, &x, &u);
+                qk = q1;
                 x = x1;
             }
             Some((ts, step)) => {
@@ -194,14 +254,14 @@ pub(super) fn simulate(m: &HybridAutomaton, data: &Dataset, opts: SimulationOpti
                     let mut events = 0;
                     while left > 0.0 {
                         let x1 = rk4(m, qk, &x, &u, left);
-                        match run.first_crossing(qk, &x, &x1, &u) {
+                        match run.first_crossing(qk, &x, &x1, &u, false) {
                             Some(_) if events < MAX_EVENTS_PER_STEP => {
                                 // Bisection on the step length for the first crossing.
                                 let (mut lo, mut hi) = (0.0, left);
                                 for _ in 0..60 {
                                     let mid = 0.5 * (lo + hi);
                                     let xm = rk4(m, qk, &x, &u, mid);
-                                    if run.first_crossing(qk, &x, &xm, &u).is_some() {
+                                    if run.first_crossing(qk, &x, &xm, &u, false).is_some() {
                                         hi = mid;
                                     } else {
                                         lo = mid;
@@ -212,7 +272,7 @@ pub(super) fn simulate(m: &HybridAutomaton, data: &Dataset, opts: SimulationOpti
                                 }
                                 let mut xe = rk4(m, qk, &x, &u, hi);
                                 let ti = run
-                                    .first_crossing(qk, &x, &xe, &u)
+                                    .first_crossing(qk, &x, &xe, &u, false)
                                     .map(|(_, ti)| ti)
                                     .expect("crossing found by bisection");
                                 qk = run.fire(ti, &mut xe);
@@ -257,13 +317,9 @@ pub(super) fn predict(m: &HybridAutomaton, data: &Dataset) -> Result<Simulation,
     for k in k0..data.len() - 1 {
         let x = arx_state(na, nb, data.y(), data, k);
         let u = inputs_at(data, k);
-        let (mut qk, covered) = run.select(None, &x, &u);
+        let (q0, covered) = run.select(None, &x, &u);
         sim.covered[k + 1] = covered;
-        let mut x1 = vec![0.0; run.n];
-        m.modes[qk].flow.eval(&x, &u, &mut x1);
-        if let Some((_, ti)) = run.first_crossing(qk, &x, &x1, &u) {
-            qk = run.fire(ti, &mut x1);
-        }
+        let (qk, x1) = run.discrete_step(q0, &x, &u);
         sim.modes[k + 1] = Some(qk);
         sim.y[k + 1] = m.output.eval(&x1, &inputs_at(data, k + 1));
     }
@@ -276,8 +332,8 @@ mod tests {
     use crate::data::Dataset;
     use crate::geometry::Polyhedron;
     use crate::model::{
-        AffineDynamics, AutomatonMode, GuardSet, Model, ModelInfo, OutputMap, PwarxMode, PwarxModel,
-        ResetMap, Transition,
+        AffineDynamics, AutomatonMode, GuardSet, Model, ModelInfo, OutputMap, PwarxMode,
+        PwarxModel, ResetMap, Transition,
     };
     use crate::simulate::{SimulationOptions, simulate as sim_any};
     use proptest::prelude::*;
@@ -290,7 +346,11 @@ mod tests {
             internal_step: Some(1e-3),
             states: vec!["y".into(), "v".into()],
             inputs: vec!["u".into()],
-            output: OutputMap { c: vec![1.0, 0.0], d: vec![], e: 0.0 },
+            output: OutputMap {
+                c: vec![1.0, 0.0],
+                d: vec![],
+                e: 0.0,
+            },
             modes: vec![AutomatonMode {
                 name: "fly".into(),
                 flow: AffineDynamics {
@@ -309,10 +369,15 @@ mod tests {
                     a_eq: vec![vec![1.0, 0.0, 0.0]],
                     b_eq: vec![0.0],
                 }),
-                reset: ResetMap { r: vec![vec![1.0, 0.0], vec![0.0, -0.75]], c: vec![] },
+                reset: ResetMap {
+                    r: vec![vec![1.0, 0.0], vec![0.0, -0.75]],
+                    c: vec![],
+                },
             }],
             initial_mode: None,
-            initial_state: InitialState::Given { state: vec![2.0, 0.0] },
+            initial_state: InitialState::Given {
+                state: vec![2.0, 0.0],
+            },
             info: ModelInfo::default(),
         }
     }
@@ -323,8 +388,17 @@ mod tests {
         m.validate().unwrap();
         let n = 301;
         let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.01)).unwrap();
-        let s = sim_any(&Model::HybridAutomaton(m), &data, SimulationOptions::default()).unwrap();
-        assert!(s.y.iter().all(|&y| y >= -1e-9), "min {}", s.y.iter().cloned().fold(f64::INFINITY, f64::min));
+        let s = sim_any(
+            &Model::HybridAutomaton(m),
+            &data,
+            SimulationOptions::default(),
+        )
+        .unwrap();
+        assert!(
+            s.y.iter().all(|&y| y >= -1e-9),
+            "min {}",
+            s.y.iter().cloned().fold(f64::INFINITY, f64::min)
+        );
         // First impact at t = sqrt(2*2/9.81) = 0.6386 s; apex after it is 2 * 0.75^2 = 1.125.
         let apex = s.y[70..140].iter().cloned().fold(0.0, f64::max);
         assert!((apex - 1.125).abs() < 0.01, "apex {apex}");
@@ -334,7 +408,13 @@ mod tests {
     /// Random PWARX models whose regions are slabs `t_i <= w x <= t_(i+1)`
     /// along one direction: a partition, so the mode is unambiguous.
     fn arb_pwarx() -> impl Strategy<Value = PwarxModel> {
-        (1usize..3, 1usize..3, 1usize..4, proptest::collection::vec(-0.4f64..0.4, 40), proptest::collection::vec(-1.0f64..1.0, 8))
+        (
+            1usize..3,
+            1usize..3,
+            1usize..4,
+            proptest::collection::vec(-0.4f64..0.4, 40),
+            proptest::collection::vec(-1.0f64..1.0, 8),
+        )
             .prop_map(|(na, nb, s, th, w)| {
                 let d = na + nb;
                 let w: Vec<f64> = w[..d].to_vec();
@@ -357,7 +437,13 @@ mod tests {
                         }
                     })
                     .collect();
-                PwarxModel { na, nb, inputs: 1, modes, info: ModelInfo::default() }
+                PwarxModel {
+                    na,
+                    nb,
+                    inputs: 1,
+                    modes,
+                    info: ModelInfo::default(),
+                }
             })
     }
 
@@ -377,5 +463,96 @@ mod tests {
                 prop_assert!((sp.y[k] - sa.y[k]).abs() < 1e-9 * (1.0 + sp.y[k].abs()), "k={} {} {}", k, sp.y[k], sa.y[k]);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod stop_tests {
+    use crate::data::Dataset;
+    use crate::geometry::Polyhedron;
+    use crate::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
+    use crate::priors::{SaturationPrior, StopBound};
+    use crate::simulate::{SimulationOptions, simulate};
+    use proptest::prelude::*;
+
+    /// A damped second-order system y(k) = a1 y(k-1) + a2 y(k-2) + b u(k-1) + c,
+    /// two modes split at y(k-1) = 0.
+    fn head(a1: f64, a2: f64, b: f64) -> PwarxModel {
+        let mode = |theta: Vec<f64>, a: Vec<f64>| PwarxMode {
+            theta,
+            region: Polyhedron::from_inequalities(vec![a], vec![0.0]),
+            name: None,
+        };
+        PwarxModel {
+            na: 2,
+            nb: 1,
+            inputs: 1,
+            modes: vec![
+                mode(vec![a1, a2, b, 0.1], vec![1.0, 0.0, 0.0]),
+                mode(vec![a1 * 0.9, a2, b * 1.2, -0.1], vec![-1.0, 0.0, 0.0]),
+            ],
+            info: ModelInfo::default(),
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Simulation never passes a known stop, and every sample in a
+        /// saturation mode sits exactly on its level.
+        #[test]
+        fn simulation_never_passes_a_stop(
+            a1 in 1.2f64..1.9, b in 0.5f64..3.0, hi in 0.5f64..3.0, lo in -3.0f64..-0.5,
+            u in proptest::collection::vec(-2.0f64..2.0, 20..120),
+        ) {
+            let a2 = -0.95 * a1 * a1 / 4.0; // real, stable poles
+            let stops = [
+                SaturationPrior { level: hi, bound: StopBound::Max },
+                SaturationPrior { level: lo, bound: StopBound::Min },
+            ];
+            let a = HybridAutomaton::from_pwarx_with_stops(&head(a1, a2, b), &stops);
+            a.validate().unwrap();
+            let n = u.len();
+            let data = Dataset::siso(u, vec![0.0; n], None).unwrap();
+            let names: Vec<String> = a.modes.iter().map(|m| m.name.clone()).collect();
+            let s = simulate(&Model::HybridAutomaton(a), &data, SimulationOptions::default()).unwrap();
+            for k in s.start..n {
+                prop_assert!(s.y[k] <= hi + 1e-12 && s.y[k] >= lo - 1e-12, "k={} y={}", k, s.y[k]);
+                let q = &names[s.modes[k].unwrap()];
+                if q.starts_with("sat_max") { prop_assert_eq!(s.y[k], hi); }
+                if q.starts_with("sat_min") { prop_assert_eq!(s.y[k], lo); }
+            }
+        }
+    }
+
+    #[test]
+    fn the_stop_is_reached_held_and_released() {
+        let a = HybridAutomaton::from_pwarx_with_stops(
+            &head(1.5, -0.56, 1.0),
+            &[SaturationPrior {
+                level: 1.0,
+                bound: StopBound::Max,
+            }],
+        );
+        // Push hard for 40 samples, then pull back.
+        let u: Vec<f64> = (0..80).map(|k| if k < 40 { 2.0 } else { -2.0 }).collect();
+        let data = Dataset::siso(u, vec![0.0; 80], None).unwrap();
+        let s = simulate(
+            &Model::HybridAutomaton(a.clone()),
+            &data,
+            SimulationOptions::default(),
+        )
+        .unwrap();
+        let sat = a.mode_index("sat_max_1").unwrap();
+        let first = s
+            .modes
+            .iter()
+            .position(|q| *q == Some(sat))
+            .expect("the stop is reached");
+        assert!(first < 40);
+        assert!(
+            s.modes[first..40].iter().all(|q| *q == Some(sat)),
+            "held while pushed"
+        );
+        assert!(s.y[60..].iter().all(|&y| y < 1.0), "released when pulled");
     }
 }

@@ -35,9 +35,19 @@ impl SimulationOptions {
     /// A bound of 1000 times the measured output's scale (max |y| plus its range).
     pub fn for_data(data: &Dataset) -> Self {
         let y = data.y();
-        let (lo, hi) = y.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-        let scale = if y.is_empty() { 1.0 } else { hi.abs().max(lo.abs()) + (hi - lo) };
-        Self { bound: 1e3 * scale.max(1.0) }
+        let (lo, hi) = y
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        let scale = if y.is_empty() {
+            1.0
+        } else {
+            hi.abs().max(lo.abs()) + (hi - lo)
+        };
+        Self {
+            bound: 1e3 * scale.max(1.0),
+        }
     }
 }
 
@@ -66,7 +76,11 @@ impl Simulation {
             self.y[k] = v;
             true
         } else {
-            let held = if v.is_nan() { 0.0 } else { v.clamp(-bound, bound) };
+            let held = if v.is_nan() {
+                0.0
+            } else {
+                v.clamp(-bound, bound)
+            };
             self.diverged_at.get_or_insert(k);
             for yk in &mut self.y[k..] {
                 *yk = held;
@@ -102,14 +116,21 @@ pub enum SimError {
 
 fn check_inputs(model: &Model, data: &Dataset) -> Result<(), SimError> {
     if model.inputs() != data.inputs.len() {
-        return Err(SimError::Inputs { expected: model.inputs(), found: data.inputs.len() });
+        return Err(SimError::Inputs {
+            expected: model.inputs(),
+            found: data.inputs.len(),
+        });
     }
     Ok(())
 }
 
 /// Free-run simulation driven by the inputs of `data`; measured outputs are
 /// used only for the initial condition.
-pub fn simulate(model: &Model, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+pub fn simulate(
+    model: &Model,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
     check_inputs(model, data)?;
     match model {
         Model::Pwarx(m) => pwarx::simulate(m, data, opts),
@@ -121,7 +142,11 @@ pub fn simulate(model: &Model, data: &Dataset, opts: SimulationOptions) -> Resul
 /// One-step-ahead prediction: every step starts from the measured state.
 /// For automata whose state cannot be read from data (a fixed initial
 /// state), this is the free-run simulation.
-pub fn predict(model: &Model, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+pub fn predict(
+    model: &Model,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
     check_inputs(model, data)?;
     match model {
         Model::Pwarx(m) => pwarx::predict(m, data),

@@ -7,7 +7,10 @@ use crate::model::PwarxModel;
 fn empty(m: &PwarxModel, data: &Dataset) -> Result<Simulation, SimError> {
     let lag = m.spec().lag();
     if data.len() <= lag {
-        return Err(SimError::TooShort { samples: data.len(), needed: lag });
+        return Err(SimError::TooShort {
+            samples: data.len(),
+            needed: lag,
+        });
     }
     Ok(Simulation {
         y: data.y().to_vec(),
@@ -18,7 +21,11 @@ fn empty(m: &PwarxModel, data: &Dataset) -> Result<Simulation, SimError> {
     })
 }
 
-pub(super) fn simulate(m: &PwarxModel, data: &Dataset, opts: SimulationOptions) -> Result<Simulation, SimError> {
+pub(super) fn simulate(
+    m: &PwarxModel,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
     let mut sim = empty(m, data)?;
     let spec = m.spec();
     let u: Vec<&[f64]> = (0..m.inputs).map(|i| data.u(i)).collect();

@@ -1,7 +1,7 @@
 //! The pick-and-place protocol with the `physical` back-end: decimate by 10,
 //! identify on rows 0..5000, validate on rows 5000..6001 with warm-up 10.
 //!
-//! `cargo run --release -p hysid-physical --example pick_and_place [-- OUT_DIR [KEY=VALUE..]]`
+//! `cargo run --release -p hysid-physical --example physical_pick_and_place [-- OUT_DIR [KEY=VALUE..]]`
 //! (environment: `PHYS_SEED=N`, `PHYS_FIX_STOP=1` to fix the lower stop at 25 mm)
 //!
 //! Prints the fitted parameters, the fit time, `fit_sim` on both records and
@@ -117,7 +117,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("per-mode ARX(2,2) form, theta = [a1, a2, b1, b2, c]:");
     for q in &pw.modes {
         let t: Vec<String> = q.theta.iter().map(|v| format!("{v:.6}")).collect();
-        println!("  {:14} [{}]", q.name.clone().unwrap_or_default(), t.join(", "));
+        println!(
+            "  {:14} [{}]",
+            q.name.clone().unwrap_or_default(),
+            t.join(", ")
+        );
     }
     // Throughput: simulate the identification record repeatedly.
     let values = m.values();

@@ -1,0 +1,265 @@
+//! Per-mode parameter estimation on a set of samples: the Chebyshev
+//! (l-infinity, minimax) fit as a linear programme on clarabel, which
+//! certifies `|y_k - phi_k' theta| <= t` with the smallest `t`, and the
+//! least-squares fit (`refit = ls`).
+//!
+//! The Chebyshev LP (`shared/docs/rust-notes.md` 1.4, "Bounded-error LPs"):
+//! variables `[theta (p); t; w (p-1)]`, minimise `t + eps * sum_j s_j w_j`
+//! subject to `phi_k' theta - t <= y_k`, `-phi_k' theta - t <= -y_k` and
+//! `|theta_j| <= w_j` for the slopes. The tiny l1 term (`eps = 1e-6`, slopes
+//! weighted by the RMS `s_j` of their regressor so that it is in output
+//! units) only breaks ties between minimax solutions: on a constant-output
+//! segment `y = y_sat` every `theta` with `phi' theta = y_sat` is exact, and
+//! the tie-break selects `[0 .. 0 y_sat]` (ours, not in the paper).
+
+use crate::samples::Samples;
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
+};
+use hysid_core::linalg;
+use nalgebra::{DMatrix, DVector};
+
+/// Weight of the slope l1 tie-break, relative to the minimax error.
+pub const TIE_BREAK: f64 = 1e-6;
+
+/// A Chebyshev fit: parameters and the largest absolute residual on the
+/// fitted samples (computed from `theta`, not read from the solver).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChebyshevFit {
+    /// Parameters.
+    pub theta: Vec<f64>,
+    /// `max_k |y_k - phi_k' theta|` over the fitted samples.
+    pub max_residual: f64,
+}
+
+/// Largest absolute residual of `theta` on `idx`.
+pub fn max_residual(s: &Samples, idx: &[usize], theta: &[f64]) -> f64 {
+    idx.iter()
+        .map(|&k| s.residual(k, theta).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Initial working set of [`chebyshev`], in multiples of `p`.
+pub const WORKING_FACTOR: usize = 10;
+/// Bound on the working-set rounds of [`chebyshev`].
+pub const WORKING_ROUNDS: usize = 50;
+
+/// Chebyshev (minimax) fit on samples `idx`, by constraint generation: the
+/// LP is solved on a working set (the `WORKING_FACTOR * p` samples of
+/// largest least-squares residual), then the samples whose residual exceeds
+/// the working set's minimax error are added (the worst ones first, at most
+/// that many per round) until none does; the working-set optimum is then
+/// optimal for all of `idx` (same objective, feasible everywhere). `None`
+/// when the solver does not report `Solved`/`AlmostSolved` (callers then
+/// keep their previous, already certified, parameters).
+pub fn chebyshev(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
+    let n = idx.len();
+    let m = (WORKING_FACTOR * s.p).max(1);
+    if n <= 2 * m {
+        return chebyshev_lp(s, idx);
+    }
+    let start = least_squares(s, idx).unwrap_or_else(|| vec![0.0; s.p]);
+    let mut by_r: Vec<(f64, usize)> = idx
+        .iter()
+        .map(|&k| (s.residual(k, &start).abs(), k))
+        .collect();
+    by_r.select_nth_unstable_by(m - 1, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut work: Vec<usize> = by_r[..m].iter().map(|&(_, k)| k).collect();
+    let mut inside = vec![false; s.len()];
+    for &k in &work {
+        inside[k] = true;
+    }
+    for _ in 0..WORKING_ROUNDS {
+        let fit = chebyshev_lp(s, &work)?;
+        let t = fit.max_residual;
+        let tol = 1e-9 * (1.0 + t);
+        let mut viol: Vec<(f64, usize)> = idx
+            .iter()
+            .filter(|&&k| !inside[k])
+            .filter_map(|&k| {
+                let r = s.residual(k, &fit.theta).abs();
+                (r > t + tol).then_some((r, k))
+            })
+            .collect();
+        if viol.is_empty() {
+            let max_residual = max_residual(s, idx, &fit.theta);
+            return Some(ChebyshevFit {
+                theta: fit.theta,
+                max_residual,
+            });
+        }
+        if viol.len() > m {
+            viol.select_nth_unstable_by(m - 1, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            viol.truncate(m);
+        }
+        for &(_, k) in &viol {
+            inside[k] = true;
+            work.push(k);
+        }
+    }
+    chebyshev_lp(s, idx)
+}
+
+/// The Chebyshev LP on all of `idx` at once.
+fn chebyshev_lp(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
+    let p = s.p;
+    let n = idx.len();
+    if n == 0 {
+        return None;
+    }
+    let nslope = p - 1;
+    let nvar = p + 1 + nslope;
+    let t_col = p;
+    // Scales of the slopes for the tie-break.
+    let mut scale = vec![0.0; nslope];
+    for &k in idx {
+        for (j, sj) in scale.iter_mut().enumerate() {
+            *sj += s.row(k)[j].powi(2);
+        }
+    }
+    for sj in &mut scale {
+        *sj = (*sj / n as f64).sqrt().max(1e-12);
+    }
+    let rows = 2 * n + 2 * nslope;
+    let nnz = 2 * n * (p + 1) + 4 * nslope;
+    let (mut ii, mut jj, mut vv) = (
+        Vec::with_capacity(nnz),
+        Vec::with_capacity(nnz),
+        Vec::with_capacity(nnz),
+    );
+    let mut b = Vec::with_capacity(rows);
+    for (r, &k) in idx.iter().enumerate() {
+        let phi = s.row(k);
+        for (j, &v) in phi.iter().enumerate() {
+            if v != 0.0 {
+                ii.push(2 * r);
+                jj.push(j);
+                vv.push(v);
+                ii.push(2 * r + 1);
+                jj.push(j);
+                vv.push(-v);
+            }
+        }
+        ii.push(2 * r);
+        jj.push(t_col);
+        vv.push(-1.0);
+        ii.push(2 * r + 1);
+        jj.push(t_col);
+        vv.push(-1.0);
+        b.push(s.y[k]);
+        b.push(-s.y[k]);
+    }
+    for j in 0..nslope {
+        let r = 2 * n + 2 * j;
+        let w = p + 1 + j;
+        ii.extend([r, r, r + 1, r + 1]);
+        jj.extend([j, w, j, w]);
+        vv.extend([1.0, -1.0, -1.0, -1.0]);
+        b.extend([0.0, 0.0]);
+    }
+    let a = CscMatrix::new_from_triplets(rows, nvar, ii, jj, vv);
+    let pm = CscMatrix::<f64>::zeros((nvar, nvar));
+    let mut q = vec![0.0; nvar];
+    q[t_col] = 1.0;
+    for j in 0..nslope {
+        q[p + 1 + j] = TIE_BREAK * scale[j];
+    }
+    let cones = [NonnegativeConeT(rows)];
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .max_iter(200)
+        .build()
+        .ok()?;
+    let mut solver = DefaultSolver::new(&pm, &q, &a, &b, &cones, settings).ok()?;
+    solver.solve();
+    match solver.solution.status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+        _ => return None,
+    }
+    let theta: Vec<f64> = solver.solution.x[..p].to_vec();
+    if theta.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let max_residual = max_residual(s, idx, &theta);
+    Some(ChebyshevFit {
+        theta,
+        max_residual,
+    })
+}
+
+/// Least-squares fit on samples `idx` (minimum-norm when rank deficient).
+pub fn least_squares(s: &Samples, idx: &[usize]) -> Option<Vec<f64>> {
+    if idx.is_empty() {
+        return None;
+    }
+    let p = s.p;
+    let phi = DMatrix::from_fn(idx.len(), p, |r, j| s.row(idx[r])[j]);
+    let y = DVector::from_iterator(idx.len(), idx.iter().map(|&k| s.y[k]));
+    let sol = linalg::lstsq(&phi, &y).ok()?;
+    let theta: Vec<f64> = sol.theta.iter().copied().collect();
+    theta.iter().all(|v| v.is_finite()).then_some(theta)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn samples(rows: &[[f64; 2]], y: &[f64]) -> Samples {
+        let mut phi = Vec::new();
+        for r in rows {
+            phi.extend([r[0], r[1], 1.0]);
+        }
+        Samples::new(3, phi, y.to_vec())
+    }
+
+    #[test]
+    fn working_set_matches_the_full_lp() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let n = 500;
+        let mut phi = Vec::new();
+        let mut y = Vec::new();
+        for _ in 0..n {
+            let (a, b): (f64, f64) = (rng.random_range(-2.0..2.0), rng.random_range(-1.0..1.0));
+            phi.extend([a, b, 1.0]);
+            y.push(0.7 * a - 0.2 * b + 0.3 + rng.random_range(-0.1..0.1));
+        }
+        let s = Samples::new(3, phi, y);
+        let idx: Vec<usize> = (0..n).collect();
+        let ws = chebyshev(&s, &idx).unwrap();
+        let full = chebyshev_lp(&s, &idx).unwrap();
+        assert!(
+            (ws.max_residual - full.max_residual).abs() < 1e-7,
+            "{ws:?} {full:?}"
+        );
+    }
+
+    #[test]
+    fn chebyshev_is_minimax() {
+        // y = x exactly except one point off by 0.3: minimax error 0.15.
+        let s = samples(
+            &[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]],
+            &[0.0, 1.0, 2.3, 3.0],
+        );
+        let f = chebyshev(&s, &[0, 1, 2, 3]).unwrap();
+        assert!(
+            f.max_residual < 0.15 + 1e-6 && f.max_residual > 0.15 - 1e-6,
+            "{f:?}"
+        );
+    }
+
+    #[test]
+    fn constant_segment_gets_zero_slopes() {
+        // y = 2 on points where y(k-1) = 2 too: theta = [0, 0, 2] and [1, 0, 0] are both exact.
+        let s = samples(
+            &[[2.0, 0.5], [2.0, -1.0], [2.0, 0.3], [2.0, 0.9]],
+            &[2.0; 4],
+        );
+        let f = chebyshev(&s, &[0, 1, 2, 3]).unwrap();
+        assert!(
+            (f.theta[0]).abs() < 1e-6 && f.theta[1].abs() < 1e-6 && (f.theta[2] - 2.0).abs() < 1e-5,
+            "{f:?}"
+        );
+    }
+}

@@ -1,0 +1,50 @@
+//! `hysid compare`: several back-ends side by side on one experiment.
+
+use crate::Result;
+use crate::error::CliError;
+use crate::progress::TerminalProgress;
+use hysid_compare::Experiment;
+use std::path::PathBuf;
+
+/// Arguments of `hysid compare`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Experiment file (TOML), see docs/compare.md.
+    pub experiment: PathBuf,
+    /// Output folder for report.md, report.json and models/ (default: out/<experiment name>).
+    #[arg(short = 'o', long = "out")]
+    pub out: Option<PathBuf>,
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> Result<()> {
+    let exp = Experiment::load(&args.experiment).map_err(|e| CliError::input(e.to_string()))?;
+    let dir = args.out.unwrap_or_else(|| {
+        let stem = args
+            .experiment
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        PathBuf::from("out").join(stem)
+    });
+    let progress = TerminalProgress::new();
+    let mut comparison = exp
+        .run(&progress)
+        .map_err(|e| CliError::input(e.to_string()))?;
+    hysid_compare::write_report(&mut comparison, &dir)
+        .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
+    print!("{}", hysid_compare::report::markdown(&comparison));
+    eprintln!(
+        "hysid: report written to {}",
+        dir.join("report.md").display()
+    );
+    let failed = comparison
+        .results
+        .iter()
+        .filter(|r| r.error.is_some())
+        .count();
+    if failed == comparison.results.len() {
+        return Err(CliError::failure("every run failed; see the report"));
+    }
+    Ok(())
+}

@@ -1,0 +1,64 @@
+//! `hysid methods`: the registered back-ends, one per line, with their options.
+
+use crate::Result;
+
+/// Arguments of `hysid methods`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Print the list as JSON (name, summary, options, priors honoured).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> Result<()> {
+    let registry = hysid_backends::registry();
+    if args.json {
+        let list: Vec<serde_json::Value> = registry
+            .iter()
+            .map(|b| {
+                serde_json::json!({
+                    "name": b.name(),
+                    "summary": b.summary(),
+                    "options": b.options(),
+                    "priors": b.honours(),
+                })
+            })
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&list).expect("json"));
+        return Ok(());
+    }
+    for b in registry.iter() {
+        let opts: Vec<String> = b
+            .options()
+            .iter()
+            .map(|o| format!("{}={}", o.key, o.default))
+            .collect();
+        println!(
+            "{:<10} {}  [options: {}]",
+            b.name(),
+            b.summary(),
+            if opts.is_empty() {
+                "none".into()
+            } else {
+                opts.join(" ")
+            }
+        );
+        for o in b.options() {
+            println!(
+                "    {:<14} {:<18} default {:<10} {}",
+                o.key, o.ty, o.default, o.doc
+            );
+        }
+        let priors: Vec<String> = b.honours().iter().map(ToString::to_string).collect();
+        println!(
+            "    priors honoured: {}",
+            if priors.is_empty() {
+                "none".into()
+            } else {
+                priors.join(", ")
+            }
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,64 @@
+//! `hysid validate`: scores of a model on a record.
+
+use crate::Result;
+use crate::selection::DataArgs;
+use hysid_core::metrics::validate;
+use hysid_core::model::Model;
+use std::path::PathBuf;
+
+/// Arguments of `hysid validate`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Model file (.json, or .toml for hand-written models).
+    pub model: PathBuf,
+    /// Data file (.csv or .mat).
+    pub data: PathBuf,
+    /// Samples at the start that are not scored.
+    #[arg(long, default_value_t = 10)]
+    pub warmup: usize,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub select: DataArgs,
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> Result<()> {
+    let model = Model::load(&args.model)?;
+    let data = hysid_core::data::load(&args.data, &args.select.selection())?;
+    let (report, _, _) = validate(&model, &data, args.warmup)?;
+    if let Some(k) = report.diverged_at {
+        eprintln!(
+            "hysid: warning: the simulation diverged at sample {k}; the output is held from there on"
+        );
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&report).expect("json"));
+    } else {
+        println!(
+            "model     {} ({} mode(s), {})",
+            args.model.display(),
+            model.mode_count(),
+            model.kind()
+        );
+        println!("scored    {} samples (warm-up {})", report.n, report.warmup);
+        println!(
+            "fit_sim   {:8.3} %   rmse_sim  {:.6}",
+            report.fit_sim, report.rmse_sim
+        );
+        println!(
+            "fit_pred  {:8.3} %   rmse_pred {:.6}",
+            report.fit_pred, report.rmse_pred
+        );
+        println!(
+            "coverage  {:8.4}     coverage_sim {:.4}",
+            report.coverage, report.coverage_sim
+        );
+        println!(
+            "modes     {:?} samples per mode in simulation",
+            report.mode_counts
+        );
+    }
+    Ok(())
+}

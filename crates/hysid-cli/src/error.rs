@@ -1,0 +1,87 @@
+//! One error type for the program: a one-line message and an exit code
+//! (2 for bad input or usage, 1 for a failure of the method itself).
+
+use hysid_core::backend::IdentifyError;
+use hysid_core::data::DataError;
+use hysid_core::model::ModelError;
+use hysid_core::priors::PriorError;
+use hysid_core::simulate::SimError;
+
+/// A failed command.
+#[derive(Debug)]
+pub struct CliError {
+    message: String,
+    bad_input: bool,
+}
+
+impl CliError {
+    /// Bad input or usage (exit code 2).
+    pub fn input(message: impl Into<String>) -> Self {
+        Self {
+            message: message.into(),
+            bad_input: true,
+        }
+    }
+
+    /// A failure of the computation itself (exit code 1).
+    pub fn failure(message: impl Into<String>) -> Self {
+        Self {
+            message: message.into(),
+            bad_input: false,
+        }
+    }
+
+    /// The message on one line.
+    pub fn one_line(&self) -> String {
+        self.message
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    /// Process exit code.
+    pub fn exit_code(&self) -> i32 {
+        if self.bad_input { 2 } else { 1 }
+    }
+}
+
+impl From<DataError> for CliError {
+    fn from(e: DataError) -> Self {
+        Self::input(e.to_string())
+    }
+}
+
+impl From<ModelError> for CliError {
+    fn from(e: ModelError) -> Self {
+        match e {
+            ModelError::Io { .. } if e.to_string().contains("No such file") => {
+                Self::input(e.to_string())
+            }
+            ModelError::Format { .. } | ModelError::Invalid(_) | ModelError::Io { .. } => {
+                Self::input(e.to_string())
+            }
+        }
+    }
+}
+
+impl From<PriorError> for CliError {
+    fn from(e: PriorError) -> Self {
+        Self::input(e.to_string())
+    }
+}
+
+impl From<SimError> for CliError {
+    fn from(e: SimError) -> Self {
+        Self::input(e.to_string())
+    }
+}
+
+impl From<IdentifyError> for CliError {
+    fn from(e: IdentifyError) -> Self {
+        let bad = e.is_bad_input();
+        Self {
+            message: e.to_string(),
+            bad_input: bad,
+        }
+    }
+}

@@ -1,0 +1,48 @@
+//! Data selection flags shared by the commands (`shared/spec/interface.md`,
+//! "Data files").
+
+use hysid_core::data::{DataSelection, RowRange};
+
+/// Which signals and samples of a data file to use.
+#[derive(clap::Args, Debug, Clone)]
+pub struct DataArgs {
+    /// Input column/variable name(s), comma separated (MISO: several).
+    #[arg(long, value_delimiter = ',', default_value = "u")]
+    pub input: Vec<String>,
+    /// Output column/variable name.
+    #[arg(long, default_value = "y")]
+    pub output: String,
+    /// Keep every K-th sample (0, K, 2K, ...; no filter).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    pub decimate: u64,
+    /// Rows A..B (A inclusive, B exclusive) after decimation; either bound may be left out.
+    #[arg(long, value_parser = parse_rows)]
+    pub rows: Option<RowRange>,
+    /// Sampling time in seconds when the file has no `t` signal.
+    #[arg(long, value_parser = parse_ts)]
+    pub ts: Option<f64>,
+}
+
+fn parse_rows(s: &str) -> Result<RowRange, String> {
+    s.parse()
+}
+
+fn parse_ts(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a positive number of seconds")),
+    }
+}
+
+impl DataArgs {
+    /// The selection for `hysid_core::data::load`.
+    pub fn selection(&self) -> DataSelection {
+        DataSelection {
+            inputs: self.input.clone(),
+            output: self.output.clone(),
+            decimate: self.decimate as usize,
+            rows: self.rows.unwrap_or_default(),
+            ts: self.ts,
+        }
+    }
+}

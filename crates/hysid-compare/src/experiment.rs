@@ -1,0 +1,276 @@
+//! The experiment file: data, protocol, shared priors, runs and sweeps
+//! (`docs/compare.md`).
+
+use hysid_core::data::{DataSelection, RowRange};
+use hysid_core::priors::Priors;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Where the data come from and how they are split.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataSpec {
+    /// Data file, relative to the experiment file.
+    pub file: PathBuf,
+    /// Input names (default `["u"]`).
+    #[serde(default = "default_inputs")]
+    pub input: Vec<String>,
+    /// Output name (default `"y"`).
+    #[serde(default = "default_output")]
+    pub output: String,
+    /// Keep every K-th sample (default 1).
+    #[serde(default = "one")]
+    pub decimate: usize,
+    /// Sampling time when the file has no `t` signal.
+    #[serde(default)]
+    pub ts: Option<f64>,
+    /// Rows used for identification (after decimation).
+    pub identification: RowRange,
+    /// Rows used for validation (after decimation).
+    pub validation: RowRange,
+    /// Validation samples not scored (default 10).
+    #[serde(default = "ten")]
+    pub warmup: usize,
+}
+
+fn default_inputs() -> Vec<String> {
+    vec!["u".into()]
+}
+fn default_output() -> String {
+    "y".into()
+}
+fn one() -> usize {
+    1
+}
+fn ten() -> usize {
+    10
+}
+fn yes() -> bool {
+    true
+}
+
+impl DataSpec {
+    /// Selection of the identification or validation part.
+    pub fn selection(&self, rows: RowRange) -> DataSelection {
+        DataSelection {
+            inputs: self.input.clone(),
+            output: self.output.clone(),
+            decimate: self.decimate,
+            rows,
+            ts: self.ts,
+        }
+    }
+}
+
+/// One identification run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunSpec {
+    /// Label in the report (unique).
+    pub name: String,
+    /// Back-end name.
+    pub method: String,
+    /// Output lags (default: the experiment's).
+    #[serde(default)]
+    pub na: Option<usize>,
+    /// Input lags (default: the experiment's).
+    #[serde(default)]
+    pub nb: Option<usize>,
+    /// Number of modes (sets the prior `modes`).
+    #[serde(default)]
+    pub modes: Option<usize>,
+    /// Whether the experiment's shared priors apply (default true).
+    #[serde(default = "yes")]
+    pub use_priors: bool,
+    /// Extra priors of this run, merged over the shared ones.
+    #[serde(default)]
+    pub priors: Option<Priors>,
+    /// Back-end options (`--set`).
+    #[serde(default)]
+    pub set: BTreeMap<String, toml::Value>,
+    /// Seed (default: the experiment's).
+    #[serde(default)]
+    pub seed: Option<u64>,
+}
+
+/// A sweep: one run repeated over values of one parameter.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepSpec {
+    /// The run being varied (its `name` labels the sweep).
+    #[serde(flatten)]
+    pub run: RunSpec,
+    /// What varies: a back-end option key, or `modes`, `na`, `nb`.
+    pub vary: String,
+    /// The values.
+    pub values: Vec<toml::Value>,
+}
+
+/// An experiment file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Experiment {
+    /// Title of the report.
+    pub title: String,
+    /// Free text under the title.
+    #[serde(default)]
+    pub description: String,
+    /// Data and split.
+    pub data: DataSpec,
+    /// Default output lags (default 2).
+    #[serde(default = "two")]
+    pub na: usize,
+    /// Default input lags (default 2).
+    #[serde(default = "two")]
+    pub nb: usize,
+    /// Default seed (default 0).
+    #[serde(default)]
+    pub seed: u64,
+    /// Priors shared by every run.
+    #[serde(default)]
+    pub priors: Priors,
+    /// Runs.
+    #[serde(default, rename = "run")]
+    pub runs: Vec<RunSpec>,
+    /// Sweeps.
+    #[serde(default, rename = "sweep")]
+    pub sweeps: Vec<SweepSpec>,
+}
+
+fn two() -> usize {
+    2
+}
+
+/// Errors in an experiment file.
+#[derive(Debug, thiserror::Error)]
+pub enum ExperimentError {
+    /// Unreadable file.
+    #[error("{path}: {source}")]
+    Io {
+        /// File.
+        path: String,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// Malformed or inconsistent.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// File.
+        path: String,
+        /// What is wrong, naming the entry.
+        message: String,
+    },
+}
+
+impl Experiment {
+    /// Parses experiment text; `origin` names it in errors.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, ExperimentError> {
+        let e: Experiment = toml::from_str(text).map_err(|e| ExperimentError::Invalid {
+            path: origin.into(),
+            message: e.to_string().trim().replace('\n', " "),
+        })?;
+        e.check().map_err(|message| ExperimentError::Invalid {
+            path: origin.into(),
+            message,
+        })?;
+        Ok(e)
+    }
+
+    /// Reads an experiment file; the data path is resolved against its folder.
+    pub fn load(path: &Path) -> Result<Self, ExperimentError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ExperimentError::Io {
+            path: origin.clone(),
+            source,
+        })?;
+        let mut e = Self::from_toml(&text, &origin)?;
+        if e.data.file.is_relative() {
+            e.data.file = path.parent().unwrap_or(Path::new(".")).join(&e.data.file);
+        }
+        Ok(e)
+    }
+
+    fn check(&self) -> Result<(), String> {
+        if self.runs.is_empty() && self.sweeps.is_empty() {
+            return Err("no [[run]] and no [[sweep]]".into());
+        }
+        self.priors.check().map_err(|e| format!("[priors]: {e}"))?;
+        let registry = hysid_backends::registry();
+        let mut names: Vec<&str> = Vec::new();
+        let all = self
+            .runs
+            .iter()
+            .map(|r| (r, "run"))
+            .chain(self.sweeps.iter().map(|s| (&s.run, "sweep")));
+        for (r, what) in all {
+            if names.contains(&r.name.as_str()) {
+                return Err(format!("[[{what}]] name '{}' appears twice", r.name));
+            }
+            names.push(&r.name);
+            if registry.get(&r.method).is_none() {
+                return Err(format!(
+                    "[[{what}]] '{}': unknown method '{}' (methods: {})",
+                    r.name,
+                    r.method,
+                    registry.names().join(", ")
+                ));
+            }
+            if let Some(p) = &r.priors {
+                p.check()
+                    .map_err(|e| format!("[[{what}]] '{}' priors: {e}", r.name))?;
+            }
+        }
+        for s in &self.sweeps {
+            if s.values.is_empty() {
+                return Err(format!("[[sweep]] '{}': values is empty", s.run.name));
+            }
+        }
+        if self.data.decimate == 0 {
+            return Err("[data] decimate must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_rejects_typos() {
+        let text = r#"
+title = "t"
+[data]
+file = "d.csv"
+identification = "0..100"
+validation = "100.."
+[[run]]
+name = "a"
+method = "arx"
+set = { ridge = 0.1 }
+[[sweep]]
+name = "s"
+method = "arx"
+vary = "na"
+values = [1, 2]
+"#;
+        let e = Experiment::from_toml(text, "x.toml").unwrap();
+        assert_eq!(e.runs[0].set["ridge"], toml::Value::Float(0.1));
+        assert_eq!(e.sweeps[0].vary, "na");
+        let bad = text.replace("method = \"arx\"\nset", "method = \"nope\"\nset");
+        assert!(
+            Experiment::from_toml(&bad, "x")
+                .unwrap_err()
+                .to_string()
+                .contains("unknown method 'nope'")
+        );
+        let bad = text.replace("validation", "valdation");
+        assert!(
+            Experiment::from_toml(&bad, "x")
+                .unwrap_err()
+                .to_string()
+                .contains("valdation")
+        );
+    }
+}

@@ -1,0 +1,301 @@
+//! # hysid-compare
+//!
+//! `hysid compare EXPERIMENT.toml -o DIR`: several back-ends run on the same
+//! data with the same priors, in parallel (rayon) and deterministically
+//! (each run has its own seed; results keep the file's order), scored on the
+//! same validation part, and reported side by side (`report.md`,
+//! `report.json`, every identified model under `models/`).
+
+pub mod experiment;
+pub mod report;
+
+pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, SweepSpec};
+pub use report::write_report;
+
+use hysid_core::backend::{Problem, Progress, RunContext};
+use hysid_core::data::{Dataset, load};
+use hysid_core::metrics::{ValidationReport, validate};
+use hysid_core::model::Model;
+use hysid_core::options::Settings;
+use hysid_core::priors::Priors;
+use hysid_core::regressors::RegressorSpec;
+use hysid_core::simulate::Simulation;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::time::Instant;
+
+/// One run after expansion of sweeps.
+#[derive(Debug, Clone)]
+pub struct Job {
+    /// Label (unique).
+    pub name: String,
+    /// The sweep it belongs to, with the varied key and value.
+    pub sweep: Option<SweepPoint>,
+    /// Back-end.
+    pub method: String,
+    /// Orders.
+    pub na: usize,
+    /// Orders.
+    pub nb: usize,
+    /// Priors after merging.
+    pub priors: Priors,
+    /// Options.
+    pub settings: Settings,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// Position of a run in a sweep.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SweepPoint {
+    /// Sweep name.
+    pub sweep: String,
+    /// Varied key.
+    pub vary: String,
+    /// Value, as text.
+    pub value: String,
+}
+
+/// What a run produced.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunResult {
+    /// Label.
+    pub name: String,
+    /// Back-end.
+    pub method: String,
+    /// Sweep position, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sweep: Option<SweepPoint>,
+    /// Orders used.
+    pub na: usize,
+    /// Orders used.
+    pub nb: usize,
+    /// Options given (`--set`).
+    pub options: Vec<(String, String)>,
+    /// Number of modes of the identified model.
+    pub modes: Option<usize>,
+    /// Validation scores.
+    pub report: Option<ValidationReport>,
+    /// Identification time in seconds.
+    pub seconds: f64,
+    /// The error, when the run failed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Model file written, relative to the output folder.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model_file: Option<String>,
+    /// The model (not serialised in the report).
+    #[serde(skip)]
+    pub model: Option<Model>,
+    /// The validation simulation (for plots).
+    #[serde(skip)]
+    pub simulation: Option<Simulation>,
+}
+
+/// The result of an experiment.
+#[derive(Debug, Clone, Serialize)]
+pub struct Comparison {
+    /// Title.
+    pub title: String,
+    /// Description.
+    pub description: String,
+    /// Data file and split, as text.
+    pub data: String,
+    /// Validation warm-up.
+    pub warmup: usize,
+    /// Runs in file order (runs, then sweep points).
+    pub results: Vec<RunResult>,
+    /// Validation record (for plots).
+    #[serde(skip)]
+    pub validation: Option<Dataset>,
+}
+
+fn value_text(v: &toml::Value) -> String {
+    match v {
+        toml::Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+fn merge(shared: &Priors, run: &RunSpec) -> Priors {
+    let mut p = if run.use_priors {
+        shared.clone()
+    } else {
+        Priors::default()
+    };
+    if let Some(extra) = &run.priors {
+        p.modes = extra.modes.or(p.modes);
+        p.max_modes = extra.max_modes.or(p.max_modes);
+        p.saturation.extend(extra.saturation.iter().cloned());
+        p.tie.extend(extra.tie.iter().cloned());
+        p.fixed.extend(extra.fixed.clone());
+        p.bounds.extend(extra.bounds.clone());
+        if !extra.switching.is_empty() {
+            p.switching = extra.switching.clone();
+        }
+    }
+    if run.modes.is_some() {
+        p.modes = run.modes;
+    }
+    p
+}
+
+impl Experiment {
+    /// Runs and sweep points, in file order.
+    pub fn jobs(&self) -> Result<Vec<Job>, ExperimentError> {
+        let job = |r: &RunSpec, name: String, sweep: Option<SweepPoint>| Job {
+            name,
+            sweep,
+            method: r.method.clone(),
+            na: r.na.unwrap_or(self.na),
+            nb: r.nb.unwrap_or(self.nb),
+            priors: merge(&self.priors, r),
+            settings: Settings::from_pairs(
+                r.set
+                    .iter()
+                    .map(|(k, v)| (k.clone(), value_text(v)))
+                    .collect(),
+            ),
+            seed: r.seed.unwrap_or(self.seed),
+        };
+        let mut jobs: Vec<Job> = self
+            .runs
+            .iter()
+            .map(|r| job(r, r.name.clone(), None))
+            .collect();
+        for s in &self.sweeps {
+            for v in &s.values {
+                let text = value_text(v);
+                let mut r = s.run.clone();
+                let as_count = || -> Result<usize, ExperimentError> {
+                    v.as_integer()
+                        .filter(|&i| i >= 0)
+                        .map(|i| i as usize)
+                        .ok_or_else(|| ExperimentError::Invalid {
+                            path: "experiment".into(),
+                            message: format!(
+                                "[[sweep]] '{}': {} = {text} is not a count",
+                                s.run.name, s.vary
+                            ),
+                        })
+                };
+                match s.vary.as_str() {
+                    "modes" => r.modes = Some(as_count()?),
+                    "na" => r.na = Some(as_count()?),
+                    "nb" => r.nb = Some(as_count()?),
+                    key => {
+                        r.set.insert(key.to_string(), v.clone());
+                    }
+                }
+                let point = SweepPoint {
+                    sweep: s.run.name.clone(),
+                    vary: s.vary.clone(),
+                    value: text.clone(),
+                };
+                jobs.push(job(
+                    &r,
+                    format!("{} [{}={}]", s.run.name, s.vary, text),
+                    Some(point),
+                ));
+            }
+        }
+        Ok(jobs)
+    }
+
+    /// Loads the data once, then runs every job in parallel and scores it.
+    pub fn run(&self, progress: &dyn Progress) -> Result<Comparison, ExperimentError> {
+        let data_err = |e: hysid_core::data::DataError| ExperimentError::Invalid {
+            path: self.data.file.display().to_string(),
+            message: e.to_string(),
+        };
+        let ident = load(
+            &self.data.file,
+            &self.data.selection(self.data.identification),
+        )
+        .map_err(data_err)?;
+        let valid =
+            load(&self.data.file, &self.data.selection(self.data.validation)).map_err(data_err)?;
+        let jobs = self.jobs()?;
+        let registry = hysid_backends::registry();
+        progress.start(jobs.len() as u64, "identifying");
+        let results: Vec<RunResult> = jobs
+            .par_iter()
+            .map(|job| {
+                let r = run_job(&registry, job, &ident, &valid, self.data.warmup);
+                progress.advance(1);
+                r
+            })
+            .collect();
+        progress.finish();
+        Ok(Comparison {
+            title: self.title.clone(),
+            description: self.description.clone(),
+            data: format!(
+                "{} (decimate {}, identification rows {}, validation rows {})",
+                self.data.file.display(),
+                self.data.decimate,
+                self.data.identification,
+                self.data.validation
+            ),
+            warmup: self.data.warmup,
+            results,
+            validation: Some(valid),
+        })
+    }
+}
+
+fn run_job(
+    registry: &hysid_core::backend::Registry,
+    job: &Job,
+    ident: &Dataset,
+    valid: &Dataset,
+    warmup: usize,
+) -> RunResult {
+    let mut out = RunResult {
+        name: job.name.clone(),
+        method: job.method.clone(),
+        sweep: job.sweep.clone(),
+        na: job.na,
+        nb: job.nb,
+        options: job.settings.pairs().to_vec(),
+        modes: None,
+        report: None,
+        seconds: 0.0,
+        error: None,
+        model_file: None,
+        model: None,
+        simulation: None,
+    };
+    let backend = match registry.require(&job.method) {
+        Ok(b) => b,
+        Err(e) => {
+            out.error = Some(e.to_string());
+            return out;
+        }
+    };
+    let problem = Problem {
+        data: ident,
+        orders: RegressorSpec::new(job.na, job.nb, ident.inputs.len()),
+        priors: &job.priors,
+        priors_origin: Some("the experiment"),
+    };
+    let ctx = RunContext::quiet(job.seed);
+    let t0 = Instant::now();
+    let model = backend.run(&problem, &job.settings, &ctx);
+    out.seconds = t0.elapsed().as_secs_f64();
+    match model {
+        Err(e) => out.error = Some(e.to_string()),
+        Ok(m) => {
+            out.modes = Some(m.mode_count());
+            match validate(&m, valid, warmup) {
+                Ok((report, sim, _)) => {
+                    out.report = Some(report);
+                    out.simulation = Some(sim);
+                }
+                Err(e) => out.error = Some(format!("validation: {e}")),
+            }
+            out.model = Some(m);
+        }
+    }
+    out
+}

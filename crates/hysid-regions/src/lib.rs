@@ -1,0 +1,527 @@
+//! Region estimation for hysid: given regressors `x` (one per row) and a mode
+//! label per row, find one polyhedral region per mode.
+//!
+//! This is step 4 of the clustering procedure of Ferrari-Trecate et al.
+//! (the founding paper of hysid, Juloski, Heemels and Ferrari-Trecate,
+//! ADHS 2003, uses it for the pick-and-place head) and the last step of the
+//! bounded-error procedure of Bemporad et al. (2005). Three methods
+//! ([`RegionMethod`]):
+//!
+//! * [`RegionMethod::Mrlp`] (default): the multicategory robust linear
+//!   program of Bredensteiner and Bennett (1999), after Bennett and
+//!   Mangasarian (1992/1994). One LP on clarabel. The regions are the
+//!   argmax partition `{x : f_i(x) >= f_j(x) for all j}` of affine scores
+//!   `f_i(x) = w_i.x - g_i`, so they **cover the whole space** (ties only on
+//!   boundaries). That removes the holes that made the founding paper's
+//!   simulation produce no output.
+//! * [`RegionMethod::Msvm`]: the soft-margin multicategory SVM of Weston and
+//!   Watkins (1999), a QP on clarabel, again an argmax partition.
+//! * [`RegionMethod::Psvc`]: pairwise proximal SVC (Fung and Mangasarian,
+//!   2001) in closed form, HIT's default. The regions are intersections of
+//!   pairwise half-spaces and may leave holes (`complete = false`); use
+//!   [`coverage`] to measure them.
+//!
+//! The LP and QP are solved by an exact working-set (cutting-plane) scheme:
+//! only points whose hinge loss is active matter, so the solver sees a
+//! subset and points outside it are checked afterwards; the scheme stops
+//! only when every point outside the subset has zero loss, which certifies
+//! that the subset optimum is an optimum of the full problem (see
+//! `docs/regions.md`).
+//!
+//! ```
+//! use hysid_regions::{estimate, RegionOptions};
+//! use nalgebra::DMatrix;
+//! // two modes on a line, switching at x = 0
+//! let x = DMatrix::from_row_slice(6, 1, &[-3.0, -2.0, -1.0, 1.0, 2.0, 3.0]);
+//! let labels = [0, 0, 0, 1, 1, 1];
+//! let p = estimate(&x, &labels, 2, &RegionOptions::default()).unwrap();
+//! assert!(p.complete);
+//! assert_eq!(p.training_accuracy, 1.0);
+//! assert!(p.regions[0].contains(&[-0.5]) && p.regions[1].contains(&[0.5]));
+//! ```
+
+use hysid_core::geometry::Polyhedron;
+use nalgebra::DMatrix;
+use rand::{Rng, SeedableRng};
+
+mod psvc;
+mod softmax;
+mod solver;
+mod working_set;
+
+hysid_core::option_enum! {
+    /// How regions are estimated.
+    pub enum RegionMethod { /// multicategory robust LP (Bredensteiner & Bennett), complete partition (default)
+        Mrlp => "mrlp", /// soft-margin multicategory SVM (Weston & Watkins QP), complete partition
+        Msvm => "msvm", /// pairwise proximal SVM (Fung & Mangasarian), HIT parity, may leave holes
+        Psvc => "psvc", /// multinomial logistic regression (softmax, damped Newton), complete partition, fastest
+        Softmax => "softmax" }
+}
+
+// `#[default]` cannot be put on a variant through `option_enum!`.
+#[allow(clippy::derivable_impls)]
+impl Default for RegionMethod {
+    fn default() -> Self {
+        RegionMethod::Mrlp
+    }
+}
+
+impl std::fmt::Display for RegionMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            RegionMethod::Mrlp => "mrlp",
+            RegionMethod::Msvm => "msvm",
+            RegionMethod::Psvc => "psvc",
+            RegionMethod::Softmax => "softmax",
+        })
+    }
+}
+
+/// Options of [`estimate`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RegionOptions {
+    /// The method. Default [`RegionMethod::Mrlp`].
+    pub method: RegionMethod,
+    /// Soft-margin weight `C` of [`RegionMethod::Msvm`] (ignored otherwise).
+    /// Each slack of a point of mode `i` is weighted by `C N / (s |F_i|)`,
+    /// i.e. `C` per point on average with the modes balanced. Default 1.0.
+    pub svm_c: f64,
+    /// Regressor columns (0-based) the regions may depend on; the normals
+    /// are exactly 0 in every other column. `None` (default): all columns.
+    pub switching: Option<Vec<usize>>,
+    /// Estimate on standardised regressors (zero mean, unit standard
+    /// deviation per column) and return the regions in original units.
+    /// Default true.
+    pub standardize: bool,
+}
+
+impl Default for RegionOptions {
+    fn default() -> Self {
+        Self {
+            method: RegionMethod::Mrlp,
+            svm_c: 1.0,
+            switching: None,
+            standardize: true,
+        }
+    }
+}
+
+/// How the solution was obtained (for reports and benchmarks).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SolveStats {
+    /// Number of LP/QP solves (working-set rounds); 0 for closed forms.
+    pub solves: usize,
+    /// Points in the final working set (all points for closed forms).
+    pub working_points: usize,
+    /// Total clarabel interior-point iterations.
+    pub solver_iterations: u64,
+    /// Newton steps of the softmax fit (also used to seed the working set
+    /// of mrlp and msvm).
+    pub newton_steps: usize,
+}
+
+/// One region per mode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Partition {
+    /// One per mode, in ORIGINAL regressor coordinates, `{x : a x <= b}`.
+    pub regions: Vec<Polyhedron>,
+    /// Fraction of training points inside their own mode's region, with the
+    /// first-match rule (the lowest-index region containing a point wins, as
+    /// in HIT's `hit_pwa`; points in no region count as wrong).
+    pub training_accuracy: f64,
+    /// True when the regions cover the whole space by construction (argmax
+    /// form; also pairwise PSVC with at most two modes).
+    pub complete: bool,
+    /// For argmax partitions (mrlp, msvm): per mode the affine score
+    /// `f_i(x) = c_i . x + c_i0` in original units, stored as
+    /// `[c_i1, ..., c_id, c_i0]`; region `i` is where `f_i` is largest.
+    /// Empty for psvc.
+    pub scores: Vec<Vec<f64>>,
+    /// Solver statistics.
+    pub stats: SolveStats,
+}
+
+/// Errors of region estimation.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RegionError {
+    /// `modes` was 0.
+    #[error("region estimation needs at least one mode")]
+    NoModes,
+    /// A mode in `0..modes` has no points.
+    #[error("mode {mode} has no points: cannot estimate its region (drop the mode or relabel)")]
+    EmptyMode {
+        /// The empty mode.
+        mode: usize,
+    },
+    /// A label is not below `modes`.
+    #[error("label {label} at row {row} is not below the mode count {modes}")]
+    LabelOutOfRange {
+        /// Row of the offending label.
+        row: usize,
+        /// The label.
+        label: usize,
+        /// The mode count.
+        modes: usize,
+    },
+    /// Inconsistent sizes.
+    #[error("shape mismatch: {0}")]
+    Shape(String),
+    /// A regressor entry is NaN or infinite.
+    #[error("regressor at row {row}, column {col} is not finite")]
+    NonFinite {
+        /// Row.
+        row: usize,
+        /// Column.
+        col: usize,
+    },
+    /// A switching column is out of range or repeated.
+    #[error(
+        "switching column {col} is invalid for regressors of dimension {dim} (out of range or repeated)"
+    )]
+    SwitchingColumn {
+        /// The column.
+        col: usize,
+        /// The regressor dimension.
+        dim: usize,
+    },
+    /// An option has an invalid value.
+    #[error("invalid region option {key}: {reason}")]
+    InvalidOption {
+        /// Option name.
+        key: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// clarabel refused the problem data or settings.
+    #[error("{method}: clarabel refused the problem ({detail})")]
+    SolverSetup {
+        /// Method name.
+        method: &'static str,
+        /// clarabel's message.
+        detail: String,
+    },
+    /// clarabel stopped without a solution.
+    #[error(
+        "{method}: clarabel stopped with status {status} after {iterations} iterations \
+         (working set of {points} points, {variables} variables, {rows} rows, round {round})"
+    )]
+    Solver {
+        /// Method name.
+        method: &'static str,
+        /// clarabel's status, e.g. `MaxIterations`, `NumericalError`.
+        status: String,
+        /// Iterations done.
+        iterations: u32,
+        /// Points in the working set.
+        points: usize,
+        /// Number of variables.
+        variables: usize,
+        /// Number of constraint rows.
+        rows: usize,
+        /// Working-set round (1-based).
+        round: usize,
+    },
+    /// A closed-form system could not be solved.
+    #[error("{method}: singular linear system for modes {i} and {j}")]
+    Singular {
+        /// Method name.
+        method: &'static str,
+        /// First mode.
+        i: usize,
+        /// Second mode.
+        j: usize,
+    },
+}
+
+/// Standardised, column-selected data: row-major `n x p`.
+pub(crate) struct Prepared {
+    pub(crate) z: Vec<f64>,
+    pub(crate) n: usize,
+    pub(crate) p: usize,
+    /// Selected original columns.
+    pub(crate) cols: Vec<usize>,
+    /// Mean and scale of each selected column (`z = (x - mean) / scale`).
+    pub(crate) mean: Vec<f64>,
+    pub(crate) scale: Vec<f64>,
+    /// Points per mode.
+    pub(crate) counts: Vec<usize>,
+}
+
+impl Prepared {
+    pub(crate) fn row(&self, r: usize) -> &[f64] {
+        &self.z[r * self.p..(r + 1) * self.p]
+    }
+}
+
+fn prepare(
+    x: &DMatrix<f64>,
+    labels: &[usize],
+    modes: usize,
+    opts: &RegionOptions,
+) -> Result<Prepared, RegionError> {
+    let (n, d) = x.shape();
+    if modes == 0 {
+        return Err(RegionError::NoModes);
+    }
+    if labels.len() != n {
+        return Err(RegionError::Shape(format!(
+            "{} labels for {n} regressor rows",
+            labels.len()
+        )));
+    }
+    for (row, &label) in labels.iter().enumerate() {
+        if label >= modes {
+            return Err(RegionError::LabelOutOfRange { row, label, modes });
+        }
+    }
+    for col in 0..d {
+        for row in 0..n {
+            if !x[(row, col)].is_finite() {
+                return Err(RegionError::NonFinite { row, col });
+            }
+        }
+    }
+    let mut counts = vec![0usize; modes];
+    for &l in labels {
+        counts[l] += 1;
+    }
+    if let Some(mode) = counts.iter().position(|&c| c == 0) {
+        return Err(RegionError::EmptyMode { mode });
+    }
+    if !(opts.svm_c.is_finite() && opts.svm_c > 0.0) {
+        return Err(RegionError::InvalidOption {
+            key: "svm_c",
+            reason: format!("must be finite and positive, got {}", opts.svm_c),
+        });
+    }
+    let cols: Vec<usize> = match &opts.switching {
+        None => (0..d).collect(),
+        Some(s) => {
+            let mut seen = vec![false; d];
+            for &c in s {
+                if c >= d || seen[c] {
+                    return Err(RegionError::SwitchingColumn { col: c, dim: d });
+                }
+                seen[c] = true;
+            }
+            s.clone()
+        }
+    };
+    let p = cols.len();
+    let mut mean = vec![0.0; p];
+    let mut scale = vec![1.0; p];
+    if opts.standardize {
+        for (k, &c) in cols.iter().enumerate() {
+            let column = x.column(c);
+            let m = column.iter().sum::<f64>() / n as f64;
+            let var = column.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n as f64;
+            let sd = var.sqrt();
+            mean[k] = m;
+            // Constant columns are only centred.
+            scale[k] = if sd.is_finite() && sd > f64::MIN_POSITIVE * 1e10 {
+                sd
+            } else {
+                1.0
+            };
+        }
+    }
+    let mut z = Vec::with_capacity(n * p);
+    for r in 0..n {
+        for (k, &c) in cols.iter().enumerate() {
+            z.push((x[(r, c)] - mean[k]) / scale[k]);
+        }
+    }
+    Ok(Prepared {
+        z,
+        n,
+        p,
+        cols,
+        mean,
+        scale,
+        counts,
+    })
+}
+
+/// Estimates one region per mode from labelled regressors.
+///
+/// `x` is `N x d` with one regressor per row; `labels[r]` in `0..modes` is
+/// the mode of row `r`. Every mode must have at least one point. With
+/// `modes == 1` the single region is the whole space.
+pub fn estimate(
+    x: &DMatrix<f64>,
+    labels: &[usize],
+    modes: usize,
+    opts: &RegionOptions,
+) -> Result<Partition, RegionError> {
+    let prep = prepare(x, labels, modes, opts)?;
+    let d = x.ncols();
+    if modes == 1 {
+        return Ok(Partition {
+            regions: vec![Polyhedron::everything()],
+            training_accuracy: 1.0,
+            complete: true,
+            scores: vec![vec![0.0; d + 1]],
+            stats: SolveStats {
+                working_points: prep.n,
+                ..SolveStats::default()
+            },
+        });
+    }
+    let (regions, complete, scores, stats) = match opts.method {
+        RegionMethod::Mrlp | RegionMethod::Msvm => {
+            let (wg, stats) = working_set::solve(&prep, labels, modes, opts)?;
+            let scores = scores_in_original_units(&prep, &wg, d);
+            (argmax_regions(&scores), true, scores, stats)
+        }
+        RegionMethod::Softmax => {
+            let (wg, steps) = softmax::fit(&prep, labels, modes)?;
+            let scores = scores_in_original_units(&prep, &wg, d);
+            let stats = SolveStats {
+                working_points: prep.n,
+                newton_steps: steps,
+                ..SolveStats::default()
+            };
+            (argmax_regions(&scores), true, scores, stats)
+        }
+        RegionMethod::Psvc => {
+            let regions = psvc::regions(&prep, labels, modes, d)?;
+            let stats = SolveStats {
+                working_points: prep.n,
+                ..SolveStats::default()
+            };
+            (regions, modes <= 2, Vec::new(), stats)
+        }
+    };
+    let training_accuracy = training_accuracy(&regions, x, labels);
+    Ok(Partition {
+        regions,
+        training_accuracy,
+        complete,
+        scores,
+        stats,
+    })
+}
+
+/// `wg` holds per mode `[w (p); g]` on standardised selected columns, with
+/// `f(z) = w.z - g`. Returns `[c (d); c0]` with `f = c.x + c0` in original
+/// units and exact zeros outside the selected columns.
+fn scores_in_original_units(prep: &Prepared, wg: &[Vec<f64>], d: usize) -> Vec<Vec<f64>> {
+    wg.iter()
+        .map(|v| {
+            let mut c = vec![0.0; d + 1];
+            let mut c0 = -v[prep.p];
+            for k in 0..prep.p {
+                let ck = v[k] / prep.scale[k];
+                c[prep.cols[k]] = ck;
+                c0 -= ck * prep.mean[k];
+            }
+            c[d] = c0;
+            c
+        })
+        .collect()
+}
+
+/// Regions `{x : f_i(x) >= f_j(x) for all j != i}` of affine scores
+/// `f_i = c_i . x + c_i0` (rows `[c_i; c_i0]`): row `(c_j - c_i) x <= c_i0 - c_j0`.
+/// The rows of `i` against `j` and of `j` against `i` are exact negatives
+/// of each other in floating point.
+pub fn argmax_regions(scores: &[Vec<f64>]) -> Vec<Polyhedron> {
+    let s = scores.len();
+    (0..s)
+        .map(|i| {
+            let d = scores[i].len().saturating_sub(1);
+            let mut a = Vec::with_capacity(s.saturating_sub(1));
+            let mut b = Vec::with_capacity(s.saturating_sub(1));
+            for j in (0..s).filter(|&j| j != i) {
+                a.push((0..d).map(|k| scores[j][k] - scores[i][k]).collect());
+                b.push(scores[i][d] - scores[j][d]);
+            }
+            Polyhedron::from_inequalities(a, b)
+        })
+        .collect()
+}
+
+/// The first region (lowest index) that contains `z`, as HIT's `hit_pwa`.
+pub fn classify(regions: &[Polyhedron], z: &[f64]) -> Option<usize> {
+    regions.iter().position(|r| r.contains(z))
+}
+
+/// Fraction of rows of `x` whose first-match region is their label.
+pub fn training_accuracy(regions: &[Polyhedron], x: &DMatrix<f64>, labels: &[usize]) -> f64 {
+    let n = x.nrows().min(labels.len());
+    if n == 0 {
+        return 1.0;
+    }
+    let mut row = vec![0.0; x.ncols()];
+    let mut ok = 0usize;
+    for (r, &label) in labels.iter().enumerate().take(n) {
+        for (k, v) in row.iter_mut().enumerate() {
+            *v = x[(r, k)];
+        }
+        if classify(regions, &row) == Some(label) {
+            ok += 1;
+        }
+    }
+    ok as f64 / n as f64
+}
+
+/// Result of [`coverage`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoverageReport {
+    /// Number of sampled points.
+    pub samples: usize,
+    /// Fraction of samples in no region (holes).
+    pub uncovered_fraction: f64,
+    /// Fraction of samples in two or more regions (overlaps; for exact
+    /// partitions only boundary points, which have probability zero).
+    pub multiply_covered_fraction: f64,
+}
+
+/// Holes report: `samples` uniform points in the box `[lo, hi]` (seeded
+/// with `ChaCha8Rng::seed_from_u64(seed)`), counted as uncovered (in no
+/// region) or multiply covered (in two or more), with the membership
+/// tolerance of [`Polyhedron::contains`]. The box dimension is
+/// `min(lo.len(), hi.len())`; a side with `lo > hi` is sampled in
+/// `[hi, lo]`.
+pub fn coverage(
+    regions: &[Polyhedron],
+    lo: &[f64],
+    hi: &[f64],
+    samples: usize,
+    seed: u64,
+) -> CoverageReport {
+    let d = lo.len().min(hi.len());
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut z = vec![0.0; d];
+    let (mut none, mut many) = (0usize, 0usize);
+    for _ in 0..samples {
+        for k in 0..d {
+            let u: f64 = rng.random();
+            let (a, b) = if lo[k] <= hi[k] {
+                (lo[k], hi[k])
+            } else {
+                (hi[k], lo[k])
+            };
+            z[k] = a + u * (b - a);
+        }
+        let hits = regions.iter().filter(|r| r.contains(&z)).take(2).count();
+        match hits {
+            0 => none += 1,
+            1 => {}
+            _ => many += 1,
+        }
+    }
+    let frac = |c: usize| {
+        if samples == 0 {
+            0.0
+        } else {
+            c as f64 / samples as f64
+        }
+    };
+    CoverageReport {
+        samples,
+        uncovered_fraction: frac(none),
+        multiply_covered_fraction: frac(many),
+    }
+}

@@ -1,0 +1,321 @@
+//! # hysid-testkit
+//!
+//! The benchmark systems of `shared/docs/algorithms.md` section (c), with
+//! their exact parameters, as seeded generators. Each returns the data, the
+//! true model and the true mode of every sample, so that back-ends can be
+//! scored with `hysid_core::metrics::{mode_accuracy, parameter_error}`.
+//!
+//! Static maps (H1, H2, H4, H7) are written as PWARX models with `na = 0`,
+//! `nb = 1`: the regressor of `y(k)` is the input `u(k-1)` (one column per
+//! input), so every back-end treats them like dynamic data.
+
+use hysid_core::data::{Dataset, Signal};
+use hysid_core::geometry::Polyhedron;
+use hysid_core::model::{ModelInfo, PwarxMode, PwarxModel};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+/// Measurement/equation noise of a benchmark.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Noise {
+    /// None.
+    None,
+    /// Uniform on `[-a, a]`.
+    Uniform(f64),
+    /// Gaussian with this standard deviation.
+    Gaussian(f64),
+}
+
+impl Noise {
+    fn draw(&self, rng: &mut ChaCha8Rng) -> f64 {
+        match *self {
+            Noise::None => 0.0,
+            Noise::Uniform(a) => {
+                if a > 0.0 {
+                    rng.random_range(-a..=a)
+                } else {
+                    0.0
+                }
+            }
+            Noise::Gaussian(s) => Normal::new(0.0, s).map(|d| d.sample(rng)).unwrap_or(0.0),
+        }
+    }
+}
+
+/// A generated record with its ground truth.
+#[derive(Debug, Clone)]
+pub struct Benchmark {
+    /// The record (inputs `u` or `u1, u2`, output `y`).
+    pub data: Dataset,
+    /// The true model.
+    pub truth: PwarxModel,
+    /// True mode of every sample from `truth.spec().lag()` on (earlier entries are `None`).
+    pub modes: Vec<Option<usize>>,
+}
+
+impl Benchmark {
+    /// True modes of the regressor rows (what `RegressorSpec::build` returns).
+    pub fn row_modes(&self) -> Vec<usize> {
+        self.modes.iter().flatten().copied().collect()
+    }
+
+    /// The true parameter vectors.
+    pub fn thetas(&self) -> Vec<Vec<f64>> {
+        self.truth.modes.iter().map(|m| m.theta.clone()).collect()
+    }
+}
+
+fn region(rows: &[(&[f64], f64)]) -> Polyhedron {
+    Polyhedron::from_inequalities(
+        rows.iter().map(|(a, _)| a.to_vec()).collect(),
+        rows.iter().map(|(_, b)| *b).collect(),
+    )
+}
+
+fn mode(theta: &[f64], rows: &[(&[f64], f64)]) -> PwarxMode {
+    PwarxMode {
+        theta: theta.to_vec(),
+        region: region(rows),
+        name: None,
+    }
+}
+
+/// Simulates `truth` with equation noise: `y(k) = theta_q . [x(k); 1] + e(k)`
+/// where `q` is the region of the regressor built from past (noisy) outputs.
+pub fn generate(
+    truth: PwarxModel,
+    inputs: Vec<Vec<f64>>,
+    y_init: &[f64],
+    noise: Noise,
+    rng: &mut ChaCha8Rng,
+) -> Benchmark {
+    let n = inputs[0].len();
+    let spec = truth.spec();
+    let lag = spec.lag();
+    let mut y = vec![0.0; n];
+    y[..lag.min(n)].copy_from_slice(&y_init[..lag.min(n)]);
+    let mut modes = vec![None; n];
+    let u: Vec<&[f64]> = inputs.iter().map(Vec::as_slice).collect();
+    let mut x = vec![0.0; spec.dim()];
+    for k in lag..n {
+        spec.fill(&y, &u, k, &mut x);
+        let (v, c) = truth.predict(&x);
+        y[k] = v + noise.draw(rng);
+        modes[k] = Some(c.mode);
+    }
+    let names: Vec<String> = if inputs.len() == 1 {
+        vec!["u".into()]
+    } else {
+        (1..=inputs.len()).map(|i| format!("u{i}")).collect()
+    };
+    let data = Dataset::new(
+        inputs
+            .into_iter()
+            .zip(names)
+            .map(|(values, name)| Signal { name, values })
+            .collect(),
+        Signal {
+            name: "y".into(),
+            values: y,
+        },
+        None,
+    )
+    .expect("finite benchmark data");
+    Benchmark { data, truth, modes }
+}
+
+fn uniform(n: usize, lo: f64, hi: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    (0..n).map(|_| rng.random_range(lo..=hi)).collect()
+}
+
+fn pwarx(na: usize, nb: usize, inputs: usize, modes: Vec<PwarxMode>) -> PwarxModel {
+    PwarxModel {
+        na,
+        nb,
+        inputs,
+        modes,
+        info: ModelInfo::default(),
+    }
+}
+
+/// B1, the classic 3-mode PWARX of Ferrari-Trecate et al. (Automatica 2003),
+/// reused by Bemporad et al. (TAC 2005): `phi = [y(k-1), u(k-1), 1]`,
+/// `theta_1 = [-0.4, 1, 1.5]` where `[4, -1, 10] phi < 0`,
+/// `theta_2 = [0.5, -1, -0.5]` where `[4, -1, 10] phi >= 0` and `[5, 1, -6] phi <= 0`,
+/// `theta_3 = [-0.3, 0.5, -1.7]` where `[5, 1, -6] phi > 0`.
+/// Input uniform on `[-u_max, u_max]`.
+pub fn b1(n: usize, u_max: f64, noise: Noise, seed: u64) -> Benchmark {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let truth = pwarx(
+        1,
+        1,
+        1,
+        vec![
+            mode(&[-0.4, 1.0, 1.5], &[(&[4.0, -1.0], -10.0)]),
+            mode(
+                &[0.5, -1.0, -0.5],
+                &[(&[-4.0, 1.0], 10.0), (&[5.0, 1.0], 6.0)],
+            ),
+            mode(&[-0.3, 0.5, -1.7], &[(&[-5.0, -1.0], -6.0)]),
+        ],
+    );
+    let u = uniform(n, -u_max, u_max, &mut rng);
+    generate(truth, vec![u], &[0.0], noise, &mut rng)
+}
+
+/// H1 (HIT `ex_pwarx_1d_3modes.m`): `y(k) = theta_i . [u(k-1); 1]`, equal
+/// parameters on two disjoint regions: `[1, 0.2]` for `u <= -1`,
+/// `[-1, 2]` for `-1 <= u <= 2`, `[1, 0.2]` for `u >= 2`; `u ~ U[-4, 4]`,
+/// `e ~ N(0, 0.01)` (variance), N = 70 in HIT.
+pub fn h1(n: usize, seed: u64) -> Benchmark {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let truth = pwarx(
+        0,
+        1,
+        1,
+        vec![
+            mode(&[1.0, 0.2], &[(&[1.0], -1.0)]),
+            mode(&[-1.0, 2.0], &[(&[-1.0], 1.0), (&[1.0], 2.0)]),
+            mode(&[1.0, 0.2], &[(&[-1.0], -2.0)]),
+        ],
+    );
+    let u = uniform(n, -4.0, 4.0, &mut rng);
+    generate(truth, vec![u], &[0.0], Noise::Gaussian(0.1), &mut rng)
+}
+
+/// H2 (HIT `ex_pwarx_1d_5modes.m`): five modes on `u ~ U[-4, 8]`,
+/// `e ~ N(0, 0.01)`: `[1, 0.2]` on `(-inf, -1]`, `[-1, 2]` on `[-1, 2]`,
+/// `[1, -1]` on `[2, 4]`, `[0, 2]` on `[4, 6]`, `[2, -10]` on `[6, inf)`.
+pub fn h2(n: usize, seed: u64) -> Benchmark {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let truth = pwarx(
+        0,
+        1,
+        1,
+        vec![
+            mode(&[1.0, 0.2], &[(&[1.0], -1.0)]),
+            mode(&[-1.0, 2.0], &[(&[-1.0], 1.0), (&[1.0], 2.0)]),
+            mode(&[1.0, -1.0], &[(&[-1.0], -2.0), (&[1.0], 4.0)]),
+            mode(&[0.0, 2.0], &[(&[-1.0], -4.0), (&[1.0], 6.0)]),
+            mode(&[2.0, -10.0], &[(&[-1.0], -6.0)]),
+        ],
+    );
+    let u = uniform(n, -4.0, 8.0, &mut rng);
+    generate(truth, vec![u], &[0.0], Noise::Gaussian(0.1), &mut rng)
+}
+
+/// H3 (HIT `ex_pwarx_2d_3modes.m`): `x = [y(k-1), u(k-1)]`,
+/// `theta_1 = theta_3 = [0.6, 0.3, 0]`, `theta_2 = [-0.6, -0.3, 0]`;
+/// `X_1: 0.2 x1 + x2 <= -0.8`, `X_2: -0.8 - 0.2 x1 <= x2 <= 0.8 + 0.2 x1`,
+/// `X_3: x2 >= 0.8 + 0.2 x1`; `u ~ U[-2, 2]`, `y(1) = 0.5`, `e ~ N(0, 0.01)`.
+pub fn h3(n: usize, seed: u64) -> Benchmark {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let truth = pwarx(
+        1,
+        1,
+        1,
+        vec![
+            mode(&[0.6, 0.3, 0.0], &[(&[0.2, 1.0], -0.8)]),
+            mode(
+                &[-0.6, -0.3, 0.0],
+                &[(&[-0.2, -1.0], 0.8), (&[-0.2, 1.0], 0.8)],
+            ),
+            mode(&[0.6, 0.3, 0.0], &[(&[0.2, -1.0], -0.8)]),
+        ],
+    );
+    let u = uniform(n, -2.0, 2.0, &mut rng);
+    generate(truth, vec![u], &[0.5], Noise::Gaussian(0.1), &mut rng)
+}
+
+/// H4 (HIT `ex_cake1.m`): a static map of `(x1, x2)` on `[-1, 1]^2`, three
+/// wedges meeting at the origin: `theta_1 = [4, 2, 3]` on
+/// `{x2 >= 0, x1 + x2/sqrt(3) >= 0}`, `theta_2 = [-6, 6, -5]` on
+/// `{x1 <= -|x2|/sqrt(3)}`, `theta_3 = [4, -2, -2]` on `{x2 <= 0, x1 >= x2/sqrt(3)}`;
+/// `e ~ N(0, 0.1)` (variance). Inputs `u1 = x1`, `u2 = x2` (regressor `u(k-1)`).
+pub fn h4(n: usize, seed: u64) -> Benchmark {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let r = 1.0 / 3f64.sqrt();
+    let truth = pwarx(
+        0,
+        1,
+        2,
+        vec![
+            mode(&[4.0, 2.0, 3.0], &[(&[0.0, -1.0], 0.0), (&[-1.0, -r], 0.0)]),
+            mode(&[-6.0, 6.0, -5.0], &[(&[1.0, r], 0.0), (&[1.0, -r], 0.0)]),
+            mode(&[4.0, -2.0, -2.0], &[(&[0.0, 1.0], 0.0), (&[-1.0, r], 0.0)]),
+        ],
+    );
+    let x1 = uniform(n, -1.0, 1.0, &mut rng);
+    let x2 = uniform(n, -1.0, 1.0, &mut rng);
+    generate(
+        truth,
+        vec![x1, x2],
+        &[0.0],
+        Noise::Gaussian(0.1f64.sqrt()),
+        &mut rng,
+    )
+}
+
+/// H7 (HIT `ex_estimate_c_s.m`): five modes on `u ~ U[-4, 8]`, `e ~ N(0, 0.01)`:
+/// `[1, 0.2]` on `(-inf, -1]`, `[-1, 2]` on `[-1, 2]`, `[1, 0.2]` on `[2, 4]`,
+/// `[3, -10]` on `[4, 6]`, `[-2, 15]` on `[6, inf)`.
+pub fn h7(n: usize, seed: u64) -> Benchmark {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let truth = pwarx(
+        0,
+        1,
+        1,
+        vec![
+            mode(&[1.0, 0.2], &[(&[1.0], -1.0)]),
+            mode(&[-1.0, 2.0], &[(&[-1.0], 1.0), (&[1.0], 2.0)]),
+            mode(&[1.0, 0.2], &[(&[-1.0], -2.0), (&[1.0], 4.0)]),
+            mode(&[3.0, -10.0], &[(&[-1.0], -4.0), (&[1.0], 6.0)]),
+            mode(&[-2.0, 15.0], &[(&[-1.0], -6.0)]),
+        ],
+    );
+    let u = uniform(n, -4.0, 8.0, &mut rng);
+    generate(truth, vec![u], &[0.0], Noise::Gaussian(0.1), &mut rng)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn same_seed_same_data_and_modes_follow_regions() {
+        let a = b1(300, 4.0, Noise::Uniform(0.1), 1);
+        let b = b1(300, 4.0, Noise::Uniform(0.1), 1);
+        assert_eq!(a.data, b.data);
+        assert_eq!(a.row_modes().len(), 299);
+        // All three modes are visited.
+        for q in 0..3 {
+            assert!(a.row_modes().contains(&q));
+        }
+        let c = h4(200, 3);
+        assert_eq!(c.data.inputs.len(), 2);
+        assert_eq!(c.row_modes().len(), 199);
+        for q in 0..3 {
+            assert!(c.row_modes().contains(&q), "mode {q}");
+        }
+        assert_eq!(
+            h1(70, 0).truth.modes[0].theta,
+            h1(70, 0).truth.modes[2].theta
+        );
+        assert_eq!(h2(100, 0).truth.modes.len(), 5);
+        assert_eq!(h3(60, 0).truth.modes.len(), 3);
+        assert_eq!(h7(150, 0).truth.modes.len(), 5);
+    }
+
+    #[test]
+    fn noise_free_b1_is_exactly_piecewise_affine() {
+        let b = b1(100, 4.0, Noise::None, 2);
+        let y = b.data.y();
+        let u = b.data.u(0);
+        for k in 1..100 {
+            let q = b.modes[k].unwrap();
+            let t = &b.truth.modes[q].theta;
+            assert!((y[k] - (t[0] * y[k - 1] + t[1] * u[k - 1] + t[2])).abs() < 1e-12);
+        }
+    }
+}

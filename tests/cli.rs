@@ -1,0 +1,405 @@
+//! End-to-end tests of the `hysid` program: the contract of
+//! `shared/spec/interface.md` (commands, files, exit codes, no partial output).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn hysid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hysid"))
+        .args(args)
+        .env("CI", "1")
+        .output()
+        .expect("hysid runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = hysid(args);
+    assert!(
+        o.status.success(),
+        "{args:?} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8(o.stdout).unwrap()
+}
+
+/// Exit code 2, a one-line message containing every `needle`, and no file at `out`.
+fn bad(args: &[&str], needles: &[&str], out: &Path) {
+    let o = hysid(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{args:?}: expected exit 2, stderr: {err}"
+    );
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "{args:?}: message is not one line: {err}"
+    );
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: message lacks '{n}': {err}");
+    }
+    assert!(!out.exists(), "{args:?}: left an output file behind");
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A record from the ARX model y(k) = 0.6 y(k-1) - 0.1 y(k-2) + 0.8 u(k-1) + 0.3 u(k-2) + 0.2,
+/// written by `hysid simulate` itself from a hand-written model file.
+fn arx_record(dir: &Path) -> PathBuf {
+    let model = dir.join("true.json");
+    std::fs::write(
+        &model,
+        r#"{"kind":"pwarx","na":2,"nb":2,"inputs":1,
+            "modes":[{"theta":[0.6,-0.1,0.8,0.3,0.2],"region":{"a":[],"b":[]}}]}"#,
+    )
+    .unwrap();
+    let data = dir.join("data.csv");
+    ok(&[
+        "simulate",
+        s(&model),
+        "--excite",
+        "n=400,hold=3,low=-1,high=1,ts=0.01",
+        "--seed",
+        "5",
+        "-o",
+        s(&data),
+    ]);
+    data
+}
+
+#[test]
+fn methods_lists_arx_with_its_options() {
+    let out = ok(&["methods"]);
+    assert!(out.lines().any(|l| l.starts_with("arx")), "{out}");
+    assert!(out.contains("ridge"));
+    let json: serde_json::Value = serde_json::from_str(&ok(&["methods", "--json"])).unwrap();
+    assert_eq!(json[0]["name"], "arx");
+}
+
+#[test]
+fn simulate_identify_validate_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let header = std::fs::read_to_string(&data).unwrap();
+    assert!(header.starts_with("t,u,y,mode\n"), "{}", &header[..40]);
+    let model = dir.path().join("m.json");
+    ok(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "-o",
+        s(&model),
+    ]);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["kind"], "pwarx");
+    let theta: Vec<f64> = m["modes"][0]["theta"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    for (a, b) in theta.iter().zip([0.6, -0.1, 0.8, 0.3, 0.2]) {
+        assert!((a - b).abs() < 1e-9, "{theta:?}");
+    }
+    let v: serde_json::Value =
+        serde_json::from_str(&ok(&["validate", s(&model), s(&data), "--json"])).unwrap();
+    for key in [
+        "n",
+        "warmup",
+        "fit_sim",
+        "rmse_sim",
+        "fit_pred",
+        "rmse_pred",
+        "coverage",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}: {v}");
+    }
+    assert_eq!(v["n"], 390);
+    assert!(v["fit_sim"].as_f64().unwrap() > 99.999_999);
+    assert_eq!(v["coverage"], 1.0);
+}
+
+#[test]
+fn standardized_identification_is_reported_in_original_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let model = dir.path().join("m.json");
+    ok(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--standardize",
+        "-o",
+        s(&model),
+    ]);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let theta: Vec<f64> = m["modes"][0]["theta"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    for (a, b) in theta.iter().zip([0.6, -0.1, 0.8, 0.3, 0.2]) {
+        assert!((a - b).abs() < 1e-9, "{theta:?}");
+    }
+    assert!(m["info"]["scaling"]["output"]["std"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn same_seed_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let (a, b) = (dir.path().join("a.json"), dir.path().join("b.json"));
+    ok(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--seed",
+        "9",
+        "-o",
+        s(&a),
+    ]);
+    ok(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--seed",
+        "9",
+        "-o",
+        s(&b),
+    ]);
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    let (c, d) = (dir.path().join("c.csv"), dir.path().join("d.csv"));
+    for p in [&c, &d] {
+        ok(&[
+            "simulate",
+            s(&a),
+            "--excite",
+            "n=50,hold=5,low=0,high=1",
+            "--noise",
+            "0.1",
+            "--seed",
+            "3",
+            "-o",
+            s(p),
+        ]);
+    }
+    assert_eq!(std::fs::read(&c).unwrap(), std::fs::read(&d).unwrap());
+}
+
+#[test]
+fn bad_csv_files_name_file_row_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("never.json");
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            "nan.csv",
+            "u,y\n1,2\n3,NaN\n4,5\n",
+            &["nan.csv", "row 2", "column 'y'", "non-finite"],
+        ),
+        (
+            "text.csv",
+            "u,y\n1,2\n3,4\nabc,5\n",
+            &["text.csv", "row 3", "column 'u'", "'abc'"],
+        ),
+        (
+            "ragged.csv",
+            "u,y\n1,2\n3\n4,5\n",
+            &["ragged.csv", "row 2", "1 fields"],
+        ),
+        (
+            "missing.csv",
+            "u,z\n1,2\n3,4\n",
+            &["missing.csv", "no column 'y'"],
+        ),
+        ("empty.csv", "", &["empty.csv"]),
+    ];
+    for (name, text, needles) in cases {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        bad(
+            &[
+                "identify",
+                s(&p),
+                "-m",
+                "arx",
+                "--na",
+                "1",
+                "--nb",
+                "1",
+                "-o",
+                s(&out),
+            ],
+            needles,
+            &out,
+        );
+    }
+}
+
+#[test]
+fn bad_options_and_files_are_usage_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let out = dir.path().join("never.json");
+    let d = s(&data);
+    let o = s(&out);
+    bad(
+        &["identify", d, "-m", "nosuch", "-o", o],
+        &["unknown method 'nosuch'", "arx"],
+        &out,
+    );
+    bad(
+        &["identify", d, "-m", "arx", "--set", "rigde=1", "-o", o],
+        &["rigde", "ridge"],
+        &out,
+    );
+    bad(
+        &["identify", d, "-m", "arx", "--set", "ridge=abc", "-o", o],
+        &["ridge=abc"],
+        &out,
+    );
+    bad(
+        &["identify", d, "-m", "arx", "--modes", "3", "-o", o],
+        &["modes = 3"],
+        &out,
+    );
+    bad(
+        &["identify", d, "-m", "arx", "--rows", "500..", "-o", o],
+        &["--rows 500..", "no sample"],
+        &out,
+    );
+    bad(
+        &["identify", d, "-m", "arx", "--input", "v", "-o", o],
+        &["no column 'v'"],
+        &out,
+    );
+    bad(
+        &["identify", "nope.csv", "-m", "arx", "-o", o],
+        &["nope.csv"],
+        &out,
+    );
+    bad(
+        &["identify", d, "-m", "arx", "--decimate", "0", "-o", o],
+        &["decimate"],
+        &out,
+    );
+    let prior = dir.path().join("p.toml");
+    std::fs::write(&prior, "mdoes = 3\n").unwrap();
+    bad(
+        &["identify", d, "-m", "arx", "--prior", s(&prior), "-o", o],
+        &["p.toml", "mdoes"],
+        &out,
+    );
+    std::fs::write(&prior, "switching = [\"y1\"]\n").unwrap();
+    bad(
+        &["identify", d, "-m", "arx", "--prior", s(&prior), "-o", o],
+        &["does not honour", "switching", "p.toml"],
+        &out,
+    );
+    std::fs::write(&prior, "[fixed]\nq9 = 1.0\n").unwrap();
+    bad(
+        &["identify", d, "-m", "arx", "--prior", s(&prior), "-o", o],
+        &["q9"],
+        &out,
+    );
+    let model = dir.path().join("broken.json");
+    std::fs::write(&model, "{\"kind\":\"pwarx\",\"na\":1}").unwrap();
+    bad(&["validate", s(&model), d], &["broken.json"], &out);
+    let csv_out = dir.path().join("never.csv");
+    bad(
+        &[
+            "simulate",
+            s(&model),
+            "--excite",
+            "n=5,hold=1,low=0,high=1",
+            "-o",
+            s(&csv_out),
+        ],
+        &["broken.json"],
+        &csv_out,
+    );
+}
+
+#[test]
+fn a_failed_run_never_overwrites_a_good_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let model = dir.path().join("m.json");
+    ok(&["identify", s(&data), "-m", "arx", "-o", s(&model)]);
+    let before = std::fs::read(&model).unwrap();
+    let o = hysid(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--set",
+        "ridge=-1",
+        "-o",
+        s(&model),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(std::fs::read(&model).unwrap(), before);
+    let leftovers = std::fs::read_dir(dir.path()).unwrap().filter(|e| {
+        e.as_ref()
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .ends_with(".tmp")
+    });
+    assert_eq!(leftovers.count(), 0);
+}
+
+#[test]
+fn help_and_usage_exit_codes() {
+    assert_eq!(hysid(&["--help"]).status.code(), Some(0));
+    assert_eq!(hysid(&["identify", "--help"]).status.code(), Some(0));
+    assert_eq!(hysid(&["identify"]).status.code(), Some(2));
+    assert_eq!(hysid(&["frobnicate"]).status.code(), Some(2));
+}
+
+#[test]
+fn hand_written_automaton_with_lower_dimensional_guard_simulates() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/examples/bouncing-ball.toml"
+    );
+    let out = dir.path().join("ball.csv");
+    ok(&[
+        "simulate",
+        model,
+        "--excite",
+        "n=301,hold=301,low=0,high=0,ts=0.01",
+        "-o",
+        s(&out),
+    ]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let y: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(y.len(), 301);
+    assert!(
+        y.iter().all(|&v| v >= -1e-9),
+        "the ball went through the floor"
+    );
+    let apex = y[70..140].iter().cloned().fold(0.0, f64::max);
+    assert!(
+        (apex - 1.125).abs() < 0.01,
+        "apex after the first bounce {apex}"
+    );
+}
