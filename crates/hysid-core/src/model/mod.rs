@@ -20,9 +20,9 @@ pub use automaton::{
     TimeDomain, Transition,
 };
 pub use mechanical::{
-    Contact, Direction, ForceElement, Friction, MAX_CONTACTS, MechanicalInitialState, MechanicalMode,
-    MechanicalModeKind, MechanicalModel, PhysicalParameter, Quantity, ResolvedContact, ResolvedForce,
-    ResolvedMechanics, ResolvedStop, Stop,
+    Contact, Direction, ForceElement, Friction, MAX_CONTACTS, MechanicalInitialState,
+    MechanicalMode, MechanicalModeKind, MechanicalModel, PhysicalParameter, Quantity,
+    ResolvedContact, ResolvedForce, ResolvedMechanics, ResolvedStop, Stop,
 };
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
 

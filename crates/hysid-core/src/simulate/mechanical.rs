@@ -704,6 +704,28 @@ mod tests {
         }
     }
 
+    /// The example of `docs/mechanical-models.md` ("Writing another system")
+    /// is a valid model, and its bouncing stop never lets the mass through.
+    #[test]
+    fn documented_example_parses_and_bounces() {
+        let doc = include_str!("../../../../docs/mechanical-models.md");
+        let start = doc.rfind("```toml\n").unwrap() + "```toml\n".len();
+        let end = start + doc[start..].find("```").unwrap();
+        let Model::Mechanical(mut m) = Model::from_toml(&doc[start..end], "doc").unwrap() else {
+            panic!("not mechanical")
+        };
+        given(&mut m, 0.0, -3.0);
+        let n = 400;
+        let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.001)).unwrap();
+        let r = run(&m, &m.values(), &data).unwrap();
+        let lowest = r.y.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(lowest >= -0.1 && lowest < -0.09, "lowest {lowest}");
+        // Bounced (v := -0.5 v at the wall): moving away right after.
+        let k = r.y.iter().position(|y| *y == lowest).unwrap();
+        assert!(r.v[k + 1] > 0.0 || r.v[k] > 0.0, "{} {}", r.v[k], r.v[k + 1]);
+        assert!(r.events > 0);
+    }
+
     fn unit() -> impl Strategy<Value = Vec<f64>> {
         proptest::collection::vec(0.0f64..=1.0, 12)
     }
