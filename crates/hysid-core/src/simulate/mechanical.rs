@@ -722,7 +722,12 @@ mod tests {
         assert!(lowest >= -0.1 && lowest < -0.09, "lowest {lowest}");
         // Bounced (v := -0.5 v at the wall): moving away right after.
         let k = r.y.iter().position(|y| *y == lowest).unwrap();
-        assert!(r.v[k + 1] > 0.0 || r.v[k] > 0.0, "{} {}", r.v[k], r.v[k + 1]);
+        assert!(
+            r.v[k + 1] > 0.0 || r.v[k] > 0.0,
+            "{} {}",
+            r.v[k],
+            r.v[k + 1]
+        );
         assert!(r.events > 0);
     }
 
