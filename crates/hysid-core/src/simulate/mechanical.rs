@@ -719,7 +719,7 @@ mod tests {
         let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.001)).unwrap();
         let r = run(&m, &m.values(), &data).unwrap();
         let lowest = r.y.iter().copied().fold(f64::INFINITY, f64::min);
-        assert!(lowest >= -0.1 && lowest < -0.09, "lowest {lowest}");
+        assert!((-0.1..-0.09).contains(&lowest), "lowest {lowest}");
         // Bounced (v := -0.5 v at the wall): moving away right after.
         let k = r.y.iter().position(|y| *y == lowest).unwrap();
         assert!(
