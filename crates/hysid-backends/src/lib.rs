@@ -11,6 +11,7 @@ pub fn registry() -> Registry {
         .with(hysid_arx::Arx)
         .with(hysid_cluster::Cluster)
         .with(hysid_bounded::Bounded)
+        .with(hysid_physical::Physical)
 }
 
 #[cfg(test)]
@@ -21,6 +22,7 @@ mod tests {
         assert!(r.get("arx").is_some());
         assert!(r.get("cluster").is_some());
         assert!(r.get("bounded").is_some());
+        assert!(r.get("physical").is_some());
         for b in r.iter() {
             assert!(!b.summary().is_empty());
             for o in b.options() {

@@ -141,6 +141,7 @@ fn input_names(model: &Model) -> Vec<String> {
     let given = match model {
         Model::HybridAutomaton(a) => a.inputs.clone(),
         Model::Pwarx(p) => p.info.input_names.clone(),
+        Model::Mechanical(p) => p.inputs.clone(),
     };
     if given.len() == m {
         given

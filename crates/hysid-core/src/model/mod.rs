@@ -1,20 +1,28 @@
 //! Identified and hand-written models, their JSON (and TOML) files.
 //!
 //! A model file is a JSON object tagged by `"kind"` (`shared/spec/interface.md`,
-//! "Model files"). Two kinds live here:
+//! "Model files"). Three kinds live here:
 //!
 //! - [`PwarxModel`] (`"pwarx"`): modes with a parameter vector and a
 //!   polyhedral region in regressor space;
 //! - [`HybridAutomaton`] (`"hybrid_automaton"`): discrete modes with affine
 //!   dynamics and invariants, and transitions whose guard sets may be
-//!   lower-dimensional, each with a reset map.
+//!   lower-dimensional, each with a reset map;
+//! - [`MechanicalModel`] (`"mechanical"`): a mass-spring-friction hybrid
+//!   automaton declared by its physical parameters, contacts and stops.
 
 mod automaton;
+mod mechanical;
 mod pwarx;
 
 pub use automaton::{
     AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
     TimeDomain, Transition,
+};
+pub use mechanical::{
+    Contact, Direction, ForceElement, Friction, MAX_CONTACTS, MechanicalInitialState,
+    MechanicalMode, MechanicalModeKind, MechanicalModel, PhysicalParameter, Quantity,
+    ResolvedContact, ResolvedForce, ResolvedMechanics, ResolvedStop, Stop,
 };
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
 
@@ -31,6 +39,8 @@ pub enum Model {
     Pwarx(PwarxModel),
     /// Hybrid automaton with guards and resets.
     HybridAutomaton(HybridAutomaton),
+    /// Mass-spring-friction hybrid automaton declared by its physics.
+    Mechanical(MechanicalModel),
 }
 
 /// Where a model came from: written into every model file so that a result
@@ -97,6 +107,7 @@ impl Model {
         match self {
             Model::Pwarx(_) => "pwarx",
             Model::HybridAutomaton(_) => "hybrid_automaton",
+            Model::Mechanical(_) => "mechanical",
         }
     }
 
@@ -105,6 +116,7 @@ impl Model {
         match self {
             Model::Pwarx(m) => &m.info,
             Model::HybridAutomaton(m) => &m.info,
+            Model::Mechanical(m) => &m.info,
         }
     }
 
@@ -113,6 +125,7 @@ impl Model {
         match self {
             Model::Pwarx(m) => &mut m.info,
             Model::HybridAutomaton(m) => &mut m.info,
+            Model::Mechanical(m) => &mut m.info,
         }
     }
 
@@ -121,6 +134,7 @@ impl Model {
         match self {
             Model::Pwarx(m) => m.inputs,
             Model::HybridAutomaton(m) => m.inputs.len(),
+            Model::Mechanical(m) => m.inputs.len(),
         }
     }
 
@@ -129,6 +143,7 @@ impl Model {
         match self {
             Model::Pwarx(m) => m.modes.len(),
             Model::HybridAutomaton(m) => m.modes.len(),
+            Model::Mechanical(m) => m.modes.len(),
         }
     }
 
@@ -139,6 +154,7 @@ impl Model {
                 .map(|i| m.modes[i].name.clone().unwrap_or_else(|| i.to_string()))
                 .collect(),
             Model::HybridAutomaton(m) => m.modes.iter().map(|q| q.name.clone()).collect(),
+            Model::Mechanical(m) => m.modes.iter().map(|q| q.name.clone()).collect(),
         }
     }
 
@@ -147,6 +163,7 @@ impl Model {
         match self {
             Model::Pwarx(m) => m.validate(),
             Model::HybridAutomaton(m) => m.validate(),
+            Model::Mechanical(m) => m.validate(),
         }
         .map_err(ModelError::Invalid)
     }

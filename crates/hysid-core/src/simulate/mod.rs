@@ -12,6 +12,7 @@
 //!   measured outputs; automata from their [`InitialState`] rule.
 
 mod automaton;
+pub mod mechanical;
 mod pwarx;
 
 use crate::data::Dataset;
@@ -134,6 +135,7 @@ pub fn simulate(
     match model {
         Model::Pwarx(m) => pwarx::simulate(m, data, opts),
         Model::HybridAutomaton(m) => automaton::simulate(m, data, opts),
+        Model::Mechanical(m) => mechanical::simulate(m, data, opts),
     }
 }
 
@@ -152,5 +154,6 @@ pub fn predict(
             InitialState::ArxHistory { .. } => automaton::predict(m, data),
             InitialState::Given { .. } => automaton::simulate(m, data, opts),
         },
+        Model::Mechanical(m) => mechanical::predict(m, data),
     }
 }

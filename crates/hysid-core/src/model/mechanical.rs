@@ -1,0 +1,726 @@
+//! Mass-spring-friction hybrid automata declared by their physics
+//! (`"kind": "mechanical"`): one mass moving along a line, smooth forces
+//! (input gains, constants, springs, dampers), dry friction (Coulomb with
+//! stiction), unilateral contact surfaces (spring, damper and extra friction
+//! engaged past a position: the guard `y >= y_c`) and rigid stops (guard sets
+//! on the lower-dimensional sets `y = level`, with the velocity reset
+//! `v := -e v`, `e = 0` for an inelastic stop).
+//!
+//! This is the structure of the pick-and-place mounting head of Juloski,
+//! Heemels and Ferrari-Trecate, "Identification of an experimental hybrid
+//! system" (IFAC ADHS 2003), figure 3: mass M, spring c1 and damper d1 to the
+//! casing, dry friction f1, motor force proportional to the input, contact
+//! with the board (c2, d2, f2) and the two saturations. Every force is
+//! written **per unit mass** (an acceleration), since only ratios to M are
+//! identifiable from `u -> y`.
+//!
+//! The file format is documented in `docs/mechanical-models.md`; the
+//! simulator is [`crate::simulate::mechanical`].
+
+use super::ModelInfo;
+use crate::geometry::Polyhedron;
+use crate::model::automaton::{
+    AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
+    TimeDomain, Transition,
+};
+use serde::{Deserialize, Serialize};
+
+/// A named physical parameter (per unit mass), with unit, value and bounds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhysicalParameter {
+    /// Name used by force elements and by priors (`[fixed]`, `[bounds]`, `[[tie]]`).
+    pub name: String,
+    /// Unit, as text (e.g. `1/s^2`, `mm/s^2`).
+    #[serde(default)]
+    pub unit: String,
+    /// Value: nominal in a declared model, fitted in an identified one.
+    pub value: f64,
+    /// Admissible range `[low, high]` (search box of the fit).
+    pub bounds: [f64; 2],
+    /// Known exactly: never fitted.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub fixed: bool,
+    /// What it is.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub doc: String,
+}
+
+/// A number, or the name of a parameter.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Quantity {
+    /// A literal value.
+    Value(f64),
+    /// A parameter's name.
+    Param(String),
+}
+
+impl Default for Quantity {
+    fn default() -> Self {
+        Quantity::Value(0.0)
+    }
+}
+
+/// A smooth force acting everywhere, per unit mass.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ForceElement {
+    /// `gain * u_i` (e.g. the motor force `K_u u / M`).
+    Input {
+        /// Input name (one of the model's `inputs`).
+        input: String,
+        /// Gain.
+        gain: Quantity,
+    },
+    /// A constant force (gravity, preload).
+    Constant {
+        /// Value.
+        value: Quantity,
+    },
+    /// `-stiffness * (y - rest)`.
+    Spring {
+        /// Stiffness per unit mass (1/s^2).
+        stiffness: Quantity,
+        /// Rest position.
+        #[serde(default)]
+        rest: Quantity,
+    },
+    /// `-coefficient * v`.
+    Damper {
+        /// Damping per unit mass (1/s).
+        coefficient: Quantity,
+    },
+}
+
+/// Dry friction acting everywhere: Coulomb level while sliding, static
+/// (break-away) level while stuck; the simulator uses `max(static, kinetic)`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Friction {
+    /// Kinetic (Coulomb) level.
+    #[serde(default)]
+    pub kinetic: Quantity,
+    /// Static level.
+    #[serde(default, rename = "static")]
+    pub static_level: Quantity,
+}
+
+/// Direction along the position axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Direction {
+    /// The element acts on motion towards larger `y` (it lies at larger `y`).
+    Positive,
+    /// The element acts on motion towards smaller `y`.
+    Negative,
+}
+
+impl Direction {
+    /// `+1` or `-1`.
+    pub fn sign(self) -> f64 {
+        match self {
+            Direction::Positive => 1.0,
+            Direction::Negative => -1.0,
+        }
+    }
+}
+
+/// A unilateral contact surface at `position`: engaged when the
+/// penetration `p = s (y - position) > 0` (`s` the direction's sign: the
+/// guard `y >= y_c` for `positive`), with the contact force
+/// `lambda = stiffness p + damping s v` pushing back, extra friction while
+/// engaged, and (when `unilateral`) released when `lambda` would pull.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Contact {
+    /// Name, referenced by modes.
+    pub name: String,
+    /// Surface position.
+    pub position: Quantity,
+    /// Side on which the surface lies.
+    pub direction: Direction,
+    /// Contact stiffness per unit mass.
+    pub stiffness: Quantity,
+    /// Contact damping per unit mass.
+    #[serde(default)]
+    pub damping: Quantity,
+    /// Extra dry friction while engaged (added to both levels).
+    #[serde(default)]
+    pub friction: Quantity,
+    /// The surface can only push (contact released when `lambda < 0`).
+    #[serde(default = "yes")]
+    pub unilateral: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// A rigid stop: the guard set `{y = position, s v > 0}` (lower-dimensional)
+/// with the reset `v := -restitution v` (0: the velocity reset of the
+/// saturations in the IFAC 2003 paper). The position never passes it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Stop {
+    /// Name, referenced by modes.
+    pub name: String,
+    /// Position of the stop.
+    pub position: Quantity,
+    /// `positive`: it bounds `y` from above (`y <= position`); `negative`: from below.
+    pub direction: Direction,
+    /// Coefficient of restitution in `[0, 1)`; 0 keeps the mass at the stop.
+    #[serde(default)]
+    pub restitution: f64,
+}
+
+/// Kinds of discrete mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MechanicalModeKind {
+    /// Resting at a stop (`y = position`, `v = 0`): a saturation.
+    Stop,
+    /// Sliding (`v != 0`) with the listed contacts engaged.
+    Slip,
+    /// Stuck by static friction (`v = 0`, `|F| <= f_s`) with the listed contacts engaged.
+    Stick,
+}
+
+/// A declared discrete mode, the label of a physical regime.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MechanicalMode {
+    /// Name, unique.
+    pub name: String,
+    /// Kind.
+    pub kind: MechanicalModeKind,
+    /// For `stop` modes: the stop's name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop: Option<String>,
+    /// For `slip`/`stick`: the engaged contacts (exactly); absent means any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contacts: Option<Vec<String>>,
+    /// What it is.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub doc: String,
+}
+
+/// How a simulation obtains its initial state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "from", rename_all = "snake_case", deny_unknown_fields)]
+pub enum MechanicalInitialState {
+    /// Estimated from the first `samples` measured outputs: the simulation
+    /// starts at sample `samples - 1` with the measured position there and
+    /// the velocity of a least-squares quadratic through the last (up to 5)
+    /// of those samples; a velocity below `velocity_tol` counts as zero
+    /// (stuck, when static friction holds).
+    Measured {
+        /// Samples used (the protocol's warm-up, 10).
+        #[serde(default = "ten")]
+        samples: usize,
+        /// Velocities smaller than this are zero (position units per second).
+        #[serde(default)]
+        velocity_tol: f64,
+    },
+    /// A given state at sample 0.
+    Given {
+        /// Position.
+        position: f64,
+        /// Velocity.
+        velocity: f64,
+    },
+}
+
+fn ten() -> usize {
+    10
+}
+
+/// A one-degree-of-freedom mass-spring-friction hybrid automaton.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MechanicalModel {
+    /// Human-readable name.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub name: String,
+    /// Position unit (the output's unit), as text.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub position_unit: String,
+    /// Internal integration step, seconds.
+    pub internal_step: f64,
+    /// Input names, in the data's order.
+    pub inputs: Vec<String>,
+    /// Parameters.
+    pub parameters: Vec<PhysicalParameter>,
+    /// Smooth forces acting everywhere.
+    #[serde(default)]
+    pub forces: Vec<ForceElement>,
+    /// Dry friction acting everywhere.
+    #[serde(default)]
+    pub friction: Friction,
+    /// Unilateral contact surfaces.
+    #[serde(default)]
+    pub contacts: Vec<Contact>,
+    /// Rigid stops.
+    #[serde(default)]
+    pub stops: Vec<Stop>,
+    /// Declared modes; a sample's mode is the first that matches its regime.
+    pub modes: Vec<MechanicalMode>,
+    /// Initial state rule.
+    pub initial_state: MechanicalInitialState,
+    /// Provenance and fit diagnostics.
+    #[serde(default)]
+    pub info: ModelInfo,
+}
+
+/// A force element with its quantities resolved to numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ResolvedForce {
+    /// `gain * u[input]`.
+    Input(usize, f64),
+    /// Constant.
+    Constant(f64),
+    /// `-k (y - rest)`.
+    Spring(f64, f64),
+    /// `-d v`.
+    Damper(f64),
+}
+
+/// A contact with numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResolvedContact {
+    /// Surface position.
+    pub position: f64,
+    /// Direction sign.
+    pub sign: f64,
+    /// Stiffness.
+    pub stiffness: f64,
+    /// Damping.
+    pub damping: f64,
+    /// Extra friction.
+    pub friction: f64,
+    /// Can only push.
+    pub unilateral: bool,
+}
+
+/// A stop with numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResolvedStop {
+    /// Position.
+    pub position: f64,
+    /// Direction sign (+1: bounds y from above).
+    pub sign: f64,
+    /// Restitution.
+    pub restitution: f64,
+}
+
+/// The model with every quantity a number: what the simulator runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResolvedMechanics {
+    /// Forces.
+    pub forces: Vec<ResolvedForce>,
+    /// Kinetic friction level.
+    pub kinetic: f64,
+    /// Static friction level (>= kinetic).
+    pub static_level: f64,
+    /// Contacts.
+    pub contacts: Vec<ResolvedContact>,
+    /// Stops.
+    pub stops: Vec<ResolvedStop>,
+}
+
+/// Maximum number of contact surfaces (modes are matched on subsets of them).
+pub const MAX_CONTACTS: usize = 8;
+
+impl MechanicalModel {
+    /// Parameter names, in order.
+    pub fn parameter_names(&self) -> Vec<String> {
+        self.parameters.iter().map(|p| p.name.clone()).collect()
+    }
+
+    /// Current parameter values, in order.
+    pub fn values(&self) -> Vec<f64> {
+        self.parameters.iter().map(|p| p.value).collect()
+    }
+
+    /// Index of the parameter `name`.
+    pub fn parameter_index(&self, name: &str) -> Option<usize> {
+        self.parameters.iter().position(|p| p.name == name)
+    }
+
+    fn quantity(&self, q: &Quantity, values: &[f64]) -> f64 {
+        match q {
+            Quantity::Value(v) => *v,
+            Quantity::Param(n) => self
+                .parameter_index(n)
+                .map(|i| values[i])
+                .unwrap_or(f64::NAN),
+        }
+    }
+
+    /// Resolves every quantity with `values` (one per parameter, in order).
+    pub fn resolve_with(&self, values: &[f64]) -> ResolvedMechanics {
+        let q = |x: &Quantity| self.quantity(x, values);
+        let forces = self
+            .forces
+            .iter()
+            .map(|f| match f {
+                ForceElement::Input { input, gain } => ResolvedForce::Input(
+                    self.inputs.iter().position(|n| n == input).unwrap_or(0),
+                    q(gain),
+                ),
+                ForceElement::Constant { value } => ResolvedForce::Constant(q(value)),
+                ForceElement::Spring { stiffness, rest } => {
+                    ResolvedForce::Spring(q(stiffness), q(rest))
+                }
+                ForceElement::Damper { coefficient } => ResolvedForce::Damper(q(coefficient)),
+            })
+            .collect();
+        let kinetic = q(&self.friction.kinetic);
+        let static_level = q(&self.friction.static_level).max(kinetic);
+        ResolvedMechanics {
+            forces,
+            kinetic,
+            static_level,
+            contacts: self
+                .contacts
+                .iter()
+                .map(|c| ResolvedContact {
+                    position: q(&c.position),
+                    sign: c.direction.sign(),
+                    stiffness: q(&c.stiffness),
+                    damping: q(&c.damping),
+                    friction: q(&c.friction),
+                    unilateral: c.unilateral,
+                })
+                .collect(),
+            stops: self
+                .stops
+                .iter()
+                .map(|s| ResolvedStop {
+                    position: q(&s.position),
+                    sign: s.direction.sign(),
+                    restitution: s.restitution,
+                })
+                .collect(),
+        }
+    }
+
+    /// Resolves with the model's own values.
+    pub fn resolve(&self) -> ResolvedMechanics {
+        self.resolve_with(&self.values())
+    }
+
+    /// The declared mode of a regime: `stop` (index of the stop), else slip
+    /// or stick with the engaged contacts as a bit mask.
+    pub fn mode_of(&self, stop: Option<usize>, stuck: bool, engaged: u32) -> Option<usize> {
+        self.modes.iter().position(|m| match (m.kind, stop) {
+            (MechanicalModeKind::Stop, Some(s)) => {
+                m.stop.as_deref() == Some(self.stops[s].name.as_str())
+            }
+            (MechanicalModeKind::Stop, None) | (_, Some(_)) => false,
+            (MechanicalModeKind::Slip, None) if stuck => false,
+            (MechanicalModeKind::Stick, None) if !stuck => false,
+            _ => match &m.contacts {
+                None => true,
+                Some(list) => {
+                    let mask = list
+                        .iter()
+                        .filter_map(|n| self.contacts.iter().position(|c| &c.name == n))
+                        .fold(0u32, |a, i| a | (1 << i));
+                    mask == engaged
+                }
+            },
+        })
+    }
+
+    /// Structural checks: names resolve, bounds hold the values, every
+    /// regime has a declared mode.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.internal_step.is_finite() && self.internal_step > 0.0) {
+            return Err("internal_step must be > 0 (seconds)".into());
+        }
+        if self.inputs.is_empty() {
+            return Err("a mechanical model needs at least one input".into());
+        }
+        for (i, p) in self.parameters.iter().enumerate() {
+            if self.parameters[..i].iter().any(|o| o.name == p.name) {
+                return Err(format!("parameter '{}' appears twice", p.name));
+            }
+            let [lo, hi] = p.bounds;
+            if !(p.value.is_finite() && lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(format!(
+                    "parameter '{}': need finite value and bounds low <= high",
+                    p.name
+                ));
+            }
+            if p.value < lo || p.value > hi {
+                return Err(format!(
+                    "parameter '{}': value {} outside its bounds [{lo}, {hi}]",
+                    p.name, p.value
+                ));
+            }
+        }
+        let check = |q: &Quantity, what: &str| -> Result<(), String> {
+            match q {
+                Quantity::Value(v) if v.is_finite() => Ok(()),
+                Quantity::Value(_) => Err(format!("{what}: value must be finite")),
+                Quantity::Param(n) if self.parameter_index(n).is_some() => Ok(()),
+                Quantity::Param(n) => Err(format!("{what}: no parameter named '{n}'")),
+            }
+        };
+        for f in &self.forces {
+            match f {
+                ForceElement::Input { input, gain } => {
+                    if !self.inputs.contains(input) {
+                        return Err(format!("input force: no input named '{input}'"));
+                    }
+                    check(gain, "input force gain")?;
+                }
+                ForceElement::Constant { value } => check(value, "constant force")?,
+                ForceElement::Spring { stiffness, rest } => {
+                    check(stiffness, "spring stiffness")?;
+                    check(rest, "spring rest")?;
+                }
+                ForceElement::Damper { coefficient } => check(coefficient, "damper coefficient")?,
+            }
+        }
+        check(&self.friction.kinetic, "friction.kinetic")?;
+        check(&self.friction.static_level, "friction.static")?;
+        if self.contacts.len() > MAX_CONTACTS {
+            return Err(format!("at most {MAX_CONTACTS} contacts"));
+        }
+        for (i, c) in self.contacts.iter().enumerate() {
+            if self.contacts[..i].iter().any(|o| o.name == c.name) {
+                return Err(format!("contact '{}' appears twice", c.name));
+            }
+            let w = |s: &str| format!("contact '{}' {s}", c.name);
+            check(&c.position, &w("position"))?;
+            check(&c.stiffness, &w("stiffness"))?;
+            check(&c.damping, &w("damping"))?;
+            check(&c.friction, &w("friction"))?;
+        }
+        for (i, s) in self.stops.iter().enumerate() {
+            if self.stops[..i].iter().any(|o| o.name == s.name) {
+                return Err(format!("stop '{}' appears twice", s.name));
+            }
+            check(&s.position, &format!("stop '{}' position", s.name))?;
+            if !(0.0..1.0).contains(&s.restitution) {
+                return Err(format!("stop '{}': restitution must be in [0, 1)", s.name));
+            }
+        }
+        for (i, m) in self.modes.iter().enumerate() {
+            if self.modes[..i].iter().any(|o| o.name == m.name) {
+                return Err(format!("mode '{}' appears twice", m.name));
+            }
+            match m.kind {
+                MechanicalModeKind::Stop => match &m.stop {
+                    Some(s) if self.stops.iter().any(|x| &x.name == s) => {}
+                    Some(s) => return Err(format!("mode '{}': no stop named '{s}'", m.name)),
+                    None => return Err(format!("mode '{}': a stop mode needs `stop`", m.name)),
+                },
+                _ => {
+                    if m.stop.is_some() {
+                        return Err(format!("mode '{}': only stop modes name a stop", m.name));
+                    }
+                }
+            }
+            for c in m.contacts.iter().flatten() {
+                if !self.contacts.iter().any(|x| &x.name == c) {
+                    return Err(format!("mode '{}': no contact named '{c}'", m.name));
+                }
+            }
+        }
+        // Every regime needs a mode.
+        for s in 0..self.stops.len() {
+            if self.mode_of(Some(s), true, 0).is_none() {
+                return Err(format!(
+                    "no mode for resting at stop '{}'",
+                    self.stops[s].name
+                ));
+            }
+        }
+        for mask in 0..(1u32 << self.contacts.len()) {
+            for stuck in [false, true] {
+                if self.mode_of(None, stuck, mask).is_none() {
+                    return Err(format!(
+                        "no {} mode with contacts [{}] engaged",
+                        if stuck { "stick" } else { "slip" },
+                        self.contacts
+                            .iter()
+                            .enumerate()
+                            .filter(|(i, _)| mask & (1 << i) != 0)
+                            .map(|(_, c)| c.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ));
+                }
+            }
+        }
+        if let MechanicalInitialState::Given { position, velocity } = self.initial_state
+            && !(position.is_finite() && velocity.is_finite())
+        {
+            return Err("initial_state: position and velocity must be finite".into());
+        }
+        Ok(())
+    }
+
+    /// The continuous-time hybrid automaton of this model (states `y`, `v`),
+    /// for display and comparison: one mode per sliding regime (direction of
+    /// motion and engaged contacts, the friction entering as a constant),
+    /// one stick mode per contact set and one per stop, with the stops as
+    /// lower-dimensional guard sets `y = position` carrying the velocity
+    /// reset `v := -e v`, and contact guards `s (y - y_c) >= 0`. Contacts
+    /// are taken as released exactly when the penetration ends (the
+    /// `lambda < 0` release of a damped contact is a nonlinear guard and is
+    /// not represented). See [`crate::simulate::mechanical`] for the exact
+    /// semantics the simulator implements.
+    pub fn to_hybrid_automaton(&self) -> HybridAutomaton {
+        let r = self.resolve();
+        let m = self.inputs.len();
+        let dim = 2 + m;
+        let (mut k, mut d, mut f) = (0.0, 0.0, 0.0);
+        let mut b = vec![0.0; m];
+        for fe in &r.forces {
+            match *fe {
+                ResolvedForce::Input(i, g) => b[i] += g,
+                ResolvedForce::Constant(c) => f += c,
+                ResolvedForce::Spring(s, rest) => {
+                    k += s;
+                    f += s * rest;
+                }
+                ResolvedForce::Damper(c) => d += c,
+            }
+        }
+        let nc = r.contacts.len();
+        let mut modes = Vec::new();
+        let mut transitions = Vec::new();
+        let row = |y: f64, v: f64| {
+            let mut z = vec![0.0; dim];
+            z[0] = y;
+            z[1] = v;
+            z
+        };
+        let contact_names = |mask: u32| -> String {
+            self.contacts
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| mask & (1 << i) != 0)
+                .map(|(_, c)| c.name.as_str())
+                .collect::<Vec<_>>()
+                .join("+")
+        };
+        for mask in 0..(1u32 << nc) {
+            let (mut kk, mut dd, mut ff, mut fr) = (k, d, f, r.kinetic);
+            let mut inv_a = Vec::new();
+            let mut inv_b = Vec::new();
+            for (i, c) in r.contacts.iter().enumerate() {
+                if mask & (1 << i) != 0 {
+                    kk += c.stiffness;
+                    dd += c.damping;
+                    ff += c.stiffness * c.position;
+                    fr += c.friction;
+                    // s (y - p) >= 0  <=>  -s y <= -s p
+                    inv_a.push(row(-c.sign, 0.0));
+                    inv_b.push(-c.sign * c.position);
+                } else {
+                    inv_a.push(row(c.sign, 0.0));
+                    inv_b.push(c.sign * c.position);
+                }
+            }
+            let suffix = if nc == 0 {
+                String::new()
+            } else {
+                format!("[{}]", contact_names(mask))
+            };
+            for (dir, name) in [(1.0, "slip+"), (-1.0, "slip-")] {
+                let mut a = inv_a.clone();
+                let mut bb = inv_b.clone();
+                a.push(row(0.0, -dir));
+                bb.push(0.0);
+                modes.push(AutomatonMode {
+                    name: format!("{name}{suffix}"),
+                    flow: AffineDynamics {
+                        a: vec![vec![0.0, 1.0], vec![-kk, -dd]],
+                        b: vec![vec![0.0; m], b.clone()],
+                        f: vec![0.0, ff - dir * fr],
+                    },
+                    invariant: Polyhedron::from_inequalities(a, bb),
+                });
+            }
+            modes.push(AutomatonMode {
+                name: format!("stick{suffix}"),
+                flow: AffineDynamics {
+                    a: vec![vec![0.0; 2]; 2],
+                    b: vec![],
+                    f: vec![],
+                },
+                invariant: Polyhedron {
+                    a: inv_a.clone(),
+                    b: inv_b.clone(),
+                    a_eq: vec![row(0.0, 1.0)],
+                    b_eq: vec![0.0],
+                },
+            });
+        }
+        for (si, s) in r.stops.iter().enumerate() {
+            let name = format!("stop[{}]", self.stops[si].name);
+            modes.push(AutomatonMode {
+                name: name.clone(),
+                flow: AffineDynamics {
+                    a: vec![vec![0.0; 2]; 2],
+                    b: vec![],
+                    f: vec![],
+                },
+                invariant: Polyhedron {
+                    a: vec![],
+                    b: vec![],
+                    a_eq: vec![row(1.0, 0.0), row(0.0, 1.0)],
+                    b_eq: vec![s.position, 0.0],
+                },
+            });
+            for q in modes.iter().filter(|q| q.name.starts_with("slip")) {
+                // Guard: y = position with s v > 0 (moving into the stop).
+                transitions.push(Transition {
+                    from: q.name.clone(),
+                    to: if s.restitution > 0.0 {
+                        q.name.clone()
+                    } else {
+                        name.clone()
+                    },
+                    guard: GuardSet(Polyhedron {
+                        a: vec![row(0.0, -s.sign)],
+                        b: vec![0.0],
+                        a_eq: vec![row(1.0, 0.0)],
+                        b_eq: vec![s.position],
+                    }),
+                    reset: ResetMap {
+                        r: vec![vec![1.0, 0.0], vec![0.0, -s.restitution]],
+                        c: vec![],
+                    },
+                });
+            }
+        }
+        let (position, velocity) = match self.initial_state {
+            MechanicalInitialState::Given { position, velocity } => (position, velocity),
+            MechanicalInitialState::Measured { .. } => (0.0, 0.0),
+        };
+        HybridAutomaton {
+            time: TimeDomain::Continuous,
+            internal_step: Some(self.internal_step),
+            states: vec!["y".into(), "v".into()],
+            inputs: self.inputs.clone(),
+            output: OutputMap {
+                c: vec![1.0, 0.0],
+                d: vec![],
+                e: 0.0,
+            },
+            modes,
+            transitions,
+            initial_mode: None,
+            initial_state: InitialState::Given {
+                state: vec![position, velocity],
+            },
+            info: self.info.clone(),
+        }
+    }
+}

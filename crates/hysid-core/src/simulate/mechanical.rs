@@ -1,0 +1,813 @@
+//! Event-aware simulation of [`MechanicalModel`]s (mass-spring-friction
+//! hybrid automata; `docs/mechanical-models.md`).
+//!
+//! The state is `(y, v)` and a *regime*: sliding with a direction of
+//! friction `s = sign(v)` and a set of engaged contacts, stuck (`v = 0`),
+//! or resting at a stop. Within a regime the force law is smooth (affine),
+//! and it is integrated with classical RK4 at the model's fixed internal
+//! step (the sample time divided into equal sub-steps no longer than
+//! `internal_step`), the input held over each sample (zero-order hold).
+//!
+//! Events are located inside the internal step by bisection on the step
+//! length (60 halvings), the state taken just past the event, and the rest
+//! of the step integrated in the new regime (at most
+//! [`MAX_EVENTS_PER_STEP`] events per step):
+//!
+//! - **velocity zero** (`s v <= 0`): `v := 0`; the mass sticks when the net
+//!   smooth force `|F| <= f_s` (static level), else it slides off in the
+//!   direction of `F` (Karnopp's switch model: the sign of the friction is
+//!   never evaluated at `v = 0`, so there is no chattering);
+//! - **stop reached** (`s_i (y - y_i) >= 0`, a lower-dimensional guard set):
+//!   `y := y_i`, `v := -e v`; with `e = 0` the mass rests at the stop until
+//!   the net force pulls it away beyond static friction;
+//! - **contact engaged/released** (`p = s_c (y - y_c)` crosses 0, or the
+//!   contact force `lambda = k_c p + d_c s_c v` of a unilateral contact
+//!   becomes negative): the engaged set changes, `(y, v)` are continuous.
+//!
+//! While stuck or at a stop nothing moves, the net force is constant over a
+//! sample (held input, fixed position), and the break-away test is made at
+//! each sample. The output is the position at the sampling instants; the
+//! mode of a sample is the declared mode of its regime at that instant.
+
+use super::{SimError, Simulation, SimulationOptions};
+use crate::data::Dataset;
+use crate::model::{MechanicalInitialState, MechanicalModel, ResolvedForce, ResolvedMechanics};
+
+/// Bound on the events processed within one internal step (a Zeno guard).
+pub const MAX_EVENTS_PER_STEP: usize = 16;
+
+/// Discrete part of the state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Regime {
+    /// Sliding; `dir` is the sign of the velocity (+1 or -1), `engaged` the
+    /// bit mask of engaged contacts.
+    Slip {
+        /// Direction of motion.
+        dir: i8,
+        /// Engaged contacts.
+        engaged: u32,
+    },
+    /// Stuck by static friction, with these contacts engaged.
+    Stuck {
+        /// Engaged contacts.
+        engaged: u32,
+    },
+    /// Resting at stop `i`.
+    AtStop(usize),
+}
+
+/// Full state of the mechanical simulator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MechanicalState {
+    /// Position.
+    pub y: f64,
+    /// Velocity.
+    pub v: f64,
+    /// Regime.
+    pub regime: Regime,
+}
+
+/// Result of a mechanical simulation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MechanicalRun {
+    /// Positions at the samples (before `start`: the measured outputs).
+    pub y: Vec<f64>,
+    /// Velocities at the samples (0 before `start`).
+    pub v: Vec<f64>,
+    /// Declared mode per sample (`None` before `start`).
+    pub modes: Vec<Option<usize>>,
+    /// First simulated sample (the initial state's).
+    pub start: usize,
+    /// Internal steps integrated (stuck and stop intervals are skipped).
+    pub steps: usize,
+    /// Events handled.
+    pub events: usize,
+}
+
+impl ResolvedMechanics {
+    /// Net smooth force per unit mass (everything but dry friction and the
+    /// stops) with the contacts of `engaged`.
+    #[inline]
+    pub fn smooth_force(&self, y: f64, v: f64, u: &[f64], engaged: u32) -> f64 {
+        let mut f = 0.0;
+        for fe in &self.forces {
+            f += match *fe {
+                ResolvedForce::Input(i, g) => g * u[i],
+                ResolvedForce::Constant(c) => c,
+                ResolvedForce::Spring(k, rest) => -k * (y - rest),
+                ResolvedForce::Damper(d) => -d * v,
+            };
+        }
+        if engaged != 0 {
+            for (i, c) in self.contacts.iter().enumerate() {
+                if engaged & (1 << i) != 0 {
+                    let p = c.sign * (y - c.position);
+                    f -= c.sign * (c.stiffness * p + c.damping * c.sign * v);
+                }
+            }
+        }
+        f
+    }
+
+    /// Kinetic and static friction levels with the contacts of `engaged`.
+    #[inline]
+    pub fn friction(&self, engaged: u32) -> (f64, f64) {
+        let mut extra = 0.0;
+        if engaged != 0 {
+            for (i, c) in self.contacts.iter().enumerate() {
+                if engaged & (1 << i) != 0 {
+                    extra += c.friction;
+                }
+            }
+        }
+        let k = (self.kinetic + extra).max(0.0);
+        (k, (self.static_level + extra).max(k))
+    }
+
+    /// Contacts engaged at `(y, v)`: penetration > 0 and, for unilateral
+    /// ones, a contact force that pushes (`lambda >= 0`).
+    #[inline]
+    pub fn engaged_at(&self, y: f64, v: f64) -> u32 {
+        let mut m = 0;
+        for (i, c) in self.contacts.iter().enumerate() {
+            let p = c.sign * (y - c.position);
+            if p > 0.0 && (!c.unilateral || c.stiffness * p + c.damping * c.sign * v >= 0.0) {
+                m |= 1 << i;
+            }
+        }
+        m
+    }
+
+    /// Acceleration while sliding in direction `dir` with `engaged` contacts.
+    #[inline]
+    fn slip_accel(&self, y: f64, v: f64, u: &[f64], dir: f64, engaged: u32) -> f64 {
+        self.smooth_force(y, v, u, engaged) - dir * self.friction(engaged).0
+    }
+
+    /// The regime of a mass at rest (`v = 0`) at `y`: at a stop when on it
+    /// and pushed into it (or held by friction), stuck when static friction
+    /// holds, else sliding off in the direction of the net force.
+    pub fn rest_regime(&self, y: f64, u: &[f64]) -> Regime {
+        let engaged = self.engaged_at(y, 0.0);
+        let f = self.smooth_force(y, 0.0, u, engaged);
+        let (_, fs) = self.friction(engaged);
+        for (i, s) in self.stops.iter().enumerate() {
+            if (y - s.position).abs() <= 1e-12 * (1.0 + s.position.abs()) && s.sign * f >= -fs {
+                return Regime::AtStop(i);
+            }
+        }
+        if f.abs() <= fs {
+            Regime::Stuck { engaged }
+        } else {
+            Regime::Slip {
+                dir: if f > 0.0 { 1 } else { -1 },
+                engaged,
+            }
+        }
+    }
+
+    /// Clamps a position into the admissible interval between the stops.
+    pub fn clamp_position(&self, mut y: f64) -> f64 {
+        for s in &self.stops {
+            if s.sign * (y - s.position) > 0.0 {
+                y = s.position;
+            }
+        }
+        y
+    }
+
+    /// The state of a mass at `(y, v)`: position clamped, regime chosen.
+    pub fn state_at(&self, y: f64, v: f64, u: &[f64]) -> MechanicalState {
+        let y = self.clamp_position(y);
+        let on_stop = self
+            .stops
+            .iter()
+            .any(|s| y == s.position && s.sign * v >= 0.0);
+        if v == 0.0 || on_stop {
+            MechanicalState {
+                y,
+                v: 0.0,
+                regime: self.rest_regime(y, u),
+            }
+        } else {
+            MechanicalState {
+                y,
+                v,
+                regime: Regime::Slip {
+                    dir: if v > 0.0 { 1 } else { -1 },
+                    engaged: self.engaged_at(y, v),
+                },
+            }
+        }
+    }
+
+    /// One RK4 step of length `h` in a sliding regime.
+    #[inline]
+    fn rk4(&self, y: f64, v: f64, u: &[f64], dir: f64, engaged: u32, h: f64) -> (f64, f64) {
+        let a1 = self.slip_accel(y, v, u, dir, engaged);
+        let (y2, v2) = (y + 0.5 * h * v, v + 0.5 * h * a1);
+        let a2 = self.slip_accel(y2, v2, u, dir, engaged);
+        let (y3, v3) = (y + 0.5 * h * v2, v + 0.5 * h * a2);
+        let a3 = self.slip_accel(y3, v3, u, dir, engaged);
+        let (y4, v4) = (y + h * v3, v + h * a3);
+        let a4 = self.slip_accel(y4, v4, u, dir, engaged);
+        (
+            y + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
+            v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        )
+    }
+
+    /// True when `(y, v)` has left the sliding regime `(dir, engaged)`.
+    #[inline]
+    fn left_slip(&self, y: f64, v: f64, dir: f64, engaged: u32) -> bool {
+        if dir * v <= 0.0 {
+            return true;
+        }
+        for s in &self.stops {
+            if s.sign * (y - s.position) >= 0.0 && s.sign * dir > 0.0 {
+                return true;
+            }
+        }
+        self.engaged_at(y, v) != engaged
+    }
+
+    /// Advances the state by `dt` with input `u` held. Returns
+    /// (internal steps, events).
+    pub fn advance(
+        &self,
+        st: &mut MechanicalState,
+        u: &[f64],
+        dt: f64,
+        n_sub: usize,
+    ) -> (usize, usize) {
+        let h = dt / n_sub as f64;
+        let (mut steps, mut events) = (0, 0);
+        // At rest: a constant net force over the interval.
+        if !matches!(st.regime, Regime::Slip { .. }) {
+            st.v = 0.0;
+            st.regime = self.rest_regime(st.y, u);
+            if !matches!(st.regime, Regime::Slip { .. }) {
+                return (0, 0);
+            }
+        }
+        for _ in 0..n_sub {
+            let mut left = h;
+            let mut n_ev = 0;
+            while left > 0.0 {
+                let Regime::Slip { dir, engaged } = st.regime else {
+                    // Stuck or at a stop for the rest of the step; the force
+                    // stays constant, so for the rest of the sample too.
+                    return (steps, events);
+                };
+                let d = dir as f64;
+                steps += 1;
+                let (y1, v1) = self.rk4(st.y, st.v, u, d, engaged, left);
+                if !self.left_slip(y1, v1, d, engaged) {
+                    st.y = y1;
+                    st.v = v1;
+                    break;
+                }
+                // Locate the first exit in (0, left] by bisection.
+                let (mut lo, mut hi) = (0.0, left);
+                let (mut yh, mut vh) = (y1, v1);
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if mid <= lo || mid >= hi {
+                        break;
+                    }
+                    let (ym, vm) = self.rk4(st.y, st.v, u, d, engaged, mid);
+                    if self.left_slip(ym, vm, d, engaged) {
+                        hi = mid;
+                        yh = ym;
+                        vh = vm;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                events += 1;
+                n_ev += 1;
+                left -= hi;
+                *st = self.handle_event(yh, vh, u, d);
+                if n_ev >= MAX_EVENTS_PER_STEP {
+                    // Zeno guard: come to rest here.
+                    st.v = 0.0;
+                    st.regime = self.rest_regime(st.y, u);
+                    break;
+                }
+            }
+        }
+        (steps, events)
+    }
+
+    /// The state just after leaving a sliding regime at `(y, v)`.
+    fn handle_event(&self, y: f64, v: f64, u: &[f64], dir: f64) -> MechanicalState {
+        // A stop crossed in the direction of motion takes precedence.
+        for (i, s) in self.stops.iter().enumerate() {
+            if s.sign * (y - s.position) >= 0.0 && s.sign * dir > 0.0 {
+                let vr = -s.restitution * v;
+                if vr * dir < 0.0 && vr.abs() > 0.0 {
+                    let nd = if vr > 0.0 { 1 } else { -1 };
+                    return MechanicalState {
+                        y: s.position,
+                        v: vr,
+                        regime: Regime::Slip {
+                            dir: nd,
+                            engaged: self.engaged_at(s.position, vr),
+                        },
+                    };
+                }
+                let regime = match self.rest_regime(s.position, u) {
+                    Regime::Slip { dir: nd, engaged } if nd as f64 * s.sign > 0.0 => {
+                        // Pushed further into the stop: stays there.
+                        let _ = engaged;
+                        Regime::AtStop(i)
+                    }
+                    r => r,
+                };
+                return MechanicalState {
+                    y: s.position,
+                    v: 0.0,
+                    regime,
+                };
+            }
+        }
+        if dir * v <= 0.0 {
+            // Velocity reached zero: stick or slide off (Karnopp).
+            return MechanicalState {
+                y,
+                v: 0.0,
+                regime: self.rest_regime(y, u),
+            };
+        }
+        MechanicalState {
+            y,
+            v,
+            regime: Regime::Slip {
+                dir: dir as i8,
+                engaged: self.engaged_at(y, v),
+            },
+        }
+    }
+}
+
+/// Sub-steps per sample: the smallest count whose step is at most `internal_step`.
+pub fn substeps(ts: f64, internal_step: f64) -> usize {
+    ((ts / internal_step) - 1e-9).ceil().max(1.0) as usize
+}
+
+/// Estimates the state at sample `s` from measured outputs `y[..=s]`:
+/// position `y[s]` and the slope at `s` of a least-squares quadratic through
+/// the last (up to 5) samples (a line through 2).
+pub fn estimate_velocity(y: &[f64], s: usize, ts: f64) -> f64 {
+    let m = (s + 1).min(5);
+    match m {
+        0 | 1 => 0.0,
+        2 => (y[s] - y[s - 1]) / ts,
+        _ => {
+            // Fit y = a + b t + c t^2 with t = 0 at sample s (t = -j ts).
+            let (mut s0, mut s1, mut s2, mut s3, mut s4) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            let (mut r0, mut r1, mut r2) = (0.0, 0.0, 0.0);
+            for j in 0..m {
+                let t = -(j as f64);
+                let yy = y[s - j];
+                s0 += 1.0;
+                s1 += t;
+                s2 += t * t;
+                s3 += t * t * t;
+                s4 += t * t * t * t;
+                r0 += yy;
+                r1 += t * yy;
+                r2 += t * t * yy;
+            }
+            // Solve the 3x3 normal equations by Cramer's rule for b.
+            let det =
+                s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2);
+            let db = s0 * (r1 * s4 - s3 * r2) - r0 * (s1 * s4 - s3 * s2) + s2 * (s1 * r2 - r1 * s2);
+            if det.abs() < 1e-300 {
+                0.0
+            } else {
+                db / det / ts
+            }
+        }
+    }
+}
+
+/// Runs a mechanical model with parameter values `values` on the inputs of
+/// `data` (sampling time `data.ts`), from the model's initial-state rule.
+pub fn run(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+) -> Result<MechanicalRun, SimError> {
+    let r = model.resolve_with(values);
+    let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
+    if data.inputs.len() != model.inputs.len() {
+        return Err(SimError::Inputs {
+            expected: model.inputs.len(),
+            found: data.inputs.len(),
+        });
+    }
+    let n = data.len();
+    let ym = data.y();
+    let mut u = vec![0.0; model.inputs.len()];
+    let input_at = |k: usize, u: &mut [f64]| {
+        for (i, x) in u.iter_mut().enumerate() {
+            *x = data.inputs[i].values[k];
+        }
+    };
+    let (start, mut st) = match model.initial_state {
+        MechanicalInitialState::Measured {
+            samples,
+            velocity_tol,
+        } => {
+            let s = samples.max(1) - 1;
+            if n <= s {
+                return Err(SimError::TooShort {
+                    samples: n,
+                    needed: s + 1,
+                });
+            }
+            let mut v = estimate_velocity(ym, s, ts);
+            if v.abs() <= velocity_tol {
+                v = 0.0;
+            }
+            input_at(s, &mut u);
+            (s, r.state_at(ym[s], v, &u))
+        }
+        MechanicalInitialState::Given { position, velocity } => {
+            if n == 0 {
+                return Err(SimError::TooShort {
+                    samples: 0,
+                    needed: 1,
+                });
+            }
+            input_at(0, &mut u);
+            (0, r.state_at(position, velocity, &u))
+        }
+    };
+    let n_sub = substeps(ts, model.internal_step);
+    let mut out = MechanicalRun {
+        y: ym.to_vec(),
+        v: vec![0.0; n],
+        modes: vec![None; n],
+        start,
+        steps: 0,
+        events: 0,
+    };
+    let label = |st: &MechanicalState| match st.regime {
+        Regime::AtStop(i) => model.mode_of(Some(i), true, 0),
+        Regime::Stuck { engaged } => model.mode_of(None, true, engaged),
+        Regime::Slip { engaged, .. } => model.mode_of(None, false, engaged),
+    };
+    out.y[start] = st.y;
+    out.v[start] = st.v;
+    out.modes[start] = label(&st);
+    for k in start..n.saturating_sub(1) {
+        input_at(k, &mut u);
+        let (s, e) = r.advance(&mut st, &u, ts, n_sub);
+        out.steps += s;
+        out.events += e;
+        out.y[k + 1] = st.y;
+        out.v[k + 1] = st.v;
+        out.modes[k + 1] = label(&st);
+    }
+    Ok(out)
+}
+
+pub(super) fn simulate(
+    m: &MechanicalModel,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
+    let r = run(m, &m.values(), data)?;
+    let n = data.len();
+    let mut sim = Simulation {
+        y: r.y.clone(),
+        modes: r.modes,
+        start: r.start,
+        covered: vec![true; n],
+        diverged_at: None,
+    };
+    for k in r.start..n {
+        if !sim.push_checked(k, r.y[k], opts.bound) {
+            break;
+        }
+    }
+    Ok(sim)
+}
+
+/// One-step prediction: at each sample the state is re-estimated from the
+/// measured outputs up to the previous sample (as the initial state is) and
+/// advanced by one sample.
+pub(super) fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation, SimError> {
+    let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
+    let r = m.resolve();
+    let n = data.len();
+    let ym = data.y();
+    let (first, tol) = match m.initial_state {
+        MechanicalInitialState::Measured {
+            samples,
+            velocity_tol,
+        } => (samples.max(1) - 1, velocity_tol),
+        MechanicalInitialState::Given { .. } => (0, 0.0),
+    };
+    if n <= first {
+        return Err(SimError::TooShort {
+            samples: n,
+            needed: first + 1,
+        });
+    }
+    let n_sub = substeps(ts, m.internal_step);
+    let mut sim = Simulation {
+        y: ym.to_vec(),
+        modes: vec![None; n],
+        start: first + 1,
+        covered: vec![true; n],
+        diverged_at: None,
+    };
+    let mut u = vec![0.0; m.inputs.len()];
+    for k in first..n.saturating_sub(1) {
+        for (i, x) in u.iter_mut().enumerate() {
+            *x = data.inputs[i].values[k];
+        }
+        let mut v = estimate_velocity(ym, k, ts);
+        if v.abs() <= tol {
+            v = 0.0;
+        }
+        let mut st = r.state_at(ym[k], v, &u);
+        r.advance(&mut st, &u, ts, n_sub);
+        sim.y[k + 1] = st.y;
+        sim.modes[k + 1] = match st.regime {
+            Regime::AtStop(i) => m.mode_of(Some(i), true, 0),
+            Regime::Stuck { engaged } => m.mode_of(None, true, engaged),
+            Regime::Slip { engaged, .. } => m.mode_of(None, false, engaged),
+        };
+    }
+    if n == first + 1 {
+        sim.start = first;
+    }
+    Ok(sim)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::excitation::Excitation;
+    use crate::model::{MechanicalModeKind, Model};
+    use proptest::prelude::*;
+
+    const HEAD: &str = include_str!("../../../../models/pick-and-place/head.toml");
+    const TS: f64 = 0.0025;
+
+    fn head() -> MechanicalModel {
+        match Model::from_toml(HEAD, "head.toml").unwrap() {
+            Model::Mechanical(m) => m,
+            _ => unreachable!(),
+        }
+    }
+
+    /// The head with every parameter at fraction `z` of its bounds.
+    fn head_at(z: &[f64]) -> MechanicalModel {
+        let mut m = head();
+        for (p, zi) in m.parameters.iter_mut().zip(z) {
+            if !p.fixed {
+                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
+            }
+        }
+        m
+    }
+
+    fn given(m: &mut MechanicalModel, y: f64, v: f64) {
+        m.initial_state = MechanicalInitialState::Given {
+            position: y,
+            velocity: v,
+        };
+    }
+
+    fn value(m: &MechanicalModel, name: &str) -> f64 {
+        m.parameters[m.parameter_index(name).unwrap()].value
+    }
+
+    /// Potential energy per unit mass with u = 0: springs, constant force and
+    /// the engaged-or-not contact spring (counted whenever penetrating).
+    fn energy(m: &MechanicalModel, y: f64, v: f64) -> f64 {
+        let (c1, f0, c2, yc) = (
+            value(m, "c1"),
+            value(m, "f0"),
+            value(m, "c2"),
+            value(m, "yc"),
+        );
+        0.5 * v * v + 0.5 * c1 * y * y - f0 * y
+            + if y > yc {
+                0.5 * c2 * (y - yc).powi(2)
+            } else {
+                0.0
+            }
+    }
+
+    #[test]
+    fn head_model_parses_with_its_five_modes() {
+        let m = head();
+        let names: Vec<&str> = m.modes.iter().map(|q| q.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "upper_saturation",
+                "free",
+                "impact",
+                "lower_saturation",
+                "stick"
+            ]
+        );
+        assert_eq!(m.mode_of(None, false, 1), Some(2));
+        assert_eq!(m.mode_of(None, true, 1), Some(4));
+        assert_eq!(m.mode_of(Some(1), true, 0), Some(3));
+        let mut bad = m.clone();
+        bad.modes.retain(|q| q.kind != MechanicalModeKind::Stick);
+        assert!(bad.validate().unwrap_err().contains("stick"));
+        let json = Model::Mechanical(m.clone()).to_json();
+        assert_eq!(
+            Model::from_json(&json, "mem").unwrap(),
+            Model::Mechanical(m)
+        );
+    }
+
+    /// Without friction, contacts or stops reached, the simulator matches
+    /// the closed-form step response of a damped oscillator.
+    #[test]
+    fn linear_regime_matches_closed_form() {
+        let mut m = head();
+        for (n, v) in [("f1", 0.0), ("fs", 0.0), ("yc", 17.0)] {
+            let i = m.parameter_index(n).unwrap();
+            m.parameters[i].bounds[0] = 0.0;
+            m.parameters[i].value = v;
+        }
+        given(&mut m, 5.0, 0.0);
+        let (k, d, ku, f0) = (
+            value(&m, "c1"),
+            value(&m, "d1"),
+            value(&m, "ku"),
+            value(&m, "f0"),
+        );
+        let u = -0.05;
+        let n = 400;
+        let data = Dataset::siso(vec![u; n], vec![0.0; n], Some(TS)).unwrap();
+        let r = run(&m, &m.values(), &data).unwrap();
+        let yss = (ku * u + f0) / k;
+        let wn = k.sqrt();
+        let zeta = d / (2.0 * wn);
+        let wd = wn * (1.0 - zeta * zeta).sqrt();
+        let (a, b) = (5.0 - yss, zeta * wn * (5.0 - yss) / wd);
+        let mut worst = 0.0f64;
+        for (i, y) in r.y.iter().enumerate() {
+            let t = i as f64 * TS;
+            let exact = yss + (-zeta * wn * t).exp() * (a * (wd * t).cos() + b * (wd * t).sin());
+            assert!(exact > 0.0 && exact < 17.0);
+            worst = worst.max((y - exact).abs());
+        }
+        assert!(worst < 1e-7, "max error {worst}");
+        assert!(r.modes.iter().all(|q| *q == Some(1)));
+    }
+
+    /// A frictionless free fall onto the lower stop: the impact is located
+    /// within the step (the sample after it reads the stop exactly, with
+    /// the closed-form impact time) and the velocity is reset to zero.
+    #[test]
+    fn stop_is_hit_at_the_right_time_and_resets_velocity() {
+        let mut m = head();
+        m.forces
+            .retain(|f| matches!(f, crate::model::ForceElement::Constant { .. }));
+        m.contacts.clear();
+        m.modes
+            .retain(|q| q.contacts.as_ref().is_none_or(|c| c.is_empty()));
+        for (n, v) in [("f1", 0.0), ("fs", 0.0), ("f0", 1000.0)] {
+            let i = m.parameter_index(n).unwrap();
+            m.parameters[i].bounds[0] = 0.0;
+            m.parameters[i].value = v;
+        }
+        m.validate().unwrap();
+        given(&mut m, 0.0, 0.0);
+        let n = 200;
+        let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(TS)).unwrap();
+        let r = run(&m, &m.values(), &data).unwrap();
+        // y = 500 t^2 reaches 25 at t = sqrt(0.05).
+        let t_hit = 0.05f64.sqrt();
+        for (k, y) in r.y.iter().enumerate() {
+            let t = k as f64 * TS;
+            if t < t_hit {
+                assert!((y - 500.0 * t * t).abs() < 1e-9, "k {k}: {y}");
+            } else {
+                assert_eq!(*y, 25.0);
+                assert_eq!(r.v[k], 0.0);
+                assert_eq!(r.modes[k], Some(2), "lower_saturation after the reset");
+            }
+        }
+    }
+
+    /// The example of `docs/mechanical-models.md` ("Writing another system")
+    /// is a valid model, and its bouncing stop never lets the mass through.
+    #[test]
+    fn documented_example_parses_and_bounces() {
+        let doc = include_str!("../../../../docs/mechanical-models.md");
+        let start = doc.rfind("```toml\n").unwrap() + "```toml\n".len();
+        let end = start + doc[start..].find("```").unwrap();
+        let Model::Mechanical(mut m) = Model::from_toml(&doc[start..end], "doc").unwrap() else {
+            panic!("not mechanical")
+        };
+        given(&mut m, 0.0, -3.0);
+        let n = 400;
+        let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.001)).unwrap();
+        let r = run(&m, &m.values(), &data).unwrap();
+        let lowest = r.y.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!((-0.1..-0.09).contains(&lowest), "lowest {lowest}");
+        // Bounced (v := -0.5 v at the wall): moving away right after.
+        let k = r.y.iter().position(|y| *y == lowest).unwrap();
+        assert!(
+            r.v[k + 1] > 0.0 || r.v[k] > 0.0,
+            "{} {}",
+            r.v[k],
+            r.v[k + 1]
+        );
+        assert!(r.events > 0);
+    }
+
+    fn unit() -> impl Strategy<Value = Vec<f64>> {
+        proptest::collection::vec(0.0f64..=1.0, 12)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+
+        /// The position never leaves [y_up, y_low], and resting at a stop
+        /// means exactly the stop's position with zero velocity.
+        #[test]
+        fn position_stays_between_the_stops(z in unit(), seed in any::<u64>(), low in -0.3f64..-0.1) {
+            let mut m = head_at(&z);
+            given(&mut m, 0.0, 0.0);
+            let ex = Excitation { n: 600, hold: 40, low, high: 0.05, ts: Some(TS), inputs: 1 };
+            let data = Dataset::siso(ex.generate(seed).remove(0), vec![0.0; 600], Some(TS)).unwrap();
+            let r = run(&m, &m.values(), &data).unwrap();
+            let (up, lowstop) = (value(&m, "y_up"), value(&m, "y_low"));
+            for k in 0..600 {
+                prop_assert!(r.y[k] >= up && r.y[k] <= lowstop, "k {}: y {}", k, r.y[k]);
+                match r.modes[k].map(|q| m.modes[q].name.as_str()) {
+                    Some("upper_saturation") => prop_assert!(r.y[k] == up && r.v[k] == 0.0),
+                    Some("lower_saturation") => prop_assert!(r.y[k] == lowstop && r.v[k] == 0.0),
+                    Some("stick") => prop_assert!(r.v[k] == 0.0),
+                    Some(_) => {}
+                    None => prop_assert!(false, "no mode at {}", k),
+                }
+                // Entering a stop (a reset) leaves zero velocity.
+                if k > 0 && (r.y[k] == up || r.y[k] == lowstop) && r.y[k - 1] != r.y[k] {
+                    prop_assert_eq!(r.v[k], 0.0);
+                }
+            }
+        }
+
+        /// Without input the energy never grows (dampers, friction and the
+        /// inelastic stops only dissipate).
+        #[test]
+        fn energy_does_not_grow_without_input(z in unit(), y0 in 0.0f64..1.0, v0 in -400.0f64..400.0) {
+            let mut m = head_at(&z);
+            let y0 = y0 * value(&m, "y_low");
+            given(&mut m, y0, v0);
+            let n = 400;
+            let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(TS)).unwrap();
+            let r = run(&m, &m.values(), &data).unwrap();
+            let scale = energy(&m, y0, v0).abs() + 1.0;
+            let mut e_prev = energy(&m, r.y[0], r.v[0]);
+            prop_assert!(e_prev <= energy(&m, y0, v0) + 1e-9 * scale);
+            for k in 1..n {
+                let e = energy(&m, r.y[k], r.v[k]);
+                prop_assert!(e <= e_prev + 1e-9 * scale, "k {}: {} > {}", k, e, e_prev);
+                e_prev = e;
+            }
+        }
+
+        /// A stuck head stays stuck while the net force is below the static
+        /// level, and breaks away when it exceeds it.
+        #[test]
+        fn stuck_stays_stuck_below_static_friction(z in unit(), y0 in 0.05f64..0.95, frac in -0.98f64..0.98) {
+            let mut m = head_at(&z);
+            let y0 = y0 * value(&m, "y_low");
+            let r = m.resolve();
+            let engaged = r.engaged_at(y0, 0.0);
+            let (_, fs) = r.friction(engaged);
+            let ku = value(&m, "ku");
+            // u such that the net smooth force is frac * fs.
+            let f_at_zero_u = r.smooth_force(y0, 0.0, &[0.0], engaged);
+            let u = (frac * fs - f_at_zero_u) / ku;
+            given(&mut m, y0, 0.0);
+            let n = 200;
+            let data = Dataset::siso(vec![u; n], vec![0.0; n], Some(TS)).unwrap();
+            let run1 = run(&m, &m.values(), &data).unwrap();
+            prop_assert!(run1.y.iter().all(|y| *y == y0));
+            prop_assert!(run1.modes.iter().all(|q| *q == Some(4)));
+            // Beyond the static level it moves.
+            let u2 = ((1.05 * fs).copysign(frac) - f_at_zero_u) / ku;
+            let data2 = Dataset::siso(vec![u2; n], vec![0.0; n], Some(TS)).unwrap();
+            let run2 = run(&m, &m.values(), &data2).unwrap();
+            prop_assert!(run2.y[1] != y0);
+        }
+    }
+}

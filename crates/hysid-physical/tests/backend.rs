@@ -1,0 +1,262 @@
+//! The back-end contract: priors honoured or refused, determinism, the
+//! model file, and the bridge to the per-mode discrete-time form.
+
+use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
+use hysid_core::data::Dataset;
+use hysid_core::excitation::Excitation;
+use hysid_core::model::{MechanicalInitialState, MechanicalModel, Model};
+use hysid_core::options::Settings;
+use hysid_core::priors::{Priors, Tie};
+use hysid_core::regressors::RegressorSpec;
+use hysid_core::simulate::mechanical;
+use hysid_physical::{HEAD_MODEL_TOML, Physical, bridge, head_model};
+
+const TS: f64 = 0.0025;
+/// Small budgets: these tests check the contract, not the optimum.
+const QUICK: [&str; 6] = [
+    "particles=6",
+    "swarm_iters=3",
+    "local_iters=30",
+    "restarts=1",
+    "starts=2",
+    "lm_iters=3",
+];
+
+fn data(n: usize, seed: u64) -> Dataset {
+    let mut m = head_model();
+    m.initial_state = MechanicalInitialState::Given {
+        position: 0.0,
+        velocity: 0.0,
+    };
+    let u = Excitation {
+        n,
+        hold: 120,
+        low: -0.2,
+        high: 0.0,
+        ts: Some(TS),
+        inputs: 1,
+    }
+    .generate(seed)
+    .remove(0);
+    let r = mechanical::run(
+        &m,
+        &m.values(),
+        &Dataset::siso(u.clone(), vec![0.0; n], Some(TS)).unwrap(),
+    )
+    .unwrap();
+    Dataset::siso(u, r.y, Some(TS)).unwrap()
+}
+
+fn run(d: &Dataset, priors: &Priors, extra: &[&str], seed: u64) -> Result<Model, IdentifyError> {
+    let problem = Problem {
+        data: d,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors,
+        priors_origin: Some("p.toml"),
+    };
+    let key = |s: &str| s.split('=').next().unwrap_or("").to_string();
+    let mut set: Vec<&str> = QUICK
+        .iter()
+        .copied()
+        .filter(|q| !extra.iter().any(|e| key(e) == key(q)))
+        .collect();
+    set.extend_from_slice(extra);
+    Physical.run(
+        &problem,
+        &Settings::parse(&set).unwrap(),
+        &RunContext::quiet(seed),
+    )
+}
+
+fn mech(m: &Model) -> &MechanicalModel {
+    match m {
+        Model::Mechanical(x) => x,
+        _ => panic!("kind {}", m.kind()),
+    }
+}
+
+fn value(m: &MechanicalModel, n: &str) -> f64 {
+    m.parameters[m.parameter_index(n).unwrap()].value
+}
+
+#[test]
+fn built_in_model_is_the_file() {
+    let file = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/head.toml"
+    ))
+    .unwrap();
+    assert_eq!(file, HEAD_MODEL_TOML);
+    let m = head_model();
+    assert_eq!(m.parameters.len(), 12);
+    assert!(
+        m.parameters
+            .iter()
+            .all(|p| p.value >= p.bounds[0] && p.value <= p.bounds[1])
+    );
+}
+
+#[test]
+fn honours_fixed_ties_and_bounds_and_is_deterministic() {
+    let d = data(600, 3);
+    let mut pri = Priors::default();
+    pri.fixed.insert("yc".into(), 12.5);
+    pri.tie.push(Tie {
+        params: vec!["d1".into(), "d2".into()],
+    });
+    pri.bounds.insert("c1".into(), [600.0, 610.0]);
+    let a = run(&d, &pri, &[], 5).unwrap();
+    let m = mech(&a);
+    assert_eq!(value(m, "yc"), 12.5);
+    assert_eq!(value(m, "d1"), value(m, "d2"));
+    let c1 = value(m, "c1");
+    assert!((600.0..=610.0).contains(&c1), "c1 {c1}");
+    assert_eq!(
+        m.parameters[m.parameter_index("c1").unwrap()].bounds,
+        [600.0, 610.0]
+    );
+    assert!(m.info.diagnostics["cost"].as_f64().unwrap().is_finite());
+    assert!(m.info.diagnostics["parameters"]["c1"]["sensitivity"].is_number());
+    assert_eq!(m.info.method, "physical");
+    // Same seed, same bytes; the file reads back.
+    let b = run(&d, &pri, &[], 5).unwrap();
+    assert_eq!(a.to_json(), b.to_json());
+    assert_eq!(Model::from_json(&a.to_json(), "mem").unwrap(), a);
+}
+
+#[test]
+fn refuses_what_it_cannot_honour() {
+    let d = data(300, 4);
+    let pri = Priors {
+        modes: Some(3),
+        ..Default::default()
+    };
+    let e = run(&d, &pri, &[], 1).unwrap_err().to_string();
+    assert!(e.contains("does not honour") && e.contains("modes"), "{e}");
+    let pri = Priors {
+        switching: vec!["y1".into()],
+        ..Default::default()
+    };
+    assert!(run(&d, &pri, &[], 1).is_err());
+    let mut pri = Priors::default();
+    pri.fixed.insert("a1".into(), 0.0);
+    let e = run(&d, &pri, &[], 1).unwrap_err().to_string();
+    assert!(e.contains("a1") && e.contains("ku"), "{e}");
+    let mut pri = Priors::default();
+    pri.tie.push(Tie {
+        params: vec!["c1".into(), "c2".into()],
+    });
+    pri.fixed.insert("c1".into(), 600.0);
+    pri.fixed.insert("c2".into(), 500.0);
+    assert!(
+        run(&d, &pri, &[], 1)
+            .unwrap_err()
+            .to_string()
+            .contains("tied")
+    );
+    let mut pri = Priors::default();
+    pri.bounds.insert("c1".into(), [950.0, 990.0]);
+    pri.tie.push(Tie {
+        params: vec!["c1".into(), "c2".into()],
+    });
+    assert!(
+        run(&d, &pri, &[], 1)
+            .unwrap_err()
+            .to_string()
+            .contains("no admissible")
+    );
+    let e = run(&d, &Priors::default(), &["model=/nonexistent/m.toml"], 1)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("model"), "{e}");
+    let no_ts = Dataset::siso(d.u(0).to_vec(), d.y().to_vec(), None).unwrap();
+    assert!(
+        run(&no_ts, &Priors::default(), &[], 1)
+            .unwrap_err()
+            .to_string()
+            .contains("sampling time")
+    );
+}
+
+#[test]
+fn reads_a_model_file() {
+    let dir = std::env::temp_dir().join(format!("hysid-physical-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("head.toml");
+    std::fs::write(
+        &path,
+        HEAD_MODEL_TOML.replace("value = 12.0", "value = 13.0"),
+    )
+    .unwrap();
+    let d = data(300, 6);
+    let set = format!("model={}", path.display());
+    let m = run(
+        &d,
+        &Priors::default(),
+        &[set.as_str(), "particles=0", "local_iters=0", "lm_iters=0"],
+        1,
+    )
+    .unwrap();
+    assert_eq!(
+        value(mech(&m), "yc"),
+        13.0,
+        "no search: the file's values come back"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// In a sliding regime without events, the bridge's ARX(2,2) mode predicts
+/// the simulator's output exactly (zero-order hold is exact for held inputs).
+#[test]
+fn bridge_modes_reproduce_the_simulator_in_their_regime() {
+    let mut m = head_model();
+    m.initial_state = MechanicalInitialState::Given {
+        position: 1.0,
+        velocity: 0.0,
+    };
+    // A strong constant push down from y = 1: slides down freely, no stop or
+    // contact within 30 samples (75 ms).
+    let n = 30;
+    let u = vec![-0.06; n];
+    let r = mechanical::run(
+        &m,
+        &m.values(),
+        &Dataset::siso(u.clone(), vec![0.0; n], Some(TS)).unwrap(),
+    )
+    .unwrap();
+    assert!(
+        r.modes[1..].iter().all(|q| *q == Some(1)),
+        "free slide: {:?}",
+        r.modes
+    );
+    assert!(r.v[1..].iter().all(|v| *v > 0.0));
+    let p = bridge::to_pwarx(&m, TS);
+    Model::Pwarx(p.clone()).validate().unwrap();
+    let mode = p
+        .modes
+        .iter()
+        .find(|q| q.name.as_deref() == Some("slip+[]"))
+        .unwrap();
+    for k in 2..n {
+        let x = [r.y[k - 1], r.y[k - 2], u[k - 1], u[k - 2], 1.0];
+        let pred: f64 = mode.theta.iter().zip(x).map(|(a, b)| a * b).sum();
+        assert!((pred - r.y[k]).abs() < 1e-7, "k {k}: {pred} vs {}", r.y[k]);
+    }
+    let names: Vec<_> = p.modes.iter().map(|q| q.name.clone().unwrap()).collect();
+    assert_eq!(
+        names,
+        [
+            "slip+[]",
+            "slip-[]",
+            "slip+[board]",
+            "slip-[board]",
+            "stick",
+            "stop[upper]",
+            "stop[lower]"
+        ]
+    );
+    // The continuous-time automaton view validates too.
+    Model::HybridAutomaton(m.to_hybrid_automaton())
+        .validate()
+        .unwrap();
+}
