@@ -3,7 +3,7 @@
 //! `docs/performance-cluster.md`. One run per N, single-threaded.
 //!
 //! ```text
-//! cargo run --release -p hysid-cluster --example scaling [-- N N ... [c=K]]
+//! cargo run --release -p hysid-cluster --example cluster_scaling [-- N N ... [c=K]]
 //! ```
 
 use hysid_cluster::kmeans::{KmeansInit, weighted_kmeans};

@@ -9,7 +9,7 @@
 //! `docs/cluster.md`.
 //!
 //! ```text
-//! cargo run --release -p hysid-cluster --example pick_and_place [-- FILE] [c,c,..] [s,s,..] [key=value ...]
+//! cargo run --release -p hysid-cluster --example cluster_pick_and_place [-- FILE] [c,c,..] [s,s,..] [key=value ...]
 //! ```
 
 use hysid_cluster::{ClusterOptions, sweep};
