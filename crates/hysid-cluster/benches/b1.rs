@@ -5,7 +5,7 @@
 //! cargo bench -p hysid-cluster --bench b1
 //! ```
 //! Scaling from N = 10^3 to 10^6 with a per-stage breakdown:
-//! `cargo run --release -p hysid-cluster --example scaling`.
+//! `cargo run --release -p hysid-cluster --example cluster_scaling`.
 
 use hysid_cluster::Cluster;
 use hysid_cluster::systems::b1;
