@@ -151,7 +151,7 @@ pub fn run(args: Args) -> Result<()> {
             grid,
         }],
     };
-    exp.check().map_err(|m| CliError::input(m))?;
+    exp.check().map_err(CliError::input)?;
     let progress = TerminalProgress::new();
     let mut comparison = exp
         .run(&progress)
