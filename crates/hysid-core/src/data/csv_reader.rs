@@ -11,11 +11,20 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
         path: path.to_path_buf(),
         source,
     })?;
+    read_from(std::io::BufReader::new(file), path, wanted)
+}
+
+/// Same as [`read`] on any byte source; `path` only names it in errors.
+pub(crate) fn read_from<R: std::io::Read>(
+    source: R,
+    path: &Path,
+    wanted: &[&str],
+) -> Result<RawTable, DataError> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .flexible(true)
         .trim(csv::Trim::All)
-        .from_reader(std::io::BufReader::new(file));
+        .from_reader(source);
     let parse_err = |location: String, message: String| DataError::Parse {
         path: path.to_path_buf(),
         location,

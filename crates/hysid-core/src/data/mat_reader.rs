@@ -12,6 +12,15 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
         path: path.to_path_buf(),
         source,
     })?;
+    read_bytes(&bytes, path, wanted)
+}
+
+/// Same as [`read`] on the file's bytes; `path` only names it in errors.
+pub(crate) fn read_bytes(
+    bytes: &[u8],
+    path: &Path,
+    wanted: &[&str],
+) -> Result<RawTable, DataError> {
     let perr = |location: String, message: String| DataError::Parse {
         path: path.to_path_buf(),
         location,
@@ -25,7 +34,7 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
     }
     // matrw is a third-party parser: a malformed file must still end in an
     // error, never in a crash of the caller.
-    let parsed = std::panic::catch_unwind(|| matrw::load_matfile_from_u8(&bytes))
+    let parsed = std::panic::catch_unwind(|| matrw::load_matfile_from_u8(bytes))
         .map_err(|_| perr(String::new(), "not a readable level-5 MAT-file".into()))?
         .map_err(|e| {
             perr(
