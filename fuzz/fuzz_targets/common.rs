@@ -25,23 +25,21 @@ pub fn split(data: &[u8]) -> (DataSelection, &[u8]) {
 
 /// libfuzzer-sys aborts on every panic, even one caught further up. The MAT
 /// reader catches panics of the third-party `matrw` parser (and turns them
-/// into an error); those are let through silently here, counted by location,
-/// while a panic anywhere else still aborts and is reported as a crash.
+/// into an error); those are let through here (the first one at each
+/// location is logged), while a panic anywhere else still aborts and is
+/// reported as a crash.
 #[allow(dead_code)]
 pub fn tolerate_matrw_panics() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         let aborting = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
-            let in_matrw = info
-                .location()
-                .is_some_and(|l| l.file().contains("matrw"));
-            if in_matrw {
+            if hysid_core::data::inside_guarded_parser() {
                 if let Some(l) = info.location() {
                     let key = format!("{}:{}", l.file(), l.line());
                     let seen = SEEN.get_or_init(Default::default);
                     if seen.lock().map(|mut s| s.insert(key.clone())).unwrap_or(false) {
-                        eprintln!("guarded matrw panic (first time) at {key}");
+                        eprintln!("guarded matrw panic (first at this location): {key}: {info}");
                     }
                 }
                 return;

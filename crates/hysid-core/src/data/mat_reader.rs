@@ -34,12 +34,12 @@ pub(crate) fn read_bytes(
     }
     // matrw is a third-party parser: a malformed file must still end in an
     // error, never in a crash of the caller.
-    let parsed = std::panic::catch_unwind(|| matrw::load_matfile_from_u8(bytes))
-        .map_err(|_| perr(String::new(), "not a readable level-5 MAT-file".into()))?
+    let parsed = guarded(|| matrw::load_matfile_from_u8(bytes))
+        .ok_or_else(|| perr(String::new(), "not a readable level-5 MAT-file".into()))?
         .map_err(|e| {
             perr(
                 String::new(),
-                format!("not a readable level-5 MAT-file: {e}"),
+                format!("not a readable level-5 MAT-file: {}", plain(&e.to_string())),
             )
         })?;
     let mut columns = Vec::new();
@@ -49,19 +49,22 @@ pub(crate) fn read_bytes(
             continue;
         }
         let loc = format!("variable '{name}': ");
-        let dim = var.dim();
-        let n: usize = dim.iter().product();
+        let unreadable = || perr(loc.clone(), "cannot be read (malformed variable)".into());
+        let dim = guarded(|| var.dim()).ok_or_else(unreadable)?;
         if dim.iter().filter(|&&d| d != 1).count() > 1 {
             return Err(perr(
                 loc,
                 format!("is {dims}, expected a vector", dims = dims(&dim)),
             ));
         }
-        if var.is_complex() == Some(true) {
+        // At most one dimension differs from 1, so the product cannot overflow.
+        let n: usize = dim.iter().product();
+        if guarded(|| var.is_complex()).ok_or_else(unreadable)? == Some(true) {
             return Err(perr(loc, "is complex, expected real values".into()));
         }
-        let values =
-            to_f64(var).ok_or_else(|| perr(loc.clone(), "is not a numeric array".into()))?;
+        let values = guarded(|| to_f64(var))
+            .ok_or_else(unreadable)?
+            .ok_or_else(|| perr(loc.clone(), "is not a numeric array".into()))?;
         if values.len() != n {
             return Err(perr(
                 loc,
@@ -91,6 +94,78 @@ pub(crate) fn read_bytes(
         what: "variable",
         columns,
     })
+}
+
+thread_local! {
+    static IN_GUARDED_PARSER: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// True while the current thread runs third-party parser code whose panics
+/// the MAT reader catches and turns into a [`DataError`]. A program's panic
+/// hook can stay silent then (the `hysid` CLI does), so that a malformed
+/// file gives one error line, not a panic report followed by it.
+pub fn inside_guarded_parser() -> bool {
+    IN_GUARDED_PARSER.with(std::cell::Cell::get)
+}
+
+/// Runs `f` (matrw code), `None` if it panicked.
+fn guarded<T>(f: impl FnOnce() -> T) -> Option<T> {
+    struct Reset(bool);
+    impl Drop for Reset {
+        fn drop(&mut self) {
+            IN_GUARDED_PARSER.with(|g| g.set(self.0));
+        }
+    }
+    let _reset = Reset(IN_GUARDED_PARSER.with(|g| g.replace(true)));
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).ok()
+}
+
+/// matrw's errors come from binrw with terminal colours, box-drawing rules
+/// and a backtrace of the parser's source files; keep the words only
+/// ("no variants matched at 0x0 While parsing field 'matfile_ver' in
+/// MatFileHeader").
+fn plain(message: &str) -> String {
+    let mut text = String::with_capacity(message.len());
+    let mut chars = message.chars().peekable();
+    while let Some(c) = chars.next() {
+        if c == '\u{1b}' {
+            // An ANSI escape sequence: ESC [ parameters final-letter.
+            if chars.peek() == Some(&'[') {
+                chars.next();
+                for c in chars.by_ref() {
+                    if c.is_ascii_alphabetic() {
+                        break;
+                    }
+                }
+            }
+            continue;
+        }
+        if ('\u{2500}'..='\u{257f}').contains(&c) || c.is_control() {
+            text.push(' ');
+        } else {
+            text.push(c);
+        }
+    }
+    let words: Vec<&str> = text
+        .split_whitespace()
+        .filter(|w| !matches!(*w, "Backtrace" | "binrw" | "error" | "0:" | "Error:"))
+        .collect();
+    // Drop the parser's own source locations (" at /.../header.rs:87").
+    let mut kept = Vec::with_capacity(words.len());
+    let mut i = 0;
+    while i < words.len() {
+        if words[i] == "at" && words.get(i + 1).is_some_and(|w| w.contains(".rs:")) {
+            i += 2;
+            continue;
+        }
+        kept.push(words[i]);
+        i += 1;
+    }
+    if kept.is_empty() {
+        "malformed file".into()
+    } else {
+        kept.join(" ")
+    }
 }
 
 fn dims(d: &[usize]) -> String {
@@ -174,6 +249,36 @@ mod tests {
         let p = write(false, vec![4.0, 5.0, 6.0]);
         let e = load(&p, &sel).unwrap_err().to_string();
         assert!(e.contains("no variable 'z'") && e.contains("u"), "{e}");
+    }
+
+    #[test]
+    fn parser_errors_are_plain_words() {
+        let raw = "binrw error\n\u{1b}[1m\u{2578}\u{2501}\u{2505} Backtrace \u{2505}\n 0: \u{1b}[1mError: no variants matched at 0x0\u{1b}[22m\n \u{1b}[1mWhile parsing field 'matfile_ver' in MatFileHeader\u{1b}[22m at /root/.cargo/registry/src/matrw-0.1.4/src/parser/header.rs:87\n\u{2578}\u{2501}";
+        assert_eq!(
+            super::plain(raw),
+            "no variants matched at 0x0 While parsing field 'matfile_ver' in MatFileHeader"
+        );
+        assert_eq!(super::plain("\u{1b}[1m\u{2501}"), "malformed file");
+    }
+
+    #[test]
+    fn fuzzer_crash_inputs_are_errors() {
+        // A dimension product that overflows inside matrw (fuzz target
+        // mat_reader; the first byte chose the selection there).
+        let bytes = include_bytes!("../../../../tests/data/fuzz/mat_reader-mul-overflow-4ed3ecb8");
+        let e = crate::data::load_bytes(
+            &bytes[1..],
+            crate::data::DataFormat::Mat,
+            std::path::Path::new("crash.mat"),
+            &DataSelection::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("crash.mat: not a readable level-5 MAT-file"),
+            "{e}"
+        );
+        assert!(!crate::data::inside_guarded_parser());
     }
 
     #[test]

@@ -10,6 +10,7 @@ mod csv_reader;
 mod mat_reader;
 mod standardize;
 
+pub use mat_reader::inside_guarded_parser;
 pub use standardize::{AffineScale, Standardization};
 
 use serde::{Deserialize, Serialize};
@@ -296,7 +297,9 @@ impl RawTable {
                 available: self
                     .columns
                     .iter()
-                    .map(|(n, _)| n.as_str())
+                    // Escaped, so that a stray byte-order mark or control
+                    // character in a header is visible in the message.
+                    .map(|(n, _)| n.escape_debug().to_string())
                     .collect::<Vec<_>>()
                     .join(", "),
             })
