@@ -161,10 +161,24 @@ fn plain(message: &str) -> String {
         kept.push(words[i]);
         i += 1;
     }
-    if kept.is_empty() {
+    // binrw lists every variant it tried ("... ObjectMCOS no variants
+    // matched ..."): the first clause says where the file stops making sense.
+    const MAX_WORDS: usize = 16;
+    let mut first = Vec::new();
+    for w in kept {
+        if let Some(w) = w.strip_suffix("...") {
+            first.push(w);
+            break;
+        }
+        first.push(w);
+        if first.len() == MAX_WORDS {
+            break;
+        }
+    }
+    if first.is_empty() {
         "malformed file".into()
     } else {
-        kept.join(" ")
+        first.join(" ")
     }
 }
 
@@ -259,6 +273,11 @@ mod tests {
             "no variants matched at 0x0 While parsing field 'matfile_ver' in MatFileHeader"
         );
         assert_eq!(super::plain("\u{1b}[1m\u{2501}"), "malformed file");
+        let tried_everything = "no variants matched at 0xb8... ObjectMCOS no variants matched at 0xb8 Unexpected value for enum: 0 1: While parsing field 'data_type'";
+        assert_eq!(
+            super::plain(tried_everything),
+            "no variants matched at 0xb8"
+        );
     }
 
     #[test]
