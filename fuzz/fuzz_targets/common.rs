@@ -11,9 +11,18 @@ pub fn split(data: &[u8]) -> (DataSelection, &[u8]) {
     };
     let rows = match (b >> 2) & 3 {
         0 => RowRange::default(),
-        1 => RowRange { start: Some(1), end: None },
-        2 => RowRange { start: None, end: Some(3) },
-        _ => RowRange { start: Some(2), end: Some(5) },
+        1 => RowRange {
+            start: Some(1),
+            end: None,
+        },
+        2 => RowRange {
+            start: None,
+            end: Some(3),
+        },
+        _ => RowRange {
+            start: Some(2),
+            end: Some(5),
+        },
     };
     let sel = DataSelection {
         decimate: 1 + usize::from(b & 3),
@@ -38,7 +47,11 @@ pub fn tolerate_matrw_panics() {
                 if let Some(l) = info.location() {
                     let key = format!("{}:{}", l.file(), l.line());
                     let seen = SEEN.get_or_init(Default::default);
-                    if seen.lock().map(|mut s| s.insert(key.clone())).unwrap_or(false) {
+                    if seen
+                        .lock()
+                        .map(|mut s| s.insert(key.clone()))
+                        .unwrap_or(false)
+                    {
                         eprintln!("guarded matrw panic (first at this location): {key}: {info}");
                     }
                 }

@@ -10,7 +10,8 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     if let Ok(m) = Model::from_json(text, "fuzz.json") {
-        let again = Model::from_json(&m.to_json(), "again.json").expect("a model's own JSON reads back");
+        let again =
+            Model::from_json(&m.to_json(), "again.json").expect("a model's own JSON reads back");
         assert_eq!(m, again);
     }
 });
