@@ -32,6 +32,16 @@ pub(crate) fn read_bytes(
             "too short for a MAT-file header (128 bytes)".into(),
         ));
     }
+    // matrw trusts the sizes written in the file and reserves them before
+    // reading (a 211-byte file found by fuzzing asked for 3.9 GB): check
+    // that every element fits inside its parent first.
+    let little_endian = &bytes[126..128] != b"MI";
+    check_elements(&bytes[128..], 128, little_endian, 0).map_err(|m| {
+        perr(
+            String::new(),
+            format!("not a readable level-5 MAT-file: {m}"),
+        )
+    })?;
     // matrw is a third-party parser: a malformed file must still end in an
     // error, never in a crash of the caller.
     let parsed = guarded(|| matrw::load_matfile_from_u8(bytes))
@@ -94,6 +104,85 @@ pub(crate) fn read_bytes(
         what: "variable",
         columns,
     })
+}
+
+/// Nesting depth of miMATRIX elements (cells and structures) checked.
+const MAX_DEPTH: usize = 16;
+/// Largest inflated miCOMPRESSED element accepted (4 GiB).
+const MAX_INFLATED: u64 = 1 << 32;
+
+/// Walks the data elements of a level-5 MAT-file ("MAT-File Format",
+/// MathWorks, ch. 1: an 8-byte tag with type and byte count, or a small
+/// element packing both in 4 bytes) and checks that every declared size
+/// fits inside its parent: the file, an miMATRIX element, or the inflated
+/// content of an miCOMPRESSED element. `base` is the offset of `buf` in the
+/// file, for the message.
+fn check_elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<(), String> {
+    const MI_MATRIX: u32 = 14;
+    const MI_COMPRESSED: u32 = 15;
+    let word = |at: usize| -> u32 {
+        let b = [buf[at], buf[at + 1], buf[at + 2], buf[at + 3]];
+        if le {
+            u32::from_le_bytes(b)
+        } else {
+            u32::from_be_bytes(b)
+        }
+    };
+    let mut pos = 0;
+    while pos < buf.len() {
+        let rest = buf.len() - pos;
+        if rest < 8 {
+            // Padding at the end of a parent is fine; a cut tag is not.
+            if depth > 0 && buf[pos..].iter().all(|&b| b == 0) {
+                return Ok(());
+            }
+            return Err(format!(
+                "the element at byte {} is cut ({rest} bytes left, a tag has 8)",
+                base + pos
+            ));
+        }
+        let ty = word(pos);
+        if ty >> 16 != 0 {
+            // Small data element: type and size in 4 bytes, data in the next 4.
+            pos += 8;
+            continue;
+        }
+        let n = word(pos + 4) as usize;
+        let start = pos + 8;
+        if n > buf.len() - start {
+            return Err(format!(
+                "the element at byte {} declares {n} bytes, only {} remain (truncated or corrupted file)",
+                base + pos,
+                buf.len() - start
+            ));
+        }
+        let body = &buf[start..start + n];
+        match ty {
+            MI_MATRIX if depth < MAX_DEPTH => check_elements(body, base + start, le, depth + 1)?,
+            MI_COMPRESSED if depth == 0 => {
+                use std::io::Read;
+                let mut inflated = Vec::new();
+                flate2::read::ZlibDecoder::new(body)
+                    .take(MAX_INFLATED)
+                    .read_to_end(&mut inflated)
+                    .map_err(|e| {
+                        format!(
+                            "the compressed element at byte {} does not inflate: {e}",
+                            base + pos
+                        )
+                    })?;
+                check_elements(&inflated, 0, le, depth + 1).map_err(|e| {
+                    format!("in the compressed element at byte {}: {e}", base + pos)
+                })?;
+            }
+            _ => {}
+        }
+        pos = start + n;
+        if ty != MI_COMPRESSED {
+            pos = pos.next_multiple_of(8).min(buf.len());
+        }
+    }
+    Ok(())
 }
 
 thread_local! {
@@ -298,6 +387,28 @@ mod tests {
             "{e}"
         );
         assert!(!crate::data::inside_guarded_parser());
+    }
+
+    #[test]
+    fn sizes_beyond_the_parent_are_refused_before_matrw_allocates() {
+        // A 211-byte file whose array-name element declares ~4 GB (fuzz
+        // target mat_reader, libFuzzer out-of-memory).
+        let bytes = include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-33af7a43");
+        let e = crate::data::load_bytes(
+            &bytes[1..],
+            crate::data::DataFormat::Mat,
+            std::path::Path::new("oom.mat"),
+            &DataSelection::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("declares") && e.contains("remain"), "{e}");
+        // The real record and matrw's own files pass the check.
+        for compress in [false, true] {
+            let p = write(compress, vec![4.0, 5.0, 6.0]);
+            let b = std::fs::read(&p).unwrap();
+            super::check_elements(&b[128..], 128, true, 0).unwrap();
+        }
     }
 
     #[test]
