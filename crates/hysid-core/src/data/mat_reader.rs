@@ -141,8 +141,11 @@ fn check_elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<(),
                 base + pos
             ));
         }
+        // matrw reads the type of a variable from its low byte only: a tag
+        // 0x2f0f is compressed to it. Judge the kind the same way.
         let ty = word(pos);
-        if ty >> 16 != 0 {
+        let kind = ty & 0xff;
+        if ty >> 16 != 0 && kind != MI_MATRIX && kind != MI_COMPRESSED {
             // Small data element: type and size in 4 bytes, data in the next 4.
             pos += 8;
             continue;
@@ -157,8 +160,15 @@ fn check_elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<(),
             ));
         }
         let body = &buf[start..start + n];
-        match ty {
-            MI_MATRIX if depth < MAX_DEPTH => check_elements(body, base + start, le, depth + 1)?,
+        match kind {
+            MI_MATRIX if depth < MAX_DEPTH => {
+                // matrw reads an array's sub-elements one after the other
+                // without bounding them by the array's own size: check the
+                // first five (flags, dimensions, name, data) against all
+                // that follows, too.
+                check_sequence(&buf[start..], base + start, le, 5)?;
+                check_elements(body, base + start, le, depth + 1)?
+            }
             MI_COMPRESSED if depth == 0 => {
                 use std::io::Read;
                 let mut inflated = Vec::new();
@@ -178,9 +188,42 @@ fn check_elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<(),
             _ => {}
         }
         pos = start + n;
-        if ty != MI_COMPRESSED {
+        if kind != MI_COMPRESSED {
             pos = pos.next_multiple_of(8).min(buf.len());
         }
+    }
+    Ok(())
+}
+
+/// The first `count` element tags of `buf`, each checked to fit in what
+/// follows it (see [`check_elements`]).
+fn check_sequence(buf: &[u8], base: usize, le: bool, count: usize) -> Result<(), String> {
+    let word = |at: usize| -> u32 {
+        let b = [buf[at], buf[at + 1], buf[at + 2], buf[at + 3]];
+        if le {
+            u32::from_le_bytes(b)
+        } else {
+            u32::from_be_bytes(b)
+        }
+    };
+    let mut pos = 0;
+    for _ in 0..count {
+        if buf.len() - pos < 8 {
+            return Ok(());
+        }
+        if word(pos) >> 16 != 0 {
+            pos += 8;
+            continue;
+        }
+        let n = word(pos + 4) as usize;
+        let left = buf.len() - pos - 8;
+        if n > left {
+            return Err(format!(
+                "the element at byte {} declares {n} bytes, only {left} remain (truncated or corrupted file)",
+                base + pos
+            ));
+        }
+        pos = (pos + 8 + n).next_multiple_of(8).min(buf.len());
     }
     Ok(())
 }
@@ -393,16 +436,25 @@ mod tests {
     fn sizes_beyond_the_parent_are_refused_before_matrw_allocates() {
         // A 211-byte file whose array-name element declares ~4 GB (fuzz
         // target mat_reader, libFuzzer out-of-memory).
-        let bytes = include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-33af7a43");
-        let e = crate::data::load_bytes(
-            &bytes[1..],
-            crate::data::DataFormat::Mat,
-            std::path::Path::new("oom.mat"),
-            &DataSelection::default(),
-        )
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("declares") && e.contains("remain"), "{e}");
+        // A 649-byte one whose compressed array's data element asks for
+        // 3.3 GB, beyond what the array itself declares.
+        for bytes in [
+            &include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-33af7a43")[..],
+            &include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-a139648a")[..],
+        ] {
+            let e = crate::data::load_bytes(
+                &bytes[1..],
+                crate::data::DataFormat::Mat,
+                std::path::Path::new("oom.mat"),
+                &DataSelection::default(),
+            )
+            .unwrap_err()
+            .to_string();
+            assert!(
+                e.contains("declares") && e.contains("remain") || e.contains("does not inflate"),
+                "{e}"
+            );
+        }
         // The real record and matrw's own files pass the check.
         for compress in [false, true] {
             let p = write(compress, vec![4.0, 5.0, 6.0]);
