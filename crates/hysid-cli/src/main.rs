@@ -38,6 +38,7 @@ enum Command {
 }
 
 fn main() {
+    quiet_guarded_panics();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) if !e.use_stderr() => {
@@ -69,6 +70,20 @@ fn main() {
         eprintln!("hysid: error: {}", e.one_line());
         std::process::exit(e.exit_code());
     }
+}
+
+/// The MAT reader of `hysid-core` catches panics of the third-party `matrw`
+/// parser on malformed files and returns an error naming the file; the
+/// default hook would still print the panic (several lines) before that
+/// one-line message. Panics raised while that parser runs are therefore not
+/// printed; any other panic is reported by the default hook as before.
+fn quiet_guarded_panics() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !hysid_core::data::inside_guarded_parser() {
+            default(info);
+        }
+    }));
 }
 
 /// Keeps `CliError` in use from every module.

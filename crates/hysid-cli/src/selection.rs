@@ -1,6 +1,7 @@
 //! Data selection flags shared by the commands (`shared/spec/interface.md`,
 //! "Data files").
 
+use crate::error::CliError;
 use hysid_core::data::{DataSelection, RowRange};
 
 /// Which signals and samples of a data file to use.
@@ -35,14 +36,29 @@ fn parse_ts(s: &str) -> Result<f64, String> {
 }
 
 impl DataArgs {
-    /// The selection for `hysid_core::data::load`.
-    pub fn selection(&self) -> DataSelection {
-        DataSelection {
+    /// The selection for `hysid_core::data::load`. A signal named twice
+    /// (twice among the inputs, or as an input and the output) is refused:
+    /// the regressors would be collinear copies of each other.
+    pub fn selection(&self) -> Result<DataSelection, CliError> {
+        for (i, name) in self.input.iter().enumerate() {
+            if name.is_empty() {
+                return Err(CliError::input("--input: an empty signal name"));
+            }
+            if self.input[..i].contains(name) {
+                return Err(CliError::input(format!("--input: '{name}' is named twice")));
+            }
+            if *name == self.output {
+                return Err(CliError::input(format!(
+                    "--input '{name}' is also the --output; an input must be another signal"
+                )));
+            }
+        }
+        Ok(DataSelection {
             inputs: self.input.clone(),
             output: self.output.clone(),
             decimate: self.decimate as usize,
             rows: self.rows.unwrap_or_default(),
             ts: self.ts,
-        }
+        })
     }
 }

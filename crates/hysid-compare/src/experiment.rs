@@ -210,6 +210,15 @@ impl Experiment {
             path: origin.into(),
             message,
         })?;
+        // Sweep values that are not counts are found while expanding the
+        // jobs; report them against this file, not at run time.
+        e.jobs().map_err(|err| match err {
+            ExperimentError::Invalid { message, .. } => ExperimentError::Invalid {
+                path: origin.into(),
+                message,
+            },
+            other => other,
+        })?;
         Ok(e)
     }
 

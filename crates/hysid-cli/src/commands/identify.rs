@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 
 /// Arguments of `hysid identify`.
 #[derive(clap::Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Data file (.csv or .mat).
     pub data: PathBuf,
@@ -78,7 +79,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         None => None,
     };
-    let data = hysid_core::data::load(&args.data, &args.select.selection())?;
+    let data = hysid_core::data::load(&args.data, &args.select.selection()?)?;
     let origin = args.prior.as_ref().map(|p| p.display().to_string());
     let problem = Problem {
         data: &data,

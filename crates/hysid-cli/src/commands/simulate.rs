@@ -15,6 +15,7 @@ use std::path::PathBuf;
 
 /// Arguments of `hysid simulate`.
 #[derive(clap::Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Model file (.json, or .toml for hand-written models).
     pub model: PathBuf,
@@ -52,7 +53,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let model = Model::load(&args.model)?;
     let data = match (&args.data, &args.excite) {
-        (Some(path), None) => hysid_core::data::load(path, &args.select.selection())?,
+        (Some(path), None) => hysid_core::data::load(path, &args.select.selection()?)?,
         (None, Some(spec)) => {
             let e: Excitation = spec.parse().map_err(CliError::input)?;
             if e.inputs != model.inputs() {

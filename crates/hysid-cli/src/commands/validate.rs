@@ -1,6 +1,7 @@
 //! `hysid validate`: scores of a model on a record.
 
 use crate::Result;
+use crate::error::CliError;
 use crate::selection::DataArgs;
 use hysid_core::metrics::validate;
 use hysid_core::model::Model;
@@ -8,6 +9,7 @@ use std::path::PathBuf;
 
 /// Arguments of `hysid validate`.
 #[derive(clap::Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Model file (.json, or .toml for hand-written models).
     pub model: PathBuf,
@@ -26,7 +28,15 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let model = Model::load(&args.model)?;
-    let data = hysid_core::data::load(&args.data, &args.select.selection())?;
+    let data = hysid_core::data::load(&args.data, &args.select.selection()?)?;
+    if args.warmup >= data.len() {
+        return Err(CliError::input(format!(
+            "--warmup {} leaves no sample to score: {} has {} samples after selection",
+            args.warmup,
+            args.data.display(),
+            data.len()
+        )));
+    }
     let (report, _, _) = validate(&model, &data, args.warmup)?;
     if let Some(k) = report.diverged_at {
         eprintln!(

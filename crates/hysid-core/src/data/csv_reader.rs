@@ -7,15 +7,38 @@ use std::path::Path;
 /// checked for row length). Non-finite values, text in a numeric cell and
 /// ragged rows are errors naming the row and the column.
 pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> {
-    let file = std::fs::File::open(path).map_err(|source| DataError::Io {
+    let bytes = std::fs::read(path).map_err(|source| DataError::Io {
         path: path.to_path_buf(),
         source,
     })?;
+    read_from(&bytes, path, wanted)
+}
+
+/// The file line (1-based) on which a record starts. The csv crate's own
+/// line count is off after blank lines and with CRLF endings; its byte
+/// offset points at the blank lines skipped before the record.
+fn line_of(bytes: &[u8], rec: &csv::StringRecord, fallback: usize) -> usize {
+    let Some(start) = rec.position().map(|p| p.byte() as usize) else {
+        return fallback;
+    };
+    let start = start.min(bytes.len());
+    let skipped = bytes[start..]
+        .iter()
+        .take_while(|&&b| b == b'\n' || b == b'\r')
+        .count();
+    1 + bytes[..start + skipped]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+}
+
+/// Same as [`read`] on the file's bytes; `path` only names it in errors.
+pub(crate) fn read_from(bytes: &[u8], path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .flexible(true)
         .trim(csv::Trim::All)
-        .from_reader(std::io::BufReader::new(file));
+        .from_reader(bytes);
     let parse_err = |location: String, message: String| DataError::Parse {
         path: path.to_path_buf(),
         location,
@@ -29,6 +52,19 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
         return Err(parse_err(String::new(), "the header row is empty".into()));
     }
     let names: Vec<String> = headers.iter().map(str::to_string).collect();
+    if let [only] = names.as_slice()
+        && let Some(sep) = [';', '\t', '|'].into_iter().find(|&c| only.contains(c))
+    {
+        return Err(parse_err(
+            String::new(),
+            format!(
+                "the header row '{}' is a single column: fields must be separated by commas, \
+                 this file seems to use '{}'",
+                only.escape_debug(),
+                sep.escape_debug()
+            ),
+        ));
+    }
     for (i, n) in names.iter().enumerate() {
         if names[..i].contains(n) {
             return Err(parse_err(
@@ -44,15 +80,17 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
     for (r, rec) in rdr.records().enumerate() {
         let row = r + 1;
         let rec = rec.map_err(|e| parse_err(format!("row {row}: "), e.to_string()))?;
+        // Blank lines are skipped, so the file line comes from the reader.
+        let line = line_of(bytes, &rec, row + 1);
         if rec.len() != names.len() {
             return Err(parse_err(
-                format!("row {row} (line {}): ", row + 1),
+                format!("row {row} (line {line}): "),
                 format!("{} fields, the header has {}", rec.len(), names.len()),
             ));
         }
         for (slot, &c) in keep.iter().enumerate() {
             let cell = &rec[c];
-            let loc = || format!("row {row} (line {}), column '{}': ", row + 1, names[c]);
+            let loc = || format!("row {row} (line {line}), column '{}': ", names[c]);
             if cell.is_empty() {
                 return Err(parse_err(loc(), "empty cell".into()));
             }
@@ -146,6 +184,29 @@ mod tests {
         assert!(e.contains("empty cell"), "{e}");
         let e = err("u,y\n");
         assert!(e.contains("no data rows"), "{e}");
+    }
+
+    #[test]
+    fn line_numbers_count_blank_lines_and_crlf() {
+        for (text, line) in [
+            ("u,y\n1,2\n3,oops\n", 3),
+            ("u,y\n1,2\n\n3,oops\n", 4),
+            ("u,y\n1,2\n\n\n\n3,oops\n", 6),
+            ("u,y\r\n1,2\r\n\r\n3,oops\r\n", 4),
+            ("\u{feff}u,y\n1,2\n3,oops\n", 3),
+        ] {
+            let e = err(text);
+            assert!(
+                e.contains(&format!("row 2 (line {line}), column 'y'")),
+                "{text:?}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_single_column_header_with_another_separator_is_named() {
+        let e = err("u;y\n1;2\n");
+        assert!(e.contains("'u;y'") && e.contains("';'"), "{e}");
     }
 
     #[test]

@@ -10,6 +10,7 @@ mod csv_reader;
 mod mat_reader;
 mod standardize;
 
+pub use mat_reader::inside_guarded_parser;
 pub use standardize::{AffineScale, Standardization};
 
 use serde::{Deserialize, Serialize};
@@ -296,7 +297,9 @@ impl RawTable {
                 available: self
                     .columns
                     .iter()
-                    .map(|(n, _)| n.as_str())
+                    // Escaped, so that a stray byte-order mark or control
+                    // character in a header is visible in the message.
+                    .map(|(n, _)| n.escape_debug().to_string())
                     .collect::<Vec<_>>()
                     .join(", "),
             })
@@ -316,18 +319,51 @@ pub fn load(path: &Path, sel: &DataSelection) -> Result<Dataset, DataError> {
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase());
-    let wanted: Vec<&str> = sel
-        .inputs
-        .iter()
-        .map(String::as_str)
-        .chain([sel.output.as_str(), "t"])
-        .collect();
+    let wanted = wanted_names(sel);
     let table = match ext.as_deref() {
         Some("csv") => csv_reader::read(path, &wanted)?,
         Some("mat") => mat_reader::read(path, &wanted)?,
         _ => return Err(DataError::UnsupportedFormat(path.to_path_buf())),
     };
     select(&table, sel)
+}
+
+/// The format of a record handed over as bytes (see [`load_bytes`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DataFormat {
+    /// Comma-separated values with a header row.
+    Csv,
+    /// MATLAB level-5 MAT-file.
+    Mat,
+}
+
+/// Reads a record already in memory and applies `sel`, exactly as [`load`]
+/// does for a file; `origin` only names the source in error messages.
+/// This is the entry point of the fuzz targets (`fuzz/`).
+pub fn load_bytes(
+    bytes: &[u8],
+    format: DataFormat,
+    origin: &Path,
+    sel: &DataSelection,
+) -> Result<Dataset, DataError> {
+    if sel.decimate == 0 {
+        return Err(DataError::Selection("--decimate must be at least 1".into()));
+    }
+    let wanted = wanted_names(sel);
+    let table = match format {
+        DataFormat::Csv => csv_reader::read_from(bytes, origin, &wanted)?,
+        DataFormat::Mat => mat_reader::read_bytes(bytes, origin, &wanted)?,
+    };
+    select(&table, sel)
+}
+
+/// Names the readers keep: the selected inputs, the output and `t`.
+fn wanted_names(sel: &DataSelection) -> Vec<&str> {
+    sel.inputs
+        .iter()
+        .map(String::as_str)
+        .chain([sel.output.as_str(), "t"])
+        .collect()
 }
 
 fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {

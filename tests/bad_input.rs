@@ -1,0 +1,838 @@
+//! Bad input never panics and never loses work (issue 8, item 6): malformed
+//! data, model, prior and experiment files and bad option combinations each
+//! end with exit code 2 (1 when the method itself fails), one line on stderr
+//! that names the problem (file, row, column, option or entry), and no
+//! output file.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn hysid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hysid"))
+        .args(args)
+        .env("CI", "1")
+        .output()
+        .expect("hysid runs")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+thread_local! {
+    static FAILURES: std::cell::RefCell<Vec<String>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Every case of a test runs; the test then fails listing all that did not
+/// behave.
+fn report() {
+    let f = FAILURES.with(|f| std::mem::take(&mut *f.borrow_mut()));
+    assert!(
+        f.is_empty(),
+        "{} case(s) failed:\n{}",
+        f.len(),
+        f.join("\n")
+    );
+}
+
+/// Exit code `code`, a one-line `hysid: error:` message containing every
+/// `needle`, and no file at `out` (nor a temporary beside it).
+fn fails(code: i32, args: &[&str], needles: &[&str], out: &Path) {
+    if let Err(e) = check(code, args, needles, out) {
+        FAILURES.with(|f| f.borrow_mut().push(format!("{args:?}: {e}")));
+        // Keep one failure from hiding the next cases.
+        let _ = std::fs::remove_file(out);
+    }
+}
+
+fn check(code: i32, args: &[&str], needles: &[&str], out: &Path) -> Result<(), String> {
+    let o = hysid(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    if o.status.code() != Some(code) {
+        return Err(format!(
+            "exit {:?}, expected {code}; stderr: {err}",
+            o.status.code()
+        ));
+    }
+    if err.trim_end().lines().count() != 1
+        || !err.starts_with("hysid: error: ")
+        || err.trim_end().chars().any(char::is_control)
+    {
+        return Err(format!("not a one-line hysid error: {err:?}"));
+    }
+    for n in needles {
+        if !err.contains(n) {
+            return Err(format!("message lacks '{n}': {err}"));
+        }
+    }
+    if out.exists() {
+        return Err("left an output file behind".into());
+    }
+    if let Some(dir) = out.parent().filter(|d| d.is_dir()) {
+        let tmp = std::fs::read_dir(dir)
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+            .count();
+        if tmp != 0 {
+            return Err("left a temporary file behind".into());
+        }
+    }
+    Ok(())
+}
+
+fn bad(args: &[&str], needles: &[&str], out: &Path) {
+    fails(2, args, needles, out);
+}
+
+/// A clean record of `n` samples from y(k) = 0.6 y(k-1) + 0.8 u(k-1) + 0.2
+/// with a pseudo-random input, written directly (no process).
+fn record(n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut state: u64 = 12345;
+    let mut u = Vec::with_capacity(n);
+    let mut y = vec![0.0; n];
+    for k in 0..n {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        u.push(((state >> 33) % 1000) as f64 / 500.0 - 1.0);
+        if k > 0 {
+            y[k] = 0.6 * y[k - 1] + 0.8 * u[k - 1] + 0.2;
+        }
+    }
+    (u, y)
+}
+
+fn good_csv(dir: &Path) -> PathBuf {
+    let (u, y) = record(200);
+    let mut text = String::from("t,u,y\n");
+    for k in 0..u.len() {
+        text.push_str(&format!("{},{},{}\n", k as f64 * 0.01, u[k], y[k]));
+    }
+    let p = dir.join("data.csv");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+// --- A minimal level-5 MAT-file writer, so that every malformed variant is
+// --- written exactly (MATLAB "MAT-File Format", 2019, ch. 1).
+
+/// One data element: tag (type, byte count), data, padding to 8 bytes.
+fn element(tag: u32, data: &[u8]) -> Vec<u8> {
+    let mut v = Vec::new();
+    v.extend_from_slice(&tag.to_le_bytes());
+    v.extend_from_slice(&(data.len() as u32).to_le_bytes());
+    v.extend_from_slice(data);
+    while v.len() % 8 != 0 {
+        v.push(0);
+    }
+    v
+}
+
+const MI_INT8: u32 = 1;
+const MI_UINT16: u32 = 4;
+const MI_INT32: u32 = 5;
+const MI_UINT32: u32 = 6;
+const MI_DOUBLE: u32 = 9;
+const MI_MATRIX: u32 = 14;
+const MX_CHAR: u8 = 4;
+const MX_DOUBLE: u8 = 6;
+
+fn doubles(v: &[f64]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// An miMATRIX element: class, complex flag, dimensions, name, real (and
+/// imaginary) parts.
+fn variable(
+    name: &str,
+    class: u8,
+    complex: bool,
+    dims: &[i32],
+    data: (u32, &[u8]),
+    imag: Option<&[u8]>,
+) -> Vec<u8> {
+    let flags = [class, if complex { 0x08 } else { 0 }, 0, 0, 0, 0, 0, 0];
+    let mut body = element(MI_UINT32, &flags);
+    let d: Vec<u8> = dims.iter().flat_map(|x| x.to_le_bytes()).collect();
+    body.extend(element(MI_INT32, &d));
+    body.extend(element(MI_INT8, name.as_bytes()));
+    body.extend(element(data.0, data.1));
+    if let Some(im) = imag {
+        body.extend(element(data.0, im));
+    }
+    element(MI_MATRIX, &body)
+}
+
+fn column(name: &str, v: &[f64]) -> Vec<u8> {
+    variable(
+        name,
+        MX_DOUBLE,
+        false,
+        &[v.len() as i32, 1],
+        (MI_DOUBLE, &doubles(v)),
+        None,
+    )
+}
+
+fn mat_file(vars: &[Vec<u8>]) -> Vec<u8> {
+    let mut h = format!(
+        "{:<116}",
+        "MATLAB 5.0 MAT-file, written by hysid's bad-input tests"
+    )
+    .into_bytes();
+    h.extend_from_slice(&[0; 8]);
+    h.extend_from_slice(&0x0100u16.to_le_bytes());
+    h.extend_from_slice(b"IM");
+    for v in vars {
+        h.extend_from_slice(v);
+    }
+    h
+}
+
+fn good_mat_vars() -> Vec<Vec<u8>> {
+    let (u, y) = record(200);
+    vec![column("u", &u), column("y", &y)]
+}
+
+fn identify<'a>(data: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut a = vec!["identify", data, "-m", "arx", "--na", "1", "--nb", "1"];
+    a.extend_from_slice(extra);
+    a.extend_from_slice(&["-o", out]);
+    a
+}
+
+/// `identify` without the orders, for cases that set them.
+fn identify_orders<'a>(data: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut a = vec!["identify", data, "-m", "arx"];
+    a.extend_from_slice(extra);
+    a.extend_from_slice(&["-o", out]);
+    a
+}
+
+#[test]
+fn the_hand_written_files_are_valid() {
+    // The base record and the MAT writer give working inputs, so every
+    // failure below comes from the one thing each case breaks.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = good_csv(dir.path());
+    let mat = write(dir.path(), "good.mat", mat_file(&good_mat_vars()));
+    for data in [&csv, &mat] {
+        let out = dir.path().join("m.json");
+        let o = hysid(&identify(s(data), s(&out), &[]));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(out.exists());
+        std::fs::remove_file(&out).unwrap();
+    }
+}
+
+#[test]
+fn malformed_mat_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.json");
+    let o = s(&out);
+    let (u, y) = record(200);
+
+    // A real record, cut after 4 KB (the transfer stopped).
+    let real = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/headdata_1v6.mat"
+    ))
+    .unwrap();
+    let p = write(d, "cut.mat", &real[..4096]);
+    bad(&identify(s(&p), o, &[]), &["cut.mat", "MAT-file"], &out);
+
+    // Only the 128-byte header.
+    let p = write(d, "header.mat", mat_file(&[]));
+    bad(
+        &identify(s(&p), o, &[]),
+        &["header.mat", "no variable"],
+        &out,
+    );
+
+    // Text saved with a .mat extension.
+    let p = write(d, "text.mat", "u,y\n1,2\n");
+    bad(&identify(s(&p), o, &[]), &["text.mat", "MAT-file"], &out);
+
+    // Cut in the middle of the last variable's samples.
+    let bytes = mat_file(&good_mat_vars());
+    let p = write(d, "short.mat", &bytes[..bytes.len() - 800]);
+    bad(&identify(s(&p), o, &[]), &["short.mat", "MAT-file"], &out);
+
+    // Garbage in the middle of a variable's sub-elements.
+    let mut bytes = mat_file(&good_mat_vars());
+    for b in &mut bytes[136..200] {
+        *b = 0xA5;
+    }
+    let p = write(d, "garbage.mat", bytes);
+    bad(&identify(s(&p), o, &[]), &["garbage.mat"], &out);
+
+    // y is a 100x2 matrix.
+    let m = variable(
+        "y",
+        MX_DOUBLE,
+        false,
+        &[100, 2],
+        (MI_DOUBLE, &doubles(&y)),
+        None,
+    );
+    let p = write(d, "matrix.mat", mat_file(&[column("u", &u), m]));
+    bad(
+        &identify(s(&p), o, &[]),
+        &["matrix.mat", "variable 'y'", "100x2", "vector"],
+        &out,
+    );
+
+    // y is complex.
+    let c = variable(
+        "y",
+        MX_DOUBLE,
+        true,
+        &[200, 1],
+        (MI_DOUBLE, &doubles(&y)),
+        Some(&doubles(&u)),
+    );
+    let p = write(d, "complex.mat", mat_file(&[column("u", &u), c]));
+    bad(
+        &identify(s(&p), o, &[]),
+        &["complex.mat", "variable 'y'", "complex"],
+        &out,
+    );
+
+    // y is text.
+    let text: Vec<u8> = "hello"
+        .encode_utf16()
+        .flat_map(|c| c.to_le_bytes())
+        .collect();
+    let t = variable("y", MX_CHAR, false, &[1, 5], (MI_UINT16, &text), None);
+    let p = write(d, "char.mat", mat_file(&[column("u", &u), t]));
+    // (matrw 0.1.4 cannot parse a char variable at all: the whole file is
+    // refused, by name, in one line.)
+    bad(&identify(s(&p), o, &[]), &["char.mat", "MAT-file"], &out);
+
+    // y holds an infinity at sample 7.
+    let mut yy = y.clone();
+    yy[6] = f64::INFINITY;
+    let p = write(d, "inf.mat", mat_file(&[column("u", &u), column("y", &yy)]));
+    bad(
+        &identify(s(&p), o, &[]),
+        &["inf.mat", "variable 'y', row 7", "non-finite"],
+        &out,
+    );
+
+    // u and y of different lengths.
+    let p = write(
+        d,
+        "ragged.mat",
+        mat_file(&[column("u", &u[..150]), column("y", &y)]),
+    );
+    bad(
+        &identify(s(&p), o, &[]),
+        &["'u' has 150 samples", "'y' has 200"],
+        &out,
+    );
+
+    // The variable the user asked for is not there.
+    let p = write(d, "good.mat", mat_file(&good_mat_vars()));
+    bad(
+        &identify(s(&p), o, &["--output", "position"]),
+        &["good.mat", "no variable 'position'", "available: u, y"],
+        &out,
+    );
+    report();
+}
+
+#[test]
+fn malformed_csv_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.json");
+    let o = s(&out);
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            "semicolon.csv",
+            "u;y\n1;2\n3;4\n",
+            &["semicolon.csv", "';'", "comma"],
+        ),
+        (
+            "duplicate.csv",
+            "u,y,u\n1,2,3\n",
+            &["duplicate.csv", "column 3", "'u' appears twice"],
+        ),
+        (
+            "blank-lines.csv",
+            "u,y\n1,2\n\n3,4\n\n5,oops\n",
+            &["blank-lines.csv", "row 3", "line 6", "column 'y'", "'oops'"],
+        ),
+        (
+            "huge.csv",
+            "u,y\n1,2\n3,1e400\n",
+            &["huge.csv", "row 2", "column 'y'", "non-finite", "1e400"],
+        ),
+        (
+            "header-only.csv",
+            "u,y\n",
+            &["header-only.csv", "no data rows"],
+        ),
+        (
+            "empty-cell.csv",
+            "u,y\n1,2\n,4\n",
+            &["empty-cell.csv", "row 2", "column 'u'", "empty cell"],
+        ),
+        (
+            "too-many-fields.csv",
+            "u,y\n1,2\n3,4,5\n",
+            &["too-many-fields.csv", "row 2", "3 fields", "header has 2"],
+        ),
+        (
+            "comma-decimal.csv",
+            "u,y\n\"1,5\",2\n",
+            &["comma-decimal.csv", "row 1", "column 'u'", "'1,5'"],
+        ),
+        (
+            "binary.csv",
+            "\u{0}\u{1}\u{2}\n\u{3}",
+            &["binary.csv", "no column 'y'", "available: \\0\\u{1}\\u{2}"],
+        ),
+    ];
+    for (name, text, needles) in cases {
+        let p = write(d, name, text);
+        bad(&identify(s(&p), o, &[]), needles, &out);
+    }
+    // Invalid UTF-8 in a numeric cell.
+    let p = write(d, "latin1.csv", b"u,y\n1,2\n3,\xe94\n");
+    bad(&identify(s(&p), o, &[]), &["latin1.csv", "row 2"], &out);
+    // A data file with an unknown extension.
+    let p = write(d, "data.xlsx", "u,y\n1,2\n");
+    bad(
+        &identify(s(&p), o, &[]),
+        &["data.xlsx", "unsupported data file type"],
+        &out,
+    );
+    report();
+}
+
+#[test]
+fn a_byte_order_mark_is_not_part_of_the_first_column_name() {
+    // Spreadsheets export UTF-8 CSV with a BOM; the first column is still 'u'.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = std::fs::read_to_string(good_csv(dir.path())).unwrap();
+    let p = write(dir.path(), "bom.csv", format!("\u{feff}{csv}"));
+    let out = dir.path().join("m.json");
+    let o = hysid(&identify(s(&p), s(&out), &[]));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn bad_selections_and_orders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let data = s(&data);
+    let out = d.join("never.json");
+    let o = s(&out);
+    // Row ranges.
+    bad(
+        &identify(data, o, &["--rows", "150..100"]),
+        &["--rows", "150..100"],
+        &out,
+    );
+    bad(
+        &identify(data, o, &["--rows", "a..b"]),
+        &["--rows", "'a'"],
+        &out,
+    );
+    bad(
+        &identify(data, o, &["--rows", "100"]),
+        &["--rows", "A..B"],
+        &out,
+    );
+    bad(
+        &identify(data, o, &["--rows", "200..300"]),
+        &["--rows 200..300", "200 rows"],
+        &out,
+    );
+    // Decimation leaving one sample.
+    bad(
+        &identify(data, o, &["--decimate", "1000"]),
+        &["1 sample"],
+        &out,
+    );
+    // More parameters than samples.
+    bad(
+        &identify_orders(data, o, &["--rows", "0..12", "--na", "8", "--nb", "8"]),
+        &["17 free parameters", "need at least as many samples"],
+        &out,
+    );
+    // An empty signal name.
+    bad(
+        &identify(data, o, &["--input", ""]),
+        &["--input", "empty"],
+        &out,
+    );
+    // The same input twice.
+    bad(
+        &identify(data, o, &["--input", "u,u"]),
+        &["--input", "'u' is named twice"],
+        &out,
+    );
+    // The output is also an input.
+    bad(
+        &identify(data, o, &["--input", "u,y"]),
+        &["--input 'y' is also the --output"],
+        &out,
+    );
+    // Sampling time.
+    bad(&identify(data, o, &["--ts", "-1"]), &["--ts", "-1"], &out);
+    bad(&identify(data, o, &["--ts", "abc"]), &["--ts", "abc"], &out);
+    // Options of the method and of the run.
+    bad(
+        &identify(data, o, &["--set", "ridge"]),
+        &["--set 'ridge'", "key=value"],
+        &out,
+    );
+    bad(
+        &identify(data, o, &["--time-budget", "-5"]),
+        &["--time-budget", "-5"],
+        &out,
+    );
+    bad(
+        &identify(data, o, &["--seed", "-1"]),
+        &["--seed", "-1"],
+        &out,
+    );
+    bad(&identify(data, o, &["--modes", "0"]), &["modes"], &out);
+    report();
+}
+
+#[test]
+fn output_paths_that_cannot_be_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let data = s(&data);
+    // Into a folder that does not exist.
+    let out = d.join("no-such-folder").join("m.json");
+    bad(
+        &identify(data, s(&out), &[]),
+        &["no-such-folder", "m.json"],
+        &out,
+    );
+    // Onto a folder.
+    let folder = d.join("a-folder");
+    std::fs::create_dir(&folder).unwrap();
+    let o = hysid(&identify(data, s(&folder), &[]));
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("a-folder"));
+    assert!(folder.is_dir() && std::fs::read_dir(&folder).unwrap().count() == 0);
+    // Simulation CSV into a folder that does not exist.
+    let model = write(
+        d,
+        "m.json",
+        r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0]}]}"#,
+    );
+    let out = d.join("nowhere").join("sim.csv");
+    bad(
+        &[
+            "simulate",
+            s(&model),
+            "--excite",
+            "n=20,hold=2,low=0,high=1",
+            "-o",
+            s(&out),
+        ],
+        &["nowhere", "sim.csv"],
+        &out,
+    );
+    report();
+}
+
+#[test]
+fn malformed_model_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let data = s(&data);
+    // `validate` writes nothing; `simulate` is checked for its output file.
+    let out = d.join("never.csv");
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            "kind.json",
+            r#"{"kind":"arma","na":1,"nb":1,"inputs":1,"modes":[]}"#,
+            &["kind.json", "unknown variant `arma`"],
+        ),
+        (
+            "theta.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0]}]}"#,
+            &["theta.json", "mode 0", "theta has 2 entries", "need 3"],
+        ),
+        (
+            "nan.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,"NaN",0.0]}]}"#,
+            &["nan.json", "invalid type: string \"NaN\""],
+        ),
+        (
+            "width.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0],"region":{"a":[[1.0,0.0,0.0]],"b":[0.0]}}]}"#,
+            &[
+                "width.json",
+                "mode 0",
+                "region row 1 has 3 entries, expected 2",
+            ],
+        ),
+        (
+            "rows.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0],"region":{"a":[[1.0,0.0]],"b":[0.0,1.0]}}]}"#,
+            &["rows.json", "mode 0", "region", "rows of a and b differ"],
+        ),
+        (
+            "no-modes.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[]}"#,
+            &["no-modes.json", "at least one mode"],
+        ),
+        (
+            "cut.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inp"#,
+            &["cut.json", "EOF"],
+        ),
+        ("empty.json", "", &["empty.json"]),
+        (
+            "inputs.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":2,"modes":[{"theta":[0.5,1.0,2.0,0.0]}]}"#,
+            &["the model has 2 input(s), the data 1"],
+        ),
+        (
+            "automaton.toml",
+            "kind = \"hybrid_automaton\"\ntime = \"discrete\"\nstates = [\"x\"]\ninputs = [\"u\"]\ninitial_state = { from = \"given\", state = [0.0] }\n[output]\nc = [1.0]\n[[modes]]\nname = \"a\"\nflow = { a = [[1.0]], b = [[1.0]], f = [0.0] }\n[[transitions]]\nfrom = \"a\"\nto = \"nowhere\"\nguard = { a = [[1.0, 0.0]], b = [0.0] }\n",
+            &["automaton.toml", "nowhere"],
+        ),
+    ];
+    for (name, text, needles) in cases {
+        let m = write(d, name, text);
+        bad(&["validate", s(&m), data], needles, &out);
+        bad(
+            &["simulate", s(&m), "--data", data, "-o", s(&out)],
+            needles,
+            &out,
+        );
+    }
+    report();
+}
+
+#[test]
+fn malformed_prior_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let data = s(&data);
+    let out = d.join("never.json");
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            "type.toml",
+            "modes = \"two\"\n",
+            &["type.toml", "modes", "string"],
+        ),
+        (
+            "bounds.toml",
+            "[bounds]\na1 = [1.0, -1.0]\n",
+            &["bounds.toml", "a1", "[1, -1]"],
+        ),
+        (
+            "scalar.toml",
+            "[bounds]\na1 = 5.0\n",
+            &["scalar.toml", "a1"],
+        ),
+        (
+            "order.toml",
+            "modes = 3\nmax_modes = 2\n",
+            &["order.toml", "modes = 3", "max_modes = 2"],
+        ),
+        (
+            "side.toml",
+            "[[saturation]]\nlevel = 1.0\nbound = \"up\"\n",
+            &["side.toml", "unknown variant `up`"],
+        ),
+        ("syntax.toml", "modes = \n", &["syntax.toml"]),
+    ];
+    for (name, text, needles) in cases {
+        let p = write(d, name, text);
+        bad(&identify(data, s(&out), &["--prior", s(&p)]), needles, &out);
+    }
+    bad(
+        &identify(data, s(&out), &["--prior", s(&d.join("missing.toml"))]),
+        &["missing.toml"],
+        &out,
+    );
+    report();
+}
+
+#[test]
+fn malformed_experiment_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    good_csv(d);
+    let data = "[data]\nfile = \"data.csv\"\nidentification = \"0..150\"\nvalidation = \"150..\"\n";
+    let run = "[[run]]\nname = \"a\"\nmethod = \"arx\"\n";
+    let cases: Vec<(&str, String, Vec<&str>)> = vec![
+        (
+            "no-data.toml",
+            format!("title = \"x\"\n{run}"),
+            vec!["no-data.toml", "data"],
+        ),
+        (
+            "no-runs.toml",
+            format!("title = \"x\"\n{data}"),
+            vec!["no-runs.toml", "[[run]]"],
+        ),
+        (
+            "no-title.toml",
+            format!("{data}{run}"),
+            vec!["no-title.toml", "title"],
+        ),
+        (
+            "missing-file.toml",
+            format!(
+                "title = \"x\"\n{}{run}",
+                data.replace("data.csv", "gone.csv")
+            ),
+            vec!["gone.csv"],
+        ),
+        (
+            "method.toml",
+            format!("title = \"x\"\n{data}{}", run.replace("arx", "nosuch")),
+            vec!["method.toml", "'nosuch'"],
+        ),
+        (
+            "sweep.toml",
+            format!(
+                "title = \"x\"\n{data}[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"na\"\nvalues = [1, -2]\n"
+            ),
+            vec!["sweep.toml", "na = -2", "not a count"],
+        ),
+        (
+            "rows.toml",
+            format!(
+                "title = \"x\"\n{}{run}",
+                data.replace("\"0..150\"", "\"150..0\"")
+            ),
+            vec!["rows.toml", "150..0"],
+        ),
+    ];
+    for (name, text, needles) in &cases {
+        let p = write(d, name, text);
+        let out = d.join(format!("out-{name}"));
+        bad(&["compare", s(&p), "-o", s(&out)], needles, &out);
+    }
+    report();
+}
+
+#[test]
+fn malformed_simulation_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = write(
+        d,
+        "m.json",
+        r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0]}]}"#,
+    );
+    let m = s(&model);
+    let out = d.join("never.csv");
+    let o = s(&out);
+    let excite =
+        |spec: &'static str| -> Vec<&str> { vec!["simulate", m, "--excite", spec, "-o", o] };
+    bad(
+        &excite("n=abc,hold=2,low=0,high=1"),
+        &["--excite n", "'abc'"],
+        &out,
+    );
+    bad(&excite("n=20,low=0,high=1"), &["--excite", "hold"], &out);
+    bad(
+        &excite("n=20,hold=2,low=1,high=0"),
+        &["--excite", "low", "high"],
+        &out,
+    );
+    bad(&excite("n=0,hold=2,low=0,high=1"), &["--excite", "n"], &out);
+    bad(
+        &excite("n=20,hold=0,low=0,high=1"),
+        &["--excite", "hold"],
+        &out,
+    );
+    bad(
+        &excite("n=20,hold=2,low=0,high=1,colour=red"),
+        &["--excite", "colour"],
+        &out,
+    );
+    bad(&excite("n=20;hold=2"), &["--excite"], &out);
+    bad(
+        &[
+            "simulate",
+            m,
+            "--excite",
+            "n=20,hold=2,low=0,high=1",
+            "--noise",
+            "-1",
+            "-o",
+            o,
+        ],
+        &["--noise", "-1"],
+        &out,
+    );
+    bad(&["simulate", m, "-o", o], &["--data", "--excite"], &out);
+    bad(
+        &[
+            "simulate",
+            m,
+            "--excite",
+            "n=20,hold=2,low=0,high=1,inputs=2",
+            "-o",
+            o,
+        ],
+        &["--excite inputs=2", "the model has 1 input(s)"],
+        &out,
+    );
+    let data = good_csv(d);
+    bad(
+        &["validate", m, s(&data), "--warmup", "500"],
+        &["--warmup 500", "200"],
+        &out,
+    );
+    report();
+}
+
+#[test]
+fn inputs_found_by_the_fuzzer_are_clean_errors() {
+    // tests/data/fuzz/<target>-<what>-<hash>: crashing inputs of the fuzz
+    // targets (docs/fuzzing.md), kept as regressions. The first byte chose
+    // the data selection in the fuzz target; the rest is the file.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("never.json");
+    let folder = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/fuzz");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(folder).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let ext = match name.split('-').next() {
+            Some("mat_reader") => "mat",
+            Some("csv_reader") => "csv",
+            _ => continue,
+        };
+        let bytes = std::fs::read(&path).unwrap();
+        let file = write(dir.path(), &format!("{name}.{ext}"), &bytes[1..]);
+        bad(&identify(s(&file), s(&out), &[]), &[&name], &out);
+        seen += 1;
+    }
+    assert!(seen > 0, "no regression input in {folder}");
+    report();
+}
