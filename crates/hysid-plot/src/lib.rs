@@ -22,6 +22,7 @@
 //! never a panic.
 
 mod common;
+mod from_core;
 mod modes;
 mod regions;
 mod simulation;
@@ -30,6 +31,7 @@ mod sweep;
 
 use std::path::{Path, PathBuf};
 
+pub use from_core::{column_means, lagged_name};
 pub use modes::{ModeFigure, ModeSequence, mode_sequence_plot, mode_sequence_svg};
 pub use regions::{RegionFigure, regions_plot, regions_svg};
 pub use simulation::{Series, SimulationFigure, simulation_plot, simulation_svg, time_axis};

@@ -55,7 +55,8 @@ pub struct ModeFigure {
 
 const WIDTH: u32 = 1100;
 const LANE_H: u32 = 56;
-const MISMATCH: RGBColor = RGBColor(200, 30, 30);
+/// Mismatch colour: near black, unlike every mode colour.
+const MISMATCH: RGBColor = RGBColor(40, 40, 40);
 
 /// Runs `(start, end, value)` of equal consecutive values, `end` exclusive.
 fn runs<T: PartialEq + Copy>(v: &[T]) -> Vec<(usize, usize, T)> {
@@ -200,6 +201,7 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
         chart
             .configure_mesh()
             .disable_y_mesh()
+            .set_tick_mark_size(LabelAreaPosition::Left, 0)
             .x_label_formatter(&xf)
             .y_label_formatter(&no_label)
             .x_labels(10)
