@@ -1,0 +1,87 @@
+//! SVG figures for hysid: the pictures a control engineer looks at when
+//! comparing identified hybrid models.
+//!
+//! Every figure is plain data in, one SVG file out:
+//!
+//! | function | figure | founding paper |
+//! |---|---|---|
+//! | [`simulation_plot`] | measured versus simulated output over time, the input below | Figs. 7, 8, 9, 12, 14 |
+//! | [`mode_sequence_plot`] | active mode over time, one lane per sequence (true, identified) | – |
+//! | [`regions_plot`] | classified regressors in a plane of two regressor coordinates, with the 2-D slices of the mode regions and the holes between them | Figs. 6, 11 |
+//! | [`sweep_plot`] | a metric versus a parameter (FIT versus `c`; FIT and mode count versus delta), one panel per metric | – |
+//!
+//! (Juloski, Heemels, Ferrari-Trecate, "Identification of an experimental
+//! hybrid system", IFAC ADHS 2003.)
+//!
+//! Each `*_plot` function renders the SVG into a `String` first (the
+//! matching `*_svg` function returns it) and then writes it atomically with
+//! [`hysid_core::atomic::write`]. Text is SVG `<text>` in the generic
+//! `sans-serif` family, so no system font is needed to render. The output is
+//! deterministic: the same figure gives the same bytes. Empty or non-finite
+//! data is an error ([`PlotError`]) or is skipped (NaN samples break a line),
+//! never a panic.
+
+mod common;
+mod from_core;
+mod modes;
+mod regions;
+mod simulation;
+pub mod slice;
+mod sweep;
+
+use std::path::{Path, PathBuf};
+
+pub use from_core::{column_means, lagged_name};
+pub use modes::{ModeFigure, ModeSequence, mode_sequence_plot, mode_sequence_svg};
+pub use regions::{RegionFigure, regions_plot, regions_svg};
+pub use simulation::{Series, SimulationFigure, simulation_plot, simulation_svg, time_axis};
+pub use slice::{Bounds, Slice2, slice_polyhedron};
+pub use sweep::{SweepFigure, SweepPanel, SweepSeries, sweep_plot, sweep_svg};
+
+/// Why a figure could not be produced.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// The figure has nothing finite to draw.
+    #[error("nothing to plot: {0}")]
+    NoData(String),
+    /// Two vectors that must have the same length do not.
+    #[error("{what} has {got} values but {expected} were expected")]
+    LengthMismatch {
+        /// Which vector.
+        what: String,
+        /// Its length.
+        got: usize,
+        /// The length it must have.
+        expected: usize,
+    },
+    /// Any other inconsistency of the figure description.
+    #[error("invalid figure: {0}")]
+    Invalid(String),
+    /// A region could not be sliced.
+    #[error("region {mode}: {source}")]
+    Slice {
+        /// Index of the region.
+        mode: usize,
+        /// The slicing error.
+        source: slice::SliceError,
+    },
+    /// The drawing library failed.
+    #[error("drawing failed: {0}")]
+    Draw(String),
+    /// The file could not be written.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// The target path.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+}
+
+/// Writes an SVG string to `path` atomically.
+fn write_svg(path: &Path, svg: &str) -> Result<(), PlotError> {
+    hysid_core::atomic::write(path, svg.as_bytes()).map_err(|source| PlotError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}

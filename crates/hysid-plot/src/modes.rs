@@ -1,0 +1,271 @@
+//! The active mode over time: one horizontal lane per sequence (for example
+//! the true and the identified mode sequence), coloured by mode.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use crate::PlotError;
+use crate::common::{
+    DESC_SIZE, FONT, HOLE_COLOUR, LEGEND_SIZE, LegendEntry, Swatch, TICK_SIZE, TITLE_SIZE,
+    draw_err, draw_legend, legend_height, mode_colour, padded, require_text, text_width,
+    tick_formatter,
+};
+
+/// One mode sequence: the active mode of every sample, `None` where no mode
+/// is active (a sample outside every region, or not classified).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ModeSequence {
+    /// Lane label, e.g. `"true"` or `"identified (cluster)"`.
+    pub label: String,
+    /// Mode index (0-based) of each sample.
+    pub modes: Vec<Option<usize>>,
+}
+
+impl ModeSequence {
+    /// A sequence from a label and modes.
+    pub fn new(label: impl Into<String>, modes: Vec<Option<usize>>) -> Self {
+        Self {
+            label: label.into(),
+            modes,
+        }
+    }
+}
+
+/// The active mode over time.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ModeFigure {
+    /// Title above the figure.
+    pub title: String,
+    /// Time of each sample (finite and increasing), seconds or sample index.
+    pub time: Vec<f64>,
+    /// Label of the time axis with its unit.
+    pub time_label: String,
+    /// The sequences, drawn top to bottom.
+    pub sequences: Vec<ModeSequence>,
+    /// Names of the modes in the legend; missing names are `"mode k"`
+    /// (1-based, as in the paper).
+    pub mode_names: Vec<String>,
+    /// When true and there are two or more sequences, a bottom lane marks the
+    /// samples where the second sequence differs from the first (the
+    /// identified from the true one, labels assumed already matched).
+    pub mark_mismatch: bool,
+}
+
+const WIDTH: u32 = 1100;
+const LANE_H: u32 = 56;
+/// Mismatch colour: near black, unlike every mode colour.
+const MISMATCH: RGBColor = RGBColor(40, 40, 40);
+
+/// Runs `(start, end, value)` of equal consecutive values, `end` exclusive.
+fn runs<T: PartialEq + Copy>(v: &[T]) -> Vec<(usize, usize, T)> {
+    let mut out: Vec<(usize, usize, T)> = Vec::new();
+    for (k, &m) in v.iter().enumerate() {
+        match out.last_mut() {
+            Some(r) if r.2 == m => r.1 = k + 1,
+            _ => out.push((k, k + 1, m)),
+        }
+    }
+    out
+}
+
+/// Sample `k` covers `[edge[k], edge[k + 1]]`, halfway to its neighbours.
+fn sample_edges(t: &[f64]) -> Vec<f64> {
+    let n = t.len();
+    if n == 1 {
+        return vec![t[0] - 0.5, t[0] + 0.5];
+    }
+    let mut e = Vec::with_capacity(n + 1);
+    e.push(t[0] - 0.5 * (t[1] - t[0]));
+    for k in 1..n {
+        e.push(0.5 * (t[k - 1] + t[k]));
+    }
+    e.push(t[n - 1] + 0.5 * (t[n - 1] - t[n - 2]));
+    e
+}
+
+fn mode_name(fig: &ModeFigure, m: usize) -> String {
+    fig.mode_names
+        .get(m)
+        .cloned()
+        .unwrap_or_else(|| format!("mode {}", m + 1))
+}
+
+/// Renders a [`ModeFigure`] to an SVG string.
+pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
+    require_text("the title", &fig.title)?;
+    require_text("the time label", &fig.time_label)?;
+    let n = fig.time.len();
+    if n == 0 {
+        return Err(PlotError::NoData("the time vector is empty".into()));
+    }
+    if fig.sequences.is_empty() {
+        return Err(PlotError::NoData("no mode sequence".into()));
+    }
+    if fig.time.iter().any(|t| !t.is_finite()) || fig.time.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(PlotError::Invalid(
+            "the time vector must be finite and strictly increasing".into(),
+        ));
+    }
+    for s in &fig.sequences {
+        if s.modes.len() != n {
+            return Err(PlotError::LengthMismatch {
+                what: format!("mode sequence '{}'", s.label),
+                got: s.modes.len(),
+                expected: n,
+            });
+        }
+    }
+    let mismatch: Option<Vec<bool>> = (fig.mark_mismatch && fig.sequences.len() >= 2).then(|| {
+        fig.sequences[0]
+            .modes
+            .iter()
+            .zip(&fig.sequences[1].modes)
+            .map(|(a, b)| a != b)
+            .collect()
+    });
+
+    // Legend: every mode that occurs, in order, then "no mode", then mismatch.
+    let mut used: Vec<usize> = fig
+        .sequences
+        .iter()
+        .flat_map(|s| s.modes.iter().flatten().copied())
+        .collect();
+    used.sort_unstable();
+    used.dedup();
+    let mut entries: Vec<LegendEntry> = used
+        .iter()
+        .map(|&m| LegendEntry::new(Swatch::Fill(mode_colour(m), 0.9), mode_name(fig, m)))
+        .collect();
+    if fig
+        .sequences
+        .iter()
+        .any(|s| s.modes.iter().any(Option::is_none))
+    {
+        entries.push(LegendEntry::new(
+            Swatch::Fill(HOLE_COLOUR, 1.0),
+            "no mode active",
+        ));
+    }
+    let mut lanes: Vec<String> = fig.sequences.iter().map(|s| s.label.clone()).collect();
+    if let Some(mm) = &mismatch {
+        let count = mm.iter().filter(|&&d| d).count();
+        entries.push(LegendEntry::new(
+            Swatch::Fill(MISMATCH, 0.9),
+            format!(
+                "'{}' differs from '{}' ({} of {} samples, {:.1} %)",
+                fig.sequences[1].label,
+                fig.sequences[0].label,
+                count,
+                n,
+                100.0 * count as f64 / n as f64
+            ),
+        ));
+        lanes.push("differs".to_string());
+    }
+    let n_lanes = lanes.len();
+    let lane_label_w = lanes
+        .iter()
+        .map(|l| text_width(l, TICK_SIZE))
+        .max()
+        .unwrap_or(0)
+        .max(40) as u32
+        + 24;
+
+    let legend_h = legend_height(&entries, WIDTH);
+    let title_h = 46;
+    let height = title_h + legend_h + n_lanes as u32 * LANE_H + 90;
+    let edges = sample_edges(&fig.time);
+    let x_range = padded((edges[0], edges[n]), 0.0);
+
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let body = root
+            .titled(&fig.title, (FONT, TITLE_SIZE))
+            .map_err(draw_err)?;
+        let (legend_area, plot_area) = body.split_vertically(legend_h);
+        draw_legend(&legend_area, &entries)?;
+        let mut chart = ChartBuilder::on(&plot_area)
+            .margin_right(25)
+            .margin_left(16)
+            .margin_top(8)
+            .x_label_area_size(62)
+            .y_label_area_size(lane_label_w)
+            .build_cartesian_2d(x_range.0..x_range.1, 0.0..n_lanes as f64)
+            .map_err(draw_err)?;
+        let xf = tick_formatter(x_range.1 - x_range.0);
+        let no_label = |_: &f64| String::new();
+        chart
+            .configure_mesh()
+            .disable_y_mesh()
+            .set_tick_mark_size(LabelAreaPosition::Left, 0)
+            .x_label_formatter(&xf)
+            .y_label_formatter(&no_label)
+            .x_labels(10)
+            .label_style((FONT, TICK_SIZE))
+            .axis_desc_style((FONT, DESC_SIZE))
+            .light_line_style(RGBColor(240, 240, 240))
+            .bold_line_style(RGBColor(215, 215, 215))
+            .x_desc(fig.time_label.as_str())
+            .draw()
+            .map_err(draw_err)?;
+        // Lane i (from the top) spans [n_lanes - 1 - i, n_lanes - i].
+        let lane_span = |i: usize| {
+            let top = (n_lanes - i) as f64;
+            (top - 0.85, top - 0.15)
+        };
+        for (i, s) in fig.sequences.iter().enumerate() {
+            let (lo, hi) = lane_span(i);
+            let rects = runs(&s.modes).into_iter().map(|(a, b, m)| {
+                let colour = m.map_or(HOLE_COLOUR, mode_colour);
+                Rectangle::new([(edges[a], lo), (edges[b], hi)], colour.filled())
+            });
+            chart.draw_series(rects).map_err(draw_err)?;
+        }
+        if let Some(mm) = &mismatch {
+            let (lo, hi) = lane_span(n_lanes - 1);
+            let rects = runs(mm).into_iter().filter(|r| r.2).map(|(a, b, _)| {
+                Rectangle::new([(edges[a], lo), (edges[b], hi)], MISMATCH.filled())
+            });
+            chart.draw_series(rects).map_err(draw_err)?;
+        }
+        // Lane labels left of the plot, in pixel coordinates of the root.
+        let font = (FONT, LEGEND_SIZE)
+            .into_font()
+            .color(&BLACK)
+            .pos(Pos::new(HPos::Right, VPos::Center));
+        for (i, label) in lanes.iter().enumerate() {
+            let (lo, hi) = lane_span(i);
+            let (px, py) = chart.backend_coord(&(x_range.0, 0.5 * (lo + hi)));
+            root.draw(&Text::new(label.clone(), (px - 10, py), font.clone()))
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// Draws the active mode over time into the SVG file `path`, written
+/// atomically.
+pub fn mode_sequence_plot(path: &Path, fig: &ModeFigure) -> Result<(), PlotError> {
+    let svg = mode_sequence_svg(fig)?;
+    crate::write_svg(path, &svg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_merge_equal_neighbours() {
+        let v = [Some(0), Some(0), None, Some(1), Some(1), Some(1)];
+        assert_eq!(
+            runs(&v),
+            vec![(0, 2, Some(0)), (2, 3, None), (3, 6, Some(1))]
+        );
+        assert_eq!(sample_edges(&[0.0, 1.0, 3.0]), vec![-0.5, 0.5, 2.0, 4.0]);
+    }
+}

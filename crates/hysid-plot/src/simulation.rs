@@ -1,0 +1,321 @@
+//! Measured versus simulated output over time, with the input below: the
+//! founding paper's Figs. 7, 8, 9, 12 and 14.
+
+use std::path::Path;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::PlotError;
+use crate::common::{
+    DESC_SIZE, FONT, INPUT_COLOURS, LegendEntry, Swatch, TICK_SIZE, TITLE_SIZE, draw_err,
+    draw_legend, finite_range, finite_runs, legend_height, line_colour, padded, require_text,
+    text_width, tick_formatter,
+};
+
+/// A named series of values, one per time sample.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Series {
+    /// Legend text (for example `"measured"`, `"cluster, c = 55 (FIT 80.1 %)"`).
+    pub label: String,
+    /// One value per sample; NaN or infinite values leave a gap.
+    pub values: Vec<f64>,
+}
+
+impl Series {
+    /// A series from a label and values.
+    pub fn new(label: impl Into<String>, values: Vec<f64>) -> Self {
+        Self {
+            label: label.into(),
+            values,
+        }
+    }
+}
+
+/// Measured versus simulated output, with the input in a panel below.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SimulationFigure {
+    /// Title above the figure.
+    pub title: String,
+    /// Time of each sample: seconds, or the sample index when the data has
+    /// no sampling time (see [`time_axis`]).
+    pub time: Vec<f64>,
+    /// Label of the time axis with its unit, e.g. `"time t [s]"`.
+    pub time_label: String,
+    /// Label of the output axis with its unit, e.g. `"position y [mm]"`.
+    pub output_label: String,
+    /// The measured output (drawn in black).
+    pub measured: Series,
+    /// One or more simulated (or predicted) outputs, side by side.
+    pub simulated: Vec<Series>,
+    /// Label of the input axis with its unit, e.g. `"input u [-]"`.
+    pub input_label: String,
+    /// The inputs; empty draws no input panel.
+    pub inputs: Vec<Series>,
+    /// Time at which validation scoring starts (the end of the warm-up):
+    /// the samples before it are shaded.
+    pub scoring_starts: Option<f64>,
+}
+
+/// The time vector and axis label for `n` samples starting at row `first`:
+/// seconds `(first + k) ts` when the sampling time `ts` is known, the sample
+/// index otherwise.
+pub fn time_axis(n: usize, ts: Option<f64>, first: usize) -> (Vec<f64>, String) {
+    match ts {
+        Some(ts) if ts.is_finite() && ts > 0.0 => (
+            (0..n).map(|k| (first + k) as f64 * ts).collect(),
+            "time t [s]".to_string(),
+        ),
+        _ => (
+            (0..n).map(|k| (first + k) as f64).collect(),
+            "sample k [-]".to_string(),
+        ),
+    }
+}
+
+const WIDTH: u32 = 1100;
+const PANEL_OUTPUT_H: u32 = 440;
+const PANEL_INPUT_H: u32 = 250;
+const WARMUP_ALPHA: f64 = 0.18;
+const WARMUP_COLOUR: RGBColor = RGBColor(120, 120, 120);
+
+fn check_len(what: &str, got: usize, expected: usize) -> Result<(), PlotError> {
+    if got != expected {
+        return Err(PlotError::LengthMismatch {
+            what: what.to_string(),
+            got,
+            expected,
+        });
+    }
+    Ok(())
+}
+
+/// Width of the y label area for values in `range`.
+pub(crate) fn y_area_width(range: (f64, f64)) -> u32 {
+    let f = tick_formatter(range.1 - range.0);
+    let w = text_width(&f(&range.0), TICK_SIZE).max(text_width(&f(&range.1), TICK_SIZE));
+    (w + 48).max(70) as u32
+}
+
+struct Panel<'a> {
+    y_desc: &'a str,
+    x_desc: Option<&'a str>,
+    y_range: (f64, f64),
+    lines: Vec<(&'a [f64], RGBColor, u32)>,
+}
+
+fn draw_panel(
+    area: &DrawingArea<SVGBackend<'_>, Shift>,
+    time: &[f64],
+    x_range: (f64, f64),
+    y_area: u32,
+    warm: Option<f64>,
+    panel: Panel<'_>,
+) -> Result<(), PlotError> {
+    let (y0, y1) = panel.y_range;
+    let mut chart = ChartBuilder::on(area)
+        .margin_right(25)
+        .margin_left(16)
+        .margin_top(8)
+        .x_label_area_size(if panel.x_desc.is_some() { 58 } else { 30 })
+        .y_label_area_size(y_area)
+        .build_cartesian_2d(x_range.0..x_range.1, y0..y1)
+        .map_err(draw_err)?;
+    let xf = tick_formatter(x_range.1 - x_range.0);
+    let yf = tick_formatter(y1 - y0);
+    let mut mesh = chart.configure_mesh();
+    mesh.x_label_formatter(&xf)
+        .y_label_formatter(&yf)
+        .x_labels(10)
+        .y_labels(6)
+        .label_style((FONT, TICK_SIZE))
+        .axis_desc_style((FONT, DESC_SIZE))
+        .light_line_style(RGBColor(240, 240, 240))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .y_desc(panel.y_desc);
+    if let Some(d) = panel.x_desc {
+        mesh.x_desc(d);
+    }
+    mesh.draw().map_err(draw_err)?;
+    if let Some(w) = warm.filter(|w| w.is_finite() && *w > x_range.0) {
+        let w = w.min(x_range.1);
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(x_range.0, y0), (w, y1)],
+                WARMUP_COLOUR.mix(WARMUP_ALPHA).filled(),
+            )))
+            .map_err(draw_err)?;
+        chart
+            .draw_series(std::iter::once(plotters::element::DashedPathElement::new(
+                vec![(w, y0), (w, y1)],
+                6,
+                4,
+                ShapeStyle::from(&WARMUP_COLOUR).stroke_width(2),
+            )))
+            .map_err(draw_err)?;
+    }
+    for (values, colour, width) in panel.lines {
+        for run in finite_runs(time, values) {
+            chart
+                .draw_series(LineSeries::new(
+                    run,
+                    ShapeStyle::from(&colour).stroke_width(width),
+                ))
+                .map_err(draw_err)?;
+        }
+    }
+    Ok(())
+}
+
+/// Renders a [`SimulationFigure`] to an SVG string.
+pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
+    require_text("the title", &fig.title)?;
+    require_text("the time label", &fig.time_label)?;
+    require_text("the output label", &fig.output_label)?;
+    let n = fig.time.len();
+    if n == 0 {
+        return Err(PlotError::NoData("the time vector is empty".into()));
+    }
+    check_len(
+        &format!("measured output '{}'", fig.measured.label),
+        fig.measured.values.len(),
+        n,
+    )?;
+    for s in &fig.simulated {
+        check_len(
+            &format!("simulated output '{}'", s.label),
+            s.values.len(),
+            n,
+        )?;
+    }
+    for s in &fig.inputs {
+        check_len(&format!("input '{}'", s.label), s.values.len(), n)?;
+    }
+    if !fig.inputs.is_empty() {
+        require_text("the input label", &fig.input_label)?;
+    }
+    let x_range = finite_range(&fig.time)
+        .map(|r| if r.1 > r.0 { r } else { padded(r, 0.0) })
+        .ok_or_else(|| PlotError::NoData("no finite time value".into()))?;
+    let y_range = finite_range(
+        fig.measured
+            .values
+            .iter()
+            .chain(fig.simulated.iter().flat_map(|s| &s.values)),
+    )
+    .map(|r| padded(r, 0.05))
+    .ok_or_else(|| PlotError::NoData("no finite output value".into()))?;
+    let u_range = if fig.inputs.is_empty() {
+        None
+    } else {
+        Some(
+            finite_range(fig.inputs.iter().flat_map(|s| &s.values))
+                .map(|r| padded(r, 0.08))
+                .ok_or_else(|| PlotError::NoData("no finite input value".into()))?,
+        )
+    };
+
+    let mut entries = vec![LegendEntry::new(
+        Swatch::Line(BLACK, 3, false),
+        fig.measured.label.clone(),
+    )];
+    for (k, s) in fig.simulated.iter().enumerate() {
+        entries.push(LegendEntry::new(
+            Swatch::Line(line_colour(k), 2, false),
+            s.label.clone(),
+        ));
+    }
+    for (k, s) in fig.inputs.iter().enumerate() {
+        entries.push(LegendEntry::new(
+            Swatch::Line(INPUT_COLOURS[k % INPUT_COLOURS.len()], 2, false),
+            s.label.clone(),
+        ));
+    }
+    if fig.scoring_starts.is_some() {
+        entries.push(LegendEntry::new(
+            Swatch::Fill(WARMUP_COLOUR, WARMUP_ALPHA),
+            "warm-up (not scored)",
+        ));
+    }
+    let legend_h = legend_height(&entries, WIDTH);
+    let title_h = 46;
+    let panels_h = PANEL_OUTPUT_H + if u_range.is_some() { PANEL_INPUT_H } else { 0 };
+    let height = title_h + legend_h + panels_h;
+    let y_area = y_area_width(y_range).max(u_range.map_or(0, y_area_width));
+
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let body = root
+            .titled(&fig.title, (FONT, TITLE_SIZE))
+            .map_err(draw_err)?;
+        let (legend_area, panels) = body.split_vertically(legend_h);
+        draw_legend(&legend_area, &entries)?;
+        let mut lines: Vec<(&[f64], RGBColor, u32)> = vec![(&fig.measured.values, BLACK, 3)];
+        for (k, s) in fig.simulated.iter().enumerate() {
+            lines.push((&s.values, line_colour(k), 2));
+        }
+        let output_panel = |x_desc| Panel {
+            y_desc: &fig.output_label,
+            x_desc,
+            y_range,
+            lines: lines.clone(),
+        };
+        match u_range {
+            None => draw_panel(
+                &panels,
+                &fig.time,
+                x_range,
+                y_area,
+                fig.scoring_starts,
+                output_panel(Some(&fig.time_label)),
+            )?,
+            Some(u_range) => {
+                let (top, bottom) = panels.split_vertically(PANEL_OUTPUT_H);
+                draw_panel(
+                    &top,
+                    &fig.time,
+                    x_range,
+                    y_area,
+                    fig.scoring_starts,
+                    output_panel(None),
+                )?;
+                let inputs = fig
+                    .inputs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, s)| {
+                        (
+                            s.values.as_slice(),
+                            INPUT_COLOURS[k % INPUT_COLOURS.len()],
+                            2,
+                        )
+                    })
+                    .collect();
+                draw_panel(
+                    &bottom,
+                    &fig.time,
+                    x_range,
+                    y_area,
+                    fig.scoring_starts,
+                    Panel {
+                        y_desc: &fig.input_label,
+                        x_desc: Some(&fig.time_label),
+                        y_range: u_range,
+                        lines: inputs,
+                    },
+                )?;
+            }
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// Draws measured versus simulated output over time (and the input below)
+/// into the SVG file `path`, written atomically.
+pub fn simulation_plot(path: &Path, fig: &SimulationFigure) -> Result<(), PlotError> {
+    let svg = simulation_svg(fig)?;
+    crate::write_svg(path, &svg)
+}
