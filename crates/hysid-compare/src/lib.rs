@@ -106,6 +106,8 @@ pub struct Comparison {
     /// Validation record (for plots).
     #[serde(skip)]
     pub validation: Option<Dataset>,
+    /// Row of the record where the validation part starts (for time axes).
+    pub validation_first_row: usize,
 }
 
 fn value_text(v: &toml::Value) -> String {
@@ -242,6 +244,7 @@ impl Experiment {
             warmup: self.data.warmup,
             results,
             validation: Some(valid),
+            validation_first_row: self.data.validation.start.unwrap_or(0),
         })
     }
 }

@@ -1,6 +1,10 @@
-//! Writing a comparison: `report.md`, `report.json` and `models/*.json`.
+//! Writing a comparison: `report.md`, `report.json`, `models/*.json` and
+//! the figures under `plots/` (SVG, `hysid-plot`).
 
-use crate::Comparison;
+use crate::{Comparison, RunResult};
+use hysid_plot::{
+    ModeFigure, ModeSequence, SimulationFigure, SweepFigure, SweepPanel, SweepSeries,
+};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -33,6 +37,7 @@ pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::
             r.model_file = Some(rel);
         }
     }
+    written.extend(figures(c, dir)?);
     let json = serde_json::to_string_pretty(&*c).expect("report serialises") + "\n";
     let p = dir.join("report.json");
     hysid_core::atomic::write(&p, json.as_bytes())?;
@@ -41,6 +46,149 @@ pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::
     hysid_core::atomic::write(&p, markdown(c).as_bytes())?;
     written.push(p);
     Ok(written)
+}
+
+fn plot_err(e: hysid_plot::PlotError) -> std::io::Error {
+    std::io::Error::other(e.to_string())
+}
+
+/// Figures: measured vs simulated output for every run (and all plain runs
+/// together), the mode sequence of every run, and one figure per sweep
+/// (fit_sim and mode count against the first varied key).
+fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf>> {
+    let Some(valid) = &c.validation else {
+        return Ok(vec![]);
+    };
+    std::fs::create_dir_all(dir.join("plots"))?;
+    let mut written = Vec::new();
+    let y_label = format!("output {}", valid.output.name);
+    let u_label = "input".to_string();
+    let base = |title: String| {
+        SimulationFigure::from_dataset(
+            title,
+            valid,
+            c.validation_first_row,
+            y_label.clone(),
+            u_label.clone(),
+        )
+        .with_warmup(c.warmup)
+    };
+    let mut all = base(format!(
+        "{}: free-run simulation on the validation data",
+        c.title
+    ));
+    for r in c.results.iter().filter(|r| r.simulation.is_some()) {
+        let sim = r.simulation.as_ref().expect("filtered");
+        let fit = r
+            .report
+            .as_ref()
+            .map_or(String::new(), |v| format!(" (fit_sim {:.1} %)", v.fit_sim));
+        let slug = slug(&r.name);
+        let p = dir.join(format!("plots/{slug}-simulation.svg"));
+        hysid_plot::simulation_plot(
+            &p,
+            &base(format!("{}{fit}", r.name)).with_simulation(&r.name, sim),
+        )
+        .map_err(plot_err)?;
+        written.push(p);
+        let (time, time_label) =
+            hysid_plot::time_axis(valid.len(), valid.ts, c.validation_first_row);
+        let modes = ModeFigure {
+            title: format!("{}: active mode in simulation", r.name),
+            time,
+            time_label,
+            sequences: vec![ModeSequence::from_simulation(&r.name, sim)],
+            mode_names: r.model.as_ref().map(|m| m.mode_names()).unwrap_or_default(),
+            mark_mismatch: false,
+        };
+        let p = dir.join(format!("plots/{slug}-modes.svg"));
+        hysid_plot::mode_sequence_plot(&p, &modes).map_err(plot_err)?;
+        written.push(p);
+        if r.sweep.is_none() {
+            all = all.with_simulation(format!("{}{fit}", r.name), sim);
+        }
+    }
+    if !all.simulated.is_empty() {
+        let p = dir.join("plots/runs-simulation.svg");
+        hysid_plot::simulation_plot(&p, &all).map_err(plot_err)?;
+        written.push(p);
+    }
+    let mut sweeps: Vec<&str> = Vec::new();
+    for r in &c.results {
+        if let Some(s) = &r.sweep
+            && !sweeps.contains(&s.sweep.as_str())
+        {
+            sweeps.push(&s.sweep);
+        }
+    }
+    for name in sweeps {
+        let points: Vec<&RunResult> = c
+            .results
+            .iter()
+            .filter(|r| r.sweep.as_ref().is_some_and(|s| s.sweep == name))
+            .collect();
+        let Some(fig) = sweep_figure(name, &points) else {
+            continue;
+        };
+        let p = dir.join(format!("plots/{}-sweep.svg", slug(name)));
+        hysid_plot::sweep_plot(&p, &fig).map_err(plot_err)?;
+        written.push(p);
+    }
+    Ok(written)
+}
+
+/// fit_sim and modes against the first varied key (numeric values only),
+/// one series per combination of the other keys.
+fn sweep_figure(name: &str, points: &[&RunResult]) -> Option<SweepFigure> {
+    let first = points.first()?.sweep.as_ref()?;
+    let x_key = first.values.first()?.0.clone();
+    let mut fit: Vec<SweepSeries> = Vec::new();
+    let mut modes: Vec<SweepSeries> = Vec::new();
+    for r in points {
+        let s = r.sweep.as_ref()?;
+        let x: f64 = s.values.first()?.1.parse().ok()?;
+        let label = s.values[1..]
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let label = if label.is_empty() {
+            name.to_string()
+        } else {
+            label
+        };
+        let idx = match fit.iter().position(|f| f.label == label) {
+            Some(i) => i,
+            None => {
+                fit.push(SweepSeries::new(label.clone(), vec![], vec![]));
+                modes.push(SweepSeries::new(label, vec![], vec![]));
+                fit.len() - 1
+            }
+        };
+        fit[idx].x.push(x);
+        fit[idx]
+            .y
+            .push(r.report.as_ref().map_or(f64::NAN, |v| v.fit_sim));
+        modes[idx].x.push(x);
+        modes[idx].y.push(r.modes.map_or(f64::NAN, |m| m as f64));
+    }
+    Some(SweepFigure {
+        title: format!("{name}: validation simulation FIT and modes against {x_key}"),
+        x_label: x_key,
+        panels: vec![
+            SweepPanel {
+                y_label: "fit_sim [%]".into(),
+                series: fit,
+                integer_y: false,
+            },
+            SweepPanel {
+                y_label: "modes".into(),
+                series: modes,
+                integer_y: true,
+            },
+        ],
+        log_x: false,
+    })
 }
 
 /// The report as Markdown.
@@ -89,6 +237,41 @@ pub fn markdown(c: &Comparison) -> String {
             r.seconds,
             note.replace('|', "/")
         );
+    }
+    let mut figs: Vec<String> = Vec::new();
+    if c.results
+        .iter()
+        .any(|r| r.simulation.is_some() && r.sweep.is_none())
+    {
+        figs.push("- all runs: [plots/runs-simulation.svg](plots/runs-simulation.svg)".into());
+    }
+    let mut seen: Vec<&str> = Vec::new();
+    for r in &c.results {
+        if let Some(sw) = &r.sweep
+            && !seen.contains(&sw.sweep.as_str())
+        {
+            seen.push(&sw.sweep);
+            let f = format!("plots/{}-sweep.svg", slug(&sw.sweep));
+            figs.push(format!("- sweep {}: [{f}]({f})", sw.sweep));
+        }
+    }
+    for r in c
+        .results
+        .iter()
+        .filter(|r| r.simulation.is_some() && r.sweep.is_none())
+    {
+        let f = format!("plots/{}-simulation.svg", slug(&r.name));
+        let m = format!("plots/{}-modes.svg", slug(&r.name));
+        figs.push(format!("- {}: [{f}]({f}), [{m}]({m})", r.name));
+    }
+    if !figs.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nFigures (every run, sweep points included, has its simulation and mode figures under plots/):\n"
+        );
+        for f in figs {
+            let _ = writeln!(s, "{f}");
+        }
     }
     s
 }

@@ -4,7 +4,7 @@
 //! identification rows.
 //!
 //! ```text
-//! cargo run -p hysid-plot --example pick_and_place -- docs/figures/gallery
+//! cargo run -p hysid-plot --example plot_pick_and_place -- docs/figures/gallery
 //! ```
 
 use std::path::PathBuf;
