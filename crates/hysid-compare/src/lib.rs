@@ -108,6 +108,10 @@ pub struct Comparison {
     pub validation: Option<Dataset>,
     /// Row of the record where the validation part starts (for time axes).
     pub validation_first_row: usize,
+    /// Axis label of the output in figures.
+    pub output_label: String,
+    /// Axis label of the inputs in figures.
+    pub input_label: String,
 }
 
 fn value_text(v: &toml::Value) -> String {
@@ -245,6 +249,16 @@ impl Experiment {
             results,
             validation: Some(valid),
             validation_first_row: self.data.validation.start.unwrap_or(0),
+            output_label: self
+                .data
+                .output_label
+                .clone()
+                .unwrap_or_else(|| format!("output {}", self.data.output)),
+            input_label: self
+                .data
+                .input_label
+                .clone()
+                .unwrap_or_else(|| format!("input {}", self.data.input.join(", "))),
         })
     }
 }

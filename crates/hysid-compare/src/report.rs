@@ -52,17 +52,17 @@ fn plot_err(e: hysid_plot::PlotError) -> std::io::Error {
     std::io::Error::other(e.to_string())
 }
 
-/// Figures: measured vs simulated output for every run (and all plain runs
-/// together), the mode sequence of every run, and one figure per sweep
-/// (fit_sim and mode count against the first varied key).
+/// Figures: measured vs simulated output and the mode sequence of every
+/// `[[run]]` (and all runs together), and one figure per sweep (fit_sim and
+/// mode count against the first varied key).
 fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf>> {
     let Some(valid) = &c.validation else {
         return Ok(vec![]);
     };
     std::fs::create_dir_all(dir.join("plots"))?;
     let mut written = Vec::new();
-    let y_label = format!("output {}", valid.output.name);
-    let u_label = "input".to_string();
+    let y_label = c.output_label.clone();
+    let u_label = c.input_label.clone();
     let base = |title: String| {
         SimulationFigure::from_dataset(
             title,
@@ -73,11 +73,12 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
         )
         .with_warmup(c.warmup)
     };
-    let mut all = base(format!(
-        "{}: free-run simulation on the validation data",
-        c.title
-    ));
-    for r in c.results.iter().filter(|r| r.simulation.is_some()) {
+    let mut all = base("Validation: free-run simulation of every run".to_string());
+    for r in c
+        .results
+        .iter()
+        .filter(|r| r.simulation.is_some() && r.sweep.is_none())
+    {
         let sim = r.simulation.as_ref().expect("filtered");
         let fit = r
             .report
@@ -104,9 +105,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
         let p = dir.join(format!("plots/{slug}-modes.svg"));
         hysid_plot::mode_sequence_plot(&p, &modes).map_err(plot_err)?;
         written.push(p);
-        if r.sweep.is_none() {
-            all = all.with_simulation(format!("{}{fit}", r.name), sim);
-        }
+        all = all.with_simulation(format!("{}{fit}", r.name), sim);
     }
     if !all.simulated.is_empty() {
         let p = dir.join("plots/runs-simulation.svg");

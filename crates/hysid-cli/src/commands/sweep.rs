@@ -128,6 +128,8 @@ pub fn run(args: Args) -> Result<()> {
             identification: args.identify_rows,
             validation: args.validate_rows,
             warmup: args.warmup,
+            output_label: None,
+            input_label: None,
         },
         na: args.na,
         nb: args.nb,
