@@ -2,8 +2,9 @@
 //! the figures under `plots/` (SVG, `hysid-plot`).
 
 use crate::{Comparison, RunResult};
+use hysid_core::model::Model;
 use hysid_plot::{
-    ModeFigure, ModeSequence, SimulationFigure, SweepFigure, SweepPanel, SweepSeries,
+    ModeFigure, ModeSequence, RegionFigure, SimulationFigure, SweepFigure, SweepPanel, SweepSeries,
 };
 use std::fmt::Write as _;
 use std::path::Path;
@@ -106,6 +107,41 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
         hysid_plot::mode_sequence_plot(&p, &modes).map_err(plot_err)?;
         written.push(p);
         all = all.with_simulation(format!("{}{fit}", r.name), sim);
+        // Classified validation regressors with the region boundaries (the
+        // founding paper's Figs. 6 and 11), in the plane y(k-1), u(k-1).
+        if let Some(Model::Pwarx(m)) = &r.model
+            && m.modes.len() > 1
+            && m.spec().dim() >= 2
+            && let Ok(reg) = m.spec().build(valid)
+        {
+            let labels = (0..reg.len())
+                .map(|i| {
+                    Some(
+                        m.mode_of(reg.x.row(i).iter().copied().collect::<Vec<_>>().as_slice())
+                            .mode,
+                    )
+                })
+                .collect();
+            let axes = if m.na >= 1 && m.nb >= 1 {
+                (0, m.na)
+            } else {
+                (0, 1)
+            };
+            let fig = RegionFigure::from_model(
+                format!(
+                    "{}: validation regressors by mode, regions sliced at the mean",
+                    r.name
+                ),
+                m,
+                &reg,
+                labels,
+                axes,
+                &[],
+            );
+            let p = dir.join(format!("plots/{slug}-regions.svg"));
+            hysid_plot::regions_plot(&p, &fig).map_err(plot_err)?;
+            written.push(p);
+        }
     }
     if !all.simulated.is_empty() {
         let p = dir.join("plots/runs-simulation.svg");
