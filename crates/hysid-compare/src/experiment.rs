@@ -32,10 +32,10 @@ pub struct DataSpec {
     /// Validation samples not scored (default 10).
     #[serde(default = "ten")]
     pub warmup: usize,
-    /// Axis label of the output in figures, with its unit (default "output <name>").
+    /// Axis label of the output in figures, with its unit (default `output <name>`).
     #[serde(default)]
     pub output_label: Option<String>,
-    /// Axis label of the inputs in figures, with the unit (default "input <names>").
+    /// Axis label of the inputs in figures, with the unit (default `input <names>`).
     #[serde(default)]
     pub input_label: Option<String>,
 }

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 pub struct Args {
     /// Experiment file (TOML), see docs/compare.md.
     pub experiment: PathBuf,
-    /// Output folder for report.md, report.json and models/ (default: out/<experiment name>).
+    /// Output folder for report.md, report.json and models/ (default: `out/<experiment name>`).
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
 }
