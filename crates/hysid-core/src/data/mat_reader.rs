@@ -318,37 +318,20 @@ fn dims(d: &[usize]) -> String {
     d.iter().map(usize::to_string).collect::<Vec<_>>().join("x")
 }
 
+fn widen<T: Into<f64>>(v: Option<Vec<T>>) -> Option<Vec<f64>> {
+    v.map(|x| x.into_iter().map(Into::into).collect())
+}
+
 /// Any real numeric class, widened to f64.
 fn to_f64(v: &MatVariable) -> Option<Vec<f64>> {
     v.to_vec_f64()
-        .or_else(|| {
-            v.to_vec_f32()
-                .map(|x| x.into_iter().map(f64::from).collect())
-        })
-        .or_else(|| {
-            v.to_vec_i32()
-                .map(|x| x.into_iter().map(f64::from).collect())
-        })
-        .or_else(|| {
-            v.to_vec_i16()
-                .map(|x| x.into_iter().map(f64::from).collect())
-        })
-        .or_else(|| {
-            v.to_vec_i8()
-                .map(|x| x.into_iter().map(f64::from).collect())
-        })
-        .or_else(|| {
-            v.to_vec_u8()
-                .map(|x| x.into_iter().map(f64::from).collect())
-        })
-        .or_else(|| {
-            v.to_vec_u16()
-                .map(|x| x.into_iter().map(f64::from).collect())
-        })
-        .or_else(|| {
-            v.to_vec_u32()
-                .map(|x| x.into_iter().map(f64::from).collect())
-        })
+        .or_else(|| widen(v.to_vec_f32()))
+        .or_else(|| widen(v.to_vec_i32()))
+        .or_else(|| widen(v.to_vec_i16()))
+        .or_else(|| widen(v.to_vec_i8()))
+        .or_else(|| widen(v.to_vec_u8()))
+        .or_else(|| widen(v.to_vec_u16()))
+        .or_else(|| widen(v.to_vec_u32()))
 }
 
 #[cfg(test)]
