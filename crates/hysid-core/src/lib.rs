@@ -11,6 +11,7 @@
 //! | [`geometry`] | polyhedra: regions, invariants, guard sets |
 //! | [`model`] | PWARX models and hybrid automata, model files |
 //! | [`priors`] | gray-box prior knowledge |
+//! | [`estimation`] | mode parameters by least squares under priors (ties, fixed values, bounds) |
 //! | [`options`] | typed back-end options and `--set` |
 //! | [`backend`] | the plugin contract and registry |
 //! | [`simulate`] | free-run simulation and one-step prediction |
@@ -22,6 +23,7 @@
 pub mod atomic;
 pub mod backend;
 pub mod data;
+pub mod estimation;
 pub mod excitation;
 pub mod geometry;
 pub mod linalg;

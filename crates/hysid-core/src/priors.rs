@@ -62,6 +62,34 @@ pub struct SaturationPrior {
     pub level: f64,
     /// Side.
     pub bound: StopBound,
+    /// How close to the level (or beyond it, on the stop's side) an output
+    /// sample must be to count as saturated. Default
+    /// [`SaturationPrior::DEFAULT_TOL`] `* (1 + |level|)`: exact for
+    /// simulated data; give the measurement noise for real records.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tol: Option<f64>,
+}
+
+impl SaturationPrior {
+    /// Relative default of [`SaturationPrior::tol`].
+    pub const DEFAULT_TOL: f64 = 1e-6;
+
+    /// The tolerance in use (the given `tol` or the default).
+    pub fn tolerance(&self) -> f64 {
+        self.tol
+            .unwrap_or(Self::DEFAULT_TOL * (1.0 + self.level.abs()))
+    }
+
+    /// Whether the output value `y` sits at the stop: within the tolerance
+    /// of the level or beyond it on the stop's side (a `max` stop at `L`
+    /// holds `y >= L - tol`).
+    pub fn holds(&self, y: f64) -> bool {
+        let tol = self.tolerance();
+        match self.bound {
+            StopBound::Max => y >= self.level - tol,
+            StopBound::Min => y <= self.level + tol,
+        }
+    }
 }
 
 /// Parameters that share one value across all non-saturation modes.
@@ -166,9 +194,26 @@ impl Priors {
         {
             return Err(format!("modes = {s} exceeds max_modes = {m}"));
         }
+        let stops = self.saturation.len();
+        for (key, v) in [("modes", self.modes), ("max_modes", self.max_modes)] {
+            if let Some(s) = v
+                && s <= stops
+            {
+                return Err(format!(
+                    "{key} = {s} counts every mode, the {stops} saturation mode(s) included: need at least {} for one ordinary mode",
+                    stops + 1
+                ));
+            }
+        }
         for (i, s) in self.saturation.iter().enumerate() {
             if !s.level.is_finite() {
                 return Err(format!("[[saturation]] #{}: level must be finite", i + 1));
+            }
+            if s.tol.is_some_and(|t| !(t.is_finite() && t >= 0.0)) {
+                return Err(format!(
+                    "[[saturation]] #{}: tol must be finite and non-negative",
+                    i + 1
+                ));
             }
         }
         for (i, t) in self.tie.iter().enumerate() {
@@ -276,6 +321,32 @@ impl Priors {
     }
 }
 
+impl Priors {
+    /// The exact number of ordinary (non-saturation) modes: `modes` minus
+    /// the `[[saturation]]` entries (`modes` counts every mode).
+    pub fn ordinary_modes(&self) -> Option<usize> {
+        self.modes.map(|s| s - self.saturation.len())
+    }
+
+    /// The upper bound on the ordinary modes from `max_modes`.
+    pub fn max_ordinary_modes(&self) -> Option<usize> {
+        self.max_modes.map(|s| s - self.saturation.len())
+    }
+
+    /// The known stop the output value `y` sits at
+    /// ([`SaturationPrior::holds`]), if any.
+    pub fn stop_at(&self, y: f64) -> Option<usize> {
+        self.saturation.iter().position(|s| s.holds(y))
+    }
+
+    /// For every regression target `y(k)`, the stop it sits at: the samples
+    /// a back-end assigns to the saturation modes before clustering or
+    /// bounded-error extraction (issue 6; Juloski et al. 2003, section 5).
+    pub fn saturated_samples(&self, targets: &[f64]) -> Vec<Option<usize>> {
+        targets.iter().map(|&y| self.stop_at(y)).collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -334,78 +405,29 @@ b1 = [0.0, 1.0e3]
         assert!(Priors::from_toml("[bounds]\nb1 = [2.0, 1.0]", "p").is_err());
         assert!(Priors::from_toml("[[saturation]]\nlevel = 1.0\nbound = \"up\"", "p").is_err());
     }
-}
-
-/// Linear equalities `E theta = f` over the stacked parameters
-/// `theta = [theta_1; ..; theta_s]` of `s` PWARX modes.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StackedEqualities {
-    /// Rows of `E`, each of length `s * n_params`.
-    pub e: Vec<Vec<f64>>,
-    /// Right-hand sides.
-    pub f: Vec<f64>,
-}
-
-impl Priors {
-    /// The `[[tie]]` and `[fixed]` entries as equalities over the stacked
-    /// parameters of `s` modes with structure `spec`: a tie of parameter `p`
-    /// is `theta_i[p] = theta_1[p]` for `i = 2..s`, a fixed value
-    /// `theta_i[p] = v` for every mode. Names must have been checked with
-    /// [`Priors::check_pwarx_names`].
-    pub fn pwarx_equalities(&self, spec: &RegressorSpec, s: usize) -> StackedEqualities {
-        let names = spec.param_names();
-        let np = names.len();
-        let idx = |p: &str| names.iter().position(|n| n == p).expect("names checked");
-        let mut e = Vec::new();
-        let mut f = Vec::new();
-        for t in &self.tie {
-            for p in &t.params {
-                let j = idx(p);
-                for i in 1..s {
-                    let mut row = vec![0.0; s * np];
-                    row[i * np + j] = 1.0;
-                    row[j] = -1.0;
-                    e.push(row);
-                    f.push(0.0);
-                }
-            }
-        }
-        for (p, v) in &self.fixed {
-            let j = idx(p);
-            for i in 0..s {
-                let mut row = vec![0.0; s * np];
-                row[i * np + j] = 1.0;
-                e.push(row);
-                f.push(*v);
-            }
-        }
-        StackedEqualities { e, f }
-    }
-
-    /// The stop whose level `y` sits on (within `tol`), if any.
-    pub fn stop_at(&self, y: f64, tol: f64) -> Option<usize> {
-        self.saturation
-            .iter()
-            .position(|s| (y - s.level).abs() <= tol)
-    }
-}
-
-#[cfg(test)]
-mod stacked_tests {
-    use super::*;
 
     #[test]
-    fn ties_and_fixed_values_as_equalities() {
-        let p = Priors::from_toml("[[tie]]\nparams = [\"a1\"]\n[fixed]\nc = 2.0\n", "p").unwrap();
-        let spec = RegressorSpec::new(1, 1, 1); // a1 b1 c
-        let eq = p.pwarx_equalities(&spec, 3);
-        assert_eq!(eq.e.len(), 2 + 3);
-        // theta_2[a1] - theta_1[a1] = 0
-        assert_eq!(eq.e[0], vec![-1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
-        assert_eq!((eq.e[4][8], eq.f[4]), (1.0, 2.0));
-        let sat =
-            Priors::from_toml("[[saturation]]\nlevel = 25.0\nbound = \"max\"\n", "p").unwrap();
-        assert_eq!(sat.stop_at(25.004, 0.005), Some(0));
-        assert_eq!(sat.stop_at(24.9, 0.005), None);
+    fn saturated_samples_by_level_side_and_tolerance() {
+        let sat = Priors::from_toml(
+            "[[saturation]]\nlevel = 25.0\nbound = \"max\"\ntol = 0.005\n[[saturation]]\nlevel = 0.0\nbound = \"min\"\n",
+            "p",
+        )
+        .unwrap();
+        assert_eq!(sat.stop_at(24.996), Some(0));
+        assert_eq!(sat.stop_at(25.3), Some(0), "beyond the stop counts");
+        assert_eq!(sat.stop_at(24.9), None);
+        assert_eq!(sat.stop_at(-0.1), Some(1));
+        assert_eq!(sat.stop_at(1e-5), None, "default tolerance is 1e-6");
+        assert_eq!(
+            sat.saturated_samples(&[3.0, 25.0, 0.0]),
+            vec![None, Some(0), Some(1)]
+        );
+        assert!(
+            Priors::from_toml(
+                "[[saturation]]\nlevel = 1.0\nbound = \"max\"\ntol = -1.0\n",
+                "p"
+            )
+            .is_err()
+        );
     }
 }

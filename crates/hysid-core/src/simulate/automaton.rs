@@ -506,8 +506,8 @@ mod stop_tests {
         ) {
             let a2 = -0.95 * a1 * a1 / 4.0; // real, stable poles
             let stops = [
-                SaturationPrior { level: hi, bound: StopBound::Max },
-                SaturationPrior { level: lo, bound: StopBound::Min },
+                SaturationPrior { level: hi, bound: StopBound::Max, tol: None },
+                SaturationPrior { level: lo, bound: StopBound::Min, tol: None },
             ];
             let a = HybridAutomaton::from_pwarx_with_stops(&head(a1, a2, b), &stops);
             a.validate().unwrap();
@@ -531,6 +531,7 @@ mod stop_tests {
             &[SaturationPrior {
                 level: 1.0,
                 bound: StopBound::Max,
+                tol: None,
             }],
         );
         // Push hard for 40 samples, then pull back.
