@@ -317,17 +317,17 @@ fn bounded_lstsq(
     let q: Vec<f64> = g.iter().map(|v| -v).collect();
     let (mut a_rows, mut a_cols, mut a_vals, mut b) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for v in 0..nz {
+    for (v, dv) in d.iter().enumerate() {
         if par.upper[v].is_finite() {
             a_rows.push(b.len());
             a_cols.push(v);
-            a_vals.push(d[v]);
+            a_vals.push(*dv);
             b.push(par.upper[v]);
         }
         if par.lower[v].is_finite() {
             a_rows.push(b.len());
             a_cols.push(v);
-            a_vals.push(-d[v]);
+            a_vals.push(-dv);
             b.push(-par.lower[v]);
         }
     }
