@@ -257,6 +257,13 @@ pub fn markdown(c: &Comparison) -> String {
         if let Some(k) = r.report.as_ref().and_then(|v| v.diverged_at) {
             note = format!("simulation diverged at sample {k}");
         }
+        if let Some(holes) = r.model.as_ref().and_then(holes_note) {
+            note = if note.is_empty() {
+                holes
+            } else {
+                format!("{note}; {holes}")
+            };
+        }
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {} |",
@@ -310,6 +317,28 @@ pub fn markdown(c: &Comparison) -> String {
         }
     }
     s
+}
+
+/// "regions leave holes" when the back-end reported an incomplete partition
+/// (`regions_complete = false`, e.g. HIT's pairwise `psvc` regions), with
+/// the uncovered fraction of the data box when known.
+fn holes_note(m: &hysid_core::model::Model) -> Option<String> {
+    let d = &m.info().diagnostics;
+    if d.get("regions_complete")?.as_bool()? {
+        return None;
+    }
+    Some(
+        match d
+            .get("uncovered_fraction_of_data_box")
+            .and_then(|v| v.as_f64())
+        {
+            Some(f) => format!(
+                "regions leave holes: {:.2} % of the data box in no region",
+                100.0 * f
+            ),
+            None => "regions leave holes".into(),
+        },
+    )
 }
 
 /// The table of `[data] truth` scores: accuracy, and per true mode the
