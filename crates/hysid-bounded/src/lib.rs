@@ -33,8 +33,8 @@ pub mod samples;
 pub mod sweep;
 pub mod systems;
 
-use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use constraints::Constraints;
+use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
 use hysid_core::options::OptionType;
 use hysid_core::priors::PriorKind;
@@ -178,7 +178,10 @@ impl Bounded {
             ));
         }
         // Counts of ordinary modes (`modes` counts every mode).
-        let max_modes = match (options.max_modes.map(|m| m - stops), pri.max_ordinary_modes()) {
+        let max_modes = match (
+            options.max_modes.map(|m| m - stops),
+            pri.max_ordinary_modes(),
+        ) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         };
@@ -341,16 +344,12 @@ impl Identifier for Bounded {
             switching,
             ..Default::default()
         };
-        let part = hysid_regions::estimate(
-            &regressor_rows(s, c),
-            &labelled(c),
-            c.thetas.len(),
-            &ropt,
-        )
-        .map_err(|e| IdentifyError::Failed {
-            method: "bounded".into(),
-            message: format!("regions: {e}"),
-        })?;
+        let part =
+            hysid_regions::estimate(&regressor_rows(s, c), &labelled(c), c.thetas.len(), &ropt)
+                .map_err(|e| IdentifyError::Failed {
+                    method: "bounded".into(),
+                    message: format!("regions: {e}"),
+                })?;
         let regions = part.regions;
         let mut info = ModelInfo::default();
         let dg = &mut info.diagnostics;

@@ -235,8 +235,8 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
     let tied = set.constraints.has_ties() && thetas.len() > 1;
     let mut tie_projection_error = None;
     if tied {
-        let projected = joint_fit(s, &set.constraints, &groups, set.refit, f64::INFINITY)
-            .or_else(|| {
+        let projected =
+            joint_fit(s, &set.constraints, &groups, set.refit, f64::INFINITY).or_else(|| {
                 let (par, _) = set.constraints.joint(groups.len())?;
                 least_squares_joint(s, &par, &groups)
             });
@@ -256,7 +256,8 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
     }
     let space = |thetas: &[Vec<f64>]| {
         if tied {
-            set.constraints.mode_space(p, thetas.first().map(Vec::as_slice))
+            set.constraints
+                .mode_space(p, thetas.first().map(Vec::as_slice))
         } else {
             relaxed.clone()
         }
