@@ -34,10 +34,11 @@ pub struct Constraints {
 }
 
 impl Constraints {
-    /// The constraints of `priors` for structure `spec` (names must have
-    /// been checked with [`Priors::check_pwarx_names`]). A fixed value
-    /// outside its bounds is an error naming it.
+    /// The constraints of `priors` for structure `spec`. An unknown name
+    /// ([`Priors::check_pwarx_names`]) or a fixed value outside its bounds
+    /// is an error naming it.
     pub fn new(priors: &Priors, spec: RegressorSpec) -> Result<Self, String> {
+        priors.check_pwarx_names(&spec)?;
         let kept = Priors {
             tie: priors.tie.clone(),
             fixed: priors.fixed.clone(),

@@ -441,6 +441,46 @@ mod tests {
     }
 
     #[test]
+    fn joint_lp_matches_the_per_mode_lp_and_shares_ties() {
+        use hysid_core::priors::Priors;
+        use hysid_core::regressors::RegressorSpec;
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let n = 400;
+        let mut phi = Vec::new();
+        let mut y = Vec::new();
+        for k in 0..n {
+            let (a, b): (f64, f64) = (rng.random_range(-2.0..2.0), rng.random_range(-1.0..1.0));
+            phi.extend([a, b, 1.0]);
+            let bb = if k < n / 2 { -0.2 } else { 1.1 };
+            y.push(0.7 * a + bb * b + 0.3 + rng.random_range(-0.1..0.1));
+        }
+        let s = Samples::new(3, phi, y);
+        let all: Vec<usize> = (0..n).collect();
+        // Free, one mode: the same minimax error as the per-mode LP (with
+        // constraint generation: 400 pairs > 2 * 10 * 3).
+        let free = Parametrisation::free(3, 1);
+        let bounds = vec![(f64::NEG_INFINITY, f64::INFINITY); 3];
+        let j = chebyshev_joint(&s, &free, &bounds, std::slice::from_ref(&all)).unwrap();
+        let c = chebyshev(&s, &all).unwrap();
+        assert!(
+            (j.max_residual - c.max_residual).abs() < 1e-7,
+            "{j:?} {c:?}"
+        );
+        // Two modes, a1 tied, c fixed: shared bitwise, fixed exact, and
+        // within the noise bound (the truth is feasible).
+        let pri = Priors::from_toml("[[tie]]\nparams = [\"a1\"]\n[fixed]\nc = 0.3\n", "p").unwrap();
+        let par = Parametrisation::from_priors(&pri, &RegressorSpec::new(1, 1, 1), 2).unwrap();
+        let bounds = vec![(f64::NEG_INFINITY, f64::INFINITY); par.n_free()];
+        let groups = vec![(0..n / 2).collect(), (n / 2..n).collect()];
+        let j = chebyshev_joint(&s, &par, &bounds, &groups).unwrap();
+        assert_eq!(j.thetas[0][0].to_bits(), j.thetas[1][0].to_bits());
+        assert_eq!(j.thetas[0][2], 0.3);
+        assert_eq!(j.thetas[1][2], 0.3);
+        assert!(j.max_residual <= 0.1 + 1e-9, "{j:?}");
+    }
+
+    #[test]
     fn chebyshev_is_minimax() {
         // y = x exactly except one point off by 0.3: minimax error 0.15.
         let s = samples(
