@@ -31,7 +31,6 @@ pub mod procedure;
 pub mod refit;
 pub mod samples;
 pub mod sweep;
-pub mod systems;
 
 use constraints::Constraints;
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
@@ -501,7 +500,7 @@ mod tests {
 
     #[test]
     fn b1_model_with_regions_in_original_units() {
-        let g = systems::b1(300, 0.1, 7);
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 7);
         let m = run(&g.data, &Priors::default(), &["delta=0.1"], 7).unwrap();
         let p = pwarx(&m);
         assert_eq!(p.modes.len(), 3);
@@ -515,19 +514,19 @@ mod tests {
             assert!(r.as_f64().unwrap() <= 0.1 + 1e-9);
         }
         // Parameters close to the truth after matching.
-        let truth: Vec<Vec<f64>> = systems::B1_THETA.iter().map(|t| t.to_vec()).collect();
+        let truth = g.thetas();
         let ident: Vec<Vec<f64>> = p.modes.iter().map(|m| m.theta.clone()).collect();
         let pe = hysid_core::metrics::parameter_error(&truth, &ident);
         assert!(pe.max_relative_error < 0.05, "{pe:?}");
         // The regions classify fresh data from the same system: at least 97 %
         // of the regressors in the right mode (a misclassified sample costs a
         // prediction error of several units in B1, so FIT is not the measure).
-        let v = systems::b1(300, 0.1, 99);
+        let v = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 99);
         let reg = RegressorSpec::new(1, 1, 1).build(&v.data).unwrap();
         let got: Vec<usize> = (0..reg.len())
             .map(|k| p.mode_of(&[reg.x[(k, 0)], reg.x[(k, 1)]]).mode)
             .collect();
-        let acc = hysid_core::metrics::mode_accuracy(&v.modes, &got).accuracy;
+        let acc = hysid_core::metrics::mode_accuracy(&v.row_modes(), &got).accuracy;
         assert!(acc >= 0.97, "fresh-data mode accuracy {acc}");
         let (rep, _, _) = validate(&m, &v.data, 1).unwrap();
         assert_eq!(rep.coverage, 1.0);
@@ -536,7 +535,7 @@ mod tests {
 
     #[test]
     fn same_seed_same_model() {
-        let g = systems::b1(200, 0.1, 3);
+        let g = hysid_testkit::b1(200, 4.0, hysid_testkit::Noise::Uniform(0.1), 3);
         let a = run(&g.data, &Priors::default(), &["delta=0.1"], 5).unwrap();
         let b = run(&g.data, &Priors::default(), &["delta=0.1"], 5).unwrap();
         assert_eq!(a.to_json(), b.to_json());
@@ -544,7 +543,7 @@ mod tests {
 
     #[test]
     fn delta_auto_is_near_the_noise_bound() {
-        let g = systems::b1(400, 0.1, 11);
+        let g = hysid_testkit::b1(400, 4.0, hysid_testkit::Noise::Uniform(0.1), 11);
         let m = run(&g.data, &Priors::default(), &["delta=auto"], 1).unwrap();
         let d = m.info().diagnostics["delta"].as_f64().unwrap();
         // Uniform noise U[-0.1, 0.1]: sigma = 0.0577, 3 sigma = 0.173.
@@ -554,7 +553,7 @@ mod tests {
 
     #[test]
     fn priors_modes_and_max_modes() {
-        let g = systems::b1(300, 0.1, 4);
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 4);
         // Upper bound below the truth: at most 2 modes.
         let pri = Priors {
             max_modes: Some(2),
@@ -604,7 +603,7 @@ mod tests {
 
     #[test]
     fn refuses_bad_options_and_priors() {
-        let g = systems::b1(100, 0.1, 4);
+        let g = hysid_testkit::b1(100, 4.0, hysid_testkit::Noise::Uniform(0.1), 4);
         let e = run(&g.data, &Priors::default(), &[], 1)
             .unwrap_err()
             .to_string();
@@ -627,7 +626,7 @@ mod tests {
 
     #[test]
     fn least_squares_refit_runs() {
-        let g = systems::b1(300, 0.1, 2);
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 2);
         let m = run(&g.data, &Priors::default(), &["delta=0.1", "refit=ls"], 1).unwrap();
         assert_eq!(pwarx(&m).modes.len(), 3);
     }

@@ -1,7 +1,9 @@
 //! Gray-box priors in the bounded back-end (issue 6): ties, fixed values,
 //! bounds, switching variables and known stops.
 
-use hysid_bounded::{Bounded, BoundedOptions, Delta, systems};
+mod common;
+
+use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
 use hysid_core::data::Dataset;
 use hysid_core::metrics::{mode_accuracy, validate};
@@ -47,7 +49,7 @@ fn priors(text: &str) -> Priors {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(12))]
 
-    /// Two input-switched modes sharing `a1` and `c` (systems::sliced: the
+    /// Two input-switched modes sharing `a1` and `c` (`common::sliced`: the
     /// mode follows u(k-1)). With `a1` tied, `c` fixed, `b1` bounded and
     /// switching on `u1`: ties hold to 1e-9, the fixed value comes back
     /// bit for bit, the bounds hold, the region normals are zero on `y1`,
@@ -61,7 +63,7 @@ proptest! {
         hi in 1.0f64..2.5,
         seed in 0u64..1000,
     ) {
-        let g = systems::sliced(&[[a, b2, c], [a, b1, c]], 160, 0.05, seed);
+        let g = common::sliced(&[[a, b2, c], [a, b1, c]], 160, 0.05, seed);
         let pri = priors(&format!(
             "modes = 2\nswitching = [\"u1\"]\n[[tie]]\nparams = [\"a1\"]\n[fixed]\nc = {c:?}\n[bounds]\nb1 = [-2.5, {hi:?}]\n"
         ));
@@ -152,7 +154,7 @@ fn saturation_diagnostics_count_the_stops() {
 /// error.
 #[test]
 fn bad_prior_names_and_counts_are_bad_data() {
-    let g = systems::b1(100, 0.1, 1);
+    let g = hysid_testkit::b1(100, 4.0, hysid_testkit::Noise::Uniform(0.1), 1);
     let e = run(
         &g.data,
         RegressorSpec::new(1, 1, 1),
