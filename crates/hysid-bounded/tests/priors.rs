@@ -20,13 +20,22 @@ fn run(
     delta: f64,
     seed: u64,
 ) -> Result<Model, IdentifyError> {
+    run_with(data, spec, priors, &[format!("delta={delta}")], seed)
+}
+
+fn run_with(
+    data: &Dataset,
+    spec: RegressorSpec,
+    priors: &Priors,
+    set: &[String],
+    seed: u64,
+) -> Result<Model, IdentifyError> {
     let problem = Problem {
         data,
         orders: spec,
         priors,
         priors_origin: None,
     };
-    let set = [format!("delta={delta}")];
     let set: Vec<&str> = set.iter().map(String::as_str).collect();
     Bounded.run(
         &problem,
@@ -53,7 +62,8 @@ proptest! {
     /// mode follows u(k-1)). With `a1` tied, `c` fixed, `b1` bounded and
     /// switching on `u1`: ties hold to 1e-9, the fixed value comes back
     /// bit for bit, the bounds hold, the region normals are zero on `y1`,
-    /// and every labelled sample stays within delta.
+    /// and every labelled sample stays within delta; with both refits
+    /// (joint Chebyshev LP or joint least squares under the ties).
     #[test]
     fn ties_fixed_bounds_and_switching_hold(
         a in -0.7f64..0.7,
@@ -62,12 +72,17 @@ proptest! {
         c in -1.0f64..1.0,
         hi in 1.0f64..2.5,
         seed in 0u64..1000,
+        ls in proptest::bool::ANY,
     ) {
         let g = common::sliced(&[[a, b2, c], [a, b1, c]], 160, 0.05, seed);
         let pri = priors(&format!(
             "modes = 2\nswitching = [\"u1\"]\n[[tie]]\nparams = [\"a1\"]\n[fixed]\nc = {c:?}\n[bounds]\nb1 = [-2.5, {hi:?}]\n"
         ));
-        let m = run(&g.data, RegressorSpec::new(1, 1, 1), &pri, 0.1, seed).unwrap();
+        let set = [
+            "delta=0.1".to_string(),
+            format!("refit={}", if ls { "ls" } else { "linf" }),
+        ];
+        let m = run_with(&g.data, RegressorSpec::new(1, 1, 1), &pri, &set, seed).unwrap();
         let p = pwarx(&m);
         prop_assert_eq!(p.modes.len(), 2);
         let t0 = &p.modes[0].theta;
