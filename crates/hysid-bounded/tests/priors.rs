@@ -94,8 +94,12 @@ proptest! {
                 prop_assert_eq!(row[0], 0.0, "normal on y1: {:?}", mode.region);
             }
         }
-        for r in m.info().diagnostics["max_residual"].as_array().unwrap() {
+        let dg = &m.info().diagnostics;
+        for r in dg["max_residual"].as_array().unwrap() {
             prop_assert!(r.as_f64().unwrap() <= 0.1 + 1e-9);
+        }
+        if dg["greedy_modes"].as_u64().unwrap() > 1 {
+            prop_assert!(dg["tie_projection_error"].as_f64().is_some(), "{:?}", dg);
         }
     }
 
