@@ -59,6 +59,8 @@ impl<'a> Runner<'a> {
     /// first (a state on a stop starts in the stop's mode), else the mode of
     /// least violation (ties to a lower-dimensional invariant: a state just
     /// beyond a stop, e.g. a noisy measured initial output, is held at it).
+    /// The flag tells whether the state is covered: inside an invariant, or
+    /// off a stop whose set holds its projection.
     fn select(&mut self, q: Option<usize>, x: &[f64], u: &[f64]) -> (usize, bool) {
         let m = self.m;
         let z = self.ext(x, u).to_vec();
@@ -85,7 +87,22 @@ impl<'a> Runner<'a> {
                 best = (v, lower, i);
             }
         }
-        (best.2, false)
+        // Off a stop (e.g. a measured output just past it) is not a hole of
+        // the model: covered when the point moved onto the stop's set lies
+        // in some invariant.
+        let covered = best.1 && {
+            let mut on = z.clone();
+            let inv = &m.modes[best.2].invariant;
+            for (row, b) in inv.a_eq.iter().zip(&inv.b_eq) {
+                let nn: f64 = row.iter().map(|v| v * v).sum();
+                let r = (row.iter().zip(&on).map(|(a, v)| a * v).sum::<f64>() - b) / nn;
+                for (v, a) in on.iter_mut().zip(row) {
+                    *v -= r * a;
+                }
+            }
+            m.modes.iter().any(|mode| mode.invariant.contains(&on))
+        };
+        (best.2, covered)
     }
 
     /// First transition from `q` met on the segment `x0 -> x1` under `u`;
@@ -531,6 +548,8 @@ mod stop_tests {
             let data = Dataset::siso(u, vec![start; n], None).unwrap();
             let names: Vec<String> = a.modes.iter().map(|m| m.name.clone()).collect();
             let s = simulate(&Model::HybridAutomaton(a), &data, SimulationOptions::default()).unwrap();
+            // Starting off a stop is not a hole: every step is covered.
+            prop_assert!(s.covered.iter().all(|&c| c));
             for k in s.start..n {
                 prop_assert!(s.y[k] <= hi + 1e-12 && s.y[k] >= lo - 1e-12, "k={} y={}", k, s.y[k]);
                 let q = &names[s.modes[k].unwrap()];
