@@ -38,6 +38,11 @@ pub struct DataSpec {
     /// Axis label of the inputs in figures, with the unit (default `input <names>`).
     #[serde(default)]
     pub input_label: Option<String>,
+    /// A CSV column naming the true mode of every sample (simulated
+    /// records, e.g. the `mode` column `hysid simulate` writes): each run is
+    /// then scored on how its simulated modes follow it (`truth.rs`).
+    #[serde(default)]
+    pub truth: Option<String>,
 }
 
 fn default_inputs() -> Vec<String> {

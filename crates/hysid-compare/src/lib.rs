@@ -8,6 +8,7 @@
 
 pub mod experiment;
 pub mod report;
+pub mod truth;
 
 pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, SweepSpec};
 pub use report::write_report;
@@ -88,6 +89,9 @@ pub struct RunResult {
     /// The validation simulation (for plots).
     #[serde(skip)]
     pub simulation: Option<Simulation>,
+    /// How the simulated modes follow the true ones (`[data] truth`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mode_recovery: Option<truth::ModeRecovery>,
 }
 
 /// The result of an experiment.
@@ -223,13 +227,31 @@ impl Experiment {
         .map_err(data_err)?;
         let valid =
             load(&self.data.file, &self.data.selection(self.data.validation)).map_err(data_err)?;
+        let true_modes = match &self.data.truth {
+            None => None,
+            Some(column) => Some(
+                truth::load(
+                    &self.data.file,
+                    column,
+                    self.data.decimate,
+                    self.data.validation,
+                )
+                .map_err(|message| ExperimentError::Invalid {
+                    path: self.data.file.display().to_string(),
+                    message,
+                })?,
+            ),
+        };
         let jobs = self.jobs()?;
         let registry = hysid_backends::registry();
         progress.start(jobs.len() as u64, "identifying");
         let results: Vec<RunResult> = jobs
             .par_iter()
             .map(|job| {
-                let r = run_job(&registry, job, &ident, &valid, self.data.warmup);
+                let mut r = run_job(&registry, job, &ident, &valid, self.data.warmup);
+                if let (Some(t), Some(sim)) = (&true_modes, &r.simulation) {
+                    r.mode_recovery = t.score(sim, self.data.warmup);
+                }
                 progress.advance(1);
                 r
             })
@@ -284,6 +306,7 @@ fn run_job(
         model_file: None,
         model: None,
         simulation: None,
+        mode_recovery: None,
     };
     let backend = match registry.require(&job.method) {
         Ok(b) => b,

@@ -257,6 +257,13 @@ pub fn markdown(c: &Comparison) -> String {
         if let Some(k) = r.report.as_ref().and_then(|v| v.diverged_at) {
             note = format!("simulation diverged at sample {k}");
         }
+        if let Some(holes) = r.model.as_ref().and_then(holes_note) {
+            note = if note.is_empty() {
+                holes
+            } else {
+                format!("{note}; {holes}")
+            };
+        }
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {} |",
@@ -273,6 +280,7 @@ pub fn markdown(c: &Comparison) -> String {
             note.replace('|', "/")
         );
     }
+    mode_recovery_table(&mut s, c);
     let mut figs: Vec<String> = Vec::new();
     if c.results
         .iter()
@@ -309,6 +317,74 @@ pub fn markdown(c: &Comparison) -> String {
         }
     }
     s
+}
+
+/// "regions leave holes" when the back-end reported an incomplete partition
+/// (`regions_complete = false`, e.g. HIT's pairwise `psvc` regions), with
+/// the uncovered fraction of the data box when known.
+fn holes_note(m: &hysid_core::model::Model) -> Option<String> {
+    let d = &m.info().diagnostics;
+    if d.get("regions_complete")?.as_bool()? {
+        return None;
+    }
+    Some(
+        match d
+            .get("uncovered_fraction_of_data_box")
+            .and_then(|v| v.as_f64())
+        {
+            Some(f) => format!(
+                "regions leave holes: {:.2} % of the data box in no region",
+                100.0 * f
+            ),
+            None => "regions leave holes".into(),
+        },
+    )
+}
+
+/// The table of `[data] truth` scores: accuracy, and per true mode the
+/// fraction of its samples simulated in the matched identified mode.
+fn mode_recovery_table(s: &mut String, c: &Comparison) {
+    let mut names: Vec<&str> = Vec::new();
+    for r in c.results.iter().filter_map(|r| r.mode_recovery.as_ref()) {
+        for (n, _, _) in &r.recall {
+            if !names.contains(&n.as_str()) {
+                names.push(n);
+            }
+        }
+    }
+    if names.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\nMode recovery against the true modes of the record (`[data] truth`): the validation simulation's modes after the warm-up, up to a divergence, matched to the true modes by the Hungarian method; per true mode, the fraction of its samples simulated in the matched mode:\n"
+    );
+    let _ = writeln!(
+        s,
+        "| run | samples scored | mode accuracy | {} |",
+        names.join(" | ")
+    );
+    let _ = writeln!(s, "|---|---|---|{}", "---|".repeat(names.len()));
+    for r in &c.results {
+        let Some(m) = &r.mode_recovery else { continue };
+        let cells: Vec<String> = names
+            .iter()
+            .map(|n| {
+                m.recall
+                    .iter()
+                    .find(|(x, _, _)| x == n)
+                    .map_or("-".into(), |(_, _, v)| format!("{v:.3}"))
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3} | {} |",
+            r.name.replace('|', "/"),
+            m.samples,
+            m.accuracy,
+            cells.join(" | ")
+        );
+    }
 }
 
 #[cfg(test)]

@@ -10,8 +10,11 @@
 //! input), so every back-end treats them like dynamic data.
 
 use hysid_core::data::{Dataset, Signal};
+use hysid_core::excitation::Excitation;
 use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{ModelInfo, PwarxMode, PwarxModel};
+use hysid_core::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
+use hysid_core::priors::{Priors, SaturationPrior, StopBound};
+use hysid_core::simulate::{SimulationOptions, simulate};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -278,6 +281,128 @@ pub fn h7(n: usize, seed: u64) -> Benchmark {
     generate(truth, vec![u], &[0.0], Noise::Gaussian(0.1), &mut rng)
 }
 
+/// A record of a PWARX system with known stops, with its ground truth.
+#[derive(Debug, Clone)]
+pub struct StoppedBenchmark {
+    /// The record (input `u`, output `y`).
+    pub data: Dataset,
+    /// The ordinary (non-saturation) modes.
+    pub ordinary: PwarxModel,
+    /// The stops.
+    pub stops: Vec<SaturationPrior>,
+    /// The true model: `HybridAutomaton::from_pwarx_with_stops(ordinary, stops)`,
+    /// whose modes are the ordinary ones (`0..ordinary.modes.len()`) followed
+    /// by one saturation mode per stop.
+    pub truth: HybridAutomaton,
+    /// True automaton mode of every sample (`None` for the first `na`).
+    pub modes: Vec<Option<usize>>,
+}
+
+impl StoppedBenchmark {
+    /// True automaton modes of the regressor rows (from sample `na` on).
+    pub fn row_modes(&self) -> Vec<usize> {
+        self.modes.iter().flatten().copied().collect()
+    }
+
+    /// The priors a user with this knowledge writes: every mode counted,
+    /// the stops given.
+    pub fn priors(&self) -> Priors {
+        Priors {
+            modes: Some(self.ordinary.modes.len() + self.stops.len()),
+            saturation: self.stops.clone(),
+            ..Priors::default()
+        }
+    }
+}
+
+/// A mounting-head-like PWARX with both stops (issue 6's test system, in
+/// the spirit of Juloski, Heemels, Ferrari-Trecate, IFAC ADHS 2003,
+/// section 5): `x = [y(k-1), y(k-2), u(k-1)]`, two ordinary modes switching
+/// on the position `y(k-1)` (free below 18, impact at or above it):
+/// - free: poles `0.95 e^(+-0.15 i)`, `y(k) = 1.87871 y1 - 0.9025 y2 + 0.476 u1 + 0.0476`
+///   (equilibrium `20 u + 2`);
+/// - impact: poles `0.9 e^(+-0.35 i)`, `y(k) = 1.68768 y1 - 0.81 y2 + 1.2232 u1 + 1.2232`
+///   (equilibrium about `10 u + 10`);
+/// - stops: `y = 0` (min, the upper stop of the head) and `y = 25` (max, the
+///   lower stop), each a mode on the guard set `y = level` with the reset
+///   `y(k), y(k-1) := level` (`HybridAutomaton::from_pwarx_with_stops`).
+///
+/// The input is the paper's random piecewise-constant signal
+/// (`hysid_core::excitation`), levels `U[-0.3, 1.7]` held `hold` samples, so
+/// both stops are reached and held. The record is the automaton's
+/// noise-free simulation; with `noise_std > 0`, Gaussian measurement noise
+/// is added to the samples of the ordinary modes only (a stop holds the
+/// position exactly).
+pub fn stopped_head(n: usize, hold: usize, noise_std: f64, seed: u64) -> StoppedBenchmark {
+    let a = |r: f64, th: f64| (2.0 * r * th.cos(), -r * r);
+    let (f1, f2) = a(0.95, 0.15);
+    let (i1, i2) = a(0.9, 0.35);
+    let gain = |a1: f64, a2: f64| 1.0 - a1 - a2;
+    let (gf, gi) = (gain(f1, f2), gain(i1, i2));
+    let ordinary = pwarx(
+        2,
+        1,
+        1,
+        vec![
+            mode(&[f1, f2, 20.0 * gf, 2.0 * gf], &[(&[1.0, 0.0, 0.0], 18.0)]),
+            mode(
+                &[i1, i2, 10.0 * gi, 10.0 * gi],
+                &[(&[-1.0, 0.0, 0.0], -18.0)],
+            ),
+        ],
+    );
+    let stops = vec![
+        SaturationPrior {
+            level: 0.0,
+            bound: StopBound::Min,
+            tol: None,
+        },
+        SaturationPrior {
+            level: 25.0,
+            bound: StopBound::Max,
+            tol: None,
+        },
+    ];
+    let truth = HybridAutomaton::from_pwarx_with_stops(&ordinary, &stops);
+    let u = Excitation {
+        n,
+        hold: hold.max(1),
+        low: -0.3,
+        high: 1.7,
+        ts: None,
+        inputs: 1,
+    }
+    .generate(seed)
+    .remove(0);
+    let record = Dataset::siso(u, vec![0.0; n], None).expect("finite input");
+    let sim = simulate(
+        &Model::HybridAutomaton(truth.clone()),
+        &record,
+        SimulationOptions::default(),
+    )
+    .expect("the stopped head simulates");
+    let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(0x5eed));
+    let noise = Noise::Gaussian(noise_std);
+    let n_ordinary = ordinary.modes.len();
+    let y: Vec<f64> = sim
+        .y
+        .iter()
+        .zip(&sim.modes)
+        .map(|(&v, q)| match q {
+            Some(q) if *q >= n_ordinary => v,
+            _ => v + noise.draw(&mut rng),
+        })
+        .collect();
+    let data = Dataset::siso(record.u(0).to_vec(), y, None).expect("finite simulation");
+    StoppedBenchmark {
+        data,
+        ordinary,
+        stops,
+        truth,
+        modes: sim.modes,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -317,5 +442,36 @@ mod tests {
             let t = &b.truth.modes[q].theta;
             assert!((y[k] - (t[0] * y[k - 1] + t[1] * u[k - 1] + t[2])).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn stopped_head_reaches_and_holds_both_stops() {
+        let b = stopped_head(3000, 60, 0.0, 7);
+        let rows = b.row_modes();
+        let count = |q: usize| rows.iter().filter(|&&m| m == q).count();
+        // free, impact, upper stop (y = 0), lower stop (y = 25)
+        let counts = [count(0), count(1), count(2), count(3)];
+        assert!(counts.iter().all(|&c| c >= 100), "{counts:?}");
+        let y = b.data.y();
+        for (k, q) in b.modes.iter().enumerate() {
+            match q {
+                Some(2) => assert_eq!(y[k], 0.0),
+                Some(3) => assert_eq!(y[k], 25.0),
+                _ => assert!((0.0..=25.0).contains(&y[k]), "k={k} y={}", y[k]),
+            }
+        }
+        // The priors' sample assignment finds exactly the saturated rows.
+        let p = b.priors();
+        assert_eq!(p.ordinary_modes(), Some(2));
+        let targets: Vec<f64> = y[2..].to_vec();
+        let sat = p.saturated_samples(&targets);
+        for (s, &q) in sat.iter().zip(&rows) {
+            assert_eq!(s.map(|i| i + 2), (q >= 2).then_some(q), "{s:?} {q}");
+        }
+        // Same seed, same record.
+        assert_eq!(
+            stopped_head(3000, 60, 0.1, 7).data,
+            stopped_head(3000, 60, 0.1, 7).data
+        );
     }
 }

@@ -130,6 +130,7 @@ pub fn run(args: Args) -> Result<()> {
             warmup: args.warmup,
             output_label: None,
             input_label: None,
+            truth: None,
         },
         na: args.na,
         nb: args.nb,

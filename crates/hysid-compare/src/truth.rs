@@ -1,0 +1,175 @@
+//! Ground-truth modes of simulated records (`[data] truth = "mode"`): a
+//! text column of a CSV data file naming the true mode of every sample
+//! (what `hysid simulate` writes), scored against the mode sequence of each
+//! run's validation simulation. Identified modes are matched to true modes
+//! by the Hungarian method (`hysid_core::metrics::mode_accuracy`); the
+//! report gives the overall accuracy and, per true mode, the fraction of its
+//! samples simulated in the matched mode (its recall).
+
+use hysid_core::data::RowRange;
+use hysid_core::metrics::mode_accuracy;
+use hysid_core::simulate::Simulation;
+use serde::Serialize;
+use std::path::Path;
+
+/// The true mode of every validation sample (`None` where the cell is empty).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrueModes {
+    /// Mode names, in order of first appearance in the whole file.
+    pub names: Vec<String>,
+    /// Per validation sample, an index into `names`.
+    pub labels: Vec<Option<usize>>,
+}
+
+/// How well a run's simulated modes follow the true ones.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModeRecovery {
+    /// Samples scored (labelled, simulated, after the warm-up).
+    pub samples: usize,
+    /// Fraction of them in the matched mode.
+    pub accuracy: f64,
+    /// Per true mode: its name, its number of samples and the fraction
+    /// simulated in the identified mode matched to it (0 when unmatched).
+    pub recall: Vec<(String, usize, f64)>,
+}
+
+/// Reads the column `column` of the CSV file `path`, decimated by
+/// `decimate` and restricted to `rows` exactly as the data selection is.
+pub fn load(
+    path: &Path,
+    column: &str,
+    decimate: usize,
+    rows: RowRange,
+) -> Result<TrueModes, String> {
+    let file = path.display();
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .map_err(|e| format!("{file}: {e}"))?;
+    let headers = reader
+        .headers()
+        .map_err(|e| format!("{file}: {e}"))?
+        .clone();
+    let col = headers.iter().position(|h| h == column).ok_or_else(|| {
+        format!(
+            "{file}: [data] truth = '{column}': no such column (columns: {})",
+            headers.iter().collect::<Vec<_>>().join(", ")
+        )
+    })?;
+    let mut names: Vec<String> = Vec::new();
+    let mut all: Vec<Option<usize>> = Vec::new();
+    for (i, rec) in reader.records().enumerate() {
+        let rec = rec.map_err(|e| format!("{file}: row {}: {e}", i + 2))?;
+        let cell = rec.get(col).unwrap_or("");
+        all.push(if cell.is_empty() {
+            None
+        } else {
+            Some(match names.iter().position(|n| n == cell) {
+                Some(q) => q,
+                None => {
+                    names.push(cell.to_string());
+                    names.len() - 1
+                }
+            })
+        });
+    }
+    let picked: Vec<Option<usize>> = all.into_iter().step_by(decimate.max(1)).collect();
+    let (a, b) = rows
+        .resolve(picked.len())
+        .map_err(|e| format!("{file}: [data] truth: {e}"))?;
+    Ok(TrueModes {
+        names,
+        labels: picked[a..b].to_vec(),
+    })
+}
+
+impl TrueModes {
+    /// Scores the simulated modes of `sim` (same samples as `labels`) from
+    /// sample `warmup` on.
+    pub fn score(&self, sim: &Simulation, warmup: usize) -> Option<ModeRecovery> {
+        let (truth, found): (Vec<usize>, Vec<usize>) = self
+            .labels
+            .iter()
+            .zip(&sim.modes)
+            .skip(warmup.max(sim.start))
+            .filter_map(|(t, q)| Some(((*t)?, (*q)?)))
+            .unzip();
+        if truth.is_empty() {
+            return None;
+        }
+        let matched = mode_accuracy(&truth, &found);
+        let recall = self
+            .names
+            .iter()
+            .enumerate()
+            .filter_map(|(t, name)| {
+                let n_t = truth.iter().filter(|&&x| x == t).count();
+                if n_t == 0 {
+                    return None;
+                }
+                let hit = matched
+                    .pairs
+                    .iter()
+                    .find(|&&(pt, _)| pt == t)
+                    .map_or(0, |&(_, q)| {
+                        truth
+                            .iter()
+                            .zip(&found)
+                            .filter(|&(&x, &y)| x == t && y == q)
+                            .count()
+                    });
+                Some((name.clone(), n_t, hit as f64 / n_t as f64))
+            })
+            .collect();
+        Some(ModeRecovery {
+            samples: truth.len(),
+            accuracy: matched.accuracy,
+            recall,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_follow_the_selection_and_score_by_matching() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("d.csv");
+        std::fs::write(
+            &f,
+            "u,y,mode\n0,0,\n0,0,free\n0,0,free\n0,0,stop\n0,0,stop\n0,0,free\n",
+        )
+        .unwrap();
+        let t = load(
+            &f,
+            "mode",
+            1,
+            RowRange {
+                start: Some(1),
+                end: None,
+            },
+        )
+        .unwrap();
+        assert_eq!(t.names, ["free", "stop"]);
+        assert_eq!(t.labels, [Some(0), Some(0), Some(1), Some(1), Some(0)]);
+        let sim = Simulation {
+            y: vec![0.0; 5],
+            modes: vec![None, Some(4), Some(7), Some(7), Some(7)],
+            start: 1,
+            covered: vec![true; 5],
+            diverged_at: None,
+        };
+        let r = t.score(&sim, 0).unwrap();
+        assert_eq!(r.samples, 4);
+        assert!((r.accuracy - 0.75).abs() < 1e-12, "{r:?}");
+        assert_eq!(r.recall[0], ("free".into(), 2, 0.5));
+        assert_eq!(r.recall[1], ("stop".into(), 2, 1.0));
+        let e = load(&f, "truth", 1, RowRange::default()).unwrap_err();
+        assert!(e.contains("truth") && e.contains("mode"), "{e}");
+        // Decimation keeps every second row, as the data selection does.
+        let t2 = load(&f, "mode", 2, RowRange::default()).unwrap();
+        assert_eq!(t2.labels, [None, Some(0), Some(1)]);
+    }
+}
