@@ -386,12 +386,13 @@ pub fn identify_with(
         weights: o.weights,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let fit = procedure::run_with(&x, n, &y, &settings, &mut rng, constraints.as_ref()).map_err(
-        |e| IdentifyError::Failed {
-            method: "cluster".into(),
-            message: e.to_string(),
-        },
-    )?;
+    let fit =
+        procedure::run_with(&x, n, &y, &settings, &mut rng, constraints.as_ref()).map_err(|e| {
+            IdentifyError::Failed {
+                method: "cluster".into(),
+                message: e.to_string(),
+            }
+        })?;
     let modes = fit.theta.len();
     let mut theta = fit.theta.clone();
     let mut theta_original = fit.theta_original.clone();
@@ -566,7 +567,15 @@ fn choose_modes(
         ..*problem
     };
     let first = problem.priors.saturation.len() + 1;
-    let points = sweep::sweep(&sub, &valid, 0, &[], &(first..=max).collect::<Vec<_>>(), o, ctx);
+    let points = sweep::sweep(
+        &sub,
+        &valid,
+        0,
+        &[],
+        &(first..=max).collect::<Vec<_>>(),
+        o,
+        ctx,
+    );
     let best = points
         .iter()
         .filter(|p| p.fit_sim.is_some_and(f64::is_finite))
