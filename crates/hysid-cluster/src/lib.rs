@@ -24,9 +24,14 @@
 //! [`sweep()`] scores a grid of `c` and mode counts by validation simulation
 //! FIT.
 //!
-//! Priors honoured: `modes` (required unless `max_modes` is given, in which
-//! case the mode count is chosen by hold-out simulation FIT) and
-//! `max_modes`. Anything else is refused.
+//! Priors honoured (issue 6, `docs/cluster.md`, "Priors"): `modes`
+//! (required unless `max_modes` is given, in which case the mode count is
+//! chosen by hold-out simulation FIT) and `max_modes`, both counting the
+//! saturation modes; `[[saturation]]` (samples at a stop removed before the
+//! local datasets, the model a hybrid automaton with the stops as modes on
+//! their guard sets, Juloski et al. 2003, section 5); `[[tie]]`, `[fixed]`
+//! and `[bounds]` in every weighted least-squares step ([`priors`]);
+//! `switching` (region normals restricted to the chosen regressors).
 
 pub mod dense;
 pub mod kmeans;
