@@ -15,6 +15,7 @@
 //! procedure compares. Residuals in working units are those in original
 //! units divided by `s_y`, so without constraints the minimiser is the same.
 
+use crate::procedure::Thetas;
 use hysid_core::data::Standardization;
 use hysid_core::estimation::{self, ModeSamples, Parametrisation};
 use hysid_core::priors::Priors;
@@ -105,13 +106,8 @@ impl Constraints {
     /// Minimises `sum_i sum_{j: labels_j = i} w_j (y_j - [x_j' 1] theta_i)^2`
     /// over the parameters of the `modes` modes under the priors, in
     /// original units (samples with a label `>= modes` are left out).
-    /// Returns the parameters in original units and in working units.
-    pub fn fit(
-        &self,
-        labels: &[usize],
-        modes: usize,
-        w: &[f64],
-    ) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>), String> {
+    /// Returns the parameters in working units and in original units.
+    pub fn fit(&self, labels: &[usize], modes: usize, w: &[f64]) -> Result<Thetas, String> {
         let n = self.n;
         if labels.len() != self.y.len() || w.len() != self.y.len() {
             return Err(format!(
@@ -140,7 +136,10 @@ impl Constraints {
             .collect();
         let original = estimation::fit_modes(&par, &samples).map_err(|e| e.to_string())?;
         let working = original.iter().map(|th| self.to_working(th)).collect();
-        Ok((original, working))
+        Ok(Thetas {
+            working,
+            original: Some(original),
+        })
     }
 
     /// `theta` in working units: `a'_j = a_j s_j / s_y`,

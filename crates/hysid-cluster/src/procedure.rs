@@ -220,13 +220,8 @@ pub fn fit_modes_with(
             w[*r] = wj;
         }
     }
-    let (original, working) = con
-        .fit(labels, modes, &w)
-        .map_err(ProcedureError::LeastSquares)?;
-    Ok(Thetas {
-        working,
-        original: Some(original),
-    })
+    con.fit(labels, modes, &w)
+        .map_err(ProcedureError::LeastSquares)
 }
 
 /// Drops modes with fewer than `min_size` points, renumbering the rest in
