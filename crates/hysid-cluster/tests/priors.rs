@@ -216,6 +216,25 @@ fn stops_improve_mode_accuracy_and_simulation_fit() {
     assert!(with.0 >= 0.8 && with.1 >= 84.0, "{with:?}");
 }
 
+/// `max_modes` with stops: the count is chosen among `#stops + 1 ..= max`
+/// (every count includes the stop modes).
+#[test]
+fn max_modes_counts_the_stops() {
+    let b = stopped_head(900, 60, 0.02, 5);
+    let mut p = b.priors();
+    p.modes = None;
+    p.max_modes = Some(4);
+    let m = run(&b.data, RegressorSpec::new(2, 1, 1), &p, &["restarts=3"]).unwrap();
+    assert!(matches!(m, Model::HybridAutomaton(_)));
+    assert!((3..=4).contains(&m.mode_count()), "{}", m.mode_count());
+    let choice = m.info().diagnostics["mode_choice"]
+        .as_array()
+        .unwrap()
+        .clone();
+    assert_eq!(choice.len(), 2, "{choice:?}");
+    assert_eq!(choice[0][0], 3);
+}
+
 /// Figures for the report (H3 with `c = 0` fixed, B1 with ties): run with
 /// `cargo test -p hysid-cluster --test priors -- --ignored --nocapture`.
 #[test]
