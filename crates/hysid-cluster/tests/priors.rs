@@ -167,6 +167,8 @@ proptest! {
             })
             .collect();
         prop_assert_eq!(d["saturated_samples"].clone(), serde_json::json!(want));
+        // The ordinary regions (default MRLP) cover the regressor space.
+        prop_assert_eq!(d["regions_complete"].clone(), serde_json::json!(true));
         prop_assert_eq!(
             d["ordinary_samples"].as_u64().unwrap() as usize + want.iter().sum::<usize>(),
             targets.len()
