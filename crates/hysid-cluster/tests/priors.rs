@@ -242,6 +242,33 @@ fn max_modes_counts_the_stops() {
 #[test]
 #[ignore]
 fn figures() {
+    let sh = stopped_head(1500, 60, 0.05, 1);
+    for p in [sh.priors(), b1_priors(4)] {
+        let m = run(&sh.data, RegressorSpec::new(2, 1, 1), &p, &[]).unwrap();
+        let d = &m.info().diagnostics;
+        eprintln!(
+            "stopped head, stops {}: degenerate {} flat scatter {}",
+            p.saturation.len(),
+            d["degenerate_local_datasets"],
+            d["degenerate_flat_scatter"]
+        );
+    }
+    let big = b1(20_000, 4.0, Noise::Uniform(0.1), 1);
+    for tie in [false, true] {
+        let mut p = b1_priors(3);
+        if tie {
+            p.tie.push(Tie {
+                params: vec!["a1".into()],
+            });
+            p.bounds.insert("b1".into(), [-0.8, 0.8]);
+        }
+        let t = std::time::Instant::now();
+        run(&big.data, RegressorSpec::new(1, 1, 1), &p, &[]).unwrap();
+        eprintln!(
+            "B1 N=20000 tie+bounds={tie}: {:.2} s",
+            t.elapsed().as_secs_f64()
+        );
+    }
     for seed in [1u64, 2, 3] {
         let b = h3(300, seed);
         let v = h3(300, seed + 100);
