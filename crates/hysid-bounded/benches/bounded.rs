@@ -3,7 +3,7 @@
 //! Run on one core: `taskset -c 0 cargo bench -p hysid-bounded --bench bounded`.
 //! Figures in `docs/performance-bounded.md`.
 
-use hysid_bounded::{Bounded, BoundedOptions, Delta, systems};
+use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Identifier, Problem, RunContext};
 use hysid_core::priors::Priors;
 use hysid_core::regressors::RegressorSpec;
@@ -15,7 +15,7 @@ fn main() {
 /// Whole identification (MIN PFS, refinement, regions by MRLP).
 #[divan::bench(args = [1000, 2000, 4000, 8000, 16000], sample_count = 5, sample_size = 1)]
 fn identify(bencher: divan::Bencher, n: usize) {
-    let g = systems::b1(n, 0.1, 1);
+    let g = hysid_testkit::b1(n, 4.0, hysid_testkit::Noise::Uniform(0.1), 1);
     let pri = Priors::default();
     let problem = Problem {
         data: &g.data,
@@ -37,7 +37,7 @@ fn identify(bencher: divan::Bencher, n: usize) {
 /// Classification only (MIN PFS and refinement, no regions).
 #[divan::bench(args = [1000, 2000, 4000, 8000, 16000], sample_count = 5, sample_size = 1)]
 fn classify(bencher: divan::Bencher, n: usize) {
-    let g = systems::b1(n, 0.1, 1);
+    let g = hysid_testkit::b1(n, 4.0, hysid_testkit::Noise::Uniform(0.1), 1);
     let pri = Priors::default();
     let problem = Problem {
         data: &g.data,

@@ -4,7 +4,7 @@
 //!
 //! `taskset -c 0 cargo run --release -p hysid-bounded --example cpu_time [regions=METHOD]`
 
-use hysid_bounded::{Bounded, BoundedOptions, Delta, systems};
+use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Identifier, Problem, RunContext};
 use hysid_core::priors::Priors;
 use hysid_core::regressors::RegressorSpec;
@@ -27,7 +27,7 @@ fn main() {
         "| N | classify CPU s | identify CPU s | identify wall s | modes |\n|---|---|---|---|---|"
     );
     for n in [1000, 2000, 4000, 8000, 16000] {
-        let g = systems::b1(n, 0.1, 1);
+        let g = hysid_testkit::b1(n, 4.0, hysid_testkit::Noise::Uniform(0.1), 1);
         let pri = Priors::default();
         let problem = Problem {
             data: &g.data,

@@ -16,19 +16,25 @@
 //! reports the trade-off. `docs/bounded.md` lists every constant and which
 //! parts are the paper's and which are ours.
 //!
-//! Priors honoured: `modes` (exact number of modes) and `max_modes` (upper
-//! bound). Anything else is refused.
+//! Priors honoured (issue 6, `docs/priors.md`, `docs/bounded.md` "Priors"):
+//! all of them. `modes` / `max_modes` count every mode, saturation modes
+//! included; samples at a `[[saturation]]` stop are assigned to that stop
+//! before extraction and the result is a hybrid automaton with the stops as
+//! modes on their guard sets; `[fixed]`, `[bounds]` and `[[tie]]` restrict
+//! the parameters in every fit ([`constraints`]); `switching` restricts the
+//! region normals.
 
+pub mod constraints;
 pub mod maxfs;
 pub mod noise;
 pub mod procedure;
 pub mod refit;
 pub mod samples;
 pub mod sweep;
-pub mod systems;
 
+use constraints::Constraints;
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::{Model, ModelInfo, PwarxMode, PwarxModel};
+use hysid_core::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
 use hysid_core::options::OptionType;
 use hysid_core::priors::PriorKind;
 use hysid_regions::{RegionMethod, RegionOptions};
@@ -96,8 +102,8 @@ hysid_core::backend_options! {
         beta: f64 = 0.02,
         /// Re-estimation of each mode: linf (Chebyshev LP, certified) or ls.
         refit: Refit = Refit::Linf,
-        /// Upper bound on the number of modes (also taken from the prior max_modes);
-        /// none: no bound.
+        /// Upper bound on the number of modes, saturation modes included (also taken
+        /// from the prior max_modes); none: no bound.
         max_modes: Option<usize> = None,
         /// Region estimation from the classified samples (hysid-regions): mrlp
         /// (multicategory robust LP, complete partition), msvm (multicategory SVM,
@@ -154,24 +160,41 @@ impl Bounded {
         if !(options.beta.is_finite() && (0.0..1.0).contains(&options.beta)) {
             return bad(format!("--set beta={}: must be in [0, 1)", options.beta));
         }
-        if options.max_modes == Some(0) {
-            return bad("--set max_modes=0: must be at least 1".into());
-        }
         let pri = problem.priors;
-        if pri.modes == Some(0) || pri.max_modes == Some(0) {
-            return bad("prior modes / max_modes = 0: must be at least 1".into());
+        let stops = pri.saturation.len();
+        if let Some(m) = options.max_modes
+            && m <= stops
+        {
+            return bad(format!(
+                "--set max_modes={m}: counts every mode, the {stops} saturation mode(s) included: must be at least {}",
+                stops + 1
+            ));
         }
-        let max_modes = match (options.max_modes, pri.max_modes) {
+        if pri.modes.is_some_and(|m| m <= stops) || pri.max_modes.is_some_and(|m| m <= stops) {
+            return bad(format!(
+                "prior modes / max_modes must be at least {} (they count the {stops} saturation mode(s))",
+                stops + 1
+            ));
+        }
+        // Counts of ordinary modes (`modes` counts every mode).
+        let max_modes = match (
+            options.max_modes.map(|m| m - stops),
+            pri.max_ordinary_modes(),
+        ) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         };
-        if let (Some(s_), Some(m)) = (pri.modes, max_modes)
+        let exact = pri.ordinary_modes();
+        if let (Some(s_), Some(m)) = (exact, max_modes)
             && s_ > m
         {
             return bad(format!(
-                "prior modes = {s_} exceeds the bound max_modes = {m}"
+                "prior modes = {} exceeds the bound max_modes = {}",
+                s_ + stops,
+                m + stops
             ));
         }
+        let constraints = Constraints::new(pri, problem.orders).map_err(IdentifyError::BadData)?;
         Ok(ProcedureSettings {
             delta,
             cycles: options.cycles,
@@ -184,29 +207,57 @@ impl Bounded {
                 Refit::Ls => RefitKind::Ls,
             },
             max_modes,
-            exact_modes: pri.modes,
+            exact_modes: exact,
             seed: ctx.seed,
             deadline: ctx.deadline,
+            constraints,
         })
     }
 
     /// Runs the procedure and returns the classification with the samples
-    /// it was computed on (for tests and the sweep).
+    /// it was computed on (the ordinary samples: saturated ones removed;
+    /// for tests and the sweep).
     pub fn classify(
         problem: &Problem<'_>,
         options: &BoundedOptions,
         ctx: &RunContext<'_>,
     ) -> Result<(Classification, Samples, ProcedureSettings), IdentifyError> {
+        let c = Self::classify_all(problem, options, ctx)?;
+        Ok((c.classification, c.samples, c.settings))
+    }
+
+    /// Runs the procedure: samples at a known stop are assigned to it
+    /// first (they never enter MAX FS), the rest are classified.
+    pub fn classify_all(
+        problem: &Problem<'_>,
+        options: &BoundedOptions,
+        ctx: &RunContext<'_>,
+    ) -> Result<Classified, IdentifyError> {
         let spec = problem.orders;
+        problem
+            .priors
+            .check_pwarx_names(&spec)
+            .map_err(IdentifyError::BadData)?;
         let reg = spec
             .build(problem.data)
             .map_err(|e| IdentifyError::BadData(e.to_string()))?;
-        let s = Samples::from_regressors(&reg);
-        if s.y.iter().chain(&s.phi).any(|v| !v.is_finite()) {
+        let all = Samples::from_regressors(&reg);
+        if all.y.iter().chain(&all.phi).any(|v| !v.is_finite()) {
             return Err(IdentifyError::BadData(
                 "the record has non-finite samples".into(),
             ));
         }
+        let stops = problem.priors.saturated_samples(&all.y);
+        let ordinary: Vec<usize> = (0..all.len()).filter(|&k| stops[k].is_none()).collect();
+        let s = if ordinary.len() == all.len() {
+            all
+        } else {
+            let mut phi = Vec::with_capacity(ordinary.len() * all.p);
+            for &k in &ordinary {
+                phi.extend_from_slice(all.row(k));
+            }
+            Samples::new(all.p, phi, ordinary.iter().map(|&k| all.y[k]).collect())
+        };
         let set = Self::settings(problem, options, &s, ctx)?;
         let c = procedure::run(&s, &set).map_err(|e| match e {
             procedure::ProcedureError::TooFewSamples { .. }
@@ -216,7 +267,43 @@ impl Bounded {
                 message: e.to_string(),
             },
         })?;
-        Ok((c, s, set))
+        Ok(Classified {
+            classification: c,
+            samples: s,
+            settings: set,
+            stops,
+            ordinary,
+        })
+    }
+}
+
+/// What [`Bounded::classify_all`] returns.
+#[derive(Debug, Clone)]
+pub struct Classified {
+    /// Classification of the ordinary samples.
+    pub classification: Classification,
+    /// The ordinary samples (saturated ones removed).
+    pub samples: Samples,
+    /// The settings used.
+    pub settings: ProcedureSettings,
+    /// For every regression row of the record, the known stop its target
+    /// sits at (`Priors::saturated_samples`).
+    pub stops: Vec<Option<usize>>,
+    /// Regression row of each ordinary sample.
+    pub ordinary: Vec<usize>,
+}
+
+impl Classified {
+    /// Mode of every regression row of the record: ordinary modes
+    /// `0..s`, then the stops in prior order (`s + stop`), `None` for
+    /// infeasible samples.
+    pub fn row_labels(&self) -> Vec<Option<usize>> {
+        let s = self.classification.thetas.len();
+        let mut out: Vec<Option<usize>> = self.stops.iter().map(|o| o.map(|i| s + i)).collect();
+        for (r, &k) in self.ordinary.iter().enumerate() {
+            out[k] = self.classification.labels[r];
+        }
+        out
     }
 }
 
@@ -224,7 +311,15 @@ impl Identifier for Bounded {
     type Options = BoundedOptions;
     const NAME: &'static str = "bounded";
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
-    const HONOURS: &'static [PriorKind] = &[PriorKind::Modes, PriorKind::MaxModes];
+    const HONOURS: &'static [PriorKind] = &[
+        PriorKind::Modes,
+        PriorKind::MaxModes,
+        PriorKind::Saturation,
+        PriorKind::Tie,
+        PriorKind::Fixed,
+        PriorKind::Bounds,
+        PriorKind::Switching,
+    ];
 
     fn identify(
         &self,
@@ -233,21 +328,27 @@ impl Identifier for Bounded {
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let spec = problem.orders;
-        let (c, s, set) = Self::classify(problem, options, ctx)?;
+        let all = Self::classify_all(problem, options, ctx)?;
+        let (c, s, set) = (&all.classification, &all.samples, &all.settings);
+        let pri = problem.priors;
+        let names = spec.regressor_names();
+        let switching = (!pri.switching.is_empty()).then(|| {
+            pri.switching
+                .iter()
+                .filter_map(|r| names.iter().position(|n| n == r))
+                .collect::<Vec<usize>>()
+        });
         let ropt = RegionOptions {
             method: options.regions,
+            switching,
             ..Default::default()
         };
-        let part = hysid_regions::estimate(
-            &regressor_rows(&s, &c),
-            &labelled(&c),
-            c.thetas.len(),
-            &ropt,
-        )
-        .map_err(|e| IdentifyError::Failed {
-            method: "bounded".into(),
-            message: format!("regions: {e}"),
-        })?;
+        let part =
+            hysid_regions::estimate(&regressor_rows(s, c), &labelled(c), c.thetas.len(), &ropt)
+                .map_err(|e| IdentifyError::Failed {
+                    method: "bounded".into(),
+                    message: format!("regions: {e}"),
+                })?;
         let regions = part.regions;
         let mut info = ModelInfo::default();
         let dg = &mut info.diagnostics;
@@ -258,7 +359,22 @@ impl Identifier for Bounded {
         );
         dg.insert("modes_found".into(), c.thetas.len().into());
         dg.insert("greedy_modes".into(), c.greedy_modes.into());
-        dg.insert("samples".into(), s.len().into());
+        dg.insert("samples".into(), all.stops.len().into());
+        if !pri.saturation.is_empty() {
+            let mut per_stop = vec![0usize; pri.saturation.len()];
+            for i in all.stops.iter().flatten() {
+                per_stop[*i] += 1;
+            }
+            dg.insert("ordinary_samples".into(), s.len().into());
+            dg.insert("saturated_per_stop".into(), serde_json::json!(per_stop));
+        }
+        if let Some(e) = c.tie_projection_error {
+            dg.insert("tie_projection_error".into(), e.into());
+            dg.insert(
+                "tie_projection_within_delta".into(),
+                (e <= set.delta).into(),
+            );
+        }
         dg.insert("assigned".into(), c.count(SampleClass::Assigned).into());
         dg.insert(
             "undecidable".into(),
@@ -283,7 +399,7 @@ impl Identifier for Bounded {
         if c.stopped_by_deadline {
             dg.insert("stopped_by_deadline".into(), true.into());
         }
-        Ok(Model::Pwarx(PwarxModel {
+        let pwarx = PwarxModel {
             na: spec.na,
             nb: spec.nb,
             inputs: spec.inputs,
@@ -298,7 +414,15 @@ impl Identifier for Bounded {
                 })
                 .collect(),
             info,
-        }))
+        };
+        Ok(if pri.saturation.is_empty() {
+            Model::Pwarx(pwarx)
+        } else {
+            Model::HybridAutomaton(HybridAutomaton::from_pwarx_with_stops(
+                &pwarx,
+                &pri.saturation,
+            ))
+        })
     }
 }
 
@@ -376,7 +500,7 @@ mod tests {
 
     #[test]
     fn b1_model_with_regions_in_original_units() {
-        let g = systems::b1(300, 0.1, 7);
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 7);
         let m = run(&g.data, &Priors::default(), &["delta=0.1"], 7).unwrap();
         let p = pwarx(&m);
         assert_eq!(p.modes.len(), 3);
@@ -390,19 +514,19 @@ mod tests {
             assert!(r.as_f64().unwrap() <= 0.1 + 1e-9);
         }
         // Parameters close to the truth after matching.
-        let truth: Vec<Vec<f64>> = systems::B1_THETA.iter().map(|t| t.to_vec()).collect();
+        let truth = g.thetas();
         let ident: Vec<Vec<f64>> = p.modes.iter().map(|m| m.theta.clone()).collect();
         let pe = hysid_core::metrics::parameter_error(&truth, &ident);
         assert!(pe.max_relative_error < 0.05, "{pe:?}");
         // The regions classify fresh data from the same system: at least 97 %
         // of the regressors in the right mode (a misclassified sample costs a
         // prediction error of several units in B1, so FIT is not the measure).
-        let v = systems::b1(300, 0.1, 99);
+        let v = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 99);
         let reg = RegressorSpec::new(1, 1, 1).build(&v.data).unwrap();
         let got: Vec<usize> = (0..reg.len())
             .map(|k| p.mode_of(&[reg.x[(k, 0)], reg.x[(k, 1)]]).mode)
             .collect();
-        let acc = hysid_core::metrics::mode_accuracy(&v.modes, &got).accuracy;
+        let acc = hysid_core::metrics::mode_accuracy(&v.row_modes(), &got).accuracy;
         assert!(acc >= 0.97, "fresh-data mode accuracy {acc}");
         let (rep, _, _) = validate(&m, &v.data, 1).unwrap();
         assert_eq!(rep.coverage, 1.0);
@@ -411,7 +535,7 @@ mod tests {
 
     #[test]
     fn same_seed_same_model() {
-        let g = systems::b1(200, 0.1, 3);
+        let g = hysid_testkit::b1(200, 4.0, hysid_testkit::Noise::Uniform(0.1), 3);
         let a = run(&g.data, &Priors::default(), &["delta=0.1"], 5).unwrap();
         let b = run(&g.data, &Priors::default(), &["delta=0.1"], 5).unwrap();
         assert_eq!(a.to_json(), b.to_json());
@@ -419,7 +543,7 @@ mod tests {
 
     #[test]
     fn delta_auto_is_near_the_noise_bound() {
-        let g = systems::b1(400, 0.1, 11);
+        let g = hysid_testkit::b1(400, 4.0, hysid_testkit::Noise::Uniform(0.1), 11);
         let m = run(&g.data, &Priors::default(), &["delta=auto"], 1).unwrap();
         let d = m.info().diagnostics["delta"].as_f64().unwrap();
         // Uniform noise U[-0.1, 0.1]: sigma = 0.0577, 3 sigma = 0.173.
@@ -429,7 +553,7 @@ mod tests {
 
     #[test]
     fn priors_modes_and_max_modes() {
-        let g = systems::b1(300, 0.1, 4);
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 4);
         // Upper bound below the truth: at most 2 modes.
         let pri = Priors {
             max_modes: Some(2),
@@ -479,7 +603,7 @@ mod tests {
 
     #[test]
     fn refuses_bad_options_and_priors() {
-        let g = systems::b1(100, 0.1, 4);
+        let g = hysid_testkit::b1(100, 4.0, hysid_testkit::Noise::Uniform(0.1), 4);
         let e = run(&g.data, &Priors::default(), &[], 1)
             .unwrap_err()
             .to_string();
@@ -488,16 +612,21 @@ mod tests {
         assert!(run(&g.data, &Priors::default(), &["delta=0.1", "beta=1.5"], 1).is_err());
         assert!(run(&g.data, &Priors::default(), &["delta=0.1", "cycles=0"], 1).is_err());
         let mut pri = Priors::default();
-        pri.fixed.insert("c".into(), 0.0);
+        pri.fixed.insert("a3".into(), 0.0);
         let e = run(&g.data, &pri, &["delta=0.1"], 1)
             .unwrap_err()
             .to_string();
-        assert!(e.contains("does not honour"), "{e}");
+        assert!(e.contains("unknown name 'a3'"), "{e}");
+        let pri = Priors::from_toml("[fixed]\nc = 5.0\n[bounds]\nc = [0.0, 1.0]\n", "p").unwrap();
+        let e = run(&g.data, &pri, &["delta=0.1"], 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("outside [bounds]"), "{e}");
     }
 
     #[test]
     fn least_squares_refit_runs() {
-        let g = systems::b1(300, 0.1, 2);
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 2);
         let m = run(&g.data, &Priors::default(), &["delta=0.1", "refit=ls"], 1).unwrap();
         assert_eq!(pwarx(&m).modes.len(), 3);
     }

@@ -34,8 +34,14 @@
 //!   [`POLISH_ITERATIONS`] times, the best set kept); the winning start is
 //!   polished again with the Chebyshev fit, under which the satisfied set can
 //!   only grow (the minimax fit of a feasible set is feasible on it).
+//!
+//! Parameter priors (issue 6, [`ModeSpace`]): every fit above is done within
+//! the mode's parameter set (fixed values substituted, bounds through the
+//! QP/LP), and the relaxation step moves only the free parameters,
+//! normalised by the norm of their regressors, then projects onto the bounds
+//! (ours).
 
-use crate::refit::{chebyshev, least_squares};
+use crate::constraints::ModeSpace;
 use crate::samples::{Samples, dot};
 use rand::Rng;
 use rand::seq::SliceRandom;
@@ -75,6 +81,7 @@ pub fn max_fs<R: Rng>(
     s: &Samples,
     idx: &[usize],
     set: &MaxFsSettings,
+    space: &ModeSpace,
     rng: &mut R,
 ) -> FeasibleSubsystem {
     let p = s.p;
@@ -83,15 +90,15 @@ pub fn max_fs<R: Rng>(
     // The least-squares start, and the best local start after a
     // least-squares polish (cheap), are relaxed.
     let mut starts: Vec<Vec<f64>> = Vec::with_capacity(2);
-    if let Some(ls) = least_squares(s, idx) {
+    if let Some(ls) = space.least_squares(s, idx) {
         starts.push(ls);
     }
     let mut best_local: Option<(usize, Vec<f64>)> = None;
     for _ in 0..set.restarts {
-        let Some(start) = local_start(s, idx, rng) else {
+        let Some(start) = local_start(s, idx, space, rng) else {
             continue;
         };
-        let (count, theta) = polish(s, idx, start, delta, false);
+        let (count, theta) = polish(s, idx, start, delta, false, space);
         if best_local.as_ref().is_none_or(|b| count > b.0) {
             best_local = Some((count, theta));
         }
@@ -99,15 +106,16 @@ pub fn max_fs<R: Rng>(
     starts.extend(best_local.map(|b| b.1));
     let mut best: Option<(usize, Vec<f64>)> = None;
     for start in &starts {
-        let theta = relax(s, idx, start, set, &mut order, rng);
-        let (count, theta) = polish(s, idx, theta, delta, false);
+        let theta = relax(s, idx, start, set, space, &mut order, rng);
+        let (count, theta) = polish(s, idx, theta, delta, false, space);
         if best.as_ref().is_none_or(|b| count > b.0) {
             best = Some((count, theta));
         }
     }
-    let theta = best.map(|b| b.1).unwrap_or_else(|| vec![0.0; p]);
+    let mut theta = best.map(|b| b.1).unwrap_or_else(|| vec![0.0; p]);
+    space.project(&mut theta);
     let theta = if set.chebyshev_polish {
-        polish(s, idx, theta, delta, true).1
+        polish(s, idx, theta, delta, true, space).1
     } else {
         theta
     };
@@ -117,7 +125,12 @@ pub fn max_fs<R: Rng>(
 
 /// Least-squares fit of the `LOCAL_FACTOR * p` samples nearest (standardised
 /// regressor space) to a random sample of `idx`.
-fn local_start<R: Rng>(s: &Samples, idx: &[usize], rng: &mut R) -> Option<Vec<f64>> {
+fn local_start<R: Rng>(
+    s: &Samples,
+    idx: &[usize],
+    space: &ModeSpace,
+    rng: &mut R,
+) -> Option<Vec<f64>> {
     let p = s.p;
     let local = (LOCAL_FACTOR * p).min(idx.len());
     if local < p || idx.is_empty() {
@@ -136,7 +149,7 @@ fn local_start<R: Rng>(s: &Samples, idx: &[usize], rng: &mut R) -> Option<Vec<f6
         .collect();
     dist.select_nth_unstable_by(local - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let near: Vec<usize> = dist[..local].iter().map(|&(_, k)| k).collect();
-    least_squares(s, &near)
+    space.least_squares(s, &near)
 }
 
 /// Thermal relaxation from `start`; returns the best iterate.
@@ -145,6 +158,7 @@ fn relax<R: Rng>(
     idx: &[usize],
     start: &[f64],
     set: &MaxFsSettings,
+    space: &ModeSpace,
     order: &mut [usize],
     rng: &mut R,
 ) -> Vec<f64> {
@@ -163,6 +177,8 @@ fn relax<R: Rng>(
     let median = *abs_r.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
     let t0 = set.t0 * median.max(delta);
     let mut theta = start.to_vec();
+    let movable = space.movable();
+    let constrained = !space.is_free();
     let cycles = set.cycles.max(1);
     for c in 0..cycles {
         let tc = (1.0 - c as f64 / cycles as f64) * t0;
@@ -174,15 +190,25 @@ fn relax<R: Rng>(
             if v <= 0.0 {
                 continue;
             }
-            let nn: f64 = phi.iter().map(|x| x * x).sum();
+            let nn: f64 = phi
+                .iter()
+                .zip(&movable)
+                .filter(|(_, m)| **m)
+                .map(|(x, _)| x * x)
+                .sum();
             if nn <= 0.0 {
                 continue;
             }
             // lambda_c(v) T_c: the residual of sample k moves by eta.
             let eta = (tc / t0) * (-v / tc).exp() * tc;
             let step = r.signum() * eta / nn;
-            for (t, x) in theta.iter_mut().zip(phi) {
-                *t += step * x;
+            for ((t, x), m) in theta.iter_mut().zip(phi).zip(&movable) {
+                if *m {
+                    *t += step * x;
+                }
+            }
+            if constrained {
+                space.project(&mut theta);
             }
         }
         if theta.iter().any(|t| !t.is_finite()) {
@@ -206,6 +232,7 @@ fn polish(
     theta: Vec<f64>,
     delta: f64,
     chebyshev_fit: bool,
+    space: &ModeSpace,
 ) -> (usize, Vec<f64>) {
     let p = s.p;
     let mut members = s.satisfied(idx, &theta, delta);
@@ -215,9 +242,9 @@ fn polish(
             break;
         }
         let next = if chebyshev_fit {
-            chebyshev(s, &members).map(|f| f.theta)
+            space.chebyshev(s, &members).map(|f| f.theta)
         } else {
-            least_squares(s, &members)
+            space.least_squares(s, &members)
         };
         let Some(next) = next else { break };
         let grown = s.satisfied(idx, &next, delta);

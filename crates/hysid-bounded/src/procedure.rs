@@ -13,9 +13,21 @@
 //! 3. Final classification with the final parameters; undecidable samples
 //!    get the majority label of their [`KNN`] nearest assigned neighbours
 //!    (regressor space, standardised), restricted to their candidate modes.
+//!
+//! Parameter priors ([`Constraints`], issue 6): fixed values and bounds
+//! restrict every mode's parameter set in MAX FS, refits and merges. Ties
+//! couple the modes, which the one-mode-at-a-time extraction cannot impose:
+//! the greedy stage runs with ties relaxed, then all modes are fitted
+//! jointly under the ties on the greedy classification (the *tie
+//! projection*, a joint Chebyshev LP; its error may exceed delta, reported
+//! in [`Classification::tie_projection_error`]). From then on the
+//! refinement re-estimates all modes jointly (accepted only when certified
+//! within delta, so every later step keeps the bound), and merges fix the
+//! tied parameters at their shared values (ours, `docs/bounded.md`).
 
+use crate::constraints::{Constraints, ModeSpace, least_squares_joint};
 use crate::maxfs::{MaxFsSettings, max_fs};
-use crate::refit::{chebyshev, least_squares};
+use crate::refit::chebyshev_joint;
 use crate::samples::Samples;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -60,6 +72,8 @@ pub struct ProcedureSettings {
     pub seed: u64,
     /// Stop early (best result so far) after this instant.
     pub deadline: Option<Instant>,
+    /// Parameter priors (ties, fixed values, bounds); default none.
+    pub constraints: Constraints,
 }
 
 /// Class of a sample after the final classification.
@@ -96,6 +110,11 @@ pub struct Classification {
     pub max_residual: Vec<f64>,
     /// True when the deadline cut the procedure short.
     pub stopped_by_deadline: bool,
+    /// With ties and several greedy modes: the largest residual of the
+    /// joint fit under the ties on the greedy classification. Above delta,
+    /// some greedy samples were no longer explained within delta and went
+    /// through the refinement again (possibly ending infeasible).
+    pub tie_projection_error: Option<f64>,
 }
 
 impl Classification {
@@ -182,8 +201,10 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         restarts: set.restarts,
     };
     let mut stopped = false;
+    let relaxed = set.constraints.mode_space(p, None);
 
-    // 1. Greedy MIN PFS.
+    // 1. Greedy MIN PFS (ties relaxed).
+    let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut remaining: Vec<usize> = (0..n).collect();
     let mut thetas: Vec<Vec<f64>> = Vec::new();
     while thetas.len() < cap && remaining.len() >= min_size {
@@ -191,7 +212,7 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
             stopped = true;
             break;
         }
-        let fs = max_fs(s, &remaining, &mfs, &mut rng);
+        let fs = max_fs(s, &remaining, &mfs, &relaxed, &mut rng);
         if fs.members.len() < min_size {
             break;
         }
@@ -201,6 +222,7 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         }
         remaining.retain(|&k| !taken[k]);
         thetas.push(fs.theta);
+        groups.push(fs.members);
     }
     if thetas.is_empty() {
         return Err(ProcedureError::NoMode {
@@ -209,6 +231,37 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         });
     }
     let greedy_modes = thetas.len();
+    // 1b. Tie projection: all modes jointly under the ties.
+    let tied = set.constraints.has_ties() && thetas.len() > 1;
+    let mut tie_projection_error = None;
+    if tied {
+        let projected =
+            joint_fit(s, &set.constraints, &groups, set.refit, f64::INFINITY).or_else(|| {
+                let (par, _) = set.constraints.joint(groups.len())?;
+                least_squares_joint(s, &par, &groups)
+            });
+        let Some(projected) = projected else {
+            return Err(ProcedureError::Setting(
+                "the joint fit under the [[tie]] priors failed".into(),
+            ));
+        };
+        thetas = projected;
+        tie_projection_error = Some(
+            groups
+                .iter()
+                .zip(&thetas)
+                .map(|(g, t)| crate::refit::max_residual(s, g, t))
+                .fold(0.0, f64::max),
+        );
+    }
+    let space = |thetas: &[Vec<f64>]| {
+        if tied {
+            set.constraints
+                .mode_space(p, thetas.first().map(Vec::as_slice))
+        } else {
+            relaxed.clone()
+        }
+    };
 
     // 2. Refinement.
     let mut prev: Option<Vec<Option<usize>>> = None;
@@ -243,20 +296,32 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
             converged = true;
             break;
         }
-        // Re-estimate each mode on its assigned samples.
-        for (i, theta) in thetas.iter_mut().enumerate() {
-            let members: Vec<usize> = (0..n).filter(|&k| assigned[k] == Some(i)).collect();
-            if members.len() < p {
-                continue;
+        // Re-estimate each mode on its assigned samples (with ties: all
+        // modes jointly, when every mode has at least p samples).
+        if tied {
+            let members: Vec<Vec<usize>> = (0..thetas.len())
+                .map(|i| (0..n).filter(|&k| assigned[k] == Some(i)).collect())
+                .collect();
+            if members.iter().all(|g| g.len() >= p)
+                && let Some(t) = joint_fit(s, &set.constraints, &members, set.refit, set.delta)
+            {
+                thetas = t;
             }
-            if let Some(t) = refit(s, &members, set.refit, set.delta) {
-                *theta = t;
+        } else {
+            for (i, theta) in thetas.iter_mut().enumerate() {
+                let members: Vec<usize> = (0..n).filter(|&k| assigned[k] == Some(i)).collect();
+                if members.len() < p {
+                    continue;
+                }
+                if let Some(t) = refit(s, &members, set.refit, set.delta, &relaxed) {
+                    *theta = t;
+                }
             }
         }
         // Merge the closest pair within alpha whose union stays certified
         // (one merge per round).
         if thetas.len() > floor
-            && let Some((i, j, t)) = mergeable_pair(s, &thetas, &assigned, set)
+            && let Some((i, j, t)) = mergeable_pair(s, &thetas, &assigned, set, &space(&thetas))
         {
             thetas[i] = t;
             thetas.remove(j);
@@ -311,19 +376,46 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         dropped,
         max_residual: maxr,
         stopped_by_deadline: stopped,
+        tie_projection_error,
     })
 }
 
 /// Re-estimates on `members`; with the Chebyshev fit, the result is only
 /// accepted when it certifies `max |r| <= bound` (else `None`: keep the old
 /// parameters, which satisfy the bound on these samples by construction).
-fn refit(s: &Samples, members: &[usize], kind: RefitKind, bound: f64) -> Option<Vec<f64>> {
+fn refit(
+    s: &Samples,
+    members: &[usize],
+    kind: RefitKind,
+    bound: f64,
+    space: &ModeSpace,
+) -> Option<Vec<f64>> {
     match kind {
         RefitKind::Linf => {
-            let f = chebyshev(s, members)?;
+            let f = space.chebyshev(s, members)?;
             (f.max_residual <= bound || bound.is_infinite()).then_some(f.theta)
         }
-        RefitKind::Ls => least_squares(s, members),
+        RefitKind::Ls => space.least_squares(s, members),
+    }
+}
+
+/// Joint re-estimation of all modes on `groups` under the ties: the joint
+/// Chebyshev LP, accepted only when it certifies `bound`, or joint least
+/// squares (`refit = ls`, not certified).
+fn joint_fit(
+    s: &Samples,
+    c: &Constraints,
+    groups: &[Vec<usize>],
+    kind: RefitKind,
+    bound: f64,
+) -> Option<Vec<Vec<f64>>> {
+    let (par, bounds) = c.joint(groups.len())?;
+    match kind {
+        RefitKind::Linf => {
+            let f = chebyshev_joint(s, &par, &bounds, groups)?;
+            (f.max_residual <= bound || bound.is_infinite()).then_some(f.thetas)
+        }
+        RefitKind::Ls => least_squares_joint(s, &par, groups),
     }
 }
 
@@ -375,6 +467,7 @@ fn mergeable_pair(
     thetas: &[Vec<f64>],
     assigned: &[Option<usize>],
     set: &ProcedureSettings,
+    space: &ModeSpace,
 ) -> Option<(usize, usize, Vec<f64>)> {
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for i in 0..thetas.len() {
@@ -395,7 +488,7 @@ fn mergeable_pair(
         } else {
             f64::INFINITY
         };
-        match refit(s, &members, set.refit, bound) {
+        match refit(s, &members, set.refit, bound, space) {
             Some(t) => return Some((i, j, t)),
             None if set.refit == RefitKind::Ls => return Some((i, j, thetas[i].clone())),
             None => {}

@@ -1,7 +1,7 @@
 //! B1 (classic 3-mode PWARX) with uniform noise in [-0.1, 0.1], delta = 0.1,
 //! no mode count: 3 modes and at least 90 % of the samples in the right mode.
 
-use hysid_bounded::{Bounded, BoundedOptions, Delta, systems};
+use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Problem, RunContext};
 use hysid_core::metrics::mode_accuracy;
 use hysid_core::priors::Priors;
@@ -10,7 +10,7 @@ use hysid_core::regressors::RegressorSpec;
 #[test]
 fn b1_three_modes_ninety_percent() {
     for seed in [1u64, 2, 3] {
-        let g = systems::b1(300, 0.1, seed);
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), seed);
         let pri = Priors::default();
         let problem = Problem {
             data: &g.data,
@@ -29,7 +29,7 @@ fn b1_three_modes_ninety_percent() {
             .map(|l| l.unwrap_or(usize::MAX / 2))
             .collect();
         let known: Vec<usize> = labels.iter().map(|&l| l.min(c.thetas.len())).collect();
-        let acc = mode_accuracy(&g.modes, &known).accuracy;
+        let acc = mode_accuracy(&g.row_modes(), &known).accuracy;
         eprintln!(
             "seed {seed}: modes {} (greedy {}), acc {acc:.3}, rounds {}, merged {}, dropped {}, thetas {:?}",
             c.thetas.len(),

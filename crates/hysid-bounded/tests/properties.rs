@@ -2,7 +2,9 @@
 //! systems with fixed seeds.
 
 use hysid_bounded::procedure::SampleClass;
-use hysid_bounded::{Bounded, BoundedOptions, Delta, systems};
+mod common;
+
+use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Problem, RunContext};
 use hysid_core::data::Dataset;
 use hysid_core::priors::Priors;
@@ -49,7 +51,7 @@ proptest! {
     /// for that mode, whatever the bound (assigned and undecidable alike).
     #[test]
     fn labelled_samples_are_within_delta(s in 1usize..4, noise in 0.0f64..0.2, delta in 0.02f64..0.5, seed in 0u64..1000) {
-        let g = systems::sliced(&random_thetas(s, seed), 200, noise, seed);
+        let g = common::sliced(&random_thetas(s, seed), 200, noise, seed);
         let c = classify(&g.data, delta, seed);
         let reg = RegressorSpec::new(1, 1, 1).build(&g.data).unwrap();
         for (k, l) in c.labels.iter().enumerate() {
@@ -70,7 +72,7 @@ proptest! {
     /// exceeds the truth by more than one.
     #[test]
     fn mode_count_at_most_truth_plus_one(s in 1usize..4, noise in 0.01f64..0.1, factor in 1.0f64..2.0, seed in 0u64..1000) {
-        let g = systems::sliced(&random_thetas(s, seed), 300, noise, seed);
+        let g = common::sliced(&random_thetas(s, seed), 300, noise, seed);
         let c = classify(&g.data, noise * factor, seed);
         prop_assert!(c.thetas.len() <= s + 1, "{} modes for {} true: {:?}", c.thetas.len(), s, c.thetas);
     }

@@ -410,7 +410,11 @@ impl HybridAutomaton {
     ///   inelastic stop of Juloski et al., IFAC ADHS 2003, section 2);
     /// - back to ordinary mode `q`, a condition transition on
     ///   `region_q ∩ { theta_q . [x; 1] <= L }`: the dynamics of `q` pull away
-    ///   from the stop.
+    ///   from the stop;
+    /// - the invariant of every ordinary mode gains the allowed side
+    ///   `y <= L`, so a simulation that starts on or beyond the stop (a
+    ///   measured initial output at rest there, or just past it by noise)
+    ///   starts in the stop's mode.
     ///
     /// So a simulation never passes a known stop, and saturated segments
     /// are reproduced exactly.
@@ -471,6 +475,14 @@ impl HybridAutomaton {
                     guard: GuardSet(guard),
                     reset: ResetMap::default(),
                 });
+            }
+            // The ordinary modes live on the stop's allowed side, so a state
+            // beyond it (a noisy measured initial output) lies in no
+            // ordinary invariant and is held at the stop.
+            let allowed: Vec<f64> = on_stop.iter().map(|v| sigma * v).collect();
+            for q in a.modes.iter_mut().take(ordinary.len()) {
+                q.invariant.a.push(allowed.clone());
+                q.invariant.b.push(sigma * stop.level);
             }
         }
         a

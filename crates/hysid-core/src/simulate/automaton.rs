@@ -54,7 +54,11 @@ impl<'a> Runner<'a> {
         &self.z
     }
 
-    /// Mode for `[x; u]`, keeping `q` while its invariant holds.
+    /// Mode for `[x; u]`, keeping `q` while its invariant holds. Otherwise
+    /// the first mode whose invariant holds it, lower-dimensional invariants
+    /// first (a state on a stop starts in the stop's mode), else the mode of
+    /// least violation (ties to a lower-dimensional invariant: a state just
+    /// beyond a stop, e.g. a noisy measured initial output, is held at it).
     fn select(&mut self, q: Option<usize>, x: &[f64], u: &[f64]) -> (usize, bool) {
         let m = self.m;
         let z = self.ext(x, u).to_vec();
@@ -63,17 +67,25 @@ impl<'a> Runner<'a> {
         {
             return (q, true);
         }
-        let mut best = (f64::INFINITY, 0usize);
-        for (i, mode) in m.modes.iter().enumerate() {
-            if mode.invariant.contains(&z) {
+        for lower_dimensional in [true, false] {
+            if let Some(i) = m.modes.iter().position(|mode| {
+                mode.invariant.is_lower_dimensional() == lower_dimensional
+                    && mode.invariant.contains(&z)
+            }) {
                 return (i, true);
             }
+        }
+        let scale = 1.0 + z.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let mut best = (f64::INFINITY, false, 0usize);
+        for (i, mode) in m.modes.iter().enumerate() {
             let v = mode.invariant.violation(&z);
-            if v < best.0 {
-                best = (v, i);
+            let lower = mode.invariant.is_lower_dimensional();
+            let tie = (v - best.0).abs() <= 1e-12 * scale;
+            if (v < best.0 && !tie) || (tie && lower && !best.1) {
+                best = (v, lower, i);
             }
         }
-        (best.1, false)
+        (best.2, false)
     }
 
     /// First transition from `q` met on the segment `x0 -> x1` under `u`;
@@ -503,6 +515,7 @@ mod stop_tests {
         fn simulation_never_passes_a_stop(
             a1 in 1.2f64..1.9, b in 0.5f64..3.0, hi in 0.5f64..3.0, lo in -3.0f64..-0.5,
             u in proptest::collection::vec(-2.0f64..2.0, 20..120),
+            y0 in -4.0f64..4.0, on_stop in 0usize..3,
         ) {
             let a2 = -0.95 * a1 * a1 / 4.0; // real, stable poles
             let stops = [
@@ -512,7 +525,10 @@ mod stop_tests {
             let a = HybridAutomaton::from_pwarx_with_stops(&head(a1, a2, b), &stops);
             a.validate().unwrap();
             let n = u.len();
-            let data = Dataset::siso(u, vec![0.0; n], None).unwrap();
+            // Measured initial outputs anywhere: inside, exactly on a stop,
+            // or beyond one (noise).
+            let start = [y0, hi, lo][on_stop];
+            let data = Dataset::siso(u, vec![start; n], None).unwrap();
             let names: Vec<String> = a.modes.iter().map(|m| m.name.clone()).collect();
             let s = simulate(&Model::HybridAutomaton(a), &data, SimulationOptions::default()).unwrap();
             for k in s.start..n {

@@ -1,0 +1,246 @@
+//! Gray-box parameter priors (`[fixed]`, `[bounds]`, `[[tie]]`; issue 6,
+//! `docs/priors.md`) inside the bounded-error procedure.
+//!
+//! The stacked parameters of the ordinary modes are parametrised by
+//! [`Parametrisation::from_priors`] (`hysid_core::estimation`): every
+//! parameter of every mode is a shared free variable or a fixed value, with
+//! box bounds per free variable. The procedure uses it in two forms:
+//!
+//! - [`ModeSpace`]: the parameter set of **one** mode (fixed values
+//!   substituted, bounds as constraints). Used by MAX FS (starts, thermal
+//!   relaxation with projection, polish) and by the per-mode refits and
+//!   merges. Ties are trivial for one mode; once the modes share tied
+//!   values, [`Constraints::mode_space`] fixes the tied parameters at the
+//!   shared values, so a per-mode refit keeps the ties.
+//! - [`Constraints::joint`]: all modes at once, tied parameters as shared
+//!   variables, for the joint Chebyshev LP ([`crate::refit::chebyshev_joint`])
+//!   and the joint least squares (`hysid_core::estimation::fit_modes`).
+
+use crate::refit::{self, ChebyshevFit};
+use crate::samples::Samples;
+use hysid_core::estimation::{ModeSamples, Parametrisation, Slot, fit_modes};
+use hysid_core::priors::Priors;
+use hysid_core::regressors::RegressorSpec;
+use nalgebra::DMatrix;
+
+/// The parameter priors of a run: `[[tie]]`, `[fixed]` and `[bounds]` of a
+/// [`Priors`] for a PWARX structure. The default is no constraint.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Constraints {
+    /// Only the tie, fixed and bounds entries (names checked).
+    priors: Priors,
+    /// The structure (`None`: no constraint at all).
+    spec: Option<RegressorSpec>,
+}
+
+impl Constraints {
+    /// The constraints of `priors` for structure `spec`. An unknown name
+    /// ([`Priors::check_pwarx_names`]) or a fixed value outside its bounds
+    /// is an error naming it.
+    pub fn new(priors: &Priors, spec: RegressorSpec) -> Result<Self, String> {
+        priors.check_pwarx_names(&spec)?;
+        let kept = Priors {
+            tie: priors.tie.clone(),
+            fixed: priors.fixed.clone(),
+            bounds: priors.bounds.clone(),
+            ..Default::default()
+        };
+        if kept == Priors::default() {
+            return Ok(Self::default());
+        }
+        Parametrisation::from_priors(&kept, &spec, 1)?;
+        Ok(Self {
+            priors: kept,
+            spec: Some(spec),
+        })
+    }
+
+    /// True when there is no parameter prior.
+    pub fn is_free(&self) -> bool {
+        self.spec.is_none()
+    }
+
+    /// True when ties couple the modes (so the procedure needs the joint
+    /// estimation once there is more than one mode).
+    pub fn has_ties(&self) -> bool {
+        !self.priors.tie.is_empty()
+    }
+
+    /// Indices of the tied parameters.
+    fn tied_params(&self) -> Vec<usize> {
+        let Some(spec) = &self.spec else {
+            return Vec::new();
+        };
+        let names = spec.param_names();
+        (0..names.len())
+            .filter(|&j| {
+                !self.priors.fixed.contains_key(&names[j])
+                    && self
+                        .priors
+                        .tie
+                        .iter()
+                        .any(|t| t.params.iter().any(|p| *p == names[j]))
+            })
+            .collect()
+    }
+
+    /// The parameter set of one mode, `p` parameters. With `shared`, the
+    /// tied parameters are fixed at its values (the values every mode
+    /// shares); without, ties are relaxed (the greedy extraction).
+    pub fn mode_space(&self, p: usize, shared: Option<&[f64]>) -> ModeSpace {
+        let Some(spec) = self.spec else {
+            return ModeSpace::free(p);
+        };
+        let mut pri = self.priors.clone();
+        if let Some(theta) = shared {
+            let names = spec.param_names();
+            for j in self.tied_params() {
+                let [lo, hi] = pri
+                    .bounds
+                    .get(&names[j])
+                    .copied()
+                    .unwrap_or([f64::NEG_INFINITY, f64::INFINITY]);
+                pri.fixed.insert(names[j].clone(), theta[j].clamp(lo, hi));
+            }
+        }
+        pri.tie.clear();
+        let par = Parametrisation::from_priors(&pri, &spec, 1)
+            .expect("fixed values within bounds were checked in Constraints::new");
+        let bounds = free_bounds(&pri, &spec, &par);
+        ModeSpace {
+            p,
+            par: Some(par),
+            bounds,
+        }
+    }
+
+    /// The joint parametrisation of `modes` modes (tied parameters shared)
+    /// with the bounds of each free variable; `None` without constraints.
+    pub fn joint(&self, modes: usize) -> Option<(Parametrisation, Vec<(f64, f64)>)> {
+        let spec = self.spec?;
+        let par = Parametrisation::from_priors(&self.priors, &spec, modes)
+            .expect("fixed values within bounds were checked in Constraints::new");
+        let bounds = free_bounds(&self.priors, &spec, &par);
+        Some((par, bounds))
+    }
+}
+
+/// Bounds of each free variable of `par` (a tied variable has the bounds
+/// of its parameter, the same in every mode).
+fn free_bounds(pri: &Priors, spec: &RegressorSpec, par: &Parametrisation) -> Vec<(f64, f64)> {
+    let names = spec.param_names();
+    let mut b = vec![(f64::NEG_INFINITY, f64::INFINITY); par.n_free()];
+    for i in 0..par.modes() {
+        for (j, name) in names.iter().enumerate() {
+            if let Slot::Free(v) = par.slot(i, j)
+                && let Some([lo, hi]) = pri.bounds.get(name)
+            {
+                b[v] = (*lo, *hi);
+            }
+        }
+    }
+    b
+}
+
+/// The parameter set of one mode: every parameter free or fixed, free
+/// ones boxed (see [`Constraints::mode_space`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeSpace {
+    p: usize,
+    /// `None`: every parameter free and unbounded (the unconstrained
+    /// procedure, unchanged).
+    par: Option<Parametrisation>,
+    bounds: Vec<(f64, f64)>,
+}
+
+impl ModeSpace {
+    /// No constraint on `p` parameters.
+    pub fn free(p: usize) -> Self {
+        Self {
+            p,
+            par: None,
+            bounds: Vec::new(),
+        }
+    }
+
+    /// True when unconstrained.
+    pub fn is_free(&self) -> bool {
+        self.par.is_none()
+    }
+
+    /// Which parameters move in the thermal relaxation (not fixed).
+    pub fn movable(&self) -> Vec<bool> {
+        match &self.par {
+            None => vec![true; self.p],
+            Some(par) => (0..self.p)
+                .map(|j| matches!(par.slot(0, j), Slot::Free(_)))
+                .collect(),
+        }
+    }
+
+    /// Projects `theta` onto the set: fixed values substituted, free values
+    /// clamped to their bounds (the projection step of the relaxation).
+    pub fn project(&self, theta: &mut [f64]) {
+        let Some(par) = &self.par else { return };
+        for (j, t) in theta.iter_mut().enumerate() {
+            match par.slot(0, j) {
+                Slot::Fixed(c) => *t = c,
+                Slot::Free(v) => *t = t.clamp(self.bounds[v].0, self.bounds[v].1),
+            }
+        }
+    }
+
+    /// Least squares on `idx` within the set (fixed values exact, bounds
+    /// by the QP of `fit_modes`).
+    pub fn least_squares(&self, s: &Samples, idx: &[usize]) -> Option<Vec<f64>> {
+        let Some(par) = &self.par else {
+            return refit::least_squares(s, idx);
+        };
+        if idx.is_empty() {
+            return None;
+        }
+        let t = least_squares_joint(s, par, &[idx.to_vec()])?;
+        t.into_iter().next()
+    }
+
+    /// Chebyshev fit on `idx` within the set.
+    pub fn chebyshev(&self, s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
+        let Some(par) = &self.par else {
+            return refit::chebyshev(s, idx);
+        };
+        let f = refit::chebyshev_joint(s, par, &self.bounds, &[idx.to_vec()])?;
+        Some(ChebyshevFit {
+            theta: f.thetas.into_iter().next()?,
+            max_residual: f.max_residual,
+        })
+    }
+}
+
+/// Joint least squares of the modes with samples `groups` under `par`
+/// (`hysid_core::estimation::fit_modes`).
+pub fn least_squares_joint(
+    s: &Samples,
+    par: &Parametrisation,
+    groups: &[Vec<usize>],
+) -> Option<Vec<Vec<f64>>> {
+    let d = s.p - 1;
+    let data: Vec<(DMatrix<f64>, Vec<f64>)> = groups
+        .iter()
+        .map(|g| {
+            (
+                DMatrix::from_fn(g.len(), d, |r, j| s.row(g[r])[j]),
+                g.iter().map(|&k| s.y[k]).collect(),
+            )
+        })
+        .collect();
+    let ms: Vec<ModeSamples<'_>> = data
+        .iter()
+        .map(|(phi, y)| ModeSamples {
+            phi,
+            y,
+            weights: None,
+        })
+        .collect();
+    let t = fit_modes(par, &ms).ok()?;
+    t.iter().flatten().all(|v| v.is_finite()).then_some(t)
+}
