@@ -173,17 +173,14 @@ proptest! {
             d["ordinary_samples"].as_u64().unwrap() as usize + want.iter().sum::<usize>(),
             targets.len()
         );
-        // The simulations start off the stops: a state *on* a stop's guard
-        // set starts in an ordinary mode, and the core simulator does not
-        // fire a crossing guard that the step starts on (a core issue,
-        // reported; docs/cluster.md, "Priors").
+        // From the record start (at the upper stop, y = 0), and from inside.
         let mut y0 = b.data.y().to_vec();
         y0[0] = 1.0;
         y0[1] = 1.0;
         let u: Vec<f64> = b.data.u(0).iter().map(|v| gain * v - 0.3 * (gain - 1.0)).collect();
-        let own = Dataset::siso(b.data.u(0).to_vec(), y0.clone(), None).unwrap();
-        let drive = Dataset::siso(u, y0, None).unwrap();
-        for data in [&own, &drive] {
+        let drive = Dataset::siso(u.clone(), b.data.y().to_vec(), None).unwrap();
+        let inside = Dataset::siso(u, y0, None).unwrap();
+        for data in [&b.data, &drive, &inside] {
             let sim = simulate(&model, data, SimulationOptions::for_data(data)).unwrap();
             for y in &sim.y[sim.start..] {
                 prop_assert!((0.0..=25.0).contains(y), "simulation passed a stop: {y}");
@@ -209,6 +206,7 @@ fn stops_improve_mode_accuracy_and_simulation_fit() {
         let plain = b1_priors(4);
         let a = score(&run(&ident.data, orders, &p, &[]).unwrap(), &valid);
         let b = score(&run(&ident.data, orders, &plain, &[]).unwrap(), &valid);
+        eprintln!("seed {seed}: with stops {a:?}, without {b:?}");
         with = (with.0 + a.0 / 3.0, with.1 + a.1 / 3.0);
         without = (without.0 + b.0 / 3.0, without.1 + b.1 / 3.0);
     }
