@@ -24,14 +24,20 @@
 //! [`sweep()`] scores a grid of `c` and mode counts by validation simulation
 //! FIT.
 //!
-//! Priors honoured: `modes` (required unless `max_modes` is given, in which
-//! case the mode count is chosen by hold-out simulation FIT) and
-//! `max_modes`. Anything else is refused.
+//! Priors honoured (issue 6, `docs/cluster.md`, "Priors"): `modes`
+//! (required unless `max_modes` is given, in which case the mode count is
+//! chosen by hold-out simulation FIT) and `max_modes`, both counting the
+//! saturation modes; `[[saturation]]` (samples at a stop removed before the
+//! local datasets, the model a hybrid automaton with the stops as modes on
+//! their guard sets, Juloski et al. 2003, section 5); `[[tie]]`, `[fixed]`
+//! and `[bounds]` in every weighted least-squares step ([`priors`]);
+//! `switching` (region normals restricted to the chosen regressors).
 
 pub mod dense;
 pub mod kmeans;
 pub mod knn;
 pub mod local;
+pub mod priors;
 pub mod procedure;
 pub mod sweep;
 pub mod systems;
@@ -41,7 +47,7 @@ pub use sweep::{SweepPoint, sweep};
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::data::Standardization;
 use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{Model, ModelInfo, PwarxMode, PwarxModel};
+use hysid_core::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
 use hysid_core::priors::PriorKind;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -150,7 +156,15 @@ impl Identifier for Cluster {
     type Options = ClusterOptions;
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
-    const HONOURS: &'static [PriorKind] = &[PriorKind::Modes, PriorKind::MaxModes];
+    const HONOURS: &'static [PriorKind] = &[
+        PriorKind::Modes,
+        PriorKind::MaxModes,
+        PriorKind::Saturation,
+        PriorKind::Tie,
+        PriorKind::Fixed,
+        PriorKind::Bounds,
+        PriorKind::Switching,
+    ];
 
     fn identify(
         &self,
@@ -227,8 +241,11 @@ fn check_options(o: &ClusterOptions) -> Result<(), IdentifyError> {
     Ok(())
 }
 
-/// Identifies a PWARX model with `s` modes (the whole procedure), in
-/// original units.
+/// Identifies a model with `s` modes (the whole procedure), in original
+/// units: a PWARX model, or, with `[[saturation]]` priors, the hybrid
+/// automaton of `HybridAutomaton::from_pwarx_with_stops` whose `s - stops`
+/// ordinary modes are identified here (`s` counts every mode, as the prior
+/// `modes` does).
 pub fn identify_with(
     problem: &Problem<'_>,
     o: &ClusterOptions,
@@ -239,6 +256,17 @@ pub fn identify_with(
     if s == 0 {
         return Err(bad("the number of modes must be at least 1".into()));
     }
+    let priors = problem.priors;
+    let stops = priors.saturation.len();
+    if s <= stops {
+        return Err(bad(format!(
+            "{s} mode(s) requested, but the mode count includes the {stops} saturation mode(s) of the priors: \
+             need at least {} for one ordinary mode",
+            stops + 1
+        )));
+    }
+    let s_all = s;
+    let s = s - stops;
     let spec = problem.orders;
     let n = spec.dim();
     if n == 0 {
@@ -252,6 +280,12 @@ pub fn identify_with(
             local::MAX_DIM
         )));
     }
+    priors.check_pwarx_names(&spec).map_err(|e| {
+        bad(match problem.priors_origin {
+            Some(o) => format!("{o}: {e}"),
+            None => e,
+        })
+    })?;
     let scale = if o.scale {
         Standardization::of(problem.data)
     } else {
@@ -259,9 +293,35 @@ pub fn identify_with(
     };
     let work = scale.apply(problem.data);
     let reg = spec.build(&work).map_err(|e| bad(e.to_string()))?;
-    let big_n = reg.len();
+    let all_n = reg.len();
     if let Some(v) = reg.x.iter().chain(reg.y.iter()).find(|v| !v.is_finite()) {
         return Err(bad(format!("the data hold a non-finite value ({v})")));
+    }
+    let constrained = priors::constrains_parameters(priors);
+    // Original-unit regressors: saturation is detected on the targets in
+    // data units, and the constrained least squares run in data units.
+    let reg_orig = if stops > 0 || constrained {
+        Some(spec.build(problem.data).map_err(|e| bad(e.to_string()))?)
+    } else {
+        None
+    };
+    // Samples at a known stop (target y(k) at the level) belong to the
+    // saturation modes: they are removed before the local datasets are
+    // built (Juloski et al. 2003, section 5; docs/cluster.md "Priors").
+    let stop_of: Vec<Option<usize>> = match &reg_orig {
+        Some(r) if stops > 0 => priors.saturated_samples(r.y.as_slice()),
+        _ => vec![None; all_n],
+    };
+    let keep: Vec<usize> = (0..all_n).filter(|&r| stop_of[r].is_none()).collect();
+    let mut saturated = vec![0usize; stops];
+    for k in stop_of.iter().flatten() {
+        saturated[*k] += 1;
+    }
+    let big_n = keep.len();
+    if big_n == 0 {
+        return Err(bad(format!(
+            "all {all_n} samples sit at a known stop: no ordinary sample is left to identify"
+        )));
     }
     let c = o.c.unwrap_or_else(|| default_c(n, big_n, s));
     if c < n + 2 {
@@ -273,7 +333,8 @@ pub fn identify_with(
     }
     if c > big_n {
         return Err(bad(format!(
-            "--set c={c}: larger than the {big_n} regressors of the data"
+            "--set c={c}: larger than the {big_n} regressors of the data{}",
+            if stops > 0 { " outside the stops" } else { "" }
         )));
     }
     if big_n < s * (n + 1) {
@@ -282,14 +343,35 @@ pub fn identify_with(
             n + 1
         )));
     }
-    // Row-major regressors.
+    // Row-major regressors of the ordinary samples.
     let mut x = Vec::with_capacity(big_n * n);
-    for r in 0..big_n {
+    for &r in &keep {
         for k in 0..n {
             x.push(reg.x[(r, k)]);
         }
     }
-    let y: Vec<f64> = reg.y.iter().copied().collect();
+    let y: Vec<f64> = keep.iter().map(|&r| reg.y[r]).collect();
+    let xs = nalgebra::DMatrix::from_row_slice(big_n, n, &x);
+    let constraints = match (&reg_orig, constrained) {
+        (Some(r), true) => {
+            let mut xo = Vec::with_capacity(big_n * n);
+            for &row in &keep {
+                for k in 0..n {
+                    xo.push(r.x[(row, k)]);
+                }
+            }
+            let yo = keep.iter().map(|&row| r.y[row]).collect();
+            Some(
+                priors::Constraints::new(priors, spec, xo, yo, &scale, s).map_err(|e| {
+                    bad(match problem.priors_origin {
+                        Some(o) => format!("{o}: {e}"),
+                        None => e,
+                    })
+                })?,
+            )
+        }
+        _ => None,
+    };
     let settings = procedure::Settings {
         c,
         modes: s,
@@ -310,12 +392,15 @@ pub fn identify_with(
     };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let fit =
-        procedure::run(&x, n, &y, &settings, &mut rng).map_err(|e| IdentifyError::Failed {
-            method: "cluster".into(),
-            message: e.to_string(),
+        procedure::run_with(&x, n, &y, &settings, &mut rng, constraints.as_ref()).map_err(|e| {
+            IdentifyError::Failed {
+                method: "cluster".into(),
+                message: e.to_string(),
+            }
         })?;
     let modes = fit.theta.len();
     let mut theta = fit.theta.clone();
+    let mut theta_original = fit.theta_original.clone();
     let mut region_moved = 0;
     let mut holes = None;
     let (regions, accuracy, complete) = if modes == 1 {
@@ -324,10 +409,10 @@ pub fn identify_with(
         let ropts = hysid_regions::RegionOptions {
             method: o.regions,
             svm_c: o.svm_c,
-            switching: None,
+            switching: priors::switching_columns(priors, &spec),
             standardize: !o.scale,
         };
-        let part = hysid_regions::estimate(&reg.x, &fit.labels, modes, &ropts).map_err(|e| {
+        let part = hysid_regions::estimate(&xs, &fit.labels, modes, &ropts).map_err(|e| {
             IdentifyError::Failed {
                 method: "cluster".into(),
                 message: format!("region estimation: {e}"),
@@ -359,7 +444,7 @@ pub fn identify_with(
             }
             let sizes = (0..modes).map(|i| labels.iter().filter(|&&l| l == i).count());
             if sizes.clone().all(|k| k > n) {
-                theta = procedure::fit_modes(
+                let fitted = procedure::fit_modes_with(
                     &x,
                     n,
                     &y,
@@ -368,17 +453,20 @@ pub fn identify_with(
                     modes,
                     o.min_weight,
                     o.weights,
+                    constraints.as_ref(),
                 )
                 .map_err(|e| IdentifyError::Failed {
                     method: "cluster".into(),
                     message: e.to_string(),
                 })?;
+                theta = fitted.working;
+                theta_original = fitted.original;
             }
         }
         if !part.complete {
             // Holes report (pairwise PSVC): uncovered fraction of the data's bounding box.
-            let lo: Vec<f64> = (0..n).map(|k| reg.x.column(k).min()).collect();
-            let hi: Vec<f64> = (0..n).map(|k| reg.x.column(k).max()).collect();
+            let lo: Vec<f64> = (0..n).map(|k| xs.column(k).min()).collect();
+            let hi: Vec<f64> = (0..n).map(|k| xs.column(k).max()).collect();
             let rep = hysid_regions::coverage(&part.regions, &lo, &hi, 10_000, seed);
             holes = Some(rep.uncovered_fraction);
         }
@@ -389,10 +477,14 @@ pub fn identify_with(
     let mut put = |k: &str, v: serde_json::Value| {
         info.diagnostics.insert(k.into(), v);
     };
-    put("samples", big_n.into());
+    put("samples", all_n.into());
     put("c", c.into());
-    put("modes_requested", s.into());
-    put("modes", modes.into());
+    put("modes_requested", s_all.into());
+    put("modes", (modes + stops).into());
+    if stops > 0 {
+        put("ordinary_samples", big_n.into());
+        put("saturated_samples", serde_json::json!(saturated));
+    }
     put("degenerate_local_datasets", d.degenerate.total.into());
     put("degenerate_noise_free", d.degenerate.noise_free.into());
     put("degenerate_collinear", d.degenerate.collinear.into());
@@ -427,12 +519,26 @@ pub fn identify_with(
             .collect(),
         info,
     };
-    let model = if o.scale {
+    let mut model = if o.scale {
         working.to_original_units(&scale)
     } else {
         working
     };
-    Ok(Model::Pwarx(model))
+    // Under ties, fixed values and bounds the original-unit estimates are
+    // the ones where the priors hold exactly (no round trip through the
+    // working units).
+    if let Some(th) = theta_original {
+        for (mode, t) in model.modes.iter_mut().zip(th) {
+            mode.theta = t;
+        }
+    }
+    if stops > 0 {
+        Ok(Model::HybridAutomaton(
+            HybridAutomaton::from_pwarx_with_stops(&model, &priors.saturation),
+        ))
+    } else {
+        Ok(Model::Pwarx(model))
+    }
 }
 
 /// `max_modes` without `modes`: every mode count `1..=max` is identified
@@ -465,7 +571,16 @@ fn choose_modes(
         data: &ident,
         ..*problem
     };
-    let points = sweep::sweep(&sub, &valid, 0, &[], &(1..=max).collect::<Vec<_>>(), o, ctx);
+    let first = problem.priors.saturation.len() + 1;
+    let points = sweep::sweep(
+        &sub,
+        &valid,
+        0,
+        &[],
+        &(first..=max).collect::<Vec<_>>(),
+        o,
+        ctx,
+    );
     let best = points
         .iter()
         .filter(|p| p.fit_sim.is_some_and(f64::is_finite))

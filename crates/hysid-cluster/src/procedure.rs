@@ -22,6 +22,7 @@
 
 use crate::kmeans::{self, Clusters, KmeansInit};
 use crate::local::{self, Degeneracy, FeatureVectors};
+use crate::priors::Constraints;
 use crate::{Clustering, Features, Weights};
 use hysid_core::linalg;
 use nalgebra::{DMatrix, DVector};
@@ -65,6 +66,9 @@ pub struct ModeFit {
     pub labels: Vec<usize>,
     /// Parameters `[theta_slopes; constant]` per mode.
     pub theta: Vec<Vec<f64>>,
+    /// The same in original units when fitted under gray-box priors
+    /// (where ties and fixed values hold exactly).
+    pub theta_original: Option<Vec<Vec<f64>>>,
     /// Diagnostics.
     pub diagnostics: Diagnostics,
     /// The feature vectors (kept for the final refit).
@@ -117,6 +121,34 @@ fn residual2(x: &[f64], y: f64, th: &[f64]) -> f64 {
     (y - pred).powi(2)
 }
 
+/// The weights of the per-mode least squares of the samples `rows` of one
+/// mode (section 3.4: the confidences `w_j`, normalised within the mode and
+/// floored at `min_weight`, or as chosen by [`Weights`]).
+fn mode_weights(f: &FeatureVectors, rows: &[usize], min_weight: f64, weights: Weights) -> Vec<f64> {
+    let top = match weights {
+        Weights::Confidence => rows
+            .iter()
+            .map(|&j| f.log_w[j])
+            .fold(f64::NEG_INFINITY, f64::max),
+        Weights::Capped => {
+            let mut lw: Vec<f64> = rows.iter().map(|&j| f.log_w[j]).collect();
+            if lw.is_empty() {
+                0.0
+            } else {
+                let m = lw.len() / 2;
+                *lw.select_nth_unstable_by(m, f64::total_cmp).1
+            }
+        }
+        Weights::Uniform => 0.0,
+    };
+    rows.iter()
+        .map(|&j| match weights {
+            Weights::Uniform => 1.0,
+            _ => (f.log_w[j] - top).exp().clamp(min_weight, 1.0),
+        })
+        .collect()
+}
+
 /// Weighted least squares per mode (step 4) on the mode datasets given by
 /// `labels` (`0..modes`).
 #[allow(clippy::too_many_arguments)]
@@ -133,40 +165,63 @@ pub fn fit_modes(
     let mut out = Vec::with_capacity(modes);
     for i in 0..modes {
         let rows: Vec<usize> = (0..labels.len()).filter(|&j| labels[j] == i).collect();
-        let top = match weights {
-            Weights::Confidence => rows
-                .iter()
-                .map(|&j| f.log_w[j])
-                .fold(f64::NEG_INFINITY, f64::max),
-            Weights::Capped => {
-                let mut lw: Vec<f64> = rows.iter().map(|&j| f.log_w[j]).collect();
-                if lw.is_empty() {
-                    0.0
-                } else {
-                    let m = lw.len() / 2;
-                    *lw.select_nth_unstable_by(m, f64::total_cmp).1
-                }
-            }
-            Weights::Uniform => 0.0,
-        };
+        let w = mode_weights(f, &rows, min_weight, weights);
         let mut phi = DMatrix::from_element(rows.len(), n + 1, 1.0);
         let mut t = DVector::zeros(rows.len());
-        let mut w = Vec::with_capacity(rows.len());
         for (r, &j) in rows.iter().enumerate() {
             for k in 0..n {
                 phi[(r, k)] = x[j * n + k];
             }
             t[r] = y[j];
-            w.push(match weights {
-                Weights::Uniform => 1.0,
-                _ => (f.log_w[j] - top).exp().clamp(min_weight, 1.0),
-            });
         }
         let sol = linalg::weighted_lstsq(&phi, &t, &w)
             .map_err(|e| ProcedureError::LeastSquares(e.to_string()))?;
         out.push(sol.theta.iter().copied().collect());
     }
     Ok(out)
+}
+
+/// Parameters of the modes in working units and, under gray-box priors, in
+/// original units (where the priors hold exactly).
+#[derive(Debug, Clone)]
+pub struct Thetas {
+    /// Working units (used for residuals).
+    pub working: Vec<Vec<f64>>,
+    /// Original units, when fitted under priors.
+    pub original: Option<Vec<Vec<f64>>>,
+}
+
+/// Step 4 with or without gray-box priors: [`fit_modes`] without
+/// constraints; with them, the same weights go to
+/// [`Constraints::fit`] (ties, fixed values and bounds of all modes solved
+/// jointly by `hysid_core::estimation::fit_modes`).
+#[allow(clippy::too_many_arguments)]
+pub fn fit_modes_with(
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    f: &FeatureVectors,
+    labels: &[usize],
+    modes: usize,
+    min_weight: f64,
+    weights: Weights,
+    constraints: Option<&Constraints>,
+) -> Result<Thetas, ProcedureError> {
+    let Some(con) = constraints else {
+        return Ok(Thetas {
+            working: fit_modes(x, n, y, f, labels, modes, min_weight, weights)?,
+            original: None,
+        });
+    };
+    let mut w = vec![0.0; labels.len()];
+    for i in 0..modes {
+        let rows: Vec<usize> = (0..labels.len()).filter(|&j| labels[j] == i).collect();
+        for (r, wj) in rows.iter().zip(mode_weights(f, &rows, min_weight, weights)) {
+            w[*r] = wj;
+        }
+    }
+    con.fit(labels, modes, &w)
+        .map_err(ProcedureError::LeastSquares)
 }
 
 /// Drops modes with fewer than `min_size` points, renumbering the rest in
@@ -201,6 +256,20 @@ pub fn run(
     s: &Settings,
     rng: &mut ChaCha8Rng,
 ) -> Result<ModeFit, ProcedureError> {
+    run_with(x, n, y, s, rng, None)
+}
+
+/// [`run`] with every weighted least squares of steps 4, 5 and 7 under the
+/// gray-box priors of `constraints` (issue 6); the local regressions of
+/// step 1 stay unconstrained (`docs/cluster.md`, "Priors").
+pub fn run_with(
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    s: &Settings,
+    rng: &mut ChaCha8Rng,
+    constraints: Option<&Constraints>,
+) -> Result<ModeFit, ProcedureError> {
     let big_n = y.len();
     let f = local::feature_vectors(x, n, y, s.c, s.features, s.regularization);
     let clusters: Clusters = match s.clustering {
@@ -220,7 +289,19 @@ pub fn run(
         return Err(ProcedureError::AllDiscarded(discard_size));
     }
     let outliers = labels.iter().filter(|&&l| l == usize::MAX).count();
-    let mut theta = fit_modes(x, n, y, &f, &labels, modes, s.min_weight, s.weights)?;
+    let fitted = fit_modes_with(
+        x,
+        n,
+        y,
+        &f,
+        &labels,
+        modes,
+        s.min_weight,
+        s.weights,
+        constraints,
+    )?;
+    let mut theta = fitted.working;
+    let mut theta_original = fitted.original;
     let best_mode =
         |j: usize, cands: &mut dyn Iterator<Item = usize>, theta: &[Vec<f64>]| -> usize {
             let xj = &x[j * n..(j + 1) * n];
@@ -273,7 +354,18 @@ pub fn run(
             return Err(ProcedureError::AllDiscarded(discard_size));
         }
         if dropped > 0 {
-            theta = fit_modes(x, n, y, &f, &labels, kept, s.min_weight, s.weights)?;
+            theta = fit_modes_with(
+                x,
+                n,
+                y,
+                &f,
+                &labels,
+                kept,
+                s.min_weight,
+                s.weights,
+                constraints,
+            )?
+            .working;
             for (j, l) in labels.iter_mut().enumerate() {
                 if *l == usize::MAX {
                     *l = best_mode(j, &mut (0..kept), &theta);
@@ -282,11 +374,24 @@ pub fn run(
             discarded += dropped;
             modes = kept;
         }
-        theta = fit_modes(x, n, y, &f, &labels, modes, s.min_weight, s.weights)?;
+        let fitted = fit_modes_with(
+            x,
+            n,
+            y,
+            &f,
+            &labels,
+            modes,
+            s.min_weight,
+            s.weights,
+            constraints,
+        )?;
+        theta = fitted.working;
+        theta_original = fitted.original;
     }
     Ok(ModeFit {
         labels,
         theta,
+        theta_original,
         diagnostics: Diagnostics {
             degenerate: f.degenerate,
             clusters: clusters.count,

@@ -232,9 +232,10 @@ fn errors_are_clear() {
         modes: Some(2),
         ..Default::default()
     };
-    sw.switching = vec!["y1".into()];
+    // Every prior kind is honoured now (issue 6); names are checked.
+    sw.switching = vec!["y9".into()];
     let e = run(&sw, &[]).unwrap_err().to_string();
-    assert!(e.contains("does not honour"), "{e}");
+    assert!(e.contains("y9") && e.contains("switching"), "{e}");
 }
 
 /// `max_modes` alone: the mode count is chosen by hold-out simulation FIT.

@@ -1,0 +1,187 @@
+//! Gray-box priors in the weighted least squares of the procedure
+//! (issue 6; `docs/priors.md`, `docs/cluster.md`, "Priors").
+//!
+//! The procedure runs in working units (standardised by default), but ties,
+//! fixed values and bounds are stated in data units, and a fixed or bounded
+//! constant `c` is not a fixed or bounded constant after standardisation
+//! (`c' = (c + sum_j a_j m_j - m_y) / s_y` mixes every parameter). So every
+//! weighted least-squares step of the procedure (section 3.4 of
+//! Ferrari-Trecate et al., Automatica 2003: the mode fits, the refits after
+//! reattribution and the region-consistent refit) is solved here in
+//! **original units** with the procedure's weights by
+//! `hysid_core::estimation::fit_modes` (ties and fixed values exact through
+//! the combinatorial null-space parametrisation, bounds through clarabel),
+//! and the result is mapped to working units for the residuals the
+//! procedure compares. Residuals in working units are those in original
+//! units divided by `s_y`, so without constraints the minimiser is the same.
+
+use crate::procedure::Thetas;
+use hysid_core::data::Standardization;
+use hysid_core::estimation::{self, ModeSamples, Parametrisation};
+use hysid_core::priors::Priors;
+use hysid_core::regressors::RegressorSpec;
+use nalgebra::DMatrix;
+
+/// Whether `priors` constrain the mode parameters (`[[tie]]`, `[fixed]` or
+/// `[bounds]`); without, the procedure keeps its unconstrained per-mode
+/// least squares.
+pub fn constrains_parameters(priors: &Priors) -> bool {
+    !(priors.tie.is_empty() && priors.fixed.is_empty() && priors.bounds.is_empty())
+}
+
+/// The regressor columns (0-based, in `x` order) of the `switching` prior,
+/// `None` when it is absent. Names must have been checked with
+/// [`Priors::check_pwarx_names`]; unknown names are skipped.
+pub fn switching_columns(priors: &Priors, spec: &RegressorSpec) -> Option<Vec<usize>> {
+    if priors.switching.is_empty() {
+        return None;
+    }
+    let names = spec.regressor_names();
+    let mut cols: Vec<usize> = priors
+        .switching
+        .iter()
+        .filter_map(|r| names.iter().position(|n| n == r))
+        .collect();
+    cols.sort_unstable();
+    cols.dedup();
+    Some(cols)
+}
+
+/// The ordinary samples in original units and the map to working units,
+/// with the priors that constrain their weighted least squares.
+#[derive(Debug, Clone)]
+pub struct Constraints {
+    priors: Priors,
+    spec: RegressorSpec,
+    n: usize,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    mean: Vec<f64>,
+    std: Vec<f64>,
+    my: f64,
+    sy: f64,
+}
+
+impl Constraints {
+    /// `x` (row-major, `spec.dim()` columns) and `y`: the ordinary samples
+    /// in original units, in the order of the procedure's samples; `scale`
+    /// maps original to working units. Fails with a one-line message when
+    /// the priors are inconsistent for `modes` ordinary modes (a fixed value
+    /// outside its bounds).
+    pub fn new(
+        priors: &Priors,
+        spec: RegressorSpec,
+        x: Vec<f64>,
+        y: Vec<f64>,
+        scale: &Standardization,
+        modes: usize,
+    ) -> Result<Self, String> {
+        Parametrisation::from_priors(priors, &spec, modes.max(1))?;
+        let n = spec.dim();
+        let mut mean = Vec::with_capacity(n);
+        let mut std = Vec::with_capacity(n);
+        for _ in 0..spec.na {
+            mean.push(scale.output.mean);
+            std.push(scale.output.std);
+        }
+        for sc in &scale.inputs {
+            for _ in 0..spec.nb {
+                mean.push(sc.mean);
+                std.push(sc.std);
+            }
+        }
+        Ok(Self {
+            priors: priors.clone(),
+            spec,
+            n,
+            x,
+            y,
+            mean,
+            std,
+            my: scale.output.mean,
+            sy: scale.output.std,
+        })
+    }
+
+    /// Minimises `sum_i sum_{j: labels_j = i} w_j (y_j - [x_j' 1] theta_i)^2`
+    /// over the parameters of the `modes` modes under the priors, in
+    /// original units (samples with a label `>= modes` are left out).
+    /// Returns the parameters in working units and in original units.
+    pub fn fit(&self, labels: &[usize], modes: usize, w: &[f64]) -> Result<Thetas, String> {
+        let n = self.n;
+        if labels.len() != self.y.len() || w.len() != self.y.len() {
+            return Err(format!(
+                "{} labels and {} weights for {} samples",
+                labels.len(),
+                w.len(),
+                self.y.len()
+            ));
+        }
+        let par = Parametrisation::from_priors(&self.priors, &self.spec, modes)?;
+        let mut data = Vec::with_capacity(modes);
+        for i in 0..modes {
+            let rows: Vec<usize> = (0..labels.len()).filter(|&j| labels[j] == i).collect();
+            let phi = DMatrix::from_fn(rows.len(), n, |r, k| self.x[rows[r] * n + k]);
+            let y: Vec<f64> = rows.iter().map(|&j| self.y[j]).collect();
+            let wi: Vec<f64> = rows.iter().map(|&j| w[j]).collect();
+            data.push((phi, y, wi));
+        }
+        let samples: Vec<ModeSamples<'_>> = data
+            .iter()
+            .map(|(phi, y, wi)| ModeSamples {
+                phi,
+                y,
+                weights: Some(wi),
+            })
+            .collect();
+        let original = estimation::fit_modes(&par, &samples).map_err(|e| e.to_string())?;
+        let working = original.iter().map(|th| self.to_working(th)).collect();
+        Ok(Thetas {
+            working,
+            original: Some(original),
+        })
+    }
+
+    /// `theta` in working units: `a'_j = a_j s_j / s_y`,
+    /// `c' = (c + sum_j a_j m_j - m_y) / s_y`.
+    fn to_working(&self, th: &[f64]) -> Vec<f64> {
+        let n = self.n;
+        let mut t = vec![0.0; n + 1];
+        let mut c = th[n] - self.my;
+        for j in 0..n {
+            t[j] = th[j] * self.std[j] / self.sy;
+            c += th[j] * self.mean[j];
+        }
+        t[n] = c / self.sy;
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hysid_core::data::AffineScale;
+
+    #[test]
+    fn working_units_round_trip() {
+        let spec = RegressorSpec::new(1, 1, 1);
+        let scale = Standardization {
+            inputs: vec![AffineScale {
+                mean: 2.0,
+                std: 3.0,
+            }],
+            output: AffineScale {
+                mean: -1.0,
+                std: 0.5,
+            },
+        };
+        let con = Constraints::new(&Priors::default(), spec, vec![], vec![], &scale, 1).unwrap();
+        let th = [0.4, -2.0, 1.5];
+        let w = con.to_working(&th);
+        // y = 0.4 y1 - 2 u1 + 1.5 at y1 = 3, u1 = 5.
+        let y = 0.4 * 3.0 - 2.0 * 5.0 + 1.5;
+        let (y1, u1) = ((3.0 + 1.0) / 0.5, (5.0 - 2.0) / 3.0);
+        let yw = w[0] * y1 + w[1] * u1 + w[2];
+        assert!((yw * 0.5 - 1.0 - y).abs() < 1e-12, "{w:?}");
+    }
+}
