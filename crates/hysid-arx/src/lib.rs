@@ -253,6 +253,34 @@ mod tests {
     }
 
     #[test]
+    fn standardize_refuses_data_unit_priors_and_ties_on_c() {
+        use hysid_core::backend::run_standardized;
+        use hysid_core::priors::Tie;
+        let d = data_from(&[0.5, 1.0, 0.3], 1, 1, 60, 3);
+        let go = |pri: &Priors| {
+            let problem = Problem {
+                data: &d,
+                orders: RegressorSpec::new(1, 1, 1),
+                priors: pri,
+                priors_origin: None,
+            };
+            run_standardized(&Arx, &problem, &Settings::default(), &RunContext::quiet(1))
+        };
+        let tie = |p: &str| Priors {
+            tie: vec![Tie {
+                params: vec![p.into()],
+            }],
+            ..Default::default()
+        };
+        let e = go(&tie("c")).unwrap_err().to_string();
+        assert!(e.contains("--standardize") && e.contains("offset c"), "{e}");
+        assert!(go(&tie("a1")).is_ok());
+        let mut fixed = Priors::default();
+        fixed.fixed.insert("c".into(), 0.3);
+        assert!(go(&fixed).unwrap_err().to_string().contains("data units"));
+    }
+
+    #[test]
     fn provenance_is_recorded() {
         let d = data_from(&[0.5, 1.0, 0.0], 1, 1, 50, 3);
         let m = run(&d, 1, 1, &Priors::default(), &["ridge=0.5"]).unwrap();

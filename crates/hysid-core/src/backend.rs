@@ -227,8 +227,8 @@ impl Registry {
 /// Runs `backend` on standardised data (zero mean, unit standard deviation
 /// per signal) and returns the model in original units, with the statistics
 /// recorded in `info.scaling`. Priors holding values in data units
-/// (`[[saturation]]`, `[fixed]`, `[bounds]`) are refused here: their
-/// meaning would change with the scaling.
+/// (`[[saturation]]`, `[fixed]`, `[bounds]`) and ties on the offset `c`
+/// are refused here: their meaning would change with the scaling.
 pub fn run_standardized(
     backend: &dyn Backend,
     problem: &Problem<'_>,
@@ -239,6 +239,14 @@ pub fn run_standardized(
     if !p.saturation.is_empty() || !p.fixed.is_empty() || !p.bounds.is_empty() {
         return Err(IdentifyError::BadData(
             "--standardize cannot be combined with priors in data units ([[saturation]], [fixed], [bounds])".into(),
+        ));
+    }
+    // Scaling multiplies a tied a_i or b_i by one factor in every mode, so
+    // such ties survive; the offset c maps to a combination of all the
+    // parameters of its mode, so a tie on c would not.
+    if p.tie.iter().any(|t| t.params.iter().any(|n| n == "c")) {
+        return Err(IdentifyError::BadData(
+            "--standardize cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)".into(),
         ));
     }
     let scale = crate::data::Standardization::of(problem.data);
