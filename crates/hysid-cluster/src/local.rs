@@ -147,7 +147,7 @@ pub fn feature_vectors(
     let p = n + 1;
     let q = if features == Features::Fv { n } else { 0 };
     let tree = KdTree::new(x, n);
-    let mut members = Vec::with_capacity(big_n * c);
+    let mut members = vec![0usize; big_n * c];
     let mut theta = vec![0.0; big_n * p];
     let mut gram = vec![0.0; big_n * p * p];
     let mut scatter = vec![0.0; big_n * n * n];
@@ -159,9 +159,19 @@ pub fn feature_vectors(
     let mut scratch = vec![0.0; p * p];
     let mut rhs = vec![0.0; p];
     let mut phi = vec![0.0; p];
-    // Pass 1: neighbours, local least squares, local scatter.
-    for j in 0..big_n {
-        tree.nearest(&x[j * n..(j + 1) * n], c, &mut nb);
+    let mut lchol = vec![0.0; p * p];
+    // Pass 1: neighbours, local least squares, local scatter. Samples are
+    // visited in the tree's leaf order (neighbouring queries share cache
+    // lines); every result is stored at the sample's own index, so the
+    // order does not change any value.
+    let mut prev: Vec<usize> = Vec::with_capacity(c);
+    let mut knn_scratch = crate::knn::Scratch::default();
+    for &j in tree.leaf_order() {
+        // The previous query is a spatial neighbour: its neighbours bound
+        // the search (same answer, most cells pruned).
+        tree.nearest_seeded(&x[j * n..(j + 1) * n], c, &prev, &mut knn_scratch, &mut nb);
+        prev.clear();
+        prev.extend_from_slice(&nb);
         // C_j contains j itself (with many duplicates it may not be among
         // the c nearest by the index tie-break): put it first.
         if let Some(pos) = nb.iter().position(|&i| i == j) {
@@ -169,8 +179,9 @@ pub fn feature_vectors(
         } else {
             nb.pop();
         }
-        members.push(j);
-        members.extend_from_slice(&nb);
+        let mem = &mut members[j * c..(j + 1) * c];
+        mem[0] = j;
+        mem[1..].copy_from_slice(&nb);
         let mem = &members[j * c..(j + 1) * c];
         let g = &mut gram[j * p * p..(j + 1) * p * p];
         rhs.iter_mut().for_each(|v| *v = 0.0);
@@ -189,15 +200,11 @@ pub fn feature_vectors(
                 g[k * p + r] = g[r * p + k];
             }
         }
-        let mut l = g.to_vec();
+        let l = &mut lchol[..];
+        l.copy_from_slice(g);
         let t = dense::mean_diag(g, p);
-        collinear[j] = dense::regularised_cholesky(
-            &mut l,
-            p,
-            1e-10,
-            eps * t.max(f64::MIN_POSITIVE),
-            &mut scratch,
-        );
+        collinear[j] =
+            dense::regularised_cholesky(l, p, 1e-10, eps * t.max(f64::MIN_POSITIVE), &mut scratch);
         if collinear[j] {
             for r in 0..p {
                 g[r * p + r] += eps * t.max(f64::MIN_POSITIVE);
@@ -205,7 +212,7 @@ pub fn feature_vectors(
         }
         let th = &mut theta[j * p..(j + 1) * p];
         th.copy_from_slice(&rhs);
-        dense::cholesky_solve(&l, p, th);
+        dense::cholesky_solve(l, p, th);
         let mut ssr = 0.0;
         let m = &mut mean[j * n..(j + 1) * n];
         for &i in mem {

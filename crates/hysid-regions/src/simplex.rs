@@ -36,6 +36,12 @@
 //! Warm start: terms added to the working set enter at `lambda_t = 0`,
 //! which keeps the current basis feasible, so each working-set round
 //! continues from the previous optimum.
+//!
+//! A simplex returns a vertex of the optimal face, an interior-point solver
+//! a point inside it. They coincide when the optimum is unique, which
+//! [`Simplex::unique`] certifies; otherwise (e.g. separable modes, whose
+//! zero-loss face is large) the caller keeps clarabel's solution, whose
+//! boundaries sit inside the gaps between modes.
 
 use crate::Prepared;
 
@@ -44,6 +50,9 @@ const REDUCED_TOL: f64 = 1e-9;
 /// Smallest `|pivot|` accepted in the ratio test, relative to the largest
 /// entry of the direction.
 const PIVOT_TOL: f64 = 1e-9;
+/// A basic dual value within this fraction of its bound counts as at the
+/// bound in [`Simplex::unique`].
+const UNIQUE_TOL: f64 = 1e-9;
 /// Consecutive degenerate pivots before Bland's rule takes over.
 const DEGENERATE_RUN: usize = 50;
 
@@ -422,6 +431,27 @@ impl<'a> Simplex<'a> {
                 self.recompute_upper_sum(set);
             }
         }
+    }
+
+    /// Whether the current optimum `u` is the only optimum: every basic
+    /// variable is a term strictly between its bounds (a non-degenerate
+    /// dual solution). Complementary slackness then forces `a_t . u = 1`
+    /// for the `k` basic terms, `k` independent equations, on every primal
+    /// optimum. Degenerate cases (separable modes, where the whole optimal
+    /// face has zero loss, or rank-deficient data) return false.
+    pub(crate) fn unique(&mut self) -> bool {
+        if !self.factor() {
+            return false;
+        }
+        let mut xb: Vec<f64> = self.upper_sum.iter().map(|v| -v).collect();
+        self.solve(&mut xb);
+        self.basis.iter().zip(&xb).all(|(v, &x)| match *v {
+            Var::Art(_) => false,
+            Var::Term(t) => {
+                let c = self.cap(t);
+                x > UNIQUE_TOL * c && x < (1.0 - UNIQUE_TOL) * c
+            }
+        })
     }
 
     /// Order for Bland's rule: artificials first, then terms by index.

@@ -26,6 +26,9 @@ const MAX_ROUNDS: usize = 40;
 /// Points per mode in the first working set (evenly spaced by index), per
 /// unknown of a mode's score.
 const INITIAL_PER_MODE_FACTOR: usize = 5;
+/// Points whose softmax margin (log-odds against the best other mode) is
+/// below this join the first working set of clarabel.
+const SOFTMAX_BAND: f64 = 2.0;
 /// Points whose margin under the scaled softmax scores is below this join
 /// the first working set (the program's hinge is active below 1).
 const SCALED_BAND: f64 = 2.0;
@@ -66,21 +69,17 @@ pub(crate) fn solve(
         })
         .collect();
 
-    let mut stats = SolveStats::default();
-    let set = initial_set(prep, labels, modes, &weight, quadratic, &mut stats)?;
     if !quadratic && (modes - 1) * (prep.p + 1) <= SIMPLEX_MAX_UNKNOWNS {
-        let mut simplex_stats = stats.clone();
-        if let Some(blocks) = solve_simplex(
-            prep,
-            labels,
-            modes,
-            &weight,
-            set.clone(),
-            &mut simplex_stats,
-        ) {
-            return Ok((blocks, simplex_stats));
+        let mut stats = SolveStats::default();
+        let set = scaled_softmax_set(prep, labels, modes, &weight, quadratic, &mut stats)?;
+        if let Some(blocks) = solve_simplex(prep, labels, modes, &weight, set, &mut stats) {
+            return Ok((blocks, stats));
         }
     }
+    // The QP, large MRLPs, and MRLPs whose optimum is not unique (the
+    // interior-point solution is kept there: see `crate::simplex`).
+    let mut stats = SolveStats::default();
+    let set = initial_set(prep, labels, modes, &mut stats)?;
     solve_clarabel(prep, labels, modes, &weight, method, quadratic, set, stats)
 }
 
@@ -119,7 +118,8 @@ fn violators(
 
 /// The MRLP by the dual simplex of [`crate::simplex`], warm-started from
 /// round to round; `None` when the simplex gives up (pivot bound or a
-/// singular basis), in which case the caller uses clarabel.
+/// singular basis) or the optimum is not unique, in which case the caller
+/// uses clarabel.
 fn solve_simplex(
     prep: &Prepared,
     labels: &[usize],
@@ -150,7 +150,7 @@ fn solve_simplex(
         let blocks = sx.blocks();
         let new = violators(prep, labels, modes, &blocks, &in_set);
         if new.is_empty() {
-            return Some(blocks);
+            return sx.unique().then_some(blocks);
         }
         for &r in &new {
             in_set[r] = true;
@@ -220,8 +220,8 @@ fn solve_clarabel(
     }
 }
 
-/// First working set, from a cheap classifier whose scale is matched to the
-/// program's:
+/// First working set of the simplex, from a cheap classifier whose scale is
+/// matched to the program's:
 ///
 /// 1. a softmax fit ([`crate::softmax`]) on at most [`SOFTMAX_SAMPLE`]
 ///    points, evenly spaced in row order within each mode (every mode is
@@ -238,7 +238,7 @@ fn solve_clarabel(
 ///
 /// Deterministic; it only affects the speed, not the optimum (the rounds add
 /// every point with non-zero loss).
-fn initial_set(
+fn scaled_softmax_set(
     prep: &Prepared,
     labels: &[usize],
     modes: usize,
@@ -288,6 +288,47 @@ fn initial_set(
         .map(|v| v.iter().map(|x| a * x).collect())
         .collect();
     Ok(small_margin(prep, labels, modes, &scaled, SCALED_BAND))
+}
+
+/// First working set: the points near the boundaries of a softmax fit
+/// (margin below [`SOFTMAX_BAND`]), which predicts the hinge-active points
+/// of the LP/QP well, plus up to `INITIAL_PER_MODE_FACTOR (p + 1)` points of
+/// each mode evenly spaced in row order. Deterministic; it only affects the
+/// speed, not the optimum (the loop adds every point with non-zero loss).
+fn initial_set(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    stats: &mut SolveStats,
+) -> Result<Vec<usize>, RegionError> {
+    let (wg, steps) = crate::softmax::fit(prep, labels, modes)?;
+    stats.newton_steps = steps;
+    let per_mode = INITIAL_PER_MODE_FACTOR * (prep.p + 1);
+    let mut seen = vec![0usize; modes];
+    let mut set = Vec::new();
+    let mut f = vec![0.0; modes];
+    for (r, &l) in labels.iter().enumerate() {
+        let c = prep.counts[l];
+        // take point number k of mode l when floor(k * per_mode / c) advances
+        let k = seen[l];
+        seen[l] += 1;
+        let stride = c <= per_mode || (k * per_mode) / c != ((k + 1) * per_mode) / c;
+        let z = prep.row(r);
+        for (i, fi) in f.iter_mut().enumerate() {
+            let v = &wg[i];
+            *fi = z.iter().zip(v).map(|(a, b)| a * b).sum::<f64>() - v[prep.p];
+        }
+        let worst = f
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != l)
+            .map(|(_, &v)| v)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if stride || f[l] - worst < SOFTMAX_BAND {
+            set.push(r);
+        }
+    }
+    Ok(set)
 }
 
 /// Rows whose margin under the scores `wg` is below `band`, plus up to
@@ -635,9 +676,27 @@ mod tests {
             let prep = crate::prepare(&x, &labels, modes, &opts).unwrap();
             let weight: Vec<f64> = prep.counts.iter().map(|&c| 1.0 / c as f64).collect();
             let mut stats = SolveStats::default();
-            let set = initial_set(&prep, &labels, modes, &weight, false, &mut stats).unwrap();
-            let blocks = solve_simplex(&prep, &labels, modes, &weight, set, &mut stats)
-                .expect("the simplex finishes on small problems");
+            let set = scaled_softmax_set(&prep, &labels, modes, &weight, false, &mut stats).unwrap();
+            // The optimum the simplex reaches, unique or not.
+            let mut sx = Simplex::new(&prep, &labels, &weight, modes);
+            let mut set = set;
+            let mut in_set = vec![false; n];
+            for &r in &set {
+                in_set[r] = true;
+            }
+            loop {
+                sx.optimise(&set, 1_000_000).expect("the simplex finishes on small problems");
+                let new = violators(&prep, &labels, modes, &sx.blocks(), &in_set);
+                if new.is_empty() {
+                    break;
+                }
+                for &r in &new {
+                    in_set[r] = true;
+                }
+                set.extend_from_slice(&new);
+                set.sort_unstable();
+            }
+            let blocks = sx.blocks();
             let a = objective(&prep, &labels, &weight, false, &blocks);
             let b = clarabel_full(&prep, &labels, modes, &weight);
             proptest::prop_assert!(
