@@ -138,13 +138,13 @@ impl<'a> KdTree<'a> {
     }
 
     /// [`Self::nearest`], given `seed`: any points, typically the answer
-    /// for a nearby query. When `seed` holds at least `k` distinct points,
-    /// the largest of their `k` smallest distances to `q` bounds the
-    /// distance of the answer's farthest point (they are `k` real
-    /// candidates), so the search only visits cells within that bound,
-    /// collects every point within it and selects the `k` nearest at the
-    /// end, instead of keeping a running list. The answer is the same as
-    /// without a seed (ties by index).
+    /// for a nearby query. The `k`-th smallest seed distance to `q` bounds
+    /// the distance of the answer's farthest point when `k` distinct
+    /// points are within it, so the search only visits cells within that
+    /// bound, collects every point within it and selects the `k` nearest at
+    /// the end, instead of keeping a running list. The answer is the same
+    /// as without a seed (ties by index); when fewer than `k` points turn
+    /// out to be within the bound, the plain search runs.
     pub fn nearest_seeded(
         &self,
         q: &[f64],
@@ -157,25 +157,31 @@ impl<'a> KdTree<'a> {
         if self.nodes.is_empty() || k == 0 {
             return;
         }
+        // Bound: the k-th smallest seed distance. Whatever the seeds (even
+        // repeated), if at least k points lie within the bound the answer
+        // is among them; otherwise the plain search is used.
         let cand = &mut scratch.cand;
         cand.clear();
-        cand.extend(seed.iter().map(|&i| Candidate {
-            dist: Self::dist(&self.points[i * self.d..(i + 1) * self.d], q),
-            index: i,
-        }));
-        cand.sort_unstable();
-        cand.dedup();
+        cand.extend(
+            seed.iter()
+                .map(|&i| key(Self::dist(&self.points[i * self.d..(i + 1) * self.d], q), i)),
+        );
         if cand.len() < k {
             self.nearest(q, k, out);
             return;
         }
-        let bound = cand[k - 1].dist;
+        let bound = if cand.len() == k {
+            cand.iter().copied().max().unwrap_or(0)
+        } else {
+            *cand.select_nth_unstable(k - 1).1
+        } >> 64;
+        let bound = f64::from_bits(bound as u64);
         cand.clear();
         scratch.off.clear();
         scratch.off.resize(self.d, 0.0);
         self.collect(0, q, bound, 0.0, &mut scratch.off, cand);
-        // The k seed points are within the bound, unless rounding of the
-        // cell distances pruned one of them: then search afresh.
+        // The seed points are within the bound, unless rounding of the cell
+        // distances pruned some: with fewer than k, search afresh.
         if cand.len() < k {
             self.nearest(q, k, out);
             return;
@@ -183,7 +189,7 @@ impl<'a> KdTree<'a> {
         cand.select_nth_unstable(k - 1);
         cand.truncate(k);
         cand.sort_unstable();
-        out.extend(cand.iter().map(|c| c.index));
+        out.extend(cand.iter().map(|&c| (c as u64) as usize));
     }
 
     /// Every point within squared distance `bound` of `q`, into `cand`
@@ -195,14 +201,14 @@ impl<'a> KdTree<'a> {
         bound: f64,
         rd: f64,
         off: &mut [f64],
-        cand: &mut Vec<Candidate>,
+        cand: &mut Vec<u128>,
     ) {
         match self.nodes[node] {
             Node::Leaf { start, end } => {
                 for &i in &self.order[start..end] {
                     let dist = Self::dist(&self.points[i * self.d..(i + 1) * self.d], q);
                     if dist <= bound {
-                        cand.push(Candidate { dist, index: i });
+                        cand.push(key(dist, i));
                     }
                 }
             }
@@ -281,8 +287,16 @@ impl<'a> KdTree<'a> {
 /// Reusable buffers of [`KdTree::nearest_seeded`].
 #[derive(Debug, Clone, Default)]
 pub struct Scratch {
-    cand: Vec<Candidate>,
+    cand: Vec<u128>,
     off: Vec<f64>,
+}
+
+/// Sort key of a candidate: the bits of its squared distance (finite and
+/// `>= +0`, so the bits order as the values, as `total_cmp` does), then its
+/// index; one integer comparison orders as [`Candidate`] does.
+#[inline]
+fn key(dist: f64, index: usize) -> u128 {
+    (u128::from(dist.to_bits()) << 64) | index as u128
 }
 
 /// The best `k` candidates so far: a sorted vector for small `k` (an
