@@ -519,7 +519,7 @@ mod tests {
                 let mut labels = vec![0; big_n];
                 let (cost, _) = assign(&f, &centres, s, &mut labels);
                 let mut want_cost = 0.0;
-                for j in 0..big_n {
+                for (j, &label) in labels.iter().enumerate() {
                     let (mut best, mut bi) = (f64::INFINITY, 0);
                     for i in 0..s {
                         let v = f.mahalanobis(j, &centres[i * d..(i + 1) * d]);
@@ -528,7 +528,7 @@ mod tests {
                             bi = i;
                         }
                     }
-                    assert_eq!(labels[j], bi, "n = {n}, {features:?}, point {j}");
+                    assert_eq!(label, bi, "n = {n}, {features:?}, point {j}");
                     want_cost += best;
                 }
                 assert_eq!(cost.to_bits(), want_cost.to_bits(), "n = {n}, {features:?}");

@@ -218,10 +218,10 @@ fn local_fit(n: usize, a: FitArgs<'_>) -> (bool, f64) {
             ml[k] += xi[k];
         }
     }
-    for k in 0..n {
-        ml[k] /= c as f64;
-        m[k] = ml[k];
+    for v in &mut ml[..n] {
+        *v /= c as f64;
     }
+    m.copy_from_slice(&ml[..n]);
     let mut sl = [[0.0; P]; P];
     for &i in mem {
         let xi = &x[i * n..(i + 1) * n];

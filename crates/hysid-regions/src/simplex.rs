@@ -427,7 +427,7 @@ impl<'a> Simplex<'a> {
                     self.basis[i] = Var::Term(q);
                 }
             }
-            if self.pivots % 64 == 0 {
+            if self.pivots.is_multiple_of(64) {
                 self.recompute_upper_sum(set);
             }
         }
