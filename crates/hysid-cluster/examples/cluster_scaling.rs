@@ -87,6 +87,7 @@ fn main() {
             let t = Instant::now();
             let f = feature_vectors(&x, d, &y, c, Features::Fv, defaults.regularization);
             tl.push(t.elapsed().as_secs_f64());
+            eprintln!("N = {n}: local datasets {:.3} s", tl[tl.len() - 1]);
             let t = Instant::now();
             let _k = weighted_kmeans(
                 &f,
@@ -97,6 +98,7 @@ fn main() {
                 &mut rand_chacha::ChaCha8Rng::seed_from_u64(1),
             );
             tk.push(t.elapsed().as_secs_f64());
+            eprintln!("N = {n}: K-means {:.3} s", tk[tk.len() - 1]);
             let t = Instant::now();
             let fit = procedure::run(
                 &x,
@@ -107,6 +109,7 @@ fn main() {
             )
             .unwrap();
             tp.push(t.elapsed().as_secs_f64());
+            eprintln!("N = {n}: steps 1-5 {:.3} s", tp[tp.len() - 1]);
             acc_labels = mode_accuracy(&ex.modes, &fit.labels).accuracy;
             let t = Instant::now();
             let ropts = hysid_regions::RegionOptions {
@@ -115,6 +118,7 @@ fn main() {
             };
             hysid_regions::estimate(&reg.x, &fit.labels, fit.theta.len(), &ropts).unwrap();
             tr.push(t.elapsed().as_secs_f64());
+            eprintln!("N = {n}: regions {:.3} s", tr[tr.len() - 1]);
             let priors = Priors {
                 modes: Some(3),
                 ..Default::default()

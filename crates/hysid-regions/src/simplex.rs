@@ -28,7 +28,8 @@
 //! Rank deficiency (e.g. a constant regressor column) is handled by `k`
 //! artificial variables fixed at 0 that form the first basis; an
 //! artificial still basic at the end sets its direction of `u` to 0.
-//! Dantzig's rule picks the entering term; after a run of degenerate
+//! Dantzig's rule over a cyclic window of the rows (partial pricing)
+//! picks the entering term; after a run of degenerate
 //! pivots Bland's rule (smallest index) takes over, which cannot cycle
 //! (Bland, Math. Oper. Res. 2(2), 1977). Pivots are bounded; past the bound
 //! the caller falls back to clarabel.
@@ -53,6 +54,8 @@ const PIVOT_TOL: f64 = 1e-9;
 /// A basic dual value within this fraction of its bound counts as at the
 /// bound in [`Simplex::unique`].
 const UNIQUE_TOL: f64 = 1e-9;
+/// Rows priced per pivot at least (partial pricing).
+const PRICING_CHUNK: usize = 512;
 /// Consecutive degenerate pivots before Bland's rule takes over.
 const DEGENERATE_RUN: usize = 50;
 
@@ -95,6 +98,8 @@ pub(crate) struct Simplex<'a> {
     pub(crate) pivots: u64,
     bland: bool,
     degenerate: usize,
+    /// Where the last partial pricing scan stopped (index into the set).
+    cursor: usize,
     // scratch
     lu: Vec<f64>,
     perm: Vec<usize>,
@@ -125,6 +130,7 @@ impl<'a> Simplex<'a> {
             pivots: 0,
             bland: false,
             degenerate: 0,
+            cursor: 0,
             lu: vec![0.0; k * k],
             perm: vec![0; k],
             col: vec![0.0; k],
@@ -311,9 +317,22 @@ impl<'a> Simplex<'a> {
                 .collect();
             self.solve_transposed(&mut u);
             self.u = u;
-            // Pricing.
+            // Pricing: partial (Dantzig's rule over at least PRICING_CHUNK
+            // rows from where the last scan stopped, continuing until a
+            // candidate is found); optimality is only declared after a scan
+            // of every row found none. Bland's rule scans from the first row.
             let mut enter: Option<(usize, f64)> = None;
-            'rows: for &r in set {
+            let len = set.len();
+            let mut pos = if self.bland || len == 0 {
+                0
+            } else {
+                self.cursor % len
+            };
+            let mut scanned = 0;
+            'rows: while scanned < len {
+                let r = set[pos];
+                scanned += 1;
+                pos = if pos + 1 == len { 0 } else { pos + 1 };
                 self.scores(r);
                 let y = self.labels[r];
                 for jj in 0..m1 {
@@ -332,7 +351,11 @@ impl<'a> Simplex<'a> {
                         }
                     }
                 }
+                if enter.is_some() && scanned >= PRICING_CHUNK {
+                    break;
+                }
             }
+            self.cursor = pos;
             let Some((q, _)) = enter else {
                 return Ok(());
             };
