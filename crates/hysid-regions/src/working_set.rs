@@ -71,8 +71,10 @@ pub(crate) fn solve(
 
     if !quadratic && (modes - 1) * (prep.p + 1) <= SIMPLEX_MAX_UNKNOWNS {
         let mut stats = SolveStats::default();
-        let set = scaled_softmax_set(prep, labels, modes, &weight, quadratic, &mut stats)?;
-        if let Some(blocks) = solve_simplex(prep, labels, modes, &weight, set, &mut stats) {
+        // A failed softmax on the sample only costs the fast path.
+        if let Ok(set) = scaled_softmax_set(prep, labels, modes, &weight, quadratic, &mut stats)
+            && let Some(blocks) = solve_simplex(prep, labels, modes, &weight, set, &mut stats)
+        {
             return Ok((blocks, stats));
         }
     }
