@@ -48,6 +48,88 @@ pub struct Clusters {
     pub converged: bool,
 }
 
+/// Per-cluster sums of the centre update: `sum R_j^-1` (blocks) and
+/// `sum R_j^-1 xi_j`.
+struct Sums<'a> {
+    sa: &'a mut [f64],
+    sb: &'a mut [f64],
+    rhs: &'a mut [f64],
+    count: &'a mut [usize],
+}
+
+impl Sums<'_> {
+    /// Adds point `j` to cluster `i`, block sizes `p` and `q`.
+    #[inline(always)]
+    fn add(&mut self, f: &FeatureVectors, av: &[f64], j: usize, i: usize, p: usize, q: usize) {
+        let d = p + q;
+        self.count[i] += 1;
+        for (a, b) in self.sa[i * p * p..(i + 1) * p * p]
+            .iter_mut()
+            .zip(&f.v_inv[j * p * p..(j + 1) * p * p])
+        {
+            *a += b;
+        }
+        for (a, b) in self.sb[i * q * q..(i + 1) * q * q]
+            .iter_mut()
+            .zip(&f.q_inv[j * q * q..(j + 1) * q * q])
+        {
+            *a += b;
+        }
+        for (a, b) in self.rhs[i * d..(i + 1) * d]
+            .iter_mut()
+            .zip(&av[j * d..(j + 1) * d])
+        {
+            *a += b;
+        }
+    }
+
+    /// All points, in the order of `members` (with `labels[k]` the cluster
+    /// of `members[k]`) or of the labels; `P`, `Q` compile-time sizes.
+    fn accumulate<const P: usize, const Q: usize>(
+        &mut self,
+        f: &FeatureVectors,
+        av: &[f64],
+        labels: &[usize],
+        members: Option<&[usize]>,
+    ) {
+        match members {
+            Some(order) => {
+                for (k, &j) in order.iter().enumerate() {
+                    self.add(f, av, j, labels[k], P, Q);
+                }
+            }
+            None => {
+                for (j, &i) in labels.iter().enumerate() {
+                    self.add(f, av, j, i, P, Q);
+                }
+            }
+        }
+    }
+
+    /// [`Self::accumulate`] for run-time sizes.
+    fn accumulate_any(
+        &mut self,
+        f: &FeatureVectors,
+        av: &[f64],
+        labels: &[usize],
+        members: Option<&[usize]>,
+    ) {
+        let (p, q) = (f.p, f.q);
+        match members {
+            Some(order) => {
+                for (k, &j) in order.iter().enumerate() {
+                    self.add(f, av, j, labels[k], p, q);
+                }
+            }
+            None => {
+                for (j, &i) in labels.iter().enumerate() {
+                    self.add(f, av, j, i, p, q);
+                }
+            }
+        }
+    }
+}
+
 /// Centre update `mu_i = (sum R_j^-1)^-1 sum R_j^-1 xi_j` for every cluster
 /// with members; others keep their centre. `av` holds `R_j^-1 xi_j`.
 fn update_centres(
@@ -64,38 +146,21 @@ fn update_centres(
     let mut sb = vec![0.0; s * q * q];
     let mut rhs = vec![0.0; s * d];
     let mut count = vec![0usize; s];
-    let mut visit = |j: usize, i: usize| {
-        count[i] += 1;
-        for (a, b) in sa[i * p * p..(i + 1) * p * p]
-            .iter_mut()
-            .zip(&f.v_inv[j * p * p..(j + 1) * p * p])
-        {
-            *a += b;
-        }
-        for (a, b) in sb[i * q * q..(i + 1) * q * q]
-            .iter_mut()
-            .zip(&f.q_inv[j * q * q..(j + 1) * q * q])
-        {
-            *a += b;
-        }
-        for (a, b) in rhs[i * d..(i + 1) * d]
-            .iter_mut()
-            .zip(&av[j * d..(j + 1) * d])
-        {
-            *a += b;
-        }
+    let mut sums = Sums {
+        sa: &mut sa,
+        sb: &mut sb,
+        rhs: &mut rhs,
+        count: &mut count,
     };
-    match members {
-        Some(order) => {
-            for (k, &j) in order.iter().enumerate() {
-                visit(j, labels[k]);
-            }
-        }
-        None => {
-            for (j, &i) in labels.iter().enumerate() {
-                visit(j, i);
-            }
-        }
+    // Common sizes get unrolled additions (same order, same sums).
+    match (p, q) {
+        (2, 0) => sums.accumulate::<2, 0>(f, av, labels, members),
+        (2, 1) => sums.accumulate::<2, 1>(f, av, labels, members),
+        (3, 0) => sums.accumulate::<3, 0>(f, av, labels, members),
+        (3, 2) => sums.accumulate::<3, 2>(f, av, labels, members),
+        (4, 0) => sums.accumulate::<4, 0>(f, av, labels, members),
+        (4, 3) => sums.accumulate::<4, 3>(f, av, labels, members),
+        _ => sums.accumulate_any(f, av, labels, members),
     }
     let mut scratch = vec![0.0; p.max(q) * p.max(q)];
     for i in 0..s {
@@ -137,10 +202,78 @@ fn weighted_features(f: &FeatureVectors) -> Vec<f64> {
     av
 }
 
-/// Assigns every point to its nearest centre; returns the cost.
-fn assign(f: &FeatureVectors, centres: &[f64], s: usize, labels: &mut [usize]) -> f64 {
+/// Adds `(x - mu)' A (x - mu) / 2` over the lower triangle of the `P x P`
+/// block `a` to `s`, in the order of [`FeatureVectors::mahalanobis`] (so the
+/// sums are bit-identical); `P` is a compile-time size so that the loops
+/// unroll.
+#[inline(always)]
+fn half_quad<const P: usize>(a: &[f64], x: &[f64], mu: &[f64], mut s: f64) -> f64 {
+    let (a, x, mu) = (&a[..P * P], &x[..P], &mu[..P]);
+    for r in 0..P {
+        let dr = x[r] - mu[r];
+        let mut t = 0.5 * a[r * P + r] * dr;
+        for k in 0..r {
+            t += a[r * P + k] * (x[k] - mu[k]);
+        }
+        s += dr * t;
+    }
+    s
+}
+
+/// [`assign`] for blocks of compile-time sizes `P` (parameters) and `Q`
+/// (local mean).
+fn assign_fixed<const P: usize, const Q: usize>(
+    f: &FeatureVectors,
+    centres: &[f64],
+    s: usize,
+    labels: &mut [usize],
+) -> (f64, bool) {
+    let d = P + Q;
+    let mut cost = 0.0;
+    let mut changed = false;
+    for (j, l) in labels.iter_mut().enumerate() {
+        let x = &f.xi[j * d..(j + 1) * d];
+        let a = &f.v_inv[j * P * P..(j + 1) * P * P];
+        let b = &f.q_inv[j * Q * Q..(j + 1) * Q * Q];
+        let (mut best, mut bi) = (f64::INFINITY, 0);
+        for i in 0..s {
+            let mu = &centres[i * d..(i + 1) * d];
+            let mut v = half_quad::<P>(a, x, mu, 0.0);
+            if Q > 0 {
+                v = half_quad::<Q>(b, &x[P..], &mu[P..], v);
+            }
+            let v = 2.0 * v;
+            if v < best {
+                best = v;
+                bi = i;
+            }
+        }
+        changed |= *l != bi;
+        *l = bi;
+        cost += best;
+    }
+    (cost, changed)
+}
+
+/// Assigns every point to its nearest centre; returns the cost and whether
+/// any label changed.
+fn assign(f: &FeatureVectors, centres: &[f64], s: usize, labels: &mut [usize]) -> (f64, bool) {
+    // Common PWARX sizes (p = n + 1, q = n with `fv`, 0 with `lpv`) get an
+    // unrolled distance; the result is the same as the generic loop's.
+    match (f.p, f.q) {
+        (2, 0) => return assign_fixed::<2, 0>(f, centres, s, labels),
+        (2, 1) => return assign_fixed::<2, 1>(f, centres, s, labels),
+        (3, 0) => return assign_fixed::<3, 0>(f, centres, s, labels),
+        (3, 2) => return assign_fixed::<3, 2>(f, centres, s, labels),
+        (4, 0) => return assign_fixed::<4, 0>(f, centres, s, labels),
+        (4, 3) => return assign_fixed::<4, 3>(f, centres, s, labels),
+        (5, 0) => return assign_fixed::<5, 0>(f, centres, s, labels),
+        (5, 4) => return assign_fixed::<5, 4>(f, centres, s, labels),
+        _ => {}
+    }
     let d = f.dim();
     let mut cost = 0.0;
+    let mut changed = false;
     for (j, l) in labels.iter_mut().enumerate() {
         let (mut best, mut bi) = (f64::INFINITY, 0);
         for i in 0..s {
@@ -150,10 +283,11 @@ fn assign(f: &FeatureVectors, centres: &[f64], s: usize, labels: &mut [usize]) -
                 bi = i;
             }
         }
+        changed |= *l != bi;
         *l = bi;
         cost += best;
     }
-    cost
+    (cost, changed)
 }
 
 /// Weighted K-means with `restarts` seeded restarts (at least one).
@@ -211,10 +345,21 @@ pub fn weighted_kmeans(
         let mut old_cost = f64::INFINITY;
         let mut iterations = 0;
         let mut converged = false;
+        let mut final_cost = None;
+        let mut old = vec![0.0; s * d];
         for it in 0..max_iter.max(1) {
             iterations = it + 1;
-            let cost = assign(f, &centres, s, &mut labels);
-            let old = centres.clone();
+            let (cost, changed) = assign(f, &centres, s, &mut labels);
+            if it > 0 && !changed {
+                // Same labels as the sweep before: the update would give
+                // the same centres again (a fixed point, which the rule
+                // below would stop at one or two sweeps later with these
+                // centres and labels), so stop now.
+                converged = true;
+                final_cost = Some(cost);
+                break;
+            }
+            old.copy_from_slice(&centres);
             update_centres(f, &av, &labels, None, &mut centres, s);
             let shift = old
                 .iter()
@@ -226,7 +371,10 @@ pub fn weighted_kmeans(
             }
             old_cost = cost;
         }
-        let cost = assign(f, &centres, s, &mut labels);
+        let cost = match final_cost {
+            Some(c) => c,
+            None => assign(f, &centres, s, &mut labels).0,
+        };
         restart_costs.push(cost);
         if best.as_ref().is_none_or(|b| cost < b.cost) {
             best = Some(Clusters {
@@ -337,5 +485,54 @@ pub fn single_linkage(f: &FeatureVectors, s: usize, threshold: Option<f64>) -> C
         restart_costs: vec![],
         iterations: 0,
         converged: true,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Features;
+    use crate::local::feature_vectors;
+    use rand::SeedableRng;
+
+    /// The unrolled assignment gives the generic loop's labels and the very
+    /// same cost bits, for every specialised block size and one generic.
+    #[test]
+    fn unrolled_assignment_matches_the_generic_distance() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for n in 1..=5 {
+            for features in [Features::Fv, Features::Lpv] {
+                let big_n = 120;
+                let x: Vec<f64> = (0..big_n * n)
+                    .map(|_| rng.random_range(-1.0..1.0))
+                    .collect();
+                let y: Vec<f64> = (0..big_n)
+                    .map(|j| {
+                        x[j * n] * if x[j * n] > 0.0 { 2.0 } else { -1.0 }
+                            + rng.random::<f64>() * 0.1
+                    })
+                    .collect();
+                let f = feature_vectors(&x, n, &y, n + 6, features, 1e-6);
+                let d = f.dim();
+                let s = 3;
+                let centres: Vec<f64> = (0..s * d).map(|_| rng.random_range(-2.0..2.0)).collect();
+                let mut labels = vec![0; big_n];
+                let (cost, _) = assign(&f, &centres, s, &mut labels);
+                let mut want_cost = 0.0;
+                for (j, &label) in labels.iter().enumerate() {
+                    let (mut best, mut bi) = (f64::INFINITY, 0);
+                    for i in 0..s {
+                        let v = f.mahalanobis(j, &centres[i * d..(i + 1) * d]);
+                        if v < best {
+                            best = v;
+                            bi = i;
+                        }
+                    }
+                    assert_eq!(label, bi, "n = {n}, {features:?}, point {j}");
+                    want_cost += best;
+                }
+                assert_eq!(cost.to_bits(), want_cost.to_bits(), "n = {n}, {features:?}");
+            }
+        }
     }
 }

@@ -12,6 +12,8 @@ use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 const LEAF: usize = 16;
+/// Largest `k` kept in a sorted vector rather than a heap.
+const SORTED_MAX: usize = 64;
 
 #[derive(Debug, Clone)]
 enum Node {
@@ -116,6 +118,12 @@ impl<'a> KdTree<'a> {
         id
     }
 
+    /// The point indices in the tree's leaf order: consecutive entries are
+    /// close in space, so querying them in this order reuses the cache.
+    pub fn leaf_order(&self) -> &[usize] {
+        &self.order
+    }
+
     /// The `k` nearest points to `q` (squared Euclidean distance, ties by
     /// index), nearest first, as indices into the point matrix.
     pub fn nearest(&self, q: &[f64], k: usize, out: &mut Vec<usize>) {
@@ -129,6 +137,112 @@ impl<'a> KdTree<'a> {
         out.extend(best.into_sorted().into_iter().map(|c| c.index));
     }
 
+    /// [`Self::nearest`], given `seed`: any points, typically the answer
+    /// for a nearby query. The `k`-th smallest seed distance to `q` bounds
+    /// the distance of the answer's farthest point when `k` distinct
+    /// points are within it, so the search only visits cells within that
+    /// bound, collects every point within it and selects the `k` nearest at
+    /// the end, instead of keeping a running list. The answer is the same
+    /// as without a seed (ties by index); when fewer than `k` points turn
+    /// out to be within the bound, the plain search runs.
+    pub fn nearest_seeded(
+        &self,
+        q: &[f64],
+        k: usize,
+        seed: &[usize],
+        scratch: &mut Scratch,
+        out: &mut Vec<usize>,
+    ) {
+        out.clear();
+        if self.nodes.is_empty() || k == 0 {
+            return;
+        }
+        // Bound: the k-th smallest seed distance. Whatever the seeds (even
+        // repeated), if at least k points lie within the bound the answer
+        // is among them; otherwise the plain search is used.
+        let cand = &mut scratch.cand;
+        cand.clear();
+        cand.extend(
+            seed.iter()
+                .map(|&i| key(Self::dist(&self.points[i * self.d..(i + 1) * self.d], q), i)),
+        );
+        if cand.len() < k {
+            self.nearest(q, k, out);
+            return;
+        }
+        let bound = if cand.len() == k {
+            cand.iter().copied().max().unwrap_or(0)
+        } else {
+            *cand.select_nth_unstable(k - 1).1
+        } >> 64;
+        let bound = f64::from_bits(bound as u64);
+        cand.clear();
+        scratch.off.clear();
+        scratch.off.resize(self.d, 0.0);
+        self.collect(0, q, bound, 0.0, &mut scratch.off, cand);
+        // The seed points are within the bound, unless rounding of the cell
+        // distances pruned some: with fewer than k, search afresh.
+        if cand.len() < k {
+            self.nearest(q, k, out);
+            return;
+        }
+        cand.select_nth_unstable(k - 1);
+        cand.truncate(k);
+        cand.sort_unstable();
+        out.extend(cand.iter().map(|&c| (c as u64) as usize));
+    }
+
+    /// Every point within squared distance `bound` of `q`, into `cand`
+    /// (cells pruned as in [`Self::search`]).
+    fn collect(
+        &self,
+        node: usize,
+        q: &[f64],
+        bound: f64,
+        rd: f64,
+        off: &mut [f64],
+        cand: &mut Vec<u128>,
+    ) {
+        match self.nodes[node] {
+            Node::Leaf { start, end } => {
+                for &i in &self.order[start..end] {
+                    let dist = Self::dist(&self.points[i * self.d..(i + 1) * self.d], q);
+                    if dist <= bound {
+                        cand.push(key(dist, i));
+                    }
+                }
+            }
+            Node::Split {
+                dim,
+                value,
+                left,
+                right,
+            } => {
+                let diff = q[dim] - value;
+                let (near, far) = if diff < 0.0 {
+                    (left, right)
+                } else {
+                    (right, left)
+                };
+                self.collect(near, q, bound, rd, off, cand);
+                let old = off[dim];
+                let far_rd = rd - old * old + diff * diff;
+                if far_rd <= bound {
+                    off[dim] = diff;
+                    self.collect(far, q, bound, far_rd, off, cand);
+                    off[dim] = old;
+                }
+            }
+        }
+    }
+
+    /// Squared Euclidean distance (one formula for every caller, so a point
+    /// offered twice gets the same bits).
+    #[inline]
+    fn dist(row: &[f64], q: &[f64]) -> f64 {
+        row.iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum()
+    }
+
     /// Descends near child first; `rd` is the squared distance from `q` to
     /// the node's cell and `off` its per-coordinate offsets (Arya and
     /// Mount's incremental distance), which prunes far cells tighter than
@@ -138,8 +252,10 @@ impl<'a> KdTree<'a> {
             Node::Leaf { start, end } => {
                 for &i in &self.order[start..end] {
                     let row = &self.points[i * self.d..(i + 1) * self.d];
-                    let dist: f64 = row.iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum();
-                    best.offer(Candidate { dist, index: i });
+                    best.offer(Candidate {
+                        dist: Self::dist(row, q),
+                        index: i,
+                    });
                 }
             }
             Node::Split {
@@ -168,8 +284,24 @@ impl<'a> KdTree<'a> {
     }
 }
 
-/// The best `k` candidates so far: a sorted vector for small `k`, a
-/// max-heap for large `k`.
+/// Reusable buffers of [`KdTree::nearest_seeded`].
+#[derive(Debug, Clone, Default)]
+pub struct Scratch {
+    cand: Vec<u128>,
+    off: Vec<f64>,
+}
+
+/// Sort key of a candidate: the bits of its squared distance (finite and
+/// `>= +0`, so the bits order as the values, as `total_cmp` does), then its
+/// index; one integer comparison orders as [`Candidate`] does.
+#[inline]
+fn key(dist: f64, index: usize) -> u128 {
+    (u128::from(dist.to_bits()) << 64) | index as u128
+}
+
+/// The best `k` candidates so far: a sorted vector for small `k` (an
+/// insertion moves at most `k` entries, cheaper than heap upkeep and the
+/// final sort for small `k`), a max-heap for large `k`.
 enum Best {
     Sorted(Vec<Candidate>, usize),
     Heap(BinaryHeap<Candidate>, usize),
@@ -177,7 +309,7 @@ enum Best {
 
 impl Best {
     fn new(k: usize) -> Self {
-        if k <= 32 {
+        if k <= SORTED_MAX {
             Best::Sorted(Vec::with_capacity(k + 1), k)
         } else {
             Best::Heap(BinaryHeap::with_capacity(k + 1), k)
@@ -185,6 +317,7 @@ impl Best {
     }
 
     /// Could a point at squared distance `bound` still enter?
+    #[inline]
     fn accepts(&self, bound: f64) -> bool {
         match self {
             Best::Sorted(v, k) => v.len() < *k || bound <= v[k - 1].dist,
@@ -192,6 +325,7 @@ impl Best {
         }
     }
 
+    #[inline]
     fn offer(&mut self, c: Candidate) {
         match self {
             Best::Sorted(v, k) => {
@@ -247,6 +381,23 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Seeds (any points, repeated or not) never change the answer.
+        #[test]
+        fn seeds_do_not_change_the_answer(d in 1usize..4, n in 1usize..200, k in 1usize..60, seed in any::<u64>()) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let pts: Vec<f64> = (0..n * d).map(|_| (rng.random_range(0..6) as f64) * 0.5).collect();
+            let t = KdTree::new(&pts, d);
+            let mut out = Vec::new();
+            for i in 0..n.min(20) {
+                let q = &pts[i * d..(i + 1) * d];
+                let seeds: Vec<usize> = (0..rng.random_range(0..2 * k)).map(|_| rng.random_range(0..n)).collect();
+                let mut scratch = Scratch::default();
+                t.nearest_seeded(q, k, &seeds, &mut scratch, &mut out);
+                prop_assert_eq!(&out, &brute(&pts, d, q, k));
+            }
+        }
+
         /// The tree returns exactly the brute-force neighbours, duplicates
         /// and ties included (coordinates on a coarse grid make many ties).
         #[test]

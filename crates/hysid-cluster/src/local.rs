@@ -132,6 +132,113 @@ fn median(v: &mut [f64]) -> f64 {
     v[m]
 }
 
+/// Inputs and outputs of [`local_fit`] for one local dataset.
+struct FitArgs<'a> {
+    x: &'a [f64],
+    y: &'a [f64],
+    /// The members of the local dataset.
+    mem: &'a [usize],
+    eps: f64,
+    /// `Phi' Phi` (`p x p`; regularised on exit if collinear).
+    g: &'a mut [f64],
+    /// `theta_j` (`p`).
+    th: &'a mut [f64],
+    /// Local mean `m_j` (`n`).
+    m: &'a mut [f64],
+    /// Local scatter `Q_j` (`n x n`).
+    s: &'a mut [f64],
+    lchol: &'a mut [f64],
+    scratch: &'a mut [f64],
+}
+
+/// [`local_fit`] with a compile-time dimension.
+fn local_fit_n<const N: usize>(a: FitArgs<'_>) -> (bool, f64) {
+    local_fit(N, a)
+}
+
+/// Local least squares, mean and scatter of one local dataset: returns
+/// whether `Phi' Phi` was regularised (collinear) and `sigma_j^2`.
+#[inline(always)]
+fn local_fit(n: usize, a: FitArgs<'_>) -> (bool, f64) {
+    let FitArgs {
+        x,
+        y,
+        mem,
+        eps,
+        g,
+        th,
+        m,
+        s,
+        lchol,
+        scratch,
+    } = a;
+    let p = n + 1;
+    let c = mem.len();
+    // Sums in local arrays (registers once the loops unroll), written out
+    // afterwards; the additions are those of a direct accumulation.
+    const P: usize = MAX_DIM + 1;
+    let mut phi = [0.0; P];
+    let mut gl = [[0.0; P]; P];
+    let mut rhs = [0.0; P];
+    for &i in mem {
+        phi[..n].copy_from_slice(&x[i * n..(i + 1) * n]);
+        phi[n] = 1.0;
+        for r in 0..p {
+            rhs[r] += phi[r] * y[i];
+            for k in 0..=r {
+                gl[r][k] += phi[r] * phi[k];
+            }
+        }
+    }
+    th.copy_from_slice(&rhs[..p]);
+    for r in 0..p {
+        for k in 0..=r {
+            g[r * p + k] = gl[r][k];
+            g[k * p + r] = gl[r][k];
+        }
+    }
+    let l = &mut lchol[..p * p];
+    l.copy_from_slice(g);
+    let t = dense::mean_diag(g, p);
+    let collinear =
+        dense::regularised_cholesky(l, p, 1e-10, eps * t.max(f64::MIN_POSITIVE), scratch);
+    if collinear {
+        for r in 0..p {
+            g[r * p + r] += eps * t.max(f64::MIN_POSITIVE);
+        }
+    }
+    dense::cholesky_solve(l, p, th);
+    let mut ssr = 0.0;
+    let mut ml = [0.0; P];
+    for &i in mem {
+        let xi = &x[i * n..(i + 1) * n];
+        let pred: f64 = xi.iter().zip(&th[..n]).map(|(a, b)| a * b).sum::<f64>() + th[n];
+        ssr += (y[i] - pred).powi(2);
+        for k in 0..n {
+            ml[k] += xi[k];
+        }
+    }
+    for v in &mut ml[..n] {
+        *v /= c as f64;
+    }
+    m.copy_from_slice(&ml[..n]);
+    let mut sl = [[0.0; P]; P];
+    for &i in mem {
+        let xi = &x[i * n..(i + 1) * n];
+        for r in 0..n {
+            for k in 0..n {
+                sl[r][k] += (xi[r] - ml[r]) * (xi[k] - ml[k]);
+            }
+        }
+    }
+    for r in 0..n {
+        for k in 0..n {
+            s[r * n + k] = sl[r][k] / (c - 1) as f64;
+        }
+    }
+    (collinear, ssr / (c - p) as f64)
+}
+
 /// Builds the local datasets and feature vectors of the regression problem
 /// `y_k = theta' [x_k; 1]` (`x` row-major with `n` columns). Requires
 /// `n + 2 <= c <= N` and `n <= MAX_DIM` (checked by the caller).
@@ -147,7 +254,7 @@ pub fn feature_vectors(
     let p = n + 1;
     let q = if features == Features::Fv { n } else { 0 };
     let tree = KdTree::new(x, n);
-    let mut members = Vec::with_capacity(big_n * c);
+    let mut members = vec![0usize; big_n * c];
     let mut theta = vec![0.0; big_n * p];
     let mut gram = vec![0.0; big_n * p * p];
     let mut scatter = vec![0.0; big_n * n * n];
@@ -157,11 +264,19 @@ pub fn feature_vectors(
     let mut collinear = vec![false; big_n];
     let mut nb = Vec::with_capacity(c);
     let mut scratch = vec![0.0; p * p];
-    let mut rhs = vec![0.0; p];
-    let mut phi = vec![0.0; p];
-    // Pass 1: neighbours, local least squares, local scatter.
-    for j in 0..big_n {
-        tree.nearest(&x[j * n..(j + 1) * n], c, &mut nb);
+    let mut lchol = vec![0.0; p * p];
+    // Pass 1: neighbours, local least squares, local scatter. Samples are
+    // visited in the tree's leaf order (neighbouring queries share cache
+    // lines); every result is stored at the sample's own index, so the
+    // order does not change any value.
+    let mut prev: Vec<usize> = Vec::with_capacity(c);
+    let mut knn_scratch = crate::knn::Scratch::default();
+    for &j in tree.leaf_order() {
+        // The previous query is a spatial neighbour: its neighbours bound
+        // the search (same answer, most cells pruned).
+        tree.nearest_seeded(&x[j * n..(j + 1) * n], c, &prev, &mut knn_scratch, &mut nb);
+        prev.clear();
+        prev.extend_from_slice(&nb);
         // C_j contains j itself (with many duplicates it may not be among
         // the c nearest by the index tie-break): put it first.
         if let Some(pos) = nb.iter().position(|&i| i == j) {
@@ -169,65 +284,32 @@ pub fn feature_vectors(
         } else {
             nb.pop();
         }
-        members.push(j);
-        members.extend_from_slice(&nb);
+        let mem = &mut members[j * c..(j + 1) * c];
+        mem[0] = j;
+        mem[1..].copy_from_slice(&nb);
         let mem = &members[j * c..(j + 1) * c];
-        let g = &mut gram[j * p * p..(j + 1) * p * p];
-        rhs.iter_mut().for_each(|v| *v = 0.0);
-        for &i in mem {
-            phi[..n].copy_from_slice(&x[i * n..(i + 1) * n]);
-            phi[n] = 1.0;
-            for r in 0..p {
-                rhs[r] += phi[r] * y[i];
-                for k in 0..=r {
-                    g[r * p + k] += phi[r] * phi[k];
-                }
-            }
-        }
-        for r in 0..p {
-            for k in 0..r {
-                g[k * p + r] = g[r * p + k];
-            }
-        }
-        let mut l = g.to_vec();
-        let t = dense::mean_diag(g, p);
-        collinear[j] = dense::regularised_cholesky(
-            &mut l,
-            p,
-            1e-10,
-            eps * t.max(f64::MIN_POSITIVE),
-            &mut scratch,
-        );
-        if collinear[j] {
-            for r in 0..p {
-                g[r * p + r] += eps * t.max(f64::MIN_POSITIVE);
-            }
-        }
-        let th = &mut theta[j * p..(j + 1) * p];
-        th.copy_from_slice(&rhs);
-        dense::cholesky_solve(&l, p, th);
-        let mut ssr = 0.0;
-        let m = &mut mean[j * n..(j + 1) * n];
-        for &i in mem {
-            let xi = &x[i * n..(i + 1) * n];
-            let pred: f64 = xi.iter().zip(&th[..n]).map(|(a, b)| a * b).sum::<f64>() + th[n];
-            ssr += (y[i] - pred).powi(2);
-            for k in 0..n {
-                m[k] += xi[k];
-            }
-        }
-        m.iter_mut().for_each(|v| *v /= c as f64);
-        sigma2[j] = ssr / (c - p) as f64;
-        let s = &mut scatter[j * n * n..(j + 1) * n * n];
-        for &i in mem {
-            let xi = &x[i * n..(i + 1) * n];
-            for r in 0..n {
-                for k in 0..n {
-                    s[r * n + k] += (xi[r] - m[r]) * (xi[k] - m[k]);
-                }
-            }
-        }
-        s.iter_mut().for_each(|v| *v /= (c - 1) as f64);
+        let args = FitArgs {
+            x,
+            y,
+            mem,
+            eps,
+            g: &mut gram[j * p * p..(j + 1) * p * p],
+            th: &mut theta[j * p..(j + 1) * p],
+            m: &mut mean[j * n..(j + 1) * n],
+            s: &mut scatter[j * n * n..(j + 1) * n * n],
+            lchol: &mut lchol,
+            scratch: &mut scratch,
+        };
+        // Common regressor dimensions get unrolled loops (same operations).
+        let (col, s2) = match n {
+            1 => local_fit_n::<1>(args),
+            2 => local_fit_n::<2>(args),
+            3 => local_fit_n::<3>(args),
+            4 => local_fit_n::<4>(args),
+            _ => local_fit(n, args),
+        };
+        collinear[j] = col;
+        sigma2[j] = s2;
     }
     // Floors relative to the data and to the median local dataset.
     let var_y = {

@@ -31,8 +31,11 @@
 //! only when every point outside the subset has zero loss, which certifies
 //! that the subset optimum is an optimum of the full problem (see
 //! `docs/regions.md`). The working set is seeded with the points near the
-//! boundaries of a softmax fit; measured times are in
-//! `docs/performance-regions.md`.
+//! boundaries of a softmax fit (on a sample, its scores rescaled to the
+//! program's units). The restricted MRLP is solved by a bounded-variable
+//! simplex on its dual, which has only `(modes - 1)(d + 1)` rows and is
+//! warm-started from round to round (clarabel is the fallback, and solves
+//! the MSVM QP); measured times are in `docs/performance-regions.md`.
 //!
 //! ```
 //! use hysid_regions::{estimate, RegionOptions};
@@ -54,6 +57,7 @@ pub use adjacency::adjacency;
 
 mod adjacency;
 mod psvc;
+mod simplex;
 mod softmax;
 mod solver;
 mod working_set;

@@ -11,6 +11,7 @@
 //! non-zero loss until none is left outside, so it returns an optimum of the
 //! full program (to the solver's tolerance), not an approximation.
 
+use crate::simplex::Simplex;
 use crate::solver::{self, Context, Program, Triplets};
 use crate::{Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
 use clarabel::solver::SupportedConeT::{NonnegativeConeT, ZeroConeT};
@@ -26,8 +27,23 @@ const MAX_ROUNDS: usize = 40;
 /// unknown of a mode's score.
 const INITIAL_PER_MODE_FACTOR: usize = 5;
 /// Points whose softmax margin (log-odds against the best other mode) is
-/// below this join the first working set.
+/// below this join the first working set of clarabel.
 const SOFTMAX_BAND: f64 = 2.0;
+/// Points whose margin under the scaled softmax scores is below this join
+/// the first working set (the program's hinge is active below 1).
+const SCALED_BAND: f64 = 2.0;
+/// Largest number of points the softmax of the first working set is fitted on.
+const SOFTMAX_SAMPLE: usize = 1000;
+/// Search interval of the log scale factor of the softmax scores.
+const SCALE_LN_RANGE: (f64, f64) = (-12.0, 16.0);
+/// The MRLP goes to the simplex of [`crate::simplex`] when it has at most
+/// this many free score parameters (the basis is refactorised at every
+/// pivot, `O(k^3)`); above, and for the MSVM QP, clarabel solves it.
+const SIMPLEX_MAX_UNKNOWNS: usize = 48;
+/// Pivot bound of the simplex, per term of the whole program.
+const SIMPLEX_PIVOTS_PER_TERM: usize = 4;
+/// Golden-section steps (the interval shrinks by 0.618 per step).
+const GOLDEN_STEPS: usize = 60;
 
 /// Per mode `[w (p); g]` and statistics.
 pub(crate) fn solve(
@@ -53,9 +69,112 @@ pub(crate) fn solve(
         })
         .collect();
 
+    if !quadratic && (modes - 1) * (prep.p + 1) <= SIMPLEX_MAX_UNKNOWNS {
+        let mut stats = SolveStats::default();
+        // A failed softmax on the sample only costs the fast path.
+        if let Ok(set) = scaled_softmax_set(prep, labels, modes, &weight, quadratic, &mut stats)
+            && let Some(blocks) = solve_simplex(prep, labels, modes, &weight, set, &mut stats)
+        {
+            return Ok((blocks, stats));
+        }
+    }
+    // The QP, large MRLPs, and MRLPs whose optimum is not unique (the
+    // interior-point solution is kept there: see `crate::simplex`).
     let mut stats = SolveStats::default();
+    let set = initial_set(prep, labels, modes, &mut stats)?;
+    solve_clarabel(prep, labels, modes, &weight, method, quadratic, set, stats)
+}
+
+/// Points outside the set (`in_set` false) whose margin under the scores
+/// `blocks` is below `1 - MARGIN_TOL`: they have a non-zero loss.
+fn violators(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    blocks: &[Vec<f64>],
+    in_set: &[bool],
+) -> Vec<usize> {
+    let mut out = Vec::new();
+    let mut f = vec![0.0; modes];
+    for r in 0..prep.n {
+        if in_set[r] {
+            continue;
+        }
+        let z = prep.row(r);
+        for (fi, v) in f.iter_mut().zip(blocks) {
+            *fi = z.iter().zip(v).map(|(a, b)| a * b).sum::<f64>() - v[prep.p];
+        }
+        let own = f[labels[r]];
+        let worst = f
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != labels[r])
+            .map(|(_, &v)| v)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if own - worst < 1.0 - MARGIN_TOL {
+            out.push(r);
+        }
+    }
+    out
+}
+
+/// The MRLP by the dual simplex of [`crate::simplex`], warm-started from
+/// round to round; `None` when the simplex gives up (pivot bound or a
+/// singular basis) or the optimum is not unique, in which case the caller
+/// uses clarabel.
+fn solve_simplex(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    weight: &[f64],
+    mut set: Vec<usize>,
+    stats: &mut SolveStats,
+) -> Option<Vec<Vec<f64>>> {
     let mut in_set = vec![false; prep.n];
-    let mut set = initial_set(prep, labels, modes, &mut stats)?;
+    for &r in &set {
+        in_set[r] = true;
+    }
+    let k = (modes - 1) * (prep.p + 1);
+    // Generous: a few pivots per term of the whole problem.
+    let max_pivots = (SIMPLEX_PIVOTS_PER_TERM * (prep.n * (modes - 1) + k)) as u64;
+    let mut sx = Simplex::new(prep, labels, weight, modes);
+    let mut round = 0;
+    loop {
+        round += 1;
+        if round > MAX_ROUNDS && set.len() < prep.n {
+            set = (0..prep.n).collect();
+            in_set.iter_mut().for_each(|v| *v = true);
+        }
+        sx.optimise(&set, max_pivots).ok()?;
+        stats.solves += 1;
+        stats.solver_iterations = sx.pivots;
+        stats.working_points = set.len();
+        let blocks = sx.blocks();
+        let new = violators(prep, labels, modes, &blocks, &in_set);
+        if new.is_empty() {
+            return sx.unique().then_some(blocks);
+        }
+        for &r in &new {
+            in_set[r] = true;
+        }
+        set.extend_from_slice(&new);
+        set.sort_unstable();
+    }
+}
+
+/// The working-set rounds with clarabel solving each restricted program.
+#[allow(clippy::too_many_arguments)]
+fn solve_clarabel(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    weight: &[f64],
+    method: &'static str,
+    quadratic: bool,
+    mut set: Vec<usize>,
+    mut stats: SolveStats,
+) -> Result<(Vec<Vec<f64>>, SolveStats), RegionError> {
+    let mut in_set = vec![false; prep.n];
     for &r in &set {
         in_set[r] = true;
     }
@@ -71,7 +190,7 @@ pub(crate) fn solve(
             points: set.len(),
             round,
         };
-        let prog = program(prep, labels, modes, &weight, quadratic, &set);
+        let prog = program(prep, labels, modes, weight, quadratic, &set);
         let sol = solver::solve(prog, &ctx)?;
         stats.solves += 1;
         stats.solver_iterations += u64::from(sol.iterations);
@@ -90,35 +209,87 @@ pub(crate) fn solve(
         if full {
             return Ok((blocks, stats));
         }
-        let before = set.len();
-        let mut f = vec![0.0; modes];
-        for r in 0..prep.n {
-            if in_set[r] {
-                continue;
-            }
-            let z = prep.row(r);
-            for (i, fi) in f.iter_mut().enumerate() {
-                let v = &blocks[i];
-                *fi = z.iter().zip(v).map(|(a, b)| a * b).sum::<f64>() - v[prep.p];
-            }
-            let own = f[labels[r]];
-            let worst = f
-                .iter()
-                .enumerate()
-                .filter(|&(j, _)| j != labels[r])
-                .map(|(_, &v)| v)
-                .fold(f64::NEG_INFINITY, f64::max);
-            if own - worst < 1.0 - MARGIN_TOL {
-                in_set[r] = true;
-                set.push(r);
-            }
-        }
-        if set.len() == before {
+        let new = violators(prep, labels, modes, &blocks, &in_set);
+        if new.is_empty() {
             return Ok((blocks, stats));
         }
+        for &r in &new {
+            in_set[r] = true;
+        }
+        set.extend_from_slice(&new);
         // Keep row order independent of the discovery order.
         set.sort_unstable();
     }
+}
+
+/// First working set of the simplex, from a cheap classifier whose scale is
+/// matched to the program's:
+///
+/// 1. a softmax fit ([`crate::softmax`]) on at most [`SOFTMAX_SAMPLE`]
+///    points, evenly spaced in row order within each mode (every mode is
+///    present, so the fit is well posed);
+/// 2. the softmax scores are multiplied by the factor `a > 0` that minimises
+///    the program's own objective (hinge terms and, for MSVM, the
+///    regulariser) on that sample, by golden-section search on `ln a` (the
+///    objective is convex in `a`, so unimodal in `ln a`): the softmax
+///    boundaries are about right but its margins are in other units;
+/// 3. the set is every point whose scaled margin (own score minus the best
+///    other) is below [`SCALED_BAND`], i.e. the points the LP/QP will
+///    probably find hinge-active, plus up to `INITIAL_PER_MODE_FACTOR (p + 1)`
+///    points of each mode evenly spaced in row order.
+///
+/// Deterministic; it only affects the speed, not the optimum (the rounds add
+/// every point with non-zero loss).
+fn scaled_softmax_set(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    weight: &[f64],
+    quadratic: bool,
+    stats: &mut SolveStats,
+) -> Result<Vec<usize>, RegionError> {
+    let p = prep.p;
+    // 1. Stratified sample and softmax fit on it.
+    let sample = stratified(labels, &prep.counts, SOFTMAX_SAMPLE / modes.max(1));
+    let (sub, sub_labels) = subsample(prep, labels, modes, &sample);
+    let (wg, steps) = crate::softmax::fit(&sub, &sub_labels, modes)?;
+    stats.newton_steps = steps;
+    let score = |z: &[f64], f: &mut [f64]| {
+        for (fi, v) in f.iter_mut().zip(&wg) {
+            *fi = z.iter().zip(v).map(|(a, b)| a * b).sum::<f64>() - v[p];
+        }
+    };
+    // 2. Scale: margins f_y - f_j of the sample, each hinge term weighted
+    // as in the program, scaled up from the sample to the whole mode.
+    let mut terms: Vec<(f64, f64)> = Vec::with_capacity(sample.len() * (modes - 1));
+    let mut f = vec![0.0; modes];
+    for &r in &sample {
+        let l = labels[r];
+        score(prep.row(r), &mut f);
+        let w = weight[l] * prep.counts[l] as f64 / sub.counts[l] as f64;
+        for j in (0..modes).filter(|&j| j != l) {
+            terms.push((f[l] - f[j], w));
+        }
+    }
+    let norm2: f64 = if quadratic {
+        wg.iter()
+            .map(|v| v[..p].iter().map(|a| a * a).sum::<f64>())
+            .sum()
+    } else {
+        0.0
+    };
+    let objective = |t: f64| -> f64 {
+        let a = t.exp();
+        let hinge: f64 = terms.iter().map(|&(m, w)| w * (1.0 - a * m).max(0.0)).sum();
+        hinge + 0.5 * a * a * norm2
+    };
+    let a = golden_section(objective, SCALE_LN_RANGE.0, SCALE_LN_RANGE.1).exp();
+    // 3. Points of small scaled margin, plus the evenly spaced ones.
+    let scaled: Vec<Vec<f64>> = wg
+        .iter()
+        .map(|v| v.iter().map(|x| a * x).collect())
+        .collect();
+    Ok(small_margin(prep, labels, modes, &scaled, SCALED_BAND))
 }
 
 /// First working set: the points near the boundaries of a softmax fit
@@ -160,6 +331,113 @@ fn initial_set(
         }
     }
     Ok(set)
+}
+
+/// Rows whose margin under the scores `wg` is below `band`, plus up to
+/// `INITIAL_PER_MODE_FACTOR (p + 1)` rows of each mode evenly spaced in row
+/// order.
+fn small_margin(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    wg: &[Vec<f64>],
+    band: f64,
+) -> Vec<usize> {
+    let p = prep.p;
+    let per_mode = INITIAL_PER_MODE_FACTOR * (p + 1);
+    let mut seen = vec![0usize; modes];
+    let mut set = Vec::new();
+    let mut f = vec![0.0; modes];
+    for (r, &l) in labels.iter().enumerate() {
+        let c = prep.counts[l];
+        // take point number k of mode l when floor(k * per_mode / c) advances
+        let k = seen[l];
+        seen[l] += 1;
+        let stride = c <= per_mode || (k * per_mode) / c != ((k + 1) * per_mode) / c;
+        let z = prep.row(r);
+        for (fi, v) in f.iter_mut().zip(wg) {
+            *fi = z.iter().zip(v).map(|(a, b)| a * b).sum::<f64>() - v[p];
+        }
+        let worst = f
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != l)
+            .map(|(_, &v)| v)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if stride || f[l] - worst < band {
+            set.push(r);
+        }
+    }
+    set
+}
+
+/// The rows `sample` of `prep` as a problem of their own, with their labels.
+fn subsample(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    sample: &[usize],
+) -> (Prepared, Vec<usize>) {
+    let mut counts = vec![0usize; modes];
+    for &r in sample {
+        counts[labels[r]] += 1;
+    }
+    let sub = Prepared {
+        z: sample
+            .iter()
+            .flat_map(|&r| prep.row(r).iter().copied())
+            .collect(),
+        n: sample.len(),
+        p: prep.p,
+        cols: prep.cols.clone(),
+        mean: prep.mean.clone(),
+        scale: prep.scale.clone(),
+        counts,
+    };
+    (sub, sample.iter().map(|&r| labels[r]).collect())
+}
+
+/// Up to `per_mode` rows of every mode, evenly spaced in row order (all rows
+/// of a mode with fewer), in increasing row order.
+fn stratified(labels: &[usize], counts: &[usize], per_mode: usize) -> Vec<usize> {
+    let per_mode = per_mode.max(1);
+    let mut seen = vec![0usize; counts.len()];
+    let mut out = Vec::new();
+    for (r, &l) in labels.iter().enumerate() {
+        let c = counts[l];
+        let k = seen[l];
+        seen[l] += 1;
+        if c <= per_mode || (k * per_mode) / c != ((k + 1) * per_mode) / c {
+            out.push(r);
+        }
+    }
+    out
+}
+
+/// Minimiser of a unimodal `g` on `[lo, hi]` by golden-section search
+/// (Kiefer 1953), [`GOLDEN_STEPS`] steps.
+fn golden_section(g: impl Fn(f64) -> f64, lo: f64, hi: f64) -> f64 {
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (lo, hi);
+    let mut x1 = b - r * (b - a);
+    let mut x2 = a + r * (b - a);
+    let (mut g1, mut g2) = (g(x1), g(x2));
+    for _ in 0..GOLDEN_STEPS {
+        if g1 <= g2 {
+            b = x2;
+            x2 = x1;
+            g2 = g1;
+            x1 = b - r * (b - a);
+            g1 = g(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            g1 = g2;
+            x2 = a + r * (b - a);
+            g2 = g(x2);
+        }
+    }
+    if g1 <= g2 { x1 } else { x2 }
 }
 
 /// Builds the LP (MRLP) or QP (MSVM) on the points `set`.
@@ -331,6 +609,101 @@ mod tests {
             assert!(
                 (a - b).abs() <= 1e-6 * (1.0 + b.abs()),
                 "{method}: working set {a} vs full {b}"
+            );
+        }
+    }
+
+    /// Objective of the clarabel solve of the MRLP on all points.
+    fn clarabel_full(prep: &Prepared, labels: &[usize], modes: usize, weight: &[f64]) -> f64 {
+        let all: Vec<usize> = (0..prep.n).collect();
+        let ctx = Context {
+            method: "test",
+            points: prep.n,
+            round: 1,
+        };
+        let full = solver::solve(program(prep, labels, modes, weight, false, &all), &ctx).unwrap();
+        let blocks: Vec<Vec<f64>> = full.x[..modes * (prep.p + 1)]
+            .chunks(prep.p + 1)
+            .map(<[f64]>::to_vec)
+            .collect();
+        objective(prep, labels, weight, false, &blocks)
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+        /// The simplex working-set MRLP reaches the objective of clarabel on
+        /// the full LP: random modes, dimensions, label noise (non-separable
+        /// data) and duplicated points (degenerate vertices).
+        #[test]
+        fn simplex_matches_the_full_lp(
+            modes in 2usize..5,
+            d in 1usize..4,
+            n in 20usize..300,
+            flip in 0.0f64..0.3,
+            dup in proptest::prelude::any::<bool>(),
+            seed in proptest::prelude::any::<u64>(),
+        ) {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let centres: Vec<Vec<f64>> = (0..modes)
+                .map(|_| (0..d).map(|_| rng.random_range(-3.0..3.0)).collect())
+                .collect();
+            let mut x = DMatrix::zeros(n, d);
+            let mut labels = Vec::with_capacity(n);
+            for r in 0..n {
+                if dup && r % 3 == 2 {
+                    for k in 0..d {
+                        x[(r, k)] = x[(r - 1, k)];
+                    }
+                } else {
+                    for k in 0..d {
+                        x[(r, k)] = (rng.random_range(-4.0f64..4.0) * 4.0).round() / 4.0;
+                    }
+                }
+                let row: Vec<f64> = (0..d).map(|k| x[(r, k)]).collect();
+                let mut l = (0..modes)
+                    .min_by(|&a, &b| {
+                        let da: f64 = row.iter().zip(&centres[a]).map(|(u, v)| (u - v) * (u - v)).sum();
+                        let db: f64 = row.iter().zip(&centres[b]).map(|(u, v)| (u - v) * (u - v)).sum();
+                        da.total_cmp(&db)
+                    })
+                    .unwrap();
+                if r < modes {
+                    l = r; // every mode present
+                } else if rng.random::<f64>() < flip {
+                    l = rng.random_range(0..modes);
+                }
+                labels.push(l);
+            }
+            let opts = RegionOptions::default();
+            let prep = crate::prepare(&x, &labels, modes, &opts).unwrap();
+            let weight: Vec<f64> = prep.counts.iter().map(|&c| 1.0 / c as f64).collect();
+            let mut stats = SolveStats::default();
+            let set = scaled_softmax_set(&prep, &labels, modes, &weight, false, &mut stats).unwrap();
+            // The optimum the simplex reaches, unique or not.
+            let mut sx = Simplex::new(&prep, &labels, &weight, modes);
+            let mut set = set;
+            let mut in_set = vec![false; n];
+            for &r in &set {
+                in_set[r] = true;
+            }
+            loop {
+                sx.optimise(&set, 1_000_000).expect("the simplex finishes on small problems");
+                let new = violators(&prep, &labels, modes, &sx.blocks(), &in_set);
+                if new.is_empty() {
+                    break;
+                }
+                for &r in &new {
+                    in_set[r] = true;
+                }
+                set.extend_from_slice(&new);
+                set.sort_unstable();
+            }
+            let blocks = sx.blocks();
+            let a = objective(&prep, &labels, &weight, false, &blocks);
+            let b = clarabel_full(&prep, &labels, modes, &weight);
+            proptest::prop_assert!(
+                (a - b).abs() <= 1e-6 * (1.0 + b.abs()),
+                "simplex {} vs clarabel {}", a, b
             );
         }
     }
