@@ -75,6 +75,7 @@ fn main() {
             regularization: 1e-6,
             min_weight: 1e-8,
             weights: Weights::Confidence,
+            deadline: None,
         };
         let t = Instant::now();
         let fit = procedure::run(
