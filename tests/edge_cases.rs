@@ -306,23 +306,20 @@ fn constant_output_and_collinear_regressors() {
         methods.extend(multi(1.0));
         for (method, extra) in methods {
             let case = format!("{name} [{method}]");
-            match run(name, d, data, method, &extra) {
-                Some(Outcome::Model(m, _)) => {
-                    // The data are reproduced: every mode predicts the
-                    // constant output of the flat record exactly.
-                    if data == &flat && method != "physical" {
-                        for t in thetas(&m) {
-                            let p = t[0] * 3.0 + t[2];
-                            if (p - 3.0).abs() > 1e-6 || t[1].abs() > 1e-6 {
-                                fail(&case, format!("does not reproduce y = 3: {t:?}"));
-                            }
-                        }
+            // Every one of these ends in a model (an error would be a
+            // failure too); on the flat record every mode predicts the
+            // constant output exactly.
+            let m = expect_model(&case, run(name, d, data, method, &extra));
+            if let Some(m) = m
+                && data == &flat
+                && method != "physical"
+            {
+                for t in thetas(&m) {
+                    let p = t[0] * 3.0 + t[2];
+                    if (p - 3.0).abs() > 1e-6 || t[1].abs() > 1e-6 {
+                        fail(&case, format!("does not reproduce y = 3: {t:?}"));
                     }
                 }
-                Some(Outcome::Error(code, line)) => {
-                    eprintln!("{case}: exit {code}: {line}");
-                }
-                None => {}
             }
         }
     }
@@ -389,7 +386,7 @@ fn too_few_samples_too_many_modes_and_bad_settings() {
     expect_error(
         "c larger than N",
         run(
-            "c",
+            "c larger than N",
             d,
             &small,
             "cluster",
@@ -410,24 +407,19 @@ fn too_few_samples_too_many_modes_and_bad_settings() {
         2,
         &["40"],
     );
-    match run(
-        "modes",
-        d,
-        &small,
-        "bounded",
-        &set(&["--modes", "40", "--set", "delta=0.01"]),
-    ) {
-        Some(Outcome::Model(m, _)) => {
-            if thetas(&m).len() > 40 {
-                fail(
-                    "more modes than samples allow [bounded]",
-                    "too many modes".into(),
-                );
-            }
-        }
-        Some(Outcome::Error(c, l)) => eprintln!("more modes [bounded]: exit {c}: {l}"),
-        None => {}
-    }
+    // bounded finds the modes delta calls for, then fails the prior.
+    expect_error(
+        "more modes than samples allow [bounded]",
+        run(
+            "more modes than samples allow",
+            d,
+            &small,
+            "bounded",
+            &set(&["--modes", "40", "--set", "delta=0.01"]),
+        ),
+        1,
+        &["fewer than the prior modes = 40"],
+    );
     for delta in ["0", "-1", "-0", "nan", "inf"] {
         expect_error(
             &format!("delta={delta}"),
@@ -511,12 +503,10 @@ fn a_tiny_time_budget_returns_the_best_model_with_a_status() {
                     fail(&case, format!("status not printed: {err}"));
                 }
             }
-            Some(Outcome::Error(c, l)) => {
-                if !l.contains("time budget") {
-                    fail(&case, format!("exit {c} without naming the budget: {l}"));
-                }
+            Some(Outcome::Error(c, l)) if !l.contains("time budget") => {
+                fail(&case, format!("exit {c} without naming the budget: {l}"));
             }
-            None => {}
+            _ => {}
         }
     }
     report();

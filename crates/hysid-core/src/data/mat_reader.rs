@@ -337,7 +337,7 @@ fn check_matrw_reads(buf: &[u8], origin: usize, le: bool, depth: usize) -> Resul
         let width = match ty {
             1 | 2 | 16 => 1,
             3 | 4 | 17 => 2,
-            5 | 6 | 7 => 4,
+            5..=7 => 4,
             9 | 12 | 13 => 8,
             _ => return Ok(None),
         };
