@@ -4,20 +4,10 @@
 //! that names the problem (file, row, column, option or entry), and no
 //! output file.
 
+mod common;
+
+use common::{hysid, one_line_error, s, write};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn hysid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hysid"))
-        .args(args)
-        .env("CI", "1")
-        .output()
-        .expect("hysid runs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 thread_local! {
     static FAILURES: std::cell::RefCell<Vec<String>> = const { std::cell::RefCell::new(Vec::new()) };
@@ -46,20 +36,7 @@ fn fails(code: i32, args: &[&str], needles: &[&str], out: &Path) {
 }
 
 fn check(code: i32, args: &[&str], needles: &[&str], out: &Path) -> Result<(), String> {
-    let o = hysid(args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    if o.status.code() != Some(code) {
-        return Err(format!(
-            "exit {:?}, expected {code}; stderr: {err}",
-            o.status.code()
-        ));
-    }
-    if err.trim_end().lines().count() != 1
-        || !err.starts_with("hysid: error: ")
-        || err.trim_end().chars().any(char::is_control)
-    {
-        return Err(format!("not a one-line hysid error: {err:?}"));
-    }
+    let err = one_line_error(&hysid(args), code)?;
     for n in needles {
         if !err.contains(n) {
             return Err(format!("message lacks '{n}': {err}"));
@@ -111,12 +88,6 @@ fn good_csv(dir: &Path) -> PathBuf {
     }
     let p = dir.join("data.csv");
     std::fs::write(&p, text).unwrap();
-    p
-}
-
-fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, bytes).unwrap();
     p
 }
 

@@ -1,49 +1,18 @@
 //! End-to-end tests of the `hysid` program: the contract of
 //! `shared/spec/interface.md` (commands, files, exit codes, no partial output).
 
+mod common;
+
+use common::{hysid, ok, one_line_error, s};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn hysid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hysid"))
-        .args(args)
-        .env("CI", "1")
-        .output()
-        .expect("hysid runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = hysid(args);
-    assert!(
-        o.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8(o.stdout).unwrap()
-}
 
 /// Exit code 2, a one-line message containing every `needle`, and no file at `out`.
 fn bad(args: &[&str], needles: &[&str], out: &Path) {
-    let o = hysid(args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "{args:?}: expected exit 2, stderr: {err}"
-    );
-    assert_eq!(
-        err.trim_end().lines().count(),
-        1,
-        "{args:?}: message is not one line: {err}"
-    );
+    let err = one_line_error(&hysid(args), 2).unwrap_or_else(|e| panic!("{args:?}: {e}"));
     for n in needles {
         assert!(err.contains(n), "{args:?}: message lacks '{n}': {err}");
     }
     assert!(!out.exists(), "{args:?}: left an output file behind");
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 /// A record from the ARX model y(k) = 0.6 y(k-1) - 0.1 y(k-2) + 0.8 u(k-1) + 0.3 u(k-2) + 0.2,

@@ -1,27 +1,18 @@
 //! Determinism (issue 8, item 7): the same inputs and seed give
 //! byte-identical files, across runs and across thread counts.
 
+mod common;
+
+use common::{ok_env, s};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+/// Runs `hysid` (asserting success) with `RAYON_NUM_THREADS` set when asked.
 fn hysid(args: &[&str], threads: Option<&str>) -> String {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_hysid"));
-    c.args(args).env("CI", "1");
-    if let Some(t) = threads {
-        c.env("RAYON_NUM_THREADS", t);
+    match threads {
+        Some(t) => ok_env(args, &[("RAYON_NUM_THREADS", t)]),
+        None => ok_env(args, &[]),
     }
-    let o = c.output().expect("hysid runs");
-    assert!(
-        o.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8(o.stdout).unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 /// A two-mode PWARX record (switching on the sign of y(k-1)), written by

@@ -94,12 +94,25 @@ impl Identifier for Arx {
             e[(r, j)] = 1.0;
             f[r] = *value;
         }
+        // Equilibrate: unit-norm columns, so that a record in 1e-12 or 1e12
+        // units is solved as accurately as one in units (the constant
+        // column is always of order 1). A change of variables: the
+        // objective, the constraints and a full-rank solution are the same.
+        let mut scale = vec![1.0; p];
+        for (j, d) in scale.iter_mut().enumerate() {
+            let c = phi.column(j).norm();
+            if c.is_finite() && c > 0.0 {
+                *d = c;
+                phi.column_mut(j).unscale_mut(c);
+                e.column_mut(j).unscale_mut(c);
+            }
+        }
         let sol =
             linalg::lstsq_equality(&phi, &y, &e, &f).map_err(|err| IdentifyError::Failed {
                 method: "arx".into(),
                 message: format!("least squares failed: {err}"),
             })?;
-        let mut theta: Vec<f64> = sol.theta.iter().copied().collect();
+        let mut theta: Vec<f64> = sol.theta.iter().zip(&scale).map(|(t, d)| t / d).collect();
         // Fixed values come back exactly as given.
         for (name, value) in &priors.fixed {
             let j = names.iter().position(|n| n == name).expect("names checked");

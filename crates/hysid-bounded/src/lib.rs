@@ -398,6 +398,14 @@ impl Identifier for Bounded {
         dg.insert("partition_complete".into(), part.complete.into());
         if c.stopped_by_deadline {
             dg.insert("stopped_by_deadline".into(), true.into());
+            dg.insert(
+                "status".into(),
+                format!(
+                    "time budget reached after {} mode extraction(s) and {} refinement round(s): the modes found by then",
+                    c.greedy_modes, c.rounds
+                )
+                .into(),
+            );
         }
         let pwarx = PwarxModel {
             na: spec.na,

@@ -299,13 +299,30 @@ pub fn weighted_kmeans(
     init: KmeansInit,
     rng: &mut ChaCha8Rng,
 ) -> Clusters {
+    weighted_kmeans_until(f, s, restarts, max_iter, init, rng, None)
+}
+
+/// [`weighted_kmeans`] that starts no restart after `deadline` (the first
+/// always runs); `restart_costs` of the result lists the restarts run.
+pub fn weighted_kmeans_until(
+    f: &FeatureVectors,
+    s: usize,
+    restarts: usize,
+    max_iter: usize,
+    init: KmeansInit,
+    rng: &mut ChaCha8Rng,
+    deadline: Option<std::time::Instant>,
+) -> Clusters {
     let n = f.n_samples;
     let d = f.dim();
     let av = weighted_features(f);
     let mut best: Option<Clusters> = None;
     let mut restart_costs = Vec::with_capacity(restarts.max(1));
     let mut labels = vec![0usize; n];
-    for _ in 0..restarts.max(1) {
+    for r in 0..restarts.max(1) {
+        if r > 0 && deadline.is_some_and(|t| std::time::Instant::now() >= t) {
+            break;
+        }
         let mut centres = vec![0.0; s * d];
         match init {
             KmeansInit::Blocks => {

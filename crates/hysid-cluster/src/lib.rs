@@ -174,7 +174,7 @@ impl Identifier for Cluster {
     ) -> Result<Model, IdentifyError> {
         let priors = problem.priors;
         match (priors.modes, priors.max_modes) {
-            (Some(s), _) => identify_with(problem, options, s, ctx.seed),
+            (Some(s), _) => identify_with(problem, options, s, ctx.seed, ctx.deadline),
             (None, Some(max)) => choose_modes(problem, options, max, ctx),
             (None, None) => Err(IdentifyError::BadData(
                 "method 'cluster' needs the number of modes: give the prior `modes = S` (or `max_modes = S` \
@@ -245,12 +245,14 @@ fn check_options(o: &ClusterOptions) -> Result<(), IdentifyError> {
 /// units: a PWARX model, or, with `[[saturation]]` priors, the hybrid
 /// automaton of `HybridAutomaton::from_pwarx_with_stops` whose `s - stops`
 /// ordinary modes are identified here (`s` counts every mode, as the prior
-/// `modes` does).
+/// `modes` does). No K-means restart starts after `deadline` (the model
+/// then records the restarts run in `status`).
 pub fn identify_with(
     problem: &Problem<'_>,
     o: &ClusterOptions,
     s: usize,
     seed: u64,
+    deadline: Option<std::time::Instant>,
 ) -> Result<Model, IdentifyError> {
     check_options(o)?;
     if s == 0 {
@@ -331,6 +333,13 @@ pub fn identify_with(
             n + 2
         )));
     }
+    if c > big_n && o.c.is_none() {
+        return Err(bad(format!(
+            "{big_n} samples (regressors) are too few: method 'cluster' needs local datasets of at \
+             least n+2 = {} samples (n = {n} parameters besides the constant; automatic c = {c})",
+            n + 2
+        )));
+    }
     if c > big_n {
         return Err(bad(format!(
             "--set c={c}: larger than the {big_n} regressors of the data{}",
@@ -389,6 +398,7 @@ pub fn identify_with(
         regularization: o.regularization,
         min_weight: o.min_weight,
         weights: o.weights,
+        deadline,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let fit =
@@ -491,6 +501,17 @@ pub fn identify_with(
     put("degenerate_flat_scatter", d.degenerate.flat_scatter.into());
     put("kmeans_cost", d.kmeans_cost.into());
     put("kmeans_restart_costs", serde_json::json!(d.restart_costs));
+    if o.clustering == Clustering::Kmeans && d.restart_costs.len() < o.restarts {
+        put(
+            "status",
+            format!(
+                "time budget reached after {} of {} K-means restarts: the best clustering found by then",
+                d.restart_costs.len(),
+                o.restarts
+            )
+            .into(),
+        );
+    }
     put("kmeans_iterations", d.kmeans_iterations.into());
     put("kmeans_converged", d.kmeans_converged.into());
     put("discard_size", d.discard_size.into());
@@ -594,7 +615,7 @@ fn choose_modes(
                 "no mode count in 1..={max} could be identified and simulated on the hold-out part"
             ),
         })?;
-    let mut model = identify_with(problem, o, best.modes, ctx.seed)?;
+    let mut model = identify_with(problem, o, best.modes, ctx.seed, ctx.deadline)?;
     model.info_mut().diagnostics.insert(
         "mode_choice".into(),
         serde_json::json!(

@@ -57,6 +57,8 @@ pub struct Settings {
     pub min_weight: f64,
     /// Weights of the per-mode least squares.
     pub weights: Weights,
+    /// No K-means restart starts after this instant (time budget).
+    pub deadline: Option<std::time::Instant>,
 }
 
 /// What the procedure found, in working units.
@@ -273,9 +275,9 @@ pub fn run_with(
     let big_n = y.len();
     let f = local::feature_vectors(x, n, y, s.c, s.features, s.regularization);
     let clusters: Clusters = match s.clustering {
-        Clustering::Kmeans => {
-            kmeans::weighted_kmeans(&f, s.modes, s.restarts, s.max_iter, s.init, rng)
-        }
+        Clustering::Kmeans => kmeans::weighted_kmeans_until(
+            &f, s.modes, s.restarts, s.max_iter, s.init, rng, s.deadline,
+        ),
         Clustering::SingleLinkage => kmeans::single_linkage(&f, s.modes, s.sl_distance),
     };
     let discard_size = if s.discard > 0.0 {

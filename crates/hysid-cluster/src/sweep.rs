@@ -68,7 +68,7 @@ pub fn sweep(
                 report: None,
                 error: None,
             };
-            match identify_with(problem, &opts, s, ctx.seed) {
+            match identify_with(problem, &opts, s, ctx.seed, ctx.deadline) {
                 Ok(model) => {
                     point.modes_found = Some(model.mode_count());
                     point.c = model

@@ -580,6 +580,9 @@ pub fn fit_mechanical(
         ex_deadline.map(|t| t.saturating_duration_since(Instant::now()))
     };
 
+    // The stage during which the time budget ran out, if it did.
+    let past_deadline = || ctx.deadline.is_some_and(|t| Instant::now() >= t);
+    let mut cut_short: Option<&str> = None;
     let mut best_z = nominal_z.clone();
     let mut swarm_cost = None;
     let mut segmented_cost = None;
@@ -601,6 +604,9 @@ pub fn fit_mechanical(
             .run()
             .map_err(|e| failed(format!("particle swarm: {e}")))?;
         ctx.progress.finish();
+        if past_deadline() {
+            cut_short.get_or_insert("particle swarm");
+        }
         if let Some(p) = res.state().get_best_param() {
             let c = p.cost;
             swarm_cost = Some(c);
@@ -699,9 +705,13 @@ pub fn fit_mechanical(
                     stage_cost = c;
                     stage_z = z;
                 }
+                if past_deadline() {
+                    cut_short.get_or_insert("Levenberg-Marquardt");
+                }
             }
             for _ in 0..options.restarts {
-                if ctx.deadline.is_some_and(|t| Instant::now() >= t) {
+                if past_deadline() {
+                    cut_short.get_or_insert("Nelder-Mead");
                     break;
                 }
                 let mut simplex = vec![stage_z.clone()];
@@ -724,6 +734,9 @@ pub fn fit_mechanical(
                     ex = ex.timeout(t);
                 }
                 let res = ex.run().map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
+                if past_deadline() {
+                    cut_short.get_or_insert("Nelder-Mead");
+                }
                 let st = res.state();
                 if let Some(p) = st.get_best_param() {
                     let z: Vec<f64> = p.iter().map(|x| x.clamp(0.0, 1.0)).collect();
@@ -781,6 +794,14 @@ pub fn fit_mechanical(
         diag.insert("segment".into(), json!(options.segment));
     }
     diag.insert("evaluations".into(), json!(n_eval));
+    if let Some(stage) = cut_short {
+        diag.insert(
+            "status".into(),
+            json!(format!(
+                "time budget reached during the {stage} stage after {n_eval} simulations: best parameters found by then"
+            )),
+        );
+    }
     diag.insert("noise_estimate".into(), json!(tols.noise));
     diag.insert("samples".into(), json!(data.len()));
     diag.insert("free_parameters".into(), json!(d));

@@ -110,5 +110,14 @@ pub fn run(args: Args) -> Result<()> {
         elapsed.as_secs_f64(),
         args.out.display()
     );
+    // A run cut short by --time-budget (or stopped otherwise) says so.
+    if let Some(status) = model
+        .info()
+        .diagnostics
+        .get("status")
+        .and_then(|s| s.as_str())
+    {
+        eprintln!("hysid: {}: {status}", backend.name());
+    }
     Ok(())
 }

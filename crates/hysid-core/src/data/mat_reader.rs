@@ -42,6 +42,16 @@ pub(crate) fn read_bytes(
             format!("not a readable level-5 MAT-file: {m}"),
         )
     })?;
+    // matrw also wanders: binrw checks a variable's type only after reading
+    // all its fields, and tries nine variable kinds at each position, so it
+    // reads names and data at places no declared size leads to (the fifth
+    // out-of-memory input from fuzzing). Check every read it could reach.
+    check_matrw_reads(&bytes[128..], 128, little_endian, 0).map_err(|m| {
+        perr(
+            String::new(),
+            format!("not a readable level-5 MAT-file: {m}"),
+        )
+    })?;
     // matrw is a third-party parser: a malformed file must still end in an
     // error, never in a crash of the caller.
     let parsed = guarded(|| matrw::load_matfile_from_u8(bytes))
@@ -226,6 +236,198 @@ fn check_sequence(buf: &[u8], base: usize, le: bool, count: usize) -> Result<(),
         pos = (pos + 8 + n).next_multiple_of(8).min(buf.len());
     }
     Ok(())
+}
+
+/// Nesting depth of compressed elements followed by [`check_matrw_reads`].
+const MAX_COMPRESSED_DEPTH: usize = 4;
+
+/// Checks that no read `matrw` 0.1.4 could make in `buf` (the bytes after
+/// the header, or an inflated miCOMPRESSED element) reserves more memory
+/// than there are bytes left.
+///
+/// matrw (through binrw) reserves the declared byte count of a `Vec<u8>`
+/// before reading it: an array name (`miINT8`, normal format) and `miUINT8`
+/// or `miUTF8` array data. Every such read follows an array-flags
+/// sub-element (`miUINT32`, 8 bytes, a valid class) 8 bytes after the start
+/// of a variable, since all of matrw's variable kinds but "compressed" and
+/// "empty" begin with it. Which positions matrw tries as variables depends on
+/// the contents, so every position with that signature is taken as a
+/// possible variable and the reads that would follow are checked: the name
+/// right after the flags (objects), or dimensions then name then data (one
+/// or two data elements, or sparse row and column indices then data). Other
+/// reads grow their buffers as bytes arrive, so the file bounds them.
+/// Compressed elements matrw may reach are inflated and checked the same
+/// way. Positions are relative to `buf`, which starts at a multiple of 8 of
+/// matrw's stream, as its alignment needs.
+fn check_matrw_reads(buf: &[u8], origin: usize, le: bool, depth: usize) -> Result<(), String> {
+    let at = |i: usize, w: usize| buf.get(i..i.checked_add(w)?);
+    let u16e = |i: usize| {
+        at(i, 2).map(|b| {
+            let b = [b[0], b[1]];
+            if le {
+                u16::from_le_bytes(b)
+            } else {
+                u16::from_be_bytes(b)
+            }
+        })
+    };
+    let u32e = |i: usize| {
+        at(i, 4).map(|b| {
+            let b = [b[0], b[1], b[2], b[3]];
+            if le {
+                u32::from_le_bytes(b)
+            } else {
+                u32::from_be_bytes(b)
+            }
+        })
+    };
+    let byte = |i: usize| buf.get(i).copied();
+    let left = |i: usize| buf.len().saturating_sub(i);
+    let align = |i: usize| i.next_multiple_of(8);
+    // The end of a dimensions element (miINT32, normal then small format) at
+    // `d`, or None when matrw cannot read one there.
+    let dims = |d: usize| -> Option<usize> {
+        if byte(d)? != 5 {
+            return None;
+        }
+        if u16e(d + 2)? == 0 {
+            let n = (u32e(d + 4)? / 4) as usize * 4;
+            if n <= left(d + 8) {
+                return Some(d + 8 + n);
+            }
+        }
+        let n = (u16e(d + 2)? / 4) as usize * 4;
+        (n <= left(d + 4)).then_some(d + 4 + n)
+    };
+    let too_big = |what: &str, i: usize, n: u32| {
+        format!(
+            "the {what} at byte {} declares {n} bytes, only {} remain (truncated or corrupted file)",
+            origin + i,
+            left(i + 8)
+        )
+    };
+    // The end of an array name at `q`; an error if matrw would reserve more
+    // than what is left.
+    let name = |q: usize| -> Result<Option<usize>, String> {
+        if byte(q) != Some(1) {
+            return Ok(None);
+        }
+        // The empty name: a 64-bit 1 whose first byte is the type.
+        if le && at(q, 8) == Some(&[1, 0, 0, 0, 0, 0, 0, 0][..]) {
+            return Ok(Some(q + 1));
+        }
+        if u16e(q + 2) == Some(0)
+            && let Some(n) = u32e(q + 4)
+        {
+            if n as usize > left(q + 8) {
+                return Err(too_big("array name", q, n));
+            }
+            return Ok(Some(q + 8 + (n as usize).max(8)));
+        }
+        Ok(u16e(q + 2)
+            .map(usize::from)
+            .filter(|&n| n <= left(q + 4))
+            .map(|n| q + 4 + n.max(4)))
+    };
+    // The end of an array data element at `r`, same contract. matrw reads
+    // the values little-endian whatever the file says, but the tag in the
+    // file's order.
+    let data = |r: usize| -> Result<Option<usize>, String> {
+        let Some(ty) = byte(r) else { return Ok(None) };
+        let width = match ty {
+            1 | 2 | 16 => 1,
+            3 | 4 | 17 => 2,
+            5..=7 => 4,
+            9 | 12 | 13 => 8,
+            _ => return Ok(None),
+        };
+        if u16e(r + 2) == Some(0)
+            && let Some(n) = u32e(r + 4)
+        {
+            if width == 1 && ty != 1 && n as usize > left(r + 8) {
+                return Err(too_big("array data element", r, n));
+            }
+            let n = n as usize / width * width;
+            if n <= left(r + 8) {
+                return Ok(Some(r + 8 + n));
+            }
+        }
+        Ok(u16e(r + 2)
+            .map(|n| usize::from(n) / width * width)
+            .filter(|&n| n <= left(r + 4))
+            .map(|n| r + 4 + n))
+    };
+    for p in 0..buf.len().saturating_sub(8) {
+        if byte(p) == Some(15)
+            && let Some(n) = u32e(p + 4)
+        {
+            check_compressed_candidate(&buf[p + 8..], n, le, depth, origin + p)?;
+        }
+        let flags = byte(p + 8) == Some(6)
+            && u32e(p + 12) == Some(8)
+            && byte(p + 16).is_some_and(|c| (1..=17).contains(&c));
+        if !flags {
+            continue;
+        }
+        // Objects: name, 8 bytes, class name.
+        if let Some(end) = name(p + 24)? {
+            name(align(end) + 8)?;
+        }
+        // Everything else: dimensions, name, then data.
+        let Some(end) = dims(p + 24) else { continue };
+        let Some(end) = name(align(end))? else {
+            continue;
+        };
+        let r = align(end);
+        if let Some(end) = data(r)? {
+            data(align(end))?;
+        }
+        if let Some(ir) = dims(r)
+            && let Some(jc) = dims(align(ir))
+        {
+            data(align(jc))?;
+        }
+    }
+    Ok(())
+}
+
+/// A miCOMPRESSED variable matrw may find at byte `at` (`body` follows its
+/// tag, which declares `n` bytes): matrw inflates it and parses the result,
+/// so check that too (see [`check_matrw_reads`]). Bodies that do not
+/// inflate make matrw fail (or panic, which the reader catches), nothing to
+/// check there.
+fn check_compressed_candidate(
+    body: &[u8],
+    n: u32,
+    le: bool,
+    depth: usize,
+    at: usize,
+) -> Result<(), String> {
+    use std::io::Read;
+    // A zlib stream starts with a deflate method byte and a header checksum.
+    if body.len() < 2
+        || body[0] & 0x0f != 8
+        || (u16::from(body[0]) << 8 | u16::from(body[1])) % 31 != 0
+    {
+        return Ok(());
+    }
+    let body = &body[..body.len().min(n as usize)];
+    let mut inflated = Vec::new();
+    if flate2::read::ZlibDecoder::new(body)
+        .take(MAX_INFLATED)
+        .read_to_end(&mut inflated)
+        .is_err()
+    {
+        return Ok(());
+    }
+    if depth >= MAX_COMPRESSED_DEPTH {
+        return Err(format!(
+            "compressed elements nested more than {MAX_COMPRESSED_DEPTH} deep at byte {at}"
+        ));
+    }
+    // Offsets inside are counted from the start of the inflated bytes.
+    check_matrw_reads(&inflated, 0, le, depth + 1)
+        .map_err(|e| format!("in the compressed element at byte {at} (inflated): {e}"))
 }
 
 thread_local! {
@@ -421,9 +623,13 @@ mod tests {
         // target mat_reader, libFuzzer out-of-memory).
         // A 649-byte one whose compressed array's data element asks for
         // 3.3 GB, beyond what the array itself declares.
+        // An 881-byte one where matrw, trying its object kinds on an element
+        // of type miUTF32, reads an array name declaring 4.29 GB at a place
+        // no declared size leads to.
         for bytes in [
             &include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-33af7a43")[..],
             &include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-a139648a")[..],
+            &include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-68e4e61d")[..],
         ] {
             let e = crate::data::load_bytes(
                 &bytes[1..],
@@ -438,12 +644,53 @@ mod tests {
                 "{e}"
             );
         }
-        // The real record and matrw's own files pass the check.
+        // The real record and matrw's own files pass both checks.
+        let record = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/pick-and-place/headdata_1v6.mat"
+        );
+        let mut files = vec![std::fs::read(record).unwrap()];
         for compress in [false, true] {
             let p = write(compress, vec![4.0, 5.0, 6.0]);
-            let b = std::fs::read(&p).unwrap();
-            super::check_elements(&b[128..], 128, true, 0).unwrap();
+            files.push(std::fs::read(&p).unwrap());
         }
+        for b in files {
+            super::check_elements(&b[128..], 128, true, 0).unwrap();
+            super::check_matrw_reads(&b[128..], 128, true, 0).unwrap();
+        }
+    }
+
+    #[test]
+    fn reads_matrw_could_reach_are_checked() {
+        // An uncompressed double vector named "y", then the same with its
+        // name declaring 2^32 - 1 bytes, then with its data retyped miUINT8
+        // and declaring 2^32 - 1 bytes, then a zeroed variable tag (matrw
+        // still tries it as an object) in front of a too-long name.
+        let mut ok = Vec::new();
+        let w = |v: &mut Vec<u8>, x: u32| v.extend_from_slice(&x.to_le_bytes());
+        w(&mut ok, 14);
+        w(&mut ok, 56);
+        for x in [6, 8, 6, 0, 5, 8, 1, 1, 0x0001_0001, u32::from(b'y'), 9, 8] {
+            w(&mut ok, x);
+        }
+        ok.extend_from_slice(&2.5f64.to_le_bytes());
+        super::check_matrw_reads(&ok, 128, true, 0).unwrap();
+        let mut long_name = ok.clone();
+        long_name[40..44].copy_from_slice(&[1, 0, 0, 0]);
+        long_name[44..48].copy_from_slice(&u32::MAX.to_le_bytes());
+        let e = super::check_matrw_reads(&long_name, 128, true, 0).unwrap_err();
+        assert!(
+            e.starts_with("the array name at byte 168 declares 4294967295 bytes"),
+            "{e}"
+        );
+        let mut long_data = ok.clone();
+        long_data[48] = 2;
+        long_data[52..56].copy_from_slice(&u32::MAX.to_le_bytes());
+        let e = super::check_matrw_reads(&long_data, 128, true, 0).unwrap_err();
+        assert!(e.starts_with("the array data element at byte 176"), "{e}");
+        let mut wanderer = long_name.clone();
+        wanderer[..8].fill(0);
+        assert!(super::check_matrw_reads(&wanderer, 128, true, 0).is_err());
     }
 
     #[test]

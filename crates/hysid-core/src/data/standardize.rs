@@ -21,13 +21,16 @@ impl AffineScale {
         std: 1.0,
     };
 
-    /// Statistics of `v`; a constant signal gets `std = 1`.
+    /// Statistics of `v`; a constant signal gets `std = 1`. Constant means
+    /// a spread below 1e-12 of the signal's magnitude, whatever its units (a
+    /// record in 1e-12 units still varies).
     pub fn of(v: &[f64]) -> Self {
         let n = v.len().max(1) as f64;
         let mean = v.iter().sum::<f64>() / n;
         let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
         let std = var.sqrt();
-        let std = if std > 1e-12 * mean.abs().max(1.0) {
+        let magnitude = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let std = if std > 1e-12 * magnitude && std.is_finite() {
             std
         } else {
             1.0

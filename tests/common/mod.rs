@@ -1,0 +1,70 @@
+//! Helpers shared by the end-to-end tests of the `hysid` program (cli.rs,
+//! bad_input.rs, determinism.rs, edge_cases.rs): each test file uses a
+//! subset.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs `hysid` with `args` (and `CI=1`: no progress bars, no colours).
+pub fn hysid(args: &[&str]) -> Output {
+    hysid_env(args, &[])
+}
+
+/// Same, with extra environment variables.
+pub fn hysid_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_hysid"));
+    c.args(args).env("CI", "1");
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().expect("hysid runs")
+}
+
+/// Runs `hysid`, asserts it succeeded and returns its standard output.
+pub fn ok(args: &[&str]) -> String {
+    ok_env(args, &[])
+}
+
+/// Same, with extra environment variables.
+pub fn ok_env(args: &[&str], env: &[(&str, &str)]) -> String {
+    let o = hysid_env(args, env);
+    assert!(
+        o.status.success(),
+        "{args:?} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8(o.stdout).unwrap()
+}
+
+/// A path as `&str` (test paths are UTF-8).
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Writes `bytes` to `dir/name`.
+pub fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+/// `Ok(message)` when `o` is a failure with exit code `code` and exactly one
+/// `hysid: error: ` line on stderr, free of control characters.
+pub fn one_line_error(o: &Output, code: i32) -> Result<String, String> {
+    let err = String::from_utf8_lossy(&o.stderr);
+    if o.status.code() != Some(code) {
+        return Err(format!(
+            "exit {:?}, expected {code}; stderr: {err}",
+            o.status.code()
+        ));
+    }
+    let line = err.trim_end();
+    if line.lines().count() != 1
+        || !line.starts_with("hysid: error: ")
+        || line.chars().any(char::is_control)
+    {
+        return Err(format!("not a one-line hysid error: {err:?}"));
+    }
+    Ok(line.to_string())
+}
