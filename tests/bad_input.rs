@@ -6,30 +6,14 @@
 
 mod common;
 
-use common::{hysid, one_line_error, s, write};
+use common::{fail, hysid, one_line_error, report, s, write};
 use std::path::{Path, PathBuf};
-
-thread_local! {
-    static FAILURES: std::cell::RefCell<Vec<String>> = const { std::cell::RefCell::new(Vec::new()) };
-}
-
-/// Every case of a test runs; the test then fails listing all that did not
-/// behave.
-fn report() {
-    let f = FAILURES.with(|f| std::mem::take(&mut *f.borrow_mut()));
-    assert!(
-        f.is_empty(),
-        "{} case(s) failed:\n{}",
-        f.len(),
-        f.join("\n")
-    );
-}
 
 /// Exit code `code`, a one-line `hysid: error:` message containing every
 /// `needle`, and no file at `out` (nor a temporary beside it).
 fn fails(code: i32, args: &[&str], needles: &[&str], out: &Path) {
     if let Err(e) = check(code, args, needles, out) {
-        FAILURES.with(|f| f.borrow_mut().push(format!("{args:?}: {e}")));
+        fail(&format!("{args:?}"), e);
         // Keep one failure from hiding the next cases.
         let _ = std::fs::remove_file(out);
     }

@@ -10,28 +10,8 @@
 
 mod common;
 
-use common::{hysid, one_line_error, s, write};
+use common::{fail, hysid, one_line_error, report, s, write};
 use std::path::{Path, PathBuf};
-
-thread_local! {
-    static FAILURES: std::cell::RefCell<Vec<String>> = const { std::cell::RefCell::new(Vec::new()) };
-}
-
-/// Every case of a test runs; the test then fails listing all that did not
-/// behave.
-fn report() {
-    let f = FAILURES.with(|f| std::mem::take(&mut *f.borrow_mut()));
-    assert!(
-        f.is_empty(),
-        "{} case(s) failed:\n{}",
-        f.len(),
-        f.join("\n")
-    );
-}
-
-fn fail(case: &str, why: String) {
-    FAILURES.with(|f| f.borrow_mut().push(format!("{case}: {why}")));
-}
 
 /// What a run ended with.
 enum Outcome {

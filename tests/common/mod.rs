@@ -68,3 +68,24 @@ pub fn one_line_error(o: &Output, code: i32) -> Result<String, String> {
     }
     Ok(line.to_string())
 }
+
+thread_local! {
+    static FAILURES: std::cell::RefCell<Vec<String>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Records a case that did not behave; [`report`] fails the test with all
+/// of them, so one failure never hides the next cases.
+pub fn fail(case: &str, why: String) {
+    FAILURES.with(|f| f.borrow_mut().push(format!("{case}: {why}")));
+}
+
+/// Fails the test listing every case recorded by [`fail`].
+pub fn report() {
+    let f = FAILURES.with(|f| std::mem::take(&mut *f.borrow_mut()));
+    assert!(
+        f.is_empty(),
+        "{} case(s) failed:\n{}",
+        f.len(),
+        f.join("\n")
+    );
+}

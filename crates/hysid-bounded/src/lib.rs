@@ -311,15 +311,7 @@ impl Identifier for Bounded {
     type Options = BoundedOptions;
     const NAME: &'static str = "bounded";
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
-    const HONOURS: &'static [PriorKind] = &[
-        PriorKind::Modes,
-        PriorKind::MaxModes,
-        PriorKind::Saturation,
-        PriorKind::Tie,
-        PriorKind::Fixed,
-        PriorKind::Bounds,
-        PriorKind::Switching,
-    ];
+    const HONOURS: &'static [PriorKind] = PriorKind::ALL;
 
     fn identify(
         &self,

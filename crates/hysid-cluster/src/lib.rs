@@ -156,15 +156,7 @@ impl Identifier for Cluster {
     type Options = ClusterOptions;
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
-    const HONOURS: &'static [PriorKind] = &[
-        PriorKind::Modes,
-        PriorKind::MaxModes,
-        PriorKind::Saturation,
-        PriorKind::Tie,
-        PriorKind::Fixed,
-        PriorKind::Bounds,
-        PriorKind::Switching,
-    ];
+    const HONOURS: &'static [PriorKind] = PriorKind::ALL;
 
     fn identify(
         &self,

@@ -30,6 +30,19 @@ pub enum PriorKind {
     Switching,
 }
 
+impl PriorKind {
+    /// Every kind: what a back-end that honours all priors declares.
+    pub const ALL: &'static [PriorKind] = &[
+        PriorKind::Modes,
+        PriorKind::MaxModes,
+        PriorKind::Saturation,
+        PriorKind::Tie,
+        PriorKind::Fixed,
+        PriorKind::Bounds,
+        PriorKind::Switching,
+    ];
+}
+
 impl fmt::Display for PriorKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
