@@ -124,6 +124,36 @@ fn honours_fixed_ties_and_bounds_and_is_deterministic() {
     assert_eq!(Model::from_json(&a.to_json(), "mem").unwrap(), a);
 }
 
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(6))]
+    /// For random priors: the fixed value comes back unchanged, the tied
+    /// parameters are equal to the last bit, the bounded one stays inside
+    /// its bounds (issue 6's invariants for the `physical` back-end).
+    #[test]
+    fn random_priors_hold_in_the_fitted_model(
+        yc in 8.0f64..17.0,
+        tie in 0usize..3,
+        lo in 400.0f64..850.0, width in 1.0f64..50.0,
+        seed in 1u64..1000,
+    ) {
+        let d = data(400, 7);
+        let pairs = [["d1", "d2"], ["f1", "f2"], ["c1", "c2"]];
+        let tied = pairs[tie];
+        let mut pri = Priors::default();
+        pri.fixed.insert("yc".into(), yc);
+        pri.tie.push(Tie { params: tied.iter().map(|s| s.to_string()).collect() });
+        let bounded = if tied.contains(&"c1") { "ku" } else { "c1" };
+        let (lo, hi) = if bounded == "ku" { (-1.5e5, -1.5e5 + 100.0 * width) } else { (lo, lo + width) };
+        pri.bounds.insert(bounded.into(), [lo, hi]);
+        let m = run(&d, &pri, &[], seed).unwrap();
+        let m = mech(&m);
+        proptest::prop_assert_eq!(value(m, "yc").to_bits(), yc.to_bits());
+        proptest::prop_assert_eq!(value(m, tied[0]).to_bits(), value(m, tied[1]).to_bits());
+        let v = value(m, bounded);
+        proptest::prop_assert!(v >= lo && v <= hi, "{} = {} outside [{}, {}]", bounded, v, lo, hi);
+    }
+}
+
 #[test]
 fn refuses_what_it_cannot_honour() {
     let d = data(300, 4);
