@@ -246,6 +246,31 @@ pub fn identify_with(
     seed: u64,
     deadline: Option<std::time::Instant>,
 ) -> Result<Model, IdentifyError> {
+    identify_labelled(problem, o, s, seed, deadline).map(|l| l.model)
+}
+
+/// What [`identify_labelled`] returns: the model and the mode every
+/// regression row of the record was assigned to.
+#[derive(Debug, Clone)]
+pub struct Labelled {
+    /// The identified model, as [`identify_with`] returns it.
+    pub model: Model,
+    /// Mode of every regression row: ordinary modes `0..k`, then the known
+    /// stops in prior order (`k + stop`), where `k` is the number of
+    /// ordinary modes. Ordinary rows carry the mode of the final
+    /// weighted least squares (the region of the row after the region
+    /// refit, when `region_refit` is on).
+    pub row_labels: Vec<usize>,
+}
+
+/// [`identify_with`], also returning the mode of every regression row.
+pub fn identify_labelled(
+    problem: &Problem<'_>,
+    o: &ClusterOptions,
+    s: usize,
+    seed: u64,
+    deadline: Option<std::time::Instant>,
+) -> Result<Labelled, IdentifyError> {
     check_options(o)?;
     if s == 0 {
         return Err(bad("the number of modes must be at least 1".into()));
@@ -401,8 +426,22 @@ pub fn identify_with(
             }
         })?;
     let modes = fit.theta.len();
+    if modes < s {
+        // `modes = S` is exact (docs/priors.md): a smaller model would drop
+        // the prior silently.
+        return Err(IdentifyError::Failed {
+            method: "cluster".into(),
+            message: format!(
+                "exactly {s_all} modes were asked for, but only {modes} of the {s} clusters kept at least {} \
+                 points (the discard size max(c, discard (n+1)), c = {c}): lower c, set discard=0, or give \
+                 max_modes = {s_all} to allow fewer modes",
+                fit.diagnostics.discard_size
+            ),
+        });
+    }
     let mut theta = fit.theta.clone();
     let mut theta_original = fit.theta_original.clone();
+    let mut labels = fit.labels.clone();
     let mut region_moved = 0;
     let mut holes = None;
     let (regions, accuracy, complete) = if modes == 1 {
@@ -423,7 +462,6 @@ pub fn identify_with(
         if o.region_refit {
             // Mode datasets made consistent with the partition, then the
             // parameters re-estimated on them.
-            let mut labels = fit.labels.clone();
             for (j, l) in labels.iter_mut().enumerate() {
                 let xj = &x[j * n..(j + 1) * n];
                 let r = part
@@ -545,13 +583,19 @@ pub fn identify_with(
             mode.theta = t;
         }
     }
-    if stops > 0 {
-        Ok(Model::HybridAutomaton(
-            HybridAutomaton::from_pwarx_with_stops(&model, &priors.saturation),
+    let mut row_labels: Vec<usize> = stop_of.iter().map(|k| k.map_or(0, |k| modes + k)).collect();
+    for (&row, &l) in keep.iter().zip(&labels) {
+        row_labels[row] = l;
+    }
+    let model = if stops > 0 {
+        Model::HybridAutomaton(HybridAutomaton::from_pwarx_with_stops(
+            &model,
+            &priors.saturation,
         ))
     } else {
-        Ok(Model::Pwarx(model))
-    }
+        Model::Pwarx(model)
+    };
+    Ok(Labelled { model, row_labels })
 }
 
 /// `max_modes` without `modes`: every mode count `1..=max` is identified

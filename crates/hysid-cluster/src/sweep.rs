@@ -18,8 +18,9 @@ pub struct SweepPoint {
     pub c: Option<usize>,
     /// Number of modes asked for.
     pub modes: usize,
-    /// Number of modes of the identified model (discarded clusters make it
-    /// smaller).
+    /// Number of modes of the identified model (the saturation modes
+    /// included; a grid point whose clusters fall below the discard size
+    /// fails instead of returning fewer modes).
     pub modes_found: Option<usize>,
     /// Validation FIT of free-run simulation, percent.
     pub fit_sim: Option<f64>,

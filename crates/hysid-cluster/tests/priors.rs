@@ -3,13 +3,13 @@
 //! known stops (saturated samples assigned to the stop modes, simulation
 //! never passing a stop), and the gain on the stopped test system.
 
-use hysid_cluster::Cluster;
+use hysid_cluster::{Cluster, ClusterOptions, Labelled, identify_labelled};
 use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
 use hysid_core::data::Dataset;
 use hysid_core::metrics::{mode_accuracy, parameter_error, validate};
 use hysid_core::model::{Model, PwarxModel};
 use hysid_core::options::Settings;
-use hysid_core::priors::{Priors, Tie};
+use hysid_core::priors::{Priors, StopBound, Tie};
 use hysid_core::regressors::RegressorSpec;
 use hysid_core::simulate::{SimulationOptions, simulate};
 use hysid_testkit::{Noise, StoppedBenchmark, b1, h3, stopped_head};
@@ -153,11 +153,36 @@ proptest! {
     ) {
         let b = stopped_head(700, hold, if noisy { 0.02 } else { 0.0 }, seed);
         let p = b.priors();
-        let model = run(&b.data, RegressorSpec::new(2, 1, 1), &p, &["restarts=3"]).unwrap();
+        let problem = Problem {
+            data: &b.data,
+            orders: RegressorSpec::new(2, 1, 1),
+            priors: &p,
+            priors_origin: None,
+        };
+        let opts = ClusterOptions { restarts: 3, ..Default::default() };
+        let Labelled { model, row_labels } = identify_labelled(&problem, &opts, 4, 7, None).unwrap();
         prop_assert!(matches!(model, Model::HybridAutomaton(_)));
         prop_assert_eq!(model.mode_count(), 4);
         let d = &model.info().diagnostics;
         let targets = &b.data.y()[2..];
+        // Sample by sample: a target at a stop (within the prior's
+        // tolerance, or beyond it) is in that stop's mode (2 ordinary
+        // modes, then the stops in prior order), every other one in an
+        // ordinary mode.
+        prop_assert_eq!(row_labels.len(), targets.len());
+        for (r, (&l, &y)) in row_labels.iter().zip(targets).enumerate() {
+            let at = p.saturation.iter().position(|st| {
+                let beyond = match st.bound {
+                    StopBound::Max => y > st.level,
+                    StopBound::Min => y < st.level,
+                };
+                beyond || (y - st.level).abs() <= st.tolerance()
+            });
+            match at {
+                Some(k) => prop_assert_eq!(l, 2 + k, "row {} (y = {}) not in stop {}", r, y, k),
+                None => prop_assert!(l < 2, "row {} (y = {}) in stop mode {}", r, y, l),
+            }
+        }
         let want: Vec<usize> = p
             .saturation
             .iter()

@@ -2,7 +2,7 @@
 //! small case counts (each case is a whole identification).
 
 use hysid_cluster::Cluster;
-use hysid_core::backend::{Backend, Problem, RunContext};
+use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
 use hysid_core::data::{Dataset, Signal};
 use hysid_core::metrics::parameter_error;
 use hysid_core::model::{Model, PwarxModel};
@@ -280,7 +280,36 @@ fn option_variants_run() {
         &["weights=capped"],
         &["weights=uniform", "reattribute=false", "discard=0"],
     ] {
-        let m = identify(&ex.data, ex.orders, 3, set);
+        let priors = Priors {
+            modes: Some(3),
+            ..Default::default()
+        };
+        let problem = Problem {
+            data: &ex.data,
+            orders: ex.orders,
+            priors: &priors,
+            priors_origin: None,
+        };
+        // `modes = 3` is exact: three modes, or a model-level failure that
+        // says why (single linkage chains B1 into one large cluster and
+        // singletons below the discard size), never a smaller model.
+        let m = match Cluster.run(
+            &problem,
+            &Settings::parse(set).unwrap(),
+            &RunContext::quiet(7),
+        ) {
+            Ok(Model::Pwarx(m)) => m,
+            Ok(other) => panic!("{set:?}: a {} model", other.kind()),
+            Err(IdentifyError::Failed { message, .. }) if set[0] == "clustering=single_linkage" => {
+                assert!(
+                    message.starts_with("exactly 3 modes were asked for, but only"),
+                    "{set:?}: {message}"
+                );
+                continue;
+            }
+            Err(e) => panic!("{set:?}: {e}"),
+        };
+        assert_eq!(m.modes.len(), 3, "{set:?}");
         Model::Pwarx(m.clone())
             .validate()
             .unwrap_or_else(|e| panic!("{set:?}: {e}"));
