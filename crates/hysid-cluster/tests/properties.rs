@@ -13,7 +13,12 @@ use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-fn identify(data: &Dataset, orders: RegressorSpec, modes: usize, set: &[&str]) -> PwarxModel {
+fn try_identify(
+    data: &Dataset,
+    orders: RegressorSpec,
+    modes: usize,
+    set: &[&str],
+) -> Result<Model, IdentifyError> {
     let priors = Priors {
         modes: Some(modes),
         ..Default::default()
@@ -24,14 +29,15 @@ fn identify(data: &Dataset, orders: RegressorSpec, modes: usize, set: &[&str]) -
         priors: &priors,
         priors_origin: None,
     };
-    match Cluster
-        .run(
-            &problem,
-            &Settings::parse(set).unwrap(),
-            &RunContext::quiet(7),
-        )
-        .unwrap()
-    {
+    Cluster.run(
+        &problem,
+        &Settings::parse(set).unwrap(),
+        &RunContext::quiet(7),
+    )
+}
+
+fn identify(data: &Dataset, orders: RegressorSpec, modes: usize, set: &[&str]) -> PwarxModel {
+    match try_identify(data, orders, modes, set).unwrap() {
         Model::Pwarx(m) => m,
         _ => unreachable!(),
     }
@@ -280,24 +286,10 @@ fn option_variants_run() {
         &["weights=capped"],
         &["weights=uniform", "reattribute=false", "discard=0"],
     ] {
-        let priors = Priors {
-            modes: Some(3),
-            ..Default::default()
-        };
-        let problem = Problem {
-            data: &ex.data,
-            orders: ex.orders,
-            priors: &priors,
-            priors_origin: None,
-        };
         // `modes = 3` is exact: three modes, or a model-level failure that
         // says why (single linkage chains B1 into one large cluster and
         // singletons below the discard size), never a smaller model.
-        let m = match Cluster.run(
-            &problem,
-            &Settings::parse(set).unwrap(),
-            &RunContext::quiet(7),
-        ) {
+        let m = match try_identify(&ex.data, ex.orders, 3, set) {
             Ok(Model::Pwarx(m)) => m,
             Ok(other) => panic!("{set:?}: a {} model", other.kind()),
             Err(IdentifyError::Failed { message, .. }) if set[0] == "clustering=single_linkage" => {
