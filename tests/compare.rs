@@ -127,7 +127,13 @@ fn report_matches_the_models_it_wrote() {
         .collect();
     assert_eq!(
         names,
-        ["plain", "ridge", "two modes", "orders [na=1]", "orders [na=3]"]
+        [
+            "plain",
+            "ridge",
+            "two modes",
+            "orders [na=1]",
+            "orders [na=3]"
+        ]
     );
     for r in results {
         let model = out.join(r["model_file"].as_str().unwrap());
@@ -165,8 +171,14 @@ fn report_matches_the_models_it_wrote() {
         assert!(md.contains(&row), "missing row {row} in\n{md}");
     }
     assert_eq!(results[2]["modes"], 2, "the cluster run has two modes");
-    // The exact model beats the heavily regularised one.
-    assert!(results[0]["report"]["fit_sim"].as_f64() > results[1]["report"]["fit_sim"].as_f64());
+    // On this two-mode record the two-mode model simulates better than ARX.
+    let fit = |k: usize| results[k]["report"]["fit_sim"].as_f64().unwrap();
+    assert!(
+        fit(2) > fit(0) + 5.0,
+        "cluster {} against arx {}",
+        fit(2),
+        fit(0)
+    );
 
     // Every linked figure exists; the two-mode run has a region figure with
     // units from the experiment's labels; the footer says what is there.
@@ -174,9 +186,15 @@ fn report_matches_the_models_it_wrote() {
     for l in &links {
         assert!(out.join(l).is_file(), "{l} is linked but missing");
     }
-    assert!(links.contains(&"plots/two_modes-regions.svg".to_string()), "{links:?}");
+    assert!(
+        links.contains(&"plots/two_modes-regions.svg".to_string()),
+        "{links:?}"
+    );
     assert!(!links.iter().any(|l| l.starts_with("plots/plain-regions")));
-    assert!(links.contains(&"plots/orders-sweep.svg".to_string()), "{links:?}");
+    assert!(
+        links.contains(&"plots/orders-sweep.svg".to_string()),
+        "{links:?}"
+    );
     let mut on_disk: Vec<String> = std::fs::read_dir(out.join("plots"))
         .unwrap()
         .map(|e| format!("plots/{}", e.unwrap().file_name().to_string_lossy()))
@@ -208,7 +226,10 @@ fn compare_off_a_terminal_prints_no_progress_bar() {
     // indicatif draws with carriage returns and its template text; off a
     // terminal nothing of it reaches stderr.
     assert!(!err.contains('\r'), "progress output on stderr: {err:?}");
-    assert!(!err.contains("identifying"), "progress output on stderr: {err:?}");
+    assert!(
+        !err.contains("identifying"),
+        "progress output on stderr: {err:?}"
+    );
     // The only line on stderr is the closing message.
     let lines: Vec<&str> = err.lines().collect();
     assert_eq!(lines.len(), 1, "{err:?}");

@@ -4,9 +4,7 @@
 use crate::{Comparison, RunResult};
 use hysid_core::data::Dataset;
 use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{
-    HybridAutomaton, InitialState, Model, PwarxMode, PwarxModel, TimeDomain,
-};
+use hysid_core::model::{HybridAutomaton, InitialState, Model, PwarxMode, PwarxModel, TimeDomain};
 use hysid_core::regressors::RegressorSpec;
 use hysid_plot::{
     ModeFigure, ModeSequence, RegionFigure, SimulationFigure, SweepFigure, SweepPanel, SweepSeries,
@@ -247,9 +245,7 @@ fn automaton_regions(a: &HybridAutomaton) -> Option<(RegressorSpec, Vec<Polyhedr
     }
     let back = |rows: &[Vec<f64>]| -> Option<Vec<Vec<f64>>> {
         rows.iter()
-            .map(|r| {
-                (r.len() == n + m).then(|| pos.iter().map(|&zi| r[zi]).collect::<Vec<f64>>())
-            })
+            .map(|r| (r.len() == n + m).then(|| pos.iter().map(|&zi| r[zi]).collect::<Vec<f64>>()))
             .collect()
     };
     let regions = a

@@ -57,7 +57,12 @@ fn the_saturation_experiments_expand_and_know_both_stops() {
         .into_iter()
         .find(|j| j.name == "cluster(4 modes, c=40), saturation priors")
         .expect("the section-5 run");
-    let levels: Vec<f64> = with_priors.priors.saturation.iter().map(|s| s.level).collect();
+    let levels: Vec<f64> = with_priors
+        .priors
+        .saturation
+        .iter()
+        .map(|s| s.level)
+        .collect();
     assert_eq!(levels, [0.0, 25.0]);
     assert_eq!(with_priors.priors.modes, Some(4));
 }
