@@ -210,7 +210,7 @@ fn display_mode_names(m: &Model) -> Vec<String> {
                 if q.name == k.to_string() {
                     format!("mode {}", k + 1)
                 } else if let Some(level) = stop_level(&q.invariant) {
-                    format!("{} (stop y = {level})", q.name)
+                    format!("{}: stop y = {level}", q.name)
                 } else {
                     q.name.clone()
                 }
@@ -343,6 +343,14 @@ fn region_figure(c: &Comparison, r: &RunResult, valid: &Dataset) -> Option<Regio
         axes,
         &units,
     );
+    let stops: Vec<f64> = regions.iter().filter_map(stop_level).collect();
+    if !stops.is_empty() {
+        let levels: Vec<String> = stops.iter().map(|l| format!("y(k-1) = {l}")).collect();
+        fig.notes.push(format!(
+            "Stops at {}: beyond a stop no ordinary mode applies (its region ends there), so the grey band past it is the far side of the stop, not a hole.",
+            levels.join(" and ")
+        ));
+    }
     if let Some(f) = model
         .info()
         .diagnostics
