@@ -612,6 +612,64 @@ fn mode_recovery_table(s: &mut String, c: &Comparison) {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use hysid_core::priors::{SaturationPrior, StopBound};
+
+    #[test]
+    fn units_come_from_the_labels() {
+        assert_eq!(unit_of("head position y [mm]"), "mm");
+        assert_eq!(unit_of("motor input u [-]"), "-");
+        assert_eq!(unit_of("output y"), "-");
+        assert_eq!(unit_of("a [b] c [ V ]"), "V");
+        assert_eq!(sweep_key_unit("y [mm]", "delta"), "mm");
+        assert_eq!(sweep_key_unit("y [mm]", "c"), "-");
+    }
+
+    #[test]
+    fn automaton_stops_read_back_as_guard_lines_in_regressor_space() {
+        // na = nb = 2, one input: regressor [y(k-1), y(k-2), u(k-1), u(k-2)].
+        let region =
+            |sign: f64| Polyhedron::from_inequalities(vec![vec![0.0, 0.0, sign, 0.0]], vec![0.0]);
+        let pwarx = PwarxModel {
+            na: 2,
+            nb: 2,
+            inputs: 1,
+            modes: vec![
+                PwarxMode {
+                    theta: vec![1.5, -0.6, 0.2, 0.1, 0.0],
+                    region: region(1.0),
+                    name: None,
+                },
+                PwarxMode {
+                    theta: vec![1.4, -0.5, 0.3, 0.0, 0.0],
+                    region: region(-1.0),
+                    name: None,
+                },
+            ],
+            info: Default::default(),
+        };
+        let stop = SaturationPrior {
+            level: 25.0,
+            bound: StopBound::Max,
+            tol: None,
+        };
+        let a = HybridAutomaton::from_pwarx_with_stops(&pwarx, &[stop]);
+        let (spec, regions) = automaton_regions(&a).expect("ARX-form automaton");
+        assert_eq!((spec.na, spec.nb, spec.inputs), (2, 2, 1));
+        assert_eq!(regions.len(), 3);
+        // The ordinary regions come back in regressor order, with the
+        // allowed side y(k-1) <= 25 added.
+        assert_eq!(regions[0].a[0], vec![0.0, 0.0, 1.0, 0.0]);
+        assert_eq!(regions[0].a[1], vec![1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(regions[0].b, vec![0.0, 25.0]);
+        assert_eq!(regions[1].a[0], vec![0.0, 0.0, -1.0, 0.0]);
+        // The stop is the guard set y(k-1) = 25.
+        assert_eq!(stop_level(&regions[2]), Some(25.0));
+        assert_eq!(stop_level(&regions[0]), None);
+        let names = display_mode_names(&Model::HybridAutomaton(a));
+        assert_eq!(names, ["mode 1", "mode 2", "sat_max_25: stop y = 25"]);
+    }
+
     #[test]
     fn slugs_are_file_names() {
         assert_eq!(super::slug("cluster [c=55]"), "cluster__c_55");
