@@ -21,31 +21,47 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-#[test]
-fn report_matches_the_models_it_wrote() {
-    let dir = tempfile::tempdir().unwrap();
-    let truth = dir.path().join("truth.json");
+/// Runs `hysid` with `CI` unset and stderr a pipe (not a terminal).
+fn hysid_off_terminal(args: &[&str]) -> (i32, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_hysid"))
+        .args(args)
+        .env_remove("CI")
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into(),
+        String::from_utf8_lossy(&o.stderr).into(),
+    )
+}
+
+/// A two-mode PWARX record (switching on the sign of y(k-1)) and a small
+/// experiment on it: two ARX runs, a two-mode cluster run, and a sweep.
+fn small_experiment(dir: &Path) -> std::path::PathBuf {
+    let truth = dir.join("truth.json");
     std::fs::write(
         &truth,
         r#"{"kind":"pwarx","na":2,"nb":1,"inputs":1,
-            "modes":[{"theta":[1.2,-0.5,0.7,0.1],"region":{"a":[],"b":[]}}]}"#,
+            "modes":[{"theta":[1.2,-0.5,0.7,0.1],"region":{"a":[[1,0,0]],"b":[0]}},
+                     {"theta":[0.9,-0.3,1.4,-0.2],"region":{"a":[[-1,0,0]],"b":[0]}}]}"#,
     )
     .unwrap();
-    let data = dir.path().join("data.csv");
+    let data = dir.join("data.csv");
     let (code, _, err) = hysid(&[
         "simulate",
         s(&truth),
         "--excite",
         "n=600,hold=7,low=-1,high=1,ts=0.01",
         "--noise",
-        "0.05",
+        "0.01",
         "--seed",
         "2",
         "-o",
         s(&data),
     ]);
     assert_eq!(code, 0, "{err}");
-    let exp = dir.path().join("exp.toml");
+    let exp = dir.join("exp.toml");
     std::fs::write(
         &exp,
         r#"
@@ -57,6 +73,8 @@ file = "data.csv"
 identification = "0..400"
 validation = "400.."
 warmup = 5
+output_label = "position y [mm]"
+input_label = "drive u [V]"
 [[run]]
 name = "plain"
 method = "arx"
@@ -64,6 +82,11 @@ method = "arx"
 name = "ridge"
 method = "arx"
 set = { ridge = 10.0 }
+[[run]]
+name = "two modes"
+method = "cluster"
+modes = 2
+set = { c = 12 }
 [[sweep]]
 name = "orders"
 method = "arx"
@@ -72,6 +95,23 @@ values = [1, 3]
 "#,
     )
     .unwrap();
+    exp
+}
+
+/// The figure links `(plots/....svg)` of a report.
+fn linked_plots(md: &str) -> Vec<String> {
+    md.split("](")
+        .skip(1)
+        .filter_map(|rest| rest.split_once(')').map(|(link, _)| link.to_string()))
+        .filter(|l| l.starts_with("plots/") && l.ends_with(".svg"))
+        .collect()
+}
+
+#[test]
+fn report_matches_the_models_it_wrote() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = small_experiment(dir.path());
+    let data = dir.path().join("data.csv");
     let out = dir.path().join("out");
     let (code, stdout, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
     assert_eq!(code, 0, "{err}");
@@ -80,14 +120,27 @@ values = [1, 3]
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert_eq!(stdout, md);
     let results = report["results"].as_array().unwrap();
-    assert_eq!(results.len(), 4);
+    assert_eq!(results.len(), 5);
     let names: Vec<&str> = results
         .iter()
         .map(|r| r["name"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["plain", "ridge", "orders [na=1]", "orders [na=3]"]);
+    assert_eq!(
+        names,
+        [
+            "plain",
+            "ridge",
+            "two modes",
+            "orders [na=1]",
+            "orders [na=3]"
+        ]
+    );
     for r in results {
         let model = out.join(r["model_file"].as_str().unwrap());
+        let written: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+        let modes = written["modes"].as_array().unwrap().len();
+        assert_eq!(r["modes"], modes, "modes of {}", r["name"]);
         let (code, v, err) = hysid(&[
             "validate",
             s(&model),
@@ -103,17 +156,84 @@ values = [1, 3]
         for key in ["fit_sim", "rmse_sim", "fit_pred", "coverage", "n"] {
             assert_eq!(v[key], r["report"][key], "{key} of {}", r["name"]);
         }
+        let f = |key: &str| v[key].as_f64().unwrap();
         let row = format!(
-            "| {} | arx | {} | {} | 1 | {:.2} |",
+            "| {} | {} | {} | {} | {modes} | {:.2} | {:.4} | {:.2} | {:.3} |",
             r["name"].as_str().unwrap(),
+            r["method"].as_str().unwrap(),
             r["na"],
             r["nb"],
-            v["fit_sim"].as_f64().unwrap()
+            f("fit_sim"),
+            f("rmse_sim"),
+            f("fit_pred"),
+            f("coverage"),
         );
         assert!(md.contains(&row), "missing row {row} in\n{md}");
     }
-    // The exact model beats the heavily regularised one.
-    assert!(results[0]["report"]["fit_sim"].as_f64() > results[1]["report"]["fit_sim"].as_f64());
+    assert_eq!(results[2]["modes"], 2, "the cluster run has two modes");
+    // On this two-mode record the two-mode model simulates better than ARX.
+    let fit = |k: usize| results[k]["report"]["fit_sim"].as_f64().unwrap();
+    assert!(
+        fit(2) > fit(0) + 5.0,
+        "cluster {} against arx {}",
+        fit(2),
+        fit(0)
+    );
+
+    // Every linked figure exists; the two-mode run has a region figure with
+    // units from the experiment's labels; the footer says what is there.
+    let links = linked_plots(&md);
+    for l in &links {
+        assert!(out.join(l).is_file(), "{l} is linked but missing");
+    }
+    assert!(
+        links.contains(&"plots/two_modes-regions.svg".to_string()),
+        "{links:?}"
+    );
+    assert!(!links.iter().any(|l| l.starts_with("plots/plain-regions")));
+    assert!(
+        links.contains(&"plots/orders-sweep.svg".to_string()),
+        "{links:?}"
+    );
+    let mut on_disk: Vec<String> = std::fs::read_dir(out.join("plots"))
+        .unwrap()
+        .map(|e| format!("plots/{}", e.unwrap().file_name().to_string_lossy()))
+        .collect();
+    on_disk.sort();
+    let mut linked = links.clone();
+    linked.sort();
+    linked.dedup();
+    assert_eq!(linked, on_disk, "every figure written is linked");
+    assert!(
+        md.contains("the 2 sweep points have no figures of their own"),
+        "{md}"
+    );
+    let regions = std::fs::read_to_string(out.join("plots/two_modes-regions.svg")).unwrap();
+    assert!(regions.contains("y(k-1) [mm]"), "output lags in mm");
+    assert!(regions.contains("u(k-1) [V]"), "input lags in V");
+    let sweep = std::fs::read_to_string(out.join("plots/orders-sweep.svg")).unwrap();
+    assert!(sweep.contains("na [-]") && sweep.contains("modes [-]"));
+}
+
+#[test]
+fn compare_off_a_terminal_prints_no_progress_bar() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = small_experiment(dir.path());
+    let out = dir.path().join("out");
+    let (code, stdout, err) = hysid_off_terminal(&["compare", s(&exp), "-o", s(&out)]);
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.starts_with("# small"), "{stdout}");
+    // indicatif draws with carriage returns and its template text; off a
+    // terminal nothing of it reaches stderr.
+    assert!(!err.contains('\r'), "progress output on stderr: {err:?}");
+    assert!(
+        !err.contains("identifying"),
+        "progress output on stderr: {err:?}"
+    );
+    // The only line on stderr is the closing message.
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "{err:?}");
+    assert!(lines[0].starts_with("hysid: report written to "), "{err:?}");
 }
 
 #[test]

@@ -2,7 +2,10 @@
 //! the figures under `plots/` (SVG, `hysid-plot`).
 
 use crate::{Comparison, RunResult};
-use hysid_core::model::Model;
+use hysid_core::data::Dataset;
+use hysid_core::geometry::Polyhedron;
+use hysid_core::model::{HybridAutomaton, InitialState, Model, PwarxMode, PwarxModel, TimeDomain};
+use hysid_core::regressors::RegressorSpec;
 use hysid_plot::{
     ModeFigure, ModeSequence, RegionFigure, SimulationFigure, SweepFigure, SweepPanel, SweepSeries,
 };
@@ -100,7 +103,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
             time,
             time_label,
             sequences: vec![ModeSequence::from_simulation(&r.name, sim)],
-            mode_names: r.model.as_ref().map(|m| m.mode_names()).unwrap_or_default(),
+            mode_names: r.model.as_ref().map(display_mode_names).unwrap_or_default(),
             mark_mismatch: false,
         };
         let p = dir.join(format!("plots/{slug}-modes.svg"));
@@ -109,35 +112,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
         all = all.with_simulation(format!("{}{fit}", r.name), sim);
         // Classified validation regressors with the region boundaries (the
         // founding paper's Figs. 6 and 11), in the plane y(k-1), u(k-1).
-        if let Some(Model::Pwarx(m)) = &r.model
-            && m.modes.len() > 1
-            && m.spec().dim() >= 2
-            && let Ok(reg) = m.spec().build(valid)
-        {
-            let labels = (0..reg.len())
-                .map(|i| {
-                    Some(
-                        m.mode_of(reg.x.row(i).iter().copied().collect::<Vec<_>>().as_slice())
-                            .mode,
-                    )
-                })
-                .collect();
-            let axes = if m.na >= 1 && m.nb >= 1 {
-                (0, m.na)
-            } else {
-                (0, 1)
-            };
-            let fig = RegionFigure::from_model(
-                format!(
-                    "{}: validation regressors by mode, regions sliced at the mean",
-                    r.name
-                ),
-                m,
-                &reg,
-                labels,
-                axes,
-                &[],
-            );
+        if let Some(fig) = region_figure(c, r, valid) {
             let p = dir.join(format!("plots/{slug}-regions.svg"));
             hysid_plot::regions_plot(&p, &fig).map_err(plot_err)?;
             written.push(p);
@@ -162,7 +137,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
             .iter()
             .filter(|r| r.sweep.as_ref().is_some_and(|s| s.sweep == name))
             .collect();
-        let Some(fig) = sweep_figure(name, &points) else {
+        let Some(fig) = sweep_figure(c, name, &points) else {
             continue;
         };
         let p = dir.join(format!("plots/{}-sweep.svg", slug(name)));
@@ -172,9 +147,228 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
     Ok(written)
 }
 
+/// The unit in the last `[...]` of an axis label (`"head position y [mm]"`
+/// gives `"mm"`), or `"-"` when there is none.
+pub fn unit_of(label: &str) -> String {
+    label
+        .rfind('[')
+        .and_then(|a| {
+            let rest = &label[a + 1..];
+            rest.find(']').map(|b| rest[..b].trim().to_string())
+        })
+        .filter(|u| !u.is_empty())
+        .unwrap_or_else(|| "-".into())
+}
+
+/// The unit of every regressor of `spec`: output lags in the unit of the
+/// experiment's output label, input lags in that of its input label.
+fn regressor_units(c: &Comparison, spec: &RegressorSpec) -> Vec<String> {
+    let (y, u) = (unit_of(&c.output_label), unit_of(&c.input_label));
+    (0..spec.dim())
+        .map(|k| if k < spec.na { y.clone() } else { u.clone() })
+        .collect()
+}
+
+/// The unit of a swept key: `delta` (the bounded error bound) is in output
+/// units; the other keys (`c`, `modes`, orders, ...) are numbers.
+fn sweep_key_unit(c_output_label: &str, key: &str) -> String {
+    match key {
+        "delta" => unit_of(c_output_label),
+        _ => "-".into(),
+    }
+}
+
+/// The level of a stop mode: an invariant that is the single equality
+/// `y = level` on the first coordinate (as built by
+/// `HybridAutomaton::from_pwarx_with_stops`).
+fn stop_level(p: &Polyhedron) -> Option<f64> {
+    if p.a_eq.len() != 1 || !p.a.is_empty() {
+        return None;
+    }
+    let row = &p.a_eq[0];
+    let c = *row.first()?;
+    (c != 0.0 && row[1..].iter().all(|&v| v == 0.0)).then(|| p.b_eq[0] / c)
+}
+
+/// Mode names as the figures show them, the same in the mode-sequence and
+/// the region plots: unnamed PWARX modes (and the index names an automaton
+/// made from a PWARX model carries) are `mode 1`, `mode 2`, ...; a stop of
+/// an automaton says its level; other names are the model's.
+fn display_mode_names(m: &Model) -> Vec<String> {
+    match m {
+        Model::Pwarx(p) => p
+            .modes
+            .iter()
+            .enumerate()
+            .map(|(k, q)| q.name.clone().unwrap_or_else(|| format!("mode {}", k + 1)))
+            .collect(),
+        Model::HybridAutomaton(a) => a
+            .modes
+            .iter()
+            .enumerate()
+            .map(|(k, q)| {
+                if q.name == k.to_string() {
+                    format!("mode {}", k + 1)
+                } else if let Some(level) = stop_level(&q.invariant) {
+                    format!("{}: stop y = {level}", q.name)
+                } else {
+                    q.name.clone()
+                }
+            })
+            .collect(),
+        Model::Mechanical(_) => m.mode_names(),
+    }
+}
+
+/// A discrete-time automaton in ARX form (as built from a PWARX model,
+/// with or without stops) read back in PWARX regressor coordinates: the
+/// invariants of its modes as regions (a stop becomes the guard set
+/// `y(k-1) = level`), its orders and input count. `None` for any other
+/// automaton.
+fn automaton_regions(a: &HybridAutomaton) -> Option<(RegressorSpec, Vec<Polyhedron>)> {
+    let InitialState::ArxHistory { na, nb } = a.initial_state else {
+        return None;
+    };
+    let m = a.inputs.len();
+    let nu = nb.saturating_sub(1);
+    if a.time != TimeDomain::Discrete || na == 0 || a.states.len() != na + nu * m {
+        return None;
+    }
+    let n = na + nu * m;
+    // Position in z = [x(k-1); u(k-1)] of each regressor entry of y(k)
+    // (the inverse of the map in `HybridAutomaton::from_pwarx`).
+    let mut pos: Vec<usize> = (0..na).collect();
+    for i in 0..m {
+        for j in 1..=nb {
+            pos.push(if j == 1 { n + i } else { na + i * nu + (j - 2) });
+        }
+    }
+    let back = |rows: &[Vec<f64>]| -> Option<Vec<Vec<f64>>> {
+        rows.iter()
+            .map(|r| (r.len() == n + m).then(|| pos.iter().map(|&zi| r[zi]).collect::<Vec<f64>>()))
+            .collect()
+    };
+    let regions = a
+        .modes
+        .iter()
+        .map(|q| {
+            Some(Polyhedron {
+                a: back(&q.invariant.a)?,
+                b: q.invariant.b.clone(),
+                a_eq: back(&q.invariant.a_eq)?,
+                b_eq: q.invariant.b_eq.clone(),
+            })
+        })
+        .collect::<Option<Vec<_>>>()?;
+    Some((RegressorSpec::new(na, nb, m), regions))
+}
+
+/// The region figure of a `[[run]]`: the validation regressors coloured by
+/// mode and the regions sliced in the plane `y(k-1)`, `u(k-1)` (the other
+/// coordinates at their means), for a PWARX model with two or more modes
+/// and for an automaton in ARX form (ordinary modes as regions, stops as
+/// the lines `y(k-1) = level`). `None` when there is nothing to draw.
+fn region_figure(c: &Comparison, r: &RunResult, valid: &Dataset) -> Option<RegionFigure> {
+    if r.sweep.is_some() || r.simulation.is_none() {
+        return None;
+    }
+    let model = r.model.as_ref()?;
+    let names = display_mode_names(model);
+    // The model's regions as a PWARX model (theta unused by the figure).
+    let (spec, regions) = match model {
+        Model::Pwarx(m) if m.modes.len() > 1 => (
+            m.spec(),
+            m.modes.iter().map(|q| q.region.clone()).collect::<Vec<_>>(),
+        ),
+        Model::HybridAutomaton(a) if a.modes.len() > 1 => automaton_regions(a)?,
+        _ => return None,
+    };
+    if spec.dim() < 2 {
+        return None;
+    }
+    let shape = PwarxModel {
+        na: spec.na,
+        nb: spec.nb,
+        inputs: spec.inputs,
+        modes: regions
+            .iter()
+            .zip(&names)
+            .map(|(region, name)| PwarxMode {
+                theta: vec![0.0; spec.dim() + 1],
+                region: region.clone(),
+                name: Some(name.clone()),
+            })
+            .collect(),
+        info: Default::default(),
+    };
+    let reg = spec.build(valid).ok()?;
+    let labels = (0..reg.len())
+        .map(|i| {
+            let x: Vec<f64> = reg.x.row(i).iter().copied().collect();
+            match model {
+                Model::Pwarx(m) => Some(m.mode_of(&x).mode),
+                // The first full-dimensional region holding the point, else
+                // the mode it violates least (a point at or past a stop).
+                _ => regions
+                    .iter()
+                    .position(|p| p.a_eq.is_empty() && p.contains(&x))
+                    .or_else(|| {
+                        regions
+                            .iter()
+                            .map(|p| p.violation(&x))
+                            .enumerate()
+                            .min_by(|a, b| a.1.total_cmp(&b.1))
+                            .map(|(k, _)| k)
+                    }),
+            }
+        })
+        .collect();
+    let axes = if spec.nb >= 1 && spec.inputs >= 1 {
+        (0, spec.na)
+    } else {
+        (0, 1)
+    };
+    let units = regressor_units(c, &spec);
+    let units: Vec<&str> = units.iter().map(String::as_str).collect();
+    let what = if matches!(model, Model::HybridAutomaton(_)) {
+        "validation regressors by mode, regions and stops sliced at the mean"
+    } else {
+        "validation regressors by mode, regions sliced at the mean"
+    };
+    let mut fig = RegionFigure::from_model(
+        format!("{}: {what}", r.name),
+        &shape,
+        &reg,
+        labels,
+        axes,
+        &units,
+    );
+    let stops: Vec<f64> = regions.iter().filter_map(stop_level).collect();
+    if !stops.is_empty() {
+        let levels: Vec<String> = stops.iter().map(|l| format!("y(k-1) = {l}")).collect();
+        fig.notes.push(format!(
+            "Stops at {}: beyond a stop no ordinary mode applies (its region ends there), so the grey band past it is the far side of the stop, not a hole.",
+            levels.join(" and ")
+        ));
+    }
+    if let Some(f) = model
+        .info()
+        .diagnostics
+        .get("uncovered_fraction_of_data_box")
+        .and_then(|v| v.as_f64())
+    {
+        fig.notes.push(format!(
+            "The report's {:.2} % in no region is over the box of the identification regressors in all {} coordinates, not this plane.",
+            100.0 * f,
+            spec.dim()
+        ));
+    }
+    Some(fig)
+}
+
 /// fit_sim and modes against the first varied key (numeric values only),
 /// one series per combination of the other keys.
-fn sweep_figure(name: &str, points: &[&RunResult]) -> Option<SweepFigure> {
+fn sweep_figure(c: &Comparison, name: &str, points: &[&RunResult]) -> Option<SweepFigure> {
     let first = points.first()?.sweep.as_ref()?;
     let x_key = first.values.first()?.0.clone();
     let mut fit: Vec<SweepSeries> = Vec::new();
@@ -209,7 +403,7 @@ fn sweep_figure(name: &str, points: &[&RunResult]) -> Option<SweepFigure> {
     }
     Some(SweepFigure {
         title: format!("{name}: validation simulation FIT and modes against {x_key}"),
-        x_label: x_key,
+        x_label: format!("{x_key} [{}]", sweep_key_unit(&c.output_label, &x_key)),
         panels: vec![
             SweepPanel {
                 y_label: "fit_sim [%]".into(),
@@ -217,7 +411,7 @@ fn sweep_figure(name: &str, points: &[&RunResult]) -> Option<SweepFigure> {
                 integer_y: false,
             },
             SweepPanel {
-                y_label: "modes".into(),
+                y_label: "modes [-]".into(),
                 series: modes,
                 integer_y: true,
             },
@@ -298,6 +492,7 @@ pub fn markdown(c: &Comparison) -> String {
             figs.push(format!("- sweep {}: [{f}]({f})", sw.sweep));
         }
     }
+    let mut with_regions = 0;
     for r in c
         .results
         .iter()
@@ -305,13 +500,41 @@ pub fn markdown(c: &Comparison) -> String {
     {
         let f = format!("plots/{}-simulation.svg", slug(&r.name));
         let m = format!("plots/{}-modes.svg", slug(&r.name));
-        figs.push(format!("- {}: [{f}]({f}), [{m}]({m})", r.name));
+        let mut line = format!("- {}: [{f}]({f}), [{m}]({m})", r.name);
+        if c.validation
+            .as_ref()
+            .is_some_and(|v| region_figure(c, r, v).is_some())
+        {
+            let g = format!("plots/{}-regions.svg", slug(&r.name));
+            let _ = write!(line, ", [{g}]({g})");
+            with_regions += 1;
+        }
+        figs.push(line);
     }
     if !figs.is_empty() {
-        let _ = writeln!(
-            s,
-            "\nFigures (every run, sweep points included, has its simulation and mode figures under plots/):\n"
+        let runs = c.results.iter().filter(|r| r.sweep.is_none()).count();
+        let drawn = c
+            .results
+            .iter()
+            .filter(|r| r.simulation.is_some() && r.sweep.is_none())
+            .count();
+        let points = c.results.len() - runs;
+        let mut what = format!(
+            "\nFigures (under plots/): the simulation and the mode sequence of each of the {drawn} of {runs} `[[run]]` entries that produced a validation simulation"
         );
+        if with_regions > 0 {
+            let _ = write!(
+                what,
+                ", and the regions of the {with_regions} with a region partition to draw (PWARX with two or more modes, automata with stops)"
+            );
+        }
+        if points > 0 {
+            let _ = write!(
+                what,
+                "; the {points} sweep points have no figures of their own, only one FIT and mode-count figure per sweep"
+            );
+        }
+        let _ = writeln!(s, "{what}:\n");
         for f in figs {
             let _ = writeln!(s, "{f}");
         }
@@ -389,6 +612,64 @@ fn mode_recovery_table(s: &mut String, c: &Comparison) {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use hysid_core::priors::{SaturationPrior, StopBound};
+
+    #[test]
+    fn units_come_from_the_labels() {
+        assert_eq!(unit_of("head position y [mm]"), "mm");
+        assert_eq!(unit_of("motor input u [-]"), "-");
+        assert_eq!(unit_of("output y"), "-");
+        assert_eq!(unit_of("a [b] c [ V ]"), "V");
+        assert_eq!(sweep_key_unit("y [mm]", "delta"), "mm");
+        assert_eq!(sweep_key_unit("y [mm]", "c"), "-");
+    }
+
+    #[test]
+    fn automaton_stops_read_back_as_guard_lines_in_regressor_space() {
+        // na = nb = 2, one input: regressor [y(k-1), y(k-2), u(k-1), u(k-2)].
+        let region =
+            |sign: f64| Polyhedron::from_inequalities(vec![vec![0.0, 0.0, sign, 0.0]], vec![0.0]);
+        let pwarx = PwarxModel {
+            na: 2,
+            nb: 2,
+            inputs: 1,
+            modes: vec![
+                PwarxMode {
+                    theta: vec![1.5, -0.6, 0.2, 0.1, 0.0],
+                    region: region(1.0),
+                    name: None,
+                },
+                PwarxMode {
+                    theta: vec![1.4, -0.5, 0.3, 0.0, 0.0],
+                    region: region(-1.0),
+                    name: None,
+                },
+            ],
+            info: Default::default(),
+        };
+        let stop = SaturationPrior {
+            level: 25.0,
+            bound: StopBound::Max,
+            tol: None,
+        };
+        let a = HybridAutomaton::from_pwarx_with_stops(&pwarx, &[stop]);
+        let (spec, regions) = automaton_regions(&a).expect("ARX-form automaton");
+        assert_eq!((spec.na, spec.nb, spec.inputs), (2, 2, 1));
+        assert_eq!(regions.len(), 3);
+        // The ordinary regions come back in regressor order, with the
+        // allowed side y(k-1) <= 25 added.
+        assert_eq!(regions[0].a[0], vec![0.0, 0.0, 1.0, 0.0]);
+        assert_eq!(regions[0].a[1], vec![1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(regions[0].b, vec![0.0, 25.0]);
+        assert_eq!(regions[1].a[0], vec![0.0, 0.0, -1.0, 0.0]);
+        // The stop is the guard set y(k-1) = 25.
+        assert_eq!(stop_level(&regions[2]), Some(25.0));
+        assert_eq!(stop_level(&regions[0]), None);
+        let names = display_mode_names(&Model::HybridAutomaton(a));
+        assert_eq!(names, ["mode 1", "mode 2", "sat_max_25: stop y = 25"]);
+    }
+
     #[test]
     fn slugs_are_file_names() {
         assert_eq!(super::slug("cluster [c=55]"), "cluster__c_55");

@@ -186,6 +186,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         regions: regions.clone(),
         mode_names: vec![],
         bounds: None,
+        notes: vec![],
     };
     regions_plot(&dir.join("regions.svg"), &region_fig)?;
     // The same with an explicit window and a lower-dimensional region (a stop

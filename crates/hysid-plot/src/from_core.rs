@@ -120,6 +120,7 @@ impl RegionFigure {
                 .map(|(k, m)| m.name.clone().unwrap_or_else(|| format!("mode {}", k + 1)))
                 .collect(),
             bounds: None,
+            notes: Vec::new(),
         }
     }
 }

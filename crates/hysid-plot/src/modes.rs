@@ -57,6 +57,10 @@ const WIDTH: u32 = 1100;
 const LANE_H: u32 = 56;
 /// Mismatch colour: near black, unlike every mode colour.
 const MISMATCH: RGBColor = RGBColor(40, 40, 40);
+/// Room left of the lane labels for the vertical axis title.
+const Y_TITLE_W: u32 = 34;
+/// The vertical axis title: each lane is a sequence of modes.
+pub const Y_TITLE: &str = "mode";
 
 /// Runs `(start, end, value)` of equal consecutive values, `end` exclusive.
 fn runs<T: PartialEq + Copy>(v: &[T]) -> Vec<(usize, usize, T)> {
@@ -171,7 +175,8 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
         .max()
         .unwrap_or(0)
         .max(40) as u32
-        + 24;
+        + 24
+        + Y_TITLE_W;
 
     let legend_h = legend_height(&entries, WIDTH);
     let title_h = 46;
@@ -210,6 +215,7 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
             .light_line_style(RGBColor(240, 240, 240))
             .bold_line_style(RGBColor(215, 215, 215))
             .x_desc(fig.time_label.as_str())
+            .y_desc(Y_TITLE)
             .draw()
             .map_err(draw_err)?;
         // Lane i (from the top) spans [n_lanes - 1 - i, n_lanes - i].

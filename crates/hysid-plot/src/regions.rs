@@ -46,6 +46,9 @@ pub struct RegionFigure {
     pub mode_names: Vec<String>,
     /// Plotting window; `None` uses the range of the points plus 5 %.
     pub bounds: Option<Bounds>,
+    /// Extra lines printed under the plot after the generated notes, e.g.
+    /// how the window relates to a figure quoted elsewhere.
+    pub notes: Vec<String>,
 }
 
 const WIDTH: u32 = 900;
@@ -110,6 +113,19 @@ fn fmt_value(v: f64) -> String {
             .trim_end_matches('0')
             .trim_end_matches('.')
             .to_string()
+    }
+}
+
+/// A share of the window in per cent, with enough digits that a non-zero
+/// share never reads as `0.0 %` (the grid resolves 1 / GRID^2 = 0.0025 %).
+fn fmt_share(f: f64) -> String {
+    let p = 100.0 * f;
+    if p == 0.0 {
+        "0 %".into()
+    } else if p < 0.1 {
+        format!("{p:.4} %")
+    } else {
+        format!("{p:.1} %")
     }
 }
 
@@ -187,8 +203,21 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
             .max()
             .unwrap_or(0),
     );
+    // A mode whose slice is a segment or a point (a guard set such as a
+    // stop `y(k-1) = level`) is drawn as a thick line or a circle, and its
+    // legend entry says so.
     let mut entries: Vec<LegendEntry> = (0..n_modes)
-        .map(|m| LegendEntry::new(Swatch::Fill(mode_colour(m), 0.6), mode_name(fig, m)))
+        .map(|m| match slices.get(m) {
+            Some(Slice2::Segment(..)) => LegendEntry::new(
+                Swatch::Line(mode_colour(m), 4, false),
+                format!("{} (a line in this plane)", mode_name(fig, m)),
+            ),
+            Some(Slice2::Point(..)) => LegendEntry::new(
+                Swatch::Marker(mode_colour(m)),
+                format!("{} (a point in this plane)", mode_name(fig, m)),
+            ),
+            _ => LegendEntry::new(Swatch::Fill(mode_colour(m), 0.6), mode_name(fig, m)),
+        })
         .collect();
     let polys: Vec<&Vec<[f64; 2]>> = slices
         .iter()
@@ -230,9 +259,9 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
     }
     if !fig.regions.is_empty() {
         notes.push(format!(
-            "In the window: {:.1} % in no region, {:.1} % in two or more (grid estimate).",
-            100.0 * hole,
-            100.0 * overlap
+            "In this window of the plane: {} in no region, {} in two or more ({GRID} x {GRID} grid estimate).",
+            fmt_share(hole),
+            fmt_share(overlap)
         ));
     }
     let empty: Vec<String> = slices
@@ -260,6 +289,7 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
         notes.push(format!("Without area in this slice: {}.", flat.join(", ")));
     }
 
+    notes.extend(fig.notes.iter().cloned());
     let legend_h = legend_height(&entries, WIDTH);
     let title_h = 46;
     let notes_h = 10 + 24 * notes.len() as u32;
@@ -419,5 +449,8 @@ mod tests {
         assert!(hole == 0.0 && (overlap - 0.5).abs() < 1e-12);
         assert_eq!(fmt_value(0.5), "0.5");
         assert_eq!(fmt_value(12.0), "12");
+        assert_eq!(fmt_share(0.0), "0 %");
+        assert_eq!(fmt_share(1.0 / 40_000.0), "0.0025 %");
+        assert_eq!(fmt_share(0.25), "25.0 %");
     }
 }

@@ -97,6 +97,7 @@ fn region_figure() -> RegionFigure {
         regions,
         mode_names: vec![],
         bounds: None,
+        notes: vec![],
     }
 }
 
@@ -175,6 +176,7 @@ fn mode_plot_has_lanes_legend_and_counts_mismatches() {
         "free motion",
         "mode 2",
         "no mode active",
+        "mode",
     ] {
         assert!(has(&t, s), "missing text {s:?} in {t:?}");
     }
@@ -212,7 +214,10 @@ fn region_plot_shows_holes_and_notes_empty_slices() {
     );
     // The gap 0 < x0 < 0.2 in a window of width 2.1 (points span [-1, 0.96]
     // plus 5 %): about 0.2 / 2.058 of it is in no region.
-    let note = t.iter().find(|s| s.starts_with("In the window:")).unwrap();
+    let note = t
+        .iter()
+        .find(|s| s.starts_with("In this window of the plane:"))
+        .unwrap();
     assert!(note.contains("9.") || note.contains("10."), "{note}");
     assert!(svg.contains("<polygon"), "regions are drawn as polygons");
 }
@@ -341,6 +346,11 @@ fn regions_with_an_explicit_window_and_no_points_render() {
         has(&t, "Without area in this slice: mode 1 (a line)."),
         "{t:?}"
     );
+    // Its legend entry says it is a line, and the extra notes are printed.
+    r.notes = vec!["The window is not the data box.".into()];
+    let t = texts(&regions_svg(&r).unwrap());
+    assert!(has(&t, "mode 1 (a line in this plane)"), "{t:?}");
+    assert!(has(&t, "The window is not the data box."), "{t:?}");
 }
 
 fn value() -> impl Strategy<Value = f64> {
