@@ -143,6 +143,37 @@ pub fn text_width(text: &str, size: u32) -> i32 {
     (text.chars().count() as f64 * 0.56 * size as f64 / 1.24).ceil() as i32
 }
 
+/// The title's font size: [`TITLE_SIZE`], or smaller (down to
+/// [`TICK_SIZE`]) so that `title` fits a figure `width` pixels wide.
+pub fn title_size(title: &str, width: u32) -> u32 {
+    let room = width as i32 - 40;
+    (TICK_SIZE..=TITLE_SIZE)
+        .rev()
+        .find(|&s| text_width(title, s) <= room)
+        .unwrap_or(TICK_SIZE)
+}
+
+/// `text` broken at spaces into lines of at most `width` pixels at `size`
+/// (a word longer than a line stands alone on its line).
+pub fn wrap(text: &str, size: u32, width: u32) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut line = String::new();
+    for word in text.split(' ') {
+        let candidate = if line.is_empty() {
+            word.to_string()
+        } else {
+            format!("{line} {word}")
+        };
+        if !line.is_empty() && text_width(&candidate, size) > width as i32 {
+            lines.push(std::mem::replace(&mut line, word.to_string()));
+        } else {
+            line = candidate;
+        }
+    }
+    lines.push(line);
+    lines
+}
+
 /// What a legend entry shows beside its label.
 #[derive(Debug, Clone, Copy)]
 pub enum Swatch {
@@ -307,6 +338,19 @@ mod tests {
         assert_eq!(finite_range(&y), Some((1.0, 3.0)));
         assert_eq!(finite_range(&[f64::NAN]), None);
         assert_eq!(padded((2.0, 2.0), 0.05), (1.8, 2.2));
+    }
+
+    #[test]
+    fn long_titles_shrink_and_notes_wrap() {
+        assert_eq!(title_size("short", 900), TITLE_SIZE);
+        let long = "cluster(4 modes, c=40), saturation priors: validation regressors by mode, regions and stops sliced";
+        let size = title_size(long, 900);
+        assert!(size < TITLE_SIZE && text_width(long, size) <= 860);
+        let note = "Stops at y(k-1) = 0 and y(k-1) = 25: beyond a stop no ordinary mode applies (its region ends there), so the grey band past it is the far side of the stop, not a hole.";
+        let lines = wrap(note, TICK_SIZE, 860);
+        assert!(lines.len() > 1);
+        assert!(lines.iter().all(|l| text_width(l, TICK_SIZE) <= 860));
+        assert_eq!(lines.join(" "), note);
     }
 
     #[test]

@@ -8,9 +8,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::PlotError;
 use crate::common::{
-    DESC_SIZE, FONT, HOLE_COLOUR, LEGEND_SIZE, LegendEntry, Swatch, TICK_SIZE, TITLE_SIZE,
-    draw_err, draw_legend, legend_height, mode_colour, padded, require_text, text_width,
-    tick_formatter,
+    DESC_SIZE, FONT, HOLE_COLOUR, LEGEND_SIZE, LegendEntry, Swatch, TICK_SIZE, draw_err,
+    draw_legend, legend_height, mode_colour, padded, require_text, text_width, tick_formatter,
+    title_size,
 };
 
 /// One mode sequence: the active mode of every sample, `None` where no mode
@@ -189,7 +189,7 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
         let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
         root.fill(&WHITE).map_err(draw_err)?;
         let body = root
-            .titled(&fig.title, (FONT, TITLE_SIZE))
+            .titled(&fig.title, (FONT, title_size(&fig.title, WIDTH)))
             .map_err(draw_err)?;
         let (legend_area, plot_area) = body.split_vertically(legend_h);
         draw_legend(&legend_area, &entries)?;

@@ -10,8 +10,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::PlotError;
 use crate::common::{
-    DESC_SIZE, FONT, HOLE_COLOUR, LegendEntry, Swatch, TICK_SIZE, TITLE_SIZE, draw_err,
-    draw_legend, finite_range, legend_height, mode_colour, padded, require_text, tick_formatter,
+    DESC_SIZE, FONT, HOLE_COLOUR, LegendEntry, Swatch, TICK_SIZE, draw_err, draw_legend,
+    finite_range, legend_height, mode_colour, padded, require_text, tick_formatter, title_size,
+    wrap,
 };
 use crate::simulation::y_area_width;
 use crate::slice::{Bounds, Slice2, slice_polyhedron};
@@ -290,6 +291,10 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
     }
 
     notes.extend(fig.notes.iter().cloned());
+    let notes: Vec<String> = notes
+        .iter()
+        .flat_map(|n| wrap(n, TICK_SIZE, WIDTH - 40))
+        .collect();
     let legend_h = legend_height(&entries, WIDTH);
     let title_h = 46;
     let notes_h = 10 + 24 * notes.len() as u32;
@@ -301,7 +306,7 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
         let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
         root.fill(&WHITE).map_err(draw_err)?;
         let body = root
-            .titled(&fig.title, (FONT, TITLE_SIZE))
+            .titled(&fig.title, (FONT, title_size(&fig.title, WIDTH)))
             .map_err(draw_err)?;
         let (legend_area, rest) = body.split_vertically(legend_h);
         draw_legend(&legend_area, &entries)?;

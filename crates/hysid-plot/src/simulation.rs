@@ -8,9 +8,9 @@ use plotters::prelude::*;
 
 use crate::PlotError;
 use crate::common::{
-    DESC_SIZE, FONT, INPUT_COLOURS, LegendEntry, Swatch, TICK_SIZE, TITLE_SIZE, draw_err,
-    draw_legend, finite_range, finite_runs, legend_height, line_colour, padded, require_text,
-    text_width, tick_formatter,
+    DESC_SIZE, FONT, INPUT_COLOURS, LegendEntry, Swatch, TICK_SIZE, draw_err, draw_legend,
+    finite_range, finite_runs, legend_height, line_colour, padded, require_text, text_width,
+    tick_formatter, title_size,
 };
 
 /// A named series of values, one per time sample.
@@ -248,7 +248,7 @@ pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
         let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
         root.fill(&WHITE).map_err(draw_err)?;
         let body = root
-            .titled(&fig.title, (FONT, TITLE_SIZE))
+            .titled(&fig.title, (FONT, title_size(&fig.title, WIDTH)))
             .map_err(draw_err)?;
         let (legend_area, panels) = body.split_vertically(legend_h);
         draw_legend(&legend_area, &entries)?;

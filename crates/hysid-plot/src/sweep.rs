@@ -9,8 +9,8 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::PlotError;
 use crate::common::{
-    DESC_SIZE, FONT, LegendEntry, Swatch, TICK_SIZE, TITLE_SIZE, draw_err, draw_legend,
-    finite_range, legend_height, line_colour, padded, require_text, tick_formatter,
+    DESC_SIZE, FONT, LegendEntry, Swatch, TICK_SIZE, draw_err, draw_legend, finite_range,
+    legend_height, line_colour, padded, require_text, tick_formatter, title_size,
 };
 use crate::simulation::y_area_width;
 
@@ -185,7 +185,7 @@ pub fn sweep_svg(fig: &SweepFigure) -> Result<String, PlotError> {
         let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
         root.fill(&WHITE).map_err(draw_err)?;
         let body = root
-            .titled(&fig.title, (FONT, TITLE_SIZE))
+            .titled(&fig.title, (FONT, title_size(&fig.title, WIDTH)))
             .map_err(draw_err)?;
         let (legend_area, panels_area) = body.split_vertically(legend_h);
         draw_legend(&legend_area, &entries)?;
