@@ -274,7 +274,16 @@ fn bad_options_and_files_are_usage_errors() {
     );
     std::fs::write(&prior, "switching = [\"y1\"]\n").unwrap();
     bad(
-        &["identify", d, "-m", "arx", "--prior", s(&prior), "-o", o],
+        &[
+            "identify",
+            d,
+            "-m",
+            "physical",
+            "--prior",
+            s(&prior),
+            "-o",
+            o,
+        ],
         &["does not honour", "switching", "p.toml"],
         &out,
     );
