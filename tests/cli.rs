@@ -274,7 +274,16 @@ fn bad_options_and_files_are_usage_errors() {
     );
     std::fs::write(&prior, "switching = [\"y1\"]\n").unwrap();
     bad(
-        &["identify", d, "-m", "arx", "--prior", s(&prior), "-o", o],
+        &[
+            "identify",
+            d,
+            "-m",
+            "physical",
+            "--prior",
+            s(&prior),
+            "-o",
+            o,
+        ],
         &["does not honour", "switching", "p.toml"],
         &out,
     );
@@ -370,5 +379,128 @@ fn hand_written_automaton_with_lower_dimensional_guard_simulates() {
     assert!(
         (apex - 1.125).abs() < 0.01,
         "apex after the first bounce {apex}"
+    );
+}
+
+/// `hysid methods` prints the priors each back-end honours; a back-end
+/// refuses a prior it cannot honour with one line naming the entry and the
+/// file (exit 2); `[[equality]]` entries are honoured by arx, and a bad
+/// one is named with its unknown parameter.
+#[test]
+fn methods_declare_priors_and_backends_refuse_or_honour_them() {
+    let out = ok(&["methods"]);
+    let block = |name: &str| -> String {
+        let mut lines = out.lines().skip_while(|l| !l.starts_with(name));
+        let first = lines.next().unwrap_or_else(|| panic!("no {name} in {out}"));
+        let rest: Vec<&str> = lines.take_while(|l| l.starts_with(' ')).collect();
+        format!("{first}\n{}", rest.join("\n"))
+    };
+    for name in ["arx", "bounded", "cluster", "physical"] {
+        assert!(
+            block(name).contains("priors honoured:"),
+            "{name}: {}",
+            block(name)
+        );
+    }
+    let honoured = |name: &str| -> String {
+        block(name)
+            .lines()
+            .find(|l| l.trim_start().starts_with("priors honoured:"))
+            .unwrap()
+            .to_string()
+    };
+    for name in ["arx", "bounded"] {
+        let l = honoured(name);
+        for kind in [
+            "modes",
+            "max_modes",
+            "[[saturation]]",
+            "[[tie]]",
+            "[fixed]",
+            "[bounds]",
+            "switching",
+            "[[equality]]",
+        ] {
+            assert!(l.contains(kind), "{name} lacks {kind}: {l}");
+        }
+    }
+    assert!(
+        honoured("physical").ends_with("priors honoured: [fixed], [bounds], [[tie]]"),
+        "{}",
+        honoured("physical")
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let prior = dir.path().join("stops.toml");
+    std::fs::write(&prior, "[[saturation]]\nlevel = 25.0\nbound = \"max\"\n").unwrap();
+    let out_model = dir.path().join("phys.json");
+    bad(
+        &[
+            "identify",
+            s(&data),
+            "-m",
+            "physical",
+            "--prior",
+            s(&prior),
+            "-o",
+            s(&out_model),
+        ],
+        &["'physical'", "[[saturation]]", "stops.toml"],
+        &out_model,
+    );
+
+    // arx honours an equality exactly: b1 = b2 (the truth has 0.8, 0.3).
+    let eq = dir.path().join("eq.toml");
+    std::fs::write(
+        &eq,
+        "[[equality]]\ncoefficients = { b1 = 1.0, b2 = -1.0 }\n",
+    )
+    .unwrap();
+    let model = dir.path().join("eq.json");
+    ok(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "--prior",
+        s(&eq),
+        "-o",
+        s(&model),
+    ]);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let t = &m["modes"][0]["theta"];
+    let (b1, b2) = (t[2].as_f64().unwrap(), t[3].as_f64().unwrap());
+    assert!((b1 - b2).abs() <= 1e-9 * (1.0 + b1.abs()), "{t}");
+
+    let typo = dir.path().join("typo.toml");
+    std::fs::write(
+        &typo,
+        "[[equality]]\ncoefficients = { b1 = 1.0, b9 = -1.0 }\n",
+    )
+    .unwrap();
+    let never = dir.path().join("never.json");
+    bad(
+        &[
+            "identify",
+            s(&data),
+            "-m",
+            "arx",
+            "--na",
+            "2",
+            "--nb",
+            "2",
+            "--prior",
+            s(&typo),
+            "-o",
+            s(&never),
+        ],
+        &["[[equality]] #1", "'b9'"],
+        &never,
     );
 }

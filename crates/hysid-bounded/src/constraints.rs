@@ -43,6 +43,7 @@ impl Constraints {
             tie: priors.tie.clone(),
             fixed: priors.fixed.clone(),
             bounds: priors.bounds.clone(),
+            equality: priors.equality.clone(),
             ..Default::default()
         };
         if kept == Priors::default() {
@@ -104,8 +105,16 @@ impl Constraints {
             }
         }
         pri.tie.clear();
+        // The shared values come from a joint fit under the same priors, so
+        // they satisfy the equalities and bounds; should rounding make them
+        // inconsistent, the mode keeps the constraints without the ties.
         let par = Parametrisation::from_priors(&pri, &spec, 1)
-            .expect("fixed values within bounds were checked in Constraints::new");
+            .or_else(|_| {
+                let mut relaxed = self.priors.clone();
+                relaxed.tie.clear();
+                Parametrisation::from_priors(&relaxed, &spec, 1)
+            })
+            .expect("the priors were checked in Constraints::new");
         let bounds = free_bounds(&pri, &spec, &par);
         ModeSpace {
             p,
@@ -180,14 +189,61 @@ impl ModeSpace {
 
     /// Projects `theta` onto the set: fixed values substituted, free values
     /// clamped to their bounds (the projection step of the relaxation).
+    /// With `[[equality]]` entries: the orthogonal projection onto the
+    /// equalities, alternated with the clamp to the bounds and ending with
+    /// the equalities (so they hold exactly, the bounds to the alternation's
+    /// accuracy; [`ModeSpace::project_exact`] solves the projection QP).
     pub fn project(&self, theta: &mut [f64]) {
         let Some(par) = &self.par else { return };
-        for (j, t) in theta.iter_mut().enumerate() {
-            match par.slot(0, j) {
-                Slot::Fixed(c) => *t = c,
-                Slot::Free(v) => *t = t.clamp(self.bounds[v].0, self.bounds[v].1),
+        if !par.has_equalities() {
+            for (j, t) in theta.iter_mut().enumerate() {
+                match par.slot(0, j) {
+                    Slot::Fixed(c) => *t = c,
+                    Slot::Free(v) => *t = t.clamp(self.bounds[v].0, self.bounds[v].1),
+                }
+            }
+            return;
+        }
+        let mut z = vec![0.0; par.n_free()];
+        for (j, t) in theta.iter().enumerate() {
+            if let Slot::Free(v) = par.slot(0, j) {
+                z[v] = *t;
             }
         }
+        par.project_equalities(&mut z);
+        for _ in 0..50 {
+            let mut moved = false;
+            for (zv, &(lo, hi)) in z.iter_mut().zip(&self.bounds) {
+                let c = zv.clamp(lo, hi);
+                moved |= c != *zv;
+                *zv = c;
+            }
+            if !moved {
+                break;
+            }
+            par.project_equalities(&mut z);
+        }
+        for (j, t) in theta.iter_mut().enumerate() {
+            *t = match par.slot(0, j) {
+                Slot::Fixed(c) => c,
+                Slot::Free(v) => z[v],
+            };
+        }
+    }
+
+    /// [`ModeSpace::project`], exact with equalities and bounds together
+    /// (the nearest point by the QP of `hysid_core::estimation`).
+    pub fn project_exact(&self, theta: &mut [f64]) {
+        if let Some(par) = &self.par
+            && par.has_equalities()
+            && par.has_bounds()
+            && let Ok(t) = par.project(&[theta.to_vec()])
+            && let Some(t) = t.into_iter().next()
+        {
+            theta.copy_from_slice(&t);
+            return;
+        }
+        self.project(theta);
     }
 
     /// Least squares on `idx` within the set (fixed values exact, bounds

@@ -311,7 +311,7 @@ impl Identifier for Bounded {
     type Options = BoundedOptions;
     const NAME: &'static str = "bounded";
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
-    const HONOURS: &'static [PriorKind] = PriorKind::ALL;
+    const HONOURS: &'static [PriorKind] = PriorKind::EVERY;
 
     fn identify(
         &self,
@@ -388,16 +388,28 @@ impl Identifier for Bounded {
             part.training_accuracy.into(),
         );
         dg.insert("partition_complete".into(), part.complete.into());
+        let mut status: Vec<String> = Vec::new();
         if c.stopped_by_deadline {
             dg.insert("stopped_by_deadline".into(), true.into());
-            dg.insert(
-                "status".into(),
-                format!(
-                    "time budget reached after {} mode extraction(s) and {} refinement round(s): the modes found by then",
-                    c.greedy_modes, c.rounds
-                )
-                .into(),
-            );
+            status.push(format!(
+                "time budget reached after {} mode extraction(s) and {} refinement round(s): the modes found by then",
+                c.greedy_modes, c.rounds
+            ));
+        }
+        if let Some(e) = c.tie_projection_error
+            && e > set.delta
+        {
+            // The greedy extraction ran with the ties relaxed; imposing them
+            // afterwards did not keep the greedy modes within delta.
+            status.push(format!(
+                "warning: the [[tie]] priors, imposed after the greedy extraction (which relaxes them), \
+                 fit the greedy modes with a largest error of {e:.4} > delta = {}; the refinement \
+                 re-classified the samples under the ties (docs/bounded.md, \"Priors\")",
+                set.delta
+            ));
+        }
+        if !status.is_empty() {
+            dg.insert("status".into(), status.join("; ").into());
         }
         let pwarx = PwarxModel {
             na: spec.na,

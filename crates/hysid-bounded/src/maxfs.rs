@@ -113,7 +113,7 @@ pub fn max_fs<R: Rng>(
         }
     }
     let mut theta = best.map(|b| b.1).unwrap_or_else(|| vec![0.0; p]);
-    space.project(&mut theta);
+    space.project_exact(&mut theta);
     let theta = if set.chebyshev_polish {
         polish(s, idx, theta, delta, true, space).1
     } else {

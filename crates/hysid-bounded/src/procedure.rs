@@ -14,13 +14,15 @@
 //!    get the majority label of their [`KNN`] nearest assigned neighbours
 //!    (regressor space, standardised), restricted to their candidate modes.
 //!
-//! Parameter priors ([`Constraints`], issue 6): fixed values and bounds
-//! restrict every mode's parameter set in MAX FS, refits and merges. Ties
-//! couple the modes, which the one-mode-at-a-time extraction cannot impose:
-//! the greedy stage runs with ties relaxed, then all modes are fitted
-//! jointly under the ties on the greedy classification (the *tie
-//! projection*, a joint Chebyshev LP; its error may exceed delta, reported
-//! in [`Classification::tie_projection_error`]). From then on the
+//! Parameter priors ([`Constraints`], issue 6): fixed values, bounds and
+//! `[[equality]]` entries (one mode's parameters each) restrict every
+//! mode's parameter set in MAX FS, refits and merges. Ties couple the
+//! modes, which the one-mode-at-a-time extraction cannot impose: the greedy
+//! stage runs with ties relaxed (a documented deviation, `docs/bounded.md`),
+//! then all modes are fitted jointly under the ties on the greedy
+//! classification (the *tie projection*, a joint Chebyshev LP; its error
+//! may exceed delta, reported in [`Classification::tie_projection_error`]
+//! and, when it does, as a warning in the model's `status`). From then on the
 //! refinement re-estimates all modes jointly (accepted only when certified
 //! within delta, so every later step keeps the bound), and merges fix the
 //! tied parameters at their shared values (ours, `docs/bounded.md`).

@@ -233,7 +233,7 @@ pub fn chebyshev_joint(
     if n == 0 || groups.len() != par.modes() {
         return None;
     }
-    let m = (WORKING_FACTOR * par.n_free().max(1)).max(1);
+    let m = (WORKING_FACTOR * par.n_dof().max(1)).max(1);
     if n <= 2 * m {
         return chebyshev_joint_lp(s, par, bounds, &pairs);
     }
@@ -292,7 +292,12 @@ fn chebyshev_joint_lp(
 ) -> Option<JointFit> {
     let p = s.p;
     let nf = par.n_free();
-    let t_col = nf;
+    // The LP variables x: the free variables z = z0 + B x (B = I without
+    // [[equality]] entries; with them, B spans the null space of the
+    // equalities, so every LP point satisfies them).
+    let (z0, basis) = par.affine();
+    let nx = basis.ncols();
+    let t_col = nx;
     // Free slope variables get a tie-break weight (RMS of their regressor
     // over the pairs they appear in).
     let mut sum_sq = vec![0.0; nf];
@@ -308,10 +313,18 @@ fn chebyshev_joint_lp(
         }
     }
     let slopes: Vec<usize> = (0..nf).filter(|&v| is_slope[v]).collect();
-    let nvar = nf + 1 + slopes.len();
+    let nvar = nx + 1 + slopes.len();
     let (mut ii, mut jj, mut vv) = (Vec::new(), Vec::new(), Vec::new());
     let mut b = Vec::new();
     let mut coef = vec![0.0; nf];
+    // Row `a_z . z` in x: coefficients `B' a_z`, constant `a_z . z0`.
+    let in_x = |a_z: &[f64]| -> (Vec<f64>, f64) {
+        let cx = (0..nx)
+            .map(|u| a_z.iter().enumerate().map(|(v, a)| a * basis[(v, u)]).sum())
+            .collect();
+        let c0 = a_z.iter().zip(&z0).map(|(a, z)| a * z).sum();
+        (cx, c0)
+    };
     for &(i, k) in work {
         coef.iter_mut().for_each(|c| *c = 0.0);
         let mut target = s.y[k];
@@ -321,11 +334,13 @@ fn chebyshev_joint_lp(
                 Slot::Fixed(c) => target -= c * x,
             }
         }
+        let (cx, c0) = in_x(&coef);
+        target -= c0;
         let r = b.len();
-        for (v, &c) in coef.iter().enumerate() {
+        for (u, &c) in cx.iter().enumerate() {
             if c != 0.0 {
                 ii.extend([r, r + 1]);
-                jj.extend([v, v]);
+                jj.extend([u, u]);
                 vv.extend([c, -c]);
             }
         }
@@ -334,29 +349,57 @@ fn chebyshev_joint_lp(
         vv.extend([-1.0, -1.0]);
         b.extend([target, -target]);
     }
+    let unit = |v: usize| -> (Vec<f64>, f64) {
+        let mut a = vec![0.0; nf];
+        a[v] = 1.0;
+        in_x(&a)
+    };
     for (v, &(lo, hi)) in bounds.iter().enumerate() {
+        if !(hi.is_finite() || lo.is_finite()) {
+            continue;
+        }
+        let (cx, c0) = unit(v);
         if hi.is_finite() {
-            ii.push(b.len());
-            jj.push(v);
-            vv.push(1.0);
-            b.push(hi);
+            let r = b.len();
+            for (u, &c) in cx.iter().enumerate() {
+                if c != 0.0 {
+                    ii.push(r);
+                    jj.push(u);
+                    vv.push(c);
+                }
+            }
+            b.push(hi - c0);
         }
         if lo.is_finite() {
-            ii.push(b.len());
-            jj.push(v);
-            vv.push(-1.0);
-            b.push(-lo);
+            let r = b.len();
+            for (u, &c) in cx.iter().enumerate() {
+                if c != 0.0 {
+                    ii.push(r);
+                    jj.push(u);
+                    vv.push(-c);
+                }
+            }
+            b.push(c0 - lo);
         }
     }
     let mut q = vec![0.0; nvar];
     q[t_col] = 1.0;
     for (w, &v) in slopes.iter().enumerate() {
-        let col = nf + 1 + w;
+        // |z_v| <= aux_w.
+        let col = nx + 1 + w;
+        let (cx, c0) = unit(v);
         let r = b.len();
-        ii.extend([r, r, r + 1, r + 1]);
-        jj.extend([v, col, v, col]);
-        vv.extend([1.0, -1.0, -1.0, -1.0]);
-        b.extend([0.0, 0.0]);
+        for (u, &c) in cx.iter().enumerate() {
+            if c != 0.0 {
+                ii.extend([r, r + 1]);
+                jj.extend([u, u]);
+                vv.extend([c, -c]);
+            }
+        }
+        ii.extend([r, r + 1]);
+        jj.extend([col, col]);
+        vv.extend([-1.0, -1.0]);
+        b.extend([-c0, c0]);
         let scale = (sum_sq[v] / count[v].max(1) as f64).sqrt().max(1e-12);
         q[col] = TIE_BREAK * scale;
     }
@@ -375,12 +418,19 @@ fn chebyshev_joint_lp(
         SolverStatus::Solved | SolverStatus::AlmostSolved => {}
         _ => return None,
     }
-    let mut z: Vec<f64> = solver.solution.x[..nf].to_vec();
-    if z.iter().any(|v| !v.is_finite()) {
+    let x = &solver.solution.x[..nx];
+    if x.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    for (v, &(lo, hi)) in z.iter_mut().zip(bounds) {
-        *v = v.clamp(lo, hi);
+    let mut z: Vec<f64> = (0..nf)
+        .map(|v| z0[v] + (0..nx).map(|u| basis[(v, u)] * x[u]).sum::<f64>())
+        .collect();
+    if !par.has_equalities() {
+        // Clamping a box keeps every other constraint (with equalities it
+        // would not: the interior point is within its tolerance instead).
+        for (v, &(lo, hi)) in z.iter_mut().zip(bounds) {
+            *v = v.clamp(lo, hi);
+        }
     }
     let thetas = par.thetas(&z);
     let mut max_residual: f64 = 0.0;

@@ -103,6 +103,51 @@ proptest! {
         }
     }
 
+    /// Random `[[equality]]` entries (one mode's parameters, every mode),
+    /// with or without a tie: every equality holds to 1e-9 in every
+    /// identified mode (enforced inside the greedy extraction, the refits
+    /// and the merges), and with a tie the tied parameter is shared.
+    #[test]
+    fn random_equalities_hold(
+        ca in -2.0f64..2.0,
+        cb in -2.0f64..2.0,
+        v in -1.0f64..1.0,
+        seed in 0u64..1000,
+        tie in proptest::bool::ANY,
+        ls in proptest::bool::ANY,
+    ) {
+        let g = common::sliced(&[[0.3, -1.5, 0.2], [0.3, 1.5, -0.2]], 160, 0.05, seed);
+        let mut text = format!(
+            "modes = 2\n[[equality]]\ncoefficients = {{ a1 = {ca:?}, c = {cb:?} }}\nvalue = {v:?}\n"
+        );
+        if tie {
+            text += "[[tie]]\nparams = [\"a1\"]\n";
+        }
+        let pri = priors(&text);
+        let set = [
+            "delta=0.1".to_string(),
+            format!("refit={}", if ls { "ls" } else { "linf" }),
+        ];
+        let m = match run_with(&g.data, RegressorSpec::new(1, 1, 1), &pri, &set, seed) {
+            Ok(m) => m,
+            // A prior that contradicts the data may leave no mode within
+            // delta: a failure of the method, never a dropped prior.
+            Err(IdentifyError::Failed { .. }) => return Ok(()),
+            Err(e) => return Err(TestCaseError::fail(e.to_string())),
+        };
+        let p = pwarx(&m);
+        let t0 = &p.modes[0].theta;
+        for mode in &p.modes {
+            let t = &mode.theta;
+            let lhs = ca * t[0] + cb * t[2];
+            let scale = 1.0 + t.iter().map(|x| x.abs()).fold(0.0, f64::max);
+            prop_assert!((lhs - v).abs() <= 1e-9 * scale, "{:?}: {} vs {}", p.modes, lhs, v);
+            if tie {
+                prop_assert!((t[0] - t0[0]).abs() <= 1e-9, "tie a1: {:?}", p.modes);
+            }
+        }
+    }
+
     /// Known stops: every sample whose target sits at a stop is assigned
     /// to that stop's mode, and the identified automaton never passes a
     /// stop in free-run simulation of a fresh record.

@@ -227,7 +227,7 @@ impl Registry {
 /// Runs `backend` on standardised data (zero mean, unit standard deviation
 /// per signal) and returns the model in original units, with the statistics
 /// recorded in `info.scaling`. Priors holding values in data units
-/// (`[[saturation]]`, `[fixed]`, `[bounds]`) and ties on the offset `c`
+/// (`[[saturation]]`, `[fixed]`, `[bounds]`, `[[equality]]`) and ties on the offset `c`
 /// are refused here: their meaning would change with the scaling.
 pub fn run_standardized(
     backend: &dyn Backend,
@@ -236,9 +236,13 @@ pub fn run_standardized(
     ctx: &RunContext<'_>,
 ) -> Result<Model, IdentifyError> {
     let p = problem.priors;
-    if !p.saturation.is_empty() || !p.fixed.is_empty() || !p.bounds.is_empty() {
+    if !p.saturation.is_empty()
+        || !p.fixed.is_empty()
+        || !p.bounds.is_empty()
+        || !p.equality.is_empty()
+    {
         return Err(IdentifyError::BadData(
-            "--standardize cannot be combined with priors in data units ([[saturation]], [fixed], [bounds])".into(),
+            "--standardize cannot be combined with priors in data units ([[saturation]], [fixed], [bounds], [[equality]])".into(),
         ));
     }
     // Scaling multiplies a tied a_i or b_i by one factor in every mode, so

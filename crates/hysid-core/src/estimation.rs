@@ -13,9 +13,22 @@
 //! modes is then one unconstrained problem in `z`; with `[bounds]` it is the
 //! box-constrained QP `min |W^(1/2) (Z z - r)|^2, lo <= z <= hi`, solved by
 //! clarabel when the unconstrained minimiser leaves the box.
+//!
+//! General linear equalities (`[[equality]]`: `sum_p c_p theta_i[p] = v` in
+//! every mode i) are written in the free variables `z` of the ties and
+//! fixed values, `E z = f`, and solved by the null-space method proper:
+//! `z = z0 + N w` with `z0` the minimum-norm solution and `N` an
+//! orthonormal basis of `ker E` (both from faer's SVD,
+//! [`crate::linalg`]). Tied parameters stay one variable (bitwise equal),
+//! fixed values stay known values, the equalities hold to rounding
+//! (about 1e-12 relative). The least squares are then solved in `w`; bounds
+//! become the general linear inequalities `lo <= z0 + N w <= hi` of the
+//! same clarabel QP. Inconsistent entries (no parameter vector satisfies
+//! them) are an error naming the first `[[equality]]` that contradicts the
+//! entries before it.
 
 use crate::linalg::{self, LinalgError};
-use crate::priors::Priors;
+use crate::priors::{Equality, Priors};
 use crate::regressors::RegressorSpec;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
@@ -41,6 +54,16 @@ pub struct Parametrisation {
     lower: Vec<f64>,
     upper: Vec<f64>,
     ties: bool,
+    /// `[[equality]]` entries: `z = z0 + basis w`.
+    reduction: Option<Reduction>,
+}
+
+/// The affine reduction `z = z0 + basis w` of the free variables by the
+/// `[[equality]]` entries (`basis`: orthonormal columns).
+#[derive(Debug, Clone, PartialEq)]
+struct Reduction {
+    z0: Vec<f64>,
+    basis: DMatrix<f64>,
 }
 
 /// Failures of the constrained estimation.
@@ -74,6 +97,7 @@ impl Parametrisation {
             lower: vec![f64::NEG_INFINITY; n],
             upper: vec![f64::INFINITY; n],
             ties: false,
+            reduction: None,
         }
     }
 
@@ -131,13 +155,135 @@ impl Parametrisation {
                 slots.push(Slot::Free(v));
             }
         }
-        Ok(Self {
+        let mut par = Self {
             n_params: np,
             slots,
             lower,
             upper,
             ties: modes > 1 && tied.iter().any(|&t| t),
+            reduction: None,
+        };
+        if !priors.equality.is_empty() {
+            par.reduction = Some(par.reduce(&priors.equality, &idx)?);
+        }
+        Ok(par)
+    }
+
+    /// The rows `E z = f` of `equalities` in every mode.
+    fn equality_rows(
+        &self,
+        equalities: &[Equality],
+        idx: &dyn Fn(&str) -> usize,
+        modes: usize,
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        let nz = self.n_free();
+        let mut e = DMatrix::zeros(equalities.len() * modes, nz);
+        let mut f = DVector::zeros(equalities.len() * modes);
+        let mut r = 0;
+        for i in 0..modes {
+            for eq in equalities {
+                let mut rhs = eq.value;
+                for (name, c) in &eq.coefficients {
+                    match self.slot(i, idx(name)) {
+                        Slot::Free(v) => e[(r, v)] += c,
+                        Slot::Fixed(x) => rhs -= c * x,
+                    }
+                }
+                f[r] = rhs;
+                r += 1;
+            }
+        }
+        (e, f)
+    }
+
+    /// Whether `E z = f` has a solution; returns the minimum-norm one.
+    fn solve_consistent(
+        e: &DMatrix<f64>,
+        f: &DVector<f64>,
+    ) -> Result<Option<DVector<f64>>, String> {
+        let z0 = linalg::lstsq(e, f).map_err(|err| err.to_string())?.theta;
+        let res = (e * &z0 - f).amax();
+        let scale = 1.0 + f.amax() + e.amax() * z0.amax();
+        Ok((res <= 1e-9 * scale).then_some(z0))
+    }
+
+    /// The null-space reduction of the free variables by `equalities`.
+    fn reduce(
+        &self,
+        equalities: &[Equality],
+        idx: &dyn Fn(&str) -> usize,
+    ) -> Result<Reduction, String> {
+        // Consistency, entry by entry (one mode suffices: every mode has the
+        // same fixed values and the tied variables are shared), so that the
+        // error names the first entry that contradicts those before it.
+        for k in 0..equalities.len() {
+            let (e, f) = self.equality_rows(&equalities[..=k], idx, 1);
+            if Self::solve_consistent(&e, &f)?.is_none() {
+                return Err(format!(
+                    "[[equality]] #{} ({}) contradicts the [fixed] values, [[tie]]s and earlier [[equality]] entries{}: \
+                     no parameter vector satisfies them all",
+                    k + 1,
+                    equalities[k].describe(),
+                    if k == 0 {
+                        String::new()
+                    } else {
+                        format!(" (#1..#{})", k)
+                    }
+                ));
+            }
+        }
+        let (e, f) = self.equality_rows(equalities, idx, self.modes());
+        let z0 = Self::solve_consistent(&e, &f)?.ok_or_else(|| {
+            "[[equality]] entries: no parameter vector of all modes satisfies them".to_string()
+        })?;
+        let basis = linalg::null_space(&e).map_err(|err| err.to_string())?;
+        Ok(Reduction {
+            z0: z0.iter().copied().collect(),
+            basis,
         })
+    }
+
+    /// Whether `[[equality]]` entries reduce the free variables
+    /// (`z = z0 + N w`).
+    pub fn has_equalities(&self) -> bool {
+        self.reduction.is_some()
+    }
+
+    /// Degrees of freedom: the number of variables `w` of the reduction
+    /// (`n_free()` without equalities).
+    pub fn n_dof(&self) -> usize {
+        self.reduction
+            .as_ref()
+            .map_or(self.n_free(), |r| r.basis.ncols())
+    }
+
+    /// The affine map `z = z0 + N w` of the free variables (identity
+    /// without equalities): `(z0, N)`, `N` with orthonormal columns.
+    pub fn affine(&self) -> (Vec<f64>, DMatrix<f64>) {
+        match &self.reduction {
+            Some(r) => (r.z0.clone(), r.basis.clone()),
+            None => (
+                vec![0.0; self.n_free()],
+                DMatrix::identity(self.n_free(), self.n_free()),
+            ),
+        }
+    }
+
+    /// The bounds `(lo, hi)` of the free variable `z[v]`.
+    pub fn free_bounds(&self, v: usize) -> (f64, f64) {
+        (self.lower[v], self.upper[v])
+    }
+
+    /// Projects free variables `z` onto the equalities (orthogonally, in
+    /// `z`): `z0 + N N' (z - z0)`. Identity without equalities.
+    pub fn project_equalities(&self, z: &mut [f64]) {
+        let Some(r) = &self.reduction else { return };
+        let d = DVector::from_iterator(z.len(), z.iter().zip(&r.z0).map(|(a, b)| a - b));
+        let w = r.basis.transpose() * d;
+        let p = &r.basis * w;
+        for (v, zv) in z.iter_mut().enumerate() {
+            *zv = r.z0[v] + p[v];
+        }
     }
 
     /// Number of modes.
@@ -267,11 +413,166 @@ pub fn fit_modes(
             row += 1;
         }
     }
-    let mut z: Vec<f64> = linalg::lstsq(&z_mat, &r)?.theta.iter().copied().collect();
-    if !par.inside(&z) {
-        z = bounded_lstsq(par, &z_mat, &r)?;
-    }
+    let z = solve_in_z(par, &z_mat, &r)?;
     Ok(par.thetas(&z))
+}
+
+/// `min |Z z - r|^2` over the free variables under the equalities and the
+/// bounds of `par`.
+fn solve_in_z(
+    par: &Parametrisation,
+    z_mat: &DMatrix<f64>,
+    r: &DVector<f64>,
+) -> Result<Vec<f64>, EstimationError> {
+    let Some(red) = &par.reduction else {
+        let mut z: Vec<f64> = linalg::lstsq(z_mat, r)?.theta.iter().copied().collect();
+        if !par.inside(&z) {
+            z = bounded_lstsq(par, z_mat, r)?;
+        }
+        return Ok(z);
+    };
+    let z0 = DVector::from_column_slice(&red.z0);
+    let design = z_mat * &red.basis;
+    let rhs = r - z_mat * &z0;
+    let z_of = |w: &DVector<f64>| -> Vec<f64> { (&z0 + &red.basis * w).iter().copied().collect() };
+    let w = if design.ncols() == 0 {
+        DVector::zeros(0)
+    } else {
+        linalg::lstsq(&design, &rhs)?.theta
+    };
+    let z = z_of(&w);
+    if par.inside(&z) || design.ncols() == 0 {
+        return Ok(z);
+    }
+    // Bounds on z: lo_v - z0_v <= N_v w <= hi_v - z0_v.
+    let nw = design.ncols();
+    let mut rows = Vec::new();
+    let mut b = Vec::new();
+    for v in 0..par.n_free() {
+        if par.upper[v].is_finite() {
+            rows.push(red.basis.row(v).iter().copied().collect::<Vec<f64>>());
+            b.push(par.upper[v] - red.z0[v]);
+        }
+        if par.lower[v].is_finite() {
+            rows.push(red.basis.row(v).iter().map(|x| -x).collect());
+            b.push(red.z0[v] - par.lower[v]);
+        }
+    }
+    let a = DMatrix::from_fn(rows.len(), nw, |i, j| rows[i][j]);
+    let w = qp_lstsq(&design, &rhs, &a, &b)?;
+    Ok(z_of(&DVector::from_vec(w)))
+}
+
+/// `min |D x - r|^2` subject to `A x <= b`, the QP
+/// `min 1/2 x' (D'D) x - (D'r)' x` on clarabel, in variables scaled by the
+/// column norms of `D`.
+fn qp_lstsq(
+    design: &DMatrix<f64>,
+    r: &DVector<f64>,
+    a_in: &DMatrix<f64>,
+    b: &[f64],
+) -> Result<Vec<f64>, EstimationError> {
+    let nx = design.ncols();
+    let d: Vec<f64> = (0..nx)
+        .map(|v| {
+            let n = design.column(v).norm();
+            if n > 0.0 { 1.0 / n } else { 1.0 }
+        })
+        .collect();
+    let mut ds = design.clone();
+    let mut a_s = a_in.clone();
+    for (v, dv) in d.iter().enumerate() {
+        ds.column_mut(v).scale_mut(*dv);
+        a_s.column_mut(v).scale_mut(*dv);
+    }
+    let h = ds.transpose() * &ds;
+    let g = ds.transpose() * r;
+    let (mut p_rows, mut p_cols, mut p_vals) = (Vec::new(), Vec::new(), Vec::new());
+    for c in 0..nx {
+        for rr in 0..=c {
+            let mut v = h[(rr, c)];
+            if rr == c && v == 0.0 {
+                v = 1e-12;
+            }
+            if v != 0.0 {
+                p_rows.push(rr);
+                p_cols.push(c);
+                p_vals.push(v);
+            }
+        }
+    }
+    let q: Vec<f64> = g.iter().map(|v| -v).collect();
+    let (mut a_rows, mut a_cols, mut a_vals) = (Vec::new(), Vec::new(), Vec::new());
+    for i in 0..a_s.nrows() {
+        for j in 0..nx {
+            if a_s[(i, j)] != 0.0 {
+                a_rows.push(i);
+                a_cols.push(j);
+                a_vals.push(a_s[(i, j)]);
+            }
+        }
+    }
+    let m = b.len();
+    let p = CscMatrix::new_from_triplets(nx, nx, p_rows, p_cols, p_vals);
+    let a = CscMatrix::new_from_triplets(m, nx, a_rows, a_cols, a_vals);
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .max_iter(200)
+        .tol_gap_abs(1e-12)
+        .tol_gap_rel(1e-12)
+        .tol_feas(1e-12)
+        .build()
+        .expect("static clarabel settings are valid");
+    let cones = [SupportedConeT::NonnegativeConeT(m)];
+    let mut solver = DefaultSolver::new(&p, &q, &a, b, &cones, settings).map_err(|e| {
+        EstimationError::Solver {
+            status: format!("setup failed: {e}"),
+            iterations: 0,
+        }
+    })?;
+    solver.solve();
+    let sol = &solver.solution;
+    match sol.status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => {
+            Ok(sol.x.iter().zip(&d).map(|(x, dv)| x * dv).collect())
+        }
+        status => Err(EstimationError::Solver {
+            status: format!("{status:?}"),
+            iterations: sol.iterations,
+        }),
+    }
+}
+
+impl Parametrisation {
+    /// The point of the parameter set nearest to `thetas` (one vector per
+    /// mode; least squares over the free parameters): ties, fixed values and
+    /// equalities exact, bounds through the QP.
+    pub fn project(&self, thetas: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, EstimationError> {
+        let np = self.n_params;
+        if thetas.len() != self.modes() || thetas.iter().any(|t| t.len() != np) {
+            return Err(EstimationError::Shape(format!(
+                "{} parameter vectors for {} modes of {np} parameters",
+                thetas.len(),
+                self.modes()
+            )));
+        }
+        let mut rows: Vec<(usize, f64)> = Vec::new();
+        for (i, t) in thetas.iter().enumerate() {
+            for (j, x) in t.iter().enumerate() {
+                if let Slot::Free(v) = self.slot(i, j) {
+                    rows.push((v, *x));
+                }
+            }
+        }
+        let mut z_mat = DMatrix::zeros(rows.len(), self.n_free());
+        let mut r = DVector::zeros(rows.len());
+        for (k, (v, x)) in rows.iter().enumerate() {
+            z_mat[(k, *v)] = 1.0;
+            r[k] = *x;
+        }
+        let z = solve_in_z(self, &z_mat, &r)?;
+        Ok(self.thetas(&z))
+    }
 }
 
 /// `min |Z z - r|^2` subject to `lo <= z <= hi`, as the QP
@@ -427,6 +728,96 @@ mod tests {
         let t = fit_modes(&par, &samples(&d)).unwrap();
         for m in &t {
             assert!((m[1] - 1.5).abs() < 1e-6 && m[1] <= 1.5, "{t:?}");
+        }
+    }
+
+    #[test]
+    fn inconsistent_equalities_name_the_entry() {
+        let p = priors(
+            "[fixed]\na1 = 0.5\n[[equality]]\ncoefficients = { a1 = 1.0, b1 = 1.0 }\nvalue = 1.0\n\
+             [[equality]]\ncoefficients = { b1 = 2.0 }\nvalue = 3.0\n",
+        );
+        let e = Parametrisation::from_priors(&p, &RegressorSpec::new(1, 1, 1), 2).unwrap_err();
+        assert!(
+            e.contains("[[equality]] #2") && e.contains("2 b1 = 3"),
+            "{e}"
+        );
+        // Redundant but consistent entries are fine.
+        let p = priors(
+            "[[equality]]\ncoefficients = { a1 = 1.0, b1 = 1.0 }\nvalue = 1.0\n\
+             [[equality]]\ncoefficients = { a1 = 2.0, b1 = 2.0 }\nvalue = 2.0\n",
+        );
+        let par = Parametrisation::from_priors(&p, &RegressorSpec::new(1, 1, 1), 2).unwrap();
+        assert_eq!(par.n_dof(), 4);
+    }
+
+    proptest! {
+        /// Random `[[equality]]` entries with ties, fixed values and bounds:
+        /// every equality holds to 1e-9 in every mode, ties bitwise, fixed
+        /// values unchanged, bounds within the QP tolerance.
+        #[test]
+        fn random_equalities_hold(
+            c1 in prop::collection::vec(-2.0f64..2.0, 3),
+            v1 in -1.0f64..1.0,
+            c2 in prop::collection::vec(-2.0f64..2.0, 3),
+            v2 in -1.0f64..1.0,
+            noise in 0.0f64..0.5,
+            with_tie in any::<bool>(),
+            with_bound in any::<bool>(),
+        ) {
+            let names = ["a1", "b1", "c"];
+            let eq = |c: &[f64], v: f64| {
+                let terms: Vec<String> = names.iter().zip(c).map(|(n, x)| format!("{n} = {x:?}")).collect();
+                format!("[[equality]]\ncoefficients = {{ {} }}\nvalue = {v:?}\n", terms.join(", "))
+            };
+            let mut text = eq(&c1, v1);
+            // The second equality only on b1, c (with a tie on a1 the
+            // system stays consistent).
+            text += &eq(&[0.0, c2[1], c2[2]], v2);
+            if with_tie {
+                text += "[[tie]]\nparams = [\"a1\"]\n";
+            }
+            if with_bound {
+                text += "[bounds]\nb1 = [-0.5, 0.5]\n";
+            }
+            let p = priors(&text);
+            let mut d = two_modes([[0.5, 1.0, 0.2], [-0.3, 2.0, -1.0]], 30);
+            for (k, y) in d[0].1.iter_mut().enumerate() {
+                *y += noise * (((k * 37) % 11) as f64 / 5.0 - 1.0);
+            }
+            let par = match Parametrisation::from_priors(&p, &RegressorSpec::new(1, 1, 1), 2) {
+                Ok(par) => par,
+                // Random coefficients can be (nearly) contradictory: the
+                // error must name an entry.
+                Err(e) => {
+                    prop_assert!(e.contains("[[equality]]"), "{}", e);
+                    return Ok(());
+                }
+            };
+            let t = match fit_modes(&par, &samples(&d)) {
+                Ok(t) => t,
+                Err(EstimationError::Solver { .. }) if with_bound => return Ok(()), // infeasible box
+                Err(e) => return Err(TestCaseError::fail(e.to_string())),
+            };
+            for m in &t {
+                for (c, v) in [(&c1[..], v1), (&[0.0, c2[1], c2[2]][..], v2)] {
+                    let lhs: f64 = m.iter().zip(c).map(|(x, y)| x * y).sum();
+                    let scale = 1.0 + m.iter().map(|x| x.abs()).fold(0.0, f64::max);
+                    prop_assert!((lhs - v).abs() <= 1e-9 * scale, "{:?}: {} != {}", t, lhs, v);
+                }
+                if with_bound {
+                    prop_assert!(m[1] >= -0.5 - 1e-7 && m[1] <= 0.5 + 1e-7, "{:?}", t);
+                }
+            }
+            if with_tie {
+                prop_assert_eq!(t[0][0].to_bits(), t[1][0].to_bits());
+            }
+            // The projection lands in the set too.
+            let proj = par.project(&[vec![1.0, 1.0, 1.0], vec![-1.0, 0.0, 2.0]]).unwrap();
+            for m in &proj {
+                let lhs: f64 = m.iter().zip(&c1).map(|(x, y)| x * y).sum();
+                prop_assert!((lhs - v1).abs() <= 1e-9 * (1.0 + m.iter().map(|x| x.abs()).fold(0.0, f64::max)));
+            }
         }
     }
 

@@ -28,10 +28,15 @@ pub enum PriorKind {
     Bounds,
     /// `switching = [...]`: regressors the regions may depend on.
     Switching,
+    /// `[[equality]]`: a linear equality among a mode's parameters, in
+    /// every ordinary mode.
+    Equality,
 }
 
 impl PriorKind {
-    /// Every kind: what a back-end that honours all priors declares.
+    /// The kinds of the original prior-file contract (every kind but
+    /// [`PriorKind::Equality`]). A back-end declaring `ALL` refuses
+    /// `[[equality]]` entries until it declares [`PriorKind::EVERY`].
     pub const ALL: &'static [PriorKind] = &[
         PriorKind::Modes,
         PriorKind::MaxModes,
@@ -40,6 +45,19 @@ impl PriorKind {
         PriorKind::Fixed,
         PriorKind::Bounds,
         PriorKind::Switching,
+    ];
+
+    /// Every kind, `[[equality]]` included: what a back-end that honours
+    /// all priors declares.
+    pub const EVERY: &'static [PriorKind] = &[
+        PriorKind::Modes,
+        PriorKind::MaxModes,
+        PriorKind::Saturation,
+        PriorKind::Tie,
+        PriorKind::Fixed,
+        PriorKind::Bounds,
+        PriorKind::Switching,
+        PriorKind::Equality,
     ];
 }
 
@@ -53,6 +71,7 @@ impl fmt::Display for PriorKind {
             PriorKind::Fixed => "[fixed]",
             PriorKind::Bounds => "[bounds]",
             PriorKind::Switching => "switching",
+            PriorKind::Equality => "[[equality]]",
         })
     }
 }
@@ -113,6 +132,42 @@ pub struct Tie {
     pub params: Vec<String>,
 }
 
+/// A linear equality `sum_p coefficients[p] * theta[p] = value` among the
+/// parameters of one mode, holding in every non-saturation mode (mode
+/// identities are outputs of the identification, so an equality cannot
+/// name a mode; `docs/priors.md`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Equality {
+    /// Parameter name -> coefficient (`{ a1 = 1.0, a2 = 1.0 }`).
+    pub coefficients: BTreeMap<String, f64>,
+    /// Right-hand side (default 0).
+    #[serde(default)]
+    pub value: f64,
+}
+
+impl Equality {
+    /// The equality as text, e.g. `a1 + a2 = 1`.
+    pub fn describe(&self) -> String {
+        let mut s = String::new();
+        for (i, (name, c)) in self.coefficients.iter().enumerate() {
+            let (sign, m) = if *c < 0.0 { ("-", -c) } else { ("+", *c) };
+            if i == 0 {
+                if sign == "-" {
+                    s.push('-');
+                }
+            } else {
+                s.push_str(&format!(" {sign} "));
+            }
+            if m != 1.0 {
+                s.push_str(&format!("{m} "));
+            }
+            s.push_str(name);
+        }
+        format!("{s} = {}", self.value)
+    }
+}
+
 /// All priors of a run.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -138,6 +193,9 @@ pub struct Priors {
     /// Regressors the regions may depend on.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub switching: Vec<String>,
+    /// Linear equalities among a mode's parameters, in every ordinary mode.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub equality: Vec<Equality>,
 }
 
 /// Errors in priors.
@@ -234,6 +292,26 @@ impl Priors {
                 return Err(format!("[[tie]] #{}: params is empty", i + 1));
             }
         }
+        for (i, e) in self.equality.iter().enumerate() {
+            if e.coefficients.is_empty() {
+                return Err(format!("[[equality]] #{}: coefficients is empty", i + 1));
+            }
+            if let Some((k, c)) = e.coefficients.iter().find(|(_, c)| !c.is_finite()) {
+                return Err(format!(
+                    "[[equality]] #{}: coefficient of {k} must be finite, got {c}",
+                    i + 1
+                ));
+            }
+            if e.coefficients.values().all(|c| *c == 0.0) {
+                return Err(format!(
+                    "[[equality]] #{}: every coefficient is zero",
+                    i + 1
+                ));
+            }
+            if !e.value.is_finite() {
+                return Err(format!("[[equality]] #{}: value must be finite", i + 1));
+            }
+        }
         for (k, v) in &self.fixed {
             if !v.is_finite() {
                 return Err(format!("[fixed] {k}: value must be finite"));
@@ -270,6 +348,9 @@ impl Priors {
         }
         if !self.switching.is_empty() {
             k.push(PriorKind::Switching);
+        }
+        if !self.equality.is_empty() {
+            k.push(PriorKind::Equality);
         }
         k
     }
@@ -321,6 +402,11 @@ impl Priors {
                 known(p, &params, "[[tie]] params")?;
             }
         }
+        for (i, e) in self.equality.iter().enumerate() {
+            for p in e.coefficients.keys() {
+                known(p, &params, &format!("[[equality]] #{} coefficients", i + 1))?;
+            }
+        }
         for p in self.fixed.keys() {
             known(p, &params, "[fixed]")?;
         }
@@ -335,6 +421,15 @@ impl Priors {
 }
 
 impl Priors {
+    /// Whether the priors constrain the mode parameters (`[[tie]]`,
+    /// `[fixed]`, `[bounds]` or `[[equality]]`).
+    pub fn constrains_parameters(&self) -> bool {
+        !(self.tie.is_empty()
+            && self.fixed.is_empty()
+            && self.bounds.is_empty()
+            && self.equality.is_empty())
+    }
+
     /// The exact number of ordinary (non-saturation) modes: `modes` minus
     /// the `[[saturation]]` entries (`modes` counts every mode).
     pub fn ordinary_modes(&self) -> Option<usize> {
@@ -417,6 +512,39 @@ b1 = [0.0, 1.0e3]
         assert!(Priors::from_toml("modes = 5\nmax_modes = 3", "p").is_err());
         assert!(Priors::from_toml("[bounds]\nb1 = [2.0, 1.0]", "p").is_err());
         assert!(Priors::from_toml("[[saturation]]\nlevel = 1.0\nbound = \"up\"", "p").is_err());
+    }
+
+    #[test]
+    fn equality_parses_and_names_are_checked() {
+        let p = Priors::from_toml(
+            "[[equality]]\ncoefficients = { a1 = 1.0, a2 = 1.0 }\nvalue = 1.0\n[[equality]]\ncoefficients = { b1 = 1.0, b2 = -2.0 }\n",
+            "p.toml",
+        )
+        .unwrap();
+        assert_eq!(p.kinds(), vec![PriorKind::Equality]);
+        assert_eq!(p.equality[1].value, 0.0);
+        assert_eq!(p.equality[0].describe(), "a1 + a2 = 1");
+        assert_eq!(p.equality[1].describe(), "b1 - 2 b2 = 0");
+        p.check_pwarx_names(&RegressorSpec::new(2, 2, 1)).unwrap();
+        let e = p
+            .check_pwarx_names(&RegressorSpec::new(1, 2, 1))
+            .unwrap_err();
+        assert!(e.contains("[[equality]] #1") && e.contains("'a2'"), "{e}");
+        for bad in [
+            "[[equality]]\ncoefficients = {}\n",
+            "[[equality]]\ncoefficients = { a1 = 0.0 }\n",
+            "[[equality]]\ncoefficients = { a1 = 1.0 }\nvalu = 2.0\n",
+        ] {
+            let e = Priors::from_toml(bad, "p.toml").unwrap_err().to_string();
+            assert!(e.contains("p.toml"), "{e}");
+        }
+        let e = p
+            .ensure_honoured("cluster", PriorKind::ALL, Some("p.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("[[equality]]") && e.contains("p.toml"), "{e}");
+        p.ensure_honoured("bounded", PriorKind::EVERY, None)
+            .unwrap();
     }
 
     #[test]
