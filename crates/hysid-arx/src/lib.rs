@@ -41,7 +41,7 @@ impl Identifier for Arx {
     type Options = ArxOptions;
     const NAME: &'static str = "arx";
     const SUMMARY: &'static str = "one affine ARX model by least squares: the linear baseline";
-    const HONOURS: &'static [PriorKind] = PriorKind::EVERY;
+    const HONOURS: &'static [PriorKind] = PriorKind::ALL;
 
     fn identify(
         &self,

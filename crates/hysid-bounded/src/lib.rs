@@ -311,7 +311,7 @@ impl Identifier for Bounded {
     type Options = BoundedOptions;
     const NAME: &'static str = "bounded";
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
-    const HONOURS: &'static [PriorKind] = PriorKind::EVERY;
+    const HONOURS: &'static [PriorKind] = PriorKind::ALL;
 
     fn identify(
         &self,

@@ -29,8 +29,9 @@
 //! chosen by hold-out simulation FIT) and `max_modes`, both counting the
 //! saturation modes; `[[saturation]]` (samples at a stop removed before the
 //! local datasets, the model a hybrid automaton with the stops as modes on
-//! their guard sets, Juloski et al. 2003, section 5); `[[tie]]`, `[fixed]`
-//! and `[bounds]` in every weighted least-squares step ([`priors`]);
+//! their guard sets, Juloski et al. 2003, section 5); `[[tie]]`, `[fixed]`,
+//! `[[equality]]` and `[bounds]` in every weighted least-squares step
+//! ([`priors`]);
 //! `switching` (region normals restricted to the chosen regressors).
 
 pub mod dense;

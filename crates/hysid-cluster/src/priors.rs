@@ -22,11 +22,11 @@ use hysid_core::priors::Priors;
 use hysid_core::regressors::RegressorSpec;
 use nalgebra::DMatrix;
 
-/// Whether `priors` constrain the mode parameters (`[[tie]]`, `[fixed]` or
-/// `[bounds]`); without, the procedure keeps its unconstrained per-mode
+/// Whether `priors` constrain the mode parameters (`[[tie]]`, `[fixed]`,
+/// `[[equality]]` or `[bounds]`); without, the procedure keeps its unconstrained per-mode
 /// least squares.
 pub fn constrains_parameters(priors: &Priors) -> bool {
-    !(priors.tie.is_empty() && priors.fixed.is_empty() && priors.bounds.is_empty())
+    priors.constrains_parameters()
 }
 
 /// The regressor columns (0-based, in `x` order) of the `switching` prior,

@@ -9,7 +9,7 @@ use hysid_core::data::Dataset;
 use hysid_core::metrics::{mode_accuracy, parameter_error, validate};
 use hysid_core::model::{Model, PwarxModel};
 use hysid_core::options::Settings;
-use hysid_core::priors::{Priors, StopBound, Tie};
+use hysid_core::priors::{Equality, Priors, StopBound, Tie};
 use hysid_core::regressors::RegressorSpec;
 use hysid_core::simulate::{SimulationOptions, simulate};
 use hysid_testkit::{Noise, StoppedBenchmark, b1, h3, stopped_head};
@@ -121,6 +121,41 @@ proptest! {
             prop_assert!((mode.theta[0] - a0).abs() <= 1e-9, "{:?}", m.modes);
             prop_assert_eq!(mode.theta[2].to_bits(), c.to_bits());
             prop_assert!(mode.theta[1] >= -1.0 && mode.theta[1] <= hi, "{:?}", mode.theta);
+        }
+    }
+
+    /// Random `[[equality]]` entries (among one mode's parameters, in every
+    /// mode), with or without a tie and in working units scaled or not:
+    /// every equality holds to 1e-9 in every identified mode.
+    #[test]
+    fn random_equalities_hold(
+        seed in 0u64..1000,
+        ca in -2.0f64..2.0,
+        cb in prop_oneof![-2.0f64..-0.1, 0.1f64..2.0],
+        v in -1.0f64..1.0,
+        tie in any::<bool>(),
+        scale in any::<bool>(),
+    ) {
+        let b = b1(180, 4.0, Noise::Uniform(0.1), seed);
+        let mut p = b1_priors(3);
+        p.equality.push(Equality {
+            coefficients: [("a1".to_string(), ca), ("c".to_string(), cb)].into(),
+            value: v,
+        });
+        if tie {
+            p.tie.push(Tie { params: vec!["b1".into()] });
+        }
+        let set = ["restarts=3".to_string(), format!("scale={scale}")];
+        let set: Vec<&str> = set.iter().map(String::as_str).collect();
+        let m = pwarx(run(&b.data, RegressorSpec::new(1, 1, 1), &p, &set).unwrap());
+        let b0 = m.modes[0].theta[1];
+        for mode in &m.modes {
+            let t = &mode.theta;
+            let scale = 1.0 + t.iter().map(|x| x.abs()).fold(0.0, f64::max);
+            prop_assert!((ca * t[0] + cb * t[2] - v).abs() <= 1e-9 * scale, "{:?}", m.modes);
+            if tie {
+                prop_assert!((t[1] - b0).abs() <= 1e-9, "tie b1: {:?}", m.modes);
+            }
         }
     }
 

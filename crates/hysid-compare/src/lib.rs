@@ -132,15 +132,28 @@ fn merge(shared: &Priors, run: &RunSpec) -> Priors {
         Priors::default()
     };
     if let Some(extra) = &run.priors {
-        p.modes = extra.modes.or(p.modes);
-        p.max_modes = extra.max_modes.or(p.max_modes);
-        p.saturation.extend(extra.saturation.iter().cloned());
-        p.tie.extend(extra.tie.iter().cloned());
-        p.fixed.extend(extra.fixed.clone());
-        p.bounds.extend(extra.bounds.clone());
-        if !extra.switching.is_empty() {
-            p.switching = extra.switching.clone();
+        // Every field named (no `..`): a new kind of prior does not compile
+        // until it is merged here, so none is dropped silently.
+        let Priors {
+            modes,
+            max_modes,
+            saturation,
+            tie,
+            fixed,
+            bounds,
+            switching,
+            equality,
+        } = extra.clone();
+        p.modes = modes.or(p.modes);
+        p.max_modes = max_modes.or(p.max_modes);
+        p.saturation.extend(saturation);
+        p.tie.extend(tie);
+        p.fixed.extend(fixed);
+        p.bounds.extend(bounds);
+        if !switching.is_empty() {
+            p.switching = switching;
         }
+        p.equality.extend(equality);
     }
     if run.modes.is_some() {
         p.modes = run.modes;

@@ -34,22 +34,8 @@ pub enum PriorKind {
 }
 
 impl PriorKind {
-    /// The kinds of the original prior-file contract (every kind but
-    /// [`PriorKind::Equality`]). A back-end declaring `ALL` refuses
-    /// `[[equality]]` entries until it declares [`PriorKind::EVERY`].
+    /// Every kind: what a back-end that honours all priors declares.
     pub const ALL: &'static [PriorKind] = &[
-        PriorKind::Modes,
-        PriorKind::MaxModes,
-        PriorKind::Saturation,
-        PriorKind::Tie,
-        PriorKind::Fixed,
-        PriorKind::Bounds,
-        PriorKind::Switching,
-    ];
-
-    /// Every kind, `[[equality]]` included: what a back-end that honours
-    /// all priors declares.
-    pub const EVERY: &'static [PriorKind] = &[
         PriorKind::Modes,
         PriorKind::MaxModes,
         PriorKind::Saturation,
@@ -539,12 +525,15 @@ b1 = [0.0, 1.0e3]
             assert!(e.contains("p.toml"), "{e}");
         }
         let e = p
-            .ensure_honoured("cluster", PriorKind::ALL, Some("p.toml"))
+            .ensure_honoured(
+                "physical",
+                &[PriorKind::Fixed, PriorKind::Tie],
+                Some("p.toml"),
+            )
             .unwrap_err()
             .to_string();
         assert!(e.contains("[[equality]]") && e.contains("p.toml"), "{e}");
-        p.ensure_honoured("bounded", PriorKind::EVERY, None)
-            .unwrap();
+        p.ensure_honoured("bounded", PriorKind::ALL, None).unwrap();
     }
 
     #[test]
