@@ -66,3 +66,33 @@ fn the_saturation_experiments_expand_and_know_both_stops() {
     assert_eq!(levels, [0.0, 25.0]);
     assert_eq!(with_priors.priors.modes, Some(4));
 }
+
+/// The ties experiment: a run's own `[[equality]]` and `[[tie]]` reach its
+/// job (and only its job), the runs without priors get none.
+#[test]
+fn the_ties_experiment_gives_each_run_its_own_priors() {
+    let e = Experiment::load(&models().join("ties.toml")).unwrap();
+    let jobs = e.jobs().unwrap();
+    assert!(jobs.len() >= 16, "{}", jobs.len());
+    for j in &jobs {
+        let p = &j.priors;
+        assert_eq!(
+            p.equality.len(),
+            usize::from(j.name.contains("equality")),
+            "{}",
+            j.name
+        );
+        assert_eq!(!p.tie.is_empty(), j.name.contains("tie"), "{}", j.name);
+        if j.name.contains("equality") {
+            let c = &p.equality[0].coefficients;
+            assert_eq!((c["b1"], c["b2"]), (1.0, -1.0), "{}", j.name);
+        }
+    }
+    for m in ["arx", "cluster", "bounded"] {
+        assert!(
+            jobs.iter()
+                .any(|j| j.method == m && j.name.contains("equality")),
+            "no {m} equality run"
+        );
+    }
+}
