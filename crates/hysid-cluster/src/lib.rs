@@ -338,7 +338,7 @@ pub fn identify_with(
             if stops > 0 { " outside the stops" } else { "" }
         )));
     }
-    if big_n < s * (n + 1) {
+    if s.checked_mul(n + 1).is_none_or(|need| big_n < need) {
         return Err(bad(format!(
             "{big_n} regressors cannot identify {s} modes of {} parameters",
             n + 1

@@ -350,7 +350,7 @@ pub fn segmented_residuals(
 ) -> Option<Vec<f64>> {
     let ts = data.ts?;
     let r = model.resolve_with(values);
-    let n_sub = mechanical::substeps(ts, model.internal_step);
+    let n_sub = mechanical::substeps(ts, model.internal_step).ok()?;
     let y = data.y();
     let n = y.len();
     let mut u = vec![0.0; data.inputs.len()];
@@ -522,11 +522,13 @@ pub fn fit_mechanical(
             data.inputs.len()
         )));
     }
-    if data.ts.is_none() {
+    let Some(ts) = data.ts else {
         return Err(IdentifyError::BadData(
             "the physical method needs the sampling time: give a 't' signal or --ts".into(),
         ));
-    }
+    };
+    mechanical::substeps(ts, model.internal_step)
+        .map_err(|e| IdentifyError::BadData(format!("model: {e}")))?;
     if !(options.simplex > 0.0 && options.simplex <= 1.0) {
         return Err(IdentifyError::BadData(format!(
             "--set simplex={}: must be in (0, 1]",
