@@ -183,7 +183,7 @@ impl Identifier for Cluster {
 /// (`docs/cluster.md`).
 pub fn default_c(n: usize, big_n: usize, s: usize) -> usize {
     let want = (4 * (n + 1)).max(((big_n as f64).sqrt() / 2.0).ceil() as usize);
-    want.min(big_n / (2 * s.max(1))).max(n + 2)
+    want.min(big_n / s.max(1).saturating_mul(2)).max(n + 2)
 }
 
 fn bad(msg: String) -> IdentifyError {
