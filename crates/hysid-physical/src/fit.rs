@@ -864,10 +864,9 @@ pub fn fit_mechanical(
         diag.insert("segment".into(), json!(options.segment));
     }
     diag.insert("evaluations".into(), json!(n_eval));
-    // The last local run decides whether the result is converged: the
-    // final Nelder-Mead run (free-run cost), else the last
-    // Levenberg-Marquardt run.
-    let last = nm_stops.last().or(lm_stops.last()).copied();
+    // The last local run (the final Nelder-Mead run, on the free-run cost)
+    // decides whether the result counts as converged.
+    let last = nm_stops.last().copied();
     let mut termination = serde_json::Map::new();
     if let Some(t) = swarm_stop {
         termination.insert("particle_swarm".into(), json!(t.as_str()));
@@ -890,15 +889,11 @@ pub fn fit_mechanical(
             )),
         );
     } else if last == Some(Termination::MaxIterations) {
-        let (stage, option, n) = if nm_stops.is_empty() {
-            ("Levenberg-Marquardt", "lm_iters", options.lm_iters)
-        } else {
-            ("Nelder-Mead", "local_iters", options.local_iters)
-        };
         diag.insert(
             "status".into(),
             json!(format!(
-                "iteration limit reached: the last {stage} run stopped at {option} = {n} before its convergence test held; the parameters may not be converged (raise {option})"
+                "iteration limit reached: the last Nelder-Mead run stopped at local_iters = {} before its convergence test held; the parameters may not be converged (raise local_iters)",
+                options.local_iters
             )),
         );
     }

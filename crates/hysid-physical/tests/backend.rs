@@ -311,7 +311,10 @@ fn the_termination_of_every_stage_is_recorded_and_an_iteration_limit_reported() 
         .values()
         .map(|v| v.as_u64().unwrap())
         .sum();
-    assert_eq!(lm, 2, "one Levenberg-Marquardt run per start: {t}");
+    // One LM run per start: starts = 2 in the segmented stage, 1 in the
+    // free-run stage; one Nelder-Mead run (restarts = 1) per stage.
+    assert_eq!(lm, 3, "{t}");
+    assert_eq!(t["nelder_mead"]["max_iterations"], 2, "{t}");
     let status = g["status"].as_str().unwrap();
     assert!(
         status.starts_with(
@@ -319,23 +322,11 @@ fn the_termination_of_every_stage_is_recorded_and_an_iteration_limit_reported() 
         ),
         "{status}"
     );
-    // Levenberg-Marquardt alone (no Nelder-Mead), one iteration.
-    let m = run(&d, &Priors::default(), &["local_iters=0", "lm_iters=1"], 1).unwrap();
-    let g = diag(&m);
-    assert_eq!(g["termination"]["last_local_run"], "max_iterations", "{g}");
-    assert!(g.get("nelder_mead").is_none());
-    assert!(
-        g["status"]
-            .as_str()
-            .unwrap()
-            .contains("the last Levenberg-Marquardt run stopped at lm_iters = 1"),
-        "{g}"
-    );
     // Enough iterations: the last run converges and no status is written.
     let m = run(&d, &Priors::default(), &["local_iters=3000"], 1).unwrap();
     let g = diag(&m);
-    assert_eq!(g["termination"]["last_local_run"], "converged", "{g}");
-    assert!(g.get("status").is_none(), "{g}");
+    assert_eq!(g["termination"]["last_local_run"], "converged", "{g:?}");
+    assert!(g.get("status").is_none(), "{g:?}");
 }
 
 #[test]
