@@ -108,7 +108,7 @@ mod tests {
     //! are reached here, on small programs, through the one `solve` every
     //! region method calls.
     use super::*;
-    use clarabel::solver::SupportedConeT::NonnegativeCone;
+    use clarabel::solver::SupportedConeT::NonnegativeConeT;
 
     const CTX: Context = Context {
         method: "test",
@@ -128,19 +128,23 @@ mod tests {
             q: vec![1.0, 1.0],
             a,
             b: vec![-lo, hi, -lo, hi],
-            cones: vec![NonnegativeCone(4)],
+            cones: vec![NonnegativeConeT(4)],
         }
     }
 
     #[test]
     fn a_feasible_program_is_solved() {
-        let s = solve(boxed(0.5, 2.0), &CTX).unwrap();
+        let Ok(s) = solve(boxed(0.5, 2.0), &CTX) else {
+            panic!("a feasible program failed");
+        };
         assert!(s.x.iter().all(|x| (x - 0.5).abs() < 1e-6), "{:?}", s.x);
     }
 
     #[test]
     fn an_infeasible_program_is_an_error_naming_the_status() {
-        let e = solve(boxed(2.0, 0.5), &CTX).unwrap_err();
+        let Err(e) = solve(boxed(2.0, 0.5), &CTX) else {
+            panic!("an infeasible program was solved");
+        };
         let m = e.to_string();
         assert!(
             matches!(&e, RegionError::Solver { status, .. } if status == "PrimalInfeasible"),
@@ -163,7 +167,9 @@ mod tests {
             .max_iter(1)
             .build()
             .unwrap();
-        let e = solve_with(boxed(0.5, 2.0), &CTX, settings).unwrap_err();
+        let Err(e) = solve_with(boxed(0.5, 2.0), &CTX, settings) else {
+            panic!("one iteration solved the program");
+        };
         assert!(
             e.to_string()
                 .starts_with("test: clarabel stopped with status MaxIterations after 1 iterations"),
