@@ -163,6 +163,19 @@ fn identify<'a>(data: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a str> 
     a
 }
 
+/// `identify` with another method (orders 1, 1).
+fn identify_with<'a>(
+    data: &'a str,
+    out: &'a str,
+    method: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut a = vec!["identify", data, "-m", method, "--na", "1", "--nb", "1"];
+    a.extend_from_slice(extra);
+    a.extend_from_slice(&["-o", out]);
+    a
+}
+
 /// `identify` without the orders, for cases that set them.
 fn identify_orders<'a>(data: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     let mut a = vec!["identify", data, "-m", "arx"];
@@ -227,7 +240,11 @@ fn malformed_mat_files() {
         *b = 0xA5;
     }
     let p = write(d, "garbage.mat", bytes);
-    bad(&identify(s(&p), o, &[]), &["garbage.mat"], &out);
+    bad(
+        &identify(s(&p), o, &[]),
+        &["garbage.mat", "not a readable level-5 MAT-file"],
+        &out,
+    );
 
     // y is a 100x2 matrix.
     let m = variable(
@@ -453,9 +470,18 @@ fn bad_selections_and_orders() {
         &["--set 'ridge'", "key=value"],
         &out,
     );
+    // Not positive, not finite, not a number (a budget too long to
+    // represent, e.g. 1e20 s, is no deadline: tests/cli.rs).
+    for t in ["-5", "0", "-0", "NaN", "inf", "-1e20"] {
+        bad(
+            &identify(data, o, &["--time-budget", t]),
+            &["--time-budget", "must be a positive number of seconds"],
+            &out,
+        );
+    }
     bad(
-        &identify(data, o, &["--time-budget", "-5"]),
-        &["--time-budget", "-5"],
+        &identify(data, o, &["--time-budget", "abc"]),
+        &["--time-budget", "'abc'"],
         &out,
     );
     bad(
@@ -464,6 +490,28 @@ fn bad_selections_and_orders() {
         &out,
     );
     bad(&identify(data, o, &["--modes", "0"]), &["modes"], &out);
+    // A mode count whose parameter count overflows (cluster multiplied it
+    // unchecked and panicked).
+    let huge = "18446744073709551615";
+    bad(
+        &identify_with(data, o, "cluster", &["--modes", huge]),
+        &["regressors cannot identify 18446744073709551615 modes"],
+        &out,
+    );
+    // bounded extracts modes one at a time and stops when the data are
+    // explained: no arithmetic on the count; fewer modes than the prior asks
+    // is a method failure (exit 1), as for `--modes 40` (docs/errors.md).
+    fails(
+        1,
+        &identify_with(
+            data,
+            o,
+            "bounded",
+            &["--modes", huge, "--set", "delta=0.01"],
+        ),
+        &["fewer than the prior modes = 18446744073709551615"],
+        &out,
+    );
     report();
 }
 
@@ -492,6 +540,14 @@ fn output_paths_that_cannot_be_written() {
     );
     assert!(String::from_utf8_lossy(&o.stderr).contains("a-folder"));
     assert!(folder.is_dir() && std::fs::read_dir(&folder).unwrap().count() == 0);
+    // The temporary is written beside the target (in `d`): none is left.
+    let tmp: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(tmp.is_empty(), "temporary files left behind: {tmp:?}");
     // Simulation CSV into a folder that does not exist.
     let model = write(
         d,
@@ -562,7 +618,11 @@ fn malformed_model_files() {
             r#"{"kind":"pwarx","na":1,"nb":1,"inp"#,
             &["cut.json", "EOF"],
         ),
-        ("empty.json", "", &["empty.json"]),
+        (
+            "empty.json",
+            "",
+            &["empty.json", "EOF while parsing", "line 1 column 0"],
+        ),
         (
             "inputs.json",
             r#"{"kind":"pwarx","na":1,"nb":1,"inputs":2,"modes":[{"theta":[0.5,1.0,2.0,0.0]}]}"#,
@@ -619,7 +679,11 @@ fn malformed_prior_files() {
             "[[saturation]]\nlevel = 1.0\nbound = \"up\"\n",
             &["side.toml", "unknown variant `up`"],
         ),
-        ("syntax.toml", "modes = \n", &["syntax.toml"]),
+        (
+            "syntax.toml",
+            "modes = \n",
+            &["syntax.toml", "TOML parse error at line 1, column 9"],
+        ),
     ];
     for (name, text, needles) in cases {
         let p = write(d, name, text);
@@ -627,7 +691,7 @@ fn malformed_prior_files() {
     }
     bad(
         &identify(data, s(&out), &["--prior", s(&d.join("missing.toml"))]),
-        &["missing.toml"],
+        &["missing.toml", "No such file or directory"],
         &out,
     );
     report();
@@ -729,7 +793,36 @@ fn malformed_simulation_options() {
         &["--excite", "colour"],
         &out,
     );
-    bad(&excite("n=20;hold=2"), &["--excite"], &out);
+    bad(
+        &excite("n=20;hold=2"),
+        &["--excite n", "'20;hold=2' is not a number"],
+        &out,
+    );
+    // Sizes: capped (hysid_core::excitation::MAX_SAMPLES, MAX_INPUTS,
+    // MAX_VALUES) before anything is allocated.
+    bad(
+        &excite("n=100000000000,hold=2,low=0,high=1"),
+        &["--excite n=100000000000", "at most 10000000 samples"],
+        &out,
+    );
+    bad(
+        &excite("n=18446744073709551615,hold=2,low=0,high=1"),
+        &["--excite n", "not a number"],
+        &out,
+    );
+    bad(
+        &excite("n=20,hold=2,low=0,high=1,inputs=1000000000000"),
+        &["--excite inputs=1000000000000", "at most 100 inputs"],
+        &out,
+    );
+    bad(
+        &excite("n=9000000,hold=2,low=0,high=1,inputs=2"),
+        &[
+            "--excite n=9000000, inputs=2",
+            "at most 10000000 input values",
+        ],
+        &out,
+    );
     bad(
         &[
             "simulate",
@@ -767,6 +860,84 @@ fn malformed_simulation_options() {
 }
 
 #[test]
+fn continuous_models_with_too_many_sub_steps_per_sample() {
+    // ceil(ts / internal_step) above hysid_core::simulate::MAX_SUBSTEPS_PER_SAMPLE
+    // (100 000) is refused naming the model file and `internal_step`; it
+    // used to become usize::MAX sub-steps (a hang).
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let models = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models");
+    let ball = std::fs::read_to_string(format!("{models}/examples/bouncing-ball.toml")).unwrap();
+    let head = std::fs::read_to_string(format!("{models}/pick-and-place/head.toml")).unwrap();
+    let tiny_ball = write(
+        d,
+        "tiny-ball.toml",
+        ball.replace("internal_step = 0.001", "internal_step = 1e-300"),
+    );
+    let tiny_head = write(
+        d,
+        "tiny-head.toml",
+        head.replace("internal_step = 0.00025", "internal_step = 1e-300"),
+    );
+    let slow_head = write(
+        d,
+        "slow-head.toml",
+        head.replace("internal_step = 0.00025", "internal_step = 1e-9"),
+    );
+    let data = good_csv(d); // t spaced by 0.01 s
+    let no_t = write(d, "no-t.csv", "u,y\n".to_string() + &"0,0\n".repeat(20));
+    let out = d.join("never.csv");
+    let o = s(&out);
+    let cap = "more than 100000 integration sub-steps per sample";
+    for model in [&tiny_ball, &tiny_head, &slow_head] {
+        let name = model.file_name().unwrap().to_str().unwrap();
+        let needles = [name, "internal_step", cap];
+        let excite = "n=20,hold=2,low=0,high=1,ts=0.01";
+        bad(
+            &["simulate", s(model), "--excite", excite, "-o", o],
+            &needles,
+            &out,
+        );
+        bad(
+            &["simulate", s(model), "--data", s(&data), "-o", o],
+            &needles,
+            &out,
+        );
+        bad(&["validate", s(model), s(&data)], &needles, &out);
+    }
+    // A huge sampling time with a sane internal step.
+    let ball_file = format!("{models}/examples/bouncing-ball.toml");
+    bad(
+        &["validate", &ball_file, s(&no_t), "--ts", "1e300"],
+        &["bouncing-ball.toml", "internal_step", cap],
+        &out,
+    );
+    // The physical back-end refuses such a model file before fitting.
+    let m_out = d.join("never.json");
+    let set = format!("model={}", s(&tiny_head));
+    bad(
+        &[
+            "identify",
+            s(&data),
+            "-m",
+            "physical",
+            "--set",
+            &set,
+            "-o",
+            s(&m_out),
+        ],
+        &[
+            "--set model=",
+            "tiny-head.toml",
+            "internal_step",
+            "more than 100000",
+        ],
+        &m_out,
+    );
+    report();
+}
+
+#[test]
 fn inputs_found_by_the_fuzzer_are_clean_errors() {
     // tests/data/fuzz/<target>-<what>-<hash>: crashing inputs of the fuzz
     // targets (docs/fuzzing.md), kept as regressions. The first byte chose
@@ -785,7 +956,11 @@ fn inputs_found_by_the_fuzzer_are_clean_errors() {
         };
         let bytes = std::fs::read(&path).unwrap();
         let file = write(dir.path(), &format!("{name}.{ext}"), &bytes[1..]);
-        bad(&identify(s(&file), s(&out), &[]), &[&name], &out);
+        bad(
+            &identify(s(&file), s(&out), &[]),
+            &[&name, "not a readable level-5 MAT-file"],
+            &out,
+        );
         seen += 1;
     }
     assert!(seen > 0, "no regression input in {folder}");

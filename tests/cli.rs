@@ -503,4 +503,73 @@ fn methods_declare_priors_and_backends_refuse_or_honour_them() {
         &["[[equality]] #1", "'b9'"],
         &never,
     );
+#[test]
+fn a_panic_is_one_line_and_exit_code_1() {
+    // A panic is a bug; the program still ends with one line and exit code
+    // 1, never Rust's 101. The internal test hook HYSID_TEST_PANIC=1 panics
+    // at the start of the command (docs/errors.md): the known panics of
+    // issue 8 are all fixed, so no real input reaches one.
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let out = dir.path().join("m.json");
+    let args = ["identify", s(&data), "-m", "arx", "-o", s(&out)];
+    let run = |hook: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_hysid"))
+            .args(args)
+            .env("CI", "1")
+            .env("HYSID_TEST_PANIC", hook)
+            // With RUST_BACKTRACE set the default panic report is printed too.
+            .env_remove("RUST_BACKTRACE")
+            .output()
+            .unwrap()
+    };
+    let err = one_line_error(&run("1"), 1).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        err.starts_with(
+            "hysid: error: internal error: HYSID_TEST_PANIC=1: deliberate panic (second line) at "
+        ),
+        "{err}"
+    );
+    assert!(err.contains("main.rs:"), "{err}");
+    assert!(err.ends_with(" (please report)"), "{err}");
+    assert!(!out.exists(), "left an output file behind");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(Result::ok)
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "left a temporary behind");
+    // Any other value is no hook.
+    let o = run("0");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.exists());
+}
+
+#[test]
+fn a_time_budget_too_long_to_represent_is_no_deadline() {
+    // Duration::from_secs_f64(1e20) panicked (the limit is about 1.8e19 s).
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let mut models = Vec::new();
+    for (i, t) in ["1e20", "1e300", "1.7976931348623157e308", "1e9"]
+        .iter()
+        .enumerate()
+    {
+        let out = dir.path().join(format!("m{i}.json"));
+        ok(&[
+            "identify",
+            s(&data),
+            "-m",
+            "cluster",
+            "--modes",
+            "1",
+            "--time-budget",
+            t,
+            "-o",
+            s(&out),
+        ]);
+        models.push(std::fs::read(&out).unwrap());
+    }
+    // No deadline was hit: every run is the same full run.
+    assert!(models.windows(2).all(|w| w[0] == w[1]));
 }

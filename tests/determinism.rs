@@ -79,9 +79,15 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
             && m["priors"]
                 .as_array()
                 .is_some_and(|p| p.iter().any(|k| k == "modes"));
+        // bounded has no default error bound (noise std 0.01 here).
         exp.push_str(&format!(
-            "\n[[run]]\nname = \"{name}\"\nmethod = \"{name}\"\n{}",
-            if modes { "modes = 2\n" } else { "" }
+            "\n[[run]]\nname = \"{name}\"\nmethod = \"{name}\"\n{}{}",
+            if modes { "modes = 2\n" } else { "" },
+            if name == "bounded" {
+                "set = { delta = 0.03 }\n"
+            } else {
+                ""
+            }
         ));
     }
     exp.push_str(
@@ -94,7 +100,23 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
     hysid(&["compare", s(&file), "-o", s(&two)], Some("2"));
     hysid(&["compare", s(&file), "-o", s(&again)], Some("2"));
     let (a, b, c) = (models(&one), models(&two), models(&again));
-    assert!(a.len() >= 4, "too few models written: {:?}", a.keys());
+    // Every registered back-end wrote its model (arx alone makes 4 files:
+    // its run and the three sweep points).
+    for m in methods.as_array().unwrap() {
+        let name = format!("{}.json", m["name"].as_str().unwrap());
+        assert!(
+            a.contains_key(&name),
+            "no model of {name} with one thread: {:?}",
+            a.keys()
+        );
+    }
+    for name in ["arx", "cluster", "bounded", "physical"] {
+        assert!(
+            a.contains_key(&format!("{name}.json")),
+            "{name} is not registered or wrote no model: {:?}",
+            a.keys()
+        );
+    }
     assert_eq!(
         a.keys().collect::<Vec<_>>(),
         b.keys().collect::<Vec<_>>(),
@@ -111,31 +133,56 @@ fn identify_is_byte_identical_across_runs_and_thread_counts() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let data = record(d);
-    let mut files = Vec::new();
-    for (i, threads) in ["1", "2", "2"].into_iter().enumerate() {
-        let out = d.join(format!("m{i}.json"));
-        hysid(
+    // The iterative back-ends (K-means restarts and region estimation in
+    // parallel; greedy extraction and QPs; swarm, Levenberg-Marquardt and
+    // Nelder-Mead) as well as arx.
+    let cases: [(&str, &[&str]); 4] = [
+        ("arx", &["--na", "2", "--nb", "2", "--standardize"]),
+        ("cluster", &["--na", "1", "--nb", "1", "--modes", "2"]),
+        (
+            "bounded",
             &[
-                "identify",
-                s(&data),
-                "-m",
-                "arx",
                 "--na",
-                "2",
+                "1",
                 "--nb",
+                "1",
+                "--modes",
                 "2",
-                "--standardize",
-                "--seed",
-                "8",
-                "-o",
-                s(&out),
+                "--set",
+                "delta=0.03",
             ],
-            Some(threads),
-        );
-        files.push(std::fs::read(&out).unwrap());
+        ),
+        (
+            "physical",
+            &[
+                "--set",
+                "particles=6",
+                "--set",
+                "swarm_iters=3",
+                "--set",
+                "starts=2",
+                "--set",
+                "lm_iters=2",
+                "--set",
+                "local_iters=30",
+                "--set",
+                "restarts=1",
+            ],
+        ),
+    ];
+    for (method, extra) in cases {
+        let mut files = Vec::new();
+        for (i, threads) in ["1", "2", "2"].into_iter().enumerate() {
+            let out = d.join(format!("{method}-{i}.json"));
+            let mut args = vec!["identify", s(&data), "-m", method, "--seed", "8"];
+            args.extend_from_slice(extra);
+            args.extend_from_slice(&["-o", s(&out)]);
+            hysid(&args, Some(threads));
+            files.push(std::fs::read(&out).unwrap());
+        }
+        assert!(files[0] == files[1], "{method}: 1 and 2 threads differ");
+        assert!(files[1] == files[2], "{method}: two runs differ");
     }
-    assert_eq!(files[0], files[1]);
-    assert_eq!(files[1], files[2]);
 }
 
 #[test]

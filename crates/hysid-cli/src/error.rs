@@ -76,6 +76,19 @@ impl From<SimError> for CliError {
     }
 }
 
+impl CliError {
+    /// A simulation set-up error of the model in `model_file`: a problem of
+    /// the model itself (its `internal_step`) names the file.
+    pub fn simulation(model_file: &std::path::Path, e: SimError) -> Self {
+        match e {
+            SimError::TooManySubsteps { .. } => {
+                Self::input(format!("{}: {e}", model_file.display()))
+            }
+            e => e.into(),
+        }
+    }
+}
+
 impl From<IdentifyError> for CliError {
     fn from(e: IdentifyError) -> Self {
         let bad = e.is_bad_input();

@@ -58,33 +58,84 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let result = match cli.command {
-        Command::Methods(a) => commands::methods::run(a),
-        Command::Identify(a) => commands::identify::run(a),
-        Command::Validate(a) => commands::validate::run(a),
-        Command::Simulate(a) => commands::simulate::run(a),
-        Command::Compare(a) => commands::compare::run(a),
-        Command::Sweep(a) => commands::sweep::run(a),
-    };
+    // A panic is a bug, never an answer: it becomes one line and exit code 1
+    // (not Rust's 101). Unwinding drops the temporary file of an atomic
+    // write, so no partial output file is left either.
+    let result = guarded(move || dispatch(cli.command));
     if let Err(e) = result {
         eprintln!("hysid: error: {}", e.one_line());
         std::process::exit(e.exit_code());
     }
 }
 
-/// The MAT reader of `hysid-core` catches panics of the third-party `matrw`
-/// parser on malformed files and returns an error naming the file; the
-/// default hook would still print the panic (several lines) before that
-/// one-line message. Panics raised while that parser runs are therefore not
-/// printed; any other panic is reported by the default hook as before.
+fn dispatch(command: Command) -> Result<()> {
+    // Internal test hook (tests/cli.rs): a deliberate panic, to check the
+    // guard below end to end. Not a user option; documented in docs/errors.md.
+    if std::env::var_os("HYSID_TEST_PANIC").is_some_and(|v| v == "1") {
+        panic!("HYSID_TEST_PANIC=1: deliberate panic\n(second line)");
+    }
+    match command {
+        Command::Methods(a) => commands::methods::run(a),
+        Command::Identify(a) => commands::identify::run(a),
+        Command::Validate(a) => commands::validate::run(a),
+        Command::Simulate(a) => commands::simulate::run(a),
+        Command::Compare(a) => commands::compare::run(a),
+        Command::Sweep(a) => commands::sweep::run(a),
+    }
+}
+
+/// Runs `f`; a panic (on this thread, or on a rayon worker, which rayon
+/// passes on to the caller) becomes `CliError::failure("internal error:
+/// <message> at <file:line> (please report)")`.
+fn guarded(f: impl FnOnce() -> Result<()>) -> Result<()> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
+        let message = if let Some(s) = payload.downcast_ref::<&str>() {
+            (*s).to_string()
+        } else if let Some(s) = payload.downcast_ref::<String>() {
+            s.clone()
+        } else {
+            "a panic without a message".to_string()
+        };
+        let at = LAST_PANIC_LOCATION
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
+            .map(|l| format!(" at {l}"))
+            .unwrap_or_default();
+        Err(CliError::failure(format!(
+            "internal error: {message}{at} (please report)"
+        )))
+    })
+}
+
+/// The panic hook. The MAT reader of `hysid-core` catches panics of the
+/// third-party `matrw` parser on malformed files and returns an error naming
+/// the file; panics raised while that parser runs are not printed at all.
+/// Any other panic is a bug that [`guarded`] reports on one line: the hook
+/// only records where it happened. With `RUST_BACKTRACE` set (not `0`), the default report
+/// (message, location, backtrace) is printed too, for debugging.
 fn quiet_guarded_panics() {
     let default = std::panic::take_hook();
+    let verbose = std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0");
     std::panic::set_hook(Box::new(move |info| {
-        if !hysid_core::data::inside_guarded_parser() {
+        if hysid_core::data::inside_guarded_parser() {
+            return;
+        }
+        if let Some(l) = info.location() {
+            let at = format!("{}:{}:{}", l.file(), l.line(), l.column());
+            *LAST_PANIC_LOCATION
+                .lock()
+                .unwrap_or_else(|e| e.into_inner()) = Some(at);
+        }
+        if verbose {
             default(info);
         }
     }));
 }
+
+/// The location of the last unguarded panic on any thread (a rayon worker's
+/// panic is re-raised on the calling thread with the worker's payload).
+static LAST_PANIC_LOCATION: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
 
 /// Keeps `CliError` in use from every module.
 pub(crate) type Result<T> = std::result::Result<T, CliError>;

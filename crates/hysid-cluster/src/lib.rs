@@ -184,7 +184,7 @@ impl Identifier for Cluster {
 /// (`docs/cluster.md`).
 pub fn default_c(n: usize, big_n: usize, s: usize) -> usize {
     let want = (4 * (n + 1)).max(((big_n as f64).sqrt() / 2.0).ceil() as usize);
-    want.min(big_n / (2 * s.max(1))).max(n + 2)
+    want.min(big_n / s.max(1).saturating_mul(2)).max(n + 2)
 }
 
 fn bad(msg: String) -> IdentifyError {
@@ -364,7 +364,7 @@ pub fn identify_labelled(
             if stops > 0 { " outside the stops" } else { "" }
         )));
     }
-    if big_n < s * (n + 1) {
+    if s.checked_mul(n + 1).is_none_or(|need| big_n < need) {
         return Err(bad(format!(
             "{big_n} regressors cannot identify {s} modes of {} parameters",
             n + 1

@@ -30,6 +30,15 @@ fn one() -> usize {
     1
 }
 
+/// Most samples an excitation may have (`n`): 10 million (80 MB per input).
+pub const MAX_SAMPLES: usize = 10_000_000;
+
+/// Most inputs an excitation may have (`inputs`).
+pub const MAX_INPUTS: usize = 100;
+
+/// Most values in all (`n` times `inputs`).
+pub const MAX_VALUES: usize = 10_000_000;
+
 impl std::str::FromStr for Excitation {
     type Err = String;
 
@@ -68,6 +77,24 @@ impl Excitation {
     pub fn check(&self) -> Result<(), String> {
         if self.n == 0 || self.hold == 0 || self.inputs == 0 {
             return Err("--excite: n, hold and inputs must be at least 1".into());
+        }
+        if self.n > MAX_SAMPLES {
+            return Err(format!(
+                "--excite n={}: at most {MAX_SAMPLES} samples",
+                self.n
+            ));
+        }
+        if self.inputs > MAX_INPUTS {
+            return Err(format!(
+                "--excite inputs={}: at most {MAX_INPUTS} inputs",
+                self.inputs
+            ));
+        }
+        if self.n.saturating_mul(self.inputs) > MAX_VALUES {
+            return Err(format!(
+                "--excite n={}, inputs={}: at most {MAX_VALUES} input values in all",
+                self.n, self.inputs
+            ));
         }
         if !(self.low.is_finite() && self.high.is_finite() && self.low <= self.high) {
             return Err(format!(
@@ -122,6 +149,17 @@ mod tests {
         assert_ne!(u, e.generate(8));
         assert!("n=10,hold=0,low=0,high=1".parse::<Excitation>().is_err());
         assert!("n=10,hold=2,low=2,high=1".parse::<Excitation>().is_err());
+        assert!(
+            "n=10000000,hold=2,low=0,high=1"
+                .parse::<Excitation>()
+                .is_ok()
+        );
+        let huge = "n=10000001,hold=2,low=0,high=1".parse::<Excitation>();
+        assert!(huge.unwrap_err().contains("at most 10000000 samples"));
+        let wide = "n=10,hold=2,low=0,high=1,inputs=101".parse::<Excitation>();
+        assert!(wide.unwrap_err().contains("at most 100 inputs"));
+        let both = "n=200000,hold=2,low=0,high=1,inputs=100".parse::<Excitation>();
+        assert!(both.unwrap_err().contains("at most 10000000 input values"));
         assert!(
             "n=10,hld=2,low=0,high=1"
                 .parse::<Excitation>()

@@ -1,7 +1,7 @@
 //! The fit: parameter map (priors), cost, swarm, Nelder-Mead, sensitivity.
 
 use crate::PhysicalOptions;
-use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
+use argmin::core::{CostFunction, Error as ArgminError, Executor, State, TerminationReason};
 use argmin::solver::neldermead::NelderMead;
 use argmin::solver::particleswarm::ParticleSwarm;
 use hysid_core::backend::{IdentifyError, Progress, RunContext};
@@ -350,7 +350,7 @@ pub fn segmented_residuals(
 ) -> Option<Vec<f64>> {
     let ts = data.ts?;
     let r = model.resolve_with(values);
-    let n_sub = mechanical::substeps(ts, model.internal_step);
+    let n_sub = mechanical::substeps(ts, model.internal_step).ok()?;
     let y = data.y();
     let n = y.len();
     let mut u = vec![0.0; data.inputs.len()];
@@ -377,7 +377,61 @@ pub fn segmented_residuals(
 /// Levenberg-Marquardt (Marquardt 1963) on residuals `res(z)` in the
 /// normalised box `[0, 1]^d` (steps projected onto it), with a central
 /// finite-difference Jacobian of step `fd`; at most `iters` iterations.
-/// Returns the best point and its sum of squares.
+/// Why an iterative stage of the fit stopped (recorded per stage in the
+/// model's `info.diagnostics["termination"]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Termination {
+    /// The stage's own convergence test held (Nelder-Mead: the simplex's
+    /// cost spread below its tolerance; Levenberg-Marquardt: a relative
+    /// decrease below 1e-9).
+    Converged,
+    /// Levenberg-Marquardt: no step decreased the cost, even with a
+    /// damping of 1e8 (a local minimum, or a flat or failing simulation).
+    NoDecrease,
+    /// The iteration limit of the stage (`swarm_iters`, `lm_iters`,
+    /// `local_iters`) was reached first.
+    MaxIterations,
+    /// `--time-budget` ran out.
+    TimeBudget,
+    /// Anything else (argmin's other reasons; a start whose simulation failed).
+    Other,
+}
+
+impl Termination {
+    /// The name written in the diagnostics.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Termination::Converged => "converged",
+            Termination::NoDecrease => "no_decrease",
+            Termination::MaxIterations => "max_iterations",
+            Termination::TimeBudget => "time_budget",
+            Termination::Other => "other",
+        }
+    }
+
+    fn of_argmin(r: Option<&TerminationReason>) -> Self {
+        match r {
+            Some(TerminationReason::SolverConverged | TerminationReason::TargetCostReached) => {
+                Termination::Converged
+            }
+            Some(TerminationReason::MaxItersReached) => Termination::MaxIterations,
+            Some(TerminationReason::Timeout) => Termination::TimeBudget,
+            _ => Termination::Other,
+        }
+    }
+}
+
+/// Counts of [`Termination`]s of the runs of one stage, as a JSON object.
+fn termination_counts(runs: &[Termination]) -> serde_json::Value {
+    let mut m = serde_json::Map::new();
+    for t in runs {
+        let e = m.entry(t.as_str()).or_insert(json!(0));
+        *e = json!(e.as_u64().unwrap_or(0) + 1);
+    }
+    serde_json::Value::Object(m)
+}
+
+/// Returns the best point, its sum of squares and why it stopped.
 pub fn levenberg_marquardt(
     res: &dyn Fn(&[f64]) -> Option<Vec<f64>>,
     z0: &[f64],
@@ -385,19 +439,21 @@ pub fn levenberg_marquardt(
     iters: usize,
     deadline: Option<Instant>,
     evals: &AtomicU64,
-) -> (Vec<f64>, f64) {
+) -> (Vec<f64>, f64, Termination) {
     let d = z0.len();
     let sse = |e: &[f64]| e.iter().map(|x| x * x).sum::<f64>();
     let mut z = z0.to_vec();
     let Some(mut r) = res(&z) else {
-        return (z, f64::INFINITY);
+        return (z, f64::INFINITY, Termination::Other);
     };
     evals.fetch_add(1, Ordering::Relaxed);
     let mut cost = sse(&r);
     let mut mu = 1e-3;
     let mut jac: Option<DMatrix<f64>> = None;
+    let mut stop = Termination::MaxIterations;
     for _ in 0..iters {
         if deadline.is_some_and(|t| Instant::now() >= t) {
+            stop = Termination::TimeBudget;
             break;
         }
         if jac.is_none() {
@@ -444,18 +500,20 @@ pub fn levenberg_marquardt(
                 mu = (mu / 3.0).max(1e-12);
                 jac = None;
                 if improvement < 1e-9 {
+                    stop = Termination::Converged;
                     break;
                 }
             }
             _ => {
                 mu *= 4.0;
                 if mu > 1e8 {
+                    stop = Termination::NoDecrease;
                     break;
                 }
             }
         }
     }
-    (z, cost)
+    (z, cost, stop)
 }
 
 impl CostFunction for SimulationCost<'_> {
@@ -522,11 +580,13 @@ pub fn fit_mechanical(
             data.inputs.len()
         )));
     }
-    if data.ts.is_none() {
+    let Some(ts) = data.ts else {
         return Err(IdentifyError::BadData(
             "the physical method needs the sampling time: give a 't' signal or --ts".into(),
         ));
-    }
+    };
+    mechanical::substeps(ts, model.internal_step)
+        .map_err(|e| IdentifyError::BadData(format!("model: {e}")))?;
     if !(options.simplex > 0.0 && options.simplex <= 1.0) {
         return Err(IdentifyError::BadData(format!(
             "--set simplex={}: must be in (0, 1]",
@@ -587,6 +647,10 @@ pub fn fit_mechanical(
     let mut swarm_cost = None;
     let mut segmented_cost = None;
     let mut extra_starts: Vec<Vec<f64>> = Vec::new();
+    // Why each run of each stage stopped, in order.
+    let mut swarm_stop: Option<Termination> = None;
+    let mut lm_stops: Vec<Termination> = Vec::new();
+    let mut nm_stops: Vec<Termination> = Vec::new();
     if d > 0 && options.particles > 0 && options.swarm_iters > 0 {
         ctx.progress.start(
             (options.particles * (options.swarm_iters + 1)) as u64,
@@ -604,6 +668,7 @@ pub fn fit_mechanical(
             .run()
             .map_err(|e| failed(format!("particle swarm: {e}")))?;
         ctx.progress.finish();
+        swarm_stop = Some(Termination::of_argmin(res.state().get_termination_reason()));
         if past_deadline() {
             cut_short.get_or_insert("particle swarm");
         }
@@ -692,7 +757,7 @@ pub fn fit_mechanical(
                         segmented_residuals(&model, &v, data, segment, tols.centred)
                     }
                 };
-                let (z, _) = levenberg_marquardt(
+                let (z, _, stop) = levenberg_marquardt(
                     &res,
                     &start,
                     options.fd_step,
@@ -700,6 +765,7 @@ pub fn fit_mechanical(
                     ctx.deadline,
                     &evals,
                 );
+                lm_stops.push(stop);
                 let c = cost_of(&z);
                 if c < stage_cost {
                     stage_cost = c;
@@ -738,6 +804,7 @@ pub fn fit_mechanical(
                     cut_short.get_or_insert("Nelder-Mead");
                 }
                 let st = res.state();
+                nm_stops.push(Termination::of_argmin(st.get_termination_reason()));
                 if let Some(p) = st.get_best_param() {
                     let z: Vec<f64> = p.iter().map(|x| x.clamp(0.0, 1.0)).collect();
                     let c = cost_of(&z);
@@ -757,7 +824,10 @@ pub fn fit_mechanical(
     let values = map.values(&best_z);
     let cost = simulation_mse(&model, &values, data);
     if cost >= FAILED {
-        return Err(failed("every candidate simulation failed or diverged"));
+        return Err(failed(format!(
+            "every candidate simulation failed or diverged ({} simulations): the model cannot follow this record",
+            evals.load(Ordering::Relaxed)
+        )));
     }
     let sens = sensitivity(&model, &map, &values, data, options.fd_step);
 
@@ -794,11 +864,36 @@ pub fn fit_mechanical(
         diag.insert("segment".into(), json!(options.segment));
     }
     diag.insert("evaluations".into(), json!(n_eval));
+    // The last local run (the final Nelder-Mead run, on the free-run cost)
+    // decides whether the result counts as converged.
+    let last = nm_stops.last().copied();
+    let mut termination = serde_json::Map::new();
+    if let Some(t) = swarm_stop {
+        termination.insert("particle_swarm".into(), json!(t.as_str()));
+    }
+    if !lm_stops.is_empty() {
+        termination.insert("levenberg_marquardt".into(), termination_counts(&lm_stops));
+    }
+    if !nm_stops.is_empty() {
+        termination.insert("nelder_mead".into(), termination_counts(&nm_stops));
+    }
+    if let Some(t) = last {
+        termination.insert("last_local_run".into(), json!(t.as_str()));
+    }
+    diag.insert("termination".into(), serde_json::Value::Object(termination));
     if let Some(stage) = cut_short {
         diag.insert(
             "status".into(),
             json!(format!(
                 "time budget reached during the {stage} stage after {n_eval} simulations: best parameters found by then"
+            )),
+        );
+    } else if last == Some(Termination::MaxIterations) {
+        diag.insert(
+            "status".into(),
+            json!(format!(
+                "iteration limit reached: the last Nelder-Mead run stopped at local_iters = {} before its convergence test held; the parameters may not be converged (raise local_iters)",
+                options.local_iters
             )),
         );
     }

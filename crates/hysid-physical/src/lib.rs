@@ -114,7 +114,20 @@ impl Identifier for Physical {
                 Err(e) => return Err(IdentifyError::BadData(format!("--set model: {e}"))),
             }
         };
-        let (fitted, _report) = fit_mechanical(&model, problem.data, problem.priors, options, ctx)?;
+        let (fitted, _report) = fit_mechanical(&model, problem.data, problem.priors, options, ctx)
+            .map_err(|e| match e {
+                // A model file's structural problems name the file.
+                IdentifyError::BadData(m) if !options.model.trim().is_empty() => {
+                    match m.strip_prefix("model: ") {
+                        Some(rest) => IdentifyError::BadData(format!(
+                            "--set model={}: {rest}",
+                            options.model.trim()
+                        )),
+                        None => IdentifyError::BadData(m),
+                    }
+                }
+                e => e,
+            })?;
         Ok(Model::Mechanical(fitted))
     }
 }

@@ -290,3 +290,59 @@ fn bridge_modes_reproduce_the_simulator_in_their_regime() {
         .validate()
         .unwrap();
 }
+
+#[test]
+fn the_termination_of_every_stage_is_recorded_and_an_iteration_limit_reported() {
+    let d = data(400, 3);
+    let diag = |m: &Model| m.info().diagnostics.clone();
+    // One Nelder-Mead iteration cannot meet its 1e-12 spread tolerance.
+    let m = run(&d, &Priors::default(), &["local_iters=1"], 1).unwrap();
+    let g = diag(&m);
+    let t = &g["termination"];
+    assert_eq!(t["particle_swarm"], "max_iterations", "{t}");
+    assert!(
+        t["nelder_mead"]["max_iterations"].as_u64().unwrap() >= 1,
+        "{t}"
+    );
+    assert_eq!(t["last_local_run"], "max_iterations", "{t}");
+    let lm: u64 = t["levenberg_marquardt"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    // One LM run per start: starts = 2 in the segmented stage, 1 in the
+    // free-run stage; one Nelder-Mead run (restarts = 1) per stage.
+    assert_eq!(lm, 3, "{t}");
+    assert_eq!(t["nelder_mead"]["max_iterations"], 2, "{t}");
+    let status = g["status"].as_str().unwrap();
+    assert!(
+        status.starts_with(
+            "iteration limit reached: the last Nelder-Mead run stopped at local_iters = 1"
+        ),
+        "{status}"
+    );
+    // Enough iterations: the last run converges and no status is written.
+    let m = run(&d, &Priors::default(), &["local_iters=3000"], 1).unwrap();
+    let g = diag(&m);
+    assert_eq!(g["termination"]["last_local_run"], "converged", "{g:?}");
+    assert!(!g.contains_key("status"), "{g:?}");
+}
+
+#[test]
+fn a_record_no_candidate_can_simulate_is_a_method_failure() {
+    // Outputs of +-1e20 alternating each sample: no simulation follows
+    // them (the squared error is ~1e40, past the failure threshold 1e30, or
+    // the simulation is not finite), so every candidate fails.
+    let mut d = data(200, 5);
+    for (k, v) in d.output.values.iter_mut().enumerate() {
+        *v = if k % 2 == 0 { 1e20 } else { -1e20 };
+    }
+    let e = run(&d, &Priors::default(), &[], 1).unwrap_err();
+    assert!(!e.is_bad_input(), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("physical: every candidate simulation failed or diverged"),
+        "{e}"
+    );
+}

@@ -71,7 +71,11 @@ pub fn run(args: Args) -> Result<()> {
             .map_err(|e| CliError::input(format!("--modes {s}: {e}")))?;
     }
     let deadline = match args.time_budget {
-        Some(t) if t.is_finite() && t > 0.0 => Some(Instant::now() + Duration::from_secs_f64(t)),
+        // A budget too long to represent (`Duration` ends near 1.8e19 s, an
+        // `Instant` may end sooner) is no deadline at all.
+        Some(t) if t.is_finite() && t > 0.0 => Duration::try_from_secs_f64(t)
+            .ok()
+            .and_then(|d| Instant::now().checked_add(d)),
         Some(t) => {
             return Err(CliError::input(format!(
                 "--time-budget {t}: must be a positive number of seconds"

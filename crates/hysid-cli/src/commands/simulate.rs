@@ -86,7 +86,8 @@ pub fn run(args: Args) -> Result<()> {
             ));
         }
     };
-    let sim = simulate(&model, &data, SimulationOptions::default())?;
+    let sim = simulate(&model, &data, SimulationOptions::default())
+        .map_err(|e| CliError::simulation(&args.model, e))?;
     if let Some(k) = sim.diverged_at {
         eprintln!(
             "hysid: warning: the simulation diverged at sample {k}; the output is held from there on"

@@ -37,7 +37,8 @@ pub fn run(args: Args) -> Result<()> {
             data.len()
         )));
     }
-    let (report, _, _) = validate(&model, &data, args.warmup)?;
+    let (report, _, _) =
+        validate(&model, &data, args.warmup).map_err(|e| CliError::simulation(&args.model, e))?;
     if let Some(k) = report.diverged_at {
         eprintln!(
             "hysid: warning: the simulation diverged at sample {k}; the output is held from there on"

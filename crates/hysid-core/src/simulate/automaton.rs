@@ -241,7 +241,8 @@ pub(super) fn simulate(
         TimeDomain::Discrete => None,
         TimeDomain::Continuous => {
             let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
-            Some((ts, m.internal_step.expect("validated")))
+            let step = m.internal_step.expect("validated");
+            Some((ts, super::check_substeps((ts / step).ceil(), ts, step)?))
         }
     };
     let mut run = Runner::new(m);
@@ -275,8 +276,7 @@ pub(super) fn simulate(
                 qk = q1;
                 x = x1;
             }
-            Some((ts, step)) => {
-                let substeps = (ts / step).ceil().max(1.0) as usize;
+            Some((ts, substeps)) => {
                 let hh = ts / substeps as f64;
                 for _ in 0..substeps {
                     let mut left = hh;

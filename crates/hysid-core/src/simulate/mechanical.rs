@@ -350,9 +350,10 @@ impl ResolvedMechanics {
     }
 }
 
-/// Sub-steps per sample: the smallest count whose step is at most `internal_step`.
-pub fn substeps(ts: f64, internal_step: f64) -> usize {
-    ((ts / internal_step) - 1e-9).ceil().max(1.0) as usize
+/// Sub-steps per sample: the smallest count whose step is at most
+/// `internal_step`, at most [`super::MAX_SUBSTEPS_PER_SAMPLE`].
+pub fn substeps(ts: f64, internal_step: f64) -> Result<usize, SimError> {
+    super::check_substeps(((ts / internal_step) - 1e-9).ceil(), ts, internal_step)
 }
 
 /// Estimates the state at sample `s` from measured outputs `y[..=s]`:
@@ -445,7 +446,7 @@ pub fn run(
             (0, r.state_at(position, velocity, &u))
         }
     };
-    let n_sub = substeps(ts, model.internal_step);
+    let n_sub = substeps(ts, model.internal_step)?;
     let mut out = MechanicalRun {
         y: ym.to_vec(),
         v: vec![0.0; n],
@@ -517,7 +518,7 @@ pub(super) fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation,
             needed: first + 1,
         });
     }
-    let n_sub = substeps(ts, m.internal_step);
+    let n_sub = substeps(ts, m.internal_step)?;
     let mut sim = Simulation {
         y: ym.to_vec(),
         modes: vec![None; n],

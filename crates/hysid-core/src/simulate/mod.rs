@@ -112,6 +112,38 @@ pub enum SimError {
     /// A continuous-time model needs the sampling time.
     #[error("a continuous-time model needs the sampling time: give a 't' signal or --ts")]
     NoSamplingTime,
+    /// The model's `internal_step` is so small against the sampling time
+    /// that a sample would take more than [`MAX_SUBSTEPS_PER_SAMPLE`]
+    /// integration steps.
+    #[error(
+        "internal_step = {internal_step} s with a sampling time of {ts} s needs more than {max} integration sub-steps per sample: raise internal_step (or use a shorter sampling time)",
+        max = MAX_SUBSTEPS_PER_SAMPLE
+    )]
+    TooManySubsteps {
+        /// Sampling time of the data, seconds.
+        ts: f64,
+        /// The model's internal step, seconds.
+        internal_step: f64,
+    },
+}
+
+/// Most integration sub-steps a continuous-time model (hybrid automaton,
+/// mechanical model) takes per sample: `ceil(ts / internal_step)` above it
+/// is refused with [`SimError::TooManySubsteps`] instead of running for
+/// hours (or forever: `1e-300` gives `usize::MAX`). 100 000 sub-steps per
+/// sample is far beyond any sensible model (the pick-and-place head takes 10).
+pub const MAX_SUBSTEPS_PER_SAMPLE: usize = 100_000;
+
+/// Checks a sub-step count `n = ceil(ts / internal_step)` (as computed by
+/// the model kind's simulator) against [`MAX_SUBSTEPS_PER_SAMPLE`]:
+/// [`SimError::TooManySubsteps`] above it or when it is not finite.
+pub(crate) fn check_substeps(n: f64, ts: f64, internal_step: f64) -> Result<usize, SimError> {
+    // `!(n <= max)` also refuses NaN.
+    if n <= MAX_SUBSTEPS_PER_SAMPLE as f64 {
+        Ok(n.max(1.0) as usize)
+    } else {
+        Err(SimError::TooManySubsteps { ts, internal_step })
+    }
 }
 
 fn check_inputs(model: &Model, data: &Dataset) -> Result<(), SimError> {
