@@ -503,6 +503,8 @@ fn methods_declare_priors_and_backends_refuse_or_honour_them() {
         &["[[equality]] #1", "'b9'"],
         &never,
     );
+}
+
 #[test]
 fn a_panic_is_one_line_and_exit_code_1() {
     // A panic is a bug; the program still ends with one line and exit code
