@@ -498,18 +498,14 @@ fn bad_selections_and_orders() {
         &["regressors cannot identify 18446744073709551615 modes"],
         &out,
     );
-    // bounded extracts modes one at a time and stops when the data are
-    // explained: no arithmetic on the count; fewer modes than the prior asks
-    // is a method failure (exit 1), as for `--modes 40` (docs/errors.md).
-    fails(
-        1,
+    bad(
         &identify_with(
             data,
             o,
             "bounded",
             &["--modes", huge, "--set", "delta=0.01"],
         ),
-        &["fewer than the prior modes = 18446744073709551615"],
+        &["regressors cannot identify 18446744073709551615 modes"],
         &out,
     );
     report();

@@ -185,6 +185,18 @@ impl Bounded {
             (a, b) => a.or(b),
         };
         let exact = pri.ordinary_modes();
+        // An exact count the record cannot hold (each mode needs at least
+        // n + 1 samples) is bad input, as in `cluster`.
+        let rows = problem.data.len().saturating_sub(problem.orders.lag());
+        let p = problem.orders.dim() + 1;
+        if let Some(s_) = exact
+            && s_.checked_mul(p).is_none_or(|need| need > rows)
+        {
+            return bad(format!(
+                "{rows} regressors cannot identify {} modes of {p} parameters",
+                s_ + stops
+            ));
+        }
         if let (Some(s_), Some(m)) = (exact, max_modes)
             && s_ > m
         {
