@@ -472,7 +472,7 @@ fn bad_selections_and_orders() {
     );
     // Not positive, not finite, not a number (a budget too long to
     // represent, e.g. 1e20 s, is no deadline: tests/cli.rs).
-    for t in ["-5", "0", "-0", "NaN", "inf", "-1e20"] {
+    for t in ["-5", "0", "-0", "NaN", "inf", "-inf", "-1e20"] {
         bad(
             &identify(data, o, &["--time-budget", t]),
             &["--time-budget", "must be a positive number of seconds"],

@@ -43,7 +43,8 @@ pub struct Args {
     #[arg(long)]
     pub standardize: bool,
     /// Time budget in seconds: long back-ends return their best model by then.
-    #[arg(long)]
+    // Hyphen values are taken, so `-inf` is refused as a budget, not read as a flag.
+    #[arg(long, allow_hyphen_values = true)]
     pub time_budget: Option<f64>,
     /// Output model file (JSON).
     #[arg(short = 'o', long = "out", value_name = "MODEL.json")]
