@@ -23,28 +23,18 @@ fn hysid(args: &[&str]) -> String {
     String::from_utf8(o.stdout).unwrap()
 }
 
-#[test]
-fn arx_baseline_on_the_protocol() {
+/// Identifies with `method_args` (na = nb = 2) on rows 0..5000 of the
+/// decimated record and returns `validate --json` on rows 5000..6001,
+/// warm-up 10: the benchmark protocol.
+fn on_the_protocol(method_args: &[&str]) -> serde_json::Value {
     let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("arx.json");
+    let model = dir.path().join("model.json");
     let m = model.to_str().unwrap();
-    hysid(&[
-        "identify",
-        DATA,
-        "-m",
-        "arx",
-        "--na",
-        "2",
-        "--nb",
-        "2",
-        "--decimate",
-        "10",
-        "--rows",
-        "0..5000",
-        "-o",
-        m,
-    ]);
-    let v: serde_json::Value = serde_json::from_str(&hysid(&[
+    let mut args = vec!["identify", DATA, "--na", "2", "--nb", "2"];
+    args.extend_from_slice(method_args);
+    args.extend_from_slice(&["--decimate", "10", "--rows", "0..5000", "-o", m]);
+    hysid(&args);
+    serde_json::from_str(&hysid(&[
         "validate",
         m,
         DATA,
@@ -56,7 +46,12 @@ fn arx_baseline_on_the_protocol() {
         "10",
         "--json",
     ]))
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn arx_baseline_on_the_protocol() {
+    let v = on_the_protocol(&["-m", "arx"]);
     let fit_sim = v["fit_sim"].as_f64().unwrap();
     let fit_pred = v["fit_pred"].as_f64().unwrap();
     // mounting-head.md section 3: ARX(2,2) + offset scores about 71 % (simulation) and 99.8 % (one step).
@@ -145,43 +140,9 @@ fn cluster_c_sweep_reproduces_the_paper_and_meets_the_target() {
             "{modes} modes: c = 320 gives {large:.2} %, c = 6 {small:.2} %"
         );
     }
-    let model = dir.path().join("best.json");
-    let m = model.to_str().unwrap();
-    hysid(&[
-        "identify",
-        DATA,
-        "-m",
-        "cluster",
-        "--na",
-        "2",
-        "--nb",
-        "2",
-        "--modes",
-        "5",
-        "--set",
-        "c=320",
-        "--seed",
-        "1",
-        "--decimate",
-        "10",
-        "--rows",
-        "0..5000",
-        "-o",
-        m,
+    let v = on_the_protocol(&[
+        "-m", "cluster", "--modes", "5", "--set", "c=320", "--seed", "1",
     ]);
-    let v: serde_json::Value = serde_json::from_str(&hysid(&[
-        "validate",
-        m,
-        DATA,
-        "--decimate",
-        "10",
-        "--rows",
-        "5000..6001",
-        "--warmup",
-        "10",
-        "--json",
-    ]))
-    .unwrap();
     let fit_sim = v["fit_sim"].as_f64().unwrap();
     assert!(
         fit_sim >= 80.0,
