@@ -487,20 +487,6 @@ fn qp_lstsq(
     }
     let h = ds.transpose() * &ds;
     let g = ds.transpose() * r;
-    let (mut p_rows, mut p_cols, mut p_vals) = (Vec::new(), Vec::new(), Vec::new());
-    for c in 0..nx {
-        for rr in 0..=c {
-            let mut v = h[(rr, c)];
-            if rr == c && v == 0.0 {
-                v = 1e-12;
-            }
-            if v != 0.0 {
-                p_rows.push(rr);
-                p_cols.push(c);
-                p_vals.push(v);
-            }
-        }
-    }
     let q: Vec<f64> = g.iter().map(|v| -v).collect();
     let (mut a_rows, mut a_cols, mut a_vals) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..a_s.nrows() {
@@ -513,7 +499,7 @@ fn qp_lstsq(
         }
     }
     let m = b.len();
-    let p = CscMatrix::new_from_triplets(nx, nx, p_rows, p_cols, p_vals);
+    let p = gram_upper(&h);
     let a = CscMatrix::new_from_triplets(m, nx, a_rows, a_cols, a_vals);
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
@@ -598,23 +584,6 @@ fn bounded_lstsq(
     }
     let h = zs.transpose() * &zs;
     let g = zs.transpose() * r;
-    // Tiny ridge on empty columns keeps P definite there.
-    let mut p_rows = Vec::new();
-    let mut p_cols = Vec::new();
-    let mut p_vals = Vec::new();
-    for c in 0..nz {
-        for rr in 0..=c {
-            let mut v = h[(rr, c)];
-            if rr == c && v == 0.0 {
-                v = 1e-12;
-            }
-            if v != 0.0 {
-                p_rows.push(rr);
-                p_cols.push(c);
-                p_vals.push(v);
-            }
-        }
-    }
     let q: Vec<f64> = g.iter().map(|v| -v).collect();
     let (mut a_rows, mut a_cols, mut a_vals, mut b) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -633,7 +602,7 @@ fn bounded_lstsq(
         }
     }
     let m = b.len();
-    let p = CscMatrix::new_from_triplets(nz, nz, p_rows, p_cols, p_vals);
+    let p = gram_upper(&h);
     let a = CscMatrix::new_from_triplets(m, nz, a_rows, a_cols, a_vals);
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
@@ -662,6 +631,28 @@ fn bounded_lstsq(
             iterations: sol.iterations,
         }),
     }
+}
+
+/// The upper triangle of the Gram matrix `h` as clarabel's `P` (CSC), with
+/// a tiny ridge (1e-12) on empty diagonal entries: an empty column keeps
+/// `P` definite there.
+fn gram_upper(h: &DMatrix<f64>) -> CscMatrix<f64> {
+    let n = h.ncols();
+    let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
+    for c in 0..n {
+        for r in 0..=c {
+            let mut v = h[(r, c)];
+            if r == c && v == 0.0 {
+                v = 1e-12;
+            }
+            if v != 0.0 {
+                rows.push(r);
+                cols.push(c);
+                vals.push(v);
+            }
+        }
+    }
+    CscMatrix::new_from_triplets(n, n, rows, cols, vals)
 }
 
 #[cfg(test)]
