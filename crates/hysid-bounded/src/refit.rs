@@ -314,8 +314,7 @@ fn chebyshev_joint_lp(
     }
     let slopes: Vec<usize> = (0..nf).filter(|&v| is_slope[v]).collect();
     let nvar = nx + 1 + slopes.len();
-    let (mut ii, mut jj, mut vv) = (Vec::new(), Vec::new(), Vec::new());
-    let mut b = Vec::new();
+    let mut rows = Rows::default();
     let mut coef = vec![0.0; nf];
     // Row `a_z . z` in x: coefficients `B' a_z`, constant `a_z . z0`.
     let in_x = |a_z: &[f64]| -> (Vec<f64>, f64) {
@@ -335,19 +334,7 @@ fn chebyshev_joint_lp(
             }
         }
         let (cx, c0) = in_x(&coef);
-        target -= c0;
-        let r = b.len();
-        for (u, &c) in cx.iter().enumerate() {
-            if c != 0.0 {
-                ii.extend([r, r + 1]);
-                jj.extend([u, u]);
-                vv.extend([c, -c]);
-            }
-        }
-        ii.extend([r, r + 1]);
-        jj.extend([t_col, t_col]);
-        vv.extend([-1.0, -1.0]);
-        b.extend([target, -target]);
+        rows.abs_within(&cx, target - c0, t_col);
     }
     let unit = |v: usize| -> (Vec<f64>, f64) {
         let mut a = vec![0.0; nf];
@@ -360,26 +347,10 @@ fn chebyshev_joint_lp(
         }
         let (cx, c0) = unit(v);
         if hi.is_finite() {
-            let r = b.len();
-            for (u, &c) in cx.iter().enumerate() {
-                if c != 0.0 {
-                    ii.push(r);
-                    jj.push(u);
-                    vv.push(c);
-                }
-            }
-            b.push(hi - c0);
+            rows.push(&cx, 1.0, None, hi - c0);
         }
         if lo.is_finite() {
-            let r = b.len();
-            for (u, &c) in cx.iter().enumerate() {
-                if c != 0.0 {
-                    ii.push(r);
-                    jj.push(u);
-                    vv.push(-c);
-                }
-            }
-            b.push(c0 - lo);
+            rows.push(&cx, -1.0, None, c0 - lo);
         }
     }
     let mut q = vec![0.0; nvar];
@@ -388,25 +359,14 @@ fn chebyshev_joint_lp(
         // |z_v| <= aux_w.
         let col = nx + 1 + w;
         let (cx, c0) = unit(v);
-        let r = b.len();
-        for (u, &c) in cx.iter().enumerate() {
-            if c != 0.0 {
-                ii.extend([r, r + 1]);
-                jj.extend([u, u]);
-                vv.extend([c, -c]);
-            }
-        }
-        ii.extend([r, r + 1]);
-        jj.extend([col, col]);
-        vv.extend([-1.0, -1.0]);
-        b.extend([-c0, c0]);
+        rows.abs_within(&cx, -c0, col);
         let scale = (sum_sq[v] / count[v].max(1) as f64).sqrt().max(1e-12);
         q[col] = TIE_BREAK * scale;
     }
-    let rows = b.len();
-    let a = CscMatrix::new_from_triplets(rows, nvar, ii, jj, vv);
+    let Rows { ii, jj, vv, b } = rows;
+    let a = CscMatrix::new_from_triplets(b.len(), nvar, ii, jj, vv);
     let pm = CscMatrix::<f64>::zeros((nvar, nvar));
-    let cones = [NonnegativeConeT(rows)];
+    let cones = [NonnegativeConeT(b.len())];
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
         .max_iter(200)
@@ -454,6 +414,41 @@ pub fn least_squares(s: &Samples, idx: &[usize]) -> Option<Vec<f64>> {
     let sol = linalg::lstsq(&phi, &y).ok()?;
     let theta: Vec<f64> = sol.theta.iter().copied().collect();
     theta.iter().all(|v| v.is_finite()).then_some(theta)
+}
+
+/// Inequality rows `A x <= b` for clarabel's nonnegative cone, as triplets.
+#[derive(Default)]
+struct Rows {
+    ii: Vec<usize>,
+    jj: Vec<usize>,
+    vv: Vec<f64>,
+    b: Vec<f64>,
+}
+
+impl Rows {
+    /// The row `sign (cx . x) - x_t <= rhs` (without `x_t` when `t` is `None`).
+    fn push(&mut self, cx: &[f64], sign: f64, t: Option<usize>, rhs: f64) {
+        let r = self.b.len();
+        for (u, &c) in cx.iter().enumerate() {
+            if c != 0.0 {
+                self.ii.push(r);
+                self.jj.push(u);
+                self.vv.push(sign * c);
+            }
+        }
+        if let Some(t) = t {
+            self.ii.push(r);
+            self.jj.push(t);
+            self.vv.push(-1.0);
+        }
+        self.b.push(rhs);
+    }
+
+    /// `|cx . x - rhs| <= x_t`, as two rows.
+    fn abs_within(&mut self, cx: &[f64], rhs: f64, t: usize) {
+        self.push(cx, 1.0, Some(t), rhs);
+        self.push(cx, -1.0, Some(t), -rhs);
+    }
 }
 
 #[cfg(test)]
