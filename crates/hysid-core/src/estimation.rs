@@ -473,21 +473,11 @@ fn qp_lstsq(
     b: &[f64],
 ) -> Result<Vec<f64>, EstimationError> {
     let nx = design.ncols();
-    let d: Vec<f64> = (0..nx)
-        .map(|v| {
-            let n = design.column(v).norm();
-            if n > 0.0 { 1.0 / n } else { 1.0 }
-        })
-        .collect();
-    let mut ds = design.clone();
+    let (d, p, q) = scaled_objective(design, r);
     let mut a_s = a_in.clone();
     for (v, dv) in d.iter().enumerate() {
-        ds.column_mut(v).scale_mut(*dv);
         a_s.column_mut(v).scale_mut(*dv);
     }
-    let h = ds.transpose() * &ds;
-    let g = ds.transpose() * r;
-    let q: Vec<f64> = g.iter().map(|v| -v).collect();
     let (mut a_rows, mut a_cols, mut a_vals) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..a_s.nrows() {
         for j in 0..nx {
@@ -499,7 +489,6 @@ fn qp_lstsq(
         }
     }
     let m = b.len();
-    let p = gram_upper(&h);
     let a = CscMatrix::new_from_triplets(m, nx, a_rows, a_cols, a_vals);
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
@@ -571,20 +560,7 @@ fn bounded_lstsq(
     r: &DVector<f64>,
 ) -> Result<Vec<f64>, EstimationError> {
     let nz = par.n_free();
-    // Scale: z = D zeta with D = diag(1 / |Z_col|) (1 for empty columns).
-    let d: Vec<f64> = (0..nz)
-        .map(|v| {
-            let n = z_mat.column(v).norm();
-            if n > 0.0 { 1.0 / n } else { 1.0 }
-        })
-        .collect();
-    let mut zs = z_mat.clone();
-    for (v, dv) in d.iter().enumerate() {
-        zs.column_mut(v).scale_mut(*dv);
-    }
-    let h = zs.transpose() * &zs;
-    let g = zs.transpose() * r;
-    let q: Vec<f64> = g.iter().map(|v| -v).collect();
+    let (d, p, q) = scaled_objective(z_mat, r);
     let (mut a_rows, mut a_cols, mut a_vals, mut b) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (v, dv) in d.iter().enumerate() {
@@ -602,7 +578,6 @@ fn bounded_lstsq(
         }
     }
     let m = b.len();
-    let p = gram_upper(&h);
     let a = CscMatrix::new_from_triplets(m, nz, a_rows, a_cols, a_vals);
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
@@ -631,6 +606,26 @@ fn bounded_lstsq(
             iterations: sol.iterations,
         }),
     }
+}
+
+/// The least-squares objective `|M x - r|^2` as clarabel's QP in scaled
+/// variables `x = D xi`, `D = diag(1 / |M_col|)` (1 for empty columns):
+/// returns `D`'s diagonal, `P = (MD)'(MD)` (upper triangle) and
+/// `q = -(MD)' r`.
+fn scaled_objective(m: &DMatrix<f64>, r: &DVector<f64>) -> (Vec<f64>, CscMatrix<f64>, Vec<f64>) {
+    let d: Vec<f64> = (0..m.ncols())
+        .map(|v| {
+            let n = m.column(v).norm();
+            if n > 0.0 { 1.0 / n } else { 1.0 }
+        })
+        .collect();
+    let mut ms = m.clone();
+    for (v, dv) in d.iter().enumerate() {
+        ms.column_mut(v).scale_mut(*dv);
+    }
+    let h = ms.transpose() * &ms;
+    let q = (ms.transpose() * r).iter().map(|v| -v).collect();
+    (d, gram_upper(&h), q)
 }
 
 /// The upper triangle of the Gram matrix `h` as clarabel's `P` (CSC), with
