@@ -794,7 +794,7 @@ fn malformed_simulation_options() {
         &["--excite n", "'20;hold=2' is not a number"],
         &out,
     );
-    // Sizes: capped (hysid_core::excitation::MAX_SAMPLES, MAX_INPUTS,
+    // Sizes: capped (hysid_model::excitation::MAX_SAMPLES, MAX_INPUTS,
     // MAX_VALUES) before anything is allocated.
     bad(
         &excite("n=100000000000,hold=2,low=0,high=1"),
@@ -857,7 +857,7 @@ fn malformed_simulation_options() {
 
 #[test]
 fn continuous_models_with_too_many_sub_steps_per_sample() {
-    // ceil(ts / internal_step) above hysid_core::simulate::MAX_SUBSTEPS_PER_SAMPLE
+    // ceil(ts / internal_step) above hysid_model::simulate::MAX_SUBSTEPS_PER_SAMPLE
     // (100 000) is refused naming the model file and `internal_step`; it
     // used to become usize::MAX sub-steps (a hang).
     let dir = tempfile::tempdir().unwrap();
@@ -940,7 +940,7 @@ fn inputs_found_by_the_fuzzer_are_clean_errors() {
     // the data selection in the fuzz target; the rest is the file.
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("never.json");
-    let folder = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/fuzz");
+    let folder = concat!(env!("CARGO_MANIFEST_DIR"), "/../hysid-io/tests/data/fuzz");
     let mut seen = 0;
     for entry in std::fs::read_dir(folder).unwrap() {
         let path = entry.unwrap().path();

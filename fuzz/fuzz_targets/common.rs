@@ -1,6 +1,6 @@
 //! Pieces shared by the data-reader targets.
 
-use hysid_core::data::{DataSelection, RowRange};
+use hysid_model::data::{DataSelection, RowRange};
 
 /// A data selection chosen by the first byte of the input (decimation 1-4,
 /// rows all / `1..` / `..3` / `2..5`), so that `select` is fuzzed too; the
@@ -43,7 +43,7 @@ pub fn tolerate_matrw_panics() {
     ONCE.call_once(|| {
         let aborting = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
-            if hysid_core::data::inside_guarded_parser() {
+            if hysid_io::inside_guarded_parser() {
                 if let Some(l) = info.location() {
                     let key = format!("{}:{}", l.file(), l.line());
                     let seen = SEEN.get_or_init(Default::default);

@@ -4,7 +4,7 @@
 
 mod common;
 
-use hysid_core::data::{DataFormat, load_bytes};
+use hysid_io::{DataFormat, load_bytes};
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 

@@ -5,11 +5,12 @@
 
 use hysid_arx::Arx;
 use hysid_core::backend::{Backend, Problem, RunContext};
-use hysid_core::data::{DataSelection, load};
-use hysid_core::metrics::validate;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_core::simulate::validate;
+use hysid_io::load;
+use hysid_model::data::DataSelection;
+use hysid_model::regressors::RegressorSpec;
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -8,7 +8,7 @@
 //! Priors honoured (all of them, `docs/priors.md`): `modes = 1` /
 //! `max_modes`; `[fixed]` and `[[equality]]` (solved exactly by the
 //! null-space method); `[[tie]]` (trivially true with one mode); `[bounds]`
-//! (the box-constrained least-squares QP of `hysid_core::estimation` when
+//! (the box-constrained least-squares QP of `hysid_estimation::constrained` when
 //! the equality-constrained estimate leaves the box); `switching` (trivially
 //! true: one mode, no region); `[[saturation]]` (samples whose target sits
 //! at a known stop are left out of the fit, and the model is the hybrid
@@ -17,11 +17,15 @@
 //! stop).
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::estimation::{self, ModeSamples, Parametrisation};
-use hysid_core::geometry::Polyhedron;
-use hysid_core::linalg;
-use hysid_core::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
+use hysid_core::model::Model;
 use hysid_core::priors::PriorKind;
+use hysid_estimation::linalg;
+use hysid_estimation::{
+    constrained,
+    constrained::{ModeSamples, Parametrisation},
+};
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
 use nalgebra::{DMatrix, DVector};
 
 hysid_core::backend_options! {
@@ -171,7 +175,7 @@ impl Identifier for Arx {
             }
             let x = phi0.columns(0, p - 1).into_owned();
             let ys: Vec<f64> = y0.iter().copied().collect();
-            let fitted = estimation::fit_modes(
+            let fitted = constrained::fit_modes(
                 &par,
                 &[ModeSamples {
                     phi: &x,
@@ -228,11 +232,12 @@ impl Identifier for Arx {
 mod tests {
     use super::*;
     use hysid_core::backend::Backend;
-    use hysid_core::data::Dataset;
     use hysid_core::options::Settings;
     use hysid_core::priors::Priors;
-    use hysid_core::regressors::RegressorSpec;
-    use hysid_core::simulate::{SimulationOptions, simulate};
+    use hysid_core::simulate::simulate;
+    use hysid_model::data::Dataset;
+    use hysid_model::regressors::RegressorSpec;
+    use hysid_model::simulate::SimulationOptions;
     use proptest::prelude::*;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;

@@ -9,9 +9,10 @@
 use hysid_bounded::sweep::{best, delta_sweep, table};
 use hysid_bounded::{BoundedOptions, noise, samples::Samples};
 use hysid_core::backend::{Problem, RunContext};
-use hysid_core::data::{DataSelection, RowRange, load};
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_io::load;
+use hysid_model::data::{DataSelection, RowRange};
+use hysid_model::regressors::RegressorSpec;
 use std::path::PathBuf;
 use std::time::Instant;
 

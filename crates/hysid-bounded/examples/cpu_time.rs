@@ -7,7 +7,7 @@
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Identifier, Problem, RunContext};
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_model::regressors::RegressorSpec;
 use std::time::Instant;
 
 /// User + system CPU seconds of this process.

@@ -8,10 +8,11 @@
 
 use hysid_bounded::Bounded;
 use hysid_core::backend::{Backend, Problem, RunContext};
-use hysid_core::metrics::{mode_accuracy, validate};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_core::simulate::validate;
+use hysid_model::metrics::mode_accuracy;
+use hysid_model::regressors::RegressorSpec;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();

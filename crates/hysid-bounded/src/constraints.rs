@@ -2,7 +2,7 @@
 //! `docs/priors.md`) inside the bounded-error procedure.
 //!
 //! The stacked parameters of the ordinary modes are parametrised by
-//! [`Parametrisation::from_priors`] (`hysid_core::estimation`): every
+//! [`Parametrisation::from_priors`] (`hysid_estimation::constrained`): every
 //! parameter of every mode is a shared free variable or a fixed value, with
 //! box bounds per free variable. The procedure uses it in two forms:
 //!
@@ -14,13 +14,13 @@
 //!   shared values, so a per-mode refit keeps the ties.
 //! - [`Constraints::joint`]: all modes at once, tied parameters as shared
 //!   variables, for the joint Chebyshev LP ([`crate::refit::chebyshev_joint`])
-//!   and the joint least squares (`hysid_core::estimation::fit_modes`).
+//!   and the joint least squares (`hysid_estimation::constrained::fit_modes`).
 
-use crate::refit::{self, ChebyshevFit};
 use crate::samples::Samples;
-use hysid_core::estimation::{ModeSamples, Parametrisation, Slot, fit_modes};
+use crate::{refit, refit::ChebyshevFit};
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_estimation::constrained::{ModeSamples, Parametrisation, Slot, fit_modes};
+use hysid_model::regressors::RegressorSpec;
 use nalgebra::DMatrix;
 
 /// The parameter priors of a run: `[[tie]]`, `[fixed]` and `[bounds]` of a
@@ -232,7 +232,7 @@ impl ModeSpace {
     }
 
     /// [`ModeSpace::project`], exact with equalities and bounds together
-    /// (the nearest point by the QP of `hysid_core::estimation`).
+    /// (the nearest point by the QP of `hysid_estimation::constrained`).
     pub fn project_exact(&self, theta: &mut [f64]) {
         if let Some(par) = &self.par
             && par.has_equalities()
@@ -273,7 +273,7 @@ impl ModeSpace {
 }
 
 /// Joint least squares of the modes with samples `groups` under `par`
-/// (`hysid_core::estimation::fit_modes`).
+/// (`hysid_estimation::constrained::fit_modes`).
 pub fn least_squares_joint(
     s: &Samples,
     par: &Parametrisation,

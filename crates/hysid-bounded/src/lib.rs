@@ -34,9 +34,10 @@ pub mod sweep;
 
 use constraints::Constraints;
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
+use hysid_core::model::Model;
 use hysid_core::options::OptionType;
 use hysid_core::priors::PriorKind;
+use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
 use hysid_regions::{RegionMethod, RegionOptions};
 use nalgebra::DMatrix;
 use procedure::{Classification, ProcedureSettings, RefitKind, SampleClass};
@@ -466,11 +467,11 @@ fn labelled(c: &Classification) -> Vec<usize> {
 mod tests {
     use super::*;
     use hysid_core::backend::Backend;
-    use hysid_core::data::Dataset;
-    use hysid_core::metrics::validate;
     use hysid_core::options::Settings;
     use hysid_core::priors::Priors;
-    use hysid_core::regressors::RegressorSpec;
+    use hysid_core::simulate::validate;
+    use hysid_model::data::Dataset;
+    use hysid_model::regressors::RegressorSpec;
 
     fn run(
         data: &Dataset,
@@ -540,7 +541,7 @@ mod tests {
         // Parameters close to the truth after matching.
         let truth = g.thetas();
         let ident: Vec<Vec<f64>> = p.modes.iter().map(|m| m.theta.clone()).collect();
-        let pe = hysid_core::metrics::parameter_error(&truth, &ident);
+        let pe = hysid_model::metrics::parameter_error(&truth, &ident);
         assert!(pe.max_relative_error < 0.05, "{pe:?}");
         // The regions classify fresh data from the same system: at least 97 %
         // of the regressors in the right mode (a misclassified sample costs a
@@ -550,7 +551,7 @@ mod tests {
         let got: Vec<usize> = (0..reg.len())
             .map(|k| p.mode_of(&[reg.x[(k, 0)], reg.x[(k, 1)]]).mode)
             .collect();
-        let acc = hysid_core::metrics::mode_accuracy(&v.row_modes(), &got).accuracy;
+        let acc = hysid_model::metrics::mode_accuracy(&v.row_modes(), &got).accuracy;
         assert!(acc >= 0.97, "fresh-data mode accuracy {acc}");
         let (rep, _, _) = validate(&m, &v.data, 1).unwrap();
         assert_eq!(rep.coverage, 1.0);

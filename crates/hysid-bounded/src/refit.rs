@@ -17,8 +17,8 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
 };
-use hysid_core::estimation::{Parametrisation, Slot};
-use hysid_core::linalg;
+use hysid_estimation::constrained::{Parametrisation, Slot};
+use hysid_estimation::linalg;
 use nalgebra::{DMatrix, DVector};
 
 /// Weight of the slope l1 tie-break, relative to the minimax error.
@@ -209,7 +209,7 @@ fn joint_max_residual(s: &Samples, groups: &[Vec<usize>], thetas: &[Vec<f64>]) -
 }
 
 /// The Chebyshev (minimax) fit of all modes at once under a
-/// parametrisation (`hysid_core::estimation::Parametrisation`): fixed
+/// parametrisation (`hysid_estimation::constrained::Parametrisation`): fixed
 /// values substituted, tied parameters one shared variable, free variables
 /// boxed by `bounds`. The LP (ours; the joint form of
 /// the per-mode LP above, needed because ties couple the modes) has the
@@ -488,7 +488,7 @@ mod tests {
     #[test]
     fn joint_lp_matches_the_per_mode_lp_and_shares_ties() {
         use hysid_core::priors::Priors;
-        use hysid_core::regressors::RegressorSpec;
+        use hysid_model::regressors::RegressorSpec;
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         let n = 400;

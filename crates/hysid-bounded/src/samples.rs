@@ -2,7 +2,7 @@
 //! and targets `y_k`, stored row-major for the inner loops of the thermal
 //! relaxation.
 
-use hysid_core::regressors::Regressors;
+use hysid_model::regressors::Regressors;
 
 /// `phi_k` rows (row-major, `p` columns, constant last) and targets `y_k`.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,12 +1,12 @@
 //! Choosing delta (issue 4, item 6): identification over a list of bounds,
 //! reporting the trade-off between delta, the number of modes and the
-//! validation FIT of free-run simulation (`hysid_core::metrics::validate`).
+//! validation FIT of free-run simulation (`hysid_core::simulate::validate`).
 
 use crate::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Identifier, IdentifyError, NoProgress, Problem, RunContext};
-use hysid_core::data::Dataset;
-use hysid_core::metrics::validate;
 use hysid_core::model::Model;
+use hysid_core::simulate::validate;
+use hysid_model::data::Dataset;
 use serde::Serialize;
 
 /// One bound of a sweep.

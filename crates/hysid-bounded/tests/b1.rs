@@ -3,9 +3,9 @@
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Problem, RunContext};
-use hysid_core::metrics::mode_accuracy;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_model::metrics::mode_accuracy;
+use hysid_model::regressors::RegressorSpec;
 
 #[test]
 fn b1_three_modes_ninety_percent() {

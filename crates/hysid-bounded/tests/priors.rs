@@ -5,12 +5,14 @@ mod common;
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
-use hysid_core::data::Dataset;
-use hysid_core::metrics::{mode_accuracy, validate};
-use hysid_core::model::{Model, PwarxModel};
+use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_core::simulate::validate;
+use hysid_model::data::Dataset;
+use hysid_model::metrics::mode_accuracy;
+use hysid_model::model::PwarxModel;
+use hysid_model::regressors::RegressorSpec;
 use proptest::prelude::*;
 
 fn run(

@@ -6,9 +6,9 @@ mod common;
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Problem, RunContext};
-use hysid_core::data::Dataset;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_model::data::Dataset;
+use hysid_model::regressors::RegressorSpec;
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

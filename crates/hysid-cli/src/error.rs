@@ -2,10 +2,10 @@
 //! (2 for bad input or usage, 1 for a failure of the method itself).
 
 use hysid_core::backend::IdentifyError;
-use hysid_core::data::DataError;
 use hysid_core::model::ModelError;
 use hysid_core::priors::PriorError;
-use hysid_core::simulate::SimError;
+use hysid_model::data::DataError;
+use hysid_model::simulate::SimError;
 
 /// A failed command.
 #[derive(Debug)]

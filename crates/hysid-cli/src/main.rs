@@ -118,7 +118,7 @@ fn quiet_guarded_panics() {
     let default = std::panic::take_hook();
     let verbose = std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0");
     std::panic::set_hook(Box::new(move |info| {
-        if hysid_core::data::inside_guarded_parser() {
+        if hysid_io::inside_guarded_parser() {
             return;
         }
         if let Some(l) = info.location() {

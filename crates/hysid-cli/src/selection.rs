@@ -2,7 +2,7 @@
 //! "Data files").
 
 use crate::error::CliError;
-use hysid_core::data::{DataSelection, RowRange};
+use hysid_model::data::{DataSelection, RowRange};
 
 /// Which signals and samples of a data file to use.
 #[derive(clap::Args, Debug, Clone)]
@@ -36,7 +36,7 @@ fn parse_ts(s: &str) -> Result<f64, String> {
 }
 
 impl DataArgs {
-    /// The selection for `hysid_core::data::load`. A signal named twice
+    /// The selection for `hysid_io::load`. A signal named twice
     /// (twice among the inputs, or as an input and the output) is refused:
     /// the regressors would be collinear copies of each other.
     pub fn selection(&self) -> Result<DataSelection, CliError> {

@@ -14,7 +14,7 @@ use hysid_cluster::systems::b1;
 use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_model::regressors::RegressorSpec;
 
 fn main() {
     divan::main();

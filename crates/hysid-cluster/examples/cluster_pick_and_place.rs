@@ -14,10 +14,11 @@
 
 use hysid_cluster::{ClusterOptions, sweep};
 use hysid_core::backend::{Problem, RunContext};
-use hysid_core::data::{DataSelection, RowRange, load};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_io::load;
+use hysid_model::data::{DataSelection, RowRange};
+use hysid_model::regressors::RegressorSpec;
 use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -16,11 +16,11 @@ use hysid_cluster::local::feature_vectors;
 use hysid_cluster::systems::b1;
 use hysid_cluster::{Cluster, ClusterOptions, Clustering, Features, procedure};
 use hysid_core::backend::{Backend, Problem, RunContext};
-use hysid_core::data::Standardization;
-use hysid_core::metrics::mode_accuracy;
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_model::data::Standardization;
+use hysid_model::metrics::mode_accuracy;
 use rand::SeedableRng;
 use std::time::Instant;
 

@@ -2,7 +2,7 @@
 //! dimension plus one, rarely above 10): Cholesky factorisation, solves,
 //! inverse and log-determinant. They are called once or twice per local
 //! dataset, so they avoid allocation; larger problems go through
-//! `hysid_core::linalg`.
+//! `hysid_estimation::linalg`.
 
 /// Cholesky factorisation in place (lower triangle of `a` becomes `L`,
 /// `a = L L^T`). Returns the smallest squared pivot `L_kk^2`, or `None` when

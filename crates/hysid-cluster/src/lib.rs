@@ -46,10 +46,11 @@ pub mod systems;
 pub use sweep::{SweepPoint, sweep};
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::data::Standardization;
-use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
+use hysid_core::model::Model;
 use hysid_core::priors::PriorKind;
+use hysid_model::data::Standardization;
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -613,14 +614,14 @@ fn choose_modes(
     let cut = len * 3 / 4;
     let ident = problem
         .data
-        .slice(hysid_core::data::RowRange {
+        .slice(hysid_model::data::RowRange {
             start: None,
             end: Some(cut),
         })
         .map_err(|e| bad(e.to_string()))?;
     let valid = problem
         .data
-        .slice(hysid_core::data::RowRange {
+        .slice(hysid_model::data::RowRange {
             start: Some(cut),
             end: None,
         })

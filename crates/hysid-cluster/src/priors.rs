@@ -9,17 +9,20 @@
 //! Ferrari-Trecate et al., Automatica 2003: the mode fits, the refits after
 //! reattribution and the region-consistent refit) is solved here in
 //! **original units** with the procedure's weights by
-//! `hysid_core::estimation::fit_modes` (ties and fixed values exact through
+//! `hysid_estimation::constrained::fit_modes` (ties and fixed values exact through
 //! the combinatorial null-space parametrisation, bounds through clarabel),
 //! and the result is mapped to working units for the residuals the
 //! procedure compares. Residuals in working units are those in original
 //! units divided by `s_y`, so without constraints the minimiser is the same.
 
 use crate::procedure::Thetas;
-use hysid_core::data::Standardization;
-use hysid_core::estimation::{self, ModeSamples, Parametrisation};
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_estimation::{
+    constrained,
+    constrained::{ModeSamples, Parametrisation},
+};
+use hysid_model::data::Standardization;
+use hysid_model::regressors::RegressorSpec;
 use nalgebra::DMatrix;
 
 /// Whether `priors` constrain the mode parameters (`[[tie]]`, `[fixed]`,
@@ -134,7 +137,7 @@ impl Constraints {
                 weights: Some(wi),
             })
             .collect();
-        let original = estimation::fit_modes(&par, &samples).map_err(|e| e.to_string())?;
+        let original = constrained::fit_modes(&par, &samples).map_err(|e| e.to_string())?;
         let working = original.iter().map(|th| self.to_working(th)).collect();
         Ok(Thetas {
             working,
@@ -160,7 +163,7 @@ impl Constraints {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hysid_core::data::AffineScale;
+    use hysid_model::data::AffineScale;
 
     #[test]
     fn working_units_round_trip() {

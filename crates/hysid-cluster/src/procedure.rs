@@ -20,11 +20,17 @@
 //! dataset are its neighbours in regressor space, which is what adjacency
 //! stands for, and they do not need a first region estimate.
 
-use crate::kmeans::{self, Clusters, KmeansInit};
-use crate::local::{self, Degeneracy, FeatureVectors};
 use crate::priors::Constraints;
 use crate::{Clustering, Features, Weights};
-use hysid_core::linalg;
+use crate::{
+    kmeans,
+    kmeans::{Clusters, KmeansInit},
+};
+use crate::{
+    local,
+    local::{Degeneracy, FeatureVectors},
+};
+use hysid_estimation::linalg;
 use nalgebra::{DMatrix, DVector};
 use rand_chacha::ChaCha8Rng;
 
@@ -196,7 +202,7 @@ pub struct Thetas {
 /// Step 4 with or without gray-box priors: [`fit_modes`] without
 /// constraints; with them, the same weights go to
 /// [`Constraints::fit`] (ties, fixed values and bounds of all modes solved
-/// jointly by `hysid_core::estimation::fit_modes`).
+/// jointly by `hysid_estimation::constrained::fit_modes`).
 #[allow(clippy::too_many_arguments)]
 pub fn fit_modes_with(
     x: &[f64],

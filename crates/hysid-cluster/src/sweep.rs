@@ -1,13 +1,13 @@
 //! Choosing `c` and the number of modes `s` (algorithms.md (d), items 1-2):
 //! every pair of a grid is identified on one record and scored on another
-//! by free-run **simulation** FIT (`hysid_core::metrics::validate`), the
+//! by free-run **simulation** FIT (`hysid_core::simulate::validate`), the
 //! headline metric; HIT's `hit_estimate_cs` scores one-step MSE instead,
 //! which cannot rank models of a 400 Hz record.
 
 use crate::{ClusterOptions, identify_with};
 use hysid_core::backend::{Problem, RunContext};
-use hysid_core::data::Dataset;
-use hysid_core::metrics::{ValidationReport, validate};
+use hysid_core::simulate::{ValidationReport, validate};
+use hysid_model::data::Dataset;
 use serde::{Deserialize, Serialize};
 
 /// One grid point of [`sweep`].

@@ -8,8 +8,8 @@
 //! Static maps (H1, H2, H4) are written as PWARX with `na = 0`, `nb = 1`:
 //! `y(k) = theta . [u(k-1); 1]`, one input per coordinate.
 
-use hysid_core::data::{Dataset, Signal};
-use hysid_core::regressors::RegressorSpec;
+use hysid_model::data::{Dataset, Signal};
+use hysid_model::regressors::RegressorSpec;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};

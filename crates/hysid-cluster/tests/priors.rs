@@ -5,13 +5,17 @@
 
 use hysid_cluster::{Cluster, ClusterOptions, Labelled, identify_labelled};
 use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
-use hysid_core::data::Dataset;
-use hysid_core::metrics::{mode_accuracy, parameter_error, validate};
-use hysid_core::model::{Model, PwarxModel};
+use hysid_core::model::Model;
 use hysid_core::options::Settings;
-use hysid_core::priors::{Equality, Priors, StopBound, Tie};
-use hysid_core::regressors::RegressorSpec;
-use hysid_core::simulate::{SimulationOptions, simulate};
+use hysid_core::priors::{Equality, Priors, Tie};
+use hysid_core::simulate::simulate;
+use hysid_core::simulate::validate;
+use hysid_model::data::Dataset;
+use hysid_model::metrics::{mode_accuracy, parameter_error};
+use hysid_model::model::PwarxModel;
+use hysid_model::model::StopBound;
+use hysid_model::regressors::RegressorSpec;
+use hysid_model::simulate::SimulationOptions;
 use hysid_testkit::{Noise, StoppedBenchmark, b1, h3, stopped_head};
 use proptest::prelude::*;
 

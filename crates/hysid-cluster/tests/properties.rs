@@ -3,12 +3,13 @@
 
 use hysid_cluster::Cluster;
 use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
-use hysid_core::data::{Dataset, Signal};
-use hysid_core::metrics::parameter_error;
-use hysid_core::model::{Model, PwarxModel};
+use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_model::data::{Dataset, Signal};
+use hysid_model::metrics::parameter_error;
+use hysid_model::model::PwarxModel;
+use hysid_model::regressors::RegressorSpec;
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

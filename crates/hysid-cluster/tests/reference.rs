@@ -5,10 +5,11 @@
 use hysid_cluster::Cluster;
 use hysid_cluster::systems::{self, Example};
 use hysid_core::backend::{Backend, Problem, RunContext};
-use hysid_core::metrics::{mode_accuracy, parameter_error};
-use hysid_core::model::{Model, PwarxModel};
+use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_model::metrics::{mode_accuracy, parameter_error};
+use hysid_model::model::PwarxModel;
 
 fn identify(ex: &Example, modes: usize, set: &[&str], seed: u64) -> PwarxModel {
     let priors = Priors {
@@ -58,8 +59,9 @@ fn oracle_error(ex: &Example) -> f64 {
     let theta: Vec<Vec<f64>> = (0..ex.mode_count())
         .map(|i| {
             let rows: Vec<usize> = (0..reg.len()).filter(|&r| ex.modes[r] == i).collect();
-            let sol = hysid_core::linalg::lstsq(&phi.select_rows(&rows), &reg.y.select_rows(&rows))
-                .unwrap();
+            let sol =
+                hysid_estimation::linalg::lstsq(&phi.select_rows(&rows), &reg.y.select_rows(&rows))
+                    .unwrap();
             sol.theta.iter().copied().collect()
         })
         .collect();

@@ -9,7 +9,7 @@ use hysid_cluster::kmeans::{self, KmeansInit};
 use hysid_cluster::procedure::{self, ModeFit, Settings};
 use hysid_cluster::systems;
 use hysid_cluster::{Clustering, Features, Weights, local};
-use hysid_core::metrics::mode_accuracy;
+use hysid_model::metrics::mode_accuracy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

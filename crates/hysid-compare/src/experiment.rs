@@ -1,8 +1,8 @@
 //! The experiment file: data, protocol, shared priors, runs and sweeps
 //! (`docs/compare.md`).
 
-use hysid_core::data::{DataSelection, RowRange};
 use hysid_core::priors::Priors;
+use hysid_model::data::{DataSelection, RowRange};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

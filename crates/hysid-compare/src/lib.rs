@@ -14,13 +14,14 @@ pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, SweepSpec};
 pub use report::write_report;
 
 use hysid_core::backend::{Problem, Progress, RunContext};
-use hysid_core::data::{Dataset, load};
-use hysid_core::metrics::{ValidationReport, validate};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
-use hysid_core::simulate::Simulation;
+use hysid_core::simulate::{ValidationReport, validate};
+use hysid_io::load;
+use hysid_model::data::Dataset;
+use hysid_model::regressors::RegressorSpec;
+use hysid_model::simulate::Simulation;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
@@ -229,7 +230,7 @@ impl Experiment {
 
     /// Loads the data once, then runs every job in parallel and scores it.
     pub fn run(&self, progress: &dyn Progress) -> Result<Comparison, ExperimentError> {
-        let data_err = |e: hysid_core::data::DataError| ExperimentError::Invalid {
+        let data_err = |e: hysid_model::data::DataError| ExperimentError::Invalid {
             path: self.data.file.display().to_string(),
             message: e.to_string(),
         };

@@ -2,10 +2,11 @@
 //! the figures under `plots/` (SVG, `hysid-plot`).
 
 use crate::{Comparison, RunResult};
-use hysid_core::data::Dataset;
-use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{HybridAutomaton, InitialState, Model, PwarxMode, PwarxModel, TimeDomain};
-use hysid_core::regressors::RegressorSpec;
+use hysid_core::model::Model;
+use hysid_model::data::Dataset;
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::{HybridAutomaton, InitialState, PwarxMode, PwarxModel, TimeDomain};
+use hysid_model::regressors::RegressorSpec;
 use hysid_plot::{
     ModeFigure, ModeSequence, RegionFigure, SimulationFigure, SweepFigure, SweepPanel, SweepSeries,
 };
@@ -36,7 +37,7 @@ pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::
         if let Some(m) = &r.model {
             let rel = format!("models/{}.json", slug(&r.name));
             let path = dir.join(&rel);
-            hysid_core::atomic::write(&path, m.to_json().as_bytes())?;
+            hysid_io::write(&path, m.to_json().as_bytes())?;
             written.push(path);
             r.model_file = Some(rel);
         }
@@ -44,10 +45,10 @@ pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::
     written.extend(figures(c, dir)?);
     let json = serde_json::to_string_pretty(&*c).expect("report serialises") + "\n";
     let p = dir.join("report.json");
-    hysid_core::atomic::write(&p, json.as_bytes())?;
+    hysid_io::write(&p, json.as_bytes())?;
     written.push(p);
     let p = dir.join("report.md");
-    hysid_core::atomic::write(&p, markdown(c).as_bytes())?;
+    hysid_io::write(&p, markdown(c).as_bytes())?;
     written.push(p);
     Ok(written)
 }
@@ -613,7 +614,7 @@ fn mode_recovery_table(s: &mut String, c: &Comparison) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hysid_core::priors::{SaturationPrior, StopBound};
+    use hysid_model::model::{Stop, StopBound};
 
     #[test]
     fn units_come_from_the_labels() {
@@ -648,7 +649,7 @@ mod tests {
             ],
             info: Default::default(),
         };
-        let stop = SaturationPrior {
+        let stop = Stop {
             level: 25.0,
             bound: StopBound::Max,
             tol: None,

@@ -2,13 +2,13 @@
 //! text column of a CSV data file naming the true mode of every sample
 //! (what `hysid simulate` writes), scored against the mode sequence of each
 //! run's validation simulation. Identified modes are matched to true modes
-//! by the Hungarian method (`hysid_core::metrics::mode_accuracy`); the
+//! by the Hungarian method (`hysid_model::metrics::mode_accuracy`); the
 //! report gives the overall accuracy and, per true mode, the fraction of its
 //! samples simulated in the matched mode (its recall).
 
-use hysid_core::data::RowRange;
-use hysid_core::metrics::mode_accuracy;
-use hysid_core::simulate::Simulation;
+use hysid_model::data::RowRange;
+use hysid_model::metrics::mode_accuracy;
+use hysid_model::simulate::Simulation;
 use serde::Serialize;
 use std::path::Path;
 

@@ -7,11 +7,11 @@
 //! model. The CLI and `compare` only see `dyn Backend` through a
 //! [`Registry`].
 
-use crate::data::Dataset;
 use crate::model::Model;
 use crate::options::{BackendOptions, OptionError, OptionSpec, Settings};
 use crate::priors::{PriorError, PriorKind, Priors};
-use crate::regressors::RegressorSpec;
+use hysid_model::data::Dataset;
+use hysid_model::regressors::RegressorSpec;
 use std::time::Instant;
 
 /// What to identify: a record, the model orders and the priors.
@@ -253,7 +253,7 @@ pub fn run_standardized(
             "--standardize cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)".into(),
         ));
     }
-    let scale = crate::data::Standardization::of(problem.data);
+    let scale = hysid_model::data::Standardization::of(problem.data);
     let scaled = scale.apply(problem.data);
     let inner = Problem {
         data: &scaled,

@@ -1,37 +1,23 @@
 //! # hysid-core
 //!
-//! The core of hysid, a framework for identifying hybrid systems from data.
-//! It knows no identification back-end; back-ends depend on it and plug in
-//! through [`backend::Identifier`] and a [`backend::Registry`].
+//! The plugin contract of hysid, a framework for identifying hybrid systems
+//! from data. It knows no identification back-end; back-ends depend on it
+//! and plug in through [`backend::Identifier`] and a [`backend::Registry`].
+//! The data types, PWARX models and automata it refers to live in
+//! `hysid-model`, the mechanical models in `hysid-mechanical`.
 //!
 //! | module | concept |
 //! |---|---|
-//! | [`data`] | measured records: CSV/MAT reading, selection, standardisation |
-//! | [`regressors`] | PWARX regressors and parameter order |
-//! | [`geometry`] | polyhedra: regions, invariants, guard sets |
-//! | [`model`] | PWARX models and hybrid automata, model files |
+//! | [`model`] | the tagged [`model::Model`] of every kind, its JSON/TOML files |
+//! | [`simulate`] | simulation, prediction and validation of any model |
 //! | [`priors`] | gray-box prior knowledge |
-//! | [`estimation`] | mode parameters by least squares under priors (ties, fixed values, bounds) |
 //! | [`options`] | typed back-end options and `--set` |
 //! | [`backend`] | the plugin contract and registry |
-//! | [`simulate`] | free-run simulation and one-step prediction |
-//! | [`metrics`] | FIT, RMSE, coverage, mode matching |
-//! | [`excitation`] | the founding paper's random step input |
-//! | [`linalg`] | dense least squares (faer, private to this module) |
-//! | [`atomic`] | atomic file output |
 
-pub mod atomic;
 pub mod backend;
-pub mod data;
-pub mod estimation;
-pub mod excitation;
-pub mod geometry;
-pub mod linalg;
-pub mod metrics;
 pub mod model;
 pub mod options;
 pub mod priors;
-pub mod regressors;
 pub mod simulate;
 
 /// The types most programs need.
@@ -39,13 +25,15 @@ pub mod prelude {
     #[doc(no_inline)]
     pub use crate::backend::{Backend, Identifier, IdentifyError, Problem, Registry, RunContext};
     #[doc(no_inline)]
-    pub use crate::data::{DataSelection, Dataset, Signal};
-    #[doc(no_inline)]
-    pub use crate::geometry::Polyhedron;
-    #[doc(no_inline)]
-    pub use crate::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
+    pub use crate::model::Model;
     #[doc(no_inline)]
     pub use crate::priors::{PriorKind, Priors};
     #[doc(no_inline)]
-    pub use crate::regressors::RegressorSpec;
+    pub use hysid_model::data::{DataSelection, Dataset, Signal};
+    #[doc(no_inline)]
+    pub use hysid_model::geometry::Polyhedron;
+    #[doc(no_inline)]
+    pub use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
+    #[doc(no_inline)]
+    pub use hysid_model::regressors::RegressorSpec;
 }

@@ -4,7 +4,8 @@
 //! Each back-end declares the [`PriorKind`]s it honours; a prior it cannot
 //! honour is refused with an error naming the entry, never dropped.
 
-use crate::regressors::RegressorSpec;
+use hysid_model::model::Stop;
+use hysid_model::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
@@ -59,54 +60,6 @@ impl fmt::Display for PriorKind {
             PriorKind::Switching => "switching",
             PriorKind::Equality => "[[equality]]",
         })
-    }
-}
-
-/// Which side of the level the output stays on at a stop.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StopBound {
-    /// The output never exceeds the level.
-    Max,
-    /// The output never goes below the level.
-    Min,
-}
-
-/// A known saturation: the output's value at a mechanical stop.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SaturationPrior {
-    /// Output value at the stop.
-    pub level: f64,
-    /// Side.
-    pub bound: StopBound,
-    /// How close to the level (or beyond it, on the stop's side) an output
-    /// sample must be to count as saturated. Default
-    /// [`SaturationPrior::DEFAULT_TOL`] `* (1 + |level|)`: exact for
-    /// simulated data; give the measurement noise for real records.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub tol: Option<f64>,
-}
-
-impl SaturationPrior {
-    /// Relative default of [`SaturationPrior::tol`].
-    pub const DEFAULT_TOL: f64 = 1e-6;
-
-    /// The tolerance in use (the given `tol` or the default).
-    pub fn tolerance(&self) -> f64 {
-        self.tol
-            .unwrap_or(Self::DEFAULT_TOL * (1.0 + self.level.abs()))
-    }
-
-    /// Whether the output value `y` sits at the stop: within the tolerance
-    /// of the level or beyond it on the stop's side (a `max` stop at `L`
-    /// holds `y >= L - tol`).
-    pub fn holds(&self, y: f64) -> bool {
-        let tol = self.tolerance();
-        match self.bound {
-            StopBound::Max => y >= self.level - tol,
-            StopBound::Min => y <= self.level + tol,
-        }
     }
 }
 
@@ -166,7 +119,7 @@ pub struct Priors {
     pub max_modes: Option<usize>,
     /// Known stops.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub saturation: Vec<SaturationPrior>,
+    pub saturation: Vec<Stop>,
     /// Parameter ties.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub tie: Vec<Tie>,
@@ -428,7 +381,7 @@ impl Priors {
     }
 
     /// The known stop the output value `y` sits at
-    /// ([`SaturationPrior::holds`]), if any.
+    /// ([`Stop::holds`]), if any.
     pub fn stop_at(&self, y: f64) -> Option<usize> {
         self.saturation.iter().position(|s| s.holds(y))
     }
@@ -444,6 +397,7 @@ impl Priors {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use hysid_model::model::StopBound;
 
     const SPEC_EXAMPLE: &str = r#"
 modes = 4

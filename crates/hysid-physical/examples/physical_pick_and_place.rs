@@ -10,13 +10,12 @@
 //! `OUT_DIR` is given.
 
 use hysid_core::backend::{Backend, Problem, RunContext};
-use hysid_core::data::{self, DataSelection, RowRange};
-use hysid_core::metrics;
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
-use hysid_core::simulate::mechanical;
+use hysid_mechanical::simulate as mechanical;
+use hysid_model::regressors::RegressorSpec;
+use hysid_model::data::{DataSelection, RowRange};
 use hysid_physical::Physical;
 use std::path::Path;
 use std::time::Instant;
@@ -32,14 +31,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         rows,
         ..DataSelection::default()
     };
-    let ident = data::load(
+    let ident = hysid_io::load(
         &root,
         &sel(RowRange {
             start: Some(0),
             end: Some(5000),
         }),
     )?;
-    let valid = data::load(
+    let valid = hysid_io::load(
         &root,
         &sel(RowRange {
             start: Some(5000),
@@ -101,8 +100,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             p.name, p.value, p.unit, p.bounds[0], p.bounds[1]
         );
     }
-    let (ri, _, _) = metrics::validate(&model, &ident, 10)?;
-    let (rv, sim, _) = metrics::validate(&model, &valid, 10)?;
+    let (ri, _, _) = hysid_core::simulate::validate(&model, &ident, 10)?;
+    let (rv, sim, _) = hysid_core::simulate::validate(&model, &valid, 10)?;
     println!(
         "fit_sim identification (rows 0..5000, warm-up 10): {:.2} %",
         ri.fit_sim
@@ -140,7 +139,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     if let Some(dir) = out_dir {
         std::fs::create_dir_all(&dir)?;
-        model.save(&Path::new(&dir).join("physical_model.json"))?;
+        hysid_io::save_model(&model, &Path::new(&dir).join("physical_model.json"))?;
         let names = model.mode_names();
         let mut s = String::from("t,u,y_measured,y_simulated,mode\n");
         for k in 0..valid.len() {

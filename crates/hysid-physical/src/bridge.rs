@@ -22,8 +22,9 @@
 //! They are indicative only: the true switching depends on the velocity
 //! and the friction state, which these regressors do not resolve exactly.
 
-use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{MechanicalModel, ModelInfo, PwarxMode, PwarxModel, ResolvedForce};
+use hysid_mechanical::{MechanicalModel, ResolvedForce};
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel};
 use nalgebra::DMatrix;
 
 /// The ZOH discretisation of `d/dt x = A x + B w` (`w` held) at `ts`:

@@ -5,10 +5,10 @@ use argmin::core::{CostFunction, Error as ArgminError, Executor, State, Terminat
 use argmin::solver::neldermead::NelderMead;
 use argmin::solver::particleswarm::ParticleSwarm;
 use hysid_core::backend::{IdentifyError, Progress, RunContext};
-use hysid_core::data::Dataset;
-use hysid_core::model::{MechanicalInitialState, MechanicalModel};
 use hysid_core::priors::Priors;
-use hysid_core::simulate::mechanical;
+use hysid_mechanical::simulate as mechanical;
+use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
+use hysid_model::data::Dataset;
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -1032,7 +1032,7 @@ fn sensitivity(
         } else {
             f64::INFINITY
         };
-        if let Ok(inv) = hysid_core::linalg::pinv(&jtj)
+        if let Ok(inv) = hysid_estimation::linalg::pinv(&jtj)
             && smin > 1e-14 * smax
         {
             for (c, &j) in keep.iter().enumerate() {

@@ -9,7 +9,7 @@
 //! The physical parameters are fitted by minimising the **simulation
 //! (output) error** `J = mean_k (y(k) - yhat(k))^2` over the record, where
 //! `yhat` is the event-aware free-run simulation
-//! ([`hysid_core::simulate::mechanical`]) from the state estimated on the
+//! ([`hysid_mechanical::simulate`]) from the state estimated on the
 //! first samples. The search runs in box-normalised coordinates:
 //!
 //! 1. a global stage: argmin's particle swarm (Kennedy and Eberhart 1995),
@@ -33,12 +33,13 @@ pub mod fit;
 pub use fit::{FitReport, ParameterMap, fit_mechanical};
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::{MechanicalModel, Model};
+use hysid_core::model::Model;
 use hysid_core::priors::PriorKind;
+use hysid_mechanical::MechanicalModel;
 use std::path::Path;
 
 /// The built-in mounting-head model (`models/pick-and-place/head.toml`).
-pub const HEAD_MODEL_TOML: &str = include_str!("../../../models/pick-and-place/head.toml");
+pub const HEAD_MODEL_TOML: &str = include_str!("../models/head.toml");
 
 /// The built-in mounting-head model, parsed.
 pub fn head_model() -> MechanicalModel {

@@ -2,13 +2,14 @@
 //! model file, and the bridge to the per-mode discrete-time form.
 
 use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
-use hysid_core::data::Dataset;
-use hysid_core::excitation::Excitation;
-use hysid_core::model::{MechanicalInitialState, MechanicalModel, Model};
+use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::{Priors, Tie};
-use hysid_core::regressors::RegressorSpec;
-use hysid_core::simulate::mechanical;
+use hysid_mechanical::simulate as mechanical;
+use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
+use hysid_model::data::Dataset;
+use hysid_model::excitation::Excitation;
+use hysid_model::regressors::RegressorSpec;
 use hysid_physical::{HEAD_MODEL_TOML, Physical, bridge, head_model};
 
 const TS: f64 = 0.0025;

@@ -3,14 +3,14 @@
 //! measurement noise added; `fit_sim` on a fresh validation record.
 
 use hysid_core::backend::{Backend, Problem, RunContext};
-use hysid_core::data::Dataset;
-use hysid_core::excitation::Excitation;
-use hysid_core::metrics;
-use hysid_core::model::{MechanicalInitialState, MechanicalModel, Model};
+use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
-use hysid_core::simulate::mechanical;
+use hysid_mechanical::simulate as mechanical;
+use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
+use hysid_model::data::Dataset;
+use hysid_model::excitation::Excitation;
+use hysid_model::regressors::RegressorSpec;
 use hysid_physical::{Physical, head_model};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -139,7 +139,7 @@ fn recovers_parameters_and_validates() {
         worst.1
     );
     let fresh = record(&truth, 2000, 99, 0.02);
-    let (rep, _, _) = metrics::validate(&model, &fresh, 10).unwrap();
+    let (rep, _, _) = hysid_core::simulate::validate(&model, &fresh, 10).unwrap();
     eprintln!("fit_sim on a fresh record: {:.2} %", rep.fit_sim);
     assert!(rep.fit_sim >= 97.0, "fit_sim {:.2}", rep.fit_sim);
 }

@@ -13,8 +13,8 @@
 
 use std::path::PathBuf;
 
-use hysid_core::geometry::Polyhedron;
-use hysid_core::metrics::fit;
+use hysid_model::geometry::Polyhedron;
+use hysid_model::metrics::fit;
 use hysid_plot::{
     Bounds, ModeFigure, ModeSequence, RegionFigure, Series, SimulationFigure, SweepFigure,
     SweepPanel, SweepSeries, mode_sequence_plot, regions_plot, simulation_plot, sweep_plot,

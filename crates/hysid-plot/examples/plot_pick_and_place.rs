@@ -11,12 +11,13 @@ use std::path::PathBuf;
 
 use hysid_arx::Arx;
 use hysid_core::backend::{Backend, Problem, RunContext};
-use hysid_core::data::{DataSelection, RowRange, load};
-use hysid_core::metrics::validate;
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_core::simulate::validate;
+use hysid_io::load;
+use hysid_model::data::{DataSelection, RowRange};
+use hysid_model::regressors::RegressorSpec;
 use hysid_plot::{RegionFigure, SimulationFigure};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -87,8 +88,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 fn model_spec_regressors(
-    m: &hysid_core::model::PwarxModel,
-    data: &hysid_core::data::Dataset,
-) -> Result<hysid_core::regressors::Regressors, Box<dyn std::error::Error>> {
+    m: &hysid_model::model::PwarxModel,
+    data: &hysid_model::data::Dataset,
+) -> Result<hysid_model::regressors::Regressors, Box<dyn std::error::Error>> {
     Ok(m.spec().build(data)?)
 }

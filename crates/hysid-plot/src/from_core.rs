@@ -2,10 +2,10 @@
 //! [`Simulation`], [`Regressors`], a [`PwarxModel`]). The figures stay plain
 //! data; these only fill them in.
 
-use hysid_core::data::Dataset;
-use hysid_core::model::PwarxModel;
-use hysid_core::regressors::Regressors;
-use hysid_core::simulate::Simulation;
+use hysid_model::data::Dataset;
+use hysid_model::model::PwarxModel;
+use hysid_model::regressors::Regressors;
+use hysid_model::simulate::Simulation;
 
 use crate::{ModeSequence, RegionFigure, Series, SimulationFigure, time_axis};
 
@@ -125,7 +125,7 @@ impl RegionFigure {
     }
 }
 
-/// A regressor name of [`hysid_core::regressors::RegressorSpec::regressor_names`]
+/// A regressor name of [`hysid_model::regressors::RegressorSpec::regressor_names`]
 /// with its lag spelled out: `y2` becomes `y(k-2)`, `u1_3` becomes
 /// `u1(k-3)`; any other name is returned unchanged.
 pub fn lagged_name(name: &str) -> String {
@@ -159,8 +159,8 @@ pub fn column_means(points: &[Vec<f64>], dim: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hysid_core::geometry::Polyhedron;
-    use hysid_core::model::{ModelInfo, PwarxMode};
+    use hysid_model::geometry::Polyhedron;
+    use hysid_model::model::{ModelInfo, PwarxMode};
 
     #[test]
     fn lags_are_spelled_out() {

@@ -15,7 +15,7 @@
 //!
 //! Each `*_plot` function renders the SVG into a `String` first (the
 //! matching `*_svg` function returns it) and then writes it atomically with
-//! [`hysid_core::atomic::write`]. Text is SVG `<text>` in the generic
+//! [`hysid_io::write`]. Text is SVG `<text>` in the generic
 //! `sans-serif` family, so no system font is needed to render. The output is
 //! deterministic: the same figure gives the same bytes. Empty or non-finite
 //! data is an error ([`PlotError`]) or is skipped (NaN samples break a line),
@@ -80,7 +80,7 @@ pub enum PlotError {
 
 /// Writes an SVG string to `path` atomically.
 fn write_svg(path: &Path, svg: &str) -> Result<(), PlotError> {
-    hysid_core::atomic::write(path, svg.as_bytes()).map_err(|source| PlotError::Io {
+    hysid_io::write(path, svg.as_bytes()).map_err(|source| PlotError::Io {
         path: path.to_path_buf(),
         source,
     })

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use hysid_core::geometry::Polyhedron;
+use hysid_model::geometry::Polyhedron;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 

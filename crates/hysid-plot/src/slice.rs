@@ -10,7 +10,7 @@
 //! line or a point, so a lower-dimensional set is returned as a segment or a
 //! point rather than a polygon.
 
-use hysid_core::geometry::Polyhedron;
+use hysid_model::geometry::Polyhedron;
 
 /// A plotting window `[x_min, x_max] x [y_min, y_max]` in the two chosen
 /// coordinates.

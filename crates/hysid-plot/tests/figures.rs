@@ -2,7 +2,7 @@
 //! labels and legend; rendering is deterministic; bad data is an error, not a
 //! panic.
 
-use hysid_core::geometry::Polyhedron;
+use hysid_model::geometry::Polyhedron;
 use hysid_plot::*;
 use proptest::prelude::*;
 

@@ -3,9 +3,12 @@
 //! point to an adjacent mode.
 
 use crate::RegionError;
-use crate::solver::{self, Context, Program, Triplets};
+use crate::{
+    solver,
+    solver::{Context, Program, Triplets},
+};
 use clarabel::solver::SupportedConeT::{NonnegativeConeT, ZeroConeT};
-use hysid_core::geometry::Polyhedron;
+use hysid_model::geometry::Polyhedron;
 
 /// Symmetric adjacency matrix of a pairwise partition inside the box
 /// `[lo, hi]`: `adj[i][j]` is true when regions `i` and `j` share a facet

@@ -49,7 +49,7 @@
 //! assert!(p.regions[0].contains(&[-0.5]) && p.regions[1].contains(&[0.5]));
 //! ```
 
-use hysid_core::geometry::Polyhedron;
+use hysid_model::geometry::Polyhedron;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 

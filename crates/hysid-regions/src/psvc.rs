@@ -10,7 +10,7 @@
 //! intersections of pairwise half-spaces and may leave holes.
 
 use crate::{Prepared, RegionError};
-use hysid_core::geometry::Polyhedron;
+use hysid_model::geometry::Polyhedron;
 use nalgebra::{DMatrix, DVector};
 
 /// Fung and Mangasarian's `nu` as used by HIT.

@@ -443,7 +443,7 @@ fn adjacency_of_wedges_strips_and_psvc() {
     }
     assert!(matches!(
         adjacency(
-            &vec![hysid_core::geometry::Polyhedron::everything(); 2],
+            &vec![hysid_model::geometry::Polyhedron::everything(); 2],
             &[0.0],
             &[1.0]
         ),

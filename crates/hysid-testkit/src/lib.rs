@@ -3,18 +3,21 @@
 //! The benchmark systems of `shared/docs/algorithms.md` section (c), with
 //! their exact parameters, as seeded generators. Each returns the data, the
 //! true model and the true mode of every sample, so that back-ends can be
-//! scored with `hysid_core::metrics::{mode_accuracy, parameter_error}`.
+//! scored with `hysid_model::metrics::{mode_accuracy, parameter_error}`.
 //!
 //! Static maps (H1, H2, H4, H7) are written as PWARX models with `na = 0`,
 //! `nb = 1`: the regressor of `y(k)` is the input `u(k-1)` (one column per
 //! input), so every back-end treats them like dynamic data.
 
-use hysid_core::data::{Dataset, Signal};
-use hysid_core::excitation::Excitation;
-use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
-use hysid_core::priors::{Priors, SaturationPrior, StopBound};
-use hysid_core::simulate::{SimulationOptions, simulate};
+use hysid_core::model::Model;
+use hysid_core::priors::Priors;
+use hysid_core::simulate::simulate;
+use hysid_model::data::{Dataset, Signal};
+use hysid_model::excitation::Excitation;
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
+use hysid_model::model::{Stop, StopBound};
+use hysid_model::simulate::SimulationOptions;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -289,7 +292,7 @@ pub struct StoppedBenchmark {
     /// The ordinary (non-saturation) modes.
     pub ordinary: PwarxModel,
     /// The stops.
-    pub stops: Vec<SaturationPrior>,
+    pub stops: Vec<Stop>,
     /// The true model: `HybridAutomaton::from_pwarx_with_stops(ordinary, stops)`,
     /// whose modes are the ordinary ones (`0..ordinary.modes.len()`) followed
     /// by one saturation mode per stop.
@@ -328,7 +331,7 @@ impl StoppedBenchmark {
 ///   `y(k), y(k-1) := level` (`HybridAutomaton::from_pwarx_with_stops`).
 ///
 /// The input is the paper's random piecewise-constant signal
-/// (`hysid_core::excitation`), levels `U[-0.3, 1.7]` held `hold` samples, so
+/// (`hysid_model::excitation`), levels `U[-0.3, 1.7]` held `hold` samples, so
 /// both stops are reached and held. The record is the automaton's
 /// noise-free simulation; with `noise_std > 0`, Gaussian measurement noise
 /// is added to the samples of the ordinary modes only (a stop holds the
@@ -352,12 +355,12 @@ pub fn stopped_head(n: usize, hold: usize, noise_std: f64, seed: u64) -> Stopped
         ],
     );
     let stops = vec![
-        SaturationPrior {
+        Stop {
             level: 0.0,
             bound: StopBound::Min,
             tol: None,
         },
-        SaturationPrior {
+        Stop {
             level: 25.0,
             bound: StopBound::Max,
             tol: None,

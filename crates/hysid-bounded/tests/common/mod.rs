@@ -1,7 +1,7 @@
 //! Test systems built on `hysid-testkit`.
 
-use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{ModelInfo, PwarxMode, PwarxModel};
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel};
 use hysid_testkit::{Benchmark, Noise};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

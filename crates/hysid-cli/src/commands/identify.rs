@@ -7,7 +7,7 @@ use crate::selection::DataArgs;
 use hysid_core::backend::{Problem, RunContext, run_standardized};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::regressors::RegressorSpec;
+use hysid_model::regressors::RegressorSpec;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -84,7 +84,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         None => None,
     };
-    let data = hysid_core::data::load(&args.data, &args.select.selection()?)?;
+    let data = hysid_io::load(&args.data, &args.select.selection()?)?;
     let origin = args.prior.as_ref().map(|p| p.display().to_string());
     let problem = Problem {
         data: &data,
@@ -105,7 +105,7 @@ pub fn run(args: Args) -> Result<()> {
         backend.run(&problem, &settings, &ctx)?
     };
     let elapsed = started.elapsed();
-    model.save(&args.out)?;
+    hysid_io::save_model(&model, &args.out)?;
     eprintln!(
         "hysid: {} identified a {} model with {} mode(s) from {} samples in {:.3} s -> {}",
         backend.name(),

@@ -4,10 +4,11 @@
 use crate::Result;
 use crate::error::CliError;
 use crate::selection::DataArgs;
-use hysid_core::data::{Dataset, Signal};
-use hysid_core::excitation::Excitation;
 use hysid_core::model::Model;
-use hysid_core::simulate::{SimulationOptions, simulate};
+use hysid_core::simulate::simulate;
+use hysid_model::data::{Dataset, Signal};
+use hysid_model::excitation::Excitation;
+use hysid_model::simulate::SimulationOptions;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -53,7 +54,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let model = Model::load(&args.model)?;
     let data = match (&args.data, &args.excite) {
-        (Some(path), None) => hysid_core::data::load(path, &args.select.selection()?)?,
+        (Some(path), None) => hysid_io::load(path, &args.select.selection()?)?,
         (None, Some(spec)) => {
             let e: Excitation = spec.parse().map_err(CliError::input)?;
             if e.inputs != model.inputs() {
@@ -128,7 +129,7 @@ pub fn run(args: Args) -> Result<()> {
     let bytes = w
         .into_inner()
         .map_err(|e| CliError::failure(format!("writing CSV: {e}")))?;
-    hysid_core::atomic::write(&args.out, &bytes)
+    hysid_io::write(&args.out, &bytes)
         .map_err(|e| CliError::input(format!("{}: {e}", args.out.display())))?;
     eprintln!(
         "hysid: simulated {} samples -> {}",

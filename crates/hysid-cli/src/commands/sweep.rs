@@ -7,8 +7,8 @@ use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
 use hysid_compare::{DataSpec, Experiment, RunSpec, SweepSpec};
-use hysid_core::data::RowRange;
 use hysid_core::priors::Priors;
+use hysid_model::data::RowRange;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 

@@ -3,8 +3,8 @@
 use crate::Result;
 use crate::error::CliError;
 use crate::selection::DataArgs;
-use hysid_core::metrics::validate;
 use hysid_core::model::Model;
+use hysid_core::simulate::validate;
 use std::path::PathBuf;
 
 /// Arguments of `hysid validate`.
@@ -28,7 +28,7 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let model = Model::load(&args.model)?;
-    let data = hysid_core::data::load(&args.data, &args.select.selection()?)?;
+    let data = hysid_io::load(&args.data, &args.select.selection()?)?;
     if args.warmup >= data.len() {
         return Err(CliError::input(format!(
             "--warmup {} leaves no sample to score: {} has {} samples after selection",

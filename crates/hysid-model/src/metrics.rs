@@ -1,12 +1,8 @@
-//! Scores of a model against data (`shared/docs/mounting-head.md`, section 3):
-//! FIT and RMSE of free-run simulation and one-step prediction, coverage of
-//! the partition, and, when the true model is known, mode accuracy and
+//! Scores of a model against data: FIT and RMSE, and, when the true model is
+//! known, mode accuracy and
 //! parameter error after matching identified modes to true modes with the
 //! Hungarian method (Kuhn 1955; scipy's `linear_sum_assignment`, via `lsap`).
 
-use crate::data::Dataset;
-use crate::model::Model;
-use crate::simulate::{SimError, Simulation, SimulationOptions, predict, simulate};
 use serde::{Deserialize, Serialize};
 
 /// `FIT = 100 (1 - |y - yhat| / |y - mean(y)|)` in percent. When `y` is
@@ -37,74 +33,6 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
         .sum::<f64>()
         / n)
         .sqrt()
-}
-
-/// What `hysid validate --json` prints (`shared/spec/interface.md`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ValidationReport {
-    /// Samples scored.
-    pub n: usize,
-    /// Samples left out at the start.
-    pub warmup: usize,
-    /// FIT of free-run simulation, percent.
-    pub fit_sim: f64,
-    /// RMSE of free-run simulation.
-    pub rmse_sim: f64,
-    /// FIT of one-step prediction, percent.
-    pub fit_pred: f64,
-    /// RMSE of one-step prediction.
-    pub rmse_pred: f64,
-    /// Fraction of scored (measured) regressors inside some region.
-    pub coverage: f64,
-    /// Fraction of scored simulation steps inside some region.
-    pub coverage_sim: f64,
-    /// Sample where the simulation diverged, if it did.
-    pub diverged_at: Option<usize>,
-    /// Scored samples per mode in the simulation (by mode index).
-    pub mode_counts: Vec<usize>,
-}
-
-/// Scores `model` on `data`, leaving out the first `warmup` samples (and
-/// any before the simulation can start).
-pub fn validate(
-    model: &Model,
-    data: &Dataset,
-    warmup: usize,
-) -> Result<(ValidationReport, Simulation, Simulation), SimError> {
-    let opts = SimulationOptions::for_data(data);
-    let sim = simulate(model, data, opts)?;
-    let pred = predict(model, data, opts)?;
-    let first = warmup.max(sim.start).max(pred.start);
-    let n_all = data.len();
-    if first >= n_all {
-        return Err(SimError::TooShort {
-            samples: n_all,
-            needed: first,
-        });
-    }
-    let y = &data.y()[first..];
-    let frac = |s: &Simulation| {
-        s.covered[first..].iter().filter(|&&c| c).count() as f64 / (n_all - first) as f64
-    };
-    let mut mode_counts = vec![0; model.mode_count()];
-    for q in sim.modes[first..].iter().flatten() {
-        if let Some(c) = mode_counts.get_mut(*q) {
-            *c += 1;
-        }
-    }
-    let report = ValidationReport {
-        n: n_all - first,
-        warmup,
-        fit_sim: fit(y, &sim.y[first..]),
-        rmse_sim: rmse(y, &sim.y[first..]),
-        fit_pred: fit(y, &pred.y[first..]),
-        rmse_pred: rmse(y, &pred.y[first..]),
-        coverage: frac(&pred),
-        coverage_sim: frac(&sim),
-        diverged_at: sim.diverged_at,
-        mode_counts,
-    };
-    Ok((report, sim, pred))
 }
 
 /// Matching of identified modes to true modes.

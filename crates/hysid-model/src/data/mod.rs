@@ -1,21 +1,14 @@
-//! Measured input/output records: reading CSV and MAT files, selecting
-//! signals by name, decimation, row ranges and standardisation.
-//!
-//! The contract is `shared/spec/interface.md` ("Data files"): columns (CSV)
-//! or variables (MAT) are chosen by name, `decimate` keeps samples
-//! `0, K, 2K, ...` without a filter, `rows` is applied after decimation, and
-//! the sampling time comes from a `t` signal when there is one.
+//! Measured input/output records: signals, the selection rules applied
+//! when reading them (by name, decimation, row ranges) and standardisation.
+//! The CSV and MAT readers live in `hysid-io`.
 
-mod csv_reader;
-mod mat_reader;
 mod standardize;
 
-pub use mat_reader::inside_guarded_parser;
 pub use standardize::{AffineScale, Standardization};
 
 use serde::{Deserialize, Serialize};
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// One named, uniformly sampled signal.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -275,143 +268,6 @@ pub enum DataError {
     /// Bad decimation or row selection.
     #[error("{0}")]
     Selection(String),
-}
-
-/// Named columns as read from a file, before selection.
-pub(crate) struct RawTable {
-    pub(crate) path: PathBuf,
-    pub(crate) what: &'static str,
-    pub(crate) columns: Vec<(String, Vec<f64>)>,
-}
-
-impl RawTable {
-    fn take(&self, name: &str) -> Result<&[f64], DataError> {
-        self.columns
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(_, v)| v.as_slice())
-            .ok_or_else(|| DataError::Missing {
-                path: self.path.clone(),
-                what: self.what,
-                name: name.to_string(),
-                available: self
-                    .columns
-                    .iter()
-                    // Escaped, so that a stray byte-order mark or control
-                    // character in a header is visible in the message.
-                    .map(|(n, _)| n.escape_debug().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            })
-    }
-
-    fn has(&self, name: &str) -> bool {
-        self.columns.iter().any(|(n, _)| n == name)
-    }
-}
-
-/// Reads a `.csv` or `.mat` file and applies `sel`.
-pub fn load(path: &Path, sel: &DataSelection) -> Result<Dataset, DataError> {
-    if sel.decimate == 0 {
-        return Err(DataError::Selection("--decimate must be at least 1".into()));
-    }
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    let wanted = wanted_names(sel);
-    let table = match ext.as_deref() {
-        Some("csv") => csv_reader::read(path, &wanted)?,
-        Some("mat") => mat_reader::read(path, &wanted)?,
-        _ => return Err(DataError::UnsupportedFormat(path.to_path_buf())),
-    };
-    select(&table, sel)
-}
-
-/// The format of a record handed over as bytes (see [`load_bytes`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DataFormat {
-    /// Comma-separated values with a header row.
-    Csv,
-    /// MATLAB level-5 MAT-file.
-    Mat,
-}
-
-/// Reads a record already in memory and applies `sel`, exactly as [`load`]
-/// does for a file; `origin` only names the source in error messages.
-/// This is the entry point of the fuzz targets (`fuzz/`).
-pub fn load_bytes(
-    bytes: &[u8],
-    format: DataFormat,
-    origin: &Path,
-    sel: &DataSelection,
-) -> Result<Dataset, DataError> {
-    if sel.decimate == 0 {
-        return Err(DataError::Selection("--decimate must be at least 1".into()));
-    }
-    let wanted = wanted_names(sel);
-    let table = match format {
-        DataFormat::Csv => csv_reader::read_from(bytes, origin, &wanted)?,
-        DataFormat::Mat => mat_reader::read_bytes(bytes, origin, &wanted)?,
-    };
-    select(&table, sel)
-}
-
-/// Names the readers keep: the selected inputs, the output and `t`.
-fn wanted_names(sel: &DataSelection) -> Vec<&str> {
-    sel.inputs
-        .iter()
-        .map(String::as_str)
-        .chain([sel.output.as_str(), "t"])
-        .collect()
-}
-
-fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
-    let pick = |v: &[f64]| -> Vec<f64> { v.iter().step_by(sel.decimate).copied().collect() };
-    let output = Signal {
-        name: sel.output.clone(),
-        values: pick(table.take(&sel.output)?),
-    };
-    let mut inputs = Vec::with_capacity(sel.inputs.len());
-    for name in &sel.inputs {
-        inputs.push(Signal {
-            name: name.clone(),
-            values: pick(table.take(name)?),
-        });
-    }
-    let ts = if table.has("t") && !sel.inputs.iter().any(|n| n == "t") && sel.output != "t" {
-        let t = pick(table.take("t")?);
-        if t.len() >= 2 {
-            let dt = t[1] - t[0];
-            if !(dt.is_finite() && dt > 0.0) {
-                return Err(DataError::Parse {
-                    path: table.path.clone(),
-                    location: format!("{} 't': ", table.what),
-                    message: "time does not increase".into(),
-                });
-            }
-            Some(dt)
-        } else {
-            sel.ts
-        }
-    } else {
-        sel.ts
-    };
-    let ds = Dataset::new(inputs, output, ts)?;
-    let n = ds.len();
-    let (a, b) = sel.rows.resolve(n).map_err(|_| {
-        DataError::Selection(format!(
-            "{}: --rows {} selects no sample of the {} rows left after decimation by {}",
-            table.path.display(),
-            sel.rows,
-            n,
-            sel.decimate
-        ))
-    })?;
-    ds.slice(RowRange {
-        start: Some(a),
-        end: Some(b),
-    })
 }
 
 #[cfg(test)]

@@ -15,11 +15,11 @@
 //! identifiable from `u -> y`.
 //!
 //! The file format is documented in `docs/mechanical-models.md`; the
-//! simulator is [`crate::simulate::mechanical`].
+//! simulator is [`crate::simulate`].
 
-use super::ModelInfo;
-use crate::geometry::Polyhedron;
-use crate::model::automaton::{
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::ModelInfo;
+use hysid_model::model::{
     AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
     TimeDomain, Transition,
 };
@@ -572,7 +572,7 @@ impl MechanicalModel {
     /// reset `v := -e v`, and contact guards `s (y - y_c) >= 0`. Contacts
     /// are taken as released exactly when the penetration ends (the
     /// `lambda < 0` release of a damped contact is a nonlinear guard and is
-    /// not represented). See [`crate::simulate::mechanical`] for the exact
+    /// not represented). See [`crate::simulate`] for the exact
     /// semantics the simulator implements.
     pub fn to_hybrid_automaton(&self) -> HybridAutomaton {
         let r = self.resolve();

@@ -9,14 +9,12 @@
 //!   finite, the simulation stops there, the output is held at the clamped
 //!   value and [`Simulation::diverged_at`] reports the sample.
 //! - **Initial conditions**: PWARX models start from the first `max(na, nb)`
-//!   measured outputs; automata from their [`InitialState`] rule.
+//!   measured outputs; automata from their [`InitialState`](crate::model::InitialState) rule.
 
-mod automaton;
-pub mod mechanical;
-mod pwarx;
+pub mod automaton;
+pub mod pwarx;
 
 use crate::data::Dataset;
-use crate::model::{InitialState, Model};
 
 /// Options of a simulation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,7 +69,7 @@ pub struct Simulation {
 impl Simulation {
     /// Records a new output sample, detecting divergence. Returns false when
     /// the simulation must stop.
-    pub(crate) fn push_checked(&mut self, k: usize, v: f64, bound: f64) -> bool {
+    pub fn push_checked(&mut self, k: usize, v: f64, bound: f64) -> bool {
         if v.is_finite() && v.abs() <= bound {
             self.y[k] = v;
             true
@@ -137,55 +135,11 @@ pub const MAX_SUBSTEPS_PER_SAMPLE: usize = 100_000;
 /// Checks a sub-step count `n = ceil(ts / internal_step)` (as computed by
 /// the model kind's simulator) against [`MAX_SUBSTEPS_PER_SAMPLE`]:
 /// [`SimError::TooManySubsteps`] above it or when it is not finite.
-pub(crate) fn check_substeps(n: f64, ts: f64, internal_step: f64) -> Result<usize, SimError> {
+pub fn check_substeps(n: f64, ts: f64, internal_step: f64) -> Result<usize, SimError> {
     // `!(n <= max)` also refuses NaN.
     if n <= MAX_SUBSTEPS_PER_SAMPLE as f64 {
         Ok(n.max(1.0) as usize)
     } else {
         Err(SimError::TooManySubsteps { ts, internal_step })
-    }
-}
-
-fn check_inputs(model: &Model, data: &Dataset) -> Result<(), SimError> {
-    if model.inputs() != data.inputs.len() {
-        return Err(SimError::Inputs {
-            expected: model.inputs(),
-            found: data.inputs.len(),
-        });
-    }
-    Ok(())
-}
-
-/// Free-run simulation driven by the inputs of `data`; measured outputs are
-/// used only for the initial condition.
-pub fn simulate(
-    model: &Model,
-    data: &Dataset,
-    opts: SimulationOptions,
-) -> Result<Simulation, SimError> {
-    check_inputs(model, data)?;
-    match model {
-        Model::Pwarx(m) => pwarx::simulate(m, data, opts),
-        Model::HybridAutomaton(m) => automaton::simulate(m, data, opts),
-        Model::Mechanical(m) => mechanical::simulate(m, data, opts),
-    }
-}
-
-/// One-step-ahead prediction: every step starts from the measured state.
-/// For automata whose state cannot be read from data (a fixed initial
-/// state), this is the free-run simulation.
-pub fn predict(
-    model: &Model,
-    data: &Dataset,
-    opts: SimulationOptions,
-) -> Result<Simulation, SimError> {
-    check_inputs(model, data)?;
-    match model {
-        Model::Pwarx(m) => pwarx::predict(m, data),
-        Model::HybridAutomaton(m) => match m.initial_state {
-            InitialState::ArxHistory { .. } => automaton::predict(m, data),
-            InitialState::Given { .. } => automaton::simulate(m, data, opts),
-        },
-        Model::Mechanical(m) => mechanical::predict(m, data),
     }
 }

@@ -29,9 +29,9 @@
 //! each sample. The output is the position at the sampling instants; the
 //! mode of a sample is the declared mode of its regime at that instant.
 
-use super::{SimError, Simulation, SimulationOptions};
-use crate::data::Dataset;
-use crate::model::{MechanicalInitialState, MechanicalModel, ResolvedForce, ResolvedMechanics};
+use crate::{MechanicalInitialState, MechanicalModel, ResolvedForce, ResolvedMechanics};
+use hysid_model::data::Dataset;
+use hysid_model::simulate::{SimError, Simulation, SimulationOptions, check_substeps};
 
 /// Bound on the events processed within one internal step (a Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
@@ -351,9 +351,9 @@ impl ResolvedMechanics {
 }
 
 /// Sub-steps per sample: the smallest count whose step is at most
-/// `internal_step`, at most [`super::MAX_SUBSTEPS_PER_SAMPLE`].
+/// `internal_step`, at most [`hysid_model::simulate::MAX_SUBSTEPS_PER_SAMPLE`].
 pub fn substeps(ts: f64, internal_step: f64) -> Result<usize, SimError> {
-    super::check_substeps(((ts / internal_step) - 1e-9).ceil(), ts, internal_step)
+    check_substeps(((ts / internal_step) - 1e-9).ceil(), ts, internal_step)
 }
 
 /// Estimates the state at sample `s` from measured outputs `y[..=s]`:
@@ -475,7 +475,8 @@ pub fn run(
     Ok(out)
 }
 
-pub(super) fn simulate(
+/// Free-run, event-located simulation of a mechanical model.
+pub fn simulate(
     m: &MechanicalModel,
     data: &Dataset,
     opts: SimulationOptions,
@@ -500,7 +501,7 @@ pub(super) fn simulate(
 /// One-step prediction: at each sample the state is re-estimated from the
 /// measured outputs up to the previous sample (as the initial state is) and
 /// advanced by one sample.
-pub(super) fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation, SimError> {
+pub fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation, SimError> {
     let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
     let r = m.resolve();
     let n = data.len();
@@ -553,18 +554,28 @@ pub(super) fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::excitation::Excitation;
-    use crate::model::{MechanicalModeKind, Model};
+    use crate::MechanicalModeKind;
+    use hysid_model::excitation::Excitation;
     use proptest::prelude::*;
 
-    const HEAD: &str = include_str!("../../../../models/pick-and-place/head.toml");
+    /// A file of the repository, read at test time.
+    fn repository_file(path: &str) -> String {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+        std::fs::read_to_string(format!("{root}/{path}")).unwrap()
+    }
+
+    /// A mechanical model file (TOML, tagged `kind = "mechanical"`).
+    fn parse(text: &str) -> MechanicalModel {
+        let mut table: toml::Table = text.parse().unwrap();
+        assert_eq!(table.remove("kind").unwrap().as_str(), Some("mechanical"));
+        let m: MechanicalModel = toml::Value::Table(table).try_into().unwrap();
+        m.validate().unwrap();
+        m
+    }
     const TS: f64 = 0.0025;
 
     fn head() -> MechanicalModel {
-        match Model::from_toml(HEAD, "head.toml").unwrap() {
-            Model::Mechanical(m) => m,
-            _ => unreachable!(),
-        }
+        parse(&repository_file("models/pick-and-place/head.toml"))
     }
 
     /// The head with every parameter at fraction `z` of its bounds.
@@ -626,11 +637,8 @@ mod tests {
         let mut bad = m.clone();
         bad.modes.retain(|q| q.kind != MechanicalModeKind::Stick);
         assert!(bad.validate().unwrap_err().contains("stick"));
-        let json = Model::Mechanical(m.clone()).to_json();
-        assert_eq!(
-            Model::from_json(&json, "mem").unwrap(),
-            Model::Mechanical(m)
-        );
+        let json = serde_json::to_string(&m).unwrap();
+        assert_eq!(serde_json::from_str::<MechanicalModel>(&json).unwrap(), m);
     }
 
     /// Without friction, contacts or stops reached, the simulator matches
@@ -677,7 +685,7 @@ mod tests {
     fn stop_is_hit_at_the_right_time_and_resets_velocity() {
         let mut m = head();
         m.forces
-            .retain(|f| matches!(f, crate::model::ForceElement::Constant { .. }));
+            .retain(|f| matches!(f, crate::ForceElement::Constant { .. }));
         m.contacts.clear();
         m.modes
             .retain(|q| q.contacts.as_ref().is_none_or(|c| c.is_empty()));
@@ -709,12 +717,10 @@ mod tests {
     /// is a valid model, and its bouncing stop never lets the mass through.
     #[test]
     fn documented_example_parses_and_bounces() {
-        let doc = include_str!("../../../../docs/mechanical-models.md");
+        let doc = repository_file("docs/mechanical-models.md");
         let start = doc.rfind("```toml\n").unwrap() + "```toml\n".len();
         let end = start + doc[start..].find("```").unwrap();
-        let Model::Mechanical(mut m) = Model::from_toml(&doc[start..end], "doc").unwrap() else {
-            panic!("not mechanical")
-        };
+        let mut m = parse(&doc[start..end]);
         given(&mut m, 0.0, -3.0);
         let n = 400;
         let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.001)).unwrap();

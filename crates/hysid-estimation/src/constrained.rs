@@ -27,13 +27,13 @@
 //! them) are an error naming the first `[[equality]]` that contradicts the
 //! entries before it.
 
-use crate::linalg::{self, LinalgError};
-use crate::priors::{Equality, Priors};
-use crate::regressors::RegressorSpec;
+use crate::{linalg, linalg::LinalgError};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
+use hysid_core::priors::{Equality, Priors};
+use hysid_model::regressors::RegressorSpec;
 use nalgebra::{DMatrix, DVector};
 
 /// What one entry of the stacked parameter vector is.

@@ -538,7 +538,8 @@ fn to_f64(v: &MatVariable) -> Option<Vec<f64>> {
 
 #[cfg(test)]
 mod tests {
-    use crate::data::{DataSelection, load};
+    use crate::load;
+    use hysid_model::data::DataSelection;
     use matrw::{MatFile, matvar};
 
     fn write(compress: bool, y: Vec<f64>) -> tempfile::TempPath {
@@ -601,10 +602,10 @@ mod tests {
     fn fuzzer_crash_inputs_are_errors() {
         // A dimension product that overflows inside matrw (fuzz target
         // mat_reader; the first byte chose the selection there).
-        let bytes = include_bytes!("../../../../tests/data/fuzz/mat_reader-mul-overflow-4ed3ecb8");
-        let e = crate::data::load_bytes(
+        let bytes = include_bytes!("../tests/data/fuzz/mat_reader-mul-overflow-4ed3ecb8");
+        let e = crate::load_bytes(
             &bytes[1..],
-            crate::data::DataFormat::Mat,
+            crate::DataFormat::Mat,
             std::path::Path::new("crash.mat"),
             &DataSelection::default(),
         )
@@ -614,7 +615,7 @@ mod tests {
             e.starts_with("crash.mat: not a readable level-5 MAT-file"),
             "{e}"
         );
-        assert!(!crate::data::inside_guarded_parser());
+        assert!(!crate::inside_guarded_parser());
     }
 
     #[test]
@@ -627,13 +628,13 @@ mod tests {
         // of type miUTF32, reads an array name declaring 4.29 GB at a place
         // no declared size leads to.
         for bytes in [
-            &include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-33af7a43")[..],
-            &include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-a139648a")[..],
-            &include_bytes!("../../../../tests/data/fuzz/mat_reader-oom-68e4e61d")[..],
+            &include_bytes!("../tests/data/fuzz/mat_reader-oom-33af7a43")[..],
+            &include_bytes!("../tests/data/fuzz/mat_reader-oom-a139648a")[..],
+            &include_bytes!("../tests/data/fuzz/mat_reader-oom-68e4e61d")[..],
         ] {
-            let e = crate::data::load_bytes(
+            let e = crate::load_bytes(
                 &bytes[1..],
-                crate::data::DataFormat::Mat,
+                crate::DataFormat::Mat,
                 std::path::Path::new("oom.mat"),
                 &DataSelection::default(),
             )

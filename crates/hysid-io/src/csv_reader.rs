@@ -136,7 +136,8 @@ pub(crate) fn read_from(bytes: &[u8], path: &Path, wanted: &[&str]) -> Result<Ra
 
 #[cfg(test)]
 mod tests {
-    use crate::data::{DataError, DataSelection, load};
+    use crate::load;
+    use hysid_model::data::{DataError, DataSelection};
     use std::io::Write;
 
     fn csv(text: &str) -> tempfile::NamedTempFile {

@@ -21,7 +21,8 @@ fn empty(m: &PwarxModel, data: &Dataset) -> Result<Simulation, SimError> {
     })
 }
 
-pub(super) fn simulate(
+/// Free-run simulation of a PWARX model from the first `max(na, nb)` measured outputs.
+pub fn simulate(
     m: &PwarxModel,
     data: &Dataset,
     opts: SimulationOptions,
@@ -42,7 +43,8 @@ pub(super) fn simulate(
     Ok(sim)
 }
 
-pub(super) fn predict(m: &PwarxModel, data: &Dataset) -> Result<Simulation, SimError> {
+/// One-step prediction of a PWARX model from measured regressors.
+pub fn predict(m: &PwarxModel, data: &Dataset) -> Result<Simulation, SimError> {
     let mut sim = empty(m, data)?;
     let spec = m.spec();
     let u: Vec<&[f64]> = (0..m.inputs).map(|i| data.u(i)).collect();

@@ -1,7 +1,8 @@
-//! Identified and hand-written models, their JSON (and TOML) files.
+//! Any model hysid identifies, simulates or validates, and its JSON (and
+//! TOML) files.
 //!
-//! A model file is a JSON object tagged by `"kind"` (`shared/spec/interface.md`,
-//! "Model files"). Three kinds live here:
+//! A model file is a JSON object tagged by `"kind"` (`docs/file-formats.md`).
+//! Three kinds:
 //!
 //! - [`PwarxModel`] (`"pwarx"`): modes with a parameter vector and a
 //!   polyhedral region in regressor space;
@@ -11,24 +12,9 @@
 //! - [`MechanicalModel`] (`"mechanical"`): a mass-spring-friction hybrid
 //!   automaton declared by its physical parameters, contacts and stops.
 
-mod automaton;
-mod mechanical;
-mod pwarx;
-
-pub use automaton::{
-    AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
-    TimeDomain, Transition,
-};
-pub use mechanical::{
-    Contact, Direction, ForceElement, Friction, MAX_CONTACTS, MechanicalInitialState,
-    MechanicalMode, MechanicalModeKind, MechanicalModel, PhysicalParameter, Quantity,
-    ResolvedContact, ResolvedForce, ResolvedMechanics, ResolvedStop, Stop,
-};
-pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
-
-use crate::data::Standardization;
+use hysid_mechanical::MechanicalModel;
+use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxModel};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Any model hysid can simulate and validate.
@@ -41,40 +27,6 @@ pub enum Model {
     HybridAutomaton(HybridAutomaton),
     /// Mass-spring-friction hybrid automaton declared by its physics.
     Mechanical(MechanicalModel),
-}
-
-/// Where a model came from: written into every model file so that a result
-/// can be reproduced. Deterministic (no clock time), so the same inputs and
-/// seed give byte-identical files.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(default)]
-pub struct ModelInfo {
-    /// Back-end that identified it (empty for hand-written models).
-    #[serde(skip_serializing_if = "String::is_empty")]
-    pub method: String,
-    /// The back-end's options as used, after defaults.
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub options: BTreeMap<String, serde_json::Value>,
-    /// Seed of the run.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub seed: Option<u64>,
-    /// Input names of the data it was identified on.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub input_names: Vec<String>,
-    /// Output name of the data it was identified on.
-    #[serde(skip_serializing_if = "String::is_empty")]
-    pub output_name: String,
-    /// Sampling time of the data, seconds.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub ts: Option<f64>,
-    /// Standardisation used during identification. The parameters and
-    /// regions in the file are already in original units; this records how
-    /// the back-end saw the data.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub scaling: Option<Standardization>,
-    /// Back-end diagnostics (counts, costs, statuses).
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub diagnostics: BTreeMap<String, serde_json::Value>,
 }
 
 /// Errors reading, writing or checking a model.
@@ -213,20 +165,13 @@ impl Model {
         s.push('\n');
         s
     }
-
-    /// Writes the model as JSON, atomically (temporary file then rename).
-    pub fn save(&self, path: &Path) -> Result<(), ModelError> {
-        crate::atomic::write(path, self.to_json().as_bytes()).map_err(|source| ModelError::Io {
-            path: path.display().to_string(),
-            source,
-        })
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::Polyhedron;
+    use hysid_model::geometry::Polyhedron;
+    use hysid_model::model::PwarxMode;
     use proptest::prelude::*;
 
     #[test]

@@ -231,7 +231,8 @@ fn initial(m: &HybridAutomaton, data: &Dataset) -> Result<(usize, Vec<f64>), Sim
     }
 }
 
-pub(super) fn simulate(
+/// Free-run simulation of a hybrid automaton driven by the inputs of `data`.
+pub fn simulate(
     m: &HybridAutomaton,
     data: &Dataset,
     opts: SimulationOptions,
@@ -330,7 +331,8 @@ pub(super) fn simulate(
     Ok(sim)
 }
 
-pub(super) fn predict(m: &HybridAutomaton, data: &Dataset) -> Result<Simulation, SimError> {
+/// One-step prediction of an automaton whose state is its ARX history.
+pub fn predict(m: &HybridAutomaton, data: &Dataset) -> Result<Simulation, SimError> {
     let InitialState::ArxHistory { na, nb } = m.initial_state else {
         unreachable!("prediction needs a state readable from data")
     };
@@ -361,10 +363,11 @@ mod tests {
     use crate::data::Dataset;
     use crate::geometry::Polyhedron;
     use crate::model::{
-        AffineDynamics, AutomatonMode, GuardSet, Model, ModelInfo, OutputMap, PwarxMode,
-        PwarxModel, ResetMap, Transition,
+        AffineDynamics, AutomatonMode, GuardSet, ModelInfo, OutputMap, PwarxMode, PwarxModel,
+        ResetMap, Transition,
     };
-    use crate::simulate::{SimulationOptions, simulate as sim_any};
+    use crate::simulate::SimulationOptions;
+    use crate::simulate::pwarx;
     use proptest::prelude::*;
 
     /// The bouncing ball of CORA (algorithms.md, C1): y'' = -9.81, guard
@@ -417,12 +420,7 @@ mod tests {
         m.validate().unwrap();
         let n = 301;
         let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.01)).unwrap();
-        let s = sim_any(
-            &Model::HybridAutomaton(m),
-            &data,
-            SimulationOptions::default(),
-        )
-        .unwrap();
+        let s = simulate(&(m), &data, SimulationOptions::default()).unwrap();
         assert!(
             s.y.iter().all(|&y| y >= -1e-9),
             "min {}",
@@ -485,8 +483,8 @@ mod tests {
             let data = Dataset::siso(u, y, None).unwrap();
             let a = HybridAutomaton::from_pwarx(&p);
             a.validate().unwrap();
-            let sp = sim_any(&Model::Pwarx(p), &data, SimulationOptions::default()).unwrap();
-            let sa = sim_any(&Model::HybridAutomaton(a), &data, SimulationOptions::default()).unwrap();
+            let sp = pwarx::simulate(&(p), &data, SimulationOptions::default()).unwrap();
+            let sa = simulate(&(a), &data, SimulationOptions::default()).unwrap();
             prop_assert_eq!(sp.start, sa.start);
             for k in sp.start..n {
                 prop_assert!((sp.y[k] - sa.y[k]).abs() < 1e-9 * (1.0 + sp.y[k].abs()), "k={} {} {}", k, sp.y[k], sa.y[k]);
@@ -497,11 +495,12 @@ mod tests {
 
 #[cfg(test)]
 mod stop_tests {
+    use super::simulate;
     use crate::data::Dataset;
     use crate::geometry::Polyhedron;
-    use crate::model::{HybridAutomaton, Model, ModelInfo, PwarxMode, PwarxModel};
-    use crate::priors::{SaturationPrior, StopBound};
-    use crate::simulate::{SimulationOptions, simulate};
+    use crate::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
+    use crate::model::{Stop, StopBound};
+    use crate::simulate::SimulationOptions;
     use proptest::prelude::*;
 
     /// A damped second-order system y(k) = a1 y(k-1) + a2 y(k-2) + b u(k-1) + c,
@@ -536,8 +535,8 @@ mod stop_tests {
         ) {
             let a2 = -0.95 * a1 * a1 / 4.0; // real, stable poles
             let stops = [
-                SaturationPrior { level: hi, bound: StopBound::Max, tol: None },
-                SaturationPrior { level: lo, bound: StopBound::Min, tol: None },
+                Stop { level: hi, bound: StopBound::Max, tol: None },
+                Stop { level: lo, bound: StopBound::Min, tol: None },
             ];
             let a = HybridAutomaton::from_pwarx_with_stops(&head(a1, a2, b), &stops);
             a.validate().unwrap();
@@ -547,7 +546,7 @@ mod stop_tests {
             let start = [y0, hi, lo][on_stop];
             let data = Dataset::siso(u, vec![start; n], None).unwrap();
             let names: Vec<String> = a.modes.iter().map(|m| m.name.clone()).collect();
-            let s = simulate(&Model::HybridAutomaton(a), &data, SimulationOptions::default()).unwrap();
+            let s = simulate(&(a), &data, SimulationOptions::default()).unwrap();
             // Starting off a stop is not a hole: every step is covered.
             prop_assert!(s.covered.iter().all(|&c| c));
             for k in s.start..n {
@@ -563,7 +562,7 @@ mod stop_tests {
     fn the_stop_is_reached_held_and_released() {
         let a = HybridAutomaton::from_pwarx_with_stops(
             &head(1.5, -0.56, 1.0),
-            &[SaturationPrior {
+            &[Stop {
                 level: 1.0,
                 bound: StopBound::Max,
                 tol: None,
@@ -572,12 +571,7 @@ mod stop_tests {
         // Push hard for 40 samples, then pull back.
         let u: Vec<f64> = (0..80).map(|k| if k < 40 { 2.0 } else { -2.0 }).collect();
         let data = Dataset::siso(u, vec![0.0; 80], None).unwrap();
-        let s = simulate(
-            &Model::HybridAutomaton(a.clone()),
-            &data,
-            SimulationOptions::default(),
-        )
-        .unwrap();
+        let s = simulate(&(a.clone()), &data, SimulationOptions::default()).unwrap();
         let sat = a.mode_index("sat_max_1").unwrap();
         let first = s
             .modes

@@ -11,7 +11,7 @@
 
 use super::{ModelInfo, PwarxModel};
 use crate::geometry::Polyhedron;
-use crate::priors::{SaturationPrior, StopBound};
+use crate::model::{Stop, StopBound};
 use serde::{Deserialize, Serialize};
 
 /// Discrete or continuous time.
@@ -418,7 +418,7 @@ impl HybridAutomaton {
     ///
     /// So a simulation never passes a known stop, and saturated segments
     /// are reproduced exactly.
-    pub fn from_pwarx_with_stops(p: &PwarxModel, stops: &[SaturationPrior]) -> Self {
+    pub fn from_pwarx_with_stops(p: &PwarxModel, stops: &[Stop]) -> Self {
         let mut a = Self::from_pwarx(p);
         let n = a.states.len();
         let m = a.inputs.len();

@@ -1,0 +1,128 @@
+//! Free-run simulation and one-step prediction of any [`Model`], and its
+//! validation against a record.
+//!
+//! Each kind has its own simulator (`hysid_model::simulate::pwarx`,
+//! `hysid_model::simulate::automaton`, `hysid_mechanical::simulate`); the
+//! policies they share (least violation outside every region, divergence,
+//! initial conditions) are documented in `hysid_model::simulate` and
+//! `docs/simulation.md`.
+
+use crate::model::Model;
+use hysid_mechanical::simulate as mechanical;
+use hysid_model::data::Dataset;
+use hysid_model::metrics::{fit, rmse};
+use hysid_model::model::InitialState;
+use hysid_model::simulate::{SimError, Simulation, SimulationOptions, automaton, pwarx};
+use serde::{Deserialize, Serialize};
+
+fn check_inputs(model: &Model, data: &Dataset) -> Result<(), SimError> {
+    if model.inputs() != data.inputs.len() {
+        return Err(SimError::Inputs {
+            expected: model.inputs(),
+            found: data.inputs.len(),
+        });
+    }
+    Ok(())
+}
+
+/// Free-run simulation driven by the inputs of `data`; measured outputs are
+/// used only for the initial condition.
+pub fn simulate(
+    model: &Model,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
+    check_inputs(model, data)?;
+    match model {
+        Model::Pwarx(m) => pwarx::simulate(m, data, opts),
+        Model::HybridAutomaton(m) => automaton::simulate(m, data, opts),
+        Model::Mechanical(m) => mechanical::simulate(m, data, opts),
+    }
+}
+
+/// One-step-ahead prediction: every step starts from the measured state.
+/// For automata whose state cannot be read from data (a fixed initial
+/// state), this is the free-run simulation.
+pub fn predict(
+    model: &Model,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
+    check_inputs(model, data)?;
+    match model {
+        Model::Pwarx(m) => pwarx::predict(m, data),
+        Model::HybridAutomaton(m) => match m.initial_state {
+            InitialState::ArxHistory { .. } => automaton::predict(m, data),
+            InitialState::Given { .. } => automaton::simulate(m, data, opts),
+        },
+        Model::Mechanical(m) => mechanical::predict(m, data),
+    }
+}
+
+/// What `hysid validate --json` prints (`docs/cli.md`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ValidationReport {
+    /// Samples scored.
+    pub n: usize,
+    /// Samples left out at the start.
+    pub warmup: usize,
+    /// FIT of free-run simulation, percent.
+    pub fit_sim: f64,
+    /// RMSE of free-run simulation.
+    pub rmse_sim: f64,
+    /// FIT of one-step prediction, percent.
+    pub fit_pred: f64,
+    /// RMSE of one-step prediction.
+    pub rmse_pred: f64,
+    /// Fraction of scored (measured) regressors inside some region.
+    pub coverage: f64,
+    /// Fraction of scored simulation steps inside some region.
+    pub coverage_sim: f64,
+    /// Sample where the simulation diverged, if it did.
+    pub diverged_at: Option<usize>,
+    /// Scored samples per mode in the simulation (by mode index).
+    pub mode_counts: Vec<usize>,
+}
+
+/// Scores `model` on `data`, leaving out the first `warmup` samples (and
+/// any before the simulation can start).
+pub fn validate(
+    model: &Model,
+    data: &Dataset,
+    warmup: usize,
+) -> Result<(ValidationReport, Simulation, Simulation), SimError> {
+    let opts = SimulationOptions::for_data(data);
+    let sim = simulate(model, data, opts)?;
+    let pred = predict(model, data, opts)?;
+    let first = warmup.max(sim.start).max(pred.start);
+    let n_all = data.len();
+    if first >= n_all {
+        return Err(SimError::TooShort {
+            samples: n_all,
+            needed: first,
+        });
+    }
+    let y = &data.y()[first..];
+    let frac = |s: &Simulation| {
+        s.covered[first..].iter().filter(|&&c| c).count() as f64 / (n_all - first) as f64
+    };
+    let mut mode_counts = vec![0; model.mode_count()];
+    for q in sim.modes[first..].iter().flatten() {
+        if let Some(c) = mode_counts.get_mut(*q) {
+            *c += 1;
+        }
+    }
+    let report = ValidationReport {
+        n: n_all - first,
+        warmup,
+        fit_sim: fit(y, &sim.y[first..]),
+        rmse_sim: rmse(y, &sim.y[first..]),
+        fit_pred: fit(y, &pred.y[first..]),
+        rmse_pred: rmse(y, &pred.y[first..]),
+        coverage: frac(&pred),
+        coverage_sim: frac(&sim),
+        diverged_at: sim.diverged_at,
+        mode_counts,
+    };
+    Ok((report, sim, pred))
+}

@@ -1,0 +1,14 @@
+//! # hysid-estimation
+//!
+//! The estimation pieces PWARX back-ends share: mode parameters by
+//! (weighted) least squares under the gray-box priors (ties, fixed values,
+//! linear equalities, bounds), and dense linear algebra. faer lives only in
+//! [`linalg`], clarabel only in [`constrained`].
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`constrained`] | `Parametrisation` of the priors, mode fits under them |
+//! | [`linalg`] | SVD least squares, weighted and equality-constrained (faer) |
+
+pub mod constrained;
+pub mod linalg;
