@@ -1,4 +1,4 @@
-//! Scores of a model against data (`shared/docs/mounting-head.md`, section 3):
+//! Scores of a model against data (`docs/cli.md`, `hysid validate`):
 //! FIT and RMSE of free-run simulation and one-step prediction, coverage of
 //! the partition, and, when the true model is known, mode accuracy and
 //! parameter error after matching identified modes to true modes with the
@@ -39,7 +39,7 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
         .sqrt()
 }
 
-/// What `hysid validate --json` prints (`shared/spec/interface.md`).
+/// What `hysid validate --json` prints (`docs/cli.md`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ValidationReport {
     /// Samples scored.

@@ -1,7 +1,7 @@
 //! Measured input/output records: reading CSV and MAT files, selecting
 //! signals by name, decimation, row ranges and standardisation.
 //!
-//! The contract is `shared/spec/interface.md` ("Data files"): columns (CSV)
+//! The contract is `docs/cli.md` ("Data selection"): columns (CSV)
 //! or variables (MAT) are chosen by name, `decimate` keeps samples
 //! `0, K, 2K, ...` without a filter, `rows` is applied after decimation, and
 //! the sampling time comes from a `t` signal when there is one.

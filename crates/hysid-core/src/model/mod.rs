@@ -1,6 +1,6 @@
 //! Identified and hand-written models, their JSON (and TOML) files.
 //!
-//! A model file is a JSON object tagged by `"kind"` (`shared/spec/interface.md`,
+//! A model file is a JSON object tagged by `"kind"` (`docs/file-formats.md`,
 //! "Model files"). Three kinds live here:
 //!
 //! - [`PwarxModel`] (`"pwarx"`): modes with a parameter vector and a
