@@ -1,4 +1,4 @@
-//! Bad input never panics and never loses work (issue 8, item 6): malformed
+//! Bad input never panics and never loses work: malformed
 //! data, model, prior and experiment files and bad option combinations each
 //! end with exit code 2 (1 when the method itself fails), one line on stderr
 //! that names the problem (file, row, column, option or entry), and no
@@ -858,8 +858,8 @@ fn malformed_simulation_options() {
 #[test]
 fn continuous_models_with_too_many_sub_steps_per_sample() {
     // ceil(ts / internal_step) above hysid_model::simulate::MAX_SUBSTEPS_PER_SAMPLE
-    // (100 000) is refused naming the model file and `internal_step`; it
-    // used to become usize::MAX sub-steps (a hang).
+    // (100 000) is refused naming the model file and `internal_step`
+    // instead of running up to usize::MAX sub-steps (a hang).
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let models = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models");

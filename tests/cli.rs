@@ -1,5 +1,6 @@
 //! End-to-end tests of the `hysid` program: the contract of
-//! `shared/spec/interface.md` (commands, files, exit codes, no partial output).
+//! `docs/cli.md` and `docs/file-formats.md` (commands, files, exit codes, no
+//! partial output).
 
 mod common;
 
@@ -509,8 +510,8 @@ fn methods_declare_priors_and_backends_refuse_or_honour_them() {
 fn a_panic_is_one_line_and_exit_code_1() {
     // A panic is a bug; the program still ends with one line and exit code
     // 1, never Rust's 101. The internal test hook HYSID_TEST_PANIC=1 panics
-    // at the start of the command (docs/errors.md): the known panics of
-    // issue 8 are all fixed, so no real input reaches one.
+    // at the start of the command (docs/errors.md): no known input reaches
+    // a panic.
     let dir = tempfile::tempdir().unwrap();
     let data = arx_record(dir.path());
     let out = dir.path().join("m.json");

@@ -1,4 +1,4 @@
-//! Determinism (issue 8, item 7): the same inputs and seed give
+//! Determinism: the same inputs and seed give
 //! byte-identical files, across runs and across thread counts.
 
 mod common;

@@ -1,4 +1,4 @@
-//! Numerical edge cases (issue 8, item 3) and time budgets (item 4): each
+//! Numerical edge cases and time budgets: each
 //! back-end on noise-free data, a constant output, collinear regressors,
 //! huge and tiny magnitudes, fewer samples than parameters, c larger than N,
 //! more modes than the samples allow, delta <= 0, and a model whose

@@ -1,5 +1,5 @@
 //! The founding experiment's record through the CLI, on the benchmark
-//! protocol of `shared/spec/interface.md` (decimate 10, identify rows
+//! protocol of `docs/cli.md` (decimate 10, identify rows
 //! 0..5000, score rows 5000..6001 with warm-up 10).
 
 use std::process::Command;
@@ -54,7 +54,7 @@ fn arx_baseline_on_the_protocol() {
     let v = on_the_protocol(&["-m", "arx"]);
     let fit_sim = v["fit_sim"].as_f64().unwrap();
     let fit_pred = v["fit_pred"].as_f64().unwrap();
-    // mounting-head.md section 3: ARX(2,2) + offset scores about 71 % (simulation) and 99.8 % (one step).
+    // Reference point of the protocol: ARX(2,2) + offset scores about 71 % (simulation) and 99.8 % (one step).
     assert!((69.0..72.5).contains(&fit_sim), "fit_sim {fit_sim}");
     assert!(fit_pred > 99.0, "fit_pred {fit_pred}");
     assert_eq!(v["n"], 991);
@@ -74,7 +74,7 @@ fn the_record_reads_with_its_time_base() {
     assert_eq!(j["info"]["diagnostics"]["samples"], 5999);
 }
 
-/// Issue 3 on the real record, through `hysid sweep` (the helper that
+/// The choice of `c` on the real record, through `hysid sweep` (the helper that
 /// chooses `c` and the mode count by validation simulation FIT): `c` at its
 /// theoretical minimum (`n + 2 = 6` for na = nb = 2) gives clearly worse
 /// models than a large `c` at every mode count (the founding paper's

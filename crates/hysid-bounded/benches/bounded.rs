@@ -1,4 +1,4 @@
-//! Speed of the bounded-error procedure (issue 4): B1 (3 modes, noise
+//! Speed of the bounded-error procedure: B1 (3 modes, noise
 //! U[-0.1, 0.1], delta = 0.1, default options, seed 1) for growing N.
 //! Run on one core: `taskset -c 0 cargo bench -p hysid-bounded --bench bounded`.
 //! Figures in `docs/performance-bounded.md`.

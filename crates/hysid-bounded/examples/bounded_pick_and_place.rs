@@ -1,4 +1,4 @@
-//! The pick-and-place protocol (BRIEFING, `shared/docs/mounting-head.md`)
+//! The pick-and-place protocol (`docs/cli.md`)
 //! with a delta sweep: decimate by 10 without a filter, identify on rows
 //! 0..5000, validate on rows 5000..6001 with warm-up 10, PWARX na = nb = 2.
 //!

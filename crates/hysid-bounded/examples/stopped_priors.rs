@@ -1,6 +1,6 @@
 //! The bounded back-end on the stopped head of `hysid-testkit` (two
 //! ordinary modes, both stops reached), with and without the priors
-//! (issue 6). Prints the mode accuracy of the classification of the
+//! (`docs/priors.md`). Prints the mode accuracy of the classification of the
 //! identification rows (saturation modes included, infeasible rows wrong)
 //! and the FIT on a fresh validation record.
 //!

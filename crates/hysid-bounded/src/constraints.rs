@@ -1,4 +1,4 @@
-//! Gray-box parameter priors (`[fixed]`, `[bounds]`, `[[tie]]`; issue 6,
+//! Gray-box parameter priors (`[fixed]`, `[bounds]`, `[[tie]]`;
 //! `docs/priors.md`) inside the bounded-error procedure.
 //!
 //! The stacked parameters of the ordinary modes are parametrised by

@@ -16,7 +16,7 @@
 //! reports the trade-off. `docs/bounded.md` lists every constant and which
 //! parts are the paper's and which are ours.
 //!
-//! Priors honoured (issue 6, `docs/priors.md`, `docs/bounded.md` "Priors"):
+//! Priors honoured (`docs/priors.md`, `docs/bounded.md` "Priors"):
 //! all of them. `modes` / `max_modes` count every mode, saturation modes
 //! included; samples at a `[[saturation]]` stop are assigned to that stop
 //! before extraction and the result is a hybrid automaton with the stops as

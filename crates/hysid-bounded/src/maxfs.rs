@@ -35,7 +35,7 @@
 //!   polished again with the Chebyshev fit, under which the satisfied set can
 //!   only grow (the minimax fit of a feasible set is feasible on it).
 //!
-//! Parameter priors (issue 6, [`ModeSpace`]): every fit above is done within
+//! Parameter priors ([`ModeSpace`]): every fit above is done within
 //! the mode's parameter set (fixed values substituted, bounds through the
 //! QP/LP), and the relaxation step moves only the free parameters,
 //! normalised by the norm of their regressors, then projects onto the bounds

@@ -14,7 +14,7 @@
 //!    get the majority label of their [`KNN`] nearest assigned neighbours
 //!    (regressor space, standardised), restricted to their candidate modes.
 //!
-//! Parameter priors ([`Constraints`], issue 6): fixed values, bounds and
+//! Parameter priors ([`Constraints`]): fixed values, bounds and
 //! `[[equality]]` entries (one mode's parameters each) restrict every
 //! mode's parameter set in MAX FS, refits and merges. Ties couple the
 //! modes, which the one-mode-at-a-time extraction cannot impose: the greedy

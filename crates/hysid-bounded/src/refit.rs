@@ -3,7 +3,7 @@
 //! certifies `|y_k - phi_k' theta| <= t` with the smallest `t`, and the
 //! least-squares fit (`refit = ls`).
 //!
-//! The Chebyshev LP (`shared/docs/rust-notes.md` 1.4, "Bounded-error LPs"):
+//! The Chebyshev (minimax) LP:
 //! variables `[theta (p); t; w (p-1)]`, minimise `t + eps * sum_j s_j w_j`
 //! subject to `phi_k' theta - t <= y_k`, `-phi_k' theta - t <= -y_k` and
 //! `|theta_j| <= w_j` for the slopes. The tiny l1 term (`eps = 1e-6`, slopes

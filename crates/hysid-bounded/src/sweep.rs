@@ -1,4 +1,4 @@
-//! Choosing delta (issue 4, item 6): identification over a list of bounds,
+//! Choosing delta: identification over a list of bounds,
 //! reporting the trade-off between delta, the number of modes and the
 //! validation FIT of free-run simulation (`hysid_core::simulate::validate`).
 

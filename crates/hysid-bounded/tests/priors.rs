@@ -1,4 +1,4 @@
-//! Gray-box priors in the bounded back-end (issue 6): ties, fixed values,
+//! Gray-box priors in the bounded back-end: ties, fixed values,
 //! bounds, switching variables and known stops.
 
 mod common;

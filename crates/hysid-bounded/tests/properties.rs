@@ -1,4 +1,4 @@
-//! Invariants of the bounded-error procedure (issue 4), on random PWARX
+//! Invariants of the bounded-error procedure, on random PWARX
 //! systems with fixed seeds.
 
 use hysid_bounded::procedure::SampleClass;

@@ -1,7 +1,7 @@
 //! `hysid`: identify hybrid systems from data.
 //!
-//! The command-line contract is `shared/spec/interface.md` (mirrored in
-//! `docs/cli.md`). Exit codes: 0 success, 2 bad input or usage (one-line
+//! The command-line contract is `docs/cli.md` (with the file formats of
+//! `docs/file-formats.md`). Exit codes: 0 success, 2 bad input or usage (one-line
 //! message on stderr), 1 anything else. A command never leaves a partial
 //! output file behind: every file is written atomically.
 

@@ -1,5 +1,5 @@
-//! Data selection flags shared by the commands (`shared/spec/interface.md`,
-//! "Data files").
+//! Data selection flags shared by the commands (`docs/cli.md`, "Data
+//! selection").
 
 use crate::error::CliError;
 use hysid_model::data::{DataSelection, RowRange};

@@ -1,6 +1,7 @@
 //! End-to-end identification of the classic three-mode PWARX B1
 //! (na = 1, nb = 1, regions included) with the default options, and of the
-//! same record with the orders of issue 3's speed target (na = 2, nb = 1:
+//! same record with the orders of the speed target of
+//! `docs/performance-cluster.md` (na = 2, nb = 1:
 //! B1 with a second output lag whose true coefficient is zero).
 //!
 //! ```text

@@ -1,6 +1,6 @@
 //! The founding experiment: the pick-and-place mounting head
 //! (`models/pick-and-place/headdata_1v6.mat`), PWARX with na = nb = 2,
-//! protocol of `shared/docs/mounting-head.md`: decimate by 10 (no filter),
+//! protocol of `docs/cli.md`: decimate by 10 (no filter),
 //! identify on rows 0..5000, validate on rows 5000..6001 with a warm-up of
 //! 10 samples; headline = free-run simulation FIT.
 //!

@@ -6,7 +6,8 @@
 //! 2003 — the method of the founding pick-and-place paper (Juloski,
 //! Heemels, Ferrari-Trecate, ADHS 2003). It follows the reference
 //! implementation (HIT, the Hybrid Identification Toolbox) where that
-//! serves users, and fixes it where HIT fails them (`docs/cluster.md`):
+//! serves users, and deviates from it where HIT fails them (the deviations
+//! are listed in `docs/cluster.md`, "HIT parity and fixes"):
 //!
 //! 1. local datasets: every sample and its `c - 1` nearest neighbours in
 //!    (standardised, by default) regressor space, found with a k-d tree
@@ -24,7 +25,7 @@
 //! [`sweep()`] scores a grid of `c` and mode counts by validation simulation
 //! FIT.
 //!
-//! Priors honoured (issue 6, `docs/cluster.md`, "Priors"): `modes`
+//! Priors honoured (`docs/cluster.md`, "Priors"): `modes`
 //! (required unless `max_modes` is given, in which case the mode count is
 //! chosen by hold-out simulation FIT) and `max_modes`, both counting the
 //! saturation modes; `[[saturation]]` (samples at a stop removed before the
@@ -138,8 +139,8 @@ hysid_core::backend_options! {
         /// regressors, flat scatter): see docs/cluster.md. Must be > 0.
         regularization: f64 = 1e-6,
         /// After region estimation, move every sample to the mode of the region that contains
-        /// it and re-estimate the parameters on these mode datasets (a fix: HIT keeps the
-        /// clustering's mode datasets, whose stray points bias the parameters).
+        /// it and re-estimate the parameters on these mode datasets (deviation from HIT: HIT
+        /// keeps the clustering's mode datasets, whose stray points bias the parameters).
         region_refit: bool = true,
         /// Weights of the per-mode least squares: capped (w_j relative to the mode's median
         /// confidence, capped at 1), confidence (HIT: w_j) or uniform.

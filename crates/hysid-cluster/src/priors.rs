@@ -1,5 +1,5 @@
 //! Gray-box priors in the weighted least squares of the procedure
-//! (issue 6; `docs/priors.md`, `docs/cluster.md`, "Priors").
+//! (`docs/priors.md`, `docs/cluster.md`, "Priors").
 //!
 //! The procedure runs in working units (standardised by default), but ties,
 //! fixed values and bounds are stated in data units, and a fixed or bounded

@@ -268,7 +268,7 @@ pub fn run(
 }
 
 /// [`run`] with every weighted least squares of steps 4, 5 and 7 under the
-/// gray-box priors of `constraints` (issue 6); the local regressions of
+/// gray-box priors of `constraints`; the local regressions of
 /// step 1 stay unconstrained (`docs/cluster.md`, "Priors").
 pub fn run_with(
     x: &[f64],

@@ -1,4 +1,4 @@
-//! Choosing `c` and the number of modes `s` (algorithms.md (d), items 1-2):
+//! Choosing `c` and the number of modes `s`:
 //! every pair of a grid is identified on one record and scored on another
 //! by free-run **simulation** FIT (`hysid_core::simulate::validate`), the
 //! headline metric; HIT's `hit_estimate_cs` scores one-step MSE instead,

@@ -1,5 +1,4 @@
-//! Reference examples with their exact parameters (algorithms.md section
-//! (c)), with seeded generators: HIT's `ex_pwarx_1d_3modes` (H1),
+//! Reference examples with their exact parameters, with seeded generators: HIT's `ex_pwarx_1d_3modes` (H1),
 //! `ex_pwarx_1d_5modes` (H2), `ex_pwarx_2d_3modes` (H3), `ex_cake1` (H4)
 //! and the classic three-mode PWARX of Ferrari-Trecate et al. 2003 (B1).
 //! HIT draws without a seed, so these reproduce the examples

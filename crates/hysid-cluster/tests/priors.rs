@@ -1,4 +1,4 @@
-//! Gray-box priors in the `cluster` back-end (issue 6): ties, fixed values
+//! Gray-box priors in the `cluster` back-end: ties, fixed values
 //! and bounds in the returned model, switching variables in the regions,
 //! known stops (saturated samples assigned to the stop modes, simulation
 //! never passing a stop), and the gain on the stopped test system.

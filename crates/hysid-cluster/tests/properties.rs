@@ -1,4 +1,4 @@
-//! Invariants of the `cluster` back-end (issue 3), as property tests with
+//! Invariants of the `cluster` back-end, as property tests with
 //! small case counts (each case is a whole identification).
 
 use hysid_cluster::Cluster;
@@ -239,7 +239,7 @@ fn errors_are_clear() {
         modes: Some(2),
         ..Default::default()
     };
-    // Every prior kind is honoured now (issue 6); names are checked.
+    // Every prior kind is honoured; names are checked.
     sw.switching = vec!["y9".into()];
     let e = run(&sw, &[]).unwrap_err().to_string();
     assert!(e.contains("y9") && e.contains("switching"), "{e}");

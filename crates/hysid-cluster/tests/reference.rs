@@ -1,4 +1,4 @@
-//! The reference examples of algorithms.md section (c) with their exact
+//! The reference examples of `hysid_cluster::systems` with their exact
 //! parameters and fixed seeds, through the whole back-end (regions
 //! included).
 

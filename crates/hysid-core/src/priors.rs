@@ -1,5 +1,5 @@
 //! Gray-box prior knowledge, one type for every back-end
-//! (`shared/spec/interface.md`, "Prior files"; `docs/priors.md`).
+//! (`docs/priors.md`; `docs/file-formats.md`, "Prior files").
 //!
 //! Each back-end declares the [`PriorKind`]s it honours; a prior it cannot
 //! honour is refused with an error naming the entry, never dropped.
@@ -388,7 +388,7 @@ impl Priors {
 
     /// For every regression target `y(k)`, the stop it sits at: the samples
     /// a back-end assigns to the saturation modes before clustering or
-    /// bounded-error extraction (issue 6; Juloski et al. 2003, section 5).
+    /// bounded-error extraction (Juloski et al. 2003, section 5).
     pub fn saturated_samples(&self, targets: &[f64]) -> Vec<Option<usize>> {
         targets.iter().map(|&y| self.stop_at(y)).collect()
     }

@@ -1,5 +1,5 @@
 //! Least squares of the PWARX mode parameters under gray-box priors:
-//! ties and fixed values solved exactly, bounds through a QP (issue 6).
+//! ties and fixed values solved exactly, bounds through a QP.
 //!
 //! The `[[tie]]` and `[fixed]` entries of a [`Priors`] set make every entry
 //! of the stacked parameter vector `theta = [theta_1; ..; theta_s]` of `s`

@@ -1,5 +1,5 @@
 //! PWARX regressors and the order of parameters, exactly as in
-//! `shared/spec/interface.md`:
+//! `docs/cli.md` ("Regressors and parameter order"):
 //!
 //! `x(k) = [y(k-1) .. y(k-na), u_1(k-1) .. u_1(k-nb), .., u_m(k-1) .. u_m(k-nb)]`
 //!

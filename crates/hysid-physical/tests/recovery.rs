@@ -1,6 +1,7 @@
-//! Issue 5 evidence: parameters recovered from data simulated from
-//! `head.toml` with known parameters, both saturations excited and
-//! measurement noise added; `fit_sim` on a fresh validation record.
+//! Evidence for the `physical` back-end: parameters recovered from data
+//! simulated from `head.toml` with known parameters, both saturations
+//! excited and measurement noise added; `fit_sim` on a fresh validation
+//! record.
 
 use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::model::Model;

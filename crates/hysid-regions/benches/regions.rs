@@ -2,7 +2,7 @@
 //! `cargo bench -p hysid-regions --bench regions`.
 //!
 //! Data: the classic three-mode PWARX regressor domain of Ferrari-Trecate et
-//! al. (boundaries `[4 -1 10] phi` and `[5 1 -6] phi`, algorithms.md (c)),
+//! al. (boundaries `[4 -1 10] phi` and `[5 1 -6] phi`),
 //! lifted to `d = 3` regressors `x = [y(k-1), y(k-2), u(k-1)]` uniform in
 //! `[-5, 5]^3`, the mode given by the two boundaries applied to
 //! `phi = [y(k-1), u(k-1), 1]`, with 1 % of the labels near a boundary

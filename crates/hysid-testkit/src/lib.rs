@@ -1,7 +1,8 @@
 //! # hysid-testkit
 //!
-//! The benchmark systems of `shared/docs/algorithms.md` section (c), with
-//! their exact parameters, as seeded generators. Each returns the data, the
+//! The benchmark systems (HIT's examples H1-H4 and H7, the classic
+//! three-mode PWARX B1 of Ferrari-Trecate et al. 2003), with their exact
+//! parameters, as seeded generators. Each returns the data, the
 //! true model and the true mode of every sample, so that back-ends can be
 //! scored with `hysid_model::metrics::{mode_accuracy, parameter_error}`.
 //!
@@ -318,8 +319,8 @@ impl StoppedBenchmark {
     }
 }
 
-/// A mounting-head-like PWARX with both stops (issue 6's test system, in
-/// the spirit of Juloski, Heemels, Ferrari-Trecate, IFAC ADHS 2003,
+/// A mounting-head-like PWARX with both stops (the test system of the
+/// gray-box priors, `docs/priors.md`, in the spirit of Juloski, Heemels, Ferrari-Trecate, IFAC ADHS 2003,
 /// section 5): `x = [y(k-1), y(k-2), u(k-1)]`, two ordinary modes switching
 /// on the position `y(k-1)` (free below 18, impact at or above it):
 /// - free: poles `0.95 e^(+-0.15 i)`, `y(k) = 1.87871 y1 - 0.9025 y2 + 0.476 u1 + 0.0476`

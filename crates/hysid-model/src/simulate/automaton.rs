@@ -370,7 +370,7 @@ mod tests {
     use crate::simulate::pwarx;
     use proptest::prelude::*;
 
-    /// The bouncing ball of CORA (algorithms.md, C1): y'' = -9.81, guard
+    /// The bouncing ball of the CORA toolbox's examples: y'' = -9.81, guard
     /// y = 0 with v <= 0, reset v := -0.75 v.
     fn ball() -> HybridAutomaton {
         HybridAutomaton {
