@@ -430,6 +430,15 @@ mod tests {
             h1(70, 0).truth.modes[0].theta,
             h1(70, 0).truth.modes[2].theta
         );
+        // H4's noise changes the output only.
+        let d = h4_with_noise(200, Noise::None, 3);
+        assert_eq!(d.data.inputs, c.data.inputs);
+        assert_eq!(d.modes, c.modes);
+        assert_ne!(d.data.y(), c.data.y());
+        assert_eq!(
+            h4_with_noise(200, Noise::Gaussian(0.1f64.sqrt()), 3).data,
+            c.data
+        );
         assert_eq!(h2(100, 0).truth.modes.len(), 5);
         assert_eq!(h3(60, 0).truth.modes.len(), 3);
         assert_eq!(h7(150, 0).truth.modes.len(), 5);
