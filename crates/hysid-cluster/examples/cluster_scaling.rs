@@ -129,7 +129,7 @@ fn main() {
             };
             let problem = Problem {
                 data: &ex.data,
-                orders: orders,
+                orders,
                 priors: &priors,
                 priors_origin: None,
             };

@@ -172,9 +172,9 @@ fn b1(rows: usize, seed: u64) -> Benchmark {
     hysid_testkit::b1(rows + 1, 4.0, Noise::Uniform(0.1), seed)
 }
 
-/// B1, N = 1000, default `c`. Asserted: median validation mode accuracy
-/// >= 0.95 and median parameter error <= 0.05, and on every draw mode
-/// accuracy >= 0.95, parameter error <= 0.05 and a complete partition.
+/// B1, N = 1000, default `c`. Asserted: median validation mode
+/// accuracy >= 0.95 and median parameter error <= 0.05, and on every draw
+/// mode accuracy >= 0.95, parameter error <= 0.05 and a complete partition.
 /// Measured (seed: accuracy, error): 1: 0.995, 0.020; 2: 0.997, 0.024;
 /// 3: 0.994, 0.013; 4: 0.989, 0.018; 5: 0.984, 0.018 (medians 0.994, 0.018).
 #[test]
@@ -205,8 +205,9 @@ fn h1_equal_parameters_on_two_regions() {
     assert!(excess <= 0.1, "median excess parameter error {excess}");
 }
 
-/// H2, N = 100, c = 8 (HIT's). Asserted: median validation mode accuracy
-/// >= 0.95 and median parameter error in excess of the oracle's <= 0.1.
+/// H2, N = 100, c = 8 (HIT's). Asserted: median validation mode
+/// accuracy >= 0.95 and median parameter error in excess of the oracle's
+/// <= 0.1.
 /// Measured (seed: accuracy, error, oracle): 1: 0.988, 0.092, 0.224;
 /// 2: 0.655, 1.623, 0.114; 3: 0.984, 0.213, 0.140; 4: 0.930, 0.163, 0.148;
 /// 5: 0.977, 0.114, 0.111 (medians: accuracy 0.977, excess 0.015).
