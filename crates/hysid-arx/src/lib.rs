@@ -19,11 +19,8 @@
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::priors::PriorKind;
+use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
 use hysid_estimation::linalg;
-use hysid_estimation::{
-    constrained,
-    constrained::{ModeSamples, Parametrisation},
-};
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
 use nalgebra::{DMatrix, DVector};

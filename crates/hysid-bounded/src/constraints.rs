@@ -16,8 +16,8 @@
 //!   variables, for the joint Chebyshev LP ([`crate::refit::chebyshev_joint`])
 //!   and the joint least squares (`hysid_estimation::constrained::fit_modes`).
 
+use crate::refit::{self, ChebyshevFit};
 use crate::samples::Samples;
-use crate::{refit, refit::ChebyshevFit};
 use hysid_core::priors::Priors;
 use hysid_estimation::constrained::{ModeSamples, Parametrisation, Slot, fit_modes};
 use hysid_model::regressors::RegressorSpec;

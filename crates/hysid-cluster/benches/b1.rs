@@ -1,8 +1,7 @@
 //! End-to-end identification of the classic three-mode PWARX B1
 //! (na = 1, nb = 1, regions included) with the default options, and of the
-//! same record with the orders of the speed target of
-//! `docs/performance-cluster.md` (na = 2, nb = 1:
-//! B1 with a second output lag whose true coefficient is zero).
+//! same record with the orders na = 2, nb = 1 (B1 with a second output lag
+//! whose true coefficient is zero).
 //!
 //! ```text
 //! cargo bench -p hysid-cluster --bench b1
@@ -11,11 +10,11 @@
 //! `cargo run --release -p hysid-cluster --example cluster_scaling`.
 
 use hysid_cluster::Cluster;
-use hysid_cluster::systems::b1;
 use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_model::regressors::RegressorSpec;
+use hysid_testkit::Noise;
 
 fn main() {
     divan::main();
@@ -32,8 +31,9 @@ fn b1_na2_nb1_end_to_end(bencher: divan::Bencher, n: usize) {
 }
 
 fn bench_orders(bencher: divan::Bencher, n: usize, orders: Option<RegressorSpec>) {
-    let ex = b1(n, 1);
-    let orders = orders.unwrap_or(ex.orders);
+    // `n` regressor rows of B1 (`u ~ U[-4, 4]`, noise `U[-0.1, 0.1]`).
+    let ex = hysid_testkit::b1(n + 1, 4.0, Noise::Uniform(0.1), 1);
+    let orders = orders.unwrap_or(ex.truth.spec());
     let priors = Priors {
         modes: Some(3),
         ..Default::default()

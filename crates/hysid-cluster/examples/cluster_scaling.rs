@@ -13,7 +13,6 @@
 
 use hysid_cluster::kmeans::{KmeansInit, weighted_kmeans};
 use hysid_cluster::local::feature_vectors;
-use hysid_cluster::systems::b1;
 use hysid_cluster::{Cluster, ClusterOptions, Clustering, Features, procedure};
 use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::model::Model;
@@ -21,6 +20,7 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_model::data::Standardization;
 use hysid_model::metrics::mode_accuracy;
+use hysid_testkit::Noise;
 use rand::SeedableRng;
 use std::time::Instant;
 
@@ -52,10 +52,13 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for n in ns {
-        let ex = b1(n, 1);
+        // `n` regressor rows of B1 (`u ~ U[-4, 4]`, noise `U[-0.1, 0.1]`).
+        let ex = hysid_testkit::b1(n + 1, 4.0, Noise::Uniform(0.1), 1);
+        let orders = ex.truth.spec();
+        let truth_modes = ex.row_modes();
         let sc = Standardization::of(&ex.data);
-        let reg = ex.orders.build(&sc.apply(&ex.data)).unwrap();
-        let d = ex.orders.dim();
+        let reg = orders.build(&sc.apply(&ex.data)).unwrap();
+        let d = orders.dim();
         let x: Vec<f64> = (0..reg.len())
             .flat_map(|r| (0..d).map(move |k| (r, k)))
             .map(|(r, k)| reg.x[(r, k)])
@@ -111,7 +114,7 @@ fn main() {
             .unwrap();
             tp.push(t.elapsed().as_secs_f64());
             eprintln!("N = {n}: steps 1-5 {:.3} s", tp[tp.len() - 1]);
-            acc_labels = mode_accuracy(&ex.modes, &fit.labels).accuracy;
+            acc_labels = mode_accuracy(&truth_modes, &fit.labels).accuracy;
             let t = Instant::now();
             let ropts = hysid_regions::RegionOptions {
                 standardize: false,
@@ -126,7 +129,7 @@ fn main() {
             };
             let problem = Problem {
                 data: &ex.data,
-                orders: ex.orders,
+                orders,
                 priors: &priors,
                 priors_origin: None,
             };
@@ -136,14 +139,14 @@ fn main() {
                 .unwrap();
             ta.push(t.elapsed().as_secs_f64());
             let Model::Pwarx(p) = &m else { unreachable!() };
-            let raw = ex.orders.build(&ex.data).unwrap();
+            let raw = orders.build(&ex.data).unwrap();
             let ident: Vec<usize> = (0..raw.len())
                 .map(|r| {
                     p.mode_of(&raw.x.row(r).iter().copied().collect::<Vec<_>>())
                         .mode
                 })
                 .collect();
-            acc = mode_accuracy(&ex.modes, &ident).accuracy;
+            acc = mode_accuracy(&truth_modes, &ident).accuracy;
         }
         let t_all = fastest(ta);
         println!(

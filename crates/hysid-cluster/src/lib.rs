@@ -42,7 +42,6 @@ pub mod local;
 pub mod priors;
 pub mod procedure;
 pub mod sweep;
-pub mod systems;
 
 pub use sweep::{SweepPoint, sweep};
 
@@ -439,6 +438,21 @@ pub fn identify_labelled(
                  points (the discard size max(c, discard (n+1)), c = {c}): lower c, set discard=0, or give \
                  max_modes = {s_all} to allow fewer modes",
                 fit.diagnostics.discard_size
+            ),
+        });
+    }
+    if modes > s {
+        // Only a single-linkage distance threshold fixes the cluster count
+        // independently of `modes`; more modes than asked would break the
+        // prior as well.
+        return Err(IdentifyError::Failed {
+            method: "cluster".into(),
+            message: format!(
+                "exactly {s_all} modes were asked for, but {modes} clusters of at least {} points are \
+                 left (single linkage with sl_distance = {}): raise sl_distance, or leave it unset to \
+                 cut the tree into {s} clusters",
+                fit.diagnostics.discard_size,
+                o.sl_distance.map_or("none".into(), |t| t.to_string())
             ),
         });
     }

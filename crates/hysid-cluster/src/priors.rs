@@ -17,10 +17,7 @@
 
 use crate::procedure::Thetas;
 use hysid_core::priors::Priors;
-use hysid_estimation::{
-    constrained,
-    constrained::{ModeSamples, Parametrisation},
-};
+use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
 use hysid_model::data::Standardization;
 use hysid_model::regressors::RegressorSpec;
 use nalgebra::DMatrix;

@@ -20,16 +20,10 @@
 //! dataset are its neighbours in regressor space, which is what adjacency
 //! stands for, and they do not need a first region estimate.
 
+use crate::kmeans::{self, Clusters, KmeansInit};
+use crate::local::{self, Degeneracy, FeatureVectors};
 use crate::priors::Constraints;
 use crate::{Clustering, Features, Weights};
-use crate::{
-    kmeans,
-    kmeans::{Clusters, KmeansInit},
-};
-use crate::{
-    local,
-    local::{Degeneracy, FeatureVectors},
-};
 use hysid_estimation::linalg;
 use nalgebra::{DMatrix, DVector};
 use rand_chacha::ChaCha8Rng;

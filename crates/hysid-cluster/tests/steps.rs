@@ -7,20 +7,22 @@
 
 use hysid_cluster::kmeans::{self, KmeansInit};
 use hysid_cluster::procedure::{self, ModeFit, Settings};
-use hysid_cluster::systems;
 use hysid_cluster::{Clustering, Features, Weights, local};
 use hysid_model::metrics::mode_accuracy;
+use hysid_testkit::Noise;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-/// B1 regressors `[y(k-1), u(k-1)]` (row-major), targets and true modes.
+/// B1 (`hysid_testkit::b1`, `u ~ U[-4, 4]`, noise `U[-0.1, 0.1]`) with `n`
+/// regressor rows: regressors `[y(k-1), u(k-1)]` (row-major), targets and
+/// true modes.
 fn b1(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<usize>) {
-    let ex = systems::b1(n, seed);
-    let reg = ex.orders.build(&ex.data).unwrap();
+    let ex = hysid_testkit::b1(n + 1, 4.0, Noise::Uniform(0.1), seed);
+    let reg = ex.truth.spec().build(&ex.data).unwrap();
     let x = (0..reg.len())
         .flat_map(|r| [reg.x[(r, 0)], reg.x[(r, 1)]])
         .collect();
-    (x, reg.y.iter().copied().collect(), ex.modes)
+    (x, reg.y.iter().copied().collect(), ex.row_modes())
 }
 
 fn settings(modes: usize, c: usize) -> Settings {

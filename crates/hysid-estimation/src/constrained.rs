@@ -27,7 +27,7 @@
 //! them) are an error naming the first `[[equality]]` that contradicts the
 //! entries before it.
 
-use crate::{linalg, linalg::LinalgError};
+use crate::linalg::{self, LinalgError};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,

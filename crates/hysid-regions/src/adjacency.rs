@@ -3,10 +3,7 @@
 //! point to an adjacent mode.
 
 use crate::RegionError;
-use crate::{
-    solver,
-    solver::{Context, Program, Triplets},
-};
+use crate::solver::{self, Context, Program, Triplets};
 use clarabel::solver::SupportedConeT::{NonnegativeConeT, ZeroConeT};
 use hysid_model::geometry::Polyhedron;
 

@@ -12,11 +12,8 @@
 //! full program (to the solver's tolerance), not an approximation.
 
 use crate::simplex::Simplex;
+use crate::solver::{self, Context, Program, Triplets};
 use crate::{Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
-use crate::{
-    solver,
-    solver::{Context, Program, Triplets},
-};
 use clarabel::solver::SupportedConeT::{NonnegativeConeT, ZeroConeT};
 
 /// Margin below which a point outside the working set counts as having a

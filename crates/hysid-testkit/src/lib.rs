@@ -1,8 +1,10 @@
 //! # hysid-testkit
 //!
-//! The benchmark systems (HIT's examples H1-H4 and H7, the classic
-//! three-mode PWARX B1 of Ferrari-Trecate et al. 2003), with their exact
-//! parameters, as seeded generators. Each returns the data, the
+//! The benchmark systems of the hybrid-identification literature (B1 of
+//! Ferrari-Trecate et al. 2003; H1-H4 and H7, the examples of the Hybrid
+//! Identification Toolbox, HIT), with their exact parameters, as seeded
+//! generators. HIT draws without a seed, so these reproduce its examples
+//! statistically, not sample for sample. Each returns the data, the
 //! true model and the true mode of every sample, so that back-ends can be
 //! scored with `hysid_model::metrics::{mode_accuracy, parameter_error}`.
 //!
@@ -16,8 +18,9 @@ use hysid_core::simulate::simulate;
 use hysid_model::data::{Dataset, Signal};
 use hysid_model::excitation::Excitation;
 use hysid_model::geometry::Polyhedron;
+use hysid_model::model::Stop;
+use hysid_model::model::StopBound;
 use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
-use hysid_model::model::{Stop, StopBound};
 use hysid_model::simulate::SimulationOptions;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -241,6 +244,12 @@ pub fn h3(n: usize, seed: u64) -> Benchmark {
 /// `{x1 <= -|x2|/sqrt(3)}`, `theta_3 = [4, -2, -2]` on `{x2 <= 0, x1 >= x2/sqrt(3)}`;
 /// `e ~ N(0, 0.1)` (variance). Inputs `u1 = x1`, `u2 = x2` (regressor `u(k-1)`).
 pub fn h4(n: usize, seed: u64) -> Benchmark {
+    h4_with_noise(n, Noise::Gaussian(0.1f64.sqrt()), seed)
+}
+
+/// H4's map and inputs with another noise (`h4` is
+/// `h4_with_noise(n, Noise::Gaussian(0.1f64.sqrt()), seed)`, draw for draw).
+pub fn h4_with_noise(n: usize, noise: Noise, seed: u64) -> Benchmark {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let r = 1.0 / 3f64.sqrt();
     let truth = pwarx(
@@ -255,13 +264,7 @@ pub fn h4(n: usize, seed: u64) -> Benchmark {
     );
     let x1 = uniform(n, -1.0, 1.0, &mut rng);
     let x2 = uniform(n, -1.0, 1.0, &mut rng);
-    generate(
-        truth,
-        vec![x1, x2],
-        &[0.0],
-        Noise::Gaussian(0.1f64.sqrt()),
-        &mut rng,
-    )
+    generate(truth, vec![x1, x2], &[0.0], noise, &mut rng)
 }
 
 /// H7 (HIT `ex_estimate_c_s.m`): five modes on `u ~ U[-4, 8]`, `e ~ N(0, 0.01)`:
@@ -319,10 +322,10 @@ impl StoppedBenchmark {
     }
 }
 
-/// A mounting-head-like PWARX with both stops (the test system of the
-/// gray-box priors, `docs/priors.md`, in the spirit of Juloski, Heemels, Ferrari-Trecate, IFAC ADHS 2003,
-/// section 5): `x = [y(k-1), y(k-2), u(k-1)]`, two ordinary modes switching
-/// on the position `y(k-1)` (free below 18, impact at or above it):
+/// A mounting-head-like PWARX with both stops (in the spirit of Juloski,
+/// Heemels, Ferrari-Trecate, IFAC ADHS 2003, section 5):
+/// `x = [y(k-1), y(k-2), u(k-1)]`, two ordinary modes switching on the
+/// position `y(k-1)` (free below 18, impact at or above it):
 /// - free: poles `0.95 e^(+-0.15 i)`, `y(k) = 1.87871 y1 - 0.9025 y2 + 0.476 u1 + 0.0476`
 ///   (equilibrium `20 u + 2`);
 /// - impact: poles `0.9 e^(+-0.35 i)`, `y(k) = 1.68768 y1 - 0.81 y2 + 1.2232 u1 + 1.2232`
@@ -430,6 +433,15 @@ mod tests {
         assert_eq!(
             h1(70, 0).truth.modes[0].theta,
             h1(70, 0).truth.modes[2].theta
+        );
+        // H4's noise changes the output only.
+        let d = h4_with_noise(200, Noise::None, 3);
+        assert_eq!(d.data.inputs, c.data.inputs);
+        assert_eq!(d.modes, c.modes);
+        assert_ne!(d.data.y(), c.data.y());
+        assert_eq!(
+            h4_with_noise(200, Noise::Gaussian(0.1f64.sqrt()), 3).data,
+            c.data
         );
         assert_eq!(h2(100, 0).truth.modes.len(), 5);
         assert_eq!(h3(60, 0).truth.modes.len(), 3);
