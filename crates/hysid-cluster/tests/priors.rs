@@ -117,7 +117,9 @@ proptest! {
         p.tie.push(Tie { params: vec!["a1".into()] });
         p.fixed.insert("c".into(), c);
         p.bounds.insert("b1".into(), [-1.0, hi]);
-        let set = ["restarts=3".to_string(), format!("scale={scale}")];
+        // discard=0: the constrained fits may leave a small cluster, which the
+        // exact mode count would refuse; the property is about the priors.
+        let set = ["restarts=3".to_string(), "discard=0".to_string(), format!("scale={scale}")];
         let set: Vec<&str> = set.iter().map(String::as_str).collect();
         let m = pwarx(run(&b.data, RegressorSpec::new(1, 1, 1), &p, &set).unwrap());
         let a0 = m.modes[0].theta[0];
