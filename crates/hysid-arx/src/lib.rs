@@ -18,12 +18,16 @@
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
+use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
 use hysid_estimation::linalg;
+use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
 use hysid_model::geometry::Polyhedron;
-use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
+use hysid_model::model::{PwarxMode, RunStatus};
+use hysid_model::regressors::Regressors;
 use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
 
 hysid_core::backend_options! {
     /// Options of the `arx` back-end.
@@ -31,6 +35,12 @@ hysid_core::backend_options! {
         /// Tikhonov (ridge) weight lambda: minimises |y - Phi theta|^2 + lambda |theta|^2
         /// (the constant included). 0 is plain least squares.
         ridge: f64 = 0.0,
+    }
+}
+
+impl CheckOptions for ArxOptions {
+    fn check(&self) -> Result<(), OptionError> {
+        check_float("ridge", self.ridge, |r| r >= 0.0, "must be a finite number >= 0")
     }
 }
 
@@ -47,182 +57,214 @@ impl Identifier for Arx {
     fn identify(
         &self,
         problem: &Problem<'_>,
-        options: &ArxOptions,
+        options: &Checked<ArxOptions>,
         _ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        if !(options.ridge.is_finite() && options.ridge >= 0.0) {
-            return Err(IdentifyError::BadData(format!(
-                "--set ridge={}: must be a finite number >= 0",
-                options.ridge
-            )));
-        }
-        let spec = problem.orders;
-        let priors = problem.priors;
-        let stops = priors.saturation.len();
-        if let Some(s) = priors.modes
-            && s != 1 + stops
-        {
-            return Err(IdentifyError::BadData(format!(
-                "prior modes = {s}: method 'arx' identifies exactly one ordinary mode{}",
-                if stops > 0 {
-                    format!(
-                        " (modes = {} with the {stops} saturation mode(s))",
-                        1 + stops
-                    )
-                } else {
-                    String::new()
-                }
-            )));
-        }
-        priors
-            .check_pwarx_names(&spec)
-            .map_err(|e| IdentifyError::BadData(format!("prior {e}")))?;
-        let origin = |e: String| match problem.priors_origin {
-            Some(o) => IdentifyError::BadData(format!("{o}: {e}")),
-            None => IdentifyError::BadData(format!("prior {e}")),
-        };
-        // Fixed values within their bounds, equalities consistent.
-        let par = Parametrisation::from_priors(priors, &spec, 1).map_err(origin)?;
-        let reg = spec
-            .build(problem.data)
-            .map_err(|e| IdentifyError::BadData(e.to_string()))?;
-        // Samples whose target sits at a known stop belong to the stop's
-        // mode: left out of the fit.
-        let stop_of = priors.saturated_samples(reg.y.as_slice());
-        let keep: Vec<usize> = (0..reg.len()).filter(|&k| stop_of[k].is_none()).collect();
-        let saturated = reg.len() - keep.len();
-        let p = spec.n_params();
-        let free = par.n_dof();
-        if keep.len() < free.max(1) {
-            return Err(IdentifyError::BadData(format!(
-                "{} regressors{} for {free} free parameters: need at least as many samples as parameters",
-                keep.len(),
-                if saturated > 0 {
-                    format!(" outside the stops ({saturated} at a stop)")
-                } else {
-                    String::new()
-                }
-            )));
-        }
-        let phi_all = reg.phi();
-        let phi0 = phi_all.select_rows(&keep);
-        let y0 = reg.y.select_rows(&keep);
-        let mut phi = phi0.clone();
-        let mut y = y0.clone();
-        if options.ridge > 0.0 {
-            // Augment: [Phi; sqrt(lambda) I] theta ~ [y; 0].
-            let n = phi.nrows();
-            phi = phi.insert_rows(n, p, 0.0);
-            y = y.insert_rows(n, p, 0.0);
-            for j in 0..p {
-                phi[(n + j, j)] = options.ridge.sqrt();
-            }
-        }
-        let names = spec.param_names();
-        let idx = |name: &str| names.iter().position(|n| n == name).expect("names checked");
-        let rows = priors.fixed.len() + priors.equality.len();
-        let mut e = DMatrix::zeros(rows, p);
-        let mut f = DVector::zeros(rows);
-        for (r, (name, value)) in priors.fixed.iter().enumerate() {
-            e[(r, idx(name))] = 1.0;
-            f[r] = *value;
-        }
-        for (k, eq) in priors.equality.iter().enumerate() {
-            let r = priors.fixed.len() + k;
-            for (name, c) in &eq.coefficients {
-                e[(r, idx(name))] += c;
-            }
-            f[r] = eq.value;
-        }
-        // Equilibrate: unit-norm columns, so that a record in 1e-12 or 1e12
-        // units is solved as accurately as one in units (the constant
-        // column is always of order 1). A change of variables: the
-        // objective, the constraints and a full-rank solution are the same.
-        let mut scale = vec![1.0; p];
-        for (j, d) in scale.iter_mut().enumerate() {
-            let c = phi.column(j).norm();
-            if c.is_finite() && c > 0.0 {
-                *d = c;
-                phi.column_mut(j).unscale_mut(c);
-                e.column_mut(j).unscale_mut(c);
-            }
-        }
-        let sol =
-            linalg::lstsq_equality(&phi, &y, &e, &f).map_err(|err| IdentifyError::Failed {
-                method: "arx".into(),
-                message: format!("least squares failed: {err}"),
-            })?;
-        let mut theta: Vec<f64> = sol.theta.iter().zip(&scale).map(|(t, d)| t / d).collect();
-        // Fixed values come back exactly as given.
-        for (name, value) in &priors.fixed {
-            theta[idx(name)] = *value;
-        }
-        let outside = priors.bounds.iter().any(|(name, [lo, hi])| {
-            let t = theta[idx(name)];
-            t < *lo || t > *hi
-        });
-        let mut bounded_qp = false;
-        if outside {
-            if options.ridge > 0.0 {
-                return Err(IdentifyError::BadData(format!(
-                    "--set ridge={} cannot be combined with [bounds] that bind (the estimate leaves the box): \
-                     use ridge=0",
-                    options.ridge
-                )));
-            }
-            let x = phi0.columns(0, p - 1).into_owned();
-            let ys: Vec<f64> = y0.iter().copied().collect();
-            let fitted = constrained::fit_modes(
-                &par,
-                &[ModeSamples {
-                    phi: &x,
-                    y: &ys,
-                    weights: None,
-                }],
-            )
-            .map_err(|err| IdentifyError::Failed {
-                method: "arx".into(),
-                message: format!("bounded least squares failed: {err}"),
-            })?;
-            theta = fitted.into_iter().next().unwrap_or(theta);
-            bounded_qp = true;
-        }
-        let mut info = ModelInfo::default();
-        info.diagnostics.insert("rank".into(), sol.rank.into());
-        info.diagnostics.insert("samples".into(), keep.len().into());
-        if !priors.saturation.is_empty() {
-            info.diagnostics
-                .insert("saturated_samples".into(), saturated.into());
-        }
-        if !priors.bounds.is_empty() {
-            info.diagnostics
-                .insert("bounds_active".into(), bounded_qp.into());
-        }
-        info.diagnostics.insert(
-            "rmse_fit".into(),
-            ((&phi0 * DVector::from_vec(theta.clone()) - &y0).norm() / (keep.len() as f64).sqrt())
-                .into(),
-        );
-        let model = PwarxModel {
-            na: spec.na,
-            nb: spec.nb,
-            inputs: spec.inputs,
-            modes: vec![PwarxMode {
-                theta,
-                region: Polyhedron::everything(),
-                name: None,
-            }],
-            info,
-        };
-        Ok(if priors.saturation.is_empty() {
-            Model::Pwarx(model)
-        } else {
-            Model::HybridAutomaton(HybridAutomaton::from_pwarx_with_stops(
-                &model,
-                &priors.saturation,
-            ))
-        })
+        let data = pwarx::prepare(problem, Self::NAME)?;
+        Ok(pwarx::assemble(&data, fit(options, &data)?))
     }
+}
+
+/// What the `arx` back-end reports besides the common diagnostics.
+#[derive(Debug, Clone, Serialize)]
+pub struct ArxDiagnostics {
+    /// Numerical rank of the (equilibrated) least-squares problem.
+    pub rank: usize,
+    /// Root mean square of the residuals on the ordinary samples.
+    pub rmse_fit: f64,
+    /// With `[bounds]`: whether the box-constrained QP replaced the
+    /// equality-constrained estimate (a bound is active).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bounds_active: Option<bool>,
+}
+
+/// Least squares (Ljung 1999, section 7.3) on the ordinary samples: the
+/// equality-constrained estimate, then the box-constrained QP when it
+/// leaves the `[bounds]`.
+pub fn fit(
+    options: &ArxOptions,
+    data: &PwarxData<'_>,
+) -> Result<PwarxFit<ArxDiagnostics>, IdentifyError> {
+    check_one_mode(data)?;
+    let par = Parametrisation::from_priors(data.priors(), &data.spec, 1)
+        .map_err(|e| data.prior_error(e))?;
+    let reg = data.ordinary_regressors();
+    check_sample_count(data, &reg, par.n_dof())?;
+    let (mut theta, rank) = equality_least_squares(options, data, &reg)?;
+    let bounds_active = if leaves_bounds(data, &theta) {
+        theta = box_least_squares(options, &par, &reg)?;
+        true
+    } else {
+        false
+    };
+    let diagnostics = ArxDiagnostics {
+        rank,
+        rmse_fit: rmse(&reg, &theta),
+        bounds_active: (!data.priors().bounds.is_empty()).then_some(bounds_active),
+    };
+    Ok(PwarxFit {
+        modes: vec![PwarxMode {
+            theta,
+            region: Polyhedron::everything(),
+            name: None,
+        }],
+        regions_complete: true,
+        uncovered_fraction: None,
+        run_status: RunStatus::Completed,
+        status: Vec::new(),
+        diagnostics,
+    })
+}
+
+/// One ordinary mode: a `modes` prior must count exactly one besides the
+/// stops.
+fn check_one_mode(data: &PwarxData<'_>) -> Result<(), IdentifyError> {
+    let stops = data.stops();
+    match data.modes {
+        ModeCount::Exact(s) if s != 1 => Err(IdentifyError::BadData(format!(
+            "prior modes = {}: method 'arx' identifies exactly one ordinary mode{}",
+            s + stops,
+            if stops > 0 {
+                format!(" (modes = {} with the {stops} saturation mode(s))", 1 + stops)
+            } else {
+                String::new()
+            }
+        ))),
+        _ => Ok(()),
+    }
+}
+
+fn check_sample_count(
+    data: &PwarxData<'_>,
+    reg: &Regressors,
+    free: usize,
+) -> Result<(), IdentifyError> {
+    if reg.len() >= free.max(1) {
+        return Ok(());
+    }
+    let saturated = data.regressors.len() - reg.len();
+    Err(IdentifyError::BadData(format!(
+        "{} regressors{} for {free} free parameters: need at least as many samples as parameters",
+        reg.len(),
+        if saturated > 0 {
+            format!(" outside the stops ({saturated} at a stop)")
+        } else {
+            String::new()
+        }
+    )))
+}
+
+/// The least-squares estimate under `[fixed]` and `[[equality]]` (exact, by
+/// the null-space method), with the ridge as extra rows
+/// `[Phi; sqrt(lambda) I] theta ~ [y; 0]`. Columns are equilibrated to unit
+/// norm, so that a record in 1e-12 or 1e12 units is solved as accurately as
+/// one in units: a change of variables that keeps the objective, the
+/// constraints and a full-rank solution. Returns the estimate and the rank.
+fn equality_least_squares(
+    options: &ArxOptions,
+    data: &PwarxData<'_>,
+    reg: &Regressors,
+) -> Result<(Vec<f64>, usize), IdentifyError> {
+    let p = data.spec.n_params();
+    let mut phi = reg.phi();
+    let mut y = reg.y.clone();
+    if options.ridge > 0.0 {
+        let n = phi.nrows();
+        phi = phi.insert_rows(n, p, 0.0);
+        y = y.insert_rows(n, p, 0.0);
+        for j in 0..p {
+            phi[(n + j, j)] = options.ridge.sqrt();
+        }
+    }
+    let (mut e, f) = equality_rows(data);
+    let mut scale = vec![1.0; p];
+    for (j, d) in scale.iter_mut().enumerate() {
+        let c = phi.column(j).norm();
+        if c.is_finite() && c > 0.0 {
+            *d = c;
+            phi.column_mut(j).unscale_mut(c);
+            e.column_mut(j).unscale_mut(c);
+        }
+    }
+    let sol = linalg::lstsq_equality(&phi, &y, &e, &f)
+        .map_err(|err| IdentifyError::failed(format!("least squares failed: {err}")))?;
+    let mut theta: Vec<f64> = sol.theta.iter().zip(&scale).map(|(t, d)| t / d).collect();
+    // Fixed values come back exactly as given.
+    for (name, value) in &data.priors().fixed {
+        theta[param_index(data, name)] = *value;
+    }
+    Ok((theta, sol.rank))
+}
+
+/// `E theta = f`: one row per `[fixed]` entry, then one per `[[equality]]`.
+fn equality_rows(data: &PwarxData<'_>) -> (DMatrix<f64>, DVector<f64>) {
+    let priors = data.priors();
+    let rows = priors.fixed.len() + priors.equality.len();
+    let mut e = DMatrix::zeros(rows, data.spec.n_params());
+    let mut f = DVector::zeros(rows);
+    for (r, (name, value)) in priors.fixed.iter().enumerate() {
+        e[(r, param_index(data, name))] = 1.0;
+        f[r] = *value;
+    }
+    for (k, eq) in priors.equality.iter().enumerate() {
+        let r = priors.fixed.len() + k;
+        for (name, c) in &eq.coefficients {
+            e[(r, param_index(data, name))] += c;
+        }
+        f[r] = eq.value;
+    }
+    (e, f)
+}
+
+/// Position of a parameter named in the priors (names were checked by
+/// [`pwarx::prepare`]).
+fn param_index(data: &PwarxData<'_>, name: &str) -> usize {
+    data.spec
+        .param_names()
+        .iter()
+        .position(|n| n == name)
+        .expect("prior names are checked by prepare")
+}
+
+fn leaves_bounds(data: &PwarxData<'_>, theta: &[f64]) -> bool {
+    data.priors().bounds.iter().any(|(name, [lo, hi])| {
+        let t = theta[param_index(data, name)];
+        t < *lo || t > *hi
+    })
+}
+
+/// The box-constrained least squares (the clarabel QP of
+/// `hysid_estimation::constrained`), for bounds that bind.
+fn box_least_squares(
+    options: &ArxOptions,
+    par: &Parametrisation,
+    reg: &Regressors,
+) -> Result<Vec<f64>, IdentifyError> {
+    if options.ridge > 0.0 {
+        return Err(IdentifyError::Options(OptionError::invalid(
+            "ridge",
+            options.ridge,
+            "cannot be combined with [bounds] that bind (the estimate leaves the box): use ridge=0",
+        )));
+    }
+    let ys: Vec<f64> = reg.y.iter().copied().collect();
+    let fitted = constrained::fit_modes(
+        par,
+        &[ModeSamples {
+            phi: &reg.x,
+            y: &ys,
+            weights: None,
+        }],
+    )
+    .map_err(|err| IdentifyError::failed(format!("bounded least squares failed: {err}")))?;
+    fitted
+        .into_iter()
+        .next()
+        .ok_or_else(|| IdentifyError::failed("bounded least squares returned no mode"))
+}
+
+fn rmse(reg: &Regressors, theta: &[f64]) -> f64 {
+    (reg.phi() * DVector::from_column_slice(theta) - &reg.y).norm() / (reg.len() as f64).sqrt()
 }
 
 #[cfg(test)]
@@ -233,6 +275,7 @@ mod tests {
     use hysid_core::priors::Priors;
     use hysid_core::simulate::simulate;
     use hysid_model::data::Dataset;
+    use hysid_model::model::{ModelInfo, PwarxModel};
     use hysid_model::regressors::RegressorSpec;
     use hysid_model::simulate::SimulationOptions;
     use proptest::prelude::*;
@@ -388,7 +431,7 @@ mod tests {
             let at_stop = d.y().iter().skip(1).filter(|&&y| y >= level - 1e-6 * (1.0 + level)).count();
             prop_assume!(at_stop > 5 && at_stop < 250);
             let m = run(&d, 1, 1, &pri, &[]).unwrap();
-            prop_assert_eq!(m.info().diagnostics["saturated_samples"].as_u64(), Some(at_stop as u64));
+            prop_assert_eq!(m.info().diagnostics.saturated_per_stop.clone(), Some(vec![at_stop]));
             let Model::HybridAutomaton(h) = &m else {
                 return Err(TestCaseError::fail("not an automaton"));
             };
@@ -439,7 +482,7 @@ mod tests {
 
     #[test]
     fn standardize_refuses_data_unit_priors_and_ties_on_c() {
-        use hysid_core::backend::run_standardized;
+        use hysid_estimation::pwarx::run_standardized;
         use hysid_core::priors::Tie;
         let d = data_from(&[0.5, 1.0, 0.3], 1, 1, 60, 3);
         let go = |pri: &Priors| {

@@ -8,7 +8,7 @@
 //! [`Registry`].
 
 use crate::model::Model;
-use crate::options::{BackendOptions, OptionError, OptionSpec, Settings};
+use crate::options::{BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, Settings};
 use crate::priors::{PriorError, PriorKind, Priors};
 use hysid_model::data::Dataset;
 use hysid_model::regressors::RegressorSpec;
@@ -87,11 +87,32 @@ pub enum IdentifyError {
     /// The method ran and failed (solver failure, every restart diverged...).
     #[error("{method}: {message}")]
     Failed {
-        /// Back-end.
-        method: String,
+        /// Back-end (filled in by [`Backend::run`]).
+        method: &'static str,
         /// What happened.
         message: String,
     },
+}
+
+impl IdentifyError {
+    /// A failure of the method itself; [`Backend::run`] names the method.
+    pub fn failed(message: impl Into<String>) -> Self {
+        IdentifyError::Failed {
+            method: "",
+            message: message.into(),
+        }
+    }
+
+    /// The error with the failing method named.
+    fn of_method(self, name: &'static str) -> Self {
+        match self {
+            IdentifyError::Failed { method: "", message } => IdentifyError::Failed {
+                method: name,
+                message,
+            },
+            other => other,
+        }
+    }
 }
 
 impl IdentifyError {
@@ -104,8 +125,9 @@ impl IdentifyError {
 
 /// What a back-end implements.
 pub trait Identifier: Send + Sync {
-    /// Typed options with documented defaults.
-    type Options: BackendOptions;
+    /// Typed options with documented defaults, checked once
+    /// ([`CheckOptions`]) before `identify` sees them.
+    type Options: BackendOptions + CheckOptions;
     /// Name used with `-m`.
     const NAME: &'static str;
     /// One-line description.
@@ -118,7 +140,7 @@ pub trait Identifier: Send + Sync {
     fn identify(
         &self,
         problem: &Problem<'_>,
-        options: &Self::Options,
+        options: &Checked<Self::Options>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError>;
 }
@@ -161,11 +183,13 @@ impl<T: Identifier> Backend for T {
         settings: &Settings,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let options: T::Options = settings.resolve(T::NAME)?;
+        let options = Checked::new(settings.resolve::<T::Options>(T::NAME)?)?;
         problem
             .priors
             .ensure_honoured(T::NAME, T::HONOURS, problem.priors_origin)?;
-        let mut model = self.identify(problem, &options, ctx)?;
+        let mut model = self
+            .identify(problem, &options, ctx)
+            .map_err(|e| e.of_method(T::NAME))?;
         let info = model.info_mut();
         info.method = T::NAME.to_string();
         info.options = options.to_map();
@@ -221,50 +245,5 @@ impl Registry {
             name: name.to_string(),
             known: self.names().join(", "),
         })
-    }
-}
-
-/// Runs `backend` on standardised data (zero mean, unit standard deviation
-/// per signal) and returns the model in original units, with the statistics
-/// recorded in `info.scaling`. Priors holding values in data units
-/// (`[[saturation]]`, `[fixed]`, `[bounds]`, `[[equality]]`) and ties on the offset `c`
-/// are refused here: their meaning would change with the scaling.
-pub fn run_standardized(
-    backend: &dyn Backend,
-    problem: &Problem<'_>,
-    settings: &Settings,
-    ctx: &RunContext<'_>,
-) -> Result<Model, IdentifyError> {
-    let p = problem.priors;
-    if !p.saturation.is_empty()
-        || !p.fixed.is_empty()
-        || !p.bounds.is_empty()
-        || !p.equality.is_empty()
-    {
-        return Err(IdentifyError::BadData(
-            "--standardize cannot be combined with priors in data units ([[saturation]], [fixed], [bounds], [[equality]])".into(),
-        ));
-    }
-    // Scaling multiplies a tied a_i or b_i by one factor in every mode, so
-    // such ties survive; the offset c maps to a combination of all the
-    // parameters of its mode, so a tie on c would not.
-    if p.tie.iter().any(|t| t.params.iter().any(|n| n == "c")) {
-        return Err(IdentifyError::BadData(
-            "--standardize cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)".into(),
-        ));
-    }
-    let scale = hysid_model::data::Standardization::of(problem.data);
-    let scaled = scale.apply(problem.data);
-    let inner = Problem {
-        data: &scaled,
-        ..*problem
-    };
-    match backend.run(&inner, settings, ctx)? {
-        Model::Pwarx(m) => Ok(Model::Pwarx(m.to_original_units(&scale))),
-        other => Err(IdentifyError::BadData(format!(
-            "--standardize: method '{}' returns a {} model, which cannot be mapped back to original units",
-            backend.name(),
-            other.kind()
-        ))),
     }
 }

@@ -72,17 +72,19 @@ pub struct Settings {
     pairs: Vec<(String, String)>,
 }
 
-/// Errors in `--set` options.
+/// Errors in back-end options, from `--set` on the command line or a run's
+/// settings in an experiment file. The text says "option"; the CLI words it
+/// as `--set` ([`OptionError::render`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum OptionError {
     /// Not of the form key=value.
-    #[error("--set '{0}': expected key=value")]
+    #[error("{}", self.render("option"))]
     Syntax(String),
     /// Key given twice.
-    #[error("--set {0}: given twice")]
+    #[error("{}", self.render("option"))]
     Duplicate(String),
     /// Unknown key.
-    #[error("--set {key}: method '{method}' has no such option (options: {known})")]
+    #[error("{}", self.render("option"))]
     Unknown {
         /// Key.
         key: String,
@@ -91,8 +93,8 @@ pub enum OptionError {
         /// Known keys.
         known: String,
     },
-    /// Bad value.
-    #[error("--set {key}={value}: {message} (method '{method}', expected {ty})")]
+    /// A value that does not parse as the option's type.
+    #[error("{}", self.render("option"))]
     Value {
         /// Key.
         key: String,
@@ -105,6 +107,99 @@ pub enum OptionError {
         /// Parser message.
         message: String,
     },
+    /// A value of the right type outside the option's valid range, found by
+    /// the back-end's [`CheckOptions::check`].
+    #[error("{}", self.render("option"))]
+    Invalid {
+        /// Key.
+        key: &'static str,
+        /// Value, as the option shows it.
+        value: String,
+        /// What a valid value is ("must be a finite number >= 0").
+        requirement: String,
+    },
+}
+
+impl OptionError {
+    /// An out-of-range `value` of option `key`.
+    pub fn invalid(key: &'static str, value: impl ToString, requirement: impl Into<String>) -> Self {
+        Self::Invalid {
+            key,
+            value: value.to_string(),
+            requirement: requirement.into(),
+        }
+    }
+
+    /// The message with `prefix` naming where options come from: `option`
+    /// in libraries, `--set` on the command line.
+    pub fn render(&self, prefix: &str) -> String {
+        match self {
+            Self::Syntax(item) => format!("{prefix} '{item}': expected key=value"),
+            Self::Duplicate(key) => format!("{prefix} {key}: given twice"),
+            Self::Unknown { key, method, known } => {
+                format!("{prefix} {key}: method '{method}' has no such option (options: {known})")
+            }
+            Self::Value {
+                key,
+                value,
+                method,
+                ty,
+                message,
+            } => format!("{prefix} {key}={value}: {message} (method '{method}', expected {ty})"),
+            Self::Invalid {
+                key,
+                value,
+                requirement,
+            } => format!("{prefix} {key}={value}: {requirement}"),
+        }
+    }
+}
+
+/// The checks of a back-end's options beyond their types: ranges, and
+/// combinations that cannot work. Run once, by [`Checked::new`], before
+/// any data is touched (the shape of linfa's `ParamGuard`).
+pub trait CheckOptions {
+    /// `Ok` when every option is valid, else the first invalid one.
+    fn check(&self) -> Result<(), OptionError>;
+}
+
+/// Options that passed [`CheckOptions::check`]: what a back-end's `fit`
+/// receives, so that no step re-checks them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checked<T>(T);
+
+impl<T: CheckOptions> Checked<T> {
+    /// Checks `options`.
+    pub fn new(options: T) -> Result<Self, OptionError> {
+        options.check()?;
+        Ok(Self(options))
+    }
+
+    /// The options, checked.
+    pub fn into_inner(self) -> T {
+        self.0
+    }
+}
+
+impl<T> std::ops::Deref for Checked<T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        &self.0
+    }
+}
+
+/// Checks that a float option is finite and satisfies `ok`.
+pub fn check_float(
+    key: &'static str,
+    value: f64,
+    ok: impl Fn(f64) -> bool,
+    requirement: &str,
+) -> Result<(), OptionError> {
+    if value.is_finite() && ok(value) {
+        Ok(())
+    } else {
+        Err(OptionError::invalid(key, value, requirement))
+    }
 }
 
 impl Settings {
@@ -223,7 +318,7 @@ fn scalar(v: &str) -> toml::Value {
 /// Declares a back-end's options struct: fields with documented defaults.
 ///
 /// ```
-/// hysid_core::backend_options! {
+/// crate::backend_options! {
 ///     /// Options of an example back-end.
 ///     pub struct ExampleOptions {
 ///         /// Ridge added to the normal equations.
@@ -232,7 +327,7 @@ fn scalar(v: &str) -> toml::Value {
 ///         restarts: usize = 15,
 ///     }
 /// }
-/// use hysid_core::options::BackendOptions;
+/// use crate::options::BackendOptions;
 /// assert_eq!(ExampleOptions::default().restarts, 15);
 /// assert_eq!(ExampleOptions::specs()[1].default, "15");
 /// ```

@@ -9,6 +9,8 @@
 //! |---|---|
 //! | [`constrained`] | `Parametrisation` of the priors, mode fits under them |
 //! | [`linalg`] | SVD least squares, weighted and equality-constrained (faer) |
+//! | [`pwarx`] | the set-up and assembly every PWARX back-end shares |
 
 pub mod constrained;
 pub mod linalg;
+pub mod pwarx;

@@ -14,6 +14,7 @@
 //! model files, live in `hysid-core`.
 
 mod automaton;
+mod diagnostics;
 mod pwarx;
 mod stop;
 
@@ -21,6 +22,7 @@ pub use automaton::{
     AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
     TimeDomain, Transition,
 };
+pub use diagnostics::{Diagnostics, RunStatus};
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
 pub use stop::{Stop, StopBound};
 
@@ -58,6 +60,6 @@ pub struct ModelInfo {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scaling: Option<Standardization>,
     /// Back-end diagnostics (counts, costs, statuses).
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub diagnostics: BTreeMap<String, serde_json::Value>,
+    #[serde(skip_serializing_if = "Diagnostics::is_empty")]
+    pub diagnostics: Diagnostics,
 }
