@@ -10,27 +10,44 @@
 //! (output) error** `J = mean_k (y(k) - yhat(k))^2` over the record, where
 //! `yhat` is the event-aware free-run simulation
 //! ([`hysid_core::simulate::mechanical`]) from the state estimated on the
-//! first samples. The search runs in box-normalised coordinates:
+//! first samples. The search runs in box-normalised coordinates
+//! ([`parameters`]):
 //!
-//! 1. a global stage: argmin's particle swarm (Kennedy and Eberhart 1995),
-//!    seeded with `ChaCha8Rng::seed_from_u64(ctx.seed)`, in the bounds;
-//! 2. a local refinement: argmin's Nelder-Mead (Nelder and Mead 1965)
-//!    from the best of the swarm and of the nominal values, restarted with a
-//!    fresh simplex a few times (bounded iterations each).
+//! 1. a global stage ([`swarm`]): argmin's particle swarm (Kennedy and
+//!    Eberhart 1995), seeded with `ChaCha8Rng::seed_from_u64(ctx.seed)`, in
+//!    the bounds, on the segmented (multiple-shooting) error ([`objective`];
+//!    the free-run one with `segment=0`);
+//! 2. local stages ([`local`]), on the segmented error and then on the
+//!    free-run one: Levenberg-Marquardt (Marquardt 1963,
+//!    [`levenberg_marquardt`]) from each start (the swarm's best, the
+//!    nominal values, the next best particles), then argmin's Nelder-Mead
+//!    (Nelder and Mead 1965) from the best point, restarted with a fresh
+//!    simplex a few times (bounded iterations each).
 //!
 //! The fitted model carries the parameters (with their bounds), the final
 //! cost, and a local sensitivity / confidence estimate from a central
 //! finite-difference Jacobian of the residuals (Gauss-Newton covariance
-//! `s^2 (J^T J)^-1`), in `info.diagnostics`.
+//! `s^2 (J^T J)^-1`, [`sensitivity`]), in `info.diagnostics`
+//! ([`PhysicalDiagnostics`]).
 //!
 //! Priors: `[fixed]`, `[bounds]` and `[[tie]]` on the model's parameter
 //! names. `--na`/`--nb` are ignored. [`bridge`] converts the fitted model
 //! into per-mode discrete-time affine (PWARX) form.
 
 pub mod bridge;
+pub mod diagnostics;
 pub mod fit;
+pub mod levenberg_marquardt;
+pub mod local;
+pub mod objective;
+pub mod parameters;
+pub mod sensitivity;
+pub mod stages;
+pub mod swarm;
 
-pub use fit::{FitReport, ParameterMap, fit_mechanical};
+pub use diagnostics::PhysicalDiagnostics;
+pub use fit::{FitReport, fit_mechanical};
+pub use parameters::ParameterMap;
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::{MechanicalModel, Model};

@@ -1,4 +1,4 @@
-//! Issue 5 evidence: parameters recovered from data simulated from
+//! Parameters recovered from data simulated from
 //! `head.toml` with known parameters, both saturations excited and
 //! measurement noise added; `fit_sim` on a fresh validation record.
 
@@ -108,7 +108,7 @@ fn recovers_parameters_and_validates() {
         .unwrap();
     eprintln!(
         "cost at truth {:.6}, fitted {:.6}, evals {}",
-        hysid_physical::fit::simulation_mse(&truth, &truth.values(), &ident),
+        hysid_physical::objective::simulation_mse(&truth, &truth.values(), &ident),
         model.info().diagnostics["cost"],
         model.info().diagnostics["evaluations"]
     );
