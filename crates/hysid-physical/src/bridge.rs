@@ -23,7 +23,9 @@
 //! and the friction state, which these regressors do not resolve exactly.
 
 use hysid_core::geometry::Polyhedron;
-use hysid_core::model::{MechanicalModel, ModelInfo, PwarxMode, PwarxModel, ResolvedForce};
+use hysid_core::model::{
+    MechanicalModel, ModelInfo, PwarxMode, PwarxModel, ResolvedForce, ResolvedMechanics,
+};
 use nalgebra::DMatrix;
 
 /// The ZOH discretisation of `d/dt x = A x + B w` (`w` held) at `ts`:
@@ -61,91 +63,8 @@ fn slip_theta(a: &DMatrix<f64>, bw: &DMatrix<f64>, ts: f64, inputs: usize) -> Ve
 pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
     let r = model.resolve();
     let m = model.inputs.len();
-    let dim = 2 + 2 * m;
-    let (mut k, mut d, mut f) = (0.0, 0.0, 0.0);
-    let mut b = vec![0.0; m];
-    for fe in &r.forces {
-        match *fe {
-            ResolvedForce::Input(i, g) => b[i] += g,
-            ResolvedForce::Constant(c) => f += c,
-            ResolvedForce::Spring(s, rest) => {
-                k += s;
-                f += s * rest;
-            }
-            ResolvedForce::Damper(c) => d += c,
-        }
-    }
-    let row = |y1: f64, y2: f64| {
-        let mut z = vec![0.0; dim];
-        z[0] = y1;
-        z[1] = y2;
-        z
-    };
-    let mut modes = Vec::new();
-    let nc = r.contacts.len();
-    for mask in 0..(1u32 << nc) {
-        let (mut kk, mut dd, mut ff) = (k, d, f);
-        let (kin, _) = r.friction(mask);
-        let mut ra = Vec::new();
-        let mut rb = Vec::new();
-        let mut names = Vec::new();
-        for (i, c) in r.contacts.iter().enumerate() {
-            if mask & (1 << i) != 0 {
-                kk += c.stiffness;
-                dd += c.damping;
-                ff += c.stiffness * c.position;
-                names.push(model.contacts[i].name.clone());
-                ra.push(row(-c.sign, 0.0));
-                rb.push(-c.sign * c.position);
-            } else {
-                ra.push(row(c.sign, 0.0));
-                rb.push(c.sign * c.position);
-            }
-        }
-        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -kk, -dd]);
-        for (s, tag) in [(1.0, "+"), (-1.0, "-")] {
-            let mut bw = DMatrix::zeros(2, m + 1);
-            for i in 0..m {
-                bw[(1, i)] = b[i];
-            }
-            bw[(1, m)] = ff - s * kin;
-            let mut a_rows = ra.clone();
-            let mut b_rows = rb.clone();
-            a_rows.push(row(-s, s)); // s (y1 - y2) >= 0
-            b_rows.push(0.0);
-            modes.push(PwarxMode {
-                theta: slip_theta(&a, &bw, ts, m),
-                region: Polyhedron::from_inequalities(a_rows, b_rows),
-                name: Some(format!("slip{tag}[{}]", names.join("+"))),
-            });
-        }
-    }
-    let mut stick = vec![0.0; 3 + 2 * m];
-    stick[0] = 1.0;
-    modes.push(PwarxMode {
-        theta: stick,
-        region: Polyhedron {
-            a: vec![],
-            b: vec![],
-            a_eq: vec![row(1.0, -1.0)],
-            b_eq: vec![0.0],
-        },
-        name: Some("stick".into()),
-    });
-    for (i, s) in r.stops.iter().enumerate() {
-        let mut theta = vec![0.0; 3 + 2 * m];
-        theta[2 + 2 * m] = s.position;
-        modes.push(PwarxMode {
-            theta,
-            region: Polyhedron {
-                a: vec![],
-                b: vec![],
-                a_eq: vec![row(1.0, 0.0)],
-                b_eq: vec![s.position],
-            },
-            name: Some(format!("stop[{}]", model.stops[i].name)),
-        });
-    }
+    let mut modes = slip_modes(model, &r, ts);
+    modes.extend(rest_modes(model, &r));
     let mut info = ModelInfo {
         ts: Some(ts),
         ..ModelInfo::default()
@@ -162,4 +81,111 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
         modes,
         info,
     }
+}
+
+/// A regressor-space row `[y1, y2, 0, ..]` of `inputs` inputs.
+fn row(inputs: usize, y1: f64, y2: f64) -> Vec<f64> {
+    let mut z = vec![0.0; 2 + 2 * inputs];
+    z[0] = y1;
+    z[1] = y2;
+    z
+}
+
+/// The free-flight forces `(stiffness, damping, constant, input gains)`:
+/// the sums over the model's springs, dampers, constants and inputs.
+fn free_forces(r: &ResolvedMechanics, inputs: usize) -> (f64, f64, f64, Vec<f64>) {
+    let (mut k, mut d, mut f) = (0.0, 0.0, 0.0);
+    let mut b = vec![0.0; inputs];
+    for fe in &r.forces {
+        match *fe {
+            ResolvedForce::Input(i, g) => b[i] += g,
+            ResolvedForce::Constant(c) => f += c,
+            ResolvedForce::Spring(s, rest) => {
+                k += s;
+                f += s * rest;
+            }
+            ResolvedForce::Damper(c) => d += c,
+        }
+    }
+    (k, d, f, b)
+}
+
+/// The sliding modes: per set of engaged contacts, one per direction of
+/// motion.
+fn slip_modes(model: &MechanicalModel, r: &ResolvedMechanics, ts: f64) -> Vec<PwarxMode> {
+    let m = model.inputs.len();
+    let (k, d, f, b) = free_forces(r, m);
+    let mut modes = Vec::new();
+    let nc = r.contacts.len();
+    for mask in 0..(1u32 << nc) {
+        let (mut kk, mut dd, mut ff) = (k, d, f);
+        let (kin, _) = r.friction(mask);
+        let mut ra = Vec::new();
+        let mut rb = Vec::new();
+        let mut names = Vec::new();
+        for (i, c) in r.contacts.iter().enumerate() {
+            if mask & (1 << i) != 0 {
+                kk += c.stiffness;
+                dd += c.damping;
+                ff += c.stiffness * c.position;
+                names.push(model.contacts[i].name.clone());
+                ra.push(row(m, -c.sign, 0.0));
+                rb.push(-c.sign * c.position);
+            } else {
+                ra.push(row(m, c.sign, 0.0));
+                rb.push(c.sign * c.position);
+            }
+        }
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -kk, -dd]);
+        for (s, tag) in [(1.0, "+"), (-1.0, "-")] {
+            let mut bw = DMatrix::zeros(2, m + 1);
+            for i in 0..m {
+                bw[(1, i)] = b[i];
+            }
+            bw[(1, m)] = ff - s * kin;
+            let mut a_rows = ra.clone();
+            let mut b_rows = rb.clone();
+            a_rows.push(row(m, -s, s)); // s (y1 - y2) >= 0
+            b_rows.push(0.0);
+            modes.push(PwarxMode {
+                theta: slip_theta(&a, &bw, ts, m),
+                region: Polyhedron::from_inequalities(a_rows, b_rows),
+                name: Some(format!("slip{tag}[{}]", names.join("+"))),
+            });
+        }
+    }
+    modes
+}
+
+/// The modes at rest: `stick` (`y(k) = y(k-1)`) and one per stop
+/// (`y(k) = level`).
+fn rest_modes(model: &MechanicalModel, r: &ResolvedMechanics) -> Vec<PwarxMode> {
+    let m = model.inputs.len();
+    let mut stick = vec![0.0; 3 + 2 * m];
+    stick[0] = 1.0;
+    let mut modes = vec![PwarxMode {
+        theta: stick,
+        region: Polyhedron {
+            a: vec![],
+            b: vec![],
+            a_eq: vec![row(m, 1.0, -1.0)],
+            b_eq: vec![0.0],
+        },
+        name: Some("stick".into()),
+    }];
+    for (i, s) in r.stops.iter().enumerate() {
+        let mut theta = vec![0.0; 3 + 2 * m];
+        theta[2 + 2 * m] = s.position;
+        modes.push(PwarxMode {
+            theta,
+            region: Polyhedron {
+                a: vec![],
+                b: vec![],
+                a_eq: vec![row(m, 1.0, 0.0)],
+                b_eq: vec![s.position],
+            },
+            name: Some(format!("stop[{}]", model.stops[i].name)),
+        });
+    }
+    modes
 }
