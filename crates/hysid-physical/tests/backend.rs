@@ -346,3 +346,34 @@ fn a_record_no_candidate_can_simulate_is_a_method_failure() {
         "{e}"
     );
 }
+
+#[test]
+fn a_spent_time_budget_is_reported_as_the_status() {
+    let d = data(400, 3);
+    let problem = Problem {
+        data: &d,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors: &Priors::default(),
+        priors_origin: None,
+    };
+    let ctx = RunContext {
+        deadline: Some(std::time::Instant::now()),
+        ..RunContext::quiet(1)
+    };
+    let m = Physical
+        .run(&problem, &Settings::parse(&QUICK).unwrap(), &ctx)
+        .unwrap();
+    let g = &m.info().diagnostics;
+    let status = g["status"].as_str().unwrap();
+    assert!(
+        status.starts_with("time budget reached during the particle swarm stage after ")
+            && status.ends_with(" simulations: best parameters found by then"),
+        "{status}"
+    );
+    let t = &g["termination"];
+    assert_eq!(t["particle_swarm"], "time_budget", "{t}");
+    // One LM run per start (2 segmented, 1 free run), each stopped at once.
+    assert_eq!(t["levenberg_marquardt"]["time_budget"], 3, "{t}");
+    assert!(t.get("nelder_mead").is_none(), "{t}");
+    assert!(t.get("last_local_run").is_none(), "{t}");
+}
