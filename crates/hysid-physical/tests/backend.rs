@@ -128,7 +128,7 @@ proptest::proptest! {
     #![proptest_config(proptest::prelude::ProptestConfig::with_cases(6))]
     /// For random priors: the fixed value comes back unchanged, the tied
     /// parameters are equal to the last bit, the bounded one stays inside
-    /// its bounds (issue 6's invariants for the `physical` back-end).
+    /// its bounds.
     #[test]
     fn random_priors_hold_in_the_fitted_model(
         yc in 8.0f64..17.0,
