@@ -40,7 +40,12 @@ hysid_core::backend_options! {
 
 impl CheckOptions for ArxOptions {
     fn check(&self) -> Result<(), OptionError> {
-        check_float("ridge", self.ridge, |r| r >= 0.0, "must be a finite number >= 0")
+        check_float(
+            "ridge",
+            self.ridge,
+            |r| r >= 0.0,
+            "must be a finite number >= 0",
+        )
     }
 }
 
@@ -125,7 +130,10 @@ fn check_one_mode(data: &PwarxData<'_>) -> Result<(), IdentifyError> {
             "prior modes = {}: method 'arx' identifies exactly one ordinary mode{}",
             s + stops,
             if stops > 0 {
-                format!(" (modes = {} with the {stops} saturation mode(s))", 1 + stops)
+                format!(
+                    " (modes = {} with the {stops} saturation mode(s))",
+                    1 + stops
+                )
             } else {
                 String::new()
             }
@@ -482,8 +490,8 @@ mod tests {
 
     #[test]
     fn standardize_refuses_data_unit_priors_and_ties_on_c() {
-        use hysid_estimation::pwarx::run_standardized;
         use hysid_core::priors::Tie;
+        use hysid_estimation::pwarx::run_standardized;
         let d = data_from(&[0.5, 1.0, 0.3], 1, 1, 60, 3);
         let go = |pri: &Priors| {
             let problem = Problem {

@@ -5,6 +5,7 @@
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Identifier, Problem, RunContext};
+use hysid_core::options::Checked;
 use hysid_core::priors::Priors;
 use hysid_model::regressors::RegressorSpec;
 
@@ -23,10 +24,11 @@ fn identify(bencher: divan::Bencher, n: usize) {
         priors: &pri,
         priors_origin: None,
     };
-    let opts = BoundedOptions {
+    let opts = Checked::new(BoundedOptions {
         delta: Some(Delta::Value(0.1)),
         ..Default::default()
-    };
+    })
+    .unwrap();
     bencher.bench(|| {
         Bounded
             .identify(&problem, &opts, &RunContext::quiet(1))
@@ -45,9 +47,10 @@ fn classify(bencher: divan::Bencher, n: usize) {
         priors: &pri,
         priors_origin: None,
     };
-    let opts = BoundedOptions {
+    let opts = Checked::new(BoundedOptions {
         delta: Some(Delta::Value(0.1)),
         ..Default::default()
-    };
+    })
+    .unwrap();
     bencher.bench(|| Bounded::classify(&problem, &opts, &RunContext::quiet(1)).unwrap());
 }

@@ -78,7 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     for p in &points {
         if let Some(m) = &p.model {
-            let d = &m.info().diagnostics;
+            let d = &m.info().diagnostics.method;
             println!(
                 "| {} | {} | {} | {} | {} | {} |",
                 p.delta,
@@ -99,7 +99,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             p.modes
         );
         if let Some(m) = &p.model {
-            for (k, mode) in m.info().diagnostics.iter() {
+            for (k, mode) in m.info().diagnostics.method.iter() {
                 println!("  {k}: {mode}");
             }
         }

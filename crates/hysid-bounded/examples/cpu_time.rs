@@ -52,7 +52,11 @@ fn main() {
         let w = Instant::now();
         for _ in 0..reps {
             Bounded
-                .identify(&problem, &opts, &RunContext::quiet(1))
+                .identify(
+                    &problem,
+                    &hysid_core::options::Checked::new(opts.clone()).unwrap(),
+                    &RunContext::quiet(1),
+                )
                 .unwrap();
         }
         let wall = w.elapsed().as_secs_f64() / reps as f64;

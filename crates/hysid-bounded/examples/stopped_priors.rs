@@ -70,7 +70,7 @@ fn main() {
         let rows: Vec<usize> = cl.row_labels().iter().map(|l| l.unwrap_or(wrong)).collect();
         let id_acc = mode_accuracy(&id.row_modes(), &rows).accuracy;
         let (rep, _, _) = validate(&m, &val.data, 2).expect("validates");
-        let modes = m.info().diagnostics["modes_found"].clone();
+        let modes = m.info().diagnostics.method["modes_found"].clone();
         if std::env::var("VERBOSE").is_ok() {
             eprintln!("{name}: {:?}", m.info().diagnostics);
             if let hysid_core::model::Model::HybridAutomaton(a) = &m {

@@ -36,6 +36,7 @@ use constraints::Constraints;
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::OptionType;
+use hysid_core::options::{CheckOptions, Checked, OptionError};
 use hysid_core::priors::PriorKind;
 use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
 use hysid_regions::{RegionMethod, RegionOptions};
@@ -111,6 +112,12 @@ hysid_core::backend_options! {
         /// complete partition), psvc (pairwise proximal SVM, may leave holes) or
         /// softmax (multinomial logistic regression, complete partition).
         regions: RegionMethod = RegionMethod::Mrlp,
+    }
+}
+
+impl CheckOptions for BoundedOptions {
+    fn check(&self) -> Result<(), OptionError> {
+        Ok(())
     }
 }
 
@@ -329,7 +336,7 @@ impl Identifier for Bounded {
     fn identify(
         &self,
         problem: &Problem<'_>,
-        options: &BoundedOptions,
+        options: &Checked<BoundedOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let spec = problem.orders;
@@ -357,53 +364,61 @@ impl Identifier for Bounded {
         let regions = part.regions;
         let mut info = ModelInfo::default();
         let dg = &mut info.diagnostics;
-        dg.insert("delta".into(), set.delta.into());
-        dg.insert(
+        dg.method.insert("delta".into(), set.delta.into());
+        dg.method.insert(
             "delta_auto".into(),
             matches!(options.delta, Some(Delta::Auto(_))).into(),
         );
-        dg.insert("modes_found".into(), c.thetas.len().into());
-        dg.insert("greedy_modes".into(), c.greedy_modes.into());
-        dg.insert("samples".into(), all.stops.len().into());
+        dg.method
+            .insert("modes_found".into(), c.thetas.len().into());
+        dg.method
+            .insert("greedy_modes".into(), c.greedy_modes.into());
+        dg.method.insert("samples".into(), all.stops.len().into());
         if !pri.saturation.is_empty() {
             let mut per_stop = vec![0usize; pri.saturation.len()];
             for i in all.stops.iter().flatten() {
                 per_stop[*i] += 1;
             }
-            dg.insert("ordinary_samples".into(), s.len().into());
-            dg.insert("saturated_per_stop".into(), serde_json::json!(per_stop));
+            dg.method.insert("ordinary_samples".into(), s.len().into());
+            dg.method
+                .insert("saturated_per_stop".into(), serde_json::json!(per_stop));
         }
         if let Some(e) = c.tie_projection_error {
-            dg.insert("tie_projection_error".into(), e.into());
-            dg.insert(
+            dg.method.insert("tie_projection_error".into(), e.into());
+            dg.method.insert(
                 "tie_projection_within_delta".into(),
                 (e <= set.delta).into(),
             );
         }
-        dg.insert("assigned".into(), c.count(SampleClass::Assigned).into());
-        dg.insert(
+        dg.method
+            .insert("assigned".into(), c.count(SampleClass::Assigned).into());
+        dg.method.insert(
             "undecidable".into(),
             c.count(SampleClass::Undecidable).into(),
         );
-        dg.insert("infeasible".into(), c.count(SampleClass::Infeasible).into());
-        dg.insert("rounds".into(), c.rounds.into());
-        dg.insert("converged".into(), c.converged.into());
-        dg.insert("merged".into(), c.merged.into());
-        dg.insert("dropped".into(), c.dropped.into());
-        dg.insert("max_residual".into(), serde_json::json!(c.max_residual));
+        dg.method
+            .insert("infeasible".into(), c.count(SampleClass::Infeasible).into());
+        dg.method.insert("rounds".into(), c.rounds.into());
+        dg.method.insert("converged".into(), c.converged.into());
+        dg.method.insert("merged".into(), c.merged.into());
+        dg.method.insert("dropped".into(), c.dropped.into());
+        dg.method
+            .insert("max_residual".into(), serde_json::json!(c.max_residual));
         let mut counts = vec![0usize; c.thetas.len()];
         for l in c.labels.iter().flatten() {
             counts[*l] += 1;
         }
-        dg.insert("samples_per_mode".into(), serde_json::json!(counts));
-        dg.insert(
+        dg.method
+            .insert("samples_per_mode".into(), serde_json::json!(counts));
+        dg.method.insert(
             "region_training_accuracy".into(),
             part.training_accuracy.into(),
         );
-        dg.insert("partition_complete".into(), part.complete.into());
+        dg.method
+            .insert("partition_complete".into(), part.complete.into());
         let mut status: Vec<String> = Vec::new();
         if c.stopped_by_deadline {
-            dg.insert("stopped_by_deadline".into(), true.into());
+            dg.method.insert("stopped_by_deadline".into(), true.into());
             status.push(format!(
                 "time budget reached after {} mode extraction(s) and {} refinement round(s): the modes found by then",
                 c.greedy_modes, c.rounds
@@ -422,7 +437,7 @@ impl Identifier for Bounded {
             ));
         }
         if !status.is_empty() {
-            dg.insert("status".into(), status.join("; ").into());
+            dg.method.insert("status".into(), status.join("; ").into());
         }
         let pwarx = PwarxModel {
             na: spec.na,
@@ -529,7 +544,7 @@ mod tests {
         let m = run(&g.data, &Priors::default(), &["delta=0.1"], 7).unwrap();
         let p = pwarx(&m);
         assert_eq!(p.modes.len(), 3);
-        let dg = &m.info().diagnostics;
+        let dg = &m.info().diagnostics.to_map();
         assert_eq!(dg["modes_found"], 3);
         assert!(
             dg["region_training_accuracy"].as_f64().unwrap() > 0.95,
@@ -570,7 +585,7 @@ mod tests {
     fn delta_auto_is_near_the_noise_bound() {
         let g = hysid_testkit::b1(400, 4.0, hysid_testkit::Noise::Uniform(0.1), 11);
         let m = run(&g.data, &Priors::default(), &["delta=auto"], 1).unwrap();
-        let d = m.info().diagnostics["delta"].as_f64().unwrap();
+        let d = m.info().diagnostics.method["delta"].as_f64().unwrap();
         // Uniform noise U[-0.1, 0.1]: sigma = 0.0577, 3 sigma = 0.173.
         assert!((0.1..0.3).contains(&d), "auto delta {d}");
         assert_eq!(pwarx(&m).modes.len(), 3);

@@ -87,7 +87,7 @@ pub fn delta_sweep(
             Ok(model) => {
                 point.modes = model.mode_count();
                 let dg = &model.info().diagnostics;
-                let get = |k: &str| dg.get(k).and_then(|v| v.as_u64()).unwrap_or(0) as usize;
+                let get = |k: &str| dg.method.get(k).and_then(|v| v.as_u64()).unwrap_or(0) as usize;
                 point.undecidable = get("undecidable");
                 point.infeasible = get("infeasible");
                 match validate(&model, validation, warmup) {
@@ -160,7 +160,8 @@ fn identify_with_provenance(
     ctx: &RunContext<'_>,
 ) -> Result<Model, IdentifyError> {
     use hysid_core::options::BackendOptions;
-    let mut model = Bounded.identify(problem, opts, ctx)?;
+    let checked = hysid_core::options::Checked::new(opts.clone())?;
+    let mut model = Bounded.identify(problem, &checked, ctx)?;
     let info = model.info_mut();
     info.method = Bounded::NAME.to_string();
     info.options = opts.to_map();

@@ -96,7 +96,7 @@ proptest! {
                 prop_assert_eq!(row[0], 0.0, "normal on y1: {:?}", mode.region);
             }
         }
-        let dg = &m.info().diagnostics;
+        let dg = &m.info().diagnostics.to_map();
         for r in dg["max_residual"].as_array().unwrap() {
             prop_assert!(r.as_f64().unwrap() <= 0.1 + 1e-9);
         }
@@ -197,7 +197,7 @@ fn saturation_diagnostics_count_the_stops() {
     let id = hysid_testkit::stopped_head(600, 40, 0.01, 3);
     let pri = id.priors();
     let m = run(&id.data, RegressorSpec::new(2, 1, 1), &pri, 0.04, 3).unwrap();
-    let dg = &m.info().diagnostics;
+    let dg = &m.info().diagnostics.to_map();
     let y = id.data.y();
     let want = [0.0, 25.0].map(|l| y[2..].iter().filter(|&&v| v == l).count());
     assert_eq!(dg["saturated_per_stop"], serde_json::json!(want), "{dg:?}");

@@ -3,6 +3,7 @@
 
 use hysid_core::backend::IdentifyError;
 use hysid_core::model::ModelError;
+use hysid_core::options::OptionError;
 use hysid_core::priors::PriorError;
 use hysid_model::data::DataError;
 use hysid_model::simulate::SimError;
@@ -92,9 +93,19 @@ impl CliError {
 impl From<IdentifyError> for CliError {
     fn from(e: IdentifyError) -> Self {
         let bad = e.is_bad_input();
+        let message = match &e {
+            IdentifyError::Options(o) => o.render("--set"),
+            other => other.to_string(),
+        };
         Self {
-            message: e.to_string(),
+            message,
             bad_input: bad,
         }
+    }
+}
+
+impl From<OptionError> for CliError {
+    fn from(e: OptionError) -> Self {
+        Self::input(e.render("--set"))
     }
 }

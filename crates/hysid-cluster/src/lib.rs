@@ -47,6 +47,7 @@ pub use sweep::{SweepPoint, sweep};
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
+use hysid_core::options::{CheckOptions, Checked, OptionError};
 use hysid_core::priors::PriorKind;
 use hysid_model::data::Standardization;
 use hysid_model::geometry::Polyhedron;
@@ -150,6 +151,12 @@ hysid_core::backend_options! {
     }
 }
 
+impl CheckOptions for ClusterOptions {
+    fn check(&self) -> Result<(), OptionError> {
+        Ok(())
+    }
+}
+
 /// The `cluster` back-end.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Cluster;
@@ -163,7 +170,7 @@ impl Identifier for Cluster {
     fn identify(
         &self,
         problem: &Problem<'_>,
-        options: &ClusterOptions,
+        options: &Checked<ClusterOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let priors = problem.priors;
@@ -532,7 +539,7 @@ pub fn identify_labelled(
     let d = &fit.diagnostics;
     let mut info = ModelInfo::default();
     let mut put = |k: &str, v: serde_json::Value| {
-        info.diagnostics.insert(k.into(), v);
+        info.diagnostics.method.insert(k.into(), v);
     };
     put("samples", all_n.into());
     put("c", c.into());
@@ -669,7 +676,7 @@ fn choose_modes(
             ),
         })?;
     let mut model = identify_with(problem, o, best.modes, ctx.seed, ctx.deadline)?;
-    model.info_mut().diagnostics.insert(
+    model.info_mut().diagnostics.method.insert(
         "mode_choice".into(),
         serde_json::json!(
             points

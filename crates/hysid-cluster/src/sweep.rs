@@ -75,6 +75,7 @@ pub fn sweep(
                     point.c = model
                         .info()
                         .diagnostics
+                        .method
                         .get("c")
                         .and_then(|v| v.as_u64())
                         .map(|v| v as usize)

@@ -204,7 +204,7 @@ proptest! {
         let Labelled { model, row_labels } = identify_labelled(&problem, &opts, 4, 7, None).unwrap();
         prop_assert!(matches!(model, Model::HybridAutomaton(_)));
         prop_assert_eq!(model.mode_count(), 4);
-        let d = &model.info().diagnostics;
+        let d = &model.info().diagnostics.to_map();
         let targets = &b.data.y()[2..];
         // Sample by sample: a target at a stop (within the prior's
         // tolerance, or beyond it) is in that stop's mode (2 ordinary
@@ -293,7 +293,7 @@ fn max_modes_counts_the_stops() {
     let m = run(&b.data, RegressorSpec::new(2, 1, 1), &p, &["restarts=3"]).unwrap();
     assert!(matches!(m, Model::HybridAutomaton(_)));
     assert!((3..=4).contains(&m.mode_count()), "{}", m.mode_count());
-    let choice = m.info().diagnostics["mode_choice"]
+    let choice = m.info().diagnostics.method["mode_choice"]
         .as_array()
         .unwrap()
         .clone();
@@ -309,7 +309,7 @@ fn figures() {
     let sh = stopped_head(1500, 60, 0.05, 1);
     for p in [sh.priors(), b1_priors(4)] {
         let m = run(&sh.data, RegressorSpec::new(2, 1, 1), &p, &[]).unwrap();
-        let d = &m.info().diagnostics;
+        let d = &m.info().diagnostics.to_map();
         eprintln!(
             "stopped head, stops {}: degenerate {} flat scatter {}",
             p.saturation.len(),

@@ -186,7 +186,7 @@ fn degenerate_local_datasets_are_regularised_and_counted() {
     }
     let data = Dataset::siso(u, y, None).unwrap();
     let m = identify(&data, RegressorSpec::new(1, 1, 1), 2, &[]);
-    let d = &m.info.diagnostics;
+    let d = &m.info.diagnostics.to_map();
     assert!(
         d["degenerate_local_datasets"].as_u64().unwrap() > 0,
         "{d:?}"
@@ -256,7 +256,7 @@ fn max_modes_chooses_a_count() {
         .run(&problem, &Settings::default(), &RunContext::quiet(1))
         .unwrap();
     assert!((2..=4).contains(&m.mode_count()), "{}", m.mode_count());
-    assert!(m.info().diagnostics.contains_key("mode_choice"));
+    assert!(m.info().diagnostics.method.contains_key("mode_choice"));
 }
 
 /// Every option variant runs on B1 and returns a valid model; the
@@ -307,6 +307,7 @@ fn option_variants_run() {
             assert!(
                 m.info
                     .diagnostics
+                    .to_map()
                     .contains_key("uncovered_fraction_of_data_box"),
                 "{set:?}"
             );

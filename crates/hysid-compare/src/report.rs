@@ -352,12 +352,7 @@ fn region_figure(c: &Comparison, r: &RunResult, valid: &Dataset) -> Option<Regio
             levels.join(" and ")
         ));
     }
-    if let Some(f) = model
-        .info()
-        .diagnostics
-        .get("uncovered_fraction_of_data_box")
-        .and_then(|v| v.as_f64())
-    {
+    if let Some(f) = model.info().diagnostics.uncovered_fraction_of_data_box {
         fig.notes.push(format!(
             "The report's {:.2} % in no region is over the box of the identification regressors in all {} coordinates, not this plane.",
             100.0 * f,
@@ -548,21 +543,16 @@ pub fn markdown(c: &Comparison) -> String {
 /// the uncovered fraction of the data box when known.
 fn holes_note(m: &hysid_core::model::Model) -> Option<String> {
     let d = &m.info().diagnostics;
-    if d.get("regions_complete")?.as_bool()? {
+    if d.regions_complete? {
         return None;
     }
-    Some(
-        match d
-            .get("uncovered_fraction_of_data_box")
-            .and_then(|v| v.as_f64())
-        {
-            Some(f) => format!(
-                "regions leave holes: {:.2} % of the data box in no region",
-                100.0 * f
-            ),
-            None => "regions leave holes".into(),
-        },
-    )
+    Some(match d.uncovered_fraction_of_data_box {
+        Some(f) => format!(
+            "regions leave holes: {:.2} % of the data box in no region",
+            100.0 * f
+        ),
+        None => "regions leave holes".into(),
+    })
 }
 
 /// The table of `[data] truth` scores: accuracy, and per true mode the

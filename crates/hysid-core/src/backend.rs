@@ -106,7 +106,10 @@ impl IdentifyError {
     /// The error with the failing method named.
     fn of_method(self, name: &'static str) -> Self {
         match self {
-            IdentifyError::Failed { method: "", message } => IdentifyError::Failed {
+            IdentifyError::Failed {
+                method: "",
+                message,
+            } => IdentifyError::Failed {
                 method: name,
                 message,
             },

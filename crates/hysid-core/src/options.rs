@@ -122,7 +122,11 @@ pub enum OptionError {
 
 impl OptionError {
     /// An out-of-range `value` of option `key`.
-    pub fn invalid(key: &'static str, value: impl ToString, requirement: impl Into<String>) -> Self {
+    pub fn invalid(
+        key: &'static str,
+        value: impl ToString,
+        requirement: impl Into<String>,
+    ) -> Self {
         Self::Invalid {
             key,
             value: value.to_string(),

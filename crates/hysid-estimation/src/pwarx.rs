@@ -12,12 +12,12 @@
 //! under their fixed names.
 
 use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
-use hysid_core::options::Settings;
-use hysid_model::data::Standardization;
 use hysid_core::model::Model;
+use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_model::model::{Diagnostics, HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
+use hysid_model::data::Standardization;
 use hysid_model::model::RunStatus;
+use hysid_model::model::{Diagnostics, HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
 use hysid_model::regressors::{RegressorSpec, Regressors};
 use serde::Serialize;
 

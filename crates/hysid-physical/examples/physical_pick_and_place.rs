@@ -77,14 +77,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     println!(
         "fit time: {fit_seconds:.2} s ({} simulations)",
-        m.info.diagnostics["evaluations"]
+        m.info.diagnostics.method["evaluations"]
     );
     println!(
         "final cost (MSE, identification): {:.5}",
-        m.info.diagnostics["cost"]
+        m.info.diagnostics.method["cost"]
     );
     for p in &m.parameters {
-        let d = &m.info.diagnostics["parameters"].get(&p.name);
+        let d = &m.info.diagnostics.method["parameters"].get(&p.name);
         let se = d
             .and_then(|d| d["std_error"].as_f64())
             .map(|s| format!("± {s:.4}"))

@@ -1,7 +1,8 @@
 //! Bridge to the data-driven world: the per-mode discrete-time affine form
 //! of a [`MechanicalModel`], as a PWARX model with `na = nb = 2`, so that a
 //! physical fit can be compared mode by mode with what PWARX back-ends
-//! identify (`docs/physical.md`, "Bridge to PWARX").
+//! identify (`shared/docs/mounting-head.md`, section 2.2, "Discrete-time
+//! view").
 //!
 //! In each sliding regime (direction of motion `s`, engaged contacts) the
 //! dynamics are `d/dt [y; v] = A [y; v] + B u + f` with the friction
@@ -21,7 +22,7 @@
 //! They are indicative only: the true switching depends on the velocity
 //! and the friction state, which these regressors do not resolve exactly.
 
-use hysid_mechanical::{MechanicalModel, ResolvedForce};
+use hysid_mechanical::{MechanicalModel, ResolvedForce, ResolvedMechanics};
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel};
 use nalgebra::DMatrix;
@@ -61,9 +62,39 @@ fn slip_theta(a: &DMatrix<f64>, bw: &DMatrix<f64>, ts: f64, inputs: usize) -> Ve
 pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
     let r = model.resolve();
     let m = model.inputs.len();
-    let dim = 2 + 2 * m;
+    let mut modes = slip_modes(model, &r, ts);
+    modes.extend(rest_modes(model, &r));
+    let mut info = ModelInfo {
+        ts: Some(ts),
+        ..ModelInfo::default()
+    };
+    info.method = model.info.method.clone();
+    info.diagnostics.method.insert(
+        "bridge".into(),
+        serde_json::json!("per-mode ZOH discretisation of a mechanical model; regions indicative"),
+    );
+    PwarxModel {
+        na: 2,
+        nb: 2,
+        inputs: m,
+        modes,
+        info,
+    }
+}
+
+/// A regressor-space row `[y1, y2, 0, ..]` of `inputs` inputs.
+fn row(inputs: usize, y1: f64, y2: f64) -> Vec<f64> {
+    let mut z = vec![0.0; 2 + 2 * inputs];
+    z[0] = y1;
+    z[1] = y2;
+    z
+}
+
+/// The free-flight forces `(stiffness, damping, constant, input gains)`:
+/// the sums over the model's springs, dampers, constants and inputs.
+fn free_forces(r: &ResolvedMechanics, inputs: usize) -> (f64, f64, f64, Vec<f64>) {
     let (mut k, mut d, mut f) = (0.0, 0.0, 0.0);
-    let mut b = vec![0.0; m];
+    let mut b = vec![0.0; inputs];
     for fe in &r.forces {
         match *fe {
             ResolvedForce::Input(i, g) => b[i] += g,
@@ -75,12 +106,14 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
             ResolvedForce::Damper(c) => d += c,
         }
     }
-    let row = |y1: f64, y2: f64| {
-        let mut z = vec![0.0; dim];
-        z[0] = y1;
-        z[1] = y2;
-        z
-    };
+    (k, d, f, b)
+}
+
+/// The sliding modes: per set of engaged contacts, one per direction of
+/// motion.
+fn slip_modes(model: &MechanicalModel, r: &ResolvedMechanics, ts: f64) -> Vec<PwarxMode> {
+    let m = model.inputs.len();
+    let (k, d, f, b) = free_forces(r, m);
     let mut modes = Vec::new();
     let nc = r.contacts.len();
     for mask in 0..(1u32 << nc) {
@@ -95,10 +128,10 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
                 dd += c.damping;
                 ff += c.stiffness * c.position;
                 names.push(model.contacts[i].name.clone());
-                ra.push(row(-c.sign, 0.0));
+                ra.push(row(m, -c.sign, 0.0));
                 rb.push(-c.sign * c.position);
             } else {
-                ra.push(row(c.sign, 0.0));
+                ra.push(row(m, c.sign, 0.0));
                 rb.push(c.sign * c.position);
             }
         }
@@ -111,7 +144,7 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
             bw[(1, m)] = ff - s * kin;
             let mut a_rows = ra.clone();
             let mut b_rows = rb.clone();
-            a_rows.push(row(-s, s)); // s (y1 - y2) >= 0
+            a_rows.push(row(m, -s, s)); // s (y1 - y2) >= 0
             b_rows.push(0.0);
             modes.push(PwarxMode {
                 theta: slip_theta(&a, &bw, ts, m),
@@ -120,18 +153,25 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
             });
         }
     }
+    modes
+}
+
+/// The modes at rest: `stick` (`y(k) = y(k-1)`) and one per stop
+/// (`y(k) = level`).
+fn rest_modes(model: &MechanicalModel, r: &ResolvedMechanics) -> Vec<PwarxMode> {
+    let m = model.inputs.len();
     let mut stick = vec![0.0; 3 + 2 * m];
     stick[0] = 1.0;
-    modes.push(PwarxMode {
+    let mut modes = vec![PwarxMode {
         theta: stick,
         region: Polyhedron {
             a: vec![],
             b: vec![],
-            a_eq: vec![row(1.0, -1.0)],
+            a_eq: vec![row(m, 1.0, -1.0)],
             b_eq: vec![0.0],
         },
         name: Some("stick".into()),
-    });
+    }];
     for (i, s) in r.stops.iter().enumerate() {
         let mut theta = vec![0.0; 3 + 2 * m];
         theta[2 + 2 * m] = s.position;
@@ -140,26 +180,11 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
             region: Polyhedron {
                 a: vec![],
                 b: vec![],
-                a_eq: vec![row(1.0, 0.0)],
+                a_eq: vec![row(m, 1.0, 0.0)],
                 b_eq: vec![s.position],
             },
             name: Some(format!("stop[{}]", model.stops[i].name)),
         });
     }
-    let mut info = ModelInfo {
-        ts: Some(ts),
-        ..ModelInfo::default()
-    };
-    info.method = model.info.method.clone();
-    info.diagnostics.insert(
-        "bridge".into(),
-        serde_json::json!("per-mode ZOH discretisation of a mechanical model; regions indicative"),
-    );
-    PwarxModel {
-        na: 2,
-        nb: 2,
-        inputs: m,
-        modes,
-        info,
-    }
+    modes
 }

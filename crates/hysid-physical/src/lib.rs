@@ -10,30 +10,48 @@
 //! (output) error** `J = mean_k (y(k) - yhat(k))^2` over the record, where
 //! `yhat` is the event-aware free-run simulation
 //! ([`hysid_mechanical::simulate`]) from the state estimated on the
-//! first samples. The search runs in box-normalised coordinates:
+//! first samples. The search runs in box-normalised coordinates
+//! ([`parameters`]):
 //!
-//! 1. a global stage: argmin's particle swarm (Kennedy and Eberhart 1995),
-//!    seeded with `ChaCha8Rng::seed_from_u64(ctx.seed)`, in the bounds;
-//! 2. a local refinement: argmin's Nelder-Mead (Nelder and Mead 1965)
-//!    from the best of the swarm and of the nominal values, restarted with a
-//!    fresh simplex a few times (bounded iterations each).
+//! 1. a global stage ([`swarm`]): argmin's particle swarm (Kennedy and
+//!    Eberhart 1995), seeded with `ChaCha8Rng::seed_from_u64(ctx.seed)`, in
+//!    the bounds, on the segmented (multiple-shooting) error ([`objective`];
+//!    the free-run one with `segment=0`);
+//! 2. local stages ([`local`]), on the segmented error and then on the
+//!    free-run one: Levenberg-Marquardt (Marquardt 1963,
+//!    [`levenberg_marquardt`]) from each start (the swarm's best, the
+//!    nominal values, the next best particles), then argmin's Nelder-Mead
+//!    (Nelder and Mead 1965) from the best point, restarted with a fresh
+//!    simplex a few times (bounded iterations each).
 //!
 //! The fitted model carries the parameters (with their bounds), the final
 //! cost, and a local sensitivity / confidence estimate from a central
 //! finite-difference Jacobian of the residuals (Gauss-Newton covariance
-//! `s^2 (J^T J)^-1`), in `info.diagnostics`.
+//! `s^2 (J^T J)^-1`, [`sensitivity`]), in `info.diagnostics`
+//! ([`PhysicalDiagnostics`]).
 //!
 //! Priors: `[fixed]`, `[bounds]` and `[[tie]]` on the model's parameter
 //! names. `--na`/`--nb` are ignored. [`bridge`] converts the fitted model
 //! into per-mode discrete-time affine (PWARX) form.
 
 pub mod bridge;
+pub mod diagnostics;
 pub mod fit;
+pub mod levenberg_marquardt;
+pub mod local;
+pub mod objective;
+pub mod parameters;
+pub mod sensitivity;
+pub mod stages;
+pub mod swarm;
 
-pub use fit::{FitReport, ParameterMap, fit_mechanical};
+pub use diagnostics::PhysicalDiagnostics;
+pub use fit::{FitReport, fit_mechanical};
+pub use parameters::ParameterMap;
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
+use hysid_core::options::{CheckOptions, Checked, OptionError};
 use hysid_core::priors::PriorKind;
 use hysid_mechanical::MechanicalModel;
 use std::path::Path;
@@ -84,6 +102,26 @@ hysid_core::backend_options! {
     }
 }
 
+impl CheckOptions for PhysicalOptions {
+    fn check(&self) -> Result<(), OptionError> {
+        if !(self.simplex > 0.0 && self.simplex <= 1.0) {
+            return Err(OptionError::invalid(
+                "simplex",
+                self.simplex,
+                "must be in (0, 1]",
+            ));
+        }
+        if !(self.fd_step > 0.0 && self.fd_step < 0.5) {
+            return Err(OptionError::invalid(
+                "fd_step",
+                self.fd_step,
+                "must be in (0, 0.5)",
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// The `physical` back-end.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Physical;
@@ -97,7 +135,7 @@ impl Identifier for Physical {
     fn identify(
         &self,
         problem: &Problem<'_>,
-        options: &PhysicalOptions,
+        options: &Checked<PhysicalOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let model = if options.model.trim().is_empty() {
@@ -106,13 +144,22 @@ impl Identifier for Physical {
             match Model::load(Path::new(options.model.trim())) {
                 Ok(Model::Mechanical(m)) => m,
                 Ok(other) => {
-                    return Err(IdentifyError::BadData(format!(
-                        "--set model={}: a '{}' model; the physical method needs a 'mechanical' one",
-                        options.model,
-                        other.kind()
+                    return Err(IdentifyError::Options(OptionError::invalid(
+                        "model",
+                        &options.model,
+                        format!(
+                            "a '{}' model; the physical method needs a 'mechanical' one",
+                            other.kind()
+                        ),
                     )));
                 }
-                Err(e) => return Err(IdentifyError::BadData(format!("--set model: {e}"))),
+                Err(e) => {
+                    return Err(IdentifyError::Options(OptionError::invalid(
+                        "model",
+                        &options.model,
+                        e.to_string(),
+                    )));
+                }
             }
         };
         let (fitted, _report) = fit_mechanical(&model, problem.data, problem.priors, options, ctx)
@@ -120,9 +167,10 @@ impl Identifier for Physical {
                 // A model file's structural problems name the file.
                 IdentifyError::BadData(m) if !options.model.trim().is_empty() => {
                     match m.strip_prefix("model: ") {
-                        Some(rest) => IdentifyError::BadData(format!(
-                            "--set model={}: {rest}",
-                            options.model.trim()
+                        Some(rest) => IdentifyError::Options(OptionError::invalid(
+                            "model",
+                            options.model.trim(),
+                            rest,
                         )),
                         None => IdentifyError::BadData(m),
                     }

@@ -9,6 +9,7 @@ use hysid_mechanical::simulate as mechanical;
 use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
+use hysid_model::model::RunStatus;
 use hysid_model::regressors::RegressorSpec;
 use hysid_physical::{HEAD_MODEL_TOML, Physical, bridge, head_model};
 
@@ -116,8 +117,13 @@ fn honours_fixed_ties_and_bounds_and_is_deterministic() {
         m.parameters[m.parameter_index("c1").unwrap()].bounds,
         [600.0, 610.0]
     );
-    assert!(m.info.diagnostics["cost"].as_f64().unwrap().is_finite());
-    assert!(m.info.diagnostics["parameters"]["c1"]["sensitivity"].is_number());
+    assert!(
+        m.info.diagnostics.method["cost"]
+            .as_f64()
+            .unwrap()
+            .is_finite()
+    );
+    assert!(m.info.diagnostics.method["parameters"]["c1"]["sensitivity"].is_number());
     assert_eq!(m.info.method, "physical");
     // Same seed, same bytes; the file reads back.
     let b = run(&d, &pri, &[], 5).unwrap();
@@ -129,8 +135,7 @@ proptest::proptest! {
     #![proptest_config(proptest::prelude::ProptestConfig::with_cases(6))]
     /// For random priors: the fixed value comes back unchanged, the tied
     /// parameters are equal to the last bit, the bounded one stays inside
-    /// its bounds (the prior invariants of `docs/priors.md` for the
-    /// `physical` back-end).
+    /// its bounds.
     #[test]
     fn random_priors_hold_in_the_fitted_model(
         yc in 8.0f64..17.0,
@@ -296,7 +301,7 @@ fn bridge_modes_reproduce_the_simulator_in_their_regime() {
 #[test]
 fn the_termination_of_every_stage_is_recorded_and_an_iteration_limit_reported() {
     let d = data(400, 3);
-    let diag = |m: &Model| m.info().diagnostics.clone();
+    let diag = |m: &Model| m.info().diagnostics.to_map();
     // One Nelder-Mead iteration cannot meet its 1e-12 spread tolerance.
     let m = run(&d, &Priors::default(), &["local_iters=1"], 1).unwrap();
     let g = diag(&m);
@@ -347,4 +352,36 @@ fn a_record_no_candidate_can_simulate_is_a_method_failure() {
             .starts_with("physical: every candidate simulation failed or diverged"),
         "{e}"
     );
+}
+
+#[test]
+fn a_spent_time_budget_is_reported_as_the_status() {
+    let d = data(400, 3);
+    let problem = Problem {
+        data: &d,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors: &Priors::default(),
+        priors_origin: None,
+    };
+    let ctx = RunContext {
+        deadline: Some(std::time::Instant::now()),
+        ..RunContext::quiet(1)
+    };
+    let m = Physical
+        .run(&problem, &Settings::parse(&QUICK).unwrap(), &ctx)
+        .unwrap();
+    assert_eq!(m.info().diagnostics.run_status, RunStatus::TimeBudget);
+    let g = &m.info().diagnostics.to_map();
+    let status = g["status"].as_str().unwrap();
+    assert!(
+        status.starts_with("time budget reached during the particle swarm stage after ")
+            && status.ends_with(" simulations: best parameters found by then"),
+        "{status}"
+    );
+    let t = &g["termination"];
+    assert_eq!(t["particle_swarm"], "time_budget", "{t}");
+    // One LM run per start (2 segmented, 1 free run), each stopped at once.
+    assert_eq!(t["levenberg_marquardt"]["time_budget"], 3, "{t}");
+    assert!(t.get("nelder_mead").is_none(), "{t}");
+    assert!(t.get("last_local_run").is_none(), "{t}");
 }

@@ -1,7 +1,6 @@
-//! Evidence for the `physical` back-end: parameters recovered from data
-//! simulated from `head.toml` with known parameters, both saturations
-//! excited and measurement noise added; `fit_sim` on a fresh validation
-//! record.
+//! Parameters recovered from data simulated from
+//! `head.toml` with known parameters, both saturations excited and
+//! measurement noise added; `fit_sim` on a fresh validation record.
 
 use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::model::Model;
@@ -109,9 +108,9 @@ fn recovers_parameters_and_validates() {
         .unwrap();
     eprintln!(
         "cost at truth {:.6}, fitted {:.6}, evals {}",
-        hysid_physical::fit::simulation_mse(&truth, &truth.values(), &ident),
-        model.info().diagnostics["cost"],
-        model.info().diagnostics["evaluations"]
+        hysid_physical::objective::simulation_mse(&truth, &truth.values(), &ident),
+        model.info().diagnostics.method["cost"],
+        model.info().diagnostics.method["evaluations"]
     );
     let Model::Mechanical(fitted) = &model else {
         panic!("kind {}", model.kind())

@@ -5,9 +5,9 @@ use crate::error::CliError;
 use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
 use hysid_core::backend::{Problem, RunContext};
-use hysid_estimation::pwarx::run_standardized;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::run_standardized;
 use hysid_model::regressors::RegressorSpec;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -58,7 +58,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     let registry = hysid_backends::registry();
     let backend = registry.require(&args.method)?;
-    let settings = Settings::parse(&args.set).map_err(|e| CliError::input(e.to_string()))?;
+    let settings = Settings::parse(&args.set)?;
     let mut priors = match &args.prior {
         Some(p) => Priors::load(p)?,
         None => Priors::default(),
@@ -116,14 +116,11 @@ pub fn run(args: Args) -> Result<()> {
         elapsed.as_secs_f64(),
         args.out.display()
     );
-    // A run cut short by --time-budget (or stopped otherwise) says so.
-    if let Some(status) = model
-        .info()
-        .diagnostics
-        .get("status")
-        .and_then(|s| s.as_str())
-    {
-        eprintln!("hysid: {}: {status}", backend.name());
+    // A run cut short (by --time-budget or an iteration bound), or one with
+    // warnings, says so.
+    let d = &model.info().diagnostics;
+    if d.run_status.cut_short() || !d.status.is_empty() {
+        eprintln!("hysid: {}: {}", backend.name(), d.status.join("; "));
     }
     Ok(())
 }

@@ -1,0 +1,169 @@
+//! The local stages: from each start, Levenberg-Marquardt, then argmin's
+//! Nelder-Mead (Nelder and Mead 1965) restarted with a fresh simplex; first
+//! on the segmented simulation error (when enabled), then on the free-run
+//! one.
+
+use crate::levenberg_marquardt::levenberg_marquardt;
+use crate::stages::{Search, Stage, StageLog, Termination, failed};
+use argmin::core::{Executor, State};
+use argmin::solver::neldermead::NelderMead;
+use hysid_core::backend::IdentifyError;
+
+/// What the local stages found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocalResult {
+    /// The best coordinates of the last (free-run) stage.
+    pub best_z: Vec<f64>,
+    /// The best cost of the segmented stage, when it ran.
+    pub segmented_cost: Option<f64>,
+}
+
+/// Runs the local stages from `best_z` (the first stage also from
+/// `extra_starts`) when there is something to search (`d > 0`,
+/// `local_iters` and `restarts` not 0); each stage starts from the best
+/// point of the previous one.
+pub fn local_stages(
+    search: &Search<'_>,
+    best_z: Vec<f64>,
+    extra_starts: &[Vec<f64>],
+    log: &mut StageLog,
+) -> Result<LocalResult, IdentifyError> {
+    let options = search.options;
+    let mut result = LocalResult {
+        best_z,
+        segmented_cost: None,
+    };
+    let d = search.objective.map.dim();
+    if !(d > 0 && options.local_iters > 0 && options.restarts > 0) {
+        return Ok(result);
+    }
+    // The segmented cost (when enabled), then the free run.
+    let stages: Vec<usize> = if options.segment > 0 {
+        vec![options.segment, 0]
+    } else {
+        vec![0]
+    };
+    search.ctx.progress.start(
+        (options.local_iters * options.restarts * stages.len()) as u64,
+        "physical: Nelder-Mead",
+    );
+    for (i, &segment) in stages.iter().enumerate() {
+        // The first stage starts from every start, the later ones from the best.
+        let from = &result.best_z;
+        let starts: Vec<Vec<f64>> = if i == 0 {
+            std::iter::once(from.clone())
+                .chain(extra_starts.iter().cloned())
+                .collect()
+        } else {
+            vec![from.clone()]
+        };
+        let best = local_stage(search, segment, from, starts, log)?;
+        result.best_z = best.z;
+        if segment > 0 {
+            result.segmented_cost = Some(best.cost);
+        }
+    }
+    search.ctx.progress.finish();
+    Ok(result)
+}
+
+/// The best point of a stage so far.
+struct Best {
+    z: Vec<f64>,
+    cost: f64,
+}
+
+impl Best {
+    /// Keeps `z` when its cost is lower.
+    fn offer(&mut self, z: Vec<f64>, cost: f64) {
+        if cost < self.cost {
+            self.cost = cost;
+            self.z = z;
+        }
+    }
+}
+
+/// One local stage on segments of `segment` samples (0: free run):
+/// Levenberg-Marquardt from each of `starts`, then the Nelder-Mead
+/// restarts from the best point found.
+fn local_stage(
+    search: &Search<'_>,
+    segment: usize,
+    from: &[f64],
+    starts: Vec<Vec<f64>>,
+    log: &mut StageLog,
+) -> Result<Best, IdentifyError> {
+    let options = search.options;
+    let objective = search.objective.with_segment(segment);
+    let mut best = Best {
+        z: from.to_vec(),
+        cost: objective.mse(from),
+    };
+    for start in starts {
+        best.offer(start.clone(), objective.mse(&start));
+        if options.lm_iters == 0 {
+            continue;
+        }
+        let res = |z: &[f64]| objective.residuals(z);
+        let (z, _, stop) = levenberg_marquardt(
+            &res,
+            &start,
+            options.fd_step,
+            options.lm_iters,
+            search.ctx.deadline,
+            search.evals,
+        );
+        log.levenberg_marquardt.push(stop);
+        let c = objective.mse(&z);
+        best.offer(z, c);
+        search.past_deadline(log, Stage::LevenbergMarquardt);
+    }
+    for _ in 0..options.restarts {
+        if search.past_deadline(log, Stage::NelderMead) {
+            break;
+        }
+        let (stop, z) = nelder_mead(search, segment, &best.z)?;
+        search.past_deadline(log, Stage::NelderMead);
+        log.nelder_mead.push(stop);
+        if let Some(z) = z {
+            let c = objective.mse(&z);
+            best.offer(z, c);
+        }
+    }
+    Ok(best)
+}
+
+/// One Nelder-Mead run of at most `local_iters` iterations from a fresh
+/// simplex at `z`: why it stopped and its best point, clamped into the box.
+fn nelder_mead(
+    search: &Search<'_>,
+    segment: usize,
+    z: &[f64],
+) -> Result<(Termination, Option<Vec<f64>>), IdentifyError> {
+    let nm: NelderMead<Vec<f64>, f64> = NelderMead::new(simplex(z, search.options.simplex))
+        .with_sd_tolerance(1e-12)
+        .map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
+    let mut ex = Executor::new(search.problem(segment), nm)
+        .configure(|s| s.max_iters(search.options.local_iters as u64));
+    if let Some(t) = search.timeout() {
+        ex = ex.timeout(t);
+    }
+    let res = ex.run().map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
+    let st = res.state();
+    let best = st
+        .get_best_param()
+        .map(|p| p.iter().map(|x| x.clamp(0.0, 1.0)).collect());
+    Ok((Termination::of_argmin(st.get_termination_reason()), best))
+}
+
+/// The initial simplex at `z`: `z` and, per coordinate, `z` moved by
+/// `size` inwards (so the simplex stays in the box).
+fn simplex(z: &[f64], size: f64) -> Vec<Vec<f64>> {
+    let mut simplex = vec![z.to_vec()];
+    for j in 0..z.len() {
+        let mut p = z.to_vec();
+        p[j] += if p[j] + size <= 1.0 { size } else { -size };
+        simplex.push(p);
+    }
+    simplex
+}

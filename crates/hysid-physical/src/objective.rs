@@ -1,0 +1,272 @@
+//! The simulation-error objective: free-run and segmented (multiple-
+//! shooting) residuals of the event-aware simulation
+//! ([`hysid_mechanical::simulate`]), their mean square, the velocity
+//! thresholds from the measurement noise, and the cost argmin's solvers see.
+
+use crate::parameters::ParameterMap;
+use argmin::core::{CostFunction, Error as ArgminError};
+use hysid_core::backend::Progress;
+use hysid_mechanical::MechanicalModel;
+use hysid_mechanical::simulate as mechanical;
+use hysid_model::data::Dataset;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Cost of a diverged or failed simulation.
+pub const FAILED: f64 = 1e30;
+
+/// Free-run simulation residuals `y(k) - yhat(k)` after the initial state,
+/// as simulated (`None` only when the simulation fails).
+pub fn free_run_residuals(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+) -> Option<Vec<f64>> {
+    let r = mechanical::run(model, values, data).ok()?;
+    Some(
+        data.y()[r.start + 1..]
+            .iter()
+            .zip(&r.y[r.start + 1..])
+            .map(|(a, b)| a - b)
+            .collect(),
+    )
+}
+
+/// Free-run simulation residuals `y(k) - yhat(k)` after the initial state
+/// (`None` when the simulation fails or diverges).
+pub fn simulation_residuals(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+) -> Option<Vec<f64>> {
+    free_run_residuals(model, values, data).and_then(finite)
+}
+
+/// `e` when it is non-empty and finite.
+fn finite(e: Vec<f64>) -> Option<Vec<f64>> {
+    (!e.is_empty() && e.iter().all(|x| x.is_finite())).then_some(e)
+}
+
+/// Mean square of the residuals; [`FAILED`] when there are none.
+fn mse(e: Option<Vec<f64>>) -> f64 {
+    match e {
+        Some(e) => e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64,
+        None => FAILED,
+    }
+}
+
+/// Mean squared free-run simulation error over the samples after the initial state.
+pub fn simulation_mse(model: &MechanicalModel, values: &[f64], data: &Dataset) -> f64 {
+    mse(simulation_residuals(model, values, data))
+}
+
+/// Velocity thresholds below which an estimated velocity counts as zero
+/// (the mass is taken to be at rest), from the measurement noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VelocityTolerances {
+    /// Output noise standard deviation, estimated.
+    pub noise: f64,
+    /// For [`segment_velocity`] (a 3-point slope).
+    pub centred: f64,
+    /// For the initial-state estimator of the simulator (backward quadratic).
+    pub backward: f64,
+}
+
+/// Estimates the output noise robustly from second differences
+/// (`1.4826 median |d2 y| / sqrt(6)`; quantised records whose samples
+/// repeat while stuck give 0) and sets the thresholds at three standard
+/// deviations of each velocity estimator, plus a floor of `1e-6` of the
+/// output range per second against rounding.
+pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
+    let mut d2: Vec<f64> = y
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    let noise = if d2.is_empty() {
+        0.0
+    } else {
+        let mid = d2.len() / 2;
+        let (_, m, _) = d2.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+        1.4826 * *m / 6f64.sqrt()
+    };
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let floor = 1e-6 * (hi - lo).max(0.0) / ts;
+    // Noise gain of an estimator: the norm of its weights (unit impulses).
+    let gain = |f: &dyn Fn(&[f64]) -> f64| -> f64 {
+        (0..5)
+            .map(|j| {
+                let mut e = [0.0; 5];
+                e[j] = 1.0;
+                f(&e).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt()
+    };
+    let g_c = 0.5f64.sqrt() / ts;
+    let g_b = gain(&|e| mechanical::estimate_velocity(e, 4, ts));
+    VelocityTolerances {
+        noise,
+        centred: 3.0 * noise * g_c + floor,
+        backward: 3.0 * noise * g_b + floor,
+    }
+}
+
+/// Velocity at sample `k` for re-initialising a segment (offline, so it
+/// may look ahead): the slopes `b` over `k-2..=k` and `f` over `k..=k+2`
+/// (clipped to the record) are compared. Both within `tol`, or of opposite
+/// signs: at rest (0). Within a factor 2 of each other: smooth motion,
+/// their mean (the centred slope). Otherwise an event lies in the window
+/// (break-away, impact on a stop) and the smaller one is the velocity at
+/// `k` (0 at a break-away, the stop's 0 after an impact).
+pub fn segment_velocity(y: &[f64], k: usize, ts: f64, tol: f64) -> f64 {
+    let n = y.len();
+    let slope = |a: usize, b: usize| {
+        if b > a {
+            (y[b] - y[a]) / ((b - a) as f64 * ts)
+        } else {
+            0.0
+        }
+    };
+    let b = slope(k.saturating_sub(2), k);
+    let f = slope(k, (k + 2).min(n - 1));
+    let (ab, af) = (b.abs(), f.abs());
+    if (ab <= tol && af <= tol) || b * f < 0.0 {
+        return 0.0;
+    }
+    if k < 2 {
+        return f;
+    }
+    if k + 2 >= n {
+        return b;
+    }
+    let (lo, hi) = if ab < af { (ab, af) } else { (af, ab) };
+    if hi <= 2.0 * lo {
+        0.5 * (b + f)
+    } else if ab < af {
+        b
+    } else {
+        f
+    }
+}
+
+/// The segmented (multiple-shooting) simulation error: the record is cut
+/// into segments of `segment` samples, each simulated from the state
+/// measured at its start (position, [`segment_velocity`]). Errors do not
+/// accumulate across segments, so the cost is much smoother in the
+/// parameters than the free-run error; it serves the global stage.
+pub fn segmented_mse(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+    segment: usize,
+    velocity_tol: f64,
+) -> f64 {
+    mse(segmented_residuals(
+        model,
+        values,
+        data,
+        segment,
+        velocity_tol,
+    ))
+}
+
+/// The residuals of [`segmented_mse`].
+pub fn segmented_residuals(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+    segment: usize,
+    velocity_tol: f64,
+) -> Option<Vec<f64>> {
+    let ts = data.ts?;
+    let r = model.resolve_with(values);
+    let n_sub = mechanical::substeps(ts, model.internal_step).ok()?;
+    let y = data.y();
+    let n = y.len();
+    let mut u = vec![0.0; data.inputs.len()];
+    let mut e = Vec::with_capacity(n);
+    let mut s = 0;
+    while s + 1 < n {
+        for (i, x) in u.iter_mut().enumerate() {
+            *x = data.inputs[i].values[s];
+        }
+        let v = segment_velocity(y, s, ts, velocity_tol);
+        let mut st = r.state_at(y[s], v, &u);
+        for k in s..(s + segment.max(1)).min(n - 1) {
+            for (i, x) in u.iter_mut().enumerate() {
+                *x = data.inputs[i].values[k];
+            }
+            r.advance(&mut st, &u, ts, n_sub);
+            e.push(y[k + 1] - st.y);
+        }
+        s += segment.max(1);
+    }
+    finite(e)
+}
+
+/// The simulation error as a function of the normalised coordinates `z`:
+/// the free-run error (`segment == 0`) or the segmented one.
+#[derive(Clone, Copy)]
+pub struct Objective<'a> {
+    /// 0: free-run error; else the segment length of the segmented error.
+    pub segment: usize,
+    /// Rest threshold of [`segment_velocity`] ([`VelocityTolerances::centred`]).
+    pub velocity_tol: f64,
+    /// The model whose parameters are fitted.
+    pub model: &'a MechanicalModel,
+    /// The record.
+    pub data: &'a Dataset,
+    /// Coordinates to parameter values.
+    pub map: &'a ParameterMap,
+}
+
+impl Objective<'_> {
+    /// The same objective on segments of `segment` samples (0: free run).
+    pub fn with_segment(self, segment: usize) -> Self {
+        Self { segment, ..self }
+    }
+
+    /// The residuals at `z` (`None` when the simulation fails or diverges).
+    pub fn residuals(&self, z: &[f64]) -> Option<Vec<f64>> {
+        let v = self.map.values(z);
+        if self.segment == 0 {
+            simulation_residuals(self.model, &v, self.data)
+        } else {
+            segmented_residuals(self.model, &v, self.data, self.segment, self.velocity_tol)
+        }
+    }
+
+    /// The mean squared error at `z` ([`FAILED`] when the simulation fails).
+    pub fn mse(&self, z: &[f64]) -> f64 {
+        mse(self.residuals(z))
+    }
+}
+
+/// [`Objective`] as argmin's cost, counting evaluations and reporting
+/// progress, with a penalty outside the box `[0, 1]^d`.
+pub struct SimulationCost<'a> {
+    /// The objective.
+    pub objective: Objective<'a>,
+    /// Progress reporter (one step per evaluation).
+    pub progress: &'a dyn Progress,
+    /// Evaluation counter shared by the stages.
+    pub evals: &'a AtomicU64,
+}
+
+impl CostFunction for SimulationCost<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+
+    fn cost(&self, z: &Vec<f64>) -> Result<f64, ArgminError> {
+        self.evals.fetch_add(1, Ordering::Relaxed);
+        self.progress.advance(1);
+        // Outside the box: the clamped point's cost plus a penalty that
+        // points back inside (Nelder-Mead is unconstrained).
+        let out: f64 = z.iter().map(|x| (x - x.clamp(0.0, 1.0)).powi(2)).sum();
+        let c = self.objective.mse(z);
+        Ok(c * (1.0 + 10.0 * out) + out)
+    }
+}

@@ -1,0 +1,233 @@
+//! The free-parameter vector: how the normalised coordinates `z in [0, 1]^d`
+//! of the search map onto the model's parameters under the priors
+//! (`[fixed]`, `[bounds]`, `[[tie]]`), and back.
+
+use hysid_core::priors::Priors;
+use hysid_mechanical::MechanicalModel;
+
+/// How the free coordinates `z in [0, 1]^d` map onto the model's parameters:
+/// fixed parameters keep their value, tied ones share a coordinate, each
+/// coordinate spans its (intersected) bounds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParameterMap {
+    /// Value of every parameter when `z` is not involved (fixed ones).
+    pub base: Vec<f64>,
+    /// Per free coordinate: the parameters it sets.
+    pub groups: Vec<Vec<usize>>,
+    /// Per free coordinate: `[low, high]`.
+    pub bounds: Vec<[f64; 2]>,
+    /// Per parameter: its bounds after priors.
+    pub param_bounds: Vec<[f64; 2]>,
+    /// Parameter names.
+    pub names: Vec<String>,
+}
+
+impl ParameterMap {
+    /// Builds the map from the model (its `fixed` flags and bounds) and the
+    /// priors (`[fixed]`, `[bounds]`, `[[tie]]`), checking every name.
+    pub fn new(model: &MechanicalModel, priors: &Priors) -> Result<Self, String> {
+        let names = model.parameter_names();
+        let idx = |n: &str, entry: &str| {
+            model.parameter_index(n).ok_or_else(|| {
+                format!(
+                    "prior {entry}: unknown parameter '{n}' (known: {})",
+                    names.join(", ")
+                )
+            })
+        };
+        let mut base = model.values();
+        let mut bounds: Vec<[f64; 2]> = model.parameters.iter().map(|p| p.bounds).collect();
+        let mut fixed: Vec<bool> = model.parameters.iter().map(|p| p.fixed).collect();
+        for (n, [lo, hi]) in &priors.bounds {
+            let i = idx(n, "[bounds]")?;
+            bounds[i] = [*lo, *hi];
+        }
+        for (n, v) in &priors.fixed {
+            let i = idx(n, "[fixed]")?;
+            base[i] = *v;
+            fixed[i] = true;
+        }
+        let ties = priors
+            .tie
+            .iter()
+            .map(|t| t.params.iter().map(|n| idx(n, "[[tie]]")).collect())
+            .collect::<Result<Vec<Vec<usize>>, String>>()?;
+        let mut free_groups = Vec::new();
+        let mut free_bounds = Vec::new();
+        for g in tie_groups(names.len(), &ties) {
+            let group = Group {
+                members: &g,
+                names: &names,
+                fixed: &fixed,
+                bounds: &bounds,
+            };
+            if let Some(b) = group.settle(&mut base)? {
+                free_groups.push(g);
+                free_bounds.push(b);
+            }
+        }
+        for (g, b) in free_groups.iter().zip(&free_bounds) {
+            for &i in g {
+                bounds[i] = *b;
+            }
+        }
+        Ok(Self {
+            base,
+            groups: free_groups,
+            bounds: free_bounds,
+            param_bounds: bounds,
+            names,
+        })
+    }
+
+    /// Number of free coordinates.
+    pub fn dim(&self) -> usize {
+        self.groups.len()
+    }
+
+    /// Parameter values for `z` (clamped into `[0, 1]`).
+    pub fn values(&self, z: &[f64]) -> Vec<f64> {
+        let mut v = self.base.clone();
+        for ((g, [lo, hi]), zi) in self.groups.iter().zip(&self.bounds).zip(z) {
+            let x = lo + (hi - lo) * zi.clamp(0.0, 1.0);
+            for &i in g {
+                v[i] = x;
+            }
+        }
+        v
+    }
+
+    /// Normalised coordinates of the parameter values `values`.
+    pub fn coords(&self, values: &[f64]) -> Vec<f64> {
+        self.groups
+            .iter()
+            .zip(&self.bounds)
+            .map(|(g, [lo, hi])| {
+                if hi > lo {
+                    ((values[g[0]] - lo) / (hi - lo)).clamp(0.0, 1.0)
+                } else {
+                    0.5
+                }
+            })
+            .collect()
+    }
+
+    /// `model` with the parameter values `values`, the bounds after priors,
+    /// and `fixed` set on every parameter no free coordinate moves.
+    pub fn apply(&self, model: &MechanicalModel, values: &[f64]) -> MechanicalModel {
+        let mut fitted = model.clone();
+        for (i, (p, (v, b))) in fitted
+            .parameters
+            .iter_mut()
+            .zip(values.iter().zip(&self.param_bounds))
+            .enumerate()
+        {
+            p.value = *v;
+            p.bounds = *b;
+            p.fixed = !self.groups.iter().any(|g| g.contains(&i));
+        }
+        fitted
+    }
+
+    /// Names of the parameters whose free coordinate lies within `1e-6` of
+    /// its range from either bound, in coordinate order.
+    pub fn at_bound(&self, values: &[f64]) -> Vec<String> {
+        let mut at_bound = Vec::new();
+        for (g, [lo, hi]) in self.groups.iter().zip(&self.bounds) {
+            let v = values[g[0]];
+            if (v - lo).abs() <= 1e-6 * (hi - lo) || (hi - v).abs() <= 1e-6 * (hi - lo) {
+                at_bound.extend(g.iter().map(|&i| self.names[i].clone()));
+            }
+        }
+        at_bound
+    }
+}
+
+/// The classes of the tie relation over `n` parameters (union-find over
+/// the `[[tie]]` lists `ties`), each in ascending order, ordered by their
+/// first member.
+fn tie_groups(n: usize, ties: &[Vec<usize>]) -> Vec<Vec<usize>> {
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(p: &mut [usize], i: usize) -> usize {
+        let mut r = i;
+        while p[r] != r {
+            r = p[r];
+        }
+        p[i] = r;
+        r
+    }
+    for ids in ties {
+        for w in ids.windows(2) {
+            let (a, b) = (find(&mut parent, w[0]), find(&mut parent, w[1]));
+            if a != b {
+                parent[b.max(a)] = a.min(b);
+            }
+        }
+    }
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut roots: Vec<usize> = Vec::new();
+    for i in 0..n {
+        let r = find(&mut parent, i);
+        match roots.iter().position(|&x| x == r) {
+            Some(g) => groups[g].push(i),
+            None => {
+                roots.push(r);
+                groups.push(vec![i]);
+            }
+        }
+    }
+    groups
+}
+
+/// One class of tied parameters, with the priors' flags and bounds.
+struct Group<'a> {
+    members: &'a [usize],
+    names: &'a [String],
+    fixed: &'a [bool],
+    bounds: &'a [[f64; 2]],
+}
+
+impl Group<'_> {
+    /// Sets the group's common starting value in `base` and returns its
+    /// free range, or `None` when a fixed member fixes the whole group.
+    fn settle(&self, base: &mut [f64]) -> Result<Option<[f64; 2]>, String> {
+        let g = self.members;
+        let fixed_members: Vec<usize> = g.iter().copied().filter(|&i| self.fixed[i]).collect();
+        if let Some(&f) = fixed_members.first() {
+            // A tie with a fixed member fixes the whole group.
+            for &i in &fixed_members {
+                if base[i] != base[f] {
+                    return Err(format!(
+                        "prior [[tie]]: '{}' and '{}' are tied but fixed to different values",
+                        self.names[f], self.names[i]
+                    ));
+                }
+            }
+            for &i in g {
+                base[i] = base[f];
+            }
+            return Ok(None);
+        }
+        let lo = g
+            .iter()
+            .map(|&i| self.bounds[i][0])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let hi = g
+            .iter()
+            .map(|&i| self.bounds[i][1])
+            .fold(f64::INFINITY, f64::min);
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+            let who: Vec<&str> = g.iter().map(|&i| self.names[i].as_str()).collect();
+            return Err(format!(
+                "prior: the bounds of [{}] leave no admissible value",
+                who.join(", ")
+            ));
+        }
+        // A tied group starts from the mean of its nominal values, clamped.
+        let start = (g.iter().map(|&i| base[i]).sum::<f64>() / g.len() as f64).clamp(lo, hi);
+        for &i in g {
+            base[i] = start;
+        }
+        Ok(Some([lo, hi]))
+    }
+}

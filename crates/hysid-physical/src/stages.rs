@@ -1,0 +1,143 @@
+//! What the stages of the search share: the search context (objective,
+//! options, run context, evaluation counter), the time budget, and why each
+//! run of each stage stopped.
+
+use crate::PhysicalOptions;
+use crate::objective::{Objective, SimulationCost};
+use argmin::core::TerminationReason;
+use hysid_core::backend::{IdentifyError, RunContext};
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::AtomicU64;
+use std::time::{Duration, Instant};
+
+/// Why an iterative stage of the fit stopped (recorded per stage in the
+/// model's `info.diagnostics.method["termination"]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Termination {
+    /// The stage's own convergence test held (Nelder-Mead: the simplex's
+    /// cost spread below its tolerance; Levenberg-Marquardt: a relative
+    /// decrease below 1e-9).
+    Converged,
+    /// Levenberg-Marquardt: no step decreased the cost, even with a
+    /// damping of 1e8 (a local minimum, or a flat or failing simulation).
+    NoDecrease,
+    /// The iteration limit of the stage (`swarm_iters`, `lm_iters`,
+    /// `local_iters`) was reached first.
+    MaxIterations,
+    /// `--time-budget` ran out.
+    TimeBudget,
+    /// Anything else (argmin's other reasons; a start whose simulation failed).
+    Other,
+}
+
+impl Termination {
+    /// The name written in the diagnostics.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Termination::Converged => "converged",
+            Termination::NoDecrease => "no_decrease",
+            Termination::MaxIterations => "max_iterations",
+            Termination::TimeBudget => "time_budget",
+            Termination::Other => "other",
+        }
+    }
+
+    /// The termination of an argmin run, from its reason.
+    pub(crate) fn of_argmin(r: Option<&TerminationReason>) -> Self {
+        match r {
+            Some(TerminationReason::SolverConverged | TerminationReason::TargetCostReached) => {
+                Termination::Converged
+            }
+            Some(TerminationReason::MaxItersReached) => Termination::MaxIterations,
+            Some(TerminationReason::Timeout) => Termination::TimeBudget,
+            _ => Termination::Other,
+        }
+    }
+}
+
+/// A stage of the search.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Stage {
+    /// The global stage: argmin's particle swarm.
+    ParticleSwarm,
+    /// The Levenberg-Marquardt run from each start of a local stage.
+    LevenbergMarquardt,
+    /// The Nelder-Mead restarts of a local stage.
+    NelderMead,
+}
+
+impl Stage {
+    /// The stage's name in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::ParticleSwarm => "particle swarm",
+            Stage::LevenbergMarquardt => "Levenberg-Marquardt",
+            Stage::NelderMead => "Nelder-Mead",
+        }
+    }
+}
+
+/// Why each run of each stage stopped, in order, and the stage during
+/// which the time budget ran out, if it did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StageLog {
+    /// The particle swarm, when it ran.
+    pub particle_swarm: Option<Termination>,
+    /// Every Levenberg-Marquardt run.
+    pub levenberg_marquardt: Vec<Termination>,
+    /// Every Nelder-Mead run; the last one (on the free-run cost) decides
+    /// whether the result counts as converged.
+    pub nelder_mead: Vec<Termination>,
+    /// The first stage found past the deadline.
+    pub cut_short: Option<Stage>,
+}
+
+/// The context every stage runs in.
+pub struct Search<'a> {
+    /// The simulation error (its `segment` is set per stage).
+    pub objective: Objective<'a>,
+    /// The back-end's options.
+    pub options: &'a PhysicalOptions,
+    /// Seed, progress and deadline.
+    pub ctx: &'a RunContext<'a>,
+    /// Simulations run so far (argmin's cost calls and Levenberg-Marquardt's).
+    pub evals: &'a AtomicU64,
+}
+
+impl Search<'_> {
+    /// argmin's problem: the objective on segments of `segment` samples
+    /// (0: free run), counting evaluations.
+    pub fn problem(&self, segment: usize) -> SimulationCost<'_> {
+        SimulationCost {
+            objective: self.objective.with_segment(segment),
+            progress: self.ctx.progress,
+            evals: self.evals,
+        }
+    }
+
+    /// Time left before the deadline, for argmin's executor.
+    pub fn timeout(&self) -> Option<Duration> {
+        self.ctx
+            .deadline
+            .map(|t| t.saturating_duration_since(Instant::now()))
+    }
+
+    /// Whether the deadline has passed; if so, `stage` is recorded in
+    /// `log` as cut short (unless an earlier stage was).
+    pub fn past_deadline(&self, log: &mut StageLog, stage: Stage) -> bool {
+        let past = self.ctx.deadline.is_some_and(|t| Instant::now() >= t);
+        if past {
+            log.cut_short.get_or_insert(stage);
+        }
+        past
+    }
+}
+
+/// A failure of the method (not of its input).
+pub fn failed(message: impl Into<String>) -> IdentifyError {
+    IdentifyError::Failed {
+        method: "physical".into(),
+        message: message.into(),
+    }
+}
