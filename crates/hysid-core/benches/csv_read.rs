@@ -54,7 +54,7 @@ fn data(rows: usize) -> String {
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
-        if state % 50 == 0 || k == 0 {
+        if state.is_multiple_of(50) || k == 0 {
             u = (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
         }
         y = 0.95 * y + 0.05 * u;

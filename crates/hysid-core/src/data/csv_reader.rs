@@ -331,20 +331,20 @@ mod tests {
         let mut line = 2;
         let mut bad_line = 0;
         for r in 1..=rows {
-            if r % 997 == 0 || r == bad {
+            if r.is_multiple_of(997) || r == bad {
                 text.push_str(if r % 3 == 1 { "\r\n\r\n" } else { "\n\n" });
                 line += 2;
             }
             let row = if r == bad {
                 bad_line = line;
                 bad_row.to_string()
-            } else if r % 13 == 0 {
+            } else if r.is_multiple_of(13) {
                 format!("{r},\"two\nlines, quoted\",{},-{}", r % 7, r % 5)
             } else {
                 format!("{r},,{}.5,{}e-3", r % 7, r % 11)
             };
             text.push_str(&row);
-            text.push_str(if r % 3 == 0 { "\r\n" } else { "\n" });
+            text.push_str(if r.is_multiple_of(3) { "\r\n" } else { "\n" });
             line += 1 + row.matches('\n').count();
         }
         (text, bad_line)
