@@ -16,7 +16,8 @@ pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> 
 
 /// The file line (1-based) on which a record starts. The csv crate's own
 /// line count is off after blank lines and with CRLF endings; its byte
-/// offset points at the blank lines skipped before the record.
+/// offset points at the blank lines skipped before the record. This scans
+/// the file up to the record, so it is only called to word an error.
 fn line_of(bytes: &[u8], rec: &csv::StringRecord, fallback: usize) -> usize {
     let Some(start) = rec.position().map(|p| p.byte() as usize) else {
         return fallback;
@@ -32,12 +33,32 @@ fn line_of(bytes: &[u8], rec: &csv::StringRecord, fallback: usize) -> usize {
         .count()
 }
 
+/// The message of the csv crate's own error for a record that is not UTF-8
+/// (what reading it as a `StringRecord` with `Trim::All` reports): `pos` is
+/// the reader's position before the record, `raw` the record as read,
+/// untrimmed, and `err` its validation error.
+fn utf8_message(pos: &csv::Position, mut raw: csv::ByteRecord, err: &csv::Utf8Error) -> String {
+    // The field and byte index are those of the ASCII-trimmed record.
+    raw.trim();
+    let trimmed = csv::StringRecord::from_byte_record(raw).err();
+    let err = trimmed.as_ref().map_or(err, csv::FromUtf8Error::utf8_error);
+    format!(
+        "CSV parse error: record {} (line {}, field: {}, byte: {}): {err}",
+        pos.record(),
+        pos.line(),
+        err.field(),
+        pos.byte(),
+    )
+}
+
 /// Same as [`read`] on the file's bytes; `path` only names it in errors.
 pub(crate) fn read_from(bytes: &[u8], path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> {
+    // Only the header row is trimmed by the reader (its trimming allocates
+    // twice per record); data cells are trimmed below, the kept ones only.
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .flexible(true)
-        .trim(csv::Trim::All)
+        .trim(csv::Trim::Headers)
         .from_reader(bytes);
     let parse_err = |location: String, message: String| DataError::Parse {
         path: path.to_path_buf(),
@@ -77,20 +98,37 @@ pub(crate) fn read_from(bytes: &[u8], path: &Path, wanted: &[&str]) -> Result<Ra
         .filter(|&i| wanted.contains(&names[i].as_str()))
         .collect();
     let mut cols: Vec<Vec<f64>> = vec![Vec::new(); keep.len()];
-    for (r, rec) in rdr.records().enumerate() {
-        let row = r + 1;
-        let rec = rec.map_err(|e| parse_err(format!("row {row}: "), e.to_string()))?;
+    // One record buffer for the whole file: read as bytes, then checked to
+    // be UTF-8 in place (the same check `StringRecord` reading makes).
+    let mut raw = csv::ByteRecord::new();
+    let mut row = 0;
+    loop {
+        let pos = rdr.position().clone();
+        let more = rdr
+            .read_byte_record(&mut raw)
+            .map_err(|e| parse_err(format!("row {}: ", row + 1), e.to_string()))?;
+        if !more {
+            break;
+        }
+        row += 1;
+        let rec = csv::StringRecord::from_byte_record(std::mem::take(&mut raw)).map_err(|e| {
+            let err = e.utf8_error().clone();
+            parse_err(
+                format!("row {row}: "),
+                utf8_message(&pos, e.into_byte_record(), &err),
+            )
+        })?;
         // Blank lines are skipped, so the file line comes from the reader.
-        let line = line_of(bytes, &rec, row + 1);
+        let line = || line_of(bytes, &rec, row + 1);
         if rec.len() != names.len() {
             return Err(parse_err(
-                format!("row {row} (line {line}): "),
+                format!("row {row} (line {}): ", line()),
                 format!("{} fields, the header has {}", rec.len(), names.len()),
             ));
         }
         for (slot, &c) in keep.iter().enumerate() {
-            let cell = &rec[c];
-            let loc = || format!("row {row} (line {line}), column '{}': ", names[c]);
+            let cell = rec[c].trim();
+            let loc = || format!("row {row} (line {}), column '{}': ", line(), names[c]);
             if cell.is_empty() {
                 return Err(parse_err(loc(), "empty cell".into()));
             }
@@ -102,6 +140,7 @@ pub(crate) fn read_from(bytes: &[u8], path: &Path, wanted: &[&str]) -> Result<Ra
             }
             cols[slot].push(v);
         }
+        raw = rec.into_byte_record();
     }
     if cols.first().is_some_and(Vec::is_empty) || (keep.is_empty() && names.is_empty()) {
         return Err(parse_err(
@@ -136,9 +175,10 @@ pub(crate) fn read_from(bytes: &[u8], path: &Path, wanted: &[&str]) -> Result<Ra
 
 #[cfg(test)]
 mod tests {
-    use crate::load;
+    use crate::{DataFormat, load, load_bytes};
     use hysid_model::data::{DataError, DataSelection};
     use std::io::Write;
+    use std::path::Path;
 
     fn csv(text: &str) -> tempfile::NamedTempFile {
         let mut f = tempfile::Builder::new().suffix(".csv").tempfile().unwrap();
@@ -225,5 +265,120 @@ mod tests {
             ..Default::default()
         };
         assert!(matches!(load(f.path(), &sel), Err(DataError::Selection(_))));
+    }
+
+    /// The whole message, for inputs whose wording depends on how cells are
+    /// trimmed and validated.
+    fn message(bytes: &[u8]) -> String {
+        load_bytes(
+            bytes,
+            DataFormat::Csv,
+            Path::new("x.csv"),
+            &DataSelection::default(),
+        )
+        .unwrap_err()
+        .to_string()
+    }
+
+    #[test]
+    fn exact_messages() {
+        for (bytes, expected) in [
+            (
+                &b"u,y\n1,2\n3,  \xe94\n"[..],
+                "x.csv: row 2: CSV parse error: record 2 (line 3, field: 1, byte: 8): \
+                 invalid utf-8: invalid UTF-8 in field 1 near byte index 0",
+            ),
+            (
+                b"u,y,z\n1,2,3\n3,4,\xc3\n\xa9\n",
+                "x.csv: row 2: CSV parse error: record 2 (line 3, field: 2, byte: 12): \
+                 invalid utf-8: invalid UTF-8 in field 2 near byte index 0",
+            ),
+            (
+                b"u,y\n1,2\n\"3\n\",\" 4\"\n5,\"a\nb\"\n",
+                "x.csv: row 3 (line 5), column 'y': 'a\nb' is not a number",
+            ),
+            (
+                b"u,y\n  1 , 2 \n3,\t4\xc2\xa0\n5,6\xc2\xa0x\n",
+                "x.csv: row 3 (line 4), column 'y': '6\u{a0}x' is not a number",
+            ),
+            (
+                b" u , y \n1,2\n3,\xe2\x80\x83\n",
+                "x.csv: row 2 (line 3), column 'y': empty cell",
+            ),
+            (
+                b"u,y\n1,2\n3,4\n\"5,6\n",
+                "x.csv: row 3 (line 4): 1 fields, the header has 2",
+            ),
+            (
+                b"u,y\n1,2\n3,-infinity\n",
+                "x.csv: row 2 (line 3), column 'y': non-finite value '-infinity'",
+            ),
+        ] {
+            assert_eq!(
+                message(bytes),
+                expected,
+                "{:?}",
+                String::from_utf8_lossy(bytes)
+            );
+        }
+    }
+
+    /// A file of `rows` data rows with blank lines (also just before row
+    /// `bad`), CRLF endings and quoted cells spanning lines, whose row `bad`
+    /// holds `bad_row`; returns the text and the file line on which row
+    /// `bad` starts.
+    fn long_file(rows: usize, bad: usize, bad_row: &str) -> (String, usize) {
+        let mut text = String::from("t,note,u,y\n");
+        let mut line = 2;
+        let mut bad_line = 0;
+        for r in 1..=rows {
+            if r.is_multiple_of(997) || r == bad {
+                text.push_str(if r % 3 == 1 { "\r\n\r\n" } else { "\n\n" });
+                line += 2;
+            }
+            let row = if r == bad {
+                bad_line = line;
+                bad_row.to_string()
+            } else if r.is_multiple_of(13) {
+                format!("{r},\"two\nlines, quoted\",{},-{}", r % 7, r % 5)
+            } else {
+                format!("{r},,{}.5,{}e-3", r % 7, r % 11)
+            };
+            text.push_str(&row);
+            text.push_str(if r.is_multiple_of(3) { "\r\n" } else { "\n" });
+            line += 1 + row.matches('\n').count();
+        }
+        (text, bad_line)
+    }
+
+    #[test]
+    fn line_numbers_stay_right_deep_into_a_long_file() {
+        let (text, line) = long_file(60_000, 50_000, "50000,\"a\nb\",1,oops");
+        // Blank lines and the quoted newlines before row 50 000 put it well
+        // past line 50 001.
+        assert!(line > 50_001 + 3_000, "{line}");
+        assert_eq!(
+            message(text.as_bytes()),
+            format!("x.csv: row 50000 (line {line}), column 'y': 'oops' is not a number")
+        );
+        // Here the rows end in CRLF, and so do the blank lines before it.
+        let (text, line) = long_file(60_000, 49_999, "49999,x,1");
+        assert_eq!(
+            message(text.as_bytes()),
+            format!("x.csv: row 49999 (line {line}): 3 fields, the header has 4")
+        );
+        let (text, _) = long_file(60_000, 0, "");
+        let d = load_bytes(
+            text.as_bytes(),
+            DataFormat::Csv,
+            Path::new("x.csv"),
+            &DataSelection::default(),
+        )
+        .unwrap();
+        assert_eq!(d.len(), 60_000);
+        assert_eq!(d.u(0)[12], 6.0);
+        assert_eq!(d.y()[12], -3.0);
+        assert_eq!(d.y()[59_999], 6e-3);
+        assert_eq!(d.ts, Some(1.0));
     }
 }
