@@ -322,7 +322,7 @@ fn scalar(v: &str) -> toml::Value {
 /// Declares a back-end's options struct: fields with documented defaults.
 ///
 /// ```
-/// crate::backend_options! {
+/// hysid_core::backend_options! {
 ///     /// Options of an example back-end.
 ///     pub struct ExampleOptions {
 ///         /// Ridge added to the normal equations.
@@ -331,7 +331,7 @@ fn scalar(v: &str) -> toml::Value {
 ///         restarts: usize = 15,
 ///     }
 /// }
-/// use crate::options::BackendOptions;
+/// use hysid_core::options::BackendOptions;
 /// assert_eq!(ExampleOptions::default().restarts, 15);
 /// assert_eq!(ExampleOptions::specs()[1].default, "15");
 /// ```
@@ -448,7 +448,10 @@ mod tests {
             .resolve::<T>("m")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("--set c=abc") && e.contains("int"), "{e}");
+        assert!(e.contains("option c=abc") && e.contains("int"), "{e}");
+        // The CLI words the same error as `--set`.
+        let cli = OptionError::invalid("c", 3, "must be at least 4").render("--set");
+        assert_eq!(cli, "--set c=3: must be at least 4");
         let e = Settings::parse(&["features=svm"])
             .unwrap()
             .resolve::<T>("m")
