@@ -5,7 +5,6 @@
 //! collinear regressors give the minimum-norm solution instead of garbage
 //! or a crash.
 
-use faer_ext::{IntoFaer, IntoNalgebra};
 use nalgebra::{DMatrix, DVector};
 
 /// A least-squares solution.
@@ -57,10 +56,13 @@ fn thin_svd(a: &DMatrix<f64>) -> Result<ThinSvd, LinalgError> {
             rank: 0,
         });
     }
-    let fa: faer::MatRef<'_, f64> = a.view_range(.., ..).into_faer();
+    // nalgebra stores a DMatrix column-major and contiguous, as faer reads it.
+    let fa = faer::MatRef::from_column_major_slice(a.as_slice(), m, n);
     let svd = fa.thin_svd().map_err(|_| LinalgError::NoConvergence)?;
-    let u = svd.U().into_nalgebra().into_owned();
-    let v = svd.V().into_nalgebra().into_owned();
+    let to_nalgebra =
+        |x: faer::MatRef<'_, f64>| DMatrix::from_fn(x.nrows(), x.ncols(), |i, j| x[(i, j)]);
+    let u = to_nalgebra(svd.U());
+    let v = to_nalgebra(svd.V());
     let s: Vec<f64> = svd.S().column_vector().iter().copied().collect();
     let smax = s.iter().fold(0.0f64, |x, &y| x.max(y));
     let tol = (m.max(n) as f64) * f64::EPSILON * smax;
