@@ -242,6 +242,10 @@ fn local_fit(n: usize, a: FitArgs<'_>) -> (bool, f64) {
 /// Builds the local datasets and feature vectors of the regression problem
 /// `y_k = theta' [x_k; 1]` (`x` row-major with `n` columns). Requires
 /// `n + 2 <= c <= N` and `n <= MAX_DIM` (checked by the caller).
+///
+/// A numerical kernel kept in one piece: the hot loop over the samples
+/// reuses one set of scratch buffers (neighbours, Gram matrix, scatter) for
+/// every local dataset, which is what keeps it allocation-free.
 pub fn feature_vectors(
     x: &[f64],
     n: usize,

@@ -298,6 +298,10 @@ impl<'a> Simplex<'a> {
 
     /// Runs the simplex over the terms of the rows `set` until optimal
     /// there, with at most `max_pivots` pivots in total.
+    ///
+    /// A numerical kernel kept in one piece: pricing, the ratio test and the
+    /// pivot update act on one factorised basis and read as one simplex
+    /// iteration.
     pub(crate) fn optimise(
         &mut self,
         set: &[usize],

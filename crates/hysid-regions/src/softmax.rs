@@ -21,6 +21,10 @@ const MAX_NEWTON: usize = 100;
 const DECREMENT_TOL: f64 = 1e-12;
 
 /// Per mode `[w (p); g]` (last mode all zeros) and the number of Newton steps.
+///
+/// A numerical kernel kept in one piece: the objective, gradient, Hessian
+/// and line search share the score and probability buffers of one Newton
+/// iteration, and splitting them would pass those buffers through every call.
 pub(crate) fn fit(
     prep: &Prepared,
     labels: &[usize],
