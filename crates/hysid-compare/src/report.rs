@@ -447,11 +447,17 @@ pub fn markdown(c: &Comparison) -> String {
         if let Some(k) = r.report.as_ref().and_then(|v| v.diverged_at) {
             note = format!("simulation diverged at sample {k}");
         }
-        if let Some(holes) = r.model.as_ref().and_then(holes_note) {
+        let model_notes = r.model.as_ref().map(|m| {
+            [holes_note(m), status_note(m)]
+                .into_iter()
+                .flatten()
+                .collect::<Vec<_>>()
+        });
+        for extra in model_notes.into_iter().flatten() {
             note = if note.is_empty() {
-                holes
+                extra
             } else {
-                format!("{note}; {holes}")
+                format!("{note}; {extra}")
             };
         }
         let _ = writeln!(
@@ -538,6 +544,13 @@ pub fn markdown(c: &Comparison) -> String {
     s
 }
 
+/// What the back-end said about its run (cut short, warnings), as
+/// `hysid identify` prints it.
+fn status_note(m: &Model) -> Option<String> {
+    let d = &m.info().diagnostics;
+    (d.run_status.cut_short() || !d.status.is_empty()).then(|| d.status.join("; "))
+}
+
 /// "regions leave holes" when the back-end reported an incomplete partition
 /// (`regions_complete = false`, e.g. HIT's pairwise `psvc` regions), with
 /// the uncovered fraction of the data box when known.
@@ -605,6 +618,27 @@ fn mode_recovery_table(s: &mut String, c: &Comparison) {
 mod tests {
     use super::*;
     use hysid_model::model::{Stop, StopBound};
+
+    /// A run cut short or with warnings gets its status in the report's
+    /// note; a completed run without messages gets none.
+    #[test]
+    fn status_notes_come_from_the_typed_diagnostics() {
+        use hysid_model::model::{ModelInfo, RunStatus};
+        let mut m = PwarxModel {
+            na: 1,
+            nb: 1,
+            inputs: 1,
+            modes: vec![],
+            info: ModelInfo::default(),
+        };
+        assert_eq!(status_note(&Model::Pwarx(m.clone())), None);
+        m.info.diagnostics.run_status = RunStatus::IterationLimit;
+        m.info.diagnostics.status = vec!["iteration limit reached".into()];
+        assert_eq!(
+            status_note(&Model::Pwarx(m)).as_deref(),
+            Some("iteration limit reached")
+        );
+    }
 
     #[test]
     fn units_come_from_the_labels() {
