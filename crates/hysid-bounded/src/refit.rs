@@ -13,10 +13,7 @@
 //! the tie-break selects `[0 .. 0 y_sat]` (ours, not in the paper).
 
 use crate::samples::Samples;
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
-};
+use hysid_estimation::conic::{self, Cone, Program, Settings, Triplets};
 use hysid_estimation::constrained::{Parametrisation, Slot};
 use hysid_estimation::linalg;
 use nalgebra::{DMatrix, DVector};
@@ -102,6 +99,17 @@ pub fn chebyshev(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
     chebyshev_lp(s, idx)
 }
 
+/// The clarabel settings of the Chebyshev LPs: 200 iterations at most,
+/// clarabel's default tolerances. A solve that fails (any status but
+/// `Solved` and `AlmostSolved`, the policy of `hysid_estimation::conic`)
+/// gives `None`.
+fn lp_settings() -> Settings {
+    Settings {
+        max_iter: 200,
+        ..Settings::default()
+    }
+}
+
 /// The Chebyshev LP on all of `idx` at once.
 fn chebyshev_lp(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
     let p = s.p;
@@ -123,62 +131,42 @@ fn chebyshev_lp(s: &Samples, idx: &[usize]) -> Option<ChebyshevFit> {
         *sj = (*sj / n as f64).sqrt().max(1e-12);
     }
     let rows = 2 * n + 2 * nslope;
-    let nnz = 2 * n * (p + 1) + 4 * nslope;
-    let (mut ii, mut jj, mut vv) = (
-        Vec::with_capacity(nnz),
-        Vec::with_capacity(nnz),
-        Vec::with_capacity(nnz),
-    );
+    let mut a = Triplets::default();
     let mut b = Vec::with_capacity(rows);
     for (r, &k) in idx.iter().enumerate() {
         let phi = s.row(k);
         for (j, &v) in phi.iter().enumerate() {
-            if v != 0.0 {
-                ii.push(2 * r);
-                jj.push(j);
-                vv.push(v);
-                ii.push(2 * r + 1);
-                jj.push(j);
-                vv.push(-v);
-            }
+            a.push(2 * r, j, v);
+            a.push(2 * r + 1, j, -v);
         }
-        ii.push(2 * r);
-        jj.push(t_col);
-        vv.push(-1.0);
-        ii.push(2 * r + 1);
-        jj.push(t_col);
-        vv.push(-1.0);
+        a.push(2 * r, t_col, -1.0);
+        a.push(2 * r + 1, t_col, -1.0);
         b.push(s.y[k]);
         b.push(-s.y[k]);
     }
     for j in 0..nslope {
         let r = 2 * n + 2 * j;
         let w = p + 1 + j;
-        ii.extend([r, r, r + 1, r + 1]);
-        jj.extend([j, w, j, w]);
-        vv.extend([1.0, -1.0, -1.0, -1.0]);
+        a.push(r, j, 1.0);
+        a.push(r, w, -1.0);
+        a.push(r + 1, j, -1.0);
+        a.push(r + 1, w, -1.0);
         b.extend([0.0, 0.0]);
     }
-    let a = CscMatrix::new_from_triplets(rows, nvar, ii, jj, vv);
-    let pm = CscMatrix::<f64>::zeros((nvar, nvar));
     let mut q = vec![0.0; nvar];
     q[t_col] = 1.0;
     for j in 0..nslope {
         q[p + 1 + j] = TIE_BREAK * scale[j];
     }
-    let cones = [NonnegativeConeT(rows)];
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .max_iter(200)
-        .build()
-        .ok()?;
-    let mut solver = DefaultSolver::new(&pm, &q, &a, &b, &cones, settings).ok()?;
-    solver.solve();
-    match solver.solution.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => {}
-        _ => return None,
-    }
-    let theta: Vec<f64> = solver.solution.x[..p].to_vec();
+    let program = Program {
+        p: Triplets::default(),
+        q,
+        a,
+        b,
+        cones: vec![Cone::Nonnegative(rows)],
+    };
+    let sol = conic::solve(program, &lp_settings()).ok()?;
+    let theta: Vec<f64> = sol.x[..p].to_vec();
     if theta.iter().any(|v| !v.is_finite()) {
         return None;
     }
@@ -363,22 +351,16 @@ fn chebyshev_joint_lp(
         let scale = (sum_sq[v] / count[v].max(1) as f64).sqrt().max(1e-12);
         q[col] = TIE_BREAK * scale;
     }
-    let Rows { ii, jj, vv, b } = rows;
-    let a = CscMatrix::new_from_triplets(b.len(), nvar, ii, jj, vv);
-    let pm = CscMatrix::<f64>::zeros((nvar, nvar));
-    let cones = [NonnegativeConeT(b.len())];
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .max_iter(200)
-        .build()
-        .ok()?;
-    let mut solver = DefaultSolver::new(&pm, &q, &a, &b, &cones, settings).ok()?;
-    solver.solve();
-    match solver.solution.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => {}
-        _ => return None,
-    }
-    let x = &solver.solution.x[..nx];
+    let Rows { a, b } = rows;
+    let program = Program {
+        p: Triplets::default(),
+        q,
+        cones: vec![Cone::Nonnegative(b.len())],
+        a,
+        b,
+    };
+    let sol = conic::solve(program, &lp_settings()).ok()?;
+    let x = &sol.x[..nx];
     if x.iter().any(|v| !v.is_finite()) {
         return None;
     }
@@ -416,12 +398,10 @@ pub fn least_squares(s: &Samples, idx: &[usize]) -> Option<Vec<f64>> {
     theta.iter().all(|v| v.is_finite()).then_some(theta)
 }
 
-/// Inequality rows `A x <= b` for clarabel's nonnegative cone, as triplets.
+/// Inequality rows `A x <= b` (a nonnegative cone).
 #[derive(Default)]
 struct Rows {
-    ii: Vec<usize>,
-    jj: Vec<usize>,
-    vv: Vec<f64>,
+    a: Triplets,
     b: Vec<f64>,
 }
 
@@ -430,16 +410,10 @@ impl Rows {
     fn push(&mut self, cx: &[f64], sign: f64, t: Option<usize>, rhs: f64) {
         let r = self.b.len();
         for (u, &c) in cx.iter().enumerate() {
-            if c != 0.0 {
-                self.ii.push(r);
-                self.jj.push(u);
-                self.vv.push(sign * c);
-            }
+            self.a.push(r, u, sign * c);
         }
         if let Some(t) = t {
-            self.ii.push(r);
-            self.jj.push(t);
-            self.vv.push(-1.0);
+            self.a.push(r, t, -1.0);
         }
         self.b.push(rhs);
     }

@@ -27,11 +27,8 @@
 //! them) are an error naming the first `[[equality]]` that contradicts the
 //! entries before it.
 
+use crate::conic::{self, Cone, Program, Settings, SolveError, Triplets};
 use crate::linalg::{self, LinalgError};
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-};
 use hysid_core::priors::{Equality, Priors};
 use hysid_model::regressors::RegressorSpec;
 use nalgebra::{DMatrix, DVector};
@@ -76,15 +73,8 @@ pub enum EstimationError {
     #[error(transparent)]
     Linalg(#[from] LinalgError),
     /// The bounded QP was not solved.
-    #[error(
-        "bounded least squares: clarabel stopped with status {status} after {iterations} iterations"
-    )]
-    Solver {
-        /// clarabel's status.
-        status: String,
-        /// Iterations used.
-        iterations: u32,
-    },
+    #[error("bounded least squares: {0}")]
+    Solver(#[from] SolveError),
 }
 
 impl Parametrisation {
@@ -478,44 +468,29 @@ fn qp_lstsq(
     for (v, dv) in d.iter().enumerate() {
         a_s.column_mut(v).scale_mut(*dv);
     }
-    let (mut a_rows, mut a_cols, mut a_vals) = (Vec::new(), Vec::new(), Vec::new());
+    let mut a = Triplets::default();
     for i in 0..a_s.nrows() {
         for j in 0..nx {
-            if a_s[(i, j)] != 0.0 {
-                a_rows.push(i);
-                a_cols.push(j);
-                a_vals.push(a_s[(i, j)]);
-            }
+            a.push(i, j, a_s[(i, j)]);
         }
     }
     let m = b.len();
-    let a = CscMatrix::new_from_triplets(m, nx, a_rows, a_cols, a_vals);
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .max_iter(200)
-        .tol_gap_abs(1e-12)
-        .tol_gap_rel(1e-12)
-        .tol_feas(1e-12)
-        .build()
-        .expect("static clarabel settings are valid");
-    let cones = [SupportedConeT::NonnegativeConeT(m)];
-    let mut solver = DefaultSolver::new(&p, &q, &a, b, &cones, settings).map_err(|e| {
-        EstimationError::Solver {
-            status: format!("setup failed: {e}"),
-            iterations: 0,
-        }
-    })?;
-    solver.solve();
-    let sol = &solver.solution;
-    match sol.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => {
-            Ok(sol.x.iter().zip(&d).map(|(x, dv)| x * dv).collect())
-        }
-        status => Err(EstimationError::Solver {
-            status: format!("{status:?}"),
-            iterations: sol.iterations,
-        }),
-    }
+    let settings = Settings {
+        max_iter: 200,
+        tol_gap_abs: 1e-12,
+        tol_gap_rel: 1e-12,
+        tol_feas: 1e-12,
+        ..Settings::default()
+    };
+    let program = Program {
+        p,
+        q,
+        a,
+        b: b.to_vec(),
+        cones: vec![Cone::Nonnegative(m)],
+    };
+    let sol = conic::solve(program, &settings)?;
+    Ok(sol.x.iter().zip(&d).map(|(x, dv)| x * dv).collect())
 }
 
 impl Parametrisation {
@@ -559,60 +534,44 @@ fn bounded_lstsq(
     z_mat: &DMatrix<f64>,
     r: &DVector<f64>,
 ) -> Result<Vec<f64>, EstimationError> {
-    let nz = par.n_free();
     let (d, p, q) = scaled_objective(z_mat, r);
-    let (mut a_rows, mut a_cols, mut a_vals, mut b) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut a = Triplets::default();
+    let mut b = Vec::new();
     for (v, dv) in d.iter().enumerate() {
         if par.upper[v].is_finite() {
-            a_rows.push(b.len());
-            a_cols.push(v);
-            a_vals.push(*dv);
+            a.push(b.len(), v, *dv);
             b.push(par.upper[v]);
         }
         if par.lower[v].is_finite() {
-            a_rows.push(b.len());
-            a_cols.push(v);
-            a_vals.push(-dv);
+            a.push(b.len(), v, -dv);
             b.push(-par.lower[v]);
         }
     }
     let m = b.len();
-    let a = CscMatrix::new_from_triplets(m, nz, a_rows, a_cols, a_vals);
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .max_iter(200)
-        .tol_gap_abs(1e-12)
-        .tol_gap_rel(1e-12)
-        .build()
-        .expect("static clarabel settings are valid");
-    let cones = [SupportedConeT::NonnegativeConeT(m)];
-    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings).map_err(|e| {
-        EstimationError::Solver {
-            status: format!("setup failed: {e}"),
-            iterations: 0,
-        }
-    })?;
-    solver.solve();
-    let sol = &solver.solution;
-    match sol.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => {
-            let mut z: Vec<f64> = sol.x.iter().zip(&d).map(|(x, dv)| x * dv).collect();
-            par.clamp(&mut z);
-            Ok(z)
-        }
-        status => Err(EstimationError::Solver {
-            status: format!("{status:?}"),
-            iterations: sol.iterations,
-        }),
-    }
+    let settings = Settings {
+        max_iter: 200,
+        tol_gap_abs: 1e-12,
+        tol_gap_rel: 1e-12,
+        ..Settings::default()
+    };
+    let program = Program {
+        p,
+        q,
+        a,
+        b,
+        cones: vec![Cone::Nonnegative(m)],
+    };
+    let sol = conic::solve(program, &settings)?;
+    let mut z: Vec<f64> = sol.x.iter().zip(&d).map(|(x, dv)| x * dv).collect();
+    par.clamp(&mut z);
+    Ok(z)
 }
 
 /// The least-squares objective `|M x - r|^2` as clarabel's QP in scaled
 /// variables `x = D xi`, `D = diag(1 / |M_col|)` (1 for empty columns):
 /// returns `D`'s diagonal, `P = (MD)'(MD)` (upper triangle) and
 /// `q = -(MD)' r`.
-fn scaled_objective(m: &DMatrix<f64>, r: &DVector<f64>) -> (Vec<f64>, CscMatrix<f64>, Vec<f64>) {
+fn scaled_objective(m: &DMatrix<f64>, r: &DVector<f64>) -> (Vec<f64>, Triplets, Vec<f64>) {
     let d: Vec<f64> = (0..m.ncols())
         .map(|v| {
             let n = m.column(v).norm();
@@ -628,26 +587,22 @@ fn scaled_objective(m: &DMatrix<f64>, r: &DVector<f64>) -> (Vec<f64>, CscMatrix<
     (d, gram_upper(&h), q)
 }
 
-/// The upper triangle of the Gram matrix `h` as clarabel's `P` (CSC), with
-/// a tiny ridge (1e-12) on empty diagonal entries: an empty column keeps
-/// `P` definite there.
-fn gram_upper(h: &DMatrix<f64>) -> CscMatrix<f64> {
+/// The upper triangle of the Gram matrix `h` as clarabel's `P`, with a
+/// tiny ridge (1e-12) on empty diagonal entries: an empty column keeps `P`
+/// definite there.
+fn gram_upper(h: &DMatrix<f64>) -> Triplets {
     let n = h.ncols();
-    let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
+    let mut p = Triplets::default();
     for c in 0..n {
         for r in 0..=c {
             let mut v = h[(r, c)];
             if r == c && v == 0.0 {
                 v = 1e-12;
             }
-            if v != 0.0 {
-                rows.push(r);
-                cols.push(c);
-                vals.push(v);
-            }
+            p.push(r, c, v);
         }
     }
-    CscMatrix::new_from_triplets(n, n, rows, cols, vals)
+    p
 }
 
 #[cfg(test)]
@@ -782,7 +737,7 @@ mod tests {
             };
             let t = match fit_modes(&par, &samples(&d)) {
                 Ok(t) => t,
-                Err(EstimationError::Solver { .. }) if with_bound => return Ok(()), // infeasible box
+                Err(EstimationError::Solver(_)) if with_bound => return Ok(()), // infeasible box
                 Err(e) => return Err(TestCaseError::fail(e.to_string())),
             };
             for m in &t {

@@ -2,15 +2,18 @@
 //!
 //! The estimation pieces PWARX back-ends share: mode parameters by
 //! (weighted) least squares under the gray-box priors (ties, fixed values,
-//! linear equalities, bounds), and dense linear algebra. faer lives only in
-//! [`linalg`], clarabel only in [`constrained`].
+//! linear equalities, bounds), dense linear algebra, and the one wrapper
+//! around the conic solver. faer lives only in [`linalg`], clarabel only in
+//! [`conic`].
 //!
 //! | module | concept |
 //! |---|---|
+//! | [`conic`] | LPs and QPs on clarabel: `Program`, `Settings`, `solve`, and the status policy |
 //! | [`constrained`] | `Parametrisation` of the priors, mode fits under them |
 //! | [`linalg`] | SVD least squares, weighted and equality-constrained (faer) |
 //! | [`pwarx`] | the set-up and assembly every PWARX back-end shares |
 
+pub mod conic;
 pub mod constrained;
 pub mod linalg;
 pub mod pwarx;

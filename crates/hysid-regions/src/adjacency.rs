@@ -2,9 +2,8 @@
 //! mixed-point reattribution of the clustering procedure, which only moves a
 //! point to an adjacent mode.
 
-use crate::RegionError;
-use crate::solver::{self, Context, Program, Triplets};
-use clarabel::solver::SupportedConeT::{NonnegativeConeT, ZeroConeT};
+use crate::{Context, RegionError};
+use hysid_estimation::conic::{Cone, Program, Triplets};
 use hysid_model::geometry::Polyhedron;
 
 /// Symmetric adjacency matrix of a pairwise partition inside the box
@@ -105,23 +104,24 @@ pub fn adjacency(
                 q,
                 a,
                 b,
-                cones: vec![ZeroConeT(1), NonnegativeConeT(rows - 1)],
+                cones: vec![Cone::Zero(1), Cone::Nonnegative(rows - 1)],
             };
             let ctx = Context {
                 method: "adjacency",
                 points: 0,
                 round: 1,
             };
-            match solver::solve(prog, &ctx) {
+            let (variables, rows) = (prog.variables(), prog.rows());
+            match crate::solve_program(prog) {
                 Ok(sol) => {
                     let t = sol.x[d];
                     adj[i][j] = t > 1e-9 * (1.0 + size);
                     adj[j][i] = adj[i][j];
                 }
-                Err(RegionError::Solver { status, .. })
-                    if status.contains("PrimalInfeasible") || status.contains("DualInfeasible") => {
-                }
-                Err(e) => return Err(e),
+                // No point on the common hyperplane (or none the LP can
+                // bound): the pair shares no facet.
+                Err(e) if e.is_certificate() => {}
+                Err(e) => return Err(RegionError::from_solve(e, &ctx, variables, rows)),
             }
         }
     }

@@ -49,6 +49,7 @@
 //! assert!(p.regions[0].contains(&[-0.5]) && p.regions[1].contains(&[0.5]));
 //! ```
 
+use hysid_estimation::conic::{self, Program, Settings, Solution, SolveError};
 use hysid_model::geometry::Polyhedron;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
@@ -59,7 +60,6 @@ mod adjacency;
 mod psvc;
 mod simplex;
 mod softmax;
-mod solver;
 mod working_set;
 
 hysid_core::option_enum! {
@@ -245,6 +245,59 @@ pub enum RegionError {
         /// Second mode.
         j: usize,
     },
+}
+
+/// Where a region program is solved, for error messages.
+pub(crate) struct Context {
+    pub(crate) method: &'static str,
+    pub(crate) points: usize,
+    pub(crate) round: usize,
+}
+
+/// The clarabel settings of every region program: an explicit bound of 300
+/// iterations and 3 iterative-refinement steps per linear solve (the other
+/// fields are clarabel's defaults).
+pub(crate) fn solver_settings() -> Settings {
+    Settings {
+        max_iter: 300,
+        iterative_refinement_max_iter: 3,
+        ..Settings::default()
+    }
+}
+
+/// Solves a region program with [`solver_settings`]. A solution (`Solved`
+/// or `AlmostSolved`, the policy of `hysid_estimation::conic`) is returned;
+/// a failure is the [`SolveError`].
+pub(crate) fn solve_program(program: Program) -> Result<Solution, SolveError> {
+    conic::solve(program, &solver_settings())
+}
+
+impl RegionError {
+    /// The error of a failed solve of a program with `variables` variables
+    /// and `rows` rows, in the context `ctx`.
+    pub(crate) fn from_solve(e: SolveError, ctx: &Context, variables: usize, rows: usize) -> Self {
+        match e {
+            SolveError::Setup(detail) => RegionError::SolverSetup {
+                method: ctx.method,
+                detail,
+            },
+            e => RegionError::Solver {
+                method: ctx.method,
+                status: e.status().to_string(),
+                iterations: e.iterations(),
+                points: ctx.points,
+                variables,
+                rows,
+                round: ctx.round,
+            },
+        }
+    }
+}
+
+/// [`solve_program`] with a failure as a [`RegionError`] naming `ctx`.
+pub(crate) fn solve_in_context(program: Program, ctx: &Context) -> Result<Solution, RegionError> {
+    let (variables, rows) = (program.variables(), program.rows());
+    solve_program(program).map_err(|e| RegionError::from_solve(e, ctx, variables, rows))
 }
 
 /// Standardised, column-selected data: row-major `n x p`.
@@ -554,5 +607,94 @@ pub fn coverage(
         samples,
         uncovered_fraction: frac(none),
         multiply_covered_fraction: frac(many),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The region programs are feasible by construction (soft margins) and
+    //! no option reaches the iteration bound, so the failure statuses are
+    //! reached here, on a small program, through the `solve_in_context`
+    //! the working-set scheme calls. The status mapping itself is tested in
+    //! `hysid_estimation::conic`.
+    use super::*;
+    use hysid_estimation::conic::{Cone, Triplets};
+
+    const CTX: Context = Context {
+        method: "test",
+        points: 7,
+        round: 2,
+    };
+
+    /// `min x1 + x2` subject to `lo <= x <= hi` (as `A x + s = b`, `s >= 0`).
+    fn boxed(lo: f64, hi: f64) -> Program {
+        let mut a = Triplets::default();
+        for j in 0..2 {
+            a.push(2 * j, j, -1.0); // -x + s = -lo
+            a.push(2 * j + 1, j, 1.0); // x + s = hi
+        }
+        Program {
+            p: Triplets::default(),
+            q: vec![1.0, 1.0],
+            a,
+            b: vec![-lo, hi, -lo, hi],
+            cones: vec![Cone::Nonnegative(4)],
+        }
+    }
+
+    #[test]
+    fn a_feasible_program_is_solved() {
+        let s = solve_in_context(boxed(0.5, 2.0), &CTX).unwrap();
+        assert!(s.x.iter().all(|x| (x - 0.5).abs() < 1e-6), "{:?}", s.x);
+    }
+
+    #[test]
+    fn an_infeasible_program_is_an_error_naming_the_status() {
+        let Err(e) = solve_in_context(boxed(2.0, 0.5), &CTX) else {
+            panic!("an infeasible program was solved");
+        };
+        let m = e.to_string();
+        assert!(
+            matches!(&e, RegionError::Solver { status, .. } if status == "PrimalInfeasible"),
+            "{m}"
+        );
+        assert!(
+            m.starts_with("test: clarabel stopped with status PrimalInfeasible after "),
+            "{m}"
+        );
+        assert!(
+            m.contains("working set of 7 points, 2 variables, 4 rows, round 2"),
+            "{m}"
+        );
+    }
+
+    #[test]
+    fn the_iteration_bound_is_an_error_naming_the_status() {
+        let settings = Settings {
+            max_iter: 1,
+            ..solver_settings()
+        };
+        let e = conic::solve(boxed(0.5, 2.0), &settings).unwrap_err();
+        let e = RegionError::from_solve(e, &CTX, 2, 4);
+        assert!(
+            e.to_string()
+                .starts_with("test: clarabel stopped with status MaxIterations after 1 iterations"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_refused_program_is_a_setup_error() {
+        let mut prog = boxed(0.5, 2.0);
+        prog.cones = vec![Cone::Nonnegative(3)];
+        let Err(e) = solve_in_context(prog, &CTX) else {
+            panic!("a program with inconsistent dimensions was solved");
+        };
+        assert!(matches!(e, RegionError::SolverSetup { .. }), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with("test: clarabel refused the problem ("),
+            "{e}"
+        );
     }
 }

@@ -12,9 +12,8 @@
 //! full program (to the solver's tolerance), not an approximation.
 
 use crate::simplex::Simplex;
-use crate::solver::{self, Context, Program, Triplets};
-use crate::{Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
-use clarabel::solver::SupportedConeT::{NonnegativeConeT, ZeroConeT};
+use crate::{Context, Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
+use hysid_estimation::conic::{Cone, Program, Triplets};
 
 /// Margin below which a point outside the working set counts as having a
 /// non-zero loss and is added (slightly below 1 so that points sitting on
@@ -191,7 +190,7 @@ fn solve_clarabel(
             round,
         };
         let prog = program(prep, labels, modes, weight, quadratic, &set);
-        let sol = solver::solve(prog, &ctx)?;
+        let sol = crate::solve_in_context(prog, &ctx)?;
         stats.solves += 1;
         stats.solver_iterations += u64::from(sol.iterations);
         stats.working_points = set.len();
@@ -510,7 +509,7 @@ fn program(
         q,
         a,
         b,
-        cones: vec![ZeroConeT(zero_rows), NonnegativeConeT(nonneg)],
+        cones: vec![Cone::Zero(zero_rows), Cone::Nonnegative(nonneg)],
     }
 }
 
@@ -599,7 +598,8 @@ mod tests {
                 round: 1,
             };
             let full =
-                solver::solve(program(&prep, &labels, 3, &weight, quadratic, &all), &ctx).unwrap();
+                crate::solve_in_context(program(&prep, &labels, 3, &weight, quadratic, &all), &ctx)
+                    .unwrap();
             let full_blocks: Vec<Vec<f64>> = full.x[..3 * (prep.p + 1)]
                 .chunks(prep.p + 1)
                 .map(<[f64]>::to_vec)
@@ -621,7 +621,8 @@ mod tests {
             points: prep.n,
             round: 1,
         };
-        let full = solver::solve(program(prep, labels, modes, weight, false, &all), &ctx).unwrap();
+        let full = crate::solve_in_context(program(prep, labels, modes, weight, false, &all), &ctx)
+            .unwrap();
         let blocks: Vec<Vec<f64>> = full.x[..modes * (prep.p + 1)]
             .chunks(prep.p + 1)
             .map(<[f64]>::to_vec)
