@@ -10,9 +10,9 @@
 //!   substituted, bounds as constraints). Used by MAX FS (starts, thermal
 //!   relaxation with projection, polish) and by the per-mode refits and
 //!   merges. Ties are trivial for one mode; once the modes share tied
-//!   values, [`Constraints::mode_space`] fixes the tied parameters at the
+//!   values, [`ModeConstraints::mode_space`] fixes the tied parameters at the
 //!   shared values, so a per-mode refit keeps the ties.
-//! - [`Constraints::joint`]: all modes at once, tied parameters as shared
+//! - [`ModeConstraints::joint`]: all modes at once, tied parameters as shared
 //!   variables, for the joint Chebyshev LP ([`crate::refit::chebyshev_joint`])
 //!   and the joint least squares (`hysid_estimation::constrained::fit_modes`).
 
@@ -20,25 +20,27 @@ use crate::refit::{self, ChebyshevFit};
 use crate::samples::Samples;
 use hysid_core::priors::Priors;
 use hysid_estimation::constrained::{ModeSamples, Parametrisation, Slot, fit_modes};
+use hysid_estimation::pwarx::PwarxData;
 use hysid_model::regressors::RegressorSpec;
 use nalgebra::DMatrix;
 
-/// The parameter priors of a run: `[[tie]]`, `[fixed]` and `[bounds]` of a
-/// [`Priors`] for a PWARX structure. The default is no constraint.
+/// The parameter priors of a run that restrict the modes' parameters:
+/// `[[tie]]`, `[fixed]`, `[bounds]` and `[[equality]]` of the priors, for
+/// the PWARX structure of the data. The default is no constraint.
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct Constraints {
-    /// Only the tie, fixed and bounds entries (names checked).
+pub struct ModeConstraints {
+    /// Only the tie, fixed, bounds and equality entries.
     priors: Priors,
     /// The structure (`None`: no constraint at all).
     spec: Option<RegressorSpec>,
 }
 
-impl Constraints {
-    /// The constraints of `priors` for structure `spec`. An unknown name
-    /// ([`Priors::check_pwarx_names`]) or a fixed value outside its bounds
-    /// is an error naming it.
-    pub fn new(priors: &Priors, spec: RegressorSpec) -> Result<Self, String> {
-        priors.check_pwarx_names(&spec)?;
+impl ModeConstraints {
+    /// The constraints of the priors of `data` (their names were checked by
+    /// [`hysid_estimation::pwarx::prepare`]). A fixed value outside its bounds is an error
+    /// naming it.
+    pub fn new(data: &PwarxData<'_>) -> Result<Self, String> {
+        let priors = data.priors();
         let kept = Priors {
             tie: priors.tie.clone(),
             fixed: priors.fixed.clone(),
@@ -49,10 +51,10 @@ impl Constraints {
         if kept == Priors::default() {
             return Ok(Self::default());
         }
-        Parametrisation::from_priors(&kept, &spec, 1)?;
+        Parametrisation::from_priors(&kept, &data.spec, 1)?;
         Ok(Self {
             priors: kept,
-            spec: Some(spec),
+            spec: Some(data.spec),
         })
     }
 
@@ -114,7 +116,7 @@ impl Constraints {
                 relaxed.tie.clear();
                 Parametrisation::from_priors(&relaxed, &spec, 1)
             })
-            .expect("the priors were checked in Constraints::new");
+            .expect("the priors were checked by ModeConstraints::new");
         let bounds = free_bounds(&pri, &spec, &par);
         ModeSpace {
             p,
@@ -128,7 +130,7 @@ impl Constraints {
     pub fn joint(&self, modes: usize) -> Option<(Parametrisation, Vec<(f64, f64)>)> {
         let spec = self.spec?;
         let par = Parametrisation::from_priors(&self.priors, &spec, modes)
-            .expect("fixed values within bounds were checked in Constraints::new");
+            .expect("fixed values within bounds were checked in ModeConstraints::new");
         let bounds = free_bounds(&self.priors, &spec, &par);
         Some((par, bounds))
     }
@@ -152,7 +154,7 @@ fn free_bounds(pri: &Priors, spec: &RegressorSpec, par: &Parametrisation) -> Vec
 }
 
 /// The parameter set of one mode: every parameter free or fixed, free
-/// ones boxed (see [`Constraints::mode_space`]).
+/// ones boxed (see [`ModeConstraints::mode_space`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModeSpace {
     p: usize,

@@ -16,6 +16,10 @@
 //! reports the trade-off. `docs/bounded.md` lists every constant and which
 //! parts are the paper's and which are ours.
 //!
+//! The set-up shared by the PWARX back-ends (prior names, regressors, the
+//! samples at known stops, the mode counts) and the assembly of the model
+//! are `hysid_estimation::pwarx`'s; [`fit`] holds the method's steps.
+//!
 //! Priors honoured (`docs/priors.md`, `docs/bounded.md` "Priors"):
 //! all of them. `modes` / `max_modes` count every mode, saturation modes
 //! included; samples at a `[[saturation]]` stop are assigned to that stop
@@ -25,6 +29,7 @@
 //! region normals.
 
 pub mod constraints;
+pub mod fit;
 pub mod maxfs;
 pub mod noise;
 pub mod procedure;
@@ -32,16 +37,16 @@ pub mod refit;
 pub mod samples;
 pub mod sweep;
 
-use constraints::Constraints;
+pub use fit::{BoundedDiagnostics, Classified, fit};
+
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::OptionType;
-use hysid_core::options::{CheckOptions, Checked, OptionError};
+use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
-use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
-use hysid_regions::{RegionMethod, RegionOptions};
-use nalgebra::DMatrix;
-use procedure::{Classification, ProcedureSettings, RefitKind, SampleClass};
+use hysid_estimation::pwarx;
+use hysid_regions::RegionMethod;
+use procedure::{Classification, ProcedureSettings};
 use samples::Samples;
 use serde::{Deserialize, Serialize};
 
@@ -117,7 +122,43 @@ hysid_core::backend_options! {
 
 impl CheckOptions for BoundedOptions {
     fn check(&self) -> Result<(), OptionError> {
-        Ok(())
+        match self.delta {
+            None => {
+                return Err(OptionError::Missing {
+                    key: "delta",
+                    method: Bounded::NAME,
+                    what: "an error bound",
+                    forms: &["<bound in output units>", "auto"],
+                });
+            }
+            Some(Delta::Value(d)) => check_float(
+                "delta",
+                d,
+                |d| d > 0.0,
+                "must be a finite number > 0 (or auto)",
+            )?,
+            Some(Delta::Auto(_)) => {}
+        }
+        if !(1..=100_000).contains(&self.cycles) {
+            return Err(OptionError::invalid(
+                "cycles",
+                self.cycles,
+                "must be in 1..=100000",
+            ));
+        }
+        check_float("t0", self.t0, |t| t > 0.0, "must be a finite number > 0")?;
+        check_float(
+            "alpha",
+            self.alpha,
+            |a| a >= 0.0,
+            "must be a finite number >= 0",
+        )?;
+        check_float(
+            "beta",
+            self.beta,
+            |b| (0.0..1.0).contains(&b),
+            "must be in [0, 1)",
+        )
     }
 }
 
@@ -126,117 +167,9 @@ impl CheckOptions for BoundedOptions {
 pub struct Bounded;
 
 impl Bounded {
-    /// Checks the options and the priors and turns them into procedure
-    /// settings for samples `s` (resolving `delta = auto`).
-    pub fn settings(
-        problem: &Problem<'_>,
-        options: &BoundedOptions,
-        s: &Samples,
-        ctx: &RunContext<'_>,
-    ) -> Result<ProcedureSettings, IdentifyError> {
-        let bad = |m: String| Err(IdentifyError::BadData(m));
-        let delta = match options.delta {
-            None => {
-                return bad("method 'bounded' needs an error bound: --set delta=<bound in output units> or --set delta=auto".into());
-            }
-            Some(Delta::Value(d)) if !(d.is_finite() && d > 0.0) => {
-                return bad(format!(
-                    "--set delta={d}: must be a finite number > 0 (or auto)"
-                ));
-            }
-            Some(Delta::Value(d)) => d,
-            Some(Delta::Auto(_)) => noise::auto_delta(s),
-        };
-        if options.cycles == 0 || options.cycles > 100_000 {
-            return bad(format!(
-                "--set cycles={}: must be in 1..=100000",
-                options.cycles
-            ));
-        }
-        if !(options.t0.is_finite() && options.t0 > 0.0) {
-            return bad(format!(
-                "--set t0={}: must be a finite number > 0",
-                options.t0
-            ));
-        }
-        if !(options.alpha.is_finite() && options.alpha >= 0.0) {
-            return bad(format!(
-                "--set alpha={}: must be a finite number >= 0",
-                options.alpha
-            ));
-        }
-        if !(options.beta.is_finite() && (0.0..1.0).contains(&options.beta)) {
-            return bad(format!("--set beta={}: must be in [0, 1)", options.beta));
-        }
-        let pri = problem.priors;
-        let stops = pri.saturation.len();
-        if let Some(m) = options.max_modes
-            && m <= stops
-        {
-            return bad(format!(
-                "--set max_modes={m}: counts every mode, the {stops} saturation mode(s) included: must be at least {}",
-                stops + 1
-            ));
-        }
-        if pri.modes.is_some_and(|m| m <= stops) || pri.max_modes.is_some_and(|m| m <= stops) {
-            return bad(format!(
-                "prior modes / max_modes must be at least {} (they count the {stops} saturation mode(s))",
-                stops + 1
-            ));
-        }
-        // Counts of ordinary modes (`modes` counts every mode).
-        let max_modes = match (
-            options.max_modes.map(|m| m - stops),
-            pri.max_ordinary_modes(),
-        ) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
-        let exact = pri.ordinary_modes();
-        // An exact count the record cannot hold (each mode needs at least
-        // n + 1 samples) is bad input, as in `cluster`.
-        let rows = problem.data.len().saturating_sub(problem.orders.lag());
-        let p = problem.orders.dim() + 1;
-        if let Some(s_) = exact
-            && s_.checked_mul(p).is_none_or(|need| need > rows)
-        {
-            return bad(format!(
-                "{rows} regressors cannot identify {} modes of {p} parameters",
-                s_ + stops
-            ));
-        }
-        if let (Some(s_), Some(m)) = (exact, max_modes)
-            && s_ > m
-        {
-            return bad(format!(
-                "prior modes = {} exceeds the bound max_modes = {}",
-                s_ + stops,
-                m + stops
-            ));
-        }
-        let constraints = Constraints::new(pri, problem.orders).map_err(IdentifyError::BadData)?;
-        Ok(ProcedureSettings {
-            delta,
-            cycles: options.cycles,
-            t0: options.t0,
-            alpha: options.alpha,
-            beta: options.beta,
-            restarts: options.restarts,
-            refit: match options.refit {
-                Refit::Linf => RefitKind::Linf,
-                Refit::Ls => RefitKind::Ls,
-            },
-            max_modes,
-            exact_modes: exact,
-            seed: ctx.seed,
-            deadline: ctx.deadline,
-            constraints,
-        })
-    }
-
     /// Runs the procedure and returns the classification with the samples
-    /// it was computed on (the ordinary samples: saturated ones removed;
-    /// for tests and the sweep).
+    /// it was computed on (the ordinary samples: saturated ones removed)
+    /// and the settings (for tests, benchmarks and the sweep).
     pub fn classify(
         problem: &Problem<'_>,
         options: &BoundedOptions,
@@ -246,84 +179,17 @@ impl Bounded {
         Ok((c.classification, c.samples, c.settings))
     }
 
-    /// Runs the procedure: samples at a known stop are assigned to it
-    /// first (they never enter MAX FS), the rest are classified.
+    /// Checks the options, then classifies the samples of `problem`
+    /// ([`fit::classify`]): samples at a known stop are assigned to it
+    /// (they never enter MAX FS), the rest are classified.
     pub fn classify_all(
         problem: &Problem<'_>,
         options: &BoundedOptions,
         ctx: &RunContext<'_>,
     ) -> Result<Classified, IdentifyError> {
-        let spec = problem.orders;
-        problem
-            .priors
-            .check_pwarx_names(&spec)
-            .map_err(IdentifyError::BadData)?;
-        let reg = spec
-            .build(problem.data)
-            .map_err(|e| IdentifyError::BadData(e.to_string()))?;
-        let all = Samples::from_regressors(&reg);
-        if all.y.iter().chain(&all.phi).any(|v| !v.is_finite()) {
-            return Err(IdentifyError::BadData(
-                "the record has non-finite samples".into(),
-            ));
-        }
-        let stops = problem.priors.saturated_samples(&all.y);
-        let ordinary: Vec<usize> = (0..all.len()).filter(|&k| stops[k].is_none()).collect();
-        let s = if ordinary.len() == all.len() {
-            all
-        } else {
-            let mut phi = Vec::with_capacity(ordinary.len() * all.p);
-            for &k in &ordinary {
-                phi.extend_from_slice(all.row(k));
-            }
-            Samples::new(all.p, phi, ordinary.iter().map(|&k| all.y[k]).collect())
-        };
-        let set = Self::settings(problem, options, &s, ctx)?;
-        let c = procedure::run(&s, &set).map_err(|e| match e {
-            procedure::ProcedureError::TooFewSamples { .. }
-            | procedure::ProcedureError::Setting(_) => IdentifyError::BadData(e.to_string()),
-            _ => IdentifyError::Failed {
-                method: "bounded".into(),
-                message: e.to_string(),
-            },
-        })?;
-        Ok(Classified {
-            classification: c,
-            samples: s,
-            settings: set,
-            stops,
-            ordinary,
-        })
-    }
-}
-
-/// What [`Bounded::classify_all`] returns.
-#[derive(Debug, Clone)]
-pub struct Classified {
-    /// Classification of the ordinary samples.
-    pub classification: Classification,
-    /// The ordinary samples (saturated ones removed).
-    pub samples: Samples,
-    /// The settings used.
-    pub settings: ProcedureSettings,
-    /// For every regression row of the record, the known stop its target
-    /// sits at (`Priors::saturated_samples`).
-    pub stops: Vec<Option<usize>>,
-    /// Regression row of each ordinary sample.
-    pub ordinary: Vec<usize>,
-}
-
-impl Classified {
-    /// Mode of every regression row of the record: ordinary modes
-    /// `0..s`, then the stops in prior order (`s + stop`), `None` for
-    /// infeasible samples.
-    pub fn row_labels(&self) -> Vec<Option<usize>> {
-        let s = self.classification.thetas.len();
-        let mut out: Vec<Option<usize>> = self.stops.iter().map(|o| o.map(|i| s + i)).collect();
-        for (r, &k) in self.ordinary.iter().enumerate() {
-            out[k] = self.classification.labels[r];
-        }
-        out
+        let options = Checked::new(options.clone())?;
+        let data = pwarx::prepare(problem, Self::NAME)?;
+        fit::classify(&options, &data, ctx).map_err(|e| e.of_method(Self::NAME))
     }
 }
 
@@ -339,143 +205,9 @@ impl Identifier for Bounded {
         options: &Checked<BoundedOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let spec = problem.orders;
-        let all = Self::classify_all(problem, options, ctx)?;
-        let (c, s, set) = (&all.classification, &all.samples, &all.settings);
-        let pri = problem.priors;
-        let names = spec.regressor_names();
-        let switching = (!pri.switching.is_empty()).then(|| {
-            pri.switching
-                .iter()
-                .filter_map(|r| names.iter().position(|n| n == r))
-                .collect::<Vec<usize>>()
-        });
-        let ropt = RegionOptions {
-            method: options.regions,
-            switching,
-            ..Default::default()
-        };
-        let part =
-            hysid_regions::estimate(&regressor_rows(s, c), &labelled(c), c.thetas.len(), &ropt)
-                .map_err(|e| IdentifyError::Failed {
-                    method: "bounded".into(),
-                    message: format!("regions: {e}"),
-                })?;
-        let regions = part.regions;
-        let mut info = ModelInfo::default();
-        let dg = &mut info.diagnostics;
-        dg.method.insert("delta".into(), set.delta.into());
-        dg.method.insert(
-            "delta_auto".into(),
-            matches!(options.delta, Some(Delta::Auto(_))).into(),
-        );
-        dg.method
-            .insert("modes_found".into(), c.thetas.len().into());
-        dg.method
-            .insert("greedy_modes".into(), c.greedy_modes.into());
-        dg.method.insert("samples".into(), all.stops.len().into());
-        if !pri.saturation.is_empty() {
-            let mut per_stop = vec![0usize; pri.saturation.len()];
-            for i in all.stops.iter().flatten() {
-                per_stop[*i] += 1;
-            }
-            dg.method.insert("ordinary_samples".into(), s.len().into());
-            dg.method
-                .insert("saturated_per_stop".into(), serde_json::json!(per_stop));
-        }
-        if let Some(e) = c.tie_projection_error {
-            dg.method.insert("tie_projection_error".into(), e.into());
-            dg.method.insert(
-                "tie_projection_within_delta".into(),
-                (e <= set.delta).into(),
-            );
-        }
-        dg.method
-            .insert("assigned".into(), c.count(SampleClass::Assigned).into());
-        dg.method.insert(
-            "undecidable".into(),
-            c.count(SampleClass::Undecidable).into(),
-        );
-        dg.method
-            .insert("infeasible".into(), c.count(SampleClass::Infeasible).into());
-        dg.method.insert("rounds".into(), c.rounds.into());
-        dg.method.insert("converged".into(), c.converged.into());
-        dg.method.insert("merged".into(), c.merged.into());
-        dg.method.insert("dropped".into(), c.dropped.into());
-        dg.method
-            .insert("max_residual".into(), serde_json::json!(c.max_residual));
-        let mut counts = vec![0usize; c.thetas.len()];
-        for l in c.labels.iter().flatten() {
-            counts[*l] += 1;
-        }
-        dg.method
-            .insert("samples_per_mode".into(), serde_json::json!(counts));
-        dg.method.insert(
-            "region_training_accuracy".into(),
-            part.training_accuracy.into(),
-        );
-        dg.method
-            .insert("partition_complete".into(), part.complete.into());
-        let mut status: Vec<String> = Vec::new();
-        if c.stopped_by_deadline {
-            dg.method.insert("stopped_by_deadline".into(), true.into());
-            status.push(format!(
-                "time budget reached after {} mode extraction(s) and {} refinement round(s): the modes found by then",
-                c.greedy_modes, c.rounds
-            ));
-        }
-        if let Some(e) = c.tie_projection_error
-            && e > set.delta
-        {
-            // The greedy extraction ran with the ties relaxed; imposing them
-            // afterwards did not keep the greedy modes within delta.
-            status.push(format!(
-                "warning: the [[tie]] priors, imposed after the greedy extraction (which relaxes them), \
-                 fit the greedy modes with a largest error of {e:.4} > delta = {}; the refinement \
-                 re-classified the samples under the ties (docs/bounded.md, \"Priors\")",
-                set.delta
-            ));
-        }
-        if !status.is_empty() {
-            dg.method.insert("status".into(), status.join("; ").into());
-        }
-        let pwarx = PwarxModel {
-            na: spec.na,
-            nb: spec.nb,
-            inputs: spec.inputs,
-            modes: c
-                .thetas
-                .iter()
-                .zip(regions)
-                .map(|(t, r)| PwarxMode {
-                    theta: t.clone(),
-                    region: r,
-                    name: None,
-                })
-                .collect(),
-            info,
-        };
-        Ok(if pri.saturation.is_empty() {
-            Model::Pwarx(pwarx)
-        } else {
-            Model::HybridAutomaton(HybridAutomaton::from_pwarx_with_stops(
-                &pwarx,
-                &pri.saturation,
-            ))
-        })
+        let data = pwarx::prepare(problem, Self::NAME)?;
+        Ok(pwarx::assemble(&data, fit(options, &data, ctx)?))
     }
-}
-
-/// Regressors (without the constant) of the labelled samples, as rows.
-fn regressor_rows(s: &Samples, c: &Classification) -> DMatrix<f64> {
-    let rows: Vec<usize> = (0..s.len()).filter(|&k| c.labels[k].is_some()).collect();
-    let d = s.p - 1;
-    DMatrix::from_fn(rows.len(), d, |r, j| s.row(rows[r])[j])
-}
-
-/// Labels of the labelled samples (infeasible samples are left out).
-fn labelled(c: &Classification) -> Vec<usize> {
-    c.labels.iter().flatten().copied().collect()
 }
 
 #[cfg(test)]
@@ -486,6 +218,7 @@ mod tests {
     use hysid_core::priors::Priors;
     use hysid_core::simulate::validate;
     use hysid_model::data::Dataset;
+    use hysid_model::model::{PwarxModel, RunStatus};
     use hysid_model::regressors::RegressorSpec;
 
     fn run(
@@ -544,7 +277,13 @@ mod tests {
         let m = run(&g.data, &Priors::default(), &["delta=0.1"], 7).unwrap();
         let p = pwarx(&m);
         assert_eq!(p.modes.len(), 3);
-        let dg = &m.info().diagnostics.to_map();
+        let common = &m.info().diagnostics;
+        assert_eq!(common.modes, Some(3));
+        assert_eq!(common.samples, Some(299));
+        assert_eq!(common.regions_complete, Some(true));
+        assert_eq!(common.run_status, RunStatus::Completed);
+        assert!(common.status.is_empty(), "{common:?}");
+        let dg = &common.method;
         assert_eq!(dg["modes_found"], 3);
         assert!(
             dg["region_training_accuracy"].as_f64().unwrap() > 0.95,
@@ -662,6 +401,73 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("outside [bounds]"), "{e}");
+    }
+
+    /// A spent time budget ends the run after the first mode extraction:
+    /// `run_status` says so, with the message in `status`.
+    #[test]
+    fn a_spent_time_budget_is_reported() {
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 7);
+        let problem = Problem {
+            data: &g.data,
+            orders: RegressorSpec::new(1, 1, 1),
+            priors: &Priors::default(),
+            priors_origin: None,
+        };
+        let ctx = RunContext {
+            deadline: Some(std::time::Instant::now()),
+            ..RunContext::quiet(7)
+        };
+        let m = Bounded
+            .run(&problem, &Settings::parse(&["delta=0.1"]).unwrap(), &ctx)
+            .unwrap();
+        let dg = &m.info().diagnostics;
+        assert_eq!(dg.run_status, RunStatus::TimeBudget);
+        assert_eq!(
+            dg.status,
+            [
+                "time budget reached after 1 mode extraction(s) and 0 refinement round(s): \
+              the modes found by then"
+            ]
+        );
+        assert_eq!(dg.method["stopped_by_deadline"], true);
+    }
+
+    #[test]
+    fn missing_and_bad_options_are_option_errors() {
+        let g = hysid_testkit::b1(100, 4.0, hysid_testkit::Noise::Uniform(0.1), 4);
+        let e = run(&g.data, &Priors::default(), &[], 1).unwrap_err();
+        let IdentifyError::Options(o) = e else {
+            panic!("{e}")
+        };
+        assert_eq!(
+            o.render("--set"),
+            "method 'bounded' needs an error bound: --set delta=<bound in output units> or --set delta=auto"
+        );
+        for (set, want) in [
+            (
+                "delta=0",
+                "--set delta=0: must be a finite number > 0 (or auto)",
+            ),
+            ("cycles=0", "--set cycles=0: must be in 1..=100000"),
+            ("t0=-1", "--set t0=-1: must be a finite number > 0"),
+            (
+                "alpha=-0.5",
+                "--set alpha=-0.5: must be a finite number >= 0",
+            ),
+            ("beta=1", "--set beta=1: must be in [0, 1)"),
+        ] {
+            let given = if set.starts_with("delta") {
+                vec![set]
+            } else {
+                vec!["delta=0.1", set]
+            };
+            let e = run(&g.data, &Priors::default(), &given, 1).unwrap_err();
+            let IdentifyError::Options(o) = e else {
+                panic!("{set}: {e}")
+            };
+            assert_eq!(o.render("--set"), want);
+        }
     }
 
     #[test]

@@ -14,7 +14,7 @@
 //!    get the majority label of their [`KNN`] nearest assigned neighbours
 //!    (regressor space, standardised), restricted to their candidate modes.
 //!
-//! Parameter priors ([`Constraints`]): fixed values, bounds and
+//! Parameter priors ([`ModeConstraints`]): fixed values, bounds and
 //! `[[equality]]` entries (one mode's parameters each) restrict every
 //! mode's parameter set in MAX FS, refits and merges. Ties couple the
 //! modes, which the one-mode-at-a-time extraction cannot impose: the greedy
@@ -27,7 +27,7 @@
 //! within delta, so every later step keeps the bound), and merges fix the
 //! tied parameters at their shared values (ours, `docs/bounded.md`).
 
-use crate::constraints::{Constraints, ModeSpace, least_squares_joint};
+use crate::constraints::{ModeConstraints, ModeSpace, least_squares_joint};
 use crate::maxfs::{MaxFsSettings, max_fs};
 use crate::refit::chebyshev_joint;
 use crate::samples::Samples;
@@ -75,7 +75,7 @@ pub struct ProcedureSettings {
     /// Stop early (best result so far) after this instant.
     pub deadline: Option<Instant>,
     /// Parameter priors (ties, fixed values, bounds); default none.
-    pub constraints: Constraints,
+    pub constraints: ModeConstraints,
 }
 
 /// Class of a sample after the final classification.
@@ -171,30 +171,96 @@ pub fn min_mode_size(n: usize, p: usize, beta: f64) -> usize {
     ((beta * n as f64).ceil() as usize).max(p).max(1)
 }
 
-/// Runs the procedure on `s`.
+/// Runs the procedure on `s` (the steps of the module documentation).
 pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, ProcedureError> {
-    let n = s.len();
-    let p = s.p;
-    if !(set.delta.is_finite() && set.delta > 0.0) {
-        return Err(ProcedureError::Setting(format!(
-            "delta = {} must be a finite number > 0",
-            set.delta
-        )));
-    }
-    if n < p {
-        return Err(ProcedureError::TooFewSamples {
-            samples: n,
-            params: p,
+    let limits = Limits::of(s, set)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(set.seed);
+    let greedy = greedy_min_pfs(s, set, &limits, &mut rng)?;
+    let greedy_modes = greedy.thetas.len();
+    let tied = set.constraints.has_ties() && greedy_modes > 1;
+    let (thetas, tie_projection_error) = if tied {
+        let (thetas, error) = project_on_ties(s, set, &greedy.groups)?;
+        (thetas, Some(error))
+    } else {
+        (greedy.thetas, None)
+    };
+    let refined = refine(s, set, &limits, thetas, tied);
+    let last = final_classification(s, set.delta, refined.thetas);
+    if let Some(want) = set.exact_modes
+        && last.thetas.len() < want
+    {
+        return Err(ProcedureError::TooFewModes {
+            delta: set.delta,
+            found: last.thetas.len(),
+            wanted: want,
         });
     }
-    let cap = match (set.max_modes, set.exact_modes) {
-        (Some(a), Some(b)) => a.min(b),
-        (a, b) => a.or(b).unwrap_or(usize::MAX),
+    Ok(Classification {
+        max_residual: max_residuals(s, &last.thetas, &last.labels),
+        thetas: last.thetas,
+        labels: last.labels,
+        classes: last.classes,
+        greedy_modes,
+        rounds: refined.rounds,
+        converged: refined.converged,
+        merged: refined.merged,
+        dropped: refined.dropped + last.dropped,
+        stopped_by_deadline: greedy.stopped || refined.stopped,
+        tie_projection_error,
+    })
+}
+
+/// How many modes the procedure may keep, and how small a mode may be.
+struct Limits {
+    /// Most modes the greedy stage extracts (`max_modes`, `modes`).
+    cap: usize,
+    /// Fewest modes the refinement keeps by dropping or merging (`modes`).
+    floor: usize,
+    /// Smallest admissible mode ([`min_mode_size`]).
+    min_size: usize,
+}
+
+impl Limits {
+    fn of(s: &Samples, set: &ProcedureSettings) -> Result<Self, ProcedureError> {
+        if s.len() < s.p {
+            return Err(ProcedureError::TooFewSamples {
+                samples: s.len(),
+                params: s.p,
+            });
+        }
+        let cap = match (set.max_modes, set.exact_modes) {
+            (Some(a), Some(b)) => a.min(b),
+            (a, b) => a.or(b).unwrap_or(usize::MAX),
+        };
+        Ok(Self {
+            cap: cap.max(1),
+            floor: set.exact_modes.unwrap_or(1),
+            min_size: min_mode_size(s.len(), s.p, set.beta),
+        })
     }
-    .max(1);
-    let floor = set.exact_modes.unwrap_or(1);
-    let min_size = min_mode_size(n, p, set.beta);
-    let mut rng = ChaCha8Rng::seed_from_u64(set.seed);
+}
+
+/// What the greedy MIN PFS extracted.
+struct Greedy {
+    /// Parameters of each extracted mode.
+    thetas: Vec<Vec<f64>>,
+    /// The samples each mode satisfied when it was extracted.
+    groups: Vec<Vec<usize>>,
+    /// True when the deadline ended the extraction.
+    stopped: bool,
+}
+
+/// Step 1, MIN PFS by greedy MAX FS (Bemporad et al. 2005, section III):
+/// the `theta` satisfying the most remaining pairs becomes a mode, its
+/// satisfied samples are removed, and so on while a mode of at least the
+/// minimum size is found. Ties are relaxed here.
+fn greedy_min_pfs(
+    s: &Samples,
+    set: &ProcedureSettings,
+    limits: &Limits,
+    rng: &mut ChaCha8Rng,
+) -> Result<Greedy, ProcedureError> {
+    let n = s.len();
     let mfs = MaxFsSettings {
         delta: set.delta,
         cycles: set.cycles,
@@ -202,20 +268,20 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         chebyshev_polish: set.refit == RefitKind::Linf,
         restarts: set.restarts,
     };
-    let mut stopped = false;
-    let relaxed = set.constraints.mode_space(p, None);
-
-    // 1. Greedy MIN PFS (ties relaxed).
-    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let relaxed = set.constraints.mode_space(s.p, None);
+    let mut greedy = Greedy {
+        thetas: Vec::new(),
+        groups: Vec::new(),
+        stopped: false,
+    };
     let mut remaining: Vec<usize> = (0..n).collect();
-    let mut thetas: Vec<Vec<f64>> = Vec::new();
-    while thetas.len() < cap && remaining.len() >= min_size {
-        if past(set.deadline) && !thetas.is_empty() {
-            stopped = true;
+    while greedy.thetas.len() < limits.cap && remaining.len() >= limits.min_size {
+        if past(set.deadline) && !greedy.thetas.is_empty() {
+            greedy.stopped = true;
             break;
         }
-        let fs = max_fs(s, &remaining, &mfs, &relaxed, &mut rng);
-        if fs.members.len() < min_size {
+        let fs = max_fs(s, &remaining, &mfs, &relaxed, rng);
+        if fs.members.len() < limits.min_size {
             break;
         }
         let mut taken = vec![false; n];
@@ -223,120 +289,200 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
             taken[k] = true;
         }
         remaining.retain(|&k| !taken[k]);
-        thetas.push(fs.theta);
-        groups.push(fs.members);
+        greedy.thetas.push(fs.theta);
+        greedy.groups.push(fs.members);
     }
-    if thetas.is_empty() {
+    if greedy.thetas.is_empty() {
         return Err(ProcedureError::NoMode {
             delta: set.delta,
-            min: min_size,
+            min: limits.min_size,
         });
     }
-    let greedy_modes = thetas.len();
-    // 1b. Tie projection: all modes jointly under the ties.
-    let tied = set.constraints.has_ties() && thetas.len() > 1;
-    let mut tie_projection_error = None;
-    if tied {
-        let projected =
-            joint_fit(s, &set.constraints, &groups, set.refit, f64::INFINITY).or_else(|| {
-                let (par, _) = set.constraints.joint(groups.len())?;
-                least_squares_joint(s, &par, &groups)
-            });
-        let Some(projected) = projected else {
-            return Err(ProcedureError::Setting(
-                "the joint fit under the [[tie]] priors failed".into(),
-            ));
-        };
-        thetas = projected;
-        tie_projection_error = Some(
-            groups
-                .iter()
-                .zip(&thetas)
-                .map(|(g, t)| crate::refit::max_residual(s, g, t))
-                .fold(0.0, f64::max),
-        );
-    }
-    let space = |thetas: &[Vec<f64>]| {
-        if tied {
-            set.constraints
-                .mode_space(p, thetas.first().map(Vec::as_slice))
-        } else {
-            relaxed.clone()
-        }
-    };
+    Ok(greedy)
+}
 
-    // 2. Refinement.
+/// Step 1b, the tie projection: all modes fitted jointly under the ties on
+/// the greedy classification `groups` (the joint Chebyshev LP, or joint
+/// least squares when it fails). Returns the parameters and their largest
+/// residual on the groups.
+fn project_on_ties(
+    s: &Samples,
+    set: &ProcedureSettings,
+    groups: &[Vec<usize>],
+) -> Result<(Vec<Vec<f64>>, f64), ProcedureError> {
+    let projected = joint_fit(s, &set.constraints, groups, set.refit, f64::INFINITY)
+        .or_else(|| {
+            let (par, _) = set.constraints.joint(groups.len())?;
+            least_squares_joint(s, &par, groups)
+        })
+        .ok_or_else(|| {
+            ProcedureError::Setting("the joint fit under the [[tie]] priors failed".into())
+        })?;
+    let error = groups
+        .iter()
+        .zip(&projected)
+        .map(|(g, t)| crate::refit::max_residual(s, g, t))
+        .fold(0.0, f64::max);
+    Ok((projected, error))
+}
+
+/// What the refinement left.
+struct Refined {
+    thetas: Vec<Vec<f64>>,
+    rounds: usize,
+    converged: bool,
+    merged: usize,
+    dropped: usize,
+    /// True when the deadline ended the refinement.
+    stopped: bool,
+}
+
+/// Step 2, refinement to a fixed point (at most [`MAX_ROUNDS`] rounds):
+/// each round classifies the samples by `thetas`, then either drops the
+/// smallest mode below the minimum size, or stops at a fixed point, or
+/// re-estimates every mode on its assigned samples and merges the closest
+/// pair within alpha. With `tied`, the modes share the tied values.
+fn refine(
+    s: &Samples,
+    set: &ProcedureSettings,
+    limits: &Limits,
+    thetas: Vec<Vec<f64>>,
+    tied: bool,
+) -> Refined {
+    let relaxed = set.constraints.mode_space(s.p, None);
+    let mut r = Refined {
+        thetas,
+        rounds: 0,
+        converged: false,
+        merged: 0,
+        dropped: 0,
+        stopped: false,
+    };
     let mut prev: Option<Vec<Option<usize>>> = None;
-    let (mut rounds, mut converged, mut merged, mut dropped) = (0, false, 0, 0);
-    while rounds < MAX_ROUNDS {
+    while r.rounds < MAX_ROUNDS {
         if past(set.deadline) {
-            stopped = true;
+            r.stopped = true;
             break;
         }
-        rounds += 1;
-        let assigned = assign(s, &thetas, set.delta);
-        let mut counts = vec![0usize; thetas.len()];
-        for i in assigned.iter().flatten() {
-            counts[*i] += 1;
-        }
-        // Drop the smallest mode below the minimum size (one per round).
-        if thetas.len() > floor
-            && let Some((i, _)) = counts
-                .iter()
-                .enumerate()
-                .filter(|&(_, &c)| c < min_size)
-                .min_by_key(|&(i, &c)| (c, i))
+        r.rounds += 1;
+        let assigned = assign(s, &r.thetas, set.delta);
+        if r.thetas.len() > limits.floor
+            && let Some(i) = smallest_short_mode(&assigned, r.thetas.len(), limits.min_size)
         {
-            thetas.remove(i);
-            dropped += 1;
+            r.thetas.remove(i);
+            r.dropped += 1;
             prev = None;
             continue;
         }
         if prev.as_ref() == Some(&assigned) {
             // Same assignment as after the previous re-estimation: the
             // re-estimate would be the same, a fixed point.
-            converged = true;
+            r.converged = true;
             break;
         }
-        // Re-estimate each mode on its assigned samples (with ties: all
-        // modes jointly, when every mode has at least p samples).
-        if tied {
-            let members: Vec<Vec<usize>> = (0..thetas.len())
-                .map(|i| (0..n).filter(|&k| assigned[k] == Some(i)).collect())
-                .collect();
-            if members.iter().all(|g| g.len() >= p)
-                && let Some(t) = joint_fit(s, &set.constraints, &members, set.refit, set.delta)
-            {
-                thetas = t;
-            }
-        } else {
-            for (i, theta) in thetas.iter_mut().enumerate() {
-                let members: Vec<usize> = (0..n).filter(|&k| assigned[k] == Some(i)).collect();
-                if members.len() < p {
-                    continue;
-                }
-                if let Some(t) = refit(s, &members, set.refit, set.delta, &relaxed) {
-                    *theta = t;
-                }
-            }
-        }
-        // Merge the closest pair within alpha whose union stays certified
-        // (one merge per round).
-        if thetas.len() > floor
-            && let Some((i, j, t)) = mergeable_pair(s, &thetas, &assigned, set, &space(&thetas))
+        reestimate(s, set, &mut r.thetas, &assigned, tied, &relaxed);
+        if r.thetas.len() > limits.floor
+            && let Some((i, j, t)) = mergeable_pair(
+                s,
+                &r.thetas,
+                &assigned,
+                set,
+                &merge_space(set, &relaxed, s.p, &r.thetas, tied),
+            )
         {
-            thetas[i] = t;
-            thetas.remove(j);
-            merged += 1;
+            r.thetas[i] = t;
+            r.thetas.remove(j);
+            r.merged += 1;
             prev = None;
             continue;
         }
         prev = Some(assigned);
     }
-    // 3. Final classification; a mode left without samples (possible when
-    // the round bound stopped the refinement) is removed, since no region
-    // can be estimated for it.
-    let (mut labels, mut classes) = final_labels(s, &thetas, set.delta);
+    r
+}
+
+/// The smallest mode (lowest index among equals) with fewer than
+/// `min_size` assigned samples: the one the refinement drops this round.
+fn smallest_short_mode(assigned: &[Option<usize>], modes: usize, min_size: usize) -> Option<usize> {
+    let mut counts = vec![0usize; modes];
+    for i in assigned.iter().flatten() {
+        counts[*i] += 1;
+    }
+    counts
+        .iter()
+        .enumerate()
+        .filter(|&(_, &c)| c < min_size)
+        .min_by_key(|&(i, &c)| (c, i))
+        .map(|(i, _)| i)
+}
+
+/// The parameter set a merged mode is fitted in: with ties, one mode's
+/// set with the tied parameters at the values the modes share.
+fn merge_space(
+    set: &ProcedureSettings,
+    relaxed: &ModeSpace,
+    p: usize,
+    thetas: &[Vec<f64>],
+    tied: bool,
+) -> ModeSpace {
+    if tied {
+        set.constraints
+            .mode_space(p, thetas.first().map(Vec::as_slice))
+    } else {
+        relaxed.clone()
+    }
+}
+
+/// Re-estimates each mode with at least `p` assigned samples on them
+/// (with ties: all modes jointly, when every mode has `p` samples); a fit
+/// that does not certify delta leaves the mode as it is.
+fn reestimate(
+    s: &Samples,
+    set: &ProcedureSettings,
+    thetas: &mut Vec<Vec<f64>>,
+    assigned: &[Option<usize>],
+    tied: bool,
+    relaxed: &ModeSpace,
+) {
+    let (n, p) = (s.len(), s.p);
+    let members_of =
+        |i: usize| -> Vec<usize> { (0..n).filter(|&k| assigned[k] == Some(i)).collect() };
+    if tied {
+        let members: Vec<Vec<usize>> = (0..thetas.len()).map(members_of).collect();
+        if members.iter().all(|g| g.len() >= p)
+            && let Some(t) = joint_fit(s, &set.constraints, &members, set.refit, set.delta)
+        {
+            *thetas = t;
+        }
+        return;
+    }
+    for (i, theta) in thetas.iter_mut().enumerate() {
+        let members = members_of(i);
+        if members.len() < p {
+            continue;
+        }
+        if let Some(t) = refit(s, &members, set.refit, set.delta, relaxed) {
+            *theta = t;
+        }
+    }
+}
+
+/// The final classification.
+struct Final {
+    thetas: Vec<Vec<f64>>,
+    labels: Vec<Option<usize>>,
+    classes: Vec<SampleClass>,
+    /// Modes left without samples, removed.
+    dropped: usize,
+}
+
+/// Step 3, the final classification with the final parameters
+/// ([`final_labels`]); a mode left without samples (possible when the round
+/// bound stopped the refinement) is removed, since no region can be
+/// estimated for it.
+fn final_classification(s: &Samples, delta: f64, mut thetas: Vec<Vec<f64>>) -> Final {
+    let (mut labels, mut classes) = final_labels(s, &thetas, delta);
+    let mut dropped = 0;
     for _ in 0..thetas.len() {
         let mut counts = vec![0usize; thetas.len()];
         for l in labels.iter().flatten() {
@@ -350,36 +496,25 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         }
         thetas.remove(empty);
         dropped += 1;
-        (labels, classes) = final_labels(s, &thetas, set.delta);
+        (labels, classes) = final_labels(s, &thetas, delta);
     }
-    if let Some(want) = set.exact_modes
-        && thetas.len() < want
-    {
-        return Err(ProcedureError::TooFewModes {
-            delta: set.delta,
-            found: thetas.len(),
-            wanted: want,
-        });
+    Final {
+        thetas,
+        labels,
+        classes,
+        dropped,
     }
+}
+
+/// Largest `|residual|` of each mode over the samples labelled with it.
+fn max_residuals(s: &Samples, thetas: &[Vec<f64>], labels: &[Option<usize>]) -> Vec<f64> {
     let mut maxr = vec![0.0; thetas.len()];
     for (k, l) in labels.iter().enumerate() {
         if let Some(i) = *l {
             maxr[i] = f64::max(maxr[i], s.residual(k, &thetas[i]).abs());
         }
     }
-    Ok(Classification {
-        thetas,
-        labels,
-        classes,
-        greedy_modes,
-        rounds,
-        converged,
-        merged,
-        dropped,
-        max_residual: maxr,
-        stopped_by_deadline: stopped,
-        tie_projection_error,
-    })
+    maxr
 }
 
 /// Re-estimates on `members`; with the Chebyshev fit, the result is only
@@ -406,7 +541,7 @@ fn refit(
 /// squares (`refit = ls`, not certified).
 fn joint_fit(
     s: &Samples,
-    c: &Constraints,
+    c: &ModeConstraints,
     groups: &[Vec<usize>],
     kind: RefitKind,
     bound: f64,

@@ -161,7 +161,9 @@ fn identify_with_provenance(
 ) -> Result<Model, IdentifyError> {
     use hysid_core::options::BackendOptions;
     let checked = hysid_core::options::Checked::new(opts.clone())?;
-    let mut model = Bounded.identify(problem, &checked, ctx)?;
+    let mut model = Bounded
+        .identify(problem, &checked, ctx)
+        .map_err(|e| e.of_method(Bounded::NAME))?;
     let info = model.info_mut();
     info.method = Bounded::NAME.to_string();
     info.options = opts.to_map();

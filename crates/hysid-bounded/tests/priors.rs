@@ -96,7 +96,7 @@ proptest! {
                 prop_assert_eq!(row[0], 0.0, "normal on y1: {:?}", mode.region);
             }
         }
-        let dg = &m.info().diagnostics.to_map();
+        let dg = &m.info().diagnostics.method;
         for r in dg["max_residual"].as_array().unwrap() {
             prop_assert!(r.as_f64().unwrap() <= 0.1 + 1e-9);
         }
@@ -197,13 +197,15 @@ fn saturation_diagnostics_count_the_stops() {
     let id = hysid_testkit::stopped_head(600, 40, 0.01, 3);
     let pri = id.priors();
     let m = run(&id.data, RegressorSpec::new(2, 1, 1), &pri, 0.04, 3).unwrap();
-    let dg = &m.info().diagnostics.to_map();
+    let dg = &m.info().diagnostics;
     let y = id.data.y();
     let want = [0.0, 25.0].map(|l| y[2..].iter().filter(|&&v| v == l).count());
-    assert_eq!(dg["saturated_per_stop"], serde_json::json!(want), "{dg:?}");
-    assert_eq!(dg["modes_found"], 2);
+    assert_eq!(dg.saturated_per_stop.as_deref(), Some(&want[..]), "{dg:?}");
+    assert_eq!(dg.modes, Some(4));
+    assert_eq!(dg.samples, Some(y.len() - 2));
+    assert_eq!(dg.method["modes_found"], 2);
     assert_eq!(
-        dg["ordinary_samples"].as_u64().unwrap() as usize + want[0] + want[1],
+        dg.method["ordinary_samples"].as_u64().unwrap() as usize + want[0] + want[1],
         y.len() - 2
     );
 }

@@ -103,8 +103,9 @@ impl IdentifyError {
         }
     }
 
-    /// The error with the failing method named.
-    fn of_method(self, name: &'static str) -> Self {
+    /// The error with the failing method named (done by [`Backend::run`];
+    /// for callers of [`Identifier::identify`] outside it).
+    pub fn of_method(self, name: &'static str) -> Self {
         match self {
             IdentifyError::Failed {
                 method: "",

@@ -107,6 +107,19 @@ pub enum OptionError {
         /// Parser message.
         message: String,
     },
+    /// A required option that was not given.
+    #[error("{}", self.render("option"))]
+    Missing {
+        /// Key.
+        key: &'static str,
+        /// Back-end.
+        method: &'static str,
+        /// What the option is ("an error bound").
+        what: &'static str,
+        /// The forms a value takes, as shown to users (`<bound in output
+        /// units>`, `auto`).
+        forms: &'static [&'static str],
+    },
     /// A value of the right type outside the option's valid range, found by
     /// the back-end's [`CheckOptions::check`].
     #[error("{}", self.render("option"))]
@@ -150,6 +163,18 @@ impl OptionError {
                 ty,
                 message,
             } => format!("{prefix} {key}={value}: {message} (method '{method}', expected {ty})"),
+            Self::Missing {
+                key,
+                method,
+                what,
+                forms,
+            } => {
+                let given: Vec<String> = forms
+                    .iter()
+                    .map(|f| format!("{prefix} {key}={f}"))
+                    .collect();
+                format!("method '{method}' needs {what}: {}", given.join(" or "))
+            }
             Self::Invalid {
                 key,
                 value,

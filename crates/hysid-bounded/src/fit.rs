@@ -1,0 +1,333 @@
+//! The `bounded` back-end on the shared PWARX set-up: the steps of
+//! Bemporad, Garulli, Paoletti and Vicino, "A bounded-error approach to
+//! piecewise affine system identification", IEEE TAC 50(10), 2005, on the
+//! ordinary samples of a [`PwarxData`].
+//!
+//! [`fit`] = [`classify`] (the error bound delta, then [`procedure::run`]:
+//! greedy MIN PFS by MAX FS, refinement with drops and merges, final
+//! classification) followed by the region estimation of `hysid-regions`.
+
+use crate::constraints::ModeConstraints;
+use crate::procedure::{self, Classification, ProcedureError, ProcedureSettings, RefitKind};
+use crate::samples::Samples;
+use crate::{BoundedOptions, Delta, Refit, noise};
+use hysid_core::backend::{IdentifyError, RunContext};
+use hysid_core::options::OptionError;
+use hysid_estimation::pwarx::{PwarxData, PwarxFit};
+use hysid_model::model::{PwarxMode, RunStatus};
+use hysid_regions::{Partition, RegionOptions};
+use nalgebra::DMatrix;
+use serde::Serialize;
+
+/// What the `bounded` back-end reports besides the common diagnostics
+/// (`docs/bounded.md`, "Diagnostics").
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BoundedDiagnostics {
+    /// The error bound used, output units.
+    pub delta: f64,
+    /// Whether delta was estimated from the data (`delta = auto`).
+    pub delta_auto: bool,
+    /// Ordinary modes found (the stops not counted).
+    pub modes_found: usize,
+    /// Modes extracted by the greedy MIN PFS, before refinement.
+    pub greedy_modes: usize,
+    /// With known stops: the samples at no stop, which the modes are
+    /// identified from.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ordinary_samples: Option<usize>,
+    /// Samples explained by exactly one mode.
+    pub assigned: usize,
+    /// Samples explained by several modes (labelled by nearest neighbours).
+    pub undecidable: usize,
+    /// Samples explained by no mode (outliers).
+    pub infeasible: usize,
+    /// Refinement rounds run.
+    pub rounds: usize,
+    /// Whether the refinement reached a fixed point.
+    pub converged: bool,
+    /// Merges done.
+    pub merged: usize,
+    /// Modes dropped (too few samples).
+    pub dropped: usize,
+    /// Largest `|residual|` of each mode over the samples labelled with it.
+    pub max_residual: Vec<f64>,
+    /// Samples labelled with each mode.
+    pub samples_per_mode: Vec<usize>,
+    /// Fraction of the labelled samples inside their own mode's region.
+    pub region_training_accuracy: f64,
+    /// With ties and several greedy modes: the largest residual of the joint
+    /// fit under the ties on the greedy classification.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tie_projection_error: Option<f64>,
+    /// Whether that error is within delta.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tie_projection_within_delta: Option<bool>,
+    /// Set (true) only when the time budget cut the procedure short.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub stopped_by_deadline: bool,
+}
+
+/// What [`classify`] returns.
+#[derive(Debug, Clone)]
+pub struct Classified {
+    /// Classification of the ordinary samples.
+    pub classification: Classification,
+    /// The ordinary samples (saturated ones removed).
+    pub samples: Samples,
+    /// The settings used.
+    pub settings: ProcedureSettings,
+    /// For every regression row of the record, the known stop its target
+    /// sits at ([`PwarxData::stop_of`]).
+    pub stops: Vec<Option<usize>>,
+    /// Regression row of each ordinary sample ([`PwarxData::ordinary`]).
+    pub ordinary: Vec<usize>,
+}
+
+impl Classified {
+    /// Mode of every regression row of the record: ordinary modes
+    /// `0..s`, then the stops in prior order (`s + stop`), `None` for
+    /// infeasible samples.
+    pub fn row_labels(&self) -> Vec<Option<usize>> {
+        let s = self.classification.thetas.len();
+        let mut out: Vec<Option<usize>> = self.stops.iter().map(|o| o.map(|i| s + i)).collect();
+        for (r, &k) in self.ordinary.iter().enumerate() {
+            out[k] = self.classification.labels[r];
+        }
+        out
+    }
+}
+
+/// The bounded-error identification of the ordinary samples of `data`:
+/// the samples classified into modes within delta ([`classify`]), then the
+/// regions estimated from the classification ([`estimate_regions`]).
+pub fn fit(
+    options: &BoundedOptions,
+    data: &PwarxData<'_>,
+    ctx: &RunContext<'_>,
+) -> Result<PwarxFit<BoundedDiagnostics>, IdentifyError> {
+    let classified = classify(options, data, ctx)?;
+    let partition = estimate_regions(options, data, &classified)?;
+    let c = &classified.classification;
+    let (run_status, status) = how_it_ended(c, classified.settings.delta);
+    let diagnostics = diagnostics(options, data, &classified, &partition);
+    Ok(PwarxFit {
+        modes: c
+            .thetas
+            .iter()
+            .zip(partition.regions)
+            .map(|(theta, region)| PwarxMode {
+                theta: theta.clone(),
+                region,
+                name: None,
+            })
+            .collect(),
+        regions_complete: partition.complete,
+        uncovered_fraction: None,
+        run_status,
+        status,
+        diagnostics,
+    })
+}
+
+/// The modes and the classification of the ordinary samples of `data`:
+/// the error bound ([`error_bound`]), then the procedure of Bemporad et al.
+/// (2005) ([`procedure::run`]: greedy MIN PFS by MAX FS, refinement with
+/// drops and merges, final classification).
+pub fn classify(
+    options: &BoundedOptions,
+    data: &PwarxData<'_>,
+    ctx: &RunContext<'_>,
+) -> Result<Classified, IdentifyError> {
+    let samples = Samples::from_regressors(&data.ordinary_regressors());
+    let settings = procedure_settings(options, data, &samples, ctx)?;
+    let classification = procedure::run(&samples, &settings).map_err(procedure_error)?;
+    Ok(Classified {
+        classification,
+        samples,
+        settings,
+        stops: data.stop_of.clone(),
+        ordinary: data.ordinary.clone(),
+    })
+}
+
+/// The error bound: the given delta, or with `auto` the noise bound of
+/// [`noise::auto_delta`] on the samples.
+pub fn error_bound(options: &BoundedOptions, samples: &Samples) -> f64 {
+    match options.delta.expect("delta is required by CheckOptions") {
+        Delta::Value(d) => d,
+        Delta::Auto(_) => noise::auto_delta(samples),
+    }
+}
+
+/// The settings of the procedure: the options, the mode counts of the
+/// priors and `max_modes`, the parameter priors, the error bound.
+fn procedure_settings(
+    options: &BoundedOptions,
+    data: &PwarxData<'_>,
+    samples: &Samples,
+    ctx: &RunContext<'_>,
+) -> Result<ProcedureSettings, IdentifyError> {
+    let (max_modes, exact_modes) = mode_counts(options, data)?;
+    let constraints = ModeConstraints::new(data).map_err(|e| data.prior_error(e))?;
+    Ok(ProcedureSettings {
+        delta: error_bound(options, samples),
+        cycles: options.cycles,
+        t0: options.t0,
+        alpha: options.alpha,
+        beta: options.beta,
+        restarts: options.restarts,
+        refit: match options.refit {
+            Refit::Linf => RefitKind::Linf,
+            Refit::Ls => RefitKind::Ls,
+        },
+        max_modes,
+        exact_modes,
+        seed: ctx.seed,
+        deadline: ctx.deadline,
+        constraints,
+    })
+}
+
+/// The bound on the ordinary modes (option `max_modes` and the priors) and
+/// the exact count of the priors. `max_modes` counts every mode, the stops
+/// included; an exact count the record cannot hold (each mode needs at
+/// least `p` samples) is bad input.
+fn mode_counts(
+    options: &BoundedOptions,
+    data: &PwarxData<'_>,
+) -> Result<(Option<usize>, Option<usize>), IdentifyError> {
+    let stops = data.stops();
+    if let Some(m) = options.max_modes
+        && m <= stops
+    {
+        return Err(OptionError::invalid(
+            "max_modes",
+            m,
+            format!(
+                "counts every mode, the {stops} saturation mode(s) included: must be at least {}",
+                stops + 1
+            ),
+        )
+        .into());
+    }
+    let max_modes = match (options.max_modes.map(|m| m - stops), data.modes.at_most()) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
+    let exact = data.modes.exact();
+    let rows = data.regressors.len();
+    let p = data.spec.n_params();
+    if let Some(s) = exact
+        && s.checked_mul(p).is_none_or(|need| need > rows)
+    {
+        return Err(IdentifyError::BadData(format!(
+            "{rows} regressors cannot identify {} modes of {p} parameters",
+            s.saturating_add(stops)
+        )));
+    }
+    if let (Some(s), Some(m)) = (exact, max_modes)
+        && s > m
+    {
+        return Err(IdentifyError::BadData(format!(
+            "prior modes = {} exceeds the bound max_modes = {}",
+            s + stops,
+            m + stops
+        )));
+    }
+    Ok((max_modes, exact))
+}
+
+/// Too few samples and a failed tie projection are the data's fault; no
+/// mode within delta, or fewer modes than the priors ask, the method's.
+fn procedure_error(e: ProcedureError) -> IdentifyError {
+    match e {
+        ProcedureError::TooFewSamples { .. } | ProcedureError::Setting(_) => {
+            IdentifyError::BadData(e.to_string())
+        }
+        ProcedureError::TooFewModes { .. } | ProcedureError::NoMode { .. } => {
+            IdentifyError::failed(e.to_string())
+        }
+    }
+}
+
+/// Step 4: the regions from the labelled samples (`hysid-regions`, the
+/// method of option `regions`; normals restricted to the `switching`
+/// regressors).
+pub fn estimate_regions(
+    options: &BoundedOptions,
+    data: &PwarxData<'_>,
+    classified: &Classified,
+) -> Result<Partition, IdentifyError> {
+    let (s, c) = (&classified.samples, &classified.classification);
+    let labelled: Vec<usize> = (0..s.len()).filter(|&k| c.labels[k].is_some()).collect();
+    let rows = DMatrix::from_fn(labelled.len(), s.p - 1, |r, j| s.row(labelled[r])[j]);
+    let labels: Vec<usize> = c.labels.iter().flatten().copied().collect();
+    let region_options = RegionOptions {
+        method: options.regions,
+        switching: data.switching.clone(),
+        ..Default::default()
+    };
+    hysid_regions::estimate(&rows, &labels, c.thetas.len(), &region_options)
+        .map_err(|e| IdentifyError::failed(format!("regions: {e}")))
+}
+
+/// How the run ended: cut short by the time budget or not, and the
+/// warning when the tie projection left the greedy modes beyond delta.
+fn how_it_ended(c: &Classification, delta: f64) -> (RunStatus, Vec<String>) {
+    let mut status = Vec::new();
+    let run_status = if c.stopped_by_deadline {
+        status.push(format!(
+            "time budget reached after {} mode extraction(s) and {} refinement round(s): the modes found by then",
+            c.greedy_modes, c.rounds
+        ));
+        RunStatus::TimeBudget
+    } else {
+        RunStatus::Completed
+    };
+    if let Some(e) = c.tie_projection_error
+        && e > delta
+    {
+        // The greedy extraction ran with the ties relaxed; imposing them
+        // afterwards did not keep the greedy modes within delta.
+        status.push(format!(
+            "warning: the [[tie]] priors, imposed after the greedy extraction (which relaxes them), \
+             fit the greedy modes with a largest error of {e:.4} > delta = {delta}; the refinement \
+             re-classified the samples under the ties (docs/bounded.md, \"Priors\")"
+        ));
+    }
+    (run_status, status)
+}
+
+fn diagnostics(
+    options: &BoundedOptions,
+    data: &PwarxData<'_>,
+    classified: &Classified,
+    partition: &Partition,
+) -> BoundedDiagnostics {
+    use procedure::SampleClass::{Assigned, Infeasible, Undecidable};
+    let (c, delta) = (&classified.classification, classified.settings.delta);
+    let mut samples_per_mode = vec![0usize; c.thetas.len()];
+    for l in c.labels.iter().flatten() {
+        samples_per_mode[*l] += 1;
+    }
+    BoundedDiagnostics {
+        delta,
+        delta_auto: matches!(options.delta, Some(Delta::Auto(_))),
+        modes_found: c.thetas.len(),
+        greedy_modes: c.greedy_modes,
+        ordinary_samples: (data.stops() > 0).then_some(classified.samples.len()),
+        assigned: c.count(Assigned),
+        undecidable: c.count(Undecidable),
+        infeasible: c.count(Infeasible),
+        rounds: c.rounds,
+        converged: c.converged,
+        merged: c.merged,
+        dropped: c.dropped,
+        max_residual: c.max_residual.clone(),
+        samples_per_mode,
+        region_training_accuracy: partition.training_accuracy,
+        tie_projection_error: c.tie_projection_error,
+        tie_projection_within_delta: c.tie_projection_error.map(|e| e <= delta),
+        stopped_by_deadline: c.stopped_by_deadline,
+    }
+}
