@@ -22,35 +22,11 @@ use hysid_model::data::Standardization;
 use hysid_model::regressors::RegressorSpec;
 use nalgebra::DMatrix;
 
-/// Whether `priors` constrain the mode parameters (`[[tie]]`, `[fixed]`,
-/// `[[equality]]` or `[bounds]`); without, the procedure keeps its unconstrained per-mode
-/// least squares.
-pub fn constrains_parameters(priors: &Priors) -> bool {
-    priors.constrains_parameters()
-}
-
-/// The regressor columns (0-based, in `x` order) of the `switching` prior,
-/// `None` when it is absent. Names must have been checked with
-/// [`Priors::check_pwarx_names`]; unknown names are skipped.
-pub fn switching_columns(priors: &Priors, spec: &RegressorSpec) -> Option<Vec<usize>> {
-    if priors.switching.is_empty() {
-        return None;
-    }
-    let names = spec.regressor_names();
-    let mut cols: Vec<usize> = priors
-        .switching
-        .iter()
-        .filter_map(|r| names.iter().position(|n| n == r))
-        .collect();
-    cols.sort_unstable();
-    cols.dedup();
-    Some(cols)
-}
-
-/// The ordinary samples in original units and the map to working units,
-/// with the priors that constrain their weighted least squares.
+/// The weighted least squares of the procedure under gray-box priors: the
+/// ordinary samples in original units, the map to working units, and the
+/// priors that constrain the fit.
 #[derive(Debug, Clone)]
-pub struct Constraints {
+pub struct ConstrainedFit {
     priors: Priors,
     spec: RegressorSpec,
     n: usize,
@@ -62,7 +38,7 @@ pub struct Constraints {
     sy: f64,
 }
 
-impl Constraints {
+impl ConstrainedFit {
     /// `x` (row-major, `spec.dim()` columns) and `y`: the ordinary samples
     /// in original units, in the order of the procedure's samples; `scale`
     /// maps original to working units. Fails with a one-line message when
@@ -175,7 +151,7 @@ mod tests {
                 std: 0.5,
             },
         };
-        let con = Constraints::new(&Priors::default(), spec, vec![], vec![], &scale, 1).unwrap();
+        let con = ConstrainedFit::new(&Priors::default(), spec, vec![], vec![], &scale, 1).unwrap();
         let th = [0.4, -2.0, 1.5];
         let w = con.to_working(&th);
         // y = 0.4 y1 - 2 u1 + 1.5 at y1 = 3, u1 = 5.

@@ -22,7 +22,7 @@
 
 use crate::kmeans::{self, Clusters, KmeansInit};
 use crate::local::{self, Degeneracy, FeatureVectors};
-use crate::priors::Constraints;
+use crate::priors::ConstrainedFit;
 use crate::{Clustering, Features, Weights};
 use hysid_estimation::linalg;
 use nalgebra::{DMatrix, DVector};
@@ -195,7 +195,7 @@ pub struct Thetas {
 
 /// Step 4 with or without gray-box priors: [`fit_modes`] without
 /// constraints; with them, the same weights go to
-/// [`Constraints::fit`] (ties, fixed values and bounds of all modes solved
+/// [`ConstrainedFit::fit`] (ties, fixed values and bounds of all modes solved
 /// jointly by `hysid_estimation::constrained::fit_modes`).
 #[allow(clippy::too_many_arguments)]
 pub fn fit_modes_with(
@@ -207,7 +207,7 @@ pub fn fit_modes_with(
     modes: usize,
     min_weight: f64,
     weights: Weights,
-    constraints: Option<&Constraints>,
+    constraints: Option<&ConstrainedFit>,
 ) -> Result<Thetas, ProcedureError> {
     let Some(con) = constraints else {
         return Ok(Thetas {
@@ -270,7 +270,7 @@ pub fn run_with(
     y: &[f64],
     s: &Settings,
     rng: &mut ChaCha8Rng,
-    constraints: Option<&Constraints>,
+    constraints: Option<&ConstrainedFit>,
 ) -> Result<ModeFit, ProcedureError> {
     let big_n = y.len();
     let f = local::feature_vectors(x, n, y, s.c, s.features, s.regularization);

@@ -204,7 +204,7 @@ proptest! {
         let Labelled { model, row_labels } = identify_labelled(&problem, &opts, 4, 7, None).unwrap();
         prop_assert!(matches!(model, Model::HybridAutomaton(_)));
         prop_assert_eq!(model.mode_count(), 4);
-        let d = &model.info().diagnostics.to_map();
+        let d = &model.info().diagnostics;
         let targets = &b.data.y()[2..];
         // Sample by sample: a target at a stop (within the prior's
         // tolerance, or beyond it) is in that stop's mode (2 ordinary
@@ -232,11 +232,11 @@ proptest! {
                 p.saturated_samples(targets).iter().filter(|s| **s == Some(k)).count()
             })
             .collect();
-        prop_assert_eq!(d["saturated_samples"].clone(), serde_json::json!(want));
+        prop_assert_eq!(d.saturated_per_stop.clone(), Some(want.clone()));
         // The ordinary regions (default MRLP) cover the regressor space.
-        prop_assert_eq!(d["regions_complete"].clone(), serde_json::json!(true));
+        prop_assert_eq!(d.regions_complete, Some(true));
         prop_assert_eq!(
-            d["ordinary_samples"].as_u64().unwrap() as usize + want.iter().sum::<usize>(),
+            d.method["ordinary_samples"].as_u64().unwrap() as usize + want.iter().sum::<usize>(),
             targets.len()
         );
         // From the record start (at the upper stop, y = 0), and from inside.
@@ -309,7 +309,7 @@ fn figures() {
     let sh = stopped_head(1500, 60, 0.05, 1);
     for p in [sh.priors(), b1_priors(4)] {
         let m = run(&sh.data, RegressorSpec::new(2, 1, 1), &p, &[]).unwrap();
-        let d = &m.info().diagnostics.to_map();
+        let d = &m.info().diagnostics.method;
         eprintln!(
             "stopped head, stops {}: degenerate {} flat scatter {}",
             p.saturation.len(),

@@ -186,7 +186,7 @@ fn degenerate_local_datasets_are_regularised_and_counted() {
     }
     let data = Dataset::siso(u, y, None).unwrap();
     let m = identify(&data, RegressorSpec::new(1, 1, 1), 2, &[]);
-    let d = &m.info.diagnostics.to_map();
+    let d = &m.info.diagnostics.method;
     assert!(
         d["degenerate_local_datasets"].as_u64().unwrap() > 0,
         "{d:?}"
@@ -305,10 +305,7 @@ fn option_variants_run() {
             .unwrap_or_else(|e| panic!("{set:?}: {e}"));
         if set.contains(&"regions=psvc") {
             assert!(
-                m.info
-                    .diagnostics
-                    .to_map()
-                    .contains_key("uncovered_fraction_of_data_box"),
+                m.info.diagnostics.uncovered_fraction_of_data_box.is_some(),
                 "{set:?}"
             );
         }

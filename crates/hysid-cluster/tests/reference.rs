@@ -141,7 +141,7 @@ fn draws(
                 perr,
                 oracle: oracle_error(&ex),
                 modes: m.modes.len(),
-                complete: m.info.diagnostics.method["regions_complete"] == true,
+                complete: m.info.diagnostics.regions_complete == Some(true),
             };
             eprintln!(
                 "| {name} | {} | {acc:.3} | {perr:.3} | {:.3} | {:+.3} |",

@@ -1,0 +1,544 @@
+//! The clustering procedure of Ferrari-Trecate, Muselli, Liberati and
+//! Morari (Automatica 39(2), 2003, section 3) on the data of
+//! [`pwarx::prepare`], one named function per step. The step numbers are
+//! those of `docs/cluster.md`:
+//!
+//! - [`working_data`]: the ordinary samples in working units (standardised
+//!   by default), where distances between regressors are compared;
+//! - [`choose_c`]: the size `c` of the local datasets;
+//! - [`prior_fit`]: the gray-box priors of the weighted least squares, in
+//!   data units ([`ConstrainedFit`]);
+//! - [`cluster_features`]: steps 1 to 6, local datasets, local regressions
+//!   and feature vectors, clustering, mode datasets and discard, weighted
+//!   least squares, reattribution ([`procedure::run_with`]);
+//! - [`estimate_regions`]: step 7, the regions of the modes
+//!   (`hysid-regions`);
+//! - [`refit_on_regions`]: step 7 continued, the mode datasets made
+//!   consistent with the regions and the parameters re-estimated;
+//! - [`holes`]: the part of the data box no region covers;
+//! - [`modes_in_data_units`]: step 8, the modes mapped back to data units.
+
+use crate::priors::ConstrainedFit;
+use crate::procedure::{self, ModeFit};
+use crate::{ClusterOptions, Clustering, Init, kmeans, local};
+use hysid_core::backend::IdentifyError;
+use hysid_core::options::OptionError;
+use hysid_estimation::pwarx::{PwarxData, PwarxFit};
+use hysid_model::data::Standardization;
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel, RunStatus};
+use nalgebra::DMatrix;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use std::time::Instant;
+
+/// What the `cluster` back-end reports besides the common diagnostics
+/// (`docs/cluster.md`, "Diagnostics").
+#[derive(Debug, Clone, Serialize)]
+pub struct ClusterDiagnostics {
+    /// Local dataset size used.
+    pub c: usize,
+    /// Modes asked for, the saturation modes included.
+    pub modes_requested: usize,
+    /// With known stops: the samples at no stop, which the procedure saw.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ordinary_samples: Option<usize>,
+    /// Regularised local datasets (any of the three causes below).
+    pub degenerate_local_datasets: usize,
+    /// Local fits with (numerically) zero residual.
+    pub degenerate_noise_free: usize,
+    /// Local datasets with collinear regressors.
+    pub degenerate_collinear: usize,
+    /// Local datasets with a singular regressor scatter.
+    pub degenerate_flat_scatter: usize,
+    /// K-means cost of the kept restart.
+    pub kmeans_cost: f64,
+    /// K-means cost of every restart run.
+    pub kmeans_restart_costs: Vec<f64>,
+    /// Sweeps of the kept restart.
+    pub kmeans_iterations: usize,
+    /// Whether the kept restart met the stopping rule.
+    pub kmeans_converged: bool,
+    /// Minimum cluster size `max(c, discard (n+1))`.
+    pub discard_size: usize,
+    /// Clusters discarded (first and second check).
+    pub discarded_clusters: usize,
+    /// Points of discarded clusters, reattributed by residual.
+    pub outliers: usize,
+    /// Points moved by the mixed-point reattribution.
+    pub reattributed: usize,
+    /// `reattributed / N`.
+    pub reattributed_fraction: f64,
+    /// Fraction of the samples whose region is their mode.
+    pub region_training_accuracy: f64,
+    /// Samples moved to the mode of their region by the region refit.
+    pub region_refit_moved: usize,
+    /// Mode of every ordinary sample (`data.ordinary` order), after the
+    /// region refit; not written to the model file.
+    #[serde(skip)]
+    pub labels: Vec<usize>,
+    /// With `scale = true`, the standardisation of the working units, for
+    /// the model's `info.scaling`; not written to the diagnostics.
+    #[serde(skip)]
+    pub scaling: Option<Standardization>,
+}
+
+/// The procedure on `data` with `s` modes in all (the known stops
+/// included, as the prior `modes` counts them). No K-means restart starts
+/// after `deadline`; the run then reports `RunStatus::TimeBudget`.
+pub fn fit(
+    o: &ClusterOptions,
+    data: &PwarxData<'_>,
+    s: usize,
+    seed: u64,
+    deadline: Option<Instant>,
+) -> Result<PwarxFit<ClusterDiagnostics>, IdentifyError> {
+    let modes = ordinary_modes(data, s)?;
+    let work = working_data(o, data)?;
+    let c = choose_c(o, data, &work, modes)?;
+    check_sample_count(&work, modes)?;
+    let prior_fit = prior_fit(data, &work, modes)?;
+    let mut clustered = cluster_features(o, &work, c, modes, seed, deadline, prior_fit.as_ref())?;
+    check_modes_found(o, &clustered, s, modes, c)?;
+    let regions = estimate_regions(o, data, &work, &clustered)?;
+    let region_refit_moved = if o.region_refit && modes > 1 {
+        refit_on_regions(
+            o,
+            &work,
+            &mut clustered,
+            &regions.polyhedra,
+            prior_fit.as_ref(),
+        )?
+    } else {
+        0
+    };
+    let uncovered_fraction = (!regions.complete).then(|| holes(&work, &regions.polyhedra, seed));
+    let status = time_budget_status(o, &clustered);
+    let d = &clustered.diagnostics;
+    let diagnostics = ClusterDiagnostics {
+        c,
+        modes_requested: s,
+        ordinary_samples: (data.stops() > 0).then_some(work.y.len()),
+        degenerate_local_datasets: d.degenerate.total,
+        degenerate_noise_free: d.degenerate.noise_free,
+        degenerate_collinear: d.degenerate.collinear,
+        degenerate_flat_scatter: d.degenerate.flat_scatter,
+        kmeans_cost: d.kmeans_cost,
+        kmeans_restart_costs: d.restart_costs.clone(),
+        kmeans_iterations: d.kmeans_iterations,
+        kmeans_converged: d.kmeans_converged,
+        discard_size: d.discard_size,
+        discarded_clusters: d.discarded_clusters,
+        outliers: d.outliers,
+        reattributed: d.reattributed,
+        reattributed_fraction: d.reattributed_fraction,
+        region_training_accuracy: regions.training_accuracy,
+        region_refit_moved,
+        labels: std::mem::take(&mut clustered.labels),
+        scaling: o.scale.then(|| work.scale.clone()),
+    };
+    Ok(PwarxFit {
+        modes: modes_in_data_units(o, data, &work, clustered, regions.polyhedra),
+        regions_complete: regions.complete,
+        uncovered_fraction,
+        run_status: if status.is_empty() {
+            RunStatus::Completed
+        } else {
+            RunStatus::TimeBudget
+        },
+        status,
+        diagnostics,
+    })
+}
+
+/// The default `c`: `max(4(n+1), ceil(sqrt(N)/2))`, capped at `N/(2s)`, at
+/// least `n+2` (`n` regressors, `big_n` samples, `s` modes). It grows with N
+/// so that the local scatter does not dominate the K-means distance
+/// (`docs/cluster.md`).
+pub fn default_c(n: usize, big_n: usize, s: usize) -> usize {
+    let want = (4 * (n + 1)).max(((big_n as f64).sqrt() / 2.0).ceil() as usize);
+    want.min(big_n / s.max(1).saturating_mul(2)).max(n + 2)
+}
+
+fn bad(msg: String) -> IdentifyError {
+    IdentifyError::BadData(msg)
+}
+
+/// The ordinary modes among `s`: the count includes the known stops, and
+/// leaves at least one ordinary mode.
+fn ordinary_modes(data: &PwarxData<'_>, s: usize) -> Result<usize, IdentifyError> {
+    let stops = data.stops();
+    if s == 0 {
+        return Err(bad("the number of modes must be at least 1".into()));
+    }
+    if s <= stops {
+        return Err(bad(format!(
+            "{s} mode(s) requested, but the mode count includes the {stops} saturation mode(s) of the priors: \
+             need at least {} for one ordinary mode",
+            stops + 1
+        )));
+    }
+    Ok(s - stops)
+}
+
+/// The ordinary samples in working units.
+struct Working {
+    /// Data units to working units (the identity with `scale = false`).
+    scale: Standardization,
+    /// Regressor dimension `n`.
+    n: usize,
+    /// Regressors of the ordinary samples, row-major.
+    x: Vec<f64>,
+    /// The same as a matrix, one row per sample.
+    xs: DMatrix<f64>,
+    /// Targets of the ordinary samples.
+    y: Vec<f64>,
+}
+
+/// The ordinary samples in working units: every signal standardised (zero
+/// mean, unit standard deviation) with `scale = true`, so that the
+/// neighbour search and the clustering distances weigh the regressors
+/// alike; as given otherwise (HIT).
+fn working_data(o: &ClusterOptions, data: &PwarxData<'_>) -> Result<Working, IdentifyError> {
+    let n = data.spec.dim();
+    if n == 0 {
+        return Err(bad(
+            "method 'cluster' needs at least one regressor (na + nb > 0)".into(),
+        ));
+    }
+    if n > local::MAX_DIM {
+        return Err(bad(format!(
+            "method 'cluster' supports regressors of dimension up to {}, got {n}",
+            local::MAX_DIM
+        )));
+    }
+    let record = data.problem.data;
+    let scale = if o.scale {
+        Standardization::of(record)
+    } else {
+        Standardization::identity(record.inputs.len())
+    };
+    let reg = data
+        .spec
+        .build(&scale.apply(record))
+        .map_err(|e| bad(e.to_string()))?;
+    if let Some(v) = reg.x.iter().chain(reg.y.iter()).find(|v| !v.is_finite()) {
+        return Err(bad(format!("the data hold a non-finite value ({v})")));
+    }
+    let x: Vec<f64> = data
+        .ordinary
+        .iter()
+        .flat_map(|&r| (0..n).map(move |k| (r, k)))
+        .map(|(r, k)| reg.x[(r, k)])
+        .collect();
+    let y: Vec<f64> = data.ordinary.iter().map(|&r| reg.y[r]).collect();
+    Ok(Working {
+        scale,
+        n,
+        xs: DMatrix::from_row_slice(y.len(), n, &x),
+        x,
+        y,
+    })
+}
+
+/// The local dataset size: the option, or [`default_c`]; between `n+2`
+/// (the local noise variance is divided by `c-n-1`) and the number of
+/// ordinary samples.
+fn choose_c(
+    o: &ClusterOptions,
+    data: &PwarxData<'_>,
+    work: &Working,
+    modes: usize,
+) -> Result<usize, IdentifyError> {
+    let (n, big_n) = (work.n, work.y.len());
+    let c = o.c.unwrap_or_else(|| default_c(n, big_n, modes));
+    if c < n + 2 {
+        return Err(OptionError::invalid(
+            "c",
+            c,
+            format!(
+                "the local dataset size must be at least n+2 = {} (n = {n} regressors): the local \
+                 noise variance is divided by c-n-1",
+                n + 2
+            ),
+        )
+        .into());
+    }
+    if c > big_n && o.c.is_none() {
+        return Err(bad(format!(
+            "{big_n} samples (regressors) are too few: method 'cluster' needs local datasets of at \
+             least n+2 = {} samples (n = {n} parameters besides the constant; automatic c = {c})",
+            n + 2
+        )));
+    }
+    if c > big_n {
+        let outside = if data.stops() > 0 {
+            " outside the stops"
+        } else {
+            ""
+        };
+        return Err(OptionError::invalid(
+            "c",
+            c,
+            format!("larger than the {big_n} regressors of the data{outside}"),
+        )
+        .into());
+    }
+    Ok(c)
+}
+
+/// At least `n+1` samples per mode.
+fn check_sample_count(work: &Working, modes: usize) -> Result<(), IdentifyError> {
+    let (n, big_n) = (work.n, work.y.len());
+    if modes.checked_mul(n + 1).is_none_or(|need| big_n < need) {
+        return Err(bad(format!(
+            "{big_n} regressors cannot identify {modes} modes of {} parameters",
+            n + 1
+        )));
+    }
+    Ok(())
+}
+
+/// With `[[tie]]`, `[fixed]`, `[[equality]]` or `[bounds]`: the ordinary
+/// samples in data units, where every weighted least squares of the
+/// procedure is solved under the priors ([`ConstrainedFit`]).
+fn prior_fit(
+    data: &PwarxData<'_>,
+    work: &Working,
+    modes: usize,
+) -> Result<Option<ConstrainedFit>, IdentifyError> {
+    let priors = data.priors();
+    if !priors.constrains_parameters() {
+        return Ok(None);
+    }
+    let (n, reg) = (work.n, &data.regressors);
+    let x = data
+        .ordinary
+        .iter()
+        .flat_map(|&r| (0..n).map(move |k| reg.x[(r, k)]))
+        .collect();
+    let y = data.ordinary.iter().map(|&r| reg.y[r]).collect();
+    ConstrainedFit::new(priors, data.spec, x, y, &work.scale, modes)
+        .map(Some)
+        .map_err(|e| data.prior_error(e))
+}
+
+/// Steps 1 to 6 (section 3 of the paper): local datasets of `c` samples,
+/// local least squares and feature vectors with their confidences,
+/// clustering into `modes` clusters (K-means restarts from `seed`, none
+/// started after `deadline`), mode datasets and the discard rule, weighted
+/// least squares per mode, reattribution of outliers and mixed points.
+fn cluster_features(
+    o: &ClusterOptions,
+    work: &Working,
+    c: usize,
+    modes: usize,
+    seed: u64,
+    deadline: Option<Instant>,
+    prior_fit: Option<&ConstrainedFit>,
+) -> Result<ModeFit, IdentifyError> {
+    let settings = procedure::Settings {
+        c,
+        modes,
+        features: o.features,
+        clustering: o.clustering,
+        sl_distance: o.sl_distance,
+        restarts: o.restarts,
+        max_iter: o.max_iter,
+        init: match o.init {
+            Init::Blocks => kmeans::KmeansInit::Blocks,
+            Init::Plusplus => kmeans::KmeansInit::PlusPlus,
+        },
+        discard: o.discard,
+        reattribute: o.reattribute,
+        regularization: o.regularization,
+        min_weight: o.min_weight,
+        weights: o.weights,
+        deadline,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    procedure::run_with(&work.x, work.n, &work.y, &settings, &mut rng, prior_fit)
+        .map_err(|e| IdentifyError::failed(e.to_string()))
+}
+
+/// `modes = S` is exact (`docs/priors.md`): fewer modes (clusters under the
+/// discard size) or more (a single-linkage threshold) fail the run.
+fn check_modes_found(
+    o: &ClusterOptions,
+    fit: &ModeFit,
+    s: usize,
+    modes: usize,
+    c: usize,
+) -> Result<(), IdentifyError> {
+    let found = fit.theta.len();
+    let discard_size = fit.diagnostics.discard_size;
+    if found < modes {
+        return Err(IdentifyError::failed(format!(
+            "exactly {s} modes were asked for, but only {found} of the {modes} clusters kept at least {discard_size} \
+             points (the discard size max(c, discard (n+1)), c = {c}): lower c, set discard=0, or give \
+             max_modes = {s} to allow fewer modes"
+        )));
+    }
+    if found > modes {
+        return Err(IdentifyError::failed(format!(
+            "exactly {s} modes were asked for, but {found} clusters of at least {discard_size} points are \
+             left (single linkage with sl_distance = {}): raise sl_distance, or leave it unset to \
+             cut the tree into {modes} clusters",
+            o.sl_distance.map_or("none".into(), |t| t.to_string())
+        )));
+    }
+    Ok(())
+}
+
+/// The regions of the modes, in working units.
+struct Regions {
+    polyhedra: Vec<Polyhedron>,
+    training_accuracy: f64,
+    complete: bool,
+}
+
+/// Step 7: the regions that separate the mode datasets (`regions`: MRLP,
+/// multicategory SVM or pairwise proximal SVM), with normals restricted to
+/// the `switching` regressors; one mode owns the whole space.
+fn estimate_regions(
+    o: &ClusterOptions,
+    data: &PwarxData<'_>,
+    work: &Working,
+    fit: &ModeFit,
+) -> Result<Regions, IdentifyError> {
+    let modes = fit.theta.len();
+    if modes == 1 {
+        return Ok(Regions {
+            polyhedra: vec![Polyhedron::everything()],
+            training_accuracy: 1.0,
+            complete: true,
+        });
+    }
+    let options = hysid_regions::RegionOptions {
+        method: o.regions,
+        svm_c: o.svm_c,
+        switching: data.switching.clone(),
+        standardize: !o.scale,
+    };
+    let part = hysid_regions::estimate(&work.xs, &fit.labels, modes, &options)
+        .map_err(|e| IdentifyError::failed(format!("region estimation: {e}")))?;
+    Ok(Regions {
+        polyhedra: part.regions,
+        training_accuracy: part.training_accuracy,
+        complete: part.complete,
+    })
+}
+
+/// Every sample moved to the mode of the region that contains it (of least
+/// violation when none does), then the weighted least squares of step 5
+/// repeated on these mode datasets when each holds more than `n` samples.
+/// Returns the number of samples moved.
+fn refit_on_regions(
+    o: &ClusterOptions,
+    work: &Working,
+    fit: &mut ModeFit,
+    regions: &[Polyhedron],
+    prior_fit: Option<&ConstrainedFit>,
+) -> Result<usize, IdentifyError> {
+    let (n, modes) = (work.n, fit.theta.len());
+    let mut moved = 0;
+    for (j, l) in fit.labels.iter_mut().enumerate() {
+        let xj = &work.x[j * n..(j + 1) * n];
+        let r = regions
+            .iter()
+            .position(|p| p.contains(xj))
+            .unwrap_or_else(|| {
+                (0..modes)
+                    .min_by(|&a, &b| {
+                        regions[a]
+                            .violation(xj)
+                            .total_cmp(&regions[b].violation(xj))
+                    })
+                    .unwrap_or(*l)
+            });
+        if r != *l {
+            moved += 1;
+            *l = r;
+        }
+    }
+    let mut sizes = (0..modes).map(|i| fit.labels.iter().filter(|&&l| l == i).count());
+    if sizes.all(|k| k > n) {
+        let refit = procedure::fit_modes_with(
+            &work.x,
+            n,
+            &work.y,
+            &fit.features,
+            &fit.labels,
+            modes,
+            o.min_weight,
+            o.weights,
+            prior_fit,
+        )
+        .map_err(|e| IdentifyError::failed(e.to_string()))?;
+        fit.theta = refit.working;
+        fit.theta_original = refit.original;
+    }
+    Ok(moved)
+}
+
+/// Fraction of the bounding box of the ordinary regressors in no region
+/// (pairwise PSVC may leave holes), from 10 000 samples drawn with `seed`.
+fn holes(work: &Working, regions: &[Polyhedron], seed: u64) -> f64 {
+    let lo: Vec<f64> = (0..work.n).map(|k| work.xs.column(k).min()).collect();
+    let hi: Vec<f64> = (0..work.n).map(|k| work.xs.column(k).max()).collect();
+    hysid_regions::coverage(regions, &lo, &hi, 10_000, seed).uncovered_fraction
+}
+
+/// With `clustering = kmeans`, the message of a time budget that stopped
+/// the restarts early.
+fn time_budget_status(o: &ClusterOptions, fit: &ModeFit) -> Vec<String> {
+    let run = fit.diagnostics.restart_costs.len();
+    if o.clustering == Clustering::Kmeans && run < o.restarts {
+        vec![format!(
+            "time budget reached after {run} of {} K-means restarts: the best clustering found by then",
+            o.restarts
+        )]
+    } else {
+        Vec::new()
+    }
+}
+
+/// Step 8: the modes in data units (`PwarxModel::to_original_units`, exact);
+/// under gray-box priors the parameters fitted in data units, where the
+/// priors hold exactly.
+fn modes_in_data_units(
+    o: &ClusterOptions,
+    data: &PwarxData<'_>,
+    work: &Working,
+    fit: ModeFit,
+    regions: Vec<Polyhedron>,
+) -> Vec<PwarxMode> {
+    let working = PwarxModel {
+        na: data.spec.na,
+        nb: data.spec.nb,
+        inputs: data.spec.inputs,
+        modes: fit
+            .theta
+            .into_iter()
+            .zip(regions)
+            .map(|(theta, region)| PwarxMode {
+                theta,
+                region,
+                name: None,
+            })
+            .collect(),
+        info: ModelInfo::default(),
+    };
+    let mut modes = if o.scale {
+        working.to_original_units(&work.scale).modes
+    } else {
+        working.modes
+    };
+    if let Some(original) = fit.theta_original {
+        for (mode, theta) in modes.iter_mut().zip(original) {
+            mode.theta = theta;
+        }
+    }
+    modes
+}
