@@ -1,10 +1,19 @@
-//! Pieces shared by the figures: colours, ranges, tick labels, the legend.
+//! Pieces shared by the figures: colours, ranges, tick labels, the legend,
+//! the titled canvas every figure is drawn on.
 
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::PlotError;
+
+/// A drawing area of the SVG backend.
+pub type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
+
+/// A chart with two real axes, the kind every figure draws on.
+pub type Chart<'a, 'b> =
+    ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// Font family of every text element (generic, so no system font is needed).
 pub const FONT: &str = "sans-serif";
@@ -16,6 +25,9 @@ pub const DESC_SIZE: u32 = 19;
 pub const TICK_SIZE: u32 = 16;
 /// Legend text size.
 pub const LEGEND_SIZE: u32 = 17;
+
+/// Height of the title strip in pixels.
+pub const TITLE_H: u32 = 46;
 
 /// Line colours (Okabe–Ito, colour-blind safe, without yellow).
 pub const LINE_COLOURS: [RGBColor; 6] = [
@@ -60,6 +72,15 @@ pub fn line_colour(k: usize) -> RGBColor {
 /// Mode colour `k` (cycling).
 pub fn mode_colour(k: usize) -> RGBColor {
     MODE_COLOURS[k % MODE_COLOURS.len()]
+}
+
+/// Name of mode `m` (0-based): `names[m]`, or `"mode k"` (1-based) when
+/// `names` has no entry for it.
+pub fn mode_name(names: &[String], m: usize) -> String {
+    names
+        .get(m)
+        .cloned()
+        .unwrap_or_else(|| format!("mode {}", m + 1))
 }
 
 /// Maps any plotters error to [`PlotError::Draw`].
@@ -118,6 +139,13 @@ pub fn tick_formatter(span: f64) -> impl Fn(&f64) -> String {
             s
         }
     }
+}
+
+/// Width of the y label area for values in `range`.
+pub fn y_area_width(range: (f64, f64)) -> u32 {
+    let f = tick_formatter(range.1 - range.0);
+    let w = text_width(&f(&range.0), TICK_SIZE).max(text_width(&f(&range.1), TICK_SIZE));
+    (w + 48).max(70) as u32
 }
 
 /// Splits `(x, y)` pairs into runs of finite points (a NaN breaks a line).
@@ -242,10 +270,7 @@ pub fn legend_height(entries: &[LegendEntry], width: u32) -> u32 {
 
 /// Draws the legend as centred rows across `area` (from
 /// [`legend_height`]), with a light frame.
-pub fn draw_legend(
-    area: &DrawingArea<SVGBackend<'_>, Shift>,
-    entries: &[LegendEntry],
-) -> Result<(), PlotError> {
+pub fn draw_legend(area: &Area<'_>, entries: &[LegendEntry]) -> Result<(), PlotError> {
     if entries.is_empty() {
         return Ok(());
     }
@@ -304,6 +329,34 @@ pub fn draw_legend(
         }
     }
     Ok(())
+}
+
+/// Renders a figure `width` pixels wide to an SVG string: a white canvas
+/// with `title` on top, the legend of `entries` below it and `body_h` pixels
+/// under the legend, which `draw_body` fills. `draw_body` gets the whole
+/// canvas (for drawing in pixel coordinates) and the area under the legend.
+pub fn render_figure(
+    width: u32,
+    title: &str,
+    entries: &[LegendEntry],
+    body_h: u32,
+    draw_body: impl FnOnce(&Area<'_>, Area<'_>) -> Result<(), PlotError>,
+) -> Result<String, PlotError> {
+    let legend_h = legend_height(entries, width);
+    let height = TITLE_H + legend_h + body_h;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let body = root
+            .titled(title, (FONT, title_size(title, width)))
+            .map_err(draw_err)?;
+        let (legend_area, rest) = body.split_vertically(legend_h);
+        draw_legend(&legend_area, entries)?;
+        draw_body(&root, rest)?;
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
 }
 
 /// Checks that a title and the labels are not empty.

@@ -8,9 +8,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::PlotError;
 use crate::common::{
-    DESC_SIZE, FONT, HOLE_COLOUR, LEGEND_SIZE, LegendEntry, Swatch, TICK_SIZE, draw_err,
-    draw_legend, legend_height, mode_colour, padded, require_text, text_width, tick_formatter,
-    title_size,
+    Area, Chart, DESC_SIZE, FONT, HOLE_COLOUR, LEGEND_SIZE, LegendEntry, Swatch, TICK_SIZE,
+    draw_err, mode_colour, mode_name, padded, render_figure, require_text, text_width,
+    tick_formatter,
 };
 
 /// One mode sequence: the active mode of every sample, `None` where no mode
@@ -89,15 +89,8 @@ fn sample_edges(t: &[f64]) -> Vec<f64> {
     e
 }
 
-fn mode_name(fig: &ModeFigure, m: usize) -> String {
-    fig.mode_names
-        .get(m)
-        .cloned()
-        .unwrap_or_else(|| format!("mode {}", m + 1))
-}
-
-/// Renders a [`ModeFigure`] to an SVG string.
-pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
+/// Checks the texts, the time vector and the length of every sequence.
+fn check_figure(fig: &ModeFigure) -> Result<(), PlotError> {
     require_text("the title", &fig.title)?;
     require_text("the time label", &fig.time_label)?;
     let n = fig.time.len();
@@ -121,16 +114,24 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
             });
         }
     }
-    let mismatch: Option<Vec<bool>> = (fig.mark_mismatch && fig.sequences.len() >= 2).then(|| {
+    Ok(())
+}
+
+/// Where the second sequence differs from the first, when asked for and
+/// there are two.
+fn mismatch(fig: &ModeFigure) -> Option<Vec<bool>> {
+    (fig.mark_mismatch && fig.sequences.len() >= 2).then(|| {
         fig.sequences[0]
             .modes
             .iter()
             .zip(&fig.sequences[1].modes)
             .map(|(a, b)| a != b)
             .collect()
-    });
+    })
+}
 
-    // Legend: every mode that occurs, in order, then "no mode", then mismatch.
+/// Legend: every mode that occurs, in order, then "no mode", then mismatch.
+fn legend_entries(fig: &ModeFigure, mismatch: Option<&[bool]>) -> Vec<LegendEntry> {
     let mut used: Vec<usize> = fig
         .sequences
         .iter()
@@ -140,7 +141,12 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
     used.dedup();
     let mut entries: Vec<LegendEntry> = used
         .iter()
-        .map(|&m| LegendEntry::new(Swatch::Fill(mode_colour(m), 0.9), mode_name(fig, m)))
+        .map(|&m| {
+            LegendEntry::new(
+                Swatch::Fill(mode_colour(m), 0.9),
+                mode_name(&fig.mode_names, m),
+            )
+        })
         .collect();
     if fig
         .sequences
@@ -152,8 +158,8 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
             "no mode active",
         ));
     }
-    let mut lanes: Vec<String> = fig.sequences.iter().map(|s| s.label.clone()).collect();
-    if let Some(mm) = &mismatch {
+    if let Some(mm) = mismatch {
+        let n = mm.len();
         let count = mm.iter().filter(|&&d| d).count();
         entries.push(LegendEntry::new(
             Swatch::Fill(MISMATCH, 0.9),
@@ -166,92 +172,133 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
                 100.0 * count as f64 / n as f64
             ),
         ));
-        lanes.push("differs".to_string());
     }
-    let n_lanes = lanes.len();
-    let lane_label_w = lanes
+    entries
+}
+
+/// Width of the area left of the lanes: the longest lane label and the
+/// vertical axis title.
+fn lane_label_width(lanes: &[String]) -> u32 {
+    lanes
         .iter()
         .map(|l| text_width(l, TICK_SIZE))
         .max()
         .unwrap_or(0)
         .max(40) as u32
         + 24
-        + Y_TITLE_W;
+        + Y_TITLE_W
+}
 
-    let legend_h = legend_height(&entries, WIDTH);
-    let title_h = 46;
-    let height = title_h + legend_h + n_lanes as u32 * LANE_H + 90;
-    let edges = sample_edges(&fig.time);
-    let x_range = padded((edges[0], edges[n]), 0.0);
+/// The vertical extent of lane `i` (from the top) of `n_lanes`: lane `i`
+/// spans `[n_lanes - 1 - i, n_lanes - i]`, drawn with a gap to each side.
+fn lane_span(n_lanes: usize, i: usize) -> (f64, f64) {
+    let top = (n_lanes - i) as f64;
+    (top - 0.85, top - 0.15)
+}
 
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let body = root
-            .titled(&fig.title, (FONT, title_size(&fig.title, WIDTH)))
-            .map_err(draw_err)?;
-        let (legend_area, plot_area) = body.split_vertically(legend_h);
-        draw_legend(&legend_area, &entries)?;
-        let mut chart = ChartBuilder::on(&plot_area)
-            .margin_right(25)
-            .margin_left(16)
-            .margin_top(8)
-            .x_label_area_size(62)
-            .y_label_area_size(lane_label_w)
-            .build_cartesian_2d(x_range.0..x_range.1, 0.0..n_lanes as f64)
-            .map_err(draw_err)?;
-        let xf = tick_formatter(x_range.1 - x_range.0);
-        let no_label = |_: &f64| String::new();
-        chart
-            .configure_mesh()
-            .disable_y_mesh()
-            .set_tick_mark_size(LabelAreaPosition::Left, 0)
-            .x_label_formatter(&xf)
-            .y_label_formatter(&no_label)
-            .x_labels(10)
-            .label_style((FONT, TICK_SIZE))
-            .axis_desc_style((FONT, DESC_SIZE))
-            .light_line_style(RGBColor(240, 240, 240))
-            .bold_line_style(RGBColor(215, 215, 215))
-            .x_desc(fig.time_label.as_str())
-            .y_desc(Y_TITLE)
-            .draw()
-            .map_err(draw_err)?;
-        // Lane i (from the top) spans [n_lanes - 1 - i, n_lanes - i].
-        let lane_span = |i: usize| {
-            let top = (n_lanes - i) as f64;
-            (top - 0.85, top - 0.15)
-        };
-        for (i, s) in fig.sequences.iter().enumerate() {
-            let (lo, hi) = lane_span(i);
-            let rects = runs(&s.modes).into_iter().map(|(a, b, m)| {
-                let colour = m.map_or(HOLE_COLOUR, mode_colour);
-                Rectangle::new([(edges[a], lo), (edges[b], hi)], colour.filled())
-            });
-            chart.draw_series(rects).map_err(draw_err)?;
-        }
-        if let Some(mm) = &mismatch {
-            let (lo, hi) = lane_span(n_lanes - 1);
-            let rects = runs(mm).into_iter().filter(|r| r.2).map(|(a, b, _)| {
-                Rectangle::new([(edges[a], lo), (edges[b], hi)], MISMATCH.filled())
-            });
-            chart.draw_series(rects).map_err(draw_err)?;
-        }
-        // Lane labels left of the plot, in pixel coordinates of the root.
-        let font = (FONT, LEGEND_SIZE)
-            .into_font()
-            .color(&BLACK)
-            .pos(Pos::new(HPos::Right, VPos::Center));
-        for (i, label) in lanes.iter().enumerate() {
-            let (lo, hi) = lane_span(i);
-            let (px, py) = chart.backend_coord(&(x_range.0, 0.5 * (lo + hi)));
-            root.draw(&Text::new(label.clone(), (px - 10, py), font.clone()))
-                .map_err(draw_err)?;
-        }
-        root.present().map_err(draw_err)?;
+/// The chart of `n_lanes` lanes over `x_range`, with the time axis and the
+/// vertical axis title (the lanes have no ticks).
+fn lanes_chart<'a, 'b>(
+    area: &'a Area<'b>,
+    fig: &ModeFigure,
+    x_range: (f64, f64),
+    n_lanes: usize,
+    lane_label_w: u32,
+) -> Result<Chart<'a, 'b>, PlotError> {
+    let mut chart = ChartBuilder::on(area)
+        .margin_right(25)
+        .margin_left(16)
+        .margin_top(8)
+        .x_label_area_size(62)
+        .y_label_area_size(lane_label_w)
+        .build_cartesian_2d(x_range.0..x_range.1, 0.0..n_lanes as f64)
+        .map_err(draw_err)?;
+    let xf = tick_formatter(x_range.1 - x_range.0);
+    let no_label = |_: &f64| String::new();
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .set_tick_mark_size(LabelAreaPosition::Left, 0)
+        .x_label_formatter(&xf)
+        .y_label_formatter(&no_label)
+        .x_labels(10)
+        .label_style((FONT, TICK_SIZE))
+        .axis_desc_style((FONT, DESC_SIZE))
+        .light_line_style(RGBColor(240, 240, 240))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .x_desc(fig.time_label.as_str())
+        .y_desc(Y_TITLE)
+        .draw()
+        .map_err(draw_err)?;
+    Ok(chart)
+}
+
+/// One lane per sequence, a rectangle per run of equal modes, then the
+/// mismatch lane at the bottom.
+fn draw_lanes(
+    chart: &mut Chart<'_, '_>,
+    fig: &ModeFigure,
+    edges: &[f64],
+    mismatch: Option<&[bool]>,
+    n_lanes: usize,
+) -> Result<(), PlotError> {
+    for (i, s) in fig.sequences.iter().enumerate() {
+        let (lo, hi) = lane_span(n_lanes, i);
+        let rects = runs(&s.modes).into_iter().map(|(a, b, m)| {
+            let colour = m.map_or(HOLE_COLOUR, mode_colour);
+            Rectangle::new([(edges[a], lo), (edges[b], hi)], colour.filled())
+        });
+        chart.draw_series(rects).map_err(draw_err)?;
     }
-    Ok(svg)
+    if let Some(mm) = mismatch {
+        let (lo, hi) = lane_span(n_lanes, n_lanes - 1);
+        let rects = runs(mm)
+            .into_iter()
+            .filter(|r| r.2)
+            .map(|(a, b, _)| Rectangle::new([(edges[a], lo), (edges[b], hi)], MISMATCH.filled()));
+        chart.draw_series(rects).map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// Lane labels left of the plot, in pixel coordinates of `root`.
+fn draw_lane_labels(
+    root: &Area<'_>,
+    chart: &Chart<'_, '_>,
+    lanes: &[String],
+    x_start: f64,
+) -> Result<(), PlotError> {
+    let font = (FONT, LEGEND_SIZE)
+        .into_font()
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Right, VPos::Center));
+    for (i, label) in lanes.iter().enumerate() {
+        let (lo, hi) = lane_span(lanes.len(), i);
+        let (px, py) = chart.backend_coord(&(x_start, 0.5 * (lo + hi)));
+        root.draw(&Text::new(label.clone(), (px - 10, py), font.clone()))
+            .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// Renders a [`ModeFigure`] to an SVG string.
+pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
+    check_figure(fig)?;
+    let mismatch = mismatch(fig);
+    let entries = legend_entries(fig, mismatch.as_deref());
+    let mut lanes: Vec<String> = fig.sequences.iter().map(|s| s.label.clone()).collect();
+    if mismatch.is_some() {
+        lanes.push("differs".to_string());
+    }
+    let n_lanes = lanes.len();
+    let edges = sample_edges(&fig.time);
+    let x_range = padded((edges[0], edges[fig.time.len()]), 0.0);
+    let body_h = n_lanes as u32 * LANE_H + 90;
+    render_figure(WIDTH, &fig.title, &entries, body_h, |root, plot_area| {
+        let mut chart = lanes_chart(&plot_area, fig, x_range, n_lanes, lane_label_width(&lanes))?;
+        draw_lanes(&mut chart, fig, &edges, mismatch.as_deref(), n_lanes)?;
+        draw_lane_labels(root, &chart, &lanes, x_range.0)
+    })
 }
 
 /// Draws the active mode over time into the SVG file `path`, written

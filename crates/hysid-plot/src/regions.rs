@@ -10,11 +10,10 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::PlotError;
 use crate::common::{
-    DESC_SIZE, FONT, HOLE_COLOUR, LegendEntry, Swatch, TICK_SIZE, draw_err, draw_legend,
-    finite_range, legend_height, mode_colour, padded, require_text, tick_formatter, title_size,
-    wrap,
+    Area, Chart, DESC_SIZE, FONT, HOLE_COLOUR, LegendEntry, Swatch, TICK_SIZE, draw_err,
+    finite_range, mode_colour, mode_name, padded, render_figure, require_text, tick_formatter,
+    wrap, y_area_width,
 };
-use crate::simulation::y_area_width;
 use crate::slice::{Bounds, Slice2, slice_polyhedron};
 
 /// Classified regressors and the mode regions, sliced by a plane.
@@ -58,13 +57,8 @@ const PLOT_H: u32 = 680;
 const REGION_ALPHA: f64 = 0.28;
 /// Grid resolution of the hole/overlap estimate.
 const GRID: usize = 200;
-
-fn mode_name(fig: &RegionFigure, m: usize) -> String {
-    fig.mode_names
-        .get(m)
-        .cloned()
-        .unwrap_or_else(|| format!("mode {}", m + 1))
-}
+/// Colour of unclassified points.
+const UNCLASSIFIED: RGBColor = RGBColor(90, 90, 90);
 
 fn coord_name(fig: &RegionFigure, k: usize) -> String {
     fig.coordinate_names
@@ -130,8 +124,11 @@ fn fmt_share(f: f64) -> String {
     }
 }
 
-/// Renders a [`RegionFigure`] to an SVG string.
-pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
+/// A data point at its two plotted coordinates, with its mode.
+type PlanePoint = ([f64; 2], Option<usize>);
+
+/// Checks the texts, the axes and the lengths of the points and labels.
+fn check_figure(fig: &RegionFigure) -> Result<(), PlotError> {
     require_text("the title", &fig.title)?;
     require_text("the horizontal axis label", &fig.x_label)?;
     require_text("the vertical axis label", &fig.y_label)?;
@@ -156,48 +153,74 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
             expected: dim,
         });
     }
-    let pts: Vec<([f64; 2], Option<usize>)> = fig
-        .points
+    Ok(())
+}
+
+/// The points projected on the plane of `fig.axes`, without those with a
+/// non-finite coordinate there.
+fn projected_points(fig: &RegionFigure) -> Vec<PlanePoint> {
+    let (i, j) = fig.axes;
+    fig.points
         .iter()
         .zip(&fig.labels)
         .map(|(p, &l)| ([p[i], p[j]], l))
         .filter(|(p, _)| p[0].is_finite() && p[1].is_finite())
-        .collect();
-    let bounds = match fig.bounds {
-        Some(b) => {
-            if !b.is_valid() {
-                return Err(PlotError::Invalid(
-                    "the plotting window is not a finite box of positive size".into(),
-                ));
-            }
-            b
+        .collect()
+}
+
+/// The plotting window: the given one, or the range of the points plus 5 %.
+fn window(fig: &RegionFigure, pts: &[PlanePoint]) -> Result<Bounds, PlotError> {
+    if let Some(b) = fig.bounds {
+        if !b.is_valid() {
+            return Err(PlotError::Invalid(
+                "the plotting window is not a finite box of positive size".into(),
+            ));
         }
-        None => {
-            let xr = finite_range(pts.iter().map(|(p, _)| &p[0])).ok_or_else(|| {
-                PlotError::NoData("no finite data point and no window given".into())
-            })?;
-            let yr = finite_range(pts.iter().map(|(p, _)| &p[1])).expect("same points");
-            let (x_min, x_max) = padded(xr, 0.05);
-            let (y_min, y_max) = padded(yr, 0.05);
-            Bounds {
-                x_min,
-                x_max,
-                y_min,
-                y_max,
-            }
-        }
-    };
-    let slices: Vec<Slice2> = fig
-        .regions
+        return Ok(b);
+    }
+    let xr = finite_range(pts.iter().map(|(p, _)| &p[0]))
+        .ok_or_else(|| PlotError::NoData("no finite data point and no window given".into()))?;
+    let yr = finite_range(pts.iter().map(|(p, _)| &p[1])).expect("same points");
+    let (x_min, x_max) = padded(xr, 0.05);
+    let (y_min, y_max) = padded(yr, 0.05);
+    Ok(Bounds {
+        x_min,
+        x_max,
+        y_min,
+        y_max,
+    })
+}
+
+/// The 2-D slice of every region in the window.
+fn slice_regions(fig: &RegionFigure, bounds: Bounds) -> Result<Vec<Slice2>, PlotError> {
+    fig.regions
         .iter()
         .enumerate()
         .map(|(m, r)| {
             slice_polyhedron(r, &fig.fixed, fig.axes, bounds)
                 .map_err(|source| PlotError::Slice { mode: m, source })
         })
-        .collect::<Result<_, _>>()?;
+        .collect()
+}
 
-    // Legend: modes (regions or points), holes, unclassified points.
+/// The slices that are polygons (those with an area in the plane).
+fn polygons(slices: &[Slice2]) -> Vec<&Vec<[f64; 2]>> {
+    slices
+        .iter()
+        .filter_map(|s| match s {
+            Slice2::Polygon(v) => Some(v),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Legend: modes (regions or points), holes, unclassified points.
+fn legend_entries(
+    fig: &RegionFigure,
+    pts: &[PlanePoint],
+    slices: &[Slice2],
+    hole: f64,
+) -> Vec<LegendEntry> {
     let n_modes = fig.regions.len().max(
         pts.iter()
             .filter_map(|(_, l)| l.map(|m| m + 1))
@@ -207,31 +230,20 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
     // A mode whose slice is a segment or a point (a guard set such as a
     // stop `y(k-1) = level`) is drawn as a thick line or a circle, and its
     // legend entry says so.
+    let name = |m| mode_name(&fig.mode_names, m);
     let mut entries: Vec<LegendEntry> = (0..n_modes)
         .map(|m| match slices.get(m) {
             Some(Slice2::Segment(..)) => LegendEntry::new(
                 Swatch::Line(mode_colour(m), 4, false),
-                format!("{} (a line in this plane)", mode_name(fig, m)),
+                format!("{} (a line in this plane)", name(m)),
             ),
             Some(Slice2::Point(..)) => LegendEntry::new(
                 Swatch::Marker(mode_colour(m)),
-                format!("{} (a point in this plane)", mode_name(fig, m)),
+                format!("{} (a point in this plane)", name(m)),
             ),
-            _ => LegendEntry::new(Swatch::Fill(mode_colour(m), 0.6), mode_name(fig, m)),
+            _ => LegendEntry::new(Swatch::Fill(mode_colour(m), 0.6), name(m)),
         })
         .collect();
-    let polys: Vec<&Vec<[f64; 2]>> = slices
-        .iter()
-        .filter_map(|s| match s {
-            Slice2::Polygon(v) => Some(v),
-            _ => None,
-        })
-        .collect();
-    let (hole, overlap) = if fig.regions.is_empty() {
-        (0.0, 0.0)
-    } else {
-        coverage(&polys, bounds)
-    };
     if !fig.regions.is_empty() && hole > 0.0 {
         entries.push(LegendEntry::new(
             Swatch::Fill(HOLE_COLOUR, 1.0),
@@ -240,14 +252,25 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
     }
     if pts.iter().any(|(_, l)| l.is_none()) {
         entries.push(LegendEntry::new(
-            Swatch::Marker(RGBColor(90, 90, 90)),
+            Swatch::Marker(UNCLASSIFIED),
             "unclassified point",
         ));
     }
+    entries
+}
 
-    // Notes under the plot: where the slice is, what is not drawn.
+/// Notes under the plot: where the slice is, what is not drawn, then the
+/// figure's own notes; wrapped to the width of the figure.
+fn notes(
+    fig: &RegionFigure,
+    n_points: usize,
+    slices: &[Slice2],
+    (hole, overlap): (f64, f64),
+) -> Vec<String> {
+    let (i, j) = fig.axes;
+    let name = |m| mode_name(&fig.mode_names, m);
     let mut notes = Vec::new();
-    let others: Vec<String> = (0..dim)
+    let others: Vec<String> = (0..fig.fixed.len())
         .filter(|&k| k != i && k != j)
         .map(|k| format!("{} = {}", coord_name(fig, k), fmt_value(fig.fixed[k])))
         .collect();
@@ -255,7 +278,7 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
         notes.push(format!(
             "Regions: slice at {}. Points: all {} data points, projected.",
             others.join(", "),
-            pts.len()
+            n_points
         ));
     }
     if !fig.regions.is_empty() {
@@ -269,7 +292,7 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
         .iter()
         .enumerate()
         .filter(|(_, s)| s.is_empty())
-        .map(|(m, _)| mode_name(fig, m))
+        .map(|(m, _)| name(m))
         .collect();
     if !empty.is_empty() {
         notes.push(format!(
@@ -281,150 +304,192 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
         .iter()
         .enumerate()
         .filter_map(|(m, s)| match s {
-            Slice2::Segment(..) => Some(format!("{} (a line)", mode_name(fig, m))),
-            Slice2::Point(..) => Some(format!("{} (a point)", mode_name(fig, m))),
+            Slice2::Segment(..) => Some(format!("{} (a line)", name(m))),
+            Slice2::Point(..) => Some(format!("{} (a point)", name(m))),
             _ => None,
         })
         .collect();
     if !flat.is_empty() {
         notes.push(format!("Without area in this slice: {}.", flat.join(", ")));
     }
-
     notes.extend(fig.notes.iter().cloned());
-    let notes: Vec<String> = notes
+    notes
         .iter()
         .flat_map(|n| wrap(n, TICK_SIZE, WIDTH - 40))
-        .collect();
-    let legend_h = legend_height(&entries, WIDTH);
-    let title_h = 46;
-    let notes_h = 10 + 24 * notes.len() as u32;
-    let height = title_h + legend_h + PLOT_H + notes_h;
-    let y_range = (bounds.y_min, bounds.y_max);
+        .collect()
+}
 
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let body = root
-            .titled(&fig.title, (FONT, title_size(&fig.title, WIDTH)))
-            .map_err(draw_err)?;
-        let (legend_area, rest) = body.split_vertically(legend_h);
-        draw_legend(&legend_area, &entries)?;
-        let (plot_area, notes_area) = rest.split_vertically(PLOT_H);
-        let mut chart = ChartBuilder::on(&plot_area)
-            .margin_right(30)
-            .margin_left(16)
-            .margin_top(8)
-            .x_label_area_size(62)
-            .y_label_area_size(y_area_width(y_range))
-            .build_cartesian_2d(bounds.x_min..bounds.x_max, bounds.y_min..bounds.y_max)
-            .map_err(draw_err)?;
-        let xf = tick_formatter(bounds.x_max - bounds.x_min);
-        let yf = tick_formatter(bounds.y_max - bounds.y_min);
-        if !fig.regions.is_empty() {
-            // Holes: the window in grey, then every region cleared to white.
+/// The chart over the window, before anything is drawn on it.
+fn plane_chart<'a, 'b>(area: &'a Area<'b>, bounds: Bounds) -> Result<Chart<'a, 'b>, PlotError> {
+    ChartBuilder::on(area)
+        .margin_right(30)
+        .margin_left(16)
+        .margin_top(8)
+        .x_label_area_size(62)
+        .y_label_area_size(y_area_width((bounds.y_min, bounds.y_max)))
+        .build_cartesian_2d(bounds.x_min..bounds.x_max, bounds.y_min..bounds.y_max)
+        .map_err(draw_err)
+}
+
+fn to_pts(v: &[[f64; 2]]) -> Vec<(f64, f64)> {
+    v.iter().map(|p| (p[0], p[1])).collect()
+}
+
+/// The partition as background: the window in grey, every region cleared
+/// to white, then filled in its mode colour; what stays grey is a hole.
+fn draw_partition(
+    chart: &mut Chart<'_, '_>,
+    bounds: Bounds,
+    slices: &[Slice2],
+) -> Result<(), PlotError> {
+    chart
+        .draw_series(std::iter::once(Rectangle::new(
+            [(bounds.x_min, bounds.y_min), (bounds.x_max, bounds.y_max)],
+            HOLE_COLOUR.filled(),
+        )))
+        .map_err(draw_err)?;
+    chart
+        .draw_series(
+            polygons(slices)
+                .iter()
+                .map(|v| Polygon::new(to_pts(v), WHITE.filled())),
+        )
+        .map_err(draw_err)?;
+    for (m, s) in slices.iter().enumerate() {
+        if let Slice2::Polygon(v) = s {
             chart
-                .draw_series(std::iter::once(Rectangle::new(
-                    [(bounds.x_min, bounds.y_min), (bounds.x_max, bounds.y_max)],
-                    HOLE_COLOUR.filled(),
+                .draw_series(std::iter::once(Polygon::new(
+                    to_pts(v),
+                    mode_colour(m).mix(REGION_ALPHA).filled(),
                 )))
                 .map_err(draw_err)?;
-            let to_pts = |v: &Vec<[f64; 2]>| v.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>();
-            chart
-                .draw_series(
-                    polys
-                        .iter()
-                        .map(|v| Polygon::new(to_pts(v), WHITE.filled())),
-                )
-                .map_err(draw_err)?;
-            for (m, s) in slices.iter().enumerate() {
-                if let Slice2::Polygon(v) = s {
-                    chart
-                        .draw_series(std::iter::once(Polygon::new(
-                            to_pts(v),
-                            mode_colour(m).mix(REGION_ALPHA).filled(),
-                        )))
-                        .map_err(draw_err)?;
-                }
-            }
         }
-        chart
-            .configure_mesh()
-            .x_label_formatter(&xf)
-            .y_label_formatter(&yf)
-            .x_labels(8)
-            .y_labels(8)
-            .label_style((FONT, TICK_SIZE))
-            .axis_desc_style((FONT, DESC_SIZE))
-            .light_line_style(TRANSPARENT)
-            .bold_line_style(BLACK.mix(0.08))
-            .x_desc(fig.x_label.as_str())
-            .y_desc(fig.y_label.as_str())
-            .draw()
-            .map_err(draw_err)?;
-        // Region boundaries, lines and points of lower-dimensional slices.
-        for (m, s) in slices.iter().enumerate() {
-            let style = ShapeStyle::from(&mode_colour(m)).stroke_width(2);
-            match s {
-                Slice2::Empty => {}
-                Slice2::Polygon(v) => {
-                    let mut path: Vec<(f64, f64)> = v.iter().map(|p| (p[0], p[1])).collect();
-                    path.push(path[0]);
-                    chart
-                        .draw_series(std::iter::once(PathElement::new(path, style)))
-                        .map_err(draw_err)?;
-                }
-                Slice2::Segment(a, b) => {
-                    chart
-                        .draw_series(std::iter::once(PathElement::new(
-                            vec![(a[0], a[1]), (b[0], b[1])],
-                            style.stroke_width(4),
-                        )))
-                        .map_err(draw_err)?;
-                }
-                Slice2::Point(p) => {
-                    chart
-                        .draw_series(std::iter::once(Circle::new(
-                            (p[0], p[1]),
-                            8,
-                            style.stroke_width(3),
-                        )))
-                        .map_err(draw_err)?;
-                }
-            }
-        }
-        // Data points on top, clipped to the window.
-        let inside = |p: &[f64; 2]| {
-            p[0] >= bounds.x_min
-                && p[0] <= bounds.x_max
-                && p[1] >= bounds.y_min
-                && p[1] <= bounds.y_max
-        };
-        chart
-            .draw_series(pts.iter().filter(|(p, _)| inside(p)).map(|(p, l)| {
-                let style = match l {
-                    Some(m) => mode_colour(*m).filled(),
-                    None => ShapeStyle::from(&RGBColor(90, 90, 90)).stroke_width(1),
-                };
-                Circle::new((p[0], p[1]), 3, style)
-            }))
-            .map_err(draw_err)?;
-        let font = (FONT, TICK_SIZE)
-            .into_font()
-            .color(&RGBColor(50, 50, 50))
-            .pos(Pos::new(HPos::Left, VPos::Top));
-        for (k, note) in notes.iter().enumerate() {
-            notes_area
-                .draw(&Text::new(
-                    note.clone(),
-                    (20, 4 + 24 * k as i32),
-                    font.clone(),
-                ))
-                .map_err(draw_err)?;
-        }
-        root.present().map_err(draw_err)?;
     }
-    Ok(svg)
+    Ok(())
+}
+
+/// Axes, ticks, a faint grid and the axis labels.
+fn draw_mesh(
+    chart: &mut Chart<'_, '_>,
+    fig: &RegionFigure,
+    bounds: Bounds,
+) -> Result<(), PlotError> {
+    let xf = tick_formatter(bounds.x_max - bounds.x_min);
+    let yf = tick_formatter(bounds.y_max - bounds.y_min);
+    chart
+        .configure_mesh()
+        .x_label_formatter(&xf)
+        .y_label_formatter(&yf)
+        .x_labels(8)
+        .y_labels(8)
+        .label_style((FONT, TICK_SIZE))
+        .axis_desc_style((FONT, DESC_SIZE))
+        .light_line_style(TRANSPARENT)
+        .bold_line_style(BLACK.mix(0.08))
+        .x_desc(fig.x_label.as_str())
+        .y_desc(fig.y_label.as_str())
+        .draw()
+        .map_err(draw_err)
+}
+
+/// Region boundaries, lines and points of lower-dimensional slices.
+fn draw_outlines(chart: &mut Chart<'_, '_>, slices: &[Slice2]) -> Result<(), PlotError> {
+    for (m, s) in slices.iter().enumerate() {
+        let style = ShapeStyle::from(&mode_colour(m)).stroke_width(2);
+        match s {
+            Slice2::Empty => {}
+            Slice2::Polygon(v) => {
+                let mut path = to_pts(v);
+                path.push(path[0]);
+                chart
+                    .draw_series(std::iter::once(PathElement::new(path, style)))
+                    .map_err(draw_err)?;
+            }
+            Slice2::Segment(a, b) => {
+                chart
+                    .draw_series(std::iter::once(PathElement::new(
+                        vec![(a[0], a[1]), (b[0], b[1])],
+                        style.stroke_width(4),
+                    )))
+                    .map_err(draw_err)?;
+            }
+            Slice2::Point(p) => {
+                chart
+                    .draw_series(std::iter::once(Circle::new(
+                        (p[0], p[1]),
+                        8,
+                        style.stroke_width(3),
+                    )))
+                    .map_err(draw_err)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The data points in their mode colours, clipped to the window.
+fn draw_points(
+    chart: &mut Chart<'_, '_>,
+    pts: &[PlanePoint],
+    bounds: Bounds,
+) -> Result<(), PlotError> {
+    let inside = |p: &[f64; 2]| {
+        p[0] >= bounds.x_min && p[0] <= bounds.x_max && p[1] >= bounds.y_min && p[1] <= bounds.y_max
+    };
+    chart
+        .draw_series(pts.iter().filter(|(p, _)| inside(p)).map(|(p, l)| {
+            let style = match l {
+                Some(m) => mode_colour(*m).filled(),
+                None => ShapeStyle::from(&UNCLASSIFIED).stroke_width(1),
+            };
+            Circle::new((p[0], p[1]), 3, style)
+        }))
+        .map_err(draw_err)?;
+    Ok(())
+}
+
+/// The notes, one line each, from the top left of `area`.
+fn draw_notes(area: &Area<'_>, notes: &[String]) -> Result<(), PlotError> {
+    let font = (FONT, TICK_SIZE)
+        .into_font()
+        .color(&RGBColor(50, 50, 50))
+        .pos(Pos::new(HPos::Left, VPos::Top));
+    for (k, note) in notes.iter().enumerate() {
+        area.draw(&Text::new(
+            note.clone(),
+            (20, 4 + 24 * k as i32),
+            font.clone(),
+        ))
+        .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// Renders a [`RegionFigure`] to an SVG string.
+pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
+    check_figure(fig)?;
+    let pts = projected_points(fig);
+    let bounds = window(fig, &pts)?;
+    let slices = slice_regions(fig, bounds)?;
+    let shares = if fig.regions.is_empty() {
+        (0.0, 0.0)
+    } else {
+        coverage(&polygons(&slices), bounds)
+    };
+    let entries = legend_entries(fig, &pts, &slices, shares.0);
+    let notes = notes(fig, pts.len(), &slices, shares);
+    let notes_h = 10 + 24 * notes.len() as u32;
+    render_figure(WIDTH, &fig.title, &entries, PLOT_H + notes_h, |_, rest| {
+        let (plot_area, notes_area) = rest.split_vertically(PLOT_H);
+        let mut chart = plane_chart(&plot_area, bounds)?;
+        if !fig.regions.is_empty() {
+            draw_partition(&mut chart, bounds, &slices)?;
+        }
+        draw_mesh(&mut chart, fig, bounds)?;
+        draw_outlines(&mut chart, &slices)?;
+        draw_points(&mut chart, &pts, bounds)?;
+        draw_notes(&notes_area, &notes)
+    })
 }
 
 /// Draws classified points and region slices in a regressor plane into the

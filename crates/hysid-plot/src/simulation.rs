@@ -3,14 +3,13 @@
 
 use std::path::Path;
 
-use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::PlotError;
 use crate::common::{
-    DESC_SIZE, FONT, INPUT_COLOURS, LegendEntry, Swatch, TICK_SIZE, draw_err, draw_legend,
-    finite_range, finite_runs, legend_height, line_colour, padded, require_text, text_width,
-    tick_formatter, title_size,
+    Area, Chart, DESC_SIZE, FONT, INPUT_COLOURS, LegendEntry, Swatch, TICK_SIZE, draw_err,
+    finite_range, finite_runs, line_colour, padded, render_figure, require_text, tick_formatter,
+    y_area_width,
 };
 
 /// A named series of values, one per time sample.
@@ -90,13 +89,6 @@ fn check_len(what: &str, got: usize, expected: usize) -> Result<(), PlotError> {
     Ok(())
 }
 
-/// Width of the y label area for values in `range`.
-pub(crate) fn y_area_width(range: (f64, f64)) -> u32 {
-    let f = tick_formatter(range.1 - range.0);
-    let w = text_width(&f(&range.0), TICK_SIZE).max(text_width(&f(&range.1), TICK_SIZE));
-    (w + 48).max(70) as u32
-}
-
 struct Panel<'a> {
     y_desc: &'a str,
     x_desc: Option<&'a str>,
@@ -104,8 +96,33 @@ struct Panel<'a> {
     lines: Vec<(&'a [f64], RGBColor, u32)>,
 }
 
+/// The warm-up shaded from `x0` to `w`, with a dashed line where scoring
+/// starts.
+fn draw_warm_up(
+    chart: &mut Chart<'_, '_>,
+    (x0, w): (f64, f64),
+    (y0, y1): (f64, f64),
+) -> Result<(), PlotError> {
+    chart
+        .draw_series(std::iter::once(Rectangle::new(
+            [(x0, y0), (w, y1)],
+            WARMUP_COLOUR.mix(WARMUP_ALPHA).filled(),
+        )))
+        .map_err(draw_err)?;
+    chart
+        .draw_series(std::iter::once(plotters::element::DashedPathElement::new(
+            vec![(w, y0), (w, y1)],
+            6,
+            4,
+            ShapeStyle::from(&WARMUP_COLOUR).stroke_width(2),
+        )))
+        .map_err(draw_err)?;
+    Ok(())
+}
+
+/// One panel: axes, the warm-up shading, then the lines over time.
 fn draw_panel(
-    area: &DrawingArea<SVGBackend<'_>, Shift>,
+    area: &Area<'_>,
     time: &[f64],
     x_range: (f64, f64),
     y_area: u32,
@@ -138,21 +155,7 @@ fn draw_panel(
     }
     mesh.draw().map_err(draw_err)?;
     if let Some(w) = warm.filter(|w| w.is_finite() && *w > x_range.0) {
-        let w = w.min(x_range.1);
-        chart
-            .draw_series(std::iter::once(Rectangle::new(
-                [(x_range.0, y0), (w, y1)],
-                WARMUP_COLOUR.mix(WARMUP_ALPHA).filled(),
-            )))
-            .map_err(draw_err)?;
-        chart
-            .draw_series(std::iter::once(plotters::element::DashedPathElement::new(
-                vec![(w, y0), (w, y1)],
-                6,
-                4,
-                ShapeStyle::from(&WARMUP_COLOUR).stroke_width(2),
-            )))
-            .map_err(draw_err)?;
+        draw_warm_up(&mut chart, (x_range.0, w.min(x_range.1)), (y0, y1))?;
     }
     for (values, colour, width) in panel.lines {
         for run in finite_runs(time, values) {
@@ -167,8 +170,8 @@ fn draw_panel(
     Ok(())
 }
 
-/// Renders a [`SimulationFigure`] to an SVG string.
-pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
+/// Checks the texts and that every series has one value per time sample.
+fn check_figure(fig: &SimulationFigure) -> Result<(), PlotError> {
     require_text("the title", &fig.title)?;
     require_text("the time label", &fig.time_label)?;
     require_text("the output label", &fig.output_label)?;
@@ -194,10 +197,22 @@ pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
     if !fig.inputs.is_empty() {
         require_text("the input label", &fig.input_label)?;
     }
-    let x_range = finite_range(&fig.time)
+    Ok(())
+}
+
+/// The ranges of the axes: time, output and (with inputs) input.
+struct Ranges {
+    x: (f64, f64),
+    y: (f64, f64),
+    u: Option<(f64, f64)>,
+}
+
+/// The time range, and the output and input ranges padded by 5 % and 8 %.
+fn ranges(fig: &SimulationFigure) -> Result<Ranges, PlotError> {
+    let x = finite_range(&fig.time)
         .map(|r| if r.1 > r.0 { r } else { padded(r, 0.0) })
         .ok_or_else(|| PlotError::NoData("no finite time value".into()))?;
-    let y_range = finite_range(
+    let y = finite_range(
         fig.measured
             .values
             .iter()
@@ -205,7 +220,7 @@ pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
     )
     .map(|r| padded(r, 0.05))
     .ok_or_else(|| PlotError::NoData("no finite output value".into()))?;
-    let u_range = if fig.inputs.is_empty() {
+    let u = if fig.inputs.is_empty() {
         None
     } else {
         Some(
@@ -214,7 +229,15 @@ pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
                 .ok_or_else(|| PlotError::NoData("no finite input value".into()))?,
         )
     };
+    Ok(Ranges { x, y, u })
+}
 
+fn input_colour(k: usize) -> RGBColor {
+    INPUT_COLOURS[k % INPUT_COLOURS.len()]
+}
+
+/// Legend: the measured output, the simulated ones, the inputs, the warm-up.
+fn legend_entries(fig: &SimulationFigure) -> Vec<LegendEntry> {
     let mut entries = vec![LegendEntry::new(
         Swatch::Line(BLACK, 3, false),
         fig.measured.label.clone(),
@@ -227,7 +250,7 @@ pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
     }
     for (k, s) in fig.inputs.iter().enumerate() {
         entries.push(LegendEntry::new(
-            Swatch::Line(INPUT_COLOURS[k % INPUT_COLOURS.len()], 2, false),
+            Swatch::Line(input_colour(k), 2, false),
             s.label.clone(),
         ));
     }
@@ -237,80 +260,71 @@ pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
             "warm-up (not scored)",
         ));
     }
-    let legend_h = legend_height(&entries, WIDTH);
-    let title_h = 46;
-    let panels_h = PANEL_OUTPUT_H + if u_range.is_some() { PANEL_INPUT_H } else { 0 };
-    let height = title_h + legend_h + panels_h;
-    let y_area = y_area_width(y_range).max(u_range.map_or(0, y_area_width));
+    entries
+}
 
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let body = root
-            .titled(&fig.title, (FONT, title_size(&fig.title, WIDTH)))
-            .map_err(draw_err)?;
-        let (legend_area, panels) = body.split_vertically(legend_h);
-        draw_legend(&legend_area, &entries)?;
-        let mut lines: Vec<(&[f64], RGBColor, u32)> = vec![(&fig.measured.values, BLACK, 3)];
-        for (k, s) in fig.simulated.iter().enumerate() {
-            lines.push((&s.values, line_colour(k), 2));
-        }
-        let output_panel = |x_desc| Panel {
-            y_desc: &fig.output_label,
-            x_desc,
-            y_range,
-            lines: lines.clone(),
-        };
-        match u_range {
-            None => draw_panel(
-                &panels,
-                &fig.time,
-                x_range,
-                y_area,
-                fig.scoring_starts,
-                output_panel(Some(&fig.time_label)),
-            )?,
+/// The output panel on `area`, with the time label under it when it is the
+/// only panel.
+fn draw_output_panel(
+    area: &Area<'_>,
+    fig: &SimulationFigure,
+    r: &Ranges,
+    y_area: u32,
+    x_desc: Option<&str>,
+) -> Result<(), PlotError> {
+    let mut lines: Vec<(&[f64], RGBColor, u32)> = vec![(&fig.measured.values, BLACK, 3)];
+    for (k, s) in fig.simulated.iter().enumerate() {
+        lines.push((&s.values, line_colour(k), 2));
+    }
+    let panel = Panel {
+        y_desc: &fig.output_label,
+        x_desc,
+        y_range: r.y,
+        lines,
+    };
+    draw_panel(area, &fig.time, r.x, y_area, fig.scoring_starts, panel)
+}
+
+/// The input panel on `area`, with the time label under it.
+fn draw_input_panel(
+    area: &Area<'_>,
+    fig: &SimulationFigure,
+    r: &Ranges,
+    u_range: (f64, f64),
+    y_area: u32,
+) -> Result<(), PlotError> {
+    let lines = fig
+        .inputs
+        .iter()
+        .enumerate()
+        .map(|(k, s)| (s.values.as_slice(), input_colour(k), 2))
+        .collect();
+    let panel = Panel {
+        y_desc: &fig.input_label,
+        x_desc: Some(&fig.time_label),
+        y_range: u_range,
+        lines,
+    };
+    draw_panel(area, &fig.time, r.x, y_area, fig.scoring_starts, panel)
+}
+
+/// Renders a [`SimulationFigure`] to an SVG string.
+pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
+    check_figure(fig)?;
+    let r = ranges(fig)?;
+    let entries = legend_entries(fig);
+    let panels_h = PANEL_OUTPUT_H + if r.u.is_some() { PANEL_INPUT_H } else { 0 };
+    let y_area = y_area_width(r.y).max(r.u.map_or(0, y_area_width));
+    render_figure(WIDTH, &fig.title, &entries, panels_h, |_, panels| {
+        match r.u {
+            None => draw_output_panel(&panels, fig, &r, y_area, Some(&fig.time_label)),
             Some(u_range) => {
                 let (top, bottom) = panels.split_vertically(PANEL_OUTPUT_H);
-                draw_panel(
-                    &top,
-                    &fig.time,
-                    x_range,
-                    y_area,
-                    fig.scoring_starts,
-                    output_panel(None),
-                )?;
-                let inputs = fig
-                    .inputs
-                    .iter()
-                    .enumerate()
-                    .map(|(k, s)| {
-                        (
-                            s.values.as_slice(),
-                            INPUT_COLOURS[k % INPUT_COLOURS.len()],
-                            2,
-                        )
-                    })
-                    .collect();
-                draw_panel(
-                    &bottom,
-                    &fig.time,
-                    x_range,
-                    y_area,
-                    fig.scoring_starts,
-                    Panel {
-                        y_desc: &fig.input_label,
-                        x_desc: Some(&fig.time_label),
-                        y_range: u_range,
-                        lines: inputs,
-                    },
-                )?;
+                draw_output_panel(&top, fig, &r, y_area, None)?;
+                draw_input_panel(&bottom, fig, &r, u_range, y_area)
             }
         }
-        root.present().map_err(draw_err)?;
-    }
-    Ok(svg)
+    })
 }
 
 /// Draws measured versus simulated output over time (and the input below)

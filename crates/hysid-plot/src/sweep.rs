@@ -9,10 +9,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::PlotError;
 use crate::common::{
-    DESC_SIZE, FONT, LegendEntry, Swatch, TICK_SIZE, draw_err, draw_legend, finite_range,
-    legend_height, line_colour, padded, require_text, tick_formatter, title_size,
+    Area, Chart, DESC_SIZE, FONT, LegendEntry, Swatch, TICK_SIZE, draw_err, finite_range,
+    finite_runs, line_colour, padded, render_figure, require_text, tick_formatter, y_area_width,
 };
-use crate::simulation::y_area_width;
 
 /// One curve: `y` against `x`, drawn as markers joined by lines (a NaN `y`,
 /// for example a failed run, leaves a gap).
@@ -103,8 +102,9 @@ fn fmt_tick(x: f64) -> String {
     }
 }
 
-/// Renders a [`SweepFigure`] to an SVG string.
-pub fn sweep_svg(fig: &SweepFigure) -> Result<String, PlotError> {
+/// Checks the texts, the lengths of the series and, on a logarithmic axis,
+/// that every parameter value is positive.
+fn check_figure(fig: &SweepFigure) -> Result<(), PlotError> {
     require_text("the title", &fig.title)?;
     require_text("the parameter label", &fig.x_label)?;
     if fig.panels.is_empty() {
@@ -128,158 +128,245 @@ pub fn sweep_svg(fig: &SweepFigure) -> Result<String, PlotError> {
             }
         }
     }
-    let tx = |x: f64| if fig.log_x { x.log10() } else { x };
+    Ok(())
+}
+
+/// A parameter value in axis units (its log10 on a logarithmic axis).
+fn axis_x(fig: &SweepFigure, x: f64) -> f64 {
+    if fig.log_x { x.log10() } else { x }
+}
+
+/// The parameter range in axis units, padded by 4 %.
+fn x_range(fig: &SweepFigure) -> Result<(f64, f64), PlotError> {
     let all_x: Vec<f64> = fig
         .panels
         .iter()
         .flat_map(|p| &p.series)
-        .flat_map(|s| s.x.iter().map(|&x| tx(x)))
+        .flat_map(|s| s.x.iter().map(|&x| axis_x(fig, x)))
         .collect();
-    let x_range = finite_range(&all_x)
+    finite_range(&all_x)
         .map(|r| padded(r, 0.04))
-        .ok_or_else(|| PlotError::NoData("no finite parameter value".into()))?;
-    // Colours by label, in order of first appearance.
+        .ok_or_else(|| PlotError::NoData("no finite parameter value".into()))
+}
+
+/// The metric range of each panel, padded by 8 %.
+fn y_ranges(fig: &SweepFigure) -> Result<Vec<(f64, f64)>, PlotError> {
+    fig.panels
+        .iter()
+        .map(|p| {
+            finite_range(p.series.iter().flat_map(|s| &s.y))
+                .map(|r| padded(r, 0.08))
+                .ok_or_else(|| {
+                    PlotError::NoData(format!("no finite value in the panel '{}'", p.y_label))
+                })
+        })
+        .collect()
+}
+
+/// The series labels in order of first appearance; a label's colour is
+/// given by its place in this list.
+fn series_labels(fig: &SweepFigure) -> Vec<&str> {
     let mut labels: Vec<&str> = Vec::new();
     for s in fig.panels.iter().flat_map(|p| &p.series) {
         if !labels.contains(&s.label.as_str()) {
             labels.push(&s.label);
         }
     }
-    let colour_of = |label: &str| line_colour(labels.iter().position(|l| *l == label).unwrap_or(0));
+    labels
+}
+
+fn colour_of(labels: &[&str], label: &str) -> RGBColor {
+    line_colour(labels.iter().position(|l| *l == label).unwrap_or(0))
+}
+
+/// What every panel shares: the parameter axis and the series colours.
+struct Shared<'f> {
+    fig: &'f SweepFigure,
+    x_range: (f64, f64),
+    /// Width of the metric label area, the same in every panel.
+    y_area: u32,
+    labels: Vec<&'f str>,
+    /// The hand-drawn ticks of a logarithmic axis (empty on a linear one).
+    log_ticks: Vec<(f64, String)>,
+}
+
+/// The chart of one panel with its axes; the parameter label goes under the
+/// last panel only.
+fn panel_chart<'a, 'b>(
+    area: &'a Area<'b>,
+    sh: &Shared<'_>,
+    p: &SweepPanel,
+    (y0, y1): (f64, f64),
+    last: bool,
+) -> Result<Chart<'a, 'b>, PlotError> {
+    let (x0, x1) = sh.x_range;
+    let mut chart = ChartBuilder::on(area)
+        .margin_right(25)
+        .margin_left(16)
+        .margin_top(10)
+        .x_label_area_size(if last { 62 } else { 32 })
+        .y_label_area_size(sh.y_area)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(draw_err)?;
+    let lin_fmt = tick_formatter(x1 - x0);
+    let blank = |_: &f64| String::new();
+    // On a log axis plotters' labels would sit at round exponents; ours go
+    // at 1-2-5 values per decade, drawn by `draw_log_ticks`.
+    let x_fmt: &dyn Fn(&f64) -> String = if sh.fig.log_x { &blank } else { &lin_fmt };
+    let y_lin = tick_formatter(y1 - y0);
+    let y_int = |v: &f64| {
+        if (v - v.round()).abs() < 1e-9 {
+            format!("{}", v.round() as i64)
+        } else {
+            String::new()
+        }
+    };
+    let y_fmt: &dyn Fn(&f64) -> String = if p.integer_y { &y_int } else { &y_lin };
+    let mut mesh = chart.configure_mesh();
+    if sh.fig.log_x {
+        mesh.disable_x_mesh()
+            .set_tick_mark_size(LabelAreaPosition::Bottom, 0);
+    }
+    mesh.x_label_formatter(x_fmt)
+        .y_label_formatter(y_fmt)
+        .x_labels(10)
+        .y_labels(if p.integer_y {
+            ((y1 - y0).ceil() as usize + 1).clamp(2, 12)
+        } else {
+            6
+        })
+        .label_style((FONT, TICK_SIZE))
+        .axis_desc_style((FONT, DESC_SIZE))
+        .light_line_style(RGBColor(240, 240, 240))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .y_desc(p.y_label.as_str());
+    if last {
+        mesh.x_desc(sh.fig.x_label.as_str());
+    }
+    mesh.draw().map_err(draw_err)?;
+    Ok(chart)
+}
+
+/// The grid lines of a logarithmic axis in the chart, and its tick marks
+/// and labels on `root` in pixel coordinates.
+fn draw_log_ticks(
+    root: &Area<'_>,
+    chart: &mut Chart<'_, '_>,
+    log_ticks: &[(f64, String)],
+    (y0, y1): (f64, f64),
+) -> Result<(), PlotError> {
+    let grid = ShapeStyle::from(&RGBColor(215, 215, 215)).stroke_width(1);
+    chart
+        .draw_series(
+            log_ticks
+                .iter()
+                .map(|(v, _)| PathElement::new(vec![(*v, y0), (*v, y1)], grid)),
+        )
+        .map_err(draw_err)?;
+    let font = (FONT, TICK_SIZE)
+        .into_font()
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Center, VPos::Top));
+    for (v, label) in log_ticks {
+        let (px, py) = chart.backend_coord(&(*v, y0));
+        root.draw(&PathElement::new(vec![(px, py), (px, py + 5)], BLACK))
+            .map_err(draw_err)?;
+        root.draw(&Text::new(label.clone(), (px, py + 9), font.clone()))
+            .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// Every series of the panel as markers joined by lines, sorted by the
+/// parameter; a non-finite value breaks the line.
+fn draw_curves(
+    chart: &mut Chart<'_, '_>,
+    sh: &Shared<'_>,
+    p: &SweepPanel,
+) -> Result<(), PlotError> {
+    for s in &p.series {
+        let colour = colour_of(&sh.labels, &s.label);
+        let mut pts: Vec<(f64, f64)> =
+            s.x.iter()
+                .zip(&s.y)
+                .map(|(&x, &y)| (axis_x(sh.fig, x), y))
+                .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (xs, ys): (Vec<f64>, Vec<f64>) = pts.iter().copied().unzip();
+        for run in finite_runs(&xs, &ys) {
+            chart
+                .draw_series(LineSeries::new(
+                    run.clone(),
+                    ShapeStyle::from(&colour).stroke_width(2),
+                ))
+                .map_err(draw_err)?;
+            chart
+                .draw_series(run.into_iter().map(|q| Circle::new(q, 5, colour.filled())))
+                .map_err(draw_err)?;
+        }
+    }
+    Ok(())
+}
+
+/// The panels top to bottom, each `PANEL_H` high (the last takes the rest).
+fn draw_panels(
+    root: &Area<'_>,
+    panels_area: Area<'_>,
+    sh: &Shared<'_>,
+    y_ranges: &[(f64, f64)],
+) -> Result<(), PlotError> {
+    let mut rest = panels_area;
+    for (k, (p, &y_range)) in sh.fig.panels.iter().zip(y_ranges).enumerate() {
+        let last = k + 1 == sh.fig.panels.len();
+        let (area, below) = if last {
+            (rest.clone(), rest.clone())
+        } else {
+            rest.split_vertically(PANEL_H)
+        };
+        let mut chart = panel_chart(&area, sh, p, y_range, last)?;
+        if sh.fig.log_x {
+            draw_log_ticks(root, &mut chart, &sh.log_ticks, y_range)?;
+        }
+        draw_curves(&mut chart, sh, p)?;
+        rest = below;
+    }
+    Ok(())
+}
+
+/// Renders a [`SweepFigure`] to an SVG string.
+pub fn sweep_svg(fig: &SweepFigure) -> Result<String, PlotError> {
+    check_figure(fig)?;
+    let x_range = x_range(fig)?;
+    let labels = series_labels(fig);
     let entries: Vec<LegendEntry> = labels
         .iter()
-        .map(|l| LegendEntry::new(Swatch::Line(colour_of(l), 2, false), *l))
+        .map(|l| LegendEntry::new(Swatch::Line(colour_of(&labels, l), 2, false), *l))
         .collect();
-    let mut y_ranges = Vec::new();
-    for p in &fig.panels {
-        let r = finite_range(p.series.iter().flat_map(|s| &s.y))
-            .map(|r| padded(r, 0.08))
-            .ok_or_else(|| {
-                PlotError::NoData(format!("no finite value in the panel '{}'", p.y_label))
-            })?;
-        y_ranges.push(r);
-    }
+    let y_ranges = y_ranges(fig)?;
     let y_area = y_ranges
         .iter()
         .map(|r| y_area_width(*r))
         .max()
         .unwrap_or(70);
-
-    let legend_h = legend_height(&entries, WIDTH);
-    let title_h = 46;
-    let n_panels = fig.panels.len() as u32;
-    let height = title_h + legend_h + n_panels * PANEL_H + 28;
-
-    let lin_fmt = tick_formatter(x_range.1 - x_range.0);
-    let blank = |_: &f64| String::new();
-    // On a log axis plotters' labels would sit at round exponents; ours go
-    // at 1-2-5 values per decade, drawn by hand below.
-    let x_fmt: &dyn Fn(&f64) -> String = if fig.log_x { &blank } else { &lin_fmt };
-    let log_ticks = if fig.log_x {
-        log_ticks(x_range)
-    } else {
-        Vec::new()
+    let shared = Shared {
+        fig,
+        x_range,
+        y_area,
+        labels,
+        log_ticks: if fig.log_x {
+            log_ticks(x_range)
+        } else {
+            Vec::new()
+        },
     };
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let body = root
-            .titled(&fig.title, (FONT, title_size(&fig.title, WIDTH)))
-            .map_err(draw_err)?;
-        let (legend_area, panels_area) = body.split_vertically(legend_h);
-        draw_legend(&legend_area, &entries)?;
-        let mut rest = panels_area;
-        for (k, (p, &(y0, y1))) in fig.panels.iter().zip(&y_ranges).enumerate() {
-            let last = k + 1 == fig.panels.len();
-            let (area, below) = if last {
-                (rest.clone(), rest.clone())
-            } else {
-                rest.split_vertically(PANEL_H)
-            };
-            let mut chart = ChartBuilder::on(&area)
-                .margin_right(25)
-                .margin_left(16)
-                .margin_top(10)
-                .x_label_area_size(if last { 62 } else { 32 })
-                .y_label_area_size(y_area)
-                .build_cartesian_2d(x_range.0..x_range.1, y0..y1)
-                .map_err(draw_err)?;
-            let y_lin = tick_formatter(y1 - y0);
-            let y_int = |v: &f64| {
-                if (v - v.round()).abs() < 1e-9 {
-                    format!("{}", v.round() as i64)
-                } else {
-                    String::new()
-                }
-            };
-            let y_fmt: &dyn Fn(&f64) -> String = if p.integer_y { &y_int } else { &y_lin };
-            let mut mesh = chart.configure_mesh();
-            if fig.log_x {
-                mesh.disable_x_mesh()
-                    .set_tick_mark_size(LabelAreaPosition::Bottom, 0);
-            }
-            mesh.x_label_formatter(x_fmt)
-                .y_label_formatter(y_fmt)
-                .x_labels(10)
-                .y_labels(if p.integer_y {
-                    ((y1 - y0).ceil() as usize + 1).clamp(2, 12)
-                } else {
-                    6
-                })
-                .label_style((FONT, TICK_SIZE))
-                .axis_desc_style((FONT, DESC_SIZE))
-                .light_line_style(RGBColor(240, 240, 240))
-                .bold_line_style(RGBColor(215, 215, 215))
-                .y_desc(p.y_label.as_str());
-            if last {
-                mesh.x_desc(fig.x_label.as_str());
-            }
-            mesh.draw().map_err(draw_err)?;
-            if fig.log_x {
-                let grid = ShapeStyle::from(&RGBColor(215, 215, 215)).stroke_width(1);
-                chart
-                    .draw_series(
-                        log_ticks
-                            .iter()
-                            .map(|(v, _)| PathElement::new(vec![(*v, y0), (*v, y1)], grid)),
-                    )
-                    .map_err(draw_err)?;
-                let font = (FONT, TICK_SIZE)
-                    .into_font()
-                    .color(&BLACK)
-                    .pos(Pos::new(HPos::Center, VPos::Top));
-                for (v, label) in &log_ticks {
-                    let (px, py) = chart.backend_coord(&(*v, y0));
-                    root.draw(&PathElement::new(vec![(px, py), (px, py + 5)], BLACK))
-                        .map_err(draw_err)?;
-                    root.draw(&Text::new(label.clone(), (px, py + 9), font.clone()))
-                        .map_err(draw_err)?;
-                }
-            }
-            for s in &p.series {
-                let colour = colour_of(&s.label);
-                let mut pts: Vec<(f64, f64)> =
-                    s.x.iter().zip(&s.y).map(|(&x, &y)| (tx(x), y)).collect();
-                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let (xs, ys): (Vec<f64>, Vec<f64>) = pts.iter().copied().unzip();
-                for run in crate::common::finite_runs(&xs, &ys) {
-                    chart
-                        .draw_series(LineSeries::new(
-                            run.clone(),
-                            ShapeStyle::from(&colour).stroke_width(2),
-                        ))
-                        .map_err(draw_err)?;
-                    chart
-                        .draw_series(run.into_iter().map(|q| Circle::new(q, 5, colour.filled())))
-                        .map_err(draw_err)?;
-                }
-            }
-            rest = below;
-        }
-        root.present().map_err(draw_err)?;
-    }
-    Ok(svg)
+    let panels_h = fig.panels.len() as u32 * PANEL_H + 28;
+    render_figure(
+        WIDTH,
+        &fig.title,
+        &entries,
+        panels_h,
+        |root, panels_area| draw_panels(root, panels_area, &shared, &y_ranges),
+    )
 }
 
 /// Draws a metric versus a parameter into the SVG file `path`, written
