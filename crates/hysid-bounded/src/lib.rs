@@ -18,7 +18,7 @@
 //!
 //! The set-up shared by the PWARX back-ends (prior names, regressors, the
 //! samples at known stops, the mode counts) and the assembly of the model
-//! are `hysid_estimation::pwarx`'s; [`fit`] holds the method's steps.
+//! are `hysid_estimation::pwarx`'s; [`fit()`] holds the method's steps.
 //!
 //! Priors honoured (`docs/priors.md`, `docs/bounded.md` "Priors"):
 //! all of them. `modes` / `max_modes` count every mode, saturation modes

@@ -1,22 +1,22 @@
 //! The clustering procedure of Ferrari-Trecate, Muselli, Liberati and
 //! Morari (Automatica 39(2), 2003, section 3) on the data of
-//! [`pwarx::prepare`], one named function per step. The step numbers are
+//! `pwarx::prepare`, one named function per step. The step numbers are
 //! those of `docs/cluster.md`:
 //!
-//! - [`working_data`]: the ordinary samples in working units (standardised
+//! - `working_data`: the ordinary samples in working units (standardised
 //!   by default), where distances between regressors are compared;
-//! - [`choose_c`]: the size `c` of the local datasets;
-//! - [`prior_fit`]: the gray-box priors of the weighted least squares, in
-//!   data units ([`ConstrainedFit`]);
-//! - [`cluster_features`]: steps 1 to 6, local datasets, local regressions
+//! - `choose_c`: the size `c` of the local datasets;
+//! - `prior_fit`: the gray-box priors of the weighted least squares, in
+//!   data units (`ConstrainedFit`);
+//! - `cluster_features`: steps 1 to 6, local datasets, local regressions
 //!   and feature vectors, clustering, mode datasets and discard, weighted
-//!   least squares, reattribution ([`procedure::run_with`]);
-//! - [`estimate_regions`]: step 7, the regions of the modes
+//!   least squares, reattribution (`procedure::run_with`);
+//! - `estimate_regions`: step 7, the regions of the modes
 //!   (`hysid-regions`);
-//! - [`refit_on_regions`]: step 7 continued, the mode datasets made
+//! - `refit_on_regions`: step 7 continued, the mode datasets made
 //!   consistent with the regions and the parameters re-estimated;
-//! - [`holes`]: the part of the data box no region covers;
-//! - [`modes_in_data_units`]: step 8, the modes mapped back to data units.
+//! - `holes`: the part of the data box no region covers;
+//! - `modes_in_data_units`: step 8, the modes mapped back to data units.
 
 use crate::priors::ConstrainedFit;
 use crate::procedure::{self, ModeFit};

@@ -234,7 +234,7 @@ impl Identifier for Cluster {
     }
 }
 
-/// The model of [`fit`] ([`pwarx::assemble`]), with the standardisation
+/// The model of [`fit()`] ([`pwarx::assemble`]), with the standardisation
 /// of the working units recorded in `info.scaling`.
 fn assemble(data: &PwarxData<'_>, mut fit: PwarxFit<ClusterDiagnostics>) -> Model {
     let scaling = fit.diagnostics.scaling.take();
@@ -243,7 +243,7 @@ fn assemble(data: &PwarxData<'_>, mut fit: PwarxFit<ClusterDiagnostics>) -> Mode
     model
 }
 
-/// Identifies a model with `s` modes (the whole procedure, [`fit`]), in
+/// Identifies a model with `s` modes (the whole procedure, [`fit()`]), in
 /// original units: a PWARX model, or, with `[[saturation]]` priors, the
 /// hybrid automaton of `HybridAutomaton::from_pwarx_with_stops` whose
 /// `s - stops` ordinary modes are identified here (`s` counts every mode,

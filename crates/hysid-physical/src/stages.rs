@@ -134,10 +134,8 @@ impl Search<'_> {
     }
 }
 
-/// A failure of the method (not of its input).
+/// A failure of the method (not of its input); `Backend::run` names the
+/// method.
 pub fn failed(message: impl Into<String>) -> IdentifyError {
-    IdentifyError::Failed {
-        method: "physical".into(),
-        message: message.into(),
-    }
+    IdentifyError::failed(message)
 }
