@@ -117,6 +117,7 @@ pub fn fit(
         uncovered_fraction: None,
         run_status: RunStatus::Completed,
         status: Vec::new(),
+        scaling: None,
         diagnostics,
     })
 }

@@ -125,6 +125,7 @@ pub fn fit(
         uncovered_fraction: None,
         run_status,
         status,
+        scaling: None,
         diagnostics,
     })
 }

@@ -78,10 +78,6 @@ pub struct ClusterDiagnostics {
     /// region refit; not written to the model file.
     #[serde(skip)]
     pub labels: Vec<usize>,
-    /// With `scale = true`, the standardisation of the working units, for
-    /// the model's `info.scaling`; not written to the diagnostics.
-    #[serde(skip)]
-    pub scaling: Option<Standardization>,
 }
 
 /// The procedure on `data` with `s` modes in all (the known stops
@@ -136,7 +132,6 @@ pub fn fit(
         region_training_accuracy: regions.training_accuracy,
         region_refit_moved,
         labels: std::mem::take(&mut clustered.labels),
-        scaling: o.scale.then(|| work.scale.clone()),
     };
     Ok(PwarxFit {
         modes: modes_in_data_units(o, data, &work, clustered, regions.polyhedra),
@@ -148,6 +143,7 @@ pub fn fit(
             RunStatus::TimeBudget
         },
         status,
+        scaling: o.scale.then(|| work.scale.clone()),
         diagnostics,
     })
 }

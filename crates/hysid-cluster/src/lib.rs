@@ -51,7 +51,7 @@ use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::{PriorKind, Priors};
-use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
+use hysid_estimation::pwarx::{self, ModeCount, PwarxData};
 
 hysid_core::option_enum! {
     /// What is clustered (HIT `what_to_clust`).
@@ -220,7 +220,7 @@ impl Identifier for Cluster {
         let data = pwarx::prepare(problem, Self::NAME)?;
         let stops = data.stops();
         match data.modes {
-            ModeCount::Exact(s) => Ok(assemble(
+            ModeCount::Exact(s) => Ok(pwarx::assemble(
                 &data,
                 fit(options, &data, s + stops, ctx.seed, ctx.deadline)?,
             )),
@@ -232,15 +232,6 @@ impl Identifier for Cluster {
             )),
         }
     }
-}
-
-/// The model of [`fit()`] ([`pwarx::assemble`]), with the standardisation
-/// of the working units recorded in `info.scaling`.
-fn assemble(data: &PwarxData<'_>, mut fit: PwarxFit<ClusterDiagnostics>) -> Model {
-    let scaling = fit.diagnostics.scaling.take();
-    let mut model = pwarx::assemble(data, fit);
-    model.info_mut().scaling = scaling;
-    model
 }
 
 /// Identifies a model with `s` modes (the whole procedure, [`fit()`]), in
@@ -307,7 +298,7 @@ pub fn identify_labelled(
         row_labels[row] = l;
     }
     Ok(Labelled {
-        model: assemble(&data, fit),
+        model: pwarx::assemble(&data, fit),
         row_labels,
     })
 }
@@ -366,7 +357,7 @@ fn choose_modes(
                 "no mode count in 1..={max} could be identified and simulated on the hold-out part"
             ))
         })?;
-    let mut model = assemble(data, fit(o, data, best.modes, ctx.seed, ctx.deadline)?);
+    let mut model = pwarx::assemble(data, fit(o, data, best.modes, ctx.seed, ctx.deadline)?);
     model.info_mut().diagnostics.method.insert(
         "mode_choice".into(),
         serde_json::json!(

@@ -207,6 +207,9 @@ pub struct PwarxFit<D> {
     pub run_status: RunStatus,
     /// Messages for the user (why the run was cut short, warnings).
     pub status: Vec<String>,
+    /// How the back-end saw the data, when it worked in standardised units
+    /// (recorded in the model's `info.scaling`).
+    pub scaling: Option<Standardization>,
     /// The back-end's own diagnostics.
     pub diagnostics: D,
 }
@@ -234,6 +237,7 @@ pub fn assemble<D: Serialize>(data: &PwarxData<'_>, fit: PwarxFit<D>) -> Model {
         modes: fit.modes,
         info: ModelInfo {
             diagnostics,
+            scaling: fit.scaling,
             ..Default::default()
         },
     };

@@ -97,6 +97,7 @@ pub fn fit(
         uncovered_fraction: None,
         run_status: RunStatus::Completed,
         status: Vec::new(),
+        scaling: None,
         diagnostics: SignDiagnostics {
             samples_per_mode: [split[0].len(), split[1].len()],
         },
