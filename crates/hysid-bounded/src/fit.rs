@@ -111,16 +111,7 @@ pub fn fit(
     let (run_status, status) = how_it_ended(c, classified.settings.delta);
     let diagnostics = diagnostics(options, data, &classified, &partition);
     Ok(PwarxFit {
-        modes: c
-            .thetas
-            .iter()
-            .zip(partition.regions)
-            .map(|(theta, region)| PwarxMode {
-                theta: theta.clone(),
-                region,
-                name: None,
-            })
-            .collect(),
+        modes: PwarxMode::unnamed(c.thetas.iter().cloned(), partition.regions),
         regions_complete: partition.complete,
         uncovered_fraction: None,
         run_status,

@@ -514,16 +514,7 @@ fn modes_in_data_units(
         na: data.spec.na,
         nb: data.spec.nb,
         inputs: data.spec.inputs,
-        modes: fit
-            .theta
-            .into_iter()
-            .zip(regions)
-            .map(|(theta, region)| PwarxMode {
-                theta,
-                region,
-                name: None,
-            })
-            .collect(),
+        modes: PwarxMode::unnamed(fit.theta, regions),
         info: ModelInfo::default(),
     };
     let mut modes = if o.scale {

@@ -13,7 +13,7 @@ use crate::objective::{
 };
 use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
-use crate::stages::{Search, StageLog, failed};
+use crate::stages::{Search, StageLog};
 use crate::swarm::global_stage;
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::priors::Priors;
@@ -80,7 +80,7 @@ pub fn fit_mechanical(
     let cost = simulation_mse(&model, &values, data);
     let evaluations = evals.load(Ordering::Relaxed);
     if cost >= FAILED {
-        return Err(failed(format!(
+        return Err(IdentifyError::failed(format!(
             "every candidate simulation failed or diverged ({evaluations} simulations): the model cannot follow this record"
         )));
     }

@@ -4,7 +4,7 @@
 //! one.
 
 use crate::levenberg_marquardt::levenberg_marquardt;
-use crate::stages::{Search, Stage, StageLog, Termination, failed};
+use crate::stages::{Search, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use hysid_core::backend::IdentifyError;
@@ -142,13 +142,15 @@ fn nelder_mead(
 ) -> Result<(Termination, Option<Vec<f64>>), IdentifyError> {
     let nm: NelderMead<Vec<f64>, f64> = NelderMead::new(simplex(z, search.options.simplex))
         .with_sd_tolerance(1e-12)
-        .map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
+        .map_err(|e| IdentifyError::failed(format!("Nelder-Mead: {e}")))?;
     let mut ex = Executor::new(search.problem(segment), nm)
         .configure(|s| s.max_iters(search.options.local_iters as u64));
     if let Some(t) = search.timeout() {
         ex = ex.timeout(t);
     }
-    let res = ex.run().map_err(|e| failed(format!("Nelder-Mead: {e}")))?;
+    let res = ex
+        .run()
+        .map_err(|e| IdentifyError::failed(format!("Nelder-Mead: {e}")))?;
     let st = res.state();
     let best = st
         .get_best_param()

@@ -5,7 +5,7 @@
 use crate::PhysicalOptions;
 use crate::objective::{Objective, SimulationCost};
 use argmin::core::TerminationReason;
-use hysid_core::backend::{IdentifyError, RunContext};
+use hysid_core::backend::RunContext;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicU64;
 use std::time::{Duration, Instant};
@@ -132,10 +132,4 @@ impl Search<'_> {
         }
         past
     }
-}
-
-/// A failure of the method (not of its input); `Backend::run` names the
-/// method.
-pub fn failed(message: impl Into<String>) -> IdentifyError {
-    IdentifyError::failed(message)
 }

@@ -84,15 +84,7 @@ pub fn fit(
     let thetas = least_squares(data, &split)?;
     let regions = half_spaces(data.spec.dim(), column, options.threshold);
     Ok(PwarxFit {
-        modes: thetas
-            .into_iter()
-            .zip(regions)
-            .map(|(theta, region)| PwarxMode {
-                theta,
-                region,
-                name: None,
-            })
-            .collect(),
+        modes: PwarxMode::unnamed(thetas, regions),
         regions_complete: true,
         uncovered_fraction: None,
         run_status: RunStatus::Completed,

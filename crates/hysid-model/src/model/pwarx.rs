@@ -20,6 +20,24 @@ pub struct PwarxMode {
     pub name: Option<String>,
 }
 
+impl PwarxMode {
+    /// Unnamed modes from parameter vectors and their regions, in order.
+    pub fn unnamed(
+        thetas: impl IntoIterator<Item = Vec<f64>>,
+        regions: impl IntoIterator<Item = Polyhedron>,
+    ) -> Vec<PwarxMode> {
+        thetas
+            .into_iter()
+            .zip(regions)
+            .map(|(theta, region)| PwarxMode {
+                theta,
+                region,
+                name: None,
+            })
+            .collect()
+    }
+}
+
 /// A PWARX model in original units.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PwarxModel {
