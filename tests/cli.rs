@@ -576,3 +576,131 @@ fn a_time_budget_too_long_to_represent_is_no_deadline() {
     // No deadline was hit: every run is the same full run.
     assert!(models.windows(2).all(|w| w[0] == w[1]));
 }
+
+/// A noisy record of a two-mode PWARX model (modes split by the sign of
+/// y(k-1)), written by `hysid simulate`.
+fn two_mode_record(dir: &Path, n: usize) -> PathBuf {
+    let model = dir.join("two.json");
+    std::fs::write(
+        &model,
+        r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[
+            {"theta":[0.5,1.0,0.2],"region":{"a":[[1.0,0.0]],"b":[0.0]}},
+            {"theta":[-0.4,0.8,-0.1],"region":{"a":[[-1.0,0.0]],"b":[0.0]}}]}"#,
+    )
+    .unwrap();
+    let data = dir.join("two.csv");
+    ok(&[
+        "simulate",
+        s(&model),
+        "--excite",
+        &format!("n={n},hold=2,low=-1,high=1,ts=0.01"),
+        "--noise",
+        "0.01",
+        "--seed",
+        "3",
+        "-o",
+        s(&data),
+    ]);
+    data
+}
+
+/// The first `rows` data rows of a CSV file (header kept).
+fn truncated_csv(dir: &Path, data: &Path, rows: usize) -> PathBuf {
+    let text = std::fs::read_to_string(data).unwrap();
+    let head: Vec<&str> = text.lines().take(rows + 1).collect();
+    let out = dir.join("truncated.csv");
+    std::fs::write(&out, head.join("\n") + "\n").unwrap();
+    out
+}
+
+#[test]
+fn auto_chooses_inside_the_identification_rows_only() {
+    // Rows after the identification rows are test rows: deleting them from
+    // the file must not change what --auto returns, byte for byte.
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 400);
+    let short = truncated_csv(dir.path(), &data, 300);
+    let (a, b) = (dir.path().join("a.json"), dir.path().join("b.json"));
+    let auto = [
+        "-m",
+        "cluster",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--auto",
+        "--grid",
+        "c=20,40",
+        "--grid",
+        "modes=1,2",
+        "--seed",
+        "1",
+    ];
+    let mut args = vec!["identify", s(&data), "--rows", "0..300", "-o", s(&a)];
+    args.extend(auto);
+    ok(&args);
+    let mut args = vec!["identify", s(&short), "-o", s(&b)];
+    args.extend(auto);
+    ok(&args);
+    let (ma, mb) = (
+        std::fs::read_to_string(&a).unwrap(),
+        std::fs::read_to_string(&b).unwrap(),
+    );
+    assert_eq!(ma, mb);
+    let m: serde_json::Value = serde_json::from_str(&ma).unwrap();
+    let sel = &m["info"]["selection"];
+    assert_eq!(sel["splits"][0]["fit_rows"], "0..240");
+    assert_eq!(sel["splits"][0]["select_rows"], "240..300");
+    let cands = sel["candidates"].as_array().unwrap();
+    // Four grid points, then the affine reference.
+    assert_eq!(cands.len(), 5, "{sel}");
+    assert_eq!(cands[4]["method"], "arx");
+    let score = |c: &serde_json::Value| c["fit_sim"].as_f64().unwrap_or(f64::NEG_INFINITY);
+    let chosen = sel["chosen"].as_u64().unwrap() as usize;
+    assert!(
+        cands.iter().all(|c| score(c) <= score(&cands[chosen])),
+        "{sel}"
+    );
+    // The two-mode record is not affine: two modes simulate it better.
+    assert_eq!(m["modes"].as_array().unwrap().len(), 2, "{sel}");
+}
+
+#[test]
+fn auto_selection_rows_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let out = dir.path().join("m.json");
+    let base = ["identify", s(&data), "-m", "arx", "--auto", "-o", s(&out)];
+    for (extra, needle) in [
+        (
+            vec!["--select-rows", "100..200"],
+            "--select-rows 100..200: must start or end",
+        ),
+        (
+            vec!["--rows", "50..", "--select-rows", "10..60"],
+            "before the first identification row 50",
+        ),
+        (vec!["--grid", "na=two"], "--grid na=two: not a count"),
+        (vec!["--grid", "na"], "--grid"),
+        (vec!["--folds", "1"], "--folds 1: at least 2 folds"),
+    ] {
+        let mut args = base.to_vec();
+        args.extend(extra);
+        bad(&args, &[needle], &out);
+    }
+    // --grid without --auto is a usage error.
+    bad(
+        &[
+            "identify",
+            s(&data),
+            "-m",
+            "arx",
+            "--grid",
+            "na=1",
+            "-o",
+            s(&out),
+        ],
+        &["--auto"],
+        &out,
+    );
+}

@@ -20,12 +20,13 @@ use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
+use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
 use hysid_estimation::linalg;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{PwarxMode, RunStatus};
-use hysid_model::regressors::Regressors;
+use hysid_model::regressors::{RegressorSpec, Regressors};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -58,6 +59,14 @@ impl Identifier for Arx {
     const NAME: &'static str = "arx";
     const SUMMARY: &'static str = "one affine ARX model by least squares: the linear baseline";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
+    const SEARCH: &'static str = "the orders from na = nb = 1 up to the given --na and --nb";
+
+    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
+        let RegressorSpec { na, nb, .. } = problem.orders;
+        Ok(SearchSpace::default()
+            .with("na", 1..=na.max(1))
+            .with("nb", 1..=nb.max(1)))
+    }
 
     fn identify(
         &self,

@@ -44,6 +44,7 @@ use hysid_core::model::Model;
 use hysid_core::options::OptionType;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
+use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx;
 use hysid_regions::RegionMethod;
 use procedure::{Classification, ProcedureSettings};
@@ -193,11 +194,34 @@ impl Bounded {
     }
 }
 
+/// Multiples of the noise standard deviation that automatic selection
+/// tries as `delta`.
+pub const DELTA_SIGMAS: [f64; 6] = [1.0, 1.5, 2.0, 3.0, 4.0, 6.0];
+
+/// `v` with three significant digits, as text (a grid value a user can
+/// read and type again, `8.94e-3`).
+fn three_digits(v: f64) -> String {
+    format!("{v:.2e}")
+}
+
 impl Identifier for Bounded {
     type Options = BoundedOptions;
     const NAME: &'static str = "bounded";
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
+    const SEARCH: &'static str = "delta at 1, 1.5, 2, 3, 4 and 6 times the noise standard deviation of local affine fits (delta = auto is 3 times it); the mode count follows";
+
+    /// `delta` on a grid of multiples of the noise level of the ordinary
+    /// samples (the `auto` bound over [`noise::SIGMAS`], so floored as it is).
+    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
+        let data = pwarx::prepare(problem, Self::NAME)?;
+        let samples = Samples::from_regressors(&data.ordinary_regressors());
+        let sigma = noise::auto_delta(&samples) / noise::SIGMAS;
+        Ok(SearchSpace::default().with(
+            "delta",
+            DELTA_SIGMAS.iter().map(|k| three_digits(k * sigma)),
+        ))
+    }
 
     fn identify(
         &self,

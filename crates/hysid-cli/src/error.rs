@@ -104,6 +104,25 @@ impl From<IdentifyError> for CliError {
     }
 }
 
+impl From<hysid_select::SelectError> for CliError {
+    fn from(e: hysid_select::SelectError) -> Self {
+        use hysid_select::SelectError;
+        match e {
+            SelectError::Identify(e) => e.into(),
+            SelectError::Folds { folds, reason } => {
+                Self::input(format!("--folds {folds}: {reason}"))
+            }
+            SelectError::Rows { rows, reason } => {
+                Self::input(format!("--select-rows {rows}: {reason}"))
+            }
+            SelectError::Candidate(c) => {
+                Self::input(format!("--grid {}={}: not a count", c.key, c.value))
+            }
+            e @ SelectError::NoCandidate { .. } => Self::failure(format!("--auto: {e}")),
+        }
+    }
+}
+
 impl From<OptionError> for CliError {
     fn from(e: OptionError) -> Self {
         Self::input(e.render("--set"))

@@ -47,14 +47,24 @@ fn main() {
             std::process::exit(0);
         }
         Err(e) => {
-            // Usage errors: one line, exit code 2.
+            // Usage errors: one line, exit code 2. Clap's first paragraph
+            // (up to the blank line before its usage text) is the message;
+            // its lines are joined, so that a list of missing arguments is
+            // named too.
             let text = e.render().to_string();
-            let first = text
+            let message: Vec<&str> = text
                 .lines()
-                .next()
-                .unwrap_or("usage error")
-                .trim_start_matches("error: ");
-            eprintln!("hysid: error: {first} (see --help)");
+                .take_while(|l| !l.trim().is_empty())
+                .map(str::trim)
+                .collect();
+            let message = message.join(" ");
+            let message = message.trim_start_matches("error: ");
+            let message = if message.is_empty() {
+                "usage error"
+            } else {
+                message
+            };
+            eprintln!("hysid: error: {message} (see --help)");
             std::process::exit(2);
         }
     };

@@ -51,6 +51,7 @@ use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::{PriorKind, Priors};
+use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData};
 
 hysid_core::option_enum! {
@@ -205,11 +206,31 @@ impl CheckOptions for ClusterOptions {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Cluster;
 
+/// Local dataset sizes automatic selection tries (the paper's section 4
+/// finds `c` decisive for the mounting head).
+pub const C_GRID: [usize; 5] = [20, 40, 80, 160, 320];
+/// Most modes automatic selection tries when the priors give no bound.
+pub const DEFAULT_MAX_MODES: usize = 5;
+
 impl Identifier for Cluster {
     type Options = ClusterOptions;
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
+    const SEARCH: &'static str = "c in 20, 40, 80, 160, 320, and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none";
+
+    /// [`C_GRID`] times the ordinary mode counts `1..=max_modes` (the
+    /// known stops added, as the prior `modes` counts them).
+    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
+        let priors = problem.priors;
+        let space = SearchSpace::default().with("c", C_GRID);
+        if priors.modes.is_some() {
+            return Ok(space);
+        }
+        let stops = priors.saturation.len();
+        let most = priors.max_modes.unwrap_or(stops + DEFAULT_MAX_MODES);
+        Ok(space.with("modes", stops + 1..=most))
+    }
 
     fn identify(
         &self,

@@ -32,6 +32,11 @@ pub struct DataSpec {
     /// Validation samples not scored (default 10).
     #[serde(default = "ten")]
     pub warmup: usize,
+    /// Selection rows of the runs with `auto = true` (after decimation,
+    /// inside the identification rows, at their start or end); default the
+    /// last 20 % of the identification rows.
+    #[serde(default)]
+    pub selection: Option<RowRange>,
     /// Axis label of the output in figures, with its unit (default `output <name>`).
     #[serde(default)]
     pub output_label: Option<String>,
@@ -103,6 +108,14 @@ pub struct RunSpec {
     /// Seed (default: the experiment's).
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Run once per seed (instead of `seed`); the report gives the median
+    /// and the range of the scores over them.
+    #[serde(default)]
+    pub seeds: Vec<u64>,
+    /// Choose the options on the selection rows (`hysid identify --auto`,
+    /// docs/selection.md); `set` and `modes` fix what is not searched.
+    #[serde(default)]
+    pub auto: bool,
 }
 
 /// A sweep: one run repeated over values of one parameter (`vary`,
@@ -273,12 +286,24 @@ impl Experiment {
                     registry.names().join(", ")
                 ));
             }
+            if r.seed.is_some() && !r.seeds.is_empty() {
+                return Err(format!(
+                    "[[{what}]] '{}': give seed or seeds, not both",
+                    r.name
+                ));
+            }
             if let Some(p) = &r.priors {
                 p.check()
                     .map_err(|e| format!("[[{what}]] '{}' priors: {e}", r.name))?;
             }
         }
         for s in &self.sweeps {
+            if s.run.auto || !s.run.seeds.is_empty() {
+                return Err(format!(
+                    "[[sweep]] '{}': auto and seeds belong to a [[run]] (a sweep is its own grid)",
+                    s.run.name
+                ));
+            }
             let axes = s.axes();
             if axes.is_empty() {
                 return Err(format!(

@@ -13,15 +13,17 @@ pub mod truth;
 pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, SweepSpec};
 pub use report::write_report;
 
-use hysid_core::backend::{Problem, Progress, RunContext};
+use hysid_core::backend::{Backend, Problem, Progress, Registry, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_core::search::Setup;
 use hysid_core::simulate::{ValidationReport, validate};
 use hysid_io::load;
-use hysid_model::data::Dataset;
+use hysid_model::data::{Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
 use hysid_model::simulate::Simulation;
+use hysid_select::{Plan, Request};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
@@ -45,6 +47,10 @@ pub struct Job {
     pub settings: Settings,
     /// Seed.
     pub seed: u64,
+    /// The `[[run]]` it repeats with one of its `seeds`.
+    pub seed_group: Option<String>,
+    /// Options chosen on the selection rows (`auto = true`).
+    pub auto: bool,
 }
 
 /// Position of a run in a sweep.
@@ -66,6 +72,11 @@ pub struct RunResult {
     /// Sweep position, if any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sweep: Option<SweepPoint>,
+    /// The `[[run]]` this result repeats with one of its seeds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seed_group: Option<String>,
+    /// Seed of the run.
+    pub seed: u64,
     /// Orders used.
     pub na: usize,
     /// Orders used.
@@ -168,6 +179,8 @@ impl Experiment {
         let job = |r: &RunSpec, name: String, sweep: Option<SweepPoint>| Job {
             name,
             sweep,
+            seed_group: None,
+            auto: r.auto,
             method: r.method.clone(),
             na: r.na.unwrap_or(self.na),
             nb: r.nb.unwrap_or(self.nb),
@@ -180,11 +193,19 @@ impl Experiment {
             ),
             seed: r.seed.unwrap_or(self.seed),
         };
-        let mut jobs: Vec<Job> = self
-            .runs
-            .iter()
-            .map(|r| job(r, r.name.clone(), None))
-            .collect();
+        let mut jobs: Vec<Job> = Vec::new();
+        for r in &self.runs {
+            if r.seeds.is_empty() {
+                jobs.push(job(r, r.name.clone(), None));
+            }
+            for &seed in &r.seeds {
+                jobs.push(Job {
+                    seed,
+                    seed_group: Some(r.name.clone()),
+                    ..job(r, format!("{} [seed={seed}]", r.name), None)
+                });
+            }
+        }
         for s in &self.sweeps {
             for point in s.points() {
                 let mut r = s.run.clone();
@@ -262,7 +283,7 @@ impl Experiment {
         let results: Vec<RunResult> = jobs
             .par_iter()
             .map(|job| {
-                let mut r = run_job(&registry, job, &ident, &valid, self.data.warmup);
+                let mut r = run_job(&registry, job, &ident, &valid, &self.data);
                 if let (Some(t), Some(sim)) = (&true_modes, &r.simulation) {
                     r.mode_recovery = t.score(sim, self.data.warmup);
                 }
@@ -299,17 +320,70 @@ impl Experiment {
     }
 }
 
+/// The back-end whose model is the affine reference of `auto` runs.
+const AFFINE: &str = "arx";
+
+/// Identifies `job` on `ident` (choosing its options on the selection rows
+/// when it is an `auto` run).
+fn identify(
+    registry: &Registry,
+    backend: &dyn Backend,
+    job: &Job,
+    ident: &Dataset,
+    spec: &DataSpec,
+) -> Result<Model, String> {
+    let problem = Problem {
+        data: ident,
+        orders: RegressorSpec::new(job.na, job.nb, ident.inputs.len()),
+        priors: &job.priors,
+        priors_origin: Some("the experiment"),
+    };
+    let ctx = RunContext::quiet(job.seed);
+    if !job.auto {
+        return backend
+            .run(&problem, &job.settings, &ctx)
+            .map_err(|e| e.to_string());
+    }
+    let first_row = spec.identification.start.unwrap_or(0);
+    let shift = |v: Option<usize>| v.map(|v| v.saturating_sub(first_row));
+    let request = Request {
+        backend,
+        affine: registry.get(AFFINE).filter(|a| a.name() != backend.name()),
+        data: ident,
+        setup: Setup {
+            orders: problem.orders,
+            priors: job.priors.clone(),
+            settings: job.settings.clone(),
+        },
+        priors_origin: problem.priors_origin,
+        space: backend.search_space(&problem).map_err(|e| e.to_string())?,
+        plan: Plan {
+            select: spec.selection.map(|r| RowRange {
+                start: shift(r.start),
+                end: shift(r.end),
+            }),
+            folds: None,
+            warmup: spec.warmup,
+            first_row,
+        },
+    };
+    hysid_select::select(&request, &ctx).map_err(|e| format!("auto: {e}"))
+}
+
 fn run_job(
-    registry: &hysid_core::backend::Registry,
+    registry: &Registry,
     job: &Job,
     ident: &Dataset,
     valid: &Dataset,
-    warmup: usize,
+    spec: &DataSpec,
 ) -> RunResult {
+    let warmup = spec.warmup;
     let mut out = RunResult {
         name: job.name.clone(),
         method: job.method.clone(),
         sweep: job.sweep.clone(),
+        seed_group: job.seed_group.clone(),
+        seed: job.seed,
         na: job.na,
         nb: job.nb,
         options: job.settings.pairs().to_vec(),
@@ -329,18 +403,11 @@ fn run_job(
             return out;
         }
     };
-    let problem = Problem {
-        data: ident,
-        orders: RegressorSpec::new(job.na, job.nb, ident.inputs.len()),
-        priors: &job.priors,
-        priors_origin: Some("the experiment"),
-    };
-    let ctx = RunContext::quiet(job.seed);
     let t0 = Instant::now();
-    let model = backend.run(&problem, &job.settings, &ctx);
+    let model = identify(registry, backend, job, ident, spec);
     out.seconds = t0.elapsed().as_secs_f64();
     match model {
-        Err(e) => out.error = Some(e.to_string()),
+        Err(e) => out.error = Some(e),
         Ok(m) => {
             out.modes = Some(m.mode_count());
             match validate(&m, valid, warmup) {

@@ -476,6 +476,7 @@ pub fn markdown(c: &Comparison) -> String {
             note.replace('|', "/")
         );
     }
+    seeds_table(&mut s, c);
     mode_recovery_table(&mut s, c);
     let mut figs: Vec<String> = Vec::new();
     if c.results
@@ -570,6 +571,57 @@ fn holes_note(m: &hysid_core::model::Model) -> Option<String> {
 
 /// The table of `[data] truth` scores: accuracy, and per true mode the
 /// fraction of its samples simulated in the matched identified mode.
+/// Median and range over the seeds of each `[[run]]` with `seeds`: the
+/// figure to quote for a stochastic back-end, not its best seed.
+fn seeds_table(s: &mut String, c: &Comparison) {
+    let mut groups: Vec<&str> = Vec::new();
+    for g in c.results.iter().filter_map(|r| r.seed_group.as_deref()) {
+        if !groups.contains(&g) {
+            groups.push(g);
+        }
+    }
+    if groups.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\nOver seeds (each `[[run]]` with `seeds`, validation fit_sim [%]):\n\n| run | seeds | scored | median | min | max |\n|---|---|---|---|---|---|"
+    );
+    for g in groups {
+        let runs: Vec<&RunResult> = c
+            .results
+            .iter()
+            .filter(|r| r.seed_group.as_deref() == Some(g))
+            .collect();
+        let mut fits: Vec<f64> = runs
+            .iter()
+            .filter_map(|r| r.report.as_ref().map(|v| v.fit_sim))
+            .collect();
+        fits.sort_by(f64::total_cmp);
+        let show = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} |",
+            g.replace('|', "/"),
+            runs.len(),
+            fits.len(),
+            show(median(&fits)),
+            show(fits.first().copied()),
+            show(fits.last().copied()),
+        );
+    }
+}
+
+/// Median of sorted values (mean of the middle two for an even count).
+fn median(sorted: &[f64]) -> Option<f64> {
+    let n = sorted.len();
+    match n {
+        0 => None,
+        _ if n % 2 == 1 => Some(sorted[n / 2]),
+        _ => Some(0.5 * (sorted[n / 2 - 1] + sorted[n / 2])),
+    }
+}
+
 fn mode_recovery_table(s: &mut String, c: &Comparison) {
     let mut names: Vec<&str> = Vec::new();
     for r in c.results.iter().filter_map(|r| r.mode_recovery.as_ref()) {

@@ -10,6 +10,7 @@
 use crate::model::Model;
 use crate::options::{BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, Settings};
 use crate::priors::{PriorError, PriorKind, Priors};
+use crate::search::SearchSpace;
 use hysid_model::data::Dataset;
 use hysid_model::regressors::RegressorSpec;
 use std::time::Instant;
@@ -138,6 +139,15 @@ pub trait Identifier: Send + Sync {
     const SUMMARY: &'static str;
     /// Prior kinds honoured; any other prior is refused before `identify`.
     const HONOURS: &'static [PriorKind];
+    /// What [`Identifier::search_space`] tries, in one sentence (printed by
+    /// `hysid methods`); empty when the back-end has nothing to choose.
+    const SEARCH: &'static str = "";
+
+    /// The candidate settings that automatic selection (`--auto`) tries on
+    /// `problem`; the default is the back-end's defaults only.
+    fn search_space(&self, _problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
+        Ok(SearchSpace::default())
+    }
 
     /// Identifies a model. Provenance (method, options, seed, names) is
     /// filled in by the caller.
@@ -159,6 +169,10 @@ pub trait Backend: Send + Sync {
     fn options(&self) -> Vec<OptionSpec>;
     /// Prior kinds honoured.
     fn honours(&self) -> &'static [PriorKind];
+    /// What automatic selection tries, in one sentence.
+    fn search_doc(&self) -> &'static str;
+    /// The candidate settings automatic selection tries on `problem`.
+    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
     /// Resolves options, checks priors, identifies, records provenance.
     fn run(
         &self,
@@ -180,6 +194,12 @@ impl<T: Identifier> Backend for T {
     }
     fn honours(&self) -> &'static [PriorKind] {
         T::HONOURS
+    }
+    fn search_doc(&self) -> &'static str {
+        T::SEARCH
+    }
+    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
+        Identifier::search_space(self, problem)
     }
     fn run(
         &self,

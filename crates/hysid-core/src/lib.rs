@@ -13,11 +13,13 @@
 //! | [`priors`] | gray-box prior knowledge |
 //! | [`options`] | typed back-end options and `--set` |
 //! | [`backend`] | the plugin contract and registry |
+//! | [`search`] | the candidate settings of automatic selection |
 
 pub mod backend;
 pub mod model;
 pub mod options;
 pub mod priors;
+pub mod search;
 pub mod simulate;
 
 /// The types most programs need.

@@ -13,7 +13,8 @@
 //!   automaton declared by its physical parameters, contacts and stops.
 
 use hysid_mechanical::MechanicalModel;
-use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxModel};
+use hysid_model::model::{HybridAutomaton, InitialState, ModelInfo, PwarxModel};
+use hysid_model::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -87,6 +88,22 @@ impl Model {
             Model::Pwarx(m) => m.inputs,
             Model::HybridAutomaton(m) => m.inputs.len(),
             Model::Mechanical(m) => m.inputs.len(),
+        }
+    }
+
+    /// The ARX orders of a model whose state is a window of past outputs
+    /// and inputs (PWARX models, automata with an ARX history); `None` for
+    /// the others.
+    pub fn orders(&self) -> Option<RegressorSpec> {
+        match self {
+            Model::Pwarx(m) => Some(m.spec()),
+            Model::HybridAutomaton(m) => match m.initial_state {
+                InitialState::ArxHistory { na, nb } => {
+                    Some(RegressorSpec::new(na, nb, m.inputs.len()))
+                }
+                InitialState::Given { .. } => None,
+            },
+            Model::Mechanical(_) => None,
         }
     }
 

@@ -4,11 +4,16 @@ use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
-use hysid_core::backend::{Problem, RunContext};
+use hysid_core::backend::{Problem, Registry, RunContext};
+use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_core::search::{SearchSpace, Setup};
 use hysid_estimation::pwarx::run_standardized;
+use hysid_model::data::RowRange;
+use hysid_model::model::Selection;
 use hysid_model::regressors::RegressorSpec;
+use hysid_select::{Plan, Request, against_affine};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -50,8 +55,34 @@ pub struct Args {
     /// Output model file (JSON).
     #[arg(short = 'o', long = "out", value_name = "MODEL.json")]
     pub out: PathBuf,
+    /// Choose the back-end's options on selection rows inside the
+    /// identification rows (free-run simulation FIT), then fit the choice on
+    /// all of them; see docs/selection.md.
+    #[arg(long)]
+    pub auto: bool,
+    /// With --auto: the selection rows A..B, in the rows of the file (after
+    /// decimation); they must start or end the identification rows. Default:
+    /// the last 20 % of them.
+    #[arg(long, value_parser = parse_rows, requires = "auto")]
+    pub select_rows: Option<RowRange>,
+    /// With --auto: instead of one split, K contiguous blocks on a rolling
+    /// origin (block j scored by the model fitted on the blocks before it).
+    #[arg(long, requires = "auto", conflicts_with = "select_rows")]
+    pub folds: Option<usize>,
+    /// With --auto: a grid axis KEY=V1,V2,... (repeatable; a back-end option,
+    /// or modes, na, nb) replacing the back-end's search space.
+    #[arg(long = "grid", value_name = "KEY=V1,V2,..", requires = "auto")]
+    pub grid: Vec<String>,
+    /// Samples at the start of the scored rows left out of a free-run score
+    /// (the selection rows, and the comparison with the affine model).
+    #[arg(long, default_value_t = 10)]
+    pub warmup: usize,
     #[command(flatten)]
     pub select: DataArgs,
+}
+
+fn parse_rows(s: &str) -> std::result::Result<RowRange, String> {
+    s.parse()
 }
 
 /// Runs the command.
@@ -86,6 +117,7 @@ pub fn run(args: Args) -> Result<()> {
         None => None,
     };
     let data = hysid_io::load(&args.data, &args.select.selection()?)?;
+    let first_row = args.select.rows.and_then(|r| r.start).unwrap_or(0);
     let origin = args.prior.as_ref().map(|p| p.display().to_string());
     let problem = Problem {
         data: &data,
@@ -100,7 +132,37 @@ pub fn run(args: Args) -> Result<()> {
         deadline,
     };
     let started = Instant::now();
-    let model = if args.standardize {
+    let model = if args.auto {
+        if args.standardize {
+            return Err(CliError::input(
+                "--auto cannot be combined with --standardize",
+            ));
+        }
+        let space = if args.grid.is_empty() {
+            backend.search_space(&problem)?
+        } else {
+            SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?
+        };
+        let request = Request {
+            backend,
+            affine: registry.get(AFFINE).filter(|a| a.name() != backend.name()),
+            data: &data,
+            setup: Setup {
+                orders: problem.orders,
+                priors: priors.clone(),
+                settings,
+            },
+            priors_origin: problem.priors_origin,
+            space,
+            plan: Plan {
+                select: select_within(args.select_rows, first_row)?,
+                folds: args.folds,
+                warmup: args.warmup,
+                first_row,
+            },
+        };
+        hysid_select::select(&request, &ctx)?
+    } else if args.standardize {
         run_standardized(backend, &problem, &settings, &ctx)?
     } else {
         backend.run(&problem, &settings, &ctx)?
@@ -122,5 +184,99 @@ pub fn run(args: Args) -> Result<()> {
     if d.run_status.cut_short() || !d.status.is_empty() {
         eprintln!("hysid: {}: {}", backend.name(), d.status.join("; "));
     }
+    match &model.info().selection {
+        Some(selection) => report_selection(backend.name(), selection),
+        None => warn_if_below_affine(&registry, backend.name(), &model, &problem, args.warmup),
+    }
     Ok(())
+}
+
+/// The back-end whose model is the affine reference.
+const AFFINE: &str = "arx";
+
+/// `--select-rows` (rows of the file) as rows of the identification record
+/// that starts at `--rows`' first row.
+fn select_within(select: Option<RowRange>, first: usize) -> Result<Option<RowRange>> {
+    let Some(s) = select else { return Ok(None) };
+    let shift = |v: Option<usize>| -> Result<Option<usize>> {
+        v.map(|v| {
+            v.checked_sub(first).ok_or_else(|| {
+                CliError::input(format!(
+                    "--select-rows {s}: before the first identification row {first}"
+                ))
+            })
+        })
+        .transpose()
+    };
+    Ok(Some(RowRange {
+        start: shift(s.start)?,
+        end: shift(s.end)?,
+    }))
+}
+
+/// One line on what `--auto` chose, and whether the affine model won.
+fn report_selection(method: &str, s: &Selection) {
+    let chosen = &s.candidates[s.chosen];
+    let values: Vec<String> = chosen
+        .values
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect();
+    let refinement = match &s.refinement {
+        Some(r) if r.kept => ", refined on simulation error",
+        Some(_) => ", refinement tried and dropped (no gain on the selection rows)",
+        None => "",
+    };
+    let rows: Vec<String> = s
+        .splits
+        .iter()
+        .map(|p| {
+            format!(
+                "fitted on rows {}, scored on rows {}",
+                p.fit_rows, p.select_rows
+            )
+        })
+        .collect();
+    eprintln!(
+        "hysid: --auto: {} candidate(s) {}; chose {} {} (selection FIT {:.2} %{refinement})",
+        s.candidates.len(),
+        rows.join("; "),
+        chosen.method,
+        if values.is_empty() {
+            "with its defaults".into()
+        } else {
+            values.join(" ")
+        },
+        chosen.fit_sim.unwrap_or(f64::NAN),
+    );
+    if chosen.method != method {
+        eprintln!(
+            "hysid: --auto: no {method} candidate simulated the selection rows better than the affine {} model; that model is written",
+            chosen.method
+        );
+    }
+}
+
+/// Without `--auto`: one line when the model simulates the rows it was
+/// identified on worse than an affine ARX model of the same orders fitted
+/// on the same rows.
+fn warn_if_below_affine(
+    registry: &Registry,
+    method: &str,
+    model: &Model,
+    problem: &Problem<'_>,
+    warmup: usize,
+) {
+    let Some(affine) = registry.get(AFFINE).filter(|a| a.name() != method) else {
+        return;
+    };
+    let Some(orders) = model.orders() else { return };
+    if let Some(c) = against_affine(model, affine, problem.data, orders, problem.priors, warmup)
+        && c.below()
+    {
+        eprintln!(
+            "hysid: warning: the model's free-run FIT on its identification rows ({:.2} %) is below that of an affine ARX model of the same orders ({:.2} %); try --auto",
+            c.model, c.affine
+        );
+    }
 }

@@ -5,7 +5,8 @@ use crate::Result;
 /// Arguments of `hysid methods`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Print the list as JSON (name, summary, options, priors honoured).
+    /// Print the list as JSON (name, summary, options, priors honoured,
+    /// what --auto tries).
     #[arg(long)]
     pub json: bool,
 }
@@ -22,6 +23,7 @@ pub fn run(args: Args) -> Result<()> {
                     "summary": b.summary(),
                     "options": b.options(),
                     "priors": b.honours(),
+                    "search": b.search_doc(),
                 })
             })
             .collect();
@@ -50,6 +52,14 @@ pub fn run(args: Args) -> Result<()> {
                 o.key, o.ty, o.default, o.doc
             );
         }
+        println!(
+            "    --auto tries: {}",
+            if b.search_doc().is_empty() {
+                "its defaults only (no option to choose)"
+            } else {
+                b.search_doc()
+            }
+        );
         let priors: Vec<String> = b.honours().iter().map(ToString::to_string).collect();
         println!(
             "    priors honoured: {}",

@@ -16,6 +16,7 @@
 mod automaton;
 mod diagnostics;
 mod pwarx;
+mod selection;
 mod stop;
 
 pub use automaton::{
@@ -24,6 +25,7 @@ pub use automaton::{
 };
 pub use diagnostics::{Diagnostics, RunStatus};
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
+pub use selection::{RefinementChoice, ScoredCandidate, Selection, SplitRows};
 pub use stop::{Stop, StopBound};
 
 use crate::data::Standardization;
@@ -62,4 +64,7 @@ pub struct ModelInfo {
     /// Back-end diagnostics (counts, costs, statuses).
     #[serde(skip_serializing_if = "Diagnostics::is_empty")]
     pub diagnostics: Diagnostics,
+    /// How automatic selection chose the options, when it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub selection: Option<Selection>,
 }

@@ -1,0 +1,653 @@
+//! # hysid-select
+//!
+//! Automatic selection (`hysid identify --auto`): a back-end's options are
+//! chosen inside the identification data, never on the rows a model is
+//! tested on. The identification rows are split into **fit rows** and
+//! **selection rows** (by default the last 20 %); every candidate of the
+//! back-end's [`SearchSpace`] is fitted on the fit rows and scored by the
+//! FIT of its free-run simulation on the selection rows; the affine ARX
+//! model of the same orders and priors is always a candidate, so the
+//! choice is never worse than linear on the selection rows. When the
+//! back-end offers the simulation-error refinement (`refine`), it is tried
+//! on the chosen candidate and kept only if it raises the selection-row
+//! FIT. The choice is then fitted again on all the identification rows,
+//! and the model file records every candidate, its score and the choice
+//! ([`Selection`]).
+//!
+//! Choosing by simulation rather than one-step prediction is the point:
+//! the founding experiment (Juloski, Heemels, Ferrari-Trecate 2003,
+//! section 4) shows one-step prediction errors that hardly tell good
+//! partitions from bad ones, while the simulated outputs differ widely.
+
+use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContext};
+use hysid_core::model::Model;
+use hysid_core::search::{Candidate, CandidateError, SearchSpace, Setup};
+use hysid_core::simulate::validate;
+use hysid_model::data::{DataError, Dataset, RowRange};
+use hysid_model::model::{RefinementChoice, ScoredCandidate, Selection, SplitRows};
+use rayon::prelude::*;
+
+/// Which identification rows score the candidates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Plan {
+    /// Selection rows within the identification record; `None`: the last
+    /// [`DEFAULT_SELECTION_PERCENT`] % of it.
+    pub select: Option<RowRange>,
+    /// Instead of one split, `K` contiguous blocks scored on a rolling
+    /// origin: block `j` (from the second) is scored by the model fitted on
+    /// the blocks before it, and a candidate's score is the mean.
+    pub folds: Option<usize>,
+    /// Samples at the start of the selection rows left out of the score.
+    pub warmup: usize,
+    /// Row of the file where the identification record starts: rows in the
+    /// record of the selection are written as rows of the file.
+    pub first_row: usize,
+}
+
+/// Share of the identification rows used for selection by default.
+pub const DEFAULT_SELECTION_PERCENT: usize = 20;
+
+/// What to select for.
+pub struct Request<'a> {
+    /// The back-end whose options are chosen.
+    pub backend: &'a dyn Backend,
+    /// The affine reference (the `arx` back-end), always a candidate;
+    /// `None` when `backend` is that reference.
+    pub affine: Option<&'a dyn Backend>,
+    /// The identification record.
+    pub data: &'a Dataset,
+    /// Orders, priors and options given by the user.
+    pub setup: Setup,
+    /// Where the priors came from, for error messages.
+    pub priors_origin: Option<&'a str>,
+    /// The candidates: the back-end's declared space or the user's grid.
+    pub space: SearchSpace,
+    /// The fit/selection split.
+    pub plan: Plan,
+}
+
+/// Why a selection could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum SelectError {
+    /// The selection rows do not split the identification record.
+    #[error("selection rows {rows}: {reason}")]
+    Rows {
+        /// The rows as given (or the default).
+        rows: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The folds do not fit the identification record.
+    #[error("{folds} folds: {reason}")]
+    Folds {
+        /// Folds asked for.
+        folds: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A grid value that cannot be applied.
+    #[error(transparent)]
+    Candidate(#[from] CandidateError),
+    /// Every candidate failed; the first failure is given.
+    #[error("no candidate could be fitted and scored (first failure: {first})")]
+    NoCandidate {
+        /// The first candidate's error.
+        first: String,
+    },
+    /// The back-end refused the problem or the final fit failed.
+    #[error(transparent)]
+    Identify(#[from] IdentifyError),
+}
+
+impl SelectError {
+    /// True when the cause is the user's input.
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            SelectError::Rows { .. } | SelectError::Folds { .. } | SelectError::Candidate(_) => {
+                true
+            }
+            SelectError::NoCandidate { .. } => false,
+            SelectError::Identify(e) => e.is_bad_input(),
+        }
+    }
+}
+
+/// Fit rows and selection rows, as half-open ranges of the identification
+/// record.
+pub type Split = ((usize, usize), (usize, usize));
+
+/// The splits of an identification record of `n` rows that `plan` asks
+/// for: one ([`split`]), or the rolling-origin folds ([`folds`]).
+pub fn splits(n: usize, plan: &Plan) -> Result<Vec<Split>, SelectError> {
+    match plan.folds {
+        Some(k) => folds(n, k, plan.warmup),
+        None => Ok(vec![split(n, plan)?]),
+    }
+}
+
+/// `k` contiguous blocks of an `n`-row record: fold `j` (1 to `k - 1`)
+/// fits on the blocks before block `j` and is scored on block `j` (a
+/// rolling origin, as time series are cross-validated: the fit rows always
+/// precede the rows they are scored on).
+pub fn folds(n: usize, k: usize, warmup: usize) -> Result<Vec<Split>, SelectError> {
+    let bad = |reason: String| SelectError::Folds { folds: k, reason };
+    if k < 2 {
+        return Err(bad("at least 2 folds are needed".into()));
+    }
+    let edge = |j: usize| j * n / k;
+    if edge(1) <= warmup {
+        return Err(bad(format!(
+            "blocks of {} rows leave nothing to score after a warm-up of {warmup}",
+            edge(1)
+        )));
+    }
+    Ok((1..k)
+        .map(|j| ((0, edge(j)), (edge(j), edge(j + 1))))
+        .collect())
+}
+
+/// The fit rows and the selection rows of an identification record of `n`
+/// rows, as half-open ranges. The selection rows must start or end the
+/// record, so that the fit rows are one contiguous record.
+pub fn split(n: usize, plan: &Plan) -> Result<Split, SelectError> {
+    let rows = plan.select.unwrap_or(RowRange {
+        start: Some(n - n * DEFAULT_SELECTION_PERCENT / 100),
+        end: None,
+    });
+    let bad = |reason: String| SelectError::Rows {
+        rows: rows.to_string(),
+        reason,
+    };
+    let (a, b) = rows.resolve(n).map_err(|e: DataError| bad(e.to_string()))?;
+    if rows.end.is_some_and(|e| e > n) {
+        return Err(bad(format!(
+            "end beyond the {n} identification rows (rows count within the identification rows)"
+        )));
+    }
+    let fit = match (a, b) {
+        (0, b) if b < n => (b, n),
+        (a, b) if b == n && a > 0 => (0, a),
+        _ => {
+            return Err(bad(format!(
+                "must start or end the {n} identification rows and leave some of them to fit on"
+            )));
+        }
+    };
+    if b - a <= plan.warmup {
+        return Err(bad(format!(
+            "{} rows leave nothing to score after a warm-up of {}",
+            b - a,
+            plan.warmup
+        )));
+    }
+    Ok((fit, (a, b)))
+}
+
+/// One candidate: a back-end and its set-up.
+struct Trial<'a> {
+    backend: &'a dyn Backend,
+    values: Vec<(String, String)>,
+    setup: Setup,
+}
+
+/// The fit rows and the selection rows of one split, as records.
+struct Part {
+    fit: Dataset,
+    select: Dataset,
+}
+
+/// Chooses the options of `request.backend` on the selection rows and
+/// returns the choice fitted on all the identification rows, with the
+/// record of the selection in `info.selection`.
+pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, SelectError> {
+    let rows = splits(request.data.len(), &request.plan)?;
+    let parts = cut(request.data, &rows)?;
+    let trials = trials(request)?;
+    let scored = score_all(request, &trials, &parts, ctx);
+    let chosen = best(&scored)?;
+    let refinement = try_refinement(request, &trials[chosen], &parts, &scored[chosen], ctx);
+    let mut model = refit(request, &trials[chosen], refinement.as_ref(), ctx)?;
+    let in_file = |(a, b): (usize, usize)| {
+        let first = request.plan.first_row;
+        range_text((a + first, b + first))
+    };
+    model.info_mut().selection = Some(Selection {
+        splits: rows
+            .iter()
+            .map(|&(fit, select)| SplitRows {
+                fit_rows: in_file(fit),
+                select_rows: in_file(select),
+            })
+            .collect(),
+        warmup: request.plan.warmup,
+        candidates: scored,
+        chosen,
+        refinement,
+    });
+    Ok(model)
+}
+
+fn range_text((a, b): (usize, usize)) -> String {
+    format!("{a}..{b}")
+}
+
+fn cut(data: &Dataset, rows: &[Split]) -> Result<Vec<Part>, SelectError> {
+    let slice = |(a, b): (usize, usize)| {
+        data.slice(RowRange {
+            start: Some(a),
+            end: Some(b),
+        })
+        .map_err(|e| SelectError::Rows {
+            rows: range_text((a, b)),
+            reason: e.to_string(),
+        })
+    };
+    rows.iter()
+        .map(|&(fit, select)| {
+            Ok(Part {
+                fit: slice(fit)?,
+                select: slice(select)?,
+            })
+        })
+        .collect()
+}
+
+/// The back-end's candidates, then the affine reference of the same orders
+/// and priors (without a mode count: it has one mode).
+fn trials<'a>(request: &Request<'a>) -> Result<Vec<Trial<'a>>, SelectError> {
+    let mut out = Vec::with_capacity(request.space.len() + 1);
+    for c in request.space.candidates() {
+        out.push(Trial {
+            backend: request.backend,
+            setup: request.setup.with(&c)?,
+            values: c.values,
+        });
+    }
+    if let Some(affine) = request.affine {
+        let mut setup = request.setup.clone();
+        setup.priors.modes = None;
+        setup.priors.max_modes = None;
+        setup.settings = Default::default();
+        out.push(Trial {
+            backend: affine,
+            values: Vec::new(),
+            setup,
+        });
+    }
+    Ok(out)
+}
+
+/// Runs one trial on `data`.
+fn fit(
+    request: &Request<'_>,
+    trial: &Trial<'_>,
+    data: &Dataset,
+    ctx: &RunContext<'_>,
+) -> Result<Model, IdentifyError> {
+    let problem = Problem {
+        data,
+        orders: trial.setup.orders,
+        priors: &trial.setup.priors,
+        priors_origin: request.priors_origin,
+    };
+    let quiet = RunContext {
+        seed: ctx.seed,
+        progress: &NoProgress,
+        deadline: ctx.deadline,
+    };
+    trial.backend.run(&problem, &trial.setup.settings, &quiet)
+}
+
+/// Fits `trial` on the fit rows and scores it on the selection rows of
+/// every split; the score is the mean FIT, the mode count that of the
+/// model of the last split.
+fn score(
+    request: &Request<'_>,
+    trial: &Trial<'_>,
+    parts: &[Part],
+    ctx: &RunContext<'_>,
+) -> ScoredCandidate {
+    let mut out = ScoredCandidate {
+        method: trial.backend.name().to_string(),
+        values: trial.values.clone(),
+        fit_sim: None,
+        modes: None,
+        error: None,
+    };
+    let mut total = 0.0;
+    for part in parts {
+        match score_part(request, trial, part, ctx) {
+            Ok((fit_sim, modes)) => {
+                total += fit_sim;
+                out.modes = Some(modes);
+            }
+            Err(e) => {
+                out.error = Some(e);
+                out.modes = None;
+                return out;
+            }
+        }
+    }
+    out.fit_sim = Some(total / parts.len() as f64);
+    out
+}
+
+/// The selection-row FIT and the mode count of `trial` on one split.
+fn score_part(
+    request: &Request<'_>,
+    trial: &Trial<'_>,
+    part: &Part,
+    ctx: &RunContext<'_>,
+) -> Result<(f64, usize), String> {
+    let model = fit(request, trial, &part.fit, ctx).map_err(|e| e.to_string())?;
+    let (report, _, _) = validate(&model, &part.select, request.plan.warmup)
+        .map_err(|e| format!("simulation on the selection rows: {e}"))?;
+    if !report.fit_sim.is_finite() {
+        return Err("the simulation FIT is not finite".into());
+    }
+    Ok((report.fit_sim, model.mode_count()))
+}
+
+/// Every trial scored, in order (in parallel; each run has the same seed,
+/// so the scores do not depend on the thread count).
+fn score_all(
+    request: &Request<'_>,
+    trials: &[Trial<'_>],
+    parts: &[Part],
+    ctx: &RunContext<'_>,
+) -> Vec<ScoredCandidate> {
+    ctx.progress.start(trials.len() as u64, "selecting");
+    let scored = trials
+        .par_iter()
+        .map(|t| {
+            let s = score(request, t, parts, ctx);
+            ctx.progress.advance(1);
+            s
+        })
+        .collect();
+    ctx.progress.finish();
+    scored
+}
+
+/// The candidate of highest selection-row FIT; the first of equal scores.
+fn best(scored: &[ScoredCandidate]) -> Result<usize, SelectError> {
+    let mut chosen: Option<(usize, f64)> = None;
+    for (i, c) in scored.iter().enumerate() {
+        if let Some(f) = c.fit_sim
+            && chosen.is_none_or(|(_, g)| f > g)
+        {
+            chosen = Some((i, f));
+        }
+    }
+    chosen
+        .map(|(i, _)| i)
+        .ok_or_else(|| SelectError::NoCandidate {
+            first: scored
+                .iter()
+                .find_map(|c| c.error.clone())
+                .unwrap_or_else(|| "no candidate".into()),
+        })
+}
+
+/// The option that switches the simulation-error refinement on.
+pub const REFINE_KEY: &str = "refine";
+/// Its value for refinement on simulation error.
+pub const REFINE_SIM: &str = "sim";
+
+/// The chosen trial with the simulation-error refinement, when its
+/// back-end offers it and the user did not set it.
+fn refined(trial: &Trial<'_>) -> Option<Setup> {
+    let offered = trial.backend.options().iter().any(|o| o.key == REFINE_KEY);
+    if !offered || trial.setup.settings.get(REFINE_KEY).is_some() {
+        return None;
+    }
+    trial
+        .setup
+        .with(&Candidate {
+            values: vec![(REFINE_KEY.into(), REFINE_SIM.into())],
+        })
+        .ok()
+}
+
+/// Scores the chosen trial with refinement; kept when it raises the
+/// selection-row FIT.
+fn try_refinement(
+    request: &Request<'_>,
+    trial: &Trial<'_>,
+    parts: &[Part],
+    unrefined: &ScoredCandidate,
+    ctx: &RunContext<'_>,
+) -> Option<RefinementChoice> {
+    let setup = refined(trial)?;
+    let with = Trial {
+        backend: trial.backend,
+        values: trial.values.clone(),
+        setup,
+    };
+    let fit_sim = score(request, &with, parts, ctx).fit_sim;
+    let kept = matches!((fit_sim, unrefined.fit_sim), (Some(r), Some(u)) if r > u);
+    Some(RefinementChoice { fit_sim, kept })
+}
+
+/// The chosen trial fitted on all the identification rows.
+fn refit(
+    request: &Request<'_>,
+    trial: &Trial<'_>,
+    refinement: Option<&RefinementChoice>,
+    ctx: &RunContext<'_>,
+) -> Result<Model, SelectError> {
+    let setup = match refinement {
+        Some(r) if r.kept => refined(trial).unwrap_or_else(|| trial.setup.clone()),
+        _ => trial.setup.clone(),
+    };
+    let final_trial = Trial {
+        backend: trial.backend,
+        values: trial.values.clone(),
+        setup,
+    };
+    Ok(fit(request, &final_trial, request.data, ctx)?)
+}
+
+/// A model's free-run FIT on a record beside the affine ARX model's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AgainstAffine {
+    /// The model's free-run simulation FIT, percent.
+    pub model: f64,
+    /// The free-run FIT of the affine ARX model of the same orders (and the
+    /// same priors, without a mode count) fitted on the same record.
+    pub affine: f64,
+}
+
+impl AgainstAffine {
+    /// True when the model simulates the record worse than the affine one.
+    pub fn below(&self) -> bool {
+        self.model < self.affine
+    }
+}
+
+/// Scores `model` and the affine model `affine` fits on `data` with
+/// `orders` and `priors` by free-run simulation of `data` (first `warmup`
+/// samples left out). `None` when the affine model cannot be fitted or
+/// either simulation cannot be scored: the comparison is a courtesy, never
+/// a reason to fail.
+pub fn against_affine(
+    model: &Model,
+    affine: &dyn Backend,
+    data: &Dataset,
+    orders: hysid_model::regressors::RegressorSpec,
+    priors: &hysid_core::priors::Priors,
+    warmup: usize,
+) -> Option<AgainstAffine> {
+    let mut priors = priors.clone();
+    priors.modes = None;
+    priors.max_modes = None;
+    let problem = Problem {
+        data,
+        orders,
+        priors: &priors,
+        priors_origin: None,
+    };
+    let reference = affine
+        .run(&problem, &Default::default(), &RunContext::quiet(0))
+        .ok()?;
+    let score = |m: &Model| {
+        validate(m, data, warmup)
+            .ok()
+            .map(|(r, _, _)| r.fit_sim)
+            .filter(|f| f.is_finite())
+    };
+    Some(AgainstAffine {
+        model: score(model)?,
+        affine: score(&reference)?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(rows: &str) -> Plan {
+        Plan {
+            select: Some(rows.parse().unwrap()),
+            warmup: 10,
+            ..Plan::default()
+        }
+    }
+
+    #[test]
+    fn default_split_is_the_last_fifth() {
+        let (fit, sel) = split(5000, &Plan::default()).unwrap();
+        assert_eq!(fit, (0, 4000));
+        assert_eq!(sel, (4000, 5000));
+    }
+
+    #[test]
+    fn selection_rows_start_or_end_the_record() {
+        assert_eq!(split(100, &plan("0..30")).unwrap(), ((30, 100), (0, 30)));
+        assert_eq!(split(100, &plan("70..")).unwrap(), ((0, 70), (70, 100)));
+        for bad in ["20..50", "0..", "0..100", "70..120", "95..100"] {
+            assert!(
+                matches!(split(100, &plan(bad)), Err(SelectError::Rows { .. })),
+                "{bad}"
+            );
+        }
+    }
+
+    #[test]
+    fn folds_roll_the_origin_forward() {
+        assert_eq!(
+            folds(100, 4, 5).unwrap(),
+            vec![
+                ((0, 25), (25, 50)),
+                ((0, 50), (50, 75)),
+                ((0, 75), (75, 100))
+            ]
+        );
+        assert!(folds(100, 1, 0).is_err());
+        assert!(folds(100, 10, 10).is_err());
+    }
+
+    #[test]
+    fn best_takes_the_highest_score_and_the_first_of_ties() {
+        let c = |f: Option<f64>| ScoredCandidate {
+            method: "m".into(),
+            values: vec![],
+            fit_sim: f,
+            modes: None,
+            error: f.is_none().then(|| "failed".to_string()),
+        };
+        assert_eq!(
+            best(&[c(Some(1.0)), c(None), c(Some(3.0)), c(Some(3.0))]).unwrap(),
+            2
+        );
+        let e = best(&[c(None), c(None)]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "no candidate could be fitted and scored (first failure: failed)"
+        );
+    }
+
+    /// An affine record y(k) = 0.7 y(k-1) + 0.5 u(k-1) + 0.1, inputs from a
+    /// fixed pseudo-random sequence, no noise.
+    fn affine_record(n: usize) -> Dataset {
+        let mut u = Vec::with_capacity(n);
+        let mut state: u64 = 12345;
+        for _ in 0..n {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            u.push(((state >> 33) as f64 / (1u64 << 31) as f64) - 0.5);
+        }
+        let mut y = vec![0.0; n];
+        for k in 1..n {
+            y[k] = 0.7 * y[k - 1] + 0.5 * u[k - 1] + 0.1;
+        }
+        Dataset::siso(u, y, Some(0.01)).unwrap()
+    }
+
+    #[test]
+    fn arx_selection_scores_every_order_and_keeps_the_best() {
+        let data = affine_record(300);
+        let request = Request {
+            backend: &hysid_arx::Arx,
+            affine: None,
+            data: &data,
+            setup: Setup {
+                orders: hysid_model::regressors::RegressorSpec::new(3, 3, 1),
+                priors: Default::default(),
+                settings: Default::default(),
+            },
+            priors_origin: None,
+            space: SearchSpace::default().with("na", 1..=3).with("nb", 1..=3),
+            plan: Plan::default(),
+        };
+        let model = select(&request, &RunContext::quiet(0)).unwrap();
+        let s = model.info().selection.clone().unwrap();
+        assert_eq!(s.candidates.len(), 9);
+        assert_eq!(
+            (
+                s.splits[0].fit_rows.as_str(),
+                s.splits[0].select_rows.as_str()
+            ),
+            ("0..240", "240..300")
+        );
+        // Noise-free: every order from (1, 1) up is exact, so the choice is
+        // one of them (which one is decided by rounding), scored near 100 %.
+        let best = s.candidates[s.chosen].fit_sim.unwrap();
+        assert!(best > 99.999, "{best}");
+        assert!(s.candidates.iter().all(|c| c.fit_sim.unwrap() <= best));
+        // The refit on all rows simulates the whole record.
+        let (v, _, _) = validate(&model, &data, 10).unwrap();
+        assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
+    }
+
+    #[test]
+    fn a_model_worse_than_the_affine_one_is_flagged() {
+        let data = affine_record(300);
+        let orders = hysid_model::regressors::RegressorSpec::new(1, 1, 1);
+        let wrong = Model::Pwarx(hysid_model::model::PwarxModel {
+            na: 1,
+            nb: 1,
+            inputs: 1,
+            modes: vec![
+                hysid_model::model::PwarxMode::unnamed(
+                    vec![vec![0.5, 0.5, 0.1]],
+                    vec![hysid_model::geometry::Polyhedron::everything()],
+                )
+                .remove(0),
+            ],
+            info: Default::default(),
+        });
+        let c = against_affine(
+            &wrong,
+            &hysid_arx::Arx,
+            &data,
+            orders,
+            &Default::default(),
+            10,
+        )
+        .unwrap();
+        assert!(c.below(), "{c:?}");
+        assert!(c.affine > 99.999, "{c:?}");
+    }
+}
