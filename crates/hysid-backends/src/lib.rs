@@ -3,7 +3,8 @@
 //! The one place where identification back-ends are registered. Adding a
 //! back-end is one crate and one line in [`registry`].
 
-use hysid_core::backend::Registry;
+use hysid_core::backend::Identifier as _;
+use hysid_core::backend::{Backend, Registry};
 
 /// Every back-end hysid ships, in the order `hysid methods` lists them.
 pub fn registry() -> Registry {
@@ -12,6 +13,15 @@ pub fn registry() -> Registry {
         .with(hysid_cluster::Cluster)
         .with(hysid_bounded::Bounded)
         .with(hysid_physical::Physical)
+}
+
+/// The back-end whose model is the affine reference a hybrid model is
+/// compared with (automatic selection, the warning of `identify` and
+/// `validate`): `arx`, unless `method` is that back-end itself.
+pub fn affine_reference<'r>(registry: &'r Registry, method: &str) -> Option<&'r dyn Backend> {
+    registry
+        .get(hysid_arx::Arx::NAME)
+        .filter(|a| a.name() != method)
 }
 
 #[cfg(test)]

@@ -320,9 +320,6 @@ impl Experiment {
     }
 }
 
-/// The back-end whose model is the affine reference of `auto` runs.
-const AFFINE: &str = "arx";
-
 /// Identifies `job` on `ident` (choosing its options on the selection rows
 /// when it is an `auto` run).
 fn identify(
@@ -348,7 +345,7 @@ fn identify(
     let shift = |v: Option<usize>| v.map(|v| v.saturating_sub(first_row));
     let request = Request {
         backend,
-        affine: registry.get(AFFINE).filter(|a| a.name() != backend.name()),
+        affine: hysid_backends::affine_reference(registry, backend.name()),
         data: ident,
         setup: Setup {
             orders: problem.orders,

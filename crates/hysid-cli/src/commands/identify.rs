@@ -145,7 +145,7 @@ pub fn run(args: Args) -> Result<()> {
         };
         let request = Request {
             backend,
-            affine: registry.get(AFFINE).filter(|a| a.name() != backend.name()),
+            affine: hysid_backends::affine_reference(&registry, backend.name()),
             data: &data,
             setup: Setup {
                 orders: problem.orders,
@@ -190,9 +190,6 @@ pub fn run(args: Args) -> Result<()> {
     }
     Ok(())
 }
-
-/// The back-end whose model is the affine reference.
-const AFFINE: &str = "arx";
 
 /// `--select-rows` (rows of the file) as rows of the identification record
 /// that starts at `--rows`' first row.
@@ -267,7 +264,7 @@ fn warn_if_below_affine(
     problem: &Problem<'_>,
     warmup: usize,
 ) {
-    let Some(affine) = registry.get(AFFINE).filter(|a| a.name() != method) else {
+    let Some(affine) = hysid_backends::affine_reference(registry, method) else {
         return;
     };
     let Some(orders) = model.orders() else { return };
