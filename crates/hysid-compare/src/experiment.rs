@@ -375,4 +375,33 @@ values = [1, 2]
                 .contains("valdation")
         );
     }
+
+    #[test]
+    fn seeds_expand_into_one_job_each_and_auto_stays_out_of_sweeps() {
+        let text = r#"
+title = "t"
+[data]
+file = "d.csv"
+identification = "0..100"
+validation = "100.."
+[[run]]
+name = "c"
+method = "cluster"
+auto = true
+seeds = [3, 4]
+"#;
+        let e = Experiment::from_toml(text, "x.toml").unwrap();
+        let jobs = e.jobs().unwrap();
+        assert_eq!(jobs.len(), 2);
+        assert_eq!(jobs[1].name, "c [seed=4]");
+        assert_eq!(jobs[1].seed, 4);
+        assert_eq!(jobs[1].seed_group.as_deref(), Some("c"));
+        assert!(jobs.iter().all(|j| j.auto));
+        let both = text.replace("seeds = [3, 4]", "seeds = [3, 4]\nseed = 1");
+        let err = Experiment::from_toml(&both, "x").unwrap_err().to_string();
+        assert!(err.contains("give seed or seeds, not both"), "{err}");
+        let sweep = text.replace("[[run]]", "[[sweep]]\nvary = \"c\"\nvalues = [20]");
+        let err = Experiment::from_toml(&sweep, "x").unwrap_err().to_string();
+        assert!(err.contains("auto and seeds belong to a [[run]]"), "{err}");
+    }
 }
