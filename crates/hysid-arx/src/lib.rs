@@ -24,6 +24,7 @@ use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
 use hysid_estimation::linalg;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
+use hysid_estimation::refine;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::{RegressorSpec, Regressors};
@@ -36,6 +37,29 @@ hysid_core::backend_options! {
         /// Tikhonov (ridge) weight lambda: minimises |y - Phi theta|^2 + lambda |theta|^2
         /// (the constant included). 0 is plain least squares.
         ridge: f64 = 0.0,
+        /// Refinement of the mode parameters after the fit, regions fixed: none, or sim
+        /// (Levenberg-Marquardt on the multiple-shooting simulation error under the priors,
+        /// docs/refinement.md).
+        #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
+        refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
+        /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
+        /// outputs before it; at least the record's length: output error (pure free run).
+        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_segment")]
+        refine_segment: usize = hysid_estimation::refine::DEFAULT_SEGMENT,
+        /// Bound on the Levenberg-Marquardt iterations of refine=sim.
+        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_iterations")]
+        refine_iterations: usize = hysid_estimation::refine::DEFAULT_ITERATIONS,
+    }
+}
+
+impl ArxOptions {
+    /// The refinement the options ask for.
+    pub fn refinement(&self) -> hysid_estimation::refine::RefineSettings {
+        hysid_estimation::refine::RefineSettings {
+            method: self.refine,
+            segment: self.refine_segment,
+            iterations: self.refine_iterations,
+        }
     }
 }
 
@@ -46,7 +70,8 @@ impl CheckOptions for ArxOptions {
             self.ridge,
             |r| r >= 0.0,
             "must be a finite number >= 0",
-        )
+        )?;
+        self.refinement().check()
     }
 }
 
@@ -75,7 +100,8 @@ impl Identifier for Arx {
         _ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let data = pwarx::prepare(problem, Self::NAME)?;
-        Ok(pwarx::assemble(&data, fit(options, &data)?))
+        let fit = refine::refine(&data, fit(options, &data)?, &options.refinement())?;
+        Ok(pwarx::assemble(&data, fit))
     }
 }
 
@@ -127,6 +153,7 @@ pub fn fit(
         run_status: RunStatus::Completed,
         status: Vec::new(),
         scaling: None,
+        refinement: None,
         diagnostics,
     })
 }
@@ -533,5 +560,87 @@ mod tests {
         assert_eq!(m.info().method, "arx");
         assert_eq!(m.info().options["ridge"], 0.5);
         assert_eq!(m.info().seed, Some(1));
+    }
+
+    /// Sum of squared free-run simulation errors of `m` on `d`.
+    fn free_run_error(m: &Model, d: &Dataset) -> f64 {
+        let s = simulate(m, d, SimulationOptions::for_data(d)).unwrap();
+        assert!(s.diverged_at.is_none());
+        (s.start..d.len())
+            .map(|k| (d.y()[k] - s.y[k]).powi(2))
+            .sum()
+    }
+
+    /// On an output-error record (white noise added to the output of an
+    /// ARX system), `refine=sim` with one free-run segment is the
+    /// output-error model: a lower free-run error than least squares, and
+    /// parameters near the truth where least squares is biased.
+    #[test]
+    fn refine_sim_gives_the_output_error_model() {
+        let truth = [0.8, 0.5, 0.1];
+        let clean = data_from(&truth, 1, 1, 1500, 4);
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let noisy: Vec<f64> = clean
+            .y()
+            .iter()
+            .map(|v| v + 0.3 * (rng.random_range(-1.0..1.0) + rng.random_range(-1.0..1.0)))
+            .collect();
+        let d = Dataset::siso(clean.u(0).to_vec(), noisy, None).unwrap();
+        let ls = run(&d, 1, 1, &Priors::default(), &[]).unwrap();
+        let oe = run(
+            &d,
+            1,
+            1,
+            &Priors::default(),
+            &["refine=sim", "refine_segment=100000"],
+        )
+        .unwrap();
+        let (e_ls, e_oe) = (free_run_error(&ls, &d), free_run_error(&oe, &d));
+        assert!(
+            e_oe < 0.95 * e_ls,
+            "output error {e_oe} vs least squares {e_ls}"
+        );
+        let (t_ls, t_oe) = (theta_of(&ls), theta_of(&oe));
+        assert!(
+            (t_oe[0] - truth[0]).abs() < (t_ls[0] - truth[0]).abs(),
+            "{t_oe:?} vs {t_ls:?}"
+        );
+        assert!((t_oe[0] - truth[0]).abs() < 0.03, "{t_oe:?}");
+        let r = ls.info().diagnostics.refinement.clone();
+        assert!(r.is_none());
+        let r = oe.info().diagnostics.refinement.clone().unwrap();
+        assert_eq!(r.segments, 1);
+        assert!(r.cost_after.unwrap() < r.cost_before.unwrap(), "{r:?}");
+        // The refinement options are recorded when given, not otherwise.
+        assert_eq!(oe.info().options["refine"], "sim");
+        assert_eq!(oe.info().options["refine_segment"], 100000);
+        assert!(!ls.info().options.contains_key("refine"));
+        assert!(!ls.info().options.contains_key("refine_segment"));
+        assert!(!oe.info().options.contains_key("refine_iterations"));
+    }
+
+    /// With a known stop the refined model is still the automaton, the
+    /// refinement is recorded, and bad refinement options are refused.
+    #[test]
+    fn refine_sim_with_a_stop_and_option_checks() {
+        let d = data_with_stop(&[0.6, 1.0, 0.1], 1.0, 400, 5);
+        let mut p = Priors::default();
+        p.saturation.push(hysid_model::model::Stop {
+            level: 1.0,
+            bound: hysid_model::model::StopBound::Max,
+            tol: None,
+        });
+        let m = run(&d, 1, 1, &p, &["refine=sim", "refine_segment=50"]).unwrap();
+        assert!(matches!(m, Model::HybridAutomaton(_)));
+        let r = m.info().diagnostics.refinement.clone().unwrap();
+        assert!(r.cost_after.unwrap() <= r.cost_before.unwrap(), "{r:?}");
+        let e = run(&d, 1, 1, &p, &["refine=sim", "refine_segment=0"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("refine_segment"), "{e}");
+        let e = run(&d, 1, 1, &p, &["refine=newton"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("refine"), "{e}");
     }
 }

@@ -117,6 +117,7 @@ pub fn fit(
         run_status,
         status,
         scaling: None,
+        refinement: None,
         diagnostics,
     })
 }

@@ -45,7 +45,7 @@ use hysid_core::options::OptionType;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
-use hysid_estimation::pwarx;
+use hysid_estimation::{pwarx, refine};
 use hysid_regions::RegionMethod;
 use procedure::{Classification, ProcedureSettings};
 use samples::Samples;
@@ -118,6 +118,29 @@ hysid_core::backend_options! {
         /// complete partition), psvc (pairwise proximal SVM, may leave holes) or
         /// softmax (multinomial logistic regression, complete partition).
         regions: RegionMethod = RegionMethod::Mrlp,
+        /// Refinement of the mode parameters after the fit, regions fixed: none, or sim
+        /// (Levenberg-Marquardt on the multiple-shooting simulation error under the priors,
+        /// docs/refinement.md).
+        #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
+        refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
+        /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
+        /// outputs before it; at least the record's length: output error (pure free run).
+        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_segment")]
+        refine_segment: usize = hysid_estimation::refine::DEFAULT_SEGMENT,
+        /// Bound on the Levenberg-Marquardt iterations of refine=sim.
+        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_iterations")]
+        refine_iterations: usize = hysid_estimation::refine::DEFAULT_ITERATIONS,
+    }
+}
+
+impl BoundedOptions {
+    /// The refinement the options ask for.
+    pub fn refinement(&self) -> hysid_estimation::refine::RefineSettings {
+        hysid_estimation::refine::RefineSettings {
+            method: self.refine,
+            segment: self.refine_segment,
+            iterations: self.refine_iterations,
+        }
     }
 }
 
@@ -159,7 +182,8 @@ impl CheckOptions for BoundedOptions {
             self.beta,
             |b| (0.0..1.0).contains(&b),
             "must be in [0, 1)",
-        )
+        )?;
+        self.refinement().check()
     }
 }
 
@@ -230,7 +254,8 @@ impl Identifier for Bounded {
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let data = pwarx::prepare(problem, Self::NAME)?;
-        Ok(pwarx::assemble(&data, fit(options, &data, ctx)?))
+        let fit = refine::refine(&data, fit(options, &data, ctx)?, &options.refinement())?;
+        Ok(pwarx::assemble(&data, fit))
     }
 }
 

@@ -144,6 +144,7 @@ pub fn fit(
         },
         status,
         scaling: o.scale.then(|| work.scale.clone()),
+        refinement: None,
         diagnostics,
     })
 }

@@ -53,6 +53,7 @@ use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::{PriorKind, Priors};
 use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData};
+use hysid_estimation::refine;
 
 hysid_core::option_enum! {
     /// What is clustered (HIT `what_to_clust`).
@@ -147,6 +148,29 @@ hysid_core::backend_options! {
         /// Smallest relative confidence weight in the per-mode weighted least squares
         /// (weights are normalised by the largest in the mode); keeps modes well posed.
         min_weight: f64 = 1e-8,
+        /// Refinement of the mode parameters after the fit, regions fixed: none, or sim
+        /// (Levenberg-Marquardt on the multiple-shooting simulation error under the priors,
+        /// docs/refinement.md).
+        #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
+        refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
+        /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
+        /// outputs before it; at least the record's length: output error (pure free run).
+        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_segment")]
+        refine_segment: usize = hysid_estimation::refine::DEFAULT_SEGMENT,
+        /// Bound on the Levenberg-Marquardt iterations of refine=sim.
+        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_iterations")]
+        refine_iterations: usize = hysid_estimation::refine::DEFAULT_ITERATIONS,
+    }
+}
+
+impl ClusterOptions {
+    /// The refinement the options ask for.
+    pub fn refinement(&self) -> hysid_estimation::refine::RefineSettings {
+        hysid_estimation::refine::RefineSettings {
+            method: self.refine,
+            segment: self.refine_segment,
+            iterations: self.refine_iterations,
+        }
     }
 }
 
@@ -198,7 +222,7 @@ impl CheckOptions for ClusterOptions {
                 "must be a finite number >= 0",
             )?;
         }
-        Ok(())
+        self.refinement().check()
     }
 }
 
@@ -241,10 +265,11 @@ impl Identifier for Cluster {
         let data = pwarx::prepare(problem, Self::NAME)?;
         let stops = data.stops();
         match data.modes {
-            ModeCount::Exact(s) => Ok(pwarx::assemble(
-                &data,
-                fit(options, &data, s + stops, ctx.seed, ctx.deadline)?,
-            )),
+            ModeCount::Exact(s) => {
+                let fit = fit(options, &data, s + stops, ctx.seed, ctx.deadline)?;
+                let fit = refine::refine(&data, fit, &options.refinement())?;
+                Ok(pwarx::assemble(&data, fit))
+            }
             ModeCount::AtMost(max) => choose_modes(&data, options, max + stops, ctx),
             ModeCount::Free => Err(IdentifyError::BadData(
                 "method 'cluster' needs the number of modes: give the prior `modes = S` (or `max_modes = S` \
@@ -308,7 +333,7 @@ pub fn identify_labelled(
         ..*problem
     };
     let data = pwarx::prepare(&problem, Cluster::NAME)?;
-    let fit = fit(o, &data, s, seed, deadline)?;
+    let fit = refine::refine(&data, fit(o, &data, s, seed, deadline)?, &o.refinement())?;
     let ordinary_modes = fit.modes.len();
     let mut row_labels: Vec<usize> = data
         .stop_of

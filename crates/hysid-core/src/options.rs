@@ -345,6 +345,9 @@ fn scalar(v: &str) -> toml::Value {
 }
 
 /// Declares a back-end's options struct: fields with documented defaults.
+/// A field may carry `#[serde(...)]` attributes after its doc comment, e.g.
+/// `skip_serializing_if` for an option that is recorded in model files only
+/// when it differs from its default.
 ///
 /// ```
 /// hysid_core::backend_options! {
@@ -365,14 +368,14 @@ macro_rules! backend_options {
     (
         $(#[$meta:meta])*
         $vis:vis struct $name:ident {
-            $( $(#[doc = $doc:literal])* $field:ident : $ty:ty = $default:expr ),* $(,)?
+            $( $(#[doc = $doc:literal])* $(#[serde($($serde:tt)*)])* $field:ident : $ty:ty = $default:expr ),* $(,)?
         }
     ) => {
         $(#[$meta])*
         #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
         #[serde(default, deny_unknown_fields)]
         $vis struct $name {
-            $( $(#[doc = $doc])* #[doc = concat!("\n\nDefault: `", stringify!($default), "`.")] pub $field: $ty, )*
+            $( $(#[doc = $doc])* #[doc = concat!("\n\nDefault: `", stringify!($default), "`.")] $(#[serde($($serde)*)])* pub $field: $ty, )*
         }
         impl Default for $name {
             fn default() -> Self { Self { $( $field: $default, )* } }

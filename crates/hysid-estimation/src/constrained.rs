@@ -276,6 +276,11 @@ impl Parametrisation {
         }
     }
 
+    /// Parameters per mode (`theta_i` of `[phi; 1]`).
+    pub fn n_params(&self) -> usize {
+        self.n_params
+    }
+
     /// Number of modes.
     pub fn modes(&self) -> usize {
         self.slots.len() / self.n_params.max(1)
@@ -407,9 +412,14 @@ pub fn fit_modes(
     Ok(par.thetas(&z))
 }
 
-/// `min |Z z - r|^2` over the free variables under the equalities and the
-/// bounds of `par`.
-fn solve_in_z(
+/// `min |Z z - r|^2` over the free variables `z` of `par` under its
+/// equalities (null-space method: `z = z0 + N w`, least squares in `w`)
+/// and its bounds (the box-constrained QP when the minimiser leaves the
+/// box). Every estimate of the mode parameters goes through here: the
+/// ordinary fit ([`fit_modes`]), the projection ([`Parametrisation::project`])
+/// and the damped steps of the simulation-error refinement
+/// ([`crate::refine`]).
+pub fn solve_in_z(
     par: &Parametrisation,
     z_mat: &DMatrix<f64>,
     r: &DVector<f64>,
@@ -498,6 +508,11 @@ impl Parametrisation {
     /// mode; least squares over the free parameters): ties, fixed values and
     /// equalities exact, bounds through the QP.
     pub fn project(&self, thetas: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, EstimationError> {
+        Ok(self.thetas(&self.free_values(thetas)?))
+    }
+
+    /// The free variables `z` of [`Parametrisation::project`]`(thetas)`.
+    pub fn free_values(&self, thetas: &[Vec<f64>]) -> Result<Vec<f64>, EstimationError> {
         let np = self.n_params;
         if thetas.len() != self.modes() || thetas.iter().any(|t| t.len() != np) {
             return Err(EstimationError::Shape(format!(
@@ -520,8 +535,7 @@ impl Parametrisation {
             z_mat[(k, *v)] = 1.0;
             r[k] = *x;
         }
-        let z = solve_in_z(self, &z_mat, &r)?;
-        Ok(self.thetas(&z))
+        solve_in_z(self, &z_mat, &r)
     }
 }
 

@@ -12,8 +12,10 @@
 //! | [`constrained`] | `Parametrisation` of the priors, mode fits under them |
 //! | [`linalg`] | SVD least squares, weighted and equality-constrained (faer) |
 //! | [`pwarx`] | the set-up and assembly every PWARX back-end shares |
+//! | [`refine`] | the multiple-shooting simulation-error refinement a PWARX back-end may end with |
 
 pub mod conic;
 pub mod constrained;
 pub mod linalg;
 pub mod pwarx;
+pub mod refine;

@@ -17,7 +17,9 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_model::data::Standardization;
 use hysid_model::model::RunStatus;
-use hysid_model::model::{Diagnostics, HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
+use hysid_model::model::{
+    Diagnostics, HybridAutomaton, ModelInfo, PwarxMode, PwarxModel, Refinement,
+};
 use hysid_model::regressors::{RegressorSpec, Regressors};
 use serde::Serialize;
 
@@ -210,6 +212,9 @@ pub struct PwarxFit<D> {
     /// How the back-end saw the data, when it worked in standardised units
     /// (recorded in the model's `info.scaling`).
     pub scaling: Option<Standardization>,
+    /// The outcome of the simulation-error refinement, when it ran
+    /// ([`crate::refine::refine`]; back-ends set `None`).
+    pub refinement: Option<Refinement>,
     /// The back-end's own diagnostics.
     pub diagnostics: D,
 }
@@ -227,6 +232,7 @@ pub fn assemble<D: Serialize>(data: &PwarxData<'_>, fit: PwarxFit<D>) -> Model {
         regions_complete: Some(fit.regions_complete),
         uncovered_fraction_of_data_box: fit.uncovered_fraction,
         saturated_per_stop: (stops > 0).then(|| data.saturated_per_stop()),
+        refinement: fit.refinement,
         ..Default::default()
     }
     .with_method(&fit.diagnostics);

@@ -90,6 +90,7 @@ pub fn fit(
         run_status: RunStatus::Completed,
         status: Vec::new(),
         scaling: None,
+        refinement: None,
         diagnostics: SignDiagnostics {
             samples_per_mode: [split[0].len(), split[1].len()],
         },

@@ -12,6 +12,7 @@
 use super::{ModelInfo, PwarxModel};
 use crate::geometry::Polyhedron;
 use crate::model::{Stop, StopBound};
+use crate::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
 
 /// Discrete or continuous time.
@@ -306,17 +307,7 @@ impl HybridAutomaton {
                 states.push(format!("u{}(k-{j})", i + 1));
             }
         }
-        // Position of each regressor entry of y(k+1) in z = [x; u].
-        let mut pos = Vec::with_capacity(p.spec().dim());
-        for j in 0..na {
-            pos.push(j); // y(k+1-(j+1)) = y(k-j) = x_j
-        }
-        for i in 0..m {
-            for j in 1..=nb {
-                // u_i(k+1-j): j = 1 is the current input, else state u_i(k-(j-1))
-                pos.push(if j == 1 { n + i } else { ny + i * nu + (j - 2) });
-            }
-        }
+        let pos = arx_state_positions(&p.spec());
         let d = p.spec().dim();
         let modes = p
             .modes
@@ -393,6 +384,28 @@ impl HybridAutomaton {
             info: p.info.clone(),
         }
     }
+}
+
+/// Where each PWARX regressor entry of `y(k+1)` sits in `z = [x(k); u(k)]`
+/// of the automaton of [`HybridAutomaton::from_pwarx`]: `y(k-j)` is the
+/// state `x_j`, `u_i(k)` the input `i`, `u_i(k-j)` (j >= 1) a state of
+/// the input history.
+pub fn arx_state_positions(spec: &RegressorSpec) -> Vec<usize> {
+    let (na, nb, m) = (spec.na, spec.nb, spec.inputs);
+    let ny = na.max(1);
+    let nu = nb.saturating_sub(1);
+    let n = ny + nu * m;
+    let mut pos = Vec::with_capacity(spec.dim());
+    for j in 0..na {
+        pos.push(j); // y(k+1-(j+1)) = y(k-j) = x_j
+    }
+    for i in 0..m {
+        for j in 1..=nb {
+            // u_i(k+1-j): j = 1 is the current input, else state u_i(k-(j-1))
+            pos.push(if j == 1 { n + i } else { ny + i * nu + (j - 2) });
+        }
+    }
+    pos
 }
 
 impl HybridAutomaton {

@@ -27,6 +27,47 @@ impl RunStatus {
     }
 }
 
+/// How the simulation-error refinement of a PWARX fit ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RefinementStatus {
+    /// The relative decrease of the cost (or the step) fell below the
+    /// tolerance, or the cost reached zero.
+    Converged,
+    /// No step of any damping decreased the cost: a local minimum to the
+    /// precision of the linearisation.
+    NoDescent,
+    /// The iteration bound stopped the refinement before its convergence
+    /// test held.
+    IterationLimit,
+    /// The simulation of the starting parameters diverges: nothing was
+    /// refined.
+    Diverged,
+}
+
+/// The outcome of the multiple-shooting simulation-error refinement of the
+/// mode parameters (recorded under `refinement`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Refinement {
+    /// Samples per shooting segment.
+    pub segment: usize,
+    /// Shooting segments of the record.
+    pub segments: usize,
+    /// Levenberg-Marquardt iterations taken (solved steps, accepted or not).
+    pub iterations: usize,
+    /// The iteration bound.
+    pub max_iterations: usize,
+    /// Sum of squared simulation errors of the starting parameters (`None`:
+    /// the simulation diverges).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost_before: Option<f64>,
+    /// Sum of squared simulation errors of the refined parameters.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost_after: Option<f64>,
+    /// How the refinement ended.
+    pub status: RefinementStatus,
+}
+
 /// The diagnostics of a run. The common fields have fixed names in every
 /// back-end; `method` holds the back-end's own fields (its typed
 /// diagnostics struct, serialised). In the file all keys form one object,
@@ -51,6 +92,9 @@ pub struct Diagnostics {
     /// Rows whose target sits at each known stop, in prior order
     /// (`saturated_per_stop`).
     pub saturated_per_stop: Option<Vec<usize>>,
+    /// The simulation-error refinement of the mode parameters, when the
+    /// back-end ran it (`refinement`).
+    pub refinement: Option<Refinement>,
     /// The back-end's own fields.
     pub method: BTreeMap<String, serde_json::Value>,
 }
@@ -104,6 +148,9 @@ impl Diagnostics {
         if let Some(v) = &self.saturated_per_stop {
             put("saturated_per_stop", serde_json::json!(v));
         }
+        if let Some(v) = &self.refinement {
+            put("refinement", serde_json::json!(v));
+        }
         m
     }
 
@@ -123,6 +170,7 @@ impl Diagnostics {
             take("uncovered_fraction_of_data_box").and_then(|v| v.as_f64());
         let saturated_per_stop =
             take("saturated_per_stop").and_then(|v| serde_json::from_value(v).ok());
+        let refinement = take("refinement").and_then(|v| serde_json::from_value(v).ok());
         Diagnostics {
             run_status,
             status,
@@ -131,6 +179,7 @@ impl Diagnostics {
             regions_complete,
             uncovered_fraction_of_data_box,
             saturated_per_stop,
+            refinement,
             method: m,
         }
     }
@@ -145,6 +194,7 @@ const COMMON: &[&str] = &[
     "regions_complete",
     "uncovered_fraction_of_data_box",
     "saturated_per_stop",
+    "refinement",
 ];
 
 impl Serialize for Diagnostics {
@@ -175,6 +225,15 @@ mod tests {
             regions_complete: Some(false),
             uncovered_fraction_of_data_box: Some(0.25),
             saturated_per_stop: Some(vec![2, 0]),
+            refinement: Some(Refinement {
+                segment: 200,
+                segments: 3,
+                iterations: 7,
+                max_iterations: 50,
+                cost_before: Some(2.5),
+                cost_after: None,
+                status: RefinementStatus::Diverged,
+            }),
             method: BTreeMap::new(),
         }
         .with_method(&serde_json::json!({"c": 40, "kmeans_cost": 1.5}));

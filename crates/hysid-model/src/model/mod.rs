@@ -21,9 +21,9 @@ mod stop;
 
 pub use automaton::{
     AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
-    TimeDomain, Transition,
+    TimeDomain, Transition, arx_state_positions,
 };
-pub use diagnostics::{Diagnostics, RunStatus};
+pub use diagnostics::{Diagnostics, Refinement, RefinementStatus, RunStatus};
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
 pub use selection::{RefinementChoice, ScoredCandidate, Selection, SplitRows};
 pub use stop::{Stop, StopBound};

@@ -151,20 +151,43 @@ impl<'a> Runner<'a> {
     }
 
     /// Steps 2-4 of a discrete-time step (see the module docs).
-    fn discrete_step(&mut self, mut q: usize, x: &[f64], u: &[f64]) -> (usize, Vec<f64>) {
+    fn discrete_step(&mut self, q: usize, x: &[f64], u: &[f64]) -> (usize, Vec<f64>) {
+        let (q, x1, _) = self.traced_step(q, x, u);
+        (q, x1)
+    }
+
+    /// [`Runner::discrete_step`] with what happened in it.
+    fn traced_step(
+        &mut self,
+        mut q: usize,
+        x: &[f64],
+        u: &[f64],
+    ) -> (usize, Vec<f64>, DiscreteStep) {
         let mut x = x.to_vec();
+        let mut guards = Vec::new();
         for _ in 0..MAX_EVENTS_PER_STEP {
             match self.condition_guard(q, &x, u) {
-                Some(ti) => q = self.fire(ti, &mut x),
+                Some(ti) => {
+                    guards.push(ti);
+                    q = self.fire(ti, &mut x);
+                }
                 None => break,
             }
         }
+        let flow_mode = q;
         let mut x1 = vec![0.0; self.n];
         self.m.modes[q].flow.eval(&x, u, &mut x1);
-        if let Some((_, ti)) = self.first_crossing(q, &x, &x1, u, true) {
+        let crossing = self.first_crossing(q, &x, &x1, u, true).map(|(_, ti)| ti);
+        if let Some(ti) = crossing {
             q = self.fire(ti, &mut x1);
         }
-        (q, x1)
+        let step = DiscreteStep {
+            guards,
+            flow_mode,
+            state: x,
+            crossing,
+        };
+        (q, x1, step)
     }
 }
 
@@ -231,11 +254,49 @@ fn initial(m: &HybridAutomaton, data: &Dataset) -> Result<(usize, Vec<f64>), Sim
     }
 }
 
+/// What one discrete-time step `k -> k+1` of [`simulate_traced`] did
+/// (steps 2-4 of the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiscreteStep {
+    /// The condition transitions that fired before the flow, in order
+    /// (indices into `transitions`).
+    pub guards: Vec<usize>,
+    /// The mode whose flow made the step.
+    pub flow_mode: usize,
+    /// The state the flow started from (after the condition guards'
+    /// resets).
+    pub state: Vec<f64>,
+    /// The crossing transition that fired after the flow, if any.
+    pub crossing: Option<usize>,
+}
+
 /// Free-run simulation of a hybrid automaton driven by the inputs of `data`.
 pub fn simulate(
     m: &HybridAutomaton,
     data: &Dataset,
     opts: SimulationOptions,
+) -> Result<Simulation, SimError> {
+    simulate_with(m, data, opts, None)
+}
+
+/// [`simulate`], with the record of every discrete-time step: with an
+/// ARX-history initial state, entry `i` is the step that produced sample
+/// `start + i` (the trace is empty for continuous time). The simulation is the same as [`simulate`]'s, bit for bit.
+pub fn simulate_traced(
+    m: &HybridAutomaton,
+    data: &Dataset,
+    opts: SimulationOptions,
+) -> Result<(Simulation, Vec<DiscreteStep>), SimError> {
+    let mut trace = Vec::new();
+    let sim = simulate_with(m, data, opts, Some(&mut trace))?;
+    Ok((sim, trace))
+}
+
+fn simulate_with(
+    m: &HybridAutomaton,
+    data: &Dataset,
+    opts: SimulationOptions,
+    mut trace: Option<&mut Vec<DiscreteStep>>,
 ) -> Result<Simulation, SimError> {
     let (k0, mut x) = initial(m, data)?;
     let h = match m.time {
@@ -273,7 +334,10 @@ pub fn simulate(
         sim.covered[k + 1] = covered;
         match h {
             None => {
-                let (q1, x1) = run.discrete_step(qk, &x, &u);
+                let (q1, x1, step) = run.traced_step(qk, &x, &u);
+                if let Some(t) = trace.as_deref_mut() {
+                    t.push(step);
+                }
                 qk = q1;
                 x = x1;
             }
