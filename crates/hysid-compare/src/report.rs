@@ -448,7 +448,7 @@ pub fn markdown(c: &Comparison) -> String {
             note = format!("simulation diverged at sample {k}");
         }
         let model_notes = r.model.as_ref().map(|m| {
-            [holes_note(m), status_note(m)]
+            [selection_note(m), holes_note(m), status_note(m)]
                 .into_iter()
                 .flatten()
                 .collect::<Vec<_>>()
@@ -547,6 +547,26 @@ pub fn markdown(c: &Comparison) -> String {
 
 /// What the back-end said about its run (cut short, warnings), as
 /// `hysid identify` prints it.
+/// What automatic selection chose, with its selection-row FIT.
+fn selection_note(m: &Model) -> Option<String> {
+    let s = m.info().selection.as_ref()?;
+    let c = s.candidates.get(s.chosen)?;
+    let values: Vec<String> = c.values.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    let what = if values.is_empty() {
+        format!("the {} model", c.method)
+    } else {
+        format!("{} {}", c.method, values.join(" "))
+    };
+    let refined = match &s.refinement {
+        Some(r) if r.kept => ", refined",
+        _ => "",
+    };
+    Some(format!(
+        "auto chose {what}{refined} (selection FIT {:.2} %)",
+        c.fit_sim.unwrap_or(f64::NAN)
+    ))
+}
+
 fn status_note(m: &Model) -> Option<String> {
     let d = &m.info().diagnostics;
     (d.run_status.cut_short() || !d.status.is_empty()).then(|| d.status.join("; "))
