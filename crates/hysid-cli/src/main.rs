@@ -33,7 +33,7 @@ enum Command {
     Simulate(commands::simulate::Args),
     /// Run several back-ends on one experiment and report them side by side.
     Compare(commands::compare::Args),
-    /// Sweep one back-end over a grid of option values, scored by validation simulation FIT.
+    /// Sweep one back-end over a grid of option values, scored by simulation FIT on the selection rows.
     Sweep(commands::sweep::Args),
 }
 

@@ -1,7 +1,9 @@
 //! `hysid sweep`: one back-end over a grid of option values (for example
 //! the local dataset size `c` and the mode count of `cluster`, or `delta`
-//! of `bounded`), each point scored by validation simulation FIT. It is an
-//! experiment with one `[[sweep]]`, built from the command line.
+//! of `bounded`), each point scored by free-run simulation FIT on the
+//! selection rows. It is an experiment with one `[[sweep]]`, built from the
+//! command line. Its best point is a choice made on those rows: scored on
+//! test rows, it is an oracle figure.
 
 use crate::Result;
 use crate::error::CliError;
@@ -26,10 +28,12 @@ pub struct Args {
     /// Rows used for identification (after decimation).
     #[arg(long = "identify-rows", value_parser = parse_rows)]
     pub identify_rows: RowRange,
-    /// Rows used for validation (after decimation).
-    #[arg(long = "validate-rows", value_parser = parse_rows)]
-    pub validate_rows: RowRange,
-    /// Validation samples not scored.
+    /// Rows every point is scored on (after decimation): selection rows
+    /// when the sweep chooses options (keep them inside the identification
+    /// data, away from the test rows); `--validate-rows` is the same flag.
+    #[arg(long = "select-rows", alias = "validate-rows", value_parser = parse_rows)]
+    pub select_rows: RowRange,
+    /// Scored samples left out at the start.
     #[arg(long, default_value_t = 10)]
     pub warmup: usize,
     /// Output lags.
@@ -126,7 +130,7 @@ pub fn run(args: Args) -> Result<()> {
             decimate: args.decimate,
             ts: args.ts,
             identification: args.identify_rows,
-            validation: args.validate_rows,
+            validation: args.select_rows,
             warmup: args.warmup,
             selection: None,
             output_label: None,
@@ -177,7 +181,10 @@ pub fn run(args: Args) -> Result<()> {
         .filter_map(|r| r.report.as_ref().map(|v| (r, v.fit_sim)))
         .max_by(|a, b| a.1.total_cmp(&b.1))
     {
-        eprintln!("hysid: best fit_sim {:.2} % at {}", best.1, best.0.name);
+        eprintln!(
+            "hysid: best fit_sim {:.2} % at {} (on the rows it was chosen on: quote it only if they are selection rows, else as an oracle figure)",
+            best.1, best.0.name
+        );
     }
     Ok(())
 }
