@@ -241,13 +241,20 @@ impl Identifier for Cluster {
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
-    const SEARCH: &'static str = "c in 20, 40, 80, 160, 320, and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none";
+    const SEARCH: &'static str = "c in 20, 40, 80, 160, 320 (those from n+2 to a quarter of the rows), and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none";
 
-    /// [`C_GRID`] times the ordinary mode counts `1..=max_modes` (the
-    /// known stops added, as the prior `modes` counts them).
+    /// The values of [`C_GRID`] a record of `N` regression rows can hold
+    /// (`n + 2 <= c <= N / 4`; none: the automatic rule alone) times the
+    /// ordinary mode counts `1..=max_modes` (the known stops added, as the
+    /// prior `modes` counts them).
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         let priors = problem.priors;
-        let space = SearchSpace::default().with("c", C_GRID);
+        let rows = problem.data.len().saturating_sub(problem.orders.lag());
+        let smallest = problem.orders.dim() + 2;
+        let c = C_GRID
+            .into_iter()
+            .filter(|&c| c >= smallest && 4 * c <= rows);
+        let space = SearchSpace::default().with("c", c);
         if priors.modes.is_some() {
             return Ok(space);
         }

@@ -203,10 +203,8 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
     let rows = splits(request.data.len(), &request.plan)?;
     let parts = cut(request.data, &rows)?;
     let trials = trials(request)?;
-    let scored = score_all(request, &trials, &parts, ctx);
-    let chosen = best(&scored)?;
-    let refinement = try_refinement(request, &trials[chosen], &parts, &scored[chosen], ctx);
-    let mut model = refit(request, &trials[chosen], refinement.as_ref(), ctx)?;
+    let mut scored = score_all(request, &trials, &parts, ctx);
+    let (chosen, refinement, mut model) = choose(request, &trials, &parts, &mut scored, ctx)?;
     let in_file = |(a, b): (usize, usize)| {
         let first = request.plan.first_row;
         range_text((a + first, b + first))
@@ -369,24 +367,53 @@ fn score_all(
     scored
 }
 
-/// The candidate of highest selection-row FIT; the first of equal scores.
-fn best(scored: &[ScoredCandidate]) -> Result<usize, SelectError> {
-    let mut chosen: Option<(usize, f64)> = None;
-    for (i, c) in scored.iter().enumerate() {
-        if let Some(f) = c.fit_sim
-            && chosen.is_none_or(|(_, g)| f > g)
-        {
-            chosen = Some((i, f));
-        }
-    }
-    chosen
-        .map(|(i, _)| i)
-        .ok_or_else(|| SelectError::NoCandidate {
+/// The scored candidates from the highest selection-row FIT down (the
+/// first in grid order among equal scores).
+fn ranking(scored: &[ScoredCandidate]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..scored.len())
+        .filter(|&i| scored[i].fit_sim.is_some())
+        .collect();
+    // A stable sort keeps grid order among equal scores.
+    let score = |i: usize| scored[i].fit_sim.unwrap_or(f64::NEG_INFINITY);
+    order.sort_by(|&a, &b| score(b).total_cmp(&score(a)));
+    order
+}
+
+/// The best candidate whose refit on all the identification rows succeeds
+/// (a candidate fitted on the fit rows may still fail on all of them,
+/// e.g. a cluster dropped below its discard size), with its refinement
+/// choice and its model. A candidate whose refit fails gets that error in
+/// the record.
+fn choose(
+    request: &Request<'_>,
+    trials: &[Trial<'_>],
+    parts: &[Part],
+    scored: &mut [ScoredCandidate],
+    ctx: &RunContext<'_>,
+) -> Result<(usize, Option<RefinementChoice>, Model), SelectError> {
+    let order = ranking(scored);
+    if order.is_empty() {
+        return Err(SelectError::NoCandidate {
             first: scored
                 .iter()
                 .find_map(|c| c.error.clone())
                 .unwrap_or_else(|| "no candidate".into()),
-        })
+        });
+    }
+    let mut first_error = None;
+    for i in order {
+        let refinement = try_refinement(request, &trials[i], parts, &scored[i], ctx);
+        match refit(request, &trials[i], refinement.as_ref(), ctx) {
+            Ok(model) => return Ok((i, refinement, model)),
+            Err(e) => {
+                scored[i].error = Some(format!("refit on all the identification rows: {e}"));
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    Err(first_error.unwrap_or_else(|| SelectError::NoCandidate {
+        first: "no candidate".into(),
+    }))
 }
 
 /// The option that switches the simulation-error refinement on.
@@ -548,7 +575,7 @@ mod tests {
     }
 
     #[test]
-    fn best_takes_the_highest_score_and_the_first_of_ties() {
+    fn ranking_puts_the_highest_score_first_and_keeps_grid_order_in_ties() {
         let c = |f: Option<f64>| ScoredCandidate {
             method: "m".into(),
             values: vec![],
@@ -557,14 +584,10 @@ mod tests {
             error: f.is_none().then(|| "failed".to_string()),
         };
         assert_eq!(
-            best(&[c(Some(1.0)), c(None), c(Some(3.0)), c(Some(3.0))]).unwrap(),
-            2
+            ranking(&[c(Some(1.0)), c(None), c(Some(3.0)), c(Some(3.0))]),
+            vec![2, 3, 0]
         );
-        let e = best(&[c(None), c(None)]).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "no candidate could be fitted and scored (first failure: failed)"
-        );
+        assert!(ranking(&[c(None), c(None)]).is_empty());
     }
 
     /// An affine record y(k) = 0.7 y(k-1) + 0.5 u(k-1) + 0.1, inputs from a

@@ -1,0 +1,129 @@
+//! Automatic selection against the reference settings on the literature's
+//! benchmark systems (B1, H1-H4 of `hysid-testkit`), seeds 1 to 5.
+//!
+//! "reference": `cluster` with the true mode count and the reference `c`
+//! of `crates/hysid-cluster/tests/reference.rs`. "auto": `cluster` with no
+//! mode count, its options and mode count chosen by [`hysid_select::select`]
+//! on the last 20 % of the record (the affine model a candidate). Both are
+//! scored on a validation record of 1000 rows (seed 1000): mode accuracy of
+//! the regions, and the largest relative parameter error after matching
+//! (infinite when a true mode has no identified partner).
+//!
+//! ```text
+//! cargo run --release -p hysid-select --example benchmarks
+//! ```
+
+use hysid_cluster::Cluster;
+use hysid_core::backend::{Backend, Problem, RunContext};
+use hysid_core::model::Model;
+use hysid_core::options::Settings;
+use hysid_core::priors::Priors;
+use hysid_core::search::Setup;
+use hysid_model::metrics::{mode_accuracy, parameter_error};
+use hysid_select::{Plan, Request, select};
+use hysid_testkit::{Benchmark, Noise};
+
+type Generator = fn(usize, u64) -> Benchmark;
+
+/// Mode accuracy on `valid` and the parameter error of `model`.
+fn score(truth: &Benchmark, valid: &Benchmark, model: &Model) -> (f64, f64, usize) {
+    let Model::Pwarx(m) = model else {
+        return (f64::NAN, f64::INFINITY, model.mode_count());
+    };
+    let reg = valid.truth.spec().build(&valid.data).expect("regressors");
+    let ident: Vec<usize> = (0..reg.len())
+        .map(|r| {
+            m.mode_of(&reg.x.row(r).iter().copied().collect::<Vec<_>>())
+                .mode
+        })
+        .collect();
+    let acc = mode_accuracy(&valid.row_modes(), &ident).accuracy;
+    let theta: Vec<Vec<f64>> = m.modes.iter().map(|q| q.theta.clone()).collect();
+    let perr = parameter_error(&truth.thetas(), &theta).max_relative_error;
+    (acc, perr, m.modes.len())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let systems: [(&str, usize, &[&str], Generator); 5] = [
+        ("B1", 1000, &[], |n, s| {
+            hysid_testkit::b1(n, 4.0, Noise::Uniform(0.1), s)
+        }),
+        ("H1", 70, &["c=6"], hysid_testkit::h1),
+        ("H2", 100, &["c=8"], hysid_testkit::h2),
+        ("H3", 60, &["c=6"], hysid_testkit::h3),
+        ("H4", 60, &["c=6"], hysid_testkit::h4),
+    ];
+    println!(
+        "| system | rows | reference: accuracy, error (median) | auto: accuracy, error (median) | auto chose (seeds 1-5) |"
+    );
+    println!("|---|---|---|---|---|");
+    for (name, rows, set, generate) in systems {
+        let (mut ref_acc, mut ref_err, mut auto_acc, mut auto_err) =
+            (vec![], vec![], vec![], vec![]);
+        let mut chosen = Vec::new();
+        for seed in 1..=5u64 {
+            let ex = generate(rows + 1, seed);
+            let valid = generate(1001, 1000);
+            let spec = ex.truth.spec();
+            let known = Priors {
+                modes: Some(ex.truth.modes.len()),
+                ..Default::default()
+            };
+            let problem = Problem {
+                data: &ex.data,
+                orders: spec,
+                priors: &known,
+                priors_origin: None,
+            };
+            let reference = Cluster
+                .run(
+                    &problem,
+                    &Settings::parse(set).expect("settings"),
+                    &RunContext::quiet(1),
+                )
+                .expect("reference run");
+            let (a, e, _) = score(&ex, &valid, &reference);
+            ref_acc.push(a);
+            ref_err.push(e);
+            let free = Priors::default();
+            let problem = Problem {
+                priors: &free,
+                ..problem
+            };
+            let request = Request {
+                backend: &Cluster,
+                affine: Some(&hysid_arx::Arx),
+                data: &ex.data,
+                setup: Setup {
+                    orders: spec,
+                    priors: free.clone(),
+                    settings: Settings::default(),
+                },
+                priors_origin: None,
+                space: Cluster.search_space(&problem).expect("search space"),
+                plan: Plan::default(),
+            };
+            let model = select(&request, &RunContext::quiet(1)).expect("auto run");
+            let (a, e, modes) = score(&ex, &valid, &model);
+            auto_acc.push(a);
+            auto_err.push(e);
+            let s = model.info().selection.as_ref().expect("selection record");
+            let c = &s.candidates[s.chosen];
+            let values: Vec<String> = c.values.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            chosen.push(format!("{} {} ({modes})", c.method, values.join(" ")));
+        }
+        println!(
+            "| {name} | {rows} | {:.3}, {:.3} | {:.3}, {:.3} | {} |",
+            median(ref_acc),
+            median(ref_err),
+            median(auto_acc),
+            median(auto_err),
+            chosen.join("; ")
+        );
+    }
+}
