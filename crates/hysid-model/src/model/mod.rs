@@ -19,8 +19,8 @@ mod pwarx;
 mod stop;
 
 pub use automaton::{
-    AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
-    TimeDomain, Transition,
+    AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, InvalidModel,
+    OutputMap, ResetMap, TimeDomain, Transition,
 };
 pub use diagnostics::{Diagnostics, RunStatus};
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
