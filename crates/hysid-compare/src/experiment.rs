@@ -214,7 +214,7 @@ pub enum ExperimentError {
         /// Data file.
         path: String,
         /// Cause.
-        source: crate::truth::TruthError,
+        source: Box<crate::truth::TruthError>,
     },
     /// Inconsistent entries.
     #[error("{path}: {problem}")]

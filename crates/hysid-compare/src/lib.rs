@@ -250,9 +250,9 @@ impl Experiment {
                     self.data.decimate,
                     self.data.validation,
                 )
-                .map_err(|source| ExperimentError::Truth {
+                .map_err(|e| ExperimentError::Truth {
                     path: self.data.file.display().to_string(),
-                    source,
+                    source: Box::new(e),
                 })?,
             ),
         };

@@ -142,6 +142,7 @@ pub enum IdentifyError {
         /// The prior file, when the priors came from one.
         origin: Option<String>,
         /// What does not fit (the back-end's typed error).
+        #[source]
         problem: Box<dyn std::error::Error + Send + Sync>,
     },
     /// Bad input particular to a back-end: its own typed error
@@ -362,5 +363,43 @@ impl Registry {
             name: name.to_string(),
             known: self.names().join(", "),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("[fixed]: unknown name 'a9'")]
+    struct Unknown;
+
+    #[test]
+    fn typed_variants_keep_their_wording() {
+        let e = IdentifyError::prior_mismatch(Some("p.toml"), Unknown);
+        assert_eq!(e.to_string(), "p.toml: [fixed]: unknown name 'a9'");
+        assert!(e.downcast_ref::<Unknown>().is_some() && e.is_bad_input());
+        let e = IdentifyError::prior_mismatch(None, Unknown);
+        assert_eq!(e.to_string(), "prior [fixed]: unknown name 'a9'");
+        let e = IdentifyError::NoOrdinaryMode {
+            key: "modes",
+            count: 2,
+            method: "cluster".into(),
+            stops: 2,
+        };
+        assert_eq!(
+            e.to_string(),
+            "prior modes = 2: method 'cluster' needs at least 3 (the count includes the 2 \
+             saturation mode(s) of the priors, and one ordinary mode)"
+        );
+        assert!(!e.is_setup_error());
+        let e = IdentifyError::input(Unknown);
+        assert_eq!(e.to_string(), "[fixed]: unknown name 'a9'");
+        assert!(
+            IdentifyError::failed("diverged")
+                .of_method("arx")
+                .to_string()
+                == "arx: diverged"
+        );
     }
 }

@@ -161,6 +161,7 @@ pub enum PriorError {
         /// File (or "--modes").
         path: String,
         /// The inconsistency.
+        #[source]
         problem: InconsistentPrior,
     },
     /// A back-end cannot honour an entry.
