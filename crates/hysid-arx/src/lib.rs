@@ -163,18 +163,11 @@ pub fn fit(
 fn check_one_mode(data: &PwarxData<'_>) -> Result<(), IdentifyError> {
     let stops = data.stops();
     match data.modes {
-        ModeCount::Exact(s) if s != 1 => Err(IdentifyError::BadData(format!(
-            "prior modes = {}: method 'arx' identifies exactly one ordinary mode{}",
-            s + stops,
-            if stops > 0 {
-                format!(
-                    " (modes = {} with the {stops} saturation mode(s))",
-                    1 + stops
-                )
-            } else {
-                String::new()
-            }
-        ))),
+        ModeCount::Exact(s) if s != 1 => Err(ArxError::ModeCount {
+            modes: s + stops,
+            stops,
+        }
+        .into()),
         _ => Ok(()),
     }
 }
@@ -188,15 +181,12 @@ fn check_sample_count(
         return Ok(());
     }
     let saturated = data.regressors.len() - reg.len();
-    Err(IdentifyError::BadData(format!(
-        "{} regressors{} for {free} free parameters: need at least as many samples as parameters",
-        reg.len(),
-        if saturated > 0 {
-            format!(" outside the stops ({saturated} at a stop)")
-        } else {
-            String::new()
-        }
-    )))
+    Err(ArxError::TooFewSamples {
+        rows: reg.len(),
+        saturated,
+        free,
+    }
+    .into())
 }
 
 /// The least-squares estimate under `[fixed]` and `[[equality]]` (exact, by
@@ -310,6 +300,41 @@ fn box_least_squares(
 
 fn rmse(reg: &Regressors, theta: &[f64]) -> f64 {
     (reg.phi() * DVector::from_column_slice(theta) - &reg.y).norm() / (reg.len() as f64).sqrt()
+}
+
+/// Bad input of the `arx` back-end (an [`IdentifyError::Input`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ArxError {
+    /// A `modes` prior asking for other than one ordinary mode.
+    #[error(
+        "prior modes = {modes}: method 'arx' identifies exactly one ordinary mode{}",
+        if *.stops > 0 { format!(" (modes = {} with the {} saturation mode(s))", 1 + .stops, .stops) } else { String::new() }
+    )]
+    ModeCount {
+        /// `modes`, stops included.
+        modes: usize,
+        /// Known stops.
+        stops: usize,
+    },
+    /// Fewer ordinary regressors than free parameters.
+    #[error(
+        "{rows} regressors{} for {free} free parameters: need at least as many samples as parameters",
+        if *.saturated > 0 { format!(" outside the stops ({} at a stop)", .saturated) } else { String::new() }
+    )]
+    TooFewSamples {
+        /// Ordinary regression rows.
+        rows: usize,
+        /// Rows at a stop.
+        saturated: usize,
+        /// Free parameters.
+        free: usize,
+    },
+}
+
+impl From<ArxError> for IdentifyError {
+    fn from(e: ArxError) -> Self {
+        IdentifyError::input(e)
+    }
 }
 
 #[cfg(test)]

@@ -19,7 +19,7 @@
 use crate::refit::{self, ChebyshevFit};
 use crate::samples::Samples;
 use hysid_core::priors::Priors;
-use hysid_estimation::constrained::{ModeSamples, Parametrisation, Slot, fit_modes};
+use hysid_estimation::constrained::{ModeSamples, Parametrisation, PriorConflict, Slot, fit_modes};
 use hysid_estimation::pwarx::PwarxData;
 use hysid_model::regressors::RegressorSpec;
 use nalgebra::DMatrix;
@@ -39,7 +39,7 @@ impl ModeConstraints {
     /// The constraints of the priors of `data` (their names were checked by
     /// [`hysid_estimation::pwarx::prepare`]). A fixed value outside its bounds is an error
     /// naming it.
-    pub fn new(data: &PwarxData<'_>) -> Result<Self, String> {
+    pub fn new(data: &PwarxData<'_>) -> Result<Self, PriorConflict> {
         let priors = data.priors();
         let kept = Priors {
             tie: priors.tie.clone(),

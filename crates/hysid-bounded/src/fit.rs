@@ -10,7 +10,7 @@
 use crate::constraints::ModeConstraints;
 use crate::procedure::{self, Classification, ProcedureError, ProcedureSettings, RefitKind};
 use crate::samples::Samples;
-use crate::{BoundedOptions, Delta, Refit, noise};
+use crate::{BoundedError, BoundedOptions, Delta, Refit, noise};
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
@@ -213,19 +213,20 @@ fn mode_counts(
     if let Some(s) = exact
         && s.checked_mul(p).is_none_or(|need| need > rows)
     {
-        return Err(IdentifyError::BadData(format!(
-            "{rows} regressors cannot identify {} modes of {p} parameters",
-            s.saturating_add(stops)
-        )));
+        return Err(IdentifyError::TooFewRegressors {
+            rows,
+            modes: s.saturating_add(stops),
+            params: p,
+        });
     }
     if let (Some(s), Some(m)) = (exact, max_modes)
         && s > m
     {
-        return Err(IdentifyError::BadData(format!(
-            "prior modes = {} exceeds the bound max_modes = {}",
-            s + stops,
-            m + stops
-        )));
+        return Err(BoundedError::ModesExceedBound {
+            modes: s + stops,
+            max: m + stops,
+        }
+        .into());
     }
     Ok((max_modes, exact))
 }
@@ -235,7 +236,7 @@ fn mode_counts(
 fn procedure_error(e: ProcedureError) -> IdentifyError {
     match e {
         ProcedureError::TooFewSamples { .. } | ProcedureError::Setting(_) => {
-            IdentifyError::BadData(e.to_string())
+            BoundedError::Procedure(e).into()
         }
         ProcedureError::TooFewModes { .. } | ProcedureError::NoMode { .. } => {
             IdentifyError::failed(e.to_string())

@@ -259,6 +259,34 @@ impl Identifier for Bounded {
     }
 }
 
+/// Bad input of the `bounded` back-end (an [`IdentifyError::Input`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoundedError {
+    /// A `modes` prior above the option `max_modes`.
+    #[error("prior modes = {modes} exceeds the bound max_modes = {max}")]
+    ModesExceedBound {
+        /// `modes`, stops included.
+        modes: usize,
+        /// `max_modes`, stops included.
+        max: usize,
+    },
+    /// The record or a setting does not allow the procedure.
+    #[error(transparent)]
+    Procedure(procedure::ProcedureError),
+    /// A delta sweep of no bound.
+    #[error("delta sweep: no bound given")]
+    NoDelta,
+    /// A delta sweep bound that is not a positive number.
+    #[error("delta sweep: bound {0} must be a finite number > 0")]
+    BadDelta(f64),
+}
+
+impl From<BoundedError> for IdentifyError {
+    fn from(e: BoundedError) -> Self {
+        IdentifyError::input(e)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

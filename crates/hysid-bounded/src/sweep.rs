@@ -2,7 +2,7 @@
 //! reporting the trade-off between delta, the number of modes and the
 //! validation FIT of free-run simulation (`hysid_core::simulate::validate`).
 
-use crate::{Bounded, BoundedOptions, Delta};
+use crate::{Bounded, BoundedError, BoundedOptions, Delta};
 use hysid_core::backend::{Identifier, IdentifyError, NoProgress, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::simulate::validate;
@@ -49,12 +49,10 @@ pub fn delta_sweep(
     ctx: &RunContext<'_>,
 ) -> Result<Vec<SweepPoint>, IdentifyError> {
     if deltas.is_empty() {
-        return Err(IdentifyError::BadData("delta sweep: no bound given".into()));
+        return Err(BoundedError::NoDelta.into());
     }
     if let Some(d) = deltas.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
-        return Err(IdentifyError::BadData(format!(
-            "delta sweep: bound {d} must be a finite number > 0"
-        )));
+        return Err(BoundedError::BadDelta(*d).into());
     }
     problem
         .priors
@@ -100,7 +98,7 @@ pub fn delta_sweep(
                 }
                 point.model = Some(model);
             }
-            Err(e) if e.is_bad_input() && !matches!(e, IdentifyError::BadData(_)) => {
+            Err(e) if e.is_setup_error() => {
                 ctx.progress.finish();
                 return Err(e);
             }

@@ -9,6 +9,7 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
+use hysid_estimation::pwarx::{self, UnknownName};
 use hysid_model::data::Dataset;
 use hysid_model::metrics::mode_accuracy;
 use hysid_model::model::PwarxModel;
@@ -171,7 +172,7 @@ proptest! {
         let s = cl.classification.thetas.len();
         let y = id.data.y();
         for (r, l) in cl.row_labels().iter().enumerate() {
-            match pri.stop_at(y[r + 2]) {
+            match pwarx::stop_at(&pri, y[r + 2]) {
                 Some(i) => prop_assert_eq!(*l, Some(s + i), "row {}", r),
                 None => prop_assert!(l.is_none_or(|q| q < s), "row {}", r),
             }
@@ -224,7 +225,8 @@ fn bad_prior_names_and_counts_are_bad_data() {
     )
     .unwrap_err();
     assert!(
-        matches!(e, IdentifyError::BadData(ref m) if m.contains("y2")),
+        e.downcast_ref::<UnknownName>()
+            .is_some_and(|u| u.name == "y2"),
         "{e}"
     );
     let e = run(
@@ -236,7 +238,8 @@ fn bad_prior_names_and_counts_are_bad_data() {
     )
     .unwrap_err();
     assert!(
-        matches!(e, IdentifyError::BadData(ref m) if m.contains("b2")),
+        e.downcast_ref::<UnknownName>()
+            .is_some_and(|u| u.name == "b2"),
         "{e}"
     );
     let pri = priors("[[saturation]]\nlevel = 9.0\nbound = \"max\"\n");

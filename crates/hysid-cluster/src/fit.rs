@@ -20,7 +20,7 @@
 
 use crate::priors::ConstrainedFit;
 use crate::procedure::{self, ModeFit};
-use crate::{ClusterOptions, Clustering, Init, kmeans, local};
+use crate::{ClusterError, ClusterOptions, Clustering, Init, kmeans, local};
 use hysid_core::backend::IdentifyError;
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
@@ -158,23 +158,15 @@ pub fn default_c(n: usize, big_n: usize, s: usize) -> usize {
     want.min(big_n / s.max(1).saturating_mul(2)).max(n + 2)
 }
 
-fn bad(msg: String) -> IdentifyError {
-    IdentifyError::BadData(msg)
-}
-
 /// The ordinary modes among `s`: the count includes the known stops, and
 /// leaves at least one ordinary mode.
 fn ordinary_modes(data: &PwarxData<'_>, s: usize) -> Result<usize, IdentifyError> {
     let stops = data.stops();
     if s == 0 {
-        return Err(bad("the number of modes must be at least 1".into()));
+        return Err(ClusterError::NoMode.into());
     }
     if s <= stops {
-        return Err(bad(format!(
-            "{s} mode(s) requested, but the mode count includes the {stops} saturation mode(s) of the priors: \
-             need at least {} for one ordinary mode",
-            stops + 1
-        )));
+        return Err(ClusterError::NoOrdinaryMode { modes: s, stops }.into());
     }
     Ok(s - stops)
 }
@@ -200,15 +192,14 @@ struct Working {
 fn working_data(o: &ClusterOptions, data: &PwarxData<'_>) -> Result<Working, IdentifyError> {
     let n = data.spec.dim();
     if n == 0 {
-        return Err(bad(
-            "method 'cluster' needs at least one regressor (na + nb > 0)".into(),
-        ));
+        return Err(ClusterError::NoRegressor.into());
     }
     if n > local::MAX_DIM {
-        return Err(bad(format!(
-            "method 'cluster' supports regressors of dimension up to {}, got {n}",
-            local::MAX_DIM
-        )));
+        return Err(ClusterError::Dimension {
+            dim: n,
+            max: local::MAX_DIM,
+        }
+        .into());
     }
     let record = data.problem.data;
     let scale = if o.scale {
@@ -216,12 +207,9 @@ fn working_data(o: &ClusterOptions, data: &PwarxData<'_>) -> Result<Working, Ide
     } else {
         Standardization::identity(record.inputs.len())
     };
-    let reg = data
-        .spec
-        .build(&scale.apply(record))
-        .map_err(|e| bad(e.to_string()))?;
-    if let Some(v) = reg.x.iter().chain(reg.y.iter()).find(|v| !v.is_finite()) {
-        return Err(bad(format!("the data hold a non-finite value ({v})")));
+    let reg = data.spec.build(&scale.apply(record))?;
+    if let Some(&value) = reg.x.iter().chain(reg.y.iter()).find(|v| !v.is_finite()) {
+        return Err(IdentifyError::NonFinite { value });
     }
     let x: Vec<f64> = data
         .ordinary
@@ -263,11 +251,12 @@ fn choose_c(
         .into());
     }
     if c > big_n && o.c.is_none() {
-        return Err(bad(format!(
-            "{big_n} samples (regressors) are too few: method 'cluster' needs local datasets of at \
-             least n+2 = {} samples (n = {n} parameters besides the constant; automatic c = {c})",
-            n + 2
-        )));
+        return Err(ClusterError::TooFewForLocalDatasets {
+            samples: big_n,
+            n,
+            c,
+        }
+        .into());
     }
     if c > big_n {
         let outside = if data.stops() > 0 {
@@ -289,10 +278,11 @@ fn choose_c(
 fn check_sample_count(work: &Working, modes: usize) -> Result<(), IdentifyError> {
     let (n, big_n) = (work.n, work.y.len());
     if modes.checked_mul(n + 1).is_none_or(|need| big_n < need) {
-        return Err(bad(format!(
-            "{big_n} regressors cannot identify {modes} modes of {} parameters",
-            n + 1
-        )));
+        return Err(IdentifyError::TooFewRegressors {
+            rows: big_n,
+            modes,
+            params: n + 1,
+        });
     }
     Ok(())
 }
@@ -305,10 +295,10 @@ fn prior_fit(
     work: &Working,
     modes: usize,
 ) -> Result<Option<ConstrainedFit>, IdentifyError> {
-    let priors = data.priors();
-    if !priors.constrains_parameters() {
+    if !data.constrains_parameters() {
         return Ok(None);
     }
+    let priors = data.priors();
     let (n, reg) = (work.n, &data.regressors);
     let x = data
         .ordinary

@@ -278,11 +278,7 @@ impl Identifier for Cluster {
                 Ok(pwarx::assemble(&data, fit))
             }
             ModeCount::AtMost(max) => choose_modes(&data, options, max + stops, ctx),
-            ModeCount::Free => Err(IdentifyError::BadData(
-                "method 'cluster' needs the number of modes: give the prior `modes = S` (or `max_modes = S` \
-                 to choose it by hold-out simulation FIT)"
-                    .into(),
-            )),
+            ModeCount::Free => Err(ClusterError::NeedsModeCount.into()),
         }
     }
 }
@@ -369,21 +365,14 @@ fn choose_modes(
     let problem = &data.problem;
     let len = problem.data.len();
     let cut = len * 3 / 4;
-    let bad = |e: hysid_model::data::DataError| IdentifyError::BadData(e.to_string());
-    let ident = problem
-        .data
-        .slice(hysid_model::data::RowRange {
-            start: None,
-            end: Some(cut),
-        })
-        .map_err(bad)?;
-    let valid = problem
-        .data
-        .slice(hysid_model::data::RowRange {
-            start: Some(cut),
-            end: None,
-        })
-        .map_err(bad)?;
+    let ident = problem.data.slice(hysid_model::data::RowRange {
+        start: None,
+        end: Some(cut),
+    })?;
+    let valid = problem.data.slice(hysid_model::data::RowRange {
+        start: Some(cut),
+        end: None,
+    })?;
     let sub = Problem {
         data: &ident,
         ..*problem
@@ -421,4 +410,61 @@ fn choose_modes(
         ),
     );
     Ok(model)
+}
+
+/// Bad input of the `cluster` back-end (an [`IdentifyError::Input`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ClusterError {
+    /// No `modes` or `max_modes` prior.
+    #[error(
+        "method 'cluster' needs the number of modes: give the prior `modes = S` (or `max_modes = S` \
+         to choose it by hold-out simulation FIT)"
+    )]
+    NeedsModeCount,
+    /// A mode count of zero.
+    #[error("the number of modes must be at least 1")]
+    NoMode,
+    /// A mode count that leaves no ordinary mode beside the stops.
+    #[error(
+        "{modes} mode(s) requested, but the mode count includes the {stops} saturation mode(s) of the priors: \
+         need at least {} for one ordinary mode",
+        .stops + 1
+    )]
+    NoOrdinaryMode {
+        /// Modes requested, stops included.
+        modes: usize,
+        /// Known stops.
+        stops: usize,
+    },
+    /// Orders giving no regressor.
+    #[error("method 'cluster' needs at least one regressor (na + nb > 0)")]
+    NoRegressor,
+    /// Too many regressors for the local datasets.
+    #[error("method 'cluster' supports regressors of dimension up to {max}, got {dim}")]
+    Dimension {
+        /// Regressor dimension.
+        dim: usize,
+        /// Largest supported.
+        max: usize,
+    },
+    /// Fewer samples than the automatic local dataset size.
+    #[error(
+        "{samples} samples (regressors) are too few: method 'cluster' needs local datasets of at \
+         least n+2 = {} samples (n = {n} parameters besides the constant; automatic c = {c})",
+        .n + 2
+    )]
+    TooFewForLocalDatasets {
+        /// Ordinary samples.
+        samples: usize,
+        /// Regressor dimension.
+        n: usize,
+        /// The automatic local dataset size.
+        c: usize,
+    },
+}
+
+impl From<ClusterError> for IdentifyError {
+    fn from(e: ClusterError) -> Self {
+        IdentifyError::input(e)
+    }
 }

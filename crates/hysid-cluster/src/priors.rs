@@ -17,7 +17,9 @@
 
 use crate::procedure::Thetas;
 use hysid_core::priors::Priors;
-use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
+use hysid_estimation::constrained::{
+    self, EstimationError, ModeSamples, Parametrisation, PriorConflict,
+};
 use hysid_model::data::Standardization;
 use hysid_model::regressors::RegressorSpec;
 use nalgebra::DMatrix;
@@ -38,6 +40,27 @@ pub struct ConstrainedFit {
     sy: f64,
 }
 
+/// Why [`ConstrainedFit::fit`] gave no parameters.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConstrainedFitError {
+    /// Labels or weights not one per sample.
+    #[error("{labels} labels and {weights} weights for {samples} samples")]
+    Shape {
+        /// Number of labels.
+        labels: usize,
+        /// Number of weights.
+        weights: usize,
+        /// Number of samples.
+        samples: usize,
+    },
+    /// The priors cannot parametrise that many modes.
+    #[error(transparent)]
+    Prior(#[from] PriorConflict),
+    /// The constrained least squares failed.
+    #[error(transparent)]
+    Estimation(#[from] EstimationError),
+}
+
 impl ConstrainedFit {
     /// `x` (row-major, `spec.dim()` columns) and `y`: the ordinary samples
     /// in original units, in the order of the procedure's samples; `scale`
@@ -51,7 +74,7 @@ impl ConstrainedFit {
         y: Vec<f64>,
         scale: &Standardization,
         modes: usize,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, PriorConflict> {
         Parametrisation::from_priors(priors, &spec, modes.max(1))?;
         let n = spec.dim();
         let mut mean = Vec::with_capacity(n);
@@ -83,15 +106,19 @@ impl ConstrainedFit {
     /// over the parameters of the `modes` modes under the priors, in
     /// original units (samples with a label `>= modes` are left out).
     /// Returns the parameters in working units and in original units.
-    pub fn fit(&self, labels: &[usize], modes: usize, w: &[f64]) -> Result<Thetas, String> {
+    pub fn fit(
+        &self,
+        labels: &[usize],
+        modes: usize,
+        w: &[f64],
+    ) -> Result<Thetas, ConstrainedFitError> {
         let n = self.n;
         if labels.len() != self.y.len() || w.len() != self.y.len() {
-            return Err(format!(
-                "{} labels and {} weights for {} samples",
-                labels.len(),
-                w.len(),
-                self.y.len()
-            ));
+            return Err(ConstrainedFitError::Shape {
+                labels: labels.len(),
+                weights: w.len(),
+                samples: self.y.len(),
+            });
         }
         let par = Parametrisation::from_priors(&self.priors, &self.spec, modes)?;
         let mut data = Vec::with_capacity(modes);
@@ -110,7 +137,7 @@ impl ConstrainedFit {
                 weights: Some(wi),
             })
             .collect();
-        let original = constrained::fit_modes(&par, &samples).map_err(|e| e.to_string())?;
+        let original = constrained::fit_modes(&par, &samples)?;
         let working = original.iter().map(|th| self.to_working(th)).collect();
         Ok(Thetas {
             working,

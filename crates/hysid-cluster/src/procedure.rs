@@ -223,7 +223,7 @@ pub fn fit_modes_with(
         }
     }
     con.fit(labels, modes, &w)
-        .map_err(ProcedureError::LeastSquares)
+        .map_err(|e| ProcedureError::LeastSquares(e.to_string()))
 }
 
 /// Drops modes with fewer than `min_size` points, renumbering the rest in

@@ -10,6 +10,8 @@ use hysid_core::options::Settings;
 use hysid_core::priors::{Equality, Priors, Tie};
 use hysid_core::simulate::simulate;
 use hysid_core::simulate::validate;
+use hysid_estimation::constrained::PriorConflict;
+use hysid_estimation::pwarx;
 use hysid_model::data::Dataset;
 use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_model::model::PwarxModel;
@@ -78,7 +80,7 @@ fn names_and_inconsistent_priors_are_one_line_errors() {
     let mut p = b1_priors(3);
     p.fixed.insert("a2".into(), 0.0);
     let e = run(&b.data, orders, &p, &[]).unwrap_err();
-    assert!(matches!(e, IdentifyError::BadData(_)), "{e}");
+    assert!(matches!(e, IdentifyError::PriorMismatch { .. }), "{e}");
     let msg = e.to_string();
     assert!(
         msg.contains("a2") && msg.contains("p.toml") && !msg.contains('\n'),
@@ -89,14 +91,14 @@ fn names_and_inconsistent_priors_are_one_line_errors() {
     p.bounds.insert("b1".into(), [0.0, 1.0]);
     let e = run(&b.data, orders, &p, &[]).unwrap_err();
     assert!(
-        matches!(e, IdentifyError::BadData(_)) && e.to_string().contains("b1"),
+        e.downcast_ref::<PriorConflict>().is_some() && e.to_string().contains("b1"),
         "{e}"
     );
     let mut p = b1_priors(3);
     p.switching = vec!["u2".into()];
     assert!(matches!(
         run(&b.data, orders, &p, &[]),
-        Err(IdentifyError::BadData(_))
+        Err(IdentifyError::PriorMismatch { .. })
     ));
 }
 
@@ -229,7 +231,7 @@ proptest! {
             .iter()
             .enumerate()
             .map(|(k, _)| {
-                p.saturated_samples(targets).iter().filter(|s| **s == Some(k)).count()
+                pwarx::saturated_samples(&p, targets).iter().filter(|s| **s == Some(k)).count()
             })
             .collect();
         prop_assert_eq!(d.saturated_per_stop.clone(), Some(want.clone()));

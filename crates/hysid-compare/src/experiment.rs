@@ -1,7 +1,7 @@
 //! The experiment file: data, protocol, shared priors, runs and sweeps
 //! (`docs/compare.md`).
 
-use hysid_core::priors::Priors;
+use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_model::data::{DataSelection, RowRange};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -213,7 +213,31 @@ pub enum ExperimentError {
         /// Cause.
         source: std::io::Error,
     },
-    /// Malformed or inconsistent.
+    /// The data file could not be read as selected.
+    #[error("{path}: {source}")]
+    Data {
+        /// Data file.
+        path: String,
+        /// Cause.
+        source: hysid_model::data::DataError,
+    },
+    /// The true modes could not be read (the message names the file again).
+    #[error("{path}: {source}")]
+    Truth {
+        /// Data file.
+        path: String,
+        /// Cause.
+        source: Box<crate::truth::TruthError>,
+    },
+    /// Inconsistent entries.
+    #[error("{path}: {problem}")]
+    Inconsistent {
+        /// File.
+        path: String,
+        /// What is wrong.
+        problem: InconsistentExperiment,
+    },
+    /// Malformed, or a sweep value that does not fit its option.
     #[error("{path}: {message}")]
     Invalid {
         /// File.
@@ -223,6 +247,76 @@ pub enum ExperimentError {
     },
 }
 
+/// An inconsistency of an experiment ([`Experiment::check`]); `what` is
+/// `run` or `sweep`, `name` the entry's name.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InconsistentExperiment {
+    /// Neither runs nor sweeps.
+    #[error("no [[run]] and no [[sweep]]")]
+    NothingToRun,
+    /// The shared priors are inconsistent.
+    #[error("[priors]: {0}")]
+    Priors(InconsistentPrior),
+    /// Two entries of one name.
+    #[error("[[{what}]] name '{name}' appears twice")]
+    DuplicateName {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// The name.
+        name: String,
+    },
+    /// An entry naming an unknown method.
+    #[error("[[{what}]] '{name}': unknown method '{method}' (methods: {known})")]
+    UnknownMethod {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// Entry name.
+        name: String,
+        /// The unknown method.
+        method: String,
+        /// Registered methods.
+        known: String,
+    },
+    /// An entry's own priors are inconsistent.
+    #[error("[[{what}]] '{name}' priors: {problem}")]
+    RunPriors {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// Entry name.
+        name: String,
+        /// The inconsistency.
+        problem: InconsistentPrior,
+    },
+    /// An entry with both `seed` and `seeds`.
+    #[error("[[{what}]] '{name}': give seed or seeds, not both")]
+    SeedAndSeeds {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// Entry name.
+        name: String,
+    },
+    /// A sweep with `auto` or `seeds`.
+    #[error("[[sweep]] '{0}': auto and seeds belong to a [[run]] (a sweep is its own grid)")]
+    SweepOfRuns(String),
+    /// A sweep with nothing to vary.
+    #[error("[[sweep]] '{0}': give vary and values, or grid")]
+    NoAxis(String),
+    /// A sweep with values but no `vary`.
+    #[error("[[sweep]] '{0}': values without vary")]
+    ValuesWithoutVary(String),
+    /// A sweep axis without values.
+    #[error("[[sweep]] '{name}': no values for '{key}'")]
+    NoValues {
+        /// Sweep name.
+        name: String,
+        /// The axis.
+        key: String,
+    },
+    /// `decimate = 0`.
+    #[error("[data] decimate must be at least 1")]
+    Decimate,
+}
+
 impl Experiment {
     /// Parses experiment text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, ExperimentError> {
@@ -230,9 +324,9 @@ impl Experiment {
             path: origin.into(),
             message: e.to_string().trim().replace('\n', " "),
         })?;
-        e.check().map_err(|message| ExperimentError::Invalid {
+        e.check().map_err(|problem| ExperimentError::Inconsistent {
             path: origin.into(),
-            message,
+            problem,
         })?;
         // Sweep values that are not counts are found while expanding the
         // jobs; report them against this file, not at run time.
@@ -261,11 +355,12 @@ impl Experiment {
     }
 
     /// Consistency checks (also for experiments built in code).
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), InconsistentExperiment> {
+        use InconsistentExperiment as E;
         if self.runs.is_empty() && self.sweeps.is_empty() {
-            return Err("no [[run]] and no [[sweep]]".into());
+            return Err(E::NothingToRun);
         }
-        self.priors.check().map_err(|e| format!("[priors]: {e}"))?;
+        self.priors.check().map_err(E::Priors)?;
         let registry = hysid_backends::registry();
         let mut names: Vec<&str> = Vec::new();
         let all = self
@@ -275,51 +370,55 @@ impl Experiment {
             .chain(self.sweeps.iter().map(|s| (&s.run, "sweep")));
         for (r, what) in all {
             if names.contains(&r.name.as_str()) {
-                return Err(format!("[[{what}]] name '{}' appears twice", r.name));
+                return Err(E::DuplicateName {
+                    what,
+                    name: r.name.clone(),
+                });
             }
             names.push(&r.name);
             if registry.get(&r.method).is_none() {
-                return Err(format!(
-                    "[[{what}]] '{}': unknown method '{}' (methods: {})",
-                    r.name,
-                    r.method,
-                    registry.names().join(", ")
-                ));
+                return Err(E::UnknownMethod {
+                    what,
+                    name: r.name.clone(),
+                    method: r.method.clone(),
+                    known: registry.names().join(", "),
+                });
             }
             if r.seed.is_some() && !r.seeds.is_empty() {
-                return Err(format!(
-                    "[[{what}]] '{}': give seed or seeds, not both",
-                    r.name
-                ));
+                return Err(E::SeedAndSeeds {
+                    what,
+                    name: r.name.clone(),
+                });
             }
             if let Some(p) = &r.priors {
-                p.check()
-                    .map_err(|e| format!("[[{what}]] '{}' priors: {e}", r.name))?;
+                p.check().map_err(|problem| E::RunPriors {
+                    what,
+                    name: r.name.clone(),
+                    problem,
+                })?;
             }
         }
         for s in &self.sweeps {
+            let name = || s.run.name.clone();
             if s.run.auto || !s.run.seeds.is_empty() {
-                return Err(format!(
-                    "[[sweep]] '{}': auto and seeds belong to a [[run]] (a sweep is its own grid)",
-                    s.run.name
-                ));
+                return Err(E::SweepOfRuns(name()));
             }
             let axes = s.axes();
             if axes.is_empty() {
-                return Err(format!(
-                    "[[sweep]] '{}': give vary and values, or grid",
-                    s.run.name
-                ));
+                return Err(E::NoAxis(name()));
             }
             if s.vary.is_none() && !s.values.is_empty() {
-                return Err(format!("[[sweep]] '{}': values without vary", s.run.name));
+                return Err(E::ValuesWithoutVary(name()));
             }
             if let Some((k, _)) = axes.iter().find(|(_, v)| v.is_empty()) {
-                return Err(format!("[[sweep]] '{}': no values for '{k}'", s.run.name));
+                return Err(E::NoValues {
+                    name: name(),
+                    key: k.to_string(),
+                });
             }
         }
         if self.data.decimate == 0 {
-            return Err("[data] decimate must be at least 1".into());
+            return Err(E::Decimate);
         }
         Ok(())
     }

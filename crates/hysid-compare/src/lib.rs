@@ -251,9 +251,9 @@ impl Experiment {
 
     /// Loads the data once, then runs every job in parallel and scores it.
     pub fn run(&self, progress: &dyn Progress) -> Result<Comparison, ExperimentError> {
-        let data_err = |e: hysid_model::data::DataError| ExperimentError::Invalid {
+        let data_err = |source| ExperimentError::Data {
             path: self.data.file.display().to_string(),
-            message: e.to_string(),
+            source,
         };
         let ident = load(
             &self.data.file,
@@ -271,9 +271,9 @@ impl Experiment {
                     self.data.decimate,
                     self.data.validation,
                 )
-                .map_err(|message| ExperimentError::Invalid {
+                .map_err(|e| ExperimentError::Truth {
                     path: self.data.file.display().to_string(),
-                    message,
+                    source: Box::new(e),
                 })?,
             ),
         };

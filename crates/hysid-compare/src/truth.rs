@@ -6,7 +6,7 @@
 //! report gives the overall accuracy and, per true mode, the fraction of its
 //! samples simulated in the matched mode (its recall).
 
-use hysid_model::data::RowRange;
+use hysid_model::data::{DataError, RowRange};
 use hysid_model::metrics::mode_accuracy;
 use hysid_model::simulate::Simulation;
 use serde::Serialize;
@@ -40,26 +40,38 @@ pub fn load(
     column: &str,
     decimate: usize,
     rows: RowRange,
-) -> Result<TrueModes, String> {
-    let file = path.display();
+) -> Result<TrueModes, TruthError> {
+    let file = || path.display().to_string();
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_path(path)
-        .map_err(|e| format!("{file}: {e}"))?;
+        .map_err(|source| TruthError::Csv {
+            file: file(),
+            source,
+        })?;
     let headers = reader
         .headers()
-        .map_err(|e| format!("{file}: {e}"))?
+        .map_err(|source| TruthError::Csv {
+            file: file(),
+            source,
+        })?
         .clone();
-    let col = headers.iter().position(|h| h == column).ok_or_else(|| {
-        format!(
-            "{file}: [data] truth = '{column}': no such column (columns: {})",
-            headers.iter().collect::<Vec<_>>().join(", ")
-        )
-    })?;
+    let col = headers
+        .iter()
+        .position(|h| h == column)
+        .ok_or_else(|| TruthError::NoColumn {
+            file: file(),
+            column: column.to_string(),
+            columns: headers.iter().map(str::to_string).collect(),
+        })?;
     let mut names: Vec<String> = Vec::new();
     let mut all: Vec<Option<usize>> = Vec::new();
     for (i, rec) in reader.records().enumerate() {
-        let rec = rec.map_err(|e| format!("{file}: row {}: {e}", i + 2))?;
+        let rec = rec.map_err(|source| TruthError::Row {
+            file: file(),
+            row: i + 2,
+            source,
+        })?;
         let cell = rec.get(col).unwrap_or("");
         all.push(if cell.is_empty() {
             None
@@ -76,11 +88,55 @@ pub fn load(
     let picked: Vec<Option<usize>> = all.into_iter().step_by(decimate.max(1)).collect();
     let (a, b) = rows
         .resolve(picked.len())
-        .map_err(|e| format!("{file}: [data] truth: {e}"))?;
+        .map_err(|source| TruthError::Rows {
+            file: file(),
+            source,
+        })?;
     Ok(TrueModes {
         names,
         labels: picked[a..b].to_vec(),
     })
+}
+
+/// Why the true modes could not be read; every message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum TruthError {
+    /// The file or its header could not be read.
+    #[error("{file}: {source}")]
+    Csv {
+        /// The data file.
+        file: String,
+        /// Cause.
+        source: csv::Error,
+    },
+    /// No column of that name.
+    #[error("{file}: [data] truth = '{column}': no such column (columns: {})", .columns.join(", "))]
+    NoColumn {
+        /// The data file.
+        file: String,
+        /// The column asked for.
+        column: String,
+        /// The columns of the file.
+        columns: Vec<String>,
+    },
+    /// A malformed row (numbered as in the file, the header being row 1).
+    #[error("{file}: row {row}: {source}")]
+    Row {
+        /// The data file.
+        file: String,
+        /// Row number.
+        row: usize,
+        /// Cause.
+        source: csv::Error,
+    },
+    /// The validation rows do not fit the column.
+    #[error("{file}: [data] truth: {source}")]
+    Rows {
+        /// The data file.
+        file: String,
+        /// Cause.
+        source: DataError,
+    },
 }
 
 impl TrueModes {
@@ -167,6 +223,8 @@ mod tests {
         assert_eq!(r.recall[0], ("free".into(), 2, 0.5));
         assert_eq!(r.recall[1], ("stop".into(), 2, 1.0));
         let e = load(&f, "truth", 1, RowRange::default()).unwrap_err();
+        assert!(matches!(e, TruthError::NoColumn { .. }), "{e}");
+        let e = e.to_string();
         assert!(e.contains("truth") && e.contains("mode"), "{e}");
         // Decimation keeps every second row, as the data selection does.
         let t2 = load(&f, "mode", 2, RowRange::default()).unwrap();

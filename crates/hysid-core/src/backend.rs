@@ -11,8 +11,8 @@ use crate::model::Model;
 use crate::options::{BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, Settings};
 use crate::priors::{PriorError, PriorKind, Priors};
 use crate::search::SearchSpace;
-use hysid_model::data::Dataset;
-use hysid_model::regressors::RegressorSpec;
+use hysid_model::data::{DataError, Dataset};
+use hysid_model::regressors::{RegressorError, RegressorSpec};
 use std::time::Instant;
 
 /// What to identify: a record, the model orders and the priors.
@@ -81,10 +81,75 @@ pub enum IdentifyError {
     /// A prior that is inconsistent or not honoured.
     #[error(transparent)]
     Prior(#[from] PriorError),
-    /// The data do not allow the requested identification (too short,
-    /// wrong number of inputs, fewer samples than parameters...).
-    #[error("{0}")]
-    BadData(String),
+    /// The record does not give the regressors (too short, wrong number
+    /// of inputs...).
+    #[error(transparent)]
+    Regressors(#[from] RegressorError),
+    /// A record could not be cut or selected.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// A regressor or target is NaN or infinite.
+    #[error("the data hold a non-finite value ({value})")]
+    NonFinite {
+        /// The first such value.
+        value: f64,
+    },
+    /// Every regression target sits at a known stop.
+    #[error("all {samples} samples sit at a known stop: no ordinary sample is left to identify")]
+    AllAtStops {
+        /// Number of regression rows.
+        samples: usize,
+    },
+    /// A `modes` or `max_modes` prior that leaves no ordinary mode beside
+    /// the stops.
+    #[error(
+        "prior {key} = {count}: method '{method}' needs at least {} (the count includes the {stops} \
+         saturation mode(s) of the priors, and one ordinary mode)",
+        .stops + 1
+    )]
+    NoOrdinaryMode {
+        /// `modes` or `max_modes`.
+        key: &'static str,
+        /// Its value.
+        count: usize,
+        /// Back-end name.
+        method: String,
+        /// Number of known stops.
+        stops: usize,
+    },
+    /// A `modes` prior above the `max_modes` prior.
+    #[error("prior modes = {modes} exceeds max_modes = {max}")]
+    ModesExceedMax {
+        /// `modes`.
+        modes: usize,
+        /// `max_modes`.
+        max: usize,
+    },
+    /// Fewer regression rows than the parameters of the modes asked for.
+    #[error("{rows} regressors cannot identify {modes} modes of {params} parameters")]
+    TooFewRegressors {
+        /// Regression rows.
+        rows: usize,
+        /// Modes asked for (stops included).
+        modes: usize,
+        /// Parameters per mode.
+        params: usize,
+    },
+    /// A prior entry that does not fit the problem (a name the model
+    /// structure lacks, constraints that cannot hold together), worded with
+    /// the file the priors came from.
+    #[error("{}{problem}", prior_prefix(.origin))]
+    PriorMismatch {
+        /// The prior file, when the priors came from one.
+        origin: Option<String>,
+        /// What does not fit (the back-end's typed error).
+        #[source]
+        problem: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// Bad input particular to a back-end: its own typed error
+    /// (`ArxError`, `ClusterError`, ...), reached with `downcast_ref`.
+    #[error(transparent)]
+    Input(Box<dyn std::error::Error + Send + Sync>),
     /// The method ran and failed (solver failure, every restart diverged...).
     #[error("{method}: {message}")]
     Failed {
@@ -95,7 +160,56 @@ pub enum IdentifyError {
     },
 }
 
+/// `"FILE: "` for priors from a file, `"prior "` otherwise.
+fn prior_prefix(origin: &Option<String>) -> String {
+    match origin {
+        Some(o) => format!("{o}: "),
+        None => "prior ".to_string(),
+    }
+}
+
 impl IdentifyError {
+    /// Bad input of a back-end's own kind ([`IdentifyError::Input`]).
+    pub fn input(e: impl std::error::Error + Send + Sync + 'static) -> Self {
+        IdentifyError::Input(Box::new(e))
+    }
+
+    /// A prior that does not fit the problem ([`IdentifyError::PriorMismatch`]);
+    /// `origin` is the prior file, if any.
+    pub fn prior_mismatch(
+        origin: Option<&str>,
+        problem: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        IdentifyError::PriorMismatch {
+            origin: origin.map(str::to_string),
+            problem: Box::new(problem),
+        }
+    }
+
+    /// The back-end's own error inside [`IdentifyError::Input`] or
+    /// [`IdentifyError::PriorMismatch`], if it is an `E`.
+    pub fn downcast_ref<E: std::error::Error + 'static>(&self) -> Option<&E> {
+        match self {
+            IdentifyError::Input(e) | IdentifyError::PriorMismatch { problem: e, .. } => {
+                e.downcast_ref()
+            }
+            _ => None,
+        }
+    }
+
+    /// True for the errors of the run's set-up rather than of its data:
+    /// an unknown method, a bad option, a prior file that is inconsistent
+    /// or not honoured. A sweep over a setting stops at these; it records
+    /// the others per point.
+    pub fn is_setup_error(&self) -> bool {
+        matches!(
+            self,
+            IdentifyError::UnknownMethod { .. }
+                | IdentifyError::Options(_)
+                | IdentifyError::Prior(_)
+        )
+    }
+
     /// A failure of the method itself; [`Backend::run`] names the method.
     pub fn failed(message: impl Into<String>) -> Self {
         IdentifyError::Failed {
@@ -269,5 +383,43 @@ impl Registry {
             name: name.to_string(),
             known: self.names().join(", "),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("[fixed]: unknown name 'a9'")]
+    struct Unknown;
+
+    #[test]
+    fn typed_variants_keep_their_wording() {
+        let e = IdentifyError::prior_mismatch(Some("p.toml"), Unknown);
+        assert_eq!(e.to_string(), "p.toml: [fixed]: unknown name 'a9'");
+        assert!(e.downcast_ref::<Unknown>().is_some() && e.is_bad_input());
+        let e = IdentifyError::prior_mismatch(None, Unknown);
+        assert_eq!(e.to_string(), "prior [fixed]: unknown name 'a9'");
+        let e = IdentifyError::NoOrdinaryMode {
+            key: "modes",
+            count: 2,
+            method: "cluster".into(),
+            stops: 2,
+        };
+        assert_eq!(
+            e.to_string(),
+            "prior modes = 2: method 'cluster' needs at least 3 (the count includes the 2 \
+             saturation mode(s) of the priors, and one ordinary mode)"
+        );
+        assert!(!e.is_setup_error());
+        let e = IdentifyError::input(Unknown);
+        assert_eq!(e.to_string(), "[fixed]: unknown name 'a9'");
+        assert!(
+            IdentifyError::failed("diverged")
+                .of_method("arx")
+                .to_string()
+                == "arx: diverged"
+        );
     }
 }

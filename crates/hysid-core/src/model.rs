@@ -12,8 +12,8 @@
 //! - [`MechanicalModel`] (`"mechanical"`): a mass-spring-friction hybrid
 //!   automaton declared by its physical parameters, contacts and stops.
 
-use hysid_mechanical::MechanicalModel;
-use hysid_model::model::{HybridAutomaton, InitialState, ModelInfo, PwarxModel};
+use hysid_mechanical::{InvalidMechanical, MechanicalModel};
+use hysid_model::model::{HybridAutomaton, InitialState, InvalidModel, ModelInfo, PwarxModel};
 use hysid_model::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -51,7 +51,18 @@ pub enum ModelError {
     },
     /// The model is structurally inconsistent.
     #[error("invalid model: {0}")]
-    Invalid(String),
+    Invalid(#[from] StructureError),
+}
+
+/// What is structurally wrong with a model ([`Model::validate`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StructureError {
+    /// A PWARX model or hybrid automaton.
+    #[error(transparent)]
+    Hybrid(#[from] InvalidModel),
+    /// A mechanical model.
+    #[error(transparent)]
+    Mechanical(#[from] InvalidMechanical),
 }
 
 impl Model {
@@ -130,9 +141,9 @@ impl Model {
     /// Structural checks: dimensions agree, numbers are finite, names resolve.
     pub fn validate(&self) -> Result<(), ModelError> {
         match self {
-            Model::Pwarx(m) => m.validate(),
-            Model::HybridAutomaton(m) => m.validate(),
-            Model::Mechanical(m) => m.validate(),
+            Model::Pwarx(m) => m.validate().map_err(StructureError::from),
+            Model::HybridAutomaton(m) => m.validate().map_err(StructureError::from),
+            Model::Mechanical(m) => m.validate().map_err(StructureError::from),
         }
         .map_err(ModelError::Invalid)
     }

@@ -5,7 +5,6 @@
 //! honour is refused with an error naming the entry, never dropped.
 
 use hysid_model::model::Stop;
-use hysid_model::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
@@ -156,6 +155,15 @@ pub enum PriorError {
         /// What is wrong, naming the entry.
         message: String,
     },
+    /// The prior file parses but its entries contradict each other.
+    #[error("{path}: {problem}")]
+    Inconsistent {
+        /// File (or "--modes").
+        path: String,
+        /// The inconsistency.
+        #[source]
+        problem: InconsistentPrior,
+    },
     /// A back-end cannot honour an entry.
     #[error("method '{method}' does not honour the prior {kind}{origin}; it honours: {honoured}")]
     NotHonoured {
@@ -170,6 +178,98 @@ pub enum PriorError {
     },
 }
 
+/// An inconsistency among the entries of a prior file, found by
+/// [`Priors::check`]; `entry` counts the `[[...]]` tables from 1.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InconsistentPrior {
+    /// `modes = 0` or `max_modes = 0`.
+    #[error("modes and max_modes must be at least 1")]
+    NoMode,
+    /// `modes` above `max_modes`.
+    #[error("modes = {modes} exceeds max_modes = {max}")]
+    ModesExceedMax {
+        /// `modes`.
+        modes: usize,
+        /// `max_modes`.
+        max: usize,
+    },
+    /// A mode count that leaves no ordinary mode beside the stops.
+    #[error(
+        "{key} = {count} counts every mode, the {stops} saturation mode(s) included: need at least {} for one ordinary mode",
+        .stops + 1
+    )]
+    NoOrdinaryMode {
+        /// `modes` or `max_modes`.
+        key: &'static str,
+        /// Its value.
+        count: usize,
+        /// Number of `[[saturation]]` entries.
+        stops: usize,
+    },
+    /// A stop level that is not finite.
+    #[error("[[saturation]] #{entry}: level must be finite")]
+    SaturationLevel {
+        /// Entry number.
+        entry: usize,
+    },
+    /// A negative or non-finite stop tolerance.
+    #[error("[[saturation]] #{entry}: tol must be finite and non-negative")]
+    SaturationTol {
+        /// Entry number.
+        entry: usize,
+    },
+    /// A tie of no parameter.
+    #[error("[[tie]] #{entry}: params is empty")]
+    EmptyTie {
+        /// Entry number.
+        entry: usize,
+    },
+    /// An equality of no parameter.
+    #[error("[[equality]] #{entry}: coefficients is empty")]
+    EmptyEquality {
+        /// Entry number.
+        entry: usize,
+    },
+    /// A non-finite equality coefficient.
+    #[error("[[equality]] #{entry}: coefficient of {param} must be finite, got {value}")]
+    EqualityCoefficient {
+        /// Entry number.
+        entry: usize,
+        /// Parameter name.
+        param: String,
+        /// The coefficient.
+        value: f64,
+    },
+    /// An equality whose coefficients are all zero.
+    #[error("[[equality]] #{entry}: every coefficient is zero")]
+    ZeroEquality {
+        /// Entry number.
+        entry: usize,
+    },
+    /// A non-finite equality right-hand side.
+    #[error("[[equality]] #{entry}: value must be finite")]
+    EqualityValue {
+        /// Entry number.
+        entry: usize,
+    },
+    /// A non-finite fixed value.
+    #[error("[fixed] {param}: value must be finite")]
+    FixedValue {
+        /// Parameter name.
+        param: String,
+    },
+    /// Bounds with low above high (or NaN).
+    #[error("[bounds] {param}: need low <= high, got [{low}, {high}]")]
+    Bounds {
+        /// Parameter name.
+        param: String,
+        /// Lower bound.
+        low: f64,
+        /// Upper bound.
+        high: f64,
+    },
+}
+
 impl Priors {
     /// Parses a prior file's text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, PriorError> {
@@ -177,9 +277,9 @@ impl Priors {
             path: origin.to_string(),
             message: e.to_string().trim().replace('\n', " "),
         })?;
-        p.check().map_err(|message| PriorError::Invalid {
+        p.check().map_err(|problem| PriorError::Inconsistent {
             path: origin.to_string(),
-            message,
+            problem,
         })?;
         Ok(p)
     }
@@ -195,70 +295,69 @@ impl Priors {
     }
 
     /// Internal consistency (independent of the model structure).
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), InconsistentPrior> {
+        use InconsistentPrior as E;
         if self.modes == Some(0) || self.max_modes == Some(0) {
-            return Err("modes and max_modes must be at least 1".into());
+            return Err(E::NoMode);
         }
-        if let (Some(s), Some(m)) = (self.modes, self.max_modes)
-            && s > m
+        if let (Some(modes), Some(max)) = (self.modes, self.max_modes)
+            && modes > max
         {
-            return Err(format!("modes = {s} exceeds max_modes = {m}"));
+            return Err(E::ModesExceedMax { modes, max });
         }
         let stops = self.saturation.len();
         for (key, v) in [("modes", self.modes), ("max_modes", self.max_modes)] {
-            if let Some(s) = v
-                && s <= stops
+            if let Some(count) = v
+                && count <= stops
             {
-                return Err(format!(
-                    "{key} = {s} counts every mode, the {stops} saturation mode(s) included: need at least {} for one ordinary mode",
-                    stops + 1
-                ));
+                return Err(E::NoOrdinaryMode { key, count, stops });
             }
         }
         for (i, s) in self.saturation.iter().enumerate() {
+            let entry = i + 1;
             if !s.level.is_finite() {
-                return Err(format!("[[saturation]] #{}: level must be finite", i + 1));
+                return Err(E::SaturationLevel { entry });
             }
             if s.tol.is_some_and(|t| !(t.is_finite() && t >= 0.0)) {
-                return Err(format!(
-                    "[[saturation]] #{}: tol must be finite and non-negative",
-                    i + 1
-                ));
+                return Err(E::SaturationTol { entry });
             }
         }
         for (i, t) in self.tie.iter().enumerate() {
             if t.params.is_empty() {
-                return Err(format!("[[tie]] #{}: params is empty", i + 1));
+                return Err(E::EmptyTie { entry: i + 1 });
             }
         }
         for (i, e) in self.equality.iter().enumerate() {
+            let entry = i + 1;
             if e.coefficients.is_empty() {
-                return Err(format!("[[equality]] #{}: coefficients is empty", i + 1));
+                return Err(E::EmptyEquality { entry });
             }
             if let Some((k, c)) = e.coefficients.iter().find(|(_, c)| !c.is_finite()) {
-                return Err(format!(
-                    "[[equality]] #{}: coefficient of {k} must be finite, got {c}",
-                    i + 1
-                ));
+                return Err(E::EqualityCoefficient {
+                    entry,
+                    param: k.clone(),
+                    value: *c,
+                });
             }
             if e.coefficients.values().all(|c| *c == 0.0) {
-                return Err(format!(
-                    "[[equality]] #{}: every coefficient is zero",
-                    i + 1
-                ));
+                return Err(E::ZeroEquality { entry });
             }
             if !e.value.is_finite() {
-                return Err(format!("[[equality]] #{}: value must be finite", i + 1));
+                return Err(E::EqualityValue { entry });
             }
         }
         for (k, v) in &self.fixed {
             if !v.is_finite() {
-                return Err(format!("[fixed] {k}: value must be finite"));
+                return Err(E::FixedValue { param: k.clone() });
             }
         }
-        for (k, [lo, hi]) in &self.bounds {
-            if lo.is_nan() || hi.is_nan() || lo > hi {
-                return Err(format!("[bounds] {k}: need low <= high, got [{lo}, {hi}]"));
+        for (k, &[low, high]) in &self.bounds {
+            if low.is_nan() || high.is_nan() || low > high {
+                return Err(E::Bounds {
+                    param: k.clone(),
+                    low,
+                    high,
+                });
             }
         }
         Ok(())
@@ -321,77 +420,6 @@ impl Priors {
         }
         Ok(())
     }
-
-    /// Checks parameter and regressor names against a PWARX structure.
-    pub fn check_pwarx_names(&self, spec: &RegressorSpec) -> Result<(), String> {
-        let params = spec.param_names();
-        let regs = spec.regressor_names();
-        let known = |n: &str, list: &[String], entry: &str| -> Result<(), String> {
-            if list.iter().any(|p| p == n) {
-                Ok(())
-            } else {
-                Err(format!(
-                    "{entry}: unknown name '{n}' (known: {})",
-                    list.join(", ")
-                ))
-            }
-        };
-        for t in &self.tie {
-            for p in &t.params {
-                known(p, &params, "[[tie]] params")?;
-            }
-        }
-        for (i, e) in self.equality.iter().enumerate() {
-            for p in e.coefficients.keys() {
-                known(p, &params, &format!("[[equality]] #{} coefficients", i + 1))?;
-            }
-        }
-        for p in self.fixed.keys() {
-            known(p, &params, "[fixed]")?;
-        }
-        for p in self.bounds.keys() {
-            known(p, &params, "[bounds]")?;
-        }
-        for r in &self.switching {
-            known(r, &regs, "switching")?;
-        }
-        Ok(())
-    }
-}
-
-impl Priors {
-    /// Whether the priors constrain the mode parameters (`[[tie]]`,
-    /// `[fixed]`, `[bounds]` or `[[equality]]`).
-    pub fn constrains_parameters(&self) -> bool {
-        !(self.tie.is_empty()
-            && self.fixed.is_empty()
-            && self.bounds.is_empty()
-            && self.equality.is_empty())
-    }
-
-    /// The exact number of ordinary (non-saturation) modes: `modes` minus
-    /// the `[[saturation]]` entries (`modes` counts every mode).
-    pub fn ordinary_modes(&self) -> Option<usize> {
-        self.modes.map(|s| s - self.saturation.len())
-    }
-
-    /// The upper bound on the ordinary modes from `max_modes`.
-    pub fn max_ordinary_modes(&self) -> Option<usize> {
-        self.max_modes.map(|s| s - self.saturation.len())
-    }
-
-    /// The known stop the output value `y` sits at
-    /// ([`Stop::holds`]), if any.
-    pub fn stop_at(&self, y: f64) -> Option<usize> {
-        self.saturation.iter().position(|s| s.holds(y))
-    }
-
-    /// For every regression target `y(k)`, the stop it sits at: the samples
-    /// a back-end assigns to the saturation modes before clustering or
-    /// bounded-error extraction (Juloski et al. 2003, section 5).
-    pub fn saturated_samples(&self, targets: &[f64]) -> Vec<Option<usize>> {
-        targets.iter().map(|&y| self.stop_at(y)).collect()
-    }
 }
 
 #[cfg(test)]
@@ -416,18 +444,13 @@ b1 = [0.0, 1.0e3]
 "#;
 
     #[test]
-    fn spec_example_parses_and_names_check() {
+    fn spec_example_parses() {
         let p =
             Priors::from_toml(&format!("switching = [\"y1\"]\n{SPEC_EXAMPLE}"), "p.toml").unwrap();
         assert_eq!(p.modes, Some(4));
         assert_eq!(p.saturation.len(), 2);
         assert_eq!(p.saturation[0].bound, StopBound::Max);
         assert_eq!(p.kinds().len(), 7 - 1);
-        p.check_pwarx_names(&RegressorSpec::new(2, 2, 1)).unwrap();
-        let e = p
-            .check_pwarx_names(&RegressorSpec::new(1, 1, 1))
-            .unwrap_err();
-        assert!(e.contains("a2"), "{e}");
     }
 
     #[test]
@@ -455,7 +478,7 @@ b1 = [0.0, 1.0e3]
     }
 
     #[test]
-    fn equality_parses_and_names_are_checked() {
+    fn equality_parses_and_is_checked() {
         let p = Priors::from_toml(
             "[[equality]]\ncoefficients = { a1 = 1.0, a2 = 1.0 }\nvalue = 1.0\n[[equality]]\ncoefficients = { b1 = 1.0, b2 = -2.0 }\n",
             "p.toml",
@@ -465,11 +488,6 @@ b1 = [0.0, 1.0e3]
         assert_eq!(p.equality[1].value, 0.0);
         assert_eq!(p.equality[0].describe(), "a1 + a2 = 1");
         assert_eq!(p.equality[1].describe(), "b1 - 2 b2 = 0");
-        p.check_pwarx_names(&RegressorSpec::new(2, 2, 1)).unwrap();
-        let e = p
-            .check_pwarx_names(&RegressorSpec::new(1, 2, 1))
-            .unwrap_err();
-        assert!(e.contains("[[equality]] #1") && e.contains("'a2'"), "{e}");
         for bad in [
             "[[equality]]\ncoefficients = {}\n",
             "[[equality]]\ncoefficients = { a1 = 0.0 }\n",
@@ -491,27 +509,22 @@ b1 = [0.0, 1.0e3]
     }
 
     #[test]
-    fn saturated_samples_by_level_side_and_tolerance() {
-        let sat = Priors::from_toml(
-            "[[saturation]]\nlevel = 25.0\nbound = \"max\"\ntol = 0.005\n[[saturation]]\nlevel = 0.0\nbound = \"min\"\n",
+    fn saturation_tolerance_is_checked() {
+        let e = Priors::from_toml(
+            "[[saturation]]\nlevel = 1.0\nbound = \"max\"\ntol = -1.0\n",
             "p",
         )
-        .unwrap();
-        assert_eq!(sat.stop_at(24.996), Some(0));
-        assert_eq!(sat.stop_at(25.3), Some(0), "beyond the stop counts");
-        assert_eq!(sat.stop_at(24.9), None);
-        assert_eq!(sat.stop_at(-0.1), Some(1));
-        assert_eq!(sat.stop_at(1e-5), None, "default tolerance is 1e-6");
+        .unwrap_err();
+        assert!(matches!(
+            e,
+            PriorError::Inconsistent {
+                problem: InconsistentPrior::SaturationTol { entry: 1 },
+                ..
+            }
+        ));
         assert_eq!(
-            sat.saturated_samples(&[3.0, 25.0, 0.0]),
-            vec![None, Some(0), Some(1)]
-        );
-        assert!(
-            Priors::from_toml(
-                "[[saturation]]\nlevel = 1.0\nbound = \"max\"\ntol = -1.0\n",
-                "p"
-            )
-            .is_err()
+            e.to_string(),
+            "p: [[saturation]] #1: tol must be finite and non-negative"
         );
     }
 }

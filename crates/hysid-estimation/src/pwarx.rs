@@ -99,48 +99,111 @@ impl PwarxData<'_> {
         n
     }
 
-    /// A prior error worded with the file the priors came from.
-    pub fn prior_error(&self, message: impl std::fmt::Display) -> IdentifyError {
-        prior_error(&self.problem, message)
+    /// Whether the priors constrain the mode parameters (`[[tie]]`,
+    /// `[fixed]`, `[bounds]` or `[[equality]]`).
+    pub fn constrains_parameters(&self) -> bool {
+        let p = self.priors();
+        !(p.tie.is_empty() && p.fixed.is_empty() && p.bounds.is_empty() && p.equality.is_empty())
+    }
+
+    /// A prior that does not fit this problem, named with the file the
+    /// priors came from ([`IdentifyError::PriorMismatch`]).
+    pub fn prior_error(
+        &self,
+        problem: impl std::error::Error + Send + Sync + 'static,
+    ) -> IdentifyError {
+        IdentifyError::prior_mismatch(self.problem.priors_origin, problem)
     }
 }
 
-fn prior_error(problem: &Problem<'_>, message: impl std::fmt::Display) -> IdentifyError {
-    IdentifyError::BadData(match problem.priors_origin {
-        Some(origin) => format!("{origin}: {message}"),
-        None => format!("prior {message}"),
-    })
+/// A prior entry naming a parameter or regressor the PWARX structure does
+/// not have.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{entry}: unknown name '{name}' (known: {})", known.join(", "))]
+pub struct UnknownName {
+    /// The entry (`[[tie]] params`, `[fixed]`, `switching`, ...).
+    pub entry: String,
+    /// The name.
+    pub name: String,
+    /// The names of that kind the structure has.
+    pub known: Vec<String>,
+}
+
+/// Checks the parameter names of `[[tie]]`, `[[equality]]`, `[fixed]` and
+/// `[bounds]`, and the regressor names of `switching`, against `spec`.
+pub fn check_names(priors: &Priors, spec: &RegressorSpec) -> Result<(), UnknownName> {
+    let params = spec.param_names();
+    let regs = spec.regressor_names();
+    let known = |n: &str, list: &[String], entry: &str| {
+        if list.iter().any(|p| p == n) {
+            Ok(())
+        } else {
+            Err(UnknownName {
+                entry: entry.to_string(),
+                name: n.to_string(),
+                known: list.to_vec(),
+            })
+        }
+    };
+    for t in &priors.tie {
+        for p in &t.params {
+            known(p, &params, "[[tie]] params")?;
+        }
+    }
+    for (i, e) in priors.equality.iter().enumerate() {
+        for p in e.coefficients.keys() {
+            known(p, &params, &format!("[[equality]] #{} coefficients", i + 1))?;
+        }
+    }
+    for p in priors.fixed.keys() {
+        known(p, &params, "[fixed]")?;
+    }
+    for p in priors.bounds.keys() {
+        known(p, &params, "[bounds]")?;
+    }
+    for r in &priors.switching {
+        known(r, &regs, "switching")?;
+    }
+    Ok(())
+}
+
+/// The known stop the output value `y` sits at ([`Stop::holds`]), if any.
+///
+/// [`Stop::holds`]: hysid_model::model::Stop::holds
+pub fn stop_at(priors: &Priors, y: f64) -> Option<usize> {
+    priors.saturation.iter().position(|s| s.holds(y))
+}
+
+/// For every regression target `y(k)`, the stop it sits at: the samples a
+/// back-end assigns to the saturation modes before clustering or
+/// bounded-error extraction (Juloski et al. 2003, section 5).
+pub fn saturated_samples(priors: &Priors, targets: &[f64]) -> Vec<Option<usize>> {
+    targets.iter().map(|&y| stop_at(priors, y)).collect()
 }
 
 /// The common set-up of `method` on `problem` (see the module doc).
 pub fn prepare<'a>(problem: &Problem<'a>, method: &str) -> Result<PwarxData<'a>, IdentifyError> {
     let spec = problem.orders;
     let priors = problem.priors;
-    priors
-        .check_pwarx_names(&spec)
-        .map_err(|e| prior_error(problem, e))?;
-    let regressors = spec
-        .build(problem.data)
-        .map_err(|e| IdentifyError::BadData(e.to_string()))?;
-    if let Some(v) = regressors
+    check_names(priors, &spec)
+        .map_err(|e| IdentifyError::prior_mismatch(problem.priors_origin, e))?;
+    let regressors = spec.build(problem.data)?;
+    if let Some(&value) = regressors
         .x
         .iter()
         .chain(regressors.y.iter())
         .find(|v| !v.is_finite())
     {
-        return Err(IdentifyError::BadData(format!(
-            "the data hold a non-finite value ({v})"
-        )));
+        return Err(IdentifyError::NonFinite { value });
     }
-    let stop_of = priors.saturated_samples(regressors.y.as_slice());
+    let stop_of = saturated_samples(priors, regressors.y.as_slice());
     let ordinary: Vec<usize> = (0..regressors.len())
         .filter(|&k| stop_of[k].is_none())
         .collect();
     if ordinary.is_empty() && !stop_of.is_empty() {
-        return Err(IdentifyError::BadData(format!(
-            "all {} samples sit at a known stop: no ordinary sample is left to identify",
-            stop_of.len()
-        )));
+        return Err(IdentifyError::AllAtStops {
+            samples: stop_of.len(),
+        });
     }
     Ok(PwarxData {
         problem: *problem,
@@ -157,20 +220,17 @@ pub fn prepare<'a>(problem: &Problem<'a>, method: &str) -> Result<PwarxData<'a>,
 /// ordinary modes are what is left, at least one.
 fn mode_count(priors: &Priors, method: &str) -> Result<ModeCount, IdentifyError> {
     let stops = priors.saturation.len();
-    let too_few = |key: &str, s: usize| {
-        IdentifyError::BadData(format!(
-            "prior {key} = {s}: method '{method}' needs at least {} (the count includes the {stops} \
-             saturation mode(s) of the priors, and one ordinary mode)",
-            stops + 1
-        ))
+    let too_few = |key: &'static str, count: usize| IdentifyError::NoOrdinaryMode {
+        key,
+        count,
+        method: method.to_string(),
+        stops,
     };
     Ok(match (priors.modes, priors.max_modes) {
         (Some(s), _) if s <= stops => return Err(too_few("modes", s)),
         (_, Some(m)) if m <= stops => return Err(too_few("max_modes", m)),
-        (Some(s), Some(m)) if s > m => {
-            return Err(IdentifyError::BadData(format!(
-                "prior modes = {s} exceeds max_modes = {m}"
-            )));
+        (Some(modes), Some(max)) if modes > max => {
+            return Err(IdentifyError::ModesExceedMax { modes, max });
         }
         (Some(s), _) => ModeCount::Exact(s - stops),
         (None, Some(m)) => ModeCount::AtMost(m - stops),
@@ -272,17 +332,13 @@ pub fn run_standardized(
         || !p.bounds.is_empty()
         || !p.equality.is_empty()
     {
-        return Err(IdentifyError::BadData(
-            "--standardize cannot be combined with priors in data units ([[saturation]], [fixed], [bounds], [[equality]])".into(),
-        ));
+        return Err(IdentifyError::input(StandardizeError::PriorsInDataUnits));
     }
     // Scaling multiplies a tied a_i or b_i by one factor in every mode, so
     // such ties survive; the offset c maps to a combination of all the
     // parameters of its mode, so a tie on c would not.
     if p.tie.iter().any(|t| t.params.iter().any(|n| n == "c")) {
-        return Err(IdentifyError::BadData(
-            "--standardize cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)".into(),
-        ));
+        return Err(IdentifyError::input(StandardizeError::TieOnOffset));
     }
     let scale = Standardization::of(problem.data);
     let scaled = scale.apply(problem.data);
@@ -292,10 +348,81 @@ pub fn run_standardized(
     };
     match backend.run(&inner, settings, ctx)? {
         Model::Pwarx(m) => Ok(Model::Pwarx(m.to_original_units(&scale))),
-        other => Err(IdentifyError::BadData(format!(
-            "--standardize: method '{}' returns a {} model, which cannot be mapped back to original units",
-            backend.name(),
-            other.kind()
-        ))),
+        other => Err(IdentifyError::input(StandardizeError::ModelKind {
+            method: backend.name(),
+            kind: other.kind(),
+        })),
+    }
+}
+
+/// Why [`run_standardized`] refuses a run.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum StandardizeError {
+    /// Priors holding values in data units.
+    #[error(
+        "--standardize cannot be combined with priors in data units ([[saturation]], [fixed], [bounds], [[equality]])"
+    )]
+    PriorsInDataUnits,
+    /// A `[[tie]]` on the offset `c`.
+    #[error(
+        "--standardize cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)"
+    )]
+    TieOnOffset,
+    /// A back-end whose model has no original-units form.
+    #[error(
+        "--standardize: method '{method}' returns a {kind} model, which cannot be mapped back to original units"
+    )]
+    ModelKind {
+        /// Back-end name.
+        method: &'static str,
+        /// Kind of the model it returned.
+        kind: &'static str,
+    },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_checked_against_the_structure() {
+        let p = Priors::from_toml(
+            "switching = [\"y1\"]\n[[tie]]\nparams = [\"a1\", \"a2\"]\n[[equality]]\ncoefficients = { a1 = 1.0, a2 = 1.0 }\n[fixed]\nc = 0.0\n",
+            "p.toml",
+        )
+        .unwrap();
+        check_names(&p, &RegressorSpec::new(2, 2, 1)).unwrap();
+        let e = check_names(&p, &RegressorSpec::new(1, 1, 1)).unwrap_err();
+        assert_eq!(e.name, "a2");
+        assert_eq!(
+            e.to_string(),
+            "[[tie]] params: unknown name 'a2' (known: a1, b1, c)"
+        );
+        let mut p = p;
+        p.tie.clear();
+        let e = check_names(&p, &RegressorSpec::new(1, 2, 1)).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("[[equality]] #1 coefficients: unknown name 'a2'"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn saturated_samples_by_level_side_and_tolerance() {
+        let sat = Priors::from_toml(
+            "[[saturation]]\nlevel = 25.0\nbound = \"max\"\ntol = 0.005\n[[saturation]]\nlevel = 0.0\nbound = \"min\"\n",
+            "p",
+        )
+        .unwrap();
+        assert_eq!(stop_at(&sat, 24.996), Some(0));
+        assert_eq!(stop_at(&sat, 25.3), Some(0), "beyond the stop counts");
+        assert_eq!(stop_at(&sat, 24.9), None);
+        assert_eq!(stop_at(&sat, -0.1), Some(1));
+        assert_eq!(stop_at(&sat, 1e-5), None, "default tolerance is 1e-6");
+        assert_eq!(
+            saturated_samples(&sat, &[3.0, 25.0, 0.0]),
+            vec![None, Some(0), Some(1)]
+        );
     }
 }

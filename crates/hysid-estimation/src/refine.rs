@@ -262,7 +262,7 @@ impl<'a> Shooting<'a> {
                     start: Some(offset),
                     end: Some(b),
                 })
-                .map_err(|e| IdentifyError::BadData(e.to_string()))?;
+                .map_err(IdentifyError::Data)?;
             if slice.len() > initial {
                 segments.push(Segment {
                     data: slice,
@@ -324,7 +324,7 @@ impl<'a> Shooting<'a> {
         let mut errors = Vec::new();
         let mut rows: Vec<f64> = Vec::new();
         let mut diverged = false;
-        let bad = |e: hysid_model::simulate::SimError| IdentifyError::BadData(e.to_string());
+        let bad = |e: hysid_model::simulate::SimError| IdentifyError::input(e);
         for seg in &self.segments {
             let (sim, sens) = match &automaton {
                 None => {

@@ -10,7 +10,7 @@ mod model;
 pub mod simulate;
 
 pub use model::{
-    Contact, Direction, ForceElement, Friction, MAX_CONTACTS, MechanicalInitialState,
-    MechanicalMode, MechanicalModeKind, MechanicalModel, PhysicalParameter, Quantity,
-    ResolvedContact, ResolvedForce, ResolvedMechanics, ResolvedStop, Stop,
+    Contact, Direction, ForceElement, Friction, InvalidMechanical, MAX_CONTACTS,
+    MechanicalInitialState, MechanicalMode, MechanicalModeKind, MechanicalModel, PhysicalParameter,
+    Quantity, ResolvedContact, ResolvedForce, ResolvedMechanics, ResolvedStop, Stop,
 };

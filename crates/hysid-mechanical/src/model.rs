@@ -331,6 +331,108 @@ pub struct ResolvedMechanics {
 /// Maximum number of contact surfaces (modes are matched on subsets of them).
 pub const MAX_CONTACTS: usize = 8;
 
+/// A structurally inconsistent mechanical model
+/// ([`MechanicalModel::validate`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InvalidMechanical {
+    /// A non-positive or non-finite internal step.
+    #[error("internal_step must be > 0 (seconds)")]
+    InternalStep,
+    /// No input.
+    #[error("a mechanical model needs at least one input")]
+    NoInput,
+    /// Two parameters of one name.
+    #[error("parameter '{0}' appears twice")]
+    DuplicateParameter(String),
+    /// A parameter with a non-finite value or bounds, or low above high.
+    #[error("parameter '{0}': need finite value and bounds low <= high")]
+    ParameterBounds(String),
+    /// A parameter value outside its bounds.
+    #[error("parameter '{name}': value {value} outside its bounds [{low}, {high}]")]
+    ParameterOutsideBounds {
+        /// Parameter name.
+        name: String,
+        /// Its value.
+        value: f64,
+        /// Lower bound.
+        low: f64,
+        /// Upper bound.
+        high: f64,
+    },
+    /// A quantity given as a non-finite number.
+    #[error("{what}: value must be finite")]
+    NonFiniteQuantity {
+        /// Which quantity (`spring stiffness`, `contact 'c' position`, ...).
+        what: String,
+    },
+    /// A quantity naming an unknown parameter.
+    #[error("{what}: no parameter named '{name}'")]
+    UnknownParameter {
+        /// Which quantity.
+        what: String,
+        /// The unknown name.
+        name: String,
+    },
+    /// An input force naming an unknown input.
+    #[error("input force: no input named '{0}'")]
+    UnknownInput(String),
+    /// More contacts than the simulator handles.
+    #[error("at most {MAX_CONTACTS} contacts")]
+    TooManyContacts,
+    /// Two contacts of one name.
+    #[error("contact '{0}' appears twice")]
+    DuplicateContact(String),
+    /// Two stops of one name.
+    #[error("stop '{0}' appears twice")]
+    DuplicateStop(String),
+    /// A restitution outside `[0, 1)`.
+    #[error("stop '{0}': restitution must be in [0, 1)")]
+    Restitution(String),
+    /// Two modes of one name.
+    #[error("mode '{0}' appears twice")]
+    DuplicateMode(String),
+    /// A stop mode naming an unknown stop.
+    #[error("mode '{mode}': no stop named '{stop}'")]
+    UnknownStop {
+        /// Mode name.
+        mode: String,
+        /// The unknown stop.
+        stop: String,
+    },
+    /// A stop mode without `stop`.
+    #[error("mode '{0}': a stop mode needs `stop`")]
+    StopModeWithoutStop(String),
+    /// A mode other than a stop mode naming a stop.
+    #[error("mode '{0}': only stop modes name a stop")]
+    StopOnOrdinaryMode(String),
+    /// A mode naming an unknown contact.
+    #[error("mode '{mode}': no contact named '{contact}'")]
+    UnknownContact {
+        /// Mode name.
+        mode: String,
+        /// The unknown contact.
+        contact: String,
+    },
+    /// No mode for resting at a stop.
+    #[error("no mode for resting at stop '{0}'")]
+    NoRestMode(String),
+    /// No stick or slip mode for a set of engaged contacts.
+    #[error(
+        "no {} mode with contacts [{}] engaged",
+        if *.stuck { "stick" } else { "slip" },
+        .contacts.join(", ")
+    )]
+    NoContactMode {
+        /// Stick (true) or slip.
+        stuck: bool,
+        /// The engaged contacts.
+        contacts: Vec<String>,
+    },
+    /// A given initial state that is not finite.
+    #[error("initial_state: position and velocity must be finite")]
+    InitialState,
+}
+
 impl MechanicalModel {
     /// Parameter names, in order.
     pub fn parameter_names(&self) -> Vec<String> {
@@ -435,44 +537,49 @@ impl MechanicalModel {
 
     /// Structural checks: names resolve, bounds hold the values, every
     /// regime has a declared mode.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidMechanical> {
+        use InvalidMechanical as E;
         if !(self.internal_step.is_finite() && self.internal_step > 0.0) {
-            return Err("internal_step must be > 0 (seconds)".into());
+            return Err(E::InternalStep);
         }
         if self.inputs.is_empty() {
-            return Err("a mechanical model needs at least one input".into());
+            return Err(E::NoInput);
         }
         for (i, p) in self.parameters.iter().enumerate() {
             if self.parameters[..i].iter().any(|o| o.name == p.name) {
-                return Err(format!("parameter '{}' appears twice", p.name));
+                return Err(E::DuplicateParameter(p.name.clone()));
             }
             let [lo, hi] = p.bounds;
             if !(p.value.is_finite() && lo.is_finite() && hi.is_finite() && lo <= hi) {
-                return Err(format!(
-                    "parameter '{}': need finite value and bounds low <= high",
-                    p.name
-                ));
+                return Err(E::ParameterBounds(p.name.clone()));
             }
             if p.value < lo || p.value > hi {
-                return Err(format!(
-                    "parameter '{}': value {} outside its bounds [{lo}, {hi}]",
-                    p.name, p.value
-                ));
+                return Err(E::ParameterOutsideBounds {
+                    name: p.name.clone(),
+                    value: p.value,
+                    low: lo,
+                    high: hi,
+                });
             }
         }
-        let check = |q: &Quantity, what: &str| -> Result<(), String> {
+        let check = |q: &Quantity, what: &str| -> Result<(), InvalidMechanical> {
             match q {
                 Quantity::Value(v) if v.is_finite() => Ok(()),
-                Quantity::Value(_) => Err(format!("{what}: value must be finite")),
+                Quantity::Value(_) => Err(E::NonFiniteQuantity {
+                    what: what.to_string(),
+                }),
                 Quantity::Param(n) if self.parameter_index(n).is_some() => Ok(()),
-                Quantity::Param(n) => Err(format!("{what}: no parameter named '{n}'")),
+                Quantity::Param(n) => Err(E::UnknownParameter {
+                    what: what.to_string(),
+                    name: n.clone(),
+                }),
             }
         };
         for f in &self.forces {
             match f {
                 ForceElement::Input { input, gain } => {
                     if !self.inputs.contains(input) {
-                        return Err(format!("input force: no input named '{input}'"));
+                        return Err(E::UnknownInput(input.clone()));
                     }
                     check(gain, "input force gain")?;
                 }
@@ -487,11 +594,11 @@ impl MechanicalModel {
         check(&self.friction.kinetic, "friction.kinetic")?;
         check(&self.friction.static_level, "friction.static")?;
         if self.contacts.len() > MAX_CONTACTS {
-            return Err(format!("at most {MAX_CONTACTS} contacts"));
+            return Err(E::TooManyContacts);
         }
         for (i, c) in self.contacts.iter().enumerate() {
             if self.contacts[..i].iter().any(|o| o.name == c.name) {
-                return Err(format!("contact '{}' appears twice", c.name));
+                return Err(E::DuplicateContact(c.name.clone()));
             }
             let w = |s: &str| format!("contact '{}' {s}", c.name);
             check(&c.position, &w("position"))?;
@@ -501,65 +608,69 @@ impl MechanicalModel {
         }
         for (i, s) in self.stops.iter().enumerate() {
             if self.stops[..i].iter().any(|o| o.name == s.name) {
-                return Err(format!("stop '{}' appears twice", s.name));
+                return Err(E::DuplicateStop(s.name.clone()));
             }
             check(&s.position, &format!("stop '{}' position", s.name))?;
             if !(0.0..1.0).contains(&s.restitution) {
-                return Err(format!("stop '{}': restitution must be in [0, 1)", s.name));
+                return Err(E::Restitution(s.name.clone()));
             }
         }
         for (i, m) in self.modes.iter().enumerate() {
             if self.modes[..i].iter().any(|o| o.name == m.name) {
-                return Err(format!("mode '{}' appears twice", m.name));
+                return Err(E::DuplicateMode(m.name.clone()));
             }
             match m.kind {
                 MechanicalModeKind::Stop => match &m.stop {
                     Some(s) if self.stops.iter().any(|x| &x.name == s) => {}
-                    Some(s) => return Err(format!("mode '{}': no stop named '{s}'", m.name)),
-                    None => return Err(format!("mode '{}': a stop mode needs `stop`", m.name)),
+                    Some(s) => {
+                        return Err(E::UnknownStop {
+                            mode: m.name.clone(),
+                            stop: s.clone(),
+                        });
+                    }
+                    None => return Err(E::StopModeWithoutStop(m.name.clone())),
                 },
                 _ => {
                     if m.stop.is_some() {
-                        return Err(format!("mode '{}': only stop modes name a stop", m.name));
+                        return Err(E::StopOnOrdinaryMode(m.name.clone()));
                     }
                 }
             }
             for c in m.contacts.iter().flatten() {
                 if !self.contacts.iter().any(|x| &x.name == c) {
-                    return Err(format!("mode '{}': no contact named '{c}'", m.name));
+                    return Err(E::UnknownContact {
+                        mode: m.name.clone(),
+                        contact: c.clone(),
+                    });
                 }
             }
         }
         // Every regime needs a mode.
         for s in 0..self.stops.len() {
             if self.mode_of(Some(s), true, 0).is_none() {
-                return Err(format!(
-                    "no mode for resting at stop '{}'",
-                    self.stops[s].name
-                ));
+                return Err(E::NoRestMode(self.stops[s].name.clone()));
             }
         }
         for mask in 0..(1u32 << self.contacts.len()) {
             for stuck in [false, true] {
                 if self.mode_of(None, stuck, mask).is_none() {
-                    return Err(format!(
-                        "no {} mode with contacts [{}] engaged",
-                        if stuck { "stick" } else { "slip" },
-                        self.contacts
+                    return Err(E::NoContactMode {
+                        stuck,
+                        contacts: self
+                            .contacts
                             .iter()
                             .enumerate()
                             .filter(|(i, _)| mask & (1 << i) != 0)
-                            .map(|(_, c)| c.name.as_str())
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    ));
+                            .map(|(_, c)| c.name.clone())
+                            .collect(),
+                    });
                 }
             }
         }
         if let MechanicalInitialState::Given { position, velocity } = self.initial_state
             && !(position.is_finite() && velocity.is_finite())
         {
-            return Err("initial_state: position and velocity must be finite".into());
+            return Err(E::InitialState);
         }
         Ok(())
     }

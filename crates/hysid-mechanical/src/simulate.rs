@@ -636,7 +636,7 @@ mod tests {
         assert_eq!(m.mode_of(Some(1), true, 0), Some(3));
         let mut bad = m.clone();
         bad.modes.retain(|q| q.kind != MechanicalModeKind::Stick);
-        assert!(bad.validate().unwrap_err().contains("stick"));
+        assert!(bad.validate().unwrap_err().to_string().contains("stick"));
         let json = serde_json::to_string(&m).unwrap();
         assert_eq!(serde_json::from_str::<MechanicalModel>(&json).unwrap(), m);
     }

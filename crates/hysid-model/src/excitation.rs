@@ -40,20 +40,23 @@ pub const MAX_INPUTS: usize = 100;
 pub const MAX_VALUES: usize = 10_000_000;
 
 impl std::str::FromStr for Excitation {
-    type Err = String;
+    type Err = ExcitationError;
 
     /// Parses `n=6000,hold=120,low=-0.13,high=-0.03[,ts=0.0025][,inputs=1]`.
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, ExcitationError> {
         let mut t = toml::Table::new();
         for item in s.split(',').map(str::trim).filter(|x| !x.is_empty()) {
             let (k, v) = item
                 .split_once('=')
-                .ok_or_else(|| format!("--excite: '{item}' is not key=value"))?;
+                .ok_or_else(|| ExcitationError::NotKeyValue(item.to_string()))?;
             let val: toml::Value = format!("v = {v}")
                 .parse::<toml::Table>()
                 .ok()
                 .and_then(|mut x| x.remove("v"))
-                .ok_or_else(|| format!("--excite {k}: '{v}' is not a number"))?;
+                .ok_or_else(|| ExcitationError::NotANumber {
+                    key: k.to_string(),
+                    value: v.to_string(),
+                })?;
             t.insert(k.trim().to_string(), val);
         }
         // Integers are accepted where floats are expected.
@@ -65,47 +68,90 @@ impl std::str::FromStr for Excitation {
         let e: Excitation = toml::Value::Table(t)
             .try_into()
             .map_err(|e: toml::de::Error| {
-                format!("--excite: {}", e.to_string().trim().replace('\n', " "))
+                ExcitationError::Invalid(e.to_string().trim().replace('\n', " "))
             })?;
         e.check()?;
         Ok(e)
     }
 }
 
+/// A malformed or inconsistent excitation (the messages use the
+/// `--excite` syntax of `hysid simulate`, which is where excitations are
+/// written as text).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExcitationError {
+    /// An item without `=`.
+    #[error("--excite: '{0}' is not key=value")]
+    NotKeyValue(String),
+    /// A value that is not a number.
+    #[error("--excite {key}: '{value}' is not a number")]
+    NotANumber {
+        /// The key.
+        key: String,
+        /// The value.
+        value: String,
+    },
+    /// Unknown or missing keys (the parser's message).
+    #[error("--excite: {0}")]
+    Invalid(String),
+    /// `n`, `hold` or `inputs` of zero.
+    #[error("--excite: n, hold and inputs must be at least 1")]
+    Zero,
+    /// Too many samples.
+    #[error("--excite n={0}: at most {MAX_SAMPLES} samples")]
+    TooManySamples(usize),
+    /// Too many inputs.
+    #[error("--excite inputs={0}: at most {MAX_INPUTS} inputs")]
+    TooManyInputs(usize),
+    /// Too many values in all.
+    #[error("--excite n={n}, inputs={inputs}: at most {MAX_VALUES} input values in all")]
+    TooManyValues {
+        /// Samples.
+        n: usize,
+        /// Inputs.
+        inputs: usize,
+    },
+    /// Levels not finite, or low above high.
+    #[error("--excite: need finite low <= high, got {low} and {high}")]
+    Levels {
+        /// Lower level.
+        low: f64,
+        /// Upper level.
+        high: f64,
+    },
+    /// A sampling time that is not positive.
+    #[error("--excite: ts must be positive, got {0}")]
+    SamplingTime(f64),
+}
+
 impl Excitation {
     /// Consistency checks.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), ExcitationError> {
         if self.n == 0 || self.hold == 0 || self.inputs == 0 {
-            return Err("--excite: n, hold and inputs must be at least 1".into());
+            return Err(ExcitationError::Zero);
         }
         if self.n > MAX_SAMPLES {
-            return Err(format!(
-                "--excite n={}: at most {MAX_SAMPLES} samples",
-                self.n
-            ));
+            return Err(ExcitationError::TooManySamples(self.n));
         }
         if self.inputs > MAX_INPUTS {
-            return Err(format!(
-                "--excite inputs={}: at most {MAX_INPUTS} inputs",
-                self.inputs
-            ));
+            return Err(ExcitationError::TooManyInputs(self.inputs));
         }
         if self.n.saturating_mul(self.inputs) > MAX_VALUES {
-            return Err(format!(
-                "--excite n={}, inputs={}: at most {MAX_VALUES} input values in all",
-                self.n, self.inputs
-            ));
+            return Err(ExcitationError::TooManyValues {
+                n: self.n,
+                inputs: self.inputs,
+            });
         }
         if !(self.low.is_finite() && self.high.is_finite() && self.low <= self.high) {
-            return Err(format!(
-                "--excite: need finite low <= high, got {} and {}",
-                self.low, self.high
-            ));
+            return Err(ExcitationError::Levels {
+                low: self.low,
+                high: self.high,
+            });
         }
         if let Some(ts) = self.ts
             && !(ts.is_finite() && ts > 0.0)
         {
-            return Err(format!("--excite: ts must be positive, got {ts}"));
+            return Err(ExcitationError::SamplingTime(ts));
         }
         Ok(())
     }
@@ -155,15 +201,23 @@ mod tests {
                 .is_ok()
         );
         let huge = "n=10000001,hold=2,low=0,high=1".parse::<Excitation>();
-        assert!(huge.unwrap_err().contains("at most 10000000 samples"));
+        assert_eq!(
+            huge.unwrap_err().to_string(),
+            "--excite n=10000001: at most 10000000 samples"
+        );
         let wide = "n=10,hold=2,low=0,high=1,inputs=101".parse::<Excitation>();
-        assert!(wide.unwrap_err().contains("at most 100 inputs"));
+        assert_eq!(wide.unwrap_err(), ExcitationError::TooManyInputs(101));
         let both = "n=200000,hold=2,low=0,high=1,inputs=100".parse::<Excitation>();
-        assert!(both.unwrap_err().contains("at most 10000000 input values"));
+        assert!(
+            both.unwrap_err()
+                .to_string()
+                .contains("at most 10000000 input values")
+        );
         assert!(
             "n=10,hld=2,low=0,high=1"
                 .parse::<Excitation>()
                 .unwrap_err()
+                .to_string()
                 .contains("hld")
         );
     }

@@ -37,6 +37,34 @@ fn norm(a: &[f64]) -> f64 {
         .max(f64::MIN_POSITIVE)
 }
 
+/// A malformed [`Polyhedron`] ([`Polyhedron::validate`]); rows count from
+/// 1, the inequality rows first.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PolyhedronError {
+    /// `a` and `b` (or `a_eq` and `b_eq`) of different lengths.
+    #[error("the number of rows of a and b differ")]
+    RowCount,
+    /// A row of the wrong length.
+    #[error("row {row} has {len} entries, expected {dim}")]
+    RowLength {
+        /// Row number.
+        row: usize,
+        /// Its entries.
+        len: usize,
+        /// The dimension.
+        dim: usize,
+    },
+    /// A row with NaN or an infinity.
+    #[error("row {row} has a non-finite entry")]
+    NonFiniteRow {
+        /// Row number.
+        row: usize,
+    },
+    /// A right-hand side with NaN or an infinity.
+    #[error("a right-hand side is not finite")]
+    NonFiniteRhs,
+}
+
 impl Polyhedron {
     /// The whole space.
     pub fn everything() -> Self {
@@ -58,24 +86,24 @@ impl Polyhedron {
     }
 
     /// Checks that every row has `dim` entries and all numbers are finite.
-    pub fn validate(&self, dim: usize) -> Result<(), String> {
+    pub fn validate(&self, dim: usize) -> Result<(), PolyhedronError> {
         if self.a.len() != self.b.len() || self.a_eq.len() != self.b_eq.len() {
-            return Err("the number of rows of a and b differ".into());
+            return Err(PolyhedronError::RowCount);
         }
         for (i, row) in self.a.iter().chain(&self.a_eq).enumerate() {
             if row.len() != dim {
-                return Err(format!(
-                    "row {} has {} entries, expected {dim}",
-                    i + 1,
-                    row.len()
-                ));
+                return Err(PolyhedronError::RowLength {
+                    row: i + 1,
+                    len: row.len(),
+                    dim,
+                });
             }
             if row.iter().any(|v| !v.is_finite()) {
-                return Err(format!("row {} has a non-finite entry", i + 1));
+                return Err(PolyhedronError::NonFiniteRow { row: i + 1 });
             }
         }
         if self.b.iter().chain(&self.b_eq).any(|v| !v.is_finite()) {
-            return Err("a right-hand side is not finite".into());
+            return Err(PolyhedronError::NonFiniteRhs);
         }
         Ok(())
     }

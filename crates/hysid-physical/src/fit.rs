@@ -3,7 +3,6 @@
 //! free-run simulation error), then estimate the sensitivity and confidence
 //! of the result and write the diagnostics.
 
-use crate::PhysicalOptions;
 use crate::diagnostics::{
     CONFIDENCE_METHOD, COST_DEFINITION, PhysicalDiagnostics, Status, Terminations,
 };
@@ -15,6 +14,7 @@ use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
 use crate::stages::{Search, StageLog};
 use crate::swarm::global_stage;
+use crate::{PhysicalError, PhysicalOptions};
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::priors::Priors;
 use hysid_mechanical::simulate as mechanical;
@@ -55,7 +55,7 @@ pub fn fit_mechanical(
     let ts = check_inputs(model, data)?;
     let tols = velocity_tolerances(data.y(), ts);
     let model = with_initial_state(model, options.init_samples, &tols);
-    let map = ParameterMap::new(&model, priors).map_err(IdentifyError::BadData)?;
+    let map = ParameterMap::new(&model, priors).map_err(PhysicalError::Parameters)?;
     check_length(&model, &map, data)?;
     let evals = AtomicU64::new(0);
     let search = Search {
@@ -128,21 +128,18 @@ pub fn fit_mechanical(
 fn check_inputs(model: &MechanicalModel, data: &Dataset) -> Result<f64, IdentifyError> {
     model
         .validate()
-        .map_err(|e| IdentifyError::BadData(format!("model: {e}")))?;
+        .map_err(|e| PhysicalError::Model(e.into()))?;
     if data.inputs.len() != model.inputs.len() {
-        return Err(IdentifyError::BadData(format!(
-            "the model has {} input(s), the data {}",
-            model.inputs.len(),
-            data.inputs.len()
-        )));
+        return Err(PhysicalError::InputCount {
+            model: model.inputs.len(),
+            data: data.inputs.len(),
+        }
+        .into());
     }
     let Some(ts) = data.ts else {
-        return Err(IdentifyError::BadData(
-            "the physical method needs the sampling time: give a 't' signal or --ts".into(),
-        ));
+        return Err(PhysicalError::NoSamplingTime.into());
     };
-    mechanical::substeps(ts, model.internal_step)
-        .map_err(|e| IdentifyError::BadData(format!("model: {e}")))?;
+    mechanical::substeps(ts, model.internal_step).map_err(|e| PhysicalError::Model(e.into()))?;
     Ok(ts)
 }
 
@@ -182,10 +179,12 @@ fn check_length(
         MechanicalInitialState::Given { .. } => d + 1,
     };
     if data.len() < needed {
-        return Err(IdentifyError::BadData(format!(
-            "{} samples for {d} free parameters and the initial state: need at least {needed}",
-            data.len()
-        )));
+        return Err(PhysicalError::TooFewSamples {
+            samples: data.len(),
+            params: d,
+            needed,
+        }
+        .into());
     }
     Ok(())
 }

@@ -163,20 +163,60 @@ impl Identifier for Physical {
             }
         };
         let (fitted, _report) = fit_mechanical(&model, problem.data, problem.priors, options, ctx)
-            .map_err(|e| match e {
+            .map_err(|e| {
                 // A model file's structural problems name the file.
-                IdentifyError::BadData(m) if !options.model.trim().is_empty() => {
-                    match m.strip_prefix("model: ") {
-                        Some(rest) => IdentifyError::Options(OptionError::invalid(
+                match e.downcast_ref::<PhysicalError>() {
+                    Some(PhysicalError::Model(problem)) if !options.model.trim().is_empty() => {
+                        IdentifyError::Options(OptionError::invalid(
                             "model",
                             options.model.trim(),
-                            rest,
-                        )),
-                        None => IdentifyError::BadData(m),
+                            problem.to_string(),
+                        ))
                     }
+                    _ => e,
                 }
-                e => e,
             })?;
         Ok(Model::Mechanical(fitted))
+    }
+}
+
+/// Bad input of the `physical` back-end (an [`IdentifyError::Input`]).
+#[derive(Debug, thiserror::Error)]
+pub enum PhysicalError {
+    /// The mechanical model is inconsistent, or its internal step does not
+    /// fit the sampling time.
+    #[error("model: {0}")]
+    Model(Box<dyn std::error::Error + Send + Sync>),
+    /// Model and record with different numbers of inputs.
+    #[error("the model has {model} input(s), the data {data}")]
+    InputCount {
+        /// Inputs of the model.
+        model: usize,
+        /// Inputs of the record.
+        data: usize,
+    },
+    /// A record without sampling time.
+    #[error("the physical method needs the sampling time: give a 't' signal or --ts")]
+    NoSamplingTime,
+    /// Fewer samples than the free parameters and the initial state need.
+    #[error(
+        "{samples} samples for {params} free parameters and the initial state: need at least {needed}"
+    )]
+    TooFewSamples {
+        /// Samples of the record.
+        samples: usize,
+        /// Free parameters.
+        params: usize,
+        /// Samples needed.
+        needed: usize,
+    },
+    /// Priors that do not fit the model's parameters.
+    #[error(transparent)]
+    Parameters(#[from] parameters::ParameterError),
+}
+
+impl From<PhysicalError> for IdentifyError {
+    fn from(e: PhysicalError) -> Self {
+        IdentifyError::input(e)
     }
 }

@@ -5,6 +5,35 @@
 use hysid_core::priors::Priors;
 use hysid_mechanical::MechanicalModel;
 
+/// Priors that do not fit the mechanical model's parameters.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ParameterError {
+    /// An entry naming a parameter the model does not have.
+    #[error("prior {entry}: unknown parameter '{name}' (known: {})", .known.join(", "))]
+    UnknownName {
+        /// `[bounds]`, `[fixed]` or `[[tie]]`.
+        entry: &'static str,
+        /// The name.
+        name: String,
+        /// The model's parameter names.
+        known: Vec<String>,
+    },
+    /// Two tied parameters fixed to different values.
+    #[error("prior [[tie]]: '{first}' and '{second}' are tied but fixed to different values")]
+    TiedFixedDiffer {
+        /// One parameter.
+        first: String,
+        /// The other.
+        second: String,
+    },
+    /// Bounds of a tied group (or one parameter) with no common value.
+    #[error("prior: the bounds of [{}] leave no admissible value", .params.join(", "))]
+    EmptyBounds {
+        /// The parameters.
+        params: Vec<String>,
+    },
+}
+
 /// How the free coordinates `z in [0, 1]^d` map onto the model's parameters:
 /// fixed parameters keep their value, tied ones share a coordinate, each
 /// coordinate spans its (intersected) bounds.
@@ -25,15 +54,16 @@ pub struct ParameterMap {
 impl ParameterMap {
     /// Builds the map from the model (its `fixed` flags and bounds) and the
     /// priors (`[fixed]`, `[bounds]`, `[[tie]]`), checking every name.
-    pub fn new(model: &MechanicalModel, priors: &Priors) -> Result<Self, String> {
+    pub fn new(model: &MechanicalModel, priors: &Priors) -> Result<Self, ParameterError> {
         let names = model.parameter_names();
-        let idx = |n: &str, entry: &str| {
-            model.parameter_index(n).ok_or_else(|| {
-                format!(
-                    "prior {entry}: unknown parameter '{n}' (known: {})",
-                    names.join(", ")
-                )
-            })
+        let idx = |n: &str, entry: &'static str| {
+            model
+                .parameter_index(n)
+                .ok_or_else(|| ParameterError::UnknownName {
+                    entry,
+                    name: n.to_string(),
+                    known: names.clone(),
+                })
         };
         let mut base = model.values();
         let mut bounds: Vec<[f64; 2]> = model.parameters.iter().map(|p| p.bounds).collect();
@@ -51,7 +81,7 @@ impl ParameterMap {
             .tie
             .iter()
             .map(|t| t.params.iter().map(|n| idx(n, "[[tie]]")).collect())
-            .collect::<Result<Vec<Vec<usize>>, String>>()?;
+            .collect::<Result<Vec<Vec<usize>>, ParameterError>>()?;
         let mut free_groups = Vec::new();
         let mut free_bounds = Vec::new();
         for g in tie_groups(names.len(), &ties) {
@@ -190,17 +220,17 @@ struct Group<'a> {
 impl Group<'_> {
     /// Sets the group's common starting value in `base` and returns its
     /// free range, or `None` when a fixed member fixes the whole group.
-    fn settle(&self, base: &mut [f64]) -> Result<Option<[f64; 2]>, String> {
+    fn settle(&self, base: &mut [f64]) -> Result<Option<[f64; 2]>, ParameterError> {
         let g = self.members;
         let fixed_members: Vec<usize> = g.iter().copied().filter(|&i| self.fixed[i]).collect();
         if let Some(&f) = fixed_members.first() {
             // A tie with a fixed member fixes the whole group.
             for &i in &fixed_members {
                 if base[i] != base[f] {
-                    return Err(format!(
-                        "prior [[tie]]: '{}' and '{}' are tied but fixed to different values",
-                        self.names[f], self.names[i]
-                    ));
+                    return Err(ParameterError::TiedFixedDiffer {
+                        first: self.names[f].clone(),
+                        second: self.names[i].clone(),
+                    });
                 }
             }
             for &i in g {
@@ -217,11 +247,9 @@ impl Group<'_> {
             .map(|&i| self.bounds[i][1])
             .fold(f64::INFINITY, f64::min);
         if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-            let who: Vec<&str> = g.iter().map(|&i| self.names[i].as_str()).collect();
-            return Err(format!(
-                "prior: the bounds of [{}] leave no admissible value",
-                who.join(", ")
-            ));
+            return Err(ParameterError::EmptyBounds {
+                params: g.iter().map(|&i| self.names[i].clone()).collect(),
+            });
         }
         // A tied group starts from the mean of its nominal values, clamped.
         let start = (g.iter().map(|&i| base[i]).sum::<f64>() / g.len() as f64).clamp(lo, hi);

@@ -124,7 +124,7 @@ impl Slice2 {
 pub enum SliceError {
     /// The polyhedron is malformed for the dimension of `z0`.
     #[error("invalid polyhedron: {0}")]
-    InvalidPolyhedron(String),
+    InvalidPolyhedron(hysid_model::geometry::PolyhedronError),
     /// The two axes are equal or out of range.
     #[error("axes ({0}, {1}) are not two distinct coordinates below the dimension {2}")]
     InvalidAxes(usize, usize, usize),

@@ -101,12 +101,10 @@ pub fn fit(
 /// the mode count, if given, must be two.
 fn input_column(data: &PwarxData<'_>) -> Result<usize, IdentifyError> {
     if data.spec.nb == 0 {
-        return Err(IdentifyError::BadData("method 'sign' needs nb >= 1".into()));
+        return Err(SignError::NoInputLag.into());
     }
     match data.modes {
-        ModeCount::Exact(s) if s != 2 => Err(IdentifyError::BadData(format!(
-            "method 'sign' identifies exactly two ordinary modes, not {s}"
-        ))),
+        ModeCount::Exact(s) if s != 2 => Err(SignError::ModeCount(s).into()),
         _ => Ok(data.spec.na),
     }
 }
@@ -157,4 +155,21 @@ fn half_spaces(dim: usize, column: usize, threshold: f64) -> [Polyhedron; 2] {
         Polyhedron::from_inequalities(vec![normal(1.0)], vec![threshold]),
         Polyhedron::from_inequalities(vec![normal(-1.0)], vec![-threshold]),
     ]
+}
+
+/// Bad input of the `sign` back-end (an [`IdentifyError::Input`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SignError {
+    /// No `u1(k-1)` regressor.
+    #[error("method 'sign' needs nb >= 1")]
+    NoInputLag,
+    /// A mode count other than two ordinary modes.
+    #[error("method 'sign' identifies exactly two ordinary modes, not {0}")]
+    ModeCount(usize),
+}
+
+impl From<SignError> for IdentifyError {
+    fn from(e: SignError) -> Self {
+        IdentifyError::input(e)
+    }
 }

@@ -476,12 +476,13 @@ mod tests {
                 _ => assert!((0.0..=25.0).contains(&y[k]), "k={k} y={}", y[k]),
             }
         }
-        // The priors' sample assignment finds exactly the saturated rows.
+        // The priors' stops hold exactly at the saturated rows.
         let p = b.priors();
-        assert_eq!(p.ordinary_modes(), Some(2));
-        let targets: Vec<f64> = y[2..].to_vec();
-        let sat = p.saturated_samples(&targets);
-        for (s, &q) in sat.iter().zip(&rows) {
+        assert_eq!((p.modes, p.saturation.len()), (Some(4), 2));
+        let sat = y[2..]
+            .iter()
+            .map(|&v| p.saturation.iter().position(|s| s.holds(v)));
+        for (s, &q) in sat.zip(&rows) {
             assert_eq!(s.map(|i| i + 2), (q >= 2).then_some(q), "{s:?} {q}");
         }
         // Same seed, same record.

@@ -7,7 +7,7 @@ use crate::selection::DataArgs;
 use hysid_core::model::Model;
 use hysid_core::simulate::simulate;
 use hysid_model::data::{Dataset, Signal};
-use hysid_model::excitation::Excitation;
+use hysid_model::excitation::{Excitation, ExcitationError};
 use hysid_model::simulate::SimulationOptions;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -56,7 +56,9 @@ pub fn run(args: Args) -> Result<()> {
     let data = match (&args.data, &args.excite) {
         (Some(path), None) => hysid_io::load(path, &args.select.selection()?)?,
         (None, Some(spec)) => {
-            let e: Excitation = spec.parse().map_err(CliError::input)?;
+            let e: Excitation = spec
+                .parse()
+                .map_err(|e: ExcitationError| CliError::input(e.to_string()))?;
             if e.inputs != model.inputs() {
                 return Err(CliError::input(format!(
                     "--excite inputs={}: the model has {} input(s)",

@@ -161,7 +161,7 @@ pub fn run(args: Args) -> Result<()> {
             grid,
         }],
     };
-    exp.check().map_err(CliError::input)?;
+    exp.check().map_err(|e| CliError::input(e.to_string()))?;
     let progress = TerminalProgress::new();
     let mut comparison = exp
         .run(&progress)

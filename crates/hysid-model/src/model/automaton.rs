@@ -10,7 +10,7 @@
 //! Saturations are modes of this kind, never full-dimensional regions.
 
 use super::{ModelInfo, PwarxModel};
-use crate::geometry::Polyhedron;
+use crate::geometry::{Polyhedron, PolyhedronError};
 use crate::model::{Stop, StopBound};
 use crate::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
@@ -200,19 +200,166 @@ pub struct HybridAutomaton {
     pub info: ModelInfo,
 }
 
-fn check_rows(what: &str, rows: &[Vec<f64>], n_rows: usize, n_cols: usize) -> Result<(), String> {
+fn check_rows(
+    what: &str,
+    rows: &[Vec<f64>],
+    n_rows: usize,
+    n_cols: usize,
+) -> Result<(), InvalidModel> {
     if rows.len() != n_rows {
-        return Err(format!("{what} has {} rows, expected {n_rows}", rows.len()));
+        return Err(InvalidModel::RowCount {
+            matrix: what.to_string(),
+            rows: rows.len(),
+            expected: n_rows,
+        });
     }
     for (i, r) in rows.iter().enumerate() {
         if r.len() != n_cols || r.iter().any(|v| !v.is_finite()) {
-            return Err(format!(
-                "{what} row {}: expected {n_cols} finite entries",
-                i + 1
-            ));
+            return Err(InvalidModel::Row {
+                matrix: what.to_string(),
+                row: i + 1,
+                cols: n_cols,
+            });
         }
     }
     Ok(())
+}
+
+/// A structurally inconsistent PWARX model or hybrid automaton
+/// ([`PwarxModel::validate`], [`HybridAutomaton::validate`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum InvalidModel {
+    /// A PWARX model without modes.
+    #[error("a PWARX model needs at least one mode")]
+    NoPwarxMode,
+    /// Input lags without inputs.
+    #[error("nb > 0 needs at least one input")]
+    NbWithoutInput,
+    /// A parameter vector of the wrong length.
+    #[error(
+        "mode {mode}: theta has {len} entries, na = {na}, nb = {nb}, {inputs} input(s) need {need}"
+    )]
+    ThetaLength {
+        /// Mode index.
+        mode: usize,
+        /// Its entries.
+        len: usize,
+        /// Output order.
+        na: usize,
+        /// Input order.
+        nb: usize,
+        /// Inputs.
+        inputs: usize,
+        /// Entries needed.
+        need: usize,
+    },
+    /// A parameter vector with NaN or an infinity.
+    #[error("mode {mode}: theta has a non-finite entry")]
+    NonFiniteTheta {
+        /// Mode index.
+        mode: usize,
+    },
+    /// A malformed region.
+    #[error("mode {mode}: region {problem}")]
+    Region {
+        /// Mode index.
+        mode: usize,
+        /// What is wrong.
+        problem: PolyhedronError,
+    },
+    /// An automaton without state or mode.
+    #[error("an automaton needs at least one state and one mode")]
+    EmptyAutomaton,
+    /// A continuous-time automaton without a positive internal step.
+    #[error("a continuous-time automaton needs internal_step > 0")]
+    NoInternalStep,
+    /// An output map of the wrong shape.
+    #[error("output: c needs {states} entries and d none or {inputs}")]
+    OutputShape {
+        /// States.
+        states: usize,
+        /// Inputs.
+        inputs: usize,
+    },
+    /// Two modes of one name.
+    #[error("mode name '{0}' appears twice")]
+    DuplicateMode(String),
+    /// A matrix with the wrong number of rows.
+    #[error("{matrix} has {rows} rows, expected {expected}")]
+    RowCount {
+        /// Which matrix (`mode 'q': flow.a`, ...).
+        matrix: String,
+        /// Its rows.
+        rows: usize,
+        /// Rows expected.
+        expected: usize,
+    },
+    /// A matrix row of the wrong length or with a non-finite entry.
+    #[error("{matrix} row {row}: expected {cols} finite entries")]
+    Row {
+        /// Which matrix.
+        matrix: String,
+        /// Row number, from 1.
+        row: usize,
+        /// Entries expected.
+        cols: usize,
+    },
+    /// A flow offset of the wrong length.
+    #[error("mode '{mode}': flow.f needs none or one entry per state")]
+    FlowOffset {
+        /// Mode name.
+        mode: String,
+    },
+    /// A malformed invariant.
+    #[error("mode '{mode}': invariant {problem}")]
+    Invariant {
+        /// Mode name.
+        mode: String,
+        /// What is wrong.
+        problem: PolyhedronError,
+    },
+    /// A transition naming an unknown mode.
+    #[error("transition {from} -> {to}: no mode named '{name}'")]
+    TransitionMode {
+        /// Source mode.
+        from: String,
+        /// Target mode.
+        to: String,
+        /// The unknown name.
+        name: String,
+    },
+    /// A malformed guard set.
+    #[error("transition {from} -> {to}: guard {problem}")]
+    Guard {
+        /// Source mode.
+        from: String,
+        /// Target mode.
+        to: String,
+        /// What is wrong.
+        problem: PolyhedronError,
+    },
+    /// A reset offset of the wrong length.
+    #[error("transition {from} -> {to}: reset.c needs none or one entry per state")]
+    ResetOffset {
+        /// Source mode.
+        from: String,
+        /// Target mode.
+        to: String,
+    },
+    /// An unknown initial mode.
+    #[error("initial_mode: no mode named '{0}'")]
+    InitialMode(String),
+    /// A given initial state of the wrong length.
+    #[error("initial_state has {len} entries, expected {states}")]
+    InitialStateLength {
+        /// Its entries.
+        len: usize,
+        /// States.
+        states: usize,
+    },
+    /// An ARX history that does not give the state.
+    #[error("initial_state: ARX history does not match the state dimension")]
+    ArxHistory,
 }
 
 impl HybridAutomaton {
@@ -222,24 +369,29 @@ impl HybridAutomaton {
     }
 
     /// Structural checks.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidModel> {
+        use InvalidModel as E;
         let n = self.states.len();
         let m = self.inputs.len();
         if n == 0 || self.modes.is_empty() {
-            return Err("an automaton needs at least one state and one mode".into());
+            return Err(E::EmptyAutomaton);
         }
         if self.time == TimeDomain::Continuous {
             match self.internal_step {
                 Some(h) if h.is_finite() && h > 0.0 => {}
-                _ => return Err("a continuous-time automaton needs internal_step > 0".into()),
+                _ => return Err(E::NoInternalStep),
             }
         }
         if self.output.c.len() != n || !(self.output.d.is_empty() || self.output.d.len() == m) {
-            return Err(format!("output: c needs {n} entries and d none or {m}"));
+            return Err(E::OutputShape {
+                states: n,
+                inputs: m,
+            });
         }
         for (i, q) in self.modes.iter().enumerate() {
+            let mode = || q.name.clone();
             if self.modes[..i].iter().any(|p| p.name == q.name) {
-                return Err(format!("mode name '{}' appears twice", q.name));
+                return Err(E::DuplicateMode(mode()));
             }
             let w = |s: &str| format!("mode '{}': {s}", q.name);
             check_rows(&w("flow.a"), &q.flow.a, n, n)?;
@@ -247,42 +399,58 @@ impl HybridAutomaton {
                 check_rows(&w("flow.b"), &q.flow.b, n, m)?;
             }
             if !(q.flow.f.is_empty() || q.flow.f.len() == n) {
-                return Err(w("flow.f needs none or one entry per state"));
+                return Err(E::FlowOffset { mode: mode() });
             }
             q.invariant
                 .validate(n + m)
-                .map_err(|e| w(&format!("invariant {e}")))?;
+                .map_err(|problem| E::Invariant {
+                    mode: mode(),
+                    problem,
+                })?;
         }
         for t in &self.transitions {
-            let w = |s: &str| format!("transition {} -> {}: {s}", t.from, t.to);
+            let (from, to) = (|| t.from.clone(), || t.to.clone());
             for name in [&t.from, &t.to] {
                 if self.mode_index(name).is_none() {
-                    return Err(w(&format!("no mode named '{name}'")));
+                    return Err(E::TransitionMode {
+                        from: from(),
+                        to: to(),
+                        name: name.clone(),
+                    });
                 }
             }
-            t.guard
-                .0
-                .validate(n + m)
-                .map_err(|e| w(&format!("guard {e}")))?;
+            t.guard.0.validate(n + m).map_err(|problem| E::Guard {
+                from: from(),
+                to: to(),
+                problem,
+            })?;
             if !t.reset.r.is_empty() {
-                check_rows(&w("reset.r"), &t.reset.r, n, n)?;
+                check_rows(
+                    &format!("transition {} -> {}: reset.r", t.from, t.to),
+                    &t.reset.r,
+                    n,
+                    n,
+                )?;
             }
             if !(t.reset.c.is_empty() || t.reset.c.len() == n) {
-                return Err(w("reset.c needs none or one entry per state"));
+                return Err(E::ResetOffset {
+                    from: from(),
+                    to: to(),
+                });
             }
         }
         if let Some(q) = &self.initial_mode
             && self.mode_index(q).is_none()
         {
-            return Err(format!("initial_mode: no mode named '{q}'"));
+            return Err(E::InitialMode(q.clone()));
         }
         match &self.initial_state {
-            InitialState::Given { state } if state.len() != n => Err(format!(
-                "initial_state has {} entries, expected {n}",
-                state.len()
-            )),
+            InitialState::Given { state } if state.len() != n => Err(E::InitialStateLength {
+                len: state.len(),
+                states: n,
+            }),
             InitialState::ArxHistory { na, nb } if na.max(&1) + nb.saturating_sub(1) * m != n => {
-                Err("initial_state: ARX history does not match the state dimension".into())
+                Err(E::ArxHistory)
             }
             _ => Ok(()),
         }

@@ -20,8 +20,8 @@ mod selection;
 mod stop;
 
 pub use automaton::{
-    AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, OutputMap, ResetMap,
-    TimeDomain, Transition, arx_state_positions,
+    AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, InvalidModel,
+    OutputMap, ResetMap, TimeDomain, Transition, arx_state_positions,
 };
 pub use diagnostics::{Diagnostics, Refinement, RefinementStatus, RunStatus};
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};

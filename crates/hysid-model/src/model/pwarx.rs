@@ -1,7 +1,7 @@
 //! Piecewise ARX models: `y(k) = theta_i . [x(k); 1]` for `x(k)` in region
 //! `X_i = { x : A_i x <= b_i }` (Ferrari-Trecate et al., Automatica 2003, eq. 1-2).
 
-use super::ModelInfo;
+use super::{InvalidModel, ModelInfo};
 use crate::data::Standardization;
 use crate::geometry::Polyhedron;
 use crate::regressors::RegressorSpec;
@@ -70,31 +70,31 @@ impl PwarxModel {
     }
 
     /// Structural checks.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidModel> {
         if self.modes.is_empty() {
-            return Err("a PWARX model needs at least one mode".into());
+            return Err(InvalidModel::NoPwarxMode);
         }
         if self.inputs == 0 && self.nb > 0 {
-            return Err("nb > 0 needs at least one input".into());
+            return Err(InvalidModel::NbWithoutInput);
         }
         let spec = self.spec();
-        for (i, m) in self.modes.iter().enumerate() {
+        for (mode, m) in self.modes.iter().enumerate() {
             if m.theta.len() != spec.n_params() {
-                return Err(format!(
-                    "mode {i}: theta has {} entries, na = {}, nb = {}, {} input(s) need {}",
-                    m.theta.len(),
-                    self.na,
-                    self.nb,
-                    self.inputs,
-                    spec.n_params()
-                ));
+                return Err(InvalidModel::ThetaLength {
+                    mode,
+                    len: m.theta.len(),
+                    na: self.na,
+                    nb: self.nb,
+                    inputs: self.inputs,
+                    need: spec.n_params(),
+                });
             }
             if m.theta.iter().any(|v| !v.is_finite()) {
-                return Err(format!("mode {i}: theta has a non-finite entry"));
+                return Err(InvalidModel::NonFiniteTheta { mode });
             }
             m.region
                 .validate(spec.dim())
-                .map_err(|e| format!("mode {i}: region {e}"))?;
+                .map_err(|problem| InvalidModel::Region { mode, problem })?;
         }
         Ok(())
     }
