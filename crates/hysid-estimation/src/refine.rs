@@ -797,8 +797,10 @@ mod tests {
     #[test]
     fn objective_is_the_simulation_error_of_the_written_model() {
         for stops in [vec![], vec![stop()]] {
-            let mut priors = Priors::default();
-            priors.saturation = stops.clone();
+            let priors = Priors {
+                saturation: stops.clone(),
+                ..Default::default()
+            };
             let data = simulated_record(&true_model(), &stops, 400, 11);
             if !stops.is_empty() {
                 let held = data.y().iter().filter(|&&v| v == 0.5).count();
