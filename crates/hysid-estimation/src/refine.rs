@@ -696,15 +696,7 @@ mod tests {
 
     fn start_fit(thetas: Vec<Vec<f64>>) -> PwarxFit<()> {
         PwarxFit {
-            modes: thetas
-                .into_iter()
-                .zip(regions())
-                .map(|(theta, region)| PwarxMode {
-                    theta,
-                    region,
-                    name: None,
-                })
-                .collect(),
+            modes: PwarxMode::unnamed(thetas, regions()),
             regions_complete: true,
             uncovered_fraction: None,
             run_status: RunStatus::Completed,
