@@ -353,7 +353,10 @@ fn identify(
             settings: job.settings.clone(),
         },
         priors_origin: problem.priors_origin,
-        space: backend.search_space(&problem).map_err(|e| e.to_string())?,
+        space: backend
+            .search_space(&problem)
+            .map_err(|e| e.to_string())?
+            .without_given(&job.settings),
         plan: Plan {
             select: spec.selection.map(|r| RowRange {
                 start: shift(r.start),

@@ -81,6 +81,13 @@ impl SearchSpace {
         Ok(Self { axes })
     }
 
+    /// The space without the axes whose key `settings` gives: an option
+    /// the user set is knowledge, not a choice.
+    pub fn without_given(mut self, settings: &Settings) -> Self {
+        self.axes.retain(|a| settings.get(&a.key).is_none());
+        self
+    }
+
     /// True when the axis `key` is present.
     pub fn has(&self, key: &str) -> bool {
         self.axes.iter().any(|a| a.key == key)
@@ -181,6 +188,16 @@ mod tests {
             vec![("c".into(), "40".into()), ("modes".into(), "2".into())]
         );
         assert_eq!(SearchSpace::default().candidates().len(), 1);
+    }
+
+    #[test]
+    fn a_given_option_is_not_searched() {
+        let s = SearchSpace::default()
+            .with("delta", ["0.1", "0.2"])
+            .with("c", [20])
+            .without_given(&Settings::parse(&["delta=0.3"]).unwrap());
+        assert!(!s.has("delta"));
+        assert!(s.has("c"));
     }
 
     #[test]

@@ -139,7 +139,7 @@ pub fn run(args: Args) -> Result<()> {
             ));
         }
         let space = if args.grid.is_empty() {
-            backend.search_space(&problem)?
+            backend.search_space(&problem)?.without_given(&settings)
         } else {
             SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?
         };
