@@ -661,9 +661,17 @@ fn auto_chooses_inside_the_identification_rows_only() {
     assert_eq!(cands.len(), 5, "{sel}");
     assert_eq!(cands[4]["method"], "arx");
     let score = |c: &serde_json::Value| c["fit_sim"].as_f64().unwrap_or(f64::NEG_INFINITY);
-    let chosen = sel["chosen"].as_u64().unwrap() as usize;
+    let (chosen, best) = (
+        sel["chosen"].as_u64().unwrap() as usize,
+        sel["best"].as_u64().unwrap() as usize,
+    );
     assert!(
-        cands.iter().all(|c| score(c) <= score(&cands[chosen])),
+        cands.iter().all(|c| score(c) <= score(&cands[best])),
+        "{sel}"
+    );
+    // The one-standard-error rule never chooses more modes than the best.
+    assert!(
+        cands[chosen]["modes"].as_u64() <= cands[best]["modes"].as_u64(),
         "{sel}"
     );
     // The two-mode record is not affine: two modes simulate it better.

@@ -19,6 +19,8 @@
 //! section 4) shows one-step prediction errors that hardly tell good
 //! partitions from bad ones, while the simulated outputs differ widely.
 
+pub mod parsimony;
+
 use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::search::{Candidate, CandidateError, SearchSpace, Setup};
@@ -203,8 +205,16 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
     let rows = splits(request.data.len(), &request.plan)?;
     let parts = cut(request.data, &rows)?;
     let trials = trials(request)?;
-    let mut scored = score_all(request, &trials, &parts, ctx);
-    let (chosen, refinement, mut model) = choose(request, &trials, &parts, &mut scored, ctx)?;
+    let (mut scored, errors) = score_all(request, &trials, &parts, ctx);
+    let best = ranking(&scored).first().copied();
+    // The affine reference is the last trial.
+    let floor = request
+        .affine
+        .and_then(|_| scored.last())
+        .and_then(|c| c.fit_sim);
+    let order = preference(&scored, &errors, floor);
+    let (chosen, refinement, mut model) =
+        choose(request, &trials, &parts, &mut scored, &order, ctx)?;
     let in_file = |(a, b): (usize, usize)| {
         let first = request.plan.first_row;
         range_text((a + first, b + first))
@@ -220,6 +230,7 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
         warmup: request.plan.warmup,
         candidates: scored,
         chosen,
+        best: best.unwrap_or(chosen),
         refinement,
     });
     Ok(model)
@@ -298,13 +309,15 @@ fn fit(
 
 /// Fits `trial` on the fit rows and scores it on the selection rows of
 /// every split; the score is the mean FIT, the mode count that of the
-/// model of the last split.
+/// model of the last split. Also returns the simulation errors on the
+/// selection rows of every split, one after the other (none when a split
+/// failed).
 fn score(
     request: &Request<'_>,
     trial: &Trial<'_>,
     parts: &[Part],
     ctx: &RunContext<'_>,
-) -> ScoredCandidate {
+) -> (ScoredCandidate, Vec<f64>) {
     let mut out = ScoredCandidate {
         method: trial.backend.name().to_string(),
         values: trial.values.clone(),
@@ -313,37 +326,47 @@ fn score(
         error: None,
     };
     let mut total = 0.0;
+    let mut errors = Vec::new();
     for part in parts {
         match score_part(request, trial, part, ctx) {
-            Ok((fit_sim, modes)) => {
+            Ok((fit_sim, modes, e)) => {
                 total += fit_sim;
                 out.modes = Some(modes);
+                errors.extend(e);
             }
             Err(e) => {
                 out.error = Some(e);
                 out.modes = None;
-                return out;
+                return (out, Vec::new());
             }
         }
     }
     out.fit_sim = Some(total / parts.len() as f64);
-    out
+    (out, errors)
 }
 
-/// The selection-row FIT and the mode count of `trial` on one split.
+/// The selection-row FIT, the mode count and the scored simulation errors
+/// of `trial` on one split.
 fn score_part(
     request: &Request<'_>,
     trial: &Trial<'_>,
     part: &Part,
     ctx: &RunContext<'_>,
-) -> Result<(f64, usize), String> {
+) -> Result<(f64, usize, Vec<f64>), String> {
     let model = fit(request, trial, &part.fit, ctx).map_err(|e| e.to_string())?;
-    let (report, _, _) = validate(&model, &part.select, request.plan.warmup)
+    let (report, sim, _) = validate(&model, &part.select, request.plan.warmup)
         .map_err(|e| format!("simulation on the selection rows: {e}"))?;
     if !report.fit_sim.is_finite() {
         return Err("the simulation FIT is not finite".into());
     }
-    Ok((report.fit_sim, model.mode_count()))
+    let y = part.select.y();
+    let first = y.len() - report.n;
+    let errors = y[first..]
+        .iter()
+        .zip(&sim.y[first..])
+        .map(|(a, b)| a - b)
+        .collect();
+    Ok((report.fit_sim, model.mode_count(), errors))
 }
 
 /// Every trial scored, in order (in parallel; each run has the same seed,
@@ -353,7 +376,7 @@ fn score_all(
     trials: &[Trial<'_>],
     parts: &[Part],
     ctx: &RunContext<'_>,
-) -> Vec<ScoredCandidate> {
+) -> (Vec<ScoredCandidate>, Vec<Vec<f64>>) {
     ctx.progress.start(trials.len() as u64, "selecting");
     let scored = trials
         .par_iter()
@@ -362,7 +385,7 @@ fn score_all(
             ctx.progress.advance(1);
             s
         })
-        .collect();
+        .unzip();
     ctx.progress.finish();
     scored
 }
@@ -379,7 +402,26 @@ fn ranking(scored: &[ScoredCandidate]) -> Vec<usize> {
     order
 }
 
-/// The best candidate whose refit on all the identification rows succeeds
+/// The order in which candidates are chosen: the simplest within one
+/// standard error of the best ([`parsimony`]) unless it scores below the
+/// affine reference (`floor`), then the rest by score.
+fn preference(scored: &[ScoredCandidate], errors: &[Vec<f64>], floor: Option<f64>) -> Vec<usize> {
+    let mut order = ranking(scored);
+    let modes: Vec<Option<usize>> = scored.iter().map(|c| c.modes).collect();
+    let above_floor = |i: usize| match (scored[i].fit_sim, floor) {
+        (Some(f), Some(g)) => f >= g,
+        _ => true,
+    };
+    if let Some(simplest) =
+        parsimony::simplest_within_one_se(&order, errors, &modes).filter(|&i| above_floor(i))
+    {
+        order.retain(|&i| i != simplest);
+        order.insert(0, simplest);
+    }
+    order
+}
+
+/// The first candidate of `order` whose refit on all the identification rows succeeds
 /// (a candidate fitted on the fit rows may still fail on all of them,
 /// e.g. a cluster dropped below its discard size), with its refinement
 /// choice and its model. A candidate whose refit fails gets that error in
@@ -389,9 +431,9 @@ fn choose(
     trials: &[Trial<'_>],
     parts: &[Part],
     scored: &mut [ScoredCandidate],
+    order: &[usize],
     ctx: &RunContext<'_>,
 ) -> Result<(usize, Option<RefinementChoice>, Model), SelectError> {
-    let order = ranking(scored);
     if order.is_empty() {
         return Err(SelectError::NoCandidate {
             first: scored
@@ -401,7 +443,7 @@ fn choose(
         });
     }
     let mut first_error = None;
-    for i in order {
+    for &i in order {
         let refinement = try_refinement(request, &trials[i], parts, &scored[i], ctx);
         match refit(request, &trials[i], refinement.as_ref(), ctx) {
             Ok(model) => return Ok((i, refinement, model)),
@@ -451,7 +493,7 @@ fn try_refinement(
         values: trial.values.clone(),
         setup,
     };
-    let fit_sim = score(request, &with, parts, ctx).fit_sim;
+    let fit_sim = score(request, &with, parts, ctx).0.fit_sim;
     let kept = matches!((fit_sim, unrefined.fit_sim), (Some(r), Some(u)) if r > u);
     Some(RefinementChoice { fit_sim, kept })
 }

@@ -246,6 +246,14 @@ fn report_selection(method: &str, s: &Selection) {
         },
         chosen.fit_sim.unwrap_or(f64::NAN),
     );
+    if s.chosen != s.best {
+        let best = &s.candidates[s.best];
+        eprintln!(
+            "hysid: --auto: the best selection FIT was {:.2} % with {} mode(s); the choice has fewer modes and is within one standard error of it",
+            best.fit_sim.unwrap_or(f64::NAN),
+            best.modes.unwrap_or(0)
+        );
+    }
     if chosen.method != method {
         eprintln!(
             "hysid: --auto: no {method} candidate simulated the selection rows better than the affine {} model; that model is written",

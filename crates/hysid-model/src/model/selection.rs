@@ -19,8 +19,12 @@ pub struct Selection {
     pub warmup: usize,
     /// Every candidate, in the order tried.
     pub candidates: Vec<ScoredCandidate>,
-    /// Index of the chosen candidate in `candidates`.
+    /// Index of the chosen candidate in `candidates`: the one with the
+    /// fewest modes among those within one standard error of the best
+    /// (the one-standard-error rule), or the next when its refit failed.
     pub chosen: usize,
+    /// Index of the candidate of highest selection FIT.
+    pub best: usize,
     /// Whether the simulation-error refinement was tried on the chosen
     /// candidate, and whether it was kept.
     #[serde(default, skip_serializing_if = "Option::is_none")]
