@@ -431,6 +431,12 @@ fn bad_selections_and_orders() {
         &["--rows 200..300", "200 rows"],
         &out,
     );
+    // A range that ends past the record is refused, not cut short.
+    bad(
+        &identify(data, o, &["--rows", "0..500"]),
+        &["--rows 0..500 ends beyond the 200 rows"],
+        &out,
+    );
     // Decimation leaving one sample.
     bad(
         &identify(data, o, &["--decimate", "1000"]),

@@ -717,3 +717,22 @@ fn auto_selection_rows_are_checked() {
         &out,
     );
 }
+
+#[test]
+fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let rows = ["--identify-rows", "0..300", "--select-rows", "300.."];
+    let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", "bogus=1,2"];
+    args.extend(rows);
+    let err = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(
+        err.contains("--grid bogus: not an option of 'arx' (options: ridge"),
+        "{err}"
+    );
+    // cluster without a mode count fails at every point: exit code 1.
+    let mut args = vec!["sweep", s(&data), "-m", "cluster", "--grid", "c=20,40"];
+    args.extend(rows);
+    let err = one_line_error(&hysid(&args), 1).unwrap();
+    assert!(err.contains("every point of the sweep failed"), "{err}");
+}

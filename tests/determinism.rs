@@ -136,8 +136,24 @@ fn identify_is_byte_identical_across_runs_and_thread_counts() {
     // The iterative back-ends (K-means restarts and region estimation in
     // parallel; greedy extraction and QPs; swarm, Levenberg-Marquardt and
     // Nelder-Mead) as well as arx.
-    let cases: [(&str, &[&str]); 4] = [
+    let cases: [(&str, &[&str]); 5] = [
         ("arx", &["--na", "2", "--nb", "2", "--standardize"]),
+        // Automatic selection: candidates scored in parallel, then the
+        // refinement and the refit.
+        (
+            "cluster",
+            &[
+                "--na",
+                "1",
+                "--nb",
+                "1",
+                "--auto",
+                "--grid",
+                "c=20,40",
+                "--grid",
+                "modes=1,2",
+            ],
+        ),
         ("cluster", &["--na", "1", "--nb", "1", "--modes", "2"]),
         (
             "bounded",
@@ -173,7 +189,7 @@ fn identify_is_byte_identical_across_runs_and_thread_counts() {
     for (method, extra) in cases {
         let mut files = Vec::new();
         for (i, threads) in ["1", "2", "2"].into_iter().enumerate() {
-            let out = d.join(format!("{method}-{i}.json"));
+            let out = d.join(format!("{method}-{}-{i}.json", extra.len()));
             let mut args = vec!["identify", s(&data), "-m", method, "--seed", "8"];
             args.extend_from_slice(extra);
             args.extend_from_slice(&["-o", s(&out)]);

@@ -147,6 +147,15 @@ fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
     };
     let ds = Dataset::new(inputs, output, ts)?;
     let n = ds.len();
+    if sel.rows.end.is_some_and(|end| end > n) {
+        return Err(DataError::Selection(format!(
+            "{}: --rows {} ends beyond the {} rows left after decimation by {}",
+            table.path.display(),
+            sel.rows,
+            n,
+            sel.decimate
+        )));
+    }
     let (a, b) = sel.rows.resolve(n).map_err(|_| {
         DataError::Selection(format!(
             "{}: --rows {} selects no sample of the {} rows left after decimation by {}",

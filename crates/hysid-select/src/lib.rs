@@ -7,7 +7,9 @@
 //! back-end's [`SearchSpace`] is fitted on the fit rows and scored by the
 //! FIT of its free-run simulation on the selection rows; the affine ARX
 //! model of the same orders and priors is always a candidate, so the
-//! choice is never worse than linear on the selection rows. When the
+//! choice is never worse than linear on the selection rows. Of the
+//! candidates within one standard error of the best, the one with the
+//! fewest modes is chosen ([`parsimony`]). When the
 //! back-end offers the simulation-error refinement (`refine`), it is tried
 //! on the chosen candidate and kept only if it raises the selection-row
 //! FIT. The choice is then fitted again on all the identification rows,
@@ -15,9 +17,9 @@
 //! ([`Selection`]).
 //!
 //! Choosing by simulation rather than one-step prediction is the point:
-//! the founding experiment (Juloski, Heemels, Ferrari-Trecate 2003,
-//! section 4) shows one-step prediction errors that hardly tell good
-//! partitions from bad ones, while the simulated outputs differ widely.
+//! the founding experiment judges its models by their simulated responses
+//! (Juloski, Heemels, Ferrari-Trecate 2003, section 4), and one-step
+//! prediction hardly tells good partitions from bad ones.
 
 pub mod parsimony;
 
@@ -99,19 +101,6 @@ pub enum SelectError {
     /// The back-end refused the problem or the final fit failed.
     #[error(transparent)]
     Identify(#[from] IdentifyError),
-}
-
-impl SelectError {
-    /// True when the cause is the user's input.
-    pub fn is_bad_input(&self) -> bool {
-        match self {
-            SelectError::Rows { .. } | SelectError::Folds { .. } | SelectError::Candidate(_) => {
-                true
-            }
-            SelectError::NoCandidate { .. } => false,
-            SelectError::Identify(e) => e.is_bad_input(),
-        }
-    }
 }
 
 /// Fit rows and selection rows, as half-open ranges of the identification

@@ -58,7 +58,7 @@ pub struct Args {
     /// Choose the back-end's options on selection rows inside the
     /// identification rows (free-run simulation FIT), then fit the choice on
     /// all of them; see docs/selection.md.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "standardize")]
     pub auto: bool,
     /// With --auto: the selection rows A..B, in the rows of the file (after
     /// decimation); they must start or end the identification rows. Default:
@@ -133,15 +133,16 @@ pub fn run(args: Args) -> Result<()> {
     };
     let started = Instant::now();
     let model = if args.auto {
-        if args.standardize {
-            return Err(CliError::input(
-                "--auto cannot be combined with --standardize",
-            ));
-        }
         let space = if args.grid.is_empty() {
             backend.search_space(&problem)?.without_given(&settings)
         } else {
             SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?
+        };
+        let plan = Plan {
+            select: select_within(args.select_rows, first_row)?,
+            folds: args.folds,
+            warmup: args.warmup,
+            first_row,
         };
         let request = Request {
             backend,
@@ -154,12 +155,7 @@ pub fn run(args: Args) -> Result<()> {
             },
             priors_origin: problem.priors_origin,
             space,
-            plan: Plan {
-                select: select_within(args.select_rows, first_row)?,
-                folds: args.folds,
-                warmup: args.warmup,
-                first_row,
-            },
+            plan,
         };
         hysid_select::select(&request, &ctx)?
     } else if args.standardize {

@@ -106,6 +106,29 @@ fn key_values(items: &[String], flag: &str) -> Result<BTreeMap<String, Vec<toml:
     Ok(out)
 }
 
+/// Refuses, before anything runs, a grid key that is neither an option of
+/// `method` nor `modes`, `na` or `nb` (an unknown method is left to the
+/// experiment's own check, which names the known ones).
+fn check_grid_keys<'k>(method: &str, keys: impl Iterator<Item = &'k String>) -> Result<()> {
+    let registry = hysid_backends::registry();
+    let Some(backend) = registry.get(method) else {
+        return Ok(());
+    };
+    let options = backend.options();
+    for key in keys {
+        let known =
+            ["modes", "na", "nb"].contains(&key.as_str()) || options.iter().any(|o| o.key == key);
+        if !known {
+            let names: Vec<&str> = options.iter().map(|o| o.key).collect();
+            return Err(CliError::input(format!(
+                "--grid {key}: not an option of '{method}' (options: {}; or modes, na, nb)",
+                names.join(", ")
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let mut priors = match &args.prior {
@@ -120,6 +143,7 @@ pub fn run(args: Args) -> Result<()> {
         .map(|(k, mut v)| (k, v.remove(0)))
         .collect();
     let grid = key_values(&args.grid, "--grid")?;
+    check_grid_keys(&args.method, grid.keys())?;
     let exp = Experiment {
         title: format!("{} sweep on {}", args.method, args.data.display()),
         description: String::new(),
@@ -175,6 +199,17 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     print!("{}", hysid_compare::report::markdown(&comparison));
+    if let Some(first) = comparison
+        .results
+        .iter()
+        .map(|r| r.error.as_deref())
+        .collect::<Option<Vec<&str>>>()
+        .and_then(|errors| errors.first().copied())
+    {
+        return Err(CliError::failure(format!(
+            "every point of the sweep failed (the first: {first})"
+        )));
+    }
     if let Some(best) = comparison
         .results
         .iter()
