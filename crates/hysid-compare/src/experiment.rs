@@ -196,6 +196,30 @@ pub struct Experiment {
     /// Sweeps.
     #[serde(default, rename = "sweep")]
     pub sweeps: Vec<SweepSpec>,
+    /// What the scored rows (`[data] validation`) are to the reader:
+    /// test rows of an experiment, or the selection rows of `hysid sweep`.
+    #[serde(skip)]
+    pub scored_rows: ScoredRows,
+}
+
+/// The role of the rows every run is scored on, as the report names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ScoredRows {
+    /// Validation (test) rows, scored once.
+    #[default]
+    Validation,
+    /// Selection rows: the sweep's best point is chosen on them.
+    Selection,
+}
+
+impl ScoredRows {
+    /// The word for the rows, lower case.
+    pub fn word(self) -> &'static str {
+        match self {
+            ScoredRows::Validation => "validation",
+            ScoredRows::Selection => "selection",
+        }
+    }
 }
 
 fn two() -> usize {

@@ -10,7 +10,7 @@ pub mod experiment;
 pub mod report;
 pub mod truth;
 
-pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, SweepSpec};
+pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, ScoredRows, SweepSpec};
 pub use report::write_report;
 
 use hysid_core::backend::{Backend, Problem, Progress, Registry, RunContext};
@@ -117,6 +117,9 @@ pub struct Comparison {
     pub data: String,
     /// Validation warm-up.
     pub warmup: usize,
+    /// What the scored rows are (validation or selection rows).
+    #[serde(skip)]
+    pub scored_rows: ScoredRows,
     /// Runs in file order (runs, then sweep points).
     pub results: Vec<RunResult>,
     /// Validation record (for plots).
@@ -296,12 +299,14 @@ impl Experiment {
             title: self.title.clone(),
             description: self.description.clone(),
             data: format!(
-                "{} (decimate {}, identification rows {}, validation rows {})",
+                "{} (decimate {}, identification rows {}, {} rows {})",
                 self.data.file.display(),
                 self.data.decimate,
                 self.data.identification,
+                self.scored_rows.word(),
                 self.data.validation
             ),
+            scored_rows: self.scored_rows,
             warmup: self.data.warmup,
             results,
             validation: Some(valid),

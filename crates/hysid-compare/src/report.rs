@@ -398,7 +398,10 @@ fn sweep_figure(c: &Comparison, name: &str, points: &[&RunResult]) -> Option<Swe
         modes[idx].y.push(r.modes.map_or(f64::NAN, |m| m as f64));
     }
     Some(SweepFigure {
-        title: format!("{name}: validation simulation FIT and modes against {x_key}"),
+        title: format!(
+            "{name}: {} simulation FIT and modes against {x_key}",
+            c.scored_rows.word()
+        ),
         x_label: format!("{x_key} [{}]", sweep_key_unit(&c.output_label, &x_key)),
         panels: vec![
             SweepPanel {
@@ -425,8 +428,10 @@ pub fn markdown(c: &Comparison) -> String {
     }
     let _ = writeln!(
         s,
-        "Data: {}. Validation scores leave out the first {} samples.\n",
-        c.data, c.warmup
+        "Data: {}. {} scores leave out the first {} samples.\n",
+        c.data,
+        capitalised(c.scored_rows.word()),
+        c.warmup
     );
     let _ = writeln!(
         s,
@@ -547,6 +552,15 @@ pub fn markdown(c: &Comparison) -> String {
 
 /// What the back-end said about its run (cut short, warnings), as
 /// `hysid identify` prints it.
+/// `word` with its first letter in upper case.
+fn capitalised(word: &str) -> String {
+    let mut chars = word.chars();
+    chars
+        .next()
+        .map(|f| f.to_uppercase().chain(chars).collect())
+        .unwrap_or_default()
+}
+
 /// What automatic selection chose, with its selection-row FIT.
 fn selection_note(m: &Model) -> Option<String> {
     let s = m.info().selection.as_ref()?;

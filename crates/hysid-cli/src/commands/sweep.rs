@@ -8,7 +8,7 @@
 use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
-use hysid_compare::{DataSpec, Experiment, RunSpec, SweepSpec};
+use hysid_compare::{DataSpec, Experiment, RunSpec, ScoredRows, SweepSpec};
 use hysid_core::priors::Priors;
 use hysid_model::data::RowRange;
 use std::collections::BTreeMap;
@@ -166,6 +166,7 @@ pub fn run(args: Args) -> Result<()> {
         seed: args.seed,
         priors,
         runs: vec![],
+        scored_rows: ScoredRows::Selection,
         sweeps: vec![SweepSpec {
             run: RunSpec {
                 name: args.method.clone(),
