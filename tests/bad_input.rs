@@ -437,6 +437,27 @@ fn bad_selections_and_orders() {
         &["--rows 0..500 ends beyond the 200 rows"],
         &out,
     );
+    // Counts that are not counts say what a valid value is.
+    bad(
+        &identify(data, o, &["--decimate", "0"]),
+        &["--decimate", "'0' is not a whole number of at least 1"],
+        &out,
+    );
+    bad(
+        &identify(data, o, &["--warmup", "-5"]),
+        &["--warmup", "'-5' is not a whole number of samples"],
+        &out,
+    );
+    // Output paths: a missing folder and a folder are named as such.
+    let missing = d.join("nodir").join("m.json");
+    bad(
+        &identify(data, s(&missing), &[]),
+        &["nodir does not exist"],
+        &missing,
+    );
+    let err = one_line_error(&hysid(&identify(data, s(d), &[])), 2).unwrap();
+    assert!(err.contains("it is a folder; give a file name"), "{err}");
+    assert!(!err.contains(".hysid-"), "{err}");
     // Decimation leaving one sample.
     bad(
         &identify(data, o, &["--decimate", "1000"]),

@@ -53,15 +53,10 @@ impl From<DataError> for CliError {
 }
 
 impl From<ModelError> for CliError {
+    /// A model file that cannot be read or written, or that is malformed,
+    /// is the user's input.
     fn from(e: ModelError) -> Self {
-        match e {
-            ModelError::Io { .. } if e.to_string().contains("No such file") => {
-                Self::input(e.to_string())
-            }
-            ModelError::Format { .. } | ModelError::Invalid(_) | ModelError::Io { .. } => {
-                Self::input(e.to_string())
-            }
-        }
+        Self::input(e.to_string())
     }
 }
 

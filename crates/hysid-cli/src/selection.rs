@@ -14,8 +14,8 @@ pub struct DataArgs {
     #[arg(long, default_value = "y")]
     pub output: String,
     /// Keep every K-th sample (0, K, 2K, ...; no filter).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
-    pub decimate: u64,
+    #[arg(long, default_value_t = 1, value_parser = parse_decimate)]
+    pub decimate: usize,
     /// Rows A..B (A inclusive, B exclusive) after decimation; either bound may be left out.
     #[arg(long, value_parser = parse_rows)]
     pub rows: Option<RowRange>,
@@ -26,6 +26,19 @@ pub struct DataArgs {
 
 fn parse_rows(s: &str) -> Result<RowRange, String> {
     s.parse()
+}
+
+fn parse_decimate(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(k) if k >= 1 => Ok(k),
+        _ => Err(format!("'{s}' is not a whole number of at least 1")),
+    }
+}
+
+/// A count of samples (`--warmup`): a whole number, 0 or more.
+pub fn parse_count(s: &str) -> Result<usize, String> {
+    s.parse::<usize>()
+        .map_err(|_| format!("'{s}' is not a whole number of samples (0 or more)"))
 }
 
 fn parse_ts(s: &str) -> Result<f64, String> {
@@ -56,7 +69,7 @@ impl DataArgs {
         Ok(DataSelection {
             inputs: self.input.clone(),
             output: self.output.clone(),
-            decimate: self.decimate as usize,
+            decimate: self.decimate,
             rows: self.rows.unwrap_or_default(),
             ts: self.ts,
         })

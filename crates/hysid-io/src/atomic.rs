@@ -5,12 +5,26 @@
 use std::io::Write;
 use std::path::Path;
 
-/// Writes `bytes` to `path` atomically.
+/// Writes `bytes` to `path` atomically. A missing folder and a `path`
+/// that is a folder are errors that say so (not an error about the
+/// temporary file).
 pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
+    if !dir.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            format!("the folder {} does not exist", dir.display()),
+        ));
+    }
+    if path.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "it is a folder; give a file name",
+        ));
+    }
     let mut tmp = tempfile::Builder::new()
         .prefix(".hysid-")
         .suffix(".tmp")
@@ -46,6 +60,9 @@ mod tests {
                 0o644
             );
         }
-        assert!(super::write(&dir.path().join("no/such/dir/m.json"), b"x").is_err());
+        let e = super::write(&dir.path().join("no/such/dir/m.json"), b"x").unwrap_err();
+        assert!(e.to_string().contains("no/such/dir does not exist"), "{e}");
+        let e = super::write(dir.path(), b"x").unwrap_err();
+        assert_eq!(e.to_string(), "it is a folder; give a file name");
     }
 }

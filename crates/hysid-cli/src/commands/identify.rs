@@ -75,7 +75,7 @@ pub struct Args {
     pub grid: Vec<String>,
     /// Samples at the start of the scored rows left out of a free-run score
     /// (the selection rows, and the comparison with the affine model).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
     pub warmup: usize,
     #[command(flatten)]
     pub select: DataArgs,

@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(long = "select-rows", alias = "validate-rows", value_parser = parse_rows)]
     pub select_rows: RowRange,
     /// Scored samples left out at the start.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
     pub warmup: usize,
     /// Output lags.
     #[arg(long, default_value_t = 2)]

@@ -19,7 +19,7 @@ pub struct Args {
     /// Data file (.csv or .mat).
     pub data: PathBuf,
     /// Samples at the start that are not scored.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
     pub warmup: usize,
     /// Print one JSON object on stdout.
     #[arg(long)]
