@@ -17,10 +17,9 @@ use hysid_core::backend::{Backend, Problem, Progress, Registry, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::search::Setup;
 use hysid_core::simulate::{ValidationReport, validate};
 use hysid_io::load;
-use hysid_model::data::{Dataset, RowRange};
+use hysid_model::data::Dataset;
 use hysid_model::regressors::RegressorSpec;
 use hysid_model::simulate::Simulation;
 use hysid_select::{Plan, Request};
@@ -346,32 +345,19 @@ fn identify(
             .run(&problem, &job.settings, &ctx)
             .map_err(|e| e.to_string());
     }
-    let first_row = spec.identification.start.unwrap_or(0);
-    let shift = |v: Option<usize>| v.map(|v| v.saturating_sub(first_row));
-    let request = Request {
-        backend,
-        affine: hysid_backends::affine_reference(registry, backend.name()),
-        data: ident,
-        setup: Setup {
-            orders: problem.orders,
-            priors: job.priors.clone(),
-            settings: job.settings.clone(),
-        },
-        priors_origin: problem.priors_origin,
-        space: backend
-            .search_space(&problem)
-            .map_err(|e| e.to_string())?
-            .without_given(&job.settings),
-        plan: Plan {
-            select: spec.selection.map(|r| RowRange {
-                start: shift(r.start),
-                end: shift(r.end),
-            }),
-            folds: None,
-            warmup: spec.warmup,
-            first_row,
-        },
+    let space = backend
+        .search_space(&problem)
+        .map_err(|e| e.to_string())?
+        .without_given(&job.settings);
+    let plan = Plan {
+        select: spec.selection,
+        folds: None,
+        warmup: spec.warmup,
+        first_row: spec.identification.start.unwrap_or(0),
     };
+    let affine = hysid_backends::affine_reference(registry, backend.name());
+    let request =
+        Request::from_problem(backend, affine, &problem, job.settings.clone(), space, plan);
     hysid_select::select(&request, &ctx).map_err(|e| format!("auto: {e}"))
 }
 

@@ -25,6 +25,7 @@ pub mod parsimony;
 
 use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContext};
 use hysid_core::model::Model;
+use hysid_core::options::Settings;
 use hysid_core::search::{Candidate, CandidateError, SearchSpace, Setup};
 use hysid_core::simulate::validate;
 use hysid_model::data::{DataError, Dataset, RowRange};
@@ -34,8 +35,9 @@ use rayon::prelude::*;
 /// Which identification rows score the candidates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Plan {
-    /// Selection rows within the identification record; `None`: the last
-    /// [`DEFAULT_SELECTION_PERCENT`] % of it.
+    /// Selection rows, in rows of the file (as `first_row` counts them);
+    /// `None`: the last [`DEFAULT_SELECTION_PERCENT`] % of the
+    /// identification record.
     pub select: Option<RowRange>,
     /// Instead of one split, `K` contiguous blocks scored on a rolling
     /// origin: block `j` (from the second) is scored by the model fitted on
@@ -43,8 +45,9 @@ pub struct Plan {
     pub folds: Option<usize>,
     /// Samples at the start of the selection rows left out of the score.
     pub warmup: usize,
-    /// Row of the file where the identification record starts: rows in the
-    /// record of the selection are written as rows of the file.
+    /// Row of the file where the identification record starts: `select`
+    /// is read, and the rows of the record are written, as rows of the
+    /// file.
     pub first_row: usize,
 }
 
@@ -68,6 +71,33 @@ pub struct Request<'a> {
     pub space: SearchSpace,
     /// The fit/selection split.
     pub plan: Plan,
+}
+
+impl<'a> Request<'a> {
+    /// A request to choose `backend`'s options on `problem` (its record,
+    /// orders, priors and their origin) with the user's `settings`.
+    pub fn from_problem(
+        backend: &'a dyn Backend,
+        affine: Option<&'a dyn Backend>,
+        problem: &Problem<'a>,
+        settings: Settings,
+        space: SearchSpace,
+        plan: Plan,
+    ) -> Self {
+        Request {
+            backend,
+            affine,
+            data: problem.data,
+            setup: Setup {
+                orders: problem.orders,
+                priors: problem.priors.clone(),
+                settings,
+            },
+            priors_origin: problem.priors_origin,
+            space,
+            plan,
+        }
+    }
 }
 
 /// Why a selection could not be made.
@@ -138,23 +168,38 @@ pub fn folds(n: usize, k: usize, warmup: usize) -> Result<Vec<Split>, SelectErro
 }
 
 /// The fit rows and the selection rows of an identification record of `n`
-/// rows, as half-open ranges. The selection rows must start or end the
-/// record, so that the fit rows are one contiguous record.
+/// rows, as half-open ranges of the record. `plan.select` counts rows of
+/// the file (the record starts at `plan.first_row`); the selection rows
+/// must start or end the record, so that the fit rows are one contiguous
+/// record.
 pub fn split(n: usize, plan: &Plan) -> Result<Split, SelectError> {
-    let rows = plan.select.unwrap_or(RowRange {
-        start: Some(n - n * DEFAULT_SELECTION_PERCENT / 100),
+    let first = plan.first_row;
+    let given = plan.select.unwrap_or(RowRange {
+        start: Some(first + n - n * DEFAULT_SELECTION_PERCENT / 100),
         end: None,
     });
     let bad = |reason: String| SelectError::Rows {
-        rows: rows.to_string(),
+        rows: given.to_string(),
         reason,
     };
-    let (a, b) = rows.resolve(n).map_err(|e: DataError| bad(e.to_string()))?;
+    let in_record = |v: Option<usize>| {
+        v.map(|v| {
+            v.checked_sub(first)
+                .ok_or_else(|| bad(format!("before the first identification row {first}")))
+        })
+        .transpose()
+    };
+    let rows = RowRange {
+        start: in_record(given.start)?,
+        end: in_record(given.end)?,
+    };
     if rows.end.is_some_and(|e| e > n) {
         return Err(bad(format!(
-            "end beyond the {n} identification rows (rows count within the identification rows)"
+            "end beyond the last identification row {}",
+            first + n - 1
         )));
     }
+    let (a, b) = rows.resolve(n).map_err(|e: DataError| bad(e.to_string()))?;
     let fit = match (a, b) {
         (0, b) if b < n => (b, n),
         (a, b) if b == n && a > 0 => (0, a),
@@ -589,6 +634,37 @@ mod tests {
                 "{bad}"
             );
         }
+    }
+
+    #[test]
+    fn selection_rows_count_rows_of_the_file() {
+        let in_file = |rows: &str| Plan {
+            first_row: 1000,
+            ..plan(rows)
+        };
+        assert_eq!(
+            split(100, &in_file("1070..")).unwrap(),
+            ((0, 70), (70, 100))
+        );
+        assert_eq!(
+            split(100, &in_file("1000..1030")).unwrap(),
+            ((30, 100), (0, 30))
+        );
+        let e = split(100, &in_file("990..1030")).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "selection rows 990..1030: before the first identification row 1000"
+        );
+        let e = split(100, &in_file("1070..1120")).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "selection rows 1070..1120: end beyond the last identification row 1099"
+        );
+        let default = Plan {
+            first_row: 1000,
+            ..Plan::default()
+        };
+        assert_eq!(split(100, &default).unwrap(), ((0, 80), (80, 100)));
     }
 
     #[test]

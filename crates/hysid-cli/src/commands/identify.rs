@@ -8,7 +8,7 @@ use hysid_core::backend::{Problem, Registry, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::search::{SearchSpace, Setup};
+use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::RowRange;
 use hysid_model::model::Selection;
@@ -139,24 +139,13 @@ pub fn run(args: Args) -> Result<()> {
             SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?
         };
         let plan = Plan {
-            select: select_within(args.select_rows, first_row)?,
+            select: args.select_rows,
             folds: args.folds,
             warmup: args.warmup,
             first_row,
         };
-        let request = Request {
-            backend,
-            affine: hysid_backends::affine_reference(&registry, backend.name()),
-            data: &data,
-            setup: Setup {
-                orders: problem.orders,
-                priors: priors.clone(),
-                settings,
-            },
-            priors_origin: problem.priors_origin,
-            space,
-            plan,
-        };
+        let affine = hysid_backends::affine_reference(&registry, backend.name());
+        let request = Request::from_problem(backend, affine, &problem, settings, space, plan);
         hysid_select::select(&request, &ctx)?
     } else if args.standardize {
         run_standardized(backend, &problem, &settings, &ctx)?
@@ -185,26 +174,6 @@ pub fn run(args: Args) -> Result<()> {
         None => warn_if_below_affine(&registry, backend.name(), &model, &problem, args.warmup),
     }
     Ok(())
-}
-
-/// `--select-rows` (rows of the file) as rows of the identification record
-/// that starts at `--rows`' first row.
-fn select_within(select: Option<RowRange>, first: usize) -> Result<Option<RowRange>> {
-    let Some(s) = select else { return Ok(None) };
-    let shift = |v: Option<usize>| -> Result<Option<usize>> {
-        v.map(|v| {
-            v.checked_sub(first).ok_or_else(|| {
-                CliError::input(format!(
-                    "--select-rows {s}: before the first identification row {first}"
-                ))
-            })
-        })
-        .transpose()
-    };
-    Ok(Some(RowRange {
-        start: shift(s.start)?,
-        end: shift(s.end)?,
-    }))
 }
 
 /// One line on what `--auto` chose, and whether the affine model won.
