@@ -5,6 +5,7 @@
 //! message on stderr), 1 anything else. A command never leaves a partial
 //! output file behind: every file is written atomically.
 
+mod affine;
 mod commands;
 mod error;
 mod progress;

@@ -4,8 +4,7 @@ use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
-use hysid_core::backend::{Problem, Registry, RunContext};
-use hysid_core::model::Model;
+use hysid_core::backend::{Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
@@ -13,7 +12,7 @@ use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::RowRange;
 use hysid_model::model::Selection;
 use hysid_model::regressors::RegressorSpec;
-use hysid_select::{Plan, Request, against_affine};
+use hysid_select::{Plan, Request};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -171,7 +170,14 @@ pub fn run(args: Args) -> Result<()> {
     }
     match &model.info().selection {
         Some(selection) => report_selection(backend.name(), selection),
-        None => warn_if_below_affine(&registry, backend.name(), &model, &problem, args.warmup),
+        None => crate::affine::warn_if_below(
+            &model,
+            &data,
+            &priors,
+            args.warmup,
+            "its identification rows",
+            "; try --auto",
+        ),
     }
     Ok(())
 }
@@ -223,30 +229,6 @@ fn report_selection(method: &str, s: &Selection) {
         eprintln!(
             "hysid: --auto: no {method} candidate simulated the selection rows better than the affine {} model; that model is written",
             chosen.method
-        );
-    }
-}
-
-/// Without `--auto`: one line when the model simulates the rows it was
-/// identified on worse than an affine ARX model of the same orders fitted
-/// on the same rows.
-fn warn_if_below_affine(
-    registry: &Registry,
-    method: &str,
-    model: &Model,
-    problem: &Problem<'_>,
-    warmup: usize,
-) {
-    let Some(affine) = hysid_backends::affine_reference(registry, method) else {
-        return;
-    };
-    let Some(orders) = model.orders() else { return };
-    if let Some(c) = against_affine(model, affine, problem.data, orders, problem.priors, warmup)
-        && c.below()
-    {
-        eprintln!(
-            "hysid: warning: the model's free-run FIT on its identification rows ({:.2} %) is below that of an affine ARX model of the same orders ({:.2} %); try --auto",
-            c.model, c.affine
         );
     }
 }

@@ -6,8 +6,6 @@ use crate::selection::DataArgs;
 use hysid_core::model::Model;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
-use hysid_model::data::Dataset;
-use hysid_select::against_affine;
 use std::path::PathBuf;
 
 /// Arguments of `hysid validate`.
@@ -47,7 +45,14 @@ pub fn run(args: Args) -> Result<()> {
             "hysid: warning: the simulation diverged at sample {k}; the output is held from there on"
         );
     }
-    warn_if_below_affine(&model, &data, args.warmup);
+    crate::affine::warn_if_below(
+        &model,
+        &data,
+        &Priors::default(),
+        args.warmup,
+        "these rows",
+        "",
+    );
     if args.json {
         println!("{}", serde_json::to_string(&report).expect("json"));
     } else {
@@ -76,25 +81,4 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
-}
-
-/// One line when the model simulates the record worse than an affine ARX
-/// model of the same orders fitted on the same rows (models with ARX
-/// orders only).
-fn warn_if_below_affine(model: &Model, data: &Dataset, warmup: usize) {
-    let registry = hysid_backends::registry();
-    let (Some(orders), Some(affine)) = (
-        model.orders(),
-        hysid_backends::affine_reference(&registry, &model.info().method),
-    ) else {
-        return;
-    };
-    if let Some(c) = against_affine(model, affine, data, orders, &Priors::default(), warmup)
-        && c.below()
-    {
-        eprintln!(
-            "hysid: warning: the model's free-run FIT on these rows ({:.2} %) is below that of an affine ARX model of the same orders fitted on them ({:.2} %)",
-            c.model, c.affine
-        );
-    }
 }
