@@ -36,13 +36,6 @@ pub struct Candidate {
 }
 
 impl SearchSpace {
-    /// A space of the given axes; an axis without values is left out.
-    pub fn new(axes: impl IntoIterator<Item = Axis>) -> Self {
-        Self {
-            axes: axes.into_iter().filter(|a| !a.values.is_empty()).collect(),
-        }
-    }
-
     /// Adds an axis (builder style); an axis without values is left out.
     pub fn with(mut self, key: &str, values: impl IntoIterator<Item = impl ToString>) -> Self {
         let values: Vec<String> = values.into_iter().map(|v| v.to_string()).collect();
@@ -94,13 +87,8 @@ impl SearchSpace {
     }
 
     /// Number of grid points (1 for an empty space: the defaults).
-    pub fn len(&self) -> usize {
+    pub fn count(&self) -> usize {
         self.axes.iter().map(|a| a.values.len()).product()
-    }
-
-    /// Never empty: an empty space has one point, the defaults.
-    pub fn is_empty(&self) -> bool {
-        false
     }
 
     /// The grid points, the last axis varying fastest.
@@ -182,7 +170,7 @@ mod tests {
             .with("modes", [1, 2, 3]);
         let c = s.candidates();
         assert_eq!(c.len(), 6);
-        assert_eq!(s.len(), 6);
+        assert_eq!(s.count(), 6);
         assert_eq!(
             c[4].values,
             vec![("c".into(), "40".into()), ("modes".into(), "2".into())]

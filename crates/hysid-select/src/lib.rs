@@ -298,7 +298,7 @@ fn cut(data: &Dataset, rows: &[Split]) -> Result<Vec<Part>, SelectError> {
 /// The back-end's candidates, then the affine reference of the same orders
 /// and priors (without a mode count: it has one mode).
 fn trials<'a>(request: &Request<'a>) -> Result<Vec<Trial<'a>>, SelectError> {
-    let mut out = Vec::with_capacity(request.space.len() + 1);
+    let mut out = Vec::with_capacity(request.space.count() + 1);
     for c in request.space.candidates() {
         out.push(Trial {
             backend: request.backend,
