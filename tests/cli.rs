@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{hysid, ok, one_line_error, s};
+use common::{hysid, ok, one_line_error, s, two_mode_record};
 use std::path::{Path, PathBuf};
 
 /// Exit code 2, a one-line message containing every `needle`, and no file at `out`.
@@ -580,33 +580,6 @@ fn a_time_budget_too_long_to_represent_is_no_deadline() {
     }
     // No deadline was hit: every run is the same full run.
     assert!(models.windows(2).all(|w| w[0] == w[1]));
-}
-
-/// A noisy record of a two-mode PWARX model (modes split by the sign of
-/// y(k-1)), written by `hysid simulate`.
-fn two_mode_record(dir: &Path, n: usize) -> PathBuf {
-    let model = dir.join("two.json");
-    std::fs::write(
-        &model,
-        r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[
-            {"theta":[0.5,1.0,0.2],"region":{"a":[[1.0,0.0]],"b":[0.0]}},
-            {"theta":[-0.4,0.8,-0.1],"region":{"a":[[-1.0,0.0]],"b":[0.0]}}]}"#,
-    )
-    .unwrap();
-    let data = dir.join("two.csv");
-    ok(&[
-        "simulate",
-        s(&model),
-        "--excite",
-        &format!("n={n},hold=2,low=-1,high=1,ts=0.01"),
-        "--noise",
-        "0.01",
-        "--seed",
-        "3",
-        "-o",
-        s(&data),
-    ]);
-    data
 }
 
 /// The first `rows` data rows of a CSV file (header kept).

@@ -3,9 +3,9 @@
 
 mod common;
 
-use common::{ok_env, s};
+use common::{ok_env, s, two_mode_record};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Runs `hysid` (asserting success) with `RAYON_NUM_THREADS` set when asked.
 fn hysid(args: &[&str], threads: Option<&str>) -> String {
@@ -13,36 +13,6 @@ fn hysid(args: &[&str], threads: Option<&str>) -> String {
         Some(t) => ok_env(args, &[("RAYON_NUM_THREADS", t)]),
         None => ok_env(args, &[]),
     }
-}
-
-/// A two-mode PWARX record (switching on the sign of y(k-1)), written by
-/// `hysid simulate` with measurement noise.
-fn record(dir: &Path) -> PathBuf {
-    let truth = dir.join("truth.json");
-    std::fs::write(
-        &truth,
-        r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[
-            {"theta":[0.5,1.0,0.3],"region":{"a":[[1.0,0.0]],"b":[0.0]}},
-            {"theta":[-0.4,0.8,-0.2],"region":{"a":[[-1.0,0.0]],"b":[0.0]}}]}"#,
-    )
-    .unwrap();
-    let data = dir.join("data.csv");
-    hysid(
-        &[
-            "simulate",
-            s(&truth),
-            "--excite",
-            "n=300,hold=3,low=-1,high=1,ts=0.01",
-            "--noise",
-            "0.01",
-            "--seed",
-            "11",
-            "-o",
-            s(&data),
-        ],
-        None,
-    );
-    data
 }
 
 /// Every file under `dir/models`, by name.
@@ -63,7 +33,7 @@ fn models(dir: &Path) -> BTreeMap<String, Vec<u8>> {
 fn compare_writes_the_same_models_with_one_or_two_threads() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    record(d);
+    two_mode_record(d, 300);
     // Every registered back-end, with its default options; multi-mode
     // back-ends are asked for the two modes of the record. Runs that fail
     // write no model and are compared as absent.
@@ -132,7 +102,7 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
 fn identify_is_byte_identical_across_runs_and_thread_counts() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let data = record(d);
+    let data = two_mode_record(d, 300);
     // The iterative back-ends (K-means restarts and region estimation in
     // parallel; greedy extraction and QPs; swarm, Levenberg-Marquardt and
     // Nelder-Mead) as well as arx.
@@ -205,7 +175,7 @@ fn identify_is_byte_identical_across_runs_and_thread_counts() {
 fn noisy_simulation_depends_only_on_the_seed() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let data = record(d);
+    let data = two_mode_record(d, 300);
     let model = d.join("truth.json");
     let sim = |name: &str, seed: &str, source: &[&str]| -> Vec<u8> {
         let out = d.join(name);
@@ -228,7 +198,7 @@ fn noisy_simulation_depends_only_on_the_seed() {
     let again = d.join("again");
     std::fs::create_dir(&again).unwrap();
     assert_eq!(
-        std::fs::read(record(&again)).unwrap(),
+        std::fs::read(two_mode_record(&again, 300)).unwrap(),
         std::fs::read(&data).unwrap()
     );
 }

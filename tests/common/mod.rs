@@ -89,3 +89,29 @@ pub fn report() {
         f.join("\n")
     );
 }
+
+/// A noisy record of `n` samples of a two-mode PWARX model (modes split by
+/// the sign of y(k-1)), written by `hysid simulate` into `dir/data.csv`.
+pub fn two_mode_record(dir: &Path, n: usize) -> PathBuf {
+    let truth = write(
+        dir,
+        "truth.json",
+        r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[
+            {"theta":[0.5,1.0,0.3],"region":{"a":[[1.0,0.0]],"b":[0.0]}},
+            {"theta":[-0.4,0.8,-0.2],"region":{"a":[[-1.0,0.0]],"b":[0.0]}}]}"#,
+    );
+    let data = dir.join("data.csv");
+    ok(&[
+        "simulate",
+        s(&truth),
+        "--excite",
+        &format!("n={n},hold=3,low=-1,high=1,ts=0.01"),
+        "--noise",
+        "0.01",
+        "--seed",
+        "11",
+        "-o",
+        s(&data),
+    ]);
+    data
+}
