@@ -9,7 +9,8 @@ const DATA: &str = concat!(
     "/../../models/pick-and-place/headdata_1v6.mat"
 );
 
-fn hysid(args: &[&str]) -> String {
+/// Runs `hysid` and asserts it succeeded.
+fn run(args: &[&str]) -> std::process::Output {
     let o = Command::new(env!("CARGO_BIN_EXE_hysid"))
         .args(args)
         .env("CI", "1")
@@ -20,7 +21,17 @@ fn hysid(args: &[&str]) -> String {
         "{args:?}: {}",
         String::from_utf8_lossy(&o.stderr)
     );
-    String::from_utf8(o.stdout).unwrap()
+    o
+}
+
+/// Standard output of a successful run.
+fn hysid(args: &[&str]) -> String {
+    String::from_utf8(run(args).stdout).unwrap()
+}
+
+/// Standard error of a successful run.
+fn hysid_stderr(args: &[&str]) -> String {
+    String::from_utf8_lossy(&run(args).stderr).into_owned()
 }
 
 /// Identifies with `method_args` (na = nb = 2) on rows 0..5000 of the
@@ -157,50 +168,43 @@ fn a_hybrid_model_below_the_affine_one_is_flagged() {
     // ARX(2,2) on its own identification rows (72.8 % against 75.0 %).
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("model.json");
-    let o = Command::new(env!("CARGO_BIN_EXE_hysid"))
-        .args([
-            "identify",
-            DATA,
-            "-m",
-            "cluster",
-            "--na",
-            "2",
-            "--nb",
-            "2",
-            "--modes",
-            "2",
-            "--set",
-            "c=10",
-            "--decimate",
-            "10",
-            "--rows",
-            "0..5000",
-            "-o",
-        ])
-        .arg(&model)
-        .output()
-        .unwrap();
-    assert!(o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    let m = model.to_str().unwrap();
+    let err = hysid_stderr(&[
+        "identify",
+        DATA,
+        "-m",
+        "cluster",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "--modes",
+        "2",
+        "--set",
+        "c=10",
+        "--decimate",
+        "10",
+        "--rows",
+        "0..5000",
+        "-o",
+        m,
+    ]);
     assert!(
         err.contains("is below that of an affine ARX model of the same orders"),
         "{err}"
     );
     // ARX itself is never compared with itself.
-    let o = Command::new(env!("CARGO_BIN_EXE_hysid"))
-        .args([
-            "identify",
-            DATA,
-            "-m",
-            "arx",
-            "--decimate",
-            "10",
-            "--rows",
-            "0..5000",
-            "-o",
-        ])
-        .arg(&model)
-        .output()
-        .unwrap();
-    assert!(!String::from_utf8_lossy(&o.stderr).contains("warning"));
+    let err = hysid_stderr(&[
+        "identify",
+        DATA,
+        "-m",
+        "arx",
+        "--decimate",
+        "10",
+        "--rows",
+        "0..5000",
+        "-o",
+        m,
+    ]);
+    assert!(!err.contains("warning"), "{err}");
 }
