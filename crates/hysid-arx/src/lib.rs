@@ -26,7 +26,7 @@ use hysid_estimation::linalg;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
 use hysid_estimation::refine;
 use hysid_model::geometry::Polyhedron;
-use hysid_model::model::{PwarxMode, RunStatus};
+use hysid_model::model::PwarxMode;
 use hysid_model::regressors::{RegressorSpec, Regressors};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -142,20 +142,10 @@ pub fn fit(
         rmse_fit: rmse(&reg, &theta),
         bounds_active: (!data.priors().bounds.is_empty()).then_some(bounds_active),
     };
-    Ok(PwarxFit {
-        modes: vec![PwarxMode {
-            theta,
-            region: Polyhedron::everything(),
-            name: None,
-        }],
-        regions_complete: true,
-        uncovered_fraction: None,
-        run_status: RunStatus::Completed,
-        status: Vec::new(),
-        scaling: None,
-        refinement: None,
+    Ok(PwarxFit::complete(
+        PwarxMode::unnamed([theta], [Polyhedron::everything()]),
         diagnostics,
-    })
+    ))
 }
 
 /// One ordinary mode: a `modes` prior must count exactly one besides the

@@ -279,6 +279,24 @@ pub struct PwarxFit<D> {
     pub diagnostics: D,
 }
 
+impl<D> PwarxFit<D> {
+    /// A finished fit whose regions cover the regressor space, with no
+    /// message and no refinement yet: what a back-end with a complete
+    /// partition by construction returns.
+    pub fn complete(modes: Vec<PwarxMode>, diagnostics: D) -> Self {
+        PwarxFit {
+            modes,
+            regions_complete: true,
+            uncovered_fraction: None,
+            run_status: RunStatus::Completed,
+            status: Vec::new(),
+            scaling: None,
+            refinement: None,
+            diagnostics,
+        }
+    }
+}
+
 /// The model of `fit` on `data`: a PWARX model, or with known stops the
 /// automaton with a mode on each stop's guard set; the common diagnostics
 /// filled in.

@@ -695,16 +695,7 @@ mod tests {
     }
 
     fn start_fit(thetas: Vec<Vec<f64>>) -> PwarxFit<()> {
-        PwarxFit {
-            modes: PwarxMode::unnamed(thetas, regions()),
-            regions_complete: true,
-            uncovered_fraction: None,
-            run_status: RunStatus::Completed,
-            status: Vec::new(),
-            scaling: None,
-            refinement: None,
-            diagnostics: (),
-        }
+        PwarxFit::complete(PwarxMode::unnamed(thetas, regions()), ())
     }
 
     fn sim_settings(segment: usize, iterations: usize) -> RefineSettings {

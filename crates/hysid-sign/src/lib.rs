@@ -15,7 +15,7 @@ use hysid_core::priors::PriorKind;
 use hysid_estimation::constrained::{ModeSamples, Parametrisation, fit_modes};
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
 use hysid_model::geometry::Polyhedron;
-use hysid_model::model::{PwarxMode, RunStatus};
+use hysid_model::model::PwarxMode;
 use nalgebra::DMatrix;
 use serde::Serialize;
 
@@ -83,18 +83,12 @@ pub fn fit(
     let split = split_by_sign(data, column, options.threshold);
     let thetas = least_squares(data, &split)?;
     let regions = half_spaces(data.spec.dim(), column, options.threshold);
-    Ok(PwarxFit {
-        modes: PwarxMode::unnamed(thetas, regions),
-        regions_complete: true,
-        uncovered_fraction: None,
-        run_status: RunStatus::Completed,
-        status: Vec::new(),
-        scaling: None,
-        refinement: None,
-        diagnostics: SignDiagnostics {
+    Ok(PwarxFit::complete(
+        PwarxMode::unnamed(thetas, regions),
+        SignDiagnostics {
             samples_per_mode: [split[0].len(), split[1].len()],
         },
-    })
+    ))
 }
 
 /// The column of `u1(k-1)` among the regressors `[y(k-1..k-na), u1(k-1..)]`;
