@@ -31,35 +31,12 @@ use hysid_model::regressors::{RegressorSpec, Regressors};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-hysid_core::backend_options! {
+hysid_estimation::pwarx_options! {
     /// Options of the `arx` back-end.
     pub struct ArxOptions {
         /// Tikhonov (ridge) weight lambda: minimises |y - Phi theta|^2 + lambda |theta|^2
         /// (the constant included). 0 is plain least squares.
         ridge: f64 = 0.0,
-        /// Refinement of the mode parameters after the fit, regions fixed: none, or sim
-        /// (Levenberg-Marquardt on the multiple-shooting simulation error under the priors,
-        /// docs/refinement.md).
-        #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
-        refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
-        /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
-        /// outputs before it; at least the record's length: output error (pure free run).
-        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_segment")]
-        refine_segment: usize = hysid_estimation::refine::DEFAULT_SEGMENT,
-        /// Bound on the Levenberg-Marquardt iterations of refine=sim.
-        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_iterations")]
-        refine_iterations: usize = hysid_estimation::refine::DEFAULT_ITERATIONS,
-    }
-}
-
-impl ArxOptions {
-    /// The refinement the options ask for.
-    pub fn refinement(&self) -> hysid_estimation::refine::RefineSettings {
-        hysid_estimation::refine::RefineSettings {
-            method: self.refine,
-            segment: self.refine_segment,
-            iterations: self.refine_iterations,
-        }
     }
 }
 

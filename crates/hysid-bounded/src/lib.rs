@@ -87,7 +87,7 @@ hysid_core::option_enum! {
     }
 }
 
-hysid_core::backend_options! {
+hysid_estimation::pwarx_options! {
     /// Options of the `bounded` back-end.
     pub struct BoundedOptions {
         /// Bound delta on the identification error |y - phi' theta|, in output
@@ -118,29 +118,6 @@ hysid_core::backend_options! {
         /// complete partition), psvc (pairwise proximal SVM, may leave holes) or
         /// softmax (multinomial logistic regression, complete partition).
         regions: RegionMethod = RegionMethod::Mrlp,
-        /// Refinement of the mode parameters after the fit, regions fixed: none, or sim
-        /// (Levenberg-Marquardt on the multiple-shooting simulation error under the priors,
-        /// docs/refinement.md).
-        #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
-        refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
-        /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
-        /// outputs before it; at least the record's length: output error (pure free run).
-        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_segment")]
-        refine_segment: usize = hysid_estimation::refine::DEFAULT_SEGMENT,
-        /// Bound on the Levenberg-Marquardt iterations of refine=sim.
-        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_iterations")]
-        refine_iterations: usize = hysid_estimation::refine::DEFAULT_ITERATIONS,
-    }
-}
-
-impl BoundedOptions {
-    /// The refinement the options ask for.
-    pub fn refinement(&self) -> hysid_estimation::refine::RefineSettings {
-        hysid_estimation::refine::RefineSettings {
-            method: self.refine,
-            segment: self.refine_segment,
-            iterations: self.refine_iterations,
-        }
     }
 }
 

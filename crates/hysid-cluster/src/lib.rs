@@ -99,7 +99,7 @@ hysid_core::option_enum! {
     }
 }
 
-hysid_core::backend_options! {
+hysid_estimation::pwarx_options! {
     /// Options of the `cluster` back-end.
     pub struct ClusterOptions {
         /// Local dataset size c (each sample and its c-1 nearest neighbours); at least
@@ -148,29 +148,6 @@ hysid_core::backend_options! {
         /// Smallest relative confidence weight in the per-mode weighted least squares
         /// (weights are normalised by the largest in the mode); keeps modes well posed.
         min_weight: f64 = 1e-8,
-        /// Refinement of the mode parameters after the fit, regions fixed: none, or sim
-        /// (Levenberg-Marquardt on the multiple-shooting simulation error under the priors,
-        /// docs/refinement.md).
-        #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
-        refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
-        /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
-        /// outputs before it; at least the record's length: output error (pure free run).
-        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_segment")]
-        refine_segment: usize = hysid_estimation::refine::DEFAULT_SEGMENT,
-        /// Bound on the Levenberg-Marquardt iterations of refine=sim.
-        #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_iterations")]
-        refine_iterations: usize = hysid_estimation::refine::DEFAULT_ITERATIONS,
-    }
-}
-
-impl ClusterOptions {
-    /// The refinement the options ask for.
-    pub fn refinement(&self) -> hysid_estimation::refine::RefineSettings {
-        hysid_estimation::refine::RefineSettings {
-            method: self.refine,
-            segment: self.refine_segment,
-            iterations: self.refine_iterations,
-        }
     }
 }
 

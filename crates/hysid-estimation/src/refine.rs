@@ -156,6 +156,50 @@ impl RefineSettings {
     }
 }
 
+/// Declares the options of a PWARX back-end: `hysid_core::backend_options!`
+/// with the options of this refinement stage (`refine`, `refine_segment`,
+/// `refine_iterations`) appended, not recorded in a model while at their
+/// defaults, and `refinement()`, the [`RefineSettings`] they make.
+#[macro_export]
+macro_rules! pwarx_options {
+    (
+        $(#[$($meta:tt)*])*
+        $vis:vis struct $name:ident {
+            $( $(#[$($attr:tt)*])* $field:ident : $ty:ty = $default:expr ),* $(,)?
+        }
+    ) => {
+        ::hysid_core::backend_options! {
+            $(#[$($meta)*])*
+            $vis struct $name {
+                $( $(#[$($attr)*])* $field : $ty = $default, )*
+                /// Refinement of the mode parameters after the fit, regions fixed: none, or sim
+                /// (Levenberg-Marquardt on the multiple-shooting simulation error under the priors,
+                /// docs/refinement.md).
+                #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
+                refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
+                /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
+                /// outputs before it; at least the record's length: output error (pure free run).
+                #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_segment")]
+                refine_segment: usize = hysid_estimation::refine::DEFAULT_SEGMENT,
+                /// Bound on the Levenberg-Marquardt iterations of refine=sim.
+                #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_iterations")]
+                refine_iterations: usize = hysid_estimation::refine::DEFAULT_ITERATIONS,
+            }
+        }
+
+        impl $name {
+            /// The refinement the options ask for.
+            pub fn refinement(&self) -> $crate::refine::RefineSettings {
+                $crate::refine::RefineSettings {
+                    method: self.refine,
+                    segment: self.refine_segment,
+                    iterations: self.refine_iterations,
+                }
+            }
+        }
+    };
+}
+
 /// `fit` with its ordinary modes' parameters refined by the
 /// multiple-shooting simulation error (see the module doc), the regions
 /// unchanged, the outcome in `fit.refinement`. With
