@@ -68,7 +68,7 @@ fn main() {
             Bounded::classify_all(&problem, &opts, &RunContext::quiet(seed)).expect("classifies");
         let wrong = 99;
         let rows: Vec<usize> = cl.row_labels().iter().map(|l| l.unwrap_or(wrong)).collect();
-        let id_acc = mode_accuracy(&id.row_modes(), &rows).accuracy;
+        let id_acc = mode_accuracy(&id.row_modes(), &rows).unwrap().accuracy;
         let (rep, _, _) = validate(&m, &val.data, 2).expect("validates");
         let modes = m.info().diagnostics.method["modes_found"].clone();
         if std::env::var("VERBOSE").is_ok() {

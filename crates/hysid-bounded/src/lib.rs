@@ -210,6 +210,8 @@ impl Identifier for Bounded {
     const NAME: &'static str = "bounded";
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
+    const OUTPUT_UNITS: &'static [&'static str] =
+        &["delta", "max_residual", "tie_projection_error"];
     const SEARCH: &'static str = "delta at 1, 1.5, 2, 3, 4 and 6 times the noise standard deviation of local affine fits (delta = auto is 3 times it); the mode count follows";
 
     /// `delta` on a grid of multiples of the noise level of the ordinary
@@ -349,7 +351,7 @@ mod tests {
         // Parameters close to the truth after matching.
         let truth = g.thetas();
         let ident: Vec<Vec<f64>> = p.modes.iter().map(|m| m.theta.clone()).collect();
-        let pe = hysid_model::metrics::parameter_error(&truth, &ident);
+        let pe = hysid_model::metrics::parameter_error(&truth, &ident).unwrap();
         assert!(pe.max_relative_error < 0.05, "{pe:?}");
         // The regions classify fresh data from the same system: at least 97 %
         // of the regressors in the right mode (a misclassified sample costs a
@@ -359,7 +361,9 @@ mod tests {
         let got: Vec<usize> = (0..reg.len())
             .map(|k| p.mode_of(&[reg.x[(k, 0)], reg.x[(k, 1)]]).mode)
             .collect();
-        let acc = hysid_model::metrics::mode_accuracy(&v.row_modes(), &got).accuracy;
+        let acc = hysid_model::metrics::mode_accuracy(&v.row_modes(), &got)
+            .unwrap()
+            .accuracy;
         assert!(acc >= 0.97, "fresh-data mode accuracy {acc}");
         let (rep, _, _) = validate(&m, &v.data, 1).unwrap();
         assert_eq!(rep.coverage, 1.0);

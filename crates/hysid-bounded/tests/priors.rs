@@ -282,15 +282,17 @@ fn saturation_priors_beat_no_priors_on_the_stopped_head() {
         };
         let cl = Bounded::classify_all(&problem, &opts, &RunContext::quiet(1)).unwrap();
         let rows: Vec<usize> = cl.row_labels().iter().map(|l| l.unwrap_or(99)).collect();
-        let acc = mode_accuracy(&id.row_modes(), &rows).accuracy;
+        let acc = mode_accuracy(&id.row_modes(), &rows).unwrap().accuracy;
         let m = run(&id.data, spec, &pri, 0.08, 1).unwrap();
         let (rep, _, _) = validate(&m, &val.data, 2).unwrap();
         scores.push((acc, rep.fit_sim));
     }
     let (without, with) = (scores[0], scores[1]);
     assert!(with.0 >= 0.90 && with.1 >= 90.0, "with priors {with:?}");
+    // The claim is the margin the priors add (measured: 0.41 in accuracy,
+    // 43 FIT points), not a ceiling on the baseline, which may improve.
     assert!(
-        without.0 <= 0.60 && without.1 <= 60.0,
-        "without {without:?}"
+        with.0 - without.0 >= 0.25 && with.1 - without.1 >= 25.0,
+        "with {with:?} against without {without:?}"
     );
 }

@@ -1,11 +1,12 @@
 //! Invariants of the bounded-error procedure, on random PWARX
-//! systems with fixed seeds.
+//! systems.
 
-use hysid_bounded::procedure::SampleClass;
 mod common;
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
-use hysid_core::backend::{Problem, RunContext};
+use hysid_core::backend::{Backend, Problem, RunContext};
+use hysid_core::model::Model;
+use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_model::data::Dataset;
 use hysid_model::regressors::RegressorSpec;
@@ -47,24 +48,37 @@ fn random_thetas(s: usize, seed: u64) -> Vec<[f64; 3]> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(16))]
 
-    /// Every sample labelled with a mode has |residual| <= delta (+1e-9)
-    /// for that mode, whatever the bound (assigned and undecidable alike).
+    /// On the returned model: a sample is within delta of no mode exactly
+    /// when the run reports it infeasible, and each mode's reported largest
+    /// residual is at most delta (+1e-9).
     #[test]
-    fn labelled_samples_are_within_delta(s in 1usize..4, noise in 0.0f64..0.2, delta in 0.02f64..0.5, seed in 0u64..1000) {
+    fn the_model_explains_every_feasible_sample_within_delta(s in 1usize..4, noise in 0.0f64..0.2, delta in 0.02f64..0.5, seed in 0u64..1000) {
         let g = common::sliced(&random_thetas(s, seed), 200, noise, seed);
-        let c = classify(&g.data, delta, seed);
+        let pri = Priors::default();
+        let problem = Problem {
+            data: &g.data,
+            orders: RegressorSpec::new(1, 1, 1),
+            priors: &pri,
+            priors_origin: None,
+        };
+        let set = Settings::parse(&[format!("delta={delta}")]).unwrap();
+        let Model::Pwarx(m) = Bounded.run(&problem, &set, &RunContext::quiet(seed)).unwrap() else {
+            panic!("a PWARX model")
+        };
         let reg = RegressorSpec::new(1, 1, 1).build(&g.data).unwrap();
-        for (k, l) in c.labels.iter().enumerate() {
-            let Some(i) = *l else {
-                prop_assert_eq!(c.classes[k], SampleClass::Infeasible);
-                continue;
-            };
-            let t = &c.thetas[i];
-            let r = reg.y[k] - (t[0] * reg.x[(k, 0)] + t[1] * reg.x[(k, 1)] + t[2]);
-            prop_assert!(r.abs() <= delta + 1e-9, "sample {} mode {} residual {} delta {}", k, i, r, delta);
-        }
-        for (i, m) in c.max_residual.iter().enumerate() {
-            prop_assert!(*m <= delta + 1e-9, "mode {} max residual {}", i, m);
+        let tol = delta + 1e-9;
+        let unexplained = (0..reg.len())
+            .filter(|&k| {
+                m.modes.iter().all(|q| {
+                    let t = &q.theta;
+                    (reg.y[k] - (t[0] * reg.x[(k, 0)] + t[1] * reg.x[(k, 1)] + t[2])).abs() > tol
+                })
+            })
+            .count();
+        let d = &m.info.diagnostics.method;
+        prop_assert_eq!(unexplained as u64, d["infeasible"].as_u64().unwrap());
+        for r in d["max_residual"].as_array().unwrap() {
+            prop_assert!(r.as_f64().unwrap() <= tol, "max residual {} delta {}", r, delta);
         }
     }
 
@@ -93,21 +107,41 @@ fn saturated(n: usize, y_sat: f64, seed: u64) -> (Dataset, Vec<bool>) {
     (Dataset::siso(u, y, None).unwrap(), sat)
 }
 
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(8))]
-
-    /// A constant-output segment (saturation) comes out as a mode of its
-    /// own with theta = [0 .. 0 y_sat].
-    #[test]
-    fn saturation_is_its_own_mode(y_sat in 0.8f64..1.5, seed in 0u64..1000) {
+/// A constant-output segment (saturation) comes out, without any prior,
+/// as a mode of its own with theta = [0 0 y_sat] exactly, in at least 95 %
+/// of 200 fixed draws of the level and the record (measured: 198 of 200).
+/// It is not an invariant: when a few saturated
+/// samples near the corner fall within delta of the linear mode, its
+/// minimax fit bends towards them and leaves two linear samples outside
+/// its band, which then join the saturation mode. A known level is
+/// honoured exactly by the `[[saturation]]` prior instead.
+#[test]
+fn saturation_is_its_own_mode_almost_always() {
+    let mut draws = ChaCha8Rng::seed_from_u64(2003);
+    let (mut cases, mut exact) = (0, 0);
+    while cases < 200 {
+        let (y_sat, seed) = (draws.random_range(0.8..1.5), draws.random_range(0..1000u64));
         let (d, sat) = saturated(300, y_sat, seed);
         let n_sat = sat.iter().filter(|&&s| s).count();
-        prop_assume!(n_sat >= 30);
+        if n_sat < 30 {
+            continue;
+        }
+        cases += 1;
         let c = classify(&d, 0.05, seed);
-        let i = c.thetas.iter().position(|t| t[0].abs() < 1e-6 && t[1].abs() < 1e-6 && (t[2] - y_sat).abs() < 1e-6);
-        prop_assert!(i.is_some(), "no saturation mode among {:?} (y_sat {})", c.thetas, y_sat);
-        let i = i.unwrap();
-        let hit = sat.iter().zip(&c.labels).filter(|&(&s, &l)| s && l == Some(i)).count();
-        prop_assert!(hit as f64 >= 0.9 * n_sat as f64, "{} of {} saturated samples in the saturation mode", hit, n_sat);
+        let flat =
+            |t: &Vec<f64>| t[0].abs() < 1e-6 && t[1].abs() < 1e-6 && (t[2] - y_sat).abs() < 1e-6;
+        let Some(i) = c.thetas.iter().position(flat) else {
+            continue;
+        };
+        let hit = sat
+            .iter()
+            .zip(&c.labels)
+            .filter(|&(&s, &l)| s && l == Some(i))
+            .count();
+        if hit as f64 >= 0.9 * n_sat as f64 {
+            exact += 1;
+        }
     }
+    eprintln!("{exact} of {cases} draws with an exact saturation mode");
+    assert!(exact >= 190, "{exact} of {cases}");
 }

@@ -114,7 +114,7 @@ fn main() {
             .unwrap();
             tp.push(t.elapsed().as_secs_f64());
             eprintln!("N = {n}: steps 1-5 {:.3} s", tp[tp.len() - 1]);
-            acc_labels = mode_accuracy(&truth_modes, &fit.labels).accuracy;
+            acc_labels = mode_accuracy(&truth_modes, &fit.labels).unwrap().accuracy;
             let t = Instant::now();
             let ropts = hysid_regions::RegionOptions {
                 standardize: false,
@@ -146,7 +146,7 @@ fn main() {
                         .mode
                 })
                 .collect();
-            acc = mode_accuracy(&truth_modes, &ident).accuracy;
+            acc = mode_accuracy(&truth_modes, &ident).unwrap().accuracy;
         }
         let t_all = fastest(ta);
         println!(

@@ -376,6 +376,10 @@ pub fn run_with(
             discarded += dropped;
             modes = kept;
         }
+    }
+    // The parameters are estimated again from the final labels whenever a
+    // point moved: outliers placed by residual, or a reattribution.
+    if outliers > 0 || s.reattribute {
         let fitted = fit_modes_with(
             x,
             n,

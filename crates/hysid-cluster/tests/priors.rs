@@ -63,7 +63,7 @@ fn accuracy(truth: &[Option<usize>], got: &[Option<usize>]) -> f64 {
             i.push(*b);
         }
     }
-    mode_accuracy(&t, &i).accuracy
+    mode_accuracy(&t, &i).unwrap().accuracy
 }
 
 /// Mode accuracy of the free-run simulation against the true modes, and the
@@ -346,7 +346,7 @@ fn figures() {
         let truth: Vec<Vec<f64>> = b.truth.modes.iter().map(|m| m.theta.clone()).collect();
         for (name, m) in [("plain", plain), ("c=0", fixed)] {
             let th: Vec<Vec<f64>> = m.modes.iter().map(|q| q.theta.clone()).collect();
-            let err = parameter_error(&truth, &th);
+            let err = parameter_error(&truth, &th).unwrap();
             let (r, _, _) = validate(&Model::Pwarx(m), &v.data, 0).unwrap();
             eprintln!(
                 "H3 seed {seed} {name}: param err {:?} fit_sim {:.2}",

@@ -68,11 +68,13 @@ fn score(ex: &Benchmark, m: &PwarxModel) -> (f64, f64) {
                 .mode
         })
         .collect();
-    let acc = mode_accuracy(&ex.row_modes(), &ident).accuracy;
+    let acc = mode_accuracy(&ex.row_modes(), &ident).unwrap().accuracy;
     let theta: Vec<Vec<f64>> = m.modes.iter().map(|q| q.theta.clone()).collect();
     (
         acc,
-        parameter_error(&ex.thetas(), &theta).max_relative_error,
+        parameter_error(&ex.thetas(), &theta)
+            .unwrap()
+            .max_relative_error,
     )
 }
 
@@ -92,7 +94,9 @@ fn oracle_error(ex: &Benchmark) -> f64 {
             sol.theta.iter().copied().collect()
         })
         .collect();
-    parameter_error(&ex.thetas(), &theta).max_relative_error
+    parameter_error(&ex.thetas(), &theta)
+        .unwrap()
+        .max_relative_error
 }
 
 /// The scores of one draw.

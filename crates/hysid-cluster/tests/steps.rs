@@ -89,9 +89,10 @@ fn kmeans_keeps_the_restart_of_least_cost() {
 
 /// Four clusters asked of three-mode data: with a discard size between the
 /// smallest and the second smallest cluster, exactly the smallest is
-/// dropped, its points are the outliers, and (without the mixed-point step,
-/// which refits afterwards) each of them sits in the mode of least squared
-/// residual under the returned parameters.
+/// dropped, its points are the outliers, each of them goes to the mode of
+/// least squared residual under the parameters estimated without them, and
+/// (without the mixed-point step too) the returned parameters are estimated
+/// again on the final mode datasets, outliers included, as HIT does.
 #[test]
 fn small_clusters_are_discarded_and_their_points_go_by_residual() {
     let (x, y, truth) = b1(1500, 5);
@@ -137,21 +138,40 @@ fn small_clusters_are_discarded_and_their_points_go_by_residual() {
     assert_eq!((d.clusters, d.discarded_clusters), (4, 1));
     assert_eq!(d.outliers, sorted[0]);
     assert_eq!(fit.theta.len(), 3);
+    let estimate = |labels: &[usize]| {
+        procedure::fit_modes(&x, 2, &y, &fit.features, labels, 3, s.min_weight, s.weights).unwrap()
+    };
+    let without: Vec<usize> = (0..fit.labels.len())
+        .map(|j| {
+            if clusters.labels[j] == small {
+                usize::MAX
+            } else {
+                fit.labels[j]
+            }
+        })
+        .collect();
+    let before = estimate(&without);
     for (j, &l) in fit.labels.iter().enumerate() {
         if clusters.labels[j] != small {
             continue;
         }
         let xj = &x[2 * j..2 * j + 2];
-        let own = residual2(xj, y[j], &fit.theta[l]);
-        for th in &fit.theta {
+        let own = residual2(xj, y[j], &before[l]);
+        for th in &before {
             assert!(
                 own <= residual2(xj, y[j], th),
                 "outlier {j} not in its best mode"
             );
         }
     }
+    assert_ne!(before, fit.theta, "the outliers changed no mode dataset");
+    assert_eq!(
+        estimate(&fit.labels),
+        fit.theta,
+        "parameters of the final labels"
+    );
     // Three modes recovered from four clusters.
-    let acc = mode_accuracy(&truth, &fit.labels).accuracy;
+    let acc = mode_accuracy(&truth, &fit.labels).unwrap().accuracy;
     assert!(acc >= 0.95, "mode accuracy {acc}");
 }
 
@@ -193,8 +213,8 @@ fn mixed_points_are_reattributed_and_improve_the_mode_datasets() {
             }
         }
         let (acc_off, acc_on) = (
-            mode_accuracy(&truth, &off.labels).accuracy,
-            mode_accuracy(&truth, &on.labels).accuracy,
+            mode_accuracy(&truth, &off.labels).unwrap().accuracy,
+            mode_accuracy(&truth, &on.labels).unwrap().accuracy,
         );
         eprintln!("seed {seed}: {moved} moved, accuracy {acc_off:.4} -> {acc_on:.4}");
         assert!(acc_on > acc_off, "seed {seed}: {acc_off} -> {acc_on}");

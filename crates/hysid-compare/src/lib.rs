@@ -287,7 +287,10 @@ impl Experiment {
             .map(|job| {
                 let mut r = run_job(&registry, job, &ident, &valid, &self.data);
                 if let (Some(t), Some(sim)) = (&true_modes, &r.simulation) {
-                    r.mode_recovery = t.score(sim, self.data.warmup);
+                    match t.score(sim, self.data.warmup) {
+                        Ok(m) => r.mode_recovery = m,
+                        Err(e) => r.error = Some(format!("true modes: {e}")),
+                    }
                 }
                 progress.advance(1);
                 r

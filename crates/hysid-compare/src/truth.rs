@@ -7,7 +7,7 @@
 //! samples simulated in the matched mode (its recall).
 
 use hysid_model::data::{DataError, RowRange};
-use hysid_model::metrics::mode_accuracy;
+use hysid_model::metrics::{MatchError, mode_accuracy};
 use hysid_model::simulate::Simulation;
 use serde::Serialize;
 use std::path::Path;
@@ -142,7 +142,12 @@ pub enum TruthError {
 impl TrueModes {
     /// Scores the simulated modes of `sim` (same samples as `labels`) from
     /// sample `warmup` on.
-    pub fn score(&self, sim: &Simulation, warmup: usize) -> Option<ModeRecovery> {
+    /// An error when the simulated modes cannot be matched to the true ones.
+    pub fn score(
+        &self,
+        sim: &Simulation,
+        warmup: usize,
+    ) -> Result<Option<ModeRecovery>, MatchError> {
         let (truth, found): (Vec<usize>, Vec<usize>) = self
             .labels
             .iter()
@@ -151,9 +156,9 @@ impl TrueModes {
             .filter_map(|(t, q)| Some(((*t)?, (*q)?)))
             .unzip();
         if truth.is_empty() {
-            return None;
+            return Ok(None);
         }
-        let matched = mode_accuracy(&truth, &found);
+        let matched = mode_accuracy(&truth, &found)?;
         let recall = self
             .names
             .iter()
@@ -177,11 +182,11 @@ impl TrueModes {
                 Some((name.clone(), n_t, hit as f64 / n_t as f64))
             })
             .collect();
-        Some(ModeRecovery {
+        Ok(Some(ModeRecovery {
             samples: truth.len(),
             accuracy: matched.accuracy,
             recall,
-        })
+        }))
     }
 }
 
@@ -217,7 +222,7 @@ mod tests {
             covered: vec![true; 5],
             diverged_at: None,
         };
-        let r = t.score(&sim, 0).unwrap();
+        let r = t.score(&sim, 0).unwrap().unwrap();
         assert_eq!(r.samples, 4);
         assert!((r.accuracy - 0.75).abs() < 1e-12, "{r:?}");
         assert_eq!(r.recall[0], ("free".into(), 2, 0.5));

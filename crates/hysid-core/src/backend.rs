@@ -256,6 +256,12 @@ pub trait Identifier: Send + Sync {
     /// What [`Identifier::search_space`] tries, in one sentence (printed by
     /// `hysid methods`); empty when the back-end has nothing to choose.
     const SEARCH: &'static str = "";
+    /// Options and diagnostics fields measured in the output's units (a
+    /// residual bound, a residual). A run on standardised data
+    /// (`--standardize`) divides these options by the output's standard
+    /// deviation before the run and multiplies these diagnostics by it
+    /// after, so the user speaks and reads data units throughout.
+    const OUTPUT_UNITS: &'static [&'static str] = &[];
 
     /// The candidate settings that automatic selection (`--auto`) tries on
     /// `problem`; the default is the back-end's defaults only.
@@ -285,6 +291,9 @@ pub trait Backend: Send + Sync {
     fn honours(&self) -> &'static [PriorKind];
     /// What automatic selection tries, in one sentence.
     fn search_doc(&self) -> &'static str;
+    /// Options and diagnostics fields in the output's units
+    /// ([`Identifier::OUTPUT_UNITS`]).
+    fn output_units(&self) -> &'static [&'static str];
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
     /// Resolves options, checks priors, identifies, records provenance.
@@ -311,6 +320,9 @@ impl<T: Identifier> Backend for T {
     }
     fn search_doc(&self) -> &'static str {
         T::SEARCH
+    }
+    fn output_units(&self) -> &'static [&'static str] {
+        T::OUTPUT_UNITS
     }
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)

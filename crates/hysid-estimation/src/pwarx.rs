@@ -364,12 +364,58 @@ pub fn run_standardized(
         data: &scaled,
         ..*problem
     };
-    match backend.run(&inner, settings, ctx)? {
-        Model::Pwarx(m) => Ok(Model::Pwarx(m.to_original_units(&scale))),
+    let units = backend.output_units();
+    let sigma = scale.output.std;
+    let scaled_settings = in_output_units(settings, units, 1.0 / sigma);
+    match backend.run(&inner, &scaled_settings, ctx)? {
+        Model::Pwarx(m) => {
+            let mut m = m.to_original_units(&scale);
+            let info = &mut m.info;
+            for key in units {
+                if let Some(v) = info.diagnostics.method.get_mut(*key) {
+                    rescale_json(v, sigma);
+                }
+                let given = settings.get(key).and_then(|v| v.parse::<f64>().ok());
+                if let (Some(v), Some(x)) = (info.options.get_mut(*key), given) {
+                    *v = serde_json::json!(x);
+                }
+            }
+            Ok(Model::Pwarx(m))
+        }
         other => Err(IdentifyError::input(StandardizeError::ModelKind {
             method: backend.name(),
             kind: other.kind(),
         })),
+    }
+}
+
+/// `settings` with the numeric values of the `units` keys multiplied by
+/// `factor` (other values, such as `delta=auto`, unchanged).
+fn in_output_units(settings: &Settings, units: &[&str], factor: f64) -> Settings {
+    let pairs = settings
+        .pairs()
+        .iter()
+        .map(|(k, v)| match v.parse::<f64>() {
+            Ok(x) if units.contains(&k.as_str()) => (k.clone(), format!("{:e}", x * factor)),
+            _ => (k.clone(), v.clone()),
+        })
+        .collect();
+    Settings::from_pairs(pairs)
+}
+
+/// Multiplies every number in `v` (a number or an array of them) by `factor`.
+fn rescale_json(v: &mut serde_json::Value, factor: f64) {
+    match v {
+        serde_json::Value::Number(n) => {
+            if let Some(x) = n
+                .as_f64()
+                .and_then(|x| serde_json::Number::from_f64(x * factor))
+            {
+                *n = x;
+            }
+        }
+        serde_json::Value::Array(items) => items.iter_mut().for_each(|x| rescale_json(x, factor)),
+        _ => {}
     }
 }
 

@@ -35,6 +35,44 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
         .sqrt()
 }
 
+/// Why identified modes could not be matched to true ones.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MatchError {
+    /// The two label sequences differ in length.
+    #[error("{truth} true labels against {identified} identified labels")]
+    LabelCount {
+        /// Number of true labels.
+        truth: usize,
+        /// Number of identified labels.
+        identified: usize,
+    },
+    /// A true and an identified parameter vector differ in length.
+    #[error(
+        "true mode {truth} has {truth_len} parameters, identified mode {identified} has {identified_len}"
+    )]
+    ParameterCount {
+        /// Index of the true mode.
+        truth: usize,
+        /// Its number of parameters.
+        truth_len: usize,
+        /// Index of the identified mode.
+        identified: usize,
+        /// Its number of parameters.
+        identified_len: usize,
+    },
+    /// A parameter is NaN or infinite, so no distance is defined.
+    #[error("a parameter of true mode {truth} or identified mode {identified} is not finite")]
+    NonFinite {
+        /// Index of the true mode.
+        truth: usize,
+        /// Index of the identified mode.
+        identified: usize,
+    },
+    /// The assignment solver failed on a finite cost matrix.
+    #[error("the assignment of identified to true modes failed ({0})")]
+    Assignment(String),
+}
+
 /// Matching of identified modes to true modes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ModeMatch {
@@ -44,25 +82,41 @@ pub struct ModeMatch {
     pub accuracy: f64,
 }
 
+/// The assignment of rows to columns of the `nr x nc` row-major `cost`
+/// (Hungarian method), as `(row, column)` pairs.
+fn assign(
+    nr: usize,
+    nc: usize,
+    cost: &Vec<f64>,
+    maximize: bool,
+) -> Result<Vec<(usize, usize)>, MatchError> {
+    let (r, c) = lsap::solve(nr, nc, cost, maximize)
+        .map_err(|e| MatchError::Assignment(format!("{e:?}")))?;
+    Ok(r.into_iter().zip(c).collect())
+}
+
 /// Mode accuracy: the identified labels are matched to the true labels by
 /// the assignment that maximises agreement (Hungarian method), then the
 /// fraction of agreeing samples is returned.
-pub fn mode_accuracy(truth: &[usize], identified: &[usize]) -> ModeMatch {
+pub fn mode_accuracy(truth: &[usize], identified: &[usize]) -> Result<ModeMatch, MatchError> {
+    if truth.len() != identified.len() {
+        return Err(MatchError::LabelCount {
+            truth: truth.len(),
+            identified: identified.len(),
+        });
+    }
     let nt = truth.iter().max().map_or(0, |m| m + 1);
     let ni = identified.iter().max().map_or(0, |m| m + 1);
     let mut count = vec![0.0; nt * ni];
     for (&t, &i) in truth.iter().zip(identified) {
         count[t * ni + i] += 1.0;
     }
-    let pairs: Vec<(usize, usize)> = match lsap::solve(nt, ni, &count, true) {
-        Ok((r, c)) => r.into_iter().zip(c).collect(),
-        Err(_) => vec![],
-    };
+    let pairs = assign(nt, ni, &count, true)?;
     let agree: f64 = pairs.iter().map(|&(t, i)| count[t * ni + i]).sum();
-    ModeMatch {
+    Ok(ModeMatch {
         pairs,
         accuracy: agree / truth.len().max(1) as f64,
-    }
+    })
 }
 
 /// Parameter error after matching.
@@ -78,39 +132,46 @@ pub struct ParameterMatch {
 
 /// Matches identified parameter vectors to true ones (minimum total
 /// relative distance, Hungarian method) and reports the relative errors.
-pub fn parameter_error(truth: &[Vec<f64>], identified: &[Vec<f64>]) -> ParameterMatch {
+pub fn parameter_error(
+    truth: &[Vec<f64>],
+    identified: &[Vec<f64>],
+) -> Result<ParameterMatch, MatchError> {
     let (nt, ni) = (truth.len(), identified.len());
-    let rel = |t: &[f64], i: &[f64]| -> f64 {
-        let d = t
-            .iter()
-            .zip(i)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let n = t.iter().map(|a| a * a).sum::<f64>().sqrt();
-        d / n.max(f64::MIN_POSITIVE)
-    };
     let mut cost = vec![0.0; nt * ni];
-    for t in 0..nt {
-        for i in 0..ni {
-            cost[t * ni + i] = rel(&truth[t], &identified[i]);
+    for (t, tv) in truth.iter().enumerate() {
+        for (i, iv) in identified.iter().enumerate() {
+            if tv.len() != iv.len() {
+                return Err(MatchError::ParameterCount {
+                    truth: t,
+                    truth_len: tv.len(),
+                    identified: i,
+                    identified_len: iv.len(),
+                });
+            }
+            let d = tv.iter().zip(iv).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+            let n = tv.iter().map(|a| a * a).sum::<f64>().sqrt();
+            let rel = d.sqrt() / n.max(f64::MIN_POSITIVE);
+            if !rel.is_finite() {
+                return Err(MatchError::NonFinite {
+                    truth: t,
+                    identified: i,
+                });
+            }
+            cost[t * ni + i] = rel;
         }
     }
-    let pairs: Vec<(usize, usize)> = match lsap::solve(nt, ni, &cost, false) {
-        Ok((r, c)) => r.into_iter().zip(c).collect(),
-        Err(_) => vec![],
-    };
+    let pairs = assign(nt, ni, &cost, false)?;
     let relative_errors: Vec<f64> = pairs.iter().map(|&(t, i)| cost[t * ni + i]).collect();
     let max_relative_error = if pairs.len() < nt {
         f64::INFINITY
     } else {
         relative_errors.iter().fold(0.0, |a: f64, &b| a.max(b))
     };
-    ParameterMatch {
+    Ok(ParameterMatch {
         pairs,
         relative_errors,
         max_relative_error,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -140,7 +201,7 @@ mod tests {
         #[test]
         fn accuracy_is_label_invariant(t in proptest::collection::vec(0usize..3, 1..60), perm in Just([2usize, 0, 1])) {
             let relabelled: Vec<usize> = t.iter().map(|&m| perm[m]).collect();
-            prop_assert_eq!(mode_accuracy(&t, &relabelled).accuracy, 1.0);
+            prop_assert_eq!(mode_accuracy(&t, &relabelled).unwrap().accuracy, 1.0);
         }
     }
 
@@ -156,15 +217,40 @@ mod tests {
     fn parameter_matching_finds_permutation() {
         let truth = vec![vec![1.0, 0.0], vec![0.0, 1.0], vec![1.0, 1.0]];
         let id = vec![vec![1.0, 1.01], vec![1.0, 0.0], vec![0.0, 0.98]];
-        let m = parameter_error(&truth, &id);
+        let m = parameter_error(&truth, &id).unwrap();
         assert!(
             m.pairs.contains(&(0, 1)) && m.pairs.contains(&(1, 2)) && m.pairs.contains(&(2, 0))
         );
         assert!(m.max_relative_error < 0.021);
         assert!(
             parameter_error(&truth, &id[..2])
+                .unwrap()
                 .max_relative_error
                 .is_infinite()
+        );
+    }
+
+    #[test]
+    fn a_matching_that_cannot_be_made_is_an_error() {
+        let truth = vec![vec![1.0, 0.0], vec![0.0, 1.0]];
+        let nan = vec![vec![f64::NAN, 0.0], vec![0.0, 1.0]];
+        assert_eq!(
+            parameter_error(&truth, &nan),
+            Err(MatchError::NonFinite {
+                truth: 0,
+                identified: 0
+            })
+        );
+        assert!(matches!(
+            parameter_error(&truth, &[vec![1.0, 0.0, 0.0]]),
+            Err(MatchError::ParameterCount { .. })
+        ));
+        assert_eq!(
+            mode_accuracy(&[0, 1, 1], &[0, 1]),
+            Err(MatchError::LabelCount {
+                truth: 3,
+                identified: 2
+            })
         );
     }
 }

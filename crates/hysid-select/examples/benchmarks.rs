@@ -37,9 +37,11 @@ fn score(truth: &Benchmark, valid: &Benchmark, model: &Model) -> (f64, f64, usiz
                 .mode
         })
         .collect();
-    let acc = mode_accuracy(&valid.row_modes(), &ident).accuracy;
+    let acc = mode_accuracy(&valid.row_modes(), &ident).unwrap().accuracy;
     let theta: Vec<Vec<f64>> = m.modes.iter().map(|q| q.theta.clone()).collect();
-    let perr = parameter_error(&truth.thetas(), &theta).max_relative_error;
+    let perr = parameter_error(&truth.thetas(), &theta)
+        .unwrap()
+        .max_relative_error;
     (acc, perr, m.modes.len())
 }
 

@@ -4,7 +4,9 @@
 //! Guard sets come in two kinds. A guard with equality rows (a
 //! lower-dimensional set such as the stop `y = 25`) is a **crossing guard**:
 //! it fires at the first point of a step's trajectory that lies in it, when
-//! the step did not start inside it. A full-dimensional guard is a
+//! the step did not start inside it, and at the start of a step that starts
+//! on it and heads past it (a state released exactly onto a stop level, as
+//! quantised data give, and pushed back). A full-dimensional guard is a
 //! **condition guard**: in discrete time it fires at the start of a step
 //! when `[x; u]` lies in it (the release of a saturation: "the motor pulls
 //! away from the stop"); in continuous time it fires when the trajectory
@@ -27,6 +29,7 @@
 
 use super::{SimError, Simulation, SimulationOptions};
 use crate::data::Dataset;
+use crate::geometry::{MEMBERSHIP_TOL, Polyhedron};
 use crate::model::{HybridAutomaton, InitialState, TimeDomain};
 
 /// Bound on the events processed within one internal step.
@@ -119,10 +122,11 @@ impl<'a> Runner<'a> {
         let z1 = self.ext(x1, u).to_vec();
         let from = &self.m.modes[q].name;
         let mut best: Option<(f64, usize)> = None;
+        let invariant = &self.m.modes[q].invariant;
         for (ti, t) in self.m.transitions.iter().enumerate() {
             if &t.from != from
                 || (crossing_only && !t.guard.0.is_lower_dimensional())
-                || t.guard.0.contains(&z0)
+                || (t.guard.0.contains(&z0) && !passes_through(invariant, &t.guard.0, &z0, &z1))
             {
                 continue;
             }
@@ -189,6 +193,27 @@ impl<'a> Runner<'a> {
         };
         (q, x1, step)
     }
+}
+
+/// True when a step `z0 -> z1` that starts on the crossing guard `guard`
+/// ends beyond it: the guard's hyperplane is a boundary of the mode's
+/// `invariant` at `z0` (a row of it, active at `z0`, with a normal parallel
+/// to one of the guard's equality rows) and `z1` violates that row. A step
+/// that starts on a stop and moves away from it (a release) does not pass
+/// through; one that starts on it and heads past it does, and the guard
+/// fires at the start of the step.
+fn passes_through(invariant: &Polyhedron, guard: &Polyhedron, z0: &[f64], z1: &[f64]) -> bool {
+    let scale = 1.0 + z0.iter().chain(z1).fold(0.0f64, |m, v| m.max(v.abs()));
+    let tol = MEMBERSHIP_TOL * scale;
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    guard.a_eq.iter().any(|e| {
+        invariant.a.iter().zip(&invariant.b).any(|(a, b)| {
+            let (na, ne) = (dot(a, a).sqrt(), dot(e, e).sqrt());
+            let parallel = dot(a, e).abs() >= (1.0 - 1e-9) * na * ne;
+            let active = ((dot(a, z0) - b) / na).abs() <= tol;
+            parallel && active && (dot(a, z1) - b) / na > tol
+        })
+    })
 }
 
 fn rk4(m: &HybridAutomaton, q: usize, x: &[f64], u: &[f64], h: f64) -> Vec<f64> {
@@ -620,6 +645,43 @@ mod stop_tests {
                 if q.starts_with("sat_min") { prop_assert_eq!(s.y[k], lo); }
             }
         }
+    }
+
+    /// y(k+1) = 0.5 y(k) + u(k) against a stop at y = 1: every number
+    /// below is exact in binary, as on quantised data.
+    fn first_order_with_stop() -> HybridAutomaton {
+        let p = PwarxModel {
+            na: 1,
+            nb: 1,
+            inputs: 1,
+            modes: vec![PwarxMode {
+                theta: vec![0.5, 1.0, 0.0],
+                region: Polyhedron::everything(),
+                name: None,
+            }],
+            info: ModelInfo::default(),
+        };
+        let stop = Stop {
+            level: 1.0,
+            bound: StopBound::Max,
+            tol: None,
+        };
+        HybridAutomaton::from_pwarx_with_stops(&p, &[stop])
+    }
+
+    #[test]
+    fn a_step_that_starts_exactly_on_the_stop_does_not_pass_it() {
+        let a = first_order_with_stop();
+        // Reach the stop (0 + 2 > 1), release onto it exactly (0.5 + 0.5 = 1),
+        // then push past it from y = 1 (0.5 + 2 > 1).
+        let u = vec![2.0, 0.5, 2.0, 2.0];
+        let data = Dataset::siso(u, vec![0.0; 4], None).unwrap();
+        let s = simulate(&(a.clone()), &data, SimulationOptions::default()).unwrap();
+        assert_eq!(&s.y[1..], &[1.0, 1.0, 1.0]);
+        let free = a.mode_index("0").unwrap();
+        let sat = a.mode_index("sat_max_1").unwrap();
+        assert_eq!(s.modes[2], Some(free), "released onto the level");
+        assert_eq!(s.modes[3], Some(sat), "held again when pushed");
     }
 
     #[test]
