@@ -54,6 +54,7 @@ use hysid_core::priors::{PriorKind, Priors};
 use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData};
 use hysid_estimation::refine;
+use hysid_select::parsimony;
 
 hysid_core::option_enum! {
     /// What is clustered (HIT `what_to_clust`).
@@ -331,7 +332,8 @@ pub fn identify_labelled(
 
 /// `max_modes` without `modes`: every mode count `stops + 1 ..= max` is
 /// identified on the first 75 % of the record and scored by free-run
-/// simulation FIT on the last 25 %; the best count (ties: fewer modes) is
+/// simulation FIT on the last 25 %; the fewest modes within one standard
+/// error of the best count ([`parsimony::simplest_within_one_se`]) are
 /// identified on the whole record, the scores recorded as `mode_choice`.
 fn choose_modes(
     data: &PwarxData<'_>,
@@ -364,13 +366,17 @@ fn choose_modes(
         o,
         ctx,
     );
-    let best = points
-        .iter()
-        .filter(|p| p.fit_sim.is_some_and(f64::is_finite))
-        .fold(None::<&SweepPoint>, |b, p| match b {
-            Some(q) if q.fit_sim >= p.fit_sim => Some(q),
-            _ => Some(p),
-        })
+    // Ranked by hold-out FIT; the fewest modes within one standard error
+    // of the best (the rule `--auto` applies).
+    let mut ranked: Vec<usize> = (0..points.len())
+        .filter(|&i| points[i].fit_sim.is_some_and(f64::is_finite))
+        .collect();
+    let score = |i: usize| points[i].fit_sim.unwrap_or(f64::NEG_INFINITY);
+    ranked.sort_by(|&a, &b| score(b).total_cmp(&score(a)).then(a.cmp(&b)));
+    let errors: Vec<Vec<f64>> = points.iter().map(|p| p.sim_errors.clone()).collect();
+    let counts: Vec<Option<usize>> = points.iter().map(|p| p.modes_found).collect();
+    let best = parsimony::simplest_within_one_se(&ranked, &errors, &counts)
+        .map(|i| &points[i])
         .ok_or_else(|| {
             IdentifyError::failed(format!(
                 "no mode count in 1..={max} could be identified and simulated on the hold-out part"

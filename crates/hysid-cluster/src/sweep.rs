@@ -30,6 +30,10 @@ pub struct SweepPoint {
     pub report: Option<ValidationReport>,
     /// Why the point has no score.
     pub error: Option<String>,
+    /// Free-run simulation errors `y - y_sim` on the scored validation
+    /// samples (empty without a score).
+    #[serde(skip)]
+    pub sim_errors: Vec<f64>,
 }
 
 /// Identifies `problem` (its prior mode count is ignored) for every pair of
@@ -68,6 +72,7 @@ pub fn sweep(
                 fit_pred: None,
                 report: None,
                 error: None,
+                sim_errors: Vec::new(),
             };
             match identify_with(problem, &opts, s, ctx.seed, ctx.deadline) {
                 Ok(model) => {
@@ -81,7 +86,14 @@ pub fn sweep(
                         .map(|v| v as usize)
                         .or(c);
                     match validate(&model, validation, warmup) {
-                        Ok((r, _, _)) => {
+                        Ok((r, sim, _)) => {
+                            let y = validation.y();
+                            let first = y.len() - r.n;
+                            point.sim_errors = y[first..]
+                                .iter()
+                                .zip(&sim.y[first..])
+                                .map(|(a, b)| a - b)
+                                .collect();
                             point.fit_sim = Some(r.fit_sim);
                             point.fit_pred = Some(r.fit_pred);
                             point.report = Some(r);

@@ -8,8 +8,9 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_model::data::{Dataset, Signal};
 use hysid_model::metrics::parameter_error;
-use hysid_model::model::PwarxModel;
+use hysid_model::model::{PwarxModel, Stop, StopBound};
 use hysid_model::regressors::RegressorSpec;
+use hysid_model::simulate::SimulationOptions;
 use hysid_testkit::{Benchmark, Noise};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
@@ -110,7 +111,12 @@ proptest! {
     }
 
     /// Scaling the output by `k` scales the input and constant parameters
-    /// by `k` and leaves the autoregressive ones unchanged.
+    /// by `k` and leaves the autoregressive ones unchanged. Under the
+    /// default standardisation the working data are the same for every
+    /// `k`, so this checks the way back to original units. Without it
+    /// (`scale = false`, HIT's raw distances) the neighbour search and the
+    /// K-means see the scaled numbers and the property does not hold: the
+    /// first draw of this test differed by 1.8 % (`docs/cluster.md`).
     #[test]
     fn output_scaling_scales_the_affine_part(seed in any::<u64>(), k in prop_oneof![0.2f64..5.0, -5.0f64..-0.2]) {
         let ex = b1(400, seed);
@@ -123,17 +129,53 @@ proptest! {
         prop_assert!(e < 1e-6, "scaled model differs by {e}: {:?} vs {:?}", expect, thetas(&b));
     }
 
-    /// The default partition (MRLP) covers random points of (and beyond)
-    /// the regressor domain: no holes. `discard=0` keeps every non-empty
-    /// cluster, so that asking B1 (3 true modes) for 4 modes gives a model
-    /// of 4 modes instead of the exact-modes refusal.
+    /// Every complete partition (MRLP, MSVM, softmax) covers random points
+    /// of (and beyond) the regressor domain: the polyhedra written to the
+    /// model, not the classifier, are what is checked. `discard=0` keeps
+    /// every non-empty cluster, so that asking B1 (3 true modes) for 4
+    /// modes gives a model of 4 modes instead of the exact-modes refusal.
     #[test]
-    fn default_partition_covers_the_domain(seed in any::<u64>(), modes in 2usize..5) {
+    fn complete_partitions_cover_the_domain(seed in any::<u64>(), modes in 2usize..5, regions in prop_oneof![Just("mrlp"), Just("msvm"), Just("softmax")]) {
         let ex = b1(300, seed);
-        let m = identify(&ex.data, ex.truth.spec(), modes, &["discard=0"]);
-        let regions: Vec<_> = m.modes.iter().map(|q| q.region.clone()).collect();
-        let rep = hysid_regions::coverage(&regions, &[-20.0, -10.0], &[20.0, 10.0], 2000, seed);
+        let method = format!("regions={regions}");
+        let m = identify(&ex.data, ex.truth.spec(), modes, &["discard=0", &method]);
+        let polyhedra: Vec<_> = m.modes.iter().map(|q| q.region.clone()).collect();
+        let rep = hysid_regions::coverage(&polyhedra, &[-20.0, -10.0], &[20.0, 10.0], 2000, seed);
         prop_assert_eq!(rep.uncovered_fraction, 0.0);
+    }
+
+    /// With a known stop, the model (regions and the stop's mode) covers
+    /// every state a free run reaches under inputs beyond the identification
+    /// range: B1 clipped at its 85th output percentile, `[[saturation]]`
+    /// at that level.
+    #[test]
+    fn a_model_with_a_stop_covers_its_free_run(seed in any::<u64>(), regions in prop_oneof![Just("mrlp"), Just("msvm"), Just("softmax")]) {
+        let ex = b1(400, seed);
+        let mut sorted = ex.data.y().to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let level = sorted[sorted.len() * 85 / 100];
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let u = ex.data.u(0).to_vec();
+        let mut y = vec![ex.data.y()[0].min(level)];
+        for k in 1..u.len() {
+            let t = &ex.truth.modes[ex.truth.mode_of(&[y[k - 1], u[k - 1]]).mode].theta;
+            let noise = rng.random_range(-0.1..0.1);
+            y.push((t[0] * y[k - 1] + t[1] * u[k - 1] + t[2] + noise).min(level));
+        }
+        let clipped = Dataset::siso(u, y, None).unwrap();
+        let priors = Priors {
+            modes: Some(4),
+            saturation: vec![Stop { level, bound: StopBound::Max, tol: None }],
+            ..Default::default()
+        };
+        let problem = Problem { data: &clipped, orders: ex.truth.spec(), priors: &priors, priors_origin: None };
+        let method = format!("regions={regions}");
+        let model = Cluster.run(&problem, &Settings::parse(&["discard=0", &method]).unwrap(), &RunContext::quiet(7)).unwrap();
+        let u: Vec<f64> = (0..300).map(|_| rng.random_range(-8.0..8.0)).collect();
+        let run = Dataset::siso(u, vec![0.0; 300], None).unwrap();
+        let sim = hysid_core::simulate::simulate(&model, &run, SimulationOptions::for_data(&run)).unwrap();
+        let holes = sim.covered.iter().skip(sim.start + 1).filter(|&&c| !c).count();
+        prop_assert_eq!(holes, 0);
     }
 
     /// Noise-free PWARX data with well-separated modes is recovered
@@ -238,25 +280,42 @@ fn errors_are_clear() {
     assert!(e.contains("y9") && e.contains("switching"), "{e}");
 }
 
-/// `max_modes` alone: the mode count is chosen by hold-out simulation FIT.
+/// `max_modes` alone: the mode count is chosen by hold-out simulation FIT
+/// (the fewest modes within one standard error of the best). On a stable
+/// three-mode PWARX switched by the input (noise `U[-0.05, 0.05]`, 600
+/// samples), where free-run FIT tells the counts apart, `max_modes = 4`
+/// gives 3 modes for every seed. (On B1 the free run is erratic: seed 5
+/// scored 67 % with 3 modes and 98 % with 4, so B1 is not used here.)
 #[test]
-fn max_modes_chooses_a_count() {
-    let ex = b1(600, 5);
-    let priors = Priors {
-        max_modes: Some(4),
-        ..Default::default()
-    };
-    let problem = Problem {
-        data: &ex.data,
-        orders: ex.truth.spec(),
-        priors: &priors,
-        priors_origin: None,
-    };
-    let m = Cluster
-        .run(&problem, &Settings::default(), &RunContext::quiet(1))
-        .unwrap();
-    assert!((2..=4).contains(&m.mode_count()), "{}", m.mode_count());
-    assert!(m.info().diagnostics.method.contains_key("mode_choice"));
+fn max_modes_chooses_the_true_count() {
+    let th = [[0.5, 1.0, 0.0], [-0.3, -1.0, 1.0], [0.2, 2.0, -1.0]];
+    for seed in 1..=3u64 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let n = 600;
+        let u: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let mut y = vec![0.0; n];
+        for k in 1..n {
+            let t = th[((u[k - 1] + 1.0) * 1.5).floor().min(2.0) as usize];
+            y[k] = t[0] * y[k - 1] + t[1] * u[k - 1] + t[2] + rng.random_range(-0.05..0.05);
+        }
+        let data = Dataset::siso(u, y, None).unwrap();
+        let priors = Priors {
+            max_modes: Some(4),
+            ..Default::default()
+        };
+        let problem = Problem {
+            data: &data,
+            orders: RegressorSpec::new(1, 1, 1),
+            priors: &priors,
+            priors_origin: None,
+        };
+        let m = Cluster
+            .run(&problem, &Settings::default(), &RunContext::quiet(1))
+            .unwrap();
+        let choice = &m.info().diagnostics.method["mode_choice"];
+        assert_eq!(m.mode_count(), 3, "seed {seed}: {choice}");
+        assert_eq!(choice.as_array().map(Vec::len), Some(4), "{choice}");
+    }
 }
 
 /// Every option variant runs on B1 and returns a valid model; the

@@ -292,10 +292,6 @@ fn bridge_modes_reproduce_the_simulator_in_their_regime() {
             "stop[lower]"
         ]
     );
-    // The continuous-time automaton view validates too.
-    Model::HybridAutomaton(m.to_hybrid_automaton())
-        .validate()
-        .unwrap();
 }
 
 #[test]
