@@ -49,6 +49,9 @@ pub struct BoundedDiagnostics {
     pub merged: usize,
     /// Modes dropped (too few samples).
     pub dropped: usize,
+    /// Modes added by splitting a mode whose samples lie on pieces another
+    /// mode separates (same parameters, one region each).
+    pub split_modes: usize,
     /// Largest `|residual|` of each mode over the samples labelled with it.
     pub max_residual: Vec<f64>,
     /// Samples labelled with each mode.
@@ -317,6 +320,7 @@ fn diagnostics(
         converged: c.converged,
         merged: c.merged,
         dropped: c.dropped,
+        split_modes: c.split,
         max_residual: c.max_residual.clone(),
         samples_per_mode,
         region_training_accuracy: partition.training_accuracy,

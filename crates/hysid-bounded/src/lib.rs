@@ -35,6 +35,7 @@ pub mod noise;
 pub mod procedure;
 pub mod refit;
 pub mod samples;
+pub mod split;
 pub mod sweep;
 
 pub use fit::{BoundedDiagnostics, Classified, fit};

@@ -31,6 +31,7 @@ use crate::constraints::{ModeConstraints, ModeSpace, least_squares_joint};
 use crate::maxfs::{MaxFsSettings, max_fs};
 use crate::refit::chebyshev_joint;
 use crate::samples::Samples;
+use crate::split;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
@@ -108,6 +109,9 @@ pub struct Classification {
     pub merged: usize,
     /// Modes dropped (too few samples).
     pub dropped: usize,
+    /// Modes added by splitting a mode whose samples lie on pieces that
+    /// another mode separates ([`crate::split`]).
+    pub split: usize,
     /// Largest `|residual|` of each mode over the samples labelled with it.
     pub max_residual: Vec<f64>,
     /// True when the deadline cut the procedure short.
@@ -185,7 +189,14 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         (greedy.thetas, None)
     };
     let refined = refine(s, set, &limits, thetas, tied);
-    let last = final_classification(s, set.delta, refined.thetas);
+    let mut last = final_classification(s, set.delta, refined.thetas);
+    let split = split::split_separated_modes(
+        s,
+        &mut last.thetas,
+        &mut last.labels,
+        limits.min_size,
+        limits.cap,
+    );
     if let Some(want) = set.exact_modes
         && last.thetas.len() < want
     {
@@ -205,6 +216,7 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
         converged: refined.converged,
         merged: refined.merged,
         dropped: refined.dropped + last.dropped,
+        split,
         stopped_by_deadline: greedy.stopped || refined.stopped,
         tie_projection_error,
     })

@@ -296,3 +296,38 @@ fn saturation_priors_beat_no_priors_on_the_stopped_head() {
         "with {with:?} against without {without:?}"
     );
 }
+
+/// H3 (`theta_1 = theta_3` on two regions with the middle mode between
+/// them; na = nb = 1, 300 samples, Gaussian noise of standard deviation
+/// 0.1, delta = 0.35): MIN PFS finds two parameter vectors, and the mode
+/// on both sides of the middle one is split, so `modes = 3` is honoured
+/// with a `[[tie]]` on `c` or `[fixed] c = 0`: three modes, two of them
+/// with the same parameters, and at least 90 % of fresh regressors in the
+/// right region after matching.
+#[test]
+fn equal_parameters_on_separated_regions_make_two_modes() {
+    let priors = [
+        "modes = 3\n[[tie]]\nparams = [\"c\"]\n",
+        "modes = 3\n[fixed]\nc = 0.0\n",
+    ];
+    for text in priors {
+        let pri = Priors::from_toml(text, "p.toml").unwrap();
+        for seed in [1u64, 2, 3] {
+            let id = hysid_testkit::h3(300, seed);
+            let Model::Pwarx(p) = run(&id.data, id.truth.spec(), &pri, 0.35, seed).unwrap() else {
+                panic!("a PWARX model")
+            };
+            assert_eq!(p.modes.len(), 3, "{text} seed {seed}");
+            let d = &p.info.diagnostics.method;
+            assert_eq!(d["split_modes"], 1, "{text} seed {seed}: {d:?}");
+            let fresh = hysid_testkit::h3(300, seed + 100);
+            let reg = id.truth.spec().build(&fresh.data).unwrap();
+            let got: Vec<usize> = (0..reg.len())
+                .map(|k| p.mode_of(&[reg.x[(k, 0)], reg.x[(k, 1)]]).mode)
+                .collect();
+            let acc = mode_accuracy(&fresh.row_modes(), &got).unwrap().accuracy;
+            eprintln!("{text:?} seed {seed}: fresh-data mode accuracy {acc:.3}");
+            assert!(acc >= 0.9, "{text} seed {seed}: accuracy {acc}");
+        }
+    }
+}
