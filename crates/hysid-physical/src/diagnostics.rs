@@ -1,8 +1,9 @@
 //! What a fit reports in the model's `info.diagnostics`: costs, evaluation
 //! count, why each stage stopped, a status when the result may not be
-//! converged, and per parameter its value, standard error, 95 % interval
-//! and sensitivity.
+//! converged, and per parameter its value, standard error, 95 % interval,
+//! sensitivity and identifiability.
 
+use crate::identifiability::Identifiability;
 use crate::parameters::ParameterMap;
 use crate::sensitivity::Sensitivity;
 use crate::stages::{Stage, StageLog, Termination};
@@ -112,12 +113,16 @@ pub struct ParameterDiagnostics {
     /// RMS change of the output per relative change of the parameter
     /// (`None` when not finite).
     pub sensitivity: Option<f64>,
+    /// What the identification rows determine about it (why a standard
+    /// error is missing).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identifiability: Option<Identifiability>,
 }
 
 impl ParameterDiagnostics {
-    /// From the value `value`, standard error `se` (NaN: not estimable)
-    /// and sensitivity `sensitivity`.
-    pub fn new(value: f64, se: f64, sensitivity: f64) -> Self {
+    /// From the value `value`, standard error `se` (NaN: not estimable),
+    /// sensitivity `sensitivity` and what the rows determine.
+    pub fn new(value: f64, se: f64, sensitivity: f64, identifiability: Identifiability) -> Self {
         let estimable = se.is_finite();
         ParameterDiagnostics {
             value,
@@ -125,6 +130,7 @@ impl ParameterDiagnostics {
             relative_std_error: (estimable && value != 0.0).then(|| (se / value).abs()),
             ci95: estimable.then_some([value - 1.96 * se, value + 1.96 * se]),
             sensitivity: Some(sensitivity).filter(|s| s.is_finite()),
+            identifiability: Some(identifiability),
         }
     }
 }
@@ -193,11 +199,16 @@ impl PhysicalDiagnostics {
         map: &ParameterMap,
         values: &[f64],
         sens: &Sensitivity,
+        identifiability: &[Identifiability],
     ) -> BTreeMap<String, ParameterDiagnostics> {
         let mut out = BTreeMap::new();
         for (gi, g) in map.groups.iter().enumerate() {
-            let entry =
-                ParameterDiagnostics::new(values[g[0]], sens.std_errors[gi], sens.sensitivity[gi]);
+            let entry = ParameterDiagnostics::new(
+                values[g[0]],
+                sens.std_errors[gi],
+                sens.sensitivity[gi],
+                identifiability[gi],
+            );
             for &i in g {
                 out.insert(map.names[i].clone(), entry.clone());
             }
@@ -282,10 +293,18 @@ mod tests {
             noise_estimate: 0.0,
             free_parameters: 2,
             parameters: [
-                ("a".to_string(), ParameterDiagnostics::new(2.0, 0.5, 1.5)),
+                (
+                    "a".to_string(),
+                    ParameterDiagnostics::new(2.0, 0.5, 1.5, Identifiability::Estimated),
+                ),
                 (
                     "b".to_string(),
-                    ParameterDiagnostics::new(0.0, f64::NAN, f64::NAN),
+                    ParameterDiagnostics::new(
+                        0.0,
+                        f64::NAN,
+                        f64::NAN,
+                        Identifiability::NoStandardError,
+                    ),
                 ),
             ]
             .into(),
@@ -315,11 +334,11 @@ mod tests {
         );
         assert_eq!(
             map["parameters"]["a"],
-            json!({"value": 2.0, "std_error": 0.5, "relative_std_error": 0.25, "ci95": [1.02, 2.98], "sensitivity": 1.5})
+            json!({"value": 2.0, "std_error": 0.5, "relative_std_error": 0.25, "ci95": [1.02, 2.98], "sensitivity": 1.5, "identifiability": "estimated"})
         );
         assert_eq!(
             map["parameters"]["b"],
-            json!({"value": 0.0, "std_error": null, "relative_std_error": null, "ci95": null, "sensitivity": null})
+            json!({"value": 0.0, "std_error": null, "relative_std_error": null, "ci95": null, "sensitivity": null, "identifiability": "no_standard_error"})
         );
         let back: PhysicalDiagnostics =
             serde_json::from_value(serde_json::Value::Object(map.into_iter().collect())).unwrap();

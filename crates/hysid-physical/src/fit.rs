@@ -1,11 +1,13 @@
 //! The fit: check the inputs, map the free parameters, search (particle
 //! swarm, then Levenberg-Marquardt and Nelder-Mead on the segmented and the
 //! free-run simulation error), then estimate the sensitivity and confidence
-//! of the result and write the diagnostics.
+//! of the result, keep the parameters the rows do not identify at their
+//! nominal values, and write the diagnostics.
 
 use crate::diagnostics::{
     CONFIDENCE_METHOD, COST_DEFINITION, PhysicalDiagnostics, Status, Terminations,
 };
+use crate::identifiability;
 use crate::local::local_stages;
 use crate::objective::{
     FAILED, Objective, VelocityTolerances, simulation_mse, velocity_tolerances,
@@ -76,7 +78,7 @@ pub fn fit_mechanical(
     let swarm = global_stage(&search, &nominal_z, nominal_cost, &mut log)?;
     let local = local_stages(&search, swarm.best_z, &swarm.extra_starts, &mut log)?;
 
-    let values = map.values(&local.best_z);
+    let mut values = map.values(&local.best_z);
     let cost = simulation_mse(&model, &values, data);
     let evaluations = evals.load(Ordering::Relaxed);
     if cost >= FAILED {
@@ -85,6 +87,7 @@ pub fn fit_mechanical(
         )));
     }
     let sens = sensitivity(&model, &map, &values, data, options.fd_step);
+    let identifiability = identifiability::classify(&model, &map, &mut values, cost, data, &sens);
     let status = Status::of(&log, evaluations, options.local_iters);
     let diagnostics = PhysicalDiagnostics {
         cost,
@@ -98,7 +101,7 @@ pub fn fit_mechanical(
         termination: Terminations::of(&log),
         noise_estimate: tols.noise,
         free_parameters: map.dim(),
-        parameters: PhysicalDiagnostics::parameters(&map, &values, &sens),
+        parameters: PhysicalDiagnostics::parameters(&map, &values, &sens, &identifiability),
         confidence_method: CONFIDENCE_METHOD.into(),
         jacobian_condition: Some(sens.condition).filter(|c| c.is_finite()),
         zero_sensitivity: sens.insensitive(&map),

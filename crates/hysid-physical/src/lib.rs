@@ -37,6 +37,7 @@
 pub mod bridge;
 pub mod diagnostics;
 pub mod fit;
+pub mod identifiability;
 pub mod levenberg_marquardt;
 pub mod local;
 pub mod objective;

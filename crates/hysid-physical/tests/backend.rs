@@ -25,6 +25,12 @@ const QUICK: [&str; 6] = [
 ];
 
 fn data(n: usize, seed: u64) -> Dataset {
+    data_between(n, seed, -0.2, 0.0)
+}
+
+/// The head model's response to inputs held 120 samples at levels drawn in
+/// `[low, high]`.
+fn data_between(n: usize, seed: u64, low: f64, high: f64) -> Dataset {
     let mut m = head_model();
     m.initial_state = MechanicalInitialState::Given {
         position: 0.0,
@@ -33,8 +39,8 @@ fn data(n: usize, seed: u64) -> Dataset {
     let u = Excitation {
         n,
         hold: 120,
-        low: -0.2,
-        high: 0.0,
+        low,
+        high,
         ts: Some(TS),
         inputs: 1,
     }
@@ -380,4 +386,36 @@ fn a_spent_time_budget_is_reported_as_the_status() {
     assert_eq!(t["levenberg_marquardt"]["time_budget"], 3, "{t}");
     assert!(t.get("nelder_mead").is_none(), "{t}");
     assert!(t.get("last_local_run").is_none(), "{t}");
+}
+
+/// A record that never reaches the lower stop says nothing about its
+/// position: `y_low` comes back at its nominal value, marked not
+/// identifiable, not wherever the search left it; every parameter says
+/// what the rows determine about it.
+#[test]
+fn a_parameter_the_rows_do_not_reach_stays_nominal() {
+    let d = data_between(400, 3, -0.1, 0.0);
+    let nominal = value(&head_model(), "y_low");
+    assert!(
+        d.y().iter().all(|&y| y < nominal - 1.0),
+        "the record must stay clear of the lower stop"
+    );
+    for seed in [1, 2] {
+        let m = run(&d, &Priors::default(), &[], seed).unwrap();
+        assert_eq!(value(mech(&m), "y_low"), nominal, "seed {seed}");
+        let p = &m.info().diagnostics.method["parameters"];
+        assert_eq!(
+            p["y_low"]["identifiability"], "not_identifiable",
+            "seed {seed}"
+        );
+        assert!(p["y_low"]["std_error"].is_null());
+        for (name, entry) in p.as_object().unwrap() {
+            let kind = entry["identifiability"].as_str().unwrap();
+            assert_eq!(
+                kind == "estimated",
+                !entry["std_error"].is_null(),
+                "{name}: {entry}"
+            );
+        }
+    }
 }
