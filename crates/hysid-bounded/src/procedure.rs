@@ -190,13 +190,18 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
     };
     let refined = refine(s, set, &limits, thetas, tied);
     let mut last = final_classification(s, set.delta, refined.thetas);
-    let split = split::split_separated_modes(
-        s,
-        &mut last.thetas,
-        &mut last.labels,
-        limits.min_size,
-        limits.cap,
-    );
+    // Only to honour an exact mode count: splitting every mode whose pieces
+    // another mode separates multiplies the modes of noisy records.
+    let split = match set.exact_modes {
+        Some(want) if last.thetas.len() < want => split::split_separated_modes(
+            s,
+            &mut last.thetas,
+            &mut last.labels,
+            limits.min_size,
+            want,
+        ),
+        _ => 0,
+    };
     if let Some(want) = set.exact_modes
         && last.thetas.len() < want
     {

@@ -9,7 +9,10 @@
 //! another mode lies between become modes of their own with the same
 //! parameters (every sample stays within delta of its mode). This step is
 //! ours; Bemporad et al. (2005) estimate the regions afterwards and leave
-//! the question to the region estimator.
+//! the question to the region estimator. The procedure applies it only when
+//! an exact mode count asks for more modes than the classification found:
+//! on a noisy record (the pick-and-place head at delta = 0.008) splitting
+//! every separated mode gave 10 modes instead of 3 and a worse simulation.
 //!
 //! 1. **Pieces**: the connected components of the graph linking each
 //!    labelled sample to those of its [`NEIGHBOURS`] nearest labelled
