@@ -410,6 +410,62 @@ pub fn stopped_head(n: usize, hold: usize, noise_std: f64, seed: u64) -> Stopped
     }
 }
 
+/// A record of the mounting-head model simulated by the mechanical
+/// simulator (`models/pick-and-place/simulated/`: Gaussian measurement noise
+/// of 0.005 mm on every sample, the stops included), with the output
+/// rounded to `quantum` (0: as written) as a position sensor does, and the
+/// true mode of every sample.
+#[derive(Debug, Clone)]
+pub struct SimulatedHead {
+    /// The record (input `u`, output `y`, sampling time 0.0025 s).
+    pub data: Dataset,
+    /// True mode name of every sample (`None` for the first samples).
+    pub modes: Vec<Option<String>>,
+}
+
+impl SimulatedHead {
+    /// Reads `models/pick-and-place/simulated/<file>` (columns `t`, `u`,
+    /// `y`, `mode`).
+    pub fn read(file: &str, quantum: f64) -> Self {
+        let path = format!(
+            "{}/../../models/pick-and-place/simulated/{file}",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let (mut u, mut y, mut modes) = (Vec::new(), Vec::new(), Vec::new());
+        for line in text.lines().skip(1) {
+            let cells: Vec<&str> = line.split(',').collect();
+            let number = |i: usize| {
+                cells[i]
+                    .parse::<f64>()
+                    .unwrap_or_else(|e| panic!("{path}: {e}"))
+            };
+            u.push(number(1));
+            let v = number(2);
+            y.push(if quantum > 0.0 {
+                (v / quantum).round() * quantum
+            } else {
+                v
+            });
+            modes.push(Some(cells[3].to_string()).filter(|m| !m.is_empty()));
+        }
+        let data = Dataset::siso(u, y, Some(0.0025)).expect("a finite record");
+        SimulatedHead { data, modes }
+    }
+
+    /// Samples `range` of the record.
+    pub fn rows(&self, range: std::ops::Range<usize>) -> (Dataset, Vec<Option<String>>) {
+        let data = self
+            .data
+            .slice(hysid_model::data::RowRange {
+                start: Some(range.start),
+                end: Some(range.end),
+            })
+            .expect("rows inside the record");
+        (data, self.modes[range].to_vec())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,99 @@
+//! Known stops on a record of the mechanical simulator, as a sensor gives
+//! it: Gaussian noise of 0.005 mm on every sample (at the stops too) and
+//! positions rounded to 0.01 mm. The prior names each stop with
+//! `tol = 0.02` mm (four noise standard deviations, two quanta); every
+//! PWARX back-end then finds the samples at the stops, never simulates
+//! past them, and simulates the test rows better than without the prior.
+
+use hysid_core::backend::{Problem, RunContext};
+use hysid_core::model::Model;
+use hysid_core::options::Settings;
+use hysid_core::priors::Priors;
+use hysid_core::simulate::{simulate, validate};
+use hysid_model::regressors::RegressorSpec;
+use hysid_model::simulate::SimulationOptions;
+use hysid_testkit::SimulatedHead;
+
+const STOPS: &str = "[[saturation]]\nlevel = 0.0\nbound = \"min\"\ntol = 0.02\n\
+                     [[saturation]]\nlevel = 25.0\nbound = \"max\"\ntol = 0.02\n";
+
+fn identify(
+    method: &str,
+    data: &hysid_model::data::Dataset,
+    priors: &Priors,
+    set: &[&str],
+) -> Model {
+    let problem = Problem {
+        data,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors,
+        priors_origin: Some("p.toml"),
+    };
+    hysid_backends::registry()
+        .get(method)
+        .unwrap()
+        .run(
+            &problem,
+            &Settings::parse(set).unwrap(),
+            &RunContext::quiet(1),
+        )
+        .unwrap_or_else(|e| panic!("{method}: {e}"))
+}
+
+#[test]
+fn stops_are_found_held_and_help_on_a_noisy_quantised_record() {
+    let record = SimulatedHead::read("both-saturations.csv", 0.01);
+    let (ident, truth) = record.rows(0..4000);
+    let (test, _) = record.rows(4000..6000);
+    // Regression targets are samples 2.. (na = nb = 2).
+    let true_count = |name: &str| {
+        truth[2..]
+            .iter()
+            .filter(|m| m.as_deref() == Some(name))
+            .count()
+    };
+    let true_at_stops = [
+        true_count("upper_saturation"),
+        true_count("lower_saturation"),
+    ];
+    for (method, modes, set) in [
+        ("cluster", 4, &["c=40"][..]),
+        ("bounded", 0, &["delta=0.02"][..]),
+    ] {
+        let count = if modes > 0 {
+            format!("modes = {modes}\n")
+        } else {
+            String::new()
+        };
+        let with = Priors::from_toml(&format!("{count}{STOPS}"), "p.toml").unwrap();
+        let without = Priors::from_toml(&count, "p.toml").unwrap();
+        let model = identify(method, &ident, &with, set);
+        let found = model.info().diagnostics.saturated_per_stop.clone().unwrap();
+        for (stop, (&f, &t)) in found.iter().zip(&true_at_stops).enumerate() {
+            let off = (f as f64 - t as f64).abs() / t as f64;
+            assert!(
+                off <= 0.03,
+                "{method}: stop {stop}: {f} samples found, {t} true"
+            );
+        }
+        let sim = simulate(&model, &test, SimulationOptions::for_data(&test)).unwrap();
+        for &y in &sim.y[sim.start..] {
+            assert!(
+                (0.0..=25.0).contains(&y),
+                "{method}: simulated {y} past a stop"
+            );
+        }
+        let score = |m: &Model| validate(m, &test, 10).unwrap().0.fit_sim;
+        let (fit_with, fit_without) = (
+            score(&model),
+            score(&identify(method, &ident, &without, set)),
+        );
+        eprintln!(
+            "{method}: stop samples {found:?} of {true_at_stops:?}; fit_sim {fit_with:.2} % with the stops, {fit_without:.2} % without"
+        );
+        assert!(
+            fit_with > fit_without,
+            "{method}: {fit_with} with, {fit_without} without"
+        );
+    }
+}
