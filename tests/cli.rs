@@ -252,6 +252,31 @@ fn bad_options_and_files_are_usage_errors() {
         &out,
     );
     bad(
+        &["identify", d, "-m", "cluster", "-o", o],
+        &[
+            "method 'cluster' needs the number of modes",
+            "--modes S",
+            "--max-modes S",
+        ],
+        &out,
+    );
+    bad(
+        &[
+            "identify",
+            d,
+            "-m",
+            "cluster",
+            "--modes",
+            "3",
+            "--max-modes",
+            "2",
+            "-o",
+            o,
+        ],
+        &["--modes 3 --max-modes 2", "exceeds max_modes = 2"],
+        &out,
+    );
+    bad(
         &["identify", d, "-m", "arx", "--rows", "500..", "-o", o],
         &["--rows 500..", "no sample"],
         &out,
@@ -708,4 +733,28 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
     args.extend(rows);
     let err = one_line_error(&hysid(&args), 1).unwrap();
     assert!(err.contains("every point of the sweep failed"), "{err}");
+}
+
+/// `--max-modes` is the prior `max_modes`: cluster chooses the count.
+#[test]
+fn max_modes_on_the_command_line_lets_cluster_choose() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 600);
+    let out = dir.path().join("m.json");
+    ok(&[
+        "identify",
+        s(&data),
+        "-m",
+        "cluster",
+        "--max-modes",
+        "3",
+        "-o",
+        s(&out),
+    ]);
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let choice = model["info"]["diagnostics"]["mode_choice"]
+        .as_array()
+        .unwrap();
+    assert_eq!(choice.len(), 3, "{choice:?}");
 }

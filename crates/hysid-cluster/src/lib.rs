@@ -256,7 +256,7 @@ impl Identifier for Cluster {
                 Ok(pwarx::assemble(&data, fit))
             }
             ModeCount::AtMost(max) => choose_modes(&data, options, max + stops, ctx),
-            ModeCount::Free => Err(ClusterError::NeedsModeCount.into()),
+            ModeCount::Free => Err(IdentifyError::NeedsModeCount { method: Self::NAME }),
         }
     }
 }
@@ -398,12 +398,6 @@ fn choose_modes(
 /// Bad input of the `cluster` back-end (an [`IdentifyError::Input`]).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ClusterError {
-    /// No `modes` or `max_modes` prior.
-    #[error(
-        "method 'cluster' needs the number of modes: give the prior `modes = S` (or `max_modes = S` \
-         to choose it by hold-out simulation FIT)"
-    )]
-    NeedsModeCount,
     /// A mode count of zero.
     #[error("the number of modes must be at least 1")]
     NoMode,

@@ -117,6 +117,15 @@ pub enum IdentifyError {
         /// Number of known stops.
         stops: usize,
     },
+    /// A back-end that cannot choose the mode count without a prior.
+    #[error(
+        "method '{method}' needs the number of modes: give the prior modes = S (or max_modes = S \
+         to choose it by hold-out simulation FIT)"
+    )]
+    NeedsModeCount {
+        /// The back-end.
+        method: &'static str,
+    },
     /// A `modes` prior above the `max_modes` prior.
     #[error("prior modes = {modes} exceeds max_modes = {max}")]
     ModesExceedMax {

@@ -34,6 +34,10 @@ pub struct Args {
     /// Number of modes (the prior `modes`; overrides the prior file).
     #[arg(long)]
     pub modes: Option<usize>,
+    /// Largest number of modes, the count chosen by the back-end (the prior
+    /// `max_modes`; overrides the prior file).
+    #[arg(long)]
+    pub max_modes: Option<usize>,
     /// Prior file (TOML), see docs/priors.md.
     #[arg(long)]
     pub prior: Option<PathBuf>,
@@ -93,14 +97,25 @@ pub fn run(args: Args) -> Result<()> {
         Some(p) => Priors::load(p)?,
         None => Priors::default(),
     };
-    if let Some(s) = args.modes {
-        if s == 0 {
-            return Err(CliError::input("--modes must be at least 1"));
+    for (flag, value, prior) in [
+        ("--modes", args.modes, &mut priors.modes),
+        ("--max-modes", args.max_modes, &mut priors.max_modes),
+    ] {
+        if let Some(s) = value {
+            if s == 0 {
+                return Err(CliError::input(format!("{flag} must be at least 1")));
+            }
+            *prior = Some(s);
         }
-        priors.modes = Some(s);
+    }
+    let given: Vec<String> = [("--modes", args.modes), ("--max-modes", args.max_modes)]
+        .iter()
+        .filter_map(|(flag, v)| v.map(|s| format!("{flag} {s}")))
+        .collect();
+    if !given.is_empty() {
         priors
             .check()
-            .map_err(|e| CliError::input(format!("--modes {s}: {e}")))?;
+            .map_err(|e| CliError::input(format!("{}: {e}", given.join(" "))))?;
     }
     let deadline = match args.time_budget {
         // A budget too long to represent (`Duration` ends near 1.8e19 s, an
