@@ -97,7 +97,7 @@ pub fn fit(
     let prior_fit = prior_fit(data, &work, modes)?;
     let mut clustered = cluster_features(o, &work, c, modes, seed, deadline, prior_fit.as_ref())?;
     check_modes_found(o, &clustered, s, modes, c)?;
-    let regions = estimate_regions(o, data, &work, &clustered)?;
+    let regions = estimate_regions(o, data, &work, &clustered, deadline)?;
     let region_refit_moved = if o.region_refit && modes > 1 {
         refit_on_regions(
             o,
@@ -110,7 +110,7 @@ pub fn fit(
         0
     };
     let uncovered_fraction = (!regions.complete).then(|| holes(&work, &regions.polyhedra, seed));
-    let status = time_budget_status(o, &clustered);
+    let status = time_budget_status(o, &clustered, &regions);
     let d = &clustered.diagnostics;
     let diagnostics = ClusterDiagnostics {
         c,
@@ -383,16 +383,20 @@ struct Regions {
     polyhedra: Vec<Polyhedron>,
     training_accuracy: f64,
     complete: bool,
+    /// The time budget ended the region program's rounds early.
+    cut_short: bool,
 }
 
 /// Step 7: the regions that separate the mode datasets (`regions`: MRLP,
 /// multicategory SVM or pairwise proximal SVM), with normals restricted to
-/// the `switching` regressors; one mode owns the whole space.
+/// the `switching` regressors; one mode owns the whole space. No round of
+/// the region program starts after `deadline`.
 fn estimate_regions(
     o: &ClusterOptions,
     data: &PwarxData<'_>,
     work: &Working,
     fit: &ModeFit,
+    deadline: Option<Instant>,
 ) -> Result<Regions, IdentifyError> {
     let modes = fit.theta.len();
     if modes == 1 {
@@ -400,6 +404,7 @@ fn estimate_regions(
             polyhedra: vec![Polyhedron::everything()],
             training_accuracy: 1.0,
             complete: true,
+            cut_short: false,
         });
     }
     let options = hysid_regions::RegionOptions {
@@ -407,6 +412,7 @@ fn estimate_regions(
         svm_c: o.svm_c,
         switching: data.switching.clone(),
         standardize: !o.scale,
+        deadline,
     };
     let part = hysid_regions::estimate(&work.xs, &fit.labels, modes, &options)
         .map_err(|e| IdentifyError::failed(format!("region estimation: {e}")))?;
@@ -414,6 +420,7 @@ fn estimate_regions(
         polyhedra: part.regions,
         training_accuracy: part.training_accuracy,
         complete: part.complete,
+        cut_short: part.stats.cut_short,
     })
 }
 
@@ -479,16 +486,23 @@ fn holes(work: &Working, regions: &[Polyhedron], seed: u64) -> f64 {
 
 /// With `clustering = kmeans`, the message of a time budget that stopped
 /// the restarts early.
-fn time_budget_status(o: &ClusterOptions, fit: &ModeFit) -> Vec<String> {
+fn time_budget_status(o: &ClusterOptions, fit: &ModeFit, regions: &Regions) -> Vec<String> {
     let run = fit.diagnostics.restart_costs.len();
+    let mut status = Vec::new();
     if o.clustering == Clustering::Kmeans && run < o.restarts {
-        vec![format!(
+        status.push(format!(
             "time budget reached after {run} of {} K-means restarts: the best clustering found by then",
             o.restarts
-        )]
-    } else {
-        Vec::new()
+        ));
     }
+    if regions.cut_short {
+        status.push(format!(
+            "time budget reached during the {} region estimation: the regions found by then \
+             (a complete partition, not the program's optimum)",
+            o.regions
+        ));
+    }
+    status
 }
 
 /// Step 8: the modes in data units (`PwarxModel::to_original_units`, exact);

@@ -402,3 +402,32 @@ fn kmeans_plusplus_escapes_the_block_initialisation_trap() {
             > 0.5
     );
 }
+
+/// A time budget that has run out: one K-means restart, the softmax
+/// partition instead of the region program, a complete partition all the
+/// same, and the run says where the budget cut it short.
+#[test]
+fn a_spent_time_budget_still_gives_a_complete_model() {
+    let ex = b1(600, 4);
+    let priors = Priors {
+        modes: Some(3),
+        ..Default::default()
+    };
+    let problem = Problem {
+        data: &ex.data,
+        orders: ex.truth.spec(),
+        priors: &priors,
+        priors_origin: None,
+    };
+    let ctx = RunContext {
+        deadline: Some(std::time::Instant::now()),
+        ..RunContext::quiet(1)
+    };
+    let m = Cluster.run(&problem, &Settings::default(), &ctx).unwrap();
+    let d = &m.info().diagnostics;
+    assert_eq!(d.run_status, hysid_model::model::RunStatus::TimeBudget);
+    assert_eq!(d.regions_complete, Some(true));
+    let status = d.status.join("; ");
+    assert!(status.contains("K-means restarts"), "{status}");
+    assert!(status.contains("mrlp region estimation"), "{status}");
+}

@@ -117,6 +117,9 @@ pub struct Settings {
     pub tol_feas: f64,
     /// Iterative-refinement steps per linear solve.
     pub iterative_refinement_max_iter: u32,
+    /// Wall-clock limit of one solve in seconds (infinite: none); reaching
+    /// it is [`SolveError::TimeLimit`].
+    pub time_limit: f64,
 }
 
 impl Default for Settings {
@@ -128,6 +131,7 @@ impl Default for Settings {
             tol_gap_rel: d.tol_gap_rel,
             tol_feas: d.tol_feas,
             iterative_refinement_max_iter: d.iterative_refinement_max_iter,
+            time_limit: d.time_limit,
         }
     }
 }
@@ -141,6 +145,7 @@ impl Settings {
             .tol_gap_rel(self.tol_gap_rel)
             .tol_feas(self.tol_feas)
             .iterative_refinement_max_iter(self.iterative_refinement_max_iter)
+            .time_limit(self.time_limit)
             .build()
             .map_err(|e| SolveError::Setup(e.to_string()))
     }
@@ -196,8 +201,7 @@ pub enum SolveError {
         /// Iterations done.
         iterations: u32,
     },
-    /// The time limit was reached (`MaxTime`; [`Settings`] sets none, so
-    /// only clarabel's own default could).
+    /// The time limit of [`Settings::time_limit`] was reached (`MaxTime`).
     #[error("clarabel stopped with status {} after {iterations} iterations", self.status())]
     TimeLimit {
         /// Iterations done.

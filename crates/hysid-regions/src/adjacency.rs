@@ -110,6 +110,7 @@ pub fn adjacency(
                 method: "adjacency",
                 points: 0,
                 round: 1,
+                deadline: None,
             };
             let (variables, rows) = (prog.variables(), prog.rows());
             match crate::solve_program(prog) {

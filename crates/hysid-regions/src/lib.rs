@@ -106,6 +106,12 @@ pub struct RegionOptions {
     /// deviation per column) and return the regions in original units.
     /// Default true.
     pub standardize: bool,
+    /// No working-set round of MRLP or MSVM starts after this instant: the
+    /// scores of the last round are kept (still a complete argmax
+    /// partition, optimal on the points of that round's working set) and
+    /// [`SolveStats::cut_short`] is set. Default none; not serialised.
+    #[serde(skip)]
+    pub deadline: Option<std::time::Instant>,
 }
 
 impl Default for RegionOptions {
@@ -115,6 +121,7 @@ impl Default for RegionOptions {
             svm_c: 1.0,
             switching: None,
             standardize: true,
+            deadline: None,
         }
     }
 }
@@ -131,6 +138,10 @@ pub struct SolveStats {
     /// Newton steps of the softmax fit (also used to seed the working set
     /// of mrlp and msvm).
     pub newton_steps: usize,
+    /// True when [`RegionOptions::deadline`] ended the working-set rounds
+    /// before every point had zero loss (the scores are then not the
+    /// program's optimum).
+    pub cut_short: bool,
 }
 
 /// One region per mode.
@@ -180,6 +191,12 @@ pub enum RegionError {
     /// Inconsistent sizes.
     #[error("shape mismatch: {0}")]
     Shape(String),
+    /// [`RegionOptions::deadline`] passed during a solve.
+    #[error("{method}: the time budget ended a solve")]
+    TimeLimit {
+        /// The method.
+        method: &'static str,
+    },
     /// A regressor entry is NaN or infinite.
     #[error("regressor at row {row}, column {col} is not finite")]
     NonFinite {
@@ -252,15 +269,22 @@ pub(crate) struct Context {
     pub(crate) method: &'static str,
     pub(crate) points: usize,
     pub(crate) round: usize,
+    /// The solve stops here ([`RegionError::TimeLimit`]).
+    pub(crate) deadline: Option<std::time::Instant>,
 }
 
 /// The clarabel settings of every region program: an explicit bound of 300
-/// iterations and 3 iterative-refinement steps per linear solve (the other
-/// fields are clarabel's defaults).
-pub(crate) fn solver_settings() -> Settings {
+/// iterations and 3 iterative-refinement steps per linear solve, and the time
+/// left before `deadline` (the other fields are clarabel's defaults).
+pub(crate) fn solver_settings(deadline: Option<std::time::Instant>) -> Settings {
+    let time_limit = deadline.map_or(f64::INFINITY, |d| {
+        d.saturating_duration_since(std::time::Instant::now())
+            .as_secs_f64()
+    });
     Settings {
         max_iter: 300,
         iterative_refinement_max_iter: 3,
+        time_limit,
         ..Settings::default()
     }
 }
@@ -269,7 +293,7 @@ pub(crate) fn solver_settings() -> Settings {
 /// or `AlmostSolved`, the policy of `hysid_estimation::conic`) is returned;
 /// a failure is the [`SolveError`].
 pub(crate) fn solve_program(program: Program) -> Result<Solution, SolveError> {
-    conic::solve(program, &solver_settings())
+    conic::solve(program, &solver_settings(None))
 }
 
 impl RegionError {
@@ -281,6 +305,7 @@ impl RegionError {
                 method: ctx.method,
                 detail,
             },
+            SolveError::TimeLimit { .. } => RegionError::TimeLimit { method: ctx.method },
             e => RegionError::Solver {
                 method: ctx.method,
                 status: e.status().to_string(),
@@ -297,7 +322,8 @@ impl RegionError {
 /// [`solve_program`] with a failure as a [`RegionError`] naming `ctx`.
 pub(crate) fn solve_in_context(program: Program, ctx: &Context) -> Result<Solution, RegionError> {
     let (variables, rows) = (program.variables(), program.rows());
-    solve_program(program).map_err(|e| RegionError::from_solve(e, ctx, variables, rows))
+    conic::solve(program, &solver_settings(ctx.deadline))
+        .map_err(|e| RegionError::from_solve(e, ctx, variables, rows))
 }
 
 /// Standardised, column-selected data: row-major `n x p`.
@@ -624,6 +650,7 @@ mod tests {
         method: "test",
         points: 7,
         round: 2,
+        deadline: None,
     };
 
     /// `min x1 + x2` subject to `lo <= x <= hi` (as `A x + s = b`, `s >= 0`).
@@ -672,7 +699,7 @@ mod tests {
     fn the_iteration_bound_is_an_error_naming_the_status() {
         let settings = Settings {
             max_iter: 1,
-            ..solver_settings()
+            ..solver_settings(None)
         };
         let e = conic::solve(boxed(0.5, 2.0), &settings).unwrap_err();
         let e = RegionError::from_solve(e, &CTX, 2, 4);

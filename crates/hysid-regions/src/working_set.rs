@@ -68,11 +68,15 @@ pub(crate) fn solve(
         })
         .collect();
 
+    if past(opts.deadline) {
+        return softmax_instead(prep, labels, modes, SolveStats::default());
+    }
     if !quadratic && (modes - 1) * (prep.p + 1) <= SIMPLEX_MAX_UNKNOWNS {
         let mut stats = SolveStats::default();
         // A failed softmax on the sample only costs the fast path.
         if let Ok(set) = scaled_softmax_set(prep, labels, modes, &weight, quadratic, &mut stats)
-            && let Some(blocks) = solve_simplex(prep, labels, modes, &weight, set, &mut stats)
+            && let Some(blocks) =
+                solve_simplex(prep, labels, modes, &weight, set, opts.deadline, &mut stats)
         {
             return Ok((blocks, stats));
         }
@@ -81,7 +85,39 @@ pub(crate) fn solve(
     // interior-point solution is kept there: see `crate::simplex`).
     let mut stats = SolveStats::default();
     let set = initial_set(prep, labels, modes, &mut stats)?;
-    solve_clarabel(prep, labels, modes, &weight, method, quadratic, set, stats)
+    let solved = solve_clarabel(
+        prep,
+        labels,
+        modes,
+        &weight,
+        (method, quadratic),
+        set,
+        opts.deadline,
+        stats.clone(),
+    );
+    match solved {
+        Err(RegionError::TimeLimit { .. }) => softmax_instead(prep, labels, modes, stats),
+        other => other,
+    }
+}
+
+/// When the time budget leaves no room for the program: the softmax
+/// partition (also complete), marked [`SolveStats::cut_short`].
+fn softmax_instead(
+    prep: &Prepared,
+    labels: &[usize],
+    modes: usize,
+    mut stats: SolveStats,
+) -> Result<(Vec<Vec<f64>>, SolveStats), RegionError> {
+    let (blocks, steps) = crate::softmax::fit(prep, labels, modes)?;
+    stats.newton_steps = steps;
+    stats.cut_short = true;
+    Ok((blocks, stats))
+}
+
+/// Whether `deadline` has passed.
+fn past(deadline: Option<std::time::Instant>) -> bool {
+    deadline.is_some_and(|d| std::time::Instant::now() >= d)
 }
 
 /// Points outside the set (`in_set` false) whose margin under the scores
@@ -120,13 +156,14 @@ fn violators(
 /// The MRLP by the dual simplex of [`crate::simplex`], warm-started from
 /// round to round; `None` when the simplex gives up (pivot bound or a
 /// singular basis) or the optimum is not unique, in which case the caller
-/// uses clarabel.
+/// uses clarabel. Past `deadline`, the scores of the last round.
 fn solve_simplex(
     prep: &Prepared,
     labels: &[usize],
     modes: usize,
     weight: &[f64],
     mut set: Vec<usize>,
+    deadline: Option<std::time::Instant>,
     stats: &mut SolveStats,
 ) -> Option<Vec<Vec<f64>>> {
     let mut in_set = vec![false; prep.n];
@@ -153,6 +190,10 @@ fn solve_simplex(
         if new.is_empty() {
             return sx.unique().then_some(blocks);
         }
+        if past(deadline) {
+            stats.cut_short = true;
+            return Some(blocks);
+        }
         for &r in &new {
             in_set[r] = true;
         }
@@ -161,16 +202,17 @@ fn solve_simplex(
     }
 }
 
-/// The working-set rounds with clarabel solving each restricted program.
+/// The working-set rounds with clarabel solving each restricted program;
+/// past `deadline`, the scores of the last round.
 #[allow(clippy::too_many_arguments)]
 fn solve_clarabel(
     prep: &Prepared,
     labels: &[usize],
     modes: usize,
     weight: &[f64],
-    method: &'static str,
-    quadratic: bool,
+    (method, quadratic): (&'static str, bool),
     mut set: Vec<usize>,
+    deadline: Option<std::time::Instant>,
     mut stats: SolveStats,
 ) -> Result<(Vec<Vec<f64>>, SolveStats), RegionError> {
     let mut in_set = vec![false; prep.n];
@@ -188,6 +230,7 @@ fn solve_clarabel(
             method,
             points: set.len(),
             round,
+            deadline,
         };
         let prog = program(prep, labels, modes, weight, quadratic, &set);
         let sol = crate::solve_in_context(prog, &ctx)?;
@@ -210,6 +253,10 @@ fn solve_clarabel(
         }
         let new = violators(prep, labels, modes, &blocks, &in_set);
         if new.is_empty() {
+            return Ok((blocks, stats));
+        }
+        if past(deadline) {
+            stats.cut_short = true;
             return Ok((blocks, stats));
         }
         for &r in &new {
@@ -596,6 +643,7 @@ mod tests {
                 method: "test",
                 points: n,
                 round: 1,
+                deadline: None,
             };
             let full =
                 crate::solve_in_context(program(&prep, &labels, 3, &weight, quadratic, &all), &ctx)
@@ -620,6 +668,7 @@ mod tests {
             method: "test",
             points: prep.n,
             round: 1,
+            deadline: None,
         };
         let full = crate::solve_in_context(program(prep, labels, modes, weight, false, &all), &ctx)
             .unwrap();

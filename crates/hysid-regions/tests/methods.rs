@@ -450,3 +450,30 @@ fn adjacency_of_wedges_strips_and_psvc() {
         Err(RegionError::Shape(_))
     ));
 }
+
+/// A deadline that has passed: MRLP and MSVM give the softmax partition
+/// instead of running their programs, complete and marked cut short; with
+/// no deadline the same data are solved to the end.
+#[test]
+fn a_passed_deadline_gives_a_complete_partition_marked_cut_short() {
+    let (x, labels) = wedges(300, 1, 0.3, 0.05);
+    for method in [RegionMethod::Mrlp, RegionMethod::Msvm] {
+        let late = RegionOptions {
+            deadline: Some(std::time::Instant::now()),
+            ..opts(method)
+        };
+        let p = estimate(&x, &labels, 3, &late).unwrap();
+        assert!(p.stats.cut_short, "{method}");
+        assert_eq!(p.stats.solves, 0, "{method}: no program solved");
+        assert!(p.complete);
+        let c = coverage(&p.regions, &[-10.0, -10.0], &[10.0, 10.0], 20_000, 7);
+        assert_eq!(c.uncovered_fraction, 0.0, "{method}");
+        assert!(
+            p.training_accuracy > 0.9,
+            "{method}: {}",
+            p.training_accuracy
+        );
+        let full = estimate(&x, &labels, 3, &opts(method)).unwrap();
+        assert!(!full.stats.cut_short && full.stats.solves > 0, "{method}");
+    }
+}
