@@ -758,3 +758,61 @@ fn max_modes_on_the_command_line_lets_cluster_choose() {
         .unwrap();
     assert_eq!(choice.len(), 3, "{choice:?}");
 }
+
+/// One convention each, so that files round-trip: a model with a stop
+/// keeps the record's input name (its simulated CSV feeds `validate`
+/// again), `t` is the time of the sample in the record (`--rows` does not
+/// restart it at 0), printed without rounding residue, and unnamed modes
+/// are `mode 1`, `mode 2`, ... in the model file and the CSV, as in the
+/// figures.
+#[test]
+fn simulated_files_round_trip_with_one_convention() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 600);
+    let prior = dir.path().join("p.toml");
+    std::fs::write(&prior, "[[saturation]]\nlevel = 3.0\nbound = \"max\"\n").unwrap();
+    let model = dir.path().join("m.json");
+    ok(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--prior",
+        s(&prior),
+        "-o",
+        s(&model),
+    ]);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["kind"], "hybrid_automaton");
+    assert_eq!(m["inputs"], serde_json::json!(["u"]));
+    assert_eq!(m["modes"][0]["name"], "mode 1");
+    let sim = dir.path().join("sim.csv");
+    ok(&[
+        "simulate",
+        s(&model),
+        "--data",
+        s(&data),
+        "--rows",
+        "100..200",
+        "-o",
+        s(&sim),
+    ]);
+    let text = std::fs::read_to_string(&sim).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t,u,y,mode"));
+    let first: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(first[0], "1", "t of row 100 at ts = 0.01");
+    assert!(
+        text.lines()
+            .skip(1)
+            .all(|l| l.split(',').next().unwrap().len() <= 5),
+        "{text}"
+    );
+    assert!(text.contains(",mode 1\n"), "{}", &text[..200]);
+    ok(&["validate", s(&model), s(&sim), "--json"]);
+}

@@ -192,32 +192,20 @@ fn stop_level(p: &Polyhedron) -> Option<f64> {
 }
 
 /// Mode names as the figures show them, the same in the mode-sequence and
-/// the region plots: unnamed PWARX modes (and the index names an automaton
-/// made from a PWARX model carries) are `mode 1`, `mode 2`, ...; a stop of
-/// an automaton says its level; other names are the model's.
+/// the region plots: the model's names (unnamed PWARX modes are `mode 1`,
+/// `mode 2`, ...: `hysid_model::model::mode_name`); a stop of an automaton
+/// also says its level.
 fn display_mode_names(m: &Model) -> Vec<String> {
     match m {
-        Model::Pwarx(p) => p
-            .modes
-            .iter()
-            .enumerate()
-            .map(|(k, q)| q.name.clone().unwrap_or_else(|| format!("mode {}", k + 1)))
-            .collect(),
         Model::HybridAutomaton(a) => a
             .modes
             .iter()
-            .enumerate()
-            .map(|(k, q)| {
-                if q.name == k.to_string() {
-                    format!("mode {}", k + 1)
-                } else if let Some(level) = stop_level(&q.invariant) {
-                    format!("{}: stop y = {level}", q.name)
-                } else {
-                    q.name.clone()
-                }
+            .map(|q| match stop_level(&q.invariant) {
+                Some(level) => format!("{}: stop y = {level}", q.name),
+                None => q.name.clone(),
             })
             .collect(),
-        Model::Mechanical(_) => m.mode_names(),
+        Model::Pwarx(_) | Model::Mechanical(_) => m.mode_names(),
     }
 }
 

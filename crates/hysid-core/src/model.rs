@@ -131,7 +131,7 @@ impl Model {
     pub fn mode_names(&self) -> Vec<String> {
         match self {
             Model::Pwarx(m) => (0..m.modes.len())
-                .map(|i| m.modes[i].name.clone().unwrap_or_else(|| i.to_string()))
+                .map(|i| hysid_model::model::mode_name(m.modes[i].name.as_deref(), i))
                 .collect(),
             Model::HybridAutomaton(m) => m.modes.iter().map(|q| q.name.clone()).collect(),
             Model::Mechanical(m) => m.modes.iter().map(|q| q.name.clone()).collect(),

@@ -322,6 +322,9 @@ pub fn assemble<D: Serialize>(data: &PwarxData<'_>, fit: PwarxFit<D>) -> Model {
         info: ModelInfo {
             diagnostics,
             scaling: fit.scaling,
+            // Named here, not only by `Backend::run`, so that an automaton
+            // with stops takes the record's input names.
+            input_names: data.problem.data.input_names(),
             ..Default::default()
         },
     };

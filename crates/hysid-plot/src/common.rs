@@ -74,13 +74,10 @@ pub fn mode_colour(k: usize) -> RGBColor {
     MODE_COLOURS[k % MODE_COLOURS.len()]
 }
 
-/// Name of mode `m` (0-based): `names[m]`, or `"mode k"` (1-based) when
-/// `names` has no entry for it.
+/// Name of mode `m` (0-based): `names[m]`, or `"mode m+1"`
+/// ([`hysid_model::model::mode_name`]) when `names` has no entry for it.
 pub fn mode_name(names: &[String], m: usize) -> String {
-    names
-        .get(m)
-        .cloned()
-        .unwrap_or_else(|| format!("mode {}", m + 1))
+    hysid_model::model::mode_name(names.get(m).map(String::as_str), m)
 }
 
 /// Maps any plotters error to [`PlotError::Draw`].

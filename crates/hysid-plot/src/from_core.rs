@@ -117,7 +117,7 @@ impl RegionFigure {
                 .modes
                 .iter()
                 .enumerate()
-                .map(|(k, m)| m.name.clone().unwrap_or_else(|| format!("mode {}", k + 1)))
+                .map(|(k, m)| hysid_model::model::mode_name(m.name.as_deref(), k))
                 .collect(),
             bounds: None,
             notes: Vec::new(),

@@ -116,10 +116,18 @@ pub fn run(args: Args) -> Result<()> {
     header.push("mode".into());
     let io = |e: csv::Error| CliError::failure(format!("writing CSV: {e}"));
     w.write_record(&header).map_err(io)?;
+    // With --data, `t` is the time of the sample in the record: the first
+    // selected row is row `first` of the file (after decimation), as the
+    // figures of `compare` count it.
+    let first = if args.data.is_some() {
+        args.select.selection()?.rows.start.unwrap_or(0)
+    } else {
+        0
+    };
     for (k, yk) in y.iter().enumerate() {
         let mut row: Vec<String> = Vec::with_capacity(header.len());
         if let Some(ts) = data.ts {
-            row.push(format!("{}", k as f64 * ts));
+            row.push(time_text(first + k, ts));
         }
         for i in 0..data.inputs.len() {
             row.push(format!("{}", data.u(i)[k]));
@@ -139,6 +147,23 @@ pub fn run(args: Args) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// `k ts` with as many decimals as `ts` has (at most 12), without the
+/// rounding residue of the product (`14.995`, not `14.995000000000001`).
+fn time_text(k: usize, ts: f64) -> String {
+    let decimals = (0..=12)
+        .find(|&d| {
+            let scaled = ts * 10f64.powi(d);
+            (scaled - scaled.round()).abs() <= 1e-9 * scaled.abs().max(1.0)
+        })
+        .unwrap_or(12) as usize;
+    let text = format!("{:.*}", decimals, k as f64 * ts);
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    }
 }
 
 fn input_names(model: &Model) -> Vec<String> {

@@ -518,7 +518,7 @@ impl HybridAutomaton {
                         .collect()
                 };
                 AutomatonMode {
-                    name: mode.name.clone().unwrap_or_else(|| qi.to_string()),
+                    name: super::mode_name(mode.name.as_deref(), qi),
                     flow: AffineDynamics { a, b, f },
                     invariant: Polyhedron {
                         a: remap(&mode.region.a),

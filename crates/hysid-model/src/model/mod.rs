@@ -24,7 +24,7 @@ pub use automaton::{
     OutputMap, ResetMap, TimeDomain, Transition, arx_state_positions,
 };
 pub use diagnostics::{Diagnostics, Refinement, RefinementStatus, RunStatus};
-pub use pwarx::{PwarxMode, PwarxModel, RegionChoice};
+pub use pwarx::{PwarxMode, PwarxModel, RegionChoice, mode_name};
 pub use selection::{RefinementChoice, ScoredCandidate, Selection, SplitRows};
 pub use stop::{Stop, StopBound};
 

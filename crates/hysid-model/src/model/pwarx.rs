@@ -7,6 +7,13 @@ use crate::geometry::Polyhedron;
 use crate::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
 
+/// The name of mode `k` (0-based) whose own name is `name`: that name, or
+/// `mode k+1`. Modes are numbered from 1 wherever they are shown or written
+/// (model files, simulated CSVs, plots, reports).
+pub fn mode_name(name: Option<&str>, k: usize) -> String {
+    name.map_or_else(|| format!("mode {}", k + 1), str::to_string)
+}
+
 /// One PWARX mode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PwarxMode {

@@ -678,7 +678,7 @@ mod stop_tests {
         let data = Dataset::siso(u, vec![0.0; 4], None).unwrap();
         let s = simulate(&(a.clone()), &data, SimulationOptions::default()).unwrap();
         assert_eq!(&s.y[1..], &[1.0, 1.0, 1.0]);
-        let free = a.mode_index("0").unwrap();
+        let free = a.mode_index("mode 1").unwrap();
         let sat = a.mode_index("sat_max_1").unwrap();
         assert_eq!(s.modes[2], Some(free), "released onto the level");
         assert_eq!(s.modes[3], Some(sat), "held again when pushed");
