@@ -94,18 +94,22 @@ impl<'a> Runner<'a> {
         // the model: covered when the point moved onto the stop's set lies
         // in some invariant.
         let covered = best.1 && {
-            let mut on = z.clone();
-            let inv = &m.modes[best.2].invariant;
-            for (row, b) in inv.a_eq.iter().zip(&inv.b_eq) {
-                let nn: f64 = row.iter().map(|v| v * v).sum();
-                let r = (row.iter().zip(&on).map(|(a, v)| a * v).sum::<f64>() - b) / nn;
-                for (v, a) in on.iter_mut().zip(row) {
-                    *v -= r * a;
-                }
-            }
+            let on = onto_equalities(&m.modes[best.2].invariant, &z);
             m.modes.iter().any(|mode| mode.invariant.contains(&on))
         };
         (best.2, covered)
+    }
+
+    /// The state `x` moved onto the equality rows of mode `q`'s invariant
+    /// (a measured output past a stop, put on the stop); unchanged for a
+    /// full-dimensional invariant or a state already in it.
+    fn onto_invariant(&mut self, q: usize, x: &[f64], u: &[f64]) -> Vec<f64> {
+        let inv = &self.m.modes[q].invariant;
+        let z = self.ext(x, u).to_vec();
+        if !inv.is_lower_dimensional() || inv.contains(&z) {
+            return x.to_vec();
+        }
+        onto_equalities(inv, &z)[..self.n].to_vec()
     }
 
     /// First transition from `q` met on the segment `x0 -> x1` under `u`;
@@ -193,6 +197,21 @@ impl<'a> Runner<'a> {
         };
         (q, x1, step)
     }
+}
+
+/// `z` moved onto the equality rows of `p`, one row after the other, each by
+/// the orthogonal projection onto its hyperplane (exact for the single row
+/// of a stop).
+fn onto_equalities(p: &Polyhedron, z: &[f64]) -> Vec<f64> {
+    let mut on = z.to_vec();
+    for (row, b) in p.a_eq.iter().zip(&p.b_eq) {
+        let nn: f64 = row.iter().map(|v| v * v).sum();
+        let r = (row.iter().zip(&on).map(|(a, v)| a * v).sum::<f64>() - b) / nn;
+        for (v, a) in on.iter_mut().zip(row) {
+            *v -= r * a;
+        }
+    }
+    on
 }
 
 /// True when a step `z0 -> z1` that starts on the crossing guard `guard`
@@ -439,6 +458,9 @@ pub fn predict(m: &HybridAutomaton, data: &Dataset) -> Result<Simulation, SimErr
         let u = inputs_at(data, k);
         let (q0, covered) = run.select(None, &x, &u);
         sim.covered[k + 1] = covered;
+        // A measurement past a stop is the mass at the stop: from there the
+        // release guard decides, as it does in simulation.
+        let x = run.onto_invariant(q0, &x, &u);
         let (qk, x1) = run.discrete_step(q0, &x, &u);
         sim.modes[k + 1] = Some(qk);
         sim.y[k + 1] = m.output.eval(&x1, &inputs_at(data, k + 1));
@@ -682,6 +704,20 @@ mod stop_tests {
         let sat = a.mode_index("sat_max_1").unwrap();
         assert_eq!(s.modes[2], Some(free), "released onto the level");
         assert_eq!(s.modes[3], Some(sat), "held again when pushed");
+    }
+
+    /// One-step prediction from a measured output just past the stop (noise)
+    /// while the input releases it: the mass is taken at the stop and the
+    /// release guard decides, so the prediction leaves the stop.
+    #[test]
+    fn prediction_from_a_measurement_past_the_stop_can_release() {
+        let a = first_order_with_stop();
+        let data = Dataset::siso(vec![0.0, 2.0, 0.0], vec![1.003, 0.5, 1.0], None).unwrap();
+        let p = super::predict(&a, &data).unwrap();
+        assert_eq!(p.y[1], 0.5, "released: 0.5 * 1 + 0");
+        assert_eq!(p.modes[1], a.mode_index("mode 1"));
+        // Pushed from inside: the prediction stops at the level.
+        assert_eq!(p.y[2], 1.0);
     }
 
     #[test]
