@@ -777,6 +777,17 @@ fn malformed_experiment_files() {
         let out = d.join(format!("out-{name}"));
         bad(&["compare", s(&p), "-o", s(&out)], needles, &out);
     }
+    // The missing data file is named once, as resolved against the
+    // experiment's folder, after the key that names it.
+    let out = d.join("out-missing-file.toml");
+    let err = one_line_error(
+        &hysid(&["compare", s(&d.join("missing-file.toml")), "-o", s(&out)]),
+        2,
+    )
+    .unwrap();
+    let resolved = format!("[data] file: {}", d.join("gone.csv").display());
+    assert!(err.contains(&resolved), "{err}");
+    assert_eq!(err.matches("gone.csv").count(), 1, "{err}");
     report();
 }
 

@@ -237,8 +237,9 @@ pub enum ExperimentError {
         /// Cause.
         source: std::io::Error,
     },
-    /// The data file could not be read as selected.
-    #[error("{path}: {source}")]
+    /// The data file could not be read as selected (the cause names the
+    /// file as resolved).
+    #[error("[data] file: {source}")]
     Data {
         /// Data file.
         path: String,
