@@ -407,6 +407,15 @@ fn sweep_figure(c: &Comparison, name: &str, points: &[&RunResult]) -> Option<Swe
     })
 }
 
+/// A regressor order in the results table: `-` for a mechanical model,
+/// which has none.
+fn order_text(model: Option<&Model>, order: usize) -> String {
+    match model {
+        Some(Model::Mechanical(_)) => "-".to_string(),
+        _ => order.to_string(),
+    }
+}
+
 /// The report as Markdown.
 pub fn markdown(c: &Comparison) -> String {
     let mut s = String::new();
@@ -453,13 +462,14 @@ pub fn markdown(c: &Comparison) -> String {
                 format!("{note}; {extra}")
             };
         }
+        let order = |v: usize| order_text(r.model.as_ref(), v);
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {} |",
             r.name.replace('|', "/"),
             r.method,
-            r.na,
-            r.nb,
+            order(r.na),
+            order(r.nb),
             r.modes.map_or("-".into(), |m| m.to_string()),
             fs,
             rs,
@@ -712,6 +722,15 @@ mod tests {
             status_note(&Model::Pwarx(m)).as_deref(),
             Some("iteration limit reached")
         );
+    }
+
+    #[test]
+    fn a_mechanical_model_has_no_regressor_orders() {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../models/pick-and-place/head-fitted.json");
+        let head = Model::load(&file).unwrap();
+        assert_eq!(order_text(Some(&head), 2), "-");
+        assert_eq!(order_text(None, 2), "2");
     }
 
     #[test]

@@ -65,11 +65,13 @@ pub fn run(args: Args) -> Result<()> {
         println!("scored    {} samples (warm-up {})", report.n, report.warmup);
         println!(
             "fit_sim   {:8.3} %   rmse_sim  {:.6}",
-            report.fit_sim, report.rmse_sim
+            unsigned_zero(report.fit_sim),
+            report.rmse_sim
         );
         println!(
             "fit_pred  {:8.3} %   rmse_pred {:.6}",
-            report.fit_pred, report.rmse_pred
+            unsigned_zero(report.fit_pred),
+            report.rmse_pred
         );
         println!(
             "coverage  {:8.4}     coverage_sim {:.4}",
@@ -81,4 +83,20 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `v`, or `0.0` when it shows as zero with three decimals: a FIT of
+/// `-1e-13` (a constant model, up to rounding) prints `0.000`, not `-0.000`.
+fn unsigned_zero(v: f64) -> f64 {
+    if (v * 1e3).round() == 0.0 { 0.0 } else { v }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_fit_that_rounds_to_zero_prints_without_sign() {
+        assert_eq!(format!("{:.3}", super::unsigned_zero(-1e-13)), "0.000");
+        assert_eq!(format!("{:.3}", super::unsigned_zero(-0.0)), "0.000");
+        assert_eq!(format!("{:.3}", super::unsigned_zero(-0.002)), "-0.002");
+    }
 }
