@@ -1,0 +1,316 @@
+//! Every command shown in `README.md` and `docs/*.md` (lines of fenced code
+//! blocks that start with `hysid`, `cargo` or `target/release/`):
+//!
+//! - a `hysid` command names a subcommand that exists and only flags that
+//!   subcommand accepts (its `--help`), placeholders (`DATA`, `[..]`)
+//!   included: a renamed or misspelt flag in the docs fails here;
+//! - a `cargo` command names packages, examples and benches that exist;
+//! - the commands listed in [`RUN`] are run as written (outputs into a
+//!   temporary folder) and what their text quotes is checked. The others
+//!   are not run here: synopses with placeholders, runs of more than a few
+//!   seconds in a debug build (experiments, physical fits, benchmarks) and
+//!   commands whose figures come from the committed reports, which the
+//!   report tests check.
+
+mod common;
+
+use common::{hysid, s};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A command of a documentation file, continuation lines joined, the
+/// trailing comment cut off.
+struct Shown {
+    file: String,
+    line: usize,
+    text: String,
+}
+
+fn shown_commands() -> Vec<Shown> {
+    let mut files = vec![root().join("README.md")];
+    let mut docs: Vec<PathBuf> = std::fs::read_dir(root().join("docs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+        .collect();
+    docs.sort();
+    files.extend(docs);
+    let mut out = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        let name = f.file_name().unwrap().to_string_lossy().to_string();
+        let mut fenced = false;
+        let mut i = 0;
+        while i < lines.len() {
+            let l = lines[i].trim();
+            if l.starts_with("```") {
+                fenced = !fenced;
+            } else if fenced
+                && ["hysid ", "cargo ", "target/release/"]
+                    .iter()
+                    .any(|p| l.starts_with(p))
+            {
+                let start = i + 1;
+                let mut cmd = l.to_string();
+                while cmd.ends_with('\\') && i + 1 < lines.len() {
+                    i += 1;
+                    cmd.pop();
+                    cmd.push(' ');
+                    cmd.push_str(lines[i].trim());
+                }
+                let cmd = cmd.split(" # ").next().unwrap();
+                let cmd = cmd.split_whitespace().collect::<Vec<_>>().join(" ");
+                out.push(Shown {
+                    file: name.clone(),
+                    line: start,
+                    text: cmd,
+                });
+            }
+            i += 1;
+        }
+    }
+    out
+}
+
+/// The long flags `hysid SUB --help` lists.
+fn flags_of(sub: &str) -> BTreeSet<String> {
+    let o = hysid(&[sub, "--help"]);
+    assert!(o.status.success(), "hysid {sub} --help");
+    String::from_utf8_lossy(&o.stdout)
+        .split_whitespace()
+        .filter_map(|w| w.strip_prefix("--"))
+        .map(|w| {
+            w.trim_end_matches([',', '.', ')', ']'])
+                .split(['=', '<', '['])
+                .next()
+                .unwrap()
+                .to_string()
+        })
+        .filter(|w| !w.is_empty())
+        .collect()
+}
+
+#[test]
+fn every_hysid_command_shown_uses_existing_subcommands_and_flags() {
+    let subs = [
+        "methods", "identify", "validate", "simulate", "compare", "sweep",
+    ];
+    let mut wrong = Vec::new();
+    let mut checked = 0;
+    for c in shown_commands() {
+        let Some(rest) = c.text.strip_prefix("hysid ") else {
+            continue;
+        };
+        let sub = rest.split_whitespace().next().unwrap_or("");
+        if !subs.contains(&sub) {
+            wrong.push(format!(
+                "{}:{}: no subcommand '{sub}': {}",
+                c.file, c.line, c.text
+            ));
+            continue;
+        }
+        // Without an elision (`...`, `[..]`), the required arguments are there.
+        let words: Vec<&str> = rest.split_whitespace().collect();
+        let elided = rest.contains("...") || rest.contains('[');
+        let needs: &[(&str, &str)] = match sub {
+            "identify" => &[("-m", "--method"), ("-o", "--out")],
+            "simulate" => &[("-o", "--out")],
+            "sweep" => &[("-m", "--method"), ("--grid", "--grid")],
+            _ => &[],
+        };
+        for (short, long) in needs {
+            if !elided
+                && !words
+                    .iter()
+                    .any(|w| w == short || w == long || w.starts_with(&format!("{long}=")))
+            {
+                wrong.push(format!(
+                    "{}:{}: hysid {sub} without {long}: {}",
+                    c.file, c.line, c.text
+                ));
+            }
+        }
+        let flags = flags_of(sub);
+        for w in rest.split_whitespace() {
+            let w = w.trim_start_matches(['[', '(']);
+            if let Some(flag) = w.strip_prefix("--") {
+                let flag = flag
+                    .trim_end_matches([']', ')', '.'])
+                    .split('=')
+                    .next()
+                    .unwrap();
+                if !flags.contains(flag) {
+                    wrong.push(format!(
+                        "{}:{}: hysid {sub} has no --{flag}: {}",
+                        c.file, c.line, c.text
+                    ));
+                }
+            }
+        }
+        checked += 1;
+    }
+    assert!(checked > 30, "only {checked} commands found");
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+#[test]
+fn every_cargo_command_shown_names_what_exists() {
+    let mut wrong = Vec::new();
+    for c in shown_commands() {
+        if !c.text.starts_with("cargo ") {
+            continue;
+        }
+        let words: Vec<&str> = c.text.split_whitespace().collect();
+        let after = |flag: &str| {
+            words
+                .iter()
+                .position(|w| *w == flag)
+                .and_then(|i| words.get(i + 1))
+                .copied()
+        };
+        let Some(package) = after("-p") else {
+            continue;
+        };
+        let dir = root().join("crates").join(package);
+        if !dir.join("Cargo.toml").exists() {
+            wrong.push(format!("{}:{}: no package {package}", c.file, c.line));
+            continue;
+        }
+        for (flag, folder) in [("--example", "examples"), ("--bench", "benches")] {
+            if let Some(name) = after(flag).filter(|n| !n.starts_with('-')) {
+                if !dir.join(folder).join(format!("{name}.rs")).exists() {
+                    wrong.push(format!(
+                        "{}:{}: {package} has no {flag} {name}",
+                        c.file, c.line
+                    ));
+                }
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// What a command run as shown must give.
+enum Quote {
+    /// Texts its standard output contains.
+    Stdout(&'static [&'static str]),
+    /// Texts its standard error contains.
+    Stderr(&'static [&'static str]),
+    /// Samples per mode in the `mode` column of the CSV it writes.
+    ModeCounts(&'static [(&'static str, usize)]),
+}
+
+/// Commands run as the docs show them, with what the text quotes of their
+/// output. Repository paths are read from the repository; the file after
+/// `-o` goes to a temporary folder.
+const RUN: &[(&str, &str, Quote)] = &[
+    (
+        "README.md",
+        "hysid methods",
+        Quote::Stdout(&["arx", "cluster", "bounded", "physical"]),
+    ),
+    (
+        "physical.md",
+        "hysid validate head-fitted.json models/pick-and-place/headdata_1v6.mat --decimate 10 --rows 5000..6001 --warmup 10 --json",
+        Quote::Stdout(&[
+            "\"fit_sim\":90.56",
+            "\"rmse_sim\":0.493",
+            "\"fit_pred\":99.81",
+            "\"mode_counts\":[0,271,204,0,516]",
+        ]),
+    ),
+    (
+        "physical.md",
+        "hysid simulate models/pick-and-place/head.toml --excite n=2000,hold=120,low=-0.2,high=0.0,ts=0.0025 --seed 3 -o sim.csv",
+        Quote::ModeCounts(&[
+            ("free", 595),
+            ("impact", 466),
+            ("lower_saturation", 195),
+            ("stick", 735),
+        ]),
+    ),
+    (
+        "physical.md",
+        "hysid simulate models/pick-and-place/head.toml --excite n=4000,hold=120,low=-0.2,high=0.1,ts=0.0025 --seed 3 --noise 0.005 -o both-saturations.csv",
+        Quote::ModeCounts(&[
+            ("free", 813),
+            ("impact", 730),
+            ("lower_saturation", 207),
+            ("upper_saturation", 1194),
+            ("stick", 1047),
+        ]),
+    ),
+    (
+        "cluster.md",
+        "hysid identify models/pick-and-place/headdata_1v6.mat -m cluster --modes 20 --set discard=0 --decimate 10 --rows 0..3000 --time-budget 3 -o m.json",
+        Quote::Stderr(&["time budget reached during the mrlp region estimation"]),
+    ),
+];
+
+#[test]
+fn commands_run_as_shown_give_what_the_text_quotes() {
+    let shown: Vec<String> = shown_commands().into_iter().map(|c| c.text).collect();
+    let dir = tempfile::tempdir().unwrap();
+    for (file, command, quote) in RUN {
+        assert!(
+            shown.iter().any(|c| c == command),
+            "{file} no longer shows: {command}"
+        );
+        let words: Vec<&str> = command.split_whitespace().skip(1).collect();
+        let mut written = None;
+        let args: Vec<String> = words
+            .iter()
+            .enumerate()
+            .map(|(i, w)| {
+                if i > 0 && words[i - 1] == "-o" {
+                    let p = dir.path().join(w);
+                    written = Some(p.clone());
+                    s(&p).to_string()
+                } else if *w == "head-fitted.json" || w.starts_with("models/") {
+                    let p = if w.starts_with("models/") {
+                        root().join(w)
+                    } else {
+                        root().join("models/pick-and-place").join(w)
+                    };
+                    s(&p).to_string()
+                } else {
+                    w.to_string()
+                }
+            })
+            .collect();
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = hysid(&args);
+        let (out, err) = (
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr),
+        );
+        assert!(o.status.success(), "{command}: {err}");
+        match quote {
+            Quote::Stdout(texts) | Quote::Stderr(texts) => {
+                let stream = if matches!(quote, Quote::Stdout(_)) {
+                    &out
+                } else {
+                    &err
+                };
+                for t in *texts {
+                    assert!(stream.contains(t), "{file}: {command}: lacks {t}: {stream}");
+                }
+            }
+            Quote::ModeCounts(counts) => {
+                let csv = std::fs::read_to_string(written.as_ref().unwrap()).unwrap();
+                for (mode, n) in *counts {
+                    let found = csv
+                        .lines()
+                        .filter(|l| l.ends_with(&format!(",{mode}")))
+                        .count();
+                    assert_eq!(found, *n, "{file}: {command}: samples in mode {mode}");
+                }
+            }
+        }
+    }
+}
