@@ -98,12 +98,12 @@ values = [1, 3]
     exp
 }
 
-/// The figure links `(plots/....svg)` of a report.
+/// The figure links `(plots/....svg)` or `(plots/....png)` of a report.
 fn linked_plots(md: &str) -> Vec<String> {
     md.split("](")
         .skip(1)
         .filter_map(|rest| rest.split_once(')').map(|(link, _)| link.to_string()))
-        .filter(|l| l.starts_with("plots/") && l.ends_with(".svg"))
+        .filter(|l| l.starts_with("plots/") && (l.ends_with(".svg") || l.ends_with(".png")))
         .collect()
 }
 
@@ -249,4 +249,42 @@ fn a_bad_experiment_is_a_usage_error_with_no_output() {
         "{err}"
     );
     assert!(!out.exists());
+}
+
+/// `--format png`: every figure the report links is a PNG image in
+/// `plots/`, no SVG is written; an unknown format is refused up front.
+#[test]
+fn figures_as_png_on_request() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = small_experiment(dir.path());
+    let out = dir.path().join("out");
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out), "--format", "png"]);
+    assert_eq!(code, 0, "{err}");
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let plots = linked_plots(&md);
+    assert!(!plots.is_empty());
+    for p in &plots {
+        assert!(p.ends_with(".png"), "{p}");
+        let bytes = std::fs::read(out.join(p)).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{p}");
+    }
+    let svgs = std::fs::read_dir(out.join("plots"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "svg")
+        })
+        .count();
+    assert_eq!(svgs, 0);
+    let bad = dir.path().join("bad");
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&bad), "--format", "gif"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--format") && err.contains("svg or png"),
+        "{err}"
+    );
+    assert!(!bad.exists());
 }

@@ -11,6 +11,7 @@ pub mod report;
 pub mod truth;
 
 pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, ScoredRows, SweepSpec};
+pub use hysid_plot::FigureFormat;
 pub use report::write_report;
 
 use hysid_core::backend::{Backend, Problem, Progress, Registry, RunContext};
@@ -124,6 +125,9 @@ pub struct Comparison {
     /// Validation record (for plots).
     #[serde(skip)]
     pub validation: Option<Dataset>,
+    /// The format the figures are written in (the report links them).
+    #[serde(skip)]
+    pub figures: FigureFormat,
     /// Row of the record where the validation part starts (for time axes).
     pub validation_first_row: usize,
     /// Axis label of the output in figures.
@@ -312,6 +316,7 @@ impl Experiment {
             warmup: self.data.warmup,
             results,
             validation: Some(valid),
+            figures: FigureFormat::Svg,
             validation_first_row: self.data.validation.start.unwrap_or(0),
             output_label: self
                 .data

@@ -66,6 +66,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
     };
     std::fs::create_dir_all(dir.join("plots"))?;
     let mut written = Vec::new();
+    let ext = c.figures.extension();
     let y_label = c.output_label.clone();
     let u_label = c.input_label.clone();
     let base = |title: String| {
@@ -90,7 +91,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
             .as_ref()
             .map_or(String::new(), |v| format!(" (fit_sim {:.1} %)", v.fit_sim));
         let slug = slug(&r.name);
-        let p = dir.join(format!("plots/{slug}-simulation.svg"));
+        let p = dir.join(format!("plots/{slug}-simulation.{ext}"));
         hysid_plot::simulation_plot(
             &p,
             &base(format!("{}{fit}", r.name)).with_simulation(&r.name, sim),
@@ -107,20 +108,20 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
             mode_names: r.model.as_ref().map(display_mode_names).unwrap_or_default(),
             mark_mismatch: false,
         };
-        let p = dir.join(format!("plots/{slug}-modes.svg"));
+        let p = dir.join(format!("plots/{slug}-modes.{ext}"));
         hysid_plot::mode_sequence_plot(&p, &modes).map_err(plot_err)?;
         written.push(p);
         all = all.with_simulation(format!("{}{fit}", r.name), sim);
         // Classified validation regressors with the region boundaries (the
         // founding paper's Figs. 6 and 11), in the plane y(k-1), u(k-1).
         if let Some(fig) = region_figure(c, r, valid) {
-            let p = dir.join(format!("plots/{slug}-regions.svg"));
+            let p = dir.join(format!("plots/{slug}-regions.{ext}"));
             hysid_plot::regions_plot(&p, &fig).map_err(plot_err)?;
             written.push(p);
         }
     }
     if !all.simulated.is_empty() {
-        let p = dir.join("plots/runs-simulation.svg");
+        let p = dir.join(format!("plots/runs-simulation.{ext}"));
         hysid_plot::simulation_plot(&p, &all).map_err(plot_err)?;
         written.push(p);
     }
@@ -141,7 +142,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
         let Some(fig) = sweep_figure(c, name, &points) else {
             continue;
         };
-        let p = dir.join(format!("plots/{}-sweep.svg", slug(name)));
+        let p = dir.join(format!("plots/{}-sweep.{ext}", slug(name)));
         hysid_plot::sweep_plot(&p, &fig).map_err(plot_err)?;
         written.push(p);
     }
@@ -418,6 +419,7 @@ fn order_text(model: Option<&Model>, order: usize) -> String {
 
 /// The report as Markdown.
 pub fn markdown(c: &Comparison) -> String {
+    let ext = c.figures.extension();
     let mut s = String::new();
     let _ = writeln!(s, "# {}\n", c.title);
     if !c.description.trim().is_empty() {
@@ -486,7 +488,9 @@ pub fn markdown(c: &Comparison) -> String {
         .iter()
         .any(|r| r.simulation.is_some() && r.sweep.is_none())
     {
-        figs.push("- all runs: [plots/runs-simulation.svg](plots/runs-simulation.svg)".into());
+        figs.push(format!(
+            "- all runs: [plots/runs-simulation.{ext}](plots/runs-simulation.{ext})"
+        ));
     }
     let mut seen: Vec<&str> = Vec::new();
     for r in &c.results {
@@ -494,7 +498,7 @@ pub fn markdown(c: &Comparison) -> String {
             && !seen.contains(&sw.sweep.as_str())
         {
             seen.push(&sw.sweep);
-            let f = format!("plots/{}-sweep.svg", slug(&sw.sweep));
+            let f = format!("plots/{}-sweep.{ext}", slug(&sw.sweep));
             figs.push(format!("- sweep {}: [{f}]({f})", sw.sweep));
         }
     }
@@ -504,14 +508,14 @@ pub fn markdown(c: &Comparison) -> String {
         .iter()
         .filter(|r| r.simulation.is_some() && r.sweep.is_none())
     {
-        let f = format!("plots/{}-simulation.svg", slug(&r.name));
-        let m = format!("plots/{}-modes.svg", slug(&r.name));
+        let f = format!("plots/{}-simulation.{ext}", slug(&r.name));
+        let m = format!("plots/{}-modes.{ext}", slug(&r.name));
         let mut line = format!("- {}: [{f}]({f}), [{m}]({m})", r.name);
         if c.validation
             .as_ref()
             .is_some_and(|v| region_figure(c, r, v).is_some())
         {
-            let g = format!("plots/{}-regions.svg", slug(&r.name));
+            let g = format!("plots/{}-regions.{ext}", slug(&r.name));
             let _ = write!(line, ", [{g}]({g})");
             with_regions += 1;
         }

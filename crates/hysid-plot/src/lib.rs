@@ -24,6 +24,7 @@
 mod common;
 mod from_core;
 mod modes;
+mod png;
 mod regions;
 mod simulation;
 pub mod slice;
@@ -33,6 +34,7 @@ use std::path::{Path, PathBuf};
 
 pub use from_core::{column_means, lagged_name};
 pub use modes::{ModeFigure, ModeSequence, mode_sequence_plot, mode_sequence_svg};
+pub use png::{FigureFormat, PNG_SCALE, svg_to_png};
 pub use regions::{RegionFigure, regions_plot, regions_svg};
 pub use simulation::{Series, SimulationFigure, simulation_plot, simulation_svg, time_axis};
 pub use slice::{Bounds, Slice2, slice_polyhedron};
@@ -65,6 +67,12 @@ pub enum PlotError {
         /// The slicing error.
         source: slice::SliceError,
     },
+    /// An output file whose extension is neither `.svg` nor `.png`.
+    #[error("{}: a figure is written as .svg or .png", path.display())]
+    Format {
+        /// The file.
+        path: std::path::PathBuf,
+    },
     /// The drawing library failed.
     #[error("drawing failed: {0}")]
     Draw(String),
@@ -78,9 +86,19 @@ pub enum PlotError {
     },
 }
 
-/// Writes an SVG string to `path` atomically.
-fn write_svg(path: &Path, svg: &str) -> Result<(), PlotError> {
-    hysid_io::write(path, svg.as_bytes()).map_err(|source| PlotError::Io {
+/// Writes the figure `svg` to `path` atomically, in the format its extension
+/// names: `.svg` as it is, `.png` rasterised ([`svg_to_png`]).
+fn write_figure(path: &Path, svg: &str) -> Result<(), PlotError> {
+    let bytes = match path.extension().and_then(|e| e.to_str()) {
+        Some("svg") => svg.as_bytes().to_vec(),
+        Some("png") => svg_to_png(svg)?,
+        _ => {
+            return Err(PlotError::Format {
+                path: path.to_path_buf(),
+            });
+        }
+    };
+    hysid_io::write(path, &bytes).map_err(|source| PlotError::Io {
         path: path.to_path_buf(),
         source,
     })

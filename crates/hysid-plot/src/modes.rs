@@ -301,11 +301,11 @@ pub fn mode_sequence_svg(fig: &ModeFigure) -> Result<String, PlotError> {
     })
 }
 
-/// Draws the active mode over time into the SVG file `path`, written
-/// atomically.
+/// Draws the active mode over time into the file `path` (`.svg` or `.png`),
+/// written atomically.
 pub fn mode_sequence_plot(path: &Path, fig: &ModeFigure) -> Result<(), PlotError> {
     let svg = mode_sequence_svg(fig)?;
-    crate::write_svg(path, &svg)
+    crate::write_figure(path, &svg)
 }
 
 #[cfg(test)]

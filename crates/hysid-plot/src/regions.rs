@@ -493,10 +493,10 @@ pub fn regions_svg(fig: &RegionFigure) -> Result<String, PlotError> {
 }
 
 /// Draws classified points and region slices in a regressor plane into the
-/// SVG file `path`, written atomically.
+/// file `path` (`.svg` or `.png`), written atomically.
 pub fn regions_plot(path: &Path, fig: &RegionFigure) -> Result<(), PlotError> {
     let svg = regions_svg(fig)?;
-    crate::write_svg(path, &svg)
+    crate::write_figure(path, &svg)
 }
 
 #[cfg(test)]

@@ -328,8 +328,8 @@ pub fn simulation_svg(fig: &SimulationFigure) -> Result<String, PlotError> {
 }
 
 /// Draws measured versus simulated output over time (and the input below)
-/// into the SVG file `path`, written atomically.
+/// into the file `path` (`.svg` or `.png`), written atomically.
 pub fn simulation_plot(path: &Path, fig: &SimulationFigure) -> Result<(), PlotError> {
     let svg = simulation_svg(fig)?;
-    crate::write_svg(path, &svg)
+    crate::write_figure(path, &svg)
 }

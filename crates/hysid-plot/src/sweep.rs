@@ -369,11 +369,11 @@ pub fn sweep_svg(fig: &SweepFigure) -> Result<String, PlotError> {
     )
 }
 
-/// Draws a metric versus a parameter into the SVG file `path`, written
-/// atomically.
+/// Draws a metric versus a parameter into the file `path` (`.svg` or
+/// `.png`), written atomically.
 pub fn sweep_plot(path: &Path, fig: &SweepFigure) -> Result<(), PlotError> {
     let svg = sweep_svg(fig)?;
-    crate::write_svg(path, &svg)
+    crate::write_figure(path, &svg)
 }
 
 #[cfg(test)]

@@ -418,3 +418,57 @@ proptest! {
         if let Ok(svg) = regions_svg(&regions) { texts(&svg); }
     }
 }
+
+/// Non-white pixels of `png` in rows `rows` (pixel rows of the image).
+fn inked(png: &[u8], rows: std::ops::Range<u32>) -> (u32, u32, usize) {
+    let img = resvg::tiny_skia::Pixmap::decode_png(png).expect("a readable PNG");
+    let (w, h) = (img.width(), img.height());
+    let ink = rows
+        .filter(|&r| r < h)
+        .flat_map(|r| (0..w).map(move |c| (r, c)))
+        .filter(|&(r, c)| {
+            let p = img.pixel(c, r).unwrap();
+            p.red() < 200 || p.green() < 200 || p.blue() < 200
+        })
+        .count();
+    (w, h, ink)
+}
+
+/// A `.png` path gives the SVG rasterised at twice its size, text drawn
+/// with the embedded font (a long title inks its band, a one-dot title
+/// hardly); any other extension is refused, and nothing is written.
+#[test]
+fn png_figures_are_the_svg_rasterised_with_their_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let fig = simulation_figure();
+    let svg = simulation_svg(&fig).unwrap();
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    let size = |a: &str| -> u32 { doc.root_element().attribute(a).unwrap().parse().unwrap() };
+    let (svg_w, svg_h) = (size("width"), size("height"));
+    let path = dir.path().join("sim.png");
+    simulation_plot(&path, &fig).unwrap();
+    let png = std::fs::read(&path).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let band = 0..(PNG_SCALE as u32 * 30);
+    let (w, h, titled) = inked(&png, band.clone());
+    assert_eq!((w, h), (2 * svg_w, 2 * svg_h));
+    let untitled_path = dir.path().join("untitled.png");
+    let untitled = SimulationFigure {
+        title: ".".into(),
+        ..fig.clone()
+    };
+    simulation_plot(&untitled_path, &untitled).unwrap();
+    let (_, _, blank) = inked(&std::fs::read(&untitled_path).unwrap(), band);
+    assert!(
+        titled > 200 && titled > 10 * blank.max(1),
+        "title band: {titled} inked pixels, {blank} with a dot for title"
+    );
+    let (_, _, body) = inked(&png, 0..h);
+    assert!(body > 10_000, "{body} inked pixels");
+    let gif = dir.path().join("sim.gif");
+    assert!(matches!(
+        simulation_plot(&gif, &fig),
+        Err(PlotError::Format { .. })
+    ));
+    assert!(!gif.exists());
+}

@@ -3,7 +3,7 @@
 use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
-use hysid_compare::Experiment;
+use hysid_compare::{Experiment, FigureFormat};
 use std::path::PathBuf;
 
 /// Arguments of `hysid compare`.
@@ -14,6 +14,14 @@ pub struct Args {
     /// Output folder for report.md, report.json and models/ (default: `out/<experiment name>`).
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
+    /// File format of the figures: svg (default) or png (to paste; text in
+    /// an embedded font).
+    #[arg(long, default_value = "svg", value_parser = parse_format)]
+    pub format: FigureFormat,
+}
+
+fn parse_format(s: &str) -> std::result::Result<FigureFormat, String> {
+    s.parse()
 }
 
 /// Runs the command.
@@ -31,6 +39,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut comparison = exp
         .run(&progress)
         .map_err(|e| CliError::input(e.to_string()))?;
+    comparison.figures = args.format;
     hysid_compare::write_report(&mut comparison, &dir)
         .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
     print!("{}", hysid_compare::report::markdown(&comparison));
