@@ -816,3 +816,43 @@ fn simulated_files_round_trip_with_one_convention() {
     assert!(text.contains(",mode 1\n"), "{}", &text[..200]);
     ok(&["validate", s(&model), s(&sim), "--json"]);
 }
+
+/// A MAT-file written by scipy (no comma after `MAT-file` in its header)
+/// is read by `identify`; a level-4 file is refused in one line, exit 2.
+#[test]
+fn mat_files_from_scipy_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let mats = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../hysid-io/tests/data/mat");
+    let out = dir.path().join("m.json");
+    let file = mats.join("scipy_f64_col_compressed.mat");
+    ok(&[
+        "identify",
+        s(&file),
+        "-m",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "-o",
+        s(&out),
+    ]);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let theta: Vec<f64> = m["modes"][0]["theta"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    for (a, b) in theta.iter().zip([0.5, 1.0, 0.0]) {
+        assert!((a - b).abs() < 1e-9, "{theta:?}");
+    }
+    let level4 = mats.join("level4.mat");
+    let never = dir.path().join("never.json");
+    bad(
+        &["identify", s(&level4), "-m", "arx", "-o", s(&never)],
+        &["level4.mat", "a level-4 MAT-file"],
+        &never,
+    );
+}

@@ -5,6 +5,39 @@ use super::{DataError, RawTable};
 use matrw::MatVariable;
 use std::path::Path;
 
+/// The text matrw requires at the start of a level-5 header. The level-5
+/// format leaves the 116-byte header text free (MATLAB writes this prefix,
+/// `scipy.io.savemat` writes `MATLAB 5.0 MAT-file Platform: ...` without
+/// the comma); only the version and endian fields that follow it matter.
+const LEVEL5_TEXT: &[u8] = b"MATLAB 5.0 MAT-file, ";
+
+/// Why a file with a MAT-file name is not a level-5 MAT-file, when it is a
+/// format of its own: the HDF5-based MAT-file of `save -v7.3`, or a
+/// level-4 file (no `IM`/`MI` endian indicator at bytes 126..128).
+fn other_format(bytes: &[u8]) -> Option<&'static str> {
+    if bytes.starts_with(b"MATLAB 7.3") || bytes.get(512..520) == Some(b"\x89HDF\r\n\x1a\n") {
+        Some(
+            "an HDF5-based MAT-file (MATLAB save -v7.3), which is not read here: save it as level 5 \
+             (MATLAB: save(file, '-v7'); Python: scipy.io.savemat)",
+        )
+    } else if !matches!(&bytes[126..128], b"IM" | b"MI") {
+        Some(
+            "a level-4 MAT-file (MATLAB v4 format), which is not read here: save it as level 5 \
+             (MATLAB: save(file, '-v7'); Python: scipy.io.savemat without format='4')",
+        )
+    } else {
+        None
+    }
+}
+
+/// `bytes` with the header text starting as matrw expects it
+/// ([`LEVEL5_TEXT`]); the rest of the file unchanged.
+fn with_standard_header_text(bytes: &[u8]) -> Vec<u8> {
+    let mut out = bytes.to_vec();
+    out[..LEVEL5_TEXT.len()].copy_from_slice(LEVEL5_TEXT);
+    out
+}
+
 /// Reads the variables of `path` named in `wanted` that exist in the file.
 /// Each must be a real numeric vector (N x 1 or 1 x N).
 pub(crate) fn read(path: &Path, wanted: &[&str]) -> Result<RawTable, DataError> {
@@ -32,6 +65,10 @@ pub(crate) fn read_bytes(
             "too short for a MAT-file header (128 bytes)".into(),
         ));
     }
+    if let Some(kind) = other_format(bytes) {
+        return Err(perr(String::new(), kind.to_string()));
+    }
+    let bytes = &with_standard_header_text(bytes);
     // matrw trusts the sizes written in the file and reserves them before
     // reading (a 211-byte file found by fuzzing asked for 3.9 GB): check
     // that every element fits inside its parent first.
