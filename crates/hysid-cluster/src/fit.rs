@@ -21,7 +21,7 @@
 use crate::priors::ConstrainedFit;
 use crate::procedure::{self, ModeFit};
 use crate::{ClusterError, ClusterOptions, Clustering, Init, kmeans, local};
-use hysid_core::backend::IdentifyError;
+use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::data::Standardization;
@@ -81,23 +81,28 @@ pub struct ClusterDiagnostics {
 }
 
 /// The procedure on `data` with `s` modes in all (the known stops
-/// included, as the prior `modes` counts them). No K-means restart starts
-/// after `deadline`; the run then reports `RunStatus::TimeBudget`.
+/// included, as the prior `modes` counts them), seeded by `ctx.seed`. No
+/// K-means restart and no region round starts after `ctx.deadline`; the
+/// run then reports `RunStatus::TimeBudget`. Its three steps (clustering,
+/// regions, region refit) advance `ctx.progress`.
 pub fn fit(
     o: &ClusterOptions,
     data: &PwarxData<'_>,
     s: usize,
-    seed: u64,
-    deadline: Option<Instant>,
+    ctx: &RunContext<'_>,
 ) -> Result<PwarxFit<ClusterDiagnostics>, IdentifyError> {
+    let (seed, deadline) = (ctx.seed, ctx.deadline);
     let modes = ordinary_modes(data, s)?;
     let work = working_data(o, data)?;
     let c = choose_c(o, data, &work, modes)?;
     check_sample_count(&work, modes)?;
     let prior_fit = prior_fit(data, &work, modes)?;
+    ctx.progress.start(3, "cluster: clustering, regions, refit");
     let mut clustered = cluster_features(o, &work, c, modes, seed, deadline, prior_fit.as_ref())?;
     check_modes_found(o, &clustered, s, modes, c)?;
+    ctx.progress.advance(1);
     let regions = estimate_regions(o, data, &work, &clustered, deadline)?;
+    ctx.progress.advance(1);
     let region_refit_moved = if o.region_refit && modes > 1 {
         refit_on_regions(
             o,
@@ -109,6 +114,8 @@ pub fn fit(
     } else {
         0
     };
+    ctx.progress.advance(1);
+    ctx.progress.finish();
     let uncovered_fraction = (!regions.complete).then(|| holes(&work, &regions.polyhedra, seed));
     let status = time_budget_status(o, &clustered, &regions);
     let d = &clustered.diagnostics;

@@ -251,7 +251,7 @@ impl Identifier for Cluster {
         let stops = data.stops();
         match data.modes {
             ModeCount::Exact(s) => {
-                let fit = fit(options, &data, s + stops, ctx.seed, ctx.deadline)?;
+                let fit = fit(options, &data, s + stops, ctx)?;
                 let fit = refine::refine(&data, fit, &options.refinement())?;
                 Ok(pwarx::assemble(&data, fit))
             }
@@ -314,7 +314,12 @@ pub fn identify_labelled(
         ..*problem
     };
     let data = pwarx::prepare(&problem, Cluster::NAME)?;
-    let fit = refine::refine(&data, fit(o, &data, s, seed, deadline)?, &o.refinement())?;
+    let quiet = RunContext {
+        seed,
+        progress: &hysid_core::backend::NoProgress,
+        deadline,
+    };
+    let fit = refine::refine(&data, fit(o, &data, s, &quiet)?, &o.refinement())?;
     let ordinary_modes = fit.modes.len();
     let mut row_labels: Vec<usize> = data
         .stop_of
@@ -382,7 +387,7 @@ fn choose_modes(
                 "no mode count in 1..={max} could be identified and simulated on the hold-out part"
             ))
         })?;
-    let mut model = pwarx::assemble(data, fit(o, data, best.modes, ctx.seed, ctx.deadline)?);
+    let mut model = pwarx::assemble(data, fit(o, data, best.modes, ctx)?);
     model.info_mut().diagnostics.method.insert(
         "mode_choice".into(),
         serde_json::json!(

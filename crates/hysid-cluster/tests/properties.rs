@@ -431,3 +431,53 @@ fn a_spent_time_budget_still_gives_a_complete_model() {
     assert!(status.contains("K-means restarts"), "{status}");
     assert!(status.contains("mrlp region estimation"), "{status}");
 }
+
+/// A progress sink that counts what it is told.
+#[derive(Default)]
+struct Counted {
+    started: std::sync::Mutex<Vec<(u64, String)>>,
+    advanced: std::sync::atomic::AtomicU64,
+    finished: std::sync::atomic::AtomicU64,
+}
+
+impl hysid_core::backend::Progress for Counted {
+    fn start(&self, total: u64, what: &str) {
+        self.started.lock().unwrap().push((total, what.to_string()));
+    }
+    fn advance(&self, n: u64) {
+        self.advanced
+            .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    }
+    fn finish(&self) {
+        self.finished
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
+/// A run shows its three steps (clustering, regions, refit) as progress.
+#[test]
+fn a_run_reports_its_steps_as_progress() {
+    use std::sync::atomic::Ordering::Relaxed;
+    let ex = b1(300, 2);
+    let priors = Priors {
+        modes: Some(3),
+        ..Default::default()
+    };
+    let problem = Problem {
+        data: &ex.data,
+        orders: ex.truth.spec(),
+        priors: &priors,
+        priors_origin: None,
+    };
+    let counted = Counted::default();
+    let ctx = RunContext {
+        progress: &counted,
+        ..RunContext::quiet(1)
+    };
+    Cluster.run(&problem, &Settings::default(), &ctx).unwrap();
+    let started = counted.started.lock().unwrap().clone();
+    assert_eq!(started.len(), 1, "{started:?}");
+    assert_eq!(started[0].0, 3);
+    assert_eq!(counted.advanced.load(Relaxed), 3);
+    assert_eq!(counted.finished.load(Relaxed), 1);
+}
