@@ -181,13 +181,13 @@ fn every_cargo_command_shown_names_what_exists() {
             continue;
         }
         for (flag, folder) in [("--example", "examples"), ("--bench", "benches")] {
-            if let Some(name) = after(flag).filter(|n| !n.starts_with('-')) {
-                if !dir.join(folder).join(format!("{name}.rs")).exists() {
-                    wrong.push(format!(
-                        "{}:{}: {package} has no {flag} {name}",
-                        c.file, c.line
-                    ));
-                }
+            if let Some(name) = after(flag).filter(|n| !n.starts_with('-'))
+                && !dir.join(folder).join(format!("{name}.rs")).exists()
+            {
+                wrong.push(format!(
+                    "{}:{}: {package} has no {flag} {name}",
+                    c.file, c.line
+                ));
             }
         }
     }
