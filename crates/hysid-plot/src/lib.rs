@@ -1,7 +1,7 @@
-//! SVG figures for hysid: the pictures a control engineer looks at when
+//! Figures for hysid: the pictures a control engineer looks at when
 //! comparing identified hybrid models.
 //!
-//! Every figure is plain data in, one SVG file out:
+//! Every figure is plain data in, one SVG (or PNG) file out:
 //!
 //! | function | figure | founding paper |
 //! |---|---|---|
@@ -15,7 +15,8 @@
 //!
 //! Each `*_plot` function renders the SVG into a `String` first (the
 //! matching `*_svg` function returns it) and then writes it atomically with
-//! [`hysid_io::write`]. Text is SVG `<text>` in the generic
+//! [`hysid_io::write`], rasterised by [`svg_to_png`] when the path ends in
+//! `.png`. Text is SVG `<text>` in the generic
 //! `sans-serif` family, so no system font is needed to render. The output is
 //! deterministic: the same figure gives the same bytes. Empty or non-finite
 //! data is an error ([`PlotError`]) or is skipped (NaN samples break a line),
