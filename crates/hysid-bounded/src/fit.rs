@@ -179,7 +179,7 @@ fn procedure_settings(
         max_modes,
         exact_modes,
         seed: ctx.seed,
-        deadline: ctx.deadline,
+        deadline: ctx.deadline.clone(),
         constraints,
     })
 }

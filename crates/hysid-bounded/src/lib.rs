@@ -474,7 +474,7 @@ mod tests {
             priors_origin: None,
         };
         let ctx = RunContext {
-            deadline: Some(std::time::Instant::now()),
+            deadline: hysid_core::backend::Deadline::at(std::time::Instant::now()),
             ..RunContext::quiet(7)
         };
         let m = Bounded

@@ -32,9 +32,9 @@ use crate::maxfs::{MaxFsSettings, max_fs};
 use crate::refit::chebyshev_joint;
 use crate::samples::Samples;
 use crate::split;
+use hysid_core::backend::Deadline;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use std::time::Instant;
 
 /// Bound on the refinement rounds (ours; the paper iterates to a fixed point).
 pub const MAX_ROUNDS: usize = 30;
@@ -74,7 +74,7 @@ pub struct ProcedureSettings {
     /// Seed of the random visiting orders.
     pub seed: u64,
     /// Stop early (best result so far) after this instant.
-    pub deadline: Option<Instant>,
+    pub deadline: Deadline,
     /// Parameter priors (ties, fixed values, bounds); default none.
     pub constraints: ModeConstraints,
 }
@@ -166,8 +166,8 @@ pub enum ProcedureError {
     },
 }
 
-fn past(deadline: Option<Instant>) -> bool {
-    deadline.is_some_and(|d| Instant::now() >= d)
+fn past(deadline: &Deadline) -> bool {
+    deadline.passed()
 }
 
 /// Smallest admissible mode size: `max(ceil(beta N), p)`.
@@ -293,7 +293,7 @@ fn greedy_min_pfs(
     };
     let mut remaining: Vec<usize> = (0..n).collect();
     while greedy.thetas.len() < limits.cap && remaining.len() >= limits.min_size {
-        if past(set.deadline) && !greedy.thetas.is_empty() {
+        if past(&set.deadline) && !greedy.thetas.is_empty() {
             greedy.stopped = true;
             break;
         }
@@ -377,7 +377,7 @@ fn refine(
     };
     let mut prev: Option<Vec<Option<usize>>> = None;
     while r.rounds < MAX_ROUNDS {
-        if past(set.deadline) {
+        if past(&set.deadline) {
             r.stopped = true;
             break;
         }

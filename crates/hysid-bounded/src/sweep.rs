@@ -62,7 +62,7 @@ pub fn delta_sweep(
     let inner = RunContext {
         seed: ctx.seed,
         progress: &NoProgress,
-        deadline: ctx.deadline,
+        deadline: ctx.deadline.clone(),
     };
     let mut out = Vec::with_capacity(deltas.len());
     for &delta in deltas {

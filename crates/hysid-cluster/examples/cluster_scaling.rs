@@ -79,7 +79,7 @@ fn main() {
             regularization: defaults.regularization,
             min_weight: defaults.min_weight,
             weights: defaults.weights,
-            deadline: None,
+            deadline: hysid_core::backend::Deadline::none(),
         };
         let settings_all = match fixed_c {
             Some(c) => Settings::from_pairs(vec![("c".into(), c.to_string())]),

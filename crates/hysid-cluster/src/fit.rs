@@ -21,7 +21,7 @@
 use crate::priors::ConstrainedFit;
 use crate::procedure::{self, ModeFit};
 use crate::{ClusterError, ClusterOptions, Clustering, Init, kmeans, local};
-use hysid_core::backend::{IdentifyError, RunContext};
+use hysid_core::backend::{Deadline, IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::data::Standardization;
@@ -31,7 +31,6 @@ use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
-use std::time::Instant;
 
 /// What the `cluster` back-end reports besides the common diagnostics
 /// (`docs/cluster.md`, "Diagnostics").
@@ -91,7 +90,7 @@ pub fn fit(
     s: usize,
     ctx: &RunContext<'_>,
 ) -> Result<PwarxFit<ClusterDiagnostics>, IdentifyError> {
-    let (seed, deadline) = (ctx.seed, ctx.deadline);
+    let (seed, deadline) = (ctx.seed, &ctx.deadline);
     let modes = ordinary_modes(data, s)?;
     let work = working_data(o, data)?;
     let c = choose_c(o, data, &work, modes)?;
@@ -329,7 +328,7 @@ fn cluster_features(
     c: usize,
     modes: usize,
     seed: u64,
-    deadline: Option<Instant>,
+    deadline: &Deadline,
     prior_fit: Option<&ConstrainedFit>,
 ) -> Result<ModeFit, IdentifyError> {
     let settings = procedure::Settings {
@@ -349,7 +348,7 @@ fn cluster_features(
         regularization: o.regularization,
         min_weight: o.min_weight,
         weights: o.weights,
-        deadline,
+        deadline: deadline.clone(),
     };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     procedure::run_with(&work.x, work.n, &work.y, &settings, &mut rng, prior_fit)
@@ -403,7 +402,7 @@ fn estimate_regions(
     data: &PwarxData<'_>,
     work: &Working,
     fit: &ModeFit,
-    deadline: Option<Instant>,
+    deadline: &Deadline,
 ) -> Result<Regions, IdentifyError> {
     let modes = fit.theta.len();
     if modes == 1 {
@@ -419,7 +418,7 @@ fn estimate_regions(
         svm_c: o.svm_c,
         switching: data.switching.clone(),
         standardize: !o.scale,
-        deadline,
+        deadline: deadline.clone(),
     };
     let part = hysid_regions::estimate(&work.xs, &fit.labels, modes, &options)
         .map_err(|e| IdentifyError::failed(format!("region estimation: {e}")))?;

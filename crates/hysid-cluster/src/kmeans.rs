@@ -18,6 +18,7 @@
 
 use crate::dense;
 use crate::local::FeatureVectors;
+use hysid_core::backend::Deadline;
 use rand::Rng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -299,7 +300,7 @@ pub fn weighted_kmeans(
     init: KmeansInit,
     rng: &mut ChaCha8Rng,
 ) -> Clusters {
-    weighted_kmeans_until(f, s, restarts, max_iter, init, rng, None)
+    weighted_kmeans_until(f, s, restarts, max_iter, init, rng, &Deadline::none())
 }
 
 /// [`weighted_kmeans`] that starts no restart after `deadline` (the first
@@ -311,7 +312,7 @@ pub fn weighted_kmeans_until(
     max_iter: usize,
     init: KmeansInit,
     rng: &mut ChaCha8Rng,
-    deadline: Option<std::time::Instant>,
+    deadline: &Deadline,
 ) -> Clusters {
     let n = f.n_samples;
     let d = f.dim();
@@ -320,7 +321,7 @@ pub fn weighted_kmeans_until(
     let mut restart_costs = Vec::with_capacity(restarts.max(1));
     let mut labels = vec![0usize; n];
     for r in 0..restarts.max(1) {
-        if r > 0 && deadline.is_some_and(|t| std::time::Instant::now() >= t) {
+        if r > 0 && deadline.passed() {
             break;
         }
         let mut centres = vec![0.0; s * d];

@@ -47,7 +47,7 @@ pub mod sweep;
 pub use fit::{ClusterDiagnostics, default_c, fit};
 pub use sweep::{SweepPoint, sweep};
 
-use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
+use hysid_core::backend::{Deadline, Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::{PriorKind, Priors};
@@ -273,7 +273,7 @@ pub fn identify_with(
     o: &ClusterOptions,
     s: usize,
     seed: u64,
-    deadline: Option<std::time::Instant>,
+    deadline: Deadline,
 ) -> Result<Model, IdentifyError> {
     identify_labelled(problem, o, s, seed, deadline).map(|l| l.model)
 }
@@ -300,7 +300,7 @@ pub fn identify_labelled(
     o: &ClusterOptions,
     s: usize,
     seed: u64,
-    deadline: Option<std::time::Instant>,
+    deadline: Deadline,
 ) -> Result<Labelled, IdentifyError> {
     o.check()?;
     // `s` is the mode count: the priors' own one is not used.

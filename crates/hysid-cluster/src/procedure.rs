@@ -24,6 +24,7 @@ use crate::kmeans::{self, Clusters, KmeansInit};
 use crate::local::{self, Degeneracy, FeatureVectors};
 use crate::priors::ConstrainedFit;
 use crate::{Clustering, Features, Weights};
+use hysid_core::backend::Deadline;
 use hysid_estimation::linalg;
 use nalgebra::{DMatrix, DVector};
 use rand_chacha::ChaCha8Rng;
@@ -58,7 +59,7 @@ pub struct Settings {
     /// Weights of the per-mode least squares.
     pub weights: Weights,
     /// No K-means restart starts after this instant (time budget).
-    pub deadline: Option<std::time::Instant>,
+    pub deadline: Deadline,
 }
 
 /// What the procedure found, in working units.
@@ -276,7 +277,13 @@ pub fn run_with(
     let f = local::feature_vectors(x, n, y, s.c, s.features, s.regularization);
     let clusters: Clusters = match s.clustering {
         Clustering::Kmeans => kmeans::weighted_kmeans_until(
-            &f, s.modes, s.restarts, s.max_iter, s.init, rng, s.deadline,
+            &f,
+            s.modes,
+            s.restarts,
+            s.max_iter,
+            s.init,
+            rng,
+            &s.deadline,
         ),
         Clustering::SingleLinkage => kmeans::single_linkage(&f, s.modes, s.sl_distance),
     };

@@ -74,7 +74,7 @@ pub fn sweep(
                 error: None,
                 sim_errors: Vec::new(),
             };
-            match identify_with(problem, &opts, s, ctx.seed, ctx.deadline) {
+            match identify_with(problem, &opts, s, ctx.seed, ctx.deadline.clone()) {
                 Ok(model) => {
                     point.modes_found = Some(model.mode_count());
                     point.c = model
@@ -105,7 +105,7 @@ pub fn sweep(
             }
             out.push(point);
             ctx.progress.advance(1);
-            if ctx.deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+            if ctx.deadline.passed() {
                 ctx.progress.finish();
                 return out;
             }

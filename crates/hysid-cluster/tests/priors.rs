@@ -4,7 +4,7 @@
 //! never passing a stop), and the gain on the stopped test system.
 
 use hysid_cluster::{Cluster, ClusterOptions, Labelled, identify_labelled};
-use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
+use hysid_core::backend::{Backend, Deadline, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::{Equality, Priors, Tie};
@@ -203,7 +203,7 @@ proptest! {
             priors_origin: None,
         };
         let opts = ClusterOptions { restarts: 3, ..Default::default() };
-        let Labelled { model, row_labels } = identify_labelled(&problem, &opts, 4, 7, None).unwrap();
+        let Labelled { model, row_labels } = identify_labelled(&problem, &opts, 4, 7, Deadline::none()).unwrap();
         prop_assert!(matches!(model, Model::HybridAutomaton(_)));
         prop_assert_eq!(model.mode_count(), 4);
         let d = &model.info().diagnostics;

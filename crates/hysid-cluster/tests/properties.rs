@@ -420,7 +420,7 @@ fn a_spent_time_budget_still_gives_a_complete_model() {
         priors_origin: None,
     };
     let ctx = RunContext {
-        deadline: Some(std::time::Instant::now()),
+        deadline: hysid_core::backend::Deadline::at(std::time::Instant::now()),
         ..RunContext::quiet(1)
     };
     let m = Cluster.run(&problem, &Settings::default(), &ctx).unwrap();

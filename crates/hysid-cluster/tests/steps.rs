@@ -40,7 +40,7 @@ fn settings(modes: usize, c: usize) -> Settings {
         regularization: 1e-6,
         min_weight: 1e-8,
         weights: Weights::Confidence,
-        deadline: None,
+        deadline: hysid_core::backend::Deadline::none(),
     }
 }
 

@@ -13,7 +13,9 @@ use crate::priors::{PriorError, PriorKind, Priors};
 use crate::search::SearchSpace;
 use hysid_model::data::{DataError, Dataset};
 use hysid_model::regressors::{RegressorError, RegressorSpec};
-use std::time::Instant;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 /// What to identify: a record, the model orders and the priors.
 #[derive(Debug, Clone, Copy)]
@@ -43,14 +45,87 @@ pub trait Progress: Sync {
 pub struct NoProgress;
 impl Progress for NoProgress {}
 
+/// When a run must end: at a time (a time budget), or as soon as a stop
+/// is requested (Ctrl-C in the Python package), whichever comes first.
+/// Long back-ends check it between steps and return their best model by
+/// then, marked as cut short; a caller that requested the stop discards it.
+#[derive(Debug, Clone, Default)]
+pub struct Deadline {
+    at: Option<Instant>,
+    stop: Option<Arc<AtomicBool>>,
+}
+
+/// Two deadlines are equal when they end at the same time on the same
+/// stop flag.
+impl PartialEq for Deadline {
+    fn eq(&self, other: &Self) -> bool {
+        self.at == other.at
+            && match (&self.stop, &other.stop) {
+                (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+                (a, b) => a.is_none() && b.is_none(),
+            }
+    }
+}
+
+impl Deadline {
+    /// No deadline: the run ends when its work is done.
+    pub const fn none() -> Self {
+        Self {
+            at: None,
+            stop: None,
+        }
+    }
+
+    /// The run ends at `at` (or when it is done).
+    pub fn at(at: Instant) -> Self {
+        Self {
+            at: Some(at),
+            stop: None,
+        }
+    }
+
+    /// `at` when given, else no deadline.
+    pub fn at_option(at: Option<Instant>) -> Self {
+        Self { at, stop: None }
+    }
+
+    /// The same deadline, also passed once `flag` is raised.
+    pub fn with_stop(self, flag: Arc<AtomicBool>) -> Self {
+        Self {
+            stop: Some(flag),
+            ..self
+        }
+    }
+
+    /// True once the time is up or a stop was requested.
+    pub fn passed(&self) -> bool {
+        self.stop_requested() || self.at.is_some_and(|t| Instant::now() >= t)
+    }
+
+    /// True when a stop was requested.
+    pub fn stop_requested(&self) -> bool {
+        self.stop
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::Relaxed))
+    }
+
+    /// Time left (zero once passed), or `None` without a time limit.
+    pub fn remaining(&self) -> Option<Duration> {
+        if self.stop_requested() {
+            return Some(Duration::ZERO);
+        }
+        self.at.map(|t| t.saturating_duration_since(Instant::now()))
+    }
+}
+
 /// Seed, progress and time budget of one run.
 pub struct RunContext<'a> {
     /// Seed of every random choice of the run.
     pub seed: u64,
     /// Progress sink.
     pub progress: &'a dyn Progress,
-    /// When set, long back-ends stop and return their best model by then.
-    pub deadline: Option<Instant>,
+    /// When long back-ends stop and return their best model.
+    pub deadline: Deadline,
 }
 
 impl<'a> RunContext<'a> {
@@ -59,7 +134,7 @@ impl<'a> RunContext<'a> {
         RunContext {
             seed,
             progress: &NoProgress,
-            deadline: None,
+            deadline: Deadline::none(),
         }
     }
 }
@@ -360,6 +435,36 @@ impl<T: Identifier> Backend for T {
     }
 }
 
+/// What `hysid methods --json` prints of one back-end: its name, options
+/// (with types, defaults and docs), the priors it honours and what
+/// automatic selection tries.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MethodDescription {
+    /// Name used with `-m`.
+    pub name: &'static str,
+    /// One-line description.
+    pub summary: &'static str,
+    /// Options with types, defaults and docs.
+    pub options: Vec<OptionSpec>,
+    /// Prior kinds honoured.
+    pub priors: &'static [PriorKind],
+    /// What automatic selection tries, in one sentence.
+    pub search: &'static str,
+}
+
+impl MethodDescription {
+    /// The description of `backend`.
+    pub fn of(backend: &dyn Backend) -> Self {
+        Self {
+            name: backend.name(),
+            summary: backend.summary(),
+            options: backend.options(),
+            priors: backend.honours(),
+            search: backend.search_doc(),
+        }
+    }
+}
+
 /// The registered back-ends, in registration order.
 #[derive(Default)]
 pub struct Registry {
@@ -386,6 +491,11 @@ impl Registry {
     /// The back-ends.
     pub fn iter(&self) -> impl Iterator<Item = &dyn Backend> {
         self.backends.iter().map(|b| b.as_ref())
+    }
+
+    /// The description of every back-end, in registration order.
+    pub fn describe(&self) -> Vec<MethodDescription> {
+        self.iter().map(MethodDescription::of).collect()
     }
 
     /// Registered names.
@@ -442,5 +552,24 @@ mod tests {
                 .to_string()
                 == "arx: diverged"
         );
+    }
+
+    #[test]
+    fn a_deadline_passes_at_its_time_or_on_a_stop_request() {
+        assert!(!Deadline::none().passed());
+        assert_eq!(Deadline::none().remaining(), None);
+        let now = Instant::now();
+        assert!(Deadline::at(now).passed());
+        let later = Deadline::at(now + Duration::from_secs(3600));
+        assert!(!later.passed());
+        let flag = Arc::new(AtomicBool::new(false));
+        let stoppable = later.clone().with_stop(Arc::clone(&flag));
+        assert!(!stoppable.passed() && !stoppable.stop_requested());
+        let copy = stoppable.clone();
+        flag.store(true, Ordering::Relaxed);
+        assert!(copy.passed() && copy.stop_requested());
+        assert_eq!(copy.remaining(), Some(Duration::ZERO));
+        assert_eq!(copy, stoppable);
+        assert_ne!(copy, later);
     }
 }

@@ -2,9 +2,9 @@
 //! normalised box `[0, 1]^d`, with a central finite-difference Jacobian.
 
 use crate::stages::Termination;
+use hysid_core::backend::Deadline;
 use nalgebra::{DMatrix, DVector};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::Instant;
 
 /// Levenberg-Marquardt (Marquardt 1963) on residuals `res(z)` in the
 /// normalised box `[0, 1]^d` (steps projected onto it), with a central
@@ -19,7 +19,7 @@ pub fn levenberg_marquardt(
     z0: &[f64],
     fd: f64,
     iters: usize,
-    deadline: Option<Instant>,
+    deadline: &Deadline,
     evals: &AtomicU64,
 ) -> (Vec<f64>, f64, Termination) {
     let sse = |e: &[f64]| e.iter().map(|x| x * x).sum::<f64>();
@@ -33,7 +33,7 @@ pub fn levenberg_marquardt(
     let mut jac: Option<DMatrix<f64>> = None;
     let mut stop = Termination::MaxIterations;
     for _ in 0..iters {
-        if deadline.is_some_and(|t| Instant::now() >= t) {
+        if deadline.passed() {
             stop = Termination::TimeBudget;
             break;
         }

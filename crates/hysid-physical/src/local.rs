@@ -110,7 +110,7 @@ fn local_stage(
             &start,
             options.fd_step,
             options.lm_iters,
-            search.ctx.deadline,
+            &search.ctx.deadline,
             search.evals,
         );
         log.levenberg_marquardt.push(stop);

@@ -5,7 +5,7 @@
 
 use crate::parameters::ParameterMap;
 use argmin::core::{CostFunction, Error as ArgminError};
-use hysid_core::backend::Progress;
+use hysid_core::backend::{Deadline, Progress};
 use hysid_mechanical::MechanicalModel;
 use hysid_mechanical::simulate as mechanical;
 use hysid_model::data::Dataset;
@@ -246,7 +246,10 @@ impl Objective<'_> {
 }
 
 /// [`Objective`] as argmin's cost, counting evaluations and reporting
-/// progress, with a penalty outside the box `[0, 1]^d`.
+/// progress, with a penalty outside the box `[0, 1]^d`. Once `deadline`
+/// has passed every point costs `+inf` without a simulation, so that a
+/// solver inside argmin finishes its remaining iterations at once and
+/// keeps the best point found before.
 pub struct SimulationCost<'a> {
     /// The objective.
     pub objective: Objective<'a>,
@@ -254,6 +257,8 @@ pub struct SimulationCost<'a> {
     pub progress: &'a dyn Progress,
     /// Evaluation counter shared by the stages.
     pub evals: &'a AtomicU64,
+    /// The run's deadline (time budget or stop request).
+    pub deadline: &'a Deadline,
 }
 
 impl CostFunction for SimulationCost<'_> {
@@ -261,6 +266,9 @@ impl CostFunction for SimulationCost<'_> {
     type Output = f64;
 
     fn cost(&self, z: &Vec<f64>) -> Result<f64, ArgminError> {
+        if self.deadline.passed() {
+            return Ok(f64::INFINITY);
+        }
         self.evals.fetch_add(1, Ordering::Relaxed);
         self.progress.advance(1);
         // Outside the box: the clamped point's cost plus a penalty that

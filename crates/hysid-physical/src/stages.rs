@@ -8,7 +8,7 @@ use argmin::core::TerminationReason;
 use hysid_core::backend::RunContext;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicU64;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Why an iterative stage of the fit stopped (recorded per stage in the
 /// model's `info.diagnostics.method["termination"]`).
@@ -113,20 +113,19 @@ impl Search<'_> {
             objective: self.objective.with_segment(segment),
             progress: self.ctx.progress,
             evals: self.evals,
+            deadline: &self.ctx.deadline,
         }
     }
 
     /// Time left before the deadline, for argmin's executor.
     pub fn timeout(&self) -> Option<Duration> {
-        self.ctx
-            .deadline
-            .map(|t| t.saturating_duration_since(Instant::now()))
+        self.ctx.deadline.remaining()
     }
 
     /// Whether the deadline has passed; if so, `stage` is recorded in
     /// `log` as cut short (unless an earlier stage was).
     pub fn past_deadline(&self, log: &mut StageLog, stage: Stage) -> bool {
-        let past = self.ctx.deadline.is_some_and(|t| Instant::now() >= t);
+        let past = self.ctx.deadline.passed();
         if past {
             log.cut_short.get_or_insert(stage);
         }

@@ -366,7 +366,7 @@ fn a_spent_time_budget_is_reported_as_the_status() {
         priors_origin: None,
     };
     let ctx = RunContext {
-        deadline: Some(std::time::Instant::now()),
+        deadline: hysid_core::backend::Deadline::at(std::time::Instant::now()),
         ..RunContext::quiet(1)
     };
     let m = Physical

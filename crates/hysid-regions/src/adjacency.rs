@@ -3,6 +3,7 @@
 //! point to an adjacent mode.
 
 use crate::{Context, RegionError};
+use hysid_core::backend::Deadline;
 use hysid_estimation::conic::{Cone, Program, Triplets};
 use hysid_model::geometry::Polyhedron;
 
@@ -110,7 +111,7 @@ pub fn adjacency(
                 method: "adjacency",
                 points: 0,
                 round: 1,
-                deadline: None,
+                deadline: Deadline::none(),
             };
             let (variables, rows) = (prog.variables(), prog.rows());
             match crate::solve_program(prog) {

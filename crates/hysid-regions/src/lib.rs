@@ -49,6 +49,7 @@
 //! assert!(p.regions[0].contains(&[-0.5]) && p.regions[1].contains(&[0.5]));
 //! ```
 
+use hysid_core::backend::Deadline;
 use hysid_estimation::conic::{self, Program, Settings, Solution, SolveError};
 use hysid_model::geometry::Polyhedron;
 use nalgebra::DMatrix;
@@ -111,7 +112,7 @@ pub struct RegionOptions {
     /// partition, optimal on the points of that round's working set) and
     /// [`SolveStats::cut_short`] is set. Default none; not serialised.
     #[serde(skip)]
-    pub deadline: Option<std::time::Instant>,
+    pub deadline: Deadline,
 }
 
 impl Default for RegionOptions {
@@ -121,7 +122,7 @@ impl Default for RegionOptions {
             svm_c: 1.0,
             switching: None,
             standardize: true,
-            deadline: None,
+            deadline: Deadline::none(),
         }
     }
 }
@@ -270,17 +271,16 @@ pub(crate) struct Context {
     pub(crate) points: usize,
     pub(crate) round: usize,
     /// The solve stops here ([`RegionError::TimeLimit`]).
-    pub(crate) deadline: Option<std::time::Instant>,
+    pub(crate) deadline: Deadline,
 }
 
 /// The clarabel settings of every region program: an explicit bound of 300
 /// iterations and 3 iterative-refinement steps per linear solve, and the time
 /// left before `deadline` (the other fields are clarabel's defaults).
-pub(crate) fn solver_settings(deadline: Option<std::time::Instant>) -> Settings {
-    let time_limit = deadline.map_or(f64::INFINITY, |d| {
-        d.saturating_duration_since(std::time::Instant::now())
-            .as_secs_f64()
-    });
+pub(crate) fn solver_settings(deadline: &Deadline) -> Settings {
+    let time_limit = deadline
+        .remaining()
+        .map_or(f64::INFINITY, |d| d.as_secs_f64());
     Settings {
         max_iter: 300,
         iterative_refinement_max_iter: 3,
@@ -293,7 +293,7 @@ pub(crate) fn solver_settings(deadline: Option<std::time::Instant>) -> Settings 
 /// or `AlmostSolved`, the policy of `hysid_estimation::conic`) is returned;
 /// a failure is the [`SolveError`].
 pub(crate) fn solve_program(program: Program) -> Result<Solution, SolveError> {
-    conic::solve(program, &solver_settings(None))
+    conic::solve(program, &solver_settings(&Deadline::none()))
 }
 
 impl RegionError {
@@ -322,7 +322,7 @@ impl RegionError {
 /// [`solve_program`] with a failure as a [`RegionError`] naming `ctx`.
 pub(crate) fn solve_in_context(program: Program, ctx: &Context) -> Result<Solution, RegionError> {
     let (variables, rows) = (program.variables(), program.rows());
-    conic::solve(program, &solver_settings(ctx.deadline))
+    conic::solve(program, &solver_settings(&ctx.deadline))
         .map_err(|e| RegionError::from_solve(e, ctx, variables, rows))
 }
 
@@ -650,7 +650,7 @@ mod tests {
         method: "test",
         points: 7,
         round: 2,
-        deadline: None,
+        deadline: hysid_core::backend::Deadline::none(),
     };
 
     /// `min x1 + x2` subject to `lo <= x <= hi` (as `A x + s = b`, `s >= 0`).
@@ -699,7 +699,7 @@ mod tests {
     fn the_iteration_bound_is_an_error_naming_the_status() {
         let settings = Settings {
             max_iter: 1,
-            ..solver_settings(None)
+            ..solver_settings(&hysid_core::backend::Deadline::none())
         };
         let e = conic::solve(boxed(0.5, 2.0), &settings).unwrap_err();
         let e = RegionError::from_solve(e, &CTX, 2, 4);

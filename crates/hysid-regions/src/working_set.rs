@@ -13,6 +13,7 @@
 
 use crate::simplex::Simplex;
 use crate::{Context, Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
+use hysid_core::backend::Deadline;
 use hysid_estimation::conic::{Cone, Program, Triplets};
 
 /// Margin below which a point outside the working set counts as having a
@@ -68,15 +69,22 @@ pub(crate) fn solve(
         })
         .collect();
 
-    if past(opts.deadline) {
+    if past(&opts.deadline) {
         return softmax_instead(prep, labels, modes, SolveStats::default());
     }
     if !quadratic && (modes - 1) * (prep.p + 1) <= SIMPLEX_MAX_UNKNOWNS {
         let mut stats = SolveStats::default();
         // A failed softmax on the sample only costs the fast path.
         if let Ok(set) = scaled_softmax_set(prep, labels, modes, &weight, quadratic, &mut stats)
-            && let Some(blocks) =
-                solve_simplex(prep, labels, modes, &weight, set, opts.deadline, &mut stats)
+            && let Some(blocks) = solve_simplex(
+                prep,
+                labels,
+                modes,
+                &weight,
+                set,
+                &opts.deadline,
+                &mut stats,
+            )
         {
             return Ok((blocks, stats));
         }
@@ -92,7 +100,7 @@ pub(crate) fn solve(
         &weight,
         (method, quadratic),
         set,
-        opts.deadline,
+        &opts.deadline,
         stats.clone(),
     );
     match solved {
@@ -116,8 +124,8 @@ fn softmax_instead(
 }
 
 /// Whether `deadline` has passed.
-fn past(deadline: Option<std::time::Instant>) -> bool {
-    deadline.is_some_and(|d| std::time::Instant::now() >= d)
+fn past(deadline: &Deadline) -> bool {
+    deadline.passed()
 }
 
 /// Points outside the set (`in_set` false) whose margin under the scores
@@ -163,7 +171,7 @@ fn solve_simplex(
     modes: usize,
     weight: &[f64],
     mut set: Vec<usize>,
-    deadline: Option<std::time::Instant>,
+    deadline: &Deadline,
     stats: &mut SolveStats,
 ) -> Option<Vec<Vec<f64>>> {
     let mut in_set = vec![false; prep.n];
@@ -212,7 +220,7 @@ fn solve_clarabel(
     weight: &[f64],
     (method, quadratic): (&'static str, bool),
     mut set: Vec<usize>,
-    deadline: Option<std::time::Instant>,
+    deadline: &Deadline,
     mut stats: SolveStats,
 ) -> Result<(Vec<Vec<f64>>, SolveStats), RegionError> {
     let mut in_set = vec![false; prep.n];
@@ -230,7 +238,7 @@ fn solve_clarabel(
             method,
             points: set.len(),
             round,
-            deadline,
+            deadline: deadline.clone(),
         };
         let prog = program(prep, labels, modes, weight, quadratic, &set);
         let sol = crate::solve_in_context(prog, &ctx)?;
@@ -643,7 +651,7 @@ mod tests {
                 method: "test",
                 points: n,
                 round: 1,
-                deadline: None,
+                deadline: hysid_core::backend::Deadline::none(),
             };
             let full =
                 crate::solve_in_context(program(&prep, &labels, 3, &weight, quadratic, &all), &ctx)
@@ -668,7 +676,7 @@ mod tests {
             method: "test",
             points: prep.n,
             round: 1,
-            deadline: None,
+            deadline: hysid_core::backend::Deadline::none(),
         };
         let full = crate::solve_in_context(program(prep, labels, modes, weight, false, &all), &ctx)
             .unwrap();

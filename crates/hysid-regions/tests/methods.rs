@@ -459,7 +459,7 @@ fn a_passed_deadline_gives_a_complete_partition_marked_cut_short() {
     let (x, labels) = wedges(300, 1, 0.3, 0.05);
     for method in [RegionMethod::Mrlp, RegionMethod::Msvm] {
         let late = RegionOptions {
-            deadline: Some(std::time::Instant::now()),
+            deadline: hysid_core::backend::Deadline::at(std::time::Instant::now()),
             ..opts(method)
         };
         let p = estimate(&x, &labels, 3, &late).unwrap();

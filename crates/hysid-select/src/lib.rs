@@ -336,7 +336,7 @@ fn fit(
     let quiet = RunContext {
         seed: ctx.seed,
         progress: &NoProgress,
-        deadline: ctx.deadline,
+        deadline: ctx.deadline.clone(),
     };
     trial.backend.run(&problem, &trial.setup.settings, &quiet)
 }

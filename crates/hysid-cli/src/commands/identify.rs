@@ -4,7 +4,7 @@ use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
-use hysid_core::backend::{Problem, RunContext};
+use hysid_core::backend::{Deadline, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
@@ -143,7 +143,7 @@ pub fn run(args: Args) -> Result<()> {
     let ctx = RunContext {
         seed: args.seed,
         progress: &progress,
-        deadline,
+        deadline: Deadline::at_option(deadline),
     };
     let started = Instant::now();
     let model = if args.auto {
