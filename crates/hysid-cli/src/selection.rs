@@ -2,7 +2,7 @@
 //! selection").
 
 use crate::error::CliError;
-use hysid_model::data::{DataSelection, RowRange};
+use hysid_model::data::{DataSelection, RowRange, SignalNameError};
 
 /// Which signals and samples of a data file to use.
 #[derive(clap::Args, Debug, Clone)]
@@ -53,25 +53,22 @@ impl DataArgs {
     /// (twice among the inputs, or as an input and the output) is refused:
     /// the regressors would be collinear copies of each other.
     pub fn selection(&self) -> Result<DataSelection, CliError> {
-        for (i, name) in self.input.iter().enumerate() {
-            if name.is_empty() {
-                return Err(CliError::input("--input: an empty signal name"));
-            }
-            if self.input[..i].contains(name) {
-                return Err(CliError::input(format!("--input: '{name}' is named twice")));
-            }
-            if *name == self.output {
-                return Err(CliError::input(format!(
-                    "--input '{name}' is also the --output; an input must be another signal"
-                )));
-            }
-        }
-        Ok(DataSelection {
+        let selection = DataSelection {
             inputs: self.input.clone(),
             output: self.output.clone(),
             decimate: self.decimate,
             rows: self.rows.unwrap_or_default(),
             ts: self.ts,
-        })
+        };
+        selection.check_names().map_err(|e| {
+            CliError::input(match e {
+                SignalNameError::Empty => "--input/--output: an empty signal name".to_string(),
+                SignalNameError::InputTwice(name) => format!("--input: '{name}' is named twice"),
+                SignalNameError::InputIsOutput(name) => format!(
+                    "--input '{name}' is also the --output; an input must be another signal"
+                ),
+            })
+        })?;
+        Ok(selection)
     }
 }

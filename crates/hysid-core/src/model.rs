@@ -13,7 +13,9 @@
 //!   automaton declared by its physical parameters, contacts and stops.
 
 use hysid_mechanical::{InvalidMechanical, MechanicalModel};
-use hysid_model::model::{HybridAutomaton, InitialState, InvalidModel, ModelInfo, PwarxModel};
+use hysid_model::model::{
+    HybridAutomaton, InitialState, InvalidModel, ModelInfo, PwarxModel, Stop, StopBound,
+};
 use hysid_model::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -135,6 +137,30 @@ impl Model {
                 .collect(),
             Model::HybridAutomaton(m) => m.modes.iter().map(|q| q.name.clone()).collect(),
             Model::Mechanical(m) => m.modes.iter().map(|q| q.name.clone()).collect(),
+        }
+    }
+
+    /// The known output stops: none for a PWARX model; the stop modes of a
+    /// hybrid automaton ([`HybridAutomaton::stops`]); the declared stops of
+    /// a mechanical model at its parameter values.
+    pub fn stops(&self) -> Vec<Stop> {
+        match self {
+            Model::Pwarx(_) => Vec::new(),
+            Model::HybridAutomaton(m) => m.stops(),
+            Model::Mechanical(m) => m
+                .resolve()
+                .stops
+                .iter()
+                .map(|s| Stop {
+                    level: s.position,
+                    bound: if s.sign > 0.0 {
+                        StopBound::Max
+                    } else {
+                        StopBound::Min
+                    },
+                    tol: None,
+                })
+                .collect(),
         }
     }
 

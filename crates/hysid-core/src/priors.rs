@@ -284,6 +284,20 @@ impl Priors {
         Ok(p)
     }
 
+    /// Parses priors given as JSON in the prior file's shape (the Python
+    /// package's `priors` dictionary); `origin` names them in errors.
+    pub fn from_json(text: &str, origin: &str) -> Result<Self, PriorError> {
+        let p: Priors = serde_json::from_str(text).map_err(|e| PriorError::Invalid {
+            path: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        p.check().map_err(|problem| PriorError::Inconsistent {
+            path: origin.to_string(),
+            problem,
+        })?;
+        Ok(p)
+    }
+
     /// Reads a prior file.
     pub fn load(path: &Path) -> Result<Self, PriorError> {
         let origin = path.display().to_string();

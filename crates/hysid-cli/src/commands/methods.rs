@@ -15,18 +15,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     let registry = hysid_backends::registry();
     if args.json {
-        let list: Vec<serde_json::Value> = registry
-            .iter()
-            .map(|b| {
-                serde_json::json!({
-                    "name": b.name(),
-                    "summary": b.summary(),
-                    "options": b.options(),
-                    "priors": b.honours(),
-                    "search": b.search_doc(),
-                })
-            })
-            .collect();
+        let list = registry.describe();
         println!("{}", serde_json::to_string_pretty(&list).expect("json"));
         return Ok(());
     }

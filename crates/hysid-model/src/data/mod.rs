@@ -146,6 +146,44 @@ impl Default for DataSelection {
     }
 }
 
+impl DataSelection {
+    /// Checks the signal names: none empty, no input named twice, no input
+    /// that is also the output (the regressors would hold collinear copies
+    /// of one signal). Each front end words the error with its own argument
+    /// names.
+    pub fn check_names(&self) -> Result<(), SignalNameError> {
+        for (i, name) in self.inputs.iter().enumerate() {
+            if name.is_empty() {
+                return Err(SignalNameError::Empty);
+            }
+            if self.inputs[..i].contains(name) {
+                return Err(SignalNameError::InputTwice(name.clone()));
+            }
+            if *name == self.output {
+                return Err(SignalNameError::InputIsOutput(name.clone()));
+            }
+        }
+        if self.output.is_empty() {
+            return Err(SignalNameError::Empty);
+        }
+        Ok(())
+    }
+}
+
+/// What is wrong with the signal names of a [`DataSelection`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SignalNameError {
+    /// An empty name.
+    #[error("an empty signal name")]
+    Empty,
+    /// An input named twice.
+    #[error("input '{0}' is named twice")]
+    InputTwice(String),
+    /// An input that is also the output.
+    #[error("input '{0}' is also the output; an input must be another signal")]
+    InputIsOutput(String),
+}
+
 /// A half-open row range `A..B`; either bound may be left out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(try_from = "String", into = "String")]

@@ -668,11 +668,108 @@ impl HybridAutomaton {
         }
         a
     }
+
+    /// The known stops of an automaton built by
+    /// [`HybridAutomaton::from_pwarx_with_stops`], read back from its
+    /// structure: a stop is a mode whose invariant is the single equality
+    /// `x_1 = L` on the output state (a lower-dimensional set) and whose
+    /// flow holds `x_1` at `L`; its side is the one the other modes'
+    /// invariants allow (`x_1 <= L`: a `max` stop). Empty for an automaton
+    /// without such modes.
+    pub fn stops(&self) -> Vec<Stop> {
+        let width = self.states.len() + self.inputs.len();
+        let is_output_row = |row: &[f64], sign: f64| {
+            row.len() == width
+                && row
+                    .iter()
+                    .enumerate()
+                    .all(|(j, &v)| v == if j == 0 { sign } else { 0.0 })
+        };
+        let holds_output = |m: &AutomatonMode, level: f64| {
+            m.flow
+                .a
+                .first()
+                .is_some_and(|r| r.iter().all(|&v| v == 0.0))
+                && m.flow.b.first().is_none_or(|r| r.iter().all(|&v| v == 0.0))
+                && m.flow.f.first() == Some(&level)
+        };
+        let output_is_first_state = self.output.c.first() == Some(&1.0)
+            && self.output.c.iter().skip(1).all(|&v| v == 0.0)
+            && self.output.d.iter().all(|&v| v == 0.0)
+            && self.output.e == 0.0;
+        if !output_is_first_state {
+            return Vec::new();
+        }
+        let mut stops = Vec::new();
+        for m in &self.modes {
+            let inv = &m.invariant;
+            let [row] = inv.a_eq.as_slice() else {
+                continue;
+            };
+            let level = inv.b_eq[0];
+            if !inv.a.is_empty() || !is_output_row(row, 1.0) || !holds_output(m, level) {
+                continue;
+            }
+            let allows = |sign: f64| {
+                self.modes.iter().any(|o| {
+                    o.invariant
+                        .a
+                        .iter()
+                        .zip(&o.invariant.b)
+                        .any(|(r, &b)| is_output_row(r, sign) && b == sign * level)
+                })
+            };
+            let bound = if allows(1.0) {
+                StopBound::Max
+            } else if allows(-1.0) {
+                StopBound::Min
+            } else {
+                continue;
+            };
+            stops.push(Stop {
+                level,
+                bound,
+                tol: None,
+            });
+        }
+        stops
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stops_are_read_back_from_the_automaton() {
+        let theta = vec![0.5, 0.1, 0.2, 0.3, 0.0];
+        let p = PwarxModel {
+            na: 2,
+            nb: 2,
+            inputs: 1,
+            modes: vec![crate::model::PwarxMode {
+                theta,
+                region: Polyhedron::default(),
+                name: None,
+            }],
+            info: ModelInfo::default(),
+        };
+        let stops = vec![
+            Stop {
+                level: 1.5,
+                bound: StopBound::Max,
+                tol: None,
+            },
+            Stop {
+                level: -0.25,
+                bound: StopBound::Min,
+                tol: None,
+            },
+        ];
+        let a = HybridAutomaton::from_pwarx_with_stops(&p, &stops);
+        assert_eq!(a.stops(), stops);
+        assert!(HybridAutomaton::from_pwarx(&p).stops().is_empty());
+    }
 
     #[test]
     fn reset_assigns_and_keeps() {
