@@ -1,0 +1,344 @@
+//! # hysid-python
+//!
+//! The extension module `hysid._hysid` of the Python package `hysid`
+//! (`python/hysid/`): identification, simulation, validation and
+//! comparison on numpy arrays, through the library calls the `hysid`
+//! program makes, with its model files, priors, options and one-line
+//! errors ([`error::HysidError`]). Identification runs without the GIL and
+//! stops cleanly on Ctrl-C ([`interrupt`]).
+
+mod error;
+mod interrupt;
+mod model;
+mod record;
+
+use error::{Failure, HysidError};
+use hysid_core::backend::{Problem, RunContext};
+use hysid_core::options::Settings;
+use hysid_core::priors::Priors;
+use hysid_core::search::SearchSpace;
+use hysid_model::data::{DataSelection, Dataset, RowRange, SignalNameError};
+use hysid_model::regressors::RegressorSpec;
+use hysid_select::{Plan, Request};
+use model::Model;
+use pyo3::exceptions::PyUserWarning;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyString};
+use std::ffi::CString;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// `text` (JSON) as Python objects.
+pub(crate) fn json<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// A `UserWarning` when `model` simulates `data` worse than the affine ARX
+/// model of its orders fitted on `data` (`hysid_select::against_affine`),
+/// as the program's `identify` and `validate` warn.
+pub(crate) fn warn_if_below_affine(
+    py: Python<'_>,
+    model: &hysid_core::model::Model,
+    data: &Dataset,
+    priors: Option<&Priors>,
+    warmup: usize,
+    rows: &str,
+) -> PyResult<()> {
+    let registry = hysid_backends::registry();
+    let (Some(orders), Some(affine)) = (
+        model.orders(),
+        hysid_backends::affine_reference(&registry, &model.info().method),
+    ) else {
+        return Ok(());
+    };
+    let priors = priors.cloned().unwrap_or_default();
+    let compared =
+        py.detach(|| hysid_select::against_affine(model, affine, data, orders, &priors, warmup));
+    if let Some(c) = compared
+        && c.below()
+    {
+        let text = format!(
+            "the model's free-run FIT on {rows} ({:.2} %) is below that of an affine ARX model of the same orders fitted on them ({:.2} %)",
+            c.model, c.affine
+        );
+        let text = CString::new(text).unwrap_or_default();
+        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &text, 1)?;
+    }
+    Ok(())
+}
+
+/// The back-ends as a list of dictionaries: name, summary, options (key,
+/// type, default, doc), priors honoured and what `auto` tries.
+#[pyfunction]
+fn methods(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    let list = hysid_backends::registry().describe();
+    let text = serde_json::to_string(&list).map_err(|e| Failure::new(e.to_string()))?;
+    json(py, &text)
+}
+
+/// Reads a CSV or MAT record with the program's selection rules; returns
+/// `(u, y, ts)` with `u` of shape `(N, m)`.
+#[pyfunction]
+#[pyo3(signature = (path, inputs=None, output=None, decimate=1, rows=None, ts=None))]
+fn load<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    inputs: Option<Vec<String>>,
+    output: Option<String>,
+    decimate: usize,
+    rows: Option<String>,
+    ts: Option<f64>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Option<f64>)> {
+    if decimate == 0 {
+        return Err(Failure::new("decimate=0: must be at least 1").into());
+    }
+    let rows = parse_rows("rows", rows.as_deref())?.unwrap_or_default();
+    let selection = DataSelection {
+        inputs: inputs.unwrap_or_else(|| vec!["u".into()]),
+        output: output.unwrap_or_else(|| "y".into()),
+        decimate,
+        rows,
+        ts,
+    };
+    selection.check_names().map_err(|e| match e {
+        SignalNameError::Empty => Failure::new("inputs/output: an empty signal name"),
+        e => Failure::new(format!("inputs: {e}")),
+    })?;
+    let data = py
+        .detach(|| hysid_io::load(&path, &selection))
+        .map_err(Failure::from)?;
+    Ok((
+        record::inputs_array(py, &data).into_any(),
+        record::vector(py, data.y().to_vec()).into_any(),
+        data.ts,
+    ))
+}
+
+/// A row range `A..B` given as text (the Python layer turns tuples and
+/// slices into it).
+fn parse_rows(name: &str, rows: Option<&str>) -> Result<Option<RowRange>, Failure> {
+    rows.map(|r| {
+        r.parse::<RowRange>()
+            .map_err(|e| Failure::new(format!("{name}: {e}")))
+    })
+    .transpose()
+}
+
+/// Priors from a dictionary in the prior file's shape, or from the path of
+/// a prior file (TOML).
+fn priors(py: Python<'_>, given: Option<&Bound<'_, PyAny>>) -> PyResult<(Priors, Option<String>)> {
+    let Some(given) = given else {
+        return Ok((Priors::default(), None));
+    };
+    if given.is_instance_of::<PyDict>() {
+        let text: String = py
+            .import("json")?
+            .call_method1("dumps", (given,))
+            .and_then(|t| t.extract())
+            .map_err(|e| Failure::new(format!("priors: not expressible as a prior file ({e})")))?;
+        return Ok((
+            Priors::from_json(&text, "priors").map_err(Failure::from)?,
+            Some("priors".into()),
+        ));
+    }
+    let path: PathBuf = given.extract().map_err(|_| {
+        Failure::new("priors: expected a dictionary in the prior file's shape or a file path")
+    })?;
+    Ok((
+        Priors::load(&path).map_err(Failure::from)?,
+        Some(path.display().to_string()),
+    ))
+}
+
+/// Back-end options `{key: value}` as the program's `--set key=value`:
+/// booleans as `true`/`false`, numbers and text as written.
+fn settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
+    let mut pairs = Vec::new();
+    for (k, v) in options.into_iter().flat_map(|d| d.iter()) {
+        let key: String = k
+            .extract()
+            .map_err(|_| Failure::new(format!("options: the key {k} is not text")))?;
+        let value = if let Ok(b) = v.extract::<bool>() {
+            b.to_string()
+        } else if v.is_instance_of::<PyString>() {
+            v.extract::<String>()?
+        } else if v.extract::<f64>().is_ok() {
+            v.str()?.to_string()
+        } else {
+            return Err(Failure::new(format!(
+                "option {key}: {} is not a number, a boolean or text",
+                v.repr()?
+            ))
+            .into());
+        };
+        pairs.push((key, value));
+    }
+    Ok(Settings::from_pairs(pairs))
+}
+
+/// Identifies a model from inputs `u` (`(N,)` or `(N, m)`) and outputs `y`
+/// (`(N,)`) with back-end `method`; the arguments are those of
+/// `hysid identify` (see the package's docstrings).
+#[pyfunction]
+#[pyo3(signature = (
+    u, y, method="cluster", na=2, nb=2, modes=None, max_modes=None, priors=None,
+    options=None, seed=0, ts=None, auto=false, select_rows=None, folds=None,
+    grid=None, warmup=10, standardize=false, time_budget=None, input_names=None,
+    output_name=None
+))]
+#[allow(clippy::too_many_arguments)]
+fn identify<'py>(
+    py: Python<'py>,
+    u: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    method: &str,
+    na: usize,
+    nb: usize,
+    modes: Option<usize>,
+    max_modes: Option<usize>,
+    priors: Option<&Bound<'py, PyAny>>,
+    options: Option<&Bound<'py, PyDict>>,
+    seed: u64,
+    ts: Option<f64>,
+    auto: bool,
+    select_rows: Option<String>,
+    folds: Option<usize>,
+    grid: Option<Vec<String>>,
+    warmup: usize,
+    standardize: bool,
+    time_budget: Option<f64>,
+    input_names: Option<Vec<String>>,
+    output_name: Option<String>,
+) -> PyResult<Model> {
+    let data = record::dataset(
+        record::input_columns(u)?,
+        record::output(y)?,
+        ts,
+        input_names,
+        output_name,
+    )?;
+    let registry = hysid_backends::registry();
+    let backend = registry.require(method).map_err(Failure::from)?;
+    let settings = settings(options)?;
+    let (mut priors, origin) = self::priors(py, priors)?;
+    let mut given = Vec::new();
+    for (name, value, prior) in [
+        ("modes", modes, &mut priors.modes),
+        ("max_modes", max_modes, &mut priors.max_modes),
+    ] {
+        match value {
+            Some(0) => return Err(Failure::new(format!("{name}=0: must be at least 1")).into()),
+            Some(s) => {
+                *prior = Some(s);
+                given.push(format!("{name}={s}"));
+            }
+            None => {}
+        }
+    }
+    if !given.is_empty() {
+        priors
+            .check()
+            .map_err(|e| Failure::new(format!("{}: {e}", given.join(" "))))?;
+    }
+    let (select_rows, grid) = (
+        parse_rows("select_rows", select_rows.as_deref())?,
+        grid.unwrap_or_default(),
+    );
+    if !auto && (select_rows.is_some() || folds.is_some() || !grid.is_empty()) {
+        return Err(Failure::new("select_rows, folds and grid need auto=True").into());
+    }
+    if auto && standardize {
+        return Err(Failure::new("auto=True and standardize=True cannot be combined").into());
+    }
+    let deadline = match time_budget {
+        Some(t) if t.is_finite() && t > 0.0 => Duration::try_from_secs_f64(t)
+            .ok()
+            .and_then(|d| Instant::now().checked_add(d)),
+        Some(t) => {
+            return Err(Failure::new(format!(
+                "time_budget={t}: must be a positive number of seconds"
+            ))
+            .into());
+        }
+        None => None,
+    };
+    let problem = Problem {
+        data: &data,
+        orders: RegressorSpec::new(na, nb, data.inputs.len()),
+        priors: &priors,
+        priors_origin: origin.as_deref(),
+    };
+    let model = interrupt::run(
+        py,
+        seed,
+        deadline,
+        |ctx: &RunContext<'_>| -> Result<_, Failure> {
+            if auto {
+                let space = if grid.is_empty() {
+                    backend.search_space(&problem)?.without_given(&settings)
+                } else {
+                    SearchSpace::parse_grid(&grid).map_err(|e| Failure::new(e.render("grid")))?
+                };
+                let plan = Plan {
+                    select: select_rows,
+                    folds,
+                    warmup,
+                    first_row: 0,
+                };
+                let affine = hysid_backends::affine_reference(&registry, backend.name());
+                let request =
+                    Request::from_problem(backend, affine, &problem, settings, space, plan);
+                Ok(hysid_select::select(&request, ctx)?)
+            } else if standardize {
+                Ok(hysid_estimation::pwarx::run_standardized(
+                    backend, &problem, &settings, ctx,
+                )?)
+            } else {
+                Ok(backend.run(&problem, &settings, ctx)?)
+            }
+        },
+    )??;
+    if model.info().selection.is_none() {
+        warn_if_below_affine(
+            py,
+            &model,
+            &data,
+            Some(&priors),
+            warmup,
+            "its identification rows",
+        )?;
+    }
+    Ok(Model::new(model))
+}
+
+/// Runs the experiment file `experiment` (TOML, as `hysid compare`), writes
+/// its report and models into `out_dir`, and returns the report (what
+/// `report.json` holds) as a dictionary.
+#[pyfunction]
+fn compare<'py>(
+    py: Python<'py>,
+    experiment: PathBuf,
+    out_dir: PathBuf,
+) -> PyResult<Bound<'py, PyAny>> {
+    let exp =
+        hysid_compare::Experiment::load(&experiment).map_err(|e| Failure::new(e.to_string()))?;
+    let mut comparison = py
+        .detach(|| exp.run(&hysid_core::backend::NoProgress))
+        .map_err(|e| Failure::new(e.to_string()))?;
+    hysid_compare::write_report(&mut comparison, &out_dir)
+        .map_err(|e| Failure::new(format!("{}: {e}", out_dir.display())))?;
+    let text = serde_json::to_string(&comparison).map_err(|e| Failure::new(e.to_string()))?;
+    json(py, &text)
+}
+
+/// The module `hysid._hysid`.
+#[pymodule]
+fn _hysid(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("HysidError", m.py().get_type::<HysidError>())?;
+    m.add_class::<Model>()?;
+    m.add_function(wrap_pyfunction!(methods, m)?)?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(identify, m)?)?;
+    m.add_function(wrap_pyfunction!(compare, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,313 @@
+//! `hysid.Model`: any model hysid identifies, loads or writes, with its
+//! simulation, prediction and validation on numpy arrays.
+
+use crate::error::Failure;
+use crate::record::{self, dataset, input_columns, output};
+use hysid_core::model::Model as AnyModel;
+use hysid_core::simulate;
+use hysid_model::geometry::Polyhedron;
+use hysid_model::model::StopBound;
+use hysid_model::simulate::{Simulation, SimulationOptions};
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArray2};
+use pyo3::exceptions::PyRuntimeWarning;
+use pyo3::prelude::*;
+use std::ffi::CString;
+use std::path::PathBuf;
+
+/// A hysid model: a PWARX model, a hybrid automaton or a mechanical model.
+///
+/// Files are the program's: a model saved here loads in `hysid validate`,
+/// and a model written by `hysid identify` loads here.
+#[pyclass(module = "hysid", name = "Model", frozen)]
+pub struct Model {
+    pub(crate) inner: AnyModel,
+}
+
+/// A simulation's outputs and active modes (`-1` before it starts).
+type Outputs<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<i64>>);
+
+/// A polyhedron `{z : A z <= b}` as `(A, b)`.
+type Inequalities<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
+impl Model {
+    /// Wraps a model.
+    pub fn new(inner: AnyModel) -> Self {
+        Self { inner }
+    }
+
+    /// A record of the model's inputs `u` with outputs `y`; the sampling
+    /// time is `ts`, else the one the model was identified at.
+    fn record(
+        &self,
+        u: &Bound<'_, PyAny>,
+        y: Vec<f64>,
+        ts: Option<f64>,
+    ) -> Result<hysid_model::data::Dataset, Failure> {
+        let columns = input_columns(u)?;
+        dataset(columns, y, ts.or(self.inner.info().ts), None, None)
+    }
+}
+
+/// `(A, b)` with `{z : A z <= b}` the polyhedron `p` in `dim` coordinates;
+/// each equality is two inequalities.
+fn inequalities<'py>(py: Python<'py>, p: &Polyhedron, dim: usize) -> Inequalities<'py> {
+    let mut rows: Vec<(Vec<f64>, f64)> = p.a.iter().cloned().zip(p.b.iter().copied()).collect();
+    for (a, b) in p.a_eq.iter().zip(&p.b_eq) {
+        rows.push((a.clone(), *b));
+        rows.push((a.iter().map(|v| -v).collect(), -b));
+    }
+    let a = Array2::from_shape_fn((rows.len(), dim), |(i, j)| {
+        rows[i].0.get(j).copied().unwrap_or(0.0)
+    });
+    let b: Vec<f64> = rows.iter().map(|r| r.1).collect();
+    (a.into_pyarray(py), PyArray1::from_vec(py, b))
+}
+
+/// A `RuntimeWarning` when the simulation diverged.
+fn warn_divergence(py: Python<'_>, sim: &Simulation) -> PyResult<()> {
+    if let Some(k) = sim.diverged_at {
+        let text =
+            format!("the simulation diverged at sample {k}; the output is held from there on");
+        let text = CString::new(text).unwrap_or_default();
+        PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &text, 1)?;
+    }
+    Ok(())
+}
+
+#[pymethods]
+impl Model {
+    /// Reads a model file (`.json`, or `.toml` for hand-written models).
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        Ok(Self::new(AnyModel::load(&path).map_err(Failure::from)?))
+    }
+
+    /// Parses a model from its JSON text.
+    #[staticmethod]
+    fn from_json(text: &str) -> PyResult<Self> {
+        Ok(Self::new(
+            AnyModel::from_json(text, "<json>").map_err(Failure::from)?,
+        ))
+    }
+
+    /// The model file's JSON text.
+    fn to_json(&self) -> String {
+        self.inner.to_json()
+    }
+
+    /// Writes the model file (JSON), atomically.
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        Ok(hysid_io::save_model(&self.inner, &path).map_err(Failure::from)?)
+    }
+
+    /// `"pwarx"`, `"hybrid_automaton"` or `"mechanical"`.
+    #[getter]
+    fn kind(&self) -> &'static str {
+        self.inner.kind()
+    }
+
+    /// The back-end that identified the model (empty for hand-written ones).
+    #[getter]
+    fn method(&self) -> String {
+        self.inner.info().method.clone()
+    }
+
+    /// Number of discrete modes.
+    #[getter]
+    fn mode_count(&self) -> usize {
+        self.inner.mode_count()
+    }
+
+    /// Mode names.
+    #[getter]
+    fn mode_names(&self) -> Vec<String> {
+        self.inner.mode_names()
+    }
+
+    /// Number of inputs.
+    #[getter]
+    fn inputs(&self) -> usize {
+        self.inner.inputs()
+    }
+
+    /// ARX orders `(na, nb)`, or `None` for a model without them.
+    #[getter]
+    fn orders(&self) -> Option<(usize, usize)> {
+        self.inner.orders().map(|o| (o.na, o.nb))
+    }
+
+    /// Sampling time in seconds of the data it was identified on, if known.
+    #[getter]
+    fn ts(&self) -> Option<f64> {
+        self.inner.info().ts
+    }
+
+    /// PWARX parameters, one row per mode: `y(k) = theta . [x(k); 1]` with
+    /// the regressor `x(k) = [y(k-1) .. y(k-na), u(k-1) .. u(k-nb)]` (input
+    /// by input). `None` for other kinds.
+    #[getter]
+    fn thetas<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        let AnyModel::Pwarx(m) = &self.inner else {
+            return None;
+        };
+        let d = m.modes.first().map_or(0, |q| q.theta.len());
+        let a = Array2::from_shape_fn((m.modes.len(), d), |(i, j)| m.modes[i].theta[j]);
+        Some(a.into_pyarray(py))
+    }
+
+    /// Per mode, `(A, b)` with `{z : A z <= b}` its region: in regressor
+    /// coordinates for a PWARX model, the invariant in `[x; u]` for a
+    /// hybrid automaton (an equality is two rows). Empty for a mechanical
+    /// model, whose modes are not polyhedra.
+    #[getter]
+    fn regions<'py>(&self, py: Python<'py>) -> Vec<Inequalities<'py>> {
+        match &self.inner {
+            AnyModel::Pwarx(m) => {
+                let dim = m.spec().dim();
+                m.modes
+                    .iter()
+                    .map(|q| inequalities(py, &q.region, dim))
+                    .collect()
+            }
+            AnyModel::HybridAutomaton(m) => {
+                let dim = m.states.len() + m.inputs.len();
+                m.modes
+                    .iter()
+                    .map(|q| inequalities(py, &q.invariant, dim))
+                    .collect()
+            }
+            AnyModel::Mechanical(_) => Vec::new(),
+        }
+    }
+
+    /// Known output stops as `(level, "max" | "min")`: a `max` stop bounds
+    /// the output from above.
+    #[getter]
+    fn stops(&self) -> Vec<(f64, &'static str)> {
+        self.inner
+            .stops()
+            .iter()
+            .map(|s| {
+                let side = match s.bound {
+                    StopBound::Max => "max",
+                    StopBound::Min => "min",
+                };
+                (s.level, side)
+            })
+            .collect()
+    }
+
+    /// Provenance as a dictionary: method, options, seed, diagnostics and,
+    /// under automatic selection, the candidates and the choice.
+    #[getter]
+    fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let text =
+            serde_json::to_string(self.inner.info()).map_err(|e| Failure::new(e.to_string()))?;
+        crate::json(py, &text)
+    }
+
+    /// Free-run simulation driven by `u`; `y0` gives the outputs of the
+    /// first samples (the initial condition; zeros when left out). Returns
+    /// `(y, mode)`.
+    #[pyo3(signature = (u, y0=None, ts=None))]
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        u: &Bound<'py, PyAny>,
+        y0: Option<&Bound<'py, PyAny>>,
+        ts: Option<f64>,
+    ) -> PyResult<Outputs<'py>> {
+        let n = input_columns(u)?.first().map_or(0, Vec::len);
+        let mut y = vec![0.0; n];
+        if let Some(y0) = y0 {
+            let given = record::floats("y0", y0)?;
+            if given.ndim() != 1 || given.len() > n {
+                return Err(Failure::new(format!(
+                    "y0: expected at most {n} initial outputs (shape (k,)), got shape {}",
+                    record::shape_text(given.shape())
+                ))
+                .into());
+            }
+            y[..given.len()].copy_from_slice(&given.iter().copied().collect::<Vec<_>>());
+        }
+        let data = self.record(u, y, ts)?;
+        let sim = py
+            .detach(|| simulate::simulate(&self.inner, &data, SimulationOptions::default()))
+            .map_err(Failure::from)?;
+        warn_divergence(py, &sim)?;
+        Ok((
+            record::vector(py, sim.y.clone()),
+            record::modes(py, &sim.modes),
+        ))
+    }
+
+    /// One-step-ahead prediction from the measured `u` and `y`. Returns
+    /// `(y_pred, mode)`.
+    #[pyo3(signature = (u, y, ts=None))]
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        u: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+        ts: Option<f64>,
+    ) -> PyResult<Outputs<'py>> {
+        let data = self.record(u, output(y)?, ts)?;
+        let opts = SimulationOptions::for_data(&data);
+        let pred = py
+            .detach(|| simulate::predict(&self.inner, &data, opts))
+            .map_err(Failure::from)?;
+        Ok((
+            record::vector(py, pred.y.clone()),
+            record::modes(py, &pred.modes),
+        ))
+    }
+
+    /// Scores the model on a record, leaving out the first `warmup`
+    /// samples: the dictionary of `hysid validate --json` (`fit_sim`,
+    /// `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...).
+    #[pyo3(signature = (u, y, warmup=10, ts=None))]
+    fn validate<'py>(
+        &self,
+        py: Python<'py>,
+        u: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+        warmup: usize,
+        ts: Option<f64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let data = self.record(u, output(y)?, ts)?;
+        if warmup >= data.len() {
+            return Err(Failure::new(format!(
+                "warmup={warmup} leaves no sample to score: the record has {} samples",
+                data.len()
+            ))
+            .into());
+        }
+        let (report, sim, _) = py
+            .detach(|| simulate::validate(&self.inner, &data, warmup))
+            .map_err(Failure::from)?;
+        warn_divergence(py, &sim)?;
+        crate::warn_if_below_affine(py, &self.inner, &data, None, warmup, "these rows")?;
+        let text = serde_json::to_string(&report).map_err(|e| Failure::new(e.to_string()))?;
+        crate::json(py, &text)
+    }
+
+    fn __repr__(&self) -> String {
+        let orders = self
+            .inner
+            .orders()
+            .map(|o| format!(", na={}, nb={}", o.na, o.nb))
+            .unwrap_or_default();
+        let method = &self.inner.info().method;
+        let method = if method.is_empty() {
+            String::new()
+        } else {
+            format!(", method='{method}'")
+        };
+        format!(
+            "Model(kind='{}'{method}, modes={}{orders})",
+            self.inner.kind(),
+            self.inner.mode_count()
+        )
+    }
+}

@@ -1,0 +1,120 @@
+//! Records between numpy and hysid: `u` as an `(N, m)` array (or `(N,)`
+//! for one input), `y` as `(N,)`, into a checked [`Dataset`] and back.
+
+use crate::error::Failure;
+use hysid_model::data::{Dataset, Signal};
+use numpy::ndarray::{Array2, ArrayD};
+use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn};
+use pyo3::prelude::*;
+
+/// `obj` as an array of floats (anything `numpy.asarray` takes); `name`
+/// names the argument in the error.
+pub fn floats(name: &str, obj: &Bound<'_, PyAny>) -> Result<ArrayD<f64>, Failure> {
+    let a = obj
+        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
+        .map_err(|e| Failure::new(format!("{name}: not an array of numbers ({e})")))?;
+    Ok(a.as_array().to_owned())
+}
+
+/// A shape as Python writes it: `(300,)`, `(300, 2)`.
+pub fn shape_text(shape: &[usize]) -> String {
+    match shape {
+        [n] => format!("({n},)"),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// The inputs `u` as columns: `(N,)` is one input, `(N, m)` is `m`.
+pub fn input_columns(u: &Bound<'_, PyAny>) -> Result<Vec<Vec<f64>>, Failure> {
+    let a = floats("u", u)?;
+    match a.shape() {
+        [_] => Ok(vec![a.iter().copied().collect()]),
+        [_, m] => Ok((0..*m)
+            .map(|j| {
+                a.index_axis(numpy::ndarray::Axis(1), j)
+                    .iter()
+                    .copied()
+                    .collect()
+            })
+            .collect()),
+        shape => Err(Failure::new(format!(
+            "u: expected an array of shape (N,) or (N, m), got shape {}",
+            shape_text(shape)
+        ))),
+    }
+}
+
+/// The outputs `y`, shape `(N,)`.
+pub fn output(y: &Bound<'_, PyAny>) -> Result<Vec<f64>, Failure> {
+    let a = floats("y", y)?;
+    match a.shape() {
+        [_] => Ok(a.iter().copied().collect()),
+        shape => Err(Failure::new(format!(
+            "y: expected an array of shape (N,), got shape {}",
+            shape_text(shape)
+        ))),
+    }
+}
+
+/// Default input names: `u` for one input (as the program's `--input`
+/// default), `u1 .. um` for several.
+fn input_names(m: usize, given: Option<Vec<String>>) -> Result<Vec<String>, Failure> {
+    match given {
+        Some(names) if names.len() != m => Err(Failure::new(format!(
+            "input_names: {} name(s) for {m} input(s)",
+            names.len()
+        ))),
+        Some(names) => Ok(names),
+        None if m == 1 => Ok(vec!["u".into()]),
+        None => Ok((1..=m).map(|i| format!("u{i}")).collect()),
+    }
+}
+
+/// A record from the inputs' columns and the outputs; lengths and finite
+/// values are checked by [`Dataset::new`].
+pub fn dataset(
+    columns: Vec<Vec<f64>>,
+    y: Vec<f64>,
+    ts: Option<f64>,
+    names: Option<Vec<String>>,
+    output_name: Option<String>,
+) -> Result<Dataset, Failure> {
+    let names = input_names(columns.len(), names)?;
+    let inputs = names
+        .into_iter()
+        .zip(columns)
+        .map(|(name, values)| Signal { name, values })
+        .collect();
+    let output = Signal {
+        name: output_name.unwrap_or_else(|| "y".into()),
+        values: y,
+    };
+    Ok(Dataset::new(inputs, output, ts)?)
+}
+
+/// The inputs of `data` as an `(N, m)` array.
+pub fn inputs_array<'py>(py: Python<'py>, data: &Dataset) -> Bound<'py, PyArray2<f64>> {
+    let (n, m) = (data.len(), data.inputs.len());
+    Array2::from_shape_fn((n, m), |(k, i)| data.u(i)[k]).into_pyarray(py)
+}
+
+/// A vector as a 1-D array.
+pub fn vector<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyArray1<f64>> {
+    PyArray1::from_vec(py, v)
+}
+
+/// Active modes per sample as integers, `-1` where none is (before the
+/// simulation starts).
+pub fn modes<'py>(py: Python<'py>, modes: &[Option<usize>]) -> Bound<'py, PyArray1<i64>> {
+    PyArray1::from_vec(
+        py,
+        modes.iter().map(|q| q.map_or(-1, |q| q as i64)).collect(),
+    )
+}

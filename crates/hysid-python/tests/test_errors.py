@@ -1,0 +1,114 @@
+"""Bad input raises HysidError (a ValueError) with the program's one-line
+message; nothing panics across the boundary."""
+
+import numpy as np
+import pytest
+
+import hysid
+from conftest import PICK_AND_PLACE
+
+
+def program_message(run, *args):
+    """The program's one-line message for a command that must fail with exit code 2."""
+    r = run(*args, check=False)
+    assert r.returncode == 2, r.stderr
+    line = r.stderr.strip()
+    assert line.startswith("hysid: error: ") and "\n" not in line
+    return line[len("hysid: error: "):]
+
+
+def raised(f, *args, **kwargs):
+    with pytest.raises(hysid.HysidError) as e:
+        f(*args, **kwargs)
+    message = str(e.value)
+    assert "\n" not in message and message
+    return message
+
+
+U = np.sin(np.arange(300) * 0.05)
+Y = np.cos(np.arange(300) * 0.07)
+
+
+def test_the_error_is_a_value_error():
+    assert issubclass(hysid.HysidError, ValueError)
+
+
+@pytest.mark.parametrize(
+    "u, y, words",
+    [
+        (np.where(np.arange(300) == 17, np.nan, U), Y, ["'u'", "non-finite", "sample 17"]),
+        (U, np.where(np.arange(300) == 4, np.inf, Y), ["'y'", "non-finite", "sample 4"]),
+        (U[:299], Y, ["299 samples", "300"]),
+        (U, np.stack([Y, Y], axis=1), ["y:", "shape (300, 2)"]),
+        (np.zeros((300, 1, 1)), Y, ["u:", "shape (300, 1, 1)"]),
+        (["a", "b"], Y[:2], ["u:", "not an array of numbers"]),
+    ],
+)
+def test_bad_arrays_are_named(u, y, words):
+    message = raised(hysid.identify, u, y, method="arx")
+    for w in words:
+        assert w in message
+
+
+def test_unknown_option_names_the_back_end_and_its_options():
+    message = raised(hysid.identify, U, Y, method="arx", options={"nope": 1})
+    assert message.startswith("option nope: method 'arx' has no such option (options: ")
+
+
+def test_option_value_is_checked_as_set_checks_it():
+    message = raised(hysid.identify, U, Y, method="cluster", modes=2, options={"c": -3})
+    assert message.startswith("option c=")
+
+
+def test_unknown_method_has_the_program_message(program, tmp_path):
+    ours = raised(hysid.identify, U, Y, method="nope")
+    theirs = program_message(program, "identify", PICK_AND_PLACE, "-m", "nope", "-o", tmp_path / "m.json")
+    assert ours == theirs
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_a_prior_the_back_end_cannot_honour_has_the_program_message(program, tmp_path):
+    prior = tmp_path / "fixed.toml"
+    prior.write_text('[[saturation]]\nlevel = 25.0\nbound = "max"\n')
+    ours = raised(hysid.identify, U, Y, method="physical", priors=prior)
+    theirs = program_message(program, "identify", PICK_AND_PLACE, "-m", "physical", "--prior", prior,
+                             "-o", tmp_path / "m.json")
+    assert ours == theirs and "does not honour the prior" in ours
+
+
+def test_a_missing_column_has_the_program_message(program, tmp_path):
+    csv = tmp_path / "r.csv"
+    csv.write_text("t,u,y\n0,1,2\n1,2,3\n2,3,4\n")
+    ours = raised(hysid.load, csv, inputs=["v"])
+    theirs = program_message(program, "identify", csv, "-m", "arx", "--input", "v", "-o", tmp_path / "m.json")
+    assert ours == theirs and "no column 'v'" in ours
+
+
+def test_a_malformed_model_file_has_the_program_message(program, tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"kind": "pwarx", "na": 1}')
+    ours = raised(hysid.Model.load, bad)
+    theirs = program_message(program, "validate", bad, PICK_AND_PLACE)
+    assert ours == theirs
+
+
+def test_bad_arguments_are_refused():
+    assert "modes=0" in raised(hysid.identify, U, Y, method="cluster", modes=0)
+    assert "time_budget" in raised(hysid.identify, U, Y, method="arx", time_budget=-1.0)
+    assert "decimate" in raised(hysid.load, PICK_AND_PLACE, decimate=0)
+    assert "rows" in raised(hysid.load, PICK_AND_PLACE, rows="7")
+    assert "named twice" in raised(hysid.load, PICK_AND_PLACE, inputs=["u", "u"])
+    assert "need auto=True" in raised(hysid.identify, U, Y, method="arx", folds=3)
+    assert "warmup" in raised(hysid.Model.from_json(
+        '{"kind": "pwarx", "na": 1, "nb": 1, "inputs": 1, "modes": [{"theta": [0.5, 1, 0], "region": {}}]}'
+    ).validate, U[:5], Y[:5], warmup=5)
+
+
+def test_a_cluster_run_without_a_mode_count_says_how_to_give_one():
+    message = raised(hysid.identify, U, Y, method="cluster")
+    assert "modes=S" in message and "max_modes=S" in message
+
+
+def test_priors_that_contradict_each_other_are_refused():
+    message = raised(hysid.identify, U, Y, method="cluster", priors={"modes": 3, "max_modes": 2})
+    assert message.startswith("priors: ")

@@ -1,0 +1,91 @@
+"""Model: simulation and prediction against the PWARX equations computed
+here, regions and stops, files."""
+
+import numpy as np
+import pytest
+
+import hysid
+
+
+def two_mode_model():
+    """y(k) = a_q y(k-1) + b_q u(k-1) + c_q, mode 1 where y(k-1) <= 0."""
+    return hysid.Model.from_json("""{
+      "kind": "pwarx", "na": 1, "nb": 1, "inputs": 1,
+      "modes": [
+        {"theta": [0.5, 1.0, 0.1], "region": {"a": [[1.0, 0.0]], "b": [0.0]}},
+        {"theta": [0.8, -0.5, -0.2], "region": {"a": [[-1.0, 0.0]], "b": [0.0]}}
+      ]
+    }""")
+
+
+def reference(u, y0):
+    y = np.zeros(len(u))
+    y[0] = y0
+    modes = np.full(len(u), -1)
+    for k in range(1, len(u)):
+        q = 0 if y[k - 1] <= 0 else 1
+        a, b, c = [(0.5, 1.0, 0.1), (0.8, -0.5, -0.2)][q]
+        y[k] = a * y[k - 1] + b * u[k - 1] + c
+        modes[k] = q
+    return y, modes
+
+
+def test_simulation_follows_the_piecewise_equations():
+    model = two_mode_model()
+    u = np.random.default_rng(1).uniform(-1, 1, 300)
+    y, modes = model.simulate(u, y0=[0.3])
+    want_y, want_modes = reference(u, 0.3)
+    assert np.allclose(y, want_y, atol=1e-12)
+    assert (modes == want_modes).all()
+    assert {0, 1} <= set(modes[1:].tolist())
+
+
+def test_prediction_is_one_step_from_the_measured_output():
+    model = two_mode_model()
+    rng = np.random.default_rng(2)
+    u, y = rng.uniform(-1, 1, 200), rng.normal(0, 1, 200)
+    pred, modes = model.predict(u, y)
+    for k in range(1, 200):
+        q = 0 if y[k - 1] <= 0 else 1
+        a, b, c = [(0.5, 1.0, 0.1), (0.8, -0.5, -0.2)][q]
+        assert pred[k] == pytest.approx(a * y[k - 1] + b * u[k - 1] + c, abs=1e-12)
+        assert modes[k] == q
+
+
+def test_validation_scores_a_perfect_model_at_one_hundred_percent():
+    model = two_mode_model()
+    u = np.random.default_rng(3).uniform(-1, 1, 400)
+    y, _ = reference(u, -0.2)
+    report = model.validate(u, y, warmup=5)
+    assert report["fit_sim"] == pytest.approx(100.0) and report["fit_pred"] == pytest.approx(100.0)
+    assert report["n"] == 395 and sum(report["mode_counts"]) == 395
+
+
+def test_structure_is_exposed_as_arrays():
+    model = two_mode_model()
+    assert model.kind == "pwarx" and model.mode_count == 2 and model.orders == (1, 1)
+    assert model.thetas.shape == (2, 3)
+    (a0, b0), (a1, b1) = model.regions
+    assert a0.shape == (1, 2) and b0.tolist() == [0.0]
+    assert a1.tolist() == [[-1.0, 0.0]]
+    assert model.stops == []
+
+
+def test_files_round_trip(tmp_path):
+    model = two_mode_model()
+    path = tmp_path / "m.json"
+    model.save(path)
+    again = hysid.Model.load(path)
+    assert again.to_json() == model.to_json()
+    assert "Model(kind='pwarx'" in repr(again)
+
+
+def test_a_mechanical_model_simulates_from_its_file():
+    import pathlib
+
+    head = pathlib.Path(__file__).resolve().parents[3] / "models" / "pick-and-place" / "head.toml"
+    model = hysid.Model.load(head)
+    assert model.kind == "mechanical" and sorted(model.stops) == [(0.0, "min"), (25.0, "max")]
+    u = np.full(2000, -0.1)
+    y, modes = model.simulate(u, ts=0.0025)
+    assert np.isfinite(y).all() and y.min() >= -1e-9 and y.max() <= 25.0 + 1e-9

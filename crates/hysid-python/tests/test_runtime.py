@@ -1,0 +1,99 @@
+"""The GIL is released while identifying, Ctrl-C stops a run, figures
+draw, and compare returns the report."""
+
+import os
+import signal
+import threading
+import time
+
+import pytest
+
+import hysid
+from conftest import REPO
+
+
+def test_other_python_threads_run_while_identifying(record):
+    u, y, ts = record
+    done = threading.Event()
+    result = {}
+
+    def work():
+        started = time.perf_counter()
+        result["model"] = hysid.identify(u[:5000], y[:5000], method="physical", seed=1, ts=ts,
+                                         options={"particles": 8, "swarm_iters": 4, "local_iters": 20,
+                                                  "restarts": 1, "starts": 1, "lm_iters": 2})
+        result["seconds"] = time.perf_counter() - started
+        done.set()
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    ticks = 0
+    while not done.is_set():
+        ticks += 1
+        time.sleep(0.001)
+    worker.join()
+    assert result["model"].kind == "mechanical"
+    # With the GIL held for the whole run this loop could not tick at all.
+    assert ticks >= min(50, 0.2 * result["seconds"] * 1000), (ticks, result["seconds"])
+
+
+@pytest.mark.skipif(os.name != "posix", reason="sends SIGINT to itself")
+def test_ctrl_c_stops_a_long_run(record):
+    u, y, ts = record
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    started = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        # Minutes without the interruption (every stage at its default, a long swarm).
+        hysid.identify(u[:5000], y[:5000], method="physical", seed=1, ts=ts,
+                       options={"particles": 400, "swarm_iters": 400})
+    elapsed = time.perf_counter() - started
+    timer.cancel()
+    assert elapsed < 60, elapsed
+    # The module still works afterwards.
+    assert hysid.identify(u[:500], y[:500], method="arx").kind == "pwarx"
+
+
+def test_compare_returns_the_report(tmp_path):
+    experiment = tmp_path / "small.toml"
+    data = REPO / "models" / "pick-and-place" / "headdata_1v6.mat"
+    experiment.write_text(f"""
+title = "two ARX models"
+na = 2
+nb = 2
+[data]
+file = "{data}"
+decimate = 10
+identification = "0..5000"
+validation = "5000..6001"
+[[run]]
+name = "arx(2,2)"
+method = "arx"
+[[run]]
+name = "arx(3,3)"
+method = "arx"
+na = 3
+nb = 3
+""")
+    report = hysid.compare(experiment, tmp_path / "out")
+    fits = {r["name"]: r["report"]["fit_sim"] for r in report["results"]}
+    assert round(fits["arx(2,2)"], 2) == 70.48
+    assert (tmp_path / "out" / "report.md").exists() and (tmp_path / "out" / "report.json").exists()
+    model = hysid.Model.load(tmp_path / "out" / "models" / "arx_2_2.json")
+    assert model.orders == (2, 2)
+
+
+def test_figures_draw(record, tmp_path):
+    matplotlib = pytest.importorskip("matplotlib")
+    matplotlib.use("Agg")
+    import hysid.plot
+
+    u, y, ts = record
+    model = hysid.identify(u[:5000], y[:5000], method="cluster", modes=3, seed=1, ts=ts)
+    fig = hysid.plot.simulation(model, u[5000:6001], y[5000:6001])
+    fig.savefig(tmp_path / "sim.png")
+    fig = hysid.plot.regions(model, dims=(0, 2), data=(u[:5000], y[:5000]), resolution=60)
+    fig.savefig(tmp_path / "regions.png")
+    assert (tmp_path / "sim.png").stat().st_size > 0 and (tmp_path / "regions.png").stat().st_size > 0
+    x = hysid.plot.regressors(model, u[:10], y[:10])
+    assert x.shape == (8, 4) and x[0].tolist() == [y[1], y[0], u[1, 0], u[0, 0]]
