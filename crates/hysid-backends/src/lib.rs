@@ -13,6 +13,7 @@ pub fn registry() -> Registry {
         .with(hysid_cluster::Cluster)
         .with(hysid_bounded::Bounded)
         .with(hysid_physical::Physical)
+        .with(hysid_klinreg::KLinReg)
 }
 
 /// The back-end whose model is the affine reference a hybrid model is
