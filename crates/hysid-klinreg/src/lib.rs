@@ -26,8 +26,8 @@
 mod restarts;
 
 pub use restarts::{
-    Restart, Restarts, SuccessModel, best_restart, draw_parameters, restart_count, run_restart,
-    success_probability,
+    FAILURE_PROBABILITY, FALLBACK_RESTARTS, Restart, Restarts, SuccessModel, best_restart,
+    draw_parameters, restart_count, run_restart, success_probability,
 };
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};

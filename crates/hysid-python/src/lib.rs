@@ -4,8 +4,8 @@
 //! (`python/hysid/`): identification, simulation, validation and
 //! comparison on numpy arrays, through the library calls the `hysid`
 //! program makes, with its model files, priors, options and one-line
-//! errors ([`error::HysidError`]). Identification runs without the GIL and
-//! stops cleanly on Ctrl-C ([`interrupt`]).
+//! errors (`hysid.HysidError`, module `error`). Identification runs without the GIL and
+//! stops cleanly on Ctrl-C (module `interrupt`).
 
 mod error;
 mod interrupt;
