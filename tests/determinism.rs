@@ -80,7 +80,7 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
             a.keys()
         );
     }
-    for name in ["arx", "cluster", "bounded", "physical", "klinreg"] {
+    for name in ["arx", "cluster", "bounded", "physical", "klinreg", "parc"] {
         assert!(
             a.contains_key(&format!("{name}.json")),
             "{name} is not registered or wrote no model: {:?}",

@@ -211,7 +211,7 @@ const RUN: &[(&str, &str, Quote)] = &[
     (
         "README.md",
         "hysid methods",
-        Quote::Stdout(&["arx", "cluster", "bounded", "physical", "klinreg"]),
+        Quote::Stdout(&["arx", "cluster", "bounded", "physical", "klinreg", "parc"]),
     ),
     (
         "physical.md",

@@ -14,6 +14,7 @@ pub fn registry() -> Registry {
         .with(hysid_bounded::Bounded)
         .with(hysid_physical::Physical)
         .with(hysid_klinreg::KLinReg)
+        .with(hysid_parc::Parc)
 }
 
 /// The back-end whose model is the affine reference a hybrid model is

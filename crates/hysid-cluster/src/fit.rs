@@ -419,6 +419,7 @@ fn estimate_regions(
         switching: data.switching.clone(),
         standardize: !o.scale,
         deadline: deadline.clone(),
+        ..Default::default()
     };
     let part = hysid_regions::estimate(&work.xs, &fit.labels, modes, &options)
         .map_err(|e| IdentifyError::failed(format!("region estimation: {e}")))?;

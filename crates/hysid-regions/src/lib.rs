@@ -107,12 +107,38 @@ pub struct RegionOptions {
     /// deviation per column) and return the regions in original units.
     /// Default true.
     pub standardize: bool,
+    /// The softmax objective (method softmax, and the fallback of MRLP and
+    /// MSVM when the time budget ends them). Default: balanced, ridge
+    /// `1e-4`.
+    #[serde(default)]
+    pub softmax: SoftmaxSettings,
     /// No working-set round of MRLP or MSVM starts after this instant: the
     /// scores of the last round are kept (still a complete argmax
     /// partition, optimal on the points of that round's working set) and
     /// [`SolveStats::cut_short`] is set. Default none; not serialised.
     #[serde(skip)]
     pub deadline: Deadline,
+}
+
+/// The objective of [`RegionMethod::Softmax`], `(1/N) sum_r omega_r NLL_r
+/// plus (ridge/2) |w|^2` on standardised regressors (the offsets are not
+/// penalised).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SoftmaxSettings {
+    /// Weights `omega_r = N / (s |F_{y_r}|)` that balance the modes (the
+    /// default); `false`: every point weighs 1 (PARC's separator).
+    pub balanced: bool,
+    /// Ridge on the normals. Default `1e-4`.
+    pub ridge: f64,
+}
+
+impl Default for SoftmaxSettings {
+    fn default() -> Self {
+        Self {
+            balanced: true,
+            ridge: softmax::RIDGE,
+        }
+    }
 }
 
 impl Default for RegionOptions {
@@ -122,6 +148,7 @@ impl Default for RegionOptions {
             svm_c: 1.0,
             switching: None,
             standardize: true,
+            softmax: SoftmaxSettings::default(),
             deadline: Deadline::none(),
         }
     }
@@ -467,7 +494,7 @@ pub fn estimate(
             (argmax_regions(&scores), true, scores, stats)
         }
         RegionMethod::Softmax => {
-            let (wg, steps) = softmax::fit(&prep, labels, modes)?;
+            let (wg, steps) = softmax::fit(&prep, labels, modes, &opts.softmax)?;
             let scores = scores_in_original_units(&prep, &wg, d);
             let stats = SolveStats {
                 working_points: prep.n,

@@ -3,14 +3,16 @@
 //! uses a multinomial-logistic separator for its partition). The regions are
 //! the argmax of the fitted affine scores, so they cover the space exactly.
 //!
-//! Objective, with mode-balancing weights `omega_r = N / (s |F_{y_r}|)`:
+//! Objective, with mode-balancing weights `omega_r = N / (s |F_{y_r}|)`
+//! (or `omega_r = 1` with `SoftmaxSettings::balanced` off) and the ridge
+//! `lambda` of `SoftmaxSettings::ridge`:
 //! `(1/N) sum_r omega_r (log sum_j exp f_j(z_r) - f_{y_r}(z_r)) + (lambda/2) sum_i |w_i|^2`,
 //! `f_i(z) = w_i . z - g_i`, the last mode's score fixed at 0 (the softmax is
 //! invariant to adding a common affine function). Strictly convex in the
 //! normals and, with every mode present, in the offsets, so the minimiser is
 //! unique; Newton with backtracking converges globally.
 
-use crate::{Prepared, RegionError};
+use crate::{Prepared, RegionError, SoftmaxSettings};
 use nalgebra::{DMatrix, DVector};
 
 /// Ridge on the normals (standardised units).
@@ -29,6 +31,7 @@ pub(crate) fn fit(
     prep: &Prepared,
     labels: &[usize],
     modes: usize,
+    settings: &SoftmaxSettings,
 ) -> Result<(Vec<Vec<f64>>, usize), RegionError> {
     let p = prep.p;
     let b = p + 1; // block size
@@ -37,9 +40,16 @@ pub(crate) fn fit(
     let omega: Vec<f64> = prep
         .counts
         .iter()
-        .map(|&c| n as f64 / (modes as f64 * c as f64))
+        .map(|&c| {
+            if settings.balanced {
+                n as f64 / (modes as f64 * c as f64)
+            } else {
+                1.0
+            }
+        })
         .collect();
     let inv_n = 1.0 / n as f64;
+    let ridge_weight = settings.ridge;
     // theta: blocks [w_i; g_i] for i < modes - 1; score f_i = w.z - g.
     let mut theta = DVector::<f64>::zeros(k);
     let mut phi = vec![0.0; b];
@@ -67,7 +77,7 @@ pub(crate) fn fit(
                 .map(|v| v * v)
                 .sum::<f64>();
         }
-        loss * inv_n + 0.5 * RIDGE * ridge
+        loss * inv_n + 0.5 * ridge_weight * ridge
     };
 
     let mut current = objective(&theta, &mut f);
@@ -137,8 +147,8 @@ pub(crate) fn fit(
         }
         for i in 0..modes - 1 {
             for a in 0..p {
-                grad[i * b + a] += RIDGE * theta[i * b + a];
-                hess[(i * b + a, i * b + a)] += RIDGE;
+                grad[i * b + a] += ridge_weight * theta[i * b + a];
+                hess[(i * b + a, i * b + a)] += ridge_weight;
             }
         }
         // A tiny diagonal shift keeps the offsets' block positive definite

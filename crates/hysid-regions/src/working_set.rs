@@ -117,7 +117,8 @@ fn softmax_instead(
     modes: usize,
     mut stats: SolveStats,
 ) -> Result<(Vec<Vec<f64>>, SolveStats), RegionError> {
-    let (blocks, steps) = crate::softmax::fit(prep, labels, modes)?;
+    let (blocks, steps) =
+        crate::softmax::fit(prep, labels, modes, &crate::SoftmaxSettings::default())?;
     stats.newton_steps = steps;
     stats.cut_short = true;
     Ok((blocks, stats))
@@ -306,7 +307,8 @@ fn scaled_softmax_set(
     // 1. Stratified sample and softmax fit on it.
     let sample = stratified(labels, &prep.counts, SOFTMAX_SAMPLE / modes.max(1));
     let (sub, sub_labels) = subsample(prep, labels, modes, &sample);
-    let (wg, steps) = crate::softmax::fit(&sub, &sub_labels, modes)?;
+    let (wg, steps) =
+        crate::softmax::fit(&sub, &sub_labels, modes, &crate::SoftmaxSettings::default())?;
     stats.newton_steps = steps;
     let score = |z: &[f64], f: &mut [f64]| {
         for (fi, v) in f.iter_mut().zip(&wg) {
@@ -357,7 +359,7 @@ fn initial_set(
     modes: usize,
     stats: &mut SolveStats,
 ) -> Result<Vec<usize>, RegionError> {
-    let (wg, steps) = crate::softmax::fit(prep, labels, modes)?;
+    let (wg, steps) = crate::softmax::fit(prep, labels, modes, &crate::SoftmaxSettings::default())?;
     stats.newton_steps = steps;
     let per_mode = INITIAL_PER_MODE_FACTOR * (prep.p + 1);
     let mut seen = vec![0usize; modes];
