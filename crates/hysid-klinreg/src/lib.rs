@@ -41,7 +41,7 @@ use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
 use hysid_regions::{Partition, RegionMethod, RegionOptions};
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 /// The largest mode count `--auto` tries when none is given.
@@ -171,10 +171,13 @@ pub fn fit(
         r => r,
     };
     let outcome = best_restart(&reg, &par, modes, planned, options, ctx);
-    let best = outcome.best.ok_or(KLinRegError::EveryRestartFailed {
+    let mut best = outcome.best.ok_or(KLinRegError::EveryRestartFailed {
         restarts: outcome.run,
         modes,
     })?;
+    if let Some(thetas) = constrained_least_squares(&reg, &par, &best.labels, modes) {
+        best.thetas = thetas;
+    }
     let partition = estimate_regions(options, data, &reg, &best.labels, modes)?;
     let run_status = if outcome.run < planned {
         RunStatus::TimeBudget
@@ -243,9 +246,32 @@ fn check_sample_count(reg: &Regressors, modes: usize, params: usize) -> Result<(
 
 /// Step 3: least squares per mode on its samples, under the priors
 /// (`hysid_estimation::constrained`: ties, fixed values and equalities
-/// exact, bounds by a QP). `None` when a mode has fewer samples than
-/// parameters or the fit fails: the restart fails.
+/// exact, bounds by a QP). Without any parameter prior the modes are
+/// independent and each is solved from its normal equations
+/// ([`normal_equations`]), one pass over the samples. `None` when a mode
+/// has fewer samples than parameters or the fit fails: the restart fails.
 pub fn refit(
+    reg: &Regressors,
+    par: &Parametrisation,
+    labels: &[usize],
+    modes: usize,
+) -> Option<Vec<Vec<f64>>> {
+    let mut counts = vec![0usize; modes];
+    for &q in labels {
+        counts[q] += 1;
+    }
+    if counts.iter().any(|&c| c < par.n_params()) {
+        return None;
+    }
+    if par.n_free() == modes * par.n_params() && !par.has_equalities() && !par.has_bounds() {
+        return normal_equations(reg, labels, modes);
+    }
+    constrained_least_squares(reg, par, labels, modes)
+}
+
+/// Least squares of every mode under the priors, jointly
+/// (`hysid_estimation::constrained::fit_modes`).
+pub fn constrained_least_squares(
     reg: &Regressors,
     par: &Parametrisation,
     labels: &[usize],
@@ -254,9 +280,6 @@ pub fn refit(
     let mut rows: Vec<Vec<usize>> = vec![Vec::new(); modes];
     for (k, &q) in labels.iter().enumerate() {
         rows[q].push(k);
-    }
-    if rows.iter().any(|r| r.len() < par.n_params()) {
-        return None;
     }
     let parts: Vec<(DMatrix<f64>, Vec<f64>)> = rows
         .iter()
@@ -276,6 +299,37 @@ pub fn refit(
     fit_modes(par, &samples).ok()
 }
 
+/// Unconstrained least squares of every mode from its normal equations
+/// `(sum phi phi^T) theta = sum phi y`, `phi = [x; 1]`, accumulated in one
+/// pass and solved by Cholesky (`None` when a Gram matrix is singular).
+/// Its accuracy (the conditioning squared) is enough for the iterations;
+/// the kept restart is refitted by [`constrained_least_squares`].
+pub fn normal_equations(reg: &Regressors, labels: &[usize], modes: usize) -> Option<Vec<Vec<f64>>> {
+    let d = reg.x.ncols();
+    let p = d + 1;
+    let mut gram = vec![DMatrix::<f64>::zeros(p, p); modes];
+    let mut rhs = vec![DVector::<f64>::zeros(p); modes];
+    let mut phi = vec![1.0; p];
+    for (k, &q) in labels.iter().enumerate() {
+        for (j, v) in phi.iter_mut().take(d).enumerate() {
+            *v = reg.x[(k, j)];
+        }
+        let (g, r) = (&mut gram[q], &mut rhs[q]);
+        for i in 0..p {
+            r[i] += phi[i] * reg.y[k];
+            for j in i..p {
+                g[(i, j)] += phi[i] * phi[j];
+            }
+        }
+    }
+    gram.into_iter()
+        .zip(rhs)
+        .map(|(mut g, r)| {
+            g.fill_lower_triangle_with_upper_triangle();
+            g.cholesky().map(|c| c.solve(&r).iter().copied().collect())
+        })
+        .collect()
+}
 /// Step 2: every sample to the mode of least squared residual (the lowest
 /// index on a tie); returns the labels and the mean squared residual.
 pub fn assign(reg: &Regressors, thetas: &[Vec<f64>]) -> (Vec<usize>, f64) {
