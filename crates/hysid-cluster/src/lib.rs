@@ -232,13 +232,9 @@ impl Identifier for Cluster {
         let c = C_GRID
             .into_iter()
             .filter(|&c| c >= smallest && 4 * c <= rows);
-        let space = SearchSpace::default().with("c", c);
-        if priors.modes.is_some() {
-            return Ok(space);
-        }
-        let stops = priors.saturation.len();
-        let most = priors.max_modes.unwrap_or(stops + DEFAULT_MAX_MODES);
-        Ok(space.with("modes", stops + 1..=most))
+        Ok(SearchSpace::default()
+            .with("c", c)
+            .with_mode_counts(priors, DEFAULT_MAX_MODES))
     }
 
     fn identify(

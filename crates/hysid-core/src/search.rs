@@ -48,6 +48,19 @@ impl SearchSpace {
         self
     }
 
+    /// The space with a `modes` axis from one ordinary mode (the affine
+    /// model, plus the stop modes of the priors) to `max_modes`, or to
+    /// `default_most` ordinary modes without it; unchanged when the priors
+    /// fix `modes`.
+    pub fn with_mode_counts(self, priors: &Priors, default_most: usize) -> Self {
+        if priors.modes.is_some() {
+            return self;
+        }
+        let stops = priors.saturation.len();
+        let most = priors.max_modes.unwrap_or(stops + default_most);
+        self.with("modes", stops + 1..=most)
+    }
+
     /// Parses `KEY=V1,V2,...` items (the `--grid` syntax of `hysid sweep`).
     pub fn parse_grid<S: AsRef<str>>(items: &[S]) -> Result<Self, OptionError> {
         let mut axes: Vec<Axis> = Vec::new();

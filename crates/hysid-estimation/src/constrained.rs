@@ -30,7 +30,7 @@
 use crate::conic::{self, Cone, Program, Settings, SolveError, Triplets};
 use crate::linalg::{self, LinalgError};
 use hysid_core::priors::{Equality, Priors};
-use hysid_model::regressors::RegressorSpec;
+use hysid_model::regressors::{RegressorSpec, Regressors};
 use nalgebra::{DMatrix, DVector};
 
 /// What one entry of the stacked parameter vector is.
@@ -440,6 +440,30 @@ pub fn fit_modes(
     }
     let z = solve_in_z(par, &z_mat, &r)?;
     Ok(par.thetas(&z))
+}
+
+/// [`fit_modes`] on the rows `rows[i]` of `reg` for mode `i`, unweighted.
+pub fn fit_modes_on(
+    par: &Parametrisation,
+    reg: &Regressors,
+    rows: &[Vec<usize>],
+) -> Result<Vec<Vec<f64>>, EstimationError> {
+    let parts: Vec<(DMatrix<f64>, Vec<f64>)> = rows
+        .iter()
+        .map(|r| {
+            let s = reg.select(r);
+            (s.x, s.y.iter().copied().collect())
+        })
+        .collect();
+    let samples: Vec<ModeSamples<'_>> = parts
+        .iter()
+        .map(|(phi, y)| ModeSamples {
+            phi,
+            y,
+            weights: None,
+        })
+        .collect();
+    fit_modes(par, &samples)
 }
 
 /// `min |Z z - r|^2` over the free variables `z` of `par` under its

@@ -35,7 +35,7 @@ use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
-use hysid_estimation::constrained::{ModeSamples, Parametrisation, fit_modes};
+use hysid_estimation::constrained::{Parametrisation, fit_modes_on};
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
 use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
@@ -108,12 +108,7 @@ impl Identifier for KLinReg {
         "the mode count from 1 to 5 (saturation modes added), unless --modes is given";
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        let priors = problem.priors;
-        if priors.modes.is_some() {
-            return Ok(SearchSpace::default());
-        }
-        let stops = priors.saturation.len();
-        Ok(SearchSpace::default().with("modes", stops + 1..=stops + DEFAULT_MAX_MODES))
+        Ok(SearchSpace::default().with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
     fn identify(
@@ -281,22 +276,7 @@ pub fn constrained_least_squares(
     for (k, &q) in labels.iter().enumerate() {
         rows[q].push(k);
     }
-    let parts: Vec<(DMatrix<f64>, Vec<f64>)> = rows
-        .iter()
-        .map(|r| {
-            let s = reg.select(r);
-            (s.x, s.y.iter().copied().collect())
-        })
-        .collect();
-    let samples: Vec<ModeSamples<'_>> = parts
-        .iter()
-        .map(|(phi, y)| ModeSamples {
-            phi,
-            y,
-            weights: None,
-        })
-        .collect();
-    fit_modes(par, &samples).ok()
+    fit_modes_on(par, reg, &rows).ok()
 }
 
 /// Unconstrained least squares of every mode from its normal equations

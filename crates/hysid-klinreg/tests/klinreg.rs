@@ -12,7 +12,7 @@ use hysid_klinreg::{
     DEFAULT_MIN_RESTARTS, KLinReg, KLinRegOptions, SuccessModel, restart_count, run_restart,
     success_probability,
 };
-use hysid_model::metrics::{mode_accuracy, parameter_error};
+use hysid_model::metrics::mode_accuracy;
 use hysid_model::regressors::{RegressorSpec, Regressors};
 use hysid_testkit::{Benchmark, Noise};
 use nalgebra::{DMatrix, DVector};
@@ -154,32 +154,11 @@ fn run(backend: &dyn Backend, b: &Benchmark, modes: usize, seed: u64) -> Model {
         .unwrap()
 }
 
-/// Mode accuracy in simulation-free terms: the region of each identified
-/// regressor against the true mode, and the parameter error after the
-/// best permutation.
 fn scores(m: &Model, b: &Benchmark) -> (f64, f64) {
     let Model::Pwarx(p) = m else {
         panic!("a PWARX model")
     };
-    let spec = p.spec();
-    let u = [b.data.u(0)];
-    let mut truth = Vec::new();
-    let mut found = Vec::new();
-    let mut x = vec![0.0; spec.dim()];
-    for k in spec.lag()..b.data.len() {
-        spec.fill(b.data.y(), &u, k, &mut x);
-        truth.push(b.modes[k].unwrap());
-        found.push(p.predict(&x).1.mode);
-    }
-    let acc = mode_accuracy(&truth, &found).unwrap().accuracy;
-    let thetas: Vec<Vec<f64>> = p.modes.iter().map(|q| q.theta.clone()).collect();
-    let truth_thetas: Vec<Vec<f64>> = b.truth.modes.iter().map(|q| q.theta.clone()).collect();
-    (
-        acc,
-        parameter_error(&truth_thetas, &thetas)
-            .unwrap()
-            .max_relative_error,
-    )
+    b.recovery(p)
 }
 
 /// B1 (the classic 3-mode PWARX) on five draws: k-LinReg beside `cluster`

@@ -46,6 +46,10 @@ use serde::Serialize;
 /// is given.
 pub const DEFAULT_CLUSTERS: usize = 10;
 
+/// The largest number of clusters `--auto` tries when neither `modes` nor
+/// `max_modes` is given.
+pub const DEFAULT_MAX_MODES: usize = 5;
+
 hysid_core::option_enum! {
     /// How the clusters begin.
     pub enum Init {
@@ -119,12 +123,7 @@ impl Identifier for Parc {
         "the number of clusters from 1 to 5 (saturation modes added), unless --modes is given";
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        let priors = problem.priors;
-        if priors.modes.is_some() {
-            return Ok(SearchSpace::default());
-        }
-        let stops = priors.saturation.len();
-        Ok(SearchSpace::default().with("modes", stops + 1..=stops + 5))
+        Ok(SearchSpace::default().with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
     fn identify(

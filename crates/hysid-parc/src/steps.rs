@@ -3,7 +3,7 @@
 
 use crate::{Init, ParcError, ParcOptions};
 use hysid_core::backend::IdentifyError;
-use hysid_estimation::constrained::{ModeSamples, Parametrisation, fit_modes};
+use hysid_estimation::constrained::{Parametrisation, fit_modes_on};
 use hysid_estimation::pwarx::PwarxData;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::regressors::Regressors;
@@ -185,23 +185,8 @@ pub fn fit_local_models(
 ) -> Result<Vec<Vec<f64>>, IdentifyError> {
     let par = Parametrisation::from_priors(data.priors(), &data.spec, clusters.live())
         .map_err(|e| data.prior_error(e))?;
-    let parts: Vec<(DMatrix<f64>, Vec<f64>)> = clusters
-        .members()
-        .iter()
-        .map(|rows| {
-            let s = reg.select(rows);
-            (s.x, s.y.iter().copied().collect())
-        })
-        .collect();
-    let samples: Vec<ModeSamples<'_>> = parts
-        .iter()
-        .map(|(phi, y)| ModeSamples {
-            phi,
-            y,
-            weights: None,
-        })
-        .collect();
-    fit_modes(&par, &samples).map_err(|e| ParcError::LocalModels(e.to_string()).into())
+    fit_modes_on(&par, reg, &clusters.members())
+        .map_err(|e| ParcError::LocalModels(e.to_string()).into())
 }
 
 /// Step 2: the separator, a multinomial logistic regression of the

@@ -8,7 +8,6 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_estimation::pwarx;
 use hysid_model::data::{Dataset, Signal};
-use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_model::regressors::RegressorSpec;
 use hysid_parc::{Parc, ParcOptions};
 use hysid_testkit::{Benchmark, Noise};
@@ -148,23 +147,7 @@ fn scores(m: &Model, b: &Benchmark) -> (f64, f64) {
     let Model::Pwarx(p) = m else {
         panic!("a PWARX model")
     };
-    let spec = p.spec();
-    let u = [b.data.u(0)];
-    let (mut truth, mut found) = (Vec::new(), Vec::new());
-    let mut x = vec![0.0; spec.dim()];
-    for k in spec.lag()..b.data.len() {
-        spec.fill(b.data.y(), &u, k, &mut x);
-        truth.push(b.modes[k].unwrap());
-        found.push(p.predict(&x).1.mode);
-    }
-    let thetas: Vec<Vec<f64>> = p.modes.iter().map(|q| q.theta.clone()).collect();
-    let truth_thetas: Vec<Vec<f64>> = b.truth.modes.iter().map(|q| q.theta.clone()).collect();
-    (
-        mode_accuracy(&truth, &found).unwrap().accuracy,
-        parameter_error(&truth_thetas, &thetas)
-            .unwrap()
-            .max_relative_error,
-    )
+    b.recovery(p)
 }
 
 /// B1 (N = 500, u uniform in [-4, 4], uniform noise 0.1) on five draws,

@@ -12,11 +12,10 @@ use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
-use hysid_estimation::constrained::{ModeSamples, Parametrisation, fit_modes};
+use hysid_estimation::constrained::{Parametrisation, fit_modes_on};
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::PwarxMode;
-use nalgebra::DMatrix;
 use serde::Serialize;
 
 hysid_core::backend_options! {
@@ -120,22 +119,7 @@ fn least_squares(
 ) -> Result<Vec<Vec<f64>>, IdentifyError> {
     let par = Parametrisation::from_priors(data.priors(), &data.spec, 2)
         .map_err(|e| data.prior_error(e))?;
-    let rows: Vec<(DMatrix<f64>, Vec<f64>)> = split
-        .iter()
-        .map(|rows| {
-            let r = data.regressors.select(rows);
-            (r.x, r.y.iter().copied().collect())
-        })
-        .collect();
-    let samples: Vec<ModeSamples<'_>> = rows
-        .iter()
-        .map(|(phi, y)| ModeSamples {
-            phi,
-            y,
-            weights: None,
-        })
-        .collect();
-    fit_modes(&par, &samples).map_err(|e| IdentifyError::failed(e.to_string()))
+    fit_modes_on(&par, &data.regressors, split).map_err(|e| IdentifyError::failed(e.to_string()))
 }
 
 /// `u1(k-1) <= threshold` and `u1(k-1) >= threshold` as polyhedra.

@@ -18,6 +18,7 @@ use hysid_core::simulate::simulate;
 use hysid_model::data::{Dataset, Signal};
 use hysid_model::excitation::Excitation;
 use hysid_model::geometry::Polyhedron;
+use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_model::model::Stop;
 use hysid_model::model::StopBound;
 use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
@@ -73,6 +74,31 @@ impl Benchmark {
     /// The true parameter vectors.
     pub fn thetas(&self) -> Vec<Vec<f64>> {
         self.truth.modes.iter().map(|m| m.theta.clone()).collect()
+    }
+
+    /// How `model` recovers the truth: the mode its regions give each
+    /// regressor of the record against the true mode (after the best
+    /// matching), and the largest relative parameter error of the matched
+    /// modes (infinite when a true mode has no match).
+    pub fn recovery(&self, model: &PwarxModel) -> (f64, f64) {
+        let spec = model.spec();
+        let u: Vec<&[f64]> = (0..self.data.inputs.len())
+            .map(|i| self.data.u(i))
+            .collect();
+        let (mut truth, mut found) = (Vec::new(), Vec::new());
+        let mut x = vec![0.0; spec.dim()];
+        for k in spec.lag()..self.data.len() {
+            if let Some(q) = self.modes[k] {
+                spec.fill(self.data.y(), &u, k, &mut x);
+                truth.push(q);
+                found.push(model.predict(&x).1.mode);
+            }
+        }
+        let thetas: Vec<Vec<f64>> = model.modes.iter().map(|q| q.theta.clone()).collect();
+        let accuracy = mode_accuracy(&truth, &found).map_or(0.0, |m| m.accuracy);
+        let error = parameter_error(&self.thetas(), &thetas)
+            .map_or(f64::INFINITY, |p| p.max_relative_error);
+        (accuracy, error)
     }
 }
 
