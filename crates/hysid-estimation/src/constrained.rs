@@ -321,6 +321,14 @@ impl Parametrisation {
         self.lower.len()
     }
 
+    /// Whether every parameter of every mode is free: no tie, fixed value,
+    /// equality or bound (the modes are then independent least squares).
+    pub fn is_free(&self) -> bool {
+        self.n_free() == self.modes() * self.n_params
+            && !self.has_equalities()
+            && !self.has_bounds()
+    }
+
     /// Whether the modes are coupled by ties (so they must be estimated
     /// together).
     pub fn couples_modes(&self) -> bool {
@@ -440,6 +448,44 @@ pub fn fit_modes(
     }
     let z = solve_in_z(par, &z_mat, &r)?;
     Ok(par.thetas(&z))
+}
+
+/// Unconstrained least squares of every mode from its normal equations
+/// `(sum phi phi^T) theta = sum phi y`, `phi = [x; 1]`, accumulated in one
+/// pass over the `(row, mode)` pairs of `assigned` and solved by Cholesky
+/// (`None` when a Gram matrix is singular). For a [`Parametrisation`] that
+/// [`Parametrisation::is_free`], it minimises what [`fit_modes`] does, with
+/// the conditioning squared: enough inside iterations, which then refit
+/// their result by [`fit_modes`].
+pub fn normal_equations(
+    reg: &Regressors,
+    assigned: impl Iterator<Item = (usize, usize)>,
+    modes: usize,
+) -> Option<Vec<Vec<f64>>> {
+    let d = reg.x.ncols();
+    let p = d + 1;
+    let mut gram = vec![DMatrix::<f64>::zeros(p, p); modes];
+    let mut rhs = vec![DVector::<f64>::zeros(p); modes];
+    let mut phi = vec![1.0; p];
+    for (k, q) in assigned {
+        for (j, v) in phi.iter_mut().take(d).enumerate() {
+            *v = reg.x[(k, j)];
+        }
+        let (g, r) = (&mut gram[q], &mut rhs[q]);
+        for i in 0..p {
+            r[i] += phi[i] * reg.y[k];
+            for j in i..p {
+                g[(i, j)] += phi[i] * phi[j];
+            }
+        }
+    }
+    gram.into_iter()
+        .zip(rhs)
+        .map(|(mut g, r)| {
+            g.fill_lower_triangle_with_upper_triangle();
+            g.cholesky().map(|c| c.solve(&r).iter().copied().collect())
+        })
+        .collect()
 }
 
 /// [`fit_modes`] on the rows `rows[i]` of `reg` for mode `i`, unweighted.

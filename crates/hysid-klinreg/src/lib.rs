@@ -35,13 +35,13 @@ use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
-use hysid_estimation::constrained::{Parametrisation, fit_modes_on};
+use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equations};
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
 use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
 use hysid_regions::{Partition, RegionMethod, RegionOptions};
-use nalgebra::{DMatrix, DVector};
+
 use serde::Serialize;
 
 /// The largest mode count `--auto` tries when none is given.
@@ -243,7 +243,9 @@ fn check_sample_count(reg: &Regressors, modes: usize, params: usize) -> Result<(
 /// (`hysid_estimation::constrained`: ties, fixed values and equalities
 /// exact, bounds by a QP). Without any parameter prior the modes are
 /// independent and each is solved from its normal equations
-/// ([`normal_equations`]), one pass over the samples. `None` when a mode
+/// (`hysid_estimation::constrained::normal_equations`), one pass over the
+/// samples; the kept restart is refitted by
+/// [`constrained_least_squares`]. `None` when a mode
 /// has fewer samples than parameters or the fit fails: the restart fails.
 pub fn refit(
     reg: &Regressors,
@@ -258,8 +260,8 @@ pub fn refit(
     if counts.iter().any(|&c| c < par.n_params()) {
         return None;
     }
-    if par.n_free() == modes * par.n_params() && !par.has_equalities() && !par.has_bounds() {
-        return normal_equations(reg, labels, modes);
+    if par.is_free() {
+        return normal_equations(reg, labels.iter().copied().enumerate(), modes);
     }
     constrained_least_squares(reg, par, labels, modes)
 }
@@ -279,37 +281,6 @@ pub fn constrained_least_squares(
     fit_modes_on(par, reg, &rows).ok()
 }
 
-/// Unconstrained least squares of every mode from its normal equations
-/// `(sum phi phi^T) theta = sum phi y`, `phi = [x; 1]`, accumulated in one
-/// pass and solved by Cholesky (`None` when a Gram matrix is singular).
-/// Its accuracy (the conditioning squared) is enough for the iterations;
-/// the kept restart is refitted by [`constrained_least_squares`].
-pub fn normal_equations(reg: &Regressors, labels: &[usize], modes: usize) -> Option<Vec<Vec<f64>>> {
-    let d = reg.x.ncols();
-    let p = d + 1;
-    let mut gram = vec![DMatrix::<f64>::zeros(p, p); modes];
-    let mut rhs = vec![DVector::<f64>::zeros(p); modes];
-    let mut phi = vec![1.0; p];
-    for (k, &q) in labels.iter().enumerate() {
-        for (j, v) in phi.iter_mut().take(d).enumerate() {
-            *v = reg.x[(k, j)];
-        }
-        let (g, r) = (&mut gram[q], &mut rhs[q]);
-        for i in 0..p {
-            r[i] += phi[i] * reg.y[k];
-            for j in i..p {
-                g[(i, j)] += phi[i] * phi[j];
-            }
-        }
-    }
-    gram.into_iter()
-        .zip(rhs)
-        .map(|(mut g, r)| {
-            g.fill_lower_triangle_with_upper_triangle();
-            g.cholesky().map(|c| c.solve(&r).iter().copied().collect())
-        })
-        .collect()
-}
 /// Step 2: every sample to the mode of least squared residual (the lowest
 /// index on a tie); returns the labels and the mean squared residual.
 pub fn assign(reg: &Regressors, thetas: &[Vec<f64>]) -> (Vec<usize>, f64) {

@@ -165,15 +165,17 @@ pub fn fit(
     let mut clusters = Clusters::new(initial_labels(options, &reg, k, ctx.seed));
     let mut cost = Vec::new();
     let mut cut_short = false;
+    let mut scores: Option<Vec<Vec<f64>>> = None;
     while cost.len() < options.max_iter {
         if ctx.deadline.passed() {
             cut_short = true;
             break;
         }
         clusters.drop_empty();
-        let thetas = fit_local_models(data, &reg, &clusters)?;
-        let scores = fit_separator(options, data, &reg, &clusters)?;
-        let round = reassign(options, &reg, &thetas, &scores, &mut clusters);
+        let thetas = fit_local_models(data, &reg, &clusters, false)?;
+        let separator = fit_separator(options, data, &reg, &clusters, scores.as_deref())?;
+        let round = reassign(options, &reg, &thetas, &separator, &mut clusters);
+        scores = Some(separator);
         let decrease = cost.last().map_or(f64::INFINITY, |c: &f64| c - round);
         cost.push(round);
         if decrease <= options.cost_tol || clusters.live() == 1 {

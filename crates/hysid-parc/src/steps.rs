@@ -3,7 +3,7 @@
 
 use crate::{Init, ParcError, ParcOptions};
 use hysid_core::backend::IdentifyError;
-use hysid_estimation::constrained::{Parametrisation, fit_modes_on};
+use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equations};
 use hysid_estimation::pwarx::PwarxData;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::regressors::Regressors;
@@ -177,14 +177,30 @@ fn kmeans(z: &DMatrix<f64>, k: usize, rng: &mut ChaCha8Rng) -> (Vec<usize>, f64)
 }
 
 /// Step 1: least squares per cluster on its samples, under the priors
-/// (`hysid_estimation::constrained`).
+/// (`hysid_estimation::constrained`); without parameter priors, inside the
+/// descent (`exact` false), from the normal equations of each cluster.
 pub fn fit_local_models(
     data: &PwarxData<'_>,
     reg: &Regressors,
     clusters: &Clusters,
+    exact: bool,
 ) -> Result<Vec<Vec<f64>>, IdentifyError> {
     let par = Parametrisation::from_priors(data.priors(), &data.spec, clusters.live())
         .map_err(|e| data.prior_error(e))?;
+    if !exact
+        && par.is_free()
+        && let Some(thetas) = normal_equations(
+            reg,
+            clusters
+                .labels
+                .iter()
+                .enumerate()
+                .filter_map(|(k, q)| q.map(|q| (k, q))),
+            clusters.live(),
+        )
+    {
+        return Ok(thetas);
+    }
     fit_modes_on(&par, reg, &clusters.members())
         .map_err(|e| ParcError::LocalModels(e.to_string()).into())
 }
@@ -192,13 +208,15 @@ pub fn fit_local_models(
 /// Step 2: the separator, a multinomial logistic regression of the
 /// clusters on the regressors (`hysid-regions` softmax, every sample
 /// weighing 1, ridge `beta` on the sum of the losses; normals restricted to
-/// the `switching` regressors). Returns per cluster the score `f_j` as
-/// `[omega_j; gamma_j]` in the record's units.
+/// the `switching` regressors), started from `start` (the previous
+/// round's scores) when it has one per cluster. Returns per cluster the
+/// score `f_j` as `[omega_j; gamma_j]` in the record's units.
 pub fn fit_separator(
     options: &ParcOptions,
     data: &PwarxData<'_>,
     reg: &Regressors,
     clusters: &Clusters,
+    start: Option<&[Vec<f64>]>,
 ) -> Result<Vec<Vec<f64>>, IdentifyError> {
     let d = reg.x.ncols();
     let live = clusters.live();
@@ -213,6 +231,7 @@ pub fn fit_separator(
         softmax: SoftmaxSettings {
             balanced: false,
             ridge: options.beta / rows.len().max(1) as f64,
+            start: start.map(<[Vec<f64>]>::to_vec),
         },
         ..Default::default()
     };
@@ -300,7 +319,7 @@ pub fn finish(
         ))
         .into());
     }
-    let mut scores = fit_separator(options, data, reg, &clusters)?;
+    let mut scores = fit_separator(options, data, reg, &clusters, None)?;
     if options.fit_on_partition {
         let mut x = vec![0.0; d];
         for k in 0..reg.x.nrows() {
@@ -333,7 +352,7 @@ pub fn finish(
         }
         scores = kept.iter().map(|&j| scores[j].clone()).collect();
     }
-    let thetas = fit_local_models(data, reg, &clusters)?;
+    let thetas = fit_local_models(data, reg, &clusters, true)?;
     let outliers = clusters.labels.iter().filter(|q| q.is_none()).count();
     Ok(Finished {
         regions: regions(&scores),

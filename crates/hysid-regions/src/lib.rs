@@ -123,13 +123,19 @@ pub struct RegionOptions {
 /// The objective of [`RegionMethod::Softmax`], `(1/N) sum_r omega_r NLL_r
 /// plus (ridge/2) |w|^2` on standardised regressors (the offsets are not
 /// penalised).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SoftmaxSettings {
     /// Weights `omega_r = N / (s |F_{y_r}|)` that balance the modes (the
     /// default); `false`: every point weighs 1 (PARC's separator).
     pub balanced: bool,
     /// Ridge on the normals. Default `1e-4`.
     pub ridge: f64,
+    /// Scores to start Newton's method from (a warm start), one `[c; c0]`
+    /// per mode in original units as [`Partition::scores`] gives them;
+    /// ignored unless there is one per mode. The minimiser is unique, so
+    /// only the number of steps depends on it. Default none (zeros).
+    #[serde(skip)]
+    pub start: Option<Vec<Vec<f64>>>,
 }
 
 impl Default for SoftmaxSettings {
@@ -137,6 +143,7 @@ impl Default for SoftmaxSettings {
         Self {
             balanced: true,
             ridge: softmax::RIDGE,
+            start: None,
         }
     }
 }

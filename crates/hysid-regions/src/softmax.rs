@@ -52,6 +52,9 @@ pub(crate) fn fit(
     let ridge_weight = settings.ridge;
     // theta: blocks [w_i; g_i] for i < modes - 1; score f_i = w.z - g.
     let mut theta = DVector::<f64>::zeros(k);
+    if let Some(start) = settings.start.as_ref().filter(|s| s.len() == modes) {
+        warm_start(prep, start, &mut theta);
+    }
     let mut phi = vec![0.0; b];
     let mut f = vec![0.0; modes];
     let mut prob = vec![0.0; modes];
@@ -202,4 +205,38 @@ fn blocks(theta: &DVector<f64>, modes: usize, b: usize) -> Vec<Vec<f64>> {
     out.push(vec![0.0; b]);
     debug_assert_eq!(out.len(), modes);
     out
+}
+
+/// `theta` from scores `[c; c0]` in original units (`f = c.x + c0`), as
+/// differences to the last mode's score: on the standardised selected
+/// columns `z_k = (x_{cols_k} - mean_k) / scale_k`, `f = w.z - g` with
+/// `w_k = c_{cols_k} scale_k` and `g = -c0 - sum_k c_{cols_k} mean_k`.
+fn warm_start(prep: &Prepared, start: &[Vec<f64>], theta: &mut DVector<f64>) {
+    let p = prep.p;
+    let standardised = |c: &[f64]| -> Option<Vec<f64>> {
+        let d = c.len().checked_sub(1)?;
+        let mut wg = vec![0.0; p + 1];
+        let mut g = -c[d];
+        for (k, w) in wg.iter_mut().take(p).enumerate() {
+            let ck = *c.get(prep.cols[k])?;
+            *w = ck * prep.scale[k];
+            g -= ck * prep.mean[k];
+        }
+        wg[p] = g;
+        Some(wg)
+    };
+    let Some(blocks) = start
+        .iter()
+        .map(|c| standardised(c))
+        .collect::<Option<Vec<_>>>()
+        .filter(|b| b.iter().flatten().all(|v| v.is_finite()))
+    else {
+        return;
+    };
+    let last = &blocks[blocks.len() - 1];
+    for (i, block) in blocks.iter().take(blocks.len() - 1).enumerate() {
+        for j in 0..=p {
+            theta[i * (p + 1) + j] = block[j] - last[j];
+        }
+    }
 }

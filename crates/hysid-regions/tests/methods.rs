@@ -477,3 +477,42 @@ fn a_passed_deadline_gives_a_complete_partition_marked_cut_short() {
         assert!(!full.stats.cut_short && full.stats.solves > 0, "{method}");
     }
 }
+
+/// A warm start changes only the number of Newton steps: from the scores
+/// of a cold run, the softmax ends at the same scores (the minimiser is
+/// unique), in fewer steps; a start of the wrong shape is ignored.
+#[test]
+fn softmax_warm_start_reaches_the_same_minimiser_in_fewer_steps() {
+    let (x, labels) = wedges(600, 5, 0.4, 0.3);
+    for balanced in [true, false] {
+        let softmax = |start: Option<Vec<Vec<f64>>>| {
+            let o = RegionOptions {
+                method: RegionMethod::Softmax,
+                softmax: hysid_regions::SoftmaxSettings {
+                    balanced,
+                    ridge: 1e-3,
+                    start,
+                },
+                ..RegionOptions::default()
+            };
+            estimate(&x, &labels, 3, &o).unwrap()
+        };
+        let cold = softmax(None);
+        let warm = softmax(Some(cold.scores.clone()));
+        assert!(
+            warm.stats.newton_steps < cold.stats.newton_steps,
+            "{} vs {}",
+            warm.stats.newton_steps,
+            cold.stats.newton_steps
+        );
+        // Scores are defined up to a common affine function: compare differences.
+        for (a, b) in cold.scores.iter().zip(&warm.scores) {
+            for j in 0..3 {
+                let (da, db) = (a[j] - cold.scores[2][j], b[j] - warm.scores[2][j]);
+                assert!((da - db).abs() <= 1e-6 * (1.0 + da.abs()), "{da} vs {db}");
+            }
+        }
+        let ignored = softmax(Some(vec![vec![0.0; 3]; 2]));
+        assert_eq!(ignored.stats.newton_steps, cold.stats.newton_steps);
+    }
+}
