@@ -1,0 +1,90 @@
+//! Every PWARX back-end that takes a mode count on the literature's
+//! benchmark systems (B1, H1-H4 of `hysid-testkit`), five draws each, the
+//! same draws for every back-end: the median mode accuracy of its regions
+//! on a fresh draw and the median parameter error (largest relative error
+//! after the best matching). Figures in docs/klinreg.md and docs/parc.md.
+//!
+//! Run: cargo run --release -p hysid-backends --example hybrid_benchmarks
+
+use hysid_core::backend::{Problem, RunContext};
+use hysid_core::model::Model;
+use hysid_core::options::Settings;
+use hysid_core::priors::Priors;
+use hysid_model::regressors::RegressorSpec;
+use hysid_testkit::{Benchmark, Noise};
+
+type Generator = fn(usize, u64) -> Benchmark;
+
+fn b1(n: usize, seed: u64) -> Benchmark {
+    hysid_testkit::b1(n, 4.0, Noise::Uniform(0.1), seed)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    // (name, samples, modes, generator, cluster's options as its reference tests set them)
+    let systems: [(&str, usize, usize, Generator, &[(&str, &str)]); 5] = [
+        ("B1", 301, 3, b1, &[]),
+        ("H1", 71, 3, hysid_testkit::h1, &[("c", "6")]),
+        ("H2", 101, 5, hysid_testkit::h2, &[("c", "8")]),
+        ("H3", 61, 3, hysid_testkit::h3, &[("c", "6")]),
+        ("H4", 61, 3, hysid_testkit::h4, &[("c", "6")]),
+    ];
+    let registry = hysid_backends::registry();
+    println!(
+        "| system | method | median mode accuracy | median parameter error | runs that failed |"
+    );
+    println!("|---|---|---|---|---|");
+    for (name, n, modes, generate, cluster_options) in systems {
+        for method in ["cluster", "klinreg", "parc"] {
+            let backend = registry.require(method).expect("registered");
+            let settings = if method == "cluster" {
+                Settings::from_pairs(
+                    cluster_options
+                        .iter()
+                        .map(|(k, v)| (k.to_string(), v.to_string()))
+                        .collect(),
+                )
+            } else {
+                Settings::default()
+            };
+            let (mut acc, mut err, mut failed) = (Vec::new(), Vec::new(), 0);
+            for seed in 1..=5u64 {
+                let b = generate(n, seed);
+                let fresh = generate(n, seed + 100);
+                let priors = Priors {
+                    modes: Some(modes),
+                    ..Priors::default()
+                };
+                let problem = Problem {
+                    data: &b.data,
+                    orders: RegressorSpec::new(b.truth.na, b.truth.nb, b.truth.inputs),
+                    priors: &priors,
+                    priors_origin: None,
+                };
+                match backend.run(&problem, &settings, &RunContext::quiet(seed)) {
+                    Ok(Model::Pwarx(p)) => {
+                        acc.push(fresh.recovery(&p).0);
+                        err.push(b.recovery(&p).1);
+                    }
+                    _ => failed += 1,
+                }
+            }
+            let show = |v: Vec<f64>| {
+                if v.is_empty() {
+                    "-".to_string()
+                } else {
+                    format!("{:.3}", median(v))
+                }
+            };
+            println!(
+                "| {name} | {method} | {} | {} | {failed} |",
+                show(acc),
+                show(err)
+            );
+        }
+    }
+}
