@@ -15,6 +15,16 @@ use hysid_testkit::{Benchmark, Noise};
 
 type Generator = fn(usize, u64) -> Benchmark;
 
+/// A benchmark system: name, samples, modes, generator, and `cluster`'s
+/// options as its reference tests set them.
+struct System {
+    name: &'static str,
+    samples: usize,
+    modes: usize,
+    generate: Generator,
+    cluster_options: &'static [(&'static str, &'static str)],
+}
+
 fn b1(n: usize, seed: u64) -> Benchmark {
     hysid_testkit::b1(n, 4.0, Noise::Uniform(0.1), seed)
 }
@@ -25,20 +35,33 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
-    // (name, samples, modes, generator, cluster's options as its reference tests set them)
-    let systems: [(&str, usize, usize, Generator, &[(&str, &str)]); 5] = [
-        ("B1", 301, 3, b1, &[]),
-        ("H1", 71, 3, hysid_testkit::h1, &[("c", "6")]),
-        ("H2", 101, 5, hysid_testkit::h2, &[("c", "8")]),
-        ("H3", 61, 3, hysid_testkit::h3, &[("c", "6")]),
-        ("H4", 61, 3, hysid_testkit::h4, &[("c", "6")]),
+    let system = |name, samples, modes, generate: Generator, cluster_options| System {
+        name,
+        samples,
+        modes,
+        generate,
+        cluster_options,
+    };
+    let systems = [
+        system("B1", 301, 3, b1, &[]),
+        system("H1", 71, 3, hysid_testkit::h1, &[("c", "6")]),
+        system("H2", 101, 5, hysid_testkit::h2, &[("c", "8")]),
+        system("H3", 61, 3, hysid_testkit::h3, &[("c", "6")]),
+        system("H4", 61, 3, hysid_testkit::h4, &[("c", "6")]),
     ];
     let registry = hysid_backends::registry();
     println!(
         "| system | method | median mode accuracy | median parameter error | runs that failed |"
     );
     println!("|---|---|---|---|---|");
-    for (name, n, modes, generate, cluster_options) in systems {
+    for System {
+        name,
+        samples: n,
+        modes,
+        generate,
+        cluster_options,
+    } in systems
+    {
         for method in ["cluster", "klinreg", "parc"] {
             let backend = registry.require(method).expect("registered");
             let settings = if method == "cluster" {
