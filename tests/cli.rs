@@ -260,6 +260,20 @@ fn bad_options_and_files_are_usage_errors() {
         ],
         &out,
     );
+    // klinreg does not choose its mode count under a bound: the line points
+    // to --auto, not to --max-modes (which it refuses).
+    let args = ["identify", d, "-m", "klinreg", "-o", o];
+    bad(
+        &args,
+        &[
+            "method 'klinreg' needs the number of modes",
+            "--modes S",
+            "--auto",
+        ],
+        &out,
+    );
+    let line = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(!line.contains("--max-modes"), "{line}");
     bad(
         &[
             "identify",

@@ -90,10 +90,20 @@ impl From<IdentifyError> for CliError {
         let bad = e.is_bad_input();
         let message = match &e {
             IdentifyError::Options(o) => o.render("--set"),
-            IdentifyError::NeedsModeCount { method } => format!(
+            IdentifyError::NeedsModeCount {
+                method,
+                bounded: true,
+            } => format!(
                 "method '{method}' needs the number of modes: --modes S (or --max-modes S to \
                  choose it by hold-out simulation FIT), or modes = S / max_modes = S in the \
                  prior file"
+            ),
+            IdentifyError::NeedsModeCount {
+                method,
+                bounded: false,
+            } => format!(
+                "method '{method}' needs the number of modes: --modes S (or --auto to choose \
+                 it on selection rows), or modes = S in the prior file"
             ),
             other => other.to_string(),
         };

@@ -252,7 +252,10 @@ impl Identifier for Cluster {
                 Ok(pwarx::assemble(&data, fit))
             }
             ModeCount::AtMost(max) => choose_modes(&data, options, max + stops, ctx),
-            ModeCount::Free => Err(IdentifyError::NeedsModeCount { method: Self::NAME }),
+            ModeCount::Free => Err(IdentifyError::NeedsModeCount {
+                method: Self::NAME,
+                bounded: true,
+            }),
         }
     }
 }

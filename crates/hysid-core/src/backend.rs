@@ -194,12 +194,15 @@ pub enum IdentifyError {
     },
     /// A back-end that cannot choose the mode count without a prior.
     #[error(
-        "method '{method}' needs the number of modes: give the prior modes = S (or max_modes = S \
-         to choose it by hold-out simulation FIT)"
+        "method '{method}' needs the number of modes: give the prior modes = S{}",
+        if *bounded { " (or max_modes = S to choose it by hold-out simulation FIT)" } else { " (or choose it by automatic selection)" }
     )]
     NeedsModeCount {
         /// The back-end.
         method: &'static str,
+        /// Whether the back-end chooses the count itself under a
+        /// `max_modes` bound (else only automatic selection chooses it).
+        bounded: bool,
     },
     /// A `modes` prior above the `max_modes` prior.
     #[error("prior modes = {modes} exceeds max_modes = {max}")]

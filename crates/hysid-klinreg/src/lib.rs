@@ -221,6 +221,7 @@ fn mode_count(data: &PwarxData<'_>) -> Result<usize, IdentifyError> {
         ModeCount::Exact(s) => Ok(s),
         _ => Err(IdentifyError::NeedsModeCount {
             method: KLinReg::NAME,
+            bounded: false,
         }),
     }
 }

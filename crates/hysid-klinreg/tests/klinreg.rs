@@ -229,7 +229,10 @@ fn a_mode_count_is_needed() {
     assert!(
         matches!(
             e,
-            hysid_core::backend::IdentifyError::NeedsModeCount { method: "klinreg" }
+            hysid_core::backend::IdentifyError::NeedsModeCount {
+                method: "klinreg",
+                bounded: false
+            }
         ),
         "{e}"
     );

@@ -59,9 +59,19 @@ impl From<IdentifyError> for Failure {
     fn from(e: IdentifyError) -> Self {
         match e {
             IdentifyError::Options(o) => o.into(),
-            IdentifyError::NeedsModeCount { method } => Self(format!(
+            IdentifyError::NeedsModeCount {
+                method,
+                bounded: true,
+            } => Self(format!(
                 "method '{method}' needs the number of modes: modes=S (or max_modes=S to choose \
                  it by hold-out simulation FIT), or modes / max_modes in the priors"
+            )),
+            IdentifyError::NeedsModeCount {
+                method,
+                bounded: false,
+            } => Self(format!(
+                "method '{method}' needs the number of modes: modes=S (or auto=True to choose \
+                 it on selection rows), or modes in the priors"
             )),
             other => Self(other.to_string()),
         }

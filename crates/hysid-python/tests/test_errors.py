@@ -112,3 +112,8 @@ def test_a_cluster_run_without_a_mode_count_says_how_to_give_one():
 def test_priors_that_contradict_each_other_are_refused():
     message = raised(hysid.identify, U, Y, method="cluster", priors={"modes": 3, "max_modes": 2})
     assert message.startswith("priors: ")
+
+
+def test_klinreg_without_a_mode_count_points_to_auto():
+    message = raised(hysid.identify, U, Y, method="klinreg")
+    assert "modes=S" in message and "auto=True" in message and "max_modes" not in message
