@@ -273,23 +273,27 @@ pub enum InconsistentPrior {
 impl Priors {
     /// Parses a prior file's text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, PriorError> {
-        let p: Priors = toml::from_str(text).map_err(|e| PriorError::Invalid {
-            path: origin.to_string(),
-            message: e.to_string().trim().replace('\n', " "),
-        })?;
-        p.check().map_err(|problem| PriorError::Inconsistent {
-            path: origin.to_string(),
-            problem,
-        })?;
-        Ok(p)
+        Self::checked(
+            toml::from_str(text).map_err(|e| e.to_string().trim().replace('\n', " ")),
+            origin,
+        )
     }
 
     /// Parses priors given as JSON in the prior file's shape (the Python
     /// package's `priors` dictionary); `origin` names them in errors.
     pub fn from_json(text: &str, origin: &str) -> Result<Self, PriorError> {
-        let p: Priors = serde_json::from_str(text).map_err(|e| PriorError::Invalid {
+        Self::checked(
+            serde_json::from_str(text).map_err(|e| e.to_string()),
+            origin,
+        )
+    }
+
+    /// Parsed priors (or the parser's message) after their consistency
+    /// [`Priors::check`].
+    fn checked(parsed: Result<Self, String>, origin: &str) -> Result<Self, PriorError> {
+        let p = parsed.map_err(|message| PriorError::Invalid {
             path: origin.to_string(),
-            message: e.to_string(),
+            message,
         })?;
         p.check().map_err(|problem| PriorError::Inconsistent {
             path: origin.to_string(),
