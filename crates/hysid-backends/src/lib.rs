@@ -5,6 +5,10 @@
 
 use hysid_core::backend::Identifier as _;
 use hysid_core::backend::{Backend, Registry};
+use hysid_core::model::Model;
+use hysid_core::priors::Priors;
+use hysid_model::data::Dataset;
+use hysid_select::AgainstAffine;
 
 /// Every back-end hysid ships, in the order `hysid methods` lists them.
 pub fn registry() -> Registry {
@@ -24,6 +28,22 @@ pub fn affine_reference<'r>(registry: &'r Registry, method: &str) -> Option<&'r 
     registry
         .get(hysid_arx::Arx::NAME)
         .filter(|a| a.name() != method)
+}
+
+/// `model` (with ARX orders, identified by another back-end than the
+/// reference) beside the affine reference model of its orders and
+/// `priors` fitted on `data` (`hysid_select::against_affine`); `None` when
+/// there is nothing to compare.
+pub fn against_affine(
+    model: &Model,
+    data: &Dataset,
+    priors: &Priors,
+    warmup: usize,
+) -> Option<AgainstAffine> {
+    let registry = registry();
+    let orders = model.orders()?;
+    let affine = affine_reference(&registry, &model.info().method)?;
+    hysid_select::against_affine(model, affine, data, orders, priors, warmup)
 }
 
 #[cfg(test)]

@@ -84,9 +84,17 @@ impl Deadline {
         }
     }
 
-    /// `at` when given, else no deadline.
-    pub fn at_option(at: Option<Instant>) -> Self {
-        Self { at, stop: None }
+    /// A time budget of `seconds` from now; `None` unless it is a positive
+    /// finite number. A budget too long to represent (`Duration` ends near
+    /// 1.8e19 s, an `Instant` may end sooner) is no deadline at all.
+    pub fn after_seconds(seconds: f64) -> Option<Self> {
+        if !(seconds.is_finite() && seconds > 0.0) {
+            return None;
+        }
+        let at = Duration::try_from_secs_f64(seconds)
+            .ok()
+            .and_then(|d| Instant::now().checked_add(d));
+        Some(Self { at, stop: None })
     }
 
     /// The same deadline, also passed once `flag` is raised.

@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// How long the calling thread waits between two checks for signals.
 const SLICE: Duration = Duration::from_millis(50);
@@ -27,17 +27,17 @@ struct Slot<T> {
     ready: Condvar,
 }
 
-/// Runs `work` with a context of `seed` and the time budget `at` on a
-/// worker thread; returns its value, a `KeyboardInterrupt` when the user
+/// Runs `work` with a context of `seed` and `deadline` (plus the stop
+/// flag of Ctrl-C) on a worker thread; returns its value, a `KeyboardInterrupt` when the user
 /// pressed Ctrl-C, or a `HysidError` naming a panic (a bug).
 pub fn run<T: Send>(
     py: Python<'_>,
     seed: u64,
-    at: Option<Instant>,
+    deadline: Deadline,
     work: impl FnOnce(&RunContext<'_>) -> T + Send,
 ) -> PyResult<T> {
     let stop = Arc::new(AtomicBool::new(false));
-    let deadline = Deadline::at_option(at).with_stop(Arc::clone(&stop));
+    let deadline = deadline.with_stop(Arc::clone(&stop));
     let slot = Slot {
         value: Mutex::new(None),
         ready: Condvar::new(),

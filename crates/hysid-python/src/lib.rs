@@ -13,7 +13,7 @@ mod model;
 mod record;
 
 use error::{Failure, HysidError};
-use hysid_core::backend::{Problem, RunContext};
+use hysid_core::backend::{Deadline, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
@@ -26,7 +26,6 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 use std::ffi::CString;
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
 
 /// `text` (JSON) as Python objects.
 pub(crate) fn json<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
@@ -44,24 +43,12 @@ pub(crate) fn warn_if_below_affine(
     warmup: usize,
     rows: &str,
 ) -> PyResult<()> {
-    let registry = hysid_backends::registry();
-    let (Some(orders), Some(affine)) = (
-        model.orders(),
-        hysid_backends::affine_reference(&registry, &model.info().method),
-    ) else {
-        return Ok(());
-    };
     let priors = priors.cloned().unwrap_or_default();
-    let compared =
-        py.detach(|| hysid_select::against_affine(model, affine, data, orders, &priors, warmup));
+    let compared = py.detach(|| hysid_backends::against_affine(model, data, &priors, warmup));
     if let Some(c) = compared
         && c.below()
     {
-        let text = format!(
-            "the model's free-run FIT on {rows} ({:.2} %) is below that of an affine ARX model of the same orders fitted on them ({:.2} %)",
-            c.model, c.affine
-        );
-        let text = CString::new(text).unwrap_or_default();
+        let text = CString::new(c.warning(rows)).unwrap_or_default();
         PyErr::warn(py, &py.get_type::<PyUserWarning>(), &text, 1)?;
     }
     Ok(())
@@ -251,16 +238,12 @@ fn identify<'py>(
         return Err(Failure::new("auto=True and standardize=True cannot be combined").into());
     }
     let deadline = match time_budget {
-        Some(t) if t.is_finite() && t > 0.0 => Duration::try_from_secs_f64(t)
-            .ok()
-            .and_then(|d| Instant::now().checked_add(d)),
-        Some(t) => {
-            return Err(Failure::new(format!(
+        Some(t) => Deadline::after_seconds(t).ok_or_else(|| {
+            Failure::new(format!(
                 "time_budget={t}: must be a positive number of seconds"
             ))
-            .into());
-        }
-        None => None,
+        })?,
+        None => Deadline::none(),
     };
     let problem = Problem {
         data: &data,

@@ -566,6 +566,15 @@ impl AgainstAffine {
     pub fn below(&self) -> bool {
         self.model < self.affine
     }
+
+    /// The warning every front end gives when [`AgainstAffine::below`];
+    /// `rows` names the rows ("its identification rows", "these rows").
+    pub fn warning(&self, rows: &str) -> String {
+        format!(
+            "the model's free-run FIT on {rows} ({:.2} %) is below that of an affine ARX model of the same orders fitted on them ({:.2} %)",
+            self.model, self.affine
+        )
+    }
 }
 
 /// Scores `model` and the affine model `affine` fits on `data` with

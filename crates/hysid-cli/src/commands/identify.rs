@@ -14,7 +14,7 @@ use hysid_model::model::Selection;
 use hysid_model::regressors::RegressorSpec;
 use hysid_select::{Plan, Request};
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 /// Arguments of `hysid identify`.
 #[derive(clap::Args, Debug)]
@@ -118,17 +118,12 @@ pub fn run(args: Args) -> Result<()> {
             .map_err(|e| CliError::input(format!("{}: {e}", given.join(" "))))?;
     }
     let deadline = match args.time_budget {
-        // A budget too long to represent (`Duration` ends near 1.8e19 s, an
-        // `Instant` may end sooner) is no deadline at all.
-        Some(t) if t.is_finite() && t > 0.0 => Duration::try_from_secs_f64(t)
-            .ok()
-            .and_then(|d| Instant::now().checked_add(d)),
-        Some(t) => {
-            return Err(CliError::input(format!(
+        Some(t) => Deadline::after_seconds(t).ok_or_else(|| {
+            CliError::input(format!(
                 "--time-budget {t}: must be a positive number of seconds"
-            )));
-        }
-        None => None,
+            ))
+        })?,
+        None => Deadline::none(),
     };
     let data = hysid_io::load(&args.data, &args.select.selection()?)?;
     let first_row = args.select.rows.and_then(|r| r.start).unwrap_or(0);
@@ -143,7 +138,7 @@ pub fn run(args: Args) -> Result<()> {
     let ctx = RunContext {
         seed: args.seed,
         progress: &progress,
-        deadline: Deadline::at_option(deadline),
+        deadline,
     };
     let started = Instant::now();
     let model = if args.auto {
