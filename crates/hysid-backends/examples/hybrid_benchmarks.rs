@@ -6,11 +6,10 @@
 //!
 //! Run: cargo run --release -p hysid-backends --example hybrid_benchmarks
 
-use hysid_core::backend::{Problem, RunContext};
+use hysid_core::backend::RunContext;
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_model::regressors::RegressorSpec;
 use hysid_testkit::{Benchmark, Noise};
 
 type Generator = fn(usize, u64) -> Benchmark;
@@ -82,13 +81,7 @@ fn main() {
                     modes: Some(modes),
                     ..Priors::default()
                 };
-                let problem = Problem {
-                    data: &b.data,
-                    orders: RegressorSpec::new(b.truth.na, b.truth.nb, b.truth.inputs),
-                    priors: &priors,
-                    priors_origin: None,
-                };
-                match backend.run(&problem, &settings, &RunContext::quiet(seed)) {
+                match backend.run(&b.problem(&priors), &settings, &RunContext::quiet(seed)) {
                     Ok(Model::Pwarx(p)) => {
                         acc.push(fresh.recovery(&p).0);
                         err.push(b.recovery(&p).1);

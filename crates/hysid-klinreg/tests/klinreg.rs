@@ -143,14 +143,12 @@ fn run(backend: &dyn Backend, b: &Benchmark, modes: usize, seed: u64) -> Model {
         modes: Some(modes),
         ..Priors::default()
     };
-    let problem = Problem {
-        data: &b.data,
-        orders: RegressorSpec::new(b.truth.na, b.truth.nb, 1),
-        priors: &priors,
-        priors_origin: None,
-    };
     backend
-        .run(&problem, &Settings::default(), &RunContext::quiet(seed))
+        .run(
+            &b.problem(&priors),
+            &Settings::default(),
+            &RunContext::quiet(seed),
+        )
         .unwrap()
 }
 

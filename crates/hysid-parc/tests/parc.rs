@@ -136,7 +136,7 @@ fn run(backend: &dyn Backend, b: &Benchmark, modes: usize, bound: bool, seed: u6
     };
     backend
         .run(
-            &problem(&b.data, RegressorSpec::new(1, 1, 1), &priors),
+            &b.problem(&priors),
             &Settings::default(),
             &RunContext::quiet(seed),
         )

@@ -12,6 +12,7 @@
 //! `nb = 1`: the regressor of `y(k)` is the input `u(k-1)` (one column per
 //! input), so every back-end treats them like dynamic data.
 
+use hysid_core::backend::Problem;
 use hysid_core::model::Model;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::simulate;
@@ -74,6 +75,17 @@ impl Benchmark {
     /// The true parameter vectors.
     pub fn thetas(&self) -> Vec<Vec<f64>> {
         self.truth.modes.iter().map(|m| m.theta.clone()).collect()
+    }
+
+    /// The identification problem of the record with the true orders and
+    /// `priors`.
+    pub fn problem<'a>(&'a self, priors: &'a Priors) -> Problem<'a> {
+        Problem {
+            data: &self.data,
+            orders: self.truth.spec(),
+            priors,
+            priors_origin: None,
+        }
     }
 
     /// How `model` recovers the truth: the mode its regions give each
