@@ -7,7 +7,7 @@
 //! prints the sweep as a Markdown table (the one in `docs/bounded.md`).
 
 use hysid_bounded::sweep::{best, delta_sweep, table};
-use hysid_bounded::{BoundedOptions, noise, samples::Samples};
+use hysid_bounded::{BoundedOptions, noise};
 use hysid_core::backend::{Problem, RunContext};
 use hysid_core::priors::Priors;
 use hysid_io::load;
@@ -44,7 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         args
     };
     let reg = orders.build(&ident)?;
-    let auto = noise::auto_delta(&Samples::from_regressors(&reg));
+    let auto = noise::auto_delta(&reg);
     println!(
         "identification rows: {}, validation rows: {}, delta=auto would be {auto:.4}",
         ident.len(),

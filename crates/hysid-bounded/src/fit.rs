@@ -15,6 +15,7 @@ use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::model::{PwarxMode, RunStatus};
+use hysid_model::regressors::Regressors;
 use hysid_regions::{Partition, RegionOptions};
 use nalgebra::DMatrix;
 use serde::Serialize;
@@ -134,8 +135,9 @@ pub fn classify(
     data: &PwarxData<'_>,
     ctx: &RunContext<'_>,
 ) -> Result<Classified, IdentifyError> {
-    let samples = Samples::from_regressors(&data.ordinary_regressors());
-    let settings = procedure_settings(options, data, &samples, ctx)?;
+    let reg = data.ordinary_regressors();
+    let samples = Samples::from_regressors(&reg);
+    let settings = procedure_settings(options, data, &reg, ctx)?;
     let classification = procedure::run(&samples, &settings).map_err(procedure_error)?;
     Ok(Classified {
         classification,
@@ -147,11 +149,11 @@ pub fn classify(
 }
 
 /// The error bound: the given delta, or with `auto` the noise bound of
-/// [`noise::auto_delta`] on the samples.
-pub fn error_bound(options: &BoundedOptions, samples: &Samples) -> f64 {
+/// [`noise::auto_delta`] on the ordinary samples.
+pub fn error_bound(options: &BoundedOptions, reg: &Regressors) -> f64 {
     match options.delta.expect("delta is required by CheckOptions") {
         Delta::Value(d) => d,
-        Delta::Auto(_) => noise::auto_delta(samples),
+        Delta::Auto(_) => noise::auto_delta(reg),
     }
 }
 
@@ -160,13 +162,13 @@ pub fn error_bound(options: &BoundedOptions, samples: &Samples) -> f64 {
 fn procedure_settings(
     options: &BoundedOptions,
     data: &PwarxData<'_>,
-    samples: &Samples,
+    reg: &Regressors,
     ctx: &RunContext<'_>,
 ) -> Result<ProcedureSettings, IdentifyError> {
     let (max_modes, exact_modes) = mode_counts(options, data)?;
     let constraints = ModeConstraints::new(data).map_err(|e| data.prior_error(e))?;
     Ok(ProcedureSettings {
-        delta: error_bound(options, samples),
+        delta: error_bound(options, reg),
         cycles: options.cycles,
         t0: options.t0,
         alpha: options.alpha,

@@ -219,8 +219,7 @@ impl Identifier for Bounded {
     /// samples (the `auto` bound over [`noise::SIGMAS`], so floored as it is).
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         let data = pwarx::prepare(problem, Self::NAME)?;
-        let samples = Samples::from_regressors(&data.ordinary_regressors());
-        let sigma = noise::auto_delta(&samples) / noise::SIGMAS;
+        let sigma = noise::auto_delta(&data.ordinary_regressors()) / noise::SIGMAS;
         Ok(SearchSpace::default().with(
             "delta",
             DELTA_SIGMAS.iter().map(|k| three_digits(k * sigma)),

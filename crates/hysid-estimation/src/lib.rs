@@ -11,11 +11,13 @@
 //! | [`conic`] | LPs and QPs on clarabel: `Program`, `Settings`, `solve`, and the status policy |
 //! | [`constrained`] | `Parametrisation` of the priors, mode fits under them |
 //! | [`linalg`] | SVD least squares, weighted and equality-constrained (faer) |
+//! | [`noise`] | the noise level of a record from local affine fits |
 //! | [`pwarx`] | the set-up and assembly every PWARX back-end shares |
 //! | [`refine`] | the multiple-shooting simulation-error refinement a PWARX back-end may end with |
 
 pub mod conic;
 pub mod constrained;
 pub mod linalg;
+pub mod noise;
 pub mod pwarx;
 pub mod refine;
