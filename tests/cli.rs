@@ -440,7 +440,9 @@ fn methods_declare_priors_and_backends_refuse_or_honour_them() {
         let rest: Vec<&str> = lines.take_while(|l| l.starts_with(' ')).collect();
         format!("{first}\n{}", rest.join("\n"))
     };
-    for name in ["arx", "bounded", "cluster", "physical", "klinreg", "parc"] {
+    for name in [
+        "arx", "bounded", "cluster", "physical", "klinreg", "parc", "bayes", "milp",
+    ] {
         assert!(
             block(name).contains("priors honoured:"),
             "{name}: {}",

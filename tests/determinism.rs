@@ -49,14 +49,16 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
             && m["priors"]
                 .as_array()
                 .is_some_and(|p| p.iter().any(|k| k == "modes"));
-        // bounded has no default error bound (noise std 0.01 here).
+        // bounded has no default error bound (noise std 0.01 here); milp
+        // refuses a record this long unless allowed, and its branch and
+        // bound is cut at a node limit (deterministic, unlike a time limit).
         exp.push_str(&format!(
             "\n[[run]]\nname = \"{name}\"\nmethod = \"{name}\"\n{}{}",
             if modes { "modes = 2\n" } else { "" },
-            if name == "bounded" {
-                "set = { delta = 0.03 }\n"
-            } else {
-                ""
+            match name {
+                "bounded" => "set = { delta = 0.03 }\n",
+                "milp" => "set = { max_samples = 300, node_limit = 200 }\n",
+                _ => "",
             }
         ));
     }
@@ -80,7 +82,9 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
             a.keys()
         );
     }
-    for name in ["arx", "cluster", "bounded", "physical", "klinreg", "parc"] {
+    for name in [
+        "arx", "cluster", "bounded", "physical", "klinreg", "parc", "bayes", "milp",
+    ] {
         assert!(
             a.contains_key(&format!("{name}.json")),
             "{name} is not registered or wrote no model: {:?}",

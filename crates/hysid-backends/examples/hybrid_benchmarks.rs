@@ -2,9 +2,12 @@
 //! benchmark systems (B1, H1-H4 of `hysid-testkit`), five draws each, the
 //! same draws for every back-end: the median mode accuracy of its regions
 //! on a fresh draw and the median parameter error (largest relative error
-//! after the best matching). Figures in docs/klinreg.md and docs/parc.md.
+//! after the best matching). Figures in docs/klinreg.md, docs/parc.md and
+//! docs/bayes.md.
 //!
 //! Run: cargo run --release -p hysid-backends --example hybrid_benchmarks
+//! [-- METHOD[:KEY=VALUE,...] ...] (default: cluster, klinreg, parc and
+//! bayes at their defaults; `cluster` always gets the reference options).
 
 use hysid_core::backend::RunContext;
 use hysid_core::model::Model;
@@ -49,6 +52,23 @@ fn main() {
         system("H4", 61, 3, hysid_testkit::h4, &[("c", "6")]),
     ];
     let registry = hysid_backends::registry();
+    let mut runs: Vec<(String, Vec<(String, String)>)> = std::env::args()
+        .skip(1)
+        .map(|arg| {
+            let (method, set) = arg.split_once(':').unwrap_or((&arg, ""));
+            let pairs = set
+                .split(',')
+                .filter_map(|kv| kv.split_once('='))
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect();
+            (method.to_string(), pairs)
+        })
+        .collect();
+    if runs.is_empty() {
+        runs = ["cluster", "klinreg", "parc", "bayes"]
+            .map(|m| (m.to_string(), Vec::new()))
+            .into();
+    }
     println!(
         "| system | method | median mode accuracy | median parameter error | runs that failed |"
     );
@@ -61,18 +81,17 @@ fn main() {
         cluster_options,
     } in systems
     {
-        for method in ["cluster", "klinreg", "parc"] {
-            let backend = registry.require(method).expect("registered");
-            let settings = if method == "cluster" {
-                Settings::from_pairs(
+        for (method, pairs) in &runs {
+            let backend = registry.require(method).expect("a registered method");
+            let mut pairs = pairs.clone();
+            if method == "cluster" {
+                pairs.extend(
                     cluster_options
                         .iter()
-                        .map(|(k, v)| (k.to_string(), v.to_string()))
-                        .collect(),
-                )
-            } else {
-                Settings::default()
-            };
+                        .map(|(k, v)| (k.to_string(), v.to_string())),
+                );
+            }
+            let settings = Settings::from_pairs(pairs);
             let (mut acc, mut err, mut failed) = (Vec::new(), Vec::new(), 0);
             for seed in 1..=5u64 {
                 let b = generate(n, seed);
@@ -96,8 +115,12 @@ fn main() {
                     format!("{:.3}", median(v))
                 }
             };
+            let label = match runs.iter().filter(|(m, _)| m == method).count() {
+                1 => method.clone(),
+                _ => format!("{method} {:?}", settings),
+            };
             println!(
-                "| {name} | {method} | {} | {} | {failed} |",
+                "| {name} | {label} | {} | {} | {failed} |",
                 show(acc),
                 show(err)
             );

@@ -19,6 +19,8 @@ pub fn registry() -> Registry {
         .with(hysid_physical::Physical)
         .with(hysid_klinreg::KLinReg)
         .with(hysid_parc::Parc)
+        .with(hysid_bayes::Bayes)
+        .with(hysid_milp::Milp)
 }
 
 /// The back-end whose model is the affine reference a hybrid model is

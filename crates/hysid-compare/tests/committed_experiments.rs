@@ -31,9 +31,11 @@ fn the_main_job_expands_into_its_runs_and_sweep_points() {
     let runs = j.iter().filter(|(_, _, s)| s.is_none()).count();
     let mut sweeps: Vec<&str> = j.iter().filter_map(|(_, _, s)| s.as_deref()).collect();
     sweeps.dedup();
-    assert_eq!((j.len(), runs), (48, 14), "{j:?}");
+    assert_eq!((j.len(), runs), (49, 15), "{j:?}");
     assert_eq!(sweeps, ["arx orders", "cluster c", "bounded delta"]);
-    for m in ["arx", "cluster", "bounded", "physical", "klinreg", "parc"] {
+    for m in [
+        "arx", "cluster", "bounded", "physical", "klinreg", "parc", "bayes",
+    ] {
         assert!(j.iter().any(|(_, method, _)| method == m), "no {m} run");
     }
     assert!(j.iter().any(|(n, _, _)| n == "cluster c [c=320, modes=5]"));
