@@ -91,6 +91,7 @@ fn main() {
                         .map(|(k, v)| (k.to_string(), v.to_string())),
                 );
             }
+            let shown: Vec<String> = pairs.iter().map(|(k, v)| format!("{k}={v}")).collect();
             let settings = Settings::from_pairs(pairs);
             let (mut acc, mut err, mut failed) = (Vec::new(), Vec::new(), 0);
             for seed in 1..=5u64 {
@@ -117,7 +118,9 @@ fn main() {
             };
             let label = match runs.iter().filter(|(m, _)| m == method).count() {
                 1 => method.clone(),
-                _ => format!("{method} {:?}", settings),
+                _ => format!("{method} {}", shown.join(","))
+                    .trim_end()
+                    .to_string(),
             };
             println!(
                 "| {name} | {label} | {} | {} | {failed} |",
