@@ -112,6 +112,16 @@ pub struct RegionOptions {
     /// `1e-4`.
     #[serde(default)]
     pub softmax: SoftmaxSettings,
+    /// Estimate from at most this many points: a larger set is thinned to
+    /// every `ceil(N / max_points)`-th point (every point of a mode the
+    /// stride would miss is kept), and the training accuracy is still
+    /// measured on all points. A linear separator of a few modes in a few
+    /// dimensions is fixed long before 10^5 points, and the region step is
+    /// then the cost of the PWARX back-ends at N = 10^6
+    /// (`docs/regions.md`). `None`: every point. Default
+    /// [`DEFAULT_MAX_POINTS`].
+    #[serde(default = "default_max_points")]
+    pub max_points: Option<usize>,
     /// No working-set round of MRLP or MSVM starts after this instant: the
     /// scores of the last round are kept (still a complete argmax
     /// partition, optimal on the points of that round's working set) and
@@ -148,6 +158,13 @@ impl Default for SoftmaxSettings {
     }
 }
 
+/// The default of [`RegionOptions::max_points`].
+pub const DEFAULT_MAX_POINTS: usize = 100_000;
+
+fn default_max_points() -> Option<usize> {
+    Some(DEFAULT_MAX_POINTS)
+}
+
 impl Default for RegionOptions {
     fn default() -> Self {
         Self {
@@ -155,6 +172,7 @@ impl Default for RegionOptions {
             svm_c: 1.0,
             switching: None,
             standardize: true,
+            max_points: default_max_points(),
             softmax: SoftmaxSettings::default(),
             deadline: Deadline::none(),
         }
@@ -480,6 +498,17 @@ pub fn estimate(
     modes: usize,
     opts: &RegionOptions,
 ) -> Result<Partition, RegionError> {
+    if let Some(rows) = opts.max_points.and_then(|m| thinned_rows(labels, modes, m)) {
+        let sub_x = x.select_rows(&rows);
+        let sub_labels: Vec<usize> = rows.iter().map(|&r| labels[r]).collect();
+        let all = RegionOptions {
+            max_points: None,
+            ..opts.clone()
+        };
+        let mut partition = estimate(&sub_x, &sub_labels, modes, &all)?;
+        partition.training_accuracy = training_accuracy(&partition.regions, x, labels);
+        return Ok(partition);
+    }
     let prep = prepare(x, labels, modes, opts)?;
     let d = x.ncols();
     if modes == 1 {
@@ -527,6 +556,29 @@ pub fn estimate(
         scores,
         stats,
     })
+}
+
+/// The rows [`RegionOptions::max_points`] keeps of `labels.len()` points:
+/// every `stride`-th, plus every point of a mode the stride misses; `None`
+/// when there are at most `max_points` points (or `max_points` is 0).
+fn thinned_rows(labels: &[usize], modes: usize, max_points: usize) -> Option<Vec<usize>> {
+    let n = labels.len();
+    if max_points == 0 || n <= max_points {
+        return None;
+    }
+    let stride = n.div_ceil(max_points);
+    let mut rows: Vec<usize> = (0..n).step_by(stride).collect();
+    let mut seen = vec![false; modes];
+    for &r in &rows {
+        if let Some(s) = seen.get_mut(labels[r]) {
+            *s = true;
+        }
+    }
+    if seen.iter().any(|s| !s) {
+        rows.extend((0..n).filter(|&r| labels[r] < modes && !seen[labels[r]]));
+        rows.sort_unstable();
+    }
+    Some(rows)
 }
 
 /// `wg` holds per mode `[w (p); g]` on standardised selected columns, with
