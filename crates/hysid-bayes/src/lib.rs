@@ -41,11 +41,11 @@ use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::noise::local_noise_sigma;
-use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
+use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
 use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_regions::{Partition, RegionMethod, RegionOptions};
+use hysid_regions::RegionMethod;
 use nalgebra::DVector;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
@@ -207,7 +207,7 @@ pub fn fit(
     data: &PwarxData<'_>,
     ctx: &RunContext<'_>,
 ) -> Result<PwarxFit<BayesDiagnostics>, IdentifyError> {
-    let modes = mode_count(data)?;
+    let modes = data.exact_modes(Bayes::NAME)?;
     let reg = data.ordinary_regressors();
     let par = Parametrisation::from_priors(data.priors(), &data.spec, modes)
         .map_err(|e| data.prior_error(e))?;
@@ -223,7 +223,7 @@ pub fn fit(
     let thetas = point_estimates(&pdfs, &priors);
     let classes = reclassify(&pdfs, &reg, sigma);
     check_every_mode_has_samples(&classes.labels, modes)?;
-    let partition = estimate_regions(options, data, &reg, &classes.labels, modes)?;
+    let partition = hysid_regions::for_pwarx(options.regions, data, &reg, &classes.labels, modes)?;
     let cut_short = pass.processed < reg.len();
     let relabelled = order[..pass.processed]
         .iter()
@@ -264,18 +264,6 @@ pub fn fit(
         refinement: None,
         diagnostics,
     })
-}
-
-/// The procedure needs the number of modes: `modes` (or a candidate of
-/// `--auto`).
-fn mode_count(data: &PwarxData<'_>) -> Result<usize, IdentifyError> {
-    match data.modes {
-        ModeCount::Exact(s) => Ok(s),
-        _ => Err(IdentifyError::NeedsModeCount {
-            method: Bayes::NAME,
-            bounded: false,
-        }),
-    }
 }
 
 /// Step 1: `sigma`, the option or the median local noise level
@@ -582,25 +570,6 @@ fn check_every_mode_has_samples(labels: &[usize], modes: usize) -> Result<(), Id
         Some(mode) => Err(BayesError::EmptyMode { mode, modes }.into()),
         None => Ok(()),
     }
-}
-
-/// Step 6: the regions that separate the modes' samples (`hysid-regions`,
-/// the method of option `regions`, normals restricted to the `switching`
-/// regressors).
-fn estimate_regions(
-    options: &BayesOptions,
-    data: &PwarxData<'_>,
-    reg: &Regressors,
-    labels: &[usize],
-    modes: usize,
-) -> Result<Partition, IdentifyError> {
-    let region_options = RegionOptions {
-        method: options.regions,
-        switching: data.switching.clone(),
-        ..Default::default()
-    };
-    hysid_regions::estimate(&reg.x, labels, modes, &region_options)
-        .map_err(|e| IdentifyError::failed(format!("regions: {e}")))
 }
 
 /// `phi = [x(k); 1]`.

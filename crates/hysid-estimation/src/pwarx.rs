@@ -75,6 +75,15 @@ pub struct PwarxData<'a> {
 }
 
 impl PwarxData<'_> {
+    /// The exact number of ordinary modes, for a back-end that cannot
+    /// choose it (`method` names it in the error).
+    pub fn exact_modes(&self, method: &'static str) -> Result<usize, IdentifyError> {
+        self.modes.exact().ok_or(IdentifyError::NeedsModeCount {
+            method,
+            bounded: false,
+        })
+    }
+
     /// The priors.
     pub fn priors(&self) -> &Priors {
         self.problem.priors

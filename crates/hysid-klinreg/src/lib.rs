@@ -36,11 +36,11 @@ use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equations};
-use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
+use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
 use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_regions::{Partition, RegionMethod, RegionOptions};
+use hysid_regions::RegionMethod;
 
 use serde::Serialize;
 
@@ -156,7 +156,7 @@ pub fn fit(
     data: &PwarxData<'_>,
     ctx: &RunContext<'_>,
 ) -> Result<PwarxFit<KLinRegDiagnostics>, IdentifyError> {
-    let modes = mode_count(data)?;
+    let modes = data.exact_modes(KLinReg::NAME)?;
     let reg = data.ordinary_regressors();
     let par = Parametrisation::from_priors(data.priors(), &data.spec, modes)
         .map_err(|e| data.prior_error(e))?;
@@ -173,7 +173,7 @@ pub fn fit(
     if let Some(thetas) = constrained_least_squares(&reg, &par, &best.labels, modes) {
         best.thetas = thetas;
     }
-    let partition = estimate_regions(options, data, &reg, &best.labels, modes)?;
+    let partition = hysid_regions::for_pwarx(options.regions, data, &reg, &best.labels, modes)?;
     let run_status = if outcome.run < planned {
         RunStatus::TimeBudget
     } else {
@@ -213,17 +213,6 @@ pub fn fit(
         refinement: None,
         diagnostics,
     })
-}
-
-/// k-LinReg needs the number of modes: `modes` (or a candidate of `--auto`).
-fn mode_count(data: &PwarxData<'_>) -> Result<usize, IdentifyError> {
-    match data.modes {
-        ModeCount::Exact(s) => Ok(s),
-        _ => Err(IdentifyError::NeedsModeCount {
-            method: KLinReg::NAME,
-            bounded: false,
-        }),
-    }
 }
 
 /// At least as many samples as parameters in every mode must be possible.
@@ -301,25 +290,6 @@ pub fn assign(reg: &Regressors, thetas: &[Vec<f64>]) -> (Vec<usize>, f64) {
         total += best.1;
     }
     (labels, total / n.max(1) as f64)
-}
-
-/// The regions that separate the modes' samples (`hysid-regions`, the
-/// method of option `regions`, normals restricted to the `switching`
-/// regressors); one mode owns the whole space.
-fn estimate_regions(
-    options: &KLinRegOptions,
-    data: &PwarxData<'_>,
-    reg: &Regressors,
-    labels: &[usize],
-    modes: usize,
-) -> Result<Partition, IdentifyError> {
-    let region_options = RegionOptions {
-        method: options.regions,
-        switching: data.switching.clone(),
-        ..Default::default()
-    };
-    hysid_regions::estimate(&reg.x, labels, modes, &region_options)
-        .map_err(|e| IdentifyError::failed(format!("regions: {e}")))
 }
 
 /// Why a k-LinReg run cannot go on.

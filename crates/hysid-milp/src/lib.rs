@@ -35,7 +35,7 @@ use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
 use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_regions::{Partition, RegionMethod, RegionOptions};
+use hysid_regions::RegionMethod;
 use serde::Serialize;
 
 /// The largest mode count the fewest-modes problem tries without
@@ -150,11 +150,12 @@ pub fn fit(
             let s = fewest_modes(data, &reg, max_modes, delta, &limits)?;
             (data.modes.exact().unwrap_or(s.thetas.len()), Some(s))
         }
-        None => (mode_count(data)?, None),
+        None => (data.exact_modes(Milp::NAME)?, None),
     };
     let mut best = least_l1(data, &reg, modes, options.delta, &limits)?;
     let dropped = drop_empty_modes(&mut best);
-    let partition = estimate_regions(options, data, &reg, &best.labels, best.thetas.len())?;
+    let partition =
+        hysid_regions::for_pwarx(options.regions, data, &reg, &best.labels, best.thetas.len())?;
     let proven = best.proven_optimal && fewest.as_ref().is_none_or(|s| s.proven_optimal);
     let diagnostics = MilpDiagnostics {
         l1_error: best.objective,
@@ -223,14 +224,6 @@ fn status_lines(proven: bool, dropped: usize, modes: usize) -> Vec<String> {
     lines
 }
 
-/// Without `delta` the program needs the mode count.
-fn mode_count(data: &PwarxData<'_>) -> Result<usize, IdentifyError> {
-    data.modes.exact().ok_or(IdentifyError::NeedsModeCount {
-        method: Milp::NAME,
-        bounded: false,
-    })
-}
-
 /// The record must be small: the program has a binary per sample and
 /// mode.
 fn check_sample_count(options: &MilpOptions, reg: &Regressors) -> Result<(), IdentifyError> {
@@ -283,25 +276,6 @@ fn program_error(e: ProgramError) -> IdentifyError {
         ProgramError::OutsideBox { .. } => IdentifyError::input(e),
         e => IdentifyError::failed(e.to_string()),
     }
-}
-
-/// The regions that separate the modes' samples (`hysid-regions`, the
-/// method of option `regions`, normals restricted to the `switching`
-/// regressors).
-fn estimate_regions(
-    options: &MilpOptions,
-    data: &PwarxData<'_>,
-    reg: &Regressors,
-    labels: &[usize],
-    modes: usize,
-) -> Result<Partition, IdentifyError> {
-    let region_options = RegionOptions {
-        method: options.regions,
-        switching: data.switching.clone(),
-        ..Default::default()
-    };
-    hysid_regions::estimate(&reg.x, labels, modes, &region_options)
-        .map_err(|e| IdentifyError::failed(format!("regions: {e}")))
 }
 
 /// Why a `milp` run cannot start.

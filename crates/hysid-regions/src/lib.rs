@@ -581,6 +581,25 @@ fn thinned_rows(labels: &[usize], modes: usize, max_points: usize) -> Option<Vec
     Some(rows)
 }
 
+/// The regions of a PWARX back-end's final assignment: [`estimate`] with
+/// `method`, the normals restricted to the `switching` regressors of the
+/// priors, and the error worded for the run.
+pub fn for_pwarx(
+    method: RegionMethod,
+    data: &hysid_estimation::pwarx::PwarxData<'_>,
+    reg: &hysid_model::regressors::Regressors,
+    labels: &[usize],
+    modes: usize,
+) -> Result<Partition, hysid_core::backend::IdentifyError> {
+    let options = RegionOptions {
+        method,
+        switching: data.switching.clone(),
+        ..Default::default()
+    };
+    estimate(&reg.x, labels, modes, &options)
+        .map_err(|e| hysid_core::backend::IdentifyError::failed(format!("regions: {e}")))
+}
+
 /// `wg` holds per mode `[w (p); g]` on standardised selected columns, with
 /// `f(z) = w.z - g`. Returns `[c (d); c0]` with `f = c.x + c0` in original
 /// units and exact zeros outside the selected columns.
