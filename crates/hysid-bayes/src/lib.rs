@@ -34,7 +34,7 @@ pub use gaussian::GaussianPosterior;
 pub use particles::{MAX_REDRAWS, ParticleCloud, log_sum_exp, systematic};
 pub use prior::{ModePrior, black_box_priors, sqrt_psd};
 
-use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
+use hysid_core::backend::{Deadline, Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
@@ -55,7 +55,8 @@ use serde::Serialize;
 /// The largest mode count `--auto` tries when none is given.
 pub const DEFAULT_MAX_MODES: usize = 5;
 
-/// The deadline is looked at once every this many samples of step 3.
+/// The deadline is looked at once every this many samples of step 3 and
+/// of the nearest-neighbour chain.
 const DEADLINE_STRIDE: usize = 256;
 
 hysid_core::option_enum! {
@@ -216,7 +217,7 @@ pub fn fit(
     let mut rng = ChaCha8Rng::seed_from_u64(ctx.seed);
     let representation = representation(options.posterior, &priors);
     let mut pdfs = initial_pdfs(representation, options.particles, &priors, &mut rng);
-    let order = processing_order(options.order, &reg, &mut rng);
+    let order = processing_order(options.order, &reg, &mut rng, &ctx.deadline);
     let pass = process_sequentially(
         &mut pdfs, &reg, &order, sigma, &priors, options, &mut rng, ctx,
     );
@@ -359,12 +360,17 @@ pub fn initial_pdfs(
 
 /// Step 3's order: `0..n`, a permutation drawn from `rng`, or the
 /// nearest-neighbour chain of [`nearest_neighbour_chain`].
-pub fn processing_order(order: Order, reg: &Regressors, rng: &mut ChaCha8Rng) -> Vec<usize> {
+pub fn processing_order(
+    order: Order,
+    reg: &Regressors,
+    rng: &mut ChaCha8Rng,
+    deadline: &Deadline,
+) -> Vec<usize> {
     let mut idx: Vec<usize> = (0..reg.len()).collect();
     match order {
         Order::Time => {}
         Order::Random => idx.shuffle(rng),
-        Order::Nearest => idx = nearest_neighbour_chain(reg),
+        Order::Nearest => idx = nearest_neighbour_chain(reg, deadline),
     }
     idx
 }
@@ -374,8 +380,9 @@ pub fn processing_order(order: Order, reg: &Regressors, rng: &mut ChaCha8Rng) ->
 /// sample not yet visited (the lowest index on a tie). Samples close in
 /// regressor space mostly share a region, so a mode's pdf sees a run of
 /// its own samples before the chain crosses into another region. `O(N^2)`
-/// distance evaluations.
-pub fn nearest_neighbour_chain(reg: &Regressors) -> Vec<usize> {
+/// distance evaluations; once `deadline` passes, the samples not yet
+/// visited follow in the record's order.
+pub fn nearest_neighbour_chain(reg: &Regressors, deadline: &Deadline) -> Vec<usize> {
     let (n, d) = reg.x.shape();
     if n == 0 {
         return Vec::new();
@@ -393,9 +400,13 @@ pub fn nearest_neighbour_chain(reg: &Regressors) -> Vec<usize> {
     let mut visited = vec![false; n];
     let mut chain = Vec::with_capacity(n);
     let mut current = start;
-    for _ in 0..n {
+    for step in 0..n {
         visited[current] = true;
         chain.push(current);
+        if step % DEADLINE_STRIDE == 0 && deadline.passed() {
+            chain.extend((0..n).filter(|&k| !visited[k]));
+            break;
+        }
         let here = row(current);
         let mut best: Option<(f64, usize)> = None;
         for k in (0..n).filter(|&k| !visited[k]) {
