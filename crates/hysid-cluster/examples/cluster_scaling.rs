@@ -1,7 +1,8 @@
 //! Cost of the `cluster` back-end on B1 (three-mode PWARX, na = nb = 1)
 //! from N = 10^3 to 10^6, with the time of each stage, for
-//! `docs/performance-cluster.md`. Single-threaded; every stage is run with
-//! the back-end's default options (k-means++ seeding, 15 restarts, MRLP
+//! `docs/performance-cluster.md`. The local datasets run in parallel (rayon;
+//! `RAYON_NUM_THREADS=1` for one thread), the rest on one thread; every
+//! stage is run with the back-end's default options (k-means++ seeding, 15 restarts, MRLP
 //! regions), so the stage times add up to about the end-to-end time.
 //!
 //! ```text

@@ -31,6 +31,7 @@
 use crate::Features;
 use crate::dense;
 use crate::knn::KdTree;
+use rayon::prelude::*;
 
 /// Counts of regularised local datasets.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -239,13 +240,101 @@ fn local_fit(n: usize, a: FitArgs<'_>) -> (bool, f64) {
     (collinear, ssr / (c - p) as f64)
 }
 
+/// Samples per parallel task of pass 1 of [`feature_vectors`]: a run of
+/// the tree's leaf order.
+const PASS1_RUN: usize = 1024;
+
+/// Runs computed before their results are copied to the samples' places.
+const PASS1_RUNS_PER_WAVE: usize = 16;
+
+/// Pass 1 of [`feature_vectors`] on one run of samples: the local datasets,
+/// their least squares and scatter, in the run's order.
+struct LocalFits {
+    members: Vec<usize>,
+    theta: Vec<f64>,
+    gram: Vec<f64>,
+    mean: Vec<f64>,
+    scatter: Vec<f64>,
+    collinear: Vec<bool>,
+    sigma2: Vec<f64>,
+}
+
+impl LocalFits {
+    /// The local fits of the samples `run` (consecutive in the tree's leaf
+    /// order), reusing one set of scratch buffers for all of them.
+    fn of_run(
+        tree: &KdTree,
+        x: &[f64],
+        n: usize,
+        y: &[f64],
+        c: usize,
+        eps: f64,
+        run: &[usize],
+    ) -> Self {
+        let (len, p) = (run.len(), n + 1);
+        let mut f = LocalFits {
+            members: vec![0; len * c],
+            theta: vec![0.0; len * p],
+            gram: vec![0.0; len * p * p],
+            mean: vec![0.0; len * n],
+            scatter: vec![0.0; len * n * n],
+            collinear: vec![false; len],
+            sigma2: vec![0.0; len],
+        };
+        let mut nb = Vec::with_capacity(c);
+        let mut scratch = vec![0.0; p * p];
+        let mut lchol = vec![0.0; p * p];
+        let mut prev: Vec<usize> = Vec::with_capacity(c);
+        let mut knn_scratch = crate::knn::Scratch::default();
+        for (i, &j) in run.iter().enumerate() {
+            // The previous query is a spatial neighbour: its neighbours bound
+            // the search (same answer, most cells pruned).
+            tree.nearest_seeded(&x[j * n..(j + 1) * n], c, &prev, &mut knn_scratch, &mut nb);
+            prev.clear();
+            prev.extend_from_slice(&nb);
+            // C_j contains j itself (with many duplicates it may not be among
+            // the c nearest by the index tie-break): put it first.
+            if let Some(pos) = nb.iter().position(|&k| k == j) {
+                nb.remove(pos);
+            } else {
+                nb.pop();
+            }
+            let mem = &mut f.members[i * c..(i + 1) * c];
+            mem[0] = j;
+            mem[1..].copy_from_slice(&nb);
+            let args = FitArgs {
+                x,
+                y,
+                mem: &f.members[i * c..(i + 1) * c],
+                eps,
+                g: &mut f.gram[i * p * p..(i + 1) * p * p],
+                th: &mut f.theta[i * p..(i + 1) * p],
+                m: &mut f.mean[i * n..(i + 1) * n],
+                s: &mut f.scatter[i * n * n..(i + 1) * n * n],
+                lchol: &mut lchol,
+                scratch: &mut scratch,
+            };
+            // Common regressor dimensions get unrolled loops (same operations).
+            let (col, s2) = match n {
+                1 => local_fit_n::<1>(args),
+                2 => local_fit_n::<2>(args),
+                3 => local_fit_n::<3>(args),
+                4 => local_fit_n::<4>(args),
+                _ => local_fit(n, args),
+            };
+            f.collinear[i] = col;
+            f.sigma2[i] = s2;
+        }
+        f
+    }
+}
+
 /// Builds the local datasets and feature vectors of the regression problem
 /// `y_k = theta' [x_k; 1]` (`x` row-major with `n` columns). Requires
 /// `n + 2 <= c <= N` and `n <= MAX_DIM` (checked by the caller).
 ///
-/// A numerical kernel kept in one piece: the hot loop over the samples
-/// reuses one set of scratch buffers (neighbours, Gram matrix, scatter) for
-/// every local dataset, which is what keeps it allocation-free.
+/// Pass 1 ([`LocalFits`]) runs in parallel; each run reuses one set of
+/// scratch buffers for every local dataset.
 pub fn feature_vectors(
     x: &[f64],
     n: usize,
@@ -266,54 +355,29 @@ pub fn feature_vectors(
     let mut mean = vec![0.0; big_n * n];
     let mut degenerate = Degeneracy::default();
     let mut collinear = vec![false; big_n];
-    let mut nb = Vec::with_capacity(c);
-    let mut scratch = vec![0.0; p * p];
-    let mut lchol = vec![0.0; p * p];
-    // Pass 1: neighbours, local least squares, local scatter. Samples are
-    // visited in the tree's leaf order (neighbouring queries share cache
-    // lines); every result is stored at the sample's own index, so the
-    // order does not change any value.
-    let mut prev: Vec<usize> = Vec::with_capacity(c);
-    let mut knn_scratch = crate::knn::Scratch::default();
-    for &j in tree.leaf_order() {
-        // The previous query is a spatial neighbour: its neighbours bound
-        // the search (same answer, most cells pruned).
-        tree.nearest_seeded(&x[j * n..(j + 1) * n], c, &prev, &mut knn_scratch, &mut nb);
-        prev.clear();
-        prev.extend_from_slice(&nb);
-        // C_j contains j itself (with many duplicates it may not be among
-        // the c nearest by the index tie-break): put it first.
-        if let Some(pos) = nb.iter().position(|&i| i == j) {
-            nb.remove(pos);
-        } else {
-            nb.pop();
+    // Pass 1: neighbours, local least squares, local scatter, in parallel
+    // over runs of the tree's leaf order (neighbouring queries share cache
+    // lines and seed each other's search), a wave of runs at a time so the
+    // runs' buffers stay small. Every result is stored at the sample's own
+    // index, so neither the order nor the thread count changes any value.
+    for wave in tree.leaf_order().chunks(PASS1_RUN * PASS1_RUNS_PER_WAVE) {
+        let fits: Vec<LocalFits> = wave
+            .par_chunks(PASS1_RUN)
+            .map(|run| LocalFits::of_run(&tree, x, n, y, c, eps, run))
+            .collect();
+        for (run, f) in wave.chunks(PASS1_RUN).zip(&fits) {
+            for (i, &j) in run.iter().enumerate() {
+                members[j * c..(j + 1) * c].copy_from_slice(&f.members[i * c..(i + 1) * c]);
+                theta[j * p..(j + 1) * p].copy_from_slice(&f.theta[i * p..(i + 1) * p]);
+                gram[j * p * p..(j + 1) * p * p]
+                    .copy_from_slice(&f.gram[i * p * p..(i + 1) * p * p]);
+                mean[j * n..(j + 1) * n].copy_from_slice(&f.mean[i * n..(i + 1) * n]);
+                scatter[j * n * n..(j + 1) * n * n]
+                    .copy_from_slice(&f.scatter[i * n * n..(i + 1) * n * n]);
+                collinear[j] = f.collinear[i];
+                sigma2[j] = f.sigma2[i];
+            }
         }
-        let mem = &mut members[j * c..(j + 1) * c];
-        mem[0] = j;
-        mem[1..].copy_from_slice(&nb);
-        let mem = &members[j * c..(j + 1) * c];
-        let args = FitArgs {
-            x,
-            y,
-            mem,
-            eps,
-            g: &mut gram[j * p * p..(j + 1) * p * p],
-            th: &mut theta[j * p..(j + 1) * p],
-            m: &mut mean[j * n..(j + 1) * n],
-            s: &mut scatter[j * n * n..(j + 1) * n * n],
-            lchol: &mut lchol,
-            scratch: &mut scratch,
-        };
-        // Common regressor dimensions get unrolled loops (same operations).
-        let (col, s2) = match n {
-            1 => local_fit_n::<1>(args),
-            2 => local_fit_n::<2>(args),
-            3 => local_fit_n::<3>(args),
-            4 => local_fit_n::<4>(args),
-            _ => local_fit(n, args),
-        };
-        collinear[j] = col;
-        sigma2[j] = s2;
     }
     // Floors relative to the data and to the median local dataset.
     let var_y = {
@@ -410,6 +474,65 @@ pub fn feature_vectors(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Pass 1 runs in parallel over runs of 1024 samples: on 5000 samples
+    /// (five runs) the feature vectors are bitwise the same with one thread
+    /// and with three, and each sample's results are its own.
+    #[test]
+    fn the_same_with_any_thread_count() {
+        let n = 2;
+        let mut state = 99u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let x: Vec<f64> = (0..5000 * n).map(|_| 4.0 * uniform() - 2.0).collect();
+        let y: Vec<f64> = (0..5000)
+            .map(|k| {
+                let (a, b) = (x[k * n], x[k * n + 1]);
+                (if a > b {
+                    a - 2.0 * b
+                } else {
+                    0.5 * a + b + 1.0
+                }) + 0.05 * uniform()
+            })
+            .collect();
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| feature_vectors(&x, n, &y, 20, Features::Fv, 1e-6))
+        };
+        let (one, three) = (run(1), run(3));
+        assert_eq!(one.members, three.members);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for (a, b) in [
+            (&one.xi, &three.xi),
+            (&one.v_inv, &three.v_inv),
+            (&one.q_inv, &three.q_inv),
+            (&one.log_w, &three.log_w),
+            (&one.theta, &three.theta),
+        ] {
+            assert_eq!(bits(a), bits(b));
+        }
+        assert_eq!(one.degenerate, three.degenerate);
+        // Every result sits at its own sample: C_j starts with j, and theta_j
+        // fits the members of C_j (its residuals are orthogonal to the
+        // constant regressor: they sum to zero).
+        for j in 0..5000 {
+            let mem = one.members(j);
+            assert_eq!(mem[0], j);
+            let th = &one.theta[j * 3..(j + 1) * 3];
+            let sum: f64 = mem
+                .iter()
+                .map(|&i| y[i] - th[0] * x[i * n] - th[1] * x[i * n + 1] - th[2])
+                .sum();
+            assert!(sum.abs() < 1e-9, "sample {j}: residuals sum to {sum}");
+        }
+    }
 
     #[test]
     fn exact_local_fits_and_degenerate_counts() {
