@@ -283,6 +283,11 @@ fn choose_c(
 /// At least `n+1` samples per mode.
 fn check_sample_count(work: &Working, modes: usize) -> Result<(), IdentifyError> {
     let (n, big_n) = (work.n, work.y.len());
+    if u32::try_from(big_n).is_err() {
+        return Err(IdentifyError::failed(format!(
+            "{big_n} samples: the local datasets index at most 2^32 - 1 (use a subset of the rows)"
+        )));
+    }
     if modes.checked_mul(n + 1).is_none_or(|need| big_n < need) {
         return Err(IdentifyError::TooFewRegressors {
             rows: big_n,

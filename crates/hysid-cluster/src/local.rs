@@ -65,8 +65,11 @@ pub struct FeatureVectors {
     pub log_w: Vec<f64>,
     /// Local parameter vectors `theta_j` (`p` each).
     pub theta: Vec<f64>,
-    /// Local dataset members, `c` per sample (the sample itself first).
-    pub members: Vec<usize>,
+    /// Local dataset members, `c` per sample (the sample itself first), as
+    /// `u32`: the largest array at large N (`N c` entries), half the memory
+    /// of `usize` indices. Records have fewer than 2^32 samples (checked by
+    /// the back-end).
+    pub members: Vec<u32>,
     /// Local dataset size `c`.
     pub c: usize,
     /// Regularised local datasets.
@@ -86,7 +89,7 @@ impl FeatureVectors {
     }
 
     /// Members of `C_j`.
-    pub fn members(&self, j: usize) -> &[usize] {
+    pub fn members(&self, j: usize) -> &[u32] {
         &self.members[j * self.c..(j + 1) * self.c]
     }
 
@@ -138,7 +141,7 @@ struct FitArgs<'a> {
     x: &'a [f64],
     y: &'a [f64],
     /// The members of the local dataset.
-    mem: &'a [usize],
+    mem: &'a [u32],
     eps: f64,
     /// `Phi' Phi` (`p x p`; regularised on exit if collinear).
     g: &'a mut [f64],
@@ -181,7 +184,7 @@ fn local_fit(n: usize, a: FitArgs<'_>) -> (bool, f64) {
     let mut phi = [0.0; P];
     let mut gl = [[0.0; P]; P];
     let mut rhs = [0.0; P];
-    for &i in mem {
+    for i in mem.iter().map(|&i| i as usize) {
         phi[..n].copy_from_slice(&x[i * n..(i + 1) * n]);
         phi[n] = 1.0;
         for r in 0..p {
@@ -211,7 +214,7 @@ fn local_fit(n: usize, a: FitArgs<'_>) -> (bool, f64) {
     dense::cholesky_solve(l, p, th);
     let mut ssr = 0.0;
     let mut ml = [0.0; P];
-    for &i in mem {
+    for i in mem.iter().map(|&i| i as usize) {
         let xi = &x[i * n..(i + 1) * n];
         let pred: f64 = xi.iter().zip(&th[..n]).map(|(a, b)| a * b).sum::<f64>() + th[n];
         ssr += (y[i] - pred).powi(2);
@@ -224,7 +227,7 @@ fn local_fit(n: usize, a: FitArgs<'_>) -> (bool, f64) {
     }
     m.copy_from_slice(&ml[..n]);
     let mut sl = [[0.0; P]; P];
-    for &i in mem {
+    for i in mem.iter().map(|&i| i as usize) {
         let xi = &x[i * n..(i + 1) * n];
         for r in 0..n {
             for k in 0..n {
@@ -250,7 +253,7 @@ const PASS1_RUNS_PER_WAVE: usize = 16;
 /// Pass 1 of [`feature_vectors`] on one run of samples: the local datasets,
 /// their least squares and scatter, in the run's order.
 struct LocalFits {
-    members: Vec<usize>,
+    members: Vec<u32>,
     theta: Vec<f64>,
     gram: Vec<f64>,
     mean: Vec<f64>,
@@ -300,8 +303,10 @@ impl LocalFits {
                 nb.pop();
             }
             let mem = &mut f.members[i * c..(i + 1) * c];
-            mem[0] = j;
-            mem[1..].copy_from_slice(&nb);
+            mem[0] = j as u32;
+            for (m, &k) in mem[1..].iter_mut().zip(&nb) {
+                *m = k as u32;
+            }
             let args = FitArgs {
                 x,
                 y,
@@ -347,7 +352,7 @@ pub fn feature_vectors(
     let p = n + 1;
     let q = if features == Features::Fv { n } else { 0 };
     let tree = KdTree::new(x, n);
-    let mut members = vec![0usize; big_n * c];
+    let mut members = vec![0u32; big_n * c];
     let mut theta = vec![0.0; big_n * p];
     let mut gram = vec![0.0; big_n * p * p];
     let mut scatter = vec![0.0; big_n * n * n];
@@ -524,11 +529,12 @@ mod tests {
         // constant regressor: they sum to zero).
         for j in 0..5000 {
             let mem = one.members(j);
-            assert_eq!(mem[0], j);
+            assert_eq!(mem[0] as usize, j);
             let th = &one.theta[j * 3..(j + 1) * 3];
             let sum: f64 = mem
                 .iter()
-                .map(|&i| y[i] - th[0] * x[i * n] - th[1] * x[i * n + 1] - th[2])
+                .map(|&i| i as usize)
+                .map(|i| y[i] - th[0] * x[i * n] - th[1] * x[i * n + 1] - th[2])
                 .sum();
             assert!(sum.abs() < 1e-9, "sample {j}: residuals sum to {sum}");
         }
@@ -543,7 +549,7 @@ mod tests {
         assert_eq!(f.dim(), 3);
         for j in 0..50 {
             assert!((f.theta[2 * j] - 2.0).abs() < 1e-6 && (f.theta[2 * j + 1] - 1.0).abs() < 1e-6);
-            assert_eq!(f.members(j)[0], j);
+            assert_eq!(f.members(j)[0] as usize, j);
             assert!(f.log_w[j].is_finite());
         }
         assert_eq!(f.degenerate.noise_free, 50);

@@ -338,7 +338,7 @@ pub fn run_with(
             cand.clear();
             cand.push(own);
             for &m in f.members(j) {
-                let l = before[m];
+                let l = before[m as usize];
                 if !cand.contains(&l) {
                     cand.push(l);
                 }

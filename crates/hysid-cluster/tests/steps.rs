@@ -207,7 +207,10 @@ fn mixed_points_are_reattributed_and_improve_the_mode_datasets() {
         for (j, (&a, &b)) in on.labels.iter().zip(&off.labels).enumerate() {
             if a != b {
                 assert!(
-                    on.features.members(j).iter().any(|&m| off.labels[m] == a),
+                    on.features
+                        .members(j)
+                        .iter()
+                        .any(|&m| off.labels[m as usize] == a),
                     "point {j} moved to mode {a}, absent from its local dataset"
                 );
             }
