@@ -300,6 +300,10 @@ const NOT_RUN: &[(&str, &str)] = &[
         "cargo run -p hysid-plot --example",
         "regenerates the figure gallery; its existence is checked above",
     ),
+    (
+        "target/release/examples/",
+        "an example binary that the `cargo build --release` line above it builds; seconds to minutes",
+    ),
     ("cargo bench", "a benchmark build"),
     ("cargo build --release", "a release build for a benchmark"),
     ("cargo install cargo-fuzz", "installs a tool"),

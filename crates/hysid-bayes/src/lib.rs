@@ -147,7 +147,7 @@ pub struct Bayes;
 impl Identifier for Bayes {
     type Options = BayesOptions;
     const NAME: &'static str = "bayes";
-    const SUMMARY: &'static str = "Bayesian procedure (Juloski, Weiland, Heemels 2005): mode parameter pdfs as particle clouds, samples assigned and pdfs updated one by one; then regions";
+    const SUMMARY: &'static str = "Bayesian procedure (Juloski, Weiland, Heemels 2005): mode parameter pdfs (exact Gaussian or particle clouds), samples assigned and pdfs updated one by one; then regions";
     const HONOURS: &'static [PriorKind] = &[
         PriorKind::Modes,
         PriorKind::Saturation,
