@@ -338,7 +338,7 @@ impl LocalFits {
 /// `y_k = theta' [x_k; 1]` (`x` row-major with `n` columns). Requires
 /// `n + 2 <= c <= N` and `n <= MAX_DIM` (checked by the caller).
 ///
-/// Pass 1 ([`LocalFits`]) runs in parallel; each run reuses one set of
+/// Pass 1 (`LocalFits`) runs in parallel; each run reuses one set of
 /// scratch buffers for every local dataset.
 pub fn feature_vectors(
     x: &[f64],
