@@ -24,7 +24,6 @@ use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
 use hysid_estimation::linalg;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
-use hysid_estimation::refine;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::PwarxMode;
 use hysid_model::regressors::{RegressorSpec, Regressors};
@@ -76,9 +75,9 @@ impl Identifier for Arx {
         options: &Checked<ArxOptions>,
         _ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let data = pwarx::prepare(problem, Self::NAME)?;
-        let fit = refine::refine(&data, fit(options, &data)?, &options.refinement())?;
-        Ok(pwarx::assemble(&data, fit))
+        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
+            fit(options, data)
+        })
     }
 }
 

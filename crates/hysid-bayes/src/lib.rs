@@ -42,7 +42,6 @@ use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::noise::local_noise_sigma;
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
-use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
 use hysid_regions::RegionMethod;
@@ -169,9 +168,9 @@ impl Identifier for Bayes {
         options: &Checked<BayesOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let data = pwarx::prepare(problem, Self::NAME)?;
-        let fit = refine::refine(&data, fit(options, &data, ctx)?, &options.refinement())?;
-        Ok(pwarx::assemble(&data, fit))
+        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
+            fit(options, data, ctx)
+        })
     }
 }
 

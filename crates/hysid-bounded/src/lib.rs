@@ -46,7 +46,7 @@ use hysid_core::options::OptionType;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
-use hysid_estimation::{pwarx, refine};
+use hysid_estimation::pwarx;
 use hysid_regions::RegionMethod;
 use procedure::{Classification, ProcedureSettings};
 use samples::Samples;
@@ -232,9 +232,9 @@ impl Identifier for Bounded {
         options: &Checked<BoundedOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let data = pwarx::prepare(problem, Self::NAME)?;
-        let fit = refine::refine(&data, fit(options, &data, ctx)?, &options.refinement())?;
-        Ok(pwarx::assemble(&data, fit))
+        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
+            fit(options, data, ctx)
+        })
     }
 }
 

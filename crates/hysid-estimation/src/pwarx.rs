@@ -345,6 +345,21 @@ pub fn assemble<D: Serialize>(data: &PwarxData<'_>, fit: PwarxFit<D>) -> Model {
     }
 }
 
+/// The pipeline of a PWARX back-end whose `fit` estimates the ordinary
+/// modes: the common set-up ([`prepare`]), `fit`, the simulation-error
+/// refinement the options ask for ([`crate::refine::refine`]), and the
+/// model with the known stops ([`assemble`]).
+pub fn identify<D: Serialize>(
+    problem: &Problem<'_>,
+    method: &str,
+    refinement: &crate::refine::RefineSettings,
+    fit: impl FnOnce(&PwarxData<'_>) -> Result<PwarxFit<D>, IdentifyError>,
+) -> Result<Model, IdentifyError> {
+    let data = prepare(problem, method)?;
+    let fit = crate::refine::refine(&data, fit(&data)?, refinement)?;
+    Ok(assemble(&data, fit))
+}
+
 /// Runs `backend` on standardised data (zero mean, unit standard deviation
 /// per signal) and returns the model in original units, with the statistics
 /// recorded in `info.scaling`. Priors holding values in data units

@@ -32,7 +32,6 @@ use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
-use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
 use hysid_regions::RegionMethod;
@@ -106,9 +105,9 @@ impl Identifier for Milp {
         options: &Checked<MilpOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let data = pwarx::prepare(problem, Self::NAME)?;
-        let fit = refine::refine(&data, fit(options, &data, ctx)?, &options.refinement())?;
-        Ok(pwarx::assemble(&data, fit))
+        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
+            fit(options, data, ctx)
+        })
     }
 }
 

@@ -38,7 +38,6 @@ use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
-use hysid_estimation::refine;
 use hysid_model::model::{PwarxMode, RunStatus};
 use serde::Serialize;
 
@@ -132,9 +131,9 @@ impl Identifier for Parc {
         options: &Checked<ParcOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let data = pwarx::prepare(problem, Self::NAME)?;
-        let fit = refine::refine(&data, fit(options, &data, ctx)?, &options.refinement())?;
-        Ok(pwarx::assemble(&data, fit))
+        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
+            fit(options, data, ctx)
+        })
     }
 }
 
