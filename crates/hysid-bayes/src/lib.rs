@@ -40,7 +40,7 @@ use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::Parametrisation;
-use hysid_estimation::noise::local_noise_sigma;
+use hysid_estimation::noise::{local_noise_sigma, noise_floor};
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
@@ -273,12 +273,7 @@ pub fn noise_level(options: &BayesOptions, reg: &Regressors) -> f64 {
     if options.noise_std > 0.0 {
         return options.noise_std;
     }
-    let n = reg.y.len().max(1) as f64;
-    let mean = reg.y.iter().sum::<f64>() / n;
-    let std = (reg.y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
-    local_noise_sigma(reg)
-        .max(1e-6 * std)
-        .max(f64::MIN_POSITIVE)
+    local_noise_sigma(reg).max(noise_floor(reg))
 }
 
 /// Step 1: the prior of every mode (`prior` module: the black-box

@@ -11,6 +11,7 @@
 
 use hysid_estimation::constrained::{Parametrisation, Slot};
 use hysid_estimation::linalg;
+use hysid_model::data::AffineScale;
 use hysid_model::regressors::Regressors;
 use nalgebra::{DMatrix, DVector};
 
@@ -75,32 +76,23 @@ pub fn black_box_priors(
 
 /// `theta_LS` and `prior_std^2 T T'` in data units.
 fn affine_fit_spread(reg: &Regressors, prior_std: f64) -> Option<(DVector<f64>, DMatrix<f64>)> {
-    let (n, d) = reg.x.shape();
-    let phi = DMatrix::from_fn(n, d + 1, |r, j| if j < d { reg.x[(r, j)] } else { 1.0 });
-    let theta = linalg::lstsq(&phi, &reg.y).ok()?.theta;
+    let d = reg.x.ncols();
+    let theta = linalg::lstsq(&reg.phi(), &reg.y).ok()?.theta;
     if !theta.iter().all(|v| v.is_finite()) {
         return None;
     }
-    let (_, sy) = mean_std(reg.y.iter().copied());
-    let sy = if sy > 0.0 { sy } else { 1.0 };
+    let sy = AffineScale::of(reg.y.as_slice()).std;
     // theta_j = beta_j sy / sx_j; c = ybar + sy beta_0 - sum_j theta_j xbar_j.
     let mut t = DMatrix::zeros(d + 1, d + 1);
     for j in 0..d {
-        let (xbar, sx) = mean_std(reg.x.column(j).iter().copied());
-        let scale = if sx > 0.0 { sy / sx } else { sy };
+        let x = AffineScale::of(reg.x.column(j).as_slice());
+        let scale = sy / x.std;
         t[(j, j)] = scale;
-        t[(d, j)] = -scale * xbar;
+        t[(d, j)] = -scale * x.mean;
     }
     t[(d, d)] = sy;
     let cov = &t * t.transpose() * (prior_std * prior_std);
     Some((theta, cov))
-}
-
-fn mean_std(v: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
-    let n = v.clone().count().max(1) as f64;
-    let mean = v.clone().sum::<f64>() / n;
-    let var = v.map(|x| (x - mean).powi(2)).sum::<f64>() / n;
-    (mean, var.sqrt())
 }
 
 /// The Gaussian `N(mean, cov)` conditioned on the fixed parameters of mode

@@ -7,7 +7,7 @@
 //! half-width of uniform noise, `sigma = b / sqrt 3`), floored at
 //! `1e-6 std(y)` so that noise-free data get a positive bound.
 
-use hysid_estimation::noise::local_noise_sigma;
+use hysid_estimation::noise::{local_noise_sigma, noise_floor};
 use hysid_model::regressors::Regressors;
 
 /// Multiple of the estimated noise standard deviation used as delta.
@@ -15,10 +15,5 @@ pub const SIGMAS: f64 = 3.0;
 
 /// The `auto` error bound: `max(3 sigma, 1e-6 std(y))`.
 pub fn auto_delta(reg: &Regressors) -> f64 {
-    let n = reg.y.len().max(1) as f64;
-    let my = reg.y.iter().sum::<f64>() / n;
-    let sy = (reg.y.iter().map(|v| (v - my).powi(2)).sum::<f64>() / n).sqrt();
-    (SIGMAS * local_noise_sigma(reg))
-        .max(1e-6 * sy)
-        .max(f64::MIN_POSITIVE)
+    (SIGMAS * local_noise_sigma(reg)).max(noise_floor(reg))
 }

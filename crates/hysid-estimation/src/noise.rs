@@ -51,6 +51,16 @@ pub fn local_noise_sigma(reg: &Regressors) -> f64 {
     *sigmas.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
 }
 
+/// The smallest noise level a record is given, `1e-6 std(y)` (population
+/// standard deviation, at least the smallest positive number): noise-free
+/// records keep positive bounds and finite densities.
+pub fn noise_floor(reg: &Regressors) -> f64 {
+    let n = reg.y.len().max(1) as f64;
+    let mean = reg.y.iter().sum::<f64>() / n;
+    let std = (reg.y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    (1e-6 * std).max(f64::MIN_POSITIVE)
+}
+
 /// `1 / std` of every column (population standard deviation; 0 for a
 /// constant column).
 fn inverse_column_std(x: &DMatrix<f64>) -> Vec<f64> {
