@@ -9,11 +9,10 @@
 //! [-- METHOD[:KEY=VALUE,...] ...] (default: cluster, klinreg, parc and
 //! bayes at their defaults; `cluster` always gets the reference options).
 
-use hysid_core::backend::RunContext;
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_testkit::{Benchmark, Noise};
+use hysid_testkit::{Benchmark, Noise, median};
 
 type Generator = fn(usize, u64) -> Benchmark;
 
@@ -29,11 +28,6 @@ struct System {
 
 fn b1(n: usize, seed: u64) -> Benchmark {
     hysid_testkit::b1(n, 4.0, Noise::Uniform(0.1), seed)
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 fn main() {
@@ -101,7 +95,7 @@ fn main() {
                     modes: Some(modes),
                     ..Priors::default()
                 };
-                match backend.run(&b.problem(&priors), &settings, &RunContext::quiet(seed)) {
+                match b.run(backend, &priors, &settings, seed) {
                     Ok(Model::Pwarx(p)) => {
                         acc.push(fresh.recovery(&p).0);
                         err.push(b.recovery(&p).1);

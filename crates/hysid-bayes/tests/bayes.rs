@@ -11,7 +11,7 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_model::regressors::RegressorSpec;
-use hysid_testkit::{Benchmark, Noise};
+use hysid_testkit::{Benchmark, Noise, as_pwarx, median};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 use rand::SeedableRng;
@@ -201,20 +201,7 @@ fn run_with(
     set: &[&str],
     seed: u64,
 ) -> Result<Model, IdentifyError> {
-    let settings = Settings::parse(set).unwrap();
-    Bayes.run(&b.problem(priors), &settings, &RunContext::quiet(seed))
-}
-
-fn pwarx(m: &Model) -> &hysid_model::model::PwarxModel {
-    let Model::Pwarx(p) = m else {
-        panic!("a PWARX model")
-    };
-    p
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    b.run(&Bayes, priors, &Settings::parse(set).unwrap(), seed)
 }
 
 /// B1 (the classic one-dimensional 3-mode PWARX) on five draws, beside
@@ -230,17 +217,13 @@ fn b1_beside_cluster() {
             let b = hysid_testkit::b1(301, 4.0, Noise::Uniform(0.1), seed);
             let fresh = hysid_testkit::b1(301, 4.0, Noise::Uniform(0.1), seed + 100);
             let m = run_with(&b, &priors(3), &[set.as_str()], seed).unwrap();
-            acc.push(fresh.recovery(pwarx(&m)).0);
-            err.push(b.recovery(pwarx(&m)).1);
-            let c = Cluster
-                .run(
-                    &b.problem(&priors(3)),
-                    &Settings::default(),
-                    &RunContext::quiet(seed),
-                )
+            acc.push(fresh.recovery(as_pwarx(&m)).0);
+            err.push(b.recovery(as_pwarx(&m)).1);
+            let c = b
+                .run(&Cluster, &priors(3), &Settings::default(), seed)
                 .unwrap();
-            c_acc.push(fresh.recovery(pwarx(&c)).0);
-            c_err.push(b.recovery(pwarx(&c)).1);
+            c_acc.push(fresh.recovery(as_pwarx(&c)).0);
+            c_err.push(b.recovery(as_pwarx(&c)).1);
         }
         let (acc, err, c_acc, c_err) = (median(acc), median(err), median(c_acc), median(c_err));
         eprintln!(
@@ -266,18 +249,18 @@ fn fixed_values_and_bounds_hold() {
     for posterior in ["gaussian", "particles"] {
         let set = format!("posterior={posterior}");
         let m = run_with(&b, &fixed, &[set.as_str()], 1).unwrap();
-        let spec = pwarx(&m).spec();
+        let spec = as_pwarx(&m).spec();
         let a1 = spec.param_names().iter().position(|n| n == "a1").unwrap();
-        for mode in &pwarx(&m).modes {
+        for mode in &as_pwarx(&m).modes {
             assert_eq!(mode.theta[a1], 0.25, "{posterior}");
         }
     }
     let mut bounded = priors(3);
     bounded.bounds.insert("c".into(), [-1.0, 1.0]);
     let m = run_with(&b, &bounded, &[], 1).unwrap();
-    let spec = pwarx(&m).spec();
+    let spec = as_pwarx(&m).spec();
     let c = spec.param_names().iter().position(|n| n == "c").unwrap();
-    for mode in &pwarx(&m).modes {
+    for mode in &as_pwarx(&m).modes {
         assert!(
             (-1.0..=1.0).contains(&mode.theta[c]),
             "c = {}",

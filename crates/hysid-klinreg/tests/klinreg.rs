@@ -14,7 +14,7 @@ use hysid_klinreg::{
 };
 use hysid_model::metrics::mode_accuracy;
 use hysid_model::regressors::{RegressorSpec, Regressors};
-use hysid_testkit::{Benchmark, Noise};
+use hysid_testkit::{Benchmark, Noise, median};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
@@ -143,20 +143,7 @@ fn run(backend: &dyn Backend, b: &Benchmark, modes: usize, seed: u64) -> Model {
         modes: Some(modes),
         ..Priors::default()
     };
-    backend
-        .run(
-            &b.problem(&priors),
-            &Settings::default(),
-            &RunContext::quiet(seed),
-        )
-        .unwrap()
-}
-
-fn scores(m: &Model, b: &Benchmark) -> (f64, f64) {
-    let Model::Pwarx(p) = m else {
-        panic!("a PWARX model")
-    };
-    b.recovery(p)
+    b.run(backend, &priors, &Settings::default(), seed).unwrap()
 }
 
 /// B1 (the classic 3-mode PWARX) on five draws: k-LinReg beside `cluster`
@@ -168,18 +155,14 @@ fn b1_beside_cluster() {
     let mut rows = Vec::new();
     for seed in 1..=5 {
         let b = hysid_testkit::b1(500, 4.0, Noise::Uniform(0.1), seed);
-        let k = scores(&run(&KLinReg, &b, 3, seed), &b);
-        let c = scores(&run(&Cluster, &b, 3, seed), &b);
+        let k = b.score(&run(&KLinReg, &b, 3, seed));
+        let c = b.score(&run(&Cluster, &b, 3, seed));
         eprintln!(
             "B1 draw {seed}: klinreg acc {:.3} err {:.4}; cluster acc {:.3} err {:.4}",
             k.0, k.1, c.0, c.1
         );
         rows.push((k, c));
     }
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
     let k_acc = median(rows.iter().map(|r| r.0.0).collect());
     let c_acc = median(rows.iter().map(|r| r.1.0).collect());
     let k_err = median(rows.iter().map(|r| r.0.1).collect());

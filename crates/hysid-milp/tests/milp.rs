@@ -4,15 +4,14 @@
 //! modes than the exact minimum, priors, limits and refusals.
 
 use hysid_bounded::Bounded;
-use hysid_core::backend::{Backend, IdentifyError, RunContext};
+use hysid_core::backend::{Backend, IdentifyError};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::{Priors, Tie};
 use hysid_klinreg::KLinReg;
 use hysid_milp::Milp;
-use hysid_model::model::PwarxModel;
 use hysid_model::regressors::Regressors;
-use hysid_testkit::{Benchmark, Noise};
+use hysid_testkit::{Benchmark, Noise, as_pwarx};
 use proptest::prelude::*;
 
 fn priors(modes: Option<usize>) -> Priors {
@@ -28,18 +27,7 @@ fn run(
     priors: &Priors,
     set: &[&str],
 ) -> Result<Model, IdentifyError> {
-    backend.run(
-        &b.problem(priors),
-        &Settings::parse(set).unwrap(),
-        &RunContext::quiet(1),
-    )
-}
-
-fn pwarx(m: &Model) -> &PwarxModel {
-    let Model::Pwarx(p) = m else {
-        panic!("a PWARX model")
-    };
-    p
+    b.run(backend, priors, &Settings::parse(set).unwrap(), 1)
 }
 
 /// The regression rows of `b`.
@@ -63,7 +51,7 @@ fn l1_cost(reg: &Regressors, thetas: &[Vec<f64>]) -> f64 {
 }
 
 fn thetas(m: &Model) -> Vec<Vec<f64>> {
-    pwarx(m).modes.iter().map(|q| q.theta.clone()).collect()
+    as_pwarx(m).modes.iter().map(|q| q.theta.clone()).collect()
 }
 
 fn diagnostic(m: &Model, key: &str) -> serde_json::Value {
@@ -78,7 +66,7 @@ fn noise_free_b1_gives_the_true_parameters() {
     let m = run(&Milp, &b, &priors(Some(3)), &[]).unwrap();
     assert!(diagnostic(&m, "l1_error").as_f64().unwrap() < 1e-7);
     assert_eq!(diagnostic(&m, "proven_optimal"), true);
-    let (_, error) = b.recovery(pwarx(&m));
+    let (_, error) = b.recovery(as_pwarx(&m));
     assert!(error < 1e-6, "largest relative parameter error {error}");
 }
 
@@ -122,7 +110,7 @@ proptest! {
         let set = format!("delta={delta}");
         let exact = run(&Milp, &b, &priors(None), &[set.as_str()]).unwrap();
         let minimum = diagnostic(&exact, "fewest_modes").as_u64().unwrap() as usize;
-        prop_assert_eq!(pwarx(&exact).modes.len(), minimum);
+        prop_assert_eq!(as_pwarx(&exact).modes.len(), minimum);
         let within = |thetas: &[Vec<f64>]| {
             let d = reg.x.ncols();
             (0..reg.len()).all(|k| thetas.iter().any(|t| {

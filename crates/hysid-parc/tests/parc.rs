@@ -10,7 +10,7 @@ use hysid_estimation::pwarx;
 use hysid_model::data::{Dataset, Signal};
 use hysid_model::regressors::RegressorSpec;
 use hysid_parc::{Parc, ParcOptions};
-use hysid_testkit::{Benchmark, Noise};
+use hysid_testkit::{Benchmark, Noise, median};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -134,20 +134,7 @@ fn run(backend: &dyn Backend, b: &Benchmark, modes: usize, bound: bool, seed: u6
         max_modes: bound.then_some(modes),
         ..Priors::default()
     };
-    backend
-        .run(
-            &b.problem(&priors),
-            &Settings::default(),
-            &RunContext::quiet(seed),
-        )
-        .unwrap()
-}
-
-fn scores(m: &Model, b: &Benchmark) -> (f64, f64) {
-    let Model::Pwarx(p) = m else {
-        panic!("a PWARX model")
-    };
-    b.recovery(p)
+    b.run(backend, &priors, &Settings::default(), seed).unwrap()
 }
 
 /// B1 (N = 500, u uniform in [-4, 4], uniform noise 0.1) on five draws,
@@ -159,8 +146,8 @@ fn b1_beside_cluster() {
     for seed in 1..=5 {
         let b = hysid_testkit::b1(500, 4.0, Noise::Uniform(0.1), seed);
         let parc = run(&Parc, &b, 3, true, seed);
-        let p = scores(&parc, &b);
-        let c = scores(&run(&Cluster, &b, 3, false, seed), &b);
+        let p = b.score(&parc);
+        let c = b.score(&run(&Cluster, &b, 3, false, seed));
         eprintln!(
             "B1 draw {seed}: parc {} modes, acc {:.3} err {:.4}; cluster acc {:.3} err {:.4}",
             parc.mode_count(),
@@ -171,10 +158,6 @@ fn b1_beside_cluster() {
         );
         rows.push((p, c));
     }
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
     let p_acc = median(rows.iter().map(|r| r.0.0).collect());
     let c_acc = median(rows.iter().map(|r| r.1.0).collect());
     assert!(p_acc >= 0.95, "parc median accuracy {p_acc}");

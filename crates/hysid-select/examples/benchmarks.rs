@@ -21,7 +21,7 @@ use hysid_core::priors::Priors;
 use hysid_core::search::Setup;
 use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_select::{Plan, Request, select};
-use hysid_testkit::{Benchmark, Noise};
+use hysid_testkit::{Benchmark, Noise, median};
 
 type Generator = fn(usize, u64) -> Benchmark;
 
@@ -43,11 +43,6 @@ fn score(truth: &Benchmark, valid: &Benchmark, model: &Model) -> (f64, f64, usiz
         .unwrap()
         .max_relative_error;
     (acc, perr, m.modes.len())
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 fn main() {

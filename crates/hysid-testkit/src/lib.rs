@@ -12,8 +12,9 @@
 //! `nb = 1`: the regressor of `y(k)` is the input `u(k-1)` (one column per
 //! input), so every back-end treats them like dynamic data.
 
-use hysid_core::backend::Problem;
+use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
+use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::simulate;
 use hysid_model::data::{Dataset, Signal};
@@ -88,6 +89,24 @@ impl Benchmark {
         }
     }
 
+    /// `backend` on the record (true orders, `priors`, `settings`, seed
+    /// `seed`, no deadline).
+    pub fn run(
+        &self,
+        backend: &dyn Backend,
+        priors: &Priors,
+        settings: &Settings,
+        seed: u64,
+    ) -> Result<Model, IdentifyError> {
+        backend.run(&self.problem(priors), settings, &RunContext::quiet(seed))
+    }
+
+    /// [`Benchmark::recovery`] of a model that must be PWARX (test code:
+    /// panics otherwise).
+    pub fn score(&self, model: &Model) -> (f64, f64) {
+        self.recovery(as_pwarx(model))
+    }
+
     /// How `model` recovers the truth: the mode its regions give each
     /// regressor of the record against the true mode (after the best
     /// matching), and the largest relative parameter error of the matched
@@ -112,6 +131,23 @@ impl Benchmark {
             .map_or(f64::INFINITY, |p| p.max_relative_error);
         (accuracy, error)
     }
+}
+
+/// The PWARX model inside `model` (test code: panics for another kind).
+pub fn as_pwarx(model: &Model) -> &PwarxModel {
+    match model {
+        Model::Pwarx(p) => p,
+        other => panic!("a PWARX model, not {}", other.kind()),
+    }
+}
+
+/// The median of `v` (the upper one of an even count); `NaN` for none.
+pub fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }
 
 fn region(rows: &[(&[f64], f64)]) -> Polyhedron {
