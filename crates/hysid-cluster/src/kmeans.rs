@@ -22,6 +22,7 @@ use hysid_core::backend::Deadline;
 use rand::Rng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 /// Initialisation of the K-means centres.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -305,6 +306,11 @@ pub fn weighted_kmeans(
 
 /// [`weighted_kmeans`] that starts no restart after `deadline` (the first
 /// always runs); `restart_costs` of the result lists the restarts run.
+///
+/// The initial centres of every restart are drawn first, in restart order,
+/// from `rng`; the sweeps of the restarts then run in parallel (rayon).
+/// The restart of least cost is kept, the first of equal costs, so the
+/// result is the same for any thread count.
 pub fn weighted_kmeans_until(
     f: &FeatureVectors,
     s: usize,
@@ -314,100 +320,127 @@ pub fn weighted_kmeans_until(
     rng: &mut ChaCha8Rng,
     deadline: &Deadline,
 ) -> Clusters {
+    let av = weighted_features(f);
+    let starts: Vec<Vec<f64>> = (0..restarts.max(1))
+        .map(|_| initial_centres(f, &av, s, init, rng))
+        .collect();
+    let runs: Vec<Option<Clusters>> = starts
+        .into_par_iter()
+        .enumerate()
+        .map(|(r, centres)| {
+            (r == 0 || !deadline.passed()).then(|| sweeps(f, &av, s, max_iter, centres))
+        })
+        .collect();
+    let runs: Vec<Clusters> = runs.into_iter().map_while(|run| run).collect();
+    let restart_costs: Vec<f64> = runs.iter().map(|run| run.cost).collect();
+    let mut best = runs
+        .into_iter()
+        .reduce(|best, run| if run.cost < best.cost { run } else { best })
+        .expect("the first restart always runs");
+    best.restart_costs = restart_costs;
+    best
+}
+
+/// The initial centres of one restart (`s` rows of the feature dimension).
+fn initial_centres(
+    f: &FeatureVectors,
+    av: &[f64],
+    s: usize,
+    init: KmeansInit,
+    rng: &mut ChaCha8Rng,
+) -> Vec<f64> {
     let n = f.n_samples;
     let d = f.dim();
-    let av = weighted_features(f);
-    let mut best: Option<Clusters> = None;
-    let mut restart_costs = Vec::with_capacity(restarts.max(1));
-    let mut labels = vec![0usize; n];
-    for r in 0..restarts.max(1) {
-        if r > 0 && deadline.passed() {
-            break;
+    let mut centres = vec![0.0; s * d];
+    match init {
+        KmeansInit::Blocks => {
+            let mut perm: Vec<usize> = (0..n).collect();
+            perm.shuffle(rng);
+            let block = (n / s).max(1);
+            let block_labels: Vec<usize> = (0..n).map(|k| (k / block).min(s - 1)).collect();
+            update_centres(f, av, &block_labels, Some(&perm), &mut centres, s);
         }
-        let mut centres = vec![0.0; s * d];
-        match init {
-            KmeansInit::Blocks => {
-                let mut perm: Vec<usize> = (0..n).collect();
-                perm.shuffle(rng);
-                let block = (n / s).max(1);
-                let block_labels: Vec<usize> = (0..n).map(|k| (k / block).min(s - 1)).collect();
-                update_centres(f, &av, &block_labels, Some(&perm), &mut centres, s);
-            }
-            KmeansInit::PlusPlus => {
-                let first = rng.random_range(0..n);
-                centres[..d].copy_from_slice(f.xi(first));
-                let mut dmin: Vec<f64> = (0..n).map(|j| f.mahalanobis(j, &centres[..d])).collect();
-                for i in 1..s {
-                    let total: f64 = dmin.iter().sum();
-                    let pick = if total > 0.0 && total.is_finite() {
-                        let mut r = rng.random::<f64>() * total;
-                        let mut k = n - 1;
-                        for (j, &v) in dmin.iter().enumerate() {
-                            if r < v {
-                                k = j;
-                                break;
-                            }
-                            r -= v;
+        KmeansInit::PlusPlus => {
+            let first = rng.random_range(0..n);
+            centres[..d].copy_from_slice(f.xi(first));
+            let mut dmin: Vec<f64> = (0..n).map(|j| f.mahalanobis(j, &centres[..d])).collect();
+            for i in 1..s {
+                let total: f64 = dmin.iter().sum();
+                let pick = if total > 0.0 && total.is_finite() {
+                    let mut r = rng.random::<f64>() * total;
+                    let mut k = n - 1;
+                    for (j, &v) in dmin.iter().enumerate() {
+                        if r < v {
+                            k = j;
+                            break;
                         }
-                        k
-                    } else {
-                        rng.random_range(0..n)
-                    };
-                    centres[i * d..(i + 1) * d].copy_from_slice(f.xi(pick));
-                    for (j, m) in dmin.iter_mut().enumerate() {
-                        *m = m.min(f.mahalanobis(j, &centres[i * d..(i + 1) * d]));
+                        r -= v;
                     }
+                    k
+                } else {
+                    rng.random_range(0..n)
+                };
+                centres[i * d..(i + 1) * d].copy_from_slice(f.xi(pick));
+                for (j, m) in dmin.iter_mut().enumerate() {
+                    *m = m.min(f.mahalanobis(j, &centres[i * d..(i + 1) * d]));
                 }
             }
         }
-        let mut old_cost = f64::INFINITY;
-        let mut iterations = 0;
-        let mut converged = false;
-        let mut final_cost = None;
-        let mut old = vec![0.0; s * d];
-        for it in 0..max_iter.max(1) {
-            iterations = it + 1;
-            let (cost, changed) = assign(f, &centres, s, &mut labels);
-            if it > 0 && !changed {
-                // Same labels as the sweep before: the update would give
-                // the same centres again (a fixed point, which the rule
-                // below would stop at one or two sweeps later with these
-                // centres and labels), so stop now.
-                converged = true;
-                final_cost = Some(cost);
-                break;
-            }
-            old.copy_from_slice(&centres);
-            update_centres(f, &av, &labels, None, &mut centres, s);
-            let shift = old
-                .iter()
-                .zip(&centres)
-                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-            if it > 0 && shift < 1e-4 && (cost - old_cost).abs() < 1e-4 {
-                converged = true;
-                break;
-            }
-            old_cost = cost;
-        }
-        let cost = match final_cost {
-            Some(c) => c,
-            None => assign(f, &centres, s, &mut labels).0,
-        };
-        restart_costs.push(cost);
-        if best.as_ref().is_none_or(|b| cost < b.cost) {
-            best = Some(Clusters {
-                labels: labels.clone(),
-                count: s,
-                cost,
-                restart_costs: vec![],
-                iterations,
-                converged,
-            });
-        }
     }
-    let mut best = best.expect("at least one restart");
-    best.restart_costs = restart_costs;
-    best
+    centres
+}
+
+/// The sweeps of one restart from `centres`, until the stopping rule or
+/// `max_iter` sweeps.
+fn sweeps(
+    f: &FeatureVectors,
+    av: &[f64],
+    s: usize,
+    max_iter: usize,
+    mut centres: Vec<f64>,
+) -> Clusters {
+    let mut labels = vec![0usize; f.n_samples];
+    let mut old_cost = f64::INFINITY;
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut final_cost = None;
+    let mut old = vec![0.0; centres.len()];
+    for it in 0..max_iter.max(1) {
+        iterations = it + 1;
+        let (cost, changed) = assign(f, &centres, s, &mut labels);
+        if it > 0 && !changed {
+            // Same labels as the sweep before: the update would give the
+            // same centres again (a fixed point, which the rule below
+            // would stop at one or two sweeps later with these centres and
+            // labels), so stop now.
+            converged = true;
+            final_cost = Some(cost);
+            break;
+        }
+        old.copy_from_slice(&centres);
+        update_centres(f, av, &labels, None, &mut centres, s);
+        let shift = old
+            .iter()
+            .zip(&centres)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        if it > 0 && shift < 1e-4 && (cost - old_cost).abs() < 1e-4 {
+            converged = true;
+            break;
+        }
+        old_cost = cost;
+    }
+    let cost = match final_cost {
+        Some(c) => c,
+        None => assign(f, &centres, s, &mut labels).0,
+    };
+    Clusters {
+        labels,
+        count: s,
+        cost,
+        restart_costs: vec![],
+        iterations,
+        converged,
+    }
 }
 
 /// Single linkage on the Euclidean distance between feature vectors: the
@@ -512,6 +545,49 @@ mod tests {
     use crate::Features;
     use crate::local::feature_vectors;
     use rand::SeedableRng;
+
+    /// The restarts run in parallel: with one thread and with three, the
+    /// same restarts (costs bitwise), the same kept clustering; and the
+    /// kept one is a restart of least cost.
+    #[test]
+    fn restarts_are_the_same_with_any_thread_count() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let n = 2;
+        let x: Vec<f64> = (0..2000 * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let y: Vec<f64> = (0..2000)
+            .map(|j| {
+                let (a, b) = (x[j * n], x[j * n + 1]);
+                (if a + b > 0.3 {
+                    a - b
+                } else {
+                    0.5 * a + 2.0 * b + 1.0
+                }) + 0.05 * rng.random::<f64>()
+            })
+            .collect();
+        let f = feature_vectors(&x, n, &y, 12, Features::Fv, 1e-6);
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let mut rng = ChaCha8Rng::seed_from_u64(3);
+                    weighted_kmeans(&f, 3, 9, 100, KmeansInit::PlusPlus, &mut rng)
+                })
+        };
+        let (one, three) = (run(1), run(3));
+        let bits = |v: &[f64]| v.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&one.restart_costs), bits(&three.restart_costs));
+        assert_eq!(one.restart_costs.len(), 9);
+        assert_eq!(one.labels, three.labels);
+        assert_eq!(one.cost.to_bits(), three.cost.to_bits());
+        let least = one
+            .restart_costs
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(one.cost, least);
+    }
 
     /// The unrolled assignment gives the generic loop's labels and the very
     /// same cost bits, for every specialised block size and one generic.
