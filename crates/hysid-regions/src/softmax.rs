@@ -11,6 +11,10 @@
 //! invariant to adding a common affine function). Strictly convex in the
 //! normals and, with every mode present, in the offsets, so the minimiser is
 //! unique; Newton with backtracking converges globally.
+//!
+//! `exp` and `log` are the pure-Rust ones of the `libm` crate: glibc's
+//! dispatch to an AVX/FMA variant, which was up to 14 times slower per call
+//! when it followed the clustering steps (`docs/performance-cluster.md`).
 
 use crate::{Prepared, RegionError, SoftmaxSettings};
 use nalgebra::{DMatrix, DVector};
@@ -70,7 +74,7 @@ pub(crate) fn fit(
         for r in 0..n {
             scores(theta, prep.row(r), f);
             let m = f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let lse = m + f.iter().map(|v| (v - m).exp()).sum::<f64>().ln();
+            let lse = m + libm::log(f.iter().map(|v| libm::exp(v - m)).sum::<f64>());
             loss += omega[labels[r]] * (lse - f[labels[r]]);
         }
         let mut ridge = 0.0;
@@ -98,7 +102,7 @@ pub(crate) fn fit(
             let m = f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             let mut sum = 0.0;
             for (pi, fi) in prob.iter_mut().zip(&f) {
-                *pi = (fi - m).exp();
+                *pi = libm::exp(fi - m);
                 sum += *pi;
             }
             for pi in prob.iter_mut() {
