@@ -110,7 +110,7 @@ fn identify_is_byte_identical_across_runs_and_thread_counts() {
     // The iterative back-ends (K-means restarts and region estimation in
     // parallel; greedy extraction and QPs; swarm, Levenberg-Marquardt and
     // Nelder-Mead) as well as arx.
-    let cases: [(&str, &[&str]); 5] = [
+    let cases: [(&str, &[&str]); 6] = [
         ("arx", &["--na", "2", "--nb", "2", "--standardize"]),
         // Automatic selection: candidates scored in parallel, then the
         // refinement and the refit.
@@ -129,6 +129,19 @@ fn identify_is_byte_identical_across_runs_and_thread_counts() {
             ],
         ),
         ("cluster", &["--na", "1", "--nb", "1", "--modes", "2"]),
+        (
+            "cluster",
+            &[
+                "--na",
+                "1",
+                "--nb",
+                "1",
+                "--modes",
+                "2",
+                "--set",
+                "alternation=20",
+            ],
+        ),
         (
             "bounded",
             &[

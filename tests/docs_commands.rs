@@ -279,6 +279,14 @@ const NOT_RUN: &[(&str, &str)] = &[
         "a physical fit (8 s in release, over a minute in debug); its output is the committed head-fitted.json, validated in RUN",
     ),
     (
+        "hysid identify models/pick-and-place/headdata_1v6.mat -m cluster --na 2 --nb 2 --decimate 10 --rows 0..5000 --auto",
+        "an automatic selection with the alternation (7-14 s in release, minutes in debug); the figure of its validation below is one of five seeds in the text",
+    ),
+    (
+        "hysid validate m.json models/pick-and-place/headdata_1v6.mat",
+        "m.json is the model of the --auto command above it",
+    ),
+    (
         "hysid identify ident.csv",
         "ident.csv and valid.csv are files the reader makes from a simulated record, as the text describes",
     ),

@@ -11,6 +11,9 @@
 //! - `cluster_features`: steps 1 to 6, local datasets, local regressions
 //!   and feature vectors, clustering, mode datasets and discard, weighted
 //!   least squares, reattribution (`procedure::run_with`);
+//! - `alternate_partition`: the alternation of
+//!   `hysid_regions::alternate` from the clustering's mode datasets (off by
+//!   default; `alternation` bounds its rounds);
 //! - `estimate_regions`: step 7, the regions of the modes
 //!   (`hysid-regions`);
 //! - `refit_on_regions`: step 7 continued, the mode datasets made
@@ -20,13 +23,14 @@
 
 use crate::priors::ConstrainedFit;
 use crate::procedure::{self, ModeFit};
-use crate::{ClusterError, ClusterOptions, Clustering, Init, kmeans, local};
+use crate::{ClusterError, ClusterOptions, Clustering, Init, Weights, kmeans, local};
 use hysid_core::backend::{Deadline, IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::data::Standardization;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel, RunStatus};
+use hysid_regions::{AlternationSettings, AlternationStatus};
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -40,6 +44,10 @@ pub struct ClusterDiagnostics {
     pub c: usize,
     /// Modes asked for, the saturation modes included.
     pub modes_requested: usize,
+    /// With more ordinary samples than `cluster_points`: the samples the
+    /// clustering saw.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clustering_sample: Option<usize>,
     /// With known stops: the samples at no stop, which the procedure saw.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ordinary_samples: Option<usize>,
@@ -73,10 +81,24 @@ pub struct ClusterDiagnostics {
     pub region_training_accuracy: f64,
     /// Samples moved to the mode of their region by the region refit.
     pub region_refit_moved: usize,
+    /// The alternation after the clustering, when `alternation > 0`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub alternation: Option<AlternationReport>,
     /// Mode of every ordinary sample (`data.ordinary` order), after the
     /// region refit; not written to the model file.
     #[serde(skip)]
     pub labels: Vec<usize>,
+}
+
+/// What the alternation after the clustering did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AlternationReport {
+    /// Rounds run.
+    pub rounds: usize,
+    /// Samples whose mode it changed.
+    pub moved: usize,
+    /// Why it ended.
+    pub status: AlternationStatus,
 }
 
 /// The procedure on `data` with `s` modes in all (the known stops
@@ -93,26 +115,41 @@ pub fn fit(
     let (seed, deadline) = (ctx.seed, &ctx.deadline);
     let modes = ordinary_modes(data, s)?;
     let work = working_data(o, data)?;
-    let c = choose_c(o, data, &work, modes)?;
+    let sample = clustering_sample(o, &work);
+    let seen = sample.as_ref().unwrap_or(&work);
+    let c = choose_c(o, data, seen, modes)?;
     check_sample_count(&work, modes)?;
-    let prior_fit = prior_fit(data, &work, modes)?;
+    let prior_fit = prior_fit(data, seen, modes)?;
     ctx.progress.start(3, "cluster: clustering, regions, refit");
-    let mut clustered = cluster_features(o, &work, c, modes, seed, deadline, prior_fit.as_ref())?;
+    let mut clustered = cluster_features(o, seen, c, modes, seed, deadline, prior_fit.as_ref())?;
     check_modes_found(o, &clustered, s, modes, c)?;
+    let alternation =
+        alternate_partition(o, data, seen, &mut clustered, prior_fit.as_ref(), deadline)?;
     ctx.progress.advance(1);
-    let regions = estimate_regions(o, data, &work, &clustered, deadline)?;
+    let regions = estimate_regions(o, data, seen, &clustered, deadline)?;
     ctx.progress.advance(1);
     let region_refit_moved = if o.region_refit && modes > 1 {
         refit_on_regions(
             o,
-            &work,
+            seen,
             &mut clustered,
             &regions.polyhedra,
             prior_fit.as_ref(),
+            o.weights,
         )?
     } else {
         0
     };
+    if sample.is_some() {
+        let all_prior_fit = self::prior_fit(data, &work, modes)?;
+        extend_to_all(
+            o,
+            &work,
+            &mut clustered,
+            &regions.polyhedra,
+            all_prior_fit.as_ref(),
+        )?;
+    }
     ctx.progress.advance(1);
     ctx.progress.finish();
     let uncovered_fraction = (!regions.complete).then(|| holes(&work, &regions.polyhedra, seed));
@@ -121,6 +158,7 @@ pub fn fit(
     let diagnostics = ClusterDiagnostics {
         c,
         modes_requested: s,
+        clustering_sample: sample.as_ref().map(|w| w.y.len()),
         ordinary_samples: (data.stops() > 0).then_some(work.y.len()),
         degenerate_local_datasets: d.degenerate.total,
         degenerate_noise_free: d.degenerate.noise_free,
@@ -137,6 +175,7 @@ pub fn fit(
         reattributed_fraction: d.reattributed_fraction,
         region_training_accuracy: regions.training_accuracy,
         region_refit_moved,
+        alternation,
         labels: std::mem::take(&mut clustered.labels),
     };
     Ok(PwarxFit {
@@ -179,6 +218,9 @@ fn ordinary_modes(data: &PwarxData<'_>, s: usize) -> Result<usize, IdentifyError
 
 /// The ordinary samples in working units.
 struct Working {
+    /// Positions in `data.ordinary` of these samples (all of them, or the
+    /// clustering sample of [`clustering_sample`]).
+    rows: Vec<usize>,
     /// Data units to working units (the identity with `scale = false`).
     scale: Standardization,
     /// Regressor dimension `n`.
@@ -225,12 +267,55 @@ fn working_data(o: &ClusterOptions, data: &PwarxData<'_>) -> Result<Working, Ide
         .collect();
     let y: Vec<f64> = data.ordinary.iter().map(|&r| reg.y[r]).collect();
     Ok(Working {
+        rows: (0..y.len()).collect(),
         scale,
         n,
         xs: DMatrix::from_row_slice(y.len(), n, &x),
         x,
         y,
     })
+}
+
+/// With more than `cluster_points` ordinary samples, every
+/// `ceil(N / cluster_points)`-th: the samples steps 1 to 7 see. The default
+/// `c` grows like `sqrt(N)`, so the local datasets cost `O(N^1.5)`; on a
+/// sample their cost is bounded, and every sample is given its mode by the
+/// regions afterwards ([`extend_to_all`]). `None` with fewer samples.
+fn clustering_sample(o: &ClusterOptions, work: &Working) -> Option<Working> {
+    let (big_n, n) = (work.y.len(), work.n);
+    let max = o.cluster_points;
+    if max == 0 || big_n <= max {
+        return None;
+    }
+    let rows: Vec<usize> = (0..big_n).step_by(big_n.div_ceil(max)).collect();
+    let x: Vec<f64> = rows
+        .iter()
+        .flat_map(|&j| work.x[j * n..(j + 1) * n].iter().copied())
+        .collect();
+    Some(Working {
+        scale: work.scale.clone(),
+        n,
+        xs: DMatrix::from_row_slice(rows.len(), n, &x),
+        x,
+        y: rows.iter().map(|&j| work.y[j]).collect(),
+        rows,
+    })
+}
+
+/// Every sample of `work` to the mode of its region, and the parameters
+/// re-estimated by ordinary least squares (under the priors) on these mode
+/// datasets: the end of a run on a clustering sample, whose confidences
+/// exist only for the sample.
+fn extend_to_all(
+    o: &ClusterOptions,
+    work: &Working,
+    fit: &mut ModeFit,
+    regions: &[Polyhedron],
+    prior_fit: Option<&ConstrainedFit>,
+) -> Result<(), IdentifyError> {
+    fit.labels = vec![0; work.y.len()];
+    refit_on_regions(o, work, fit, regions, prior_fit, Weights::Uniform)?;
+    Ok(())
 }
 
 /// The local dataset size: the option, or [`default_c`]; between `n+2`
@@ -311,12 +396,12 @@ fn prior_fit(
     }
     let priors = data.priors();
     let (n, reg) = (work.n, &data.regressors);
-    let x = data
-        .ordinary
-        .iter()
-        .flat_map(|&r| (0..n).map(move |k| reg.x[(r, k)]))
+    let rows = work.rows.iter().map(|&j| data.ordinary[j]);
+    let x = rows
+        .clone()
+        .flat_map(|r| (0..n).map(move |k| reg.x[(r, k)]))
         .collect();
-    let y = data.ordinary.iter().map(|&r| reg.y[r]).collect();
+    let y = rows.map(|r| reg.y[r]).collect();
     ConstrainedFit::new(priors, data.spec, x, y, &work.scale, modes)
         .map(Some)
         .map_err(|e| data.prior_error(e))
@@ -389,6 +474,63 @@ fn check_modes_found(
     Ok(())
 }
 
+/// The alternation of [`hysid_regions::alternate`] from the clustering's
+/// mode datasets, when `alternation > 0`: ordinary least squares per mode
+/// under the priors, a softmax gate, every sample to its mode of least
+/// cost, for at most `alternation` rounds. The mode datasets it ends with
+/// replace the clustering's, and the parameters are estimated on them as
+/// in step 4.
+fn alternate_partition(
+    o: &ClusterOptions,
+    data: &PwarxData<'_>,
+    work: &Working,
+    fit: &mut ModeFit,
+    prior_fit: Option<&ConstrainedFit>,
+    deadline: &Deadline,
+) -> Result<Option<AlternationReport>, IdentifyError> {
+    let modes = fit.theta.len();
+    if o.alternation == 0 || modes < 2 {
+        return Ok(None);
+    }
+    let settings = AlternationSettings {
+        switching: data.switching.clone(),
+        deadline: deadline.clone(),
+        ..AlternationSettings::new(o.alternation, work.n + 1)
+    };
+    let features = &fit.features;
+    let least_squares = |labels: &[usize], weights: Weights| {
+        procedure::fit_modes_with(
+            &work.x,
+            work.n,
+            &work.y,
+            features,
+            labels,
+            modes,
+            o.min_weight,
+            weights,
+            prior_fit,
+        )
+        .map_err(|e| IdentifyError::failed(e.to_string()))
+    };
+    let out = hysid_regions::alternate(
+        &work.xs,
+        &work.y,
+        fit.labels.clone(),
+        modes,
+        &settings,
+        |labels| least_squares(labels, Weights::Uniform).map(|t| t.working),
+    )?;
+    let theta = least_squares(&out.labels, o.weights)?;
+    fit.labels = out.labels;
+    fit.theta = theta.working;
+    fit.theta_original = theta.original;
+    Ok(Some(AlternationReport {
+        rounds: out.rounds,
+        moved: out.moved,
+        status: out.status,
+    }))
+}
+
 /// The regions of the modes, in working units.
 struct Regions {
     polyhedra: Vec<Polyhedron>,
@@ -446,6 +588,7 @@ fn refit_on_regions(
     fit: &mut ModeFit,
     regions: &[Polyhedron],
     prior_fit: Option<&ConstrainedFit>,
+    weights: Weights,
 ) -> Result<usize, IdentifyError> {
     let (n, modes) = (work.n, fit.theta.len());
     let mut moved = 0;
@@ -478,7 +621,7 @@ fn refit_on_regions(
             &fit.labels,
             modes,
             o.min_weight,
-            o.weights,
+            weights,
             prior_fit,
         )
         .map_err(|e| IdentifyError::failed(e.to_string()))?;

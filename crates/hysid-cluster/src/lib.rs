@@ -143,6 +143,14 @@ hysid_estimation::pwarx_options! {
         /// it and re-estimate the parameters on these mode datasets (deviation from HIT: HIT
         /// keeps the clustering's mode datasets, whose stray points bias the parameters).
         region_refit: bool = true,
+        /// Bound on the rounds of the alternation between the modes' parameters, a softmax
+        /// gate and the mode of every sample that follows the clustering (docs/cluster.md,
+        /// "Alternation"); 0: none.
+        alternation: usize = 0,
+        /// With more samples than this, steps 1 to 7 run on every ceil(N / cluster_points)-th
+        /// sample and every sample then goes to the mode of its region (docs/cluster.md,
+        /// "Large records"); 0: every sample.
+        cluster_points: usize = 1_000_000,
         /// Weights of the per-mode least squares: capped (w_j relative to the mode's median
         /// confidence, capped at 1), confidence (HIT: w_j) or uniform.
         weights: Weights = Weights::Confidence,

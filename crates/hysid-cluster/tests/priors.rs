@@ -106,13 +106,15 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(16))]
 
     /// Ties hold to 1e-9 (bitwise, in fact) and fixed values come back
-    /// unchanged in the returned model; bounds hold.
+    /// unchanged in the returned model; bounds hold; with and without the
+    /// alternation after the clustering.
     #[test]
     fn ties_fixed_and_bounds_hold_in_the_model(
         seed in 0u64..1000,
         c in -2.0f64..2.0,
         hi in 0.0f64..1.0,
         scale in any::<bool>(),
+        alternation in prop_oneof![Just(0usize), Just(20)],
     ) {
         let b = b1(180, 4.0, Noise::Uniform(0.1), seed);
         let mut p = b1_priors(3);
@@ -121,7 +123,7 @@ proptest! {
         p.bounds.insert("b1".into(), [-1.0, hi]);
         // discard=0: the constrained fits may leave a small cluster, which the
         // exact mode count would refuse; the property is about the priors.
-        let set = ["restarts=3".to_string(), "discard=0".to_string(), format!("scale={scale}")];
+        let set = ["restarts=3".to_string(), "discard=0".to_string(), format!("scale={scale}"), format!("alternation={alternation}")];
         let set: Vec<&str> = set.iter().map(String::as_str).collect();
         let m = pwarx(run(&b.data, RegressorSpec::new(1, 1, 1), &p, &set).unwrap());
         let a0 = m.modes[0].theta[0];
@@ -134,7 +136,8 @@ proptest! {
 
     /// Random `[[equality]]` entries (among one mode's parameters, in every
     /// mode), with or without a tie and in working units scaled or not:
-    /// every equality holds to 1e-9 in every identified mode.
+    /// every equality holds to 1e-9 in every identified mode, with and
+    /// without the alternation.
     #[test]
     fn random_equalities_hold(
         seed in 0u64..1000,
@@ -143,6 +146,7 @@ proptest! {
         v in -1.0f64..1.0,
         tie in any::<bool>(),
         scale in any::<bool>(),
+        alternation in prop_oneof![Just(0usize), Just(20)],
     ) {
         let b = b1(180, 4.0, Noise::Uniform(0.1), seed);
         let mut p = b1_priors(3);
@@ -153,7 +157,7 @@ proptest! {
         if tie {
             p.tie.push(Tie { params: vec!["b1".into()] });
         }
-        let set = ["restarts=3".to_string(), format!("scale={scale}")];
+        let set = ["restarts=3".to_string(), format!("scale={scale}"), format!("alternation={alternation}")];
         let set: Vec<&str> = set.iter().map(String::as_str).collect();
         let m = pwarx(run(&b.data, RegressorSpec::new(1, 1, 1), &p, &set).unwrap());
         let b0 = m.modes[0].theta[1];

@@ -1,6 +1,6 @@
-"""hysid's `parc` (and `cluster`) beside PyPARC 2.0.4 on the same records,
+"""hysid's `parc` and `cluster` beside PyPARC 2.0.4 on the same records,
 in one run: identification time end to end and mode accuracy on a fresh
-record (docs/parc.md, "Beside PyPARC"). Not run in CI; PyPARC is not a
+record (docs/parc.md, "Beside PyPARC"; docs/performance.md). Not run in CI; PyPARC is not a
 dependency of the repository.
 
 The record: a 3-mode PWARX system, na = 2, nb = 1, regressor
@@ -96,15 +96,21 @@ def main():
     truth = mf[2:]
     exe = str(REPO / "target" / "release" / "hysid")
     rows = []
-    for label, method in [("hysid parc, K = 3", "parc"), ("hysid cluster, 3 modes", "cluster")]:
+    runs = [
+        ("hysid parc, K = 3", "parc", []),
+        ("hysid cluster, 3 modes", "cluster", []),
+        ("hysid cluster, 3 modes, alternation = 50", "cluster", ["--set", "alternation=50"]),
+    ]
+    for k, (label, method, extra) in enumerate(runs):
         times = []
+        model = d / f"{k}.json"
         for _ in range(a.repeats):
             t = time.perf_counter()
             subprocess.run([exe, "identify", str(d / "train.csv"), "-m", method, "--modes", "3", "--na", "2",
-                            "--nb", "1", "--seed", "1", "-o", str(d / f"{method}.json")], check=True,
+                            "--nb", "1", "--seed", "1", *extra, "-o", str(model)], check=True,
                            capture_output=True)
             times.append(time.perf_counter() - t)
-        found = classify(hysid_regions(d / f"{method}.json"), Xf)
+        found = classify(hysid_regions(model), Xf)
         rows.append((label, statistics.median(times), accuracy(truth, found, 3)))
     times = []
     for _ in range(a.repeats):
@@ -120,7 +126,8 @@ def main():
     print("|---|---|---|")
     for label, t, acc in rows:
         print(f"| {label} | {t:.3f} | {100 * acc:.1f} % |")
-    print(f"PyPARC / hysid parc time: {rows[2][1] / rows[0][1]:.0f}")
+    for label, t, _ in rows[:-1]:
+        print(f"PyPARC / {label}: {rows[-1][1] / t:.0f} times the time")
 
 
 if __name__ == "__main__":

@@ -56,8 +56,10 @@ use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 
 pub use adjacency::adjacency;
+pub use alternation::{Alternation, AlternationSettings, AlternationStatus, alternate};
 
 mod adjacency;
+mod alternation;
 mod psvc;
 mod simplex;
 mod softmax;
