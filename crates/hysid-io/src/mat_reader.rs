@@ -3,6 +3,7 @@
 
 use super::{DataError, RawTable};
 use matrw::MatVariable;
+use rayon::prelude::*;
 use std::path::Path;
 
 /// The text matrw requires at the start of a level-5 header. The level-5
@@ -30,10 +31,10 @@ fn other_format(bytes: &[u8]) -> Option<&'static str> {
     }
 }
 
-/// `bytes` with the header text starting as matrw expects it
-/// ([`LEVEL5_TEXT`]); the rest of the file unchanged.
-fn with_standard_header_text(bytes: &[u8]) -> Vec<u8> {
-    let mut out = bytes.to_vec();
+/// The 128-byte header of `bytes` with its text starting as matrw expects
+/// it ([`LEVEL5_TEXT`]).
+fn standard_header(bytes: &[u8]) -> Vec<u8> {
+    let mut out = bytes[..128].to_vec();
     out[..LEVEL5_TEXT.len()].copy_from_slice(LEVEL5_TEXT);
     out
 }
@@ -68,25 +69,35 @@ pub(crate) fn read_bytes(
     if let Some(kind) = other_format(bytes) {
         return Err(perr(String::new(), kind.to_string()));
     }
-    let bytes = &with_standard_header_text(bytes);
     // matrw trusts the sizes written in the file and reserves them before
     // reading (a 211-byte file found by fuzzing asked for 3.9 GB): check
-    // that every element fits inside its parent first.
+    // that every element fits inside its parent first. The walk also
+    // inflates each compressed variable once, and matrw is given the
+    // inflated stream, which it parses as it would the compressed file
+    // after inflating it itself.
     let little_endian = &bytes[126..128] != b"MI";
-    check_elements(&bytes[128..], 128, little_endian, 0).map_err(|m| {
-        perr(
-            String::new(),
-            format!("not a readable level-5 MAT-file: {m}"),
-        )
-    })?;
+    let mut stream = standard_header(bytes);
+    let compressed = check_elements(&bytes[128..], 128, little_endian, 0, Some(&mut stream))
+        .map_err(|m| {
+            perr(
+                String::new(),
+                format!("not a readable level-5 MAT-file: {m}"),
+            )
+        })?;
+    let bytes = &stream;
     // matrw also wanders: binrw checks a variable's type only after reading
     // all its fields, and tries nine variable kinds at each position, so it
     // reads names and data at places no declared size leads to (the fifth
     // out-of-memory input from fuzzing). Check every read it could reach.
     check_matrw_reads(&bytes[128..], 128, little_endian, 0).map_err(|m| {
+        let offsets = if compressed {
+            " (byte offsets of the file with its compressed variables inflated)"
+        } else {
+            ""
+        };
         perr(
             String::new(),
-            format!("not a readable level-5 MAT-file: {m}"),
+            format!("not a readable level-5 MAT-file: {m}{offsets}"),
         )
     })?;
     // matrw is a third-party parser: a malformed file must still end in an
@@ -158,15 +169,26 @@ const MAX_DEPTH: usize = 16;
 /// Largest inflated miCOMPRESSED element accepted (4 GiB).
 const MAX_INFLATED: u64 = 1 << 32;
 
-/// Walks the data elements of a level-5 MAT-file ("MAT-File Format",
-/// MathWorks, ch. 1: an 8-byte tag with type and byte count, or a small
-/// element packing both in 4 bytes) and checks that every declared size
-/// fits inside its parent: the file, an miMATRIX element, or the inflated
-/// content of an miCOMPRESSED element. `base` is the offset of `buf` in the
-/// file, for the message.
-fn check_elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<(), String> {
-    const MI_MATRIX: u32 = 14;
-    const MI_COMPRESSED: u32 = 15;
+/// miMATRIX, an array (variable, cell or structure field).
+const MI_MATRIX: u32 = 14;
+/// miCOMPRESSED, a zlib stream holding one element.
+const MI_COMPRESSED: u32 = 15;
+
+/// One data element of a level-5 stream: its tag at `pos`, the kind read
+/// from the low byte of the type (as matrw reads it), and its body
+/// `start..end` (the 4 data bytes of a small element).
+struct Element {
+    pos: usize,
+    kind: u32,
+    start: usize,
+    end: usize,
+    /// Where the next element starts.
+    next: usize,
+}
+
+/// The elements of `buf` one after the other, each checked to fit inside
+/// `buf` (see [`check_elements`]).
+fn elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<Vec<Element>, String> {
     let word = |at: usize| -> u32 {
         let b = [buf[at], buf[at + 1], buf[at + 2], buf[at + 3]];
         if le {
@@ -175,13 +197,14 @@ fn check_elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<(),
             u32::from_be_bytes(b)
         }
     };
+    let mut out = Vec::new();
     let mut pos = 0;
     while pos < buf.len() {
         let rest = buf.len() - pos;
         if rest < 8 {
             // Padding at the end of a parent is fine; a cut tag is not.
             if depth > 0 && buf[pos..].iter().all(|&b| b == 0) {
-                return Ok(());
+                break;
             }
             return Err(format!(
                 "the element at byte {} is cut ({rest} bytes left, a tag has 8)",
@@ -194,6 +217,13 @@ fn check_elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<(),
         let kind = ty & 0xff;
         if ty >> 16 != 0 && kind != MI_MATRIX && kind != MI_COMPRESSED {
             // Small data element: type and size in 4 bytes, data in the next 4.
+            out.push(Element {
+                pos,
+                kind,
+                start: pos + 4,
+                end: pos + 8,
+                next: pos + 8,
+            });
             pos += 8;
             continue;
         }
@@ -206,40 +236,113 @@ fn check_elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<(),
                 buf.len() - start
             ));
         }
-        let body = &buf[start..start + n];
-        match kind {
-            MI_MATRIX if depth < MAX_DEPTH => {
+        let end = start + n;
+        let next = if kind == MI_COMPRESSED {
+            end
+        } else {
+            end.next_multiple_of(8).min(buf.len())
+        };
+        out.push(Element {
+            pos,
+            kind,
+            start,
+            end,
+            next,
+        });
+        pos = next;
+    }
+    Ok(out)
+}
+
+/// The inflated content of the miCOMPRESSED element `body` at file byte
+/// `at`, at most [`MAX_INFLATED`] bytes.
+///
+/// The content is one element whose tag declares its size: the buffer is
+/// reserved from it once (within the limit) instead of growing by copies.
+fn inflate(body: &[u8], at: usize, le: bool) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let fail =
+        |e: std::io::Error| format!("the compressed element at byte {at} does not inflate: {e}");
+    let mut stream = flate2::read::ZlibDecoder::new(body).take(MAX_INFLATED);
+    let mut inflated = Vec::new();
+    (&mut stream)
+        .take(8)
+        .read_to_end(&mut inflated)
+        .map_err(fail)?;
+    if let Some(tag) = inflated.get(4..8) {
+        let b = [tag[0], tag[1], tag[2], tag[3]];
+        let n = if le {
+            u32::from_le_bytes(b)
+        } else {
+            u32::from_be_bytes(b)
+        };
+        inflated.reserve(n as usize);
+    }
+    stream.read_to_end(&mut inflated).map_err(fail)?;
+    Ok(inflated)
+}
+
+/// Walks the data elements of a level-5 MAT-file ("MAT-File Format",
+/// MathWorks, ch. 1: an 8-byte tag with type and byte count, or a small
+/// element packing both in 4 bytes) and checks that every declared size
+/// fits inside its parent: the file, an miMATRIX element, or the inflated
+/// content of an miCOMPRESSED element. `base` is the offset of `buf` in the
+/// file, for the message. The compressed elements of the file (one per
+/// variable) are inflated in parallel (rayon). With `out`, the elements are
+/// appended to it, each miCOMPRESSED one replaced by its inflated content
+/// padded to 8 bytes; returns whether there was one.
+fn check_elements(
+    buf: &[u8],
+    base: usize,
+    le: bool,
+    depth: usize,
+    mut out: Option<&mut Vec<u8>>,
+) -> Result<bool, String> {
+    let list = elements(buf, base, le, depth)?;
+    let inflated: Vec<Option<Result<Vec<u8>, String>>> = list
+        .par_iter()
+        .map(|e| {
+            (e.kind == MI_COMPRESSED && depth == 0)
+                .then(|| inflate(&buf[e.start..e.end], base + e.pos, le))
+        })
+        .collect();
+    if let Some(out) = out.as_deref_mut() {
+        let size = |(e, inflated): (&Element, &Option<Result<Vec<u8>, String>>)| match inflated {
+            Some(Ok(v)) => v.len() + 8,
+            _ => e.next - e.pos,
+        };
+        out.reserve(list.iter().zip(&inflated).map(size).sum());
+    }
+    let mut compressed = false;
+    for (e, inflated) in list.iter().zip(inflated) {
+        match (e.kind, inflated) {
+            (_, Some(inflated)) => {
+                let inflated = inflated?;
+                check_elements(&inflated, 0, le, depth + 1, None).map_err(|m| {
+                    format!("in the compressed element at byte {}: {m}", base + e.pos)
+                })?;
+                compressed = true;
+                if let Some(out) = out.as_deref_mut() {
+                    out.extend_from_slice(&inflated);
+                    out.resize(out.len().next_multiple_of(8), 0);
+                }
+                continue;
+            }
+            (MI_MATRIX, None) if depth < MAX_DEPTH => {
                 // matrw reads an array's sub-elements one after the other
                 // without bounding them by the array's own size: check the
                 // first five (flags, dimensions, name, data) against all
                 // that follows, too.
-                check_sequence(&buf[start..], base + start, le, 5)?;
-                check_elements(body, base + start, le, depth + 1)?
-            }
-            MI_COMPRESSED if depth == 0 => {
-                use std::io::Read;
-                let mut inflated = Vec::new();
-                flate2::read::ZlibDecoder::new(body)
-                    .take(MAX_INFLATED)
-                    .read_to_end(&mut inflated)
-                    .map_err(|e| {
-                        format!(
-                            "the compressed element at byte {} does not inflate: {e}",
-                            base + pos
-                        )
-                    })?;
-                check_elements(&inflated, 0, le, depth + 1).map_err(|e| {
-                    format!("in the compressed element at byte {}: {e}", base + pos)
-                })?;
+                check_sequence(&buf[e.start..], base + e.start, le, 5)?;
+                check_elements(&buf[e.start..e.end], base + e.start, le, depth + 1, None)?;
             }
             _ => {}
         }
-        pos = start + n;
-        if kind != MI_COMPRESSED {
-            pos = pos.next_multiple_of(8).min(buf.len());
+        if let Some(out) = out.as_deref_mut() {
+            out.extend_from_slice(&buf[e.pos..e.next]);
         }
     }
-    Ok(())
+    Ok(compressed)
 }
 
 /// The first `count` element tags of `buf`, each checked to fit in what
@@ -394,7 +497,9 @@ fn check_matrw_reads(buf: &[u8], origin: usize, le: bool, depth: usize) -> Resul
             .filter(|&n| n <= left(r + 4))
             .map(|n| r + 4 + n))
     };
-    for p in 0..buf.len().saturating_sub(8) {
+    // Every position is independent: runs of positions are checked in
+    // parallel (rayon), and the first error in file order is reported.
+    let check_at = |p: usize| -> Result<(), String> {
         if byte(p) == Some(15)
             && let Some(n) = u32e(p + 4)
         {
@@ -404,16 +509,18 @@ fn check_matrw_reads(buf: &[u8], origin: usize, le: bool, depth: usize) -> Resul
             && u32e(p + 12) == Some(8)
             && byte(p + 16).is_some_and(|c| (1..=17).contains(&c));
         if !flags {
-            continue;
+            return Ok(());
         }
         // Objects: name, 8 bytes, class name.
         if let Some(end) = name(p + 24)? {
             name(align(end) + 8)?;
         }
         // Everything else: dimensions, name, then data.
-        let Some(end) = dims(p + 24) else { continue };
+        let Some(end) = dims(p + 24) else {
+            return Ok(());
+        };
         let Some(end) = name(align(end))? else {
-            continue;
+            return Ok(());
         };
         let r = align(end);
         if let Some(end) = data(r)? {
@@ -424,8 +531,16 @@ fn check_matrw_reads(buf: &[u8], origin: usize, le: bool, depth: usize) -> Resul
         {
             data(align(jc))?;
         }
-    }
-    Ok(())
+        Ok(())
+    };
+    const RUN: usize = 1 << 20;
+    let last = buf.len().saturating_sub(8);
+    (0..last.div_ceil(RUN))
+        .into_par_iter()
+        .map(|r| (r * RUN..((r + 1) * RUN).min(last)).try_for_each(&check_at))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect()
 }
 
 /// A miCOMPRESSED variable matrw may find at byte `at` (`body` follows its
@@ -693,7 +808,7 @@ mod tests {
             files.push(std::fs::read(&p).unwrap());
         }
         for b in files {
-            super::check_elements(&b[128..], 128, true, 0).unwrap();
+            super::check_elements(&b[128..], 128, true, 0, None).unwrap();
             super::check_matrw_reads(&b[128..], 128, true, 0).unwrap();
         }
     }
