@@ -166,6 +166,9 @@ pub(crate) fn read_bytes(
 
 /// Nesting depth of miMATRIX elements (cells and structures) checked.
 const MAX_DEPTH: usize = 16;
+/// Largest ratio of inflated to deflated size (RFC 1951: a 258-byte match
+/// in 2 bits at best, about 1032 to 1).
+const MAX_DEFLATE_RATIO: usize = 1032;
 /// Largest inflated miCOMPRESSED element accepted (4 GiB).
 const MAX_INFLATED: u64 = 1 << 32;
 
@@ -258,7 +261,9 @@ fn elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<Vec<Eleme
 /// `at`, at most [`MAX_INFLATED`] bytes.
 ///
 /// The content is one element whose tag declares its size: the buffer is
-/// reserved from it once (within the limit) instead of growing by copies.
+/// reserved from it once instead of growing by copies, but never beyond
+/// what `body` can inflate to (deflate expands at most 1032 times), so a
+/// forged size reserves nothing a real stream would not fill.
 fn inflate(body: &[u8], at: usize, le: bool) -> Result<Vec<u8>, String> {
     use std::io::Read;
     let fail =
@@ -276,7 +281,7 @@ fn inflate(body: &[u8], at: usize, le: bool) -> Result<Vec<u8>, String> {
         } else {
             u32::from_be_bytes(b)
         };
-        inflated.reserve(n as usize);
+        inflated.reserve((n as usize).min(body.len().saturating_mul(MAX_DEFLATE_RATIO)));
     }
     stream.read_to_end(&mut inflated).map_err(fail)?;
     Ok(inflated)
