@@ -9,12 +9,13 @@
 //! regions), so the stage times add up to about the end-to-end time.
 //!
 //! ```text
-//! cargo run --release -p hysid-cluster --example cluster_scaling [-- N N ... [c=K] [reps=R] [svg=FILE]]
+//! cargo run --release -p hysid-cluster --example cluster_scaling [-- N N ... [c=K] [points=P] [reps=R] [svg=FILE]]
 //! ```
 //!
 //! Each N is run `reps` times (default 1) and the fastest time of every
 //! column is printed (the least disturbed by other load on the machine).
-//! `svg=FILE` draws the stage times against N on log-log axes.
+//! `points=P` sets `cluster_points` (0: cluster every sample); `svg=FILE`
+//! draws the stage times against N on log-log axes.
 
 use hysid_cluster::kmeans::{KmeansInit, weighted_kmeans};
 use hysid_cluster::local::feature_vectors;
@@ -45,6 +46,9 @@ fn main() {
         .find_map(|a| a.strip_prefix("reps=").and_then(|v| v.parse().ok()))
         .unwrap_or(1)
         .max(1);
+    let points: Option<usize> = args
+        .iter()
+        .find_map(|a| a.strip_prefix("points=").and_then(|v| v.parse().ok()));
     let svg: Option<String> = args
         .iter()
         .find_map(|a| a.strip_prefix("svg=").map(str::to_string));
@@ -69,7 +73,7 @@ fn main() {
         let reg = orders.build(&sc.apply(&ex.data)).unwrap();
         let d = orders.dim();
         // The back-end's clustering sample (all rows up to cluster_points).
-        let points = defaults.cluster_points;
+        let points = points.unwrap_or(defaults.cluster_points);
         let stride = if points > 0 && reg.len() > points {
             reg.len().div_ceil(points)
         } else {
@@ -101,10 +105,11 @@ fn main() {
             weights: defaults.weights,
             deadline: hysid_core::backend::Deadline::none(),
         };
-        let settings_all = match fixed_c {
-            Some(c) => Settings::from_pairs(vec![("c".into(), c.to_string())]),
-            None => Settings::default(),
-        };
+        let mut pairs = vec![("cluster_points".to_string(), points.to_string())];
+        if let Some(c) = fixed_c {
+            pairs.push(("c".into(), c.to_string()));
+        }
+        let settings_all = Settings::from_pairs(pairs);
         let (mut tl, mut tk, mut tp, mut tr, mut ta) = (vec![], vec![], vec![], vec![], vec![]);
         let (mut acc_labels, mut acc) = (0.0, 0.0);
         for _ in 0..reps {

@@ -5,6 +5,8 @@
 //!
 //! - `working_data`: the ordinary samples in working units (standardised
 //!   by default), where distances between regressors are compared;
+//! - `clustering_sample`: above `cluster_points` samples, the every-k-th
+//!   sample the steps up to the region refit see;
 //! - `choose_c`: the size `c` of the local datasets;
 //! - `prior_fit`: the gray-box priors of the weighted least squares, in
 //!   data units (`ConstrainedFit`);
@@ -18,6 +20,8 @@
 //!   (`hysid-regions`);
 //! - `refit_on_regions`: step 7 continued, the mode datasets made
 //!   consistent with the regions and the parameters re-estimated;
+//! - `extend_to_all`: after a run on a clustering sample, every sample to
+//!   the mode of its region, and the parameters refitted on all of them;
 //! - `holes`: the part of the data box no region covers;
 //! - `modes_in_data_units`: step 8, the modes mapped back to data units.
 
@@ -105,7 +109,9 @@ pub struct AlternationReport {
 /// included, as the prior `modes` counts them), seeded by `ctx.seed`. No
 /// K-means restart and no region round starts after `ctx.deadline`; the
 /// run then reports `RunStatus::TimeBudget`. Its three steps (clustering,
-/// regions, region refit) advance `ctx.progress`.
+/// regions, region refit) advance `ctx.progress`. With more than
+/// `cluster_points` samples the steps before the region refit see the
+/// clustering sample (`clustering_sample`).
 pub fn fit(
     o: &ClusterOptions,
     data: &PwarxData<'_>,
@@ -141,14 +147,7 @@ pub fn fit(
         0
     };
     if sample.is_some() {
-        let all_prior_fit = self::prior_fit(data, &work, modes)?;
-        extend_to_all(
-            o,
-            &work,
-            &mut clustered,
-            &regions.polyhedra,
-            all_prior_fit.as_ref(),
-        )?;
+        extend_to_all(o, data, &work, &mut clustered, &regions.polyhedra, modes)?;
     }
     ctx.progress.advance(1);
     ctx.progress.finish();
@@ -308,13 +307,15 @@ fn clustering_sample(o: &ClusterOptions, work: &Working) -> Option<Working> {
 /// exist only for the sample.
 fn extend_to_all(
     o: &ClusterOptions,
+    data: &PwarxData<'_>,
     work: &Working,
     fit: &mut ModeFit,
     regions: &[Polyhedron],
-    prior_fit: Option<&ConstrainedFit>,
+    modes: usize,
 ) -> Result<(), IdentifyError> {
+    let prior_fit = prior_fit(data, work, modes)?;
     fit.labels = vec![0; work.y.len()];
-    refit_on_regions(o, work, fit, regions, prior_fit, Weights::Uniform)?;
+    refit_on_regions(o, work, fit, regions, prior_fit.as_ref(), Weights::Uniform)?;
     Ok(())
 }
 
