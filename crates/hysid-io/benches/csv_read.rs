@@ -12,6 +12,8 @@
 //! - `csv_only`: the baseline, the csv crate reading the same file into
 //!   three `f64` columns (one reused `ByteRecord`, `str::parse::<f64>`).
 
+mod signals;
+
 use divan::Bencher;
 use divan::counter::BytesCount;
 use hysid_io::load;
@@ -48,18 +50,7 @@ fn main() {
 fn data(rows: usize) -> String {
     let mut text = String::with_capacity(rows * 48);
     text.push_str("t,u,y\n");
-    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
-    let (mut u, mut y) = (0.0_f64, 0.0_f64);
-    for k in 0..rows {
-        // xorshift64: a new input level about every 50 samples.
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        if state.is_multiple_of(50) || k == 0 {
-            u = (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
-        }
-        y = 0.95 * y + 0.05 * u;
-        let t = k as f64 * 1e-3;
+    for (t, u, y) in signals::signals(rows) {
         writeln!(text, "{t},{u},{y}").expect("writing to a String");
     }
     text

@@ -14,6 +14,8 @@
 //! - `matrw_only_*`: the baseline, matrw parsing the same bytes and
 //!   converting the three variables to `f64` vectors.
 
+mod signals;
+
 use divan::Bencher;
 use divan::counter::BytesCount;
 use hysid_io::load;
@@ -50,19 +52,9 @@ fn main() {
 
 /// The signals t, u, y of `samples` samples, written as a MAT file.
 fn write(path: &Path, samples: usize, compress: bool) {
-    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
-    let (mut u, mut y) = (0.0_f64, 0.0_f64);
     let (mut ts, mut us, mut ys) = (Vec::new(), Vec::new(), Vec::new());
-    for k in 0..samples {
-        // xorshift64: a new input level about every 50 samples.
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        if state.is_multiple_of(50) || k == 0 {
-            u = (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
-        }
-        y = 0.95 * y + 0.05 * u;
-        ts.push(k as f64 * 1e-3);
+    for (t, u, y) in signals::signals(samples) {
+        ts.push(t);
         us.push(u);
         ys.push(y);
     }
