@@ -280,7 +280,7 @@ const NOT_RUN: &[(&str, &str)] = &[
     ),
     (
         "hysid identify models/pick-and-place/headdata_1v6.mat -m cluster --na 2 --nb 2 --decimate 10 --rows 0..5000 --auto",
-        "an automatic selection with the alternation (7-14 s in release, minutes in debug); the figure of its validation below is one of five seeds in the text",
+        "an automatic selection with the alternation (3-7 s in release, minutes in debug); its test figure is the seed-1 row of the committed auto report",
     ),
     (
         "hysid validate m.json models/pick-and-place/headdata_1v6.mat",
