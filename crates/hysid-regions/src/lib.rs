@@ -56,7 +56,9 @@ use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 
 pub use adjacency::adjacency;
-pub use alternation::{Alternation, AlternationSettings, AlternationStatus, alternate};
+pub use alternation::{
+    Alternation, AlternationSettings, AlternationStatus, GATE_POINTS, alternate,
+};
 
 mod adjacency;
 mod alternation;
