@@ -286,21 +286,30 @@ impl Settings {
     pub fn resolve<T: BackendOptions>(&self, method: &str) -> Result<T, OptionError> {
         let specs = T::specs();
         let mut table = toml::Table::new();
+        let mut unset = Vec::new();
         for (k, v) in &self.pairs {
-            if !specs.iter().any(|s| s.key == k) {
+            let Some(spec) = specs.iter().find(|s| s.key == k) else {
                 return Err(OptionError::Unknown {
                     key: k.clone(),
                     method: method.to_string(),
                     known: specs.iter().map(|s| s.key).collect::<Vec<_>>().join(", "),
                 });
+            };
+            // `none`, the text of an optional option's absent value.
+            if v == "none" && spec.ty.ends_with("(optional)") {
+                unset.push(k.clone());
+            } else {
+                table.insert(k.clone(), scalar(v));
             }
-            table.insert(k.clone(), scalar(v));
         }
         // Start from the defaults so that partial settings work.
         let mut base = match toml::Table::try_from(T::default()) {
             Ok(t) => t,
             Err(_) => toml::Table::new(),
         };
+        for k in &unset {
+            base.remove(k);
+        }
         for (k, v) in table {
             base.insert(k, v);
         }
@@ -448,6 +457,23 @@ mod tests {
         assert_eq!(s[2].default, "fv");
         assert_eq!(s[3].default, "none");
         assert_eq!(s[0].doc, "Size of local datasets.");
+    }
+
+    /// `none` unsets an optional option (the text its default shows), and
+    /// is refused for the others.
+    #[test]
+    fn none_unsets_an_optional_option_only() {
+        let t: T = Settings::parse(&["delta=none"])
+            .unwrap()
+            .resolve("m")
+            .unwrap();
+        assert_eq!(t, T::default());
+        let e = Settings::parse(&["c=none"])
+            .unwrap()
+            .resolve::<T>("m")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("c=none"), "{e}");
     }
 
     #[test]
