@@ -172,6 +172,17 @@ const MAX_DEFLATE_RATIO: usize = 1032;
 /// Largest inflated miCOMPRESSED element accepted (4 GiB).
 const MAX_INFLATED: u64 = 1 << 32;
 
+/// The 32-bit word at byte `at` of `buf` in the file's byte order; `None`
+/// past the end.
+fn u32_at(buf: &[u8], at: usize, le: bool) -> Option<u32> {
+    let b: [u8; 4] = buf.get(at..at.checked_add(4)?)?.try_into().ok()?;
+    Some(if le {
+        u32::from_le_bytes(b)
+    } else {
+        u32::from_be_bytes(b)
+    })
+}
+
 /// miMATRIX, an array (variable, cell or structure field).
 const MI_MATRIX: u32 = 14;
 /// miCOMPRESSED, a zlib stream holding one element.
@@ -192,14 +203,8 @@ struct Element {
 /// The elements of `buf` one after the other, each checked to fit inside
 /// `buf` (see [`check_elements`]).
 fn elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<Vec<Element>, String> {
-    let word = |at: usize| -> u32 {
-        let b = [buf[at], buf[at + 1], buf[at + 2], buf[at + 3]];
-        if le {
-            u32::from_le_bytes(b)
-        } else {
-            u32::from_be_bytes(b)
-        }
-    };
+    // Every tag read below lies inside `buf` (checked before it is read).
+    let word = |at: usize| u32_at(buf, at, le).unwrap_or(0);
     let mut out = Vec::new();
     let mut pos = 0;
     while pos < buf.len() {
@@ -274,13 +279,7 @@ fn inflate(body: &[u8], at: usize, le: bool) -> Result<Vec<u8>, String> {
         .take(8)
         .read_to_end(&mut inflated)
         .map_err(fail)?;
-    if let Some(tag) = inflated.get(4..8) {
-        let b = [tag[0], tag[1], tag[2], tag[3]];
-        let n = if le {
-            u32::from_le_bytes(b)
-        } else {
-            u32::from_be_bytes(b)
-        };
+    if let Some(n) = u32_at(&inflated, 4, le) {
         inflated.reserve((n as usize).min(body.len().saturating_mul(MAX_DEFLATE_RATIO)));
     }
     stream.read_to_end(&mut inflated).map_err(fail)?;
@@ -304,13 +303,17 @@ fn check_elements(
     mut out: Option<&mut Vec<u8>>,
 ) -> Result<bool, String> {
     let list = elements(buf, base, le, depth)?;
-    let inflated: Vec<Option<Result<Vec<u8>, String>>> = list
-        .par_iter()
-        .map(|e| {
-            (e.kind == MI_COMPRESSED && depth == 0)
-                .then(|| inflate(&buf[e.start..e.end], base + e.pos, le))
-        })
-        .collect();
+    // Only the file's own compressed elements are inflated (and only there
+    // is it worth a parallel pass).
+    let inflated: Vec<Option<Result<Vec<u8>, String>>> = if depth == 0 {
+        list.par_iter()
+            .map(|e| {
+                (e.kind == MI_COMPRESSED).then(|| inflate(&buf[e.start..e.end], base + e.pos, le))
+            })
+            .collect()
+    } else {
+        list.iter().map(|_| None).collect()
+    };
     if let Some(out) = out.as_deref_mut() {
         let size = |(e, inflated): (&Element, &Option<Result<Vec<u8>, String>>)| match inflated {
             Some(Ok(v)) => v.len() + 8,
@@ -353,14 +356,8 @@ fn check_elements(
 /// The first `count` element tags of `buf`, each checked to fit in what
 /// follows it (see [`check_elements`]).
 fn check_sequence(buf: &[u8], base: usize, le: bool, count: usize) -> Result<(), String> {
-    let word = |at: usize| -> u32 {
-        let b = [buf[at], buf[at + 1], buf[at + 2], buf[at + 3]];
-        if le {
-            u32::from_le_bytes(b)
-        } else {
-            u32::from_be_bytes(b)
-        }
-    };
+    // Every tag read below lies inside `buf` (checked before it is read).
+    let word = |at: usize| u32_at(buf, at, le).unwrap_or(0);
     let mut pos = 0;
     for _ in 0..count {
         if buf.len() - pos < 8 {
@@ -416,16 +413,7 @@ fn check_matrw_reads(buf: &[u8], origin: usize, le: bool, depth: usize) -> Resul
             }
         })
     };
-    let u32e = |i: usize| {
-        at(i, 4).map(|b| {
-            let b = [b[0], b[1], b[2], b[3]];
-            if le {
-                u32::from_le_bytes(b)
-            } else {
-                u32::from_be_bytes(b)
-            }
-        })
-    };
+    let u32e = |i: usize| u32_at(buf, i, le);
     let byte = |i: usize| buf.get(i).copied();
     let left = |i: usize| buf.len().saturating_sub(i);
     let align = |i: usize| i.next_multiple_of(8);
