@@ -485,14 +485,10 @@ mod tests {
     /// and with three, and each sample's results are its own.
     #[test]
     fn the_same_with_any_thread_count() {
+        use rand::{Rng, SeedableRng};
         let n = 2;
-        let mut state = 99u64;
-        let mut uniform = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(99);
+        let mut uniform = || rng.random::<f64>();
         let x: Vec<f64> = (0..5000 * n).map(|_| 4.0 * uniform() - 2.0).collect();
         let y: Vec<f64> = (0..5000)
             .map(|k| {
