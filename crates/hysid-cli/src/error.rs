@@ -74,10 +74,11 @@ impl From<SimError> for CliError {
 
 impl CliError {
     /// A simulation set-up error of the model in `model_file`: a problem of
-    /// the model itself (its `internal_step`) names the file.
+    /// the model itself (its `internal_step`, a reset that leaves its target's
+    /// invariant) names the file.
     pub fn simulation(model_file: &std::path::Path, e: SimError) -> Self {
         match e {
-            SimError::TooManySubsteps { .. } => {
+            SimError::TooManySubsteps { .. } | SimError::ResetOutsideInvariant { .. } => {
                 Self::input(format!("{}: {e}", model_file.display()))
             }
             e => e.into(),

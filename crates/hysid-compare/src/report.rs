@@ -206,7 +206,7 @@ fn display_mode_names(m: &Model) -> Vec<String> {
                 None => q.name.clone(),
             })
             .collect(),
-        Model::Pwarx(_) | Model::Mechanical(_) => m.mode_names(),
+        Model::Pwarx(_) | Model::Mechanical(_) | Model::GrayBox(_) => m.mode_names(),
     }
 }
 
@@ -408,11 +408,11 @@ fn sweep_figure(c: &Comparison, name: &str, points: &[&RunResult]) -> Option<Swe
     })
 }
 
-/// A regressor order in the results table: `-` for a mechanical model,
-/// which has none.
+/// A regressor order in the results table: `-` for a model declared by its
+/// physics (mechanical or gray-box), which has none.
 fn order_text(model: Option<&Model>, order: usize) -> String {
     match model {
-        Some(Model::Mechanical(_)) => "-".to_string(),
+        Some(Model::Mechanical(_) | Model::GrayBox(_)) => "-".to_string(),
         _ => order.to_string(),
     }
 }

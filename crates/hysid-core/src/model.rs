@@ -10,8 +10,11 @@
 //!   dynamics and invariants, and transitions whose guard sets may be
 //!   lower-dimensional, each with a reset map;
 //! - [`MechanicalModel`] (`"mechanical"`): a mass-spring-friction hybrid
-//!   automaton declared by its physical parameters, contacts and stops.
+//!   automaton declared by its physical parameters, contacts and stops;
+//! - [`GrayBoxModel`] (`"gray_box"`): a hybrid automaton written by its
+//!   physics, with expressions, guards, resets and built-in elements.
 
+use hysid_graybox::{GrayBoxModel, InvalidGrayBox};
 use hysid_mechanical::{InvalidMechanical, MechanicalModel};
 use hysid_model::model::{
     HybridAutomaton, InitialState, InvalidModel, ModelInfo, PwarxModel, Stop, StopBound,
@@ -30,6 +33,8 @@ pub enum Model {
     HybridAutomaton(HybridAutomaton),
     /// Mass-spring-friction hybrid automaton declared by its physics.
     Mechanical(MechanicalModel),
+    /// Hybrid gray-box model written by its physics.
+    GrayBox(GrayBoxModel),
 }
 
 /// Errors reading, writing or checking a model.
@@ -65,6 +70,9 @@ pub enum StructureError {
     /// A mechanical model.
     #[error(transparent)]
     Mechanical(#[from] InvalidMechanical),
+    /// A gray-box model.
+    #[error(transparent)]
+    GrayBox(#[from] InvalidGrayBox),
 }
 
 impl Model {
@@ -74,6 +82,7 @@ impl Model {
             Model::Pwarx(_) => "pwarx",
             Model::HybridAutomaton(_) => "hybrid_automaton",
             Model::Mechanical(_) => "mechanical",
+            Model::GrayBox(_) => "gray_box",
         }
     }
 
@@ -83,6 +92,7 @@ impl Model {
             Model::Pwarx(m) => &m.info,
             Model::HybridAutomaton(m) => &m.info,
             Model::Mechanical(m) => &m.info,
+            Model::GrayBox(m) => &m.info,
         }
     }
 
@@ -92,6 +102,7 @@ impl Model {
             Model::Pwarx(m) => &mut m.info,
             Model::HybridAutomaton(m) => &mut m.info,
             Model::Mechanical(m) => &mut m.info,
+            Model::GrayBox(m) => &mut m.info,
         }
     }
 
@@ -101,6 +112,7 @@ impl Model {
             Model::Pwarx(m) => m.inputs,
             Model::HybridAutomaton(m) => m.inputs.len(),
             Model::Mechanical(m) => m.inputs.len(),
+            Model::GrayBox(m) => m.inputs.len(),
         }
     }
 
@@ -116,7 +128,7 @@ impl Model {
                 }
                 InitialState::Given { .. } => None,
             },
-            Model::Mechanical(_) => None,
+            Model::Mechanical(_) | Model::GrayBox(_) => None,
         }
     }
 
@@ -126,6 +138,7 @@ impl Model {
             Model::Pwarx(m) => m.modes.len(),
             Model::HybridAutomaton(m) => m.modes.len(),
             Model::Mechanical(m) => m.modes.len(),
+            Model::GrayBox(m) => m.mode_names().len(),
         }
     }
 
@@ -137,6 +150,7 @@ impl Model {
                 .collect(),
             Model::HybridAutomaton(m) => m.modes.iter().map(|q| q.name.clone()).collect(),
             Model::Mechanical(m) => m.modes.iter().map(|q| q.name.clone()).collect(),
+            Model::GrayBox(m) => m.mode_names(),
         }
     }
 
@@ -144,6 +158,15 @@ impl Model {
     /// hybrid automaton ([`HybridAutomaton::stops`]); the declared stops of
     /// a mechanical model at its parameter values.
     pub fn stops(&self) -> Vec<Stop> {
+        let stop = |(level, sign): (f64, f64)| Stop {
+            level,
+            bound: if sign > 0.0 {
+                StopBound::Max
+            } else {
+                StopBound::Min
+            },
+            tol: None,
+        };
         match self {
             Model::Pwarx(_) => Vec::new(),
             Model::HybridAutomaton(m) => m.stops(),
@@ -151,16 +174,9 @@ impl Model {
                 .resolve()
                 .stops
                 .iter()
-                .map(|s| Stop {
-                    level: s.position,
-                    bound: if s.sign > 0.0 {
-                        StopBound::Max
-                    } else {
-                        StopBound::Min
-                    },
-                    tol: None,
-                })
+                .map(|s| stop((s.position, s.sign)))
                 .collect(),
+            Model::GrayBox(m) => m.output_stops().into_iter().map(stop).collect(),
         }
     }
 
@@ -170,6 +186,7 @@ impl Model {
             Model::Pwarx(m) => m.validate().map_err(StructureError::from),
             Model::HybridAutomaton(m) => m.validate().map_err(StructureError::from),
             Model::Mechanical(m) => m.validate().map_err(StructureError::from),
+            Model::GrayBox(m) => m.validate().map_err(StructureError::from),
         }
         .map_err(ModelError::Invalid)
     }
@@ -180,11 +197,28 @@ impl Model {
             path: origin.to_string(),
             message: e.to_string(),
         })?;
-        m.validate().map_err(|e| ModelError::Format {
-            path: origin.to_string(),
-            message: e.to_string(),
-        })?;
-        Ok(m)
+        m.checked(text, origin)
+    }
+
+    /// [`Model::validate`], with the line of `text` (the file) that a
+    /// gray-box model's error points at.
+    fn checked(self, text: &str, origin: &str) -> Result<Self, ModelError> {
+        match self.validate() {
+            Ok(()) => Ok(self),
+            Err(e) => {
+                let line = match &e {
+                    ModelError::Invalid(StructureError::GrayBox(g)) => g.line_in(text),
+                    _ => None,
+                };
+                Err(ModelError::Format {
+                    path: match line {
+                        Some(l) => format!("{origin}, line {l}"),
+                        None => origin.to_string(),
+                    },
+                    message: e.to_string(),
+                })
+            }
+        }
     }
 
     /// Parses a hand-written TOML model.
@@ -193,11 +227,7 @@ impl Model {
             path: origin.to_string(),
             message: e.to_string().trim().replace('\n', " "),
         })?;
-        m.validate().map_err(|e| ModelError::Format {
-            path: origin.to_string(),
-            message: e.to_string(),
-        })?;
-        Ok(m)
+        m.checked(text, origin)
     }
 
     /// Reads a `.json` or `.toml` model file.

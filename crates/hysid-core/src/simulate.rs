@@ -2,7 +2,8 @@
 //! validation against a record.
 //!
 //! Each kind has its own simulator (`hysid_model::simulate::pwarx`,
-//! `hysid_model::simulate::automaton`, `hysid_mechanical::simulate`); the
+//! `hysid_model::simulate::automaton`, `hysid_mechanical::simulate`,
+//! `hysid_graybox::simulate`); the
 //! policies they share (least violation outside every region, divergence,
 //! initial conditions) are documented in `hysid_model::simulate` and
 //! `docs/simulation.md`.
@@ -37,6 +38,7 @@ pub fn simulate(
         Model::Pwarx(m) => pwarx::simulate(m, data, opts),
         Model::HybridAutomaton(m) => automaton::simulate(m, data, opts),
         Model::Mechanical(m) => mechanical::simulate(m, data, opts),
+        Model::GrayBox(m) => hysid_graybox::simulate(m, data, opts),
     }
 }
 
@@ -56,6 +58,7 @@ pub fn predict(
             InitialState::Given { .. } => automaton::simulate(m, data, opts),
         },
         Model::Mechanical(m) => mechanical::predict(m, data),
+        Model::GrayBox(m) => hysid_graybox::predict(m, data),
     }
 }
 

@@ -9,8 +9,10 @@
 mod model;
 pub mod simulate;
 
+#[doc(no_inline)]
+pub use hysid_model::model::PhysicalParameter;
 pub use model::{
     Contact, Direction, ForceElement, Friction, InvalidMechanical, MAX_CONTACTS,
-    MechanicalInitialState, MechanicalMode, MechanicalModeKind, MechanicalModel, PhysicalParameter,
-    Quantity, ResolvedContact, ResolvedForce, ResolvedMechanics, ResolvedStop, Stop,
+    MechanicalInitialState, MechanicalMode, MechanicalModeKind, MechanicalModel, Quantity,
+    ResolvedContact, ResolvedForce, ResolvedMechanics, ResolvedStop, Stop,
 };

@@ -17,29 +17,8 @@
 //! The file format is documented in `docs/mechanical-models.md`; the
 //! simulator is [`crate::simulate`].
 
-use hysid_model::model::ModelInfo;
+use hysid_model::model::{ModelInfo, PhysicalParameter};
 use serde::{Deserialize, Serialize};
-
-/// A named physical parameter (per unit mass), with unit, value and bounds.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PhysicalParameter {
-    /// Name used by force elements and by priors (`[fixed]`, `[bounds]`, `[[tie]]`).
-    pub name: String,
-    /// Unit, as text (e.g. `1/s^2`, `mm/s^2`).
-    #[serde(default)]
-    pub unit: String,
-    /// Value: nominal in a declared model, fitted in an identified one.
-    pub value: f64,
-    /// Admissible range `[low, high]` (search box of the fit).
-    pub bounds: [f64; 2],
-    /// Known exactly: never fitted.
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub fixed: bool,
-    /// What it is.
-    #[serde(default, skip_serializing_if = "String::is_empty")]
-    pub doc: String,
-}
 
 /// A number, or the name of a parameter.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -31,7 +31,8 @@
 
 use crate::{MechanicalInitialState, MechanicalModel, ResolvedForce, ResolvedMechanics};
 use hysid_model::data::Dataset;
-use hysid_model::simulate::{SimError, Simulation, SimulationOptions, check_substeps};
+use hysid_model::simulate::{SimError, Simulation, SimulationOptions};
+pub use hysid_model::simulate::{estimate_velocity, substeps};
 
 /// Bound on the events processed within one internal step (a Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
@@ -346,49 +347,6 @@ impl ResolvedMechanics {
                 dir: dir as i8,
                 engaged: self.engaged_at(y, v),
             },
-        }
-    }
-}
-
-/// Sub-steps per sample: the smallest count whose step is at most
-/// `internal_step`, at most [`hysid_model::simulate::MAX_SUBSTEPS_PER_SAMPLE`].
-pub fn substeps(ts: f64, internal_step: f64) -> Result<usize, SimError> {
-    check_substeps(((ts / internal_step) - 1e-9).ceil(), ts, internal_step)
-}
-
-/// Estimates the state at sample `s` from measured outputs `y[..=s]`:
-/// position `y[s]` and the slope at `s` of a least-squares quadratic through
-/// the last (up to 5) samples (a line through 2).
-pub fn estimate_velocity(y: &[f64], s: usize, ts: f64) -> f64 {
-    let m = (s + 1).min(5);
-    match m {
-        0 | 1 => 0.0,
-        2 => (y[s] - y[s - 1]) / ts,
-        _ => {
-            // Fit y = a + b t + c t^2 with t = 0 at sample s (t = -j ts).
-            let (mut s0, mut s1, mut s2, mut s3, mut s4) = (0.0, 0.0, 0.0, 0.0, 0.0);
-            let (mut r0, mut r1, mut r2) = (0.0, 0.0, 0.0);
-            for j in 0..m {
-                let t = -(j as f64);
-                let yy = y[s - j];
-                s0 += 1.0;
-                s1 += t;
-                s2 += t * t;
-                s3 += t * t * t;
-                s4 += t * t * t * t;
-                r0 += yy;
-                r1 += t * yy;
-                r2 += t * t * yy;
-            }
-            // Solve the 3x3 normal equations by Cramer's rule for b.
-            let det =
-                s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2);
-            let db = s0 * (r1 * s4 - s3 * r2) - r0 * (s1 * s4 - s3 * s2) + s2 * (s1 * r2 - r1 * s2);
-            if det.abs() < 1e-300 {
-                0.0
-            } else {
-                db / det / ts
-            }
         }
     }
 }

@@ -177,7 +177,7 @@ impl Model {
                     .map(|q| inequalities(py, &q.invariant, dim))
                     .collect()
             }
-            AnyModel::Mechanical(_) => Vec::new(),
+            AnyModel::Mechanical(_) | AnyModel::GrayBox(_) => Vec::new(),
         }
     }
 

@@ -172,6 +172,7 @@ fn input_names(model: &Model) -> Vec<String> {
         Model::HybridAutomaton(a) => a.inputs.clone(),
         Model::Pwarx(p) => p.info.input_names.clone(),
         Model::Mechanical(p) => p.inputs.clone(),
+        Model::GrayBox(p) => p.inputs.clone(),
     };
     if given.len() == m {
         given

@@ -15,6 +15,7 @@
 
 mod automaton;
 mod diagnostics;
+mod parameter;
 mod pwarx;
 mod selection;
 mod stop;
@@ -24,6 +25,7 @@ pub use automaton::{
     OutputMap, ResetMap, TimeDomain, Transition, arx_state_positions,
 };
 pub use diagnostics::{Diagnostics, Refinement, RefinementStatus, RunStatus};
+pub use parameter::PhysicalParameter;
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice, mode_name};
 pub use selection::{RefinementChoice, ScoredCandidate, Selection, SplitRows};
 pub use stop::{Stop, StopBound};

@@ -110,6 +110,21 @@ pub enum SimError {
     /// A continuous-time model needs the sampling time.
     #[error("a continuous-time model needs the sampling time: give a 't' signal or --ts")]
     NoSamplingTime,
+    /// A model that does not pass its own checks (one built in code
+    /// without them; model files are checked when read).
+    #[error("invalid model: {0}")]
+    InvalidModel(String),
+    /// A transition's reset map put the state outside its target mode's
+    /// invariant (a modelling error: the reset and the invariant disagree).
+    #[error(
+        "the reset of transition {transition} leaves the invariant of its target mode (sample {sample})"
+    )]
+    ResetOutsideInvariant {
+        /// `from -> to`.
+        transition: String,
+        /// The sample in which it happened.
+        sample: usize,
+    },
     /// The model's `internal_step` is so small against the sampling time
     /// that a sample would take more than [`MAX_SUBSTEPS_PER_SAMPLE`]
     /// integration steps.
@@ -141,5 +156,49 @@ pub fn check_substeps(n: f64, ts: f64, internal_step: f64) -> Result<usize, SimE
         Ok(n.max(1.0) as usize)
     } else {
         Err(SimError::TooManySubsteps { ts, internal_step })
+    }
+}
+
+/// Sub-steps per sample: the smallest count whose step is at most
+/// `internal_step`, at most [`MAX_SUBSTEPS_PER_SAMPLE`] (the rule of the
+/// continuous-time kinds declared by their physics).
+pub fn substeps(ts: f64, internal_step: f64) -> Result<usize, SimError> {
+    check_substeps(((ts / internal_step) - 1e-9).ceil(), ts, internal_step)
+}
+
+/// Estimates the state at sample `s` from measured outputs `y[..=s]`:
+/// position `y[s]` and the slope at `s` of a least-squares quadratic through
+/// the last (up to 5) samples (a line through 2).
+pub fn estimate_velocity(y: &[f64], s: usize, ts: f64) -> f64 {
+    let m = (s + 1).min(5);
+    match m {
+        0 | 1 => 0.0,
+        2 => (y[s] - y[s - 1]) / ts,
+        _ => {
+            // Fit y = a + b t + c t^2 with t = 0 at sample s (t = -j ts).
+            let (mut s0, mut s1, mut s2, mut s3, mut s4) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            let (mut r0, mut r1, mut r2) = (0.0, 0.0, 0.0);
+            for j in 0..m {
+                let t = -(j as f64);
+                let yy = y[s - j];
+                s0 += 1.0;
+                s1 += t;
+                s2 += t * t;
+                s3 += t * t * t;
+                s4 += t * t * t * t;
+                r0 += yy;
+                r1 += t * yy;
+                r2 += t * t * yy;
+            }
+            // Solve the 3x3 normal equations by Cramer's rule for b.
+            let det =
+                s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2);
+            let db = s0 * (r1 * s4 - s3 * r2) - r0 * (s1 * s4 - s3 * s2) + s2 * (s1 * r2 - r1 * s2);
+            if det.abs() < 1e-300 {
+                0.0
+            } else {
+                db / det / ts
+            }
+        }
     }
 }

@@ -1,0 +1,645 @@
+//! Checking a [`GrayBoxModel`] once and compiling every expression into a
+//! tape over numbered slots ([`CompiledModel`]): what the simulator runs.
+//!
+//! Slot layout: the states, then the inputs, the parameters and the
+//! definitions. A mode evaluates its definitions in dependency order before
+//! its flows, so a definition may use states, inputs, parameters and other
+//! definitions, but not itself through a cycle.
+
+use crate::expr::{ExprError, Expression, Function, Relation};
+use crate::model::{Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxModel};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// What is wrong with a gray-box model: where, and the source text that a
+/// reader can look for in the file ([`InvalidGrayBox::line_in`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{place}: {problem}")]
+pub struct InvalidGrayBox {
+    /// Where in the model (`mode 'free', flow of 'v'`).
+    pub place: String,
+    /// The offending text as written in the file (an expression or a name).
+    pub text: Option<String>,
+    /// What is wrong.
+    pub problem: Problem,
+}
+
+/// The kinds of [`InvalidGrayBox`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Problem {
+    /// An expression that does not compile.
+    #[error(transparent)]
+    Expression(#[from] ExprError),
+    /// A format version this build does not read.
+    #[error("format {0} is not supported (this build reads format {FORMAT_VERSION})")]
+    Version(u32),
+    /// A non-positive or non-finite internal step.
+    #[error("internal_step must be a positive number of seconds")]
+    InternalStep,
+    /// A name that is not an identifier, or is a function's.
+    #[error(
+        "'{0}' is not a valid name (letters, digits and '_', not starting with a digit, not a function)"
+    )]
+    BadName(String),
+    /// A name declared twice (states, inputs, parameters, definitions,
+    /// modes and elements share one namespace each).
+    #[error("'{0}' is declared twice")]
+    Duplicate(String),
+    /// A parameter with non-finite numbers, low above high, or its value
+    /// outside its bounds.
+    #[error("parameter '{0}': need finite value and bounds with low <= value <= high")]
+    Parameter(String),
+    /// Not exactly one output.
+    #[error("need exactly one output (the records hysid reads have one), found {0}")]
+    Outputs(usize),
+    /// No mode.
+    #[error("a model needs at least one mode")]
+    NoMode,
+    /// A mode without the flow of a state.
+    #[error("no flow for state '{0}'")]
+    MissingFlow(String),
+    /// A name that is no state.
+    #[error("'{0}' is not a state")]
+    UnknownState(String),
+    /// A name that is no mode.
+    #[error("'{0}' is not a mode")]
+    UnknownMode(String),
+    /// A definition that reaches itself.
+    #[error("definition '{0}' depends on itself")]
+    Cycle(String),
+    /// An element's quantity that reads more than the parameters.
+    #[error("'{0}' may only use parameters and numbers")]
+    NotParametric(String),
+    /// An element label equal to a declared mode.
+    #[error("the label '{0}' is a declared mode; an element's label must be its own")]
+    LabelIsMode(String),
+    /// A definition that neither the model nor the mode gives.
+    #[error("definition '{0}' has no value in this mode")]
+    Undefined(String),
+    /// A given number that is not finite.
+    #[error("the value of '{0}' is not finite")]
+    NotFinite(String),
+    /// Two friction elements on one velocity.
+    #[error("state '{0}' has two friction elements")]
+    TwoFrictions(String),
+}
+
+impl InvalidGrayBox {
+    fn new(place: impl Into<String>, text: Option<&str>, problem: impl Into<Problem>) -> Self {
+        InvalidGrayBox {
+            place: place.into(),
+            text: text.map(str::to_string),
+            problem: problem.into(),
+        }
+    }
+
+    /// The 1-based line of `source` (the model file's text) where the
+    /// offending text is written: the first line holding it as a quoted
+    /// string, else the first holding it at all.
+    pub fn line_in(&self, source: &str) -> Option<usize> {
+        let text = self.text.as_deref().filter(|t| !t.is_empty())?;
+        let quoted = [format!("\"{text}\""), format!("'{text}'")];
+        let find = |pred: &dyn Fn(&str) -> bool| source.lines().position(pred).map(|i| i + 1);
+        find(&|l| quoted.iter().any(|q| l.contains(q.as_str())))
+            .or_else(|| find(&|l| l.contains(text)))
+    }
+}
+
+/// What a slot holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Symbol {
+    /// State `i`.
+    State(usize),
+    /// Input `i`.
+    Input(usize),
+    /// Parameter `i`.
+    Parameter(usize),
+    /// Definition `i`.
+    Definition(usize),
+}
+
+/// A transition with compiled expressions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompiledTransition {
+    /// `from -> to`, for messages.
+    pub label: String,
+    /// Target mode.
+    pub to: usize,
+    /// The guard surface and its crossing.
+    pub guard: Relation,
+    /// The condition at the crossing.
+    pub when: Option<Expression>,
+    /// `(state, expression)`.
+    pub reset: Vec<(usize, Expression)>,
+}
+
+/// A mode with compiled expressions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompiledMode {
+    /// Definitions in evaluation order: `(slot, expression)`.
+    pub definitions: Vec<(usize, Expression)>,
+    /// The flow of every state, in state order.
+    pub flow: Vec<Expression>,
+    /// The invariant's relations.
+    pub invariant: Vec<Relation>,
+    /// Transitions leaving the mode, in file order.
+    pub transitions: Vec<CompiledTransition>,
+}
+
+/// A built-in element with compiled expressions.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CompiledElement {
+    /// Dry friction on velocity state `velocity`.
+    DryFriction {
+        /// Velocity state.
+        velocity: usize,
+        /// Kinetic level.
+        kinetic: Expression,
+        /// Static level.
+        static_level: Expression,
+        /// Label index (into [`GrayBoxModel::mode_names`]).
+        label: usize,
+    },
+    /// A stop on state `position`.
+    Stop {
+        /// Position state.
+        position: usize,
+        /// Velocity state.
+        velocity: usize,
+        /// Where (parameters only).
+        at: Expression,
+        /// +1: bounds from above; -1: from below.
+        sign: f64,
+        /// Restitution (parameters only).
+        restitution: Expression,
+        /// Rebounds slower than this rest.
+        rest_speed: f64,
+        /// Label index.
+        label: usize,
+    },
+}
+
+/// The initial-state rule with indices.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CompiledInitial {
+    /// Given state at sample 0.
+    Given {
+        /// Values of every state.
+        x: Vec<f64>,
+        /// Starting mode, if given.
+        mode: Option<usize>,
+    },
+    /// From the measured output.
+    Measured {
+        /// Samples of warm-up.
+        samples: usize,
+        /// State taking the output.
+        position: usize,
+        /// State taking the slope.
+        velocity: Option<usize>,
+        /// Slope tolerance.
+        velocity_tol: f64,
+        /// Values of every state (position and velocity overwritten).
+        x: Vec<f64>,
+        /// Starting mode, if given.
+        mode: Option<usize>,
+    },
+}
+
+/// A checked gray-box model with every expression compiled.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompiledModel {
+    /// Number of states.
+    pub states: usize,
+    /// Number of inputs.
+    pub inputs: usize,
+    /// Number of parameters.
+    pub parameters: usize,
+    /// Total slots (states, inputs, parameters, definitions).
+    pub slots: usize,
+    /// Modes.
+    pub modes: Vec<CompiledMode>,
+    /// Elements.
+    pub elements: Vec<CompiledElement>,
+    /// The output expression.
+    pub output: Expression,
+    /// The initial-state rule.
+    pub initial: CompiledInitial,
+    /// Maximum integration step.
+    pub internal_step: f64,
+}
+
+fn is_identifier(name: &str) -> bool {
+    let mut chars = name.chars();
+    chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+        && Function::ALL.iter().all(|f| f.name() != name)
+        && !matches!(name, "true" | "false")
+}
+
+impl CompiledModel {
+    /// Checks `m` and compiles it.
+    pub fn new(m: &GrayBoxModel) -> Result<Self, InvalidGrayBox> {
+        if m.format != FORMAT_VERSION {
+            return Err(InvalidGrayBox::new(
+                "format",
+                None,
+                Problem::Version(m.format),
+            ));
+        }
+        if !(m.internal_step > 0.0 && m.internal_step.is_finite()) {
+            return Err(InvalidGrayBox::new(
+                "internal_step",
+                None,
+                Problem::InternalStep,
+            ));
+        }
+        let symbols = symbol_table(m)?;
+        let resolve = |n: &str| symbols.get(n).map(|&(slot, _)| slot as u32);
+        let nx = m.states.len();
+        let state_of = |place: &str, n: &str| -> Result<usize, InvalidGrayBox> {
+            match symbols.get(n) {
+                Some(&(_, Symbol::State(i))) => Ok(i),
+                _ => Err(InvalidGrayBox::new(
+                    place,
+                    Some(n),
+                    Problem::UnknownState(n.into()),
+                )),
+            }
+        };
+        let expr = |place: &str, text: &str| {
+            Expression::compile(text, &resolve)
+                .map_err(|e| InvalidGrayBox::new(place, Some(text), e))
+        };
+        let relation = |place: &str, text: &str| {
+            Relation::compile(text, &resolve).map_err(|e| InvalidGrayBox::new(place, Some(text), e))
+        };
+        let parametric = |place: &str, text: &str| -> Result<Expression, InvalidGrayBox> {
+            let e = expr(place, text)?;
+            let first_def = (nx + m.inputs.len() + m.parameters.len()) as u32;
+            let params = (nx + m.inputs.len()) as u32..first_def;
+            if e.slots().all(|s| params.contains(&s)) {
+                Ok(e)
+            } else {
+                Err(InvalidGrayBox::new(
+                    place,
+                    Some(text),
+                    Problem::NotParametric(text.into()),
+                ))
+            }
+        };
+
+        if m.outputs.len() != 1 {
+            return Err(InvalidGrayBox::new(
+                "outputs",
+                None,
+                Problem::Outputs(m.outputs.len()),
+            ));
+        }
+        let output = expr(
+            &format!("output '{}'", m.outputs[0].name),
+            &m.outputs[0].value,
+        )?;
+        if m.modes.is_empty() {
+            return Err(InvalidGrayBox::new("modes", None, Problem::NoMode));
+        }
+        let mut mode_index = BTreeMap::new();
+        for (i, q) in m.modes.iter().enumerate() {
+            if !is_identifier(&q.name) {
+                return Err(InvalidGrayBox::new(
+                    "modes",
+                    Some(&q.name),
+                    Problem::BadName(q.name.clone()),
+                ));
+            }
+            if mode_index.insert(q.name.as_str(), i).is_some() {
+                return Err(InvalidGrayBox::new(
+                    "modes",
+                    Some(&q.name),
+                    Problem::Duplicate(q.name.clone()),
+                ));
+            }
+        }
+        let mode_of = |place: &str, n: &str| {
+            mode_index
+                .get(n)
+                .copied()
+                .ok_or_else(|| InvalidGrayBox::new(place, Some(n), Problem::UnknownMode(n.into())))
+        };
+
+        let definition_names: Vec<&String> = definition_names(m);
+        let mut modes = Vec::with_capacity(m.modes.len());
+        for q in &m.modes {
+            let place = format!("mode '{}'", q.name);
+            let mut flow = Vec::with_capacity(nx);
+            for s in &m.states {
+                let text = q.flow.get(s).ok_or_else(|| {
+                    InvalidGrayBox::new(&place, Some(&q.name), Problem::MissingFlow(s.clone()))
+                })?;
+                flow.push(expr(&format!("{place}, flow of '{s}'"), text)?);
+            }
+            for s in q.flow.keys() {
+                state_of(&format!("{place}, flow"), s)?;
+            }
+            let mut defs = Vec::with_capacity(definition_names.len());
+            for (i, d) in definition_names.iter().enumerate() {
+                let text = q
+                    .definitions
+                    .get(*d)
+                    .or_else(|| m.definitions.get(*d))
+                    .ok_or_else(|| {
+                        InvalidGrayBox::new(&place, Some(d), Problem::Undefined(d.to_string()))
+                    })?;
+                defs.push((
+                    nx + m.inputs.len() + m.parameters.len() + i,
+                    expr(&format!("{place}, definition '{d}'"), text)?,
+                ));
+            }
+            let definitions = order_definitions(
+                defs,
+                &definition_names,
+                nx + m.inputs.len() + m.parameters.len(),
+            )
+            .map_err(|d| InvalidGrayBox::new(&place, Some(d), Problem::Cycle(d.to_string())))?;
+            let invariant = q
+                .invariant
+                .iter()
+                .map(|t| relation(&format!("{place}, invariant"), t))
+                .collect::<Result<_, _>>()?;
+            modes.push(CompiledMode {
+                definitions,
+                flow,
+                invariant,
+                transitions: Vec::new(),
+            });
+        }
+        for t in &m.transitions {
+            let place = format!("transition {} -> {}", t.from, t.to);
+            let from = mode_of(&place, &t.from)?;
+            let to = mode_of(&place, &t.to)?;
+            let guard = relation(&format!("{place}, guard"), &t.guard)?;
+            let when = t
+                .when
+                .as_deref()
+                .map(|w| expr(&format!("{place}, when"), w))
+                .transpose()?;
+            let mut reset = Vec::with_capacity(t.reset.len());
+            for (s, text) in &t.reset {
+                reset.push((
+                    state_of(&format!("{place}, reset"), s)?,
+                    expr(&format!("{place}, reset of '{s}'"), text)?,
+                ));
+            }
+            modes[from].transitions.push(CompiledTransition {
+                label: format!("{} -> {}", t.from, t.to),
+                to,
+                guard,
+                when,
+                reset,
+            });
+        }
+
+        let labels = m.mode_names();
+        let label_of = |l: &str| {
+            labels
+                .iter()
+                .position(|n| n == l)
+                .expect("labels hold every element's")
+        };
+        let mut elements = Vec::with_capacity(m.elements.len());
+        let mut names = BTreeSet::new();
+        let mut friction_on = BTreeSet::new();
+        for e in &m.elements {
+            let place = format!("element '{}'", e.name());
+            if !names.insert(e.name()) {
+                return Err(InvalidGrayBox::new(
+                    "elements",
+                    Some(e.name()),
+                    Problem::Duplicate(e.name().into()),
+                ));
+            }
+            if mode_index.contains_key(e.mode()) {
+                return Err(InvalidGrayBox::new(
+                    &place,
+                    Some(e.mode()),
+                    Problem::LabelIsMode(e.mode().into()),
+                ));
+            }
+            elements.push(match e {
+                Element::DryFriction {
+                    velocity,
+                    kinetic,
+                    static_level,
+                    mode,
+                    ..
+                } => {
+                    let v = state_of(&place, velocity)?;
+                    if !friction_on.insert(v) {
+                        return Err(InvalidGrayBox::new(
+                            &place,
+                            Some(velocity),
+                            Problem::TwoFrictions(velocity.clone()),
+                        ));
+                    }
+                    CompiledElement::DryFriction {
+                        velocity: v,
+                        kinetic: expr(&format!("{place}, kinetic"), kinetic)?,
+                        static_level: expr(&format!("{place}, static"), static_level)?,
+                        label: label_of(mode),
+                    }
+                }
+                Element::Stop {
+                    position,
+                    velocity,
+                    at,
+                    side,
+                    restitution,
+                    rest_speed,
+                    mode,
+                    ..
+                } => CompiledElement::Stop {
+                    position: state_of(&place, position)?,
+                    velocity: state_of(&place, velocity)?,
+                    at: parametric(&format!("{place}, at"), at)?,
+                    sign: side.sign(),
+                    restitution: parametric(&format!("{place}, restitution"), restitution)?,
+                    rest_speed: rest_speed.max(0.0),
+                    label: label_of(mode),
+                },
+            });
+        }
+
+        let initial = initial_rule(m, &state_of, &mode_of)?;
+        Ok(CompiledModel {
+            states: nx,
+            inputs: m.inputs.len(),
+            parameters: m.parameters.len(),
+            slots: nx + m.inputs.len() + m.parameters.len() + definition_names.len(),
+            modes,
+            elements,
+            output,
+            initial,
+            internal_step: m.internal_step,
+        })
+    }
+
+    /// The first slot of the parameters.
+    pub fn parameter_slot(&self) -> usize {
+        self.states + self.inputs
+    }
+}
+
+/// Every definition name: the model's, then those only modes give.
+fn definition_names(m: &GrayBoxModel) -> Vec<&String> {
+    let mut names: Vec<&String> = m.definitions.keys().collect();
+    for q in &m.modes {
+        for d in q.definitions.keys() {
+            if !names.contains(&d) {
+                names.push(d);
+            }
+        }
+    }
+    names
+}
+
+/// States, inputs, parameters and definitions, with their slots; checks
+/// names and parameters.
+fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, (usize, Symbol)>, InvalidGrayBox> {
+    let mut table = BTreeMap::new();
+    let mut slot = 0;
+    let mut add = |what: &str, name: &str, sym: Symbol| -> Result<(), InvalidGrayBox> {
+        if !is_identifier(name) {
+            return Err(InvalidGrayBox::new(
+                what,
+                Some(name),
+                Problem::BadName(name.into()),
+            ));
+        }
+        if table.insert(name.to_string(), (slot, sym)).is_some() {
+            return Err(InvalidGrayBox::new(
+                what,
+                Some(name),
+                Problem::Duplicate(name.into()),
+            ));
+        }
+        slot += 1;
+        Ok(())
+    };
+    for (i, s) in m.states.iter().enumerate() {
+        add("states", s, Symbol::State(i))?;
+    }
+    for (i, s) in m.inputs.iter().enumerate() {
+        add("inputs", s, Symbol::Input(i))?;
+    }
+    for (i, p) in m.parameters.iter().enumerate() {
+        add("parameters", &p.name, Symbol::Parameter(i))?;
+        let [lo, hi] = p.bounds;
+        if !(p.value.is_finite()
+            && lo.is_finite()
+            && hi.is_finite()
+            && lo <= p.value
+            && p.value <= hi)
+        {
+            return Err(InvalidGrayBox::new(
+                "parameters",
+                Some(&p.name),
+                Problem::Parameter(p.name.clone()),
+            ));
+        }
+    }
+    for (i, d) in definition_names(m).into_iter().enumerate() {
+        add("definitions", d, Symbol::Definition(i))?;
+    }
+    Ok(table)
+}
+
+/// Orders a mode's definitions so that each comes after those it reads;
+/// `Err(name)` for a definition on a cycle.
+fn order_definitions<'a>(
+    defs: Vec<(usize, Expression)>,
+    names: &[&'a String],
+    first: usize,
+) -> Result<Vec<(usize, Expression)>, &'a str> {
+    let n = defs.len();
+    let deps: Vec<Vec<usize>> = defs
+        .iter()
+        .map(|(_, e)| {
+            e.slots()
+                .map(|s| s as usize)
+                .filter(|s| *s >= first)
+                .map(|s| s - first)
+                .collect()
+        })
+        .collect();
+    let mut order = Vec::with_capacity(n);
+    let mut placed = vec![false; n];
+    // At most n passes, each placing at least one definition unless a cycle remains.
+    for _ in 0..n {
+        let before = order.len();
+        for i in 0..n {
+            if !placed[i] && deps[i].iter().all(|d| placed[*d]) {
+                placed[i] = true;
+                order.push(i);
+            }
+        }
+        if order.len() == before {
+            break;
+        }
+    }
+    if let Some(i) = (0..n).find(|i| !placed[*i]) {
+        return Err(names[i]);
+    }
+    let mut defs: Vec<Option<(usize, Expression)>> = defs.into_iter().map(Some).collect();
+    Ok(order
+        .into_iter()
+        .map(|i| defs[i].take().expect("each placed once"))
+        .collect())
+}
+
+fn initial_rule(
+    m: &GrayBoxModel,
+    state_of: &dyn Fn(&str, &str) -> Result<usize, InvalidGrayBox>,
+    mode_of: &dyn Fn(&str, &str) -> Result<usize, InvalidGrayBox>,
+) -> Result<CompiledInitial, InvalidGrayBox> {
+    let place = "initial_state";
+    let values = |given: &BTreeMap<String, f64>| -> Result<Vec<f64>, InvalidGrayBox> {
+        let mut x = vec![0.0; m.states.len()];
+        for (s, v) in given {
+            if !v.is_finite() {
+                return Err(InvalidGrayBox::new(
+                    place,
+                    Some(s),
+                    Problem::NotFinite(s.clone()),
+                ));
+            }
+            x[state_of(place, s)?] = *v;
+        }
+        Ok(x)
+    };
+    let mode = |q: &Option<String>| q.as_deref().map(|q| mode_of(place, q)).transpose();
+    Ok(match &m.initial_state {
+        GrayBoxInitialState::Given { values: v, mode: q } => CompiledInitial::Given {
+            x: values(v)?,
+            mode: mode(q)?,
+        },
+        GrayBoxInitialState::Measured {
+            samples,
+            position,
+            velocity,
+            velocity_tol,
+            values: v,
+            mode: q,
+        } => CompiledInitial::Measured {
+            samples: (*samples).max(1),
+            position: state_of(place, position)?,
+            velocity: velocity
+                .as_deref()
+                .map(|s| state_of(place, s))
+                .transpose()?,
+            velocity_tol: velocity_tol.max(0.0),
+            x: values(v)?,
+            mode: mode(q)?,
+        },
+    })
+}

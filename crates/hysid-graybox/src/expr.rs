@@ -1,0 +1,644 @@
+//! Expressions of a gray-box model: parsed once by `evalexpr`, compiled into
+//! a postfix tape over numbered slots, evaluated without parsing or
+//! allocating.
+//!
+//! The grammar is evalexpr's (`+ - * / % ^`, unary `-`, comparisons
+//! `< <= > >= == !=`, `&& || !`, parentheses, function calls); every
+//! number is a 64-bit float (`1/2` is `0.5`), and a comparison is `1` when
+//! true and `0` when false. The functions are [`Function`]'s.
+
+use evalexpr::{DefaultNumericTypes, Node, Operator, Value};
+
+/// Deepest evaluation stack an expression may need (checked at compile).
+pub const MAX_DEPTH: usize = 32;
+
+/// The functions an expression may call, with their arities.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Function {
+    /// `abs(x)`.
+    Abs,
+    /// `sign(x)`: -1, 0 or 1.
+    Sign,
+    /// `sqrt(x)`.
+    Sqrt,
+    /// `exp(x)`.
+    Exp,
+    /// `ln(x)`, natural logarithm.
+    Ln,
+    /// `sin(x)`.
+    Sin,
+    /// `cos(x)`.
+    Cos,
+    /// `tan(x)`.
+    Tan,
+    /// `tanh(x)`.
+    Tanh,
+    /// `atan(x)`.
+    Atan,
+    /// `min(a, b)`.
+    Min,
+    /// `max(a, b)`.
+    Max,
+    /// `atan2(y, x)`.
+    Atan2,
+    /// `clamp(x, low, high)`.
+    Clamp,
+    /// `if(condition, a, b)`: `a` when the condition is non-zero, else `b`.
+    If,
+}
+
+impl Function {
+    /// Every function, for listings.
+    pub const ALL: [Function; 15] = [
+        Function::Abs,
+        Function::Sign,
+        Function::Sqrt,
+        Function::Exp,
+        Function::Ln,
+        Function::Sin,
+        Function::Cos,
+        Function::Tan,
+        Function::Tanh,
+        Function::Atan,
+        Function::Min,
+        Function::Max,
+        Function::Atan2,
+        Function::Clamp,
+        Function::If,
+    ];
+
+    /// The name in an expression.
+    pub fn name(self) -> &'static str {
+        match self {
+            Function::Abs => "abs",
+            Function::Sign => "sign",
+            Function::Sqrt => "sqrt",
+            Function::Exp => "exp",
+            Function::Ln => "ln",
+            Function::Sin => "sin",
+            Function::Cos => "cos",
+            Function::Tan => "tan",
+            Function::Tanh => "tanh",
+            Function::Atan => "atan",
+            Function::Min => "min",
+            Function::Max => "max",
+            Function::Atan2 => "atan2",
+            Function::Clamp => "clamp",
+            Function::If => "if",
+        }
+    }
+
+    /// Number of arguments.
+    pub fn arity(self) -> usize {
+        match self {
+            Function::Min | Function::Max | Function::Atan2 => 2,
+            Function::Clamp | Function::If => 3,
+            _ => 1,
+        }
+    }
+
+    fn by_name(name: &str) -> Option<Function> {
+        Function::ALL.into_iter().find(|f| f.name() == name)
+    }
+
+    fn apply(self, a: &[f64]) -> f64 {
+        match self {
+            Function::Abs => a[0].abs(),
+            Function::Sign => {
+                if a[0] > 0.0 {
+                    1.0
+                } else if a[0] < 0.0 {
+                    -1.0
+                } else {
+                    0.0
+                }
+            }
+            Function::Sqrt => a[0].sqrt(),
+            Function::Exp => a[0].exp(),
+            Function::Ln => a[0].ln(),
+            Function::Sin => a[0].sin(),
+            Function::Cos => a[0].cos(),
+            Function::Tan => a[0].tan(),
+            Function::Tanh => a[0].tanh(),
+            Function::Atan => a[0].atan(),
+            Function::Min => a[0].min(a[1]),
+            Function::Max => a[0].max(a[1]),
+            Function::Atan2 => a[0].atan2(a[1]),
+            Function::Clamp => a[0].max(a[1]).min(a[2]),
+            Function::If => {
+                if a[0] != 0.0 {
+                    a[1]
+                } else {
+                    a[2]
+                }
+            }
+        }
+    }
+}
+
+/// Binary operators of the tape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Binary {
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Rem,
+    Pow,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Eq,
+    Ne,
+    And,
+    Or,
+}
+
+impl Binary {
+    #[inline]
+    fn apply(self, a: f64, b: f64) -> f64 {
+        let truth = |c: bool| if c { 1.0 } else { 0.0 };
+        match self {
+            Binary::Add => a + b,
+            Binary::Sub => a - b,
+            Binary::Mul => a * b,
+            Binary::Div => a / b,
+            Binary::Rem => a % b,
+            Binary::Pow => a.powf(b),
+            Binary::Lt => truth(a < b),
+            Binary::Le => truth(a <= b),
+            Binary::Gt => truth(a > b),
+            Binary::Ge => truth(a >= b),
+            Binary::Eq => truth(a == b),
+            Binary::Ne => truth(a != b),
+            Binary::And => truth(a != 0.0 && b != 0.0),
+            Binary::Or => truth(a != 0.0 || b != 0.0),
+        }
+    }
+}
+
+/// One instruction of the postfix tape.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Op {
+    Const(f64),
+    Load(u32),
+    Neg,
+    Not,
+    Binary(Binary),
+    Call(Function),
+}
+
+/// Why an expression does not compile.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExprError {
+    /// evalexpr could not parse it.
+    #[error("cannot parse '{text}': {message}")]
+    Syntax {
+        /// The expression.
+        text: String,
+        /// evalexpr's message.
+        message: String,
+    },
+    /// A name that is no state, input, parameter or definition.
+    #[error("unknown symbol '{0}'")]
+    UnknownSymbol(String),
+    /// A function that is not one of [`Function`]'s, or with the wrong
+    /// number of arguments.
+    #[error("unknown function '{name}' with {args} argument(s)")]
+    UnknownFunction {
+        /// Its name.
+        name: String,
+        /// Arguments given.
+        args: usize,
+    },
+    /// Assignments, `;` chains, strings and empty expressions.
+    #[error("'{0}' is not a numeric expression")]
+    NotNumeric(String),
+    /// Deeper than [`MAX_DEPTH`].
+    #[error("'{0}' is nested too deeply (at most {MAX_DEPTH} pending operands)")]
+    TooDeep(String),
+    /// A relation was expected (`a >= b`, `a <= b`, `a == b`, ...).
+    #[error("'{0}' is not a relation such as 'a >= b', 'a <= b' or 'a == b'")]
+    NotRelation(String),
+}
+
+/// A compiled expression: a postfix tape over the slots of a
+/// [`crate::compile::CompiledModel`] (states, inputs, parameters,
+/// definitions).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Expression {
+    ops: Vec<Op>,
+}
+
+impl Expression {
+    /// Parses `text` and compiles it; `resolve` maps a name to its slot.
+    pub fn compile(text: &str, resolve: &dyn Fn(&str) -> Option<u32>) -> Result<Self, ExprError> {
+        let root = parse(text)?;
+        let mut b = Builder::new(text, resolve);
+        b.node(&root)?;
+        b.finish()
+    }
+
+    /// A constant.
+    pub fn constant(v: f64) -> Self {
+        Expression {
+            ops: vec![Op::Const(v)],
+        }
+    }
+
+    /// The slots the expression reads, in tape order, with repeats.
+    pub fn slots(&self) -> impl Iterator<Item = u32> + '_ {
+        self.ops.iter().filter_map(|op| match op {
+            Op::Load(s) => Some(*s),
+            _ => None,
+        })
+    }
+
+    /// The constant value, when the expression reads no slot.
+    pub fn as_constant(&self) -> Option<f64> {
+        match self.ops.as_slice() {
+            [Op::Const(v)] => Some(*v),
+            _ => None,
+        }
+    }
+
+    /// Evaluates the tape with the slot values `slots`.
+    #[inline]
+    pub fn eval(&self, slots: &[f64]) -> f64 {
+        let mut stack = [0.0f64; MAX_DEPTH];
+        let mut sp = 0usize;
+        for op in &self.ops {
+            match *op {
+                Op::Const(v) => {
+                    stack[sp] = v;
+                    sp += 1;
+                }
+                Op::Load(s) => {
+                    stack[sp] = slots[s as usize];
+                    sp += 1;
+                }
+                Op::Neg => stack[sp - 1] = -stack[sp - 1],
+                Op::Not => stack[sp - 1] = if stack[sp - 1] == 0.0 { 1.0 } else { 0.0 },
+                Op::Binary(b) => {
+                    sp -= 1;
+                    stack[sp - 1] = b.apply(stack[sp - 1], stack[sp]);
+                }
+                Op::Call(f) => {
+                    let k = f.arity();
+                    sp -= k;
+                    stack[sp] = f.apply(&stack[sp..sp + k]);
+                    sp += 1;
+                }
+            }
+        }
+        stack[0]
+    }
+}
+
+/// The direction in which a relation's surface is crossed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Crossing {
+    /// `a >= b` or `a > b`: the surface `a - b` crosses zero upwards.
+    Rising,
+    /// `a <= b` or `a < b`: downwards.
+    Falling,
+    /// `a == b`: either way.
+    Either,
+}
+
+/// A relation `a >= b`, `a <= b` or `a == b`, compiled as the surface
+/// `a - b` and the direction that enters the set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Relation {
+    /// `a - b`.
+    pub surface: Expression,
+    /// Which crossing of the surface enters the set.
+    pub crossing: Crossing,
+}
+
+impl Relation {
+    /// Parses `a >= b` (also `>`, `<=`, `<`, `==`) and compiles `a - b`.
+    pub fn compile(text: &str, resolve: &dyn Fn(&str) -> Option<u32>) -> Result<Self, ExprError> {
+        let root = parse(text)?;
+        let node = strip_root(&root);
+        let crossing = match node.operator() {
+            Operator::Gt | Operator::Geq => Crossing::Rising,
+            Operator::Lt | Operator::Leq => Crossing::Falling,
+            Operator::Eq => Crossing::Either,
+            _ => return Err(ExprError::NotRelation(text.to_string())),
+        };
+        let mut b = Builder::new(text, resolve);
+        b.node(&node.children()[0])?;
+        b.node(&node.children()[1])?;
+        b.op(Op::Binary(Binary::Sub), 2)?;
+        Ok(Relation {
+            surface: b.finish()?,
+            crossing,
+        })
+    }
+
+    /// The signed margin: non-negative inside the set (`a - b` for `>=`,
+    /// `b - a` for `<=`, `-|a - b|` for `==`).
+    #[inline]
+    pub fn margin(&self, slots: &[f64]) -> f64 {
+        let g = self.surface.eval(slots);
+        match self.crossing {
+            Crossing::Rising => g,
+            Crossing::Falling => -g,
+            Crossing::Either => -g.abs(),
+        }
+    }
+}
+
+fn parse(text: &str) -> Result<Node<DefaultNumericTypes>, ExprError> {
+    evalexpr::build_operator_tree::<DefaultNumericTypes>(text).map_err(|e| ExprError::Syntax {
+        text: text.to_string(),
+        message: e.to_string(),
+    })
+}
+
+/// The node under evalexpr's `RootNode` wrappers.
+fn strip_root(mut n: &Node<DefaultNumericTypes>) -> &Node<DefaultNumericTypes> {
+    while matches!(n.operator(), Operator::RootNode) && n.children().len() == 1 {
+        n = &n.children()[0];
+    }
+    n
+}
+
+/// Emits the tape of a tree, folding constant operands.
+struct Builder<'a> {
+    text: &'a str,
+    resolve: &'a dyn Fn(&str) -> Option<u32>,
+    ops: Vec<Op>,
+    depth: usize,
+    max_depth: usize,
+}
+
+impl<'a> Builder<'a> {
+    fn new(text: &'a str, resolve: &'a dyn Fn(&str) -> Option<u32>) -> Self {
+        Builder {
+            text,
+            resolve,
+            ops: Vec::new(),
+            depth: 0,
+            max_depth: 0,
+        }
+    }
+
+    fn not_numeric(&self) -> ExprError {
+        ExprError::NotNumeric(self.text.to_string())
+    }
+
+    fn push(&mut self, op: Op) -> Result<(), ExprError> {
+        self.ops.push(op);
+        self.depth += 1;
+        self.max_depth = self.max_depth.max(self.depth);
+        if self.max_depth > MAX_DEPTH {
+            return Err(ExprError::TooDeep(self.text.to_string()));
+        }
+        Ok(())
+    }
+
+    /// Emits an operator taking `k` operands; folds it when they are all constants.
+    fn op(&mut self, op: Op, k: usize) -> Result<(), ExprError> {
+        let n = self.ops.len();
+        let constant = self.ops[n - k..].iter().all(|o| matches!(o, Op::Const(_)));
+        self.ops.push(op);
+        if constant {
+            let v = Expression {
+                ops: self.ops[n - k..].to_vec(),
+            }
+            .eval(&[]);
+            self.ops.truncate(n - k);
+            self.ops.push(Op::Const(v));
+        }
+        self.depth = self.depth + 1 - k;
+        Ok(())
+    }
+
+    fn node(&mut self, node: &Node<DefaultNumericTypes>) -> Result<(), ExprError> {
+        let node = strip_root(node);
+        let children = node.children();
+        let binary = |b| Some((Op::Binary(b), 2));
+        let (op, k) = match node.operator() {
+            Operator::Const { value } => {
+                let v = match value {
+                    Value::Float(f) => *f,
+                    Value::Int(i) => *i as f64,
+                    Value::Boolean(b) => f64::from(u8::from(*b)),
+                    _ => return Err(self.not_numeric()),
+                };
+                return self.push(Op::Const(v));
+            }
+            Operator::VariableIdentifierRead { identifier } => {
+                let slot = (self.resolve)(identifier)
+                    .ok_or_else(|| ExprError::UnknownSymbol(identifier.clone()))?;
+                return self.push(Op::Load(slot));
+            }
+            Operator::FunctionIdentifier { identifier } => {
+                let args: Vec<&Node<DefaultNumericTypes>> = match children {
+                    [] => Vec::new(),
+                    [one] => {
+                        let inner = strip_root(one);
+                        if matches!(inner.operator(), Operator::Tuple) {
+                            inner.children().iter().collect()
+                        } else {
+                            vec![inner]
+                        }
+                    }
+                    _ => return Err(self.not_numeric()),
+                };
+                let f = Function::by_name(identifier)
+                    .filter(|f| f.arity() == args.len())
+                    .ok_or_else(|| ExprError::UnknownFunction {
+                        name: identifier.clone(),
+                        args: args.len(),
+                    })?;
+                for a in &args {
+                    self.node(a)?;
+                }
+                return self.op(Op::Call(f), args.len());
+            }
+            Operator::Neg => Some((Op::Neg, 1)),
+            Operator::Not => Some((Op::Not, 1)),
+            Operator::Add => binary(Binary::Add),
+            Operator::Sub => binary(Binary::Sub),
+            Operator::Mul => binary(Binary::Mul),
+            Operator::Div => binary(Binary::Div),
+            Operator::Mod => binary(Binary::Rem),
+            Operator::Exp => binary(Binary::Pow),
+            Operator::Lt => binary(Binary::Lt),
+            Operator::Leq => binary(Binary::Le),
+            Operator::Gt => binary(Binary::Gt),
+            Operator::Geq => binary(Binary::Ge),
+            Operator::Eq => binary(Binary::Eq),
+            Operator::Neq => binary(Binary::Ne),
+            Operator::And => binary(Binary::And),
+            Operator::Or => binary(Binary::Or),
+            _ => None,
+        }
+        .ok_or_else(|| self.not_numeric())?;
+        if children.len() != k {
+            return Err(self.not_numeric());
+        }
+        for c in children {
+            self.node(c)?;
+        }
+        self.op(op, k)
+    }
+
+    fn finish(self) -> Result<Expression, ExprError> {
+        if self.ops.is_empty() || self.depth != 1 {
+            return Err(ExprError::NotNumeric(self.text.to_string()));
+        }
+        Ok(Expression { ops: self.ops })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn names(n: &str) -> Option<u32> {
+        ["x", "y", "z"]
+            .iter()
+            .position(|s| *s == n)
+            .map(|i| i as u32)
+    }
+
+    fn eval(text: &str, slots: &[f64]) -> f64 {
+        Expression::compile(text, &names).unwrap().eval(slots)
+    }
+
+    #[test]
+    fn precedence_and_functions_follow_the_usual_rules() {
+        let s = [2.0, 3.0, -1.0];
+        assert_eq!(eval("-x^2*y + 1/2", &s), -11.5);
+        assert_eq!(eval("x - -y", &s), 5.0);
+        assert_eq!(eval("min(x, y + 1) * max(z, 0)", &s), 0.0);
+        assert_eq!(eval("if(x > y, 1, 2) + clamp(z, 0, 5)", &s), 2.0);
+        assert_eq!(eval("sign(z) + sign(0) + abs(z)", &s), 0.0);
+        assert_eq!(eval("x >= 2 && !(y < 1) || 0", &s), 1.0);
+        assert_eq!(eval("2e-3 * 1000", &s), 2.0);
+        assert!((eval("atan2(1, 1) * 4", &s) - std::f64::consts::PI).abs() < 1e-15);
+    }
+
+    #[test]
+    fn constants_are_folded_and_symbols_resolved_once() {
+        let e = Expression::compile("2 * 3 + x * (4 - 1)", &names).unwrap();
+        assert_eq!(e.ops.len(), 5, "{:?}", e.ops);
+        assert_eq!(e.slots().collect::<Vec<_>>(), [0]);
+        assert_eq!(
+            Expression::compile("sqrt(16)", &names)
+                .unwrap()
+                .as_constant(),
+            Some(4.0)
+        );
+    }
+
+    #[test]
+    fn bad_expressions_are_named() {
+        let err = |t: &str| Expression::compile(t, &names).unwrap_err();
+        assert_eq!(err("x + w"), ExprError::UnknownSymbol("w".into()));
+        assert!(matches!(err("foo(x)"), ExprError::UnknownFunction { .. }));
+        assert!(matches!(err("min(x)"), ExprError::UnknownFunction { .. }));
+        assert!(matches!(err("x = 1"), ExprError::NotNumeric(_)));
+        assert!(matches!(err("x; y"), ExprError::NotNumeric(_)));
+        assert!(matches!(err("\"s\""), ExprError::NotNumeric(_)));
+        assert!(matches!(err(""), ExprError::NotNumeric(_)));
+        assert!(matches!(err("x +"), ExprError::Syntax { .. }));
+        let deep = format!("{}x{}", "(x + ".repeat(40), ")".repeat(40));
+        assert!(matches!(err(&deep), ExprError::TooDeep(_)));
+        assert!(matches!(
+            Relation::compile("x + 1", &names).unwrap_err(),
+            ExprError::NotRelation(_)
+        ));
+    }
+
+    #[test]
+    fn relations_give_their_surface_and_direction() {
+        let r = Relation::compile("x >= y + 1", &names).unwrap();
+        assert_eq!(r.crossing, Crossing::Rising);
+        assert_eq!(r.surface.eval(&[5.0, 1.0, 0.0]), 3.0);
+        let r = Relation::compile("x <= 1", &names).unwrap();
+        assert_eq!(
+            (r.crossing, r.margin(&[3.0, 0.0, 0.0])),
+            (Crossing::Falling, -2.0)
+        );
+        let r = Relation::compile("x == y", &names).unwrap();
+        assert_eq!(
+            (r.crossing, r.margin(&[3.0, 5.0, 0.0])),
+            (Crossing::Either, -2.0)
+        );
+    }
+
+    /// A random arithmetic tree, printed fully parenthesised, evaluates on
+    /// the tape as the tree does directly.
+    #[derive(Debug, Clone)]
+    enum Tree {
+        Num(f64),
+        Var(usize),
+        Neg(Box<Tree>),
+        Bin(u8, Box<Tree>, Box<Tree>),
+        Min(Box<Tree>, Box<Tree>),
+    }
+
+    impl Tree {
+        fn text(&self) -> String {
+            match self {
+                Tree::Num(v) => format!("{v:?}"),
+                Tree::Var(i) => ["x", "y", "z"][*i].to_string(),
+                Tree::Neg(a) => format!("(-{})", a.text()),
+                Tree::Bin(o, a, b) => format!(
+                    "({} {} {})",
+                    a.text(),
+                    ["+", "-", "*", "/"][*o as usize],
+                    b.text()
+                ),
+                Tree::Min(a, b) => format!("min({}, {})", a.text(), b.text()),
+            }
+        }
+        fn value(&self, s: &[f64]) -> f64 {
+            match self {
+                Tree::Num(v) => *v,
+                Tree::Var(i) => s[*i],
+                Tree::Neg(a) => -a.value(s),
+                Tree::Bin(o, a, b) => {
+                    let (a, b) = (a.value(s), b.value(s));
+                    [a + b, a - b, a * b, a / b][*o as usize]
+                }
+                Tree::Min(a, b) => a.value(s).min(b.value(s)),
+            }
+        }
+    }
+
+    fn tree() -> impl Strategy<Value = Tree> {
+        let leaf = prop_oneof![
+            (0.5f64..9.5).prop_map(Tree::Num),
+            (0usize..3).prop_map(Tree::Var)
+        ];
+        leaf.prop_recursive(5, 24, 2, |inner| {
+            prop_oneof![
+                inner.clone().prop_map(|a| Tree::Neg(Box::new(a))),
+                (0u8..4, inner.clone(), inner.clone()).prop_map(|(o, a, b)| Tree::Bin(
+                    o,
+                    Box::new(a),
+                    Box::new(b)
+                )),
+                (inner.clone(), inner).prop_map(|(a, b)| Tree::Min(Box::new(a), Box::new(b))),
+            ]
+        })
+    }
+
+    proptest! {
+        #[test]
+        fn tape_matches_the_tree(t in tree(), s in proptest::collection::vec(-5.0f64..5.0, 3)) {
+            let e = Expression::compile(&t.text(), &names).unwrap();
+            let (a, b) = (e.eval(&s), t.value(&s));
+            prop_assert!(a == b || (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-12 * b.abs().max(1.0),
+                "{}: tape {} tree {}", t.text(), a, b);
+        }
+    }
+}

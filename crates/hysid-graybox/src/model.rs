@@ -1,0 +1,266 @@
+//! The gray-box model file (`"kind": "gray_box"`): a hybrid automaton
+//! written by its physics. States, inputs, an output map and named
+//! parameters; modes whose flows are expressions; transitions whose guards
+//! are surfaces crossed in a direction (lower-dimensional guard sets), with
+//! conditions and reset maps; and built-in elements where an expression is
+//! the wrong tool (dry friction with sticking, hard stops).
+//!
+//! The format is documented in `docs/gray-box-models.md`; the semantics of
+//! a run are [`crate::simulate`]'s.
+
+use hysid_model::model::{ModelInfo, PhysicalParameter};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// The version of the gray-box model format this build reads and writes.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// An output: a name and the expression of the states (and inputs) it reads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputMap {
+    /// Output name.
+    pub name: String,
+    /// Its expression.
+    pub value: String,
+}
+
+/// A discrete mode: the flow of every state, an invariant, and definitions
+/// that replace the model's in this mode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GrayBoxMode {
+    /// Name, unique.
+    pub name: String,
+    /// `state = "expression"`: the time derivative of every state.
+    pub flow: BTreeMap<String, String>,
+    /// Relations (`a >= b`, `a <= b`) that hold while in the mode.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub invariant: Vec<String>,
+    /// Definitions that take the place of the model's in this mode.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub definitions: BTreeMap<String, String>,
+    /// What it is.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub doc: String,
+}
+
+/// A transition between modes: the guard surface crossed in a direction,
+/// an optional condition, and the reset map.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GrayBoxTransition {
+    /// Source mode.
+    pub from: String,
+    /// Target mode.
+    pub to: String,
+    /// A relation: `a >= b` fires when `a - b` crosses zero upwards,
+    /// `a <= b` downwards, `a == b` either way.
+    pub guard: String,
+    /// A condition that must be non-zero at the crossing (e.g. `v < 0`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub when: Option<String>,
+    /// `state = "expression"`, evaluated at the state before the jump;
+    /// states not listed keep their values.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub reset: BTreeMap<String, String>,
+    /// What it is.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub doc: String,
+}
+
+/// The side of a stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopSide {
+    /// The stop bounds the position from above (`position <= at`).
+    Max,
+    /// From below (`position >= at`).
+    Min,
+}
+
+impl StopSide {
+    /// `+1` for [`StopSide::Max`], `-1` for [`StopSide::Min`].
+    pub fn sign(self) -> f64 {
+        match self {
+            StopSide::Max => 1.0,
+            StopSide::Min => -1.0,
+        }
+    }
+}
+
+/// A built-in element acting on a pair of states (position, velocity).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Element {
+    /// Coulomb friction with stiction on a velocity state (Karnopp's
+    /// switch model): while sliding in direction `s`, `-kinetic * s` is
+    /// added to the velocity's flow (the applied force `F`); when the
+    /// velocity reaches zero, the state sticks if `|F| <= static`, else it
+    /// slides off in the direction of `F`; while stuck, the velocity is held
+    /// at zero until `|F|` exceeds the static level.
+    DryFriction {
+        /// Name.
+        name: String,
+        /// The velocity state.
+        velocity: String,
+        /// Kinetic (Coulomb) level, an expression (may differ by mode
+        /// through the mode's definitions).
+        kinetic: String,
+        /// Static (break-away) level; `max(static, kinetic)` is used.
+        #[serde(rename = "static")]
+        static_level: String,
+        /// The mode label of samples where it sticks.
+        mode: String,
+    },
+    /// A rigid stop on a position state: the guard set
+    /// `{position = at, moving towards the stop}` with the reset
+    /// `velocity := -restitution * velocity`. With restitution 0 (or once
+    /// the rebound is slower than `rest_speed`) the state rests at the stop
+    /// until the applied force pulls it away beyond any static friction on
+    /// the same velocity.
+    Stop {
+        /// Name.
+        name: String,
+        /// The position state.
+        position: String,
+        /// Its velocity state (the position's flow must be this state).
+        velocity: String,
+        /// Where the stop is (an expression of parameters).
+        at: String,
+        /// Which side of the position it bounds.
+        side: StopSide,
+        /// Coefficient of restitution in `[0, 1)`, an expression of parameters.
+        #[serde(default = "zero_text")]
+        restitution: String,
+        /// A rebound slower than this rests at the stop (position units/s).
+        #[serde(default)]
+        rest_speed: f64,
+        /// The mode label of samples that rest at the stop.
+        mode: String,
+    },
+}
+
+fn zero_text() -> String {
+    "0".to_string()
+}
+
+impl Element {
+    /// The element's name.
+    pub fn name(&self) -> &str {
+        match self {
+            Element::DryFriction { name, .. } | Element::Stop { name, .. } => name,
+        }
+    }
+
+    /// The mode label of the samples the element holds.
+    pub fn mode(&self) -> &str {
+        match self {
+            Element::DryFriction { mode, .. } | Element::Stop { mode, .. } => mode,
+        }
+    }
+}
+
+/// How a simulation obtains its initial state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "from", rename_all = "snake_case", deny_unknown_fields)]
+pub enum GrayBoxInitialState {
+    /// Given values at sample 0 (states not listed start at zero).
+    Given {
+        /// `state = value`.
+        #[serde(default)]
+        values: BTreeMap<String, f64>,
+        /// The starting mode; absent: the first mode whose invariant holds.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        mode: Option<String>,
+    },
+    /// Read from the first `samples` measured outputs: the simulation starts
+    /// at sample `samples - 1`, `position` takes the measured output there
+    /// and `velocity` the slope of a least-squares quadratic through the
+    /// last (up to 5) of them; slopes at most `velocity_tol` count as zero.
+    Measured {
+        /// Samples used (the protocol's warm-up).
+        #[serde(default = "ten")]
+        samples: usize,
+        /// The state that takes the measured output.
+        position: String,
+        /// The state that takes its slope, if any.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        velocity: Option<String>,
+        /// Slopes smaller than this are zero.
+        #[serde(default)]
+        velocity_tol: f64,
+        /// Values of the other states (absent: zero).
+        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        values: BTreeMap<String, f64>,
+        /// The starting mode; absent: the first mode whose invariant holds.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        mode: Option<String>,
+    },
+}
+
+fn ten() -> usize {
+    10
+}
+
+/// A hybrid gray-box model written by its physics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GrayBoxModel {
+    /// Format version ([`FORMAT_VERSION`]).
+    pub format: u32,
+    /// Human-readable name.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub name: String,
+    /// Maximum integration step, seconds.
+    pub internal_step: f64,
+    /// Continuous state names.
+    pub states: Vec<String>,
+    /// Input names, in the data's order.
+    pub inputs: Vec<String>,
+    /// The output map (one output: the records hysid reads have one).
+    pub outputs: Vec<OutputMap>,
+    /// Parameters.
+    #[serde(default)]
+    pub parameters: Vec<PhysicalParameter>,
+    /// Named intermediate expressions, usable wherever a symbol is.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub definitions: BTreeMap<String, String>,
+    /// Discrete modes.
+    pub modes: Vec<GrayBoxMode>,
+    /// Transitions.
+    #[serde(default)]
+    pub transitions: Vec<GrayBoxTransition>,
+    /// Built-in elements.
+    #[serde(default)]
+    pub elements: Vec<Element>,
+    /// Initial state rule.
+    pub initial_state: GrayBoxInitialState,
+    /// Provenance and fit diagnostics.
+    #[serde(default)]
+    pub info: ModelInfo,
+}
+
+impl GrayBoxModel {
+    /// Parameter values, in order.
+    pub fn values(&self) -> Vec<f64> {
+        self.parameters.iter().map(|p| p.value).collect()
+    }
+
+    /// Index of the parameter `name`.
+    pub fn parameter_index(&self, name: &str) -> Option<usize> {
+        self.parameters.iter().position(|p| p.name == name)
+    }
+
+    /// The mode labels of a run: the declared modes, then the labels of the
+    /// elements (a stop's rest, a friction's stick), each name once.
+    pub fn mode_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.modes.iter().map(|m| m.name.clone()).collect();
+        for e in &self.elements {
+            if !names.iter().any(|n| n == e.mode()) {
+                names.push(e.mode().to_string());
+            }
+        }
+        names
+    }
+}

@@ -1,0 +1,843 @@
+//! Event-located simulation of gray-box models.
+//!
+//! The hybrid state is the continuous state `x`, the mode, and the regime
+//! of every element (a friction slides in a direction or sticks; a stop is
+//! away or holds its position). The input is held over each sample
+//! (zero-order hold); each sample is split into equal sub-steps no longer
+//! than `internal_step`, each one classical RK4 step of the current
+//! regime's flow.
+//!
+//! **Events** are located inside the sub-step by bisection on the step
+//! length ([`LOCATE_HALVINGS`] halvings); the state is taken just past the
+//! event and the rest of the sub-step integrated in the new regime:
+//!
+//! - an element's regime ends (checked on the state): a sliding velocity
+//!   reaches zero, a stop is reached, a stuck friction's applied force
+//!   exceeds the static level, the force pulls away from a stop;
+//! - a transition's guard surface is crossed in its direction (checked
+//!   against the surface's value at the start of the step) and its `when`
+//!   condition holds; between samples the surface is compared across the
+//!   input's jump, so a guard that the new input crosses fires at the
+//!   sample instant.
+//!
+//! Elements take precedence over transitions, stops over frictions, and
+//! earlier declarations over later ones. A velocity that comes to zero is
+//! settled by Karnopp's rule: it rests at a stop it is pushed into, sticks
+//! when the applied force is within the static level, and otherwise slides
+//! off in the force's direction, so the friction's sign is never evaluated
+//! at zero velocity and there is no chattering.
+//!
+//! **Zeno bound**: at most [`MAX_EVENTS_PER_STEP`] events per sub-step.
+//! Beyond it, every stop that has been reached holds its position (the
+//! accumulation point of a bouncing contact), and the rest of the sub-step
+//! is integrated without events; [`GrayBoxRun::zeno_steps`] counts these.
+//!
+//! A sample whose every state derivative is exactly zero (resting at a stop,
+//! stuck, at an equilibrium) is skipped: with the input held, nothing in it
+//! can change.
+
+use crate::compile::{CompiledElement, CompiledInitial, CompiledModel};
+use crate::expr::Crossing;
+use hysid_model::data::Dataset;
+use hysid_model::simulate::{SimError, estimate_velocity, substeps};
+
+/// Bound on the events handled within one sub-step (the Zeno guard).
+pub const MAX_EVENTS_PER_STEP: usize = 16;
+
+/// Halvings of the step length when locating an event.
+pub const LOCATE_HALVINGS: usize = 60;
+
+/// Tolerance on an invariant's margin when checking a mode (states in the
+/// model's own units).
+pub const INVARIANT_TOLERANCE: f64 = 1e-9;
+
+/// The regime of an element.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ElementRegime {
+    /// A friction sliding in direction `+1` or `-1`.
+    Slip(f64),
+    /// A friction stuck (its velocity held at zero).
+    Stuck,
+    /// A stop not touched.
+    Away,
+    /// A stop holding its position (and velocity at zero).
+    Resting,
+}
+
+/// The hybrid state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HybridState {
+    /// Continuous states.
+    pub x: Vec<f64>,
+    /// Mode index.
+    pub mode: usize,
+    /// One regime per element.
+    pub regimes: Vec<ElementRegime>,
+}
+
+/// The result of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GrayBoxRun {
+    /// Output at every sample (before `start`: the measured output).
+    pub y: Vec<f64>,
+    /// States at every sample, row-major (`states` per sample; zeros before `start`).
+    pub x: Vec<f64>,
+    /// Mode label per sample (into [`crate::GrayBoxModel::mode_names`]).
+    pub modes: Vec<Option<usize>>,
+    /// Per sample: the state satisfied its mode's invariant.
+    pub covered: Vec<bool>,
+    /// First simulated sample.
+    pub start: usize,
+    /// RK4 sub-steps integrated.
+    pub steps: usize,
+    /// Events handled.
+    pub events: usize,
+    /// Sub-steps that reached [`MAX_EVENTS_PER_STEP`].
+    pub zeno_steps: usize,
+}
+
+/// What ended a sub-step early.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Event {
+    Element(usize),
+    Transition(usize),
+}
+
+/// The simulator's workspace for one model and one parameter vector.
+pub struct Machine<'a> {
+    m: &'a CompiledModel,
+    slots: Vec<f64>,
+    /// Per element: (stop position or NaN, restitution or NaN), from the parameters.
+    fixed: Vec<(f64, f64)>,
+    /// Friction element of each state, if any.
+    friction_of: Vec<Option<usize>>,
+    k: [Vec<f64>; 4],
+    xt: Vec<f64>,
+    /// The end of a trial step, and the bisection's trial state.
+    x1: Vec<f64>,
+    xm: Vec<f64>,
+    /// Guard surfaces at the start of the step, and a spare.
+    g0: Vec<f64>,
+    g: Vec<f64>,
+    pub(crate) steps: usize,
+    pub(crate) events: usize,
+    pub(crate) zeno_steps: usize,
+}
+
+impl<'a> Machine<'a> {
+    /// A workspace for `m` with parameter values `values`.
+    pub fn new(m: &'a CompiledModel, values: &[f64]) -> Self {
+        let mut slots = vec![0.0; m.slots];
+        let p0 = m.parameter_slot();
+        slots[p0..p0 + m.parameters].copy_from_slice(&values[..m.parameters]);
+        let fixed = m
+            .elements
+            .iter()
+            .map(|e| match e {
+                CompiledElement::Stop {
+                    at, restitution, ..
+                } => (at.eval(&slots), restitution.eval(&slots).clamp(0.0, 1.0)),
+                CompiledElement::DryFriction { .. } => (f64::NAN, f64::NAN),
+            })
+            .collect();
+        let mut friction_of = vec![None; m.states];
+        for (i, e) in m.elements.iter().enumerate() {
+            if let CompiledElement::DryFriction { velocity, .. } = e {
+                friction_of[*velocity] = Some(i);
+            }
+        }
+        let n = m.states;
+        Machine {
+            m,
+            slots,
+            fixed,
+            friction_of,
+            k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            xt: vec![0.0; n],
+            x1: vec![0.0; n],
+            xm: vec![0.0; n],
+            g0: Vec::new(),
+            g: Vec::new(),
+            steps: 0,
+            events: 0,
+            zeno_steps: 0,
+        }
+    }
+
+    /// The stops at these parameter values: `(position state, level, sign)`.
+    pub fn stops(&self) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
+        self.m
+            .elements
+            .iter()
+            .zip(&self.fixed)
+            .filter_map(|(e, (at, _))| match e {
+                CompiledElement::Stop { position, sign, .. } => Some((*position, *at, *sign)),
+                CompiledElement::DryFriction { .. } => None,
+            })
+    }
+
+    /// Loads `(x, u)` into the slots and evaluates the mode's definitions.
+    #[inline]
+    fn load(&mut self, x: &[f64], u: &[f64], mode: usize) {
+        let m = self.m;
+        self.slots[..m.states].copy_from_slice(x);
+        self.slots[m.states..m.states + m.inputs].copy_from_slice(u);
+        for (slot, e) in &m.modes[mode].definitions {
+            self.slots[*slot] = e.eval(&self.slots);
+        }
+    }
+
+    /// The applied force on velocity `v` (its flow without the friction).
+    #[inline]
+    fn force(&self, mode: usize, v: usize) -> f64 {
+        self.m.modes[mode].flow[v].eval(&self.slots)
+    }
+
+    /// Kinetic and static levels of friction element `e` (loaded slots).
+    #[inline]
+    fn levels(&self, e: usize) -> (f64, f64) {
+        match &self.m.elements[e] {
+            CompiledElement::DryFriction {
+                kinetic,
+                static_level,
+                ..
+            } => {
+                let k = kinetic.eval(&self.slots).max(0.0);
+                (k, static_level.eval(&self.slots).max(k))
+            }
+            CompiledElement::Stop { .. } => (0.0, 0.0),
+        }
+    }
+
+    /// The static level on velocity `v` (0 without friction; loaded slots).
+    fn static_on(&self, v: usize) -> f64 {
+        self.friction_of[v].map_or(0.0, |e| self.levels(e).1)
+    }
+
+    /// The state derivative in the current regime.
+    fn derivative(&mut self, x: &[f64], u: &[f64], hs: &HybridState, out: &mut [f64]) {
+        self.load(x, u, hs.mode);
+        let m = self.m;
+        for (o, f) in out.iter_mut().zip(&m.modes[hs.mode].flow) {
+            *o = f.eval(&self.slots);
+        }
+        for (i, e) in m.elements.iter().enumerate() {
+            match (e, hs.regimes[i]) {
+                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
+                    out[*velocity] -= self.levels(i).0 * dir;
+                }
+                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Stuck) => {
+                    out[*velocity] = 0.0;
+                }
+                (
+                    CompiledElement::Stop {
+                        position, velocity, ..
+                    },
+                    ElementRegime::Resting,
+                ) => {
+                    out[*position] = 0.0;
+                    out[*velocity] = 0.0;
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// One RK4 step of length `h` from `hs.x` into `out`.
+    fn rk4(&mut self, hs: &HybridState, u: &[f64], h: f64, out: &mut [f64]) {
+        let [mut k1, mut k2, mut k3, mut k4] = std::mem::take(&mut self.k);
+        let mut xt = std::mem::take(&mut self.xt);
+        let stage = |xt: &mut [f64], k: &[f64], c: f64| {
+            for ((t, x), k) in xt.iter_mut().zip(&hs.x).zip(k) {
+                *t = x + c * h * k;
+            }
+        };
+        self.derivative(&hs.x, u, hs, &mut k1);
+        stage(&mut xt, &k1, 0.5);
+        self.derivative(&xt, u, hs, &mut k2);
+        stage(&mut xt, &k2, 0.5);
+        self.derivative(&xt, u, hs, &mut k3);
+        stage(&mut xt, &k3, 1.0);
+        self.derivative(&xt, u, hs, &mut k4);
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = hs.x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        self.k = [k1, k2, k3, k4];
+        self.xt = xt;
+        self.steps += 1;
+    }
+
+    /// The guard surfaces of the mode's transitions at the loaded slots.
+    fn surfaces(&self, mode: usize, out: &mut Vec<f64>) {
+        out.clear();
+        out.extend(
+            self.m.modes[mode]
+                .transitions
+                .iter()
+                .map(|t| t.guard.surface.eval(&self.slots)),
+        );
+    }
+
+    /// The first event at state `x` (loaded with its mode), given the guard
+    /// surfaces `g0` at the start of the step.
+    fn first_event(&self, hs: &HybridState, x: &[f64]) -> Option<Event> {
+        let m = self.m;
+        let mut friction = None;
+        for (i, e) in m.elements.iter().enumerate() {
+            match (e, hs.regimes[i]) {
+                (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away)
+                    if sign * (x[*position] - self.fixed[i].0) >= 0.0 =>
+                {
+                    return Some(Event::Element(i));
+                }
+                (CompiledElement::Stop { velocity, sign, .. }, ElementRegime::Resting)
+                    if -sign * self.force(hs.mode, *velocity) - self.static_on(*velocity) > 0.0 =>
+                {
+                    return Some(Event::Element(i));
+                }
+                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir))
+                    if dir * x[*velocity] <= 0.0 =>
+                {
+                    friction = friction.or(Some(i));
+                }
+                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Stuck)
+                    if !self.held_by_stop(hs, *velocity)
+                        && self.force(hs.mode, *velocity).abs() - self.levels(i).1 > 0.0 =>
+                {
+                    friction = friction.or(Some(i));
+                }
+                _ => {}
+            }
+        }
+        if let Some(i) = friction {
+            return Some(Event::Element(i));
+        }
+        self.first_transition(hs)
+    }
+
+    /// A stop on velocity `v` holds it.
+    fn held_by_stop(&self, hs: &HybridState, v: usize) -> bool {
+        self.m.elements.iter().enumerate().any(|(i, e)| {
+            matches!(e, CompiledElement::Stop { velocity, .. } if *velocity == v)
+                && hs.regimes[i] == ElementRegime::Resting
+        })
+    }
+
+    /// Karnopp's rule for velocity `v` at zero: rest at a stop it is pushed
+    /// into, stick within the static level, else slide off along the force.
+    fn settle(&mut self, hs: &mut HybridState, u: &[f64], v: usize) {
+        hs.x[v] = 0.0;
+        self.load(&hs.x, u, hs.mode);
+        let f = self.force(hs.mode, v);
+        let fs = self.static_on(v);
+        let m = self.m;
+        let mut resting = false;
+        for (i, e) in m.elements.iter().enumerate() {
+            if let CompiledElement::Stop {
+                position,
+                velocity,
+                sign,
+                ..
+            } = e
+                && *velocity == v
+            {
+                let at = self.fixed[i].0;
+                hs.regimes[i] = if !resting && hs.x[*position] == at && sign * f >= -fs {
+                    resting = true;
+                    ElementRegime::Resting
+                } else {
+                    ElementRegime::Away
+                };
+            }
+        }
+        if let Some(e) = self.friction_of[v] {
+            hs.regimes[e] = if resting || f.abs() <= fs {
+                ElementRegime::Stuck
+            } else {
+                ElementRegime::Slip(f.signum())
+            };
+        }
+    }
+
+    /// Applies an event at the located state `hs.x`.
+    fn apply(
+        &mut self,
+        hs: &mut HybridState,
+        u: &[f64],
+        ev: Event,
+        sample: usize,
+    ) -> Result<(), SimError> {
+        self.events += 1;
+        let m = self.m;
+        match ev {
+            Event::Element(i) => match (&m.elements[i], hs.regimes[i]) {
+                (CompiledElement::Stop { velocity, .. }, ElementRegime::Resting) => {
+                    hs.regimes[i] = ElementRegime::Away;
+                    let v = *velocity;
+                    self.load(&hs.x, u, hs.mode);
+                    let f = self.force(hs.mode, v);
+                    if let Some(fe) = self.friction_of[v] {
+                        hs.regimes[fe] = ElementRegime::Slip(f.signum());
+                    }
+                }
+                (
+                    CompiledElement::Stop {
+                        position,
+                        velocity,
+                        rest_speed,
+                        sign,
+                        ..
+                    },
+                    _,
+                ) => {
+                    let (at, e) = self.fixed[i];
+                    hs.x[*position] = at;
+                    let rebound = -e * hs.x[*velocity];
+                    if sign * rebound < 0.0 && rebound.abs() > *rest_speed {
+                        hs.x[*velocity] = rebound;
+                        if let Some(f) = self.friction_of[*velocity] {
+                            hs.regimes[f] = ElementRegime::Slip(rebound.signum());
+                        }
+                    } else {
+                        self.settle(hs, u, *velocity);
+                    }
+                }
+                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(_)) => {
+                    self.settle(hs, u, *velocity);
+                }
+                (CompiledElement::DryFriction { velocity, .. }, _) => {
+                    self.load(&hs.x, u, hs.mode);
+                    let f = self.force(hs.mode, *velocity);
+                    hs.regimes[i] = ElementRegime::Slip(f.signum());
+                }
+            },
+            Event::Transition(j) => {
+                let t = &m.modes[hs.mode].transitions[j];
+                self.load(&hs.x, u, hs.mode);
+                let values: Vec<(usize, f64)> = t
+                    .reset
+                    .iter()
+                    .map(|(s, e)| (*s, e.eval(&self.slots)))
+                    .collect();
+                for (s, v) in values {
+                    hs.x[s] = v;
+                }
+                hs.mode = t.to;
+                self.load(&hs.x, u, hs.mode);
+                if m.modes[hs.mode]
+                    .invariant
+                    .iter()
+                    .any(|r| r.margin(&self.slots) < -INVARIANT_TOLERANCE)
+                {
+                    return Err(SimError::ResetOutsideInvariant {
+                        transition: t.label.clone(),
+                        sample,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Fires the transitions whose guards the input's jump crossed at a
+    /// sample instant (`g_before`: the surfaces with the previous input).
+    fn fire_at_sample(
+        &mut self,
+        hs: &mut HybridState,
+        u: &[f64],
+        g_before: &[f64],
+        sample: usize,
+    ) -> Result<(), SimError> {
+        if g_before.is_empty() {
+            return Ok(());
+        }
+        self.load(&hs.x, u, hs.mode);
+        self.g0.clear();
+        self.g0.extend_from_slice(g_before);
+        if let Some(Event::Transition(j)) = self.first_transition(hs) {
+            self.apply(hs, u, Event::Transition(j), sample)?;
+        }
+        Ok(())
+    }
+
+    /// The first transition whose guard was crossed since `g0` and whose
+    /// condition holds (loaded slots).
+    fn first_transition(&self, hs: &HybridState) -> Option<Event> {
+        self.m.modes[hs.mode]
+            .transitions
+            .iter()
+            .enumerate()
+            .find(|(j, t)| {
+                crossed(
+                    t.guard.crossing,
+                    self.g0[*j],
+                    t.guard.surface.eval(&self.slots),
+                ) && t.when.as_ref().is_none_or(|w| w.eval(&self.slots) != 0.0)
+            })
+            .map(|(j, _)| Event::Transition(j))
+    }
+
+    /// Re-settles the held velocities under a new input: a stuck friction
+    /// or a resting stop whose force now exceeds its level lets go.
+    fn resettle(&mut self, hs: &mut HybridState, u: &[f64]) {
+        let m = self.m;
+        for i in 0..m.elements.len() {
+            let v = match (&m.elements[i], hs.regimes[i]) {
+                (CompiledElement::Stop { velocity, .. }, ElementRegime::Resting)
+                | (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Stuck) => {
+                    *velocity
+                }
+                _ => continue,
+            };
+            self.settle(hs, u, v);
+        }
+    }
+
+    /// Advances `hs` over one sample of length `ts` in `n_sub` sub-steps
+    /// with the input `u` held.
+    pub fn advance(
+        &mut self,
+        hs: &mut HybridState,
+        u: &[f64],
+        ts: f64,
+        n_sub: usize,
+        sample: usize,
+    ) -> Result<(), SimError> {
+        let mut dx = std::mem::take(&mut self.x1);
+        self.derivative(&hs.x, u, hs, &mut dx);
+        let still = dx.iter().all(|d| *d == 0.0);
+        self.x1 = dx;
+        if still {
+            return Ok(());
+        }
+        let h = ts / n_sub as f64;
+        let mut x1 = std::mem::take(&mut self.x1);
+        let mut xm = std::mem::take(&mut self.xm);
+        let mut result = Ok(());
+        'steps: for _ in 0..n_sub {
+            let mut left = h;
+            let mut events = 0;
+            // At most MAX_EVENTS_PER_STEP events, then one event-free step.
+            while left > 0.0 {
+                self.load(&hs.x, u, hs.mode);
+                let mut g = std::mem::take(&mut self.g);
+                self.surfaces(hs.mode, &mut g);
+                self.g = std::mem::replace(&mut self.g0, g);
+                self.rk4(hs, u, left, &mut x1);
+                if events >= MAX_EVENTS_PER_STEP {
+                    hs.x.copy_from_slice(&x1);
+                    break;
+                }
+                self.load(&x1, u, hs.mode);
+                if self.first_event(hs, &x1).is_none() {
+                    hs.x.copy_from_slice(&x1);
+                    break;
+                }
+                let (mut lo, mut hi) = (0.0, left);
+                for _ in 0..LOCATE_HALVINGS {
+                    let mid = 0.5 * (lo + hi);
+                    if mid <= lo || mid >= hi {
+                        break;
+                    }
+                    self.rk4(hs, u, mid, &mut xm);
+                    self.load(&xm, u, hs.mode);
+                    if self.first_event(hs, &xm).is_some() {
+                        hi = mid;
+                        x1.copy_from_slice(&xm);
+                    } else {
+                        lo = mid;
+                    }
+                }
+                self.load(&x1, u, hs.mode);
+                let ev = self
+                    .first_event(hs, &x1)
+                    .expect("an event at the upper end");
+                hs.x.copy_from_slice(&x1);
+                if let Err(e) = self.apply(hs, u, ev, sample) {
+                    result = Err(e);
+                    break 'steps;
+                }
+                left -= hi;
+                events += 1;
+                if events >= MAX_EVENTS_PER_STEP {
+                    self.zeno_steps += 1;
+                    self.hold_reached_stops(hs, u);
+                }
+            }
+        }
+        self.x1 = x1;
+        self.xm = xm;
+        result
+    }
+
+    /// The Zeno bound's action: every stop that has been reached holds.
+    fn hold_reached_stops(&mut self, hs: &mut HybridState, u: &[f64]) {
+        let m = self.m;
+        for (i, e) in m.elements.iter().enumerate() {
+            if let CompiledElement::Stop {
+                position,
+                velocity,
+                sign,
+                ..
+            } = e
+                && sign * (hs.x[*position] - self.fixed[i].0) >= 0.0
+            {
+                hs.x[*position] = self.fixed[i].0;
+                self.settle(hs, u, *velocity);
+            }
+        }
+    }
+
+    /// The output and the mode label of the state, and whether it satisfies
+    /// its mode's invariant.
+    pub fn observe(&mut self, hs: &HybridState, u: &[f64]) -> (f64, usize, bool) {
+        self.load(&hs.x, u, hs.mode);
+        let m = self.m;
+        let y = m.output.eval(&self.slots);
+        let covered = m.modes[hs.mode]
+            .invariant
+            .iter()
+            .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE);
+        let label = |want: &dyn Fn(&CompiledElement, ElementRegime) -> bool| {
+            m.elements
+                .iter()
+                .zip(&hs.regimes)
+                .find(|(e, r)| want(e, **r))
+                .map(|(e, _)| match e {
+                    CompiledElement::Stop { label, .. }
+                    | CompiledElement::DryFriction { label, .. } => *label,
+                })
+        };
+        let mode =
+            label(&|e, r| matches!(e, CompiledElement::Stop { .. }) && r == ElementRegime::Resting)
+                .or_else(|| {
+                    label(&|e, r| {
+                        matches!(e, CompiledElement::DryFriction { .. })
+                            && r == ElementRegime::Stuck
+                    })
+                })
+                .unwrap_or(hs.mode);
+        (y, mode, covered)
+    }
+
+    /// The hybrid state at `(x, u)`: positions clamped to their stops, the
+    /// mode `mode` or the first whose invariant holds, every velocity at
+    /// zero settled.
+    pub fn state_at(&mut self, mut x: Vec<f64>, u: &[f64], mode: Option<usize>) -> HybridState {
+        let m = self.m;
+        for (i, e) in m.elements.iter().enumerate() {
+            if let CompiledElement::Stop {
+                position,
+                velocity,
+                sign,
+                ..
+            } = e
+            {
+                let at = self.fixed[i].0;
+                if sign * (x[*position] - at) >= 0.0 {
+                    x[*position] = at;
+                    if sign * x[*velocity] > 0.0 {
+                        x[*velocity] = 0.0;
+                    }
+                }
+            }
+        }
+        let mode = mode.unwrap_or_else(|| {
+            (0..m.modes.len())
+                .find(|&q| {
+                    self.load(&x, u, q);
+                    m.modes[q]
+                        .invariant
+                        .iter()
+                        .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE)
+                })
+                .unwrap_or(0)
+        });
+        let regimes = m
+            .elements
+            .iter()
+            .map(|e| match e {
+                CompiledElement::DryFriction { velocity, .. } => {
+                    ElementRegime::Slip(x[*velocity].signum())
+                }
+                CompiledElement::Stop { .. } => ElementRegime::Away,
+            })
+            .collect();
+        let mut hs = HybridState { x, mode, regimes };
+        for (i, e) in m.elements.iter().enumerate() {
+            let v = match e {
+                CompiledElement::DryFriction { velocity, .. }
+                | CompiledElement::Stop { velocity, .. } => *velocity,
+            };
+            let at_stop = matches!(e, CompiledElement::Stop { position, .. } if hs.x[*position] == self.fixed[i].0);
+            if hs.x[v] == 0.0 || at_stop {
+                self.settle(&mut hs, u, v);
+            }
+        }
+        hs
+    }
+}
+
+fn crossed(c: Crossing, g0: f64, g1: f64) -> bool {
+    match c {
+        Crossing::Rising => g0 < 0.0 && g1 >= 0.0,
+        Crossing::Falling => g0 > 0.0 && g1 <= 0.0,
+        Crossing::Either => (g0 < 0.0 && g1 >= 0.0) || (g0 > 0.0 && g1 <= 0.0),
+    }
+}
+
+fn input_at(data: &Dataset, k: usize, u: &mut [f64]) {
+    for (i, x) in u.iter_mut().enumerate() {
+        *x = data.inputs[i].values[k];
+    }
+}
+
+/// The initial sample and state of a run on `data` from the model's rule.
+fn initial(
+    m: &CompiledModel,
+    machine: &mut Machine,
+    data: &Dataset,
+    ts: f64,
+    upto: Option<usize>,
+) -> Result<(usize, HybridState), SimError> {
+    let n = data.len();
+    let ym = data.y();
+    let mut u = vec![0.0; m.inputs];
+    match &m.initial {
+        CompiledInitial::Given { x, mode } => {
+            if n == 0 {
+                return Err(SimError::TooShort {
+                    samples: 0,
+                    needed: 1,
+                });
+            }
+            input_at(data, 0, &mut u);
+            Ok((0, machine.state_at(x.clone(), &u, *mode)))
+        }
+        CompiledInitial::Measured {
+            samples,
+            position,
+            velocity,
+            velocity_tol,
+            x,
+            mode,
+        } => {
+            let s = upto.unwrap_or(samples - 1);
+            if n <= s {
+                return Err(SimError::TooShort {
+                    samples: n,
+                    needed: s + 1,
+                });
+            }
+            let mut x = x.clone();
+            x[*position] = ym[s];
+            if let Some(v) = velocity {
+                let slope = estimate_velocity(ym, s, ts);
+                x[*v] = if slope.abs() <= *velocity_tol {
+                    0.0
+                } else {
+                    slope
+                };
+            }
+            input_at(data, s, &mut u);
+            Ok((s, machine.state_at(x, &u, *mode)))
+        }
+    }
+}
+
+/// Runs the compiled model with parameter values `values` on the inputs of
+/// `data` (sampling time `data.ts`), from the model's initial-state rule.
+pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxRun, SimError> {
+    let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
+    if data.inputs.len() != m.inputs {
+        return Err(SimError::Inputs {
+            expected: m.inputs,
+            found: data.inputs.len(),
+        });
+    }
+    let n_sub = substeps(ts, m.internal_step)?;
+    let n = data.len();
+    let mut machine = Machine::new(m, values);
+    let (start, mut hs) = initial(m, &mut machine, data, ts, None)?;
+    let mut out = GrayBoxRun {
+        y: data.y().to_vec(),
+        x: vec![0.0; n * m.states],
+        modes: vec![None; n],
+        covered: vec![true; n],
+        start,
+        steps: 0,
+        events: 0,
+        zeno_steps: 0,
+    };
+    let mut u = vec![0.0; m.inputs];
+    let mut g_end = Vec::new();
+    for k in start..n {
+        input_at(data, k, &mut u);
+        if k > start {
+            machine.resettle(&mut hs, &u);
+            let g_before = std::mem::take(&mut g_end);
+            machine.fire_at_sample(&mut hs, &u, &g_before, k)?;
+        }
+        let (y, label, covered) = machine.observe(&hs, &u);
+        out.y[k] = y;
+        out.modes[k] = Some(label);
+        out.covered[k] = covered;
+        out.x[k * m.states..(k + 1) * m.states].copy_from_slice(&hs.x);
+        if k + 1 < n {
+            machine.advance(&mut hs, &u, ts, n_sub, k)?;
+            machine.load(&hs.x, &u, hs.mode);
+            machine.surfaces(hs.mode, &mut g_end);
+        }
+    }
+    out.steps = machine.steps;
+    out.events = machine.events;
+    out.zeno_steps = machine.zeno_steps;
+    Ok(out)
+}
+
+/// One-step prediction: at each sample the state is read again from the
+/// measured outputs up to it (the model's `measured` rule) and advanced by
+/// one sample. A model with a given initial state has no such reading:
+/// its prediction is its free run.
+pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxRun, SimError> {
+    let CompiledInitial::Measured { samples, .. } = m.initial else {
+        return run(m, values, data);
+    };
+    let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
+    let n_sub = substeps(ts, m.internal_step)?;
+    let n = data.len();
+    let first = samples - 1;
+    if n <= first {
+        return Err(SimError::TooShort {
+            samples: n,
+            needed: first + 1,
+        });
+    }
+    let mut machine = Machine::new(m, values);
+    let mut out = GrayBoxRun {
+        y: data.y().to_vec(),
+        x: vec![0.0; n * m.states],
+        modes: vec![None; n],
+        covered: vec![true; n],
+        start: (first + 1).min(n - 1),
+        steps: 0,
+        events: 0,
+        zeno_steps: 0,
+    };
+    let mut u = vec![0.0; m.inputs];
+    for k in first..n.saturating_sub(1) {
+        let (_, mut hs) = initial(m, &mut machine, data, ts, Some(k))?;
+        input_at(data, k, &mut u);
+        machine.advance(&mut hs, &u, ts, n_sub, k)?;
+        input_at(data, k + 1, &mut u);
+        let (y, label, covered) = machine.observe(&hs, &u);
+        out.y[k + 1] = y;
+        out.modes[k + 1] = Some(label);
+        out.covered[k + 1] = covered;
+        out.x[(k + 1) * m.states..(k + 2) * m.states].copy_from_slice(&hs.x);
+    }
+    out.steps = machine.steps;
+    out.events = machine.events;
+    out.zeno_steps = machine.zeno_steps;
+    Ok(out)
+}
