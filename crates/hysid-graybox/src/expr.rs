@@ -548,7 +548,8 @@ mod tests {
         assert!(matches!(err("x; y"), ExprError::NotNumeric(_)));
         assert!(matches!(err("\"s\""), ExprError::NotNumeric(_)));
         assert!(matches!(err(""), ExprError::NotNumeric(_)));
-        assert!(matches!(err("x +"), ExprError::Syntax { .. }));
+        assert!(matches!(err("x +"), ExprError::NotNumeric(_)));
+        assert!(matches!(err("(x"), ExprError::Syntax { .. }));
         let deep = format!("{}x{}", "(x + ".repeat(40), ")".repeat(40));
         assert!(matches!(err(&deep), ExprError::TooDeep(_)));
         assert!(matches!(

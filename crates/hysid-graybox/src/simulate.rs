@@ -773,17 +773,18 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
     let mut g_end = Vec::new();
     for k in start..n {
         input_at(data, k, &mut u);
-        if k > start {
-            machine.resettle(&mut hs, &u);
-            let g_before = std::mem::take(&mut g_end);
-            machine.fire_at_sample(&mut hs, &u, &g_before, k)?;
-        }
+        // The sample's label is the regime reached, before the new input acts.
         let (y, label, covered) = machine.observe(&hs, &u);
         out.y[k] = y;
         out.modes[k] = Some(label);
         out.covered[k] = covered;
         out.x[k * m.states..(k + 1) * m.states].copy_from_slice(&hs.x);
         if k + 1 < n {
+            if k > start {
+                machine.resettle(&mut hs, &u);
+                let g_before = std::mem::take(&mut g_end);
+                machine.fire_at_sample(&mut hs, &u, &g_before, k)?;
+            }
             machine.advance(&mut hs, &u, ts, n_sub, k)?;
             machine.load(&hs.x, &u, hs.mode);
             machine.surfaces(hs.mode, &mut g_end);
