@@ -588,16 +588,18 @@ impl<'a> Machine<'a> {
         }
     }
 
-    /// The output and the mode label of the state, and whether it satisfies
-    /// its mode's invariant.
-    pub fn observe(&mut self, hs: &HybridState, u: &[f64]) -> (f64, usize, bool) {
-        self.load(&hs.x, u, hs.mode);
+    /// The output of the state under the sample's input `u`, its mode label,
+    /// and whether it satisfies its mode's invariant under `held`, the input
+    /// that brought it there (the regime reached, before the new input acts).
+    pub fn observe(&mut self, hs: &HybridState, u: &[f64], held: &[f64]) -> (f64, usize, bool) {
         let m = self.m;
-        let y = m.output.eval(&self.slots);
+        self.load(&hs.x, held, hs.mode);
         let covered = m.modes[hs.mode]
             .invariant
             .iter()
             .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE);
+        self.load(&hs.x, u, hs.mode);
+        let y = m.output.eval(&self.slots);
         let label = |want: &dyn Fn(&CompiledElement, ElementRegime) -> bool| {
             m.elements
                 .iter()
@@ -678,11 +680,17 @@ impl<'a> Machine<'a> {
     }
 }
 
+/// A surface crossed in direction `c` between the values `g0` and `g1`:
+/// from one side onto or past zero, or from exactly zero (a reset onto the
+/// guard) strictly past it, so that a return to the surface within the same
+/// step is not missed.
 fn crossed(c: Crossing, g0: f64, g1: f64) -> bool {
+    let rising = (g0 < 0.0 && g1 >= 0.0) || (g0 == 0.0 && g1 > 0.0);
+    let falling = (g0 > 0.0 && g1 <= 0.0) || (g0 == 0.0 && g1 < 0.0);
     match c {
-        Crossing::Rising => g0 < 0.0 && g1 >= 0.0,
-        Crossing::Falling => g0 > 0.0 && g1 <= 0.0,
-        Crossing::Either => (g0 < 0.0 && g1 >= 0.0) || (g0 > 0.0 && g1 <= 0.0),
+        Crossing::Rising => rising,
+        Crossing::Falling => falling,
+        Crossing::Either => rising || falling,
     }
 }
 
@@ -770,11 +778,13 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
         zeno_steps: 0,
     };
     let mut u = vec![0.0; m.inputs];
+    let mut held = vec![0.0; m.inputs];
+    input_at(data, start, &mut held);
     let mut g_end = Vec::new();
     for k in start..n {
         input_at(data, k, &mut u);
-        // The sample's label is the regime reached, before the new input acts.
-        let (y, label, covered) = machine.observe(&hs, &u);
+        let (y, label, covered) = machine.observe(&hs, &u, &held);
+        held.copy_from_slice(&u);
         out.y[k] = y;
         out.modes[k] = Some(label);
         out.covered[k] = covered;
@@ -830,8 +840,9 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
         let (_, mut hs) = initial(m, &mut machine, data, ts, Some(k))?;
         input_at(data, k, &mut u);
         machine.advance(&mut hs, &u, ts, n_sub, k)?;
+        let held = u.clone();
         input_at(data, k + 1, &mut u);
-        let (y, label, covered) = machine.observe(&hs, &u);
+        let (y, label, covered) = machine.observe(&hs, &u, &held);
         out.y[k + 1] = y;
         out.modes[k + 1] = Some(label);
         out.covered[k + 1] = covered;
