@@ -43,6 +43,7 @@ fn arx_record(dir: &Path) -> PathBuf {
 #[test]
 fn methods_lists_arx_with_its_options() {
     let out = ok(&["methods"]);
+    assert!(out.contains("model files: gray_box format 1"), "{out}");
     assert!(out.lines().any(|l| l.starts_with("arx")), "{out}");
     assert!(out.contains("ridge"));
     assert!(out.contains("--auto tries: the orders"), "{out}");

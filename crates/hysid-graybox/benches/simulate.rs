@@ -1,1 +1,80 @@
-fn main() {}
+//! Simulation throughput of the mounting head written as a gray-box model
+//! against the hand-written mechanical simulator, in the same run. Run with
+//! `cargo bench -p hysid-graybox --bench simulate`.
+//!
+//! Data: the pick-and-place record, rows 0..5000 after decimating by 10
+//! (12.5 s at 400 Hz, 10 sub-steps per sample); parameters: the fitted
+//! head (`models/pick-and-place/head-fitted.json`). Output samples per
+//! second are 5000 divided by the time of one run.
+
+use hysid_graybox::{CompiledModel, GrayBoxModel};
+use hysid_mechanical::MechanicalModel;
+use hysid_model::data::{DataSelection, Dataset, RowRange};
+use std::path::Path;
+
+fn main() {
+    divan::main();
+}
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+fn record() -> Dataset {
+    let sel = DataSelection {
+        decimate: 10,
+        rows: RowRange {
+            start: Some(0),
+            end: Some(5000),
+        },
+        ..DataSelection::default()
+    };
+    hysid_io::load(&root().join("models/pick-and-place/headdata_1v6.mat"), &sel).unwrap()
+}
+
+fn fitted() -> MechanicalModel {
+    let text =
+        std::fs::read_to_string(root().join("models/pick-and-place/head-fitted.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v.as_object_mut().unwrap().remove("kind");
+    serde_json::from_value(v).unwrap()
+}
+
+/// The gray-box head with the fitted head's parameters and initial rule.
+fn gray_box(m: &MechanicalModel) -> GrayBoxModel {
+    let text =
+        std::fs::read_to_string(root().join("models/pick-and-place/head-graybox.toml")).unwrap();
+    let mut table: toml::Table = text.parse().unwrap();
+    table.remove("kind");
+    let mut g: GrayBoxModel = toml::Value::Table(table).try_into().unwrap();
+    for p in &mut g.parameters {
+        p.value = m.parameters[m.parameter_index(&p.name).unwrap()].value;
+    }
+    if let (
+        hysid_graybox::GrayBoxInitialState::Measured { velocity_tol, .. },
+        hysid_mechanical::MechanicalInitialState::Measured {
+            velocity_tol: tol, ..
+        },
+    ) = (&mut g.initial_state, &m.initial_state)
+    {
+        *velocity_tol = *tol;
+    }
+    g
+}
+
+#[divan::bench(sample_count = 30)]
+fn mechanical_head(bencher: divan::Bencher) {
+    let data = record();
+    let m = fitted();
+    let values = m.values();
+    bencher.bench(|| hysid_mechanical::simulate::run(&m, &values, &data).unwrap());
+}
+
+#[divan::bench(sample_count = 30)]
+fn gray_box_head(bencher: divan::Bencher) {
+    let data = record();
+    let g = gray_box(&fitted());
+    let c = CompiledModel::new(&g).unwrap();
+    let values = g.values();
+    bencher.bench(|| hysid_graybox::simulate::run(&c, &values, &data).unwrap());
+}

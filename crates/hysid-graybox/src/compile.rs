@@ -1,10 +1,10 @@
 //! Checking a [`GrayBoxModel`] once and compiling every expression into a
 //! tape over numbered slots ([`CompiledModel`]): what the simulator runs.
 //!
-//! Slot layout: the states, then the inputs, the parameters and the
-//! definitions. A mode evaluates its definitions in dependency order before
-//! its flows, so a definition may use states, inputs, parameters and other
-//! definitions, but not itself through a cycle.
+//! Slot layout: the states, then the inputs and the parameters. A
+//! definition may use states, inputs, parameters and other definitions, but
+//! not itself through a cycle; each mode's definitions are inlined into
+//! every expression evaluated in that mode, so a run stores no definition.
 
 use crate::expr::{ExprError, Expression, Function, Relation};
 use crate::model::{Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxModel};
@@ -132,30 +132,32 @@ pub struct CompiledTransition {
     pub reset: Vec<(usize, Expression)>,
 }
 
-/// A mode with compiled expressions.
+/// A mode with compiled expressions, its definitions inlined into each
+/// (a definition is a name for part of an expression, not a value stored
+/// during a run).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CompiledMode {
-    /// Definitions in evaluation order: `(slot, expression)`.
-    pub definitions: Vec<(usize, Expression)>,
     /// The flow of every state, in state order.
     pub flow: Vec<Expression>,
     /// The invariant's relations.
     pub invariant: Vec<Relation>,
     /// Transitions leaving the mode, in file order.
     pub transitions: Vec<CompiledTransition>,
+    /// Per element, a friction's kinetic and static levels in this mode
+    /// (constant zeros for the other elements).
+    pub friction: Vec<(Expression, Expression)>,
+    /// The output map.
+    pub output: Expression,
 }
 
 /// A built-in element with compiled expressions.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CompiledElement {
-    /// Dry friction on velocity state `velocity`.
+    /// Dry friction on velocity state `velocity` (its levels are per mode:
+    /// [`CompiledMode::friction`]).
     DryFriction {
         /// Velocity state.
         velocity: usize,
-        /// Kinetic level.
-        kinetic: Expression,
-        /// Static level.
-        static_level: Expression,
         /// Label index (into [`GrayBoxModel::mode_names`]).
         label: usize,
     },
@@ -214,14 +216,10 @@ pub struct CompiledModel {
     pub inputs: usize,
     /// Number of parameters.
     pub parameters: usize,
-    /// Total slots (states, inputs, parameters, definitions).
-    pub slots: usize,
     /// Modes.
     pub modes: Vec<CompiledMode>,
     /// Elements.
     pub elements: Vec<CompiledElement>,
-    /// The output expression.
-    pub output: Expression,
     /// The initial-state rule.
     pub initial: CompiledInitial,
     /// Maximum integration step.
@@ -297,10 +295,6 @@ impl CompiledModel {
                 Problem::Outputs(m.outputs.len()),
             ));
         }
-        let output = expr(
-            &format!("output '{}'", m.outputs[0].name),
-            &m.outputs[0].value,
-        )?;
         if m.modes.is_empty() {
             return Err(InvalidGrayBox::new("modes", None, Problem::NoMode));
         }
@@ -328,22 +322,14 @@ impl CompiledModel {
                 .ok_or_else(|| InvalidGrayBox::new(place, Some(n), Problem::UnknownMode(n.into())))
         };
 
-        let definition_names: Vec<&String> = definition_names(m);
-        let mut modes = Vec::with_capacity(m.modes.len());
+        // Each mode's definitions, inlined into one another in dependency order.
+        let names = definition_names(m);
+        let first_def = nx + m.inputs.len() + m.parameters.len();
+        let mut mode_definitions = Vec::with_capacity(m.modes.len());
         for q in &m.modes {
             let place = format!("mode '{}'", q.name);
-            let mut flow = Vec::with_capacity(nx);
-            for s in &m.states {
-                let text = q.flow.get(s).ok_or_else(|| {
-                    InvalidGrayBox::new(&place, Some(&q.name), Problem::MissingFlow(s.clone()))
-                })?;
-                flow.push(expr(&format!("{place}, flow of '{s}'"), text)?);
-            }
-            for s in q.flow.keys() {
-                state_of(&format!("{place}, flow"), s)?;
-            }
-            let mut defs = Vec::with_capacity(definition_names.len());
-            for (i, d) in definition_names.iter().enumerate() {
+            let mut defs = Vec::with_capacity(names.len());
+            for (i, d) in names.iter().enumerate() {
                 let text = q
                     .definitions
                     .get(*d)
@@ -352,43 +338,109 @@ impl CompiledModel {
                         InvalidGrayBox::new(&place, Some(d), Problem::Undefined(d.to_string()))
                     })?;
                 defs.push((
-                    nx + m.inputs.len() + m.parameters.len() + i,
+                    first_def + i,
                     expr(&format!("{place}, definition '{d}'"), text)?,
+                    text,
                 ));
             }
-            let definitions = order_definitions(
-                defs,
-                &definition_names,
-                nx + m.inputs.len() + m.parameters.len(),
-            )
-            .map_err(|d| InvalidGrayBox::new(&place, Some(d), Problem::Cycle(d.to_string())))?;
+            let order = order_definitions(&defs, first_def).map_err(|i| {
+                InvalidGrayBox::new(&place, Some(names[i]), Problem::Cycle(names[i].to_string()))
+            })?;
+            let mut inlined: Vec<Option<Expression>> = vec![None; names.len()];
+            for i in order {
+                let (_, e, text) = &defs[i];
+                inlined[i] = Some(e.inline(first_def as u32, &inlined).ok_or_else(|| {
+                    InvalidGrayBox::new(
+                        format!("{place}, definition '{}'", names[i]),
+                        Some(text),
+                        ExprError::TooDeep(text.to_string()),
+                    )
+                })?);
+            }
+            mode_definitions.push(inlined);
+        }
+        // An expression of mode `q` with its definitions inlined.
+        let direct = |q: usize, place: &str, text: &str| -> Result<Expression, InvalidGrayBox> {
+            expr(place, text)?
+                .inline(first_def as u32, &mode_definitions[q])
+                .ok_or_else(|| {
+                    InvalidGrayBox::new(place, Some(text), ExprError::TooDeep(text.into()))
+                })
+        };
+        let direct_relation =
+            |q: usize, place: &str, text: &str| -> Result<Relation, InvalidGrayBox> {
+                let r = relation(place, text)?;
+                Ok(Relation {
+                    surface: r
+                        .surface
+                        .inline(first_def as u32, &mode_definitions[q])
+                        .ok_or_else(|| {
+                            InvalidGrayBox::new(place, Some(text), ExprError::TooDeep(text.into()))
+                        })?,
+                    crossing: r.crossing,
+                })
+            };
+
+        let elements = compile_elements(m, &mode_index, &state_of, &parametric)?;
+        let mut modes = Vec::with_capacity(m.modes.len());
+        for (qi, q) in m.modes.iter().enumerate() {
+            let place = format!("mode '{}'", q.name);
+            let mut flow = Vec::with_capacity(nx);
+            for s in &m.states {
+                let text = q.flow.get(s).ok_or_else(|| {
+                    InvalidGrayBox::new(&place, Some(&q.name), Problem::MissingFlow(s.clone()))
+                })?;
+                flow.push(direct(qi, &format!("{place}, flow of '{s}'"), text)?);
+            }
+            for s in q.flow.keys() {
+                state_of(&format!("{place}, flow"), s)?;
+            }
             let invariant = q
                 .invariant
                 .iter()
-                .map(|t| relation(&format!("{place}, invariant"), t))
+                .map(|t| direct_relation(qi, &format!("{place}, invariant"), t))
                 .collect::<Result<_, _>>()?;
+            let mut friction = Vec::with_capacity(m.elements.len());
+            for e in &m.elements {
+                friction.push(match e {
+                    Element::DryFriction {
+                        kinetic,
+                        static_level,
+                        ..
+                    } => {
+                        let at = format!("{place}, element '{}'", e.name());
+                        (
+                            direct(qi, &format!("{at}, kinetic"), kinetic)?,
+                            direct(qi, &format!("{at}, static"), static_level)?,
+                        )
+                    }
+                    Element::Stop { .. } => (Expression::constant(0.0), Expression::constant(0.0)),
+                });
+            }
+            let output = &m.outputs[0];
             modes.push(CompiledMode {
-                definitions,
                 flow,
                 invariant,
                 transitions: Vec::new(),
+                friction,
+                output: direct(qi, &format!("output '{}'", output.name), &output.value)?,
             });
         }
         for t in &m.transitions {
             let place = format!("transition {} -> {}", t.from, t.to);
             let from = mode_of(&place, &t.from)?;
             let to = mode_of(&place, &t.to)?;
-            let guard = relation(&format!("{place}, guard"), &t.guard)?;
+            let guard = direct_relation(from, &format!("{place}, guard"), &t.guard)?;
             let when = t
                 .when
                 .as_deref()
-                .map(|w| expr(&format!("{place}, when"), w))
+                .map(|w| direct(from, &format!("{place}, when"), w))
                 .transpose()?;
             let mut reset = Vec::with_capacity(t.reset.len());
             for (s, text) in &t.reset {
                 reset.push((
                     state_of(&format!("{place}, reset"), s)?,
-                    expr(&format!("{place}, reset of '{s}'"), text)?,
+                    direct(from, &format!("{place}, reset of '{s}'"), text)?,
                 ));
             }
             modes[from].transitions.push(CompiledTransition {
@@ -399,89 +451,82 @@ impl CompiledModel {
                 reset,
             });
         }
-
-        let labels = m.mode_names();
-        let label_of = |l: &str| {
-            labels
-                .iter()
-                .position(|n| n == l)
-                .expect("labels hold every element's")
-        };
-        let mut elements = Vec::with_capacity(m.elements.len());
-        let mut names = BTreeSet::new();
-        let mut friction_on = BTreeSet::new();
-        for e in &m.elements {
-            let place = format!("element '{}'", e.name());
-            if !names.insert(e.name()) {
-                return Err(InvalidGrayBox::new(
-                    "elements",
-                    Some(e.name()),
-                    Problem::Duplicate(e.name().into()),
-                ));
-            }
-            if mode_index.contains_key(e.mode()) {
-                return Err(InvalidGrayBox::new(
-                    &place,
-                    Some(e.mode()),
-                    Problem::LabelIsMode(e.mode().into()),
-                ));
-            }
-            elements.push(match e {
-                Element::DryFriction {
-                    velocity,
-                    kinetic,
-                    static_level,
-                    mode,
-                    ..
-                } => {
-                    let v = state_of(&place, velocity)?;
-                    if !friction_on.insert(v) {
-                        return Err(InvalidGrayBox::new(
-                            &place,
-                            Some(velocity),
-                            Problem::TwoFrictions(velocity.clone()),
-                        ));
-                    }
-                    CompiledElement::DryFriction {
-                        velocity: v,
-                        kinetic: expr(&format!("{place}, kinetic"), kinetic)?,
-                        static_level: expr(&format!("{place}, static"), static_level)?,
-                        label: label_of(mode),
-                    }
-                }
-                Element::Stop {
-                    position,
-                    velocity,
-                    at,
-                    side,
-                    restitution,
-                    rest_speed,
-                    mode,
-                    ..
-                } => CompiledElement::Stop {
-                    position: state_of(&place, position)?,
-                    velocity: state_of(&place, velocity)?,
-                    at: parametric(&format!("{place}, at"), at)?,
-                    sign: side.sign(),
-                    restitution: parametric(&format!("{place}, restitution"), restitution)?,
-                    rest_speed: rest_speed.max(0.0),
-                    label: label_of(mode),
-                },
-            });
-        }
-
         let initial = initial_rule(m, &state_of, &mode_of)?;
         Ok(CompiledModel {
             states: nx,
             inputs: m.inputs.len(),
             parameters: m.parameters.len(),
-            slots: nx + m.inputs.len() + m.parameters.len() + definition_names.len(),
             modes,
             elements,
-            output,
             initial,
             internal_step: m.internal_step,
         })
+    }
+
+    /// The model specialised to the parameter values `values`: every
+    /// expression with the parameters folded in ([`Expression::bind`]), the
+    /// slot layout unchanged. What a run evaluates.
+    pub fn bind(&self, values: &[f64]) -> CompiledModel {
+        let first = self.parameter_slot() as u32;
+        let b = |e: &Expression| e.bind(first, values);
+        let relation = |r: &Relation| Relation {
+            surface: b(&r.surface),
+            crossing: r.crossing,
+        };
+        CompiledModel {
+            modes: self
+                .modes
+                .iter()
+                .map(|q| CompiledMode {
+                    flow: q.flow.iter().map(b).collect(),
+                    invariant: q.invariant.iter().map(relation).collect(),
+                    transitions: q
+                        .transitions
+                        .iter()
+                        .map(|t| CompiledTransition {
+                            label: t.label.clone(),
+                            to: t.to,
+                            guard: relation(&t.guard),
+                            when: t.when.as_ref().map(b),
+                            reset: t.reset.iter().map(|(s, e)| (*s, b(e))).collect(),
+                        })
+                        .collect(),
+                    friction: q.friction.iter().map(|(k, s)| (b(k), b(s))).collect(),
+                    output: b(&q.output),
+                })
+                .collect(),
+            elements: self
+                .elements
+                .iter()
+                .map(|e| match e {
+                    CompiledElement::Stop {
+                        position,
+                        velocity,
+                        at,
+                        sign,
+                        restitution,
+                        rest_speed,
+                        label,
+                    } => CompiledElement::Stop {
+                        position: *position,
+                        velocity: *velocity,
+                        at: b(at),
+                        sign: *sign,
+                        restitution: b(restitution),
+                        rest_speed: *rest_speed,
+                        label: *label,
+                    },
+                    friction => friction.clone(),
+                })
+                .collect(),
+            initial: self.initial.clone(),
+            ..*self
+        }
+    }
+
+    /// Slots an evaluation reads: the states, the inputs and the parameters.
+    pub fn slots(&self) -> usize {
+        self.states + self.inputs + self.parameters
     }
 
     /// The first slot of the parameters.
@@ -556,15 +601,14 @@ fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, (usize, Symbol)>, I
 
 /// Orders a mode's definitions so that each comes after those it reads;
 /// `Err(name)` for a definition on a cycle.
-fn order_definitions<'a>(
-    defs: Vec<(usize, Expression)>,
-    names: &[&'a String],
+fn order_definitions(
+    defs: &[(usize, Expression, &String)],
     first: usize,
-) -> Result<Vec<(usize, Expression)>, &'a str> {
+) -> Result<Vec<usize>, usize> {
     let n = defs.len();
     let deps: Vec<Vec<usize>> = defs
         .iter()
-        .map(|(_, e)| {
+        .map(|(_, e, _)| {
             e.slots()
                 .map(|s| s as usize)
                 .filter(|s| *s >= first)
@@ -587,14 +631,82 @@ fn order_definitions<'a>(
             break;
         }
     }
-    if let Some(i) = (0..n).find(|i| !placed[*i]) {
-        return Err(names[i]);
+    match (0..n).find(|i| !placed[*i]) {
+        Some(i) => Err(i),
+        None => Ok(order),
     }
-    let mut defs: Vec<Option<(usize, Expression)>> = defs.into_iter().map(Some).collect();
-    Ok(order
-        .into_iter()
-        .map(|i| defs[i].take().expect("each placed once"))
-        .collect())
+}
+
+/// The elements, checked: names, states, labels, one friction per velocity,
+/// stop quantities of parameters only.
+fn compile_elements(
+    m: &GrayBoxModel,
+    mode_index: &BTreeMap<&str, usize>,
+    state_of: &dyn Fn(&str, &str) -> Result<usize, InvalidGrayBox>,
+    parametric: &dyn Fn(&str, &str) -> Result<Expression, InvalidGrayBox>,
+) -> Result<Vec<CompiledElement>, InvalidGrayBox> {
+    let labels = m.mode_names();
+    let label_of = |l: &str| {
+        labels
+            .iter()
+            .position(|n| n == l)
+            .expect("labels hold every element's")
+    };
+    let mut elements = Vec::with_capacity(m.elements.len());
+    let mut names = BTreeSet::new();
+    let mut friction_on = BTreeSet::new();
+    for e in &m.elements {
+        let place = format!("element '{}'", e.name());
+        if !names.insert(e.name()) {
+            return Err(InvalidGrayBox::new(
+                "elements",
+                Some(e.name()),
+                Problem::Duplicate(e.name().into()),
+            ));
+        }
+        if mode_index.contains_key(e.mode()) {
+            return Err(InvalidGrayBox::new(
+                &place,
+                Some(e.mode()),
+                Problem::LabelIsMode(e.mode().into()),
+            ));
+        }
+        elements.push(match e {
+            Element::DryFriction { velocity, mode, .. } => {
+                let v = state_of(&place, velocity)?;
+                if !friction_on.insert(v) {
+                    return Err(InvalidGrayBox::new(
+                        &place,
+                        Some(velocity),
+                        Problem::TwoFrictions(velocity.clone()),
+                    ));
+                }
+                CompiledElement::DryFriction {
+                    velocity: v,
+                    label: label_of(mode),
+                }
+            }
+            Element::Stop {
+                position,
+                velocity,
+                at,
+                side,
+                restitution,
+                rest_speed,
+                mode,
+                ..
+            } => CompiledElement::Stop {
+                position: state_of(&place, position)?,
+                velocity: state_of(&place, velocity)?,
+                at: parametric(&format!("{place}, at"), at)?,
+                sign: side.sign(),
+                restitution: parametric(&format!("{place}, restitution"), restitution)?,
+                rest_speed: rest_speed.max(0.0),
+                label: label_of(mode),
+            },
+        });
+    }
+    Ok(elements)
 }
 
 fn initial_rule(

@@ -229,9 +229,112 @@ pub enum ExprError {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Expression {
     ops: Vec<Op>,
+    /// How it is evaluated.
+    form: Form,
+}
+
+/// The cheapest evaluation of an expression's tape.
+#[derive(Debug, Clone, PartialEq)]
+enum Form {
+    /// A number.
+    Constant(f64),
+    /// One slot.
+    Slot(u32),
+    /// `constant + sum(coefficient * slot)`: most flows of physical models
+    /// are affine in the states and inputs once the parameters are bound.
+    Affine(Affine),
+    /// Anything else: the postfix tape.
+    Tape,
+}
+
+/// An affine form `constant + sum(coefficient * slot)`.
+#[derive(Debug, Clone, PartialEq)]
+struct Affine {
+    constant: f64,
+    terms: Vec<(u32, f64)>,
+}
+
+impl Affine {
+    fn scale(&mut self, c: f64) {
+        self.constant *= c;
+        for t in &mut self.terms {
+            t.1 *= c;
+        }
+    }
+
+    fn add(&mut self, other: Affine, sign: f64) {
+        self.constant += sign * other.constant;
+        for (s, c) in other.terms {
+            match self.terms.iter_mut().find(|t| t.0 == s) {
+                Some(t) => t.1 += sign * c,
+                None => self.terms.push((s, sign * c)),
+            }
+        }
+    }
+
+    /// The affine form of a postfix tape, if it has one: sums, differences,
+    /// negations, products with a constant and divisions by a non-zero one.
+    fn of(ops: &[Op]) -> Option<Affine> {
+        let mut stack: Vec<Affine> = Vec::new();
+        for op in ops {
+            match *op {
+                Op::Const(v) => stack.push(Affine {
+                    constant: v,
+                    terms: Vec::new(),
+                }),
+                Op::Load(s) => stack.push(Affine {
+                    constant: 0.0,
+                    terms: vec![(s, 1.0)],
+                }),
+                Op::Neg => stack.last_mut()?.scale(-1.0),
+                Op::Binary(b @ (Binary::Add | Binary::Sub | Binary::Mul | Binary::Div)) => {
+                    let rhs = stack.pop()?;
+                    let mut lhs = stack.pop()?;
+                    match b {
+                        Binary::Add => lhs.add(rhs, 1.0),
+                        Binary::Sub => lhs.add(rhs, -1.0),
+                        Binary::Mul if rhs.terms.is_empty() => lhs.scale(rhs.constant),
+                        Binary::Mul if lhs.terms.is_empty() => {
+                            let c = lhs.constant;
+                            lhs = rhs;
+                            lhs.scale(c);
+                        }
+                        Binary::Div if rhs.terms.is_empty() && rhs.constant != 0.0 => {
+                            lhs.scale(1.0 / rhs.constant)
+                        }
+                        _ => return None,
+                    }
+                    stack.push(lhs);
+                }
+                _ => return None,
+            }
+        }
+        match stack.len() {
+            1 => stack.pop(),
+            _ => None,
+        }
+    }
+
+    #[inline]
+    fn eval(&self, slots: &[f64]) -> f64 {
+        let mut acc = self.constant;
+        for &(s, c) in &self.terms {
+            acc += c * slots[s as usize];
+        }
+        acc
+    }
 }
 
 impl Expression {
+    fn from_ops(ops: Vec<Op>) -> Self {
+        let form = match ops.as_slice() {
+            [Op::Const(v)] => Form::Constant(*v),
+            [Op::Load(s)] => Form::Slot(*s),
+            _ => Affine::of(&ops).map_or(Form::Tape, Form::Affine),
+        };
+        Expression { ops, form }
+    }
+
     /// Parses `text` and compiles it; `resolve` maps a name to its slot.
     pub fn compile(text: &str, resolve: &dyn Fn(&str) -> Option<u32>) -> Result<Self, ExprError> {
         let root = parse(text)?;
@@ -242,9 +345,7 @@ impl Expression {
 
     /// A constant.
     pub fn constant(v: f64) -> Self {
-        Expression {
-            ops: vec![Op::Const(v)],
-        }
+        Expression::from_ops(vec![Op::Const(v)])
     }
 
     /// The slots the expression reads, in tape order, with repeats.
@@ -257,42 +358,132 @@ impl Expression {
 
     /// The constant value, when the expression reads no slot.
     pub fn as_constant(&self) -> Option<f64> {
-        match self.ops.as_slice() {
-            [Op::Const(v)] => Some(*v),
+        match self.form {
+            Form::Constant(v) => Some(v),
             _ => None,
         }
     }
 
-    /// Evaluates the tape with the slot values `slots`.
+    /// Evaluates the expression with the slot values `slots`.
     #[inline]
     pub fn eval(&self, slots: &[f64]) -> f64 {
-        let mut stack = [0.0f64; MAX_DEPTH];
-        let mut sp = 0usize;
+        match &self.form {
+            Form::Constant(v) => *v,
+            Form::Slot(s) => slots[*s as usize],
+            Form::Affine(a) => a.eval(slots),
+            Form::Tape => run_tape(&self.ops, slots),
+        }
+    }
+
+    /// The tape's deepest stack.
+    fn depth(&self) -> usize {
+        let (mut depth, mut deepest) = (0usize, 0usize);
+        for op in &self.ops {
+            depth = depth + 1 - op.operands();
+            deepest = deepest.max(depth);
+        }
+        deepest
+    }
+
+    /// The expression with every slot from `first` on that `definitions`
+    /// gives (`definitions[slot - first]`) replaced by that expression's tape
+    /// and folded: a flow written with definitions becomes one expression
+    /// of the states, inputs and parameters. `None` when the result would
+    /// need more than [`MAX_DEPTH`] pending operands.
+    pub fn inline(&self, first: u32, definitions: &[Option<Expression>]) -> Option<Expression> {
+        let mut ops = Vec::with_capacity(self.ops.len());
         for op in &self.ops {
             match *op {
-                Op::Const(v) => {
-                    stack[sp] = v;
-                    sp += 1;
-                }
-                Op::Load(s) => {
-                    stack[sp] = slots[s as usize];
-                    sp += 1;
-                }
-                Op::Neg => stack[sp - 1] = -stack[sp - 1],
-                Op::Not => stack[sp - 1] = if stack[sp - 1] == 0.0 { 1.0 } else { 0.0 },
-                Op::Binary(b) => {
-                    sp -= 1;
-                    stack[sp - 1] = b.apply(stack[sp - 1], stack[sp]);
-                }
-                Op::Call(f) => {
-                    let k = f.arity();
-                    sp -= k;
-                    stack[sp] = f.apply(&stack[sp..sp + k]);
-                    sp += 1;
-                }
+                Op::Load(s) if s >= first => match definitions.get((s - first) as usize) {
+                    Some(Some(d)) => {
+                        for dop in &d.ops {
+                            push_folded(&mut ops, *dop);
+                        }
+                    }
+                    _ => push_folded(&mut ops, *op),
+                },
+                op => push_folded(&mut ops, op),
             }
         }
-        stack[0]
+        let e = Expression::from_ops(ops);
+        (e.depth() <= MAX_DEPTH).then_some(e)
+    }
+}
+
+/// The postfix interpreter.
+#[inline(never)]
+fn run_tape(ops: &[Op], slots: &[f64]) -> f64 {
+    let mut stack = [0.0f64; MAX_DEPTH];
+    let mut sp = 0usize;
+    for op in ops {
+        match *op {
+            Op::Const(v) => {
+                stack[sp] = v;
+                sp += 1;
+            }
+            Op::Load(s) => {
+                stack[sp] = slots[s as usize];
+                sp += 1;
+            }
+            Op::Neg => stack[sp - 1] = -stack[sp - 1],
+            Op::Not => stack[sp - 1] = if stack[sp - 1] == 0.0 { 1.0 } else { 0.0 },
+            Op::Binary(b) => {
+                sp -= 1;
+                stack[sp - 1] = b.apply(stack[sp - 1], stack[sp]);
+            }
+            Op::Call(f) => {
+                let k = f.arity();
+                sp -= k;
+                stack[sp] = f.apply(&stack[sp..sp + k]);
+                sp += 1;
+            }
+        }
+    }
+    stack[0]
+}
+
+impl Op {
+    /// Operands taken from the stack.
+    fn operands(self) -> usize {
+        match self {
+            Op::Const(_) | Op::Load(_) => 0,
+            Op::Neg | Op::Not => 1,
+            Op::Binary(_) => 2,
+            Op::Call(f) => f.arity(),
+        }
+    }
+}
+
+/// Appends `op` to a postfix tape, replacing it and its operands by their
+/// value when every operand is a constant. An operand is constant exactly
+/// when its own (already folded) tape is one `Const`, so the last
+/// `operands()` instructions are all constants exactly then.
+fn push_folded(ops: &mut Vec<Op>, op: Op) {
+    let k = op.operands();
+    let n = ops.len();
+    ops.push(op);
+    if k > 0 && ops[n - k..n].iter().all(|o| matches!(o, Op::Const(_))) {
+        let v = run_tape(&ops[n - k..], &[]);
+        ops.truncate(n - k);
+        ops.push(Op::Const(v));
+    }
+}
+
+impl Expression {
+    /// The expression with the slots `first..first + values.len()` replaced
+    /// by `values` and folded: a tape specialised to one parameter vector.
+    pub fn bind(&self, first: u32, values: &[f64]) -> Expression {
+        let mut ops = Vec::with_capacity(self.ops.len());
+        for op in &self.ops {
+            let op = match *op {
+                Op::Load(s) if s >= first && ((s - first) as usize) < values.len() => {
+                    Op::Const(values[(s - first) as usize])
+                }
+                op => op,
+            };
+            push_folded(&mut ops, op);
+        }
+        Expression::from_ops(ops)
     }
 }
 
@@ -400,19 +591,9 @@ impl<'a> Builder<'a> {
         Ok(())
     }
 
-    /// Emits an operator taking `k` operands; folds it when they are all constants.
+    /// Emits an operator taking `k` operands, folded when they are constants.
     fn op(&mut self, op: Op, k: usize) -> Result<(), ExprError> {
-        let n = self.ops.len();
-        let constant = self.ops[n - k..].iter().all(|o| matches!(o, Op::Const(_)));
-        self.ops.push(op);
-        if constant {
-            let v = Expression {
-                ops: self.ops[n - k..].to_vec(),
-            }
-            .eval(&[]);
-            self.ops.truncate(n - k);
-            self.ops.push(Op::Const(v));
-        }
+        push_folded(&mut self.ops, op);
         self.depth = self.depth + 1 - k;
         Ok(())
     }
@@ -492,7 +673,7 @@ impl<'a> Builder<'a> {
         if self.ops.is_empty() || self.depth != 1 {
             return Err(ExprError::NotNumeric(self.text.to_string()));
         }
-        Ok(Expression { ops: self.ops })
+        Ok(Expression::from_ops(self.ops))
     }
 }
 
@@ -536,6 +717,15 @@ mod tests {
                 .as_constant(),
             Some(4.0)
         );
+    }
+
+    #[test]
+    fn binding_slots_folds_what_they_fix() {
+        let e = Expression::compile("x * (y + 1) - sqrt(y) * z", &names).unwrap();
+        let b = e.bind(1, &[4.0]);
+        assert_eq!(b.ops.len(), 7, "{:?}", b.ops);
+        assert_eq!(b.eval(&[2.0, f64::NAN, 3.0]), 4.0);
+        assert_eq!(e.bind(0, &[2.0, 4.0, 3.0]).as_constant(), Some(4.0));
     }
 
     #[test]

@@ -45,7 +45,7 @@ use hysid_model::simulate::{SimError, estimate_velocity, substeps};
 pub const MAX_EVENTS_PER_STEP: usize = 16;
 
 /// Halvings of the step length when locating an event.
-pub const LOCATE_HALVINGS: usize = 60;
+pub const LOCATE_HALVINGS: usize = 40;
 
 /// Tolerance on an invariant's margin when checking a mode (states in the
 /// model's own units).
@@ -96,6 +96,15 @@ pub struct GrayBoxRun {
     pub zeno_steps: usize,
 }
 
+/// What an element in its current regime does to the flows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Effect {
+    /// Friction element `i` slides velocity `v` in direction `dir`.
+    Friction(usize, usize, f64),
+    /// The state's derivative is zero (a stuck velocity, a resting stop).
+    Hold(usize),
+}
+
 /// What ended a sub-step early.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Event {
@@ -112,13 +121,15 @@ pub struct Machine<'a> {
     /// Friction element of each state, if any.
     friction_of: Vec<Option<usize>>,
     k: [Vec<f64>; 4],
-    xt: Vec<f64>,
-    /// The end of a trial step, and the bisection's trial state.
+    /// A derivative, the end of a trial step, and the bisection's trial state.
+    dx: Vec<f64>,
     x1: Vec<f64>,
     xm: Vec<f64>,
     /// Guard surfaces at the start of the step, and a spare.
     g0: Vec<f64>,
     g: Vec<f64>,
+    /// The elements' effects in the regime of the step being integrated.
+    effects: Vec<Effect>,
     pub(crate) steps: usize,
     pub(crate) events: usize,
     pub(crate) zeno_steps: usize,
@@ -127,7 +138,7 @@ pub struct Machine<'a> {
 impl<'a> Machine<'a> {
     /// A workspace for `m` with parameter values `values`.
     pub fn new(m: &'a CompiledModel, values: &[f64]) -> Self {
-        let mut slots = vec![0.0; m.slots];
+        let mut slots = vec![0.0; m.slots()];
         let p0 = m.parameter_slot();
         slots[p0..p0 + m.parameters].copy_from_slice(&values[..m.parameters]);
         let fixed = m
@@ -153,11 +164,12 @@ impl<'a> Machine<'a> {
             fixed,
             friction_of,
             k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
-            xt: vec![0.0; n],
+            dx: vec![0.0; n],
             x1: vec![0.0; n],
             xm: vec![0.0; n],
             g0: Vec::new(),
             g: Vec::new(),
+            effects: Vec::with_capacity(2 * m.elements.len()),
             steps: 0,
             events: 0,
             zeno_steps: 0,
@@ -176,14 +188,15 @@ impl<'a> Machine<'a> {
             })
     }
 
-    /// Loads `(x, u)` into the slots and evaluates the mode's definitions.
+    /// Loads `(x, u)` into the slots.
     #[inline]
-    fn load(&mut self, x: &[f64], u: &[f64], mode: usize) {
-        let m = self.m;
-        self.slots[..m.states].copy_from_slice(x);
-        self.slots[m.states..m.states + m.inputs].copy_from_slice(u);
-        for (slot, e) in &m.modes[mode].definitions {
-            self.slots[*slot] = e.eval(&self.slots);
+    fn load(&mut self, x: &[f64], u: &[f64]) {
+        let (states, rest) = self.slots.split_at_mut(x.len());
+        for (slot, v) in states.iter_mut().zip(x) {
+            *slot = *v;
+        }
+        for (slot, v) in rest.iter_mut().zip(u) {
+            *slot = *v;
         }
     }
 
@@ -193,41 +206,36 @@ impl<'a> Machine<'a> {
         self.m.modes[mode].flow[v].eval(&self.slots)
     }
 
-    /// Kinetic and static levels of friction element `e` (loaded slots).
+    /// Kinetic and static levels of friction element `e` in `mode`.
     #[inline]
-    fn levels(&self, e: usize) -> (f64, f64) {
-        match &self.m.elements[e] {
-            CompiledElement::DryFriction {
-                kinetic,
-                static_level,
-                ..
-            } => {
-                let k = kinetic.eval(&self.slots).max(0.0);
-                (k, static_level.eval(&self.slots).max(k))
-            }
-            CompiledElement::Stop { .. } => (0.0, 0.0),
-        }
+    fn levels(&self, mode: usize, e: usize) -> (f64, f64) {
+        let (kinetic, static_level) = &self.m.modes[mode].friction[e];
+        let k = kinetic.eval(&self.slots).max(0.0);
+        (k, static_level.eval(&self.slots).max(k))
     }
 
-    /// The static level on velocity `v` (0 without friction; loaded slots).
-    fn static_on(&self, v: usize) -> f64 {
-        self.friction_of[v].map_or(0.0, |e| self.levels(e).1)
+    /// The static level on velocity `v` in `mode` (0 without friction).
+    fn static_on(&self, mode: usize, v: usize) -> f64 {
+        self.friction_of[v].map_or(0.0, |e| self.levels(mode, e).1)
     }
 
-    /// The state derivative in the current regime.
+    /// The state derivative in the current regime at `(x, u)`.
     fn derivative(&mut self, x: &[f64], u: &[f64], hs: &HybridState, out: &mut [f64]) {
-        self.load(x, u, hs.mode);
-        let m = self.m;
-        for (o, f) in out.iter_mut().zip(&m.modes[hs.mode].flow) {
-            *o = f.eval(&self.slots);
-        }
-        for (i, e) in m.elements.iter().enumerate() {
+        self.load(x, u);
+        self.prepare(hs);
+        self.flows(hs.mode, out);
+    }
+
+    /// Lists what the elements do to the flows in the regimes of `hs`.
+    fn prepare(&mut self, hs: &HybridState) {
+        self.effects.clear();
+        for (i, e) in self.m.elements.iter().enumerate() {
             match (e, hs.regimes[i]) {
                 (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
-                    out[*velocity] -= self.levels(i).0 * dir;
+                    self.effects.push(Effect::Friction(*velocity, i, dir));
                 }
                 (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Stuck) => {
-                    out[*velocity] = 0.0;
+                    self.effects.push(Effect::Hold(*velocity));
                 }
                 (
                     CompiledElement::Stop {
@@ -235,36 +243,67 @@ impl<'a> Machine<'a> {
                     },
                     ElementRegime::Resting,
                 ) => {
-                    out[*position] = 0.0;
-                    out[*velocity] = 0.0;
+                    self.effects.push(Effect::Hold(*position));
+                    self.effects.push(Effect::Hold(*velocity));
                 }
                 _ => {}
             }
         }
     }
 
-    /// One RK4 step of length `h` from `hs.x` into `out`.
+    /// The state derivative in `mode` at the loaded slots, with the
+    /// [`Machine::prepare`]d effects of the elements.
+    #[inline]
+    fn flows(&self, mode: usize, out: &mut [f64]) {
+        let q = &self.m.modes[mode];
+        for (o, f) in out.iter_mut().zip(&q.flow) {
+            *o = f.eval(&self.slots);
+        }
+        for effect in &self.effects {
+            match *effect {
+                Effect::Friction(v, i, dir) => {
+                    out[v] -= q.friction[i].0.eval(&self.slots).max(0.0) * dir;
+                }
+                Effect::Hold(s) => out[s] = 0.0,
+            }
+        }
+    }
+
+    /// One RK4 step of length `h` from `hs.x` into `out`; the stages are
+    /// written into the slots directly.
     fn rk4(&mut self, hs: &HybridState, u: &[f64], h: f64, out: &mut [f64]) {
         let [mut k1, mut k2, mut k3, mut k4] = std::mem::take(&mut self.k);
-        let mut xt = std::mem::take(&mut self.xt);
-        let stage = |xt: &mut [f64], k: &[f64], c: f64| {
-            for ((t, x), k) in xt.iter_mut().zip(&hs.x).zip(k) {
-                *t = x + c * h * k;
-            }
-        };
-        self.derivative(&hs.x, u, hs, &mut k1);
-        stage(&mut xt, &k1, 0.5);
-        self.derivative(&xt, u, hs, &mut k2);
-        stage(&mut xt, &k2, 0.5);
-        self.derivative(&xt, u, hs, &mut k3);
-        stage(&mut xt, &k3, 1.0);
-        self.derivative(&xt, u, hs, &mut k4);
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = hs.x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        self.load(&hs.x, u);
+        self.prepare(hs);
+        let q = hs.mode;
+        self.flows(q, &mut k1);
+        self.stage(hs, &k1, 0.5 * h);
+        self.flows(q, &mut k2);
+        self.stage(hs, &k2, 0.5 * h);
+        self.flows(q, &mut k3);
+        self.stage(hs, &k3, h);
+        self.flows(q, &mut k4);
+        let sixth = h / 6.0;
+        for (((((o, x), a), b), c), d) in out
+            .iter_mut()
+            .zip(&hs.x)
+            .zip(&k1)
+            .zip(&k2)
+            .zip(&k3)
+            .zip(&k4)
+        {
+            *o = x + sixth * (a + 2.0 * b + 2.0 * c + d);
         }
         self.k = [k1, k2, k3, k4];
-        self.xt = xt;
         self.steps += 1;
+    }
+
+    /// Loads the RK4 stage state `x + step * k` into the slots.
+    #[inline]
+    fn stage(&mut self, hs: &HybridState, k: &[f64], step: f64) {
+        for ((slot, x), k) in self.slots.iter_mut().zip(&hs.x).zip(k) {
+            *slot = x + step * k;
+        }
     }
 
     /// The guard surfaces of the mode's transitions at the loaded slots.
@@ -278,8 +317,16 @@ impl<'a> Machine<'a> {
         );
     }
 
-    /// The first event at state `x` (loaded with its mode), given the guard
-    /// surfaces `g0` at the start of the step.
+    /// Loads `(x, u)` and evaluates the guard surfaces there into `g`.
+    fn surfaces_at(&mut self, x: &[f64], u: &[f64], mode: usize) {
+        self.load(x, u);
+        let mut g = std::mem::take(&mut self.g);
+        self.surfaces(mode, &mut g);
+        self.g = g;
+    }
+
+    /// The first event at state `x` (loaded, with the guard surfaces `g`
+    /// there), given the surfaces `g0` at the start of the step.
     fn first_event(&self, hs: &HybridState, x: &[f64]) -> Option<Event> {
         let m = self.m;
         let mut friction = None;
@@ -291,7 +338,9 @@ impl<'a> Machine<'a> {
                     return Some(Event::Element(i));
                 }
                 (CompiledElement::Stop { velocity, sign, .. }, ElementRegime::Resting)
-                    if -sign * self.force(hs.mode, *velocity) - self.static_on(*velocity) > 0.0 =>
+                    if -sign * self.force(hs.mode, *velocity)
+                        - self.static_on(hs.mode, *velocity)
+                        > 0.0 =>
                 {
                     return Some(Event::Element(i));
                 }
@@ -302,7 +351,8 @@ impl<'a> Machine<'a> {
                 }
                 (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Stuck)
                     if !self.held_by_stop(hs, *velocity)
-                        && self.force(hs.mode, *velocity).abs() - self.levels(i).1 > 0.0 =>
+                        && self.force(hs.mode, *velocity).abs() - self.levels(hs.mode, i).1
+                            > 0.0 =>
                 {
                     friction = friction.or(Some(i));
                 }
@@ -327,9 +377,9 @@ impl<'a> Machine<'a> {
     /// into, stick within the static level, else slide off along the force.
     fn settle(&mut self, hs: &mut HybridState, u: &[f64], v: usize) {
         hs.x[v] = 0.0;
-        self.load(&hs.x, u, hs.mode);
+        self.load(&hs.x, u);
         let f = self.force(hs.mode, v);
-        let fs = self.static_on(v);
+        let fs = self.static_on(hs.mode, v);
         let m = self.m;
         let mut resting = false;
         for (i, e) in m.elements.iter().enumerate() {
@@ -374,7 +424,7 @@ impl<'a> Machine<'a> {
                 (CompiledElement::Stop { velocity, .. }, ElementRegime::Resting) => {
                     hs.regimes[i] = ElementRegime::Away;
                     let v = *velocity;
-                    self.load(&hs.x, u, hs.mode);
+                    self.load(&hs.x, u);
                     let f = self.force(hs.mode, v);
                     if let Some(fe) = self.friction_of[v] {
                         hs.regimes[fe] = ElementRegime::Slip(f.signum());
@@ -406,14 +456,14 @@ impl<'a> Machine<'a> {
                     self.settle(hs, u, *velocity);
                 }
                 (CompiledElement::DryFriction { velocity, .. }, _) => {
-                    self.load(&hs.x, u, hs.mode);
+                    self.load(&hs.x, u);
                     let f = self.force(hs.mode, *velocity);
                     hs.regimes[i] = ElementRegime::Slip(f.signum());
                 }
             },
             Event::Transition(j) => {
                 let t = &m.modes[hs.mode].transitions[j];
-                self.load(&hs.x, u, hs.mode);
+                self.load(&hs.x, u);
                 let values: Vec<(usize, f64)> = t
                     .reset
                     .iter()
@@ -423,7 +473,7 @@ impl<'a> Machine<'a> {
                     hs.x[s] = v;
                 }
                 hs.mode = t.to;
-                self.load(&hs.x, u, hs.mode);
+                self.load(&hs.x, u);
                 if m.modes[hs.mode]
                     .invariant
                     .iter()
@@ -451,28 +501,25 @@ impl<'a> Machine<'a> {
         if g_before.is_empty() {
             return Ok(());
         }
-        self.load(&hs.x, u, hs.mode);
         self.g0.clear();
         self.g0.extend_from_slice(g_before);
+        self.surfaces_at(&hs.x, u, hs.mode);
         if let Some(Event::Transition(j)) = self.first_transition(hs) {
             self.apply(hs, u, Event::Transition(j), sample)?;
         }
         Ok(())
     }
 
-    /// The first transition whose guard was crossed since `g0` and whose
-    /// condition holds (loaded slots).
+    /// The first transition whose guard was crossed from `g0` to `g` and
+    /// whose condition holds (loaded slots).
     fn first_transition(&self, hs: &HybridState) -> Option<Event> {
         self.m.modes[hs.mode]
             .transitions
             .iter()
             .enumerate()
             .find(|(j, t)| {
-                crossed(
-                    t.guard.crossing,
-                    self.g0[*j],
-                    t.guard.surface.eval(&self.slots),
-                ) && t.when.as_ref().is_none_or(|w| w.eval(&self.slots) != 0.0)
+                crossed(t.guard.crossing, self.g0[*j], self.g[*j])
+                    && t.when.as_ref().is_none_or(|w| w.eval(&self.slots) != 0.0)
             })
             .map(|(j, _)| Event::Transition(j))
     }
@@ -494,7 +541,9 @@ impl<'a> Machine<'a> {
     }
 
     /// Advances `hs` over one sample of length `ts` in `n_sub` sub-steps
-    /// with the input `u` held.
+    /// with the input `u` held. Returns true when the state ends the sample
+    /// at rest (every derivative exactly zero): then nothing changes until
+    /// the input does.
     pub fn advance(
         &mut self,
         hs: &mut HybridState,
@@ -502,37 +551,38 @@ impl<'a> Machine<'a> {
         ts: f64,
         n_sub: usize,
         sample: usize,
-    ) -> Result<(), SimError> {
-        let mut dx = std::mem::take(&mut self.x1);
-        self.derivative(&hs.x, u, hs, &mut dx);
-        let still = dx.iter().all(|d| *d == 0.0);
-        self.x1 = dx;
-        if still {
-            return Ok(());
+    ) -> Result<bool, SimError> {
+        if self.at_rest(hs, u) {
+            return Ok(true);
         }
         let h = ts / n_sub as f64;
         let mut x1 = std::mem::take(&mut self.x1);
         let mut xm = std::mem::take(&mut self.xm);
         let mut result = Ok(());
+        // The surfaces at hs.x, evaluated again only after an event.
+        let mut fresh = false;
         'steps: for _ in 0..n_sub {
             let mut left = h;
             let mut events = 0;
             // At most MAX_EVENTS_PER_STEP events, then one event-free step.
             while left > 0.0 {
-                self.load(&hs.x, u, hs.mode);
-                let mut g = std::mem::take(&mut self.g);
-                self.surfaces(hs.mode, &mut g);
-                self.g = std::mem::replace(&mut self.g0, g);
+                if !fresh {
+                    self.surfaces_at(&hs.x, u, hs.mode);
+                    std::mem::swap(&mut self.g0, &mut self.g);
+                    fresh = true;
+                }
                 self.rk4(hs, u, left, &mut x1);
                 if events >= MAX_EVENTS_PER_STEP {
                     hs.x.copy_from_slice(&x1);
+                    fresh = false;
                     break;
                 }
-                self.load(&x1, u, hs.mode);
-                if self.first_event(hs, &x1).is_none() {
+                self.surfaces_at(&x1, u, hs.mode);
+                let Some(mut ev) = self.first_event(hs, &x1) else {
                     hs.x.copy_from_slice(&x1);
+                    std::mem::swap(&mut self.g0, &mut self.g);
                     break;
-                }
+                };
                 let (mut lo, mut hi) = (0.0, left);
                 for _ in 0..LOCATE_HALVINGS {
                     let mid = 0.5 * (lo + hi);
@@ -540,19 +590,17 @@ impl<'a> Machine<'a> {
                         break;
                     }
                     self.rk4(hs, u, mid, &mut xm);
-                    self.load(&xm, u, hs.mode);
-                    if self.first_event(hs, &xm).is_some() {
+                    self.surfaces_at(&xm, u, hs.mode);
+                    if let Some(e) = self.first_event(hs, &xm) {
                         hi = mid;
+                        ev = e;
                         x1.copy_from_slice(&xm);
                     } else {
                         lo = mid;
                     }
                 }
-                self.load(&x1, u, hs.mode);
-                let ev = self
-                    .first_event(hs, &x1)
-                    .expect("an event at the upper end");
                 hs.x.copy_from_slice(&x1);
+                fresh = false;
                 if let Err(e) = self.apply(hs, u, ev, sample) {
                     result = Err(e);
                     break 'steps;
@@ -563,11 +611,24 @@ impl<'a> Machine<'a> {
                     self.zeno_steps += 1;
                     self.hold_reached_stops(hs, u);
                 }
+                if self.at_rest(hs, u) {
+                    // Come to rest: the rest of the sample changes nothing.
+                    break 'steps;
+                }
             }
         }
         self.x1 = x1;
         self.xm = xm;
-        result
+        result.map(|()| self.at_rest(hs, u))
+    }
+
+    /// Every derivative of the state is exactly zero under the input `u`.
+    fn at_rest(&mut self, hs: &HybridState, u: &[f64]) -> bool {
+        let mut dx = std::mem::take(&mut self.dx);
+        self.derivative(&hs.x, u, hs, &mut dx);
+        let rest = dx.iter().all(|d| *d == 0.0);
+        self.dx = dx;
+        rest
     }
 
     /// The Zeno bound's action: every stop that has been reached holds.
@@ -593,13 +654,13 @@ impl<'a> Machine<'a> {
     /// that brought it there (the regime reached, before the new input acts).
     pub fn observe(&mut self, hs: &HybridState, u: &[f64], held: &[f64]) -> (f64, usize, bool) {
         let m = self.m;
-        self.load(&hs.x, held, hs.mode);
+        self.load(&hs.x, held);
         let covered = m.modes[hs.mode]
             .invariant
             .iter()
             .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE);
-        self.load(&hs.x, u, hs.mode);
-        let y = m.output.eval(&self.slots);
+        self.load(&hs.x, u);
+        let y = m.modes[hs.mode].output.eval(&self.slots);
         let label = |want: &dyn Fn(&CompiledElement, ElementRegime) -> bool| {
             m.elements
                 .iter()
@@ -647,7 +708,7 @@ impl<'a> Machine<'a> {
         let mode = mode.unwrap_or_else(|| {
             (0..m.modes.len())
                 .find(|&q| {
-                    self.load(&x, u, q);
+                    self.load(&x, u);
                     m.modes[q]
                         .invariant
                         .iter()
@@ -765,7 +826,8 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
     }
     let n_sub = substeps(ts, m.internal_step)?;
     let n = data.len();
-    let mut machine = Machine::new(m, values);
+    let bound = m.bind(values);
+    let mut machine = Machine::new(&bound, values);
     let (start, mut hs) = initial(m, &mut machine, data, ts, None)?;
     let mut out = GrayBoxRun {
         y: data.y().to_vec(),
@@ -781,22 +843,34 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
     let mut held = vec![0.0; m.inputs];
     input_at(data, start, &mut held);
     let mut g_end = Vec::new();
+    // At rest under an unchanged input, a sample repeats the one before.
+    let (mut rest, mut repeat) = (false, false);
     for k in start..n {
         input_at(data, k, &mut u);
-        let (y, label, covered) = machine.observe(&hs, &u, &held);
+        let changed = k == start || u != held;
+        if changed || !repeat {
+            let (y, label, covered) = machine.observe(&hs, &u, &held);
+            out.y[k] = y;
+            out.modes[k] = Some(label);
+            out.covered[k] = covered;
+            out.x[k * m.states..(k + 1) * m.states].copy_from_slice(&hs.x);
+        } else {
+            out.y[k] = out.y[k - 1];
+            out.modes[k] = out.modes[k - 1];
+            out.covered[k] = out.covered[k - 1];
+            out.x
+                .copy_within((k - 1) * m.states..k * m.states, k * m.states);
+        }
         held.copy_from_slice(&u);
-        out.y[k] = y;
-        out.modes[k] = Some(label);
-        out.covered[k] = covered;
-        out.x[k * m.states..(k + 1) * m.states].copy_from_slice(&hs.x);
-        if k + 1 < n {
+        repeat = k + 1 < n && !changed && rest;
+        if k + 1 < n && !repeat {
             if k > start {
                 machine.resettle(&mut hs, &u);
                 let g_before = std::mem::take(&mut g_end);
                 machine.fire_at_sample(&mut hs, &u, &g_before, k)?;
             }
-            machine.advance(&mut hs, &u, ts, n_sub, k)?;
-            machine.load(&hs.x, &u, hs.mode);
+            rest = machine.advance(&mut hs, &u, ts, n_sub, k)?;
+            machine.load(&hs.x, &u);
             machine.surfaces(hs.mode, &mut g_end);
         }
     }
@@ -824,7 +898,8 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
             needed: first + 1,
         });
     }
-    let mut machine = Machine::new(m, values);
+    let bound = m.bind(values);
+    let mut machine = Machine::new(&bound, values);
     let mut out = GrayBoxRun {
         y: data.y().to_vec(),
         x: vec![0.0; n * m.states],

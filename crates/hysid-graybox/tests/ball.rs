@@ -26,16 +26,24 @@ fn set(m: &mut GrayBoxModel, name: &str, value: f64) {
 /// An independent reference: fixed-step RK4 with a step of `h`, the bounce
 /// applied at the first step that ends below the table (no event location),
 /// for the flying ball only (the record is short enough never to land).
-fn reference(
+/// The parameters and initial heights of a reference run.
+#[derive(Clone, Copy)]
+struct Setting {
     e: f64,
     wn: f64,
     zeta: f64,
     y0: f64,
     z0: f64,
-    t_end: f64,
-    h: f64,
-    ts: f64,
-) -> Vec<f64> {
+}
+
+fn reference(p: &Setting, t_end: f64, h: f64, ts: f64) -> Vec<f64> {
+    let Setting {
+        e,
+        wn,
+        zeta,
+        y0,
+        z0,
+    } = *p;
     let g = 9.81;
     let f = |s: [f64; 4]| [s[1], -g, s[3], -2.0 * zeta * wn * s[3] - wn * wn * s[2]];
     let mut s = [y0, 0.0, z0, 0.0];
@@ -67,7 +75,20 @@ fn reference(
 #[test]
 fn located_events_match_a_fine_step_reference() {
     let mut m = ball();
-    let (e, wn, zeta, y0, z0) = (0.8, 12.0, 0.3, 0.5, 0.05);
+    let p = Setting {
+        e: 0.8,
+        wn: 12.0,
+        zeta: 0.3,
+        y0: 0.5,
+        z0: 0.05,
+    };
+    let Setting {
+        e,
+        wn,
+        zeta,
+        y0,
+        z0,
+    } = p;
     set(&mut m, "e", e);
     set(&mut m, "wn", wn);
     set(&mut m, "zeta", zeta);
@@ -80,8 +101,8 @@ fn located_events_match_a_fine_step_reference() {
     let c = CompiledModel::new(&m).unwrap();
     let r = run(&c, &m.values(), &data).unwrap();
     assert!(r.events >= 3, "{} bounces", r.events);
-    let fine = reference(e, wn, zeta, y0, z0, 1.5, 1e-7, ts);
-    let coarse = reference(e, wn, zeta, y0, z0, 1.5, 1e-3, ts);
+    let fine = reference(&p, 1.5, 1e-7, ts);
+    let coarse = reference(&p, 1.5, 1e-3, ts);
     let worst = |a: &[f64]| {
         a.iter()
             .zip(&fine)

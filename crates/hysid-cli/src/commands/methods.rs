@@ -1,4 +1,5 @@
-//! `hysid methods`: the registered back-ends, one per line, with their options.
+//! `hysid methods`: the registered back-ends, one per line, with their
+//! options, and the version of the gray-box model format this build reads.
 
 use crate::Result;
 
@@ -59,5 +60,9 @@ pub fn run(args: Args) -> Result<()> {
             }
         );
     }
+    println!(
+        "model files: gray_box format {} (docs/gray-box-models.md)",
+        hysid_graybox::FORMAT_VERSION
+    );
     Ok(())
 }
