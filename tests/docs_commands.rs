@@ -209,6 +209,11 @@ enum Quote {
 /// `-o` goes to a temporary folder.
 const RUN: &[(&str, &str, Quote)] = &[
     (
+        "gray-box-models.md",
+        "hysid simulate models/examples/ball-on-table.toml --excite n=1001,hold=50,low=-40,high=40,ts=0.01 --seed 1 -o ball.csv",
+        Quote::ModeCounts(&[("fly", 891), ("carried", 110)]),
+    ),
+    (
         "README.md",
         "hysid methods",
         Quote::Stdout(&["arx", "cluster", "bounded", "physical", "klinreg", "parc"]),
