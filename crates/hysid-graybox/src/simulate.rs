@@ -817,18 +817,11 @@ fn initial(
 /// Runs the compiled model with parameter values `values` on the inputs of
 /// `data` (sampling time `data.ts`), from the model's initial-state rule.
 pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxRun, SimError> {
-    let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
-    if data.inputs.len() != m.inputs {
-        return Err(SimError::Inputs {
-            expected: m.inputs,
-            found: data.inputs.len(),
-        });
-    }
-    let n_sub = substeps(ts, m.internal_step)?;
+    let (ts, n_sub) = timing(m, data)?;
     let n = data.len();
     let bound = m.bind(values);
     let mut machine = Machine::new(&bound, values);
-    let (start, mut hs) = initial(m, &mut machine, data, ts, None)?;
+    let (start, hs) = initial(m, &mut machine, data, ts, None)?;
     let mut out = GrayBoxRun {
         y: data.y().to_vec(),
         x: vec![0.0; n * m.states],
@@ -839,13 +832,44 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
         events: 0,
         zeno_steps: 0,
     };
-    let mut u = vec![0.0; m.inputs];
-    let mut held = vec![0.0; m.inputs];
+    span(&mut machine, hs, data, start..n, (ts, n_sub), &mut out)?;
+    out.steps = machine.steps;
+    out.events = machine.events;
+    out.zeno_steps = machine.zeno_steps;
+    Ok(out)
+}
+
+/// The sampling time and the sub-steps per sample, checked.
+fn timing(m: &CompiledModel, data: &Dataset) -> Result<(f64, usize), SimError> {
+    let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
+    if data.inputs.len() != m.inputs {
+        return Err(SimError::Inputs {
+            expected: m.inputs,
+            found: data.inputs.len(),
+        });
+    }
+    Ok((ts, substeps(ts, m.internal_step)?))
+}
+
+/// Runs from `hs` at sample `samples.start` over `samples`, writing each
+/// sample's output, label, coverage and state into `out`.
+fn span(
+    machine: &mut Machine,
+    mut hs: HybridState,
+    data: &Dataset,
+    samples: std::ops::Range<usize>,
+    (ts, n_sub): (f64, usize),
+    out: &mut GrayBoxRun,
+) -> Result<(), SimError> {
+    let (start, end) = (samples.start, samples.end);
+    let states = hs.x.len();
+    let mut u = vec![0.0; data.inputs.len()];
+    let mut held = vec![0.0; data.inputs.len()];
     input_at(data, start, &mut held);
     let mut g_end = Vec::new();
     // At rest under an unchanged input, a sample repeats the one before.
     let (mut rest, mut repeat) = (false, false);
-    for k in start..n {
+    for k in samples {
         input_at(data, k, &mut u);
         let changed = k == start || u != held;
         if changed || !repeat {
@@ -853,17 +877,16 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
             out.y[k] = y;
             out.modes[k] = Some(label);
             out.covered[k] = covered;
-            out.x[k * m.states..(k + 1) * m.states].copy_from_slice(&hs.x);
+            out.x[k * states..(k + 1) * states].copy_from_slice(&hs.x);
         } else {
             out.y[k] = out.y[k - 1];
             out.modes[k] = out.modes[k - 1];
             out.covered[k] = out.covered[k - 1];
-            out.x
-                .copy_within((k - 1) * m.states..k * m.states, k * m.states);
+            out.x.copy_within((k - 1) * states..k * states, k * states);
         }
         held.copy_from_slice(&u);
-        repeat = k + 1 < n && !changed && rest;
-        if k + 1 < n && !repeat {
+        repeat = k + 1 < end && !changed && rest;
+        if k + 1 < end && !repeat {
             if k > start {
                 machine.resettle(&mut hs, &u);
                 let g_before = std::mem::take(&mut g_end);
@@ -874,10 +897,50 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
             machine.surfaces(hs.mode, &mut g_end);
         }
     }
-    out.steps = machine.steps;
-    out.events = machine.events;
-    out.zeno_steps = machine.zeno_steps;
-    Ok(out)
+    Ok(())
+}
+
+/// Multiple shooting: the record cut into segments of `segment` samples,
+/// each simulated from the state `state_at(s)` at its first sample `s`
+/// (the mode: the first whose invariant holds). Returns the outputs of
+/// every sample: the first sample's is its initial state's, every other is
+/// the one its segment simulated (a boundary sample: the earlier segment's).
+pub fn segmented(
+    m: &CompiledModel,
+    values: &[f64],
+    data: &Dataset,
+    segment: usize,
+    state_at: &dyn Fn(usize) -> Vec<f64>,
+) -> Result<Vec<f64>, SimError> {
+    let (ts, n_sub) = timing(m, data)?;
+    let n = data.len();
+    let bound = m.bind(values);
+    let mut machine = Machine::new(&bound, values);
+    let mut out = GrayBoxRun {
+        y: data.y().to_vec(),
+        x: vec![0.0; n * m.states],
+        modes: vec![None; n],
+        covered: vec![true; n],
+        start: 0,
+        steps: 0,
+        events: 0,
+        zeno_steps: 0,
+    };
+    let mut u = vec![0.0; m.inputs];
+    let mut s = 0;
+    while s + 1 < n {
+        input_at(data, s, &mut u);
+        let hs = machine.state_at(state_at(s), &u, None);
+        let end = (s + segment.max(1) + 1).min(n);
+        // The previous segment's last output stays: this one starts there.
+        let last = out.y[s];
+        span(&mut machine, hs, data, s..end, (ts, n_sub), &mut out)?;
+        if s > 0 {
+            out.y[s] = last;
+        }
+        s = end - 1;
+    }
+    Ok(out.y)
 }
 
 /// One-step prediction: at each sample the state is read again from the
@@ -888,8 +951,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     let CompiledInitial::Measured { samples, .. } = m.initial else {
         return run(m, values, data);
     };
-    let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
-    let n_sub = substeps(ts, m.internal_step)?;
+    let (ts, n_sub) = timing(m, data)?;
     let n = data.len();
     let first = samples - 1;
     if n <= first {

@@ -9,18 +9,15 @@ use crate::diagnostics::{
 };
 use crate::identifiability;
 use crate::local::local_stages;
-use crate::objective::{
-    FAILED, Objective, VelocityTolerances, simulation_mse, velocity_tolerances,
-};
+use crate::objective::{FAILED, Objective, simulation_mse, velocity_tolerances};
 use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
 use crate::stages::{Search, StageLog};
 use crate::swarm::global_stage;
+use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::priors::Priors;
-use hysid_mechanical::simulate as mechanical;
-use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -42,21 +39,26 @@ pub struct FitReport {
     pub std_errors: Vec<f64>,
 }
 
-/// Fits `model`'s parameters to `data` by simulation error: the particle
-/// swarm ([`global_stage`]), then the local stages ([`local_stages`]),
-/// then the [`sensitivity`] of the result. Returns the fitted model (values
-/// replaced, [`PhysicalDiagnostics`] in `info.diagnostics`) and a report.
-pub fn fit_mechanical(
-    model: &MechanicalModel,
+/// Fits `model`'s parameters (a mechanical or a gray-box model) to `data`
+/// by simulation error: the particle swarm ([`global_stage`]), then the
+/// local stages ([`local_stages`]), then the [`sensitivity`] of the result.
+/// Returns the fitted model (values replaced, [`PhysicalDiagnostics`] in
+/// `info.diagnostics`) and a report.
+pub fn fit_model<M: Target>(
+    model: &M,
     data: &Dataset,
     priors: &Priors,
     options: &PhysicalOptions,
     ctx: &RunContext<'_>,
-) -> Result<(MechanicalModel, FitReport), IdentifyError> {
+) -> Result<(M, FitReport), IdentifyError> {
     let t0 = Instant::now();
     let ts = check_inputs(model, data)?;
     let tols = velocity_tolerances(data.y(), ts);
-    let model = with_initial_state(model, options.init_samples, &tols);
+    let model = if options.init_samples > 0 {
+        model.with_measured_start(options.init_samples, tols.backward)
+    } else {
+        model.clone()
+    };
     let map = ParameterMap::new(&model, priors).map_err(PhysicalError::Parameters)?;
     check_length(&model, &map, data)?;
     let evals = AtomicU64::new(0);
@@ -108,7 +110,7 @@ pub fn fit_mechanical(
         at_bound: map.at_bound(&values),
     };
     let mut fitted = map.apply(&model, &values);
-    let common = &mut fitted.info.diagnostics;
+    let common = &mut fitted.info_mut().diagnostics;
     common.samples = Some(data.len());
     if let Some(status) = status {
         common.run_status = status.run_status();
@@ -128,13 +130,11 @@ pub fn fit_mechanical(
 
 /// Checks the model, the record and the options against each other;
 /// returns the sampling time.
-fn check_inputs(model: &MechanicalModel, data: &Dataset) -> Result<f64, IdentifyError> {
-    model
-        .validate()
-        .map_err(|e| PhysicalError::Model(e.into()))?;
-    if data.inputs.len() != model.inputs.len() {
+fn check_inputs(model: &impl Target, data: &Dataset) -> Result<f64, IdentifyError> {
+    model.check().map_err(PhysicalError::Model)?;
+    if data.inputs.len() != model.inputs() {
         return Err(PhysicalError::InputCount {
-            model: model.inputs.len(),
+            model: model.inputs(),
             data: data.inputs.len(),
         }
         .into());
@@ -142,45 +142,21 @@ fn check_inputs(model: &MechanicalModel, data: &Dataset) -> Result<f64, Identify
     let Some(ts) = data.ts else {
         return Err(PhysicalError::NoSamplingTime.into());
     };
-    mechanical::substeps(ts, model.internal_step).map_err(|e| PhysicalError::Model(e.into()))?;
-    Ok(ts)
-}
-
-/// `model` with its initial state measured on the first `init_samples`
-/// samples (0: the model's own rule), its rest threshold at least the
-/// noise threshold `tols.backward`.
-fn with_initial_state(
-    model: &MechanicalModel,
-    init_samples: usize,
-    tols: &VelocityTolerances,
-) -> MechanicalModel {
-    let mut model = model.clone();
-    if init_samples > 0 {
-        model.initial_state = MechanicalInitialState::Measured {
-            samples: init_samples,
-            velocity_tol: match model.initial_state {
-                MechanicalInitialState::Measured { velocity_tol, .. } => {
-                    velocity_tol.max(tols.backward)
-                }
-                _ => tols.backward,
-            },
-        };
-    }
     model
+        .substeps(ts)
+        .map_err(|e| PhysicalError::Model(e.into()))?;
+    Ok(ts)
 }
 
 /// Checks that the record has a sample per free parameter, plus one,
 /// after the initial state.
 fn check_length(
-    model: &MechanicalModel,
+    model: &impl Target,
     map: &ParameterMap,
     data: &Dataset,
 ) -> Result<(), IdentifyError> {
     let d = map.dim();
-    let needed = match model.initial_state {
-        MechanicalInitialState::Measured { samples, .. } => samples + d + 1,
-        MechanicalInitialState::Given { .. } => d + 1,
-    };
+    let needed = model.measured_samples().unwrap_or(0) + d + 1;
     if data.len() < needed {
         return Err(PhysicalError::TooFewSamples {
             samples: data.len(),

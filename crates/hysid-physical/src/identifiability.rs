@@ -17,7 +17,7 @@
 use crate::objective::simulation_mse;
 use crate::parameters::ParameterMap;
 use crate::sensitivity::Sensitivity;
-use hysid_mechanical::MechanicalModel;
+use crate::target::Simulator;
 use hysid_model::data::Dataset;
 use serde::{Deserialize, Serialize};
 
@@ -43,7 +43,7 @@ pub enum Identifiability {
 /// `values` (cost `cost` on `data`); the coordinates not identifiable are
 /// moved to their nominal values in `values`.
 pub fn classify(
-    model: &MechanicalModel,
+    model: &dyn Simulator,
     map: &ParameterMap,
     values: &mut [f64],
     cost: f64,

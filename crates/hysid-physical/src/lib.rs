@@ -1,16 +1,17 @@
 //! # hysid-physical
 //!
-//! The `physical` back-end: white-box identification of a mass-spring-
-//! friction hybrid automaton ([`MechanicalModel`], `"kind": "mechanical"`),
-//! the question the founding paper leaves open (Juloski, Heemels,
-//! Ferrari-Trecate, IFAC ADHS 2003: "structural models ... and their
-//! parameters (white box modelling)").
+//! The `physical` back-end: white-box identification of a hybrid model
+//! declared by its physics, a mass-spring-friction automaton
+//! ([`MechanicalModel`], `"kind": "mechanical"`) or any gray-box model
+//! (`"kind": "gray_box"`, [`target`]), the question the founding paper
+//! leaves open (Juloski, Heemels, Ferrari-Trecate, IFAC ADHS 2003:
+//! "structural models ... and their parameters (white box modelling)").
 //!
 //! The physical parameters are fitted by minimising the **simulation
 //! (output) error** `J = mean_k (y(k) - yhat(k))^2` over the record, where
-//! `yhat` is the event-aware free-run simulation
-//! ([`hysid_mechanical::simulate`]) from the state estimated on the
-//! first samples. The search runs in box-normalised coordinates
+//! `yhat` is the model's event-aware free-run simulation
+//! ([`hysid_mechanical::simulate`], [`hysid_graybox::simulate`]) from the
+//! state estimated on the first samples. The search runs in box-normalised coordinates
 //! ([`parameters`]):
 //!
 //! 1. a global stage ([`swarm`]): argmin's particle swarm (Kennedy and
@@ -45,10 +46,12 @@ pub mod parameters;
 pub mod sensitivity;
 pub mod stages;
 pub mod swarm;
+pub mod target;
 
 pub use diagnostics::PhysicalDiagnostics;
-pub use fit::{FitReport, fit_mechanical};
+pub use fit::{FitReport, fit_model};
 pub use parameters::ParameterMap;
+pub use target::{GrayBoxTarget, Simulator, Target};
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
@@ -71,8 +74,9 @@ pub fn head_model() -> MechanicalModel {
 hysid_core::backend_options! {
     /// Options of the `physical` back-end.
     pub struct PhysicalOptions {
-        /// Path of the mechanical model file (TOML or JSON) whose parameters are
-        /// fitted; empty: the built-in pick-and-place head (models/pick-and-place/head.toml).
+        /// Path of the model file (TOML or JSON, a mechanical or a gray-box model) whose
+        /// parameters are fitted; empty: the built-in pick-and-place head
+        /// (models/pick-and-place/head.toml).
         model: String = String::new(),
         /// Particles of the swarm (global stage); 0 skips the global stage.
         particles: usize = 24,
@@ -130,7 +134,7 @@ pub struct Physical;
 impl Identifier for Physical {
     type Options = PhysicalOptions;
     const NAME: &'static str = "physical";
-    const SUMMARY: &'static str = "physical parameters of a mass-spring-friction hybrid automaton (mounting head) by simulation error: swarm + Nelder-Mead";
+    const SUMMARY: &'static str = "physical parameters of a mechanical or gray-box hybrid model (default: the mounting head) by simulation error: swarm + Levenberg-Marquardt + Nelder-Mead";
     const HONOURS: &'static [PriorKind] = &[PriorKind::Fixed, PriorKind::Bounds, PriorKind::Tie];
 
     fn identify(
@@ -140,44 +144,44 @@ impl Identifier for Physical {
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let model = if options.model.trim().is_empty() {
-            head_model()
+            Model::Mechanical(head_model())
         } else {
-            match Model::load(Path::new(options.model.trim())) {
-                Ok(Model::Mechanical(m)) => m,
-                Ok(other) => {
-                    return Err(IdentifyError::Options(OptionError::invalid(
-                        "model",
-                        &options.model,
-                        format!(
-                            "a '{}' model; the physical method needs a 'mechanical' one",
-                            other.kind()
-                        ),
-                    )));
-                }
-                Err(e) => {
-                    return Err(IdentifyError::Options(OptionError::invalid(
-                        "model",
-                        &options.model,
-                        e.to_string(),
-                    )));
-                }
-            }
+            Model::load(Path::new(options.model.trim())).map_err(|e| {
+                IdentifyError::Options(OptionError::invalid("model", &options.model, e.to_string()))
+            })?
         };
-        let (fitted, _report) = fit_mechanical(&model, problem.data, problem.priors, options, ctx)
-            .map_err(|e| {
-                // A model file's structural problems name the file.
-                match e.downcast_ref::<PhysicalError>() {
-                    Some(PhysicalError::Model(problem)) if !options.model.trim().is_empty() => {
-                        IdentifyError::Options(OptionError::invalid(
-                            "model",
-                            options.model.trim(),
-                            problem.to_string(),
-                        ))
-                    }
-                    _ => e,
-                }
-            })?;
-        Ok(Model::Mechanical(fitted))
+        // A model file's structural problems name the file.
+        let in_file = |e: IdentifyError| match e.downcast_ref::<PhysicalError>() {
+            Some(PhysicalError::Model(problem)) if !options.model.trim().is_empty() => {
+                IdentifyError::Options(OptionError::invalid(
+                    "model",
+                    options.model.trim(),
+                    problem.to_string(),
+                ))
+            }
+            _ => e,
+        };
+        let (data, priors) = (problem.data, problem.priors);
+        match model {
+            Model::Mechanical(m) => fit_model(&m, data, priors, options, ctx)
+                .map(|(fitted, _)| Model::Mechanical(fitted))
+                .map_err(in_file),
+            Model::GrayBox(m) => {
+                let target = GrayBoxTarget::new(m)
+                    .map_err(|e| in_file(PhysicalError::Model(e.into()).into()))?;
+                fit_model(&target, data, priors, options, ctx)
+                    .map(|(fitted, _)| Model::GrayBox(fitted.model))
+                    .map_err(in_file)
+            }
+            other => Err(IdentifyError::Options(OptionError::invalid(
+                "model",
+                &options.model,
+                format!(
+                    "a '{}' model; the physical method fits a 'mechanical' or a 'gray_box' one",
+                    other.kind()
+                ),
+            ))),
+        }
     }
 }
 

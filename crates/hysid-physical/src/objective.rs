@@ -1,14 +1,14 @@
 //! The simulation-error objective: free-run and segmented (multiple-
-//! shooting) residuals of the event-aware simulation
-//! ([`hysid_mechanical::simulate`]), their mean square, the velocity
-//! thresholds from the measurement noise, and the cost argmin's solvers see.
+//! shooting) residuals of the model's event-aware simulation
+//! ([`Simulator`]), their mean square, the velocity thresholds from the
+//! measurement noise, and the cost argmin's solvers see.
 
 use crate::parameters::ParameterMap;
+use crate::target::Simulator;
 use argmin::core::{CostFunction, Error as ArgminError};
 use hysid_core::backend::{Deadline, Progress};
-use hysid_mechanical::MechanicalModel;
-use hysid_mechanical::simulate as mechanical;
 use hysid_model::data::Dataset;
+use hysid_model::simulate::estimate_velocity;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Cost of a diverged or failed simulation.
@@ -17,15 +17,15 @@ pub const FAILED: f64 = 1e30;
 /// Free-run simulation residuals `y(k) - yhat(k)` after the initial state,
 /// as simulated (`None` only when the simulation fails).
 pub fn free_run_residuals(
-    model: &MechanicalModel,
+    model: &dyn Simulator,
     values: &[f64],
     data: &Dataset,
 ) -> Option<Vec<f64>> {
-    let r = mechanical::run(model, values, data).ok()?;
+    let (start, y) = model.free_run(values, data)?;
     Some(
-        data.y()[r.start + 1..]
+        data.y()[start + 1..]
             .iter()
-            .zip(&r.y[r.start + 1..])
+            .zip(&y[start + 1..])
             .map(|(a, b)| a - b)
             .collect(),
     )
@@ -34,7 +34,7 @@ pub fn free_run_residuals(
 /// Free-run simulation residuals `y(k) - yhat(k)` after the initial state
 /// (`None` when the simulation fails or diverges).
 pub fn simulation_residuals(
-    model: &MechanicalModel,
+    model: &dyn Simulator,
     values: &[f64],
     data: &Dataset,
 ) -> Option<Vec<f64>> {
@@ -55,7 +55,7 @@ fn mse(e: Option<Vec<f64>>) -> f64 {
 }
 
 /// Mean squared free-run simulation error over the samples after the initial state.
-pub fn simulation_mse(model: &MechanicalModel, values: &[f64], data: &Dataset) -> f64 {
+pub fn simulation_mse(model: &dyn Simulator, values: &[f64], data: &Dataset) -> f64 {
     mse(simulation_residuals(model, values, data))
 }
 
@@ -106,7 +106,7 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
             .sqrt()
     };
     let g_c = 0.5f64.sqrt() / ts;
-    let g_b = gain(&|e| mechanical::estimate_velocity(e, 4, ts));
+    let g_b = gain(&|e| estimate_velocity(e, 4, ts));
     VelocityTolerances {
         noise,
         centred: 3.0 * noise * g_c + floor,
@@ -158,53 +158,15 @@ pub fn segment_velocity(y: &[f64], k: usize, ts: f64, tol: f64) -> f64 {
 /// accumulate across segments, so the cost is much smoother in the
 /// parameters than the free-run error; it serves the global stage.
 pub fn segmented_mse(
-    model: &MechanicalModel,
+    model: &dyn Simulator,
     values: &[f64],
     data: &Dataset,
     segment: usize,
     velocity_tol: f64,
 ) -> f64 {
-    mse(segmented_residuals(
-        model,
-        values,
-        data,
-        segment,
-        velocity_tol,
-    ))
-}
-
-/// The residuals of [`segmented_mse`].
-pub fn segmented_residuals(
-    model: &MechanicalModel,
-    values: &[f64],
-    data: &Dataset,
-    segment: usize,
-    velocity_tol: f64,
-) -> Option<Vec<f64>> {
-    let ts = data.ts?;
-    let r = model.resolve_with(values);
-    let n_sub = mechanical::substeps(ts, model.internal_step).ok()?;
-    let y = data.y();
-    let n = y.len();
-    let mut u = vec![0.0; data.inputs.len()];
-    let mut e = Vec::with_capacity(n);
-    let mut s = 0;
-    while s + 1 < n {
-        for (i, x) in u.iter_mut().enumerate() {
-            *x = data.inputs[i].values[s];
-        }
-        let v = segment_velocity(y, s, ts, velocity_tol);
-        let mut st = r.state_at(y[s], v, &u);
-        for k in s..(s + segment.max(1)).min(n - 1) {
-            for (i, x) in u.iter_mut().enumerate() {
-                *x = data.inputs[i].values[k];
-            }
-            r.advance(&mut st, &u, ts, n_sub);
-            e.push(y[k + 1] - st.y);
-        }
-        s += segment.max(1);
-    }
-    finite(e)
+    mse(model
+        .segmented_residuals(values, data, segment, velocity_tol)
+        .and_then(finite))
 }
 
 /// The simulation error as a function of the normalised coordinates `z`:
@@ -216,7 +178,7 @@ pub struct Objective<'a> {
     /// Rest threshold of [`segment_velocity`] ([`VelocityTolerances::centred`]).
     pub velocity_tol: f64,
     /// The model whose parameters are fitted.
-    pub model: &'a MechanicalModel,
+    pub model: &'a dyn Simulator,
     /// The record.
     pub data: &'a Dataset,
     /// Coordinates to parameter values.
@@ -235,7 +197,9 @@ impl Objective<'_> {
         if self.segment == 0 {
             simulation_residuals(self.model, &v, self.data)
         } else {
-            segmented_residuals(self.model, &v, self.data, self.segment, self.velocity_tol)
+            self.model
+                .segmented_residuals(&v, self.data, self.segment, self.velocity_tol)
+                .and_then(finite)
         }
     }
 

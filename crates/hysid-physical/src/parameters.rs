@@ -2,8 +2,8 @@
 //! of the search map onto the model's parameters under the priors
 //! (`[fixed]`, `[bounds]`, `[[tie]]`), and back.
 
+use crate::target::Target;
 use hysid_core::priors::Priors;
-use hysid_mechanical::MechanicalModel;
 
 /// Priors that do not fit the mechanical model's parameters.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -54,20 +54,22 @@ pub struct ParameterMap {
 impl ParameterMap {
     /// Builds the map from the model (its `fixed` flags and bounds) and the
     /// priors (`[fixed]`, `[bounds]`, `[[tie]]`), checking every name.
-    pub fn new(model: &MechanicalModel, priors: &Priors) -> Result<Self, ParameterError> {
-        let names = model.parameter_names();
+    pub fn new(model: &impl Target, priors: &Priors) -> Result<Self, ParameterError> {
+        let parameters = model.parameters();
+        let names: Vec<String> = parameters.iter().map(|p| p.name.clone()).collect();
         let idx = |n: &str, entry: &'static str| {
-            model
-                .parameter_index(n)
+            names
+                .iter()
+                .position(|p| p == n)
                 .ok_or_else(|| ParameterError::UnknownName {
                     entry,
                     name: n.to_string(),
                     known: names.clone(),
                 })
         };
-        let mut base = model.values();
-        let mut bounds: Vec<[f64; 2]> = model.parameters.iter().map(|p| p.bounds).collect();
-        let mut fixed: Vec<bool> = model.parameters.iter().map(|p| p.fixed).collect();
+        let mut base: Vec<f64> = parameters.iter().map(|p| p.value).collect();
+        let mut bounds: Vec<[f64; 2]> = parameters.iter().map(|p| p.bounds).collect();
+        let mut fixed: Vec<bool> = parameters.iter().map(|p| p.fixed).collect();
         for (n, [lo, hi]) in &priors.bounds {
             let i = idx(n, "[bounds]")?;
             bounds[i] = [*lo, *hi];
@@ -144,10 +146,10 @@ impl ParameterMap {
 
     /// `model` with the parameter values `values`, the bounds after priors,
     /// and `fixed` set on every parameter no free coordinate moves.
-    pub fn apply(&self, model: &MechanicalModel, values: &[f64]) -> MechanicalModel {
+    pub fn apply<M: Target>(&self, model: &M, values: &[f64]) -> M {
         let mut fitted = model.clone();
         for (i, (p, (v, b))) in fitted
-            .parameters
+            .parameters_mut()
             .iter_mut()
             .zip(values.iter().zip(&self.param_bounds))
             .enumerate()

@@ -8,7 +8,7 @@
 
 use crate::objective::free_run_residuals;
 use crate::parameters::ParameterMap;
-use hysid_mechanical::MechanicalModel;
+use crate::target::Simulator;
 use hysid_model::data::Dataset;
 use nalgebra::DMatrix;
 
@@ -53,7 +53,7 @@ impl Sensitivity {
 /// coordinates of `map` at the parameter values `values`, with central
 /// differences of `step` times each coordinate's range.
 pub fn sensitivity(
-    model: &MechanicalModel,
+    model: &dyn Simulator,
     map: &ParameterMap,
     values: &[f64],
     data: &Dataset,
@@ -89,7 +89,7 @@ pub fn sensitivity(
 /// its bounds; a coordinate with no room to move keeps a zero column.
 /// `None` when a perturbed simulation fails.
 fn output_jacobian(
-    model: &MechanicalModel,
+    model: &dyn Simulator,
     map: &ParameterMap,
     values: &[f64],
     data: &Dataset,

@@ -1,0 +1,253 @@
+//! The models the `physical` back-end fits: named parameters and an
+//! event-aware simulator. Two kinds are fitted through the same stages:
+//! the mass-spring-friction [`MechanicalModel`] and any [`GrayBoxModel`]
+//! (with its compiled form, [`GrayBoxTarget`]).
+
+use crate::objective::segment_velocity;
+use hysid_graybox::compile::CompiledInitial;
+use hysid_graybox::{CompiledModel, GrayBoxInitialState, GrayBoxModel, InvalidGrayBox};
+use hysid_mechanical::simulate as mechanical;
+use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
+use hysid_model::data::Dataset;
+use hysid_model::model::{ModelInfo, PhysicalParameter};
+use hysid_model::simulate::{SimError, substeps};
+
+/// What the objective needs of a model: its simulations.
+pub trait Simulator: Sync {
+    /// Free-run output with parameter values `values` and the first
+    /// simulated sample (`None` when the run fails).
+    fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)>;
+    /// Residuals `y(k+1) - yhat(k+1)` of the multiple-shooting run: segments
+    /// of `segment` samples, each from the position measured at its start
+    /// and the velocity [`segment_velocity`] with rest threshold
+    /// `velocity_tol`.
+    fn segmented_residuals(
+        &self,
+        values: &[f64],
+        data: &Dataset,
+        segment: usize,
+        velocity_tol: f64,
+    ) -> Option<Vec<f64>>;
+}
+
+/// What the fit needs of a model declared by its physics.
+pub trait Target: Simulator + Clone {
+    /// The parameters, in order.
+    fn parameters(&self) -> &[PhysicalParameter];
+    /// Mutable parameters (the fitted values are written here).
+    fn parameters_mut(&mut self) -> &mut [PhysicalParameter];
+    /// Provenance and diagnostics.
+    fn info_mut(&mut self) -> &mut ModelInfo;
+    /// Number of inputs.
+    fn inputs(&self) -> usize;
+    /// The model's own structural checks.
+    fn check(&self) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
+    /// Sub-steps per sample at the sampling time `ts`.
+    fn substeps(&self, ts: f64) -> Result<usize, SimError>;
+    /// Samples the initial state reads (`None`: a given initial state).
+    fn measured_samples(&self) -> Option<usize>;
+    /// The model with its initial state read on the first `samples`
+    /// samples, velocities below `velocity_tol` taken as zero (at least
+    /// the model's own tolerance).
+    fn with_measured_start(&self, samples: usize, velocity_tol: f64) -> Self;
+}
+
+impl Target for MechanicalModel {
+    fn parameters(&self) -> &[PhysicalParameter] {
+        &self.parameters
+    }
+
+    fn parameters_mut(&mut self) -> &mut [PhysicalParameter] {
+        &mut self.parameters
+    }
+
+    fn info_mut(&mut self) -> &mut ModelInfo {
+        &mut self.info
+    }
+
+    fn inputs(&self) -> usize {
+        self.inputs.len()
+    }
+
+    fn check(&self) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        self.validate().map_err(Into::into)
+    }
+
+    fn substeps(&self, ts: f64) -> Result<usize, SimError> {
+        substeps(ts, self.internal_step)
+    }
+
+    fn measured_samples(&self) -> Option<usize> {
+        match self.initial_state {
+            MechanicalInitialState::Measured { samples, .. } => Some(samples),
+            MechanicalInitialState::Given { .. } => None,
+        }
+    }
+
+    fn with_measured_start(&self, samples: usize, velocity_tol: f64) -> Self {
+        let mut m = self.clone();
+        let own = match m.initial_state {
+            MechanicalInitialState::Measured { velocity_tol, .. } => velocity_tol,
+            MechanicalInitialState::Given { .. } => 0.0,
+        };
+        m.initial_state = MechanicalInitialState::Measured {
+            samples,
+            velocity_tol: own.max(velocity_tol),
+        };
+        m
+    }
+}
+
+impl Simulator for MechanicalModel {
+    fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)> {
+        let r = mechanical::run(self, values, data).ok()?;
+        Some((r.start, r.y))
+    }
+
+    fn segmented_residuals(
+        &self,
+        values: &[f64],
+        data: &Dataset,
+        segment: usize,
+        velocity_tol: f64,
+    ) -> Option<Vec<f64>> {
+        let ts = data.ts?;
+        let r = self.resolve_with(values);
+        let n_sub = mechanical::substeps(ts, self.internal_step).ok()?;
+        let y = data.y();
+        let n = y.len();
+        let mut u = vec![0.0; data.inputs.len()];
+        let mut e = Vec::with_capacity(n);
+        let mut s = 0;
+        while s + 1 < n {
+            for (i, x) in u.iter_mut().enumerate() {
+                *x = data.inputs[i].values[s];
+            }
+            let v = segment_velocity(y, s, ts, velocity_tol);
+            let mut st = r.state_at(y[s], v, &u);
+            for k in s..(s + segment.max(1)).min(n - 1) {
+                for (i, x) in u.iter_mut().enumerate() {
+                    *x = data.inputs[i].values[k];
+                }
+                r.advance(&mut st, &u, ts, n_sub);
+                e.push(y[k + 1] - st.y);
+            }
+            s += segment.max(1);
+        }
+        Some(e)
+    }
+}
+
+/// A gray-box model with its compiled form (compiled once per fit).
+#[derive(Debug, Clone)]
+pub struct GrayBoxTarget {
+    /// The model.
+    pub model: GrayBoxModel,
+    compiled: CompiledModel,
+}
+
+impl GrayBoxTarget {
+    /// Checks and compiles `model`.
+    pub fn new(model: GrayBoxModel) -> Result<Self, InvalidGrayBox> {
+        let compiled = CompiledModel::new(&model)?;
+        Ok(GrayBoxTarget { model, compiled })
+    }
+}
+
+impl Target for GrayBoxTarget {
+    fn parameters(&self) -> &[PhysicalParameter] {
+        &self.model.parameters
+    }
+
+    fn parameters_mut(&mut self) -> &mut [PhysicalParameter] {
+        &mut self.model.parameters
+    }
+
+    fn info_mut(&mut self) -> &mut ModelInfo {
+        &mut self.model.info
+    }
+
+    fn inputs(&self) -> usize {
+        self.model.inputs.len()
+    }
+
+    fn check(&self) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        self.model.validate().map_err(Into::into)
+    }
+
+    fn substeps(&self, ts: f64) -> Result<usize, SimError> {
+        substeps(ts, self.model.internal_step)
+    }
+
+    fn measured_samples(&self) -> Option<usize> {
+        match self.model.initial_state {
+            GrayBoxInitialState::Measured { samples, .. } => Some(samples),
+            GrayBoxInitialState::Given { .. } => None,
+        }
+    }
+
+    /// A model with a given initial state keeps it: which state the
+    /// output measures is the model's to say.
+    fn with_measured_start(&self, samples: usize, velocity_tol: f64) -> Self {
+        let mut t = self.clone();
+        if let GrayBoxInitialState::Measured {
+            samples: s,
+            velocity_tol: tol,
+            ..
+        } = &mut t.model.initial_state
+        {
+            *s = samples;
+            *tol = tol.max(velocity_tol);
+            if let CompiledInitial::Measured {
+                samples: cs,
+                velocity_tol: ctol,
+                ..
+            } = &mut t.compiled.initial
+            {
+                *cs = *s;
+                *ctol = *tol;
+            }
+        }
+        t
+    }
+}
+
+impl Simulator for GrayBoxTarget {
+    fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)> {
+        let r = hysid_graybox::simulate::run(&self.compiled, values, data).ok()?;
+        Some((r.start, r.y))
+    }
+
+    fn segmented_residuals(
+        &self,
+        values: &[f64],
+        data: &Dataset,
+        segment: usize,
+        velocity_tol: f64,
+    ) -> Option<Vec<f64>> {
+        let ts = data.ts?;
+        let y = data.y();
+        let yhat = match &self.compiled.initial {
+            CompiledInitial::Measured {
+                position,
+                velocity,
+                x,
+                ..
+            } => {
+                let state_at = |s: usize| {
+                    let mut x = x.clone();
+                    x[*position] = y[s];
+                    if let Some(v) = velocity {
+                        x[*v] = segment_velocity(y, s, ts, velocity_tol);
+                    }
+                    x
+                };
+                hysid_graybox::simulate::segmented(&self.compiled, values, data, segment, &state_at)
+                    .ok()?
+            }
+            // Nothing measured to restart from: the free run.
+            CompiledInitial::Given { .. } => self.free_run(values, data)?.1,
+        };
+        Some(y[1..].iter().zip(&yhat[1..]).map(|(a, b)| a - b).collect())
+    }
+}
