@@ -5,6 +5,9 @@
 use hysid_core::model::Model;
 use libfuzzer_sys::fuzz_target;
 
+#[path = "models.rs"]
+mod models;
+
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
@@ -13,5 +16,6 @@ fuzz_target!(|data: &[u8]| {
         let again =
             Model::from_json(&m.to_json(), "again.json").expect("a model's own JSON reads back");
         assert_eq!(m, again);
+        models::run_briefly(&m);
     }
 });

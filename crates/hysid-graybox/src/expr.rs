@@ -356,6 +356,17 @@ impl Expression {
         })
     }
 
+    /// `(constant, [(slot, coefficient)])` when the expression is affine in
+    /// the slots it reads (a constant or one slot included).
+    pub fn affine(&self) -> Option<(f64, Vec<(u32, f64)>)> {
+        match &self.form {
+            Form::Constant(v) => Some((*v, Vec::new())),
+            Form::Slot(s) => Some((0.0, vec![(*s, 1.0)])),
+            Form::Affine(a) => Some((a.constant, a.terms.clone())),
+            Form::Tape => None,
+        }
+    }
+
     /// The constant value, when the expression reads no slot.
     pub fn as_constant(&self) -> Option<f64> {
         match self.form {

@@ -21,7 +21,14 @@
 //! stick `y1 = y2`, stop `y1 = level` (the last two lower-dimensional).
 //! They are indicative only: the true switching depends on the velocity
 //! and the friction state, which these regressors do not resolve exactly.
+//!
+//! A gray-box model ([`graybox_to_pwarx`]) has `n` states: each mode whose
+//! flows and output are affine in the states and inputs gives ARX(n, n)
+//! modes by the same discretisation and the general Cayley-Hamilton
+//! identity (below); its regions are not derived.
 
+use hysid_graybox::compile::{CompiledElement, CompiledModel};
+use hysid_graybox::{GrayBoxModel, InvalidGrayBox};
 use hysid_mechanical::{MechanicalModel, ResolvedForce, ResolvedMechanics};
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel};
@@ -187,4 +194,209 @@ fn rest_modes(model: &MechanicalModel, r: &ResolvedMechanics) -> Vec<PwarxMode> 
         });
     }
     modes
+}
+
+/// Why a gray-box model has no per-mode ARX form.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BridgeError {
+    /// The model does not pass its checks.
+    #[error(transparent)]
+    Invalid(#[from] InvalidGrayBox),
+    /// A flow, the output or a friction level that is not affine in the
+    /// states and inputs (with the parameters bound).
+    #[error("mode '{mode}': {what} is not affine in the states and inputs")]
+    NotAffine {
+        /// The mode.
+        mode: String,
+        /// Which expression.
+        what: String,
+    },
+}
+
+/// The coefficients `p_1 .. p_n` of the characteristic polynomial
+/// `det(lambda I - A) = lambda^n + p_1 lambda^(n-1) + .. + p_n`
+/// (Faddeev-LeVerrier).
+fn characteristic(a: &DMatrix<f64>) -> Vec<f64> {
+    let n = a.nrows();
+    let mut m = DMatrix::<f64>::zeros(n, n);
+    let mut p = Vec::with_capacity(n);
+    let mut c = 1.0;
+    for k in 1..=n {
+        m = a * &m + DMatrix::identity(n, n) * c;
+        c = -(a * &m).trace() / k as f64;
+        p.push(c);
+    }
+    p
+}
+
+/// `theta = [a_1..a_n, b_11..b_1n, .., b_m1..b_mn, c]` of
+/// `x' = A x + B u + f`, `y = C x + d`, held input, at `ts`. With
+/// `x(k+1) = Ad x(k) + Bd u(k) + fd` and `p_i` the characteristic
+/// coefficients of `Ad` (`p_0 = 1`), Cayley-Hamilton gives
+/// `y(k) = -sum p_i y(k-i) + sum_r C M_r (Bd u(k-r) + fd) + d sum p_i`,
+/// `M_r = sum_{i<r} p_i Ad^(r-1-i)`.
+fn arx_theta(a: &DMatrix<f64>, bw: &DMatrix<f64>, c: &DMatrix<f64>, d: f64, ts: f64) -> Vec<f64> {
+    let (n, m) = (a.nrows(), bw.ncols() - 1);
+    let (ad, bd) = zoh(a, bw, ts);
+    let mut p = vec![1.0];
+    p.extend(characteristic(&ad));
+    let mut theta: Vec<f64> = p[1..].iter().map(|pi| -pi).collect();
+    // C M_r [Bd fd], r = 1..n.
+    let mut cm_bd = Vec::with_capacity(n);
+    let mut power = DMatrix::<f64>::identity(n, n);
+    let mut powers = vec![power.clone()];
+    for _ in 1..n {
+        power = &ad * &power;
+        powers.push(power.clone());
+    }
+    for r in 1..=n {
+        let mut mr = DMatrix::<f64>::zeros(n, n);
+        for (i, pi) in p.iter().enumerate().take(r) {
+            mr += &powers[r - 1 - i] * *pi;
+        }
+        cm_bd.push(c * mr * &bd);
+    }
+    for i in 0..m {
+        theta.extend(cm_bd.iter().map(|row| row[(0, i)]));
+    }
+    let constant: f64 =
+        cm_bd.iter().map(|row| row[(0, m)]).sum::<f64>() + d * p.iter().sum::<f64>();
+    theta.push(constant);
+    theta
+}
+
+/// The per-mode ARX(n, n) form of a gray-box model at its parameter values
+/// and sampling time `ts` (`n` its number of states). Each declared mode
+/// gives one mode per sliding direction of its friction (`mode+`, `mode-`)
+/// or one mode without friction; a friction's stick is `y(k) = y(k-1)` and
+/// a stop on the output's state `y(k) = level`. Regions are not derived
+/// (every region is the whole regressor space).
+pub fn graybox_to_pwarx(model: &GrayBoxModel, ts: f64) -> Result<PwarxModel, BridgeError> {
+    let compiled = CompiledModel::new(model)?.bind(&model.values());
+    let (n, m) = (compiled.states, compiled.inputs);
+    let affine_rows = |mode: &str, what: &str, e: &hysid_graybox::expr::Expression| {
+        let (constant, terms) = e.affine().ok_or_else(|| BridgeError::NotAffine {
+            mode: mode.to_string(),
+            what: what.to_string(),
+        })?;
+        let mut row = vec![0.0; n + m];
+        for (s, c) in terms {
+            // Parameters are bound: only states and inputs remain.
+            *row.get_mut(s as usize)
+                .ok_or_else(|| BridgeError::NotAffine {
+                    mode: mode.to_string(),
+                    what: what.to_string(),
+                })? += c;
+        }
+        Ok::<_, BridgeError>((row, constant))
+    };
+    let friction = compiled
+        .elements
+        .iter()
+        .enumerate()
+        .find_map(|(i, e)| match e {
+            CompiledElement::DryFriction { velocity, .. } => Some((i, *velocity)),
+            CompiledElement::Stop { .. } => None,
+        });
+    let mut modes = Vec::new();
+    for (q, mode) in model.modes.iter().zip(&compiled.modes) {
+        let mut a = DMatrix::zeros(n, n);
+        let mut bw = DMatrix::zeros(n, m + 1);
+        for (j, (s, f)) in model.states.iter().zip(&mode.flow).enumerate() {
+            let (row, constant) = affine_rows(&q.name, &format!("the flow of '{s}'"), f)?;
+            for k in 0..n {
+                a[(j, k)] = row[k];
+            }
+            for i in 0..m {
+                bw[(j, i)] = row[n + i];
+            }
+            bw[(j, m)] = constant;
+        }
+        let (row, d) = affine_rows(&q.name, "the output", &mode.output)?;
+        if row[n..].iter().any(|b| *b != 0.0) {
+            return Err(BridgeError::NotAffine {
+                mode: q.name.clone(),
+                what: "the output (it reads an input)".into(),
+            });
+        }
+        let c = DMatrix::from_row_slice(1, n, &row[..n]);
+        match friction {
+            Some((i, v)) => {
+                let kinetic =
+                    mode.friction[i]
+                        .0
+                        .as_constant()
+                        .ok_or_else(|| BridgeError::NotAffine {
+                            mode: q.name.clone(),
+                            what: "the kinetic friction level (it depends on the state)".into(),
+                        })?;
+                for (s, tag) in [(1.0, "+"), (-1.0, "-")] {
+                    let mut bs = bw.clone();
+                    bs[(v, m)] -= s * kinetic.max(0.0);
+                    modes.push(PwarxMode {
+                        theta: arx_theta(&a, &bs, &c, d, ts),
+                        region: Polyhedron::default(),
+                        name: Some(format!("{}{tag}", q.name)),
+                    });
+                }
+            }
+            None => modes.push(PwarxMode {
+                theta: arx_theta(&a, &bw, &c, d, ts),
+                region: Polyhedron::default(),
+                name: Some(q.name.clone()),
+            }),
+        }
+    }
+    let labels = model.mode_names();
+    let rest = |name: &str, theta: Vec<f64>| PwarxMode {
+        theta,
+        region: Polyhedron::default(),
+        name: Some(name.to_string()),
+    };
+    // The output's state, when the output is one state.
+    let output_state =
+        compiled.modes[0]
+            .output
+            .affine()
+            .and_then(|(d, terms)| match terms.as_slice() {
+                [(s, c)] if d == 0.0 && *c == 1.0 => Some(*s as usize),
+                _ => None,
+            });
+    let width = n + n * m + 1;
+    for e in &compiled.elements {
+        match e {
+            CompiledElement::DryFriction { label, .. } => {
+                let mut theta = vec![0.0; width];
+                theta[0] = 1.0;
+                modes.push(rest(&labels[*label], theta));
+            }
+            CompiledElement::Stop {
+                position,
+                at,
+                label,
+                ..
+            } if Some(*position) == output_state => {
+                let mut theta = vec![0.0; width];
+                theta[width - 1] = at.as_constant().unwrap_or(f64::NAN);
+                modes.push(rest(&labels[*label], theta));
+            }
+            CompiledElement::Stop { .. } => {}
+        }
+    }
+    let mut info = ModelInfo {
+        ts: Some(ts),
+        ..ModelInfo::default()
+    };
+    info.method = model.info.method.clone();
+    info.diagnostics.method.insert(
+        "bridge".into(),
+        serde_json::json!("per-mode ZOH discretisation of a gray-box model; regions not derived"),
+    );
+    Ok(PwarxModel {
+        na: n,
+        nb: n,
+        inputs: m,
+        modes,
+        info,
+    })
 }

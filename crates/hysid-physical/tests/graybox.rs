@@ -204,3 +204,74 @@ fn priors_name_gray_box_parameters() {
         .to_string();
     assert!(e.contains("restitution") && e.contains("wn"), "{e}");
 }
+
+/// The bridge of the gray-box head gives the mechanical bridge's modes: the
+/// same ARX(2,2) parameters for each sliding direction, free and in
+/// contact, and the same stick and stop modes.
+#[test]
+fn gray_box_head_bridges_as_the_mechanical_head() {
+    use hysid_physical::bridge::{graybox_to_pwarx, to_pwarx};
+    let path = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/head-graybox.toml"
+    ));
+    let Model::GrayBox(g) = Model::load(&path).unwrap() else {
+        panic!("a gray-box file")
+    };
+    let ts = 0.0025;
+    let gray = graybox_to_pwarx(&g, ts).unwrap();
+    let mech = to_pwarx(&hysid_physical::head_model(), ts);
+    let pairs = [
+        ("free+", "slip+[]"),
+        ("free-", "slip-[]"),
+        ("impact+", "slip+[board]"),
+        ("impact-", "slip-[board]"),
+        ("stick", "stick"),
+        ("upper_saturation", "stop[upper]"),
+        ("lower_saturation", "stop[lower]"),
+    ];
+    assert_eq!(gray.modes.len(), pairs.len());
+    for (a, b) in pairs {
+        let find = |p: &hysid_model::model::PwarxModel, n: &str| {
+            p.modes
+                .iter()
+                .find(|q| q.name.as_deref() == Some(n))
+                .unwrap()
+                .theta
+                .clone()
+        };
+        let (ta, tb) = (find(&gray, a), find(&mech, b));
+        for (x, y) in ta.iter().zip(&tb) {
+            assert!(
+                (x - y).abs() <= 1e-9 * y.abs().max(1.0),
+                "{a}: {ta:?} vs {b}: {tb:?}"
+            );
+        }
+    }
+}
+
+/// With four states, the ARX(4,4) mode of a regime reproduces the
+/// simulator while the regime lasts: the two masses kept apart.
+#[test]
+fn four_state_bridge_predicts_the_simulator_in_its_mode() {
+    let m = load("two-masses.toml");
+    let p = hysid_physical::bridge::graybox_to_pwarx(&m, TS).unwrap();
+    Model::Pwarx(p.clone()).validate().unwrap();
+    assert_eq!((p.na, p.nb), (4, 4));
+    let data = simulated(&m, &drive(400, 40, -0.5, 0.5), 9, 0.0);
+    let c = CompiledModel::new(&m).unwrap();
+    let r = simulate::run(&c, &m.values(), &data).unwrap();
+    assert!(
+        r.modes.iter().all(|q| *q == Some(0)),
+        "the masses stay apart"
+    );
+    let theta = &p.modes[0].theta;
+    let (y, u) = (data.y(), data.u(0));
+    for k in 4..400 {
+        let mut x: Vec<f64> = (1..=4).map(|i| y[k - i]).collect();
+        x.extend((1..=4).map(|i| u[k - i]));
+        x.push(1.0);
+        let pred: f64 = theta.iter().zip(&x).map(|(a, b)| a * b).sum();
+        assert!((pred - y[k]).abs() < 1e-9, "k {k}: {pred} vs {}", y[k]);
+    }
+}
