@@ -82,3 +82,46 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// The drive with backlash, without input torque, from a random state:
+    /// its energy (kinetic, and the shaft's spring past the dead zone)
+    /// never rises; the viscous frictions only dissipate.
+    #[test]
+    fn drive_energy_never_rises_without_input(
+        z in proptest::collection::vec(0.0f64..=1.0, 6),
+        x0 in proptest::collection::vec(-1.0f64..1.0, 4),
+    ) {
+        let (mut m, _) = file("models/examples/backlash-drive.toml");
+        for (p, zi) in m.parameters.iter_mut().zip(&z) {
+            if !p.fixed {
+                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
+            }
+        }
+        let p = |n: &str| m.parameters[m.parameter_index(n).unwrap()].value;
+        let (k, jl, bl) = (p("k"), p("jl"), p("bl"));
+        let energy = |x: &[f64]| {
+            let delta = x[0] - x[2];
+            let twist = (delta.abs() - bl).max(0.0);
+            0.5 * x[1] * x[1] + 0.5 * jl * x[3] * x[3] + 0.5 * k * twist * twist
+        };
+        let names = ["thm", "wm", "thl", "wl"];
+        m.initial_state = hysid_graybox::GrayBoxInitialState::Given {
+            values: names.iter().map(|n| n.to_string()).zip(x0.iter().map(|v| v * 0.5)).collect(),
+            mode: None,
+        };
+        let n = 400;
+        let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.01)).unwrap();
+        let c = CompiledModel::new(&m).unwrap();
+        let r = run(&c, &m.values(), &data).unwrap();
+        let mut before = energy(&r.x[0..4]);
+        let scale = before + 1.0;
+        for k in 1..n {
+            let e = energy(&r.x[4 * k..4 * k + 4]);
+            prop_assert!(e <= before + 1e-9 * scale, "k {}: {} > {}", k, e, before);
+            before = e;
+        }
+    }
+}
