@@ -530,9 +530,12 @@ impl Relation {
             Operator::Eq => Crossing::Either,
             _ => return Err(ExprError::NotRelation(text.to_string())),
         };
+        let [lhs, rhs] = node.children() else {
+            return Err(ExprError::NotNumeric(text.to_string()));
+        };
         let mut b = Builder::new(text, resolve);
-        b.node(&node.children()[0])?;
-        b.node(&node.children()[1])?;
+        b.node(lhs)?;
+        b.node(rhs)?;
         b.op(Op::Binary(Binary::Sub), 2)?;
         Ok(Relation {
             surface: b.finish()?,
@@ -757,6 +760,9 @@ mod tests {
             Relation::compile("x + 1", &names).unwrap_err(),
             ExprError::NotRelation(_)
         ));
+        for half in ["x >=", ">= x", "=="] {
+            assert!(Relation::compile(half, &names).is_err(), "{half}");
+        }
     }
 
     #[test]
