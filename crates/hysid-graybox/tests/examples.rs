@@ -10,8 +10,13 @@ use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
 
-const FILES: [&str; 4] = [
+const FILES: [&str; 9] = [
     "models/pick-and-place/head-graybox.toml",
+    "models/pick-and-place/structures/lag.toml",
+    "models/pick-and-place/structures/stribeck.toml",
+    "models/pick-and-place/structures/asym.toml",
+    "models/pick-and-place/structures/cubic.toml",
+    "models/pick-and-place/structures/asym-cubic.toml",
     "models/examples/ball-on-table.toml",
     "models/examples/two-masses.toml",
     "models/examples/backlash-drive.toml",

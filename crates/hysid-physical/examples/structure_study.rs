@@ -1,0 +1,158 @@
+//! The structure study of the pick-and-place head: candidate gray-box
+//! structures, each fitted with the `physical` back-end on rows 0..4000
+//! (decimated by 10) and scored by free-run FIT on the selection rows
+//! 4000..5000 (warm-up 10), seeds 1-3; the candidate of best median
+//! selection score is refitted on rows 0..5000 and only it is scored on the
+//! test rows 5000..6001.
+//!
+//! `cargo run --release -p hysid-physical --example structure_study [-- CANDIDATE..]`
+//!
+//! Candidates are files under `models/pick-and-place/` (default: the base
+//! head and every file of `structures/`). Prints, per candidate and seed,
+//! the selection FIT and the fitted parameters with their standard errors,
+//! then the choice and its test FIT (median and range over the seeds).
+
+use hysid_core::backend::{Backend, Problem, RunContext};
+use hysid_core::model::Model;
+use hysid_core::options::Settings;
+use hysid_core::priors::Priors;
+use hysid_model::data::{DataSelection, Dataset, RowRange};
+use hysid_model::regressors::RegressorSpec;
+use hysid_physical::Physical;
+use std::path::{Path, PathBuf};
+
+const SEEDS: [u64; 3] = [1, 2, 3];
+
+fn rows(root: &Path, start: usize, end: usize) -> Dataset {
+    let sel = DataSelection {
+        decimate: 10,
+        rows: RowRange {
+            start: Some(start),
+            end: Some(end),
+        },
+        ..DataSelection::default()
+    };
+    hysid_io::load(&root.join("headdata_1v6.mat"), &sel).expect("the embedded record")
+}
+
+fn fit(file: &Path, data: &Dataset, seed: u64) -> Model {
+    let priors = Priors::default();
+    let problem = Problem {
+        data,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors: &priors,
+        priors_origin: None,
+    };
+    let set = format!("model={}", file.display());
+    Physical
+        .run(
+            &problem,
+            &Settings::parse(&[set.as_str()]).expect("one option"),
+            &RunContext::quiet(seed),
+        )
+        .unwrap_or_else(|e| panic!("{}: {e}", file.display()))
+}
+
+fn fit_sim(model: &Model, data: &Dataset) -> f64 {
+    hysid_core::simulate::validate(model, data, 10)
+        .expect("the record suits the model")
+        .0
+        .fit_sim
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[s.len() / 2]
+}
+
+/// `name = value ± standard error` of every free parameter.
+fn parameters(model: &Model) -> String {
+    let Some(params) = model.info().diagnostics.method.get("parameters") else {
+        return String::new();
+    };
+    let Some(map) = params.as_object() else {
+        return String::new();
+    };
+    map.iter()
+        .map(|(name, p)| {
+            format!(
+                "{name} = {:.4} ± {:.2e}",
+                p["value"].as_f64().unwrap_or(f64::NAN),
+                p["std_error"].as_f64().unwrap_or(f64::NAN)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn main() {
+    let root = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place"
+    ));
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let candidates: Vec<String> = if args.is_empty() {
+        [
+            "head-graybox.toml",
+            "structures/lag.toml",
+            "structures/stribeck.toml",
+            "structures/asym.toml",
+            "structures/cubic.toml",
+            "structures/asym-cubic.toml",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    } else {
+        args
+    };
+    let (fit_rows, selection, ident, test) = (
+        rows(&root, 0, 4000),
+        rows(&root, 4000, 5000),
+        rows(&root, 0, 5000),
+        rows(&root, 5000, 6001),
+    );
+    let mut scores = Vec::new();
+    for c in &candidates {
+        let file = root.join(c);
+        let mut sel = Vec::new();
+        for seed in SEEDS {
+            let m = fit(&file, &fit_rows, seed);
+            let s = fit_sim(&m, &selection);
+            println!(
+                "{c} seed {seed}: selection FIT {s:.3} %; {}",
+                parameters(&m)
+            );
+            sel.push(s);
+        }
+        println!("{c}: median selection FIT {:.3} %", median(&sel));
+        scores.push((median(&sel), c.clone()));
+    }
+    let (best, choice) = scores
+        .iter()
+        .cloned()
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .expect("at least one candidate");
+    println!("chosen on the selection rows: {choice} ({best:.3} %)");
+    let file = root.join(&choice);
+    let mut tests = Vec::new();
+    for seed in SEEDS {
+        let m = fit(&file, &ident, seed);
+        let t = fit_sim(&m, &test);
+        println!(
+            "{choice} refitted on 0..5000, seed {seed}: test FIT {t:.3} %; {}",
+            parameters(&m)
+        );
+        tests.push(t);
+    }
+    let (lo, hi) = tests
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| {
+            (a.min(t), b.max(t))
+        });
+    println!(
+        "test FIT of the choice: median {:.3} % (range {lo:.3}-{hi:.3})",
+        median(&tests)
+    );
+}
