@@ -178,14 +178,8 @@ impl<'a> Machine<'a> {
 
     /// The stops at these parameter values: `(position state, level, sign)`.
     pub fn stops(&self) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
-        self.m
-            .elements
-            .iter()
-            .zip(&self.fixed)
-            .filter_map(|(e, (at, _))| match e {
-                CompiledElement::Stop { position, sign, .. } => Some((*position, *at, *sign)),
-                CompiledElement::DryFriction { .. } => None,
-            })
+        self.stops_with_velocity()
+            .map(|(position, _, at, sign)| (position, at, sign))
     }
 
     /// Loads `(x, u)` into the slots.
@@ -633,20 +627,35 @@ impl<'a> Machine<'a> {
 
     /// The Zeno bound's action: every stop that has been reached holds.
     fn hold_reached_stops(&mut self, hs: &mut HybridState, u: &[f64]) {
-        let m = self.m;
-        for (i, e) in m.elements.iter().enumerate() {
-            if let CompiledElement::Stop {
-                position,
-                velocity,
-                sign,
-                ..
-            } = e
-                && sign * (hs.x[*position] - self.fixed[i].0) >= 0.0
-            {
-                hs.x[*position] = self.fixed[i].0;
-                self.settle(hs, u, *velocity);
-            }
+        for (position, velocity, at, _) in self.reached_stops(&hs.x) {
+            hs.x[position] = at;
+            self.settle(hs, u, velocity);
         }
+    }
+
+    /// The stops that `x` has reached or passed: `(position state,
+    /// velocity state, level, sign)`.
+    fn reached_stops(&self, x: &[f64]) -> Vec<(usize, usize, f64, f64)> {
+        self.stops_with_velocity()
+            .filter(|(position, _, at, sign)| sign * (x[*position] - at) >= 0.0)
+            .collect()
+    }
+
+    /// Every stop: `(position state, velocity state, level, sign)`.
+    fn stops_with_velocity(&self) -> impl Iterator<Item = (usize, usize, f64, f64)> + '_ {
+        self.m
+            .elements
+            .iter()
+            .zip(&self.fixed)
+            .filter_map(|(e, (at, _))| match e {
+                CompiledElement::Stop {
+                    position,
+                    velocity,
+                    sign,
+                    ..
+                } => Some((*position, *velocity, *at, *sign)),
+                CompiledElement::DryFriction { .. } => None,
+            })
     }
 
     /// The output of the state under the sample's input `u`, its mode label,
@@ -688,21 +697,10 @@ impl<'a> Machine<'a> {
     /// zero settled.
     pub fn state_at(&mut self, mut x: Vec<f64>, u: &[f64], mode: Option<usize>) -> HybridState {
         let m = self.m;
-        for (i, e) in m.elements.iter().enumerate() {
-            if let CompiledElement::Stop {
-                position,
-                velocity,
-                sign,
-                ..
-            } = e
-            {
-                let at = self.fixed[i].0;
-                if sign * (x[*position] - at) >= 0.0 {
-                    x[*position] = at;
-                    if sign * x[*velocity] > 0.0 {
-                        x[*velocity] = 0.0;
-                    }
-                }
+        for (position, velocity, at, sign) in self.reached_stops(&x) {
+            x[position] = at;
+            if sign * x[velocity] > 0.0 {
+                x[velocity] = 0.0;
             }
         }
         let mode = mode.unwrap_or_else(|| {

@@ -71,22 +71,31 @@ pub fn to_pwarx(model: &MechanicalModel, ts: f64) -> PwarxModel {
     let m = model.inputs.len();
     let mut modes = slip_modes(model, &r, ts);
     modes.extend(rest_modes(model, &r));
-    let mut info = ModelInfo {
-        ts: Some(ts),
-        ..ModelInfo::default()
-    };
-    info.method = model.info.method.clone();
-    info.diagnostics.method.insert(
-        "bridge".into(),
-        serde_json::json!("per-mode ZOH discretisation of a mechanical model; regions indicative"),
-    );
     PwarxModel {
         na: 2,
         nb: 2,
         inputs: m,
         modes,
-        info,
+        info: bridge_info(
+            &model.info,
+            ts,
+            "per-mode ZOH discretisation of a mechanical model; regions indicative",
+        ),
     }
+}
+
+/// The provenance of a bridged model: the physical model's method, the
+/// sampling time, and what the bridge did.
+fn bridge_info(physical: &ModelInfo, ts: f64, note: &str) -> ModelInfo {
+    let mut info = ModelInfo {
+        ts: Some(ts),
+        method: physical.method.clone(),
+        ..ModelInfo::default()
+    };
+    info.diagnostics
+        .method
+        .insert("bridge".into(), serde_json::json!(note));
+    info
 }
 
 /// A regressor-space row `[y1, y2, 0, ..]` of `inputs` inputs.
@@ -383,20 +392,15 @@ pub fn graybox_to_pwarx(model: &GrayBoxModel, ts: f64) -> Result<PwarxModel, Bri
             CompiledElement::Stop { .. } => {}
         }
     }
-    let mut info = ModelInfo {
-        ts: Some(ts),
-        ..ModelInfo::default()
-    };
-    info.method = model.info.method.clone();
-    info.diagnostics.method.insert(
-        "bridge".into(),
-        serde_json::json!("per-mode ZOH discretisation of a gray-box model; regions not derived"),
-    );
     Ok(PwarxModel {
         na: n,
         nb: n,
         inputs: m,
         modes,
-        info,
+        info: bridge_info(
+            &model.info,
+            ts,
+            "per-mode ZOH discretisation of a gray-box model; regions not derived",
+        ),
     })
 }
