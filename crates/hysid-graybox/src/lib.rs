@@ -13,7 +13,7 @@
 //! - [`expr`]: expressions, parsed by evalexpr once and compiled into a
 //!   tape evaluated without parsing or allocating;
 //! - [`compile`]: the checks and the compiled model;
-//! - [`simulate`]: the event-located simulator.
+//! - [`mod@simulate`]: the event-located simulator.
 //!
 //! The file format is documented in `docs/gray-box-models.md`.
 

@@ -6,7 +6,7 @@
 //! the wrong tool (dry friction with sticking, hard stops).
 //!
 //! The format is documented in `docs/gray-box-models.md`; the semantics of
-//! a run are [`crate::simulate`]'s.
+//! a run are [`mod@crate::simulate`]'s.
 
 use hysid_model::model::{ModelInfo, PhysicalParameter};
 use serde::{Deserialize, Serialize};

@@ -10,7 +10,7 @@
 //! The physical parameters are fitted by minimising the **simulation
 //! (output) error** `J = mean_k (y(k) - yhat(k))^2` over the record, where
 //! `yhat` is the model's event-aware free-run simulation
-//! ([`hysid_mechanical::simulate`], [`hysid_graybox::simulate`]) from the
+//! ([`hysid_mechanical::simulate`], [`mod@hysid_graybox::simulate`]) from the
 //! state estimated on the first samples. The search runs in box-normalised coordinates
 //! ([`parameters`]):
 //!
