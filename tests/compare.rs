@@ -288,3 +288,38 @@ fn figures_as_png_on_request() {
     );
     assert!(!bad.exists());
 }
+
+/// `[data] folds = K`: an `auto` run chooses its options on `K` rolling
+/// folds of the identification rows, as `hysid identify --auto --folds K`
+/// does, and its model records the `K - 1` splits; giving both `folds` and
+/// `selection` is refused.
+#[test]
+fn auto_runs_choose_on_folds() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = small_experiment(dir.path());
+    let text = std::fs::read_to_string(&exp).unwrap();
+    let head = &text[..text.find("[[run]]").unwrap()];
+    let folded = head.replace("warmup = 5\n", "warmup = 5\nfolds = 4\n")
+        + "[[run]]\nname = \"auto\"\nmethod = \"arx\"\nauto = true\n";
+    std::fs::write(&exp, &folded).unwrap();
+    let out = dir.path().join("out");
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
+    assert_eq!(code, 0, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let file = report["results"][0]["model_file"].as_str().unwrap();
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join(file)).unwrap()).unwrap();
+    let splits = model["info"]["selection"]["splits"].as_array().unwrap();
+    assert_eq!(splits.len(), 3, "{splits:?}");
+    assert_eq!(splits[0]["fit_rows"], "0..100");
+    assert_eq!(splits[2]["select_rows"], "300..400");
+
+    let both = folded.replace("folds = 4\n", "folds = 4\nselection = \"300..400\"\n");
+    std::fs::write(&exp, both).unwrap();
+    let out = dir.path().join("out2");
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
+    assert_eq!(code, 2);
+    assert!(err.contains("selection and folds"), "{err}");
+    assert!(!out.exists());
+}

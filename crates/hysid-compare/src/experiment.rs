@@ -37,6 +37,10 @@ pub struct DataSpec {
     /// last 20 % of the identification rows.
     #[serde(default)]
     pub selection: Option<RowRange>,
+    /// Instead of one selection split: `K` contiguous blocks of the
+    /// identification rows on a rolling origin (`hysid identify --folds K`).
+    #[serde(default)]
+    pub folds: Option<usize>,
     /// Axis label of the output in figures, with its unit (default `output <name>`).
     #[serde(default)]
     pub output_label: Option<String>,
@@ -340,6 +344,9 @@ pub enum InconsistentExperiment {
     /// `decimate = 0`.
     #[error("[data] decimate must be at least 1")]
     Decimate,
+    /// Both selection rows and folds.
+    #[error("[data] selection and folds are two ways of choosing: give one")]
+    SelectionAndFolds,
 }
 
 impl Experiment {
@@ -444,6 +451,9 @@ impl Experiment {
         }
         if self.data.decimate == 0 {
             return Err(E::Decimate);
+        }
+        if self.data.selection.is_some() && self.data.folds.is_some() {
+            return Err(E::SelectionAndFolds);
         }
         Ok(())
     }

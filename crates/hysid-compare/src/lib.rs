@@ -359,7 +359,7 @@ fn identify(
         .without_given(&job.settings);
     let plan = Plan {
         select: spec.selection,
-        folds: None,
+        folds: spec.folds,
         warmup: spec.warmup,
         first_row: spec.identification.start.unwrap_or(0),
     };

@@ -157,6 +157,7 @@ pub fn run(args: Args) -> Result<()> {
             validation: args.select_rows,
             warmup: args.warmup,
             selection: None,
+            folds: None,
             output_label: None,
             input_label: None,
             truth: None,
