@@ -60,6 +60,9 @@ pub enum Problem {
     /// A name that is no state.
     #[error("'{0}' is not a state")]
     UnknownState(String),
+    /// A name that is no input.
+    #[error("'{0}' is not an input")]
+    UnknownInput(String),
     /// A name that is no mode.
     #[error("'{0}' is not a mode")]
     UnknownMode(String),
@@ -220,6 +223,9 @@ pub struct CompiledModel {
     pub modes: Vec<CompiledMode>,
     /// Elements.
     pub elements: Vec<CompiledElement>,
+    /// Per input, its delay in seconds (parameters only; a constant 0
+    /// without one).
+    pub delays: Vec<Expression>,
     /// The initial-state rule.
     pub initial: CompiledInitial,
     /// Maximum integration step.
@@ -451,8 +457,16 @@ impl CompiledModel {
                 reset,
             });
         }
+        let mut delays = vec![Expression::constant(0.0); m.inputs.len()];
+        for (input, text) in &m.delays {
+            let i = m.inputs.iter().position(|n| n == input).ok_or_else(|| {
+                InvalidGrayBox::new("delays", Some(input), Problem::UnknownInput(input.clone()))
+            })?;
+            delays[i] = parametric(&format!("delays, input '{input}'"), text)?;
+        }
         let initial = initial_rule(m, &state_of, &mode_of)?;
         Ok(CompiledModel {
+            delays,
             states: nx,
             inputs: m.inputs.len(),
             parameters: m.parameters.len(),
@@ -519,6 +533,7 @@ impl CompiledModel {
                     friction => friction.clone(),
                 })
                 .collect(),
+            delays: self.delays.iter().map(b).collect(),
             initial: self.initial.clone(),
             ..*self
         }

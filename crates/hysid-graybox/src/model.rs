@@ -218,6 +218,10 @@ pub struct GrayBoxModel {
     pub states: Vec<String>,
     /// Input names, in the data's order.
     pub inputs: Vec<String>,
+    /// `input = "delay"`: the model sees that input `delay` seconds late
+    /// (a transport delay; an expression of parameters, at least 0).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub delays: BTreeMap<String, String>,
     /// The output map (one output: the records hysid reads have one).
     pub outputs: Vec<OutputMap>,
     /// Parameters.

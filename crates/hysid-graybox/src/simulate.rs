@@ -753,9 +753,83 @@ fn crossed(c: Crossing, g0: f64, g1: f64) -> bool {
     }
 }
 
-fn input_at(data: &Dataset, k: usize, u: &mut [f64]) {
-    for (i, x) in u.iter_mut().enumerate() {
-        *x = data.inputs[i].values[k];
+/// The inputs as the model sees them: each held over its sample and, when
+/// the model gives it a delay `d = q ts + r`, seen `q` samples and `r`
+/// seconds late. Within sample `k` such an input is the recorded one of
+/// sample `k - q - 1` until `r`, then that of `k - q` (the first sample's
+/// before the record starts), so a sample is cut into pieces of constant
+/// input at the remainders.
+struct Schedule {
+    /// Per input: whole samples of delay and the remainder, seconds.
+    lags: Vec<(usize, f64)>,
+    /// The ends of the pieces within a sample: the remainders, then `ts`.
+    cuts: Vec<f64>,
+    /// The sampling time.
+    ts: f64,
+    /// The model's longest integration step.
+    internal_step: f64,
+}
+
+/// A piece of a sample: duration, the inputs held over it, sub-steps.
+type Piece = (f64, Vec<f64>, usize);
+
+impl Schedule {
+    /// The delays of the bound model `m` at the sampling time `ts`
+    /// (negative delays count as 0).
+    fn new(m: &CompiledModel, ts: f64) -> Self {
+        let lags: Vec<(usize, f64)> = m
+            .delays
+            .iter()
+            .map(|d| {
+                let d = d.as_constant().unwrap_or(0.0).max(0.0);
+                let q = (d / ts + 1e-9).floor();
+                let r = d - q * ts;
+                (q as usize, if r <= 1e-9 * ts { 0.0 } else { r })
+            })
+            .collect();
+        let mut cuts: Vec<f64> = lags.iter().map(|(_, r)| *r).filter(|r| *r > 0.0).collect();
+        cuts.sort_by(f64::total_cmp);
+        cuts.dedup();
+        cuts.push(ts);
+        Schedule {
+            lags,
+            cuts,
+            ts,
+            internal_step: m.internal_step,
+        }
+    }
+
+    /// The input of sample `k` in effect from `t` seconds into it.
+    fn inputs(&self, data: &Dataset, k: usize, t: f64, u: &mut [f64]) {
+        for (i, (x, (q, r))) in u.iter_mut().zip(&self.lags).enumerate() {
+            let back = q + usize::from(t < *r);
+            *x = data.inputs[i].values[k.saturating_sub(back)];
+        }
+    }
+
+    /// Writes the pieces of sample `k` into `pieces` (reusing its buffers)
+    /// in time order, consecutive pieces of equal inputs merged, and
+    /// returns how many there are (one without delays).
+    fn fill(&self, data: &Dataset, k: usize, pieces: &mut Vec<Piece>) -> Result<usize, SimError> {
+        let mut count = 0;
+        let mut from = 0.0;
+        for &to in &self.cuts {
+            if count == pieces.len() {
+                pieces.push((0.0, vec![0.0; self.lags.len()], 0));
+            }
+            self.inputs(data, k, from, &mut pieces[count].1);
+            if count > 0 && pieces[count].1 == pieces[count - 1].1 {
+                pieces[count - 1].0 += to - from;
+            } else {
+                pieces[count].0 = to - from;
+                count += 1;
+            }
+            from = to;
+        }
+        for piece in &mut pieces[..count] {
+            piece.2 = substeps(piece.0, self.internal_step)?;
+        }
+        Ok(count)
     }
 }
 
@@ -764,10 +838,10 @@ fn initial(
     m: &CompiledModel,
     machine: &mut Machine,
     data: &Dataset,
-    ts: f64,
+    schedule: &Schedule,
     upto: Option<usize>,
 ) -> Result<(usize, HybridState), SimError> {
-    let n = data.len();
+    let (n, ts) = (data.len(), schedule.ts);
     let ym = data.y();
     let mut u = vec![0.0; m.inputs];
     match &m.initial {
@@ -778,7 +852,7 @@ fn initial(
                     needed: 1,
                 });
             }
-            input_at(data, 0, &mut u);
+            schedule.inputs(data, 0, 0.0, &mut u);
             Ok((0, machine.state_at(x.clone(), &u, *mode)))
         }
         CompiledInitial::Measured {
@@ -806,7 +880,7 @@ fn initial(
                     slope
                 };
             }
-            input_at(data, s, &mut u);
+            schedule.inputs(data, s, 0.0, &mut u);
             Ok((s, machine.state_at(x, &u, *mode)))
         }
     }
@@ -815,11 +889,12 @@ fn initial(
 /// Runs the compiled model with parameter values `values` on the inputs of
 /// `data` (sampling time `data.ts`), from the model's initial-state rule.
 pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxRun, SimError> {
-    let (ts, n_sub) = timing(m, data)?;
+    let ts = timing(m, data)?;
     let n = data.len();
     let bound = m.bind(values);
+    let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
-    let (start, hs) = initial(m, &mut machine, data, ts, None)?;
+    let (start, hs) = initial(m, &mut machine, data, &schedule, None)?;
     let mut out = GrayBoxRun {
         y: data.y().to_vec(),
         x: vec![0.0; n * m.states],
@@ -830,15 +905,15 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
         events: 0,
         zeno_steps: 0,
     };
-    span(&mut machine, hs, data, start..n, (ts, n_sub), &mut out)?;
+    span(&mut machine, hs, data, start..n, &schedule, &mut out)?;
     out.steps = machine.steps;
     out.events = machine.events;
     out.zeno_steps = machine.zeno_steps;
     Ok(out)
 }
 
-/// The sampling time and the sub-steps per sample, checked.
-fn timing(m: &CompiledModel, data: &Dataset) -> Result<(f64, usize), SimError> {
+/// The sampling time, with the record's inputs and the model's step checked.
+fn timing(m: &CompiledModel, data: &Dataset) -> Result<f64, SimError> {
     let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
     if data.inputs.len() != m.inputs {
         return Err(SimError::Inputs {
@@ -846,7 +921,8 @@ fn timing(m: &CompiledModel, data: &Dataset) -> Result<(f64, usize), SimError> {
             found: data.inputs.len(),
         });
     }
-    Ok((ts, substeps(ts, m.internal_step)?))
+    substeps(ts, m.internal_step)?;
+    Ok(ts)
 }
 
 /// Runs from `hs` at sample `samples.start` over `samples`, writing each
@@ -856,22 +932,24 @@ fn span(
     mut hs: HybridState,
     data: &Dataset,
     samples: std::ops::Range<usize>,
-    (ts, n_sub): (f64, usize),
+    schedule: &Schedule,
     out: &mut GrayBoxRun,
 ) -> Result<(), SimError> {
     let (start, end) = (samples.start, samples.end);
     let states = hs.x.len();
-    let mut u = vec![0.0; data.inputs.len()];
     let mut held = vec![0.0; data.inputs.len()];
-    input_at(data, start, &mut held);
+    schedule.inputs(data, start, 0.0, &mut held);
     let mut g_end = Vec::new();
     // At rest under an unchanged input, a sample repeats the one before.
     let (mut rest, mut repeat) = (false, false);
+    let mut buffer = Vec::new();
     for k in samples {
-        input_at(data, k, &mut u);
-        let changed = k == start || u != held;
+        let count = schedule.fill(data, k, &mut buffer)?;
+        let pieces = &buffer[..count];
+        let u = &pieces[0].1;
+        let changed = k == start || pieces.len() > 1 || *u != held;
         if changed || !repeat {
-            let (y, label, covered) = machine.observe(&hs, &u, &held);
+            let (y, label, covered) = machine.observe(&hs, u, &held);
             out.y[k] = y;
             out.modes[k] = Some(label);
             out.covered[k] = covered;
@@ -882,18 +960,20 @@ fn span(
             out.covered[k] = out.covered[k - 1];
             out.x.copy_within((k - 1) * states..k * states, k * states);
         }
-        held.copy_from_slice(&u);
         repeat = k + 1 < end && !changed && rest;
         if k + 1 < end && !repeat {
-            if k > start {
-                machine.resettle(&mut hs, &u);
-                let g_before = std::mem::take(&mut g_end);
-                machine.fire_at_sample(&mut hs, &u, &g_before, k)?;
+            for (j, (duration, u, n_sub)) in pieces.iter().enumerate() {
+                if k > start || j > 0 {
+                    machine.resettle(&mut hs, u);
+                    let g_before = std::mem::take(&mut g_end);
+                    machine.fire_at_sample(&mut hs, u, &g_before, k)?;
+                }
+                rest = machine.advance(&mut hs, u, *duration, *n_sub, k)?;
+                machine.load(&hs.x, u);
+                machine.surfaces(hs.mode, &mut g_end);
             }
-            rest = machine.advance(&mut hs, &u, ts, n_sub, k)?;
-            machine.load(&hs.x, &u);
-            machine.surfaces(hs.mode, &mut g_end);
         }
+        held.copy_from_slice(&pieces[pieces.len() - 1].1);
     }
     Ok(())
 }
@@ -910,9 +990,10 @@ pub fn segmented(
     segment: usize,
     state_at: &dyn Fn(usize) -> Vec<f64>,
 ) -> Result<Vec<f64>, SimError> {
-    let (ts, n_sub) = timing(m, data)?;
+    let ts = timing(m, data)?;
     let n = data.len();
     let bound = m.bind(values);
+    let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
     let mut out = GrayBoxRun {
         y: data.y().to_vec(),
@@ -927,12 +1008,12 @@ pub fn segmented(
     let mut u = vec![0.0; m.inputs];
     let mut s = 0;
     while s + 1 < n {
-        input_at(data, s, &mut u);
+        schedule.inputs(data, s, 0.0, &mut u);
         let hs = machine.state_at(state_at(s), &u, None);
         let end = (s + segment.max(1) + 1).min(n);
         // The previous segment's last output stays: this one starts there.
         let last = out.y[s];
-        span(&mut machine, hs, data, s..end, (ts, n_sub), &mut out)?;
+        span(&mut machine, hs, data, s..end, &schedule, &mut out)?;
         if s > 0 {
             out.y[s] = last;
         }
@@ -949,7 +1030,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     let CompiledInitial::Measured { samples, .. } = m.initial else {
         return run(m, values, data);
     };
-    let (ts, n_sub) = timing(m, data)?;
+    let ts = timing(m, data)?;
     let n = data.len();
     let first = samples - 1;
     if n <= first {
@@ -959,6 +1040,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
         });
     }
     let bound = m.bind(values);
+    let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
     let mut out = GrayBoxRun {
         y: data.y().to_vec(),
@@ -971,13 +1053,25 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
         zeno_steps: 0,
     };
     let mut u = vec![0.0; m.inputs];
+    let mut buffer = Vec::new();
     for k in first..n.saturating_sub(1) {
-        let (_, mut hs) = initial(m, &mut machine, data, ts, Some(k))?;
-        input_at(data, k, &mut u);
-        machine.advance(&mut hs, &u, ts, n_sub, k)?;
-        let held = u.clone();
-        input_at(data, k + 1, &mut u);
-        let (y, label, covered) = machine.observe(&hs, &u, &held);
+        let (_, mut hs) = initial(m, &mut machine, data, &schedule, Some(k))?;
+        let count = schedule.fill(data, k, &mut buffer)?;
+        let pieces = &buffer[..count];
+        let mut g_end = Vec::new();
+        for (j, (duration, u, n_sub)) in pieces.iter().enumerate() {
+            if j > 0 {
+                machine.resettle(&mut hs, u);
+                let g_before = std::mem::take(&mut g_end);
+                machine.fire_at_sample(&mut hs, u, &g_before, k)?;
+            }
+            machine.advance(&mut hs, u, *duration, *n_sub, k)?;
+            machine.load(&hs.x, u);
+            machine.surfaces(hs.mode, &mut g_end);
+        }
+        let held = &pieces[pieces.len() - 1].1;
+        schedule.inputs(data, k + 1, 0.0, &mut u);
+        let (y, label, covered) = machine.observe(&hs, &u, held);
         out.y[k + 1] = y;
         out.modes[k + 1] = Some(label);
         out.covered[k + 1] = covered;
