@@ -82,8 +82,8 @@ proptest! {
         let data = Dataset::siso(u.clone(), vec![0.0; n], Some(ts)).unwrap();
         let r = run(&CompiledModel::new(&m).unwrap(), &m.values(), &data).unwrap();
         let want = exact(&u, ts, d);
-        for k in 0..n {
-            prop_assert!((r.y[k] - want[k]).abs() < 1e-9, "k {}: {} vs {}", k, r.y[k], want[k]);
+        for (k, (got, want)) in r.y.iter().zip(&want).enumerate() {
+            prop_assert!((got - want).abs() < 1e-9, "k {}: {} vs {}", k, got, want);
         }
     }
 }
@@ -111,7 +111,7 @@ fn whole_sample_delay_shifts_the_input() {
     };
     let delayed = run_on(&lag(q as f64 * ts), &u);
     let plain = run_on(&lag(0.0), &shifted);
-    for k in 0..n {
-        assert!((delayed[k] - plain[k]).abs() < 1e-12, "k {k}");
+    for (k, (a, b)) in delayed.iter().zip(&plain).enumerate() {
+        assert!((a - b).abs() < 1e-12, "k {k}: {a} vs {b}");
     }
 }
