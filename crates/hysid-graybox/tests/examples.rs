@@ -10,8 +10,9 @@ use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
 
-const FILES: [&str; 9] = [
+const FILES: [&str; 10] = [
     "models/pick-and-place/head-graybox.toml",
+    "models/pick-and-place/structures/delay.toml",
     "models/pick-and-place/structures/lag.toml",
     "models/pick-and-place/structures/stribeck.toml",
     "models/pick-and-place/structures/asym.toml",

@@ -96,6 +96,7 @@ fn main() {
         [
             "head-graybox.toml",
             "structures/lag.toml",
+            "structures/delay.toml",
             "structures/stribeck.toml",
             "structures/asym.toml",
             "structures/cubic.toml",
