@@ -105,6 +105,24 @@ enum Effect {
     Hold(usize),
 }
 
+impl GrayBoxRun {
+    /// A run of `data` not simulated yet: the measured outputs, no mode,
+    /// every sample covered; the first simulated sample `start`.
+    fn empty(data: &Dataset, states: usize, start: usize) -> Self {
+        let n = data.len();
+        GrayBoxRun {
+            y: data.y().to_vec(),
+            x: vec![0.0; n * states],
+            modes: vec![None; n],
+            covered: vec![true; n],
+            start,
+            steps: 0,
+            events: 0,
+            zeno_steps: 0,
+        }
+    }
+}
+
 /// What ended a sub-step early.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Event {
@@ -895,16 +913,7 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
     let (start, hs) = initial(m, &mut machine, data, &schedule, None)?;
-    let mut out = GrayBoxRun {
-        y: data.y().to_vec(),
-        x: vec![0.0; n * m.states],
-        modes: vec![None; n],
-        covered: vec![true; n],
-        start,
-        steps: 0,
-        events: 0,
-        zeno_steps: 0,
-    };
+    let mut out = GrayBoxRun::empty(data, m.states, start);
     span(&mut machine, hs, data, start..n, &schedule, &mut out)?;
     out.steps = machine.steps;
     out.events = machine.events;
@@ -995,16 +1004,7 @@ pub fn segmented(
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
-    let mut out = GrayBoxRun {
-        y: data.y().to_vec(),
-        x: vec![0.0; n * m.states],
-        modes: vec![None; n],
-        covered: vec![true; n],
-        start: 0,
-        steps: 0,
-        events: 0,
-        zeno_steps: 0,
-    };
+    let mut out = GrayBoxRun::empty(data, m.states, 0);
     let mut u = vec![0.0; m.inputs];
     let mut s = 0;
     while s + 1 < n {
@@ -1042,16 +1042,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
-    let mut out = GrayBoxRun {
-        y: data.y().to_vec(),
-        x: vec![0.0; n * m.states],
-        modes: vec![None; n],
-        covered: vec![true; n],
-        start: (first + 1).min(n - 1),
-        steps: 0,
-        events: 0,
-        zeno_steps: 0,
-    };
+    let mut out = GrayBoxRun::empty(data, m.states, (first + 1).min(n - 1));
     let mut u = vec![0.0; m.inputs];
     let mut buffer = Vec::new();
     for k in first..n.saturating_sub(1) {
