@@ -107,19 +107,6 @@ impl InvalidGrayBox {
     }
 }
 
-/// What a slot holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Symbol {
-    /// State `i`.
-    State(usize),
-    /// Input `i`.
-    Input(usize),
-    /// Parameter `i`.
-    Parameter(usize),
-    /// Definition `i`.
-    Definition(usize),
-}
-
 /// A transition with compiled expressions.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CompiledTransition {
@@ -260,11 +247,13 @@ impl CompiledModel {
             ));
         }
         let symbols = symbol_table(m)?;
-        let resolve = |n: &str| symbols.get(n).map(|&(slot, _)| slot as u32);
+        let resolve = |n: &str| symbols.get(n).map(|&slot| slot as u32);
         let nx = m.states.len();
+        let first_def = nx + m.inputs.len() + m.parameters.len();
+        // The states take the first slots.
         let state_of = |place: &str, n: &str| -> Result<usize, InvalidGrayBox> {
             match symbols.get(n) {
-                Some(&(_, Symbol::State(i))) => Ok(i),
+                Some(&slot) if slot < nx => Ok(slot),
                 _ => Err(InvalidGrayBox::new(
                     place,
                     Some(n),
@@ -281,8 +270,7 @@ impl CompiledModel {
         };
         let parametric = |place: &str, text: &str| -> Result<Expression, InvalidGrayBox> {
             let e = expr(place, text)?;
-            let first_def = (nx + m.inputs.len() + m.parameters.len()) as u32;
-            let params = (nx + m.inputs.len()) as u32..first_def;
+            let params = (nx + m.inputs.len()) as u32..first_def as u32;
             if e.slots().all(|s| params.contains(&s)) {
                 Ok(e)
             } else {
@@ -330,7 +318,6 @@ impl CompiledModel {
 
         // Each mode's definitions, inlined into one another in dependency order.
         let names = definition_names(m);
-        let first_def = nx + m.inputs.len() + m.parameters.len();
         let mut mode_definitions = Vec::with_capacity(m.modes.len());
         for q in &m.modes {
             let place = format!("mode '{}'", q.name);
@@ -563,12 +550,12 @@ fn definition_names(m: &GrayBoxModel) -> Vec<&String> {
     names
 }
 
-/// States, inputs, parameters and definitions, with their slots; checks
-/// names and parameters.
-fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, (usize, Symbol)>, InvalidGrayBox> {
+/// The slot of every state, input, parameter and definition, in that
+/// order; checks names and parameters.
+fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, usize>, InvalidGrayBox> {
     let mut table = BTreeMap::new();
     let mut slot = 0;
-    let mut add = |what: &str, name: &str, sym: Symbol| -> Result<(), InvalidGrayBox> {
+    let mut add = |what: &str, name: &str| -> Result<(), InvalidGrayBox> {
         if !is_identifier(name) {
             return Err(InvalidGrayBox::new(
                 what,
@@ -576,7 +563,7 @@ fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, (usize, Symbol)>, I
                 Problem::BadName(name.into()),
             ));
         }
-        if table.insert(name.to_string(), (slot, sym)).is_some() {
+        if table.insert(name.to_string(), slot).is_some() {
             return Err(InvalidGrayBox::new(
                 what,
                 Some(name),
@@ -586,14 +573,14 @@ fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, (usize, Symbol)>, I
         slot += 1;
         Ok(())
     };
-    for (i, s) in m.states.iter().enumerate() {
-        add("states", s, Symbol::State(i))?;
+    for s in &m.states {
+        add("states", s)?;
     }
-    for (i, s) in m.inputs.iter().enumerate() {
-        add("inputs", s, Symbol::Input(i))?;
+    for s in &m.inputs {
+        add("inputs", s)?;
     }
-    for (i, p) in m.parameters.iter().enumerate() {
-        add("parameters", &p.name, Symbol::Parameter(i))?;
+    for p in &m.parameters {
+        add("parameters", &p.name)?;
         let [lo, hi] = p.bounds;
         if !(p.value.is_finite()
             && lo.is_finite()
@@ -608,8 +595,8 @@ fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, (usize, Symbol)>, I
             ));
         }
     }
-    for (i, d) in definition_names(m).into_iter().enumerate() {
-        add("definitions", d, Symbol::Definition(i))?;
+    for d in definition_names(m) {
+        add("definitions", d)?;
     }
     Ok(table)
 }

@@ -536,7 +536,7 @@ impl Relation {
         let mut b = Builder::new(text, resolve);
         b.node(lhs)?;
         b.node(rhs)?;
-        b.op(Op::Binary(Binary::Sub), 2)?;
+        b.op(Op::Binary(Binary::Sub));
         Ok(Relation {
             surface: b.finish()?,
             crossing,
@@ -605,18 +605,17 @@ impl<'a> Builder<'a> {
         Ok(())
     }
 
-    /// Emits an operator taking `k` operands, folded when they are constants.
-    fn op(&mut self, op: Op, k: usize) -> Result<(), ExprError> {
+    /// Emits an operator, folded when its operands are constants.
+    fn op(&mut self, op: Op) {
         push_folded(&mut self.ops, op);
-        self.depth = self.depth + 1 - k;
-        Ok(())
+        self.depth = self.depth + 1 - op.operands();
     }
 
     fn node(&mut self, node: &Node<DefaultNumericTypes>) -> Result<(), ExprError> {
         let node = strip_root(node);
         let children = node.children();
-        let binary = |b| Some((Op::Binary(b), 2));
-        let (op, k) = match node.operator() {
+        let binary = |b| Some(Op::Binary(b));
+        let op = match node.operator() {
             Operator::Const { value } => {
                 let v = match value {
                     Value::Float(f) => *f,
@@ -653,10 +652,11 @@ impl<'a> Builder<'a> {
                 for a in &args {
                     self.node(a)?;
                 }
-                return self.op(Op::Call(f), args.len());
+                self.op(Op::Call(f));
+                return Ok(());
             }
-            Operator::Neg => Some((Op::Neg, 1)),
-            Operator::Not => Some((Op::Not, 1)),
+            Operator::Neg => Some(Op::Neg),
+            Operator::Not => Some(Op::Not),
             Operator::Add => binary(Binary::Add),
             Operator::Sub => binary(Binary::Sub),
             Operator::Mul => binary(Binary::Mul),
@@ -674,13 +674,14 @@ impl<'a> Builder<'a> {
             _ => None,
         }
         .ok_or_else(|| self.not_numeric())?;
-        if children.len() != k {
+        if children.len() != op.operands() {
             return Err(self.not_numeric());
         }
         for c in children {
             self.node(c)?;
         }
-        self.op(op, k)
+        self.op(op);
+        Ok(())
     }
 
     fn finish(self) -> Result<Expression, ExprError> {
