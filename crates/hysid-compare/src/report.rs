@@ -573,9 +573,9 @@ fn selection_note(m: &Model) -> Option<String> {
     } else {
         format!("{} {}", c.method, values.join(" "))
     };
-    let refined = match &s.refinement {
-        Some(r) if r.kept => ", refined",
-        _ => "",
+    let refined = match s.kept_refinement() {
+        Some(r) => format!(", refine={}", r.refine),
+        None => String::new(),
     };
     Some(format!(
         "auto chose {what}{refined} (selection FIT {:.2} %)",

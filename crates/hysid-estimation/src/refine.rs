@@ -72,6 +72,8 @@ use hysid_model::regressors::RegressorSpec;
 use hysid_model::simulate::{Simulation, SimulationOptions, automaton, pwarx as pwarx_sim};
 use nalgebra::{DMatrix, DVector};
 
+pub mod regions;
+
 hysid_core::option_enum! {
     /// The refinement a PWARX back-end ends with (option `refine`).
     pub enum RefineMethod {
@@ -79,6 +81,9 @@ hysid_core::option_enum! {
         None => "none",
         /// The multiple-shooting simulation error, by Levenberg-Marquardt.
         Sim => "sim",
+        /// `sim`, then the region boundaries moved by a softmax relaxation
+        /// of the same error and hardened again.
+        SimRegions => "sim_regions",
     }
 }
 
@@ -172,9 +177,10 @@ macro_rules! pwarx_options {
             $(#[$($meta)*])*
             $vis struct $name {
                 $( $(#[$($attr)*])* $field : $ty = $default, )*
-                /// Refinement of the mode parameters after the fit, regions fixed: none, or sim
-                /// (Levenberg-Marquardt on the multiple-shooting simulation error under the priors,
-                /// docs/refinement.md).
+                /// Refinement after the fit: none; sim (the mode parameters by Levenberg-Marquardt on
+                /// the multiple-shooting simulation error under the priors, regions fixed); or
+                /// sim_regions (sim, then the region boundaries moved by a softmax relaxation of that
+                /// error and hardened), docs/refinement.md.
                 #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
                 refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
                 /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
@@ -202,11 +208,13 @@ macro_rules! pwarx_options {
 
 /// `fit` with its ordinary modes' parameters refined by the
 /// multiple-shooting simulation error (see the module doc), the regions
-/// unchanged, the outcome in `fit.refinement`. With
+/// unchanged, and with [`RefineMethod::SimRegions`] then the region
+/// boundaries moved ([`regions`]); the outcome in `fit.refinement`. With
 /// [`RefineMethod::None`], `fit` unchanged. The settings are those a
-/// back-end's checked options hold ([`RefineSettings::check`]). When no step lowers the cost,
-/// the parameters stay as the back-end gave them. A refinement stopped by
-/// its iteration bound marks the run [`RunStatus::IterationLimit`].
+/// back-end's checked options hold ([`RefineSettings::check`]). When no
+/// step lowers the cost, the parameters stay as the back-end gave them. A
+/// refinement stopped by its iteration bound marks the run
+/// [`RunStatus::IterationLimit`].
 pub fn refine<D>(
     data: &PwarxData<'_>,
     mut fit: PwarxFit<D>,
@@ -215,20 +223,10 @@ pub fn refine<D>(
     if settings.method == RefineMethod::None {
         return Ok(fit);
     }
-    let par = Parametrisation::from_priors(data.priors(), &data.spec, fit.modes.len())
-        .map_err(|e| data.prior_error(e))?;
-    let shooting = Shooting::new(data, &fit.modes, settings.segment)?;
-    let thetas: Vec<Vec<f64>> = fit.modes.iter().map(|m| m.theta.clone()).collect();
-    let start = par
-        .free_values(&thetas)
-        .map_err(|e| IdentifyError::failed(format!("refinement: {e}")))?;
-    let outcome = levenberg_marquardt(&shooting, &par, start, settings.iterations)?;
-    if let Some(z) = &outcome.z {
-        for (mode, theta) in fit.modes.iter_mut().zip(par.thetas(z)) {
-            mode.theta = theta;
-        }
+    let mut r = fit_parameters(data, &mut fit.modes, settings)?;
+    if settings.method == RefineMethod::SimRegions {
+        r.regions = Some(regions::move_regions(data, &mut fit, settings)?);
     }
-    let r = outcome.refinement;
     if r.status == RefinementStatus::IterationLimit {
         if fit.run_status == RunStatus::Completed {
             fit.run_status = RunStatus::IterationLimit;
@@ -240,6 +238,44 @@ pub fn refine<D>(
     }
     fit.refinement = Some(r);
     Ok(fit)
+}
+
+/// The parameters of `modes` refined by Levenberg-Marquardt on the
+/// shooting cost with their regions fixed (see the module doc); the
+/// outcome.
+fn fit_parameters(
+    data: &PwarxData<'_>,
+    modes: &mut [PwarxMode],
+    settings: &RefineSettings,
+) -> Result<Refinement, IdentifyError> {
+    let par = Parametrisation::from_priors(data.priors(), &data.spec, modes.len())
+        .map_err(|e| data.prior_error(e))?;
+    let shooting = Shooting::new(data, modes, settings.segment)?;
+    let thetas: Vec<Vec<f64>> = modes.iter().map(|m| m.theta.clone()).collect();
+    let start = par
+        .free_values(&thetas)
+        .map_err(|e| IdentifyError::failed(format!("refinement: {e}")))?;
+    let problem = ParameterResiduals {
+        shooting: &shooting,
+        par: &par,
+    };
+    let descent = levenberg_marquardt(&problem, start, settings.iterations)?;
+    if let Some(z) = &descent.v {
+        for (mode, theta) in modes.iter_mut().zip(par.thetas(z)) {
+            mode.theta = theta;
+        }
+    }
+    let finite = descent.cost_before.is_finite();
+    Ok(Refinement {
+        segment: shooting.segment,
+        segments: shooting.segments(),
+        iterations: descent.iterations,
+        max_iterations: settings.iterations,
+        cost_before: finite.then_some(descent.cost_before),
+        cost_after: finite.then_some(descent.cost_after),
+        status: descent.status,
+        regions: None,
+    })
 }
 
 /// One shooting segment: the record's samples `offset ..`, of which those
@@ -527,39 +563,75 @@ fn automaton_sensitivities(
     sens
 }
 
-/// What [`levenberg_marquardt`] found: the refined free variables (`None`
-/// when no step was accepted) and the outcome.
-struct Outcome {
-    z: Option<Vec<f64>>,
-    refinement: Refinement,
+/// A nonlinear least-squares problem for [`levenberg_marquardt`]: the
+/// errors and their Jacobian at a point, and the damped linearised step
+/// under the problem's constraints.
+trait Residuals {
+    /// Number of unknowns.
+    fn unknowns(&self) -> usize;
+    /// Errors, Jacobian and cost at `v`.
+    fn evaluate(&self, v: &[f64]) -> Result<Evaluation, IdentifyError>;
+    /// `argmin |design v - rhs|^2` under the problem's constraints; `None`
+    /// when the subproblem fails (the step is then rejected).
+    fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>>;
 }
 
-/// Levenberg-Marquardt on the shooting cost from `z` (see the module doc),
-/// at most `max_iterations` solved steps.
+/// The mode parameters' problem: the shooting cost over the free
+/// variables of the priors' parametrisation, steps solved under its
+/// equalities and bounds.
+struct ParameterResiduals<'s, 'a> {
+    shooting: &'s Shooting<'a>,
+    par: &'s Parametrisation,
+}
+
+impl Residuals for ParameterResiduals<'_, '_> {
+    fn unknowns(&self) -> usize {
+        self.par.n_free()
+    }
+
+    fn evaluate(&self, z: &[f64]) -> Result<Evaluation, IdentifyError> {
+        self.shooting.evaluate(self.par, z)
+    }
+
+    fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
+        constrained::solve_in_z(self.par, design, rhs).ok()
+    }
+}
+
+/// What [`levenberg_marquardt`] found.
+struct Descent {
+    /// The unknowns reached (`None` when no step was accepted).
+    v: Option<Vec<f64>>,
+    /// Solved steps, accepted or not.
+    iterations: usize,
+    /// The cost at the start (`+inf` when its simulation diverges).
+    cost_before: f64,
+    /// The cost at the end.
+    cost_after: f64,
+    /// How it ended.
+    status: RefinementStatus,
+}
+
+/// Levenberg-Marquardt on `problem` from `v` (see the module doc), at most
+/// `max_iterations` solved steps.
 fn levenberg_marquardt(
-    shooting: &Shooting<'_>,
-    par: &Parametrisation,
-    mut z: Vec<f64>,
+    problem: &dyn Residuals,
+    mut v: Vec<f64>,
     max_iterations: usize,
-) -> Result<Outcome, IdentifyError> {
-    let mut current = shooting.evaluate(par, &z)?;
-    let mut refinement = Refinement {
-        segment: shooting.segment,
-        segments: shooting.segments(),
+) -> Result<Descent, IdentifyError> {
+    let mut current = problem.evaluate(&v)?;
+    let mut descent = Descent {
+        v: None,
         iterations: 0,
-        max_iterations,
-        cost_before: current.cost.is_finite().then_some(current.cost),
-        cost_after: None,
+        cost_before: current.cost,
+        cost_after: current.cost,
         status: RefinementStatus::IterationLimit,
     };
     if !current.cost.is_finite() {
-        refinement.status = RefinementStatus::Diverged;
-        return Ok(Outcome {
-            z: None,
-            refinement,
-        });
+        descent.status = RefinementStatus::Diverged;
+        return Ok(descent);
     }
-    let nz = par.n_free();
+    let n = problem.unknowns();
     let gram_diagonal = |j: &DMatrix<f64>| {
         (0..j.ncols())
             .map(|c| j.column(c).norm_squared())
@@ -569,41 +641,41 @@ fn levenberg_marquardt(
     let mut mu = 1e-3 * scale;
     let mut nu = 2.0;
     let mut accepted = false;
-    while refinement.iterations < max_iterations {
-        if current.cost == 0.0 || nz == 0 {
-            refinement.status = RefinementStatus::Converged;
+    while descent.iterations < max_iterations {
+        if current.cost == 0.0 || n == 0 {
+            descent.status = RefinementStatus::Converged;
             break;
         }
-        refinement.iterations += 1;
-        // [J; sqrt(mu) I] z' = [e + J z; sqrt(mu) z].
+        descent.iterations += 1;
+        // [J; sqrt(mu) I] v' = [e + J v; sqrt(mu) v].
         let rows = current.jacobian.nrows();
-        let zv = DVector::from_column_slice(&z);
-        let target = &current.errors + &current.jacobian * &zv;
+        let vv = DVector::from_column_slice(&v);
+        let target = &current.errors + &current.jacobian * &vv;
         let sm = mu.sqrt();
-        let mut design = DMatrix::zeros(rows + nz, nz);
+        let mut design = DMatrix::zeros(rows + n, n);
         design.rows_mut(0, rows).copy_from(&current.jacobian);
-        let mut rhs = DVector::zeros(rows + nz);
+        let mut rhs = DVector::zeros(rows + n);
         rhs.rows_mut(0, rows).copy_from(&target);
-        for v in 0..nz {
-            design[(rows + v, v)] = sm;
-            rhs[rows + v] = sm * z[v];
+        for c in 0..n {
+            design[(rows + c, c)] = sm;
+            rhs[rows + c] = sm * v[c];
         }
         // A failed subproblem is a rejected step: more damping.
-        let trial_z = constrained::solve_in_z(par, &design, &rhs).ok();
-        let trial = match &trial_z {
+        let trial_v = problem.solve(&design, &rhs);
+        let trial = match &trial_v {
             Some(t) => {
-                let step = DVector::from_iterator(nz, t.iter().zip(&z).map(|(a, b)| a - b));
-                if step.norm() <= 1e-14 * (zv.norm() + 1e-14) {
-                    refinement.status = RefinementStatus::Converged;
+                let step = DVector::from_iterator(n, t.iter().zip(&v).map(|(a, b)| a - b));
+                if step.norm() <= 1e-14 * (vv.norm() + 1e-14) {
+                    descent.status = RefinementStatus::Converged;
                     break;
                 }
                 let predicted =
                     current.cost - (&current.errors - &current.jacobian * &step).norm_squared();
-                Some((shooting.evaluate(par, t)?, predicted))
+                Some((problem.evaluate(t)?, predicted))
             }
             None => None,
         };
-        match (trial, trial_z) {
+        match (trial, trial_v) {
             (Some((next, predicted)), Some(t)) if next.cost < current.cost => {
                 let decrease = current.cost - next.cost;
                 let rho = if predicted > 0.0 {
@@ -612,13 +684,13 @@ fn levenberg_marquardt(
                     0.0
                 };
                 let relative = decrease / current.cost;
-                z = t;
+                v = t;
                 current = next;
                 accepted = true;
                 mu *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
                 nu = 2.0;
                 if relative < RELATIVE_TOLERANCE {
-                    refinement.status = RefinementStatus::Converged;
+                    descent.status = RefinementStatus::Converged;
                     break;
                 }
             }
@@ -626,17 +698,15 @@ fn levenberg_marquardt(
                 mu *= nu;
                 nu *= 2.0;
                 if !mu.is_finite() || mu > 1e16 * scale {
-                    refinement.status = RefinementStatus::NoDescent;
+                    descent.status = RefinementStatus::NoDescent;
                     break;
                 }
             }
         }
     }
-    refinement.cost_after = Some(current.cost);
-    Ok(Outcome {
-        z: accepted.then_some(z),
-        refinement,
-    })
+    descent.cost_after = current.cost;
+    descent.v = accepted.then_some(v);
+    Ok(descent)
 }
 
 #[cfg(test)]
@@ -648,7 +718,7 @@ mod tests {
     use hysid_core::priors::Priors;
     use hysid_model::data::Signal;
     use hysid_model::geometry::Polyhedron;
-    use hysid_model::model::{Stop, StopBound};
+    use hysid_model::model::{RegionRefinementStatus, Stop, StopBound};
     use proptest::prelude::*;
 
     /// The true modes: `y(k) = a y(k-1) + b u(k-1) + c`, mode 0 where
@@ -944,6 +1014,7 @@ mod tests {
         /// bit), and the cost did not rise.
         #[test]
         fn priors_hold_after_refinement(
+            move_regions in any::<bool>(),
             with_tie in any::<bool>(),
             fixed_c in prop::option::of(-0.3f64..0.3),
             lo in 0.0f64..1.0,
@@ -973,10 +1044,22 @@ mod tests {
                 Ok(t) => t,
                 Err(_) => return Ok(()), // bounds and equality without a common point
             };
-            let fit = refine(&prepared, start_fit(start), &sim_settings(40, 15)).unwrap();
+            let settings = RefineSettings {
+                method: if move_regions { RefineMethod::SimRegions } else { RefineMethod::Sim },
+                ..sim_settings(40, 15)
+            };
+            let fit = refine(&prepared, start_fit(start), &settings).unwrap();
             let r = fit.refinement.clone().unwrap();
             if let (Some(b), Some(a)) = (r.cost_before, r.cost_after) {
                 prop_assert!(a <= b, "{:?}", r);
+            }
+            if let Some(g) = &r.regions {
+                prop_assert!(move_regions);
+                if let (Some(b), Some(a)) = (g.cost_before, g.cost_after)
+                    && g.status == RegionRefinementStatus::Moved
+                {
+                    prop_assert!(a < b, "{:?}", g);
+                }
             }
             let t: Vec<&Vec<f64>> = fit.modes.iter().map(|m| &m.theta).collect();
             for m in &t {

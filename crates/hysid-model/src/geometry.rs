@@ -192,6 +192,58 @@ impl Polyhedron {
     }
 }
 
+/// The argmax partition of affine scores `f_i = c_i . x + c_i0` (rows
+/// `[c_i; c_i0]`): region `i` is `{x : f_i(x) >= f_j(x) for all j != i}`,
+/// one row `(c_j - c_i) x <= c_i0 - c_j0` per other mode `j`, in mode order.
+/// The rows of `i` against `j` and of `j` against `i` are exact negatives
+/// of each other in floating point. The regions cover the space.
+pub fn argmax_regions(scores: &[Vec<f64>]) -> Vec<Polyhedron> {
+    let s = scores.len();
+    (0..s)
+        .map(|i| {
+            let d = scores[i].len().saturating_sub(1);
+            let mut a = Vec::with_capacity(s.saturating_sub(1));
+            let mut b = Vec::with_capacity(s.saturating_sub(1));
+            for j in (0..s).filter(|&j| j != i) {
+                a.push((0..d).map(|k| scores[j][k] - scores[i][k]).collect());
+                b.push(scores[i][d] - scores[j][d]);
+            }
+            Polyhedron::from_inequalities(a, b)
+        })
+        .collect()
+}
+
+/// Affine scores whose [`argmax_regions`] are `regions` (in `dim`
+/// coordinates), mode 0's scores zero, when `regions` have that layout:
+/// two or more regions of inequality rows only, region `i`'s row for mode
+/// `j` at position `j` (`j < i`) or `j - 1`, each the difference of two
+/// scores to a relative `1e-9`. `None` for any other partition.
+pub fn argmax_scores(regions: &[Polyhedron], dim: usize) -> Option<Vec<Vec<f64>>> {
+    let s = regions.len();
+    let layout = |r: &Polyhedron| {
+        r.a_eq.is_empty()
+            && r.a.len() == s - 1
+            && r.b.len() == s - 1
+            && r.a.iter().all(|row| row.len() == dim)
+    };
+    if s < 2 || !regions.iter().all(layout) {
+        return None;
+    }
+    let mut scores = vec![vec![0.0; dim + 1]];
+    for (row, b) in regions[0].a.iter().zip(&regions[0].b) {
+        let mut c = row.clone();
+        c.push(-b);
+        scores.push(c);
+    }
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-9 * (1.0 + x.abs().max(y.abs()));
+    let rebuilt = argmax_regions(&scores);
+    let agrees = regions.iter().zip(&rebuilt).all(|(r, q)| {
+        let rows = r.a.iter().flatten().zip(q.a.iter().flatten());
+        rows.chain(r.b.iter().zip(&q.b)).all(|(x, y)| close(*x, *y))
+    });
+    agrees.then_some(scores)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

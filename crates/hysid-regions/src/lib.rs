@@ -59,6 +59,7 @@ pub use adjacency::adjacency;
 pub use alternation::{
     Alternation, AlternationSettings, AlternationStatus, GATE_POINTS, alternate,
 };
+pub use hysid_model::geometry::argmax_regions;
 
 mod adjacency;
 mod alternation;
@@ -619,26 +620,6 @@ fn scores_in_original_units(prep: &Prepared, wg: &[Vec<f64>], d: usize) -> Vec<V
             }
             c[d] = c0;
             c
-        })
-        .collect()
-}
-
-/// Regions `{x : f_i(x) >= f_j(x) for all j != i}` of affine scores
-/// `f_i = c_i . x + c_i0` (rows `[c_i; c_i0]`): row `(c_j - c_i) x <= c_i0 - c_j0`.
-/// The rows of `i` against `j` and of `j` against `i` are exact negatives
-/// of each other in floating point.
-pub fn argmax_regions(scores: &[Vec<f64>]) -> Vec<Polyhedron> {
-    let s = scores.len();
-    (0..s)
-        .map(|i| {
-            let d = scores[i].len().saturating_sub(1);
-            let mut a = Vec::with_capacity(s.saturating_sub(1));
-            let mut b = Vec::with_capacity(s.saturating_sub(1));
-            for j in (0..s).filter(|&j| j != i) {
-                a.push((0..d).map(|k| scores[j][k] - scores[i][k]).collect());
-                b.push(scores[i][d] - scores[j][d]);
-            }
-            Polyhedron::from_inequalities(a, b)
         })
         .collect()
 }

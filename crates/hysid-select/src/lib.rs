@@ -11,7 +11,8 @@
 //! candidates within one standard error of the best, the one with the
 //! fewest modes is chosen ([`parsimony`]). When the
 //! back-end offers the simulation-error refinement (`refine`), it is tried
-//! on the chosen candidate and kept only if it raises the selection-row
+//! on the chosen candidate (`sim`, and `sim_regions` for two or more
+//! modes), and the better is kept only if it raises the selection-row
 //! FIT. The choice is then fitted again on all the identification rows,
 //! and the model file records every candidate, its score and the choice
 //! ([`Selection`]).
@@ -467,7 +468,7 @@ fn choose(
     scored: &mut [ScoredCandidate],
     order: &[usize],
     ctx: &RunContext<'_>,
-) -> Result<(usize, Option<RefinementChoice>, Model), SelectError> {
+) -> Result<(usize, Vec<RefinementChoice>, Model), SelectError> {
     if order.is_empty() {
         return Err(SelectError::NoCandidate {
             first: scored
@@ -479,7 +480,7 @@ fn choose(
     let mut first_error = None;
     for &i in order {
         let refinement = try_refinement(request, &trials[i], parts, &scored[i], ctx);
-        match refit(request, &trials[i], refinement.as_ref(), ctx) {
+        match refit(request, &trials[i], &refinement, ctx) {
             Ok(model) => return Ok((i, refinement, model)),
             Err(e) => {
                 scored[i].error = Some(format!("refit on all the identification rows: {e}"));
@@ -494,12 +495,14 @@ fn choose(
 
 /// The option that switches the simulation-error refinement on.
 pub const REFINE_KEY: &str = "refine";
-/// Its value for refinement on simulation error.
-pub const REFINE_SIM: &str = "sim";
+/// Its values tried on the chosen candidate, in order: the mode parameters
+/// on simulation error, then also the region boundaries (for two or more
+/// modes).
+pub const REFINE_VALUES: [&str; 2] = ["sim", "sim_regions"];
 
-/// The chosen trial with the simulation-error refinement, when its
-/// back-end offers it and the user did not set it.
-fn refined(trial: &Trial<'_>) -> Option<Setup> {
+/// The chosen trial with `refine = value`, when its back-end offers the
+/// refinement and the user did not set it.
+fn refined(trial: &Trial<'_>, value: &str) -> Option<Setup> {
     let offered = trial.backend.options().iter().any(|o| o.key == REFINE_KEY);
     if !offered || trial.setup.settings.get(REFINE_KEY).is_some() {
         return None;
@@ -507,42 +510,68 @@ fn refined(trial: &Trial<'_>) -> Option<Setup> {
     trial
         .setup
         .with(&Candidate {
-            values: vec![(REFINE_KEY.into(), REFINE_SIM.into())],
+            values: vec![(REFINE_KEY.into(), value.into())],
         })
         .ok()
 }
 
-/// Scores the chosen trial with refinement; kept when it raises the
-/// selection-row FIT.
+/// Scores the chosen trial with each refinement of [`REFINE_VALUES`] (the
+/// region stage only for two or more modes); the one of highest
+/// selection-row FIT is kept when it raises the unrefined one's.
 fn try_refinement(
     request: &Request<'_>,
     trial: &Trial<'_>,
     parts: &[Part],
     unrefined: &ScoredCandidate,
     ctx: &RunContext<'_>,
-) -> Option<RefinementChoice> {
-    let setup = refined(trial)?;
-    let with = Trial {
-        backend: trial.backend,
-        values: trial.values.clone(),
-        setup,
-    };
-    let fit_sim = score(request, &with, parts, ctx).0.fit_sim;
-    let kept = matches!((fit_sim, unrefined.fit_sim), (Some(r), Some(u)) if r > u);
-    Some(RefinementChoice { fit_sim, kept })
+) -> Vec<RefinementChoice> {
+    let several_modes = unrefined.modes.is_some_and(|m| m > 1);
+    let values = &REFINE_VALUES[..if several_modes { 2 } else { 1 }];
+    let mut tried: Vec<RefinementChoice> = values
+        .par_iter()
+        .filter_map(|&value| {
+            let with = Trial {
+                backend: trial.backend,
+                values: trial.values.clone(),
+                setup: refined(trial, value)?,
+            };
+            let fit_sim = score(request, &with, parts, ctx).0.fit_sim;
+            Some(RefinementChoice {
+                refine: value.into(),
+                fit_sim,
+                kept: false,
+            })
+        })
+        .collect();
+    let mut best = unrefined.fit_sim;
+    let mut kept = None;
+    for (i, r) in tried.iter().enumerate() {
+        if let Some(f) = r.fit_sim
+            && best.is_none_or(|b| f > b)
+        {
+            best = Some(f);
+            kept = Some(i);
+        }
+    }
+    if let Some(i) = kept {
+        tried[i].kept = true;
+    }
+    tried
 }
 
-/// The chosen trial fitted on all the identification rows.
+/// The chosen trial fitted on all the identification rows, with the
+/// refinement that was kept.
 fn refit(
     request: &Request<'_>,
     trial: &Trial<'_>,
-    refinement: Option<&RefinementChoice>,
+    refinement: &[RefinementChoice],
     ctx: &RunContext<'_>,
 ) -> Result<Model, SelectError> {
-    let setup = match refinement {
-        Some(r) if r.kept => refined(trial).unwrap_or_else(|| trial.setup.clone()),
-        _ => trial.setup.clone(),
-    };
+    let setup = refinement
+        .iter()
+        .find(|r| r.kept)
+        .and_then(|r| refined(trial, &r.refine))
+        .unwrap_or_else(|| trial.setup.clone());
     let final_trial = Trial {
         backend: trial.backend,
         values: trial.values.clone(),

@@ -200,10 +200,10 @@ fn report_selection(method: &str, s: &Selection) {
         .iter()
         .map(|(k, v)| format!("{k}={v}"))
         .collect();
-    let refinement = match &s.refinement {
-        Some(r) if r.kept => ", refined on simulation error",
-        Some(_) => ", refinement tried and dropped (no gain on the selection rows)",
-        None => "",
+    let refinement = match s.kept_refinement() {
+        Some(r) => format!(", refined: refine={}", r.refine),
+        None if s.refinement.is_empty() => String::new(),
+        None => ", refinement tried and dropped (no gain on the selection rows)".into(),
     };
     let rows: Vec<String> = s
         .splits

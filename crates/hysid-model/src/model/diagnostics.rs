@@ -66,6 +66,73 @@ pub struct Refinement {
     pub cost_after: Option<f64>,
     /// How the refinement ended.
     pub status: RefinementStatus,
+    /// The second stage, moving the region boundaries (`refine =
+    /// sim_regions`), when it was asked for.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub regions: Option<RegionRefinement>,
+}
+
+/// What became of the region-moving stage of the refinement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegionRefinementStatus {
+    /// The moved regions lowered the simulation error: they are the
+    /// model's.
+    Moved,
+    /// No hardened relaxation lowered the simulation error: the regions
+    /// are the back-end's.
+    NoGain,
+    /// One ordinary mode: there is no boundary to move.
+    OneMode,
+    /// Known stops: the relaxation covers PWARX models without stops only.
+    WithStops,
+    /// The regions are not the argmax partition of affine scores (the
+    /// `psvc` regions, or a partition with holes).
+    NotArgmax,
+    /// The simulation of the back-end's model diverges.
+    Diverged,
+}
+
+/// The outcome of moving the region boundaries by a softmax relaxation of
+/// the simulation error (recorded under `refinement.regions`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RegionRefinement {
+    /// What became of it.
+    pub status: RegionRefinementStatus,
+    /// Levenberg-Marquardt iterations of the relaxed gate, over all
+    /// sharpness levels.
+    pub gate_iterations: usize,
+    /// Levenberg-Marquardt iterations of the mode parameters under the
+    /// hardened regions.
+    pub parameter_iterations: usize,
+    /// The sharpness whose hardened gate was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sharpness: Option<f64>,
+    /// Sum of squared simulation errors with the back-end's regions (after
+    /// the first stage).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost_before: Option<f64>,
+    /// Sum of squared simulation errors with the moved regions and their
+    /// refined parameters.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost_after: Option<f64>,
+    /// Identification samples whose region changed.
+    pub moved_samples: usize,
+}
+
+impl RegionRefinement {
+    /// A stage that did not run, for `status`.
+    pub fn skipped(status: RegionRefinementStatus) -> Self {
+        Self {
+            status,
+            gate_iterations: 0,
+            parameter_iterations: 0,
+            sharpness: None,
+            cost_before: None,
+            cost_after: None,
+            moved_samples: 0,
+        }
+    }
 }
 
 /// The diagnostics of a run. The common fields have fixed names in every
@@ -233,6 +300,7 @@ mod tests {
                 cost_before: Some(2.5),
                 cost_after: None,
                 status: RefinementStatus::Diverged,
+                regions: None,
             }),
             method: BTreeMap::new(),
         }

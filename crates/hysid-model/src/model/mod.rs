@@ -24,7 +24,9 @@ pub use automaton::{
     AffineDynamics, AutomatonMode, GuardSet, HybridAutomaton, InitialState, InvalidModel,
     OutputMap, ResetMap, TimeDomain, Transition, arx_state_positions,
 };
-pub use diagnostics::{Diagnostics, Refinement, RefinementStatus, RunStatus};
+pub use diagnostics::{
+    Diagnostics, Refinement, RefinementStatus, RegionRefinement, RegionRefinementStatus, RunStatus,
+};
 pub use parameter::PhysicalParameter;
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice, mode_name};
 pub use selection::{RefinementChoice, ScoredCandidate, Selection, SplitRows};

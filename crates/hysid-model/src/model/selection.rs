@@ -25,10 +25,36 @@ pub struct Selection {
     pub chosen: usize,
     /// Index of the candidate of highest selection FIT.
     pub best: usize,
-    /// Whether the simulation-error refinement was tried on the chosen
-    /// candidate, and whether it was kept.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub refinement: Option<RefinementChoice>,
+    /// The simulation-error refinements tried on the chosen candidate, in
+    /// order, and which one was kept (at most one). A file may hold one
+    /// object in place of the list.
+    #[serde(
+        default,
+        deserialize_with = "one_or_many",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub refinement: Vec<RefinementChoice>,
+}
+
+impl Selection {
+    /// The refinement that was kept, if any.
+    pub fn kept_refinement(&self) -> Option<&RefinementChoice> {
+        self.refinement.iter().find(|r| r.kept)
+    }
+}
+
+/// A list, or a single object read as a list of one.
+fn one_or_many<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<RefinementChoice>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum OneOrMany {
+        One(RefinementChoice),
+        Many(Vec<RefinementChoice>),
+    }
+    Ok(match OneOrMany::deserialize(d)? {
+        OneOrMany::One(r) => vec![r],
+        OneOrMany::Many(v) => v,
+    })
 }
 
 /// The rows of one split, `A..B`, rows of the data file after decimation.
@@ -62,8 +88,17 @@ pub struct ScoredCandidate {
 /// selection rows like the candidates.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RefinementChoice {
+    /// The value of the back-end's `refine` option tried (`sim` when a
+    /// file does not say).
+    #[serde(default = "sim")]
+    pub refine: String,
     /// Selection-row FIT with the refinement, percent (`None`: it failed).
     pub fit_sim: Option<f64>,
-    /// Whether the refinement was kept (it raised the selection-row FIT).
+    /// Whether the refinement was kept: of those tried, it had the highest
+    /// selection-row FIT, above the unrefined candidate's.
     pub kept: bool,
+}
+
+fn sim() -> String {
+    "sim".into()
 }
