@@ -733,6 +733,18 @@ fn malformed_gray_box_files() {
             vec!["definition 'table_acc' depends on itself".into()],
         ),
         (
+            "energy.toml",
+            good.replace(
+                "initial_state = {",
+                "energy = \"0.5*v^2 + g*y + u\"\ninitial_state = {",
+            ),
+            vec![
+                "line 16".into(),
+                "energy".into(),
+                "may only use states, parameters and numbers".into(),
+            ],
+        ),
+        (
             "version.toml",
             good.replace("format = 1", "format = 7"),
             vec!["format 7 is not supported".into()],

@@ -72,6 +72,9 @@ pub enum Problem {
     /// An element's quantity that reads more than the parameters.
     #[error("'{0}' may only use parameters and numbers")]
     NotParametric(String),
+    /// An energy that reads more than the states and parameters.
+    #[error("'{0}' may only use states, parameters and numbers")]
+    NotStateFunction(String),
     /// An element label equal to a declared mode.
     #[error("the label '{0}' is a declared mode; an element's label must be its own")]
     LabelIsMode(String),
@@ -217,6 +220,9 @@ pub struct CompiledModel {
     pub initial: CompiledInitial,
     /// Maximum integration step.
     pub internal_step: f64,
+    /// The declared stored energy ([`GrayBoxModel::energy`]): states and
+    /// parameters only.
+    pub energy: Option<Expression>,
 }
 
 fn is_identifier(name: &str) -> bool {
@@ -451,8 +457,26 @@ impl CompiledModel {
             })?;
             delays[i] = parametric(&format!("delays, input '{input}'"), text)?;
         }
+        let energy = m
+            .energy
+            .as_deref()
+            .map(|text| {
+                let e = expr("energy", text)?;
+                let params = (nx + m.inputs.len()) as u32..first_def as u32;
+                if e.slots().all(|s| (s as usize) < nx || params.contains(&s)) {
+                    Ok(e)
+                } else {
+                    Err(InvalidGrayBox::new(
+                        "energy",
+                        Some(text),
+                        Problem::NotStateFunction(text.into()),
+                    ))
+                }
+            })
+            .transpose()?;
         let initial = initial_rule(m, &state_of, &mode_of)?;
         Ok(CompiledModel {
+            energy,
             delays,
             states: nx,
             inputs: m.inputs.len(),
@@ -521,9 +545,16 @@ impl CompiledModel {
                 })
                 .collect(),
             delays: self.delays.iter().map(b).collect(),
+            energy: self.energy.as_ref().map(b),
             initial: self.initial.clone(),
             ..*self
         }
+    }
+
+    /// The declared energy at the state `x`, on a model whose parameters
+    /// are bound ([`CompiledModel::bind`]).
+    pub fn energy_at(&self, x: &[f64]) -> Option<f64> {
+        self.energy.as_ref().map(|e| e.eval(x))
     }
 
     /// Slots an evaluation reads: the states, the inputs and the parameters.

@@ -238,6 +238,12 @@ pub struct GrayBoxModel {
     /// Built-in elements.
     #[serde(default)]
     pub elements: Vec<Element>,
+    /// The stored energy, an expression of the states and parameters,
+    /// declared by the model's author: with every input at zero it never
+    /// rises (the flows, elements and resets only dissipate). hysid's
+    /// property tests check it on every model file that declares it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy: Option<String>,
     /// Initial state rule.
     pub initial_state: GrayBoxInitialState,
     /// Provenance and fit diagnostics.
