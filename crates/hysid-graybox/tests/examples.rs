@@ -2,9 +2,11 @@
 //! within their bounds and random inputs of the amplitude its "Try:" line
 //! shows: the run never fails (no reset leaves its target's invariant),
 //! every sample satisfies its mode's invariant, the states stay finite, and
-//! no stop is passed; and the energy a file declares never rises once the
-//! input is zero.
+//! no stop is passed; the energy a file declares never rises once the
+//! input is zero; and a dry friction sticks exactly while the applied
+//! force is within its static level.
 
+use hysid_graybox::compile::CompiledElement;
 use hysid_graybox::simulate::run;
 use hysid_graybox::{CompiledModel, GrayBoxModel};
 use hysid_model::data::Dataset;
@@ -169,6 +171,103 @@ proptest! {
             let e = energy(&r.x[4 * k..4 * k + 4]);
             prop_assert!(e <= before + 1e-9 * scale, "k {}: {} > {}", k, e, before);
             before = e;
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Every model file with dry friction, random parameters within their
+    /// bounds and random inputs: at every sample the run reports stuck (the
+    /// friction's label), the friction's velocity is exactly zero and the
+    /// applied force (the velocity's flow, in a declared mode whose
+    /// invariant holds there) is within the static level; and when that
+    /// force depends on nothing but the inputs and the states that stay
+    /// put while stuck, the next sample is stuck too if the next input
+    /// keeps the force below 0.99 of the static level, and slides if it
+    /// pushes it beyond 1.01 of it. Files with input delays are left out
+    /// (the force then reads an input of an earlier sample).
+    #[test]
+    fn friction_sticks_exactly_within_its_static_level(
+        which in 0usize..FILES.len(),
+        z in proptest::collection::vec(0.0f64..=1.0, 16),
+        seed in any::<u64>(),
+    ) {
+        let (mut m, ex) = file(FILES[which]);
+        for (p, zi) in m.parameters.iter_mut().zip(&z) {
+            if !p.fixed {
+                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
+            }
+        }
+        let c = CompiledModel::new(&m).unwrap();
+        let frictions: Vec<(usize, usize)> = c
+            .elements
+            .iter()
+            .enumerate()
+            .filter_map(|(i, e)| match e {
+                CompiledElement::DryFriction { velocity, label } => Some((i, *velocity * 1000 + *label)),
+                CompiledElement::Stop { .. } => None,
+            })
+            .collect();
+        if frictions.is_empty() || !m.delays.is_empty() {
+            return Ok(());
+        }
+        let u = ex.generate(seed).remove(0);
+        let data = Dataset::siso(u.clone(), vec![0.0; ex.n], ex.ts).unwrap();
+        let r = run(&c, &m.values(), &data).unwrap();
+        let b = c.bind(&m.values());
+        let n = c.states;
+        let mut slots = vec![0.0; c.slots()];
+        for &(e, code) in &frictions {
+            let (v, label) = (code / 1000, code % 1000);
+            // States that stay put while stuck: the velocity and the
+            // positions whose flow is that velocity in every mode.
+            let still: Vec<usize> = (0..n)
+                .filter(|&s| s == v || b.modes.iter().all(|q| q.flow[s].affine() == Some((0.0, vec![(v as u32, 1.0)]))))
+                .collect();
+            let own_force = b.modes.iter().all(|q| {
+                q.flow[v].slots().all(|s| (s as usize) >= n || still.contains(&(s as usize)))
+            });
+            // Applied force and static level in each mode whose invariant
+            // holds at `(x, input)`.
+            let mut forces = |x: &[f64], input: f64| -> Vec<(f64, f64)> {
+                slots[..n].copy_from_slice(x);
+                slots[n] = input;
+                b.modes
+                    .iter()
+                    .filter(|q| q.invariant.iter().all(|rel| rel.margin(&slots) >= -1e-9))
+                    .map(|q| {
+                        let kinetic = q.friction[e].0.eval(&slots).max(0.0);
+                        (q.flow[v].eval(&slots), q.friction[e].1.eval(&slots).max(kinetic))
+                    })
+                    .collect()
+            };
+            for k in (r.start + 1)..ex.n {
+                if r.modes[k] != Some(label) {
+                    continue;
+                }
+                let x = r.x[k * n..(k + 1) * n].to_vec();
+                prop_assert_eq!(x[v], 0.0, "{}: sample {}", FILES[which], k);
+                let now = forces(&x, u[k - 1]);
+                prop_assert!(!now.is_empty(), "{}: sample {} in no mode", FILES[which], k);
+                prop_assert!(now.iter().any(|(f, fs)| f.abs() <= fs * (1.0 + 1e-9) + 1e-9),
+                    "{}: stuck at sample {} with forces {:?}", FILES[which], k, now);
+                if !own_force || k + 1 >= ex.n {
+                    continue;
+                }
+                let next = forces(&x, u[k]);
+                let stuck_next = r.modes[k + 1] == Some(label);
+                if next.iter().all(|(f, fs)| f.abs() < 0.99 * fs) {
+                    prop_assert!(stuck_next, "{}: broke away at sample {} below the static level: {:?}", FILES[which], k, next);
+                    for &s in &still {
+                        prop_assert_eq!(r.x[(k + 1) * n + s], x[s]);
+                    }
+                }
+                if next.iter().all(|(f, fs)| f.abs() > 1.01 * fs) {
+                    prop_assert!(!stuck_next, "{}: stayed stuck at sample {} beyond the static level: {:?}", FILES[which], k, next);
+                }
+            }
         }
     }
 }
