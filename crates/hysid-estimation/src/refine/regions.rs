@@ -94,7 +94,7 @@ pub(super) fn move_regions<D>(
         let mut next = with_regions(&modes, &hardened.scores);
         outcome.parameter_iterations += fit_parameters(data, &mut next, settings)?.iterations;
         let next_cost = shooting.hard_cost(&next)?;
-        if !(next_cost < cost) {
+        if next_cost >= cost {
             break;
         }
         (modes, scores, cost) = (
