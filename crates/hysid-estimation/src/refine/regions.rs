@@ -88,7 +88,7 @@ pub(super) fn move_regions<D>(
     for _ in 0..ROUNDS {
         let thetas: Vec<Vec<f64>> = modes.iter().map(|m| m.theta.clone()).collect();
         let mut gate = RelaxedGate::new(&shooting, &thetas, &scores, columns.clone());
-        let (hardened, iterations) = sharpen(&mut gate, settings)?;
+        let (hardened, iterations) = sharpen(&mut gate, &modes, settings)?;
         outcome.gate_iterations += iterations;
         let Some(hardened) = hardened else { break };
         let mut next = with_regions(&modes, &hardened.scores);
@@ -126,11 +126,13 @@ struct Hardened {
 }
 
 /// The continuation over [`SHARPNESS`]: at each level the relaxed gate's
-/// Levenberg-Marquardt from the last level's gate, then its hardening. The
+/// Levenberg-Marquardt from the last level's gate, then its hardening into
+/// regions for `modes` (the parameters the gate was relaxed with). The
 /// hardened gate of least hard cost (`None` when every one diverges) and
 /// the iterations taken.
 fn sharpen(
     gate: &mut RelaxedGate<'_, '_>,
+    modes: &[PwarxMode],
     settings: &RefineSettings,
 ) -> Result<(Option<Hardened>, usize), IdentifyError> {
     let mut v = gate.unknowns_of(&gate.base);
@@ -144,9 +146,7 @@ fn sharpen(
             v = next;
         }
         let scores = gate.scores(&v);
-        let cost = gate
-            .shooting
-            .hard_cost(&with_regions_of_thetas(gate.thetas, &scores))?;
+        let cost = gate.shooting.hard_cost(&with_regions(modes, &scores))?;
         if cost.is_finite() && best.as_ref().is_none_or(|b| cost < b.cost) {
             best = Some(Hardened {
                 scores,
@@ -225,12 +225,6 @@ fn with_regions(modes: &[PwarxMode], scores: &[Vec<f64>]) -> Vec<PwarxMode> {
             ..m.clone()
         })
         .collect()
-}
-
-/// Unnamed modes of parameters `thetas` with the argmax regions of
-/// `scores`.
-fn with_regions_of_thetas(thetas: &[Vec<f64>], scores: &[Vec<f64>]) -> Vec<PwarxMode> {
-    PwarxMode::unnamed(thetas.to_vec(), argmax_regions(scores))
 }
 
 impl Shooting<'_> {
