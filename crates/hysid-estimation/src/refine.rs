@@ -777,7 +777,12 @@ mod tests {
 
     /// The noise-free record of `model` (or of its automaton with `stops`)
     /// driven by a seeded input.
-    fn simulated_record(model: &PwarxModel, stops: &[Stop], n: usize, seed: u64) -> Dataset {
+    pub(super) fn simulated_record(
+        model: &PwarxModel,
+        stops: &[Stop],
+        n: usize,
+        seed: u64,
+    ) -> Dataset {
         let u = input(n, seed);
         let blank = record(u.clone(), vec![0.0; n]);
         let sim = if stops.is_empty() {
@@ -799,7 +804,7 @@ mod tests {
         }
     }
 
-    fn problem<'a>(data: &'a Dataset, priors: &'a Priors) -> Problem<'a> {
+    pub(super) fn problem<'a>(data: &'a Dataset, priors: &'a Priors) -> Problem<'a> {
         Problem {
             data,
             orders: RegressorSpec::new(1, 1, 1),

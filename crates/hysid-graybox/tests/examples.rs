@@ -58,6 +58,18 @@ fn file(path: &str) -> (GrayBoxModel, Excitation) {
     (m, ex)
 }
 
+/// The model of `path` with its free parameters at `z` (in [0, 1]) of the
+/// way through their bounds, and the excitation of its "Try:" line.
+fn randomised(path: &str, z: &[f64]) -> (GrayBoxModel, Excitation) {
+    let (mut m, ex) = file(path);
+    for (p, zi) in m.parameters.iter_mut().zip(z) {
+        if !p.fixed {
+            p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
+        }
+    }
+    (m, ex)
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
@@ -67,12 +79,7 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (mut m, ex) = file(FILES[which]);
-        for (p, zi) in m.parameters.iter_mut().zip(&z) {
-            if !p.fixed {
-                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
-            }
-        }
+        let (m, ex) = randomised(FILES[which], &z);
         let u = ex.generate(seed).remove(0);
         let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
         let c = CompiledModel::new(&m).unwrap();
@@ -91,10 +98,6 @@ proptest! {
             }
         }
     }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
 
     /// Every model file that declares its stored energy, with random
     /// parameters within their bounds: driven by a random input of its
@@ -108,14 +111,9 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (mut m, ex) = file(FILES[which]);
+        let (m, ex) = randomised(FILES[which], &z);
         if m.energy.is_none() {
             return Ok(());
-        }
-        for (p, zi) in m.parameters.iter_mut().zip(&z) {
-            if !p.fixed {
-                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
-            }
         }
         let half = ex.n / 2;
         let mut u = ex.generate(seed).remove(0);
@@ -136,10 +134,6 @@ proptest! {
             before = e;
         }
     }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
 
     /// The drive with backlash, without input torque, from a random state:
     /// its declared energy (kinetic, and the shaft's spring past the dead
@@ -149,12 +143,7 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 6),
         x0 in proptest::collection::vec(-1.0f64..1.0, 4),
     ) {
-        let (mut m, _) = file("models/examples/backlash-drive.toml");
-        for (p, zi) in m.parameters.iter_mut().zip(&z) {
-            if !p.fixed {
-                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
-            }
-        }
+        let (mut m, _) = randomised("models/examples/backlash-drive.toml", &z);
         let names = ["thm", "wm", "thl", "wl"];
         m.initial_state = hysid_graybox::GrayBoxInitialState::Given {
             values: names.iter().map(|n| n.to_string()).zip(x0.iter().map(|v| v * 0.5)).collect(),
@@ -174,10 +163,6 @@ proptest! {
             before = e;
         }
     }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
 
     /// Every model file with dry friction, random parameters within their
     /// bounds and random inputs: at every sample the run reports stuck (the
@@ -195,12 +180,7 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (mut m, ex) = file(FILES[which]);
-        for (p, zi) in m.parameters.iter_mut().zip(&z) {
-            if !p.fixed {
-                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
-            }
-        }
+        let (m, ex) = randomised(FILES[which], &z);
         let c = CompiledModel::new(&m).unwrap();
         let frictions: Vec<(usize, usize)> = c
             .elements
@@ -271,10 +251,6 @@ proptest! {
             }
         }
     }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
 
     /// Every model file, random parameters within their bounds and random
     /// inputs: the event-located run at the file's `internal_step` matches
@@ -288,12 +264,7 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (mut m, ex) = file(FILES[which]);
-        for (p, zi) in m.parameters.iter_mut().zip(&z) {
-            if !p.fixed {
-                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
-            }
-        }
+        let (m, ex) = randomised(FILES[which], &z);
         let u = ex.generate(seed).remove(0);
         let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
         let run_at = |step: f64| {

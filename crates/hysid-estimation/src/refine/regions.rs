@@ -491,14 +491,12 @@ impl Residuals for RelaxedGate<'_, '_> {
 mod tests {
     use super::*;
     use crate::pwarx;
+    use crate::refine::tests::{problem, simulated_record};
     use crate::refine::{RefineMethod, refine};
-    use hysid_core::backend::Problem;
     use hysid_core::priors::Priors;
-    use hysid_model::data::{Dataset, Signal};
+    use hysid_model::data::Dataset;
     use hysid_model::geometry::Polyhedron;
     use hysid_model::model::{ModelInfo, PwarxModel};
-    use hysid_model::regressors::RegressorSpec;
-    use hysid_model::simulate::SimulationOptions;
 
     /// `y(k) = a y(k-1) + b u(k-1) + c`, mode 0 where `y(k-1) <= 0`, mode 1
     /// where `y(k-1) >= 0`: continuous across the boundary, so a boundary
@@ -514,28 +512,9 @@ mod tests {
         PwarxMode::unnamed(TRUTH.iter().map(|t| t.to_vec()), split_at(at))
     }
 
-    /// A noise-free record driven by a deterministic white input in
-    /// [-1, 1] (a linear congruential sequence).
+    /// A noise-free record of the true system driven by a deterministic
+    /// white input in [-1, 1].
     fn record(n: usize) -> Dataset {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let u: Vec<f64> = (0..n)
-            .map(|_| {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-            })
-            .collect();
-        let signal = |name: &str, values: Vec<f64>| Signal {
-            name: name.into(),
-            values,
-        };
-        let blank = Dataset::new(
-            vec![signal("u", u.clone())],
-            signal("y", vec![0.0; n]),
-            None,
-        )
-        .unwrap();
         let truth = PwarxModel {
             na: 1,
             nb: 1,
@@ -543,10 +522,7 @@ mod tests {
             modes: modes(0.0),
             info: ModelInfo::default(),
         };
-        let y = pwarx_sim::simulate(&truth, &blank, SimulationOptions::default())
-            .unwrap()
-            .y;
-        Dataset::new(vec![signal("u", u)], signal("y", y), None).unwrap()
+        simulated_record(&truth, &[], n, 17)
     }
 
     fn settings(method: RefineMethod) -> RefineSettings {
@@ -565,13 +541,7 @@ mod tests {
     fn a_misplaced_boundary_is_moved_back() {
         let data = record(800);
         let priors = Priors::default();
-        let problem = Problem {
-            data: &data,
-            orders: RegressorSpec::new(1, 1, 1),
-            priors: &priors,
-            priors_origin: None,
-        };
-        let prepared = pwarx::prepare(&problem, "test").unwrap();
+        let prepared = pwarx::prepare(&problem(&data, &priors), "test").unwrap();
         let start = || PwarxFit::complete(modes(0.4), ());
         let fixed = refine(&prepared, start(), &settings(RefineMethod::Sim)).unwrap();
         let moved = refine(&prepared, start(), &settings(RefineMethod::SimRegions)).unwrap();
@@ -609,13 +579,7 @@ mod tests {
     fn relaxed_sensitivities_match_finite_differences() {
         let data = record(300);
         let priors = Priors::default();
-        let problem = Problem {
-            data: &data,
-            orders: RegressorSpec::new(1, 1, 1),
-            priors: &priors,
-            priors_origin: None,
-        };
-        let prepared = pwarx::prepare(&problem, "test").unwrap();
+        let prepared = pwarx::prepare(&problem(&data, &priors), "test").unwrap();
         let start = modes(0.3);
         let shooting = Shooting::new(&prepared, &start, 70).unwrap();
         let thetas: Vec<Vec<f64>> = vec![vec![0.6, 0.9, 0.1], vec![0.3, 1.1, 0.0]];
