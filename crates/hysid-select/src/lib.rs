@@ -11,11 +11,11 @@
 //! candidates within one standard error of the best, the one with the
 //! fewest modes is chosen ([`parsimony`]). When the
 //! back-end offers the simulation-error refinement (`refine`), it is tried
-//! on the chosen candidate (`sim`, and `sim_regions` for two or more
-//! modes), and the better is kept only if it raises the selection-row
-//! FIT. The choice is then fitted again on all the identification rows,
-//! and the model file records every candidate, its score and the choice
-//! ([`Selection`]).
+//! on the chosen candidate (`sim`, and `sim_regions` for two or more modes
+//! without known stops), and the better is kept only if it raises the
+//! selection-row FIT. The choice is then fitted again on all the
+//! identification rows, and the model file records every candidate, its
+//! score and the choice ([`Selection`]).
 //!
 //! Choosing by simulation rather than one-step prediction is the point:
 //! the founding experiment judges its models by their simulated responses
@@ -516,8 +516,9 @@ fn refined(trial: &Trial<'_>, value: &str) -> Option<Setup> {
 }
 
 /// Scores the chosen trial with each refinement of [`REFINE_VALUES`] (the
-/// region stage only for two or more modes); the one of highest
-/// selection-row FIT is kept when it raises the unrefined one's.
+/// region stage only for two or more modes and no known stops, where it
+/// can run); the one of highest selection-row FIT is kept when it raises
+/// the unrefined one's.
 fn try_refinement(
     request: &Request<'_>,
     trial: &Trial<'_>,
@@ -525,8 +526,9 @@ fn try_refinement(
     unrefined: &ScoredCandidate,
     ctx: &RunContext<'_>,
 ) -> Vec<RefinementChoice> {
-    let several_modes = unrefined.modes.is_some_and(|m| m > 1);
-    let values = &REFINE_VALUES[..if several_modes { 2 } else { 1 }];
+    let regions_can_move =
+        unrefined.modes.is_some_and(|m| m > 1) && request.setup.priors.saturation.is_empty();
+    let values = &REFINE_VALUES[..if regions_can_move { 2 } else { 1 }];
     let mut tried: Vec<RefinementChoice> = values
         .par_iter()
         .filter_map(|&value| {
@@ -784,6 +786,10 @@ mod tests {
         let best = s.candidates[s.chosen].fit_sim.unwrap();
         assert!(best > 99.999, "{best}");
         assert!(s.candidates.iter().all(|c| c.fit_sim.unwrap() <= best));
+        // One mode: the parameter refinement is tried, the region stage is
+        // not.
+        let tried: Vec<&str> = s.refinement.iter().map(|r| r.refine.as_str()).collect();
+        assert_eq!(tried, ["sim"]);
         // The refit on all rows simulates the whole record.
         let (v, _, _) = validate(&model, &data, 10).unwrap();
         assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
