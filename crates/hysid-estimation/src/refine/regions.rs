@@ -16,8 +16,12 @@
 //!
 //! with `x(k)` the simulated regressor. With the mode parameters fixed,
 //! Levenberg-Marquardt minimises the shooting cost of this smooth model
-//! over the scores' entries (the `switching` columns and the offset). The
-//! sensitivities follow the simulation as in the first stage:
+//! over the scores' entries (the `switching` columns and the offset).
+//! Mode 0's scores stay fixed (the gate is invariant to a common shift)
+//! and the norm of the others' entries on the regressors is held (the
+//! unknowns are normalised), so the gate cannot make itself softer than
+//! `beta` says: only the boundaries move. The sensitivities follow the
+//! simulation as in the first stage (then through the normalisation):
 //!
 //! ```text
 //! dy(k)/dg_ic = beta p_i (e_i - y(k)) [x(k); 1]_c
@@ -30,14 +34,17 @@
 //! [`SHARPNESS`], each level started from the last; after each level the
 //! gate is hardened (its argmax partition) and the hard model's shooting
 //! cost computed. The best hardened partition gets its mode parameters
-//! refined as in the first stage, and replaces the back-end's regions
-//! only when the hard model then simulates the identification rows with a
-//! lower cost than before this stage; otherwise nothing changes
+//! refined as in the first stage; from the new parameters and regions the
+//! gate is relaxed again, for at most [`ROUNDS`] rounds while the hard cost
+//! falls. The result replaces the back-end's regions only when the hard
+//! model simulates the identification rows with a lower cost than before
+//! this stage; otherwise nothing changes
 //! ([`RegionRefinementStatus::NoGain`]). The regions stay a complete
 //! partition: an argmax partition covers the space.
 //!
-//! The scores are first scaled so that the median gap between the largest
-//! and the second largest score over the identification regressors is 1:
+//! At the start of each round the scores are scaled so that the median
+//! gap between the largest and the second largest score over the
+//! identification regressors is 1:
 //! at `beta = 1` a typical sample is then weighted about 0.73 to its own
 //! mode, at `beta = 10` nearly 1.
 
