@@ -552,9 +552,12 @@ impl CompiledModel {
     }
 
     /// The declared energy at the state `x`, on a model whose parameters
-    /// are bound ([`CompiledModel::bind`]).
+    /// are bound ([`CompiledModel::bind`]); `None` without a declared
+    /// energy, or when it still reads a parameter (an unbound model) or
+    /// `x` is shorter than the states it reads.
     pub fn energy_at(&self, x: &[f64]) -> Option<f64> {
-        self.energy.as_ref().map(|e| e.eval(x))
+        let e = self.energy.as_ref()?;
+        e.slots().all(|s| (s as usize) < x.len()).then(|| e.eval(x))
     }
 
     /// Slots an evaluation reads: the states, the inputs and the parameters.

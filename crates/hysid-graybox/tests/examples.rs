@@ -281,3 +281,23 @@ proptest! {
         }
     }
 }
+
+/// The head's declared energy, evaluated on the bound model: kinetic,
+/// spring and constant force below the board, and the board's spring
+/// beyond it; the unbound model, which still reads parameters, gives none.
+#[test]
+fn declared_energy_is_evaluated_on_the_bound_model() {
+    let (m, _) = file("models/pick-and-place/head-graybox.toml");
+    let p = |n: &str| m.parameters[m.parameter_index(n).unwrap()].value;
+    let c = CompiledModel::new(&m).unwrap();
+    assert_eq!(c.energy_at(&[1.0, 2.0]), None);
+    let bound = c.bind(&m.values());
+    let (c1, f0, c2, yc) = (p("c1"), p("f0"), p("c2"), p("yc"));
+    let below = bound.energy_at(&[1.0, 2.0]).unwrap();
+    assert!((below - (2.0 + 0.5 * c1 - f0)).abs() < 1e-9 * below.abs());
+    let y = yc + 0.5;
+    let beyond = bound.energy_at(&[y, 0.0]).unwrap();
+    let expected = 0.5 * c1 * y * y - f0 * y + 0.5 * c2 * 0.25;
+    assert!((beyond - expected).abs() < 1e-9 * expected.abs());
+    assert_eq!(bound.energy_at(&[1.0]), None, "a state short");
+}
