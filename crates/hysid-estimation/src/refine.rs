@@ -375,12 +375,8 @@ impl<'a> Shooting<'a> {
 
     /// The PWARX model of parameters `thetas` with the fixed regions.
     pub fn model(&self, thetas: Vec<Vec<f64>>) -> PwarxModel {
-        PwarxModel {
-            na: self.spec.na,
-            nb: self.spec.nb,
-            inputs: self.spec.inputs,
-            modes: self
-                .modes
+        self.model_of(
+            self.modes
                 .iter()
                 .zip(thetas)
                 .map(|(m, theta)| PwarxMode {
@@ -389,6 +385,17 @@ impl<'a> Shooting<'a> {
                     name: m.name.clone(),
                 })
                 .collect(),
+        )
+    }
+
+    /// The PWARX model of `modes` (parameters and regions) at these
+    /// orders.
+    fn model_of(&self, modes: Vec<PwarxMode>) -> PwarxModel {
+        PwarxModel {
+            na: self.spec.na,
+            nb: self.spec.nb,
+            inputs: self.spec.inputs,
+            modes,
             info: ModelInfo::default(),
         }
     }

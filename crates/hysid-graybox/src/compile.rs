@@ -274,9 +274,10 @@ impl CompiledModel {
         let relation = |place: &str, text: &str| {
             Relation::compile(text, &resolve).map_err(|e| InvalidGrayBox::new(place, Some(text), e))
         };
+        // The parameters' slots.
+        let params = (nx + m.inputs.len()) as u32..first_def as u32;
         let parametric = |place: &str, text: &str| -> Result<Expression, InvalidGrayBox> {
             let e = expr(place, text)?;
-            let params = (nx + m.inputs.len()) as u32..first_def as u32;
             if e.slots().all(|s| params.contains(&s)) {
                 Ok(e)
             } else {
@@ -462,7 +463,6 @@ impl CompiledModel {
             .as_deref()
             .map(|text| {
                 let e = expr("energy", text)?;
-                let params = (nx + m.inputs.len()) as u32..first_def as u32;
                 if e.slots().all(|s| (s as usize) < nx || params.contains(&s)) {
                     Ok(e)
                 } else {

@@ -182,12 +182,13 @@ proptest! {
     ) {
         let (m, ex) = randomised(FILES[which], &z);
         let c = CompiledModel::new(&m).unwrap();
-        let frictions: Vec<(usize, usize)> = c
+        // Per friction element: its index, velocity state and label.
+        let frictions: Vec<(usize, usize, usize)> = c
             .elements
             .iter()
             .enumerate()
             .filter_map(|(i, e)| match e {
-                CompiledElement::DryFriction { velocity, label } => Some((i, *velocity * 1000 + *label)),
+                CompiledElement::DryFriction { velocity, label } => Some((i, *velocity, *label)),
                 CompiledElement::Stop { .. } => None,
             })
             .collect();
@@ -200,8 +201,7 @@ proptest! {
         let b = c.bind(&m.values());
         let n = c.states;
         let mut slots = vec![0.0; c.slots()];
-        for &(e, code) in &frictions {
-            let (v, label) = (code / 1000, code % 1000);
+        for &(e, v, label) in &frictions {
             // States that stay put while stuck: the velocity and the
             // positions whose flow is that velocity in every mode.
             let still: Vec<usize> = (0..n)

@@ -118,8 +118,6 @@ pub(super) fn move_regions<D>(
         fit.modes = modes;
         fit.regions_complete = true;
         fit.uncovered_fraction = None;
-    } else {
-        outcome.sharpness = None;
     }
     Ok(outcome)
 }
@@ -239,11 +237,7 @@ impl Shooting<'_> {
     /// regions), without sensitivities: `+inf` when a segment's simulation
     /// diverges.
     fn hard_cost(&self, modes: &[PwarxMode]) -> Result<f64, IdentifyError> {
-        let thetas = modes.iter().map(|m| m.theta.clone()).collect();
-        let mut model = self.model(thetas);
-        for (m, given) in model.modes.iter_mut().zip(modes) {
-            m.region = given.region.clone();
-        }
+        let model = self.model_of(modes.to_vec());
         let mut cost = 0.0;
         for seg in &self.segments {
             let sim = pwarx_sim::simulate(&model, &seg.data, self.options)
@@ -360,10 +354,9 @@ impl<'s, 'a> RelaxedGate<'s, 'a> {
 
     /// Row `r` of `d y / d s` (the scores' entries in unknown order) turned
     /// into `d y / d v`: with `s = k v / n`, `k` the sharpness times
-    /// [`Self::norm`] and `n = |v_N|`,
+    /// [`Self::norm`] and `n = |v_N|` ([`Self::normal_norm`] of `v`),
     /// `dy/dv_j = (k / n) dy/ds_j - (k / n^3) [j in N] v_j (v . dy/ds)`.
-    fn chain(&self, v: &[f64], row: &mut [f64]) {
-        let n = self.normal_norm(v);
+    fn chain(&self, v: &[f64], n: f64, row: &mut [f64]) {
         if n <= 0.0 {
             for r in row.iter_mut() {
                 *r *= self.sharpness;
@@ -396,9 +389,12 @@ impl<'s, 'a> RelaxedGate<'s, 'a> {
         let s = scores.len();
         let (mut p, mut e) = (vec![0.0; s], vec![0.0; s]);
         let mut alpha = vec![0.0; na];
+        let mut f = vec![0.0; s];
         for k in lag..data.len() {
             spec.fill(&y, &u, k, &mut w[..d]);
-            let f: Vec<f64> = scores.iter().map(|g| score(g, &w[..d])).collect();
+            for (fi, g) in f.iter_mut().zip(scores) {
+                *fi = score(g, &w[..d]);
+            }
             let top = f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             let mut total = 0.0;
             for i in 0..s {
@@ -451,6 +447,7 @@ impl Residuals for RelaxedGate<'_, '_> {
 
     fn evaluate(&self, v: &[f64]) -> Result<Evaluation, IdentifyError> {
         let scores = self.scores(v);
+        let norm = self.normal_norm(v);
         let nv = self.unknowns();
         let (mut samples, mut simulated, mut errors, mut rows) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -466,9 +463,9 @@ impl Residuals for RelaxedGate<'_, '_> {
                 samples.push(seg.offset + k);
                 simulated.push(y[k]);
                 errors.push(measured[k] - y[k]);
-                let mut row = sens[k * nv..(k + 1) * nv].to_vec();
-                self.chain(v, &mut row);
-                rows.extend_from_slice(&row);
+                let at = rows.len();
+                rows.extend_from_slice(&sens[k * nv..(k + 1) * nv]);
+                self.chain(v, norm, &mut rows[at..]);
             }
         }
         let errors = DVector::from_vec(errors);
