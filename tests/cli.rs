@@ -50,7 +50,10 @@ fn methods_lists_arx_with_its_options() {
     let json: serde_json::Value = serde_json::from_str(&ok(&["methods", "--json"])).unwrap();
     assert_eq!(json[0]["name"], "arx");
     assert!(
-        json[1]["search"].as_str().unwrap().contains("c in 20"),
+        json[1]["search"]
+            .as_str()
+            .unwrap()
+            .contains("c: the five largest of 4, 6"),
         "{json}"
     );
 }

@@ -216,9 +216,30 @@ impl CheckOptions for ClusterOptions {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Cluster;
 
-/// Local dataset sizes automatic selection tries (the paper's section 4
-/// finds `c` decisive for the mounting head).
-pub const C_GRID: [usize; 5] = [20, 40, 80, 160, 320];
+/// Local dataset sizes automatic selection draws from (the paper's
+/// section 4 finds `c` decisive for the mounting head). The small values
+/// serve short records: HIT's examples of 60-100 rows use `c` = 6 or 8.
+pub const C_GRID: [usize; 10] = [4, 6, 8, 10, 14, 20, 40, 80, 160, 320];
+/// Most values of [`C_GRID`] one search tries: the largest that fit.
+pub const C_VALUES: usize = 5;
+
+/// The local dataset sizes automatic selection tries on `rows` regression
+/// rows of regressor dimension `n`: the [`C_VALUES`] largest values of
+/// [`C_GRID`] from `n + 2` to an eighth of the rows (a mode of a
+/// five-mode partition then still holds more than one local dataset), and,
+/// when fewer fit, the automatic rule (`None`) before them.
+pub fn c_candidates(n: usize, rows: usize) -> Vec<Option<usize>> {
+    let fitting: Vec<usize> = C_GRID
+        .into_iter()
+        .filter(|&c| c >= n + 2 && 8 * c <= rows)
+        .collect();
+    let largest = &fitting[fitting.len().saturating_sub(C_VALUES)..];
+    let automatic = (largest.len() < C_VALUES).then_some(None);
+    automatic
+        .into_iter()
+        .chain(largest.iter().map(|&c| Some(c)))
+        .collect()
+}
 
 /// The alternation's round bound in every candidate of automatic selection
 /// (`docs/cluster.md`, step 6b): on the benchmark systems, where the modes
@@ -234,19 +255,17 @@ impl Identifier for Cluster {
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
-    const SEARCH: &'static str = "c in 20, 40, 80, 160, 320 (those from n+2 to a quarter of the rows), and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none; every candidate with alternation = 50";
+    const SEARCH: &'static str = "c: the five largest of 4, 6, 8, 10, 14, 20, 40, 80, 160, 320 from n+2 to an eighth of the rows (and c = none, the automatic rule, when fewer fit), and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none; every candidate with alternation = 50";
 
-    /// The values of [`C_GRID`] a record of `N` regression rows can hold
-    /// (`n + 2 <= c <= N / 4`; none: the automatic rule alone) times the
-    /// ordinary mode counts `1..=max_modes` (the known stops added, as the
+    /// The local dataset sizes of [`c_candidates`] times the ordinary mode
+    /// counts `1..=max_modes` (the known stops added, as the
     /// prior `modes` counts them).
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         let priors = problem.priors;
         let rows = problem.data.len().saturating_sub(problem.orders.lag());
-        let smallest = problem.orders.dim() + 2;
-        let c = C_GRID
+        let c = c_candidates(problem.orders.dim(), rows)
             .into_iter()
-            .filter(|&c| c >= smallest && 4 * c <= rows);
+            .map(|c| c.map_or_else(|| "none".to_string(), |c| c.to_string()));
         Ok(SearchSpace::default()
             .with("c", c)
             .with("alternation", [AUTO_ALTERNATION])
@@ -463,5 +482,32 @@ pub enum ClusterError {
 impl From<ClusterError> for IdentifyError {
     fn from(e: ClusterError) -> Self {
         IdentifyError::input(e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn long_records_try_the_large_grid_and_short_ones_add_the_automatic_rule() {
+        // The pick-and-place fit rows (na = nb = 2: n = 4).
+        let long = c_candidates(4, 3998);
+        assert_eq!(long, [20, 40, 80, 160, 320].map(Some));
+        // A record of 80 rows (HIT's 1-D example, n = 1): the small values.
+        assert_eq!(
+            c_candidates(1, 80),
+            [None, Some(4), Some(6), Some(8), Some(10)]
+        );
+        // Too short for any grid value: the automatic rule alone.
+        assert_eq!(c_candidates(4, 40), [None]);
+        for (n, rows) in [(1, 56), (2, 48), (4, 800), (6, 10_000)] {
+            for c in c_candidates(n, rows).into_iter().flatten() {
+                assert!(
+                    c >= n + 2 && 8 * c <= rows,
+                    "c = {c} for n = {n}, {rows} rows"
+                );
+            }
+        }
     }
 }

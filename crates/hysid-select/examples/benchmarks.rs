@@ -1,5 +1,5 @@
 //! Automatic selection against the reference settings on the literature's
-//! benchmark systems (B1, H1-H4 of `hysid-testkit`), seeds 1 to 5.
+//! benchmark systems (B1, H1-H4 of `hysid-testkit`), seeds 1 to 20.
 //!
 //! "reference": `cluster` with the true mode count and the reference `c`
 //! of `crates/hysid-cluster/tests/reference.rs`. "auto": `cluster` with no
@@ -22,8 +22,13 @@ use hysid_core::search::Setup;
 use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_select::{Plan, Request, select};
 use hysid_testkit::{Benchmark, Noise, median};
+use std::collections::BTreeMap;
 
 type Generator = fn(usize, u64) -> Benchmark;
+
+/// Seeds `1..=SEEDS` of every system: on records of 60-100 rows the
+/// choice varies from seed to seed, and five seeds do not settle a median.
+const SEEDS: u64 = 20;
 
 /// Mode accuracy on `valid` and the parameter error of `model`.
 fn score(truth: &Benchmark, valid: &Benchmark, model: &Model) -> (f64, f64, usize) {
@@ -56,14 +61,14 @@ fn main() {
         ("H4", 60, &["c=6"], hysid_testkit::h4),
     ];
     println!(
-        "| system | rows | reference: accuracy, error (median) | auto: accuracy, error (median) | auto chose (seeds 1-5) |"
+        "| system | rows | reference: accuracy, error (median) | auto: accuracy, error (median) | auto: mode counts chosen (seeds) |"
     );
     println!("|---|---|---|---|---|");
     for (name, rows, set, generate) in systems {
         let (mut ref_acc, mut ref_err, mut auto_acc, mut auto_err) =
             (vec![], vec![], vec![], vec![]);
-        let mut chosen = Vec::new();
-        for seed in 1..=5u64 {
+        let mut chosen: BTreeMap<usize, usize> = BTreeMap::new();
+        for seed in 1..=SEEDS {
             let ex = generate(rows + 1, seed);
             let valid = generate(1001, 1000);
             let spec = ex.truth.spec();
@@ -109,18 +114,19 @@ fn main() {
             let (a, e, modes) = score(&ex, &valid, &model);
             auto_acc.push(a);
             auto_err.push(e);
-            let s = model.info().selection.as_ref().expect("selection record");
-            let c = &s.candidates[s.chosen];
-            let values: Vec<String> = c.values.iter().map(|(k, v)| format!("{k}={v}")).collect();
-            chosen.push(format!("{} {} ({modes})", c.method, values.join(" ")));
+            *chosen.entry(modes).or_default() += 1;
         }
+        let chosen: Vec<String> = chosen
+            .iter()
+            .map(|(modes, seeds)| format!("{modes}: {seeds}"))
+            .collect();
         println!(
             "| {name} | {rows} | {:.3}, {:.3} | {:.3}, {:.3} | {} |",
             median(ref_acc),
             median(ref_err),
             median(auto_acc),
             median(auto_err),
-            chosen.join("; ")
+            chosen.join(", ")
         );
     }
 }
