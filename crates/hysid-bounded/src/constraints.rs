@@ -134,6 +134,16 @@ impl ModeConstraints {
         let bounds = free_bounds(&self.priors, &spec, &par);
         Some((par, bounds))
     }
+
+    /// Least squares of every mode on its samples `groups` under the
+    /// priors: jointly when they constrain the parameters (so ties hold),
+    /// mode by mode otherwise. `None` when a fit fails.
+    pub fn least_squares_modes(&self, s: &Samples, groups: &[Vec<usize>]) -> Option<Vec<Vec<f64>>> {
+        match self.joint(groups.len()) {
+            Some((par, _)) => least_squares_joint(s, &par, groups),
+            None => groups.iter().map(|g| refit::least_squares(s, g)).collect(),
+        }
+    }
 }
 
 /// Bounds of each free variable of `par` (a tied variable has the bounds

@@ -5,7 +5,8 @@
 //!
 //! [`fit`] = [`classify`] (the error bound delta, then [`procedure::run`]:
 //! greedy MIN PFS by MAX FS, refinement with drops and merges, final
-//! classification) followed by the region estimation of `hysid-regions`.
+//! classification), the optional [`alternate_classification`], then the
+//! region estimation of `hysid-regions`.
 
 use crate::constraints::ModeConstraints;
 use crate::procedure::{self, Classification, ProcedureError, ProcedureSettings, RefitKind};
@@ -16,7 +17,7 @@ use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_regions::{Partition, RegionOptions};
+use hysid_regions::{AlternationReport, AlternationSettings, Partition, RegionOptions};
 use nalgebra::DMatrix;
 use serde::Serialize;
 
@@ -69,6 +70,9 @@ pub struct BoundedDiagnostics {
     /// Set (true) only when the time budget cut the procedure short.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub stopped_by_deadline: bool,
+    /// The alternation after the classification, when `alternation > 0`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub alternation: Option<AlternationReport>,
 }
 
 /// What [`classify`] returns.
@@ -109,11 +113,12 @@ pub fn fit(
     data: &PwarxData<'_>,
     ctx: &RunContext<'_>,
 ) -> Result<PwarxFit<BoundedDiagnostics>, IdentifyError> {
-    let classified = classify(options, data, ctx)?;
+    let mut classified = classify(options, data, ctx)?;
+    let alternation = alternate_classification(options, data, &mut classified, ctx)?;
     let partition = estimate_regions(options, data, &classified)?;
     let c = &classified.classification;
     let (run_status, status) = how_it_ended(c, classified.settings.delta);
-    let diagnostics = diagnostics(options, data, &classified, &partition);
+    let diagnostics = diagnostics(options, data, &classified, &partition, alternation);
     Ok(PwarxFit {
         modes: PwarxMode::unnamed(c.thetas.iter().cloned(), partition.regions),
         regions_complete: partition.complete,
@@ -146,6 +151,75 @@ pub fn classify(
         stops: data.stop_of.clone(),
         ordinary: data.ordinary.clone(),
     })
+}
+
+/// Step 3b (`alternation > 0`, ours, not in the paper): the alternation of
+/// [`hysid_regions::alternate`] from the classification, for at most
+/// `alternation` rounds: least squares per mode under the priors, a
+/// softmax gate, every sample to its mode of least cost. Infeasible
+/// samples start in the mode of least residual. The mode datasets and
+/// least-squares parameters it ends with replace the classification's, so
+/// the modes no longer certify `delta` (`max_residual` says by how much).
+/// `None` with one mode, or when a mode starts with fewer samples than its
+/// least squares needs.
+pub fn alternate_classification(
+    options: &BoundedOptions,
+    data: &PwarxData<'_>,
+    classified: &mut Classified,
+    ctx: &RunContext<'_>,
+) -> Result<Option<AlternationReport>, IdentifyError> {
+    let (s, c) = (&classified.samples, &mut classified.classification);
+    let modes = c.thetas.len();
+    if options.alternation == 0 || modes < 2 {
+        return Ok(None);
+    }
+    let labels: Vec<usize> = (0..s.len())
+        .map(|k| c.labels[k].unwrap_or_else(|| least_residual_mode(s, k, &c.thetas)))
+        .collect();
+    if groups(&labels, modes).iter().any(|g| g.len() < s.p) {
+        return Ok(None);
+    }
+    let settings = AlternationSettings {
+        switching: data.switching.clone(),
+        deadline: ctx.deadline.clone(),
+        ..AlternationSettings::new(options.alternation, s.p)
+    };
+    let x = DMatrix::from_fn(s.len(), s.p - 1, |r, j| s.row(r)[j]);
+    let constraints = &classified.settings.constraints;
+    let out = hysid_regions::alternate(&x, &s.y, labels, modes, &settings, |labels| {
+        constraints
+            .least_squares_modes(s, &groups(labels, modes))
+            .ok_or_else(|| IdentifyError::failed("alternation: the least squares of a mode failed"))
+    })?;
+    let report = AlternationReport::from(&out);
+    c.max_residual = groups(&out.labels, modes)
+        .iter()
+        .zip(&out.theta)
+        .map(|(g, t)| crate::refit::max_residual(s, g, t))
+        .collect();
+    c.labels = out.labels.into_iter().map(Some).collect();
+    c.thetas = out.theta;
+    Ok(Some(report))
+}
+
+/// The mode of least absolute residual at sample `k`.
+fn least_residual_mode(s: &Samples, k: usize, thetas: &[Vec<f64>]) -> usize {
+    (0..thetas.len())
+        .min_by(|&a, &b| {
+            s.residual(k, &thetas[a])
+                .abs()
+                .total_cmp(&s.residual(k, &thetas[b]).abs())
+        })
+        .unwrap_or(0)
+}
+
+/// The samples of each of `modes` modes under `labels`.
+fn groups(labels: &[usize], modes: usize) -> Vec<Vec<usize>> {
+    let mut out = vec![Vec::new(); modes];
+    for (k, &l) in labels.iter().enumerate() {
+        out[l].push(k);
+    }
+    out
 }
 
 /// The error bound: the given delta, or with `auto` the noise bound of
@@ -302,6 +376,7 @@ fn diagnostics(
     data: &PwarxData<'_>,
     classified: &Classified,
     partition: &Partition,
+    alternation: Option<AlternationReport>,
 ) -> BoundedDiagnostics {
     use procedure::SampleClass::{Assigned, Infeasible, Undecidable};
     let (c, delta) = (&classified.classification, classified.settings.delta);
@@ -329,5 +404,6 @@ fn diagnostics(
         tie_projection_error: c.tie_projection_error,
         tie_projection_within_delta: c.tie_projection_error.map(|e| e <= delta),
         stopped_by_deadline: c.stopped_by_deadline,
+        alternation,
     }
 }

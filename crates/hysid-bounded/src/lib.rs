@@ -119,6 +119,10 @@ hysid_estimation::pwarx_options! {
         /// complete partition), psvc (pairwise proximal SVM, may leave holes) or
         /// softmax (multinomial logistic regression, complete partition).
         regions: RegionMethod = RegionMethod::Mrlp,
+        /// Bound on the rounds of the alternation between the modes' least squares, a
+        /// softmax gate and the mode of every sample that follows the classification
+        /// (docs/bounded.md, "Alternation"); 0: none, the published procedure.
+        alternation: usize = 0,
     }
 }
 
@@ -213,17 +217,21 @@ impl Identifier for Bounded {
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const OUTPUT_UNITS: &'static [&'static str] =
         &["delta", "max_residual", "tie_projection_error"];
-    const SEARCH: &'static str = "delta at 1, 1.5, 2, 3, 4 and 6 times the noise standard deviation of local affine fits (delta = auto is 3 times it); the mode count follows";
+    const SEARCH: &'static str = "delta at 1, 1.5, 2, 3, 4 and 6 times the noise standard deviation of local affine fits (delta = auto is 3 times it); the mode count follows; every candidate with alternation = 50";
 
     /// `delta` on a grid of multiples of the noise level of the ordinary
-    /// samples (the `auto` bound over [`noise::SIGMAS`], so floored as it is).
+    /// samples (the `auto` bound over [`noise::SIGMAS`], so floored as it
+    /// is), every candidate with the alternation
+    /// ([`hysid_regions::AUTO_ROUNDS`]).
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         let data = pwarx::prepare(problem, Self::NAME)?;
         let sigma = noise::auto_delta(&data.ordinary_regressors()) / noise::SIGMAS;
-        Ok(SearchSpace::default().with(
-            "delta",
-            DELTA_SIGMAS.iter().map(|k| three_digits(k * sigma)),
-        ))
+        Ok(SearchSpace::default()
+            .with(
+                "delta",
+                DELTA_SIGMAS.iter().map(|k| three_digits(k * sigma)),
+            )
+            .with("alternation", [hysid_regions::AUTO_ROUNDS]))
     }
 
     fn identify(

@@ -66,7 +66,9 @@ proptest! {
     /// switching on `u1`: ties hold to 1e-9, the fixed value comes back
     /// bit for bit, the bounds hold, the region normals are zero on `y1`,
     /// and every labelled sample stays within delta; with both refits
-    /// (joint Chebyshev LP or joint least squares under the ties).
+    /// (joint Chebyshev LP or joint least squares under the ties), and
+    /// with the alternation after the classification (its least squares
+    /// certify no delta: only the priors are checked then).
     #[test]
     fn ties_fixed_bounds_and_switching_hold(
         a in -0.7f64..0.7,
@@ -76,6 +78,7 @@ proptest! {
         hi in 1.0f64..2.5,
         seed in 0u64..1000,
         ls in proptest::bool::ANY,
+        alternation in proptest::bool::ANY,
     ) {
         let g = common::sliced(&[[a, b2, c], [a, b1, c]], 160, 0.05, seed);
         let pri = priors(&format!(
@@ -84,6 +87,7 @@ proptest! {
         let set = [
             "delta=0.1".to_string(),
             format!("refit={}", if ls { "ls" } else { "linf" }),
+            format!("alternation={}", if alternation { 50 } else { 0 }),
         ];
         let m = run_with(&g.data, RegressorSpec::new(1, 1, 1), &pri, &set, seed).unwrap();
         let p = pwarx(&m);
@@ -98,8 +102,9 @@ proptest! {
             }
         }
         let dg = &m.info().diagnostics.method;
+        prop_assert_eq!(dg.contains_key("alternation"), alternation);
         for r in dg["max_residual"].as_array().unwrap() {
-            prop_assert!(r.as_f64().unwrap() <= 0.1 + 1e-9);
+            prop_assert!(alternation || r.as_f64().unwrap() <= 0.1 + 1e-9);
         }
         if dg["greedy_modes"].as_u64().unwrap() > 1 {
             prop_assert!(dg["tie_projection_error"].as_f64().is_some(), "{:?}", dg);
@@ -108,8 +113,9 @@ proptest! {
 
     /// Random `[[equality]]` entries (one mode's parameters, every mode),
     /// with or without a tie: every equality holds to 1e-9 in every
-    /// identified mode (enforced inside the greedy extraction, the refits
-    /// and the merges), and with a tie the tied parameter is shared.
+    /// identified mode (enforced inside the greedy extraction, the refits,
+    /// the merges and the alternation), and with a tie the tied parameter
+    /// is shared.
     #[test]
     fn random_equalities_hold(
         ca in -2.0f64..2.0,
@@ -118,6 +124,7 @@ proptest! {
         seed in 0u64..1000,
         tie in proptest::bool::ANY,
         ls in proptest::bool::ANY,
+        alternation in proptest::bool::ANY,
     ) {
         let g = common::sliced(&[[0.3, -1.5, 0.2], [0.3, 1.5, -0.2]], 160, 0.05, seed);
         let mut text = format!(
@@ -130,6 +137,7 @@ proptest! {
         let set = [
             "delta=0.1".to_string(),
             format!("refit={}", if ls { "ls" } else { "linf" }),
+            format!("alternation={}", if alternation { 50 } else { 0 }),
         ];
         let m = match run_with(&g.data, RegressorSpec::new(1, 1, 1), &pri, &set, seed) {
             Ok(m) => m,

@@ -34,7 +34,8 @@ use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::data::Standardization;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel, RunStatus};
-use hysid_regions::{AlternationSettings, AlternationStatus};
+pub use hysid_regions::AlternationReport;
+use hysid_regions::AlternationSettings;
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -92,17 +93,6 @@ pub struct ClusterDiagnostics {
     /// region refit; not written to the model file.
     #[serde(skip)]
     pub labels: Vec<usize>,
-}
-
-/// What the alternation after the clustering did.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct AlternationReport {
-    /// Rounds run.
-    pub rounds: usize,
-    /// Samples whose mode it changed.
-    pub moved: usize,
-    /// Why it ended.
-    pub status: AlternationStatus,
 }
 
 /// The procedure on `data` with `s` modes in all (the known stops
@@ -522,14 +512,11 @@ fn alternate_partition(
         |labels| least_squares(labels, Weights::Uniform).map(|t| t.working),
     )?;
     let theta = least_squares(&out.labels, o.weights)?;
+    let report = AlternationReport::from(&out);
     fit.labels = out.labels;
     fit.theta = theta.working;
     fit.theta_original = theta.original;
-    Ok(Some(AlternationReport {
-        rounds: out.rounds,
-        moved: out.moved,
-        status: out.status,
-    }))
+    Ok(Some(report))
 }
 
 /// The regions of the modes, in working units.

@@ -242,11 +242,8 @@ pub fn c_candidates(n: usize, rows: usize) -> Vec<Option<usize>> {
 }
 
 /// The alternation's round bound in every candidate of automatic selection
-/// (`docs/cluster.md`, step 6b): on the benchmark systems, where the modes
-/// are known, it raised the mode accuracy or left it (B1, H1-H4, the
-/// PyPARC-type record), and a one-split search over {0, 50} chose between
-/// selection FITs closer than their noise.
-pub const AUTO_ALTERNATION: usize = 50;
+/// (`docs/cluster.md`, step 6b).
+pub use hysid_regions::AUTO_ROUNDS as AUTO_ALTERNATION;
 /// Most modes automatic selection tries when the priors give no bound.
 pub const DEFAULT_MAX_MODES: usize = 5;
 

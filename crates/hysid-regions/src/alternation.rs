@@ -107,6 +107,35 @@ pub enum AlternationStatus {
     TimeBudget,
 }
 
+/// The round bound of the alternation in every candidate of automatic
+/// selection (`hysid identify --auto`) of the back-ends that offer it
+/// (`cluster`, `bounded`): on the benchmark systems, where the modes are
+/// known, it raised the mode accuracy of `cluster` or left it (B1, H1-H4,
+/// the PyPARC-type record), and a one-split search over {0, 50} chose
+/// between selection FITs closer than their noise.
+pub const AUTO_ROUNDS: usize = 50;
+
+/// What the alternation did, as a back-end's diagnostics record it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AlternationReport {
+    /// Rounds run.
+    pub rounds: usize,
+    /// Samples whose mode it changed.
+    pub moved: usize,
+    /// Why it ended.
+    pub status: AlternationStatus,
+}
+
+impl From<&Alternation> for AlternationReport {
+    fn from(a: &Alternation) -> Self {
+        Self {
+            rounds: a.rounds,
+            moved: a.moved,
+            status: a.status,
+        }
+    }
+}
+
 /// What [`alternate`] found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Alternation {

@@ -57,7 +57,8 @@ use rand::{Rng, SeedableRng};
 
 pub use adjacency::adjacency;
 pub use alternation::{
-    Alternation, AlternationSettings, AlternationStatus, GATE_POINTS, alternate,
+    AUTO_ROUNDS, Alternation, AlternationReport, AlternationSettings, AlternationStatus,
+    GATE_POINTS, alternate,
 };
 pub use hysid_model::geometry::argmax_regions;
 
