@@ -14,7 +14,7 @@ use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
 
-const FILES: [&str; 10] = [
+const FILES: [&str; 11] = [
     "models/pick-and-place/head-graybox.toml",
     "models/pick-and-place/structures/delay.toml",
     "models/pick-and-place/structures/lag.toml",
@@ -22,6 +22,7 @@ const FILES: [&str; 10] = [
     "models/pick-and-place/structures/asym.toml",
     "models/pick-and-place/structures/cubic.toml",
     "models/pick-and-place/structures/asym-cubic.toml",
+    "models/pick-and-place/structures/load-friction.toml",
     "models/examples/ball-on-table.toml",
     "models/examples/two-masses.toml",
     "models/examples/backlash-drive.toml",

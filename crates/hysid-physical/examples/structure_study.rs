@@ -101,6 +101,7 @@ fn main() {
             "structures/asym.toml",
             "structures/cubic.toml",
             "structures/asym-cubic.toml",
+            "structures/load-friction.toml",
         ]
         .iter()
         .map(|s| s.to_string())
