@@ -23,6 +23,10 @@ pub const CONFIDENCE_METHOD: &str = "Gauss-Newton s^2 (J^T J)^-1 from a central 
 pub struct PhysicalDiagnostics {
     /// Final cost: mean squared free-run simulation error.
     pub cost: f64,
+    /// With `swarms > 1`: the search kept (0: the one seeded by the run's
+    /// seed), the one of least `cost`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub swarm_kept: Option<usize>,
     /// [`COST_DEFINITION`].
     pub cost_definition: String,
     /// `sqrt(cost)`.
@@ -312,6 +316,7 @@ mod tests {
             jacobian_condition: None,
             zero_sensitivity: vec![],
             at_bound: vec!["b".into()],
+            swarm_kept: None,
         };
         let map = d.clone().into_map();
         let keys: Vec<&str> = map.keys().map(|k| k.as_str()).collect();

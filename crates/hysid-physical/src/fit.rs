@@ -8,17 +8,19 @@ use crate::diagnostics::{
     CONFIDENCE_METHOD, COST_DEFINITION, PhysicalDiagnostics, Status, Terminations,
 };
 use crate::identifiability;
-use crate::local::local_stages;
+use crate::local::{LocalResult, local_stages};
 use crate::objective::{FAILED, Objective, simulation_mse, velocity_tolerances};
 use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
 use crate::stages::{Search, StageLog};
-use crate::swarm::global_stage;
+use crate::swarm::{SwarmResult, global_stage};
 use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::priors::Priors;
 use hysid_model::data::Dataset;
+use rand::{RngCore, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -74,14 +76,13 @@ pub fn fit_model<M: Target>(
         ctx,
         evals: &evals,
     };
-    let mut log = StageLog::default();
     let nominal_z = map.coords(&map.base);
     let nominal_cost = search.objective.mse(&nominal_z);
-    let swarm = global_stage(&search, &nominal_z, nominal_cost, &mut log)?;
-    let local = local_stages(&search, swarm.best_z, &swarm.extra_starts, &mut log)?;
+    let kept = best_search(&search, &nominal_z, nominal_cost)?;
+    let (swarm, local, log) = (kept.swarm, kept.local, kept.log);
 
     let mut values = map.values(&local.best_z);
-    let cost = simulation_mse(&model, &values, data);
+    let cost = kept.cost;
     let evaluations = evals.load(Ordering::Relaxed);
     if cost >= FAILED {
         return Err(IdentifyError::failed(format!(
@@ -108,6 +109,7 @@ pub fn fit_model<M: Target>(
         jacobian_condition: Some(sens.condition).filter(|c| c.is_finite()),
         zero_sensitivity: sens.insensitive(&map),
         at_bound: map.at_bound(&values),
+        swarm_kept: (options.swarms > 1).then_some(kept.index),
     };
     let mut fitted = map.apply(&model, &values);
     let common = &mut fitted.info_mut().diagnostics;
@@ -126,6 +128,66 @@ pub fn fit_model<M: Target>(
         std_errors: sens.std_errors,
     };
     Ok((fitted, report))
+}
+
+/// One search of [`best_search`]: the swarm, the local stages from it, why
+/// each stopped, and the free-run cost of the result.
+struct SearchRun {
+    index: usize,
+    swarm: SwarmResult,
+    local: LocalResult,
+    log: StageLog,
+    cost: f64,
+}
+
+/// `options.swarms` independent searches (the particle swarm, then the
+/// local stages from its best points), the first seeded by the run's seed
+/// and each next one by the next draw of a `ChaCha8Rng` seeded by it; the
+/// one of least free-run cost is kept (the first among equals). No search
+/// starts after the deadline, the first excepted.
+fn best_search(
+    search: &Search<'_>,
+    nominal_z: &[f64],
+    nominal_cost: f64,
+) -> Result<SearchRun, IdentifyError> {
+    let mut seeds = ChaCha8Rng::seed_from_u64(search.ctx.seed);
+    let mut best: Option<SearchRun> = None;
+    for index in 0..search.options.swarms {
+        let seed = if index == 0 {
+            search.ctx.seed
+        } else {
+            seeds.next_u64()
+        };
+        if index > 0 && search.ctx.deadline.passed() {
+            break;
+        }
+        let ctx = RunContext {
+            seed,
+            progress: search.ctx.progress,
+            deadline: search.ctx.deadline.clone(),
+        };
+        let run = Search {
+            objective: search.objective,
+            options: search.options,
+            ctx: &ctx,
+            evals: search.evals,
+        };
+        let mut log = StageLog::default();
+        let swarm = global_stage(&run, nominal_z, nominal_cost, &mut log)?;
+        let local = local_stages(&run, swarm.best_z.clone(), &swarm.extra_starts, &mut log)?;
+        let values = run.objective.map.values(&local.best_z);
+        let cost = simulation_mse(run.objective.model, &values, run.objective.data);
+        if best.as_ref().is_none_or(|b| cost < b.cost) {
+            best = Some(SearchRun {
+                index,
+                swarm,
+                local,
+                log,
+                cost,
+            });
+        }
+    }
+    best.ok_or_else(|| IdentifyError::failed("no search ran"))
 }
 
 /// Checks the model, the record and the options against each other;

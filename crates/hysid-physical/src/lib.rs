@@ -80,6 +80,10 @@ hysid_core::backend_options! {
         model: String = String::new(),
         /// Particles of the swarm (global stage); 0 skips the global stage.
         particles: usize = 24,
+        /// Independent searches (swarm, then the local stages), each from its own seed
+        /// (the first from the run's seed); the one of least free-run cost on the rows is
+        /// kept. The cost is multimodal on real records, and the seed picks the minimum.
+        swarms: usize = 1,
         /// Iterations of the swarm.
         swarm_iters: usize = 40,
         /// Iterations of each Nelder-Mead run (local refinement).
@@ -107,8 +111,18 @@ hysid_core::backend_options! {
     }
 }
 
+/// Largest `swarms` accepted.
+pub const MAX_SWARMS: usize = 100;
+
 impl CheckOptions for PhysicalOptions {
     fn check(&self) -> Result<(), OptionError> {
+        if !(1..=MAX_SWARMS).contains(&self.swarms) {
+            return Err(OptionError::invalid(
+                "swarms",
+                self.swarms,
+                format!("must be in 1..={MAX_SWARMS}"),
+            ));
+        }
         if !(self.simplex > 0.0 && self.simplex <= 1.0) {
             return Err(OptionError::invalid(
                 "simplex",
