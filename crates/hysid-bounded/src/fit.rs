@@ -174,7 +174,11 @@ pub fn alternate_classification(
         return Ok(None);
     }
     let labels: Vec<usize> = (0..s.len())
-        .map(|k| c.labels[k].unwrap_or_else(|| least_residual_mode(s, k, &c.thetas)))
+        .map(|k| {
+            c.labels[k]
+                .or_else(|| procedure::least_residual_mode(s, k, &c.thetas, 0..modes))
+                .unwrap_or(0)
+        })
         .collect();
     if groups(&labels, modes).iter().any(|g| g.len() < s.p) {
         return Ok(None);
@@ -192,25 +196,10 @@ pub fn alternate_classification(
             .ok_or_else(|| IdentifyError::failed("alternation: the least squares of a mode failed"))
     })?;
     let report = AlternationReport::from(&out);
-    c.max_residual = groups(&out.labels, modes)
-        .iter()
-        .zip(&out.theta)
-        .map(|(g, t)| crate::refit::max_residual(s, g, t))
-        .collect();
     c.labels = out.labels.into_iter().map(Some).collect();
+    c.max_residual = procedure::max_residuals(s, &out.theta, &c.labels);
     c.thetas = out.theta;
     Ok(Some(report))
-}
-
-/// The mode of least absolute residual at sample `k`.
-fn least_residual_mode(s: &Samples, k: usize, thetas: &[Vec<f64>]) -> usize {
-    (0..thetas.len())
-        .min_by(|&a, &b| {
-            s.residual(k, &thetas[a])
-                .abs()
-                .total_cmp(&s.residual(k, &thetas[b]).abs())
-        })
-        .unwrap_or(0)
 }
 
 /// The samples of each of `modes` modes under `labels`.

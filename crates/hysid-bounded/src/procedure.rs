@@ -523,8 +523,27 @@ fn final_classification(s: &Samples, delta: f64, mut thetas: Vec<Vec<f64>>) -> F
     }
 }
 
+/// Of `modes`, the one of least `|residual|` at sample `k` (the first
+/// among equals); `None` when `modes` is empty.
+pub(crate) fn least_residual_mode(
+    s: &Samples,
+    k: usize,
+    thetas: &[Vec<f64>],
+    modes: impl IntoIterator<Item = usize>,
+) -> Option<usize> {
+    modes.into_iter().min_by(|&a, &b| {
+        s.residual(k, &thetas[a])
+            .abs()
+            .total_cmp(&s.residual(k, &thetas[b]).abs())
+    })
+}
+
 /// Largest `|residual|` of each mode over the samples labelled with it.
-fn max_residuals(s: &Samples, thetas: &[Vec<f64>], labels: &[Option<usize>]) -> Vec<f64> {
+pub(crate) fn max_residuals(
+    s: &Samples,
+    thetas: &[Vec<f64>],
+    labels: &[Option<usize>],
+) -> Vec<f64> {
     let mut maxr = vec![0.0; thetas.len()];
     for (k, l) in labels.iter().enumerate() {
         if let Some(i) = *l {
@@ -700,12 +719,7 @@ fn final_labels(
             .collect();
         let pick = if near.is_empty() {
             // No assigned neighbour among the candidates: smallest residual.
-            *c.iter()
-                .min_by(|&&a, &&b| {
-                    s.residual(k, &thetas[a])
-                        .abs()
-                        .total_cmp(&s.residual(k, &thetas[b]).abs())
-                })
+            least_residual_mode(s, k, thetas, c.iter().copied())
                 .expect("undecidable has candidates")
         } else {
             let kk = KNN.min(near.len());

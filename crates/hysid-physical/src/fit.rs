@@ -13,7 +13,7 @@ use crate::objective::{FAILED, Objective, simulation_mse, velocity_tolerances};
 use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
 use crate::stages::{Search, StageLog};
-use crate::swarm::{SwarmResult, global_stage};
+use crate::swarm::global_stage;
 use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
 use hysid_core::backend::{IdentifyError, RunContext};
@@ -79,7 +79,7 @@ pub fn fit_model<M: Target>(
     let nominal_z = map.coords(&map.base);
     let nominal_cost = search.objective.mse(&nominal_z);
     let kept = best_search(&search, &nominal_z, nominal_cost)?;
-    let (swarm, local, log) = (kept.swarm, kept.local, kept.log);
+    let (local, log) = (kept.local, kept.log);
 
     let mut values = map.values(&local.best_z);
     let cost = kept.cost;
@@ -97,7 +97,7 @@ pub fn fit_model<M: Target>(
         cost_definition: COST_DEFINITION.into(),
         rmse_fit: cost.sqrt(),
         nominal_cost,
-        swarm_cost: swarm.cost,
+        swarm_cost: kept.swarm_cost,
         segmented_cost: local.segmented_cost,
         segment: local.segmented_cost.map(|_| options.segment),
         evaluations,
@@ -121,7 +121,7 @@ pub fn fit_model<M: Target>(
     *common = std::mem::take(common).with_method(&diagnostics);
     let report = FitReport {
         nominal_cost,
-        swarm_cost: swarm.cost,
+        swarm_cost: kept.swarm_cost,
         cost,
         evaluations,
         seconds: t0.elapsed().as_secs_f64(),
@@ -130,11 +130,12 @@ pub fn fit_model<M: Target>(
     Ok((fitted, report))
 }
 
-/// One search of [`best_search`]: the swarm, the local stages from it, why
-/// each stopped, and the free-run cost of the result.
+/// One search of [`best_search`]: the swarm's best cost, the local stages
+/// from its best points, why each stopped, and the free-run cost of the
+/// result.
 struct SearchRun {
     index: usize,
-    swarm: SwarmResult,
+    swarm_cost: Option<f64>,
     local: LocalResult,
     log: StageLog,
     cost: f64,
@@ -174,13 +175,13 @@ fn best_search(
         };
         let mut log = StageLog::default();
         let swarm = global_stage(&run, nominal_z, nominal_cost, &mut log)?;
-        let local = local_stages(&run, swarm.best_z.clone(), &swarm.extra_starts, &mut log)?;
+        let local = local_stages(&run, swarm.best_z, &swarm.extra_starts, &mut log)?;
         let values = run.objective.map.values(&local.best_z);
         let cost = simulation_mse(run.objective.model, &values, run.objective.data);
         if best.as_ref().is_none_or(|b| cost < b.cost) {
             best = Some(SearchRun {
                 index,
-                swarm,
+                swarm_cost: swarm.cost,
                 local,
                 log,
                 cost,
