@@ -672,8 +672,12 @@ fn auto_chooses_inside_the_identification_rows_only() {
     assert_eq!(ma, mb);
     let m: serde_json::Value = serde_json::from_str(&ma).unwrap();
     let sel = &m["info"]["selection"];
-    assert_eq!(sel["splits"][0]["fit_rows"], "0..240");
-    assert_eq!(sel["splits"][0]["select_rows"], "240..300");
+    // 60 default selection rows, fewer than 100: the block at the start
+    // of the identification rows is scored too.
+    assert_eq!(sel["splits"][0]["fit_rows"], "60..300");
+    assert_eq!(sel["splits"][0]["select_rows"], "0..60");
+    assert_eq!(sel["splits"][1]["fit_rows"], "0..240");
+    assert_eq!(sel["splits"][1]["select_rows"], "240..300");
     let cands = sel["candidates"].as_array().unwrap();
     // Four grid points, then the affine reference.
     assert_eq!(cands.len(), 5, "{sel}");

@@ -1,6 +1,9 @@
 //! Automatic selection against the reference settings on the literature's
 //! benchmark systems (B1, H1-H4 of `hysid-testkit`), seeds 1 to 20.
 //!
+//! "defaults": `cluster` with the true mode count and its default options
+//! (a run that fails, for example because fewer clusters than modes keep
+//! enough points, counts as accuracy 0 and an infinite error).
 //! "reference": `cluster` with the true mode count and the reference `c`
 //! of `crates/hysid-cluster/tests/reference.rs`. "auto": `cluster` with no
 //! mode count, its options and mode count chosen by [`hysid_select::select`]
@@ -61,10 +64,11 @@ fn main() {
         ("H4", 60, &["c=6"], hysid_testkit::h4),
     ];
     println!(
-        "| system | rows | reference: accuracy, error (median) | auto: accuracy, error (median) | auto: mode counts chosen (seeds) |"
+        "| system | rows | defaults: accuracy, error (median) | reference: accuracy, error (median) | auto: accuracy, error (median) | auto: mode counts chosen (seeds) |"
     );
-    println!("|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|");
     for (name, rows, set, generate) in systems {
+        let (mut def_acc, mut def_err, mut def_failed) = (vec![], vec![], 0);
         let (mut ref_acc, mut ref_err, mut auto_acc, mut auto_err) =
             (vec![], vec![], vec![], vec![]);
         let mut chosen: BTreeMap<usize, usize> = BTreeMap::new();
@@ -82,6 +86,19 @@ fn main() {
                 priors: &known,
                 priors_origin: None,
             };
+            // A default run that fails gives the user no model: accuracy 0.
+            let (a, e) = match Cluster.run(&problem, &Settings::default(), &RunContext::quiet(1)) {
+                Ok(defaults) => {
+                    let (a, e, _) = score(&ex, &valid, &defaults);
+                    (a, e)
+                }
+                Err(_) => {
+                    def_failed += 1;
+                    (0.0, f64::INFINITY)
+                }
+            };
+            def_acc.push(a);
+            def_err.push(e);
             let reference = Cluster
                 .run(
                     &problem,
@@ -121,7 +138,14 @@ fn main() {
             .map(|(modes, seeds)| format!("{modes}: {seeds}"))
             .collect();
         println!(
-            "| {name} | {rows} | {:.3}, {:.3} | {:.3}, {:.3} | {} |",
+            "| {name} | {rows} | {:.3}, {:.3}{} | {:.3}, {:.3} | {:.3}, {:.3} | {} |",
+            median(def_acc),
+            median(def_err),
+            if def_failed > 0 {
+                format!(" ({def_failed} failed)")
+            } else {
+                String::new()
+            },
             median(ref_acc),
             median(ref_err),
             median(auto_acc),

@@ -3,7 +3,8 @@
 //! Automatic selection (`hysid identify --auto`): a back-end's options are
 //! chosen inside the identification data, never on the rows a model is
 //! tested on. The identification rows are split into **fit rows** and
-//! **selection rows** (by default the last 20 %); every candidate of the
+//! **selection rows** (by default the last 20 %, and on short records also
+//! a block of the same length at the start, [`both_ends`]); every candidate of the
 //! back-end's [`SearchSpace`] is fitted on the fit rows and scored by the
 //! FIT of its free-run simulation on the selection rows; the affine ARX
 //! model of the same orders and priors is always a candidate, so the
@@ -38,7 +39,8 @@ use rayon::prelude::*;
 pub struct Plan {
     /// Selection rows, in rows of the file (as `first_row` counts them);
     /// `None`: the last [`DEFAULT_SELECTION_PERCENT`] % of the
-    /// identification record.
+    /// identification record (and, when that is short, the block of the
+    /// same length at its start, [`both_ends`]).
     pub select: Option<RowRange>,
     /// Instead of one split, `K` contiguous blocks scored on a rolling
     /// origin: block `j` (from the second) is scored by the model fitted on
@@ -139,12 +141,34 @@ pub enum SelectError {
 pub type Split = ((usize, usize), (usize, usize));
 
 /// The splits of an identification record of `n` rows that `plan` asks
-/// for: one ([`split`]), or the rolling-origin folds ([`folds`]).
+/// for: one ([`split`]), the two ends of a short record ([`both_ends`]),
+/// or the rolling-origin folds ([`folds`]).
 pub fn splits(n: usize, plan: &Plan) -> Result<Vec<Split>, SelectError> {
     match plan.folds {
         Some(k) => folds(n, k, plan.warmup),
+        None if plan.select.is_none() => Ok(both_ends(n, split(n, plan)?)),
         None => Ok(vec![split(n, plan)?]),
     }
+}
+
+/// Default selection blocks shorter than this are joined by the block of
+/// the same length at the record's start: two blocks of the one-standard
+/// error rule ([`parsimony::BLOCK`]), below which that rule cannot act and
+/// a score rests on a few samples.
+pub const SHORT_SELECTION: usize = 2 * parsimony::BLOCK;
+
+/// The default split `last` (the selection block at the end), and, when
+/// that block is shorter than [`SHORT_SELECTION`], first the split with a
+/// block of the same length at the start of the record (fitted on the rows
+/// after it): on a record of tens of rows the candidates are then scored
+/// on twice the rows, and both fit-row sets are contiguous records.
+pub fn both_ends(n: usize, last: Split) -> Vec<Split> {
+    let (_, (a, b)) = last;
+    let len = b - a;
+    if len >= SHORT_SELECTION {
+        return vec![last];
+    }
+    vec![((len, n), (0, len)), last]
 }
 
 /// `k` contiguous blocks of an `n`-row record: fold `j` (1 to `k - 1`)
@@ -708,6 +732,22 @@ mod tests {
     }
 
     #[test]
+    fn short_records_are_scored_at_both_ends() {
+        let plan = Plan::default();
+        assert_eq!(
+            splits(5000, &plan).unwrap(),
+            vec![((0, 4000), (4000, 5000))]
+        );
+        assert_eq!(splits(500, &plan).unwrap(), vec![((0, 400), (400, 500))]);
+        assert_eq!(
+            splits(60, &plan).unwrap(),
+            vec![((12, 60), (0, 12)), ((0, 48), (48, 60))]
+        );
+        // Rows the user gives are taken as given.
+        assert_eq!(splits(60, &self::plan("48..")).unwrap().len(), 1);
+    }
+
+    #[test]
     fn folds_roll_the_origin_forward() {
         assert_eq!(
             folds(100, 4, 5).unwrap(),
@@ -774,13 +814,13 @@ mod tests {
         let model = select(&request, &RunContext::quiet(0)).unwrap();
         let s = model.info().selection.clone().unwrap();
         assert_eq!(s.candidates.len(), 9);
-        assert_eq!(
-            (
-                s.splits[0].fit_rows.as_str(),
-                s.splits[0].select_rows.as_str()
-            ),
-            ("0..240", "240..300")
-        );
+        // 60 selection rows: the block at the start is scored too.
+        let rows: Vec<(&str, &str)> = s
+            .splits
+            .iter()
+            .map(|p| (p.fit_rows.as_str(), p.select_rows.as_str()))
+            .collect();
+        assert_eq!(rows, [("60..300", "0..60"), ("0..240", "240..300")]);
         // Noise-free: every order from (1, 1) up is exact, so the choice is
         // one of them (which one is decided by rounding), scored near 100 %.
         let best = s.candidates[s.chosen].fit_sim.unwrap();

@@ -65,7 +65,7 @@ pub struct Args {
     pub auto: bool,
     /// With --auto: the selection rows A..B, in the rows of the file (after
     /// decimation); they must start or end the identification rows. Default:
-    /// the last 20 % of them.
+    /// the last 20 % of them (fewer than 100: also as many at their start).
     #[arg(long, value_parser = parse_rows, requires = "auto")]
     pub select_rows: Option<RowRange>,
     /// With --auto: instead of one split, K contiguous blocks on a rolling

@@ -12,8 +12,9 @@ use serde::{Deserialize, Serialize};
 /// gave the model of the file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Selection {
-    /// The splits of the identification rows: one, or the folds of a
-    /// rolling origin (a candidate's score is then the mean over them).
+    /// The splits of the identification rows: one, the two ends of a short
+    /// record, or the folds of a rolling origin (a candidate's score is
+    /// then the mean over them).
     pub splits: Vec<SplitRows>,
     /// Samples at the start of the selection rows left out of the score.
     pub warmup: usize,
