@@ -5,10 +5,12 @@
 //! selection score is refitted on rows 0..5000 and only it is scored on the
 //! test rows 5000..6001.
 //!
-//! `cargo run --release -p hysid-physical --example structure_study [-- CANDIDATE..]`
+//! `cargo run --release -p hysid-physical --example structure_study [-- CANDIDATE.. KEY=VALUE..]`
 //!
 //! Candidates are files under `models/pick-and-place/` (default: the base
-//! head and every file of `structures/`). Prints, per candidate and seed,
+//! head and every file of `structures/`); arguments of the form
+//! `KEY=VALUE` are `physical` options given to every fit (for example
+//! `swarms=3`). Prints, per candidate and seed,
 //! the selection FIT and the fitted parameters with their standard errors,
 //! then the choice and its test FIT (median and range over the seeds).
 
@@ -35,7 +37,7 @@ fn rows(root: &Path, start: usize, end: usize) -> Dataset {
     hysid_io::load(&root.join("headdata_1v6.mat"), &sel).expect("the embedded record")
 }
 
-fn fit(file: &Path, data: &Dataset, seed: u64) -> Model {
+fn fit(file: &Path, options: &[String], data: &Dataset, seed: u64) -> Model {
     let priors = Priors::default();
     let problem = Problem {
         data,
@@ -44,10 +46,13 @@ fn fit(file: &Path, data: &Dataset, seed: u64) -> Model {
         priors_origin: None,
     };
     let set = format!("model={}", file.display());
+    let settings: Vec<&str> = std::iter::once(set.as_str())
+        .chain(options.iter().map(String::as_str))
+        .collect();
     Physical
         .run(
             &problem,
-            &Settings::parse(&[set.as_str()]).expect("one option"),
+            &Settings::parse(&settings).expect("physical options"),
             &RunContext::quiet(seed),
         )
         .unwrap_or_else(|e| panic!("{}: {e}", file.display()))
@@ -91,7 +96,8 @@ fn main() {
         env!("CARGO_MANIFEST_DIR"),
         "/../../models/pick-and-place"
     ));
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (options, args): (Vec<String>, Vec<String>) =
+        std::env::args().skip(1).partition(|a| a.contains('='));
     let candidates: Vec<String> = if args.is_empty() {
         [
             "head-graybox.toml",
@@ -102,6 +108,11 @@ fn main() {
             "structures/cubic.toml",
             "structures/asym-cubic.toml",
             "structures/load-friction.toml",
+            "structures/load-gain.toml",
+            "structures/load-motor.toml",
+            "structures/load-bounce.toml",
+            "structures/load-bounce-f1.toml",
+            "structures/load-bounce-motor.toml",
         ]
         .iter()
         .map(|s| s.to_string())
@@ -120,7 +131,7 @@ fn main() {
         let file = root.join(c);
         let mut sel = Vec::new();
         for seed in SEEDS {
-            let m = fit(&file, &fit_rows, seed);
+            let m = fit(&file, &options, &fit_rows, seed);
             let s = fit_sim(&m, &selection);
             println!(
                 "{c} seed {seed}: selection FIT {s:.3} %; {}",
@@ -140,7 +151,7 @@ fn main() {
     let file = root.join(&choice);
     let mut tests = Vec::new();
     for seed in SEEDS {
-        let m = fit(&file, &ident, seed);
+        let m = fit(&file, &options, &ident, seed);
         let t = fit_sim(&m, &test);
         println!(
             "{choice} refitted on 0..5000, seed {seed}: test FIT {t:.3} %; {}",
