@@ -4,14 +4,14 @@
 //! chosen inside the identification data, never on the rows a model is
 //! tested on. The identification rows are split into **fit rows** and
 //! **selection rows** (by default the last 20 %, and on short records also
-//! a block of the same length at the start, [`both_ends`]); every candidate of the
-//! back-end's [`SearchSpace`] is fitted on the fit rows and scored by the
-//! FIT of its free-run simulation on the selection rows; the affine ARX
-//! model of the same orders and priors is always a candidate, so the
-//! choice is never worse than linear on the selection rows. Of the
-//! candidates within one standard error of the best, the one with the
-//! fewest modes is chosen ([`parsimony`]). When the
-//! back-end offers the simulation-error refinement (`refine`), it is tried
+//! a block of the same length at the start, [`both_ends`]); every
+//! candidate of the back-end's [`SearchSpace`] is fitted on the fit rows
+//! and scored by the FIT of its free-run simulation on the selection rows;
+//! the affine ARX model of the same orders and priors is always a
+//! candidate, so the choice is never worse than linear on the selection
+//! rows. Of the candidates within one standard error of the best, the one
+//! with the fewest modes is chosen ([`parsimony`]). When the back-end
+//! offers the simulation-error refinement (`refine`), it is tried
 //! on the chosen candidate (`sim`, and `sim_regions` for two or more modes
 //! without known stops), and the better is kept only if it raises the
 //! selection-row FIT. The choice is then fitted again on all the
@@ -152,9 +152,9 @@ pub fn splits(n: usize, plan: &Plan) -> Result<Vec<Split>, SelectError> {
 }
 
 /// Default selection blocks shorter than this are joined by the block of
-/// the same length at the record's start: two blocks of the one-standard
-/// error rule ([`parsimony::BLOCK`]), below which that rule cannot act and
-/// a score rests on a few samples.
+/// the same length at the record's start: two blocks of the
+/// one-standard-error rule ([`parsimony::BLOCK`]), below which that rule
+/// cannot act and a score rests on a few samples.
 pub const SHORT_SELECTION: usize = 2 * parsimony::BLOCK;
 
 /// The default split `last` (the selection block at the end), and, when
