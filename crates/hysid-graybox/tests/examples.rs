@@ -14,7 +14,7 @@ use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
 
-const FILES: [&str; 16] = [
+const FILES: [&str; 17] = [
     "models/pick-and-place/head-graybox.toml",
     "models/pick-and-place/structures/delay.toml",
     "models/pick-and-place/structures/lag.toml",
@@ -28,6 +28,7 @@ const FILES: [&str; 16] = [
     "models/pick-and-place/structures/load-bounce.toml",
     "models/pick-and-place/structures/load-bounce-f1.toml",
     "models/pick-and-place/structures/load-bounce-motor.toml",
+    "models/pick-and-place/structures/load-bounce-stick.toml",
     "models/examples/ball-on-table.toml",
     "models/examples/two-masses.toml",
     "models/examples/backlash-drive.toml",

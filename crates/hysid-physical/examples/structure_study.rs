@@ -113,6 +113,7 @@ fn main() {
             "structures/load-bounce.toml",
             "structures/load-bounce-f1.toml",
             "structures/load-bounce-motor.toml",
+            "structures/load-bounce-stick.toml",
         ]
         .iter()
         .map(|s| s.to_string())
