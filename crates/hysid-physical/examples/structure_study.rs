@@ -91,6 +91,22 @@ fn parameters(model: &Model) -> String {
         .join(", ")
 }
 
+/// The base head, then every `.toml` file of `structures/` in name order.
+fn default_candidates(root: &Path) -> Vec<String> {
+    let mut files: Vec<String> = std::fs::read_dir(root.join("structures"))
+        .expect("models/pick-and-place/structures")
+        .filter_map(|e| {
+            let name = e.ok()?.file_name().into_string().ok()?;
+            name.ends_with(".toml")
+                .then(|| format!("structures/{name}"))
+        })
+        .collect();
+    files.sort();
+    std::iter::once("head-graybox.toml".to_string())
+        .chain(files)
+        .collect()
+}
+
 fn main() {
     let root = PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -99,25 +115,7 @@ fn main() {
     let (options, args): (Vec<String>, Vec<String>) =
         std::env::args().skip(1).partition(|a| a.contains('='));
     let candidates: Vec<String> = if args.is_empty() {
-        [
-            "head-graybox.toml",
-            "structures/lag.toml",
-            "structures/delay.toml",
-            "structures/stribeck.toml",
-            "structures/asym.toml",
-            "structures/cubic.toml",
-            "structures/asym-cubic.toml",
-            "structures/load-friction.toml",
-            "structures/load-gain.toml",
-            "structures/load-motor.toml",
-            "structures/load-bounce.toml",
-            "structures/load-bounce-f1.toml",
-            "structures/load-bounce-motor.toml",
-            "structures/load-bounce-stick.toml",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect()
+        default_candidates(&root)
     } else {
         args
     };
