@@ -14,7 +14,7 @@ use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
 
-const FILES: [&str; 17] = [
+const FILES: [&str; 20] = [
     "models/pick-and-place/head-graybox.toml",
     "models/pick-and-place/structures/delay.toml",
     "models/pick-and-place/structures/lag.toml",
@@ -29,6 +29,9 @@ const FILES: [&str; 17] = [
     "models/pick-and-place/structures/load-bounce-f1.toml",
     "models/pick-and-place/structures/load-bounce-motor.toml",
     "models/pick-and-place/structures/load-bounce-stick.toml",
+    "models/pick-and-place/structures/load-bounce-hc.toml",
+    "models/pick-and-place/structures/load-bounce-stribeck.toml",
+    "models/pick-and-place/structures/load-bounce-stribeck2.toml",
     "models/examples/ball-on-table.toml",
     "models/examples/two-masses.toml",
     "models/examples/backlash-drive.toml",

@@ -5,7 +5,7 @@
 //! selection score is refitted on rows 0..5000 and only it is scored on the
 //! test rows 5000..6001.
 //!
-//! `cargo run --release -p hysid-physical --example structure_study [-- CANDIDATE.. KEY=VALUE..]`
+//! `cargo run --release -p hysid-physical --example structure_study [-- [--selection-only] CANDIDATE.. KEY=VALUE..]`
 //!
 //! Candidates are files under `models/pick-and-place/` (default: the base
 //! head and every file of `structures/`); arguments of the form
@@ -13,6 +13,9 @@
 //! `swarms=3`). Prints, per candidate and seed,
 //! the selection FIT and the fitted parameters with their standard errors,
 //! then the choice and its test FIT (median and range over the seeds).
+//! `--selection-only` stops after the selection scores, without the test
+//! rows: a new candidate is scored that way against the table of
+//! docs/physical.md, and the test rows are not looked at.
 
 use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::model::Model;
@@ -112,8 +115,15 @@ fn main() {
         env!("CARGO_MANIFEST_DIR"),
         "/../../models/pick-and-place"
     ));
+    let (flags, args): (Vec<String>, Vec<String>) =
+        std::env::args().skip(1).partition(|a| a.starts_with("--"));
+    let selection_only = match flags.as_slice() {
+        [] => false,
+        [f] if f == "--selection-only" => true,
+        _ => panic!("unknown flags {flags:?}: the only flag is --selection-only"),
+    };
     let (options, args): (Vec<String>, Vec<String>) =
-        std::env::args().skip(1).partition(|a| a.contains('='));
+        args.into_iter().partition(|a| a.contains('='));
     let candidates: Vec<String> = if args.is_empty() {
         default_candidates(&root)
     } else {
@@ -147,6 +157,9 @@ fn main() {
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .expect("at least one candidate");
     println!("chosen on the selection rows: {choice} ({best:.3} %)");
+    if selection_only {
+        return;
+    }
     let file = root.join(&choice);
     let mut tests = Vec::new();
     for seed in SEEDS {
