@@ -13,34 +13,64 @@ use hysid_graybox::{CompiledModel, GrayBoxModel};
 use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::LazyLock;
 
-const FILES: [&str; 20] = [
-    "models/pick-and-place/head-graybox.toml",
-    "models/pick-and-place/structures/delay.toml",
-    "models/pick-and-place/structures/lag.toml",
-    "models/pick-and-place/structures/stribeck.toml",
-    "models/pick-and-place/structures/asym.toml",
-    "models/pick-and-place/structures/cubic.toml",
-    "models/pick-and-place/structures/asym-cubic.toml",
-    "models/pick-and-place/structures/load-friction.toml",
-    "models/pick-and-place/structures/load-gain.toml",
-    "models/pick-and-place/structures/load-motor.toml",
-    "models/pick-and-place/structures/load-bounce.toml",
-    "models/pick-and-place/structures/load-bounce-f1.toml",
-    "models/pick-and-place/structures/load-bounce-motor.toml",
-    "models/pick-and-place/structures/load-bounce-stick.toml",
-    "models/pick-and-place/structures/load-bounce-hc.toml",
-    "models/pick-and-place/structures/load-bounce-stribeck.toml",
-    "models/pick-and-place/structures/load-bounce-stribeck2.toml",
-    "models/examples/ball-on-table.toml",
-    "models/examples/two-masses.toml",
-    "models/examples/backlash-drive.toml",
-];
+/// The repository root.
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+
+/// Every gray-box model file of the repository: the `.toml` files under
+/// `models/` whose `kind` is `gray_box`, relative to the repository root,
+/// in path order.
+static FILES: LazyLock<Vec<String>> = LazyLock::new(|| {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                walk(&path, out);
+            } else if path.extension().is_some_and(|e| e == "toml") {
+                out.push(path);
+            }
+        }
+    }
+    let root = Path::new(ROOT);
+    let mut paths = Vec::new();
+    walk(&root.join("models"), &mut paths);
+    let mut files: Vec<String> = paths
+        .into_iter()
+        .filter(|path| {
+            let table: toml::Table = std::fs::read_to_string(path).unwrap().parse().unwrap();
+            table.get("kind").and_then(|k| k.as_str()) == Some("gray_box")
+        })
+        .map(|path| {
+            let relative = path.strip_prefix(root).unwrap();
+            relative.to_str().unwrap().to_string()
+        })
+        .collect();
+    files.sort();
+    files
+});
+
+#[test]
+fn the_scan_finds_the_head_and_the_example_models() {
+    for path in [
+        "models/pick-and-place/head-graybox.toml",
+        "models/pick-and-place/structures/load-bounce-f1.toml",
+        "models/examples/ball-on-table.toml",
+        "models/examples/two-masses.toml",
+        "models/examples/backlash-drive.toml",
+    ] {
+        assert!(
+            FILES.iter().any(|f| f == path),
+            "{path} not in {:?}",
+            *FILES
+        );
+    }
+}
 
 /// The model, and the excitation of its "Try:" line.
 fn file(path: &str) -> (GrayBoxModel, Excitation) {
-    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
-    let text = std::fs::read_to_string(format!("{root}/{path}")).unwrap();
+    let text = std::fs::read_to_string(format!("{ROOT}/{path}")).unwrap();
     let spec = text
         .lines()
         .find_map(|l| l.split("--excite ").nth(1))
@@ -89,7 +119,7 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (m, ex) = randomised(FILES[which], &z);
+        let (m, ex) = randomised(&FILES[which], &z);
         let u = ex.generate(seed).remove(0);
         let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
         let c = CompiledModel::new(&m).unwrap();
@@ -121,7 +151,7 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (m, ex) = randomised(FILES[which], &z);
+        let (m, ex) = randomised(&FILES[which], &z);
         if m.energy.is_none() {
             return Ok(());
         }
@@ -190,7 +220,7 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (m, ex) = randomised(FILES[which], &z);
+        let (m, ex) = randomised(&FILES[which], &z);
         let c = CompiledModel::new(&m).unwrap();
         // Per friction element: its index, velocity state and label.
         let frictions: Vec<(usize, usize, usize)> = c
@@ -274,7 +304,7 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (m, ex) = randomised(FILES[which], &z);
+        let (m, ex) = randomised(&FILES[which], &z);
         let u = ex.generate(seed).remove(0);
         let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
         let run_at = |step: f64| {
