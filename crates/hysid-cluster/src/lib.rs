@@ -411,7 +411,8 @@ fn choose_modes(
     ranked.sort_by(|&a, &b| score(b).total_cmp(&score(a)).then(a.cmp(&b)));
     let errors: Vec<Vec<f64>> = points.iter().map(|p| p.sim_errors.clone()).collect();
     let counts: Vec<Option<usize>> = points.iter().map(|p| p.modes_found).collect();
-    let best = parsimony::simplest_within_one_se(&ranked, &errors, &counts)
+    let dependence = parsimony::Dependence::of_output_lags(problem.orders.na);
+    let best = parsimony::simplest_within_one_se(&ranked, &errors, &counts, dependence)
         .map(|i| &points[i])
         .ok_or_else(|| {
             IdentifyError::failed(format!(

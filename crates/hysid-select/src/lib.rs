@@ -271,7 +271,8 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
         .affine
         .and_then(|_| scored.last())
         .and_then(|c| c.fit_sim);
-    let order = preference(&scored, &errors, floor);
+    let dependence = parsimony::Dependence::of_output_lags(request.setup.orders.na);
+    let order = preference(&scored, &errors, floor, dependence);
     let (chosen, refinement, mut model) =
         choose(request, &trials, &parts, &mut scored, &order, ctx)?;
     let in_file = |(a, b): (usize, usize)| {
@@ -462,17 +463,23 @@ fn ranking(scored: &[ScoredCandidate]) -> Vec<usize> {
 }
 
 /// The order in which candidates are chosen: the simplest within one
-/// standard error of the best ([`parsimony`]) unless it scores below the
-/// affine reference (`floor`), then the rest by score.
-fn preference(scored: &[ScoredCandidate], errors: &[Vec<f64>], floor: Option<f64>) -> Vec<usize> {
+/// standard error of the best ([`parsimony`], comparing errors of the given
+/// `dependence`) unless it scores below the affine reference (`floor`),
+/// then the rest by score.
+fn preference(
+    scored: &[ScoredCandidate],
+    errors: &[Vec<f64>],
+    floor: Option<f64>,
+    dependence: parsimony::Dependence,
+) -> Vec<usize> {
     let mut order = ranking(scored);
     let modes: Vec<Option<usize>> = scored.iter().map(|c| c.modes).collect();
     let above_floor = |i: usize| match (scored[i].fit_sim, floor) {
         (Some(f), Some(g)) => f >= g,
         _ => true,
     };
-    if let Some(simplest) =
-        parsimony::simplest_within_one_se(&order, errors, &modes).filter(|&i| above_floor(i))
+    if let Some(simplest) = parsimony::simplest_within_one_se(&order, errors, &modes, dependence)
+        .filter(|&i| above_floor(i))
     {
         order.retain(|&i| i != simplest);
         order.insert(0, simplest);

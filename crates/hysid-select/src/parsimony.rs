@@ -9,22 +9,65 @@
 //! plain best score adds modes. Here a candidate `c` is as good as the best
 //! one `b` when the mean of the paired differences of squared simulation
 //! errors, `d_k = e_c(k)^2 - e_b(k)^2`, is at most its standard error.
-//! Simulation errors are correlated in time, so the standard error is
-//! taken over the means of blocks of [`BLOCK`] consecutive samples (the
-//! batch-means estimate), not over single samples.
+//! How the standard error is taken depends on the errors ([`Dependence`]):
+//!
+//! - The simulation errors of a model with output lags are correlated in
+//!   time, so the standard error is taken over the means of blocks of
+//!   [`BLOCK`] consecutive samples (the batch-means estimate), not over
+//!   single samples. Fewer than two blocks leave no estimate, and then no
+//!   candidate is as good as the best but itself.
+//! - A model without output lags (`na = 0`, a static map) simulates each
+//!   sample from the inputs alone, so its errors are independent from
+//!   sample to sample, and single samples can be compared on a record of a
+//!   few dozen rows. There a plain standard error of squared errors is
+//!   ruled by the few samples near a region boundary, so the paired
+//!   differences are ranked instead (Wilcoxon's signed-rank test, Wilcoxon
+//!   1945, in its normal approximation with the tie correction, Lehmann,
+//!   *Nonparametrics*, 1975, section 3.2): a candidate is as good as the
+//!   best when the statistic is at most one standard deviation above its
+//!   mean under equal errors, the one-sided level of the one-standard-error
+//!   rule.
 
 /// Samples per block of the batch-means standard error.
 pub const BLOCK: usize = 50;
 
+/// How the selection-row errors of the candidates depend on each other
+/// in time, which decides how [`within_one_se`] compares them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dependence {
+    /// Free-run errors of models with output lags: compared over blocks.
+    Serial,
+    /// Errors of models without output lags: compared sample by sample.
+    Independent,
+}
+
+impl Dependence {
+    /// The dependence of the free-run errors of PWARX models with `na`
+    /// output lags.
+    pub fn of_output_lags(na: usize) -> Self {
+        if na == 0 {
+            Self::Independent
+        } else {
+            Self::Serial
+        }
+    }
+}
+
 /// Whether errors `e` are within one standard error of errors `best` (the
-/// same selection rows, sample for sample): the mean of
-/// `e(k)^2 - best(k)^2` is at most the batch-means standard error of that
-/// mean. False when the lengths differ or there are fewer than two blocks.
-pub fn within_one_se(e: &[f64], best: &[f64]) -> bool {
+/// same selection rows, sample for sample). For [`Dependence::Serial`]
+/// errors: the mean of `e(k)^2 - best(k)^2` is at most the batch-means
+/// standard error of that mean (false with fewer than two blocks). For
+/// [`Dependence::Independent`] ones: the signed-rank statistic of those
+/// differences is at most one standard deviation above its mean
+/// ([`signed_rank_z`]). False when the lengths differ.
+pub fn within_one_se(e: &[f64], best: &[f64], dependence: Dependence) -> bool {
     if e.len() != best.len() {
         return false;
     }
     let d: Vec<f64> = e.iter().zip(best).map(|(a, b)| a * a - b * b).collect();
+    if dependence == Dependence::Independent {
+        return signed_rank_z(&d) <= 1.0;
+    }
     let means: Vec<f64> = d
         .chunks_exact(BLOCK)
         .map(|c| c.iter().sum::<f64>() / BLOCK as f64)
@@ -38,6 +81,38 @@ pub fn within_one_se(e: &[f64], best: &[f64]) -> bool {
     mean <= (var / n as f64).sqrt()
 }
 
+/// Wilcoxon's signed-rank statistic of the paired differences `d`,
+/// standardised: `(W+ - n(n+1)/4) / sd`, where `W+` sums the ranks of
+/// `|d|` over the positive differences, `n` counts the non-zero ones, and
+/// the variance `n(n+1)(2n+1)/24` is lowered by `(t^3 - t)/48` for every
+/// group of `t` tied magnitudes (average ranks). Zero when every
+/// difference is zero.
+pub fn signed_rank_z(d: &[f64]) -> f64 {
+    let mut nonzero: Vec<f64> = d.iter().copied().filter(|x| *x != 0.0).collect();
+    nonzero.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
+    let n = nonzero.len();
+    let (mut positive, mut ties) = (0.0, 0.0);
+    let mut i = 0;
+    while i < n {
+        let mut j = i + 1;
+        while j < n && nonzero[j].abs() == nonzero[i].abs() {
+            j += 1;
+        }
+        // Ranks i+1 ..= j share their average.
+        let rank = (i + 1 + j) as f64 / 2.0;
+        positive += rank * nonzero[i..j].iter().filter(|x| **x > 0.0).count() as f64;
+        let t = (j - i) as f64;
+        ties += t * t * t - t;
+        i = j;
+    }
+    let n = n as f64;
+    let var = n * (n + 1.0) * (2.0 * n + 1.0) / 24.0 - ties / 48.0;
+    if var <= 0.0 {
+        return 0.0;
+    }
+    (positive - n * (n + 1.0) / 4.0) / var.sqrt()
+}
+
 /// The candidate to choose: among `ranked` (candidate indices, best
 /// selection score first) those whose errors are within one standard
 /// error of the first one's, the one of fewest modes (`modes[i]`), the
@@ -47,13 +122,14 @@ pub fn simplest_within_one_se(
     ranked: &[usize],
     errors: &[Vec<f64>],
     modes: &[Option<usize>],
+    dependence: Dependence,
 ) -> Option<usize> {
     let &best = ranked.first()?;
     let complexity = |i: usize| modes[i].unwrap_or(usize::MAX);
     ranked
         .iter()
         .copied()
-        .filter(|&i| i == best || within_one_se(&errors[i], &errors[best]))
+        .filter(|&i| i == best || within_one_se(&errors[i], &errors[best], dependence))
         .min_by_key(|&i| complexity(i))
 }
 
@@ -77,16 +153,66 @@ mod tests {
     #[test]
     fn equal_errors_are_within_and_clearly_larger_ones_are_not() {
         let e = noise(500, 1);
-        assert!(within_one_se(&e, &e));
+        let serial = Dependence::Serial;
+        assert!(within_one_se(&e, &e, serial));
         let doubled: Vec<f64> = e.iter().map(|v| 2.0 * v).collect();
-        assert!(!within_one_se(&doubled, &e));
+        assert!(!within_one_se(&doubled, &e, serial));
         // A slightly noisier candidate on the same rows is within.
         let other = noise(500, 2);
         let close: Vec<f64> = e.iter().zip(&other).map(|(a, b)| a + 0.01 * b).collect();
-        assert!(within_one_se(&close, &e));
+        assert!(within_one_se(&close, &e, serial));
         // Too few rows for two blocks: never within.
-        assert!(!within_one_se(&e[..60], &e[..60]));
-        assert!(!within_one_se(&e[..100], &e[..99]));
+        assert!(!within_one_se(&e[..60], &e[..60], serial));
+        assert!(!within_one_se(&e[..100], &e[..99], serial));
+    }
+
+    #[test]
+    fn the_signed_rank_statistic_matches_hand_computed_values() {
+        // Ranks 1, 2, 3, 4; W+ = 1 + 3 + 4 = 8, mean 5, variance 7.5.
+        let z = signed_rank_z(&[1.0, -2.0, 3.0, 4.0]);
+        assert!((z - 3.0 / 7.5f64.sqrt()).abs() < 1e-12, "{z}");
+        // A tie shares ranks 1 and 2 (1.5 each) and a zero is left out:
+        // W+ = 1.5 + 3 = 4.5, mean 3, variance 3.5 - (8 - 2)/48.
+        let z = signed_rank_z(&[1.0, 0.0, -1.0, 2.0]);
+        assert!(
+            (z - 1.5 / (3.5f64 - 6.0 / 48.0).sqrt()).abs() < 1e-12,
+            "{z}"
+        );
+        assert_eq!(signed_rank_z(&[0.0, 0.0]), 0.0);
+        assert_eq!(signed_rank_z(&[]), 0.0);
+    }
+
+    #[test]
+    fn independent_errors_are_compared_by_ranks_on_short_records() {
+        let independent = Dependence::Independent;
+        let best = noise(24, 1);
+        // Equal errors: within, however short the record.
+        assert!(within_one_se(&best, &best, independent));
+        // A split mode: equal errors but for two samples, one better, one
+        // worse. Within.
+        let mut split = best.clone();
+        split[3] *= 1.5;
+        split[17] *= 0.5;
+        assert!(within_one_se(&split, &best, independent));
+        // Larger on every sample: not within.
+        let larger: Vec<f64> = best.iter().map(|v| 1.2 * v).collect();
+        assert!(!within_one_se(&larger, &best, independent));
+        // Larger on every sample but one, where the best has a boundary
+        // error ten times the rest: the mean of squared differences is
+        // negative (the candidate looks better), the ranks still say worse.
+        let mut spiked = best.clone();
+        spiked[5] = 10.0;
+        let mut candidate: Vec<f64> = best.iter().map(|v| 1.2 * v).collect();
+        candidate[5] = best[5];
+        let mean: f64 = candidate
+            .iter()
+            .zip(&spiked)
+            .map(|(a, b)| a * a - b * b)
+            .sum::<f64>();
+        assert!(mean < 0.0);
+        assert!(!within_one_se(&candidate, &spiked, independent));
+        // The block rule cannot act on 24 samples.
+        assert!(!within_one_se(&split, &best, Dependence::Serial));
     }
 
     #[test]
@@ -98,8 +224,12 @@ mod tests {
         // Ranked: 0 (5 modes, best), 1 (3 modes, close), 2 (1 mode, far).
         let errors = vec![best, close, far];
         let modes = vec![Some(5), Some(3), Some(1)];
-        assert_eq!(simplest_within_one_se(&[0, 1, 2], &errors, &modes), Some(1));
-        assert_eq!(simplest_within_one_se(&[0, 2], &errors, &modes), Some(0));
-        assert_eq!(simplest_within_one_se(&[], &errors, &modes), None);
+        for dependence in [Dependence::Serial, Dependence::Independent] {
+            let choose =
+                |ranked: &[usize]| simplest_within_one_se(ranked, &errors, &modes, dependence);
+            assert_eq!(choose(&[0, 1, 2]), Some(1));
+            assert_eq!(choose(&[0, 2]), Some(0));
+            assert_eq!(choose(&[]), None);
+        }
     }
 }
