@@ -67,11 +67,16 @@ pub fn within_one_se(e: &[f64], best: &[f64], dependence: Dependence) -> bool {
     if e.len() != best.len() {
         return false;
     }
-    let d: Vec<f64> = e.iter().zip(best).map(|(a, b)| a * a - b * b).collect();
+    let d = squared_differences(e, best);
     match dependence {
         Dependence::Serial => mean_within_batch_se(&d, BLOCK),
         Dependence::Independent => mean_within_batch_se(&d, 1) && signed_rank_z(&d) <= 1.0,
     }
+}
+
+/// The paired differences of squared errors, `e(k)^2 - best(k)^2`.
+fn squared_differences(e: &[f64], best: &[f64]) -> Vec<f64> {
+    e.iter().zip(best).map(|(a, b)| a * a - b * b).collect()
 }
 
 /// Whether the mean of `d` is at most its batch-means standard error over
@@ -195,9 +200,6 @@ mod tests {
     fn independent_errors_are_compared_by_mean_and_ranks_on_short_records() {
         let independent = Dependence::Independent;
         let best = noise(24, 1);
-        let squared_differences = |e: &[f64], b: &[f64]| -> Vec<f64> {
-            e.iter().zip(b).map(|(x, y)| x * x - y * y).collect()
-        };
         // Equal errors: within, however short the record.
         assert!(within_one_se(&best, &best, independent));
         // A split mode: equal errors but for two samples, one better, one
