@@ -567,18 +567,18 @@ fn capitalised(word: &str) -> String {
 fn selection_note(m: &Model) -> Option<String> {
     let s = m.info().selection.as_ref()?;
     let c = s.candidates.get(s.chosen)?;
-    let values: Vec<String> = c.values.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    let values: Vec<String> = s
+        .chosen_values()
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect();
     let what = if values.is_empty() {
         format!("the {} model", c.method)
     } else {
         format!("{} {}", c.method, values.join(" "))
     };
-    let refined = match s.kept_refinement() {
-        Some(r) => format!(", refine={}", r.refine),
-        None => String::new(),
-    };
     Some(format!(
-        "auto chose {what}{refined} (selection FIT {:.2} %)",
+        "auto chose {what} (selection FIT {:.2} %)",
         c.fit_sim.unwrap_or(f64::NAN)
     ))
 }

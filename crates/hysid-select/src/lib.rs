@@ -9,14 +9,15 @@
 //! and scored by the FIT of its free-run simulation on the selection rows;
 //! the affine ARX model of the same orders and priors is always a
 //! candidate, so the choice is never worse than linear on the selection
-//! rows. Of the candidates within one standard error of the best, the one
-//! with the fewest modes is chosen ([`parsimony`]). When the back-end
-//! offers the simulation-error refinement (`refine`), it is tried
-//! on the chosen candidate (`sim`, and `sim_regions` for two or more modes
-//! without known stops), and the better is kept only if it raises the
-//! selection-row FIT. The choice is then fitted again on all the
-//! identification rows, and the model file records every candidate, its
-//! score and the choice ([`Selection`]).
+//! rows. When the back-end offers the simulation-error refinement
+//! (`refine`), the best candidate of every mode count is also fitted with
+//! it (`sim`, and `sim_regions` for two or more modes without known stops)
+//! and scored as a candidate of its own. Of the candidates within one
+//! standard error of the best, the one with the fewest modes is chosen
+//! ([`parsimony`]). The choice is then fitted again on all the
+//! identification rows (the next candidate when that refit simulates them
+//! below the affine reference), and the model file records every
+//! candidate, its score and the choice ([`Selection`]).
 //!
 //! Choosing by simulation rather than one-step prediction is the point:
 //! the founding experiment judges its models by their simulated responses
@@ -263,8 +264,9 @@ struct Part {
 pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, SelectError> {
     let rows = splits(request.data.len(), &request.plan)?;
     let parts = cut(request.data, &rows)?;
-    let trials = trials(request)?;
-    let (mut scored, errors) = score_all(request, &trials, &parts, ctx);
+    let mut trials = trials(request)?;
+    let (mut scored, mut errors) = score_all(request, &trials, &parts, ctx, "selecting");
+    add_refined(request, &mut trials, &mut scored, &mut errors, &parts, ctx);
     let best = ranking(&scored).first().copied();
     // The affine reference is the last trial.
     let floor = request
@@ -273,8 +275,8 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
         .and_then(|c| c.fit_sim);
     let dependence = parsimony::Dependence::of_output_lags(request.setup.orders.na);
     let order = preference(&scored, &errors, floor, dependence);
-    let (chosen, refinement, mut model) =
-        choose(request, &trials, &parts, &mut scored, &order, ctx)?;
+    let (chosen, mut model) = choose(request, &trials, &mut scored, &order, ctx)?;
+    let refinement = refinement_record(&scored, chosen);
     let in_file = |(a, b): (usize, usize)| {
         let first = request.plan.first_row;
         range_text((a + first, b + first))
@@ -436,8 +438,9 @@ fn score_all(
     trials: &[Trial<'_>],
     parts: &[Part],
     ctx: &RunContext<'_>,
+    stage: &str,
 ) -> (Vec<ScoredCandidate>, Vec<Vec<f64>>) {
-    ctx.progress.start(trials.len() as u64, "selecting");
+    ctx.progress.start(trials.len() as u64, stage);
     let scored = trials
         .par_iter()
         .map(|t| {
@@ -487,19 +490,20 @@ fn preference(
     order
 }
 
-/// The first candidate of `order` whose refit on all the identification rows succeeds
-/// (a candidate fitted on the fit rows may still fail on all of them,
-/// e.g. a cluster dropped below its discard size), with its refinement
-/// choice and its model. A candidate whose refit fails gets that error in
-/// the record.
+/// The first candidate of `order` whose refit on all the identification
+/// rows succeeds and simulates them no worse than the affine reference
+/// refitted on them, with its model. A candidate fitted on the fit rows
+/// may still fail on all of them (e.g. a cluster dropped below its discard
+/// size), and a refit, a new fit on more rows, may land in another local
+/// minimum than the candidate that was scored; such a candidate gets the
+/// reason in the record, and the next is refitted.
 fn choose(
     request: &Request<'_>,
     trials: &[Trial<'_>],
-    parts: &[Part],
     scored: &mut [ScoredCandidate],
     order: &[usize],
     ctx: &RunContext<'_>,
-) -> Result<(usize, Vec<RefinementChoice>, Model), SelectError> {
+) -> Result<(usize, Model), SelectError> {
     if order.is_empty() {
         return Err(SelectError::NoCandidate {
             first: scored
@@ -508,15 +512,34 @@ fn choose(
                 .unwrap_or_else(|| "no candidate".into()),
         });
     }
+    let affine = request.affine.map(|_| trials.len() - 1);
+    // The affine reference's FIT on the identification rows, fitted once,
+    // when the first refit needs it.
+    let mut floor: Option<Option<f64>> = None;
     let mut first_error = None;
     for &i in order {
-        let refinement = try_refinement(request, &trials[i], parts, &scored[i], ctx);
-        match refit(request, &trials[i], &refinement, ctx) {
-            Ok(model) => return Ok((i, refinement, model)),
+        let model = match fit(request, &trials[i], request.data, ctx) {
+            Ok(model) => model,
             Err(e) => {
                 scored[i].error = Some(format!("refit on all the identification rows: {e}"));
-                first_error.get_or_insert(e);
+                first_error.get_or_insert(SelectError::from(e));
+                continue;
             }
+        };
+        let Some(a) = affine.filter(|&a| a != i) else {
+            return Ok((i, model));
+        };
+        let floor = *floor.get_or_insert_with(|| {
+            fit(request, &trials[a], request.data, ctx)
+                .ok()
+                .and_then(|m| fit_on(&m, request.data, request.plan.warmup))
+        });
+        let own = fit_on(&model, request.data, request.plan.warmup);
+        match floor {
+            Some(floor) if own.is_none_or(|own| own < floor) => {
+                scored[i].error = Some(Below { own, floor }.to_string());
+            }
+            _ => return Ok((i, model)),
         }
     }
     Err(first_error.unwrap_or_else(|| SelectError::NoCandidate {
@@ -524,93 +547,136 @@ fn choose(
     }))
 }
 
+/// A model's free-run FIT on `data`, percent; `None` when its simulation
+/// fails or is not finite.
+fn fit_on(model: &Model, data: &Dataset, warmup: usize) -> Option<f64> {
+    validate(model, data, warmup)
+        .ok()
+        .map(|(r, _, _)| r.fit_sim)
+        .filter(|f| f.is_finite())
+}
+
+/// A refit that simulates the identification rows worse than the affine
+/// reference refitted on them.
+#[derive(Debug, Clone, Copy)]
+struct Below {
+    /// The refit's free-run FIT on the identification rows (`None`: its
+    /// simulation failed).
+    own: Option<f64>,
+    /// The affine reference's.
+    floor: f64,
+}
+
+impl std::fmt::Display for Below {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let own = self
+            .own
+            .map_or_else(|| "no finite FIT".to_string(), |v| format!("{v:.2} %"));
+        write!(
+            f,
+            "refit on all the identification rows: it simulates them at {own}, below the affine model's {:.2} %",
+            self.floor
+        )
+    }
+}
+
 /// The option that switches the simulation-error refinement on.
 pub const REFINE_KEY: &str = "refine";
-/// Its values tried on the chosen candidate, in order: the mode parameters
-/// on simulation error, then also the region boundaries (for two or more
-/// modes).
+/// Its values tried, in order: the mode parameters on simulation error,
+/// then also the region boundaries (for two or more modes).
 pub const REFINE_VALUES: [&str; 2] = ["sim", "sim_regions"];
 
-/// The chosen trial with `refine = value`, when its back-end offers the
-/// refinement and the user did not set it.
-fn refined(trial: &Trial<'_>, value: &str) -> Option<Setup> {
+/// `trial` with `refine = value`, when its back-end offers the refinement
+/// and the user did not set it.
+fn refined<'a>(trial: &Trial<'a>, value: &str) -> Option<Trial<'a>> {
     let offered = trial.backend.options().iter().any(|o| o.key == REFINE_KEY);
     if !offered || trial.setup.settings.get(REFINE_KEY).is_some() {
         return None;
     }
-    trial
-        .setup
-        .with(&Candidate {
-            values: vec![(REFINE_KEY.into(), value.into())],
-        })
-        .ok()
+    let refine = Candidate {
+        values: vec![(REFINE_KEY.into(), value.into())],
+    };
+    let mut values = trial.values.clone();
+    values.extend(refine.values.iter().cloned());
+    Some(Trial {
+        backend: trial.backend,
+        values,
+        setup: trial.setup.with(&refine).ok()?,
+    })
 }
 
-/// Scores the chosen trial with each refinement of [`REFINE_VALUES`] (the
-/// region stage only for two or more modes and no known stops, where it
-/// can run); the one of highest selection-row FIT is kept when it raises
-/// the unrefined one's.
-fn try_refinement(
-    request: &Request<'_>,
-    trial: &Trial<'_>,
+/// The refinements worth scoring: for every mode count, the back-end's
+/// candidate of best selection FIT with each value of [`REFINE_VALUES`]
+/// (the region stage only for two or more modes and no known stops, where
+/// it can run). Every choice the one-standard-error rule can make among
+/// the unrefined candidates is the best of its mode count, so each can be
+/// compared refined.
+fn refinement_trials<'a>(
+    request: &Request<'a>,
+    trials: &[Trial<'a>],
+    scored: &[ScoredCandidate],
+) -> Vec<Trial<'a>> {
+    let own = trials.len() - usize::from(request.affine.is_some());
+    let mut counts = std::collections::BTreeSet::new();
+    let mut out = Vec::new();
+    for i in ranking(scored).into_iter().filter(|&i| i < own) {
+        let Some(modes) = scored[i].modes.filter(|&m| counts.insert(m)) else {
+            continue;
+        };
+        let regions_can_move = modes > 1 && request.setup.priors.saturation.is_empty();
+        let values = &REFINE_VALUES[..if regions_can_move { 2 } else { 1 }];
+        out.extend(values.iter().filter_map(|v| refined(&trials[i], v)));
+    }
+    out
+}
+
+/// Scores the [`refinement_trials`] and adds them, as candidates of their
+/// own, after the back-end's candidates and before the affine reference,
+/// which stays last.
+fn add_refined<'a>(
+    request: &Request<'a>,
+    trials: &mut Vec<Trial<'a>>,
+    scored: &mut Vec<ScoredCandidate>,
+    errors: &mut Vec<Vec<f64>>,
     parts: &[Part],
-    unrefined: &ScoredCandidate,
     ctx: &RunContext<'_>,
-) -> Vec<RefinementChoice> {
-    let regions_can_move =
-        unrefined.modes.is_some_and(|m| m > 1) && request.setup.priors.saturation.is_empty();
-    let values = &REFINE_VALUES[..if regions_can_move { 2 } else { 1 }];
-    let mut tried: Vec<RefinementChoice> = values
-        .par_iter()
-        .filter_map(|&value| {
-            let with = Trial {
-                backend: trial.backend,
-                values: trial.values.clone(),
-                setup: refined(trial, value)?,
-            };
-            let fit_sim = score(request, &with, parts, ctx).0.fit_sim;
+) {
+    let extra = refinement_trials(request, trials, scored);
+    if extra.is_empty() {
+        return;
+    }
+    let (extra_scored, extra_errors) = score_all(request, &extra, parts, ctx, "refining");
+    let at = trials.len() - usize::from(request.affine.is_some());
+    trials.splice(at..at, extra);
+    scored.splice(at..at, extra_scored);
+    errors.splice(at..at, extra_errors);
+}
+
+/// The refined candidates made from the chosen one's unrefined options,
+/// with the one chosen marked `kept` (none when the unrefined candidate,
+/// or another, was chosen).
+fn refinement_record(scored: &[ScoredCandidate], chosen: usize) -> Vec<RefinementChoice> {
+    let unrefined = |c: &ScoredCandidate| -> Vec<(String, String)> {
+        c.values
+            .iter()
+            .filter(|(k, _)| k != REFINE_KEY)
+            .cloned()
+            .collect()
+    };
+    let origin = unrefined(&scored[chosen]);
+    scored
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.method == scored[chosen].method && unrefined(c) == origin)
+        .filter_map(|(i, c)| {
+            let (_, value) = c.values.iter().find(|(k, _)| k == REFINE_KEY)?;
             Some(RefinementChoice {
-                refine: value.into(),
-                fit_sim,
-                kept: false,
+                refine: value.clone(),
+                fit_sim: c.fit_sim,
+                kept: i == chosen,
             })
         })
-        .collect();
-    let mut best = unrefined.fit_sim;
-    let mut kept = None;
-    for (i, r) in tried.iter().enumerate() {
-        if let Some(f) = r.fit_sim
-            && best.is_none_or(|b| f > b)
-        {
-            best = Some(f);
-            kept = Some(i);
-        }
-    }
-    if let Some(i) = kept {
-        tried[i].kept = true;
-    }
-    tried
-}
-
-/// The chosen trial fitted on all the identification rows, with the
-/// refinement that was kept.
-fn refit(
-    request: &Request<'_>,
-    trial: &Trial<'_>,
-    refinement: &[RefinementChoice],
-    ctx: &RunContext<'_>,
-) -> Result<Model, SelectError> {
-    let setup = refinement
-        .iter()
-        .find(|r| r.kept)
-        .and_then(|r| refined(trial, &r.refine))
-        .unwrap_or_else(|| trial.setup.clone());
-    let final_trial = Trial {
-        backend: trial.backend,
-        values: trial.values.clone(),
-        setup,
-    };
-    Ok(fit(request, &final_trial, request.data, ctx)?)
+        .collect()
 }
 
 /// A model's free-run FIT on a record beside the affine ARX model's.
@@ -664,15 +730,9 @@ pub fn against_affine(
     let reference = affine
         .run(&problem, &Default::default(), &RunContext::quiet(0))
         .ok()?;
-    let score = |m: &Model| {
-        validate(m, data, warmup)
-            .ok()
-            .map(|(r, _, _)| r.fit_sim)
-            .filter(|f| f.is_finite())
-    };
     Some(AgainstAffine {
-        model: score(model)?,
-        affine: score(&reference)?,
+        model: fit_on(model, data, warmup)?,
+        affine: fit_on(&reference, data, warmup)?,
     })
 }
 
@@ -820,7 +880,12 @@ mod tests {
         };
         let model = select(&request, &RunContext::quiet(0)).unwrap();
         let s = model.info().selection.clone().unwrap();
-        assert_eq!(s.candidates.len(), 9);
+        // Nine orders, then the best one refined (one mode: `sim` only).
+        assert_eq!(s.candidates.len(), 10);
+        assert_eq!(
+            s.candidates[9].values.last().unwrap(),
+            &("refine".into(), "sim".into())
+        );
         // 60 selection rows: the block at the start is scored too.
         let rows: Vec<(&str, &str)> = s
             .splits
@@ -834,9 +899,15 @@ mod tests {
         assert!(best > 99.999, "{best}");
         assert!(s.candidates.iter().all(|c| c.fit_sim.unwrap() <= best));
         // One mode: the parameter refinement is tried, the region stage is
-        // not.
+        // not; the record names it for the chosen order.
         let tried: Vec<&str> = s.refinement.iter().map(|r| r.refine.as_str()).collect();
         assert_eq!(tried, ["sim"]);
+        let origin: Vec<_> = s.candidates[9].values[..2].to_vec();
+        assert!(
+            s.candidates[s.chosen].values.starts_with(&origin),
+            "{:?}",
+            s.candidates[s.chosen]
+        );
         // The refit on all rows simulates the whole record.
         let (v, _, _) = validate(&model, &data, 10).unwrap();
         assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
@@ -870,5 +941,193 @@ mod tests {
         .unwrap();
         assert!(c.below(), "{c:?}");
         assert!(c.affine > 99.999, "{c:?}");
+    }
+
+    fn candidate(values: &[(&str, &str)], fit_sim: f64, modes: usize) -> ScoredCandidate {
+        ScoredCandidate {
+            method: "cluster".into(),
+            values: values
+                .iter()
+                .map(|&(k, v)| (k.to_string(), v.to_string()))
+                .collect(),
+            fit_sim: Some(fit_sim),
+            modes: Some(modes),
+            error: None,
+        }
+    }
+
+    #[test]
+    fn the_best_of_every_mode_count_is_refined_but_not_the_affine_reference() {
+        let data = affine_record(300);
+        let request = Request {
+            backend: &hysid_cluster::Cluster,
+            affine: Some(&hysid_arx::Arx),
+            data: &data,
+            setup: Setup {
+                orders: hysid_model::regressors::RegressorSpec::new(1, 1, 1),
+                priors: Default::default(),
+                settings: Default::default(),
+            },
+            priors_origin: None,
+            space: SearchSpace::default(),
+            plan: Plan::default(),
+        };
+        let c = ["10", "20", "40", "80"];
+        let mut trials: Vec<Trial<'_>> = c
+            .iter()
+            .map(|&c| {
+                let cand = Candidate {
+                    values: vec![("c".into(), c.into())],
+                };
+                Trial {
+                    backend: request.backend,
+                    setup: request.setup.with(&cand).unwrap(),
+                    values: cand.values,
+                }
+            })
+            .collect();
+        trials.push(Trial {
+            backend: &hysid_arx::Arx,
+            values: vec![],
+            setup: request.setup.clone(),
+        });
+        let scored = [
+            candidate(&[("c", "10")], 80.0, 3),
+            candidate(&[("c", "20")], 85.0, 3),
+            candidate(&[("c", "40")], 70.0, 1),
+            candidate(&[("c", "80")], 60.0, 2),
+            candidate(&[], 90.0, 1),
+        ];
+        let refined: Vec<Vec<(String, String)>> = refinement_trials(&request, &trials, &scored)
+            .into_iter()
+            .map(|t| t.values)
+            .collect();
+        let v = |c: &str, r: &str| {
+            vec![
+                ("c".to_string(), c.to_string()),
+                ("refine".into(), r.into()),
+            ]
+        };
+        // By score: c = 20 (3 modes), c = 40 (1 mode), c = 80 (2 modes);
+        // c = 10 has the mode count of a better one, the affine reference
+        // is left as it is, and one mode has no regions to move.
+        assert_eq!(
+            refined,
+            [
+                v("20", "sim"),
+                v("20", "sim_regions"),
+                v("40", "sim"),
+                v("80", "sim"),
+                v("80", "sim_regions"),
+            ]
+        );
+    }
+
+    #[test]
+    fn the_refinement_record_lists_the_refined_forms_of_the_choice() {
+        let scored = [
+            candidate(&[("c", "20")], 80.0, 3),
+            candidate(&[("c", "40")], 81.0, 3),
+            candidate(&[("c", "20"), ("refine", "sim")], 82.0, 3),
+            candidate(&[("c", "20"), ("refine", "sim_regions")], 84.0, 3),
+            candidate(&[("c", "40"), ("refine", "sim")], 79.0, 3),
+        ];
+        let record = |chosen| {
+            refinement_record(&scored, chosen)
+                .into_iter()
+                .map(|r| (r.refine, r.kept))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            record(3),
+            [
+                ("sim".to_string(), false),
+                ("sim_regions".to_string(), true)
+            ]
+        );
+        assert_eq!(
+            record(0),
+            [
+                ("sim".to_string(), false),
+                ("sim_regions".to_string(), false)
+            ]
+        );
+        assert_eq!(record(1), [("sim".to_string(), false)]);
+    }
+
+    /// A back-end that fits the affine record exactly on fewer than 300
+    /// rows and returns a model of the wrong gain on 300: a refit that
+    /// lands elsewhere than the fits that were scored.
+    struct WorseOnMoreRows;
+
+    impl Backend for WorseOnMoreRows {
+        fn name(&self) -> &'static str {
+            "worse_on_more_rows"
+        }
+        fn summary(&self) -> &'static str {
+            "test back-end"
+        }
+        fn options(&self) -> Vec<hysid_core::options::OptionSpec> {
+            Vec::new()
+        }
+        fn honours(&self) -> &'static [hysid_core::priors::PriorKind] {
+            &[]
+        }
+        fn search_doc(&self) -> &'static str {
+            "its defaults"
+        }
+        fn output_units(&self) -> &'static [&'static str] {
+            &[]
+        }
+        fn search_space(&self, _: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
+            Ok(SearchSpace::default())
+        }
+        fn run(
+            &self,
+            problem: &Problem<'_>,
+            _: &Settings,
+            _: &RunContext<'_>,
+        ) -> Result<Model, IdentifyError> {
+            let gain = if problem.data.len() < 300 { 0.7 } else { 0.2 };
+            Ok(Model::Pwarx(hysid_model::model::PwarxModel {
+                na: 1,
+                nb: 1,
+                inputs: 1,
+                modes: hysid_model::model::PwarxMode::unnamed(
+                    vec![vec![gain, 0.5, 0.1]],
+                    vec![hysid_model::geometry::Polyhedron::everything()],
+                ),
+                info: Default::default(),
+            }))
+        }
+    }
+
+    #[test]
+    fn a_refit_below_the_affine_model_is_not_written() {
+        let data = affine_record(300);
+        let request = Request {
+            backend: &WorseOnMoreRows,
+            affine: Some(&hysid_arx::Arx),
+            data: &data,
+            setup: Setup {
+                orders: hysid_model::regressors::RegressorSpec::new(1, 1, 1),
+                priors: Default::default(),
+                settings: Default::default(),
+            },
+            priors_origin: None,
+            space: SearchSpace::default(),
+            plan: Plan::default(),
+        };
+        let model = select(&request, &RunContext::quiet(0)).unwrap();
+        let s = model.info().selection.clone().unwrap();
+        // Both candidates are exact on the selection rows; the back-end's
+        // comes first, and its refit is refused.
+        assert_eq!(s.candidates.len(), 2);
+        assert!(s.candidates[0].fit_sim.unwrap() > 99.999);
+        let why = s.candidates[0].error.as_deref().unwrap();
+        assert!(why.contains("below the affine model's"), "{why}");
+        assert_eq!(s.candidates[s.chosen].method, "arx");
+        let (v, _, _) = validate(&model, &data, 10).unwrap();
+        assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
     }
 }

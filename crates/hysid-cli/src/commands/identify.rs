@@ -195,15 +195,15 @@ pub fn run(args: Args) -> Result<()> {
 /// One line on what `--auto` chose, and whether the affine model won.
 fn report_selection(method: &str, s: &Selection) {
     let chosen = &s.candidates[s.chosen];
-    let values: Vec<String> = chosen
-        .values
+    let values: Vec<String> = s
+        .chosen_values()
         .iter()
         .map(|(k, v)| format!("{k}={v}"))
         .collect();
-    let refinement = match s.kept_refinement() {
-        Some(r) => format!(", refined: refine={}", r.refine),
-        None if s.refinement.is_empty() => String::new(),
-        None => ", refinement tried and dropped (no gain on the selection rows)".into(),
+    let refinement = if s.refinement.is_empty() || s.kept_refinement().is_some() {
+        ""
+    } else {
+        ", its refinements scored lower"
     };
     let rows: Vec<String> = s
         .splits
@@ -229,8 +229,12 @@ fn report_selection(method: &str, s: &Selection) {
     );
     if s.chosen != s.best {
         let best = &s.candidates[s.best];
+        let why = match &best.error {
+            Some(e) => format!("it was not written: {e}"),
+            None => "the choice has fewer modes and is within one standard error of it".into(),
+        };
         eprintln!(
-            "hysid: --auto: the best selection FIT was {:.2} % with {} mode(s); the choice has fewer modes and is within one standard error of it",
+            "hysid: --auto: the best selection FIT was {:.2} % with {} mode(s); {why}",
             best.fit_sim.unwrap_or(f64::NAN),
             best.modes.unwrap_or(0)
         );

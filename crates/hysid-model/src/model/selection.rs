@@ -22,13 +22,15 @@ pub struct Selection {
     pub candidates: Vec<ScoredCandidate>,
     /// Index of the chosen candidate in `candidates`: the one with the
     /// fewest modes among those within one standard error of the best
-    /// (the one-standard-error rule), or the next when its refit failed.
+    /// (the one-standard-error rule), or the next when its refit on all the
+    /// identification rows failed or simulated them below the affine model.
     pub chosen: usize,
     /// Index of the candidate of highest selection FIT.
     pub best: usize,
-    /// The simulation-error refinements tried on the chosen candidate, in
-    /// order, and which one was kept (at most one). A file may hold one
-    /// object in place of the list.
+    /// The refined forms of the chosen candidate's options (candidates
+    /// whose values add `refine`), and which one is the choice. Older
+    /// files list the refinements tried on the choice alone, at most one
+    /// kept; a file may hold one object in place of the list.
     #[serde(
         default,
         deserialize_with = "one_or_many",
@@ -41,6 +43,22 @@ impl Selection {
     /// The refinement that was kept, if any.
     pub fn kept_refinement(&self) -> Option<&RefinementChoice> {
         self.refinement.iter().find(|r| r.kept)
+    }
+
+    /// The `key = value` pairs of the chosen candidate, with the kept
+    /// refinement as `refine = ...` where the candidate does not name it
+    /// (files in which refinements were tried on the choice only).
+    pub fn chosen_values(&self) -> Vec<(String, String)> {
+        let Some(chosen) = self.candidates.get(self.chosen) else {
+            return Vec::new();
+        };
+        let mut values = chosen.values.clone();
+        if let Some(r) = self.kept_refinement()
+            && !values.iter().any(|(k, _)| k == "refine")
+        {
+            values.push(("refine".into(), r.refine.clone()));
+        }
+        values
     }
 }
 
@@ -80,13 +98,14 @@ pub struct ScoredCandidate {
     /// Modes of the model fitted on the fit rows.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub modes: Option<usize>,
-    /// Why the candidate has no score.
+    /// Why the candidate has no score, or why its refit on all the
+    /// identification rows was not written.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
 }
 
-/// The simulation-error refinement of the chosen candidate, scored on the
-/// selection rows like the candidates.
+/// A simulation-error refinement of the chosen candidate's options, scored
+/// on the selection rows like the candidates.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RefinementChoice {
     /// The value of the back-end's `refine` option tried (`sim` when a
@@ -95,11 +114,61 @@ pub struct RefinementChoice {
     pub refine: String,
     /// Selection-row FIT with the refinement, percent (`None`: it failed).
     pub fit_sim: Option<f64>,
-    /// Whether the refinement was kept: of those tried, it had the highest
-    /// selection-row FIT, above the unrefined candidate's.
+    /// Whether this refined form is the choice.
     pub kept: bool,
 }
 
 fn sim() -> String {
     "sim".into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn selection(values: &[(&str, &str)], refinement: &[(&str, bool)]) -> Selection {
+        Selection {
+            splits: Vec::new(),
+            warmup: 10,
+            candidates: vec![ScoredCandidate {
+                method: "cluster".into(),
+                values: values.iter().map(|&(k, v)| (k.into(), v.into())).collect(),
+                fit_sim: Some(80.0),
+                modes: Some(3),
+                error: None,
+            }],
+            chosen: 0,
+            best: 0,
+            refinement: refinement
+                .iter()
+                .map(|&(r, kept)| RefinementChoice {
+                    refine: r.into(),
+                    fit_sim: Some(81.0),
+                    kept,
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn the_chosen_values_name_the_kept_refinement_once() {
+        let pairs = |s: &Selection| -> Vec<String> {
+            s.chosen_values()
+                .into_iter()
+                .map(|(k, v)| format!("{k}={v}"))
+                .collect()
+        };
+        // A file whose refinement was tried on the choice alone.
+        let old = selection(&[("c", "20")], &[("sim", false), ("sim_regions", true)]);
+        assert_eq!(pairs(&old), ["c=20", "refine=sim_regions"]);
+        // A refined candidate names its refinement itself.
+        let new = selection(
+            &[("c", "20"), ("refine", "sim_regions")],
+            &[("sim", false), ("sim_regions", true)],
+        );
+        assert_eq!(pairs(&new), ["c=20", "refine=sim_regions"]);
+        // Nothing kept: the candidate's own values.
+        let none = selection(&[("c", "20")], &[("sim", false)]);
+        assert_eq!(pairs(&none), ["c=20"]);
+    }
 }
