@@ -943,6 +943,24 @@ mod tests {
         assert!(c.affine > 99.999, "{c:?}");
     }
 
+    /// A request to choose `backend`'s options for first-order models of
+    /// `data`, the affine `arx` model a candidate, over its defaults.
+    fn first_order_request<'a>(backend: &'a dyn Backend, data: &'a Dataset) -> Request<'a> {
+        Request {
+            backend,
+            affine: Some(&hysid_arx::Arx),
+            data,
+            setup: Setup {
+                orders: hysid_model::regressors::RegressorSpec::new(1, 1, 1),
+                priors: Default::default(),
+                settings: Default::default(),
+            },
+            priors_origin: None,
+            space: SearchSpace::default(),
+            plan: Plan::default(),
+        }
+    }
+
     fn candidate(values: &[(&str, &str)], fit_sim: f64, modes: usize) -> ScoredCandidate {
         ScoredCandidate {
             method: "cluster".into(),
@@ -959,19 +977,7 @@ mod tests {
     #[test]
     fn the_best_of_every_mode_count_is_refined_but_not_the_affine_reference() {
         let data = affine_record(300);
-        let request = Request {
-            backend: &hysid_cluster::Cluster,
-            affine: Some(&hysid_arx::Arx),
-            data: &data,
-            setup: Setup {
-                orders: hysid_model::regressors::RegressorSpec::new(1, 1, 1),
-                priors: Default::default(),
-                settings: Default::default(),
-            },
-            priors_origin: None,
-            space: SearchSpace::default(),
-            plan: Plan::default(),
-        };
+        let request = first_order_request(&hysid_cluster::Cluster, &data);
         let c = ["10", "20", "40", "80"];
         let mut trials: Vec<Trial<'_>> = c
             .iter()
@@ -1105,19 +1111,7 @@ mod tests {
     #[test]
     fn a_refit_below_the_affine_model_is_not_written() {
         let data = affine_record(300);
-        let request = Request {
-            backend: &WorseOnMoreRows,
-            affine: Some(&hysid_arx::Arx),
-            data: &data,
-            setup: Setup {
-                orders: hysid_model::regressors::RegressorSpec::new(1, 1, 1),
-                priors: Default::default(),
-                settings: Default::default(),
-            },
-            priors_origin: None,
-            space: SearchSpace::default(),
-            plan: Plan::default(),
-        };
+        let request = first_order_request(&WorseOnMoreRows, &data);
         let model = select(&request, &RunContext::quiet(0)).unwrap();
         let s = model.info().selection.clone().unwrap();
         // Both candidates are exact on the selection rows; the back-end's
