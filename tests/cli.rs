@@ -679,9 +679,19 @@ fn auto_chooses_inside_the_identification_rows_only() {
     assert_eq!(sel["splits"][1]["fit_rows"], "0..240");
     assert_eq!(sel["splits"][1]["select_rows"], "240..300");
     let cands = sel["candidates"].as_array().unwrap();
-    // Four grid points, then the affine reference.
-    assert_eq!(cands.len(), 5, "{sel}");
-    assert_eq!(cands[4]["method"], "arx");
+    // Four grid points; the best of each mode count refined (two modes:
+    // `sim` and `sim_regions`; one mode: `sim`); then the affine reference.
+    assert_eq!(cands.len(), 8, "{sel}");
+    let refine: Vec<&str> = cands[4..7]
+        .iter()
+        .map(|c| {
+            c["values"].as_array().unwrap().last().unwrap()[1]
+                .as_str()
+                .unwrap()
+        })
+        .collect();
+    assert_eq!(refine, ["sim", "sim_regions", "sim"], "{sel}");
+    assert_eq!(cands[7]["method"], "arx");
     let score = |c: &serde_json::Value| c["fit_sim"].as_f64().unwrap_or(f64::NEG_INFINITY);
     let (chosen, best) = (
         sel["chosen"].as_u64().unwrap() as usize,
