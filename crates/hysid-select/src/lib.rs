@@ -268,11 +268,7 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
     let (mut scored, mut errors) = score_all(request, &trials, &parts, ctx, "selecting");
     add_refined(request, &mut trials, &mut scored, &mut errors, &parts, ctx);
     let best = ranking(&scored).first().copied();
-    // The affine reference is the last trial.
-    let floor = request
-        .affine
-        .and_then(|_| scored.last())
-        .and_then(|c| c.fit_sim);
+    let floor = affine_index(request, scored.len()).and_then(|a| scored[a].fit_sim);
     let dependence = parsimony::Dependence::of_output_lags(request.setup.orders.na);
     let order = preference(&scored, &errors, floor, dependence);
     let (chosen, mut model) = choose(request, &trials, &mut scored, &order, ctx)?;
@@ -346,6 +342,12 @@ fn trials<'a>(request: &Request<'a>) -> Result<Vec<Trial<'a>>, SelectError> {
         });
     }
     Ok(out)
+}
+
+/// Index of the affine reference among `n` trials (or their scores): it
+/// is always the last one, when there is one.
+fn affine_index(request: &Request<'_>, n: usize) -> Option<usize> {
+    request.affine.map(|_| n - 1)
 }
 
 /// Runs one trial on `data`.
@@ -512,7 +514,7 @@ fn choose(
                 .unwrap_or_else(|| "no candidate".into()),
         });
     }
-    let affine = request.affine.map(|_| trials.len() - 1);
+    let affine = affine_index(request, trials.len());
     // The affine reference's FIT on the identification rows, fitted once,
     // when the first refit needs it.
     let mut floor: Option<Option<f64>> = None;
@@ -616,7 +618,7 @@ fn refinement_trials<'a>(
     trials: &[Trial<'a>],
     scored: &[ScoredCandidate],
 ) -> Vec<Trial<'a>> {
-    let own = trials.len() - usize::from(request.affine.is_some());
+    let own = affine_index(request, trials.len()).unwrap_or(trials.len());
     let mut counts = std::collections::BTreeSet::new();
     let mut out = Vec::new();
     for i in ranking(scored).into_iter().filter(|&i| i < own) {
@@ -646,7 +648,7 @@ fn add_refined<'a>(
         return;
     }
     let (extra_scored, extra_errors) = score_all(request, &extra, parts, ctx, "refining");
-    let at = trials.len() - usize::from(request.affine.is_some());
+    let at = affine_index(request, trials.len()).unwrap_or(trials.len());
     trials.splice(at..at, extra);
     scored.splice(at..at, extra_scored);
     errors.splice(at..at, extra_errors);
