@@ -539,7 +539,10 @@ fn choose(
         let own = fit_on(&model, request.data, request.plan.warmup);
         match floor {
             Some(floor) if own.is_none_or(|own| own < floor) => {
-                scored[i].error = Some(Below { own, floor }.to_string());
+                let own = own.map_or_else(|| "no finite FIT".into(), |v| format!("{v:.2} %"));
+                scored[i].error = Some(format!(
+                    "refit on all the identification rows: it simulates them at {own}, below the affine model's {floor:.2} %"
+                ));
             }
             _ => return Ok((i, model)),
         }
@@ -556,30 +559,6 @@ fn fit_on(model: &Model, data: &Dataset, warmup: usize) -> Option<f64> {
         .ok()
         .map(|(r, _, _)| r.fit_sim)
         .filter(|f| f.is_finite())
-}
-
-/// A refit that simulates the identification rows worse than the affine
-/// reference refitted on them.
-#[derive(Debug, Clone, Copy)]
-struct Below {
-    /// The refit's free-run FIT on the identification rows (`None`: its
-    /// simulation failed).
-    own: Option<f64>,
-    /// The affine reference's.
-    floor: f64,
-}
-
-impl std::fmt::Display for Below {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let own = self
-            .own
-            .map_or_else(|| "no finite FIT".to_string(), |v| format!("{v:.2} %"));
-        write!(
-            f,
-            "refit on all the identification rows: it simulates them at {own}, below the affine model's {:.2} %",
-            self.floor
-        )
-    }
 }
 
 /// The option that switches the simulation-error refinement on.
