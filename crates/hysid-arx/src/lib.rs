@@ -79,6 +79,20 @@ impl Identifier for Arx {
             fit(options, data)
         })
     }
+
+    fn refine_fitted(
+        &self,
+        problem: &Problem<'_>,
+        fitted: Model,
+        options: &Checked<ArxOptions>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        Some(pwarx::refine_fitted(
+            problem,
+            Self::NAME,
+            fitted,
+            &options.refinement(),
+        ))
+    }
 }
 
 /// What the `arx` back-end reports besides the common diagnostics.

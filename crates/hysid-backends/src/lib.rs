@@ -50,6 +50,110 @@ pub fn against_affine(
 
 #[cfg(test)]
 mod tests {
+    use hysid_core::backend::{Problem, RunContext};
+    use hysid_core::options::Settings;
+    use hysid_core::priors::Priors;
+
+    /// What `refine_fitted` of every back-end with a refinement gives from
+    /// its unrefined fit equals what `run` with the refinement on gives
+    /// (the affine `arx` without the mode count, `bounded` with `delta =
+    /// auto`); the back-ends compared, leaving out those that cannot fit
+    /// `problem` at all.
+    fn refining_the_fit_equals_fitting_refined(
+        problem: &Problem<'_>,
+        values: &[&str],
+    ) -> Vec<&'static str> {
+        let ctx = RunContext::quiet(3);
+        // `bounded` has no default error bound.
+        let settings = |v: &str| {
+            Settings::from_pairs(vec![
+                ("refine".into(), v.into()),
+                ("delta".into(), "auto".into()),
+            ])
+        };
+        let affine = Priors {
+            modes: None,
+            ..problem.priors.clone()
+        };
+        let mut compared = Vec::new();
+        for b in super::registry().iter() {
+            if !b.options().iter().any(|o| o.key == "refine") {
+                continue;
+            }
+            let problem = match b.name() {
+                "arx" => Problem {
+                    priors: &affine,
+                    ..*problem
+                },
+                _ => *problem,
+            };
+            let settings = |v: &str| match b.name() {
+                "bounded" => settings(v),
+                _ => Settings::from_pairs(settings(v).pairs()[..1].to_vec()),
+            };
+            let Ok(fitted) = b.run(&problem, &settings("none"), &ctx) else {
+                continue;
+            };
+            for &v in values {
+                let direct = b.run(&problem, &settings(v), &ctx).unwrap();
+                let refined = b
+                    .refine_fitted(&problem, fitted.clone(), &settings(v), &ctx)
+                    .expect("a back-end with the refine option refines its fits")
+                    .unwrap();
+                assert!(direct.info().diagnostics.refinement.is_some());
+                assert_eq!(
+                    serde_json::to_value(&refined).unwrap(),
+                    serde_json::to_value(&direct).unwrap(),
+                    "{} with refine={v}",
+                    b.name()
+                );
+            }
+            compared.push(b.name());
+        }
+        compared
+    }
+
+    #[test]
+    fn a_refined_fit_is_the_fit_with_the_refinement_on() {
+        let h3 = hysid_testkit::h3(150, 4);
+        let priors = Priors {
+            modes: Some(3),
+            ..Default::default()
+        };
+        let compared =
+            refining_the_fit_equals_fitting_refined(&h3.problem(&priors), &["sim", "sim_regions"]);
+        assert_eq!(compared, ["arx", "cluster", "bounded", "klinreg", "bayes"]);
+        // `parc` keeps fewer clusters than asked on this record, `milp`
+        // takes at most 40 samples.
+        let short = hysid_testkit::h3(41, 4);
+        let priors = Priors {
+            modes: Some(2),
+            ..Default::default()
+        };
+        let compared = refining_the_fit_equals_fitting_refined(&short.problem(&priors), &["sim"]);
+        assert!(
+            compared.contains(&"milp") && compared.contains(&"parc"),
+            "{compared:?}"
+        );
+    }
+
+    #[test]
+    fn a_refined_fit_with_stops_is_the_fit_with_the_refinement_on() {
+        let head = hysid_testkit::stopped_head(300, 25, 0.02, 5);
+        let priors = head.priors();
+        let problem = Problem {
+            data: &head.data,
+            orders: head.ordinary.spec(),
+            priors: &priors,
+            priors_origin: None,
+        };
+        let compared = refining_the_fit_equals_fitting_refined(&problem, &["sim"]);
+        assert_eq!(
+            compared,
+            ["arx", "cluster", "bounded", "klinreg", "parc", "bayes"]
+        );
+    }
+
     #[test]
     fn names_are_unique_and_documented() {
         let r = super::registry();

@@ -172,6 +172,20 @@ impl Identifier for Bayes {
             fit(options, data, ctx)
         })
     }
+
+    fn refine_fitted(
+        &self,
+        problem: &Problem<'_>,
+        fitted: Model,
+        options: &Checked<BayesOptions>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        Some(pwarx::refine_fitted(
+            problem,
+            Self::NAME,
+            fitted,
+            &options.refinement(),
+        ))
+    }
 }
 
 /// What the `bayes` back-end reports besides the common diagnostics.

@@ -244,6 +244,20 @@ impl Identifier for Bounded {
             fit(options, data, ctx)
         })
     }
+
+    fn refine_fitted(
+        &self,
+        problem: &Problem<'_>,
+        fitted: Model,
+        options: &Checked<BoundedOptions>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        Some(pwarx::refine_fitted(
+            problem,
+            Self::NAME,
+            fitted,
+            &options.refinement(),
+        ))
+    }
 }
 
 /// Bad input of the `bounded` back-end (an [`IdentifyError::Input`]).

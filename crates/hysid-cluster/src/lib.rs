@@ -290,6 +290,20 @@ impl Identifier for Cluster {
             }),
         }
     }
+
+    fn refine_fitted(
+        &self,
+        problem: &Problem<'_>,
+        fitted: Model,
+        options: &Checked<ClusterOptions>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        Some(pwarx::refine_fitted(
+            problem,
+            Self::NAME,
+            fitted,
+            &options.refinement(),
+        ))
+    }
 }
 
 /// Identifies a model with `s` modes (the whole procedure, [`fit()`]), in

@@ -372,6 +372,20 @@ pub trait Identifier: Send + Sync {
         options: &Checked<Self::Options>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError>;
+
+    /// `fitted`, a model this back-end identified on `problem` with
+    /// `options` except their simulation-error refinement (`refine =
+    /// none`), refined as `options` ask without fitting it again; `None`
+    /// when the back-end has no refinement stage after its fit (automatic
+    /// selection then fits the candidate again with the refinement on).
+    fn refine_fitted(
+        &self,
+        _problem: &Problem<'_>,
+        _fitted: Model,
+        _options: &Checked<Self::Options>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        None
+    }
 }
 
 /// The object-safe face of a back-end, used by the registry.
@@ -398,6 +412,19 @@ pub trait Backend: Send + Sync {
         settings: &Settings,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError>;
+    /// `fitted`, a model [`Backend::run`] returned on `problem` with
+    /// `settings` but `refine = none`, refined as `settings` ask without
+    /// fitting again ([`Identifier::refine_fitted`]), provenance recorded
+    /// as by `run`; `None` when the back-end cannot.
+    fn refine_fitted(
+        &self,
+        _problem: &Problem<'_>,
+        _fitted: Model,
+        _settings: &Settings,
+        _ctx: &RunContext<'_>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        None
+    }
 }
 
 impl<T: Identifier> Backend for T {
@@ -428,22 +455,60 @@ impl<T: Identifier> Backend for T {
         settings: &Settings,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let options = Checked::new(settings.resolve::<T::Options>(T::NAME)?)?;
-        problem
-            .priors
-            .ensure_honoured(T::NAME, T::HONOURS, problem.priors_origin)?;
-        let mut model = self
+        let options = checked_options::<T>(problem, settings)?;
+        let model = self
             .identify(problem, &options, ctx)
             .map_err(|e| e.of_method(T::NAME))?;
-        let info = model.info_mut();
-        info.method = T::NAME.to_string();
-        info.options = options.to_map();
-        info.seed = Some(ctx.seed);
-        info.input_names = problem.data.input_names();
-        info.output_name = problem.data.output.name.clone();
-        info.ts = problem.data.ts;
-        Ok(model)
+        Ok(with_provenance::<T>(model, problem, &options, ctx))
     }
+    fn refine_fitted(
+        &self,
+        problem: &Problem<'_>,
+        fitted: Model,
+        settings: &Settings,
+        ctx: &RunContext<'_>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        let options = match checked_options::<T>(problem, settings) {
+            Ok(options) => options,
+            Err(e) => return Some(Err(e)),
+        };
+        let refined = Identifier::refine_fitted(self, problem, fitted, &options)?;
+        Some(
+            refined
+                .map(|model| with_provenance::<T>(model, problem, &options, ctx))
+                .map_err(|e| e.of_method(T::NAME)),
+        )
+    }
+}
+
+/// `settings` resolved into `T`'s checked options, with the priors checked
+/// against those `T` honours.
+fn checked_options<T: Identifier>(
+    problem: &Problem<'_>,
+    settings: &Settings,
+) -> Result<Checked<T::Options>, IdentifyError> {
+    let options = Checked::new(settings.resolve::<T::Options>(T::NAME)?)?;
+    problem
+        .priors
+        .ensure_honoured(T::NAME, T::HONOURS, problem.priors_origin)?;
+    Ok(options)
+}
+
+/// `model` with its provenance: the method, options, seed and names.
+fn with_provenance<T: Identifier>(
+    mut model: Model,
+    problem: &Problem<'_>,
+    options: &Checked<T::Options>,
+    ctx: &RunContext<'_>,
+) -> Model {
+    let info = model.info_mut();
+    info.method = T::NAME.to_string();
+    info.options = options.to_map();
+    info.seed = Some(ctx.seed);
+    info.input_names = problem.data.input_names();
+    info.output_name = problem.data.output.name.clone();
+    info.ts = problem.data.ts;
+    model
 }
 
 /// What `hysid methods --json` prints of one back-end: its name, options

@@ -360,6 +360,59 @@ pub fn identify<D: Serialize>(
     Ok(assemble(&data, fit))
 }
 
+/// `fitted`, a model [`identify`] returned on `problem` without a
+/// refinement, refined as `refinement` asks without fitting it again:
+/// the same model as [`identify`] with that refinement gives, since the
+/// refinement starts from the fit alone. Automatic selection refines its
+/// candidates' own fits this way. A model of another kind than
+/// [`assemble`] writes is refused.
+pub fn refine_fitted(
+    problem: &Problem<'_>,
+    method: &str,
+    fitted: Model,
+    refinement: &crate::refine::RefineSettings,
+) -> Result<Model, IdentifyError> {
+    let data = prepare(problem, method)?;
+    let mut pwarx = match fitted {
+        Model::Pwarx(p) => p,
+        Model::HybridAutomaton(a) => a.ordinary_pwarx().ok_or_else(|| {
+            IdentifyError::failed("refinement: the automaton was not built from a PWARX model")
+        })?,
+        other => {
+            return Err(IdentifyError::failed(format!(
+                "refinement: a {} model is not a PWARX fit",
+                other.kind()
+            )));
+        }
+    };
+    let diagnostics = &mut pwarx.info.diagnostics;
+    let fit = PwarxFit {
+        modes: std::mem::take(&mut pwarx.modes),
+        regions_complete: diagnostics.regions_complete.unwrap_or(true),
+        uncovered_fraction: diagnostics.uncovered_fraction_of_data_box,
+        run_status: diagnostics.run_status,
+        status: std::mem::take(&mut diagnostics.status),
+        scaling: None,
+        refinement: None,
+        diagnostics: (),
+    };
+    let fit = crate::refine::refine(&data, fit, refinement)?;
+    pwarx.modes = fit.modes;
+    diagnostics.regions_complete = Some(fit.regions_complete);
+    diagnostics.uncovered_fraction_of_data_box = fit.uncovered_fraction;
+    diagnostics.run_status = fit.run_status;
+    diagnostics.status = fit.status;
+    diagnostics.refinement = fit.refinement;
+    Ok(if data.stops() == 0 {
+        Model::Pwarx(pwarx)
+    } else {
+        Model::HybridAutomaton(HybridAutomaton::from_pwarx_with_stops(
+            &pwarx,
+            &data.priors().saturation,
+        ))
+    })
+}
+
 /// Runs `backend` on standardised data (zero mean, unit standard deviation
 /// per signal) and returns the model in original units, with the statistics
 /// recorded in `info.scaling`. Priors holding values in data units

@@ -120,6 +120,20 @@ impl Identifier for KLinReg {
             fit(options, data, ctx)
         })
     }
+
+    fn refine_fitted(
+        &self,
+        problem: &Problem<'_>,
+        fitted: Model,
+        options: &Checked<KLinRegOptions>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        Some(pwarx::refine_fitted(
+            problem,
+            Self::NAME,
+            fitted,
+            &options.refinement(),
+        ))
+    }
 }
 
 /// What the `klinreg` back-end reports besides the common diagnostics.

@@ -109,6 +109,20 @@ impl Identifier for Milp {
             fit(options, data, ctx)
         })
     }
+
+    fn refine_fitted(
+        &self,
+        problem: &Problem<'_>,
+        fitted: Model,
+        options: &Checked<MilpOptions>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        Some(pwarx::refine_fitted(
+            problem,
+            Self::NAME,
+            fitted,
+            &options.refinement(),
+        ))
+    }
 }
 
 /// What the `milp` back-end reports besides the common diagnostics.

@@ -135,6 +135,20 @@ impl Identifier for Parc {
             fit(options, data, ctx)
         })
     }
+
+    fn refine_fitted(
+        &self,
+        problem: &Problem<'_>,
+        fitted: Model,
+        options: &Checked<ParcOptions>,
+    ) -> Option<Result<Model, IdentifyError>> {
+        Some(pwarx::refine_fitted(
+            problem,
+            Self::NAME,
+            fitted,
+            &options.refinement(),
+        ))
+    }
 }
 
 /// What the `parc` back-end reports besides the common diagnostics.

@@ -250,6 +250,22 @@ struct Trial<'a> {
     backend: &'a dyn Backend,
     values: Vec<(String, String)>,
     setup: Setup,
+    /// For a refined candidate, the unrefined candidate's models on the
+    /// fit rows of every split: the back-end refines them instead of
+    /// fitting again when it can ([`Backend::refine_fitted`]).
+    start: Vec<Model>,
+}
+
+/// A trial fitted on the fit rows of every split and scored on their
+/// selection rows.
+struct Scored {
+    candidate: ScoredCandidate,
+    /// The simulation errors on the selection rows of every split, one
+    /// after the other (none when a split failed).
+    errors: Vec<f64>,
+    /// The models fitted on the fit rows of every split (none when a split
+    /// failed).
+    fits: Vec<Model>,
 }
 
 /// The fit rows and the selection rows of one split, as records.
@@ -265,8 +281,12 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
     let rows = splits(request.data.len(), &request.plan)?;
     let parts = cut(request.data, &rows)?;
     let mut trials = trials(request)?;
-    let (mut scored, mut errors) = score_all(request, &trials, &parts, ctx, "selecting");
-    add_refined(request, &mut trials, &mut scored, &mut errors, &parts, ctx);
+    let first = score_all(request, &trials, &parts, ctx, "selecting");
+    let (mut scored, errors): (Vec<_>, Vec<_>) =
+        add_refined(request, &mut trials, first, &parts, ctx)
+            .into_iter()
+            .map(|s| (s.candidate, s.errors))
+            .unzip();
     let best = ranking(&scored).first().copied();
     let floor = affine_index(request, scored.len()).and_then(|a| scored[a].fit_sim);
     let dependence = parsimony::Dependence::of_output_lags(request.setup.orders.na);
@@ -328,6 +348,7 @@ fn trials<'a>(request: &Request<'a>) -> Result<Vec<Trial<'a>>, SelectError> {
             backend: request.backend,
             setup: request.setup.with(&c)?,
             values: c.values,
+            start: Vec::new(),
         });
     }
     if let Some(affine) = request.affine {
@@ -339,6 +360,7 @@ fn trials<'a>(request: &Request<'a>) -> Result<Vec<Trial<'a>>, SelectError> {
             backend: affine,
             values: Vec::new(),
             setup,
+            start: Vec::new(),
         });
     }
     Ok(out)
@@ -350,11 +372,14 @@ fn affine_index(request: &Request<'_>, n: usize) -> Option<usize> {
     request.affine.map(|_| n - 1)
 }
 
-/// Runs one trial on `data`.
+/// Runs one trial on `data`: refines `start`, the unrefined candidate's
+/// model on `data`, when the trial is its refinement and the back-end can,
+/// and fits afresh otherwise.
 fn fit(
     request: &Request<'_>,
     trial: &Trial<'_>,
     data: &Dataset,
+    start: Option<&Model>,
     ctx: &RunContext<'_>,
 ) -> Result<Model, IdentifyError> {
     let problem = Problem {
@@ -368,20 +393,20 @@ fn fit(
         progress: &NoProgress,
         deadline: ctx.deadline.clone(),
     };
-    trial.backend.run(&problem, &trial.setup.settings, &quiet)
+    let settings = &trial.setup.settings;
+    start
+        .and_then(|m| {
+            trial
+                .backend
+                .refine_fitted(&problem, m.clone(), settings, &quiet)
+        })
+        .unwrap_or_else(|| trial.backend.run(&problem, settings, &quiet))
 }
 
 /// Fits `trial` on the fit rows and scores it on the selection rows of
 /// every split; the score is the mean FIT, the mode count that of the
-/// model of the last split. Also returns the simulation errors on the
-/// selection rows of every split, one after the other (none when a split
-/// failed).
-fn score(
-    request: &Request<'_>,
-    trial: &Trial<'_>,
-    parts: &[Part],
-    ctx: &RunContext<'_>,
-) -> (ScoredCandidate, Vec<f64>) {
+/// model of the last split.
+fn score(request: &Request<'_>, trial: &Trial<'_>, parts: &[Part], ctx: &RunContext<'_>) -> Scored {
     let mut out = ScoredCandidate {
         method: trial.backend.name().to_string(),
         values: trial.values.clone(),
@@ -391,34 +416,45 @@ fn score(
     };
     let mut total = 0.0;
     let mut errors = Vec::new();
-    for part in parts {
-        match score_part(request, trial, part, ctx) {
-            Ok((fit_sim, modes, e)) => {
+    let mut fits = Vec::with_capacity(parts.len());
+    for (i, part) in parts.iter().enumerate() {
+        let scored = fit(request, trial, &part.fit, trial.start.get(i), ctx)
+            .map_err(|e| e.to_string())
+            .and_then(|model| Ok((score_part(request, &model, part)?, model)));
+        match scored {
+            Ok(((fit_sim, e), model)) => {
                 total += fit_sim;
-                out.modes = Some(modes);
+                out.modes = Some(model.mode_count());
                 errors.extend(e);
+                fits.push(model);
             }
             Err(e) => {
                 out.error = Some(e);
                 out.modes = None;
-                return (out, Vec::new());
+                return Scored {
+                    candidate: out,
+                    errors: Vec::new(),
+                    fits: Vec::new(),
+                };
             }
         }
     }
     out.fit_sim = Some(total / parts.len() as f64);
-    (out, errors)
+    Scored {
+        candidate: out,
+        errors,
+        fits,
+    }
 }
 
-/// The selection-row FIT, the mode count and the scored simulation errors
-/// of `trial` on one split.
+/// The selection-row FIT and the scored simulation errors of `model` on
+/// one split.
 fn score_part(
     request: &Request<'_>,
-    trial: &Trial<'_>,
+    model: &Model,
     part: &Part,
-    ctx: &RunContext<'_>,
-) -> Result<(f64, usize, Vec<f64>), String> {
-    let model = fit(request, trial, &part.fit, ctx).map_err(|e| e.to_string())?;
-    let (report, sim, _) = validate(&model, &part.select, request.plan.warmup)
+) -> Result<(f64, Vec<f64>), String> {
+    let (report, sim, _) = validate(model, &part.select, request.plan.warmup)
         .map_err(|e| format!("simulation on the selection rows: {e}"))?;
     if !report.fit_sim.is_finite() {
         return Err("the simulation FIT is not finite".into());
@@ -430,7 +466,7 @@ fn score_part(
         .zip(&sim.y[first..])
         .map(|(a, b)| a - b)
         .collect();
-    Ok((report.fit_sim, model.mode_count(), errors))
+    Ok((report.fit_sim, errors))
 }
 
 /// Every trial scored, in order (in parallel; each run has the same seed,
@@ -441,7 +477,7 @@ fn score_all(
     parts: &[Part],
     ctx: &RunContext<'_>,
     stage: &str,
-) -> (Vec<ScoredCandidate>, Vec<Vec<f64>>) {
+) -> Vec<Scored> {
     ctx.progress.start(trials.len() as u64, stage);
     let scored = trials
         .par_iter()
@@ -450,7 +486,7 @@ fn score_all(
             ctx.progress.advance(1);
             s
         })
-        .unzip();
+        .collect();
     ctx.progress.finish();
     scored
 }
@@ -520,7 +556,7 @@ fn choose(
     let mut floor: Option<Option<f64>> = None;
     let mut first_error = None;
     for &i in order {
-        let model = match fit(request, &trials[i], request.data, ctx) {
+        let model = match fit(request, &trials[i], request.data, None, ctx) {
             Ok(model) => model,
             Err(e) => {
                 scored[i].error = Some(format!("refit on all the identification rows: {e}"));
@@ -532,7 +568,7 @@ fn choose(
             return Ok((i, model));
         };
         let floor = *floor.get_or_insert_with(|| {
-            fit(request, &trials[a], request.data, ctx)
+            fit(request, &trials[a], request.data, None, ctx)
                 .ok()
                 .and_then(|m| fit_on(&m, request.data, request.plan.warmup))
         });
@@ -567,9 +603,10 @@ pub const REFINE_KEY: &str = "refine";
 /// then also the region boundaries (for two or more modes).
 pub const REFINE_VALUES: [&str; 2] = ["sim", "sim_regions"];
 
-/// `trial` with `refine = value`, when its back-end offers the refinement
-/// and the user did not set it.
-fn refined<'a>(trial: &Trial<'a>, value: &str) -> Option<Trial<'a>> {
+/// `trial` with `refine = value`, starting from `fits`, its models on the
+/// fit rows, when its back-end offers the refinement and the user did not
+/// set it.
+fn refined<'a>(trial: &Trial<'a>, fits: &[Model], value: &str) -> Option<Trial<'a>> {
     let offered = trial.backend.options().iter().any(|o| o.key == REFINE_KEY);
     if !offered || trial.setup.settings.get(REFINE_KEY).is_some() {
         return None;
@@ -583,6 +620,7 @@ fn refined<'a>(trial: &Trial<'a>, value: &str) -> Option<Trial<'a>> {
         backend: trial.backend,
         values,
         setup: trial.setup.with(&refine).ok()?,
+        start: fits.to_vec(),
     })
 }
 
@@ -591,46 +629,50 @@ fn refined<'a>(trial: &Trial<'a>, value: &str) -> Option<Trial<'a>> {
 /// (the region stage only for two or more modes and no known stops, where
 /// it can run). Every choice the one-standard-error rule can make among
 /// the unrefined candidates is the best of its mode count, so each can be
-/// compared refined.
+/// compared refined. Each starts from the candidate's own fits.
 fn refinement_trials<'a>(
     request: &Request<'a>,
     trials: &[Trial<'a>],
-    scored: &[ScoredCandidate],
+    scored: &[Scored],
 ) -> Vec<Trial<'a>> {
+    let candidates: Vec<ScoredCandidate> = scored.iter().map(|s| s.candidate.clone()).collect();
     let own = affine_index(request, trials.len()).unwrap_or(trials.len());
     let mut counts = std::collections::BTreeSet::new();
     let mut out = Vec::new();
-    for i in ranking(scored).into_iter().filter(|&i| i < own) {
-        let Some(modes) = scored[i].modes.filter(|&m| counts.insert(m)) else {
+    for i in ranking(&candidates).into_iter().filter(|&i| i < own) {
+        let Some(modes) = candidates[i].modes.filter(|&m| counts.insert(m)) else {
             continue;
         };
         let regions_can_move = modes > 1 && request.setup.priors.saturation.is_empty();
         let values = &REFINE_VALUES[..if regions_can_move { 2 } else { 1 }];
-        out.extend(values.iter().filter_map(|v| refined(&trials[i], v)));
+        out.extend(
+            values
+                .iter()
+                .filter_map(|v| refined(&trials[i], &scored[i].fits, v)),
+        );
     }
     out
 }
 
-/// Scores the [`refinement_trials`] and adds them, as candidates of their
-/// own, after the back-end's candidates and before the affine reference,
-/// which stays last.
+/// `scored`, the scored `trials`, with the [`refinement_trials`] scored
+/// and added to both, as candidates of their own, after the back-end's
+/// candidates and before the affine reference, which stays last.
 fn add_refined<'a>(
     request: &Request<'a>,
     trials: &mut Vec<Trial<'a>>,
-    scored: &mut Vec<ScoredCandidate>,
-    errors: &mut Vec<Vec<f64>>,
+    mut scored: Vec<Scored>,
     parts: &[Part],
     ctx: &RunContext<'_>,
-) {
-    let extra = refinement_trials(request, trials, scored);
+) -> Vec<Scored> {
+    let extra = refinement_trials(request, trials, &scored);
     if extra.is_empty() {
-        return;
+        return scored;
     }
-    let (extra_scored, extra_errors) = score_all(request, &extra, parts, ctx, "refining");
+    let extra_scored = score_all(request, &extra, parts, ctx, "refining");
     let at = affine_index(request, trials.len()).unwrap_or(trials.len());
     trials.splice(at..at, extra);
     scored.splice(at..at, extra_scored);
-    errors.splice(at..at, extra_errors);
+    scored
 }
 
 /// The refined candidates made from the chosen one's unrefined options,
@@ -970,6 +1012,7 @@ mod tests {
                     backend: request.backend,
                     setup: request.setup.with(&cand).unwrap(),
                     values: cand.values,
+                    start: Vec::new(),
                 }
             })
             .collect();
@@ -977,6 +1020,7 @@ mod tests {
             backend: &hysid_arx::Arx,
             values: vec![],
             setup: request.setup.clone(),
+            start: Vec::new(),
         });
         let scored = [
             candidate(&[("c", "10")], 80.0, 3),
@@ -984,7 +1028,12 @@ mod tests {
             candidate(&[("c", "40")], 70.0, 1),
             candidate(&[("c", "80")], 60.0, 2),
             candidate(&[], 90.0, 1),
-        ];
+        ]
+        .map(|candidate| Scored {
+            candidate,
+            errors: Vec::new(),
+            fits: Vec::new(),
+        });
         let refined: Vec<Vec<(String, String)>> = refinement_trials(&request, &trials, &scored)
             .into_iter()
             .map(|t| t.values)

@@ -9,7 +9,7 @@
 //! [`ResetMap`] applied when it fires (the velocity reset `v := 0`).
 //! Saturations are modes of this kind, never full-dimensional regions.
 
-use super::{ModelInfo, PwarxModel};
+use super::{ModelInfo, PwarxMode, PwarxModel, mode_name};
 use crate::geometry::{Polyhedron, PolyhedronError};
 use crate::model::{Stop, StopBound};
 use crate::regressors::RegressorSpec;
@@ -734,6 +734,57 @@ impl HybridAutomaton {
         }
         stops
     }
+
+    /// The PWARX model an automaton of
+    /// [`HybridAutomaton::from_pwarx_with_stops`] was built from, read back:
+    /// the modes not on a stop, with the first row of each flow as `theta`
+    /// and the invariant without the rows the stops added as the region.
+    /// `None` when the automaton is not of that structure, checked by
+    /// building it again from the answer.
+    pub fn ordinary_pwarx(&self) -> Option<PwarxModel> {
+        let InitialState::ArxHistory { na, nb } = self.initial_state else {
+            return None;
+        };
+        let stops = self.stops();
+        let spec = RegressorSpec::new(na, nb, self.inputs.len());
+        let pos = arx_state_positions(&spec);
+        let n = self.states.len();
+        let ordinary = self.modes.len().checked_sub(stops.len())?;
+        let regressor_rows = |rows: &[Vec<f64>]| -> Option<Vec<Vec<f64>>> {
+            rows.iter()
+                .map(|z| pos.iter().map(|&zi| z.get(zi).copied()).collect())
+                .collect()
+        };
+        let mut modes = Vec::with_capacity(ordinary);
+        for (qi, q) in self.modes[..ordinary].iter().enumerate() {
+            let (a0, b0) = (q.flow.a.first()?, q.flow.b.first()?);
+            let mut theta: Vec<f64> = pos
+                .iter()
+                .map(|&zi| if zi < n { a0.get(zi) } else { b0.get(zi - n) }.copied())
+                .collect::<Option<_>>()?;
+            theta.push(*q.flow.f.first()?);
+            let own = q.invariant.a.len().checked_sub(stops.len())?;
+            let name = (q.name != mode_name(None, qi)).then(|| q.name.clone());
+            modes.push(PwarxMode {
+                theta,
+                region: Polyhedron {
+                    a: regressor_rows(&q.invariant.a[..own])?,
+                    b: q.invariant.b.get(..own)?.to_vec(),
+                    a_eq: regressor_rows(&q.invariant.a_eq)?,
+                    b_eq: q.invariant.b_eq.clone(),
+                },
+                name,
+            });
+        }
+        let p = PwarxModel {
+            na,
+            nb,
+            inputs: self.inputs.len(),
+            modes,
+            info: self.info.clone(),
+        };
+        (Self::from_pwarx_with_stops(&p, &stops) == *self).then_some(p)
+    }
 }
 
 #[cfg(test)]
@@ -769,6 +820,46 @@ mod tests {
         let a = HybridAutomaton::from_pwarx_with_stops(&p, &stops);
         assert_eq!(a.stops(), stops);
         assert!(HybridAutomaton::from_pwarx(&p).stops().is_empty());
+    }
+
+    #[test]
+    fn the_pwarx_model_is_read_back_from_its_automaton() {
+        let half = |sign: f64| Polyhedron {
+            a: vec![vec![sign, 0.5, -1.0, 0.0]],
+            b: vec![0.25],
+            a_eq: vec![],
+            b_eq: vec![],
+        };
+        let p = PwarxModel {
+            na: 2,
+            nb: 2,
+            inputs: 1,
+            modes: vec![
+                PwarxMode {
+                    theta: vec![0.5, 0.1, 0.2, 0.3, -0.4],
+                    region: half(1.0),
+                    name: Some("free".into()),
+                },
+                PwarxMode {
+                    theta: vec![1.2, -0.3, 0.7, 0.0, 0.05],
+                    region: half(-1.0),
+                    name: None,
+                },
+            ],
+            info: ModelInfo::default(),
+        };
+        let stops = vec![Stop {
+            level: 2.0,
+            bound: StopBound::Max,
+            tol: None,
+        }];
+        let with_stops = HybridAutomaton::from_pwarx_with_stops(&p, &stops);
+        assert_eq!(with_stops.ordinary_pwarx().as_ref(), Some(&p));
+        assert_eq!(HybridAutomaton::from_pwarx(&p).ordinary_pwarx(), Some(p));
+        // A flow that is not the shift of an ARX history has no PWARX model.
+        let mut other = with_stops;
+        other.modes[0].flow.a[1][1] = 0.5;
+        assert_eq!(other.ordinary_pwarx(), None);
     }
 
     #[test]
