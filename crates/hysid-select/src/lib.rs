@@ -10,9 +10,10 @@
 //! the affine ARX model of the same orders and priors is always a
 //! candidate, so the choice is never worse than linear on the selection
 //! rows. When the back-end offers the simulation-error refinement
-//! (`refine`), the best candidate of every mode count is also fitted with
-//! it (`sim`, and `sim_regions` for two or more modes without known stops)
-//! and scored as a candidate of its own. Of the candidates within one
+//! (`refine`), the best candidate of every mode count is also refined
+//! (`sim`, and `sim_regions` for two or more modes without known stops),
+//! starting from its own fits ([`Backend::refine_fitted`]), and scored as
+//! a candidate of its own. Of the candidates within one
 //! standard error of the best, the one with the fewest modes is chosen
 //! ([`parsimony`]). The choice is then fitted again on all the
 //! identification rows (the next candidate when that refit simulates them
@@ -1136,6 +1137,79 @@ mod tests {
                 info: Default::default(),
             }))
         }
+    }
+
+    /// The `arx` back-end, counting its fits and its refinements of fits.
+    #[derive(Default)]
+    struct CountingArx {
+        runs: std::sync::atomic::AtomicUsize,
+        refines: std::sync::atomic::AtomicUsize,
+    }
+
+    impl Backend for CountingArx {
+        fn name(&self) -> &'static str {
+            "counting_arx"
+        }
+        fn summary(&self) -> &'static str {
+            "test back-end"
+        }
+        fn options(&self) -> Vec<hysid_core::options::OptionSpec> {
+            Backend::options(&hysid_arx::Arx)
+        }
+        fn honours(&self) -> &'static [hysid_core::priors::PriorKind] {
+            Backend::honours(&hysid_arx::Arx)
+        }
+        fn search_doc(&self) -> &'static str {
+            "its defaults"
+        }
+        fn output_units(&self) -> &'static [&'static str] {
+            &[]
+        }
+        fn search_space(&self, _: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
+            Ok(SearchSpace::default())
+        }
+        fn run(
+            &self,
+            problem: &Problem<'_>,
+            settings: &Settings,
+            ctx: &RunContext<'_>,
+        ) -> Result<Model, IdentifyError> {
+            self.runs.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            Backend::run(&hysid_arx::Arx, problem, settings, ctx)
+        }
+        fn refine_fitted(
+            &self,
+            problem: &Problem<'_>,
+            fitted: Model,
+            settings: &Settings,
+            ctx: &RunContext<'_>,
+        ) -> Option<Result<Model, IdentifyError>> {
+            self.refines
+                .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            Backend::refine_fitted(&hysid_arx::Arx, problem, fitted, settings, ctx)
+        }
+    }
+
+    #[test]
+    fn refined_candidates_refine_the_scored_fits_without_fitting_again() {
+        use std::sync::atomic::Ordering::SeqCst;
+        let data = affine_record(300);
+        let counting = CountingArx::default();
+        let request = first_order_request(&counting, &data);
+        let model = select(&request, &RunContext::quiet(0)).unwrap();
+        let s = model.info().selection.clone().unwrap();
+        // One candidate, its refinement, the affine reference; scored at
+        // both ends of the short record.
+        assert_eq!(s.candidates.len(), 3);
+        assert_eq!(s.splits.len(), 2);
+        assert_eq!(s.candidates[1].values.last().unwrap().1, "sim");
+        assert!(s.candidates[1].fit_sim.unwrap() > 99.999);
+        // The refined candidate's two fits are refinements of the
+        // candidate's; the back-end is fitted twice for the candidate and
+        // once more for the choice on all the rows, if it is its own.
+        assert_eq!(counting.refines.load(SeqCst), 2);
+        let refits = usize::from(s.candidates[s.chosen].method == "counting_arx");
+        assert_eq!(counting.runs.load(SeqCst), 2 + refits);
     }
 
     #[test]
