@@ -337,11 +337,17 @@ pub fn assemble<D: Serialize>(data: &PwarxData<'_>, fit: PwarxFit<D>) -> Model {
             ..Default::default()
         },
     };
-    if stops == 0 {
+    with_stops(data, model)
+}
+
+/// `model`, the ordinary modes, as the model file holds it: itself, or
+/// with known stops the automaton with a mode on each stop's guard set.
+fn with_stops(data: &PwarxData<'_>, model: PwarxModel) -> Model {
+    if data.stops() == 0 {
         Model::Pwarx(model)
     } else {
-        let stops: Vec<_> = data.priors().saturation.clone();
-        Model::HybridAutomaton(HybridAutomaton::from_pwarx_with_stops(&model, &stops))
+        let stops = &data.priors().saturation;
+        Model::HybridAutomaton(HybridAutomaton::from_pwarx_with_stops(&model, stops))
     }
 }
 
@@ -365,7 +371,7 @@ pub fn identify<D: Serialize>(
 /// the same model as [`identify`] with that refinement gives, since the
 /// refinement starts from the fit alone. Automatic selection refines its
 /// candidates' own fits this way. A model of another kind than
-/// [`assemble`] writes is refused.
+/// [`assemble`] writes, or one refined already, is refused.
 pub fn refine_fitted(
     problem: &Problem<'_>,
     method: &str,
@@ -386,6 +392,11 @@ pub fn refine_fitted(
         }
     };
     let diagnostics = &mut pwarx.info.diagnostics;
+    if diagnostics.refinement.is_some() {
+        return Err(IdentifyError::failed(
+            "refinement: the model was refined when it was fitted",
+        ));
+    }
     let fit = PwarxFit {
         modes: std::mem::take(&mut pwarx.modes),
         regions_complete: diagnostics.regions_complete.unwrap_or(true),
@@ -403,14 +414,7 @@ pub fn refine_fitted(
     diagnostics.run_status = fit.run_status;
     diagnostics.status = fit.status;
     diagnostics.refinement = fit.refinement;
-    Ok(if data.stops() == 0 {
-        Model::Pwarx(pwarx)
-    } else {
-        Model::HybridAutomaton(HybridAutomaton::from_pwarx_with_stops(
-            &pwarx,
-            &data.priors().saturation,
-        ))
-    })
+    Ok(with_stops(&data, pwarx))
 }
 
 /// Runs `backend` on standardised data (zero mean, unit standard deviation
