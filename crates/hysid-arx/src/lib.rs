@@ -80,19 +80,7 @@ impl Identifier for Arx {
         })
     }
 
-    fn refine_fitted(
-        &self,
-        problem: &Problem<'_>,
-        fitted: Model,
-        options: &Checked<ArxOptions>,
-    ) -> Option<Result<Model, IdentifyError>> {
-        Some(pwarx::refine_fitted(
-            problem,
-            Self::NAME,
-            fitted,
-            &options.refinement(),
-        ))
-    }
+    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `arx` back-end reports besides the common diagnostics.

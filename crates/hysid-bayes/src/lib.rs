@@ -173,19 +173,7 @@ impl Identifier for Bayes {
         })
     }
 
-    fn refine_fitted(
-        &self,
-        problem: &Problem<'_>,
-        fitted: Model,
-        options: &Checked<BayesOptions>,
-    ) -> Option<Result<Model, IdentifyError>> {
-        Some(pwarx::refine_fitted(
-            problem,
-            Self::NAME,
-            fitted,
-            &options.refinement(),
-        ))
-    }
+    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `bayes` back-end reports besides the common diagnostics.

@@ -245,19 +245,7 @@ impl Identifier for Bounded {
         })
     }
 
-    fn refine_fitted(
-        &self,
-        problem: &Problem<'_>,
-        fitted: Model,
-        options: &Checked<BoundedOptions>,
-    ) -> Option<Result<Model, IdentifyError>> {
-        Some(pwarx::refine_fitted(
-            problem,
-            Self::NAME,
-            fitted,
-            &options.refinement(),
-        ))
-    }
+    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// Bad input of the `bounded` back-end (an [`IdentifyError::Input`]).

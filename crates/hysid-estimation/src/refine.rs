@@ -161,6 +161,29 @@ impl RefineSettings {
     }
 }
 
+/// Inside `impl Identifier for ...` of a back-end whose options come from
+/// [`pwarx_options!`]: `Identifier::refine_fitted` by
+/// [`crate::pwarx::refine_fitted`], so that automatic selection refines a
+/// candidate's own fit instead of fitting it again.
+#[macro_export]
+macro_rules! refine_fitted_pwarx {
+    () => {
+        fn refine_fitted(
+            &self,
+            problem: &hysid_core::backend::Problem<'_>,
+            fitted: hysid_core::model::Model,
+            options: &hysid_core::options::Checked<Self::Options>,
+        ) -> Option<Result<hysid_core::model::Model, hysid_core::backend::IdentifyError>> {
+            Some($crate::pwarx::refine_fitted(
+                problem,
+                Self::NAME,
+                fitted,
+                &options.refinement(),
+            ))
+        }
+    };
+}
+
 /// Declares the options of a PWARX back-end: `hysid_core::backend_options!`
 /// with the options of this refinement stage (`refine`, `refine_segment`,
 /// `refine_iterations`) appended, not recorded in a model while at their

@@ -110,19 +110,7 @@ impl Identifier for Milp {
         })
     }
 
-    fn refine_fitted(
-        &self,
-        problem: &Problem<'_>,
-        fitted: Model,
-        options: &Checked<MilpOptions>,
-    ) -> Option<Result<Model, IdentifyError>> {
-        Some(pwarx::refine_fitted(
-            problem,
-            Self::NAME,
-            fitted,
-            &options.refinement(),
-        ))
-    }
+    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `milp` back-end reports besides the common diagnostics.

@@ -136,19 +136,7 @@ impl Identifier for Parc {
         })
     }
 
-    fn refine_fitted(
-        &self,
-        problem: &Problem<'_>,
-        fitted: Model,
-        options: &Checked<ParcOptions>,
-    ) -> Option<Result<Model, IdentifyError>> {
-        Some(pwarx::refine_fitted(
-            problem,
-            Self::NAME,
-            fitted,
-            &options.refinement(),
-        ))
-    }
+    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `parc` back-end reports besides the common diagnostics.
