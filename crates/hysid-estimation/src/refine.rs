@@ -162,7 +162,7 @@ impl RefineSettings {
 }
 
 /// Inside `impl Identifier for ...` of a back-end whose options come from
-/// [`pwarx_options!`]: `Identifier::refine_fitted` by
+/// [`pwarx_options!`](crate::pwarx_options): `Identifier::refine_fitted` by
 /// [`crate::pwarx::refine_fitted`], so that automatic selection refines a
 /// candidate's own fit instead of fitting it again.
 #[macro_export]
