@@ -64,13 +64,6 @@ mod tests {
         values: &[&str],
     ) -> Vec<&'static str> {
         let ctx = RunContext::quiet(3);
-        // `bounded` has no default error bound.
-        let settings = |v: &str| {
-            Settings::from_pairs(vec![
-                ("refine".into(), v.into()),
-                ("delta".into(), "auto".into()),
-            ])
-        };
         let affine = Priors {
             modes: None,
             ..problem.priors.clone()
@@ -87,9 +80,13 @@ mod tests {
                 },
                 _ => *problem,
             };
-            let settings = |v: &str| match b.name() {
-                "bounded" => settings(v),
-                _ => Settings::from_pairs(settings(v).pairs()[..1].to_vec()),
+            let settings = |v: &str| {
+                let mut pairs = vec![("refine".to_string(), v.to_string())];
+                // `bounded` has no default error bound.
+                if b.name() == "bounded" {
+                    pairs.push(("delta".into(), "auto".into()));
+                }
+                Settings::from_pairs(pairs)
             };
             let Ok(fitted) = b.run(&problem, &settings("none"), &ctx) else {
                 continue;

@@ -494,12 +494,11 @@ fn score_all(
 
 /// The scored candidates from the highest selection-row FIT down (the
 /// first in grid order among equal scores).
-fn ranking(scored: &[ScoredCandidate]) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..scored.len())
-        .filter(|&i| scored[i].fit_sim.is_some())
-        .collect();
+fn ranking<'c>(scored: impl IntoIterator<Item = &'c ScoredCandidate>) -> Vec<usize> {
+    let scores: Vec<Option<f64>> = scored.into_iter().map(|c| c.fit_sim).collect();
+    let mut order: Vec<usize> = (0..scores.len()).filter(|&i| scores[i].is_some()).collect();
     // A stable sort keeps grid order among equal scores.
-    let score = |i: usize| scored[i].fit_sim.unwrap_or(f64::NEG_INFINITY);
+    let score = |i: usize| scores[i].unwrap_or(f64::NEG_INFINITY);
     order.sort_by(|&a, &b| score(b).total_cmp(&score(a)));
     order
 }
@@ -636,12 +635,12 @@ fn refinement_trials<'a>(
     trials: &[Trial<'a>],
     scored: &[Scored],
 ) -> Vec<Trial<'a>> {
-    let candidates: Vec<ScoredCandidate> = scored.iter().map(|s| s.candidate.clone()).collect();
     let own = affine_index(request, trials.len()).unwrap_or(trials.len());
     let mut counts = std::collections::BTreeSet::new();
     let mut out = Vec::new();
-    for i in ranking(&candidates).into_iter().filter(|&i| i < own) {
-        let Some(modes) = candidates[i].modes.filter(|&m| counts.insert(m)) else {
+    let candidates = scored.iter().map(|s| &s.candidate);
+    for i in ranking(candidates).into_iter().filter(|&i| i < own) {
+        let Some(modes) = scored[i].candidate.modes.filter(|&m| counts.insert(m)) else {
             continue;
         };
         let regions_can_move = modes > 1 && request.setup.priors.saturation.is_empty();
