@@ -762,7 +762,28 @@ fn malformed_gray_box_files() {
                 "the reset of transition fly -> carried leaves the invariant".into(),
             ],
         ),
+        (
+            "extends.toml",
+            "extends = \"base.toml\"\n[definitions]\ntable_acc = \"u - gravity\"\n".into(),
+            vec!["line 3".into(), "unknown symbol 'gravity'".into()],
+        ),
+        (
+            "loop.toml",
+            "extends = \"loop.toml\"\n".into(),
+            vec!["is already in the chain (a loop)".into()],
+        ),
+        (
+            "no-base.toml",
+            "extends = \"none.toml\"\n".into(),
+            vec!["extends: cannot read".into(), "none.toml".into()],
+        ),
+        (
+            "remove.toml",
+            "extends = \"base.toml\"\nremove = [\"parameters.gravity\"]\n".into(),
+            vec!["the base has no entry `parameters.gravity`".into()],
+        ),
     ];
+    write(d, "base.toml", &good);
     for (name, text, needles) in &cases {
         let m = write(d, name, text);
         let needles: Vec<&str> = std::iter::once(*name)

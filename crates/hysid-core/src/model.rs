@@ -14,7 +14,7 @@
 //! - [`GrayBoxModel`] (`"gray_box"`): a hybrid automaton written by its
 //!   physics, with expressions, guards, resets and built-in elements.
 
-use hysid_graybox::{GrayBoxModel, InvalidGrayBox};
+use hysid_graybox::{GrayBoxModel, InvalidGrayBox, extends};
 use hysid_mechanical::{InvalidMechanical, MechanicalModel};
 use hysid_model::model::{
     HybridAutomaton, InitialState, InvalidModel, ModelInfo, PwarxModel, Stop, StopBound,
@@ -203,22 +203,27 @@ impl Model {
     /// [`Model::validate`], with the line of `text` (the file) that a
     /// gray-box model's error points at.
     fn checked(self, text: &str, origin: &str) -> Result<Self, ModelError> {
-        match self.validate() {
-            Ok(()) => Ok(self),
-            Err(e) => {
-                let line = match &e {
-                    ModelError::Invalid(StructureError::GrayBox(g)) => g.line_in(text),
-                    _ => None,
-                };
-                Err(ModelError::Format {
-                    path: match line {
-                        Some(l) => format!("{origin}, line {l}"),
-                        None => origin.to_string(),
-                    },
-                    message: e.to_string(),
-                })
-            }
-        }
+        self.checked_in(&[(origin, text)])
+    }
+
+    /// [`Model::validate`] of a model read from `files` (`(origin, text)`,
+    /// a file first, then the bases it extends): a gray-box model's error
+    /// names the first file, and its line, that writes the offending text.
+    fn checked_in(self, files: &[(&str, &str)]) -> Result<Self, ModelError> {
+        let e = match self.validate() {
+            Ok(()) => return Ok(self),
+            Err(e) => e,
+        };
+        let located = match &e {
+            ModelError::Invalid(StructureError::GrayBox(g)) => files
+                .iter()
+                .find_map(|(origin, text)| Some(format!("{origin}, line {}", g.line_in(text)?))),
+            _ => None,
+        };
+        Err(ModelError::Format {
+            path: located.unwrap_or_else(|| files[0].0.to_string()),
+            message: e.to_string(),
+        })
     }
 
     /// Parses a hand-written TOML model.
@@ -230,17 +235,44 @@ impl Model {
         m.checked(text, origin)
     }
 
-    /// Reads a `.json` or `.toml` model file.
+    /// Reads a `.json` or `.toml` model file, with the bases it
+    /// `extends` ([`hysid_graybox::extends`]) laid under it.
     pub fn load(path: &Path) -> Result<Self, ModelError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
-            path: origin.clone(),
-            source,
+        let resolved = extends::read(path).map_err(|e| match e {
+            extends::ExtendsError::Read { path, source } => ModelError::Io {
+                path: path.display().to_string(),
+                source,
+            },
+            extends::ExtendsError::Syntax { path, message }
+            | extends::ExtendsError::Chain { path, message } => ModelError::Format {
+                path: path.display().to_string(),
+                message,
+            },
         })?;
-        match path.extension().and_then(|e| e.to_str()) {
-            Some("toml") => Self::from_toml(&text, &origin),
-            _ => Self::from_json(&text, &origin),
+        if let [own] = resolved.sources.as_slice() {
+            // A file on its own is parsed from its text, so that a wrong
+            // field gets the parser's line and column.
+            return match path.extension().and_then(|e| e.to_str()) {
+                Some("toml") => Self::from_toml(&own.text, &origin),
+                _ => Self::from_json(&own.text, &origin),
+            };
         }
+        let m: Model = serde_json::from_value(resolved.value).map_err(|e| ModelError::Format {
+            path: origin.clone(),
+            message: format!("{e} (in the file or the files it extends)"),
+        })?;
+        let names: Vec<String> = resolved
+            .sources
+            .iter()
+            .map(|s| s.path.display().to_string())
+            .collect();
+        let files: Vec<(&str, &str)> = names
+            .iter()
+            .zip(&resolved.sources)
+            .map(|(name, s)| (name.as_str(), s.text.as_str()))
+            .collect();
+        m.checked_in(&files)
     }
 
     /// Pretty JSON with a trailing newline (deterministic).
@@ -270,6 +302,52 @@ mod tests {
         let bad = text.replace("[0.9, -0.2, 0.1, 0.05, 1.3]", "[0.9]");
         let e = Model::from_json(&bad, "x.json").unwrap_err().to_string();
         assert!(e.contains("x.json") && e.contains("theta"), "{e}");
+    }
+
+    #[test]
+    fn a_model_file_may_extend_another() {
+        let dir = std::env::temp_dir().join(format!("hysid-core-extends-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let head = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/pick-and-place/head-graybox.toml"
+        );
+        let write = |name: &str, body: &str| {
+            let p = dir.join(name);
+            std::fs::write(&p, format!("extends = {head:?}\n{body}")).unwrap();
+            p
+        };
+        let cubic = write(
+            "cubic.toml",
+            "[[parameters]]\nname = \"c3\"\nvalue = 0.1\nbounds = [-1.0, 1.0]\n\
+             [definitions]\nF = \"ku*u + f0 - c1*y - c3*y^3 - d1*v\"\n",
+        );
+        let Model::GrayBox(g) = Model::load(&cubic).unwrap() else {
+            panic!("not a gray-box model")
+        };
+        let Model::GrayBox(base) = Model::load(Path::new(head)).unwrap() else {
+            panic!("not a gray-box model")
+        };
+        assert_eq!(g.parameters.len(), base.parameters.len() + 1);
+        assert_eq!(g.parameters.last().unwrap().name, "c3");
+        assert_eq!(g.modes, base.modes);
+        assert_ne!(g.definitions["F"], base.definitions["F"]);
+
+        let unknown = write("unknown.toml", "\n[definitions]\nF = \"ku*u + nosuch\"\n");
+        let e = Model::load(&unknown).unwrap_err().to_string();
+        assert!(
+            e.contains("unknown.toml, line 4") && e.contains("nosuch"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+
+        let gone = write("gone.toml", "remove = [\"parameters.nosuch\"]\n");
+        let e = Model::load(&gone).unwrap_err().to_string();
+        assert!(
+            e.contains("gone.toml: remove: the base has no entry `parameters.nosuch`"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(dir).unwrap();
     }
 
     fn arb_pwarx() -> impl Strategy<Value = PwarxModel> {

@@ -10,6 +10,7 @@
 //! asks for, such as its figure 3, are written in this form.
 //!
 //! - [`model`]: the file (TOML or JSON), format [`FORMAT_VERSION`];
+//! - [`extends`]: files written as another file with changes;
 //! - [`expr`]: expressions, parsed by evalexpr once and compiled into a
 //!   tape evaluated without parsing or allocating;
 //! - [`compile`]: the checks and the compiled model;
@@ -19,6 +20,7 @@
 
 pub mod compile;
 pub mod expr;
+pub mod extends;
 pub mod model;
 pub mod simulate;
 

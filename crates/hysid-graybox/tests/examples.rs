@@ -9,7 +9,7 @@
 
 use hysid_graybox::compile::CompiledElement;
 use hysid_graybox::simulate::run;
-use hysid_graybox::{CompiledModel, GrayBoxModel};
+use hysid_graybox::{CompiledModel, GrayBoxModel, extends};
 use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
@@ -20,8 +20,8 @@ use std::sync::LazyLock;
 const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
 /// Every gray-box model file of the repository: the `.toml` files under
-/// `models/` whose `kind` is `gray_box`, relative to the repository root,
-/// in path order.
+/// `models/` whose `kind`, their own or their base's, is `gray_box`,
+/// relative to the repository root, in path order.
 static FILES: LazyLock<Vec<String>> = LazyLock::new(|| {
     fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
         for entry in std::fs::read_dir(dir).unwrap() {
@@ -39,8 +39,8 @@ static FILES: LazyLock<Vec<String>> = LazyLock::new(|| {
     let mut files: Vec<String> = paths
         .into_iter()
         .filter(|path| {
-            let table: toml::Table = std::fs::read_to_string(path).unwrap().parse().unwrap();
-            table.get("kind").and_then(|k| k.as_str()) == Some("gray_box")
+            let file = extends::read(path).unwrap();
+            file.value.get("kind").and_then(|k| k.as_str()) == Some("gray_box")
         })
         .map(|path| {
             let relative = path.strip_prefix(root).unwrap();
@@ -91,9 +91,12 @@ fn file(path: &str) -> (GrayBoxModel, Excitation) {
         ts: Some(field("ts")),
         inputs: 1,
     };
-    let mut table: toml::Table = text.parse().unwrap();
-    assert_eq!(table.remove("kind").unwrap().as_str(), Some("gray_box"));
-    let m: GrayBoxModel = toml::Value::Table(table).try_into().unwrap();
+    let mut value = extends::read(Path::new(&format!("{ROOT}/{path}")))
+        .unwrap()
+        .value;
+    let kind = value.as_object_mut().unwrap().remove("kind").unwrap();
+    assert_eq!(kind.as_str(), Some("gray_box"));
+    let m: GrayBoxModel = serde_json::from_value(value).unwrap();
     m.validate().unwrap();
     (m, ex)
 }
