@@ -13,7 +13,8 @@
 //!   replaces it whole;
 //! - arrays whose entries are all tables with a `name` (parameters, modes,
 //!   elements, outputs) merge by name: an entry with a base entry's name is
-//!   merged into it in place, a new name is appended;
+//!   merged into it in place, a new name is appended (an empty array
+//!   replaces the base's);
 //! - any other value, arrays included (states, transitions, invariants,
 //!   bounds), replaces the base's;
 //! - `remove = ["parameters.d2", "elements.friction", "modes.impact.definitions.kinetic"]`
@@ -212,6 +213,12 @@ fn by_name(items: &[Value]) -> bool {
     items.iter().all(|v| name_of(v).is_some())
 }
 
+/// True when the array `over` merges into `base` by name: both hold only
+/// named tables, and `over` holds some (an empty array replaces the base's).
+fn merges_by_name(base: &[Value], over: &[Value]) -> bool {
+    !over.is_empty() && by_name(base) && by_name(over)
+}
+
 /// True when `base` and `over` are variants of the same thing: no tag key
 /// of [`TAGS`] has two different values.
 fn same_variant(base: &Map<String, Value>, over: &Map<String, Value>) -> bool {
@@ -235,7 +242,7 @@ fn merge(base: &mut Value, over: Value) {
                 }
             }
         }
-        (Value::Array(base), Value::Array(over)) if by_name(base) && by_name(&over) => {
+        (Value::Array(base), Value::Array(over)) if merges_by_name(base, &over) => {
             for entry in over {
                 let name = name_of(&entry).map(str::to_owned);
                 match base.iter_mut().find(|b| name_of(b) == name.as_deref()) {
@@ -402,6 +409,13 @@ name = "friction"
     }
 
     #[test]
+    fn an_empty_array_clears_the_base_s() {
+        let base = json!({"elements": [{"name": "friction"}], "states": ["y"]});
+        let own = json!({"elements": [], "states": []});
+        assert_eq!(extend(base, own.clone()).unwrap(), own);
+    }
+
+    #[test]
     fn a_file_without_extends_is_returned_as_parsed() {
         let d = dir("plain");
         let base = write(&d, "base.toml", BASE);
@@ -560,7 +574,7 @@ name = "friction"
                 .then_some(())
                 .map_or_else(fail, Ok)
             }
-            (Value::Array(b), Value::Array(o)) if by_name(b) && by_name(o) => {
+            (Value::Array(b), Value::Array(o)) if merges_by_name(b, o) => {
                 let Value::Array(m) = merged else {
                     return fail();
                 };

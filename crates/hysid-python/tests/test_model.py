@@ -89,3 +89,26 @@ def test_a_mechanical_model_simulates_from_its_file():
     u = np.full(2000, -0.1)
     y, modes = model.simulate(u, ts=0.0025)
     assert np.isfinite(y).all() and y.min() >= -1e-9 and y.max() <= 25.0 + 1e-9
+
+
+def test_a_file_that_extends_another_reads_as_its_base_with_the_changes():
+    import pathlib
+
+    models = pathlib.Path(__file__).resolve().parents[3] / "models" / "pick-and-place"
+    base = hysid.Model.load(models / "structures" / "load-bounce.toml")
+    free_f1 = hysid.Model.load(models / "structures" / "load-bounce-f1.toml")
+    assert base.kind == free_f1.kind == "gray_box"
+    # load-bounce-f1 changes only the kinetic friction's bounds (its
+    # lower bound 0 instead of 200), so at the nominal values both
+    # simulate alike.
+    import json
+
+    a, b = json.loads(base.to_json()), json.loads(free_f1.to_json())
+    f1 = [[p["bounds"] for p in m["parameters"] if p["name"] == "f1"][0] for m in (a, b)]
+    assert f1 == [[200.0, 1200.0], [0.0, 1200.0]]
+    del a["parameters"], b["parameters"], a["name"], b["name"]
+    assert a == b
+    u = np.full(2000, -0.1)
+    y0, _ = base.simulate(u, ts=0.0025)
+    y1, _ = free_f1.simulate(u, ts=0.0025)
+    assert np.isfinite(y0).all() and np.array_equal(y0, y1)
