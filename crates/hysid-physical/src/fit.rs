@@ -16,11 +16,12 @@ use crate::stages::{Search, StageLog};
 use crate::swarm::global_stage;
 use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
-use hysid_core::backend::{IdentifyError, RunContext};
+use hysid_core::backend::{IdentifyError, NoProgress, Progress, RunContext};
 use hysid_core::priors::Priors;
 use hysid_model::data::Dataset;
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -144,51 +145,93 @@ struct SearchRun {
 /// `options.swarms` independent searches (the particle swarm, then the
 /// local stages from its best points), the first seeded by the run's seed
 /// and each next one by the next draw of a `ChaCha8Rng` seeded by it; the
-/// one of least free-run cost is kept (the first among equals). No search
-/// starts after the deadline, the first excepted.
+/// one of least free-run cost is kept (the first among equals). Several
+/// searches run in parallel, each on its own seed, so the one kept does
+/// not depend on the thread count; the progress then counts searches. No
+/// search but the first starts after the deadline.
 fn best_search(
     search: &Search<'_>,
     nominal_z: &[f64],
     nominal_cost: f64,
 ) -> Result<SearchRun, IdentifyError> {
-    let mut seeds = ChaCha8Rng::seed_from_u64(search.ctx.seed);
-    let mut best: Option<SearchRun> = None;
-    for index in 0..search.options.swarms {
-        let seed = if index == 0 {
-            search.ctx.seed
-        } else {
-            seeds.next_u64()
-        };
-        if index > 0 && search.ctx.deadline.passed() {
-            break;
-        }
-        let ctx = RunContext {
+    let mut draws = ChaCha8Rng::seed_from_u64(search.ctx.seed);
+    let seeds: Vec<u64> = (0..search.options.swarms)
+        .map(|index| {
+            if index == 0 {
+                search.ctx.seed
+            } else {
+                draws.next_u64()
+            }
+        })
+        .collect();
+    if let [seed] = seeds[..] {
+        return one_search(
+            search,
+            0,
             seed,
-            progress: search.ctx.progress,
-            deadline: search.ctx.deadline.clone(),
-        };
-        let run = Search {
-            objective: search.objective,
-            options: search.options,
-            ctx: &ctx,
-            evals: search.evals,
-        };
-        let mut log = StageLog::default();
-        let swarm = global_stage(&run, nominal_z, nominal_cost, &mut log)?;
-        let local = local_stages(&run, swarm.best_z, &swarm.extra_starts, &mut log)?;
-        let values = run.objective.map.values(&local.best_z);
-        let cost = simulation_mse(run.objective.model, &values, run.objective.data);
-        if best.as_ref().is_none_or(|b| cost < b.cost) {
-            best = Some(SearchRun {
-                index,
-                swarm_cost: swarm.cost,
-                local,
-                log,
-                cost,
-            });
+            search.ctx.progress,
+            nominal_z,
+            nominal_cost,
+        );
+    }
+    let progress = search.ctx.progress;
+    progress.start(seeds.len() as u64, "searches");
+    let runs: Vec<Option<Result<SearchRun, IdentifyError>>> = seeds
+        .par_iter()
+        .enumerate()
+        .map(|(index, &seed)| {
+            if index > 0 && search.ctx.deadline.passed() {
+                return None;
+            }
+            let run = one_search(search, index, seed, &NoProgress, nominal_z, nominal_cost);
+            progress.advance(1);
+            Some(run)
+        })
+        .collect();
+    progress.finish();
+    let mut best: Option<SearchRun> = None;
+    for run in runs.into_iter().flatten() {
+        let run = run?;
+        if best.as_ref().is_none_or(|b| run.cost < b.cost) {
+            best = Some(run);
         }
     }
     best.ok_or_else(|| IdentifyError::failed("no search ran"))
+}
+
+/// Search number `index` of [`best_search`], on `seed`, reporting to
+/// `progress`.
+fn one_search(
+    search: &Search<'_>,
+    index: usize,
+    seed: u64,
+    progress: &dyn Progress,
+    nominal_z: &[f64],
+    nominal_cost: f64,
+) -> Result<SearchRun, IdentifyError> {
+    let ctx = RunContext {
+        seed,
+        progress,
+        deadline: search.ctx.deadline.clone(),
+    };
+    let run = Search {
+        objective: search.objective,
+        options: search.options,
+        ctx: &ctx,
+        evals: search.evals,
+    };
+    let mut log = StageLog::default();
+    let swarm = global_stage(&run, nominal_z, nominal_cost, &mut log)?;
+    let local = local_stages(&run, swarm.best_z, &swarm.extra_starts, &mut log)?;
+    let values = run.objective.map.values(&local.best_z);
+    let cost = simulation_mse(run.objective.model, &values, run.objective.data);
+    Ok(SearchRun {
+        index,
+        swarm_cost: swarm.cost,
+        local,
+        log,
+        cost,
+    })
 }
 
 /// Checks the model, the record and the options against each other;

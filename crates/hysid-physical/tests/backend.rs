@@ -142,7 +142,8 @@ fn honours_fixed_ties_and_bounds_and_is_deterministic() {
 /// recorded, and with these small budgets and the swarm's best as the only
 /// local start (not the nominal values, which generated the record) the
 /// other seeds do find lower costs (a search that reused the run's seed
-/// would always keep the first).
+/// would always keep the first). The searches run in parallel, and the
+/// result does not depend on the thread count.
 #[test]
 fn more_swarms_keep_the_search_of_least_cost() {
     let d = data(600, 3);
@@ -171,6 +172,14 @@ fn more_swarms_keep_the_search_of_least_cost() {
         );
         let again = run(&d, &Priors::default(), &["starts=1", "swarms=4"], seed).unwrap();
         assert_eq!(four.to_json(), again.to_json());
+        // The searches run in parallel: one thread gives the same bytes.
+        let one_thread = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let serial = one_thread
+            .install(|| run(&d, &Priors::default(), &["starts=1", "swarms=4"], seed).unwrap());
+        assert_eq!(four.to_json(), serial.to_json());
     }
     assert!(kept_other, "every seed kept its first search");
     let e = run(&d, &Priors::default(), &["swarms=0"], 1)
