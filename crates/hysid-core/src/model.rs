@@ -250,18 +250,24 @@ impl Model {
                 message,
             },
         })?;
-        if let [own] = resolved.sources.as_slice() {
-            // A file on its own is parsed from its text, so that a wrong
-            // field gets the parser's line and column.
-            return match path.extension().and_then(|e| e.to_str()) {
-                Some("toml") => Self::from_toml(&own.text, &origin),
-                _ => Self::from_json(&own.text, &origin),
-            };
-        }
-        let m: Model = serde_json::from_value(resolved.value).map_err(|e| ModelError::Format {
-            path: origin.clone(),
-            message: format!("{e} (in the file or the files it extends)"),
-        })?;
+        let m: Model = match serde_json::from_value(resolved.value) {
+            Ok(m) => m,
+            // A file on its own is parsed again from its text, so that a
+            // wrong field gets the parser's line and column.
+            Err(_) if resolved.sources.len() == 1 => {
+                let text = &resolved.sources[0].text;
+                return match path.extension().and_then(|e| e.to_str()) {
+                    Some("toml") => Self::from_toml(text, &origin),
+                    _ => Self::from_json(text, &origin),
+                };
+            }
+            Err(e) => {
+                return Err(ModelError::Format {
+                    path: origin,
+                    message: format!("{e} (in the file or the files it extends)"),
+                });
+            }
+        };
         let names: Vec<String> = resolved
             .sources
             .iter()

@@ -70,8 +70,9 @@ fn the_scan_finds_the_head_and_the_example_models() {
 
 /// The model, and the excitation of its "Try:" line.
 fn file(path: &str) -> (GrayBoxModel, Excitation) {
-    let text = std::fs::read_to_string(format!("{ROOT}/{path}")).unwrap();
-    let spec = text
+    let resolved = extends::read(Path::new(&format!("{ROOT}/{path}"))).unwrap();
+    let spec = resolved.sources[0]
+        .text
         .lines()
         .find_map(|l| l.split("--excite ").nth(1))
         .and_then(|rest| rest.split_whitespace().next())
@@ -91,9 +92,7 @@ fn file(path: &str) -> (GrayBoxModel, Excitation) {
         ts: Some(field("ts")),
         inputs: 1,
     };
-    let mut value = extends::read(Path::new(&format!("{ROOT}/{path}")))
-        .unwrap()
-        .value;
+    let mut value = resolved.value;
     let kind = value.as_object_mut().unwrap().remove("kind").unwrap();
     assert_eq!(kind.as_str(), Some("gray_box"));
     let m: GrayBoxModel = serde_json::from_value(value).unwrap();
