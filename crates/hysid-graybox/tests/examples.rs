@@ -314,26 +314,97 @@ proptest! {
         z in proptest::collection::vec(0.0f64..=1.0, 16),
         seed in any::<u64>(),
     ) {
-        let (m, ex) = randomised(&FILES[which], &z);
-        let u = ex.generate(seed).remove(0);
-        let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
-        let run_at = |step: f64| {
-            let mut at = m.clone();
-            at.internal_step = step;
-            run(&CompiledModel::new(&at).unwrap(), &m.values(), &data).unwrap()
-        };
-        let (coarse, fine) = (run_at(m.internal_step), run_at(m.internal_step / 20.0));
-        let (lo, hi) = fine.y.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), y| (l.min(*y), h.max(*y)));
-        let range = (hi - lo).max(1e-12);
-        let excess = (coarse.start..ex.n).find(|&k| (coarse.y[k] - fine.y[k]).abs() > STEP_TOLERANCE * range);
-        if let Some(k) = excess {
-            let half = run_at(m.internal_step / 2.0);
-            let (at_h, at_half) = ((coarse.y[k] - fine.y[k]).abs(), (half.y[k] - fine.y[k]).abs());
-            let gain = at_h / at_half;
-            prop_assert!((HALVING_GAIN.0..=HALVING_GAIN.1).contains(&gain),
-                "{}: sample {}: {} against {} (range {}); at half the step {}, {:.1} times closer",
-                FILES[which], k, coarse.y[k], fine.y[k], range, half.y[k], gain);
-        }
+        converges_to_a_fine_step_reference(&FILES[which], &z, seed)?;
+    }
+}
+
+/// The check of `event_located_runs_converge_to_a_fine_step_reference` on
+/// the file at `path` with its free parameters at `z` and the input drawn
+/// with `seed`; the first sample beyond [`STEP_TOLERANCE`] and the gain of
+/// half the step there, if there is one.
+fn converges_to_a_fine_step_reference(
+    path: &str,
+    z: &[f64],
+    seed: u64,
+) -> Result<Option<(usize, f64)>, TestCaseError> {
+    let (m, ex) = randomised(path, z);
+    let u = ex.generate(seed).remove(0);
+    let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
+    let run_at = |step: f64| {
+        let mut at = m.clone();
+        at.internal_step = step;
+        run(&CompiledModel::new(&at).unwrap(), &m.values(), &data).unwrap()
+    };
+    let (coarse, fine) = (run_at(m.internal_step), run_at(m.internal_step / 20.0));
+    let (lo, hi) = fine
+        .y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), y| {
+            (l.min(*y), h.max(*y))
+        });
+    let range = (hi - lo).max(1e-12);
+    let excess =
+        (coarse.start..ex.n).find(|&k| (coarse.y[k] - fine.y[k]).abs() > STEP_TOLERANCE * range);
+    if let Some(k) = excess {
+        let half = run_at(m.internal_step / 2.0);
+        let (at_h, at_half) = (
+            (coarse.y[k] - fine.y[k]).abs(),
+            (half.y[k] - fine.y[k]).abs(),
+        );
+        let gain = at_h / at_half;
+        prop_assert!(
+            (HALVING_GAIN.0..=HALVING_GAIN.1).contains(&gain),
+            "{}: sample {}: {} against {} (range {}); at half the step {}, {:.1} times closer",
+            path,
+            k,
+            coarse.y[k],
+            fine.y[k],
+            range,
+            half.y[k],
+            gain
+        );
+        return Ok(Some((k, gain)));
+    }
+    Ok(None)
+}
+
+/// Three cases the property above drew with other seeds: a ball on a
+/// lightly damped, stiff table (`zeta` 0.05 to 0.1, `wn` 28.6 and 27.7
+/// rad/s), whose runs at the file's step first miss the fine-step
+/// reference by more than [`STEP_TOLERANCE`] at samples 409, 281 and 509.
+/// Half the step is 15.4 and 16.3 times closer at the first two (RK4's
+/// fourth order), and 5.1 times at the third, which follows a bounce that
+/// grazes the table.
+#[test]
+fn the_sensitive_ball_converges_to_a_fine_step_reference() {
+    let ball = "models/examples/ball-on-table.toml";
+    let cases: [(&[f64], u64); 3] = [
+        (
+            &[0.0, 0.7215270211936504, 0.9443611080305383],
+            933102687983789879,
+        ),
+        (
+            &[0.0, 0.4146801500755961, 0.9075388573101504],
+            12821735826855177013,
+        ),
+        (
+            &[
+                0.6130717119071284,
+                0.4146801500755961,
+                0.9075388573101504,
+                0.05166557841309644,
+            ],
+            12922769298579255275,
+        ),
+    ];
+    for (z, seed) in cases {
+        let mut z = z.to_vec();
+        z.resize(16, 0.0);
+        let (m, _) = randomised(ball, &z);
+        let zeta = m.values()[m.parameter_index("zeta").unwrap()];
+        assert!(zeta <= 0.1, "the case's damping: {zeta}");
+        let excess = converges_to_a_fine_step_reference(ball, &z, seed).unwrap();
+        assert!(excess.is_some(), "the case is within the tolerance");
     }
 }
 
