@@ -4,7 +4,9 @@
 //! Slot layout: the states, then the inputs and the parameters. A
 //! definition may use states, inputs, parameters and other definitions, but
 //! not itself through a cycle; each mode's definitions are inlined into
-//! every expression evaluated in that mode, so a run stores no definition.
+//! every expression evaluated in that mode, so a run stores no definition
+//! (a definition an expression uses more than once is evaluated once, into
+//! a register of that expression's tape: [`Expression::inline`]).
 
 use crate::expr::{ExprError, Expression, Function, Relation};
 use crate::model::{Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxModel};
@@ -323,7 +325,7 @@ impl CompiledModel {
                 .ok_or_else(|| InvalidGrayBox::new(place, Some(n), Problem::UnknownMode(n.into())))
         };
 
-        // Each mode's definitions, inlined into one another in dependency order.
+        // Each mode's definitions, in dependency order.
         let names = definition_names(m);
         let mut mode_definitions = Vec::with_capacity(m.modes.len());
         for q in &m.modes {
@@ -346,18 +348,21 @@ impl CompiledModel {
             let order = order_definitions(&defs, first_def).map_err(|i| {
                 InvalidGrayBox::new(&place, Some(names[i]), Problem::Cycle(names[i].to_string()))
             })?;
-            let mut inlined: Vec<Option<Expression>> = vec![None; names.len()];
+            // Kept as written (expanded where they are used), each checked
+            // once expanded.
+            let mut written: Vec<Option<Expression>> = vec![None; names.len()];
             for i in order {
                 let (_, e, text) = &defs[i];
-                inlined[i] = Some(e.inline(first_def as u32, &inlined).ok_or_else(|| {
+                e.inline(first_def as u32, &written).ok_or_else(|| {
                     InvalidGrayBox::new(
                         format!("{place}, definition '{}'", names[i]),
                         Some(text),
                         ExprError::TooDeep(text.to_string()),
                     )
-                })?);
+                })?;
+                written[i] = Some(e.clone());
             }
-            mode_definitions.push(inlined);
+            mode_definitions.push(written);
         }
         // An expression of mode `q` with its definitions inlined.
         let direct = |q: usize, place: &str, text: &str| -> Result<Expression, InvalidGrayBox> {

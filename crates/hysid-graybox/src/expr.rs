@@ -12,6 +12,12 @@ use evalexpr::{DefaultNumericTypes, Node, Operator, Value};
 /// Deepest evaluation stack an expression may need (checked at compile).
 pub const MAX_DEPTH: usize = 32;
 
+/// Registers of one tape: values of definitions that an expression uses
+/// more than once, kept at their first evaluation and read again at the
+/// others ([`Expression::inline`]). Past this many, a definition is
+/// evaluated again where it recurs.
+pub const REGISTERS: usize = 16;
+
 /// The functions an expression may call, with their arities.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Function {
@@ -187,6 +193,10 @@ enum Op {
     Not,
     Binary(Binary),
     Call(Function),
+    /// Copies the top of the stack into a register (the value stays).
+    Keep(u8),
+    /// Pushes a register's value.
+    Recall(u8),
 }
 
 /// Why an expression does not compile.
@@ -397,27 +407,110 @@ impl Expression {
     }
 
     /// The expression with every slot from `first` on that `definitions`
-    /// gives (`definitions[slot - first]`) replaced by that expression's tape
-    /// and folded: a flow written with definitions becomes one expression
-    /// of the states, inputs and parameters. `None` when the result would
-    /// need more than [`MAX_DEPTH`] pending operands.
+    /// gives (`definitions[slot - first]`, which may use other definitions)
+    /// replaced by that expression's tape and folded: a flow written with
+    /// definitions becomes one expression of the states, inputs and
+    /// parameters. A definition that the result would evaluate more than
+    /// once is evaluated once into a register ([`REGISTERS`]) and read back
+    /// where it recurs, unless the result is affine (whose evaluation reads
+    /// no tape). `None` when the result would need more than [`MAX_DEPTH`]
+    /// pending operands.
     pub fn inline(&self, first: u32, definitions: &[Option<Expression>]) -> Option<Expression> {
+        let mut plain = Sharing::off(definitions.len());
+        plain.count(&self.ops, first, definitions);
+        let recurs = plain.uses.iter().any(|&n| n > 1);
         let mut ops = Vec::with_capacity(self.ops.len());
-        for op in &self.ops {
-            match *op {
-                Op::Load(s) if s >= first => match definitions.get((s - first) as usize) {
-                    Some(Some(d)) => {
-                        for dop in &d.ops {
-                            push_folded(&mut ops, *dop);
-                        }
-                    }
-                    _ => push_folded(&mut ops, *op),
-                },
-                op => push_folded(&mut ops, op),
+        plain.expand(&mut ops, &self.ops, first, definitions);
+        let mut e = Expression::from_ops(ops);
+        if recurs && matches!(e.form, Form::Tape) {
+            let mut shared = Sharing { on: true, ..plain };
+            let mut ops = Vec::with_capacity(e.ops.len());
+            shared.expand(&mut ops, &self.ops, first, definitions);
+            e = Expression::from_ops(ops);
+        }
+        (e.depth() <= MAX_DEPTH).then_some(e)
+    }
+}
+
+/// How [`Expression::inline`] expands definitions: how often each is used,
+/// and the register each kept one is in.
+struct Sharing {
+    /// Keep recurring definitions in registers.
+    on: bool,
+    /// Uses of each definition in the expansion that keeps them.
+    uses: Vec<usize>,
+    /// The register of each definition evaluated so far and kept.
+    register: Vec<Option<u8>>,
+    /// Registers taken.
+    taken: usize,
+}
+
+impl Sharing {
+    fn off(definitions: usize) -> Self {
+        Sharing {
+            on: false,
+            uses: vec![0; definitions],
+            register: vec![None; definitions],
+            taken: 0,
+        }
+    }
+
+    /// The definition `ops` reads from slot `s`, with its index.
+    fn definition(
+        s: u32,
+        first: u32,
+        definitions: &[Option<Expression>],
+    ) -> Option<(usize, &Expression)> {
+        let i = s.checked_sub(first)? as usize;
+        definitions.get(i)?.as_ref().map(|d| (i, d))
+    }
+
+    /// Counts the uses of every definition in `ops`, a definition's own
+    /// uses once (a kept definition is expanded once). Definitions do not
+    /// use themselves (the caller has checked for cycles), so this ends.
+    fn count(&mut self, ops: &[Op], first: u32, definitions: &[Option<Expression>]) {
+        for op in ops {
+            if let Op::Load(s) = *op
+                && let Some((i, d)) = Self::definition(s, first, definitions)
+            {
+                self.uses[i] += 1;
+                if self.uses[i] == 1 {
+                    self.count(&d.ops, first, definitions);
+                }
             }
         }
-        let e = Expression::from_ops(ops);
-        (e.depth() <= MAX_DEPTH).then_some(e)
+    }
+
+    /// Appends `ops` to `out` with every definition expanded (or read from
+    /// its register), folding constants.
+    fn expand(
+        &mut self,
+        out: &mut Vec<Op>,
+        ops: &[Op],
+        first: u32,
+        definitions: &[Option<Expression>],
+    ) {
+        for op in ops {
+            let Op::Load(s) = *op else {
+                push_folded(out, *op);
+                continue;
+            };
+            let Some((i, d)) = Self::definition(s, first, definitions) else {
+                push_folded(out, *op);
+                continue;
+            };
+            if let Some(r) = self.register[i] {
+                out.push(Op::Recall(r));
+                continue;
+            }
+            self.expand(out, &d.ops, first, definitions);
+            if self.on && self.uses[i] > 1 && self.taken < REGISTERS {
+                let r = self.taken as u8;
+                out.push(Op::Keep(r));
+                self.register[i] = Some(r);
+                self.taken += 1;
+            }
+        }
     }
 }
 
@@ -425,6 +518,7 @@ impl Expression {
 #[inline(never)]
 fn run_tape(ops: &[Op], slots: &[f64]) -> f64 {
     let mut stack = [0.0f64; MAX_DEPTH];
+    let mut registers = [0.0f64; REGISTERS];
     let mut sp = 0usize;
     for op in ops {
         match *op {
@@ -448,6 +542,11 @@ fn run_tape(ops: &[Op], slots: &[f64]) -> f64 {
                 stack[sp] = f.apply(&stack[sp..sp + k]);
                 sp += 1;
             }
+            Op::Keep(r) => registers[r as usize] = stack[sp - 1],
+            Op::Recall(r) => {
+                stack[sp] = registers[r as usize];
+                sp += 1;
+            }
         }
     }
     stack[0]
@@ -457,8 +556,8 @@ impl Op {
     /// Operands taken from the stack.
     fn operands(self) -> usize {
         match self {
-            Op::Const(_) | Op::Load(_) => 0,
-            Op::Neg | Op::Not => 1,
+            Op::Const(_) | Op::Load(_) | Op::Recall(_) => 0,
+            Op::Neg | Op::Not | Op::Keep(_) => 1,
             Op::Binary(_) => 2,
             Op::Call(f) => f.arity(),
         }
@@ -468,12 +567,14 @@ impl Op {
 /// Appends `op` to a postfix tape, replacing it and its operands by their
 /// value when every operand is a constant. An operand is constant exactly
 /// when its own (already folded) tape is one `Const`, so the last
-/// `operands()` instructions are all constants exactly then.
+/// `operands()` instructions are all constants exactly then. A `Keep` is
+/// never folded: a later `Recall` reads its register.
 fn push_folded(ops: &mut Vec<Op>, op: Op) {
     let k = op.operands();
     let n = ops.len();
     ops.push(op);
-    if k > 0 && ops[n - k..n].iter().all(|o| matches!(o, Op::Const(_))) {
+    let keeps = matches!(op, Op::Keep(_));
+    if k > 0 && !keeps && ops[n - k..n].iter().all(|o| matches!(o, Op::Const(_))) {
         let v = run_tape(&ops[n - k..], &[]);
         ops.truncate(n - k);
         ops.push(Op::Const(v));
@@ -841,7 +942,87 @@ mod tests {
         })
     }
 
+    /// Slots `x, y, z`, then the definitions `a` and `b`.
+    fn with_definitions(n: &str) -> Option<u32> {
+        ["x", "y", "z", "a", "b"]
+            .iter()
+            .position(|s| *s == n)
+            .map(|i| i as u32)
+    }
+
+    /// `text` with the definitions `a` and `b` (texts) expanded, without
+    /// registers: every use evaluated where it stands.
+    fn expanded_plainly(text: &str, a: &str, b: &str) -> Expression {
+        let e = Expression::compile(text, &with_definitions).unwrap();
+        let defs = [a, b].map(|d| Some(Expression::compile(d, &with_definitions).unwrap()));
+        let mut ops = Vec::new();
+        Sharing::off(2).expand(&mut ops, &e.ops, 3, &defs);
+        Expression::from_ops(ops)
+    }
+
+    #[test]
+    fn a_definition_used_twice_is_evaluated_once() {
+        let (a, b) = ("sin(x) * y + z", "a * a - 1");
+        let defs = [a, b].map(|d| Some(Expression::compile(d, &with_definitions).unwrap()));
+        let e = Expression::compile("b / (1 + a) + sign(a)", &with_definitions)
+            .unwrap()
+            .inline(3, &defs)
+            .unwrap();
+        let count = |f: fn(&Op) -> bool| e.ops.iter().filter(|o| f(o)).count();
+        // `a` is evaluated once (inside `b`), kept, and read three times.
+        assert_eq!(count(|o| matches!(o, Op::Keep(_))), 1, "{:?}", e.ops);
+        assert_eq!(count(|o| matches!(o, Op::Recall(_))), 3, "{:?}", e.ops);
+        assert_eq!(
+            count(|o| matches!(o, Op::Call(Function::Sin))),
+            1,
+            "{:?}",
+            e.ops
+        );
+        let plain = expanded_plainly("b / (1 + a) + sign(a)", a, b);
+        assert!(e.ops.len() < plain.ops.len());
+        let s = [0.7, -1.3, 2.1];
+        assert_eq!(e.eval(&s).to_bits(), plain.eval(&s).to_bits());
+        // An affine result keeps its affine form (no tape is run).
+        let affine = Expression::compile("a + a", &with_definitions)
+            .unwrap()
+            .inline(
+                3,
+                &[
+                    Some(Expression::compile("2 * x + y", &with_definitions).unwrap()),
+                    None,
+                ],
+            )
+            .unwrap();
+        assert!(affine.affine().is_some());
+    }
+
     proptest! {
+        /// Random definitions `a` (of the slots) and `b` (of the slots and
+        /// `a`), used several times by a random expression: the expression
+        /// with each recurring definition kept in a register gives the same
+        /// bits as with every use evaluated where it stands, and the value
+        /// the trees give.
+        #[test]
+        fn kept_definitions_give_the_same_bits(
+            ta in tree(), tb in tree(), te in tree(),
+            s in proptest::collection::vec(-5.0f64..5.0, 3),
+        ) {
+            let (a, b) = (ta.text(), format!("({}) * a", tb.text()));
+            let text = format!("({}) + a * b - min(a, b)", te.text());
+            let defs = [&a, &b].map(|d| Some(Expression::compile(d, &with_definitions).unwrap()));
+            let e = Expression::compile(&text, &with_definitions).unwrap().inline(3, &defs);
+            let plain = expanded_plainly(&text, &a, &b);
+            prop_assume!(e.is_some());
+            let (kept, plain) = (e.unwrap().eval(&s), plain.eval(&s));
+            prop_assert!(kept.to_bits() == plain.to_bits() || (kept.is_nan() && plain.is_nan()),
+                "{}: kept {} plain {}", text, kept, plain);
+            let (va, vt) = (ta.value(&s), tb.value(&s));
+            let vb = vt * va;
+            let tree = te.value(&s) + va * vb - va.min(vb);
+            prop_assert!(kept == tree || (kept.is_nan() && tree.is_nan()) || (kept - tree).abs() <= 1e-9 * tree.abs().max(1.0),
+                "{}: tape {} trees {}", text, kept, tree);
+        }
+
         #[test]
         fn tape_matches_the_tree(t in tree(), s in proptest::collection::vec(-5.0f64..5.0, 3)) {
             let e = Expression::compile(&t.text(), &names).unwrap();
