@@ -56,6 +56,12 @@ fn methods_lists_arx_with_its_options() {
             .contains("c: the five largest of 4, 6"),
         "{json}"
     );
+    // arx is a least-squares fit; cluster's K-means starts are drawn.
+    assert_eq!(
+        (&json[0]["seeded"], &json[1]["seeded"]),
+        (&false.into(), &true.into())
+    );
+    assert!(out.contains("seed: does not change the model"), "{out}");
 }
 
 #[test]
@@ -728,26 +734,21 @@ fn auto_selection_rows_are_checked() {
         (vec!["--grid", "na=two"], "--grid na=two: not a count"),
         (vec!["--grid", "na"], "--grid"),
         (vec!["--folds", "1"], "--folds 1: at least 2 folds"),
+        (
+            vec!["--refit-starts", "0"],
+            "'0' is not a whole number of starts (1 or more)",
+        ),
     ] {
         let mut args = base.to_vec();
         args.extend(extra);
         bad(&args, &[needle], &out);
     }
-    // --grid without --auto is a usage error.
-    bad(
-        &[
-            "identify",
-            s(&data),
-            "-m",
-            "arx",
-            "--grid",
-            "na=1",
-            "-o",
-            s(&out),
-        ],
-        &["--auto"],
-        &out,
-    );
+    // --grid and --refit-starts without --auto are usage errors.
+    for extra in [["--grid", "na=1"], ["--refit-starts", "2"]] {
+        let mut args = vec!["identify", s(&data), "-m", "arx", "-o", s(&out)];
+        args.extend(extra);
+        bad(&args, &["--auto"], &out);
+    }
 }
 
 #[test]

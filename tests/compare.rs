@@ -292,7 +292,7 @@ fn figures_as_png_on_request() {
 /// `[data] folds = K`: an `auto` run chooses its options on `K` rolling
 /// folds of the identification rows, as `hysid identify --auto --folds K`
 /// does, and its model records the `K - 1` splits; giving both `folds` and
-/// `selection` is refused.
+/// `selection` is refused, and so is `refit_starts = 0`.
 #[test]
 fn auto_runs_choose_on_folds() {
     let dir = tempfile::tempdir().unwrap();
@@ -321,5 +321,12 @@ fn auto_runs_choose_on_folds() {
     let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
     assert_eq!(code, 2);
     assert!(err.contains("selection and folds"), "{err}");
+    assert!(!out.exists());
+
+    let none = folded.replace("folds = 4\n", "folds = 4\nrefit_starts = 0\n");
+    std::fs::write(&exp, none).unwrap();
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
+    assert_eq!(code, 2);
+    assert!(err.contains("refit_starts must be at least 1"), "{err}");
     assert!(!out.exists());
 }

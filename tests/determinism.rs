@@ -113,7 +113,7 @@ fn identify_is_byte_identical_across_runs_and_thread_counts() {
     let cases: [(&str, &[&str]); 6] = [
         ("arx", &["--na", "2", "--nb", "2", "--standardize"]),
         // Automatic selection: candidates scored in parallel, then the
-        // refined candidates and the refit.
+        // refined candidates and the refit's starts.
         (
             "cluster",
             &[

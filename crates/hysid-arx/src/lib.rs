@@ -58,6 +58,7 @@ pub struct Arx;
 impl Identifier for Arx {
     type Options = ArxOptions;
     const NAME: &'static str = "arx";
+    const SEEDED: bool = false;
     const SUMMARY: &'static str = "one affine ARX model by least squares: the linear baseline";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const SEARCH: &'static str = "the orders from na = nb = 1 up to the given --na and --nb";

@@ -41,6 +41,11 @@ pub struct DataSpec {
     /// identification rows on a rolling origin (`hysid identify --folds K`).
     #[serde(default)]
     pub folds: Option<usize>,
+    /// Starts of the refit of an auto run's choice on all the
+    /// identification rows, for a back-end the seed changes
+    /// (`hysid identify --refit-starts K`; default 3).
+    #[serde(default = "default_refit_starts")]
+    pub refit_starts: usize,
     /// Axis label of the output in figures, with its unit (default `output <name>`).
     #[serde(default)]
     pub output_label: Option<String>,
@@ -65,6 +70,9 @@ fn one() -> usize {
 }
 fn ten() -> usize {
     10
+}
+fn default_refit_starts() -> usize {
+    hysid_select::DEFAULT_REFIT_STARTS
 }
 fn yes() -> bool {
     true
@@ -344,6 +352,9 @@ pub enum InconsistentExperiment {
     /// `decimate = 0`.
     #[error("[data] decimate must be at least 1")]
     Decimate,
+    /// `refit_starts = 0`.
+    #[error("[data] refit_starts must be at least 1")]
+    RefitStarts,
     /// Both selection rows and folds.
     #[error("[data] selection and folds are two ways of choosing: give one")]
     SelectionAndFolds,
@@ -451,6 +462,9 @@ impl Experiment {
         }
         if self.data.decimate == 0 {
             return Err(E::Decimate);
+        }
+        if self.data.refit_starts == 0 {
+            return Err(E::RefitStarts);
         }
         if self.data.selection.is_some() && self.data.folds.is_some() {
             return Err(E::SelectionAndFolds);

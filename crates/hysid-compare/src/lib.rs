@@ -362,6 +362,7 @@ fn identify(
         folds: spec.folds,
         warmup: spec.warmup,
         first_row: spec.identification.start.unwrap_or(0),
+        refit_starts: spec.refit_starts,
     };
     let affine = hysid_backends::affine_reference(registry, backend.name());
     let request =

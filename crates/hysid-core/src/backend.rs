@@ -13,6 +13,8 @@ use crate::priors::{PriorError, PriorKind, Priors};
 use crate::search::SearchSpace;
 use hysid_model::data::{DataError, Dataset};
 use hysid_model::regressors::{RegressorError, RegressorSpec};
+use rand::{RngCore, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -144,6 +146,15 @@ impl<'a> RunContext<'a> {
             progress: &NoProgress,
             deadline: Deadline::none(),
         }
+    }
+    /// The seeds of `k` independent starts of a run: the run's own seed,
+    /// then successive draws of a `ChaCha8Rng` seeded by it. The first
+    /// start is the run itself, so one start changes nothing.
+    pub fn start_seeds(&self, k: usize) -> Vec<u64> {
+        let mut draws = ChaCha8Rng::seed_from_u64(self.seed);
+        (0..k)
+            .map(|i| if i == 0 { self.seed } else { draws.next_u64() })
+            .collect()
     }
 }
 
@@ -357,6 +368,12 @@ pub trait Identifier: Send + Sync {
     /// deviation before the run and multiplies these diagnostics by it
     /// after, so the user speaks and reads data units throughout.
     const OUTPUT_UNITS: &'static [&'static str] = &[];
+    /// Whether the run's seed can change the model (random starts, visiting
+    /// orders). Automatic selection refits the choice of a seeded back-end
+    /// from several starts and keeps the one that simulates the
+    /// identification rows best; a back-end whose fit is a function of the
+    /// data alone says `false`, and is refitted once.
+    const SEEDED: bool = true;
 
     /// The candidate settings that automatic selection (`--auto`) tries on
     /// `problem`; the default is the back-end's defaults only.
@@ -403,6 +420,8 @@ pub trait Backend: Send + Sync {
     /// Options and diagnostics fields in the output's units
     /// ([`Identifier::OUTPUT_UNITS`]).
     fn output_units(&self) -> &'static [&'static str];
+    /// Whether the seed can change the model ([`Identifier::SEEDED`]).
+    fn seeded(&self) -> bool;
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
     /// Resolves options, checks priors, identifies, records provenance.
@@ -445,6 +464,9 @@ impl<T: Identifier> Backend for T {
     }
     fn output_units(&self) -> &'static [&'static str] {
         T::OUTPUT_UNITS
+    }
+    fn seeded(&self) -> bool {
+        T::SEEDED
     }
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)
@@ -526,6 +548,8 @@ pub struct MethodDescription {
     pub priors: &'static [PriorKind],
     /// What automatic selection tries, in one sentence.
     pub search: &'static str,
+    /// Whether the seed can change the model ([`Identifier::SEEDED`]).
+    pub seeded: bool,
 }
 
 impl MethodDescription {
@@ -537,6 +561,7 @@ impl MethodDescription {
             options: backend.options(),
             priors: backend.honours(),
             search: backend.search_doc(),
+            seeded: backend.seeded(),
         }
     }
 }

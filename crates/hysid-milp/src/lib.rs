@@ -89,6 +89,7 @@ pub struct Milp;
 impl Identifier for Milp {
     type Options = MilpOptions;
     const NAME: &'static str = "milp";
+    const SEEDED: bool = false;
     const SUMMARY: &'static str = "exact mixed-integer switched regression (l1 with a mode count, or the fewest modes within delta) for records of tens of samples; then regions";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const OUTPUT_UNITS: &'static [&'static str] = &["delta", "theta_max", "l1_error"];

@@ -19,8 +19,6 @@ use crate::{PhysicalError, PhysicalOptions};
 use hysid_core::backend::{IdentifyError, NoProgress, Progress, RunContext};
 use hysid_core::priors::Priors;
 use hysid_model::data::Dataset;
-use rand::{RngCore, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -144,7 +142,8 @@ struct SearchRun {
 
 /// `options.swarms` independent searches (the particle swarm, then the
 /// local stages from its best points), the first seeded by the run's seed
-/// and each next one by the next draw of a `ChaCha8Rng` seeded by it; the
+/// and each next one by the next draw of a `ChaCha8Rng` seeded by it
+/// ([`RunContext::start_seeds`]); the
 /// one of least free-run cost is kept (the first among equals). Several
 /// searches run in parallel, each on its own seed, so the one kept does
 /// not depend on the thread count; the progress then counts searches. No
@@ -154,16 +153,7 @@ fn best_search(
     nominal_z: &[f64],
     nominal_cost: f64,
 ) -> Result<SearchRun, IdentifyError> {
-    let mut draws = ChaCha8Rng::seed_from_u64(search.ctx.seed);
-    let seeds: Vec<u64> = (0..search.options.swarms)
-        .map(|index| {
-            if index == 0 {
-                search.ctx.seed
-            } else {
-                draws.next_u64()
-            }
-        })
-        .collect();
+    let seeds = search.ctx.start_seeds(search.options.swarms);
     if let [seed] = seeds[..] {
         return one_search(
             search,

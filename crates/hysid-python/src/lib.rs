@@ -170,7 +170,7 @@ fn settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
 #[pyo3(signature = (
     u, y, method="cluster", na=2, nb=2, modes=None, max_modes=None, priors=None,
     options=None, seed=0, ts=None, auto=false, select_rows=None, folds=None,
-    grid=None, warmup=10, standardize=false, time_budget=None, input_names=None,
+    refit_starts=None, grid=None, warmup=10, standardize=false, time_budget=None, input_names=None,
     output_name=None
 ))]
 #[allow(clippy::too_many_arguments)]
@@ -190,6 +190,7 @@ fn identify<'py>(
     auto: bool,
     select_rows: Option<String>,
     folds: Option<usize>,
+    refit_starts: Option<usize>,
     grid: Option<Vec<String>>,
     warmup: usize,
     standardize: bool,
@@ -231,8 +232,15 @@ fn identify<'py>(
         parse_rows("select_rows", select_rows.as_deref())?,
         grid.unwrap_or_default(),
     );
-    if !auto && (select_rows.is_some() || folds.is_some() || !grid.is_empty()) {
-        return Err(Failure::new("select_rows, folds and grid need auto=True").into());
+    if !auto
+        && (select_rows.is_some() || folds.is_some() || refit_starts.is_some() || !grid.is_empty())
+    {
+        return Err(
+            Failure::new("select_rows, folds, refit_starts and grid need auto=True").into(),
+        );
+    }
+    if refit_starts == Some(0) {
+        return Err(Failure::new("refit_starts=0: must be at least 1").into());
     }
     if auto && standardize {
         return Err(Failure::new("auto=True and standardize=True cannot be combined").into());
@@ -267,6 +275,7 @@ fn identify<'py>(
                     folds,
                     warmup,
                     first_row: 0,
+                    refit_starts: refit_starts.unwrap_or(hysid_select::DEFAULT_REFIT_STARTS),
                 };
                 let affine = hysid_backends::affine_reference(&registry, backend.name());
                 let request =

@@ -99,6 +99,8 @@ def test_bad_arguments_are_refused():
     assert "rows" in raised(hysid.load, PICK_AND_PLACE, rows="7")
     assert "named twice" in raised(hysid.load, PICK_AND_PLACE, inputs=["u", "u"])
     assert "need auto=True" in raised(hysid.identify, U, Y, method="arx", folds=3)
+    assert "need auto=True" in raised(hysid.identify, U, Y, method="arx", refit_starts=2)
+    assert "refit_starts=0" in raised(hysid.identify, U, Y, method="arx", auto=True, refit_starts=0)
     assert "warmup" in raised(hysid.Model.from_json(
         '{"kind": "pwarx", "na": 1, "nb": 1, "inputs": 1, "modes": [{"theta": [0.5, 1, 0], "region": {}}]}'
     ).validate, U[:5], Y[:5], warmup=5)

@@ -104,6 +104,8 @@ def test_auto_chooses_on_the_last_fifth_and_records_its_candidates(record):
     # Other selection rows, another split recorded.
     other = hysid.identify(u[:5000], y[:5000], method="arx", auto=True, grid=grid, select_rows=(0, 1000), ts=ts)
     assert [s["select_rows"] for s in other.info["selection"]["splits"]] == ["0..1000"]
+    # arx's fit does not depend on the seed: one refit start, written.
+    assert [(r["seed"], r["kept"]) for r in model.info["selection"]["refit"]] == [(0, True)]
 
 
 def test_multiple_inputs_take_a_two_dimensional_u():

@@ -16,9 +16,11 @@
 //! a candidate of its own. Of the candidates within one
 //! standard error of the best, the one with the fewest modes is chosen
 //! ([`parsimony`]). The choice is then fitted again on all the
-//! identification rows (the next candidate when that refit simulates them
-//! below the affine reference), and the model file records every
-//! candidate, its score and the choice ([`Selection`]).
+//! identification rows, from several seeds when the seed can change the
+//! back-end's fit, keeping the start that simulates them best (the next
+//! candidate when that refit simulates them below the affine reference),
+//! and the model file records every candidate, its score, the choice and
+//! the refit's starts ([`Selection`]).
 //!
 //! Choosing by simulation rather than one-step prediction is the point:
 //! the founding experiment judges its models by their simulated responses
@@ -33,11 +35,12 @@ use hysid_core::options::Settings;
 use hysid_core::search::{Candidate, CandidateError, SearchSpace, Setup};
 use hysid_core::simulate::validate;
 use hysid_model::data::{DataError, Dataset, RowRange};
-use hysid_model::model::{RefinementChoice, ScoredCandidate, Selection, SplitRows};
+use hysid_model::model::{RefinementChoice, RefitStart, ScoredCandidate, Selection, SplitRows};
 use rayon::prelude::*;
 
-/// Which identification rows score the candidates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// Which identification rows score the candidates, and how the choice is
+/// refitted on all of them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Plan {
     /// Selection rows, in rows of the file (as `first_row` counts them);
     /// `None`: the last [`DEFAULT_SELECTION_PERCENT`] % of the
@@ -54,10 +57,28 @@ pub struct Plan {
     /// is read, and the rows of the record are written, as rows of the
     /// file.
     pub first_row: usize,
+    /// Starts of the refit of the choice on all the identification rows
+    /// when the back-end is seeded ([`Backend::seeded`]); at least one.
+    pub refit_starts: usize,
+}
+
+impl Default for Plan {
+    fn default() -> Self {
+        Plan {
+            select: None,
+            folds: None,
+            warmup: 0,
+            first_row: 0,
+            refit_starts: DEFAULT_REFIT_STARTS,
+        }
+    }
 }
 
 /// Share of the identification rows used for selection by default.
 pub const DEFAULT_SELECTION_PERCENT: usize = 20;
+
+/// Starts of the refit of a seeded back-end's choice by default.
+pub const DEFAULT_REFIT_STARTS: usize = 3;
 
 /// What to select for.
 pub struct Request<'a> {
@@ -292,7 +313,7 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
     let floor = affine_index(request, scored.len()).and_then(|a| scored[a].fit_sim);
     let dependence = parsimony::Dependence::of_output_lags(request.setup.orders.na);
     let order = preference(&scored, &errors, floor, dependence);
-    let (chosen, mut model) = choose(request, &trials, &mut scored, &order, ctx)?;
+    let (chosen, mut model, refit) = choose(request, &trials, &mut scored, &order, ctx)?;
     let refinement = refinement_record(&scored, chosen);
     let in_file = |(a, b): (usize, usize)| {
         let first = request.plan.first_row;
@@ -311,6 +332,7 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
         chosen,
         best: best.unwrap_or(chosen),
         refinement,
+        refit,
     });
     Ok(model)
 }
@@ -529,8 +551,9 @@ fn preference(
 }
 
 /// The first candidate of `order` whose refit on all the identification
-/// rows succeeds and simulates them no worse than the affine reference
-/// refitted on them, with its model. A candidate fitted on the fit rows
+/// rows ([`refit`]) succeeds and simulates them no worse than the affine
+/// reference refitted on them, with its model and the record of the
+/// refit's starts. A candidate fitted on the fit rows
 /// may still fail on all of them (e.g. a cluster dropped below its discard
 /// size), and a refit, a new fit on more rows, may land in another local
 /// minimum than the candidate that was scored; such a candidate gets the
@@ -541,7 +564,7 @@ fn choose(
     scored: &mut [ScoredCandidate],
     order: &[usize],
     ctx: &RunContext<'_>,
-) -> Result<(usize, Model), SelectError> {
+) -> Result<(usize, Model, Vec<RefitStart>), SelectError> {
     if order.is_empty() {
         return Err(SelectError::NoCandidate {
             first: scored
@@ -556,8 +579,8 @@ fn choose(
     let mut floor: Option<Option<f64>> = None;
     let mut first_error = None;
     for &i in order {
-        let model = match fit(request, &trials[i], request.data, None, ctx) {
-            Ok(model) => model,
+        let (model, starts) = match refit(request, &trials[i], ctx) {
+            Ok(refitted) => refitted,
             Err(e) => {
                 scored[i].error = Some(format!("refit on all the identification rows: {e}"));
                 first_error.get_or_insert(SelectError::from(e));
@@ -565,14 +588,14 @@ fn choose(
             }
         };
         let Some(a) = affine.filter(|&a| a != i) else {
-            return Ok((i, model));
+            return Ok((i, model, starts));
         };
         let floor = *floor.get_or_insert_with(|| {
             fit(request, &trials[a], request.data, None, ctx)
                 .ok()
                 .and_then(|m| fit_on(&m, request.data, request.plan.warmup))
         });
-        let own = fit_on(&model, request.data, request.plan.warmup);
+        let own = starts.iter().find(|s| s.kept).and_then(|s| s.fit_sim);
         match floor {
             Some(floor) if own.is_none_or(|own| own < floor) => {
                 let own = own.map_or_else(|| "no finite FIT".into(), |v| format!("{v:.2} %"));
@@ -580,12 +603,83 @@ fn choose(
                     "refit on all the identification rows: it simulates them at {own}, below the affine model's {floor:.2} %"
                 ));
             }
-            _ => return Ok((i, model)),
+            _ => return Ok((i, model, starts)),
         }
     }
     Err(first_error.unwrap_or_else(|| SelectError::NoCandidate {
         first: "no candidate".into(),
     }))
+}
+
+/// `trial` fitted on all the identification rows from `plan.refit_starts`
+/// starts when its back-end is seeded, from one otherwise: the run's seed,
+/// then the next ones ([`RunContext::start_seeds`]), in parallel. A refit is
+/// a new fit on more rows and may end in another local minimum than the
+/// fit that was scored; of the starts, the fit that simulates the
+/// identification rows best is kept (the first among equals), and each
+/// start is recorded. When every start fails, the first start's error. No
+/// start but the first begins after the deadline.
+fn refit(
+    request: &Request<'_>,
+    trial: &Trial<'_>,
+    ctx: &RunContext<'_>,
+) -> Result<(Model, Vec<RefitStart>), IdentifyError> {
+    let starts = if trial.backend.seeded() {
+        request.plan.refit_starts.max(1)
+    } else {
+        1
+    };
+    let runs: Vec<(u64, Option<Result<Model, IdentifyError>>)> = ctx
+        .start_seeds(starts)
+        .into_par_iter()
+        .enumerate()
+        .map(|(k, seed)| {
+            if k > 0 && ctx.deadline.passed() {
+                return (seed, None);
+            }
+            let start = RunContext {
+                seed,
+                progress: &NoProgress,
+                deadline: ctx.deadline.clone(),
+            };
+            (seed, Some(fit(request, trial, request.data, None, &start)))
+        })
+        .collect();
+    let mut record = Vec::with_capacity(runs.len());
+    let mut kept: Option<(usize, Model, f64)> = None;
+    let mut first_error = None;
+    for (seed, run) in runs {
+        let Some(run) = run else { continue };
+        let (fit_sim, error) = match run {
+            Ok(model) => {
+                let fit_sim = fit_on(&model, request.data, request.plan.warmup);
+                let score = fit_sim.unwrap_or(f64::NEG_INFINITY);
+                if kept.as_ref().is_none_or(|(_, _, best)| score > *best) {
+                    kept = Some((record.len(), model, score));
+                }
+                (fit_sim, None)
+            }
+            Err(e) => {
+                let text = e.to_string();
+                first_error.get_or_insert(e);
+                (None, Some(text))
+            }
+        };
+        record.push(RefitStart {
+            seed,
+            fit_sim,
+            kept: false,
+            error,
+        });
+    }
+    match kept {
+        Some((k, model, _)) => {
+            record[k].kept = true;
+            Ok((model, record))
+        }
+        // The first start always runs, so without a model there is an error.
+        None => Err(first_error.unwrap_or_else(|| IdentifyError::failed("no refit start ran"))),
+    }
 }
 
 /// A model's free-run FIT on `data`, percent; `None` when its simulation
@@ -1093,8 +1187,11 @@ mod tests {
 
     /// A back-end that fits the affine record exactly on fewer than 300
     /// rows and returns a model of the wrong gain on 300: a refit that
-    /// lands elsewhere than the fits that were scored.
-    struct WorseOnMoreRows;
+    /// lands elsewhere than the fits that were scored. When `seeded`, only
+    /// the start from seed 0 lands there.
+    struct WorseOnMoreRows {
+        seeded: bool,
+    }
 
     impl Backend for WorseOnMoreRows {
         fn name(&self) -> &'static str {
@@ -1115,6 +1212,9 @@ mod tests {
         fn output_units(&self) -> &'static [&'static str] {
             &[]
         }
+        fn seeded(&self) -> bool {
+            self.seeded
+        }
         fn search_space(&self, _: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
             Ok(SearchSpace::default())
         }
@@ -1122,9 +1222,10 @@ mod tests {
             &self,
             problem: &Problem<'_>,
             _: &Settings,
-            _: &RunContext<'_>,
+            ctx: &RunContext<'_>,
         ) -> Result<Model, IdentifyError> {
-            let gain = if problem.data.len() < 300 { 0.7 } else { 0.2 };
+            let lands_well = problem.data.len() < 300 || (self.seeded && ctx.seed != 0);
+            let gain = if lands_well { 0.7 } else { 0.2 };
             Ok(Model::Pwarx(hysid_model::model::PwarxModel {
                 na: 1,
                 nb: 1,
@@ -1163,6 +1264,9 @@ mod tests {
         }
         fn output_units(&self) -> &'static [&'static str] {
             &[]
+        }
+        fn seeded(&self) -> bool {
+            false
         }
         fn search_space(&self, _: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
             Ok(SearchSpace::default())
@@ -1214,7 +1318,7 @@ mod tests {
     #[test]
     fn a_refit_below_the_affine_model_is_not_written() {
         let data = affine_record(300);
-        let request = first_order_request(&WorseOnMoreRows, &data);
+        let request = first_order_request(&WorseOnMoreRows { seeded: false }, &data);
         let model = select(&request, &RunContext::quiet(0)).unwrap();
         let s = model.info().selection.clone().unwrap();
         // Both candidates are exact on the selection rows; the back-end's
@@ -1226,5 +1330,34 @@ mod tests {
         assert_eq!(s.candidates[s.chosen].method, "arx");
         let (v, _, _) = validate(&model, &data, 10).unwrap();
         assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
+    }
+
+    #[test]
+    fn a_seeded_refit_keeps_the_start_that_simulates_best() {
+        let data = affine_record(300);
+        let backend = WorseOnMoreRows { seeded: true };
+        let mut request = first_order_request(&backend, &data);
+        let model = select(&request, &RunContext::quiet(0)).unwrap();
+        let s = model.info().selection.clone().unwrap();
+        // The run's own seed lands on the wrong gain; the next starts do
+        // not, and the first of them is written.
+        assert_eq!(s.candidates[s.chosen].method, "worse_on_more_rows");
+        let seeds: Vec<u64> = s.refit.iter().map(|r| r.seed).collect();
+        assert_eq!(
+            seeds,
+            RunContext::quiet(0).start_seeds(DEFAULT_REFIT_STARTS)
+        );
+        let kept: Vec<bool> = s.refit.iter().map(|r| r.kept).collect();
+        assert_eq!(kept, [false, true, false]);
+        assert!(s.refit[0].fit_sim.unwrap() < s.refit[1].fit_sim.unwrap());
+        let (v, _, _) = validate(&model, &data, 10).unwrap();
+        assert_eq!(Some(v.fit_sim), s.refit[1].fit_sim);
+        assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
+        // From the run's seed alone the refit is refused, as unseeded.
+        request.plan.refit_starts = 1;
+        let model = select(&request, &RunContext::quiet(0)).unwrap();
+        let s = model.info().selection.clone().unwrap();
+        assert_eq!(s.refit.len(), 1);
+        assert_eq!(s.candidates[s.chosen].method, "arx");
     }
 }

@@ -44,6 +44,7 @@ pub struct Sign;
 impl Identifier for Sign {
     type Options = SignOptions;
     const NAME: &'static str = "sign";
+    const SEEDED: bool = false;
     const SUMMARY: &'static str = "one affine mode per sign of u1(k-1): the worked example";
     const HONOURS: &'static [PriorKind] = &[
         PriorKind::Modes,

@@ -72,6 +72,11 @@ pub struct Args {
     /// origin (block j scored by the model fitted on the blocks before it).
     #[arg(long, requires = "auto", conflicts_with = "select_rows")]
     pub folds: Option<usize>,
+    /// With --auto: starts of the refit of the choice on all the
+    /// identification rows when the back-end's seed can change its fit
+    /// (the start that simulates those rows best is written).
+    #[arg(long, requires = "auto", default_value_t = hysid_select::DEFAULT_REFIT_STARTS, value_parser = parse_starts)]
+    pub refit_starts: usize,
     /// With --auto: a grid axis KEY=V1,V2,... (repeatable; a back-end option,
     /// or modes, na, nb) replacing the back-end's search space.
     #[arg(long = "grid", value_name = "KEY=V1,V2,..", requires = "auto")]
@@ -82,6 +87,13 @@ pub struct Args {
     pub warmup: usize,
     #[command(flatten)]
     pub select: DataArgs,
+}
+
+fn parse_starts(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(k) if k >= 1 => Ok(k),
+        _ => Err(format!("'{s}' is not a whole number of starts (1 or more)")),
+    }
 }
 
 fn parse_rows(s: &str) -> std::result::Result<RowRange, String> {
@@ -152,6 +164,7 @@ pub fn run(args: Args) -> Result<()> {
             folds: args.folds,
             warmup: args.warmup,
             first_row,
+            refit_starts: args.refit_starts,
         };
         let affine = hysid_backends::affine_reference(&registry, backend.name());
         let request = Request::from_problem(backend, affine, &problem, settings, space, plan);
@@ -238,6 +251,24 @@ fn report_selection(method: &str, s: &Selection) {
             best.fit_sim.unwrap_or(f64::NAN),
             best.modes.unwrap_or(0)
         );
+    }
+    if s.refit.len() > 1 {
+        let fits: Vec<String> = s
+            .refit
+            .iter()
+            .map(|r| {
+                r.fit_sim
+                    .map_or_else(|| "failed".into(), |f| format!("{f:.2}"))
+            })
+            .collect();
+        if let Some(kept) = s.refit.iter().position(|r| r.kept) {
+            eprintln!(
+                "hysid: --auto: refitted on all the identification rows from {} starts (FIT {} %); start {} written",
+                s.refit.len(),
+                fits.join(" / "),
+                kept + 1
+            );
+        }
     }
     if chosen.method != method {
         eprintln!(

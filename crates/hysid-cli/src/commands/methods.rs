@@ -7,7 +7,7 @@ use crate::Result;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Print the list as JSON (name, summary, options, priors honoured,
-    /// what --auto tries).
+    /// what --auto tries, whether the seed can change the model).
     #[arg(long)]
     pub json: bool,
 }
@@ -48,6 +48,14 @@ pub fn run(args: Args) -> Result<()> {
                 "its defaults only (no option to choose)"
             } else {
                 b.search_doc()
+            }
+        );
+        println!(
+            "    seed: {}",
+            if b.seeded() {
+                "can change the model (--auto refits the choice from --refit-starts seeds)"
+            } else {
+                "does not change the model"
             }
         );
         let priors: Vec<String> = b.honours().iter().map(ToString::to_string).collect();

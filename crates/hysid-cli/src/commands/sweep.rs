@@ -158,6 +158,7 @@ pub fn run(args: Args) -> Result<()> {
             warmup: args.warmup,
             selection: None,
             folds: None,
+            refit_starts: hysid_select::DEFAULT_REFIT_STARTS,
             output_label: None,
             input_label: None,
             truth: None,

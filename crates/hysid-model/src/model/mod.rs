@@ -29,7 +29,7 @@ pub use diagnostics::{
 };
 pub use parameter::PhysicalParameter;
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice, mode_name};
-pub use selection::{RefinementChoice, ScoredCandidate, Selection, SplitRows};
+pub use selection::{RefinementChoice, RefitStart, ScoredCandidate, Selection, SplitRows};
 pub use stop::{Stop, StopBound};
 
 use crate::data::Standardization;

@@ -37,6 +37,13 @@ pub struct Selection {
         skip_serializing_if = "Vec::is_empty"
     )]
     pub refinement: Vec<RefinementChoice>,
+    /// The starts of the written refit on all the identification rows:
+    /// a seeded back-end's choice is fitted from several seeds and the fit
+    /// that simulates those rows best is kept. Empty in files written
+    /// before starts were recorded, and for a back-end the seed does not
+    /// change (one refit).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub refit: Vec<RefitStart>,
 }
 
 impl Selection {
@@ -118,6 +125,22 @@ pub struct RefinementChoice {
     pub kept: bool,
 }
 
+/// One start of the refit of the choice on all the identification rows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RefitStart {
+    /// Seed of the start: the run's seed for the first.
+    pub seed: u64,
+    /// Free-run simulation FIT of the start's model on all the
+    /// identification rows, percent; `None` when the fit failed or its
+    /// simulation is not finite.
+    pub fit_sim: Option<f64>,
+    /// Whether this start's model is the one written.
+    pub kept: bool,
+    /// Why the start has no model, when it failed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
 fn sim() -> String {
     "sim".into()
 }
@@ -147,6 +170,7 @@ mod tests {
                     kept,
                 })
                 .collect(),
+            refit: Vec::new(),
         }
     }
 

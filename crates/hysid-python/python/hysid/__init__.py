@@ -99,6 +99,7 @@ def identify(
     auto: bool = False,
     select_rows: Rows = None,
     folds: Optional[int] = None,
+    refit_starts: Optional[int] = None,
     grid: Optional[Dict[str, Iterable[Any]]] = None,
     warmup: int = 10,
     standardize: bool = False,
@@ -120,8 +121,10 @@ def identify(
     ``auto=True`` chooses the options on selection rows inside the given
     rows (``select_rows``, default the last 20 %; or ``folds``), over the
     back-end's search space or ``grid`` (``{"c": [40, 80], "modes": [2,
-    3]}``), then refits on all rows; ``model.info["selection"]`` records the
-    candidates and the choice. ``standardize=True`` identifies on
+    3]}``), then refits on all rows (from ``refit_starts`` seeds, default
+    3, when the seed can change the fit; the start that simulates those
+    rows best is kept); ``model.info["selection"]`` records the
+    candidates, the choice and the refit's starts. ``standardize=True`` identifies on
     standardised data. ``time_budget``: seconds after which long back-ends
     return their best model. ``warmup``: samples left out of free-run scores.
 
@@ -148,6 +151,7 @@ def identify(
         auto=auto,
         select_rows=_rows("select_rows", select_rows),
         folds=folds,
+        refit_starts=refit_starts,
         grid=grid_items,
         warmup=warmup,
         standardize=standardize,

@@ -77,6 +77,7 @@ def identify(
     auto: bool = False,
     select_rows: Optional[str] = None,
     folds: Optional[int] = None,
+    refit_starts: Optional[int] = None,
     grid: Optional[Sequence[str]] = None,
     warmup: int = 10,
     standardize: bool = False,
