@@ -736,7 +736,7 @@ fn auto_selection_rows_are_checked() {
         (vec!["--folds", "1"], "--folds 1: at least 2 folds"),
         (
             vec!["--refit-starts", "0"],
-            "'0' is not a whole number of starts (1 or more)",
+            "'0' is not a whole number of at least 1",
         ),
     ] {
         let mut args = base.to_vec();

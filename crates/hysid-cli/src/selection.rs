@@ -14,7 +14,7 @@ pub struct DataArgs {
     #[arg(long, default_value = "y")]
     pub output: String,
     /// Keep every K-th sample (0, K, 2K, ...; no filter).
-    #[arg(long, default_value_t = 1, value_parser = parse_decimate)]
+    #[arg(long, default_value_t = 1, value_parser = parse_at_least_one)]
     pub decimate: usize,
     /// Rows A..B (A inclusive, B exclusive) after decimation; either bound may be left out.
     #[arg(long, value_parser = parse_rows)]
@@ -28,7 +28,8 @@ fn parse_rows(s: &str) -> Result<RowRange, String> {
     s.parse()
 }
 
-fn parse_decimate(s: &str) -> Result<usize, String> {
+/// A whole number of at least 1 (`--decimate`, `--refit-starts`).
+pub fn parse_at_least_one(s: &str) -> Result<usize, String> {
     match s.parse::<usize>() {
         Ok(k) if k >= 1 => Ok(k),
         _ => Err(format!("'{s}' is not a whole number of at least 1")),

@@ -75,7 +75,7 @@ pub struct Args {
     /// With --auto: starts of the refit of the choice on all the
     /// identification rows when the back-end's seed can change its fit
     /// (the start that simulates those rows best is written).
-    #[arg(long, requires = "auto", default_value_t = hysid_select::DEFAULT_REFIT_STARTS, value_parser = parse_starts)]
+    #[arg(long, requires = "auto", default_value_t = hysid_select::DEFAULT_REFIT_STARTS, value_parser = crate::selection::parse_at_least_one)]
     pub refit_starts: usize,
     /// With --auto: a grid axis KEY=V1,V2,... (repeatable; a back-end option,
     /// or modes, na, nb) replacing the back-end's search space.
@@ -87,13 +87,6 @@ pub struct Args {
     pub warmup: usize,
     #[command(flatten)]
     pub select: DataArgs,
-}
-
-fn parse_starts(s: &str) -> std::result::Result<usize, String> {
-    match s.parse::<usize>() {
-        Ok(k) if k >= 1 => Ok(k),
-        _ => Err(format!("'{s}' is not a whole number of starts (1 or more)")),
-    }
 }
 
 fn parse_rows(s: &str) -> std::result::Result<RowRange, String> {
