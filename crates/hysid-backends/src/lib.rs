@@ -110,6 +110,56 @@ mod tests {
         compared
     }
 
+    /// Every back-end with the `trim` option runs the trimmed
+    /// re-estimation when it is set, and records it; and `--auto` gives it
+    /// to every candidate of the hybrid ones (`arx` has one mode: nothing
+    /// is misassigned).
+    #[test]
+    fn every_back_end_with_trim_trims() {
+        let short = hysid_testkit::h3(41, 4);
+        let priors = Priors {
+            modes: Some(2),
+            ..Default::default()
+        };
+        let affine = Priors::default();
+        let problem = short.problem(&priors);
+        let mut trimmed = Vec::new();
+        for b in super::registry().iter() {
+            if !b.options().iter().any(|o| o.key == "trim") {
+                continue;
+            }
+            let space = b.search_space(&problem).unwrap();
+            assert_eq!(space.has("trim"), b.name() != "arx", "{}", b.name());
+            let mut pairs = vec![("trim".to_string(), "3".to_string())];
+            if b.name() == "bounded" {
+                pairs.push(("delta".into(), "auto".into()));
+            }
+            let problem = match b.name() {
+                "arx" => Problem {
+                    priors: &affine,
+                    ..problem
+                },
+                _ => problem,
+            };
+            let model = b
+                .run(
+                    &problem,
+                    &Settings::from_pairs(pairs),
+                    &RunContext::quiet(1),
+                )
+                .unwrap_or_else(|e| panic!("{}: {e}", b.name()));
+            let t = model.info().diagnostics.trimming.clone();
+            assert_eq!(t.map(|t| t.cutoff), Some(3.0), "{}", b.name());
+            trimmed.push(b.name());
+        }
+        assert_eq!(
+            trimmed,
+            [
+                "arx", "cluster", "bounded", "klinreg", "parc", "bayes", "milp"
+            ]
+        );
+    }
+
     #[test]
     fn a_refined_fit_is_the_fit_with_the_refinement_on() {
         let h3 = hysid_testkit::h3(150, 4);

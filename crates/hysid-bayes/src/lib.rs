@@ -155,11 +155,12 @@ impl Identifier for Bayes {
         PriorKind::Switching,
     ];
     const OUTPUT_UNITS: &'static [&'static str] = &["noise_std"];
-    const SEARCH: &'static str =
-        "the mode count from 1 to 5 (saturation modes added), unless --modes is given";
+    const SEARCH: &'static str = "the mode count from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        Ok(SearchSpace::default().with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
+        Ok(SearchSpace::default()
+            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
+            .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
     fn identify(
@@ -264,6 +265,7 @@ pub fn fit(
         },
         scaling: None,
         refinement: None,
+        trimming: None,
         diagnostics,
     })
 }

@@ -127,6 +127,7 @@ pub fn fit(
         status,
         scaling: None,
         refinement: None,
+        trimming: None,
         diagnostics,
     })
 }

@@ -217,7 +217,7 @@ impl Identifier for Bounded {
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const OUTPUT_UNITS: &'static [&'static str] =
         &["delta", "max_residual", "tie_projection_error"];
-    const SEARCH: &'static str = "delta at 1, 1.5, 2, 3, 4 and 6 times the noise standard deviation of local affine fits (delta = auto is 3 times it); the mode count follows; every candidate with alternation = 50";
+    const SEARCH: &'static str = "delta at 1, 1.5, 2, 3, 4 and 6 times the noise standard deviation of local affine fits (delta = auto is 3 times it); the mode count follows; every candidate with alternation = 50 and trim = 3";
 
     /// `delta` on a grid of multiples of the noise level of the ordinary
     /// samples (the `auto` bound over [`noise::SIGMAS`], so floored as it
@@ -231,7 +231,8 @@ impl Identifier for Bounded {
                 "delta",
                 DELTA_SIGMAS.iter().map(|k| three_digits(k * sigma)),
             )
-            .with("alternation", [hysid_regions::AUTO_ROUNDS]))
+            .with("alternation", [hysid_regions::AUTO_ROUNDS])
+            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF]))
     }
 
     fn identify(

@@ -33,7 +33,7 @@ use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::data::Standardization;
 use hysid_model::geometry::Polyhedron;
-use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel, RunStatus};
+use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel, RunStatus, region_of};
 pub use hysid_regions::AlternationReport;
 use hysid_regions::AlternationSettings;
 use nalgebra::DMatrix;
@@ -179,6 +179,7 @@ pub fn fit(
         status,
         scaling: o.scale.then(|| work.scale.clone()),
         refinement: None,
+        trimming: None,
         diagnostics,
     })
 }
@@ -581,19 +582,7 @@ fn refit_on_regions(
     let (n, modes) = (work.n, fit.theta.len());
     let mut moved = 0;
     for (j, l) in fit.labels.iter_mut().enumerate() {
-        let xj = &work.x[j * n..(j + 1) * n];
-        let r = regions
-            .iter()
-            .position(|p| p.contains(xj))
-            .unwrap_or_else(|| {
-                (0..modes)
-                    .min_by(|&a, &b| {
-                        regions[a]
-                            .violation(xj)
-                            .total_cmp(&regions[b].violation(xj))
-                    })
-                    .unwrap_or(*l)
-            });
+        let r = region_of(regions, &work.x[j * n..(j + 1) * n]).mode;
         if r != *l {
             moved += 1;
             *l = r;

@@ -53,7 +53,6 @@ use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::{PriorKind, Priors};
 use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData};
-use hysid_estimation::refine;
 use hysid_select::parsimony;
 
 hysid_core::option_enum! {
@@ -252,7 +251,7 @@ impl Identifier for Cluster {
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
-    const SEARCH: &'static str = "c: the five largest of 4, 6, 8, 10, 14, 20, 40, 80, 160, 320 from n+2 to an eighth of the rows (and c = none, the automatic rule, when fewer fit), and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none; every candidate with alternation = 50";
+    const SEARCH: &'static str = "c: the five largest of 4, 6, 8, 10, 14, 20, 40, 80, 160, 320 from n+2 to an eighth of the rows (and c = none, the automatic rule, when fewer fit), and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none; every candidate with alternation = 50 and trim = 3";
 
     /// The local dataset sizes of [`c_candidates`] times the ordinary mode
     /// counts `1..=max_modes` (the known stops added, as the
@@ -266,6 +265,7 @@ impl Identifier for Cluster {
         Ok(SearchSpace::default()
             .with("c", c)
             .with("alternation", [AUTO_ALTERNATION])
+            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
             .with_mode_counts(priors, DEFAULT_MAX_MODES))
     }
 
@@ -280,7 +280,7 @@ impl Identifier for Cluster {
         match data.modes {
             ModeCount::Exact(s) => {
                 let fit = fit(options, &data, s + stops, ctx)?;
-                let fit = refine::refine(&data, fit, &options.refinement())?;
+                let fit = pwarx::finish(&data, fit, &options.refinement())?;
                 Ok(pwarx::assemble(&data, fit))
             }
             ModeCount::AtMost(max) => choose_modes(&data, options, max + stops, ctx),
@@ -352,7 +352,7 @@ pub fn identify_labelled(
         progress: &hysid_core::backend::NoProgress,
         deadline,
     };
-    let fit = refine::refine(&data, fit(o, &data, s, &quiet)?, &o.refinement())?;
+    let fit = pwarx::finish(&data, fit(o, &data, s, &quiet)?, &o.refinement())?;
     let ordinary_modes = fit.modes.len();
     let mut row_labels: Vec<usize> = data
         .stop_of

@@ -108,6 +108,12 @@ pub enum PriorConflict {
     /// The equalities of all modes together have no solution.
     #[error("[[equality]] entries: no parameter vector of all modes satisfies them")]
     InconsistentEqualities,
+    /// The equalities leave no parameter free, and the values they give
+    /// lie outside the bounds.
+    #[error(
+        "[[equality]] entries: together with the [fixed] values and [[tie]]s they determine every parameter, at values outside [bounds]"
+    )]
+    DeterminedOutsideBounds,
     /// The null-space computation failed.
     #[error(transparent)]
     Linalg(#[from] LinalgError),
@@ -257,10 +263,11 @@ impl Parametrisation {
         let (e, f) = self.equality_rows(equalities, idx, self.modes());
         let z0 = Self::solve_consistent(&e, &f)?.ok_or(PriorConflict::InconsistentEqualities)?;
         let basis = linalg::null_space(&e)?;
-        Ok(Reduction {
-            z0: z0.iter().copied().collect(),
-            basis,
-        })
+        let z0: Vec<f64> = z0.iter().copied().collect();
+        if basis.ncols() == 0 && !self.inside(&z0) {
+            return Err(PriorConflict::DeterminedOutsideBounds);
+        }
+        Ok(Reduction { z0, basis })
     }
 
     /// Whether `[[equality]]` entries reduce the free variables
@@ -773,6 +780,21 @@ mod tests {
         assert_eq!(
             e.to_string(),
             "[fixed] b1 = 5 lies outside [bounds] b1 = [0, 1]"
+        );
+    }
+
+    /// Equalities that determine a parameter at a value outside its bounds
+    /// are refused when the priors are read, not fitted through.
+    #[test]
+    fn equalities_determining_values_outside_the_bounds_are_an_error() {
+        let text = "[fixed]\nc = 0.0\n[[equality]]\ncoefficients = { b1 = 1.0, c = 1.0 }\nvalue = 0.9\n[bounds]\nb1 = [0.0, 0.05]\n";
+        let e = Parametrisation::from_priors(&priors(text), &RegressorSpec::new(0, 1, 1), 2)
+            .unwrap_err();
+        assert_eq!(e, PriorConflict::DeterminedOutsideBounds);
+        // Inside the bounds, the same entries parametrise the modes.
+        let inside = text.replace("value = 0.9", "value = 0.01");
+        assert!(
+            Parametrisation::from_priors(&priors(&inside), &RegressorSpec::new(0, 1, 1), 2).is_ok()
         );
     }
 

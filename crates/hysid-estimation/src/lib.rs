@@ -14,6 +14,7 @@
 //! | [`noise`] | the noise level of a record from local affine fits |
 //! | [`pwarx`] | the set-up and assembly every PWARX back-end shares |
 //! | [`refine`] | the multiple-shooting simulation-error refinement a PWARX back-end may end with |
+//! | [`trim`] | the trimmed re-estimation of the mode parameters on their regions, before the refinement |
 
 pub mod conic;
 pub mod constrained;
@@ -21,3 +22,4 @@ pub mod linalg;
 pub mod noise;
 pub mod pwarx;
 pub mod refine;
+pub mod trim;

@@ -18,7 +18,7 @@ use hysid_core::priors::Priors;
 use hysid_model::data::Standardization;
 use hysid_model::model::RunStatus;
 use hysid_model::model::{
-    Diagnostics, HybridAutomaton, ModelInfo, PwarxMode, PwarxModel, Refinement,
+    Diagnostics, HybridAutomaton, ModelInfo, PwarxMode, PwarxModel, Refinement, Trimming,
 };
 use hysid_model::regressors::{RegressorSpec, Regressors};
 use serde::Serialize;
@@ -284,6 +284,9 @@ pub struct PwarxFit<D> {
     /// The outcome of the simulation-error refinement, when it ran
     /// ([`crate::refine::refine`]; back-ends set `None`).
     pub refinement: Option<Refinement>,
+    /// The outcome of the trimmed re-estimation, when it ran
+    /// ([`crate::trim::trim`]; back-ends set `None`).
+    pub trimming: Option<Trimming>,
     /// The back-end's own diagnostics.
     pub diagnostics: D,
 }
@@ -301,6 +304,7 @@ impl<D> PwarxFit<D> {
             status: Vec::new(),
             scaling: None,
             refinement: None,
+            trimming: None,
             diagnostics,
         }
     }
@@ -320,6 +324,7 @@ pub fn assemble<D: Serialize>(data: &PwarxData<'_>, fit: PwarxFit<D>) -> Model {
         uncovered_fraction_of_data_box: fit.uncovered_fraction,
         saturated_per_stop: (stops > 0).then(|| data.saturated_per_stop()),
         refinement: fit.refinement,
+        trimming: fit.trimming,
         ..Default::default()
     }
     .with_method(&fit.diagnostics);
@@ -352,7 +357,8 @@ fn with_stops(data: &PwarxData<'_>, model: PwarxModel) -> Model {
 }
 
 /// The pipeline of a PWARX back-end whose `fit` estimates the ordinary
-/// modes: the common set-up ([`prepare`]), `fit`, the simulation-error
+/// modes: the common set-up ([`prepare`]), `fit`, the trimmed
+/// re-estimation ([`crate::trim::trim`]) and the simulation-error
 /// refinement the options ask for ([`crate::refine::refine`]), and the
 /// model with the known stops ([`assemble`]).
 pub fn identify<D: Serialize>(
@@ -362,8 +368,20 @@ pub fn identify<D: Serialize>(
     fit: impl FnOnce(&PwarxData<'_>) -> Result<PwarxFit<D>, IdentifyError>,
 ) -> Result<Model, IdentifyError> {
     let data = prepare(problem, method)?;
-    let fit = crate::refine::refine(&data, fit(&data)?, refinement)?;
+    let fit = finish(&data, fit(&data)?, refinement)?;
     Ok(assemble(&data, fit))
+}
+
+/// The stages after a back-end's fit, as its options ask: the trimmed
+/// re-estimation ([`crate::trim::trim`]), then the simulation-error
+/// refinement ([`crate::refine::refine`]).
+pub fn finish<D>(
+    data: &PwarxData<'_>,
+    fit: PwarxFit<D>,
+    settings: &crate::refine::RefineSettings,
+) -> Result<PwarxFit<D>, IdentifyError> {
+    let fit = crate::trim::trim(data, fit, settings.trim)?;
+    crate::refine::refine(data, fit, settings)
 }
 
 /// `fitted`, a model [`identify`] returned on `problem` without a
@@ -405,6 +423,7 @@ pub fn refine_fitted(
         status: std::mem::take(&mut diagnostics.status),
         scaling: None,
         refinement: None,
+        trimming: None,
         diagnostics: (),
     };
     let fit = crate::refine::refine(&data, fit, refinement)?;

@@ -118,9 +118,13 @@ pub fn is_default_iterations(iterations: &usize) -> bool {
     *iterations == DEFAULT_ITERATIONS
 }
 
-/// What a back-end's options ask of the refinement.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// What a back-end's options ask of the stages after its fit: the trimmed
+/// re-estimation ([`crate::trim`]) and the refinement.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RefineSettings {
+    /// `trim`: the cutoff of the trimmed re-estimation, in robust standard
+    /// deviations; `None`: no re-estimation.
+    pub trim: Option<f64>,
     /// `refine`.
     pub method: RefineMethod,
     /// `refine_segment`: samples per shooting segment.
@@ -132,6 +136,7 @@ pub struct RefineSettings {
 impl Default for RefineSettings {
     fn default() -> Self {
         Self {
+            trim: None,
             method: RefineMethod::None,
             segment: DEFAULT_SEGMENT,
             iterations: DEFAULT_ITERATIONS,
@@ -140,9 +145,18 @@ impl Default for RefineSettings {
 }
 
 impl RefineSettings {
-    /// The checks of `refine_segment` (at least 1) and `refine_iterations`
-    /// (1 ..= [`MAX_ITERATIONS`]).
+    /// The checks of `trim` (finite and positive), `refine_segment` (at
+    /// least 1) and `refine_iterations` (1 ..= [`MAX_ITERATIONS`]).
     pub fn check(&self) -> Result<(), OptionError> {
+        if let Some(t) = self.trim
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(OptionError::invalid(
+                "trim",
+                t,
+                "must be a finite number > 0 (robust standard deviations)",
+            ));
+        }
         if self.segment == 0 {
             return Err(OptionError::invalid(
                 "refine_segment",
@@ -185,9 +199,10 @@ macro_rules! refine_fitted_pwarx {
 }
 
 /// Declares the options of a PWARX back-end: `hysid_core::backend_options!`
-/// with the options of this refinement stage (`refine`, `refine_segment`,
-/// `refine_iterations`) appended, not recorded in a model while at their
-/// defaults, and `refinement()`, the [`RefineSettings`] they make.
+/// with the options of the stages after the fit (`trim`, `refine`,
+/// `refine_segment`, `refine_iterations`) appended, not recorded in a model
+/// while at their defaults, and `refinement()`, the [`RefineSettings`]
+/// they make.
 #[macro_export]
 macro_rules! pwarx_options {
     (
@@ -200,6 +215,13 @@ macro_rules! pwarx_options {
             $(#[$($meta)*])*
             $vis struct $name {
                 $( $(#[$($attr)*])* $field : $ty = $default, )*
+                /// After the fit, before refine: every mode's parameters estimated again by least
+                /// squares under the priors on the samples its region holds, leaving out those whose
+                /// residual exceeds trim robust standard deviations of the mode (1.4826 times the median
+                /// absolute residual), repeated until the samples left out no longer change; none: the
+                /// back-end's estimate (docs/refinement.md).
+                #[serde(skip_serializing_if = "Option::is_none")]
+                trim: Option<f64> = None,
                 /// Refinement after the fit: none; sim (the mode parameters by Levenberg-Marquardt on
                 /// the multiple-shooting simulation error under the priors, regions fixed); or
                 /// sim_regions (sim, then the region boundaries moved by a softmax relaxation of that
@@ -220,6 +242,7 @@ macro_rules! pwarx_options {
             /// The refinement the options ask for.
             pub fn refinement(&self) -> $crate::refine::RefineSettings {
                 $crate::refine::RefineSettings {
+                    trim: self.trim,
                     method: self.refine,
                     segment: self.refine_segment,
                     iterations: self.refine_iterations,
@@ -849,6 +872,7 @@ mod tests {
 
     fn sim_settings(segment: usize, iterations: usize) -> RefineSettings {
         RefineSettings {
+            trim: None,
             method: RefineMethod::Sim,
             segment,
             iterations,

@@ -93,11 +93,12 @@ impl Identifier for Milp {
     const SUMMARY: &'static str = "exact mixed-integer switched regression (l1 with a mode count, or the fewest modes within delta) for records of tens of samples; then regions";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const OUTPUT_UNITS: &'static [&'static str] = &["delta", "theta_max", "l1_error"];
-    const SEARCH: &'static str =
-        "the mode count from 1 to 4 (saturation modes added), unless --modes is given";
+    const SEARCH: &'static str = "the mode count from 1 to 4 (saturation modes added), unless --modes is given; every candidate with trim = 3";
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        Ok(SearchSpace::default().with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
+        Ok(SearchSpace::default()
+            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
+            .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
     fn identify(
@@ -181,6 +182,7 @@ pub fn fit(
         status: status_lines(proven, dropped, modes),
         scaling: None,
         refinement: None,
+        trimming: None,
         diagnostics,
     })
 }

@@ -118,11 +118,12 @@ impl Identifier for Parc {
     const NAME: &'static str = "parc";
     const SUMMARY: &'static str = "PARC (Bemporad 2023): local models and a softmax partition learned together by block-coordinate descent";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
-    const SEARCH: &'static str =
-        "the number of clusters from 1 to 5 (saturation modes added), unless --modes is given";
+    const SEARCH: &'static str = "the number of clusters from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        Ok(SearchSpace::default().with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
+        Ok(SearchSpace::default()
+            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
+            .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
     fn identify(

@@ -634,18 +634,9 @@ pub fn classify(regions: &[Polyhedron], z: &[f64]) -> Option<usize> {
 /// ([`Polyhedron::violation`], Euclidean distance to the violated rows; ties
 /// to the lowest index): a "nearest region" policy for points in holes.
 /// `None` only when `regions` is empty.
+/// The rule of `hysid_model::model::region_of`, which simulation uses.
 pub fn classify_nearest(regions: &[Polyhedron], z: &[f64]) -> Option<usize> {
-    classify(regions, z).or_else(|| {
-        regions
-            .iter()
-            .map(|r| r.violation(z))
-            .enumerate()
-            .fold(None, |best: Option<(usize, f64)>, (i, v)| match best {
-                Some((_, bv)) if bv <= v => best,
-                _ => Some((i, v)),
-            })
-            .map(|(i, _)| i)
-    })
+    (!regions.is_empty()).then(|| hysid_model::model::region_of(regions, z).mode)
 }
 
 /// Fraction of rows of `x` whose first-match region is their label.

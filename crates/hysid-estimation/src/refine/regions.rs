@@ -531,6 +531,7 @@ mod tests {
 
     fn settings(method: RefineMethod) -> RefineSettings {
         RefineSettings {
+            trim: None,
             method,
             segment: 100,
             iterations: 60,

@@ -135,6 +135,36 @@ impl RegionRefinement {
     }
 }
 
+/// How the trimmed re-estimation of the mode parameters ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrimmingStatus {
+    /// The samples left out no longer changed from one round to the next.
+    Converged,
+    /// The round bound stopped the re-estimation before that.
+    RoundLimit,
+    /// A mode kept fewer samples than it has parameters: the parameters
+    /// are those of the last round that had enough (the back-end's, when
+    /// the first round had not).
+    TooFewSamples,
+}
+
+/// The outcome of the trimmed re-estimation of the mode parameters on the
+/// samples of their regions (recorded under `trimming`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Trimming {
+    /// Residuals beyond this many robust standard deviations of their
+    /// mode were left out (option `trim`).
+    pub cutoff: f64,
+    /// Least-squares rounds run.
+    pub rounds: usize,
+    /// Samples of each ordinary mode's region left out of its last
+    /// estimate.
+    pub left_out: Vec<usize>,
+    /// How it ended.
+    pub status: TrimmingStatus,
+}
+
 /// The diagnostics of a run. The common fields have fixed names in every
 /// back-end; `method` holds the back-end's own fields (its typed
 /// diagnostics struct, serialised). In the file all keys form one object,
@@ -162,6 +192,9 @@ pub struct Diagnostics {
     /// The simulation-error refinement of the mode parameters, when the
     /// back-end ran it (`refinement`).
     pub refinement: Option<Refinement>,
+    /// The trimmed re-estimation of the mode parameters on their regions,
+    /// when the options asked for it (`trimming`).
+    pub trimming: Option<Trimming>,
     /// The back-end's own fields.
     pub method: BTreeMap<String, serde_json::Value>,
 }
@@ -218,6 +251,9 @@ impl Diagnostics {
         if let Some(v) = &self.refinement {
             put("refinement", serde_json::json!(v));
         }
+        if let Some(v) = &self.trimming {
+            put("trimming", serde_json::json!(v));
+        }
         m
     }
 
@@ -238,6 +274,7 @@ impl Diagnostics {
         let saturated_per_stop =
             take("saturated_per_stop").and_then(|v| serde_json::from_value(v).ok());
         let refinement = take("refinement").and_then(|v| serde_json::from_value(v).ok());
+        let trimming = take("trimming").and_then(|v| serde_json::from_value(v).ok());
         Diagnostics {
             run_status,
             status,
@@ -247,6 +284,7 @@ impl Diagnostics {
             uncovered_fraction_of_data_box,
             saturated_per_stop,
             refinement,
+            trimming,
             method: m,
         }
     }
@@ -262,6 +300,7 @@ const COMMON: &[&str] = &[
     "uncovered_fraction_of_data_box",
     "saturated_per_stop",
     "refinement",
+    "trimming",
 ];
 
 impl Serialize for Diagnostics {
@@ -301,6 +340,12 @@ mod tests {
                 cost_after: None,
                 status: RefinementStatus::Diverged,
                 regions: None,
+            }),
+            trimming: Some(Trimming {
+                cutoff: 3.0,
+                rounds: 2,
+                left_out: vec![4, 0],
+                status: TrimmingStatus::Converged,
             }),
             method: BTreeMap::new(),
         }

@@ -26,9 +26,10 @@ pub use automaton::{
 };
 pub use diagnostics::{
     Diagnostics, Refinement, RefinementStatus, RegionRefinement, RegionRefinementStatus, RunStatus,
+    Trimming, TrimmingStatus,
 };
 pub use parameter::PhysicalParameter;
-pub use pwarx::{PwarxMode, PwarxModel, RegionChoice, mode_name};
+pub use pwarx::{PwarxMode, PwarxModel, RegionChoice, mode_name, region_of};
 pub use selection::{RefinementChoice, RefitStart, ScoredCandidate, Selection, SplitRows};
 pub use stop::{Stop, StopBound};
 

@@ -70,6 +70,31 @@ pub struct RegionChoice {
     pub covered: bool,
 }
 
+/// The region of `regions` for regressor `x`, the policy of every hysid
+/// simulation: the first region that contains `x` (lowest index, as HIT's
+/// `hit_pwa`); outside every region, the region of least violation
+/// (smallest Euclidean distance to its half-spaces, the lowest index on a
+/// tie), reported as not covered. Mode 0 when `regions` is empty.
+pub fn region_of<'a>(regions: impl IntoIterator<Item = &'a Polyhedron>, x: &[f64]) -> RegionChoice {
+    let mut best = (f64::INFINITY, 0);
+    for (i, region) in regions.into_iter().enumerate() {
+        if region.contains(x) {
+            return RegionChoice {
+                mode: i,
+                covered: true,
+            };
+        }
+        let v = region.violation(x);
+        if v < best.0 {
+            best = (v, i);
+        }
+    }
+    RegionChoice {
+        mode: best.1,
+        covered: false,
+    }
+}
+
 impl PwarxModel {
     /// Regressor structure of the model.
     pub fn spec(&self) -> RegressorSpec {
@@ -107,27 +132,9 @@ impl PwarxModel {
     }
 
     /// The mode for regressor `x` (the policy of every hysid simulation):
-    /// the first region that contains `x` (lowest index, as HIT's `hit_pwa`);
-    /// outside every region, the region of least violation (smallest
-    /// Euclidean distance to its half-spaces), reported as not covered.
+    /// [`region_of`] on the model's regions.
     pub fn mode_of(&self, x: &[f64]) -> RegionChoice {
-        let mut best = (f64::INFINITY, 0);
-        for (i, m) in self.modes.iter().enumerate() {
-            let v = m.region.violation(x);
-            if m.region.contains(x) {
-                return RegionChoice {
-                    mode: i,
-                    covered: true,
-                };
-            }
-            if v < best.0 {
-                best = (v, i);
-            }
-        }
-        RegionChoice {
-            mode: best.1,
-            covered: false,
-        }
+        region_of(self.modes.iter().map(|m| &m.region), x)
     }
 
     /// `theta_i . [x; 1]`.
