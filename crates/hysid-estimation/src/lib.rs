@@ -18,6 +18,8 @@
 
 pub mod conic;
 pub mod constrained;
+#[cfg(test)]
+mod fixtures;
 pub mod linalg;
 pub mod noise;
 pub mod pwarx;

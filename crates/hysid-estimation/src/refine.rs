@@ -800,19 +800,6 @@ mod tests {
             .collect()
     }
 
-    /// A deterministic input in [-1, 1] (a linear congruential sequence).
-    fn input(n: usize, seed: u64) -> Vec<f64> {
-        let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
-        (0..n)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-            })
-            .collect()
-    }
-
     fn record(u: Vec<f64>, y: Vec<f64>) -> Dataset {
         Dataset::new(
             vec![Signal {
@@ -836,7 +823,7 @@ mod tests {
         n: usize,
         seed: u64,
     ) -> Dataset {
-        let u = input(n, seed);
+        let u = crate::fixtures::uniform(n, seed);
         let blank = record(u.clone(), vec![0.0; n]);
         let sim = if stops.is_empty() {
             pwarx_sim::simulate(model, &blank, SimulationOptions::default()).unwrap()
@@ -1082,17 +1069,14 @@ mod tests {
             eq_c in -1.0f64..1.0,
             seed in 0u64..1000,
         ) {
-            let mut text = format!(
-                "[bounds]\nb1 = [{lo:?}, {:?}]\n[[equality]]\ncoefficients = {{ a1 = 1.0, b1 = 1.0, c = {eq_c:?} }}\nvalue = {value:?}\n",
-                lo + width
+            let priors = crate::fixtures::constraint_priors(
+                "a1 = 1.0, b1 = 1.0",
+                eq_c,
+                value,
+                (lo, width),
+                with_tie.then_some("a1"),
+                fixed_c,
             );
-            if with_tie {
-                text += "[[tie]]\nparams = [\"a1\"]\n";
-            }
-            if let Some(c) = fixed_c {
-                text += &format!("[fixed]\nc = {c:?}\n");
-            }
-            let priors = Priors::from_toml(&text, "p.toml").unwrap();
             let data = simulated_record(&true_model(), &[], 300, seed);
             let problem = problem(&data, &priors);
             let prepared = pwarx::prepare(&problem, "test").unwrap();
