@@ -43,6 +43,7 @@
 
 use crate::constraints::ModeSpace;
 use crate::samples::{Samples, dot};
+use hysid_model::statistics::upper_median;
 use rand::Rng;
 use rand::seq::SliceRandom;
 
@@ -173,8 +174,7 @@ fn relax<R: Rng>(
     if abs_r.is_empty() || best.0 == idx.len() {
         return best.1;
     }
-    let mid = abs_r.len() / 2;
-    let median = *abs_r.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
+    let median = upper_median(&mut abs_r).unwrap_or(0.0);
     let t0 = set.t0 * median.max(delta);
     let mut theta = start.to_vec();
     let movable = space.movable();

@@ -21,6 +21,7 @@ use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
 use hysid_model::data::{DataSelection, Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
+use hysid_model::statistics::median;
 use std::path::{Path, PathBuf};
 
 /// A record: file, decimation, identification and test rows.
@@ -76,21 +77,14 @@ fn summary(fits: &[Option<f64>]) -> String {
         return format!("all {failed} failed");
     }
     ok.sort_by(f64::total_cmp);
-    let median = if ok.len() % 2 == 1 {
-        ok[ok.len() / 2]
-    } else {
-        (ok[ok.len() / 2 - 1] + ok[ok.len() / 2]) / 2.0
-    };
+    let (lowest, highest) = (ok[0], ok[ok.len() - 1]);
+    let median = median(&mut ok).unwrap_or(f64::NAN);
     let tail = if failed > 0 {
         format!(", {failed} failed")
     } else {
         String::new()
     };
-    format!(
-        "{median:.1} ({:.1} to {:.1}{tail})",
-        ok[0],
-        ok[ok.len() - 1]
-    )
+    format!("{median:.1} ({lowest:.1} to {highest:.1}{tail})")
 }
 
 fn main() {

@@ -31,6 +31,7 @@
 use crate::Features;
 use crate::dense;
 use crate::knn::KdTree;
+use hysid_model::statistics::upper_median;
 use rayon::prelude::*;
 
 /// Counts of regularised local datasets.
@@ -126,15 +127,6 @@ impl FeatureVectors {
 
 /// Largest regressor dimension supported (feature vectors live on the stack).
 pub const MAX_DIM: usize = 31;
-
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let m = v.len() / 2;
-    v.select_nth_unstable_by(m, f64::total_cmp);
-    v[m]
-}
 
 /// Inputs and outputs of [`local_fit`] for one local dataset.
 struct FitArgs<'a> {
@@ -400,14 +392,14 @@ pub fn feature_vectors(
         if t > 0.0 { t } else { 1.0 }
     };
     let sigma_floor = (eps * var_y)
-        .max(0.01 * median(&mut sigma2.clone()))
+        .max(0.01 * upper_median(&mut sigma2.clone()).unwrap_or(0.0))
         .max(f64::MIN_POSITIVE);
     let scatter_floor = {
         let mut tr: Vec<f64> = (0..big_n)
             .map(|j| dense::mean_diag(&scatter[j * n * n..(j + 1) * n * n], n))
             .collect();
         (eps * tr_x)
-            .max(0.01 * median(&mut tr))
+            .max(0.01 * upper_median(&mut tr).unwrap_or(0.0))
             .max(f64::MIN_POSITIVE)
     };
     // Pass 2: regularise, invert, confidence.

@@ -26,6 +26,7 @@ use crate::priors::ConstrainedFit;
 use crate::{Clustering, Features, Weights};
 use hysid_core::backend::Deadline;
 use hysid_estimation::linalg;
+use hysid_model::statistics::upper_median;
 use nalgebra::{DMatrix, DVector};
 use rand_chacha::ChaCha8Rng;
 
@@ -135,12 +136,7 @@ fn mode_weights(f: &FeatureVectors, rows: &[usize], min_weight: f64, weights: We
             .fold(f64::NEG_INFINITY, f64::max),
         Weights::Capped => {
             let mut lw: Vec<f64> = rows.iter().map(|&j| f.log_w[j]).collect();
-            if lw.is_empty() {
-                0.0
-            } else {
-                let m = lw.len() / 2;
-                *lw.select_nth_unstable_by(m, f64::total_cmp).1
-            }
+            upper_median(&mut lw).unwrap_or(0.0)
         }
         Weights::Uniform => 0.0,
     };

@@ -23,7 +23,7 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_model::model::PwarxModel;
-use hysid_testkit::{Benchmark, Noise};
+use hysid_testkit::{Benchmark, Noise, median};
 
 /// Seeds of the identification records; the validation record of draw `s`
 /// has seed `VALID_SEED + s` (testkit draws the inputs first, so records of
@@ -158,13 +158,6 @@ fn draws(
         .collect()
 }
 
-/// Median of `v` (the middle value: `SEEDS` has an odd count).
-fn median(v: impl Iterator<Item = f64>) -> f64 {
-    let mut v: Vec<f64> = v.collect();
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn worst_acc(d: &[Draw]) -> f64 {
     d.iter().map(|d| d.acc).fold(f64::INFINITY, f64::min)
 }
@@ -186,8 +179,8 @@ fn b1(rows: usize, seed: u64) -> Benchmark {
 #[test]
 fn b1_classic_three_mode_pwarx() {
     let d = draws("B1", 1000, 3, &[], b1);
-    let acc = median(d.iter().map(|d| d.acc));
-    let perr = median(d.iter().map(|d| d.perr));
+    let acc = median(d.iter().map(|d| d.acc).collect());
+    let perr = median(d.iter().map(|d| d.perr).collect());
     assert!(acc >= 0.95, "median mode accuracy {acc}");
     assert!(perr <= 0.05, "median parameter error {perr}");
     assert!(worst_acc(&d) >= 0.95, "worst mode accuracy: {d:?}");
@@ -205,8 +198,8 @@ fn b1_classic_three_mode_pwarx() {
 fn h1_equal_parameters_on_two_regions() {
     let d = draws("H1", 70, 3, &["c=6"], |n, s| hysid_testkit::h1(n + 1, s));
     assert!(d.iter().all(|d| d.modes == 3), "{d:?}");
-    let acc = median(d.iter().map(|d| d.acc));
-    let excess = median(d.iter().map(Draw::excess));
+    let acc = median(d.iter().map(|d| d.acc).collect());
+    let excess = median(d.iter().map(Draw::excess).collect());
     assert!(acc >= 0.95, "median mode accuracy {acc}");
     assert!(excess <= 0.1, "median excess parameter error {excess}");
 }
@@ -220,8 +213,8 @@ fn h1_equal_parameters_on_two_regions() {
 #[test]
 fn h2_five_modes() {
     let d = draws("H2", 100, 5, &["c=8"], |n, s| hysid_testkit::h2(n + 1, s));
-    let acc = median(d.iter().map(|d| d.acc));
-    let excess = median(d.iter().map(Draw::excess));
+    let acc = median(d.iter().map(|d| d.acc).collect());
+    let excess = median(d.iter().map(Draw::excess).collect());
     assert!(acc >= 0.95, "median mode accuracy {acc}");
     assert!(excess <= 0.1, "median excess parameter error {excess}");
 }
@@ -236,7 +229,7 @@ fn h2_five_modes() {
 #[test]
 fn h3_two_dimensional_repeated_parameters() {
     let d = draws("H3", 60, 3, &["c=6"], |n, s| hysid_testkit::h3(n + 1, s));
-    let excess = median(d.iter().map(Draw::excess));
+    let excess = median(d.iter().map(Draw::excess).collect());
     assert!(excess <= 0.45, "median excess parameter error {excess}");
 }
 
@@ -249,6 +242,6 @@ fn h3_two_dimensional_repeated_parameters() {
 #[test]
 fn h4_static_three_wedges() {
     let d = draws("H4", 60, 3, &["c=6"], |n, s| hysid_testkit::h4(n + 1, s));
-    let excess = median(d.iter().map(Draw::excess));
+    let excess = median(d.iter().map(Draw::excess).collect());
     assert!(excess <= 0.15, "median excess parameter error {excess}");
 }

@@ -7,6 +7,7 @@ use hysid_model::data::Dataset;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{HybridAutomaton, InitialState, PwarxMode, PwarxModel, TimeDomain};
 use hysid_model::regressors::RegressorSpec;
+use hysid_model::statistics::median;
 use hysid_plot::{
     ModeFigure, ModeSequence, RegionFigure, SimulationFigure, SweepFigure, SweepPanel, SweepSeries,
 };
@@ -634,6 +635,7 @@ fn seeds_table(s: &mut String, c: &Comparison) {
             .filter_map(|r| r.report.as_ref().map(|v| v.fit_sim))
             .collect();
         fits.sort_by(f64::total_cmp);
+        let (lowest, highest) = (fits.first().copied(), fits.last().copied());
         let show = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
         let _ = writeln!(
             s,
@@ -641,20 +643,10 @@ fn seeds_table(s: &mut String, c: &Comparison) {
             g.replace('|', "/"),
             runs.len(),
             fits.len(),
-            show(median(&fits)),
-            show(fits.first().copied()),
-            show(fits.last().copied()),
+            show(median(&mut fits)),
+            show(lowest),
+            show(highest),
         );
-    }
-}
-
-/// Median of sorted values (mean of the middle two for an even count).
-fn median(sorted: &[f64]) -> Option<f64> {
-    let n = sorted.len();
-    match n {
-        0 => None,
-        _ if n % 2 == 1 => Some(sorted[n / 2]),
-        _ => Some(0.5 * (sorted[n / 2 - 1] + sorted[n / 2])),
     }
 }
 

@@ -12,6 +12,7 @@
 
 use crate::linalg;
 use hysid_model::regressors::Regressors;
+use hysid_model::statistics::upper_median;
 use nalgebra::{DMatrix, DVector};
 
 /// Centres of local fits (at most).
@@ -44,11 +45,7 @@ pub fn local_noise_sigma(reg: &Regressors) -> f64 {
             sigmas.push((rss / (local - p) as f64).sqrt());
         }
     }
-    if sigmas.is_empty() {
-        return 0.0;
-    }
-    let mid = sigmas.len() / 2;
-    *sigmas.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+    upper_median(&mut sigmas).unwrap_or(0.0)
 }
 
 /// The smallest noise level a record is given, `1e-6 std(y)` (population

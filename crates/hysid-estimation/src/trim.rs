@@ -34,16 +34,13 @@ use crate::pwarx::{PwarxData, PwarxFit};
 use hysid_core::backend::IdentifyError;
 use hysid_model::model::{PwarxMode, Trimming, TrimmingStatus, region_of};
 use hysid_model::regressors::Regressors;
+use hysid_model::statistics::{MAD_TO_SIGMA, median};
 
 /// The cutoff automatic selection gives every candidate of a PWARX
 /// back-end (`trim = 3`, the usual rejection level of Hampel et al.).
 pub const AUTO_CUTOFF: f64 = 3.0;
 /// Bound on the least-squares rounds.
 pub const MAX_ROUNDS: usize = 20;
-/// The median absolute deviation of Gaussian errors times this is their
-/// standard deviation.
-pub const MAD_TO_SIGMA: f64 = 1.482_6;
-
 /// `fit` with its ordinary modes' parameters estimated again on the samples
 /// of their regions, residuals beyond `cutoff` robust standard deviations
 /// left out (see the module doc); the outcome in `fit.trimming`. With
@@ -146,16 +143,10 @@ fn residual(reg: &Regressors, k: usize, theta: &[f64]) -> f64 {
     reg.y[k] - prediction
 }
 
-/// [`MAD_TO_SIGMA`] times the median absolute residual.
+/// [`MAD_TO_SIGMA`] times the median absolute residual (0 for none).
 fn robust_sigma(residuals: &[f64]) -> f64 {
     let mut a: Vec<f64> = residuals.iter().map(|r| r.abs()).collect();
-    a.sort_by(f64::total_cmp);
-    let median = match a.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => a[n / 2],
-        n => 0.5 * (a[n / 2 - 1] + a[n / 2]),
-    };
-    MAD_TO_SIGMA * median
+    MAD_TO_SIGMA * median(&mut a).unwrap_or(0.0)
 }
 
 /// The smallest robust standard deviation a mode is given (`s_min`): a few

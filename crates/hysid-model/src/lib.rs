@@ -12,6 +12,7 @@
 //! | [`model`] | PWARX models, hybrid automata, stops, provenance |
 //! | [`simulate`] | free-run simulation and one-step prediction of those kinds |
 //! | [`metrics`] | FIT, RMSE, mode matching |
+//! | [`statistics`] | medians and the robust scale of a sample |
 //! | [`excitation`] | the founding paper's random step input |
 
 pub mod data;
@@ -21,3 +22,4 @@ pub mod metrics;
 pub mod model;
 pub mod regressors;
 pub mod simulate;
+pub mod statistics;

@@ -23,6 +23,7 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_model::data::{DataSelection, Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
+use hysid_model::statistics::upper_median;
 use hysid_physical::Physical;
 use std::path::{Path, PathBuf};
 
@@ -66,12 +67,6 @@ fn fit_sim(model: &Model, data: &Dataset) -> f64 {
         .expect("the record suits the model")
         .0
         .fit_sim
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    s[s.len() / 2]
 }
 
 /// `name = value ± standard error` of every free parameter.
@@ -148,8 +143,9 @@ fn main() {
             );
             sel.push(s);
         }
-        println!("{c}: median selection FIT {:.3} %", median(&sel));
-        scores.push((median(&sel), c.clone()));
+        let median = upper_median(&mut sel).unwrap_or(f64::NAN);
+        println!("{c}: median selection FIT {median:.3} %");
+        scores.push((median, c.clone()));
     }
     let (best, choice) = scores
         .iter()
@@ -176,8 +172,6 @@ fn main() {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| {
             (a.min(t), b.max(t))
         });
-    println!(
-        "test FIT of the choice: median {:.3} % (range {lo:.3}-{hi:.3})",
-        median(&tests)
-    );
+    let median = upper_median(&mut tests).unwrap_or(f64::NAN);
+    println!("test FIT of the choice: median {median:.3} % (range {lo:.3}-{hi:.3})");
 }

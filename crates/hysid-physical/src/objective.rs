@@ -9,6 +9,7 @@ use argmin::core::{CostFunction, Error as ArgminError};
 use hysid_core::backend::{Deadline, Progress};
 use hysid_model::data::Dataset;
 use hysid_model::simulate::estimate_velocity;
+use hysid_model::statistics::{MAD_TO_SIGMA, upper_median};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Cost of a diverged or failed simulation.
@@ -81,13 +82,7 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
         .windows(3)
         .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
         .collect();
-    let noise = if d2.is_empty() {
-        0.0
-    } else {
-        let mid = d2.len() / 2;
-        let (_, m, _) = d2.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-        1.4826 * *m / 6f64.sqrt()
-    };
+    let noise = upper_median(&mut d2).map_or(0.0, |m| MAD_TO_SIGMA * m / 6f64.sqrt());
     let (lo, hi) = y
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {

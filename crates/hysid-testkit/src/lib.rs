@@ -25,6 +25,7 @@ use hysid_model::model::Stop;
 use hysid_model::model::StopBound;
 use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
 use hysid_model::simulate::SimulationOptions;
+use hysid_model::statistics::upper_median;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -141,13 +142,10 @@ pub fn as_pwarx(model: &Model) -> &PwarxModel {
     }
 }
 
-/// The median of `v` (the upper one of an even count); `NaN` for none.
+/// The median of `v` over a test's seeds (the upper one of an even count,
+/// [`upper_median`]); `NaN` for none.
 pub fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    upper_median(&mut v).unwrap_or(f64::NAN)
 }
 
 fn region(rows: &[(&[f64], f64)]) -> Polyhedron {

@@ -54,6 +54,7 @@ use hysid_core::backend::IdentifyError;
 use hysid_model::geometry::{argmax_regions, argmax_scores};
 use hysid_model::model::{PwarxMode, RegionRefinement, RegionRefinementStatus};
 use hysid_model::simulate::pwarx as pwarx_sim;
+use hysid_model::statistics::upper_median;
 use nalgebra::{DMatrix, DVector};
 
 /// Bound on the rounds of relaxed gate and mode parameters in turn.
@@ -176,11 +177,9 @@ fn scaled_to_unit_gap(scores: Vec<Vec<f64>>, x: &DMatrix<f64>) -> Vec<Vec<f64>> 
         })
         .filter(|g| g.is_finite())
         .collect();
-    if gaps.is_empty() {
+    let Some(median) = upper_median(&mut gaps) else {
         return scores;
-    }
-    let mid = gaps.len() / 2;
-    let median = *gaps.select_nth_unstable_by(mid, f64::total_cmp).1;
+    };
     if !(median > 0.0 && median.is_finite()) {
         return scores;
     }
