@@ -1,20 +1,7 @@
-//! Deterministic signals and random priors shared by the tests of the
-//! stages after a PWARX fit ([`crate::trim`], [`crate::refine`]).
+//! Random priors shared by the tests of the stages after a PWARX fit
+//! ([`crate::trim`], [`crate::refine`]).
 
 use hysid_core::priors::Priors;
-
-/// A deterministic sequence in [-1, 1] (a linear congruential one).
-pub fn uniform(n: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
-    (0..n)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        })
-        .collect()
-}
 
 /// Priors with every kind of parameter constraint, and the check that a
 /// fit honours them: `b1` bounded to `[lo, lo + width]`, the equality

@@ -97,13 +97,7 @@ mod tests {
     #[test]
     fn estimates_the_noise_of_a_two_mode_record() {
         let n = 2000;
-        let mut state = 12345u64;
-        let mut uniform = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let (inputs, errors) = (hysid_testkit::uniform(n, 1), hysid_testkit::uniform(n, 2));
         let x = DMatrix::from_fn(n, 1, |_, _| 0.0);
         let mut reg = Regressors {
             x,
@@ -111,8 +105,8 @@ mod tests {
             first: 0,
         };
         for k in 0..n {
-            let u = 4.0 * uniform() - 2.0;
-            let e = 0.6 * uniform() - 0.3;
+            let u = 2.0 * inputs[k];
+            let e = 0.3 * errors[k];
             reg.x[(k, 0)] = u;
             reg.y[k] = if u < 0.0 { 1.0 + 2.0 * u } else { 1.0 - u } + e;
         }

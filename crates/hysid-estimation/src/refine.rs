@@ -823,7 +823,7 @@ mod tests {
         n: usize,
         seed: u64,
     ) -> Dataset {
-        let u = crate::fixtures::uniform(n, seed);
+        let u = hysid_testkit::uniform(n, seed);
         let blank = record(u.clone(), vec![0.0; n]);
         let sim = if stops.is_empty() {
             pwarx_sim::simulate(model, &blank, SimulationOptions::default()).unwrap()

@@ -161,13 +161,13 @@ fn rounding_floor(reg: &Regressors) -> f64 {
 mod tests {
     use super::*;
     use crate::constrained::PriorConflict;
-    use crate::fixtures::uniform;
     use crate::pwarx;
     use hysid_core::backend::Problem;
     use hysid_core::priors::Priors;
     use hysid_model::data::Dataset;
     use hysid_model::geometry::Polyhedron;
     use hysid_model::regressors::RegressorSpec;
+    use hysid_testkit::uniform;
     use proptest::prelude::*;
 
     /// `y(k) = b u(k-1) + c`: mode 0 where `u(k-1) <= 0`, mode 1 where

@@ -961,17 +961,13 @@ mod tests {
         assert!(ranking(&[c(None), c(None)]).is_empty());
     }
 
-    /// An affine record y(k) = 0.7 y(k-1) + 0.5 u(k-1) + 0.1, inputs from a
-    /// fixed pseudo-random sequence, no noise.
+    /// An affine record y(k) = 0.7 y(k-1) + 0.5 u(k-1) + 0.1, inputs in
+    /// [-0.5, 0.5] from a fixed pseudo-random sequence, no noise.
     fn affine_record(n: usize) -> Dataset {
-        let mut u = Vec::with_capacity(n);
-        let mut state: u64 = 12345;
-        for _ in 0..n {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            u.push(((state >> 33) as f64 / (1u64 << 31) as f64) - 0.5);
-        }
+        let u: Vec<f64> = hysid_testkit::uniform(n, 1)
+            .iter()
+            .map(|v| 0.5 * v)
+            .collect();
         let mut y = vec![0.0; n];
         for k in 1..n {
             y[k] = 0.7 * y[k - 1] + 0.5 * u[k - 1] + 0.1;

@@ -142,6 +142,13 @@ pub fn as_pwarx(model: &Model) -> &PwarxModel {
     }
 }
 
+/// `n` numbers drawn uniformly from [-1, 1] by a `ChaCha8Rng` seeded with
+/// `seed`: the same numbers on every platform and for every thread count,
+/// with no generator to pass around.
+pub fn uniform(n: usize, seed: u64) -> Vec<f64> {
+    draws(n, -1.0, 1.0, &mut ChaCha8Rng::seed_from_u64(seed))
+}
+
 /// The median of `v` over a test's seeds (the upper one of an even count,
 /// [`upper_median`]); `NaN` for none.
 pub fn median(mut v: Vec<f64>) -> f64 {
@@ -207,7 +214,8 @@ pub fn generate(
     Benchmark { data, truth, modes }
 }
 
-fn uniform(n: usize, lo: f64, hi: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+/// `n` draws uniform on `[lo, hi]` from `rng`.
+fn draws(n: usize, lo: f64, hi: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
     (0..n).map(|_| rng.random_range(lo..=hi)).collect()
 }
 
@@ -242,7 +250,7 @@ pub fn b1(n: usize, u_max: f64, noise: Noise, seed: u64) -> Benchmark {
             mode(&[-0.3, 0.5, -1.7], &[(&[-5.0, -1.0], -6.0)]),
         ],
     );
-    let u = uniform(n, -u_max, u_max, &mut rng);
+    let u = draws(n, -u_max, u_max, &mut rng);
     generate(truth, vec![u], &[0.0], noise, &mut rng)
 }
 
@@ -262,7 +270,7 @@ pub fn h1(n: usize, seed: u64) -> Benchmark {
             mode(&[1.0, 0.2], &[(&[-1.0], -2.0)]),
         ],
     );
-    let u = uniform(n, -4.0, 4.0, &mut rng);
+    let u = draws(n, -4.0, 4.0, &mut rng);
     generate(truth, vec![u], &[0.0], Noise::Gaussian(0.1), &mut rng)
 }
 
@@ -283,7 +291,7 @@ pub fn h2(n: usize, seed: u64) -> Benchmark {
             mode(&[2.0, -10.0], &[(&[-1.0], -6.0)]),
         ],
     );
-    let u = uniform(n, -4.0, 8.0, &mut rng);
+    let u = draws(n, -4.0, 8.0, &mut rng);
     generate(truth, vec![u], &[0.0], Noise::Gaussian(0.1), &mut rng)
 }
 
@@ -306,7 +314,7 @@ pub fn h3(n: usize, seed: u64) -> Benchmark {
             mode(&[0.6, 0.3, 0.0], &[(&[0.2, -1.0], -0.8)]),
         ],
     );
-    let u = uniform(n, -2.0, 2.0, &mut rng);
+    let u = draws(n, -2.0, 2.0, &mut rng);
     generate(truth, vec![u], &[0.5], Noise::Gaussian(0.1), &mut rng)
 }
 
@@ -334,8 +342,8 @@ pub fn h4_with_noise(n: usize, noise: Noise, seed: u64) -> Benchmark {
             mode(&[4.0, -2.0, -2.0], &[(&[0.0, 1.0], 0.0), (&[-1.0, r], 0.0)]),
         ],
     );
-    let x1 = uniform(n, -1.0, 1.0, &mut rng);
-    let x2 = uniform(n, -1.0, 1.0, &mut rng);
+    let x1 = draws(n, -1.0, 1.0, &mut rng);
+    let x2 = draws(n, -1.0, 1.0, &mut rng);
     generate(truth, vec![x1, x2], &[0.0], noise, &mut rng)
 }
 
@@ -356,7 +364,7 @@ pub fn h7(n: usize, seed: u64) -> Benchmark {
             mode(&[-2.0, 15.0], &[(&[-1.0], -6.0)]),
         ],
     );
-    let u = uniform(n, -4.0, 8.0, &mut rng);
+    let u = draws(n, -4.0, 8.0, &mut rng);
     generate(truth, vec![u], &[0.0], Noise::Gaussian(0.1), &mut rng)
 }
 
