@@ -201,13 +201,15 @@ mod tests {
         PwarxFit::complete(PwarxMode::unnamed(thetas, regions), ())
     }
 
-    fn problem<'a>(data: &'a Dataset, priors: &'a Priors) -> Problem<'a> {
-        Problem {
+    /// `data` under `priors`, prepared for the stage (orders 0 and 1).
+    fn prepared<'a>(data: &'a Dataset, priors: &'a Priors) -> PwarxData<'a> {
+        let problem = Problem {
             data,
             orders: RegressorSpec::new(0, 1, 1),
             priors,
             priors_origin: None,
-        }
+        };
+        pwarx::prepare(&problem, "test").unwrap()
     }
 
     fn truth() -> Vec<Vec<f64>> {
@@ -230,8 +232,7 @@ mod tests {
     fn samples_of_the_wrong_mode_are_left_out() {
         let data = record(2000, 0.02, 5);
         let priors = Priors::default();
-        let problem = problem(&data, &priors);
-        let prepared = pwarx::prepare(&problem, "test").unwrap();
+        let prepared = prepared(&data, &priors);
         let wrong: usize = data.u(0)[..1999]
             .iter()
             .filter(|&&u| u > 0.0 && u <= SHIFT)
@@ -264,8 +265,7 @@ mod tests {
     fn noise_free_modes_are_recovered_exactly() {
         let data = record(500, 0.0, 9);
         let priors = Priors::default();
-        let problem = problem(&data, &priors);
-        let prepared = pwarx::prepare(&problem, "test").unwrap();
+        let prepared = prepared(&data, &priors);
         let start = vec![vec![0.9, 1.2], vec![1.1, -0.8]];
         let fit = trim(&prepared, shifted_fit(start), Some(3.0)).unwrap();
         assert!(largest_error(&fit) < 1e-9, "{:?}", fit.modes);
@@ -277,8 +277,7 @@ mod tests {
     fn no_cutoff_leaves_the_fit_alone() {
         let data = record(100, 0.02, 3);
         let priors = Priors::default();
-        let problem = problem(&data, &priors);
-        let prepared = pwarx::prepare(&problem, "test").unwrap();
+        let prepared = prepared(&data, &priors);
         let start = vec![vec![0.5, 0.5], vec![2.0, 0.0]];
         let fit = trim(&prepared, shifted_fit(start.clone()), None).unwrap();
         assert!(fit.trimming.is_none());
@@ -291,8 +290,7 @@ mod tests {
     fn too_few_samples_keep_the_fit() {
         let data = record(2, 0.02, 3);
         let priors = Priors::default();
-        let problem = problem(&data, &priors);
-        let prepared = pwarx::prepare(&problem, "test").unwrap();
+        let prepared = prepared(&data, &priors);
         let fit = trim(&prepared, shifted_fit(truth()), Some(3.0)).unwrap();
         let t = fit.trimming.unwrap();
         assert_eq!((t.status, t.rounds), (TrimmingStatus::TooFewSamples, 0));
@@ -327,8 +325,7 @@ mod tests {
             };
             let priors = constraints.priors();
             let data = record(300, 0.05, seed);
-            let problem = problem(&data, &priors);
-            let prepared = pwarx::prepare(&problem, "test").unwrap();
+            let prepared = prepared(&data, &priors);
             let par = match Parametrisation::from_priors(&priors, &prepared.spec, 2) {
                 Ok(par) => par,
                 // The equality and fixed c determine b1 outside its bounds.
