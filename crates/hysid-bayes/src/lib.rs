@@ -21,7 +21,7 @@
 //! 5. every sample is classified again with the final pdfs
 //!    ([`reclassify`]), with its confidence (the posterior probability of
 //!    its mode under equal mode probabilities);
-//! 6. the regions from those labels (`hysid-regions`, as for the other
+//! 6. the regions from those labels (`hysid_estimation::regions`, as for the other
 //!    PWARX back-ends).
 //!
 //! `docs/bayes.md` has the equations and every deviation from the paper.
@@ -44,7 +44,7 @@ use hysid_estimation::noise::{local_noise_sigma, noise_floor};
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_regions::RegionMethod;
+use hysid_estimation::regions::RegionMethod;
 use nalgebra::DVector;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
@@ -96,7 +96,7 @@ hysid_estimation::pwarx_options! {
         /// Kernel bandwidth h of the Liu-West move after resampling, in (0, 1); 0:
         /// (4 / ((p + 2) n))^(1 / (p + 4)) for p parameters and n particles.
         bandwidth: f64 = 0.0,
-        /// Region estimation from the final classification (hysid-regions): mrlp, msvm, psvc
+        /// Region estimation from the final classification (docs/regions.md): mrlp, msvm, psvc
         /// or softmax.
         regions: RegionMethod = RegionMethod::Mrlp,
     }
@@ -226,7 +226,7 @@ pub fn fit(
     let thetas = point_estimates(&pdfs, &priors);
     let classes = reclassify(&pdfs, &reg, sigma);
     check_every_mode_has_samples(&classes.labels, modes)?;
-    let partition = hysid_regions::for_pwarx(options.regions, data, &reg, &classes.labels, modes)?;
+    let partition = hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &classes.labels, modes)?;
     let cut_short = pass.processed < reg.len();
     let relabelled = order[..pass.processed]
         .iter()

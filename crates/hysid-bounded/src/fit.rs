@@ -6,7 +6,7 @@
 //! [`fit`] = [`classify`] (the error bound delta, then [`procedure::run`]:
 //! greedy MIN PFS by MAX FS, refinement with drops and merges, final
 //! classification), the optional [`alternate_classification`], then the
-//! region estimation of `hysid-regions`.
+//! region estimation of `hysid_estimation::regions`.
 
 use crate::constraints::ModeConstraints;
 use crate::procedure::{self, Classification, ProcedureError, ProcedureSettings, RefitKind};
@@ -17,7 +17,7 @@ use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_regions::{AlternationReport, AlternationSettings, Partition, RegionOptions};
+use hysid_estimation::regions::{AlternationReport, AlternationSettings, Partition, RegionOptions};
 use nalgebra::DMatrix;
 use serde::Serialize;
 
@@ -155,7 +155,7 @@ pub fn classify(
 }
 
 /// Step 3b (`alternation > 0`, ours, not in the paper): the alternation of
-/// [`hysid_regions::alternate`] from the classification, for at most
+/// [`hysid_estimation::regions::alternate`] from the classification, for at most
 /// `alternation` rounds: least squares per mode under the priors, a
 /// softmax gate, every sample to its mode of least cost. Infeasible
 /// samples start in the mode of least residual. The mode datasets and
@@ -191,7 +191,7 @@ pub fn alternate_classification(
     };
     let x = DMatrix::from_fn(s.len(), s.p - 1, |r, j| s.row(r)[j]);
     let constraints = &classified.settings.constraints;
-    let out = hysid_regions::alternate(&x, &s.y, labels, modes, &settings, |labels| {
+    let out = hysid_estimation::regions::alternate(&x, &s.y, labels, modes, &settings, |labels| {
         constraints
             .least_squares_modes(s, &groups(labels, modes))
             .ok_or_else(|| IdentifyError::failed("alternation: the least squares of a mode failed"))
@@ -313,7 +313,7 @@ fn procedure_error(e: ProcedureError) -> IdentifyError {
     }
 }
 
-/// Step 4: the regions from the labelled samples (`hysid-regions`, the
+/// Step 4: the regions from the labelled samples (`hysid_estimation::regions`, the
 /// method of option `regions`; normals restricted to the `switching`
 /// regressors).
 pub fn estimate_regions(
@@ -330,7 +330,7 @@ pub fn estimate_regions(
         switching: data.switching.clone(),
         ..Default::default()
     };
-    hysid_regions::estimate(&rows, &labels, c.thetas.len(), &region_options)
+    hysid_estimation::regions::estimate(&rows, &labels, c.thetas.len(), &region_options)
         .map_err(|e| IdentifyError::failed(format!("regions: {e}")))
 }
 

@@ -11,7 +11,7 @@
 //! with randomized thermal relaxation, [`maxfs`]), refines the
 //! classification to a fixed point ([`procedure`]), refits every mode by a
 //! Chebyshev LP that certifies `|y_k - phi_k' theta_i| <= delta` on its
-//! samples ([`refit`]), and estimates the regions with `hysid-regions`.
+//! samples ([`refit`]), and estimates the regions with `hysid_estimation::regions`.
 //! `delta` trades fit for the number of modes: [`sweep::delta_sweep`]
 //! reports the trade-off. `docs/bounded.md` lists every constant and which
 //! parts are the paper's and which are ours.
@@ -47,7 +47,7 @@ use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx;
-use hysid_regions::RegionMethod;
+use hysid_estimation::regions::RegionMethod;
 use procedure::{Classification, ProcedureSettings};
 use samples::Samples;
 use serde::{Deserialize, Serialize};
@@ -114,7 +114,7 @@ hysid_estimation::pwarx_options! {
         /// Upper bound on the number of modes, saturation modes included (also taken
         /// from the prior max_modes); none: no bound.
         max_modes: Option<usize> = None,
-        /// Region estimation from the classified samples (hysid-regions): mrlp
+        /// Region estimation from the classified samples (docs/regions.md): mrlp
         /// (multicategory robust LP, complete partition), msvm (multicategory SVM,
         /// complete partition), psvc (pairwise proximal SVM, may leave holes) or
         /// softmax (multinomial logistic regression, complete partition).
@@ -222,7 +222,7 @@ impl Identifier for Bounded {
     /// `delta` on a grid of multiples of the noise level of the ordinary
     /// samples (the `auto` bound over [`noise::SIGMAS`], so floored as it
     /// is), every candidate with the alternation
-    /// ([`hysid_regions::AUTO_ROUNDS`]).
+    /// ([`hysid_estimation::regions::AUTO_ROUNDS`]).
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         let data = pwarx::prepare(problem, Self::NAME)?;
         let sigma = noise::auto_delta(&data.ordinary_regressors()) / noise::SIGMAS;
@@ -231,7 +231,7 @@ impl Identifier for Bounded {
                 "delta",
                 DELTA_SIGMAS.iter().map(|k| three_digits(k * sigma)),
             )
-            .with("alternation", [hysid_regions::AUTO_ROUNDS])
+            .with("alternation", [hysid_estimation::regions::AUTO_ROUNDS])
             .with("trim", [hysid_estimation::trim::AUTO_CUTOFF]))
     }
 

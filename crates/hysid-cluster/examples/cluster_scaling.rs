@@ -141,11 +141,11 @@ fn main() {
             eprintln!("N = {n}: steps 1-5 {:.3} s", tp[tp.len() - 1]);
             acc_labels = mode_accuracy(&sample_truth, &fit.labels).unwrap().accuracy;
             let t = Instant::now();
-            let ropts = hysid_regions::RegionOptions {
+            let ropts = hysid_estimation::regions::RegionOptions {
                 standardize: false,
                 ..Default::default()
             };
-            hysid_regions::estimate(&sample_x, &fit.labels, fit.theta.len(), &ropts).unwrap();
+            hysid_estimation::regions::estimate(&sample_x, &fit.labels, fit.theta.len(), &ropts).unwrap();
             tr.push(t.elapsed().as_secs_f64());
             eprintln!("N = {n}: regions {:.3} s", tr[tr.len() - 1]);
             let priors = Priors {

@@ -14,10 +14,10 @@
 //!   and feature vectors, clustering, mode datasets and discard, weighted
 //!   least squares, reattribution (`procedure::run_with`);
 //! - `alternate_partition`: the alternation of
-//!   `hysid_regions::alternate` from the clustering's mode datasets (off by
+//!   `hysid_estimation::regions::alternate` from the clustering's mode datasets (off by
 //!   default; `alternation` bounds its rounds);
 //! - `estimate_regions`: step 7, the regions of the modes
-//!   (`hysid-regions`);
+//!   (`hysid_estimation::regions`);
 //! - `refit_on_regions`: step 7 continued, the mode datasets made
 //!   consistent with the regions and the parameters re-estimated;
 //! - `extend_to_all`: after a run on a clustering sample, every sample to
@@ -34,8 +34,8 @@ use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 use hysid_model::data::Standardization;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel, RunStatus, region_of};
-pub use hysid_regions::AlternationReport;
-use hysid_regions::AlternationSettings;
+pub use hysid_estimation::regions::AlternationReport;
+use hysid_estimation::regions::AlternationSettings;
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -466,7 +466,7 @@ fn check_modes_found(
     Ok(())
 }
 
-/// The alternation of [`hysid_regions::alternate`] from the clustering's
+/// The alternation of [`hysid_estimation::regions::alternate`] from the clustering's
 /// mode datasets, when `alternation > 0`: ordinary least squares per mode
 /// under the priors, a softmax gate, every sample to its mode of least
 /// cost, for at most `alternation` rounds. The mode datasets it ends with
@@ -504,7 +504,7 @@ fn alternate_partition(
         )
         .map_err(|e| IdentifyError::failed(e.to_string()))
     };
-    let out = hysid_regions::alternate(
+    let out = hysid_estimation::regions::alternate(
         &work.xs,
         &work.y,
         fit.labels.clone(),
@@ -549,7 +549,7 @@ fn estimate_regions(
             cut_short: false,
         });
     }
-    let options = hysid_regions::RegionOptions {
+    let options = hysid_estimation::regions::RegionOptions {
         method: o.regions,
         svm_c: o.svm_c,
         switching: data.switching.clone(),
@@ -557,7 +557,7 @@ fn estimate_regions(
         deadline: deadline.clone(),
         ..Default::default()
     };
-    let part = hysid_regions::estimate(&work.xs, &fit.labels, modes, &options)
+    let part = hysid_estimation::regions::estimate(&work.xs, &fit.labels, modes, &options)
         .map_err(|e| IdentifyError::failed(format!("region estimation: {e}")))?;
     Ok(Regions {
         polyhedra: part.regions,
@@ -613,7 +613,7 @@ fn refit_on_regions(
 fn holes(work: &Working, regions: &[Polyhedron], seed: u64) -> f64 {
     let lo: Vec<f64> = (0..work.n).map(|k| work.xs.column(k).min()).collect();
     let hi: Vec<f64> = (0..work.n).map(|k| work.xs.column(k).max()).collect();
-    hysid_regions::coverage(regions, &lo, &hi, 10_000, seed).uncovered_fraction
+    hysid_estimation::regions::coverage(regions, &lo, &hi, 10_000, seed).uncovered_fraction
 }
 
 /// With `clustering = kmeans`, the message of a time budget that stopped

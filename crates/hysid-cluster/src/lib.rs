@@ -20,7 +20,7 @@
 //! 4. mode datasets, the discard rule `max(c, alpha (n+1))`, weighted least
 //!    squares per mode, outliers and mixed points reattributed by residual
 //!    ([`procedure`]);
-//! 5. regions by `hysid-regions` (MRLP by default: a complete partition).
+//! 5. regions by `hysid_estimation::regions` (MRLP by default: a complete partition).
 //!
 //! [`sweep()`] scores a grid of `c` and mode counts by validation simulation
 //! FIT.
@@ -122,7 +122,7 @@ hysid_estimation::pwarx_options! {
         /// Region estimation: mrlp (one LP, complete partition), msvm (soft-margin
         /// multicategory SVM, complete partition) or psvc (pairwise proximal SVM, HIT's
         /// default, may leave holes).
-        regions: hysid_regions::RegionMethod = hysid_regions::RegionMethod::Mrlp,
+        regions: hysid_estimation::regions::RegionMethod = hysid_estimation::regions::RegionMethod::Mrlp,
         /// Soft-margin weight of msvm (and penalty of mrlp misclassifications where used).
         svm_c: f64 = 1.0,
         /// Standardise inputs and output (zero mean, unit variance) before the neighbour
@@ -242,7 +242,7 @@ pub fn c_candidates(n: usize, rows: usize) -> Vec<Option<usize>> {
 
 /// The alternation's round bound in every candidate of automatic selection
 /// (`docs/cluster.md`, step 6b).
-pub use hysid_regions::AUTO_ROUNDS as AUTO_ALTERNATION;
+pub use hysid_estimation::regions::AUTO_ROUNDS as AUTO_ALTERNATION;
 /// Most modes automatic selection tries when the priors give no bound.
 pub const DEFAULT_MAX_MODES: usize = 5;
 

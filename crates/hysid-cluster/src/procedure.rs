@@ -1,6 +1,6 @@
 //! Steps 1 to 5 and 7 of the procedure on a regression problem
 //! `y_k = theta_i' [x_k; 1]`, in working units (region estimation, step 6,
-//! is done by the caller with `hysid-regions`).
+//! is done by the caller with `hysid_estimation::regions`).
 //!
 //! 1. local datasets and feature vectors ([`crate::local`]);
 //! 2. clustering of the feature vectors ([`crate::kmeans`]);

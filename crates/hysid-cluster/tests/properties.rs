@@ -140,7 +140,7 @@ proptest! {
         let method = format!("regions={regions}");
         let m = identify(&ex.data, ex.truth.spec(), modes, &["discard=0", &method]);
         let polyhedra: Vec<_> = m.modes.iter().map(|q| q.region.clone()).collect();
-        let rep = hysid_regions::coverage(&polyhedra, &[-20.0, -10.0], &[20.0, 10.0], 2000, seed);
+        let rep = hysid_estimation::regions::coverage(&polyhedra, &[-20.0, -10.0], &[20.0, 10.0], 2000, seed);
         prop_assert_eq!(rep.uncovered_fraction, 0.0);
     }
 

@@ -13,6 +13,7 @@
 //! | [`linalg`] | SVD least squares, weighted and equality-constrained (faer) |
 //! | [`noise`] | the noise level of a record from local affine fits |
 //! | [`pwarx`] | the set-up and assembly every PWARX back-end shares |
+//! | [`regions`] | region estimation from labelled regressors (MRLP, MSVM, softmax, PSVC) and the alternation of regions and assignment |
 //! | [`refine`] | the multiple-shooting simulation-error refinement a PWARX back-end may end with |
 //! | [`trim`] | the trimmed re-estimation of the mode parameters on their regions, before the refinement |
 
@@ -24,4 +25,5 @@ pub mod linalg;
 pub mod noise;
 pub mod pwarx;
 pub mod refine;
+pub mod regions;
 pub mod trim;

@@ -19,7 +19,7 @@
 //! fixed `W`, step 3 over `W` for fixed labels), so each restart ends in a
 //! local minimum; the restart of least cost is kept ([`best_restart`]). The
 //! number of restarts is Lauer's `r*` ([`restart_count`]) unless given. The
-//! regions come last, from the final assignment (`hysid-regions`, as for
+//! regions come last, from the final assignment (`hysid_estimation::regions`, as for
 //! the other PWARX back-ends; Lauer's paper stops at the switched model).
 //! `docs/klinreg.md` has the equations and every deviation.
 
@@ -39,7 +39,7 @@ use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equati
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_regions::RegionMethod;
+use hysid_estimation::regions::RegionMethod;
 
 use serde::Serialize;
 
@@ -65,7 +65,7 @@ hysid_estimation::pwarx_options! {
         w_max: f64 = 1.0,
         /// Assignment/refit iterations per restart at most.
         max_iter: usize = 100,
-        /// Region estimation from the final assignment (hysid-regions): mrlp,
+        /// Region estimation from the final assignment (docs/regions.md): mrlp,
         /// msvm, psvc or softmax.
         regions: RegionMethod = RegionMethod::Mrlp,
     }
@@ -175,7 +175,7 @@ pub fn fit(
     if let Some(thetas) = constrained_least_squares(&reg, &par, &best.labels, modes) {
         best.thetas = thetas;
     }
-    let partition = hysid_regions::for_pwarx(options.regions, data, &reg, &best.labels, modes)?;
+    let partition = hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &best.labels, modes)?;
     let run_status = if outcome.run < planned {
         RunStatus::TimeBudget
     } else {

@@ -17,7 +17,7 @@
 //!   TAC 2005, solve greedily), then the least l1 error with that many
 //!   modes and every residual within `delta`.
 //!
-//! The regions come last, from the assignment (`hysid-regions`, as for the
+//! The regions come last, from the assignment (`hysid_estimation::regions`, as for the
 //! other PWARX back-ends). `docs/milp.md` has the equations and every
 //! deviation.
 
@@ -34,7 +34,7 @@ use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_regions::RegionMethod;
+use hysid_estimation::regions::RegionMethod;
 use serde::Serialize;
 
 /// The largest mode count the fewest-modes problem tries without
@@ -55,7 +55,7 @@ hysid_estimation::pwarx_options! {
         /// Branch-and-bound nodes per program at most; the best solution found by then is
         /// returned, marked not proven optimal.
         node_limit: usize = 2_000_000,
-        /// Region estimation from the assignment (hysid-regions): mrlp, msvm, psvc or
+        /// Region estimation from the assignment (docs/regions.md): mrlp, msvm, psvc or
         /// softmax.
         regions: RegionMethod = RegionMethod::Mrlp,
     }
@@ -158,7 +158,7 @@ pub fn fit(
     let mut best = least_l1(data, &reg, modes, options.delta, &limits)?;
     let dropped = drop_empty_modes(&mut best);
     let partition =
-        hysid_regions::for_pwarx(options.regions, data, &reg, &best.labels, best.thetas.len())?;
+        hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &best.labels, best.thetas.len())?;
     let proven = best.proven_optimal && fewest.as_ref().is_none_or(|s| s.proven_optimal);
     let diagnostics = MilpDiagnostics {
         l1_error: best.objective,

@@ -7,7 +7,7 @@ use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equati
 use hysid_estimation::pwarx::PwarxData;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::regressors::Regressors;
-use hysid_regions::{RegionMethod, RegionOptions, SoftmaxSettings};
+use hysid_estimation::regions::{RegionMethod, RegionOptions, SoftmaxSettings};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -206,7 +206,7 @@ pub fn fit_local_models(
 }
 
 /// Step 2: the separator, a multinomial logistic regression of the
-/// clusters on the regressors (`hysid-regions` softmax, every sample
+/// clusters on the regressors (`hysid_estimation::regions` softmax, every sample
 /// weighing 1, ridge `beta` on the sum of the losses; normals restricted to
 /// the `switching` regressors), started from `start` (the previous
 /// round's scores) when it has one per cluster. Returns per cluster the
@@ -235,7 +235,7 @@ pub fn fit_separator(
         },
         ..Default::default()
     };
-    hysid_regions::estimate(&x, &labels, live, &region_options)
+    hysid_estimation::regions::estimate(&x, &labels, live, &region_options)
         .map(|p| p.scores)
         .map_err(|e| ParcError::Separator(e.to_string()).into())
 }
@@ -377,5 +377,5 @@ fn regions(scores: &[Vec<f64>]) -> Vec<Polyhedron> {
     if scores.len() <= 1 {
         return vec![Polyhedron::everything(); scores.len().max(1)];
     }
-    hysid_regions::argmax_regions(scores)
+    hysid_estimation::regions::argmax_regions(scores)
 }

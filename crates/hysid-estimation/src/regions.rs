@@ -38,7 +38,7 @@
 //! the MSVM QP); measured times are in `docs/performance-regions.md`.
 //!
 //! ```
-//! use hysid_regions::{estimate, RegionOptions};
+//! use hysid_estimation::regions::{estimate, RegionOptions};
 //! use nalgebra::DMatrix;
 //! // two modes on a line, switching at x = 0
 //! let x = DMatrix::from_row_slice(6, 1, &[-3.0, -2.0, -1.0, 1.0, 2.0, 3.0]);
@@ -50,7 +50,7 @@
 //! ```
 
 use hysid_core::backend::Deadline;
-use hysid_estimation::conic::{self, Program, Settings, Solution, SolveError};
+use crate::conic::{self, Program, Settings, Solution, SolveError};
 use hysid_model::geometry::Polyhedron;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
@@ -348,7 +348,7 @@ pub(crate) fn solver_settings(deadline: &Deadline) -> Settings {
 }
 
 /// Solves a region program with [`solver_settings`]. A solution (`Solved`
-/// or `AlmostSolved`, the policy of `hysid_estimation::conic`) is returned;
+/// or `AlmostSolved`, the policy of `crate::conic`) is returned;
 /// a failure is the [`SolveError`].
 pub(crate) fn solve_program(program: Program) -> Result<Solution, SolveError> {
     conic::solve(program, &solver_settings(&Deadline::none()))
@@ -592,7 +592,7 @@ fn thinned_rows(labels: &[usize], modes: usize, max_points: usize) -> Option<Vec
 /// priors, and the error worded for the run.
 pub fn for_pwarx(
     method: RegionMethod,
-    data: &hysid_estimation::pwarx::PwarxData<'_>,
+    data: &crate::pwarx::PwarxData<'_>,
     reg: &hysid_model::regressors::Regressors,
     labels: &[usize],
     modes: usize,
@@ -724,9 +724,9 @@ mod tests {
     //! no option reaches the iteration bound, so the failure statuses are
     //! reached here, on a small program, through the `solve_in_context`
     //! the working-set scheme calls. The status mapping itself is tested in
-    //! `hysid_estimation::conic`.
+    //! `crate::conic`.
     use super::*;
-    use hysid_estimation::conic::{Cone, Triplets};
+    use crate::conic::{Cone, Triplets};
 
     const CTX: Context = Context {
         method: "test",

@@ -2,17 +2,17 @@
 //! mixed-point reattribution of the clustering procedure, which only moves a
 //! point to an adjacent mode.
 
-use crate::{Context, RegionError};
+use crate::regions::{Context, RegionError};
 use hysid_core::backend::Deadline;
-use hysid_estimation::conic::{Cone, Program, Triplets};
+use crate::conic::{Cone, Program, Triplets};
 use hysid_model::geometry::Polyhedron;
 
 /// Symmetric adjacency matrix of a pairwise partition inside the box
 /// `[lo, hi]`: `adj[i][j]` is true when regions `i` and `j` share a facet
 /// of positive (d-1)-dimensional size inside the box.
 ///
-/// The regions must have the pairwise layout produced by [`crate::estimate`]
-/// and [`crate::argmax_regions`]: region `i` has `s - 1` rows, the row for
+/// The regions must have the pairwise layout produced by [`crate::regions::estimate`]
+/// and [`crate::regions::argmax_regions`]: region `i` has `s - 1` rows, the row for
 /// mode `j` at position `j` (if `j < i`) or `j - 1`, and it is the negative
 /// of region `j`'s row for `i`. For each pair one LP (clarabel) finds the
 /// largest `t` such that a point `x` in the box lies on their common
@@ -114,7 +114,7 @@ pub fn adjacency(
                 deadline: Deadline::none(),
             };
             let (variables, rows) = (prog.variables(), prog.rows());
-            match crate::solve_program(prog) {
+            match crate::regions::solve_program(prog) {
                 Ok(sol) => {
                     let t = sol.x[d];
                     adj[i][j] = t > 1e-9 * (1.0 + size);

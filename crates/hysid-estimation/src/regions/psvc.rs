@@ -9,7 +9,7 @@
 //! Region `i` keeps `w.z - g >= 0` against every `j`, so regions are
 //! intersections of pairwise half-spaces and may leave holes.
 
-use crate::{Prepared, RegionError};
+use crate::regions::{Prepared, RegionError};
 use hysid_model::geometry::Polyhedron;
 use nalgebra::{DMatrix, DVector};
 

@@ -11,10 +11,10 @@
 //! non-zero loss until none is left outside, so it returns an optimum of the
 //! full program (to the solver's tolerance), not an approximation.
 
-use crate::simplex::Simplex;
-use crate::{Context, Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
+use crate::regions::simplex::Simplex;
+use crate::regions::{Context, Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
 use hysid_core::backend::Deadline;
-use hysid_estimation::conic::{Cone, Program, Triplets};
+use crate::conic::{Cone, Program, Triplets};
 
 /// Margin below which a point outside the working set counts as having a
 /// non-zero loss and is added (slightly below 1 so that points sitting on
@@ -36,7 +36,7 @@ const SCALED_BAND: f64 = 2.0;
 const SOFTMAX_SAMPLE: usize = 1000;
 /// Search interval of the log scale factor of the softmax scores.
 const SCALE_LN_RANGE: (f64, f64) = (-12.0, 16.0);
-/// The MRLP goes to the simplex of [`crate::simplex`] when it has at most
+/// The MRLP goes to the simplex of [`crate::regions::simplex`] when it has at most
 /// this many free score parameters (the basis is refactorised at every
 /// pivot, `O(k^3)`); above, and for the MSVM QP, clarabel solves it.
 const SIMPLEX_MAX_UNKNOWNS: usize = 48;
@@ -90,7 +90,7 @@ pub(crate) fn solve(
         }
     }
     // The QP, large MRLPs, and MRLPs whose optimum is not unique (the
-    // interior-point solution is kept there: see `crate::simplex`).
+    // interior-point solution is kept there: see `crate::regions::simplex`).
     let mut stats = SolveStats::default();
     let set = initial_set(prep, labels, modes, &mut stats)?;
     let solved = solve_clarabel(
@@ -118,7 +118,7 @@ fn softmax_instead(
     mut stats: SolveStats,
 ) -> Result<(Vec<Vec<f64>>, SolveStats), RegionError> {
     let (blocks, steps) =
-        crate::softmax::fit(prep, labels, modes, &crate::SoftmaxSettings::default())?;
+        crate::regions::softmax::fit(prep, labels, modes, &crate::regions::SoftmaxSettings::default())?;
     stats.newton_steps = steps;
     stats.cut_short = true;
     Ok((blocks, stats))
@@ -162,7 +162,7 @@ fn violators(
     out
 }
 
-/// The MRLP by the dual simplex of [`crate::simplex`], warm-started from
+/// The MRLP by the dual simplex of [`crate::regions::simplex`], warm-started from
 /// round to round; `None` when the simplex gives up (pivot bound or a
 /// singular basis) or the optimum is not unique, in which case the caller
 /// uses clarabel. Past `deadline`, the scores of the last round.
@@ -242,7 +242,7 @@ fn solve_clarabel(
             deadline: deadline.clone(),
         };
         let prog = program(prep, labels, modes, weight, quadratic, &set);
-        let sol = crate::solve_in_context(prog, &ctx)?;
+        let sol = crate::regions::solve_in_context(prog, &ctx)?;
         stats.solves += 1;
         stats.solver_iterations += u64::from(sol.iterations);
         stats.working_points = set.len();
@@ -280,7 +280,7 @@ fn solve_clarabel(
 /// First working set of the simplex, from a cheap classifier whose scale is
 /// matched to the program's:
 ///
-/// 1. a softmax fit ([`crate::softmax`]) on at most [`SOFTMAX_SAMPLE`]
+/// 1. a softmax fit ([`crate::regions::softmax`]) on at most [`SOFTMAX_SAMPLE`]
 ///    points, evenly spaced in row order within each mode (every mode is
 ///    present, so the fit is well posed);
 /// 2. the softmax scores are multiplied by the factor `a > 0` that minimises
@@ -308,7 +308,7 @@ fn scaled_softmax_set(
     let sample = stratified(labels, &prep.counts, SOFTMAX_SAMPLE / modes.max(1));
     let (sub, sub_labels) = subsample(prep, labels, modes, &sample);
     let (wg, steps) =
-        crate::softmax::fit(&sub, &sub_labels, modes, &crate::SoftmaxSettings::default())?;
+        crate::regions::softmax::fit(&sub, &sub_labels, modes, &crate::regions::SoftmaxSettings::default())?;
     stats.newton_steps = steps;
     let score = |z: &[f64], f: &mut [f64]| {
         for (fi, v) in f.iter_mut().zip(&wg) {
@@ -359,7 +359,7 @@ fn initial_set(
     modes: usize,
     stats: &mut SolveStats,
 ) -> Result<Vec<usize>, RegionError> {
-    let (wg, steps) = crate::softmax::fit(prep, labels, modes, &crate::SoftmaxSettings::default())?;
+    let (wg, steps) = crate::regions::softmax::fit(prep, labels, modes, &crate::regions::SoftmaxSettings::default())?;
     stats.newton_steps = steps;
     let per_mode = INITIAL_PER_MODE_FACTOR * (prep.p + 1);
     let mut seen = vec![0usize; modes];
@@ -630,7 +630,7 @@ mod tests {
                 method,
                 ..RegionOptions::default()
             };
-            let prep = crate::prepare(&x, &labels, 3, &opts).unwrap();
+            let prep = crate::regions::prepare(&x, &labels, 3, &opts).unwrap();
             let quadratic = method == RegionMethod::Msvm;
             let weight: Vec<f64> = prep
                 .counts
@@ -656,7 +656,7 @@ mod tests {
                 deadline: hysid_core::backend::Deadline::none(),
             };
             let full =
-                crate::solve_in_context(program(&prep, &labels, 3, &weight, quadratic, &all), &ctx)
+                crate::regions::solve_in_context(program(&prep, &labels, 3, &weight, quadratic, &all), &ctx)
                     .unwrap();
             let full_blocks: Vec<Vec<f64>> = full.x[..3 * (prep.p + 1)]
                 .chunks(prep.p + 1)
@@ -680,7 +680,7 @@ mod tests {
             round: 1,
             deadline: hysid_core::backend::Deadline::none(),
         };
-        let full = crate::solve_in_context(program(prep, labels, modes, weight, false, &all), &ctx)
+        let full = crate::regions::solve_in_context(program(prep, labels, modes, weight, false, &all), &ctx)
             .unwrap();
         let blocks: Vec<Vec<f64>> = full.x[..modes * (prep.p + 1)]
             .chunks(prep.p + 1)
@@ -735,7 +735,7 @@ mod tests {
                 labels.push(l);
             }
             let opts = RegionOptions::default();
-            let prep = crate::prepare(&x, &labels, modes, &opts).unwrap();
+            let prep = crate::regions::prepare(&x, &labels, modes, &opts).unwrap();
             let weight: Vec<f64> = prep.counts.iter().map(|&c| 1.0 / c as f64).collect();
             let mut stats = SolveStats::default();
             let set = scaled_softmax_set(&prep, &labels, modes, &weight, false, &mut stats).unwrap();

@@ -2,7 +2,7 @@
 //! variable primal simplex method (Dantzig; bounded variables after
 //! Dantzig 1955 and Wagner 1958) applied to the LP dual of the MRLP.
 //!
-//! The MRLP (see [`crate::working_set`]) is, with `u` the free score
+//! The MRLP (see [`crate::regions::working_set`]) is, with `u` the free score
 //! parameters (the last mode's are fixed at 0, so `u` has
 //! `k = (modes - 1)(p + 1)` entries) and one *term* `t = (r, j)` per point
 //! `r` and other mode `j != y_r`,
@@ -44,7 +44,7 @@
 //! zero-loss face is large) the caller keeps clarabel's solution, whose
 //! boundaries sit inside the gaps between modes.
 
-use crate::Prepared;
+use crate::regions::Prepared;
 
 /// A margin within this of 1 counts as 1 (reduced-cost tolerance).
 const REDUCED_TOL: f64 = 1e-9;

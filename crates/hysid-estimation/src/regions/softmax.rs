@@ -16,7 +16,7 @@
 //! dispatch to an AVX/FMA variant, which was up to 14 times slower per call
 //! when it followed the clustering steps (`docs/performance-cluster.md`).
 
-use crate::{Prepared, RegionError, SoftmaxSettings};
+use crate::regions::{Prepared, RegionError, SoftmaxSettings};
 use nalgebra::{DMatrix, DVector};
 
 /// Ridge on the normals (standardised units).

@@ -4,7 +4,7 @@
 //! enough for its least squares.
 
 use hysid_core::backend::IdentifyError;
-use hysid_regions::{AlternationSettings, AlternationStatus, alternate};
+use hysid_estimation::regions::{AlternationSettings, AlternationStatus, alternate};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};

@@ -1,7 +1,7 @@
 //! Unit tests per method on separable and slightly overlapping 2-D data,
 //! `switching`, holes of PSVC, determinism and error cases.
 
-use hysid_regions::{RegionError, RegionMethod, RegionOptions, coverage, estimate};
+use hysid_estimation::regions::{RegionError, RegionMethod, RegionOptions, coverage, estimate};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -140,17 +140,17 @@ fn psvc_leaves_holes_and_coverage_reports_them() {
         .flat_map(|i| {
             (0..200).map(move |j| [-2.0 + 8.0 * i as f64 / 199.0, -2.0 + 7.0 * j as f64 / 199.0])
         })
-        .find(|z| hysid_regions::classify(&p.regions, z).is_none());
+        .find(|z| hysid_estimation::regions::classify(&p.regions, z).is_none());
     let hole = hole.expect("a hole point");
     // the nearest-region policy still gives it a mode, one whose region is close
-    let nearest = hysid_regions::classify_nearest(&p.regions, &hole).unwrap();
+    let nearest = hysid_estimation::regions::classify_nearest(&p.regions, &hole).unwrap();
     let v = p.regions[nearest].violation(&hole);
     assert!(p.regions.iter().all(|r| r.violation(&hole) >= v) && v > 0.0);
     assert_eq!(
-        hysid_regions::classify_nearest(&p.regions, &[4.0, 0.0]),
+        hysid_estimation::regions::classify_nearest(&p.regions, &[4.0, 0.0]),
         Some(1)
     );
-    assert_eq!(hysid_regions::classify_nearest(&[], &[4.0, 0.0]), None);
+    assert_eq!(hysid_estimation::regions::classify_nearest(&[], &[4.0, 0.0]), None);
     // the argmax methods cover the same box completely
     for method in [
         RegionMethod::Mrlp,
@@ -253,7 +253,7 @@ fn same_input_same_bits() {
     for method in ALL {
         let a = estimate(&x, &labels, 3, &opts(method)).unwrap();
         let b = estimate(&x, &labels, 3, &opts(method)).unwrap();
-        let bits = |p: &hysid_regions::Partition| -> Vec<u64> {
+        let bits = |p: &hysid_estimation::regions::Partition| -> Vec<u64> {
             p.regions
                 .iter()
                 .flat_map(|r| r.a.iter().flatten().chain(&r.b))
@@ -263,7 +263,7 @@ fn same_input_same_bits() {
         assert_eq!(bits(&a), bits(&b), "{method}");
         assert_eq!(a.training_accuracy.to_bits(), b.training_accuracy.to_bits());
     }
-    let r = hysid_regions::argmax_regions(&[vec![1.0, 0.0], vec![-1.0, 0.5]]);
+    let r = hysid_estimation::regions::argmax_regions(&[vec![1.0, 0.0], vec![-1.0, 0.5]]);
     assert_eq!(
         coverage(&r, &[-1.0], &[1.0], 100, 9),
         coverage(&r, &[-1.0], &[1.0], 100, 9)
@@ -286,12 +286,12 @@ fn regions_are_in_original_units() {
         let p = estimate(&x, &labels, 2, &opts(method)).unwrap();
         assert_eq!(p.training_accuracy, 1.0, "{method}");
         assert_eq!(
-            hysid_regions::classify(&p.regions, &[1000.6, 0.003]),
+            hysid_estimation::regions::classify(&p.regions, &[1000.6, 0.003]),
             Some(0),
             "{method}"
         );
         assert_eq!(
-            hysid_regions::classify(&p.regions, &[1001.9, 0.003]),
+            hysid_estimation::regions::classify(&p.regions, &[1001.9, 0.003]),
             Some(1),
             "{method}"
         );
@@ -400,7 +400,7 @@ fn degenerate_inputs_still_give_partitions() {
 
 #[test]
 fn adjacency_of_wedges_strips_and_psvc() {
-    use hysid_regions::{adjacency, argmax_regions};
+    use hysid_estimation::regions::{adjacency, argmax_regions};
     // three wedges meeting at a point: every pair shares a facet
     let wedges = argmax_regions(&[
         vec![1.0, 0.0, 0.0],
@@ -488,7 +488,7 @@ fn softmax_warm_start_reaches_the_same_minimiser_in_fewer_steps() {
         let softmax = |start: Option<Vec<Vec<f64>>>| {
             let o = RegionOptions {
                 method: RegionMethod::Softmax,
-                softmax: hysid_regions::SoftmaxSettings {
+                softmax: hysid_estimation::regions::SoftmaxSettings {
                     balanced,
                     ridge: 1e-3,
                     start,
@@ -540,7 +540,7 @@ fn thinning_keeps_the_partition() {
     assert_eq!(b.stats.working_points, 30_000);
     assert_eq!(
         b.training_accuracy,
-        hysid_regions::training_accuracy(&b.regions, &x, &labels)
+        hysid_estimation::regions::training_accuracy(&b.regions, &x, &labels)
     );
     assert!(
         (a.training_accuracy - b.training_accuracy).abs() < 1e-3,

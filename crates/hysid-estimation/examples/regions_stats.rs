@@ -1,6 +1,6 @@
 //! Prints working-set statistics and one-shot times for the benchmark data.
-//! `cargo run --release -p hysid-regions --example regions_stats`
-use hysid_regions::{RegionMethod, RegionOptions, estimate};
+//! `cargo run --release -p hysid-estimation --example regions_stats`
+use hysid_estimation::regions::{RegionMethod, RegionOptions, estimate};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

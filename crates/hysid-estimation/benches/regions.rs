@@ -1,5 +1,5 @@
 //! Region estimation times. Run with
-//! `cargo bench -p hysid-regions --bench regions`.
+//! `cargo bench -p hysid-estimation --bench regions`.
 //!
 //! Data: the classic three-mode PWARX regressor domain of Ferrari-Trecate et
 //! al. (boundaries `[4 -1 10] phi` and `[5 1 -6] phi`),
@@ -8,7 +8,7 @@
 //! `phi = [y(k-1), u(k-1), 1]`, with 1 % of the labels near a boundary
 //! flipped (clustering noise).
 
-use hysid_regions::{RegionMethod, RegionOptions, estimate};
+use hysid_estimation::regions::{RegionMethod, RegionOptions, estimate};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
