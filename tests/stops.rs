@@ -29,7 +29,7 @@ fn identify(
         priors,
         priors_origin: Some("p.toml"),
     };
-    hysid_backends::registry()
+    hysid::registry()
         .get(method)
         .unwrap()
         .run(

@@ -2,7 +2,7 @@
 //! `ExperimentError`; a parsed experiment expands into jobs or an error.
 #![no_main]
 
-use hysid_compare::Experiment;
+use hysid::compare::Experiment;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

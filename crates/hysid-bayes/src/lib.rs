@@ -42,9 +42,9 @@ use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::noise::{local_noise_sigma, noise_floor};
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
+use hysid_estimation::regions::RegionMethod;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_estimation::regions::RegionMethod;
 use nalgebra::DVector;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
@@ -226,7 +226,8 @@ pub fn fit(
     let thetas = point_estimates(&pdfs, &priors);
     let classes = reclassify(&pdfs, &reg, sigma);
     check_every_mode_has_samples(&classes.labels, modes)?;
-    let partition = hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &classes.labels, modes)?;
+    let partition =
+        hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &classes.labels, modes)?;
     let cut_short = pass.processed < reg.len();
     let relabelled = order[..pass.processed]
         .iter()

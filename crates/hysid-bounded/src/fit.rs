@@ -15,9 +15,9 @@ use crate::{BoundedError, BoundedOptions, Delta, Refit, noise};
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
+use hysid_estimation::regions::{AlternationReport, AlternationSettings, Partition, RegionOptions};
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_estimation::regions::{AlternationReport, AlternationSettings, Partition, RegionOptions};
 use nalgebra::DMatrix;
 use serde::Serialize;
 

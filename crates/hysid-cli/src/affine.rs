@@ -1,6 +1,6 @@
 //! The warning of `identify` and `validate` when a model simulates a record
 //! worse than an affine ARX model of the same orders fitted on it
-//! (`hysid_select::against_affine`; `docs/selection.md`).
+//! (`hysid::select::against_affine`; `docs/selection.md`).
 
 use hysid_core::model::Model;
 use hysid_core::priors::Priors;
@@ -18,7 +18,7 @@ pub fn warn_if_below(
     rows: &str,
     hint: &str,
 ) {
-    if let Some(c) = hysid_backends::against_affine(model, data, priors, warmup)
+    if let Some(c) = hysid::against_affine(model, data, priors, warmup)
         && c.below()
     {
         eprintln!("hysid: warning: {}{hint}", c.warning(rows));

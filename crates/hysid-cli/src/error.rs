@@ -115,9 +115,9 @@ impl From<IdentifyError> for CliError {
     }
 }
 
-impl From<hysid_select::SelectError> for CliError {
-    fn from(e: hysid_select::SelectError) -> Self {
-        use hysid_select::SelectError;
+impl From<hysid::select::SelectError> for CliError {
+    fn from(e: hysid::select::SelectError) -> Self {
+        use hysid::select::SelectError;
         match e {
             SelectError::Identify(e) => e.into(),
             SelectError::Folds { folds, reason } => {

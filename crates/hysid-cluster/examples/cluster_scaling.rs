@@ -145,7 +145,8 @@ fn main() {
                 standardize: false,
                 ..Default::default()
             };
-            hysid_estimation::regions::estimate(&sample_x, &fit.labels, fit.theta.len(), &ropts).unwrap();
+            hysid_estimation::regions::estimate(&sample_x, &fit.labels, fit.theta.len(), &ropts)
+                .unwrap();
             tr.push(t.elapsed().as_secs_f64());
             eprintln!("N = {n}: regions {:.3} s", tr[tr.len() - 1]);
             let priors = Priors {

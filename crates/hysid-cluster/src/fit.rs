@@ -31,11 +31,11 @@ use crate::{ClusterError, ClusterOptions, Clustering, Init, Weights, kmeans, loc
 use hysid_core::backend::{Deadline, IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
+pub use hysid_estimation::regions::AlternationReport;
+use hysid_estimation::regions::AlternationSettings;
 use hysid_model::data::Standardization;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel, RunStatus, region_of};
-pub use hysid_estimation::regions::AlternationReport;
-use hysid_estimation::regions::AlternationSettings;
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -52,8 +52,8 @@ use hysid_core::model::Model;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::{PriorKind, Priors};
 use hysid_core::search::SearchSpace;
+use hysid_estimation::parsimony;
 use hysid_estimation::pwarx::{self, ModeCount, PwarxData};
-use hysid_select::parsimony;
 
 hysid_core::option_enum! {
     /// What is clustered (HIT `what_to_clust`).

@@ -12,6 +12,7 @@
 //! | [`constrained`] | `Parametrisation` of the priors, mode fits under them |
 //! | [`linalg`] | SVD least squares, weighted and equality-constrained (faer) |
 //! | [`noise`] | the noise level of a record from local affine fits |
+//! | [`parsimony`] | the one-standard-error rule: the fewest modes within one standard error of the best score |
 //! | [`pwarx`] | the set-up and assembly every PWARX back-end shares |
 //! | [`regions`] | region estimation from labelled regressors (MRLP, MSVM, softmax, PSVC) and the alternation of regions and assignment |
 //! | [`refine`] | the multiple-shooting simulation-error refinement a PWARX back-end may end with |
@@ -23,6 +24,7 @@ pub mod constrained;
 mod fixtures;
 pub mod linalg;
 pub mod noise;
+pub mod parsimony;
 pub mod pwarx;
 pub mod refine;
 pub mod regions;

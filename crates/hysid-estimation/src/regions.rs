@@ -49,8 +49,8 @@
 //! assert!(p.regions[0].contains(&[-0.5]) && p.regions[1].contains(&[0.5]));
 //! ```
 
-use hysid_core::backend::Deadline;
 use crate::conic::{self, Program, Settings, Solution, SolveError};
+use hysid_core::backend::Deadline;
 use hysid_model::geometry::Polyhedron;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};

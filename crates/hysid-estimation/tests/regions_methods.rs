@@ -150,7 +150,10 @@ fn psvc_leaves_holes_and_coverage_reports_them() {
         hysid_estimation::regions::classify_nearest(&p.regions, &[4.0, 0.0]),
         Some(1)
     );
-    assert_eq!(hysid_estimation::regions::classify_nearest(&[], &[4.0, 0.0]), None);
+    assert_eq!(
+        hysid_estimation::regions::classify_nearest(&[], &[4.0, 0.0]),
+        None
+    );
     // the argmax methods cover the same box completely
     for method in [
         RegionMethod::Mrlp,

@@ -1,7 +1,9 @@
 //! Property tests: the default partition covers the space, and MRLP
 //! separates argmax-separable classes exactly.
 
-use hysid_estimation::regions::{RegionMethod, RegionOptions, argmax_regions, classify, coverage, estimate};
+use hysid_estimation::regions::{
+    RegionMethod, RegionOptions, argmax_regions, classify, coverage, estimate,
+};
 use nalgebra::DMatrix;
 use proptest::prelude::*;
 

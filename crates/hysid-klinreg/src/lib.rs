@@ -37,9 +37,9 @@ use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equations};
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
+use hysid_estimation::regions::RegionMethod;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_estimation::regions::RegionMethod;
 
 use serde::Serialize;
 
@@ -175,7 +175,8 @@ pub fn fit(
     if let Some(thetas) = constrained_least_squares(&reg, &par, &best.labels, modes) {
         best.thetas = thetas;
     }
-    let partition = hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &best.labels, modes)?;
+    let partition =
+        hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &best.labels, modes)?;
     let run_status = if outcome.run < planned {
         RunStatus::TimeBudget
     } else {

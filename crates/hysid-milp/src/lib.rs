@@ -32,9 +32,9 @@ use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
+use hysid_estimation::regions::RegionMethod;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
-use hysid_estimation::regions::RegionMethod;
 use serde::Serialize;
 
 /// The largest mode count the fewest-modes problem tries without
@@ -157,8 +157,13 @@ pub fn fit(
     };
     let mut best = least_l1(data, &reg, modes, options.delta, &limits)?;
     let dropped = drop_empty_modes(&mut best);
-    let partition =
-        hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &best.labels, best.thetas.len())?;
+    let partition = hysid_estimation::regions::for_pwarx(
+        options.regions,
+        data,
+        &reg,
+        &best.labels,
+        best.thetas.len(),
+    )?;
     let proven = best.proven_optimal && fewest.as_ref().is_none_or(|s| s.proven_optimal);
     let diagnostics = MilpDiagnostics {
         l1_error: best.objective,

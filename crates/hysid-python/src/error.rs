@@ -2,13 +2,13 @@
 //! `hysid` program prints, with the Python argument names where the program
 //! names its flags (`options` for `--set`, `modes` for `--modes`, ...).
 
+use hysid::select::SelectError;
 use hysid_core::backend::IdentifyError;
 use hysid_core::model::ModelError;
 use hysid_core::options::OptionError;
 use hysid_core::priors::PriorError;
 use hysid_model::data::DataError;
 use hysid_model::simulate::SimError;
-use hysid_select::SelectError;
 use pyo3::PyErr;
 use pyo3::exceptions::PyValueError;
 

@@ -13,13 +13,13 @@ mod model;
 mod record;
 
 use error::{Failure, HysidError};
+use hysid::select::{Plan, Request};
 use hysid_core::backend::{Deadline, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
 use hysid_model::data::{DataSelection, Dataset, RowRange, SignalNameError};
 use hysid_model::regressors::RegressorSpec;
-use hysid_select::{Plan, Request};
 use model::Model;
 use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
@@ -33,7 +33,7 @@ pub(crate) fn json<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAn
 }
 
 /// A `UserWarning` when `model` simulates `data` worse than the affine ARX
-/// model of its orders fitted on `data` (`hysid_select::against_affine`),
+/// model of its orders fitted on `data` (`hysid::select::against_affine`),
 /// as the program's `identify` and `validate` warn.
 pub(crate) fn warn_if_below_affine(
     py: Python<'_>,
@@ -44,7 +44,7 @@ pub(crate) fn warn_if_below_affine(
     rows: &str,
 ) -> PyResult<()> {
     let priors = priors.cloned().unwrap_or_default();
-    let compared = py.detach(|| hysid_backends::against_affine(model, data, &priors, warmup));
+    let compared = py.detach(|| hysid::against_affine(model, data, &priors, warmup));
     if let Some(c) = compared
         && c.below()
     {
@@ -58,7 +58,7 @@ pub(crate) fn warn_if_below_affine(
 /// type, default, doc), priors honoured and what `auto` tries.
 #[pyfunction]
 fn methods(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
-    let list = hysid_backends::registry().describe();
+    let list = hysid::registry().describe();
     let text = serde_json::to_string(&list).map_err(|e| Failure::new(e.to_string()))?;
     json(py, &text)
 }
@@ -205,7 +205,7 @@ fn identify<'py>(
         input_names,
         output_name,
     )?;
-    let registry = hysid_backends::registry();
+    let registry = hysid::registry();
     let backend = registry.require(method).map_err(Failure::from)?;
     let settings = settings(options)?;
     let (mut priors, origin) = self::priors(py, priors)?;
@@ -275,12 +275,12 @@ fn identify<'py>(
                     folds,
                     warmup,
                     first_row: 0,
-                    refit_starts: refit_starts.unwrap_or(hysid_select::DEFAULT_REFIT_STARTS),
+                    refit_starts: refit_starts.unwrap_or(hysid::select::DEFAULT_REFIT_STARTS),
                 };
-                let affine = hysid_backends::affine_reference(&registry, backend.name());
+                let affine = hysid::affine_reference(&registry, backend.name());
                 let request =
                     Request::from_problem(backend, affine, &problem, settings, space, plan);
-                Ok(hysid_select::select(&request, ctx)?)
+                Ok(hysid::select::select(&request, ctx)?)
             } else if standardize {
                 Ok(hysid_estimation::pwarx::run_standardized(
                     backend, &problem, &settings, ctx,
@@ -313,11 +313,11 @@ fn compare<'py>(
     out_dir: PathBuf,
 ) -> PyResult<Bound<'py, PyAny>> {
     let exp =
-        hysid_compare::Experiment::load(&experiment).map_err(|e| Failure::new(e.to_string()))?;
+        hysid::compare::Experiment::load(&experiment).map_err(|e| Failure::new(e.to_string()))?;
     let mut comparison = py
         .detach(|| exp.run(&hysid_core::backend::NoProgress))
         .map_err(|e| Failure::new(e.to_string()))?;
-    hysid_compare::write_report(&mut comparison, &out_dir)
+    hysid::compare::write_report(&mut comparison, &out_dir)
         .map_err(|e| Failure::new(format!("{}: {e}", out_dir.display())))?;
     let text = serde_json::to_string(&comparison).map_err(|e| Failure::new(e.to_string()))?;
     json(py, &text)

@@ -5,7 +5,7 @@
 //! partition is known in advance, one mode per sign of the first input
 //! `u1(k-1)`, so the whole method is: split the samples by that sign, fit
 //! each mode by least squares under the priors. It is not registered in
-//! `hysid-backends`; registering it would be the one line
+//! `hysid::backends`; registering it would be the one line
 //! `.with(hysid_sign::Sign)`.
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};

@@ -3,7 +3,7 @@
 use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
-use hysid_compare::{Experiment, FigureFormat};
+use hysid::compare::{Experiment, FigureFormat};
 use std::path::PathBuf;
 
 /// Arguments of `hysid compare`.
@@ -40,9 +40,9 @@ pub fn run(args: Args) -> Result<()> {
         .run(&progress)
         .map_err(|e| CliError::input(e.to_string()))?;
     comparison.figures = args.format;
-    hysid_compare::write_report(&mut comparison, &dir)
+    hysid::compare::write_report(&mut comparison, &dir)
         .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
-    print!("{}", hysid_compare::report::markdown(&comparison));
+    print!("{}", hysid::compare::report::markdown(&comparison));
     eprintln!(
         "hysid: report written to {}",
         dir.join("report.md").display()

@@ -4,6 +4,7 @@ use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
+use hysid::select::{Plan, Request};
 use hysid_core::backend::{Deadline, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
@@ -12,7 +13,6 @@ use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::RowRange;
 use hysid_model::model::Selection;
 use hysid_model::regressors::RegressorSpec;
-use hysid_select::{Plan, Request};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -75,7 +75,7 @@ pub struct Args {
     /// With --auto: starts of the refit of the choice on all the
     /// identification rows when the back-end's seed can change its fit
     /// (the start that simulates those rows best is written).
-    #[arg(long, requires = "auto", default_value_t = hysid_select::DEFAULT_REFIT_STARTS, value_parser = crate::selection::parse_at_least_one)]
+    #[arg(long, requires = "auto", default_value_t = hysid::select::DEFAULT_REFIT_STARTS, value_parser = crate::selection::parse_at_least_one)]
     pub refit_starts: usize,
     /// With --auto: a grid axis KEY=V1,V2,... (repeatable; a back-end option,
     /// or modes, na, nb) replacing the back-end's search space.
@@ -95,7 +95,7 @@ fn parse_rows(s: &str) -> std::result::Result<RowRange, String> {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    let registry = hysid_backends::registry();
+    let registry = hysid::registry();
     let backend = registry.require(&args.method)?;
     let settings = Settings::parse(&args.set)?;
     let mut priors = match &args.prior {
@@ -159,9 +159,9 @@ pub fn run(args: Args) -> Result<()> {
             first_row,
             refit_starts: args.refit_starts,
         };
-        let affine = hysid_backends::affine_reference(&registry, backend.name());
+        let affine = hysid::affine_reference(&registry, backend.name());
         let request = Request::from_problem(backend, affine, &problem, settings, space, plan);
-        hysid_select::select(&request, &ctx)?
+        hysid::select::select(&request, &ctx)?
     } else if args.standardize {
         run_standardized(backend, &problem, &settings, &ctx)?
     } else {

@@ -14,7 +14,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    let registry = hysid_backends::registry();
+    let registry = hysid::registry();
     if args.json {
         let list = registry.describe();
         println!("{}", serde_json::to_string_pretty(&list).expect("json"));

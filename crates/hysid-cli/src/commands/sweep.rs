@@ -8,7 +8,7 @@
 use crate::Result;
 use crate::error::CliError;
 use crate::progress::TerminalProgress;
-use hysid_compare::{DataSpec, Experiment, RunSpec, ScoredRows, SweepSpec};
+use hysid::compare::{DataSpec, Experiment, RunSpec, ScoredRows, SweepSpec};
 use hysid_core::priors::Priors;
 use hysid_model::data::RowRange;
 use std::collections::BTreeMap;
@@ -110,7 +110,7 @@ fn key_values(items: &[String], flag: &str) -> Result<BTreeMap<String, Vec<toml:
 /// `method` nor `modes`, `na` or `nb` (an unknown method is left to the
 /// experiment's own check, which names the known ones).
 fn check_grid_keys<'k>(method: &str, keys: impl Iterator<Item = &'k String>) -> Result<()> {
-    let registry = hysid_backends::registry();
+    let registry = hysid::registry();
     let Some(backend) = registry.get(method) else {
         return Ok(());
     };
@@ -158,7 +158,7 @@ pub fn run(args: Args) -> Result<()> {
             warmup: args.warmup,
             selection: None,
             folds: None,
-            refit_starts: hysid_select::DEFAULT_REFIT_STARTS,
+            refit_starts: hysid::select::DEFAULT_REFIT_STARTS,
             output_label: None,
             input_label: None,
             truth: None,
@@ -194,14 +194,14 @@ pub fn run(args: Args) -> Result<()> {
         .run(&progress)
         .map_err(|e| CliError::input(e.to_string()))?;
     if let Some(dir) = &args.out {
-        hysid_compare::write_report(&mut comparison, dir)
+        hysid::compare::write_report(&mut comparison, dir)
             .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
         eprintln!(
             "hysid: report written to {}",
             dir.join("report.md").display()
         );
     }
-    print!("{}", hysid_compare::report::markdown(&comparison));
+    print!("{}", hysid::compare::report::markdown(&comparison));
     if let Some(first) = comparison
         .results
         .iter()

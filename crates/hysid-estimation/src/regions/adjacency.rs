@@ -2,9 +2,9 @@
 //! mixed-point reattribution of the clustering procedure, which only moves a
 //! point to an adjacent mode.
 
+use crate::conic::{Cone, Program, Triplets};
 use crate::regions::{Context, RegionError};
 use hysid_core::backend::Deadline;
-use crate::conic::{Cone, Program, Triplets};
 use hysid_model::geometry::Polyhedron;
 
 /// Symmetric adjacency matrix of a pairwise partition inside the box

@@ -11,10 +11,10 @@
 //! non-zero loss until none is left outside, so it returns an optimum of the
 //! full program (to the solver's tolerance), not an approximation.
 
+use crate::conic::{Cone, Program, Triplets};
 use crate::regions::simplex::Simplex;
 use crate::regions::{Context, Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
 use hysid_core::backend::Deadline;
-use crate::conic::{Cone, Program, Triplets};
 
 /// Margin below which a point outside the working set counts as having a
 /// non-zero loss and is added (slightly below 1 so that points sitting on
@@ -117,8 +117,12 @@ fn softmax_instead(
     modes: usize,
     mut stats: SolveStats,
 ) -> Result<(Vec<Vec<f64>>, SolveStats), RegionError> {
-    let (blocks, steps) =
-        crate::regions::softmax::fit(prep, labels, modes, &crate::regions::SoftmaxSettings::default())?;
+    let (blocks, steps) = crate::regions::softmax::fit(
+        prep,
+        labels,
+        modes,
+        &crate::regions::SoftmaxSettings::default(),
+    )?;
     stats.newton_steps = steps;
     stats.cut_short = true;
     Ok((blocks, stats))
@@ -307,8 +311,12 @@ fn scaled_softmax_set(
     // 1. Stratified sample and softmax fit on it.
     let sample = stratified(labels, &prep.counts, SOFTMAX_SAMPLE / modes.max(1));
     let (sub, sub_labels) = subsample(prep, labels, modes, &sample);
-    let (wg, steps) =
-        crate::regions::softmax::fit(&sub, &sub_labels, modes, &crate::regions::SoftmaxSettings::default())?;
+    let (wg, steps) = crate::regions::softmax::fit(
+        &sub,
+        &sub_labels,
+        modes,
+        &crate::regions::SoftmaxSettings::default(),
+    )?;
     stats.newton_steps = steps;
     let score = |z: &[f64], f: &mut [f64]| {
         for (fi, v) in f.iter_mut().zip(&wg) {
@@ -359,7 +367,12 @@ fn initial_set(
     modes: usize,
     stats: &mut SolveStats,
 ) -> Result<Vec<usize>, RegionError> {
-    let (wg, steps) = crate::regions::softmax::fit(prep, labels, modes, &crate::regions::SoftmaxSettings::default())?;
+    let (wg, steps) = crate::regions::softmax::fit(
+        prep,
+        labels,
+        modes,
+        &crate::regions::SoftmaxSettings::default(),
+    )?;
     stats.newton_steps = steps;
     let per_mode = INITIAL_PER_MODE_FACTOR * (prep.p + 1);
     let mut seen = vec![0usize; modes];
@@ -655,9 +668,11 @@ mod tests {
                 round: 1,
                 deadline: hysid_core::backend::Deadline::none(),
             };
-            let full =
-                crate::regions::solve_in_context(program(&prep, &labels, 3, &weight, quadratic, &all), &ctx)
-                    .unwrap();
+            let full = crate::regions::solve_in_context(
+                program(&prep, &labels, 3, &weight, quadratic, &all),
+                &ctx,
+            )
+            .unwrap();
             let full_blocks: Vec<Vec<f64>> = full.x[..3 * (prep.p + 1)]
                 .chunks(prep.p + 1)
                 .map(<[f64]>::to_vec)
@@ -680,8 +695,11 @@ mod tests {
             round: 1,
             deadline: hysid_core::backend::Deadline::none(),
         };
-        let full = crate::regions::solve_in_context(program(prep, labels, modes, weight, false, &all), &ctx)
-            .unwrap();
+        let full = crate::regions::solve_in_context(
+            program(prep, labels, modes, weight, false, &all),
+            &ctx,
+        )
+        .unwrap();
         let blocks: Vec<Vec<f64>> = full.x[..modes * (prep.p + 1)]
             .chunks(prep.p + 1)
             .map(<[f64]>::to_vec)

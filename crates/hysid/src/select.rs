@@ -1,5 +1,3 @@
-//! # hysid-select
-//!
 //! Automatic selection (`hysid identify --auto`): a back-end's options are
 //! chosen inside the identification data, never on the rows a model is
 //! tested on. The identification rows are split into **fit rows** and
@@ -27,7 +25,7 @@
 //! (Juloski, Heemels, Ferrari-Trecate 2003, section 4), and one-step
 //! prediction hardly tells good partitions from bad ones.
 
-pub mod parsimony;
+use hysid_estimation::parsimony;
 
 use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContext};
 use hysid_core::model::Model;

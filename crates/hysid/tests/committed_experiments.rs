@@ -2,7 +2,7 @@
 //! reports were made from, so a schema change cannot silently break the
 //! README's main job or the saturation experiments (nothing is run here).
 
-use hysid_compare::Experiment;
+use hysid::compare::Experiment;
 use std::path::{Path, PathBuf};
 
 fn models() -> PathBuf {

@@ -6,20 +6,21 @@
 //! enough points, counts as accuracy 0 and an infinite error).
 //! "reference": `cluster` with the true mode count and the reference `c`
 //! of `crates/hysid-cluster/tests/reference.rs`. "auto": `cluster` with no
-//! mode count, its options and mode count chosen by [`hysid_select::select`]
+//! mode count, its options and mode count chosen by [`hysid::select::select`]
 //! on the last 20 % of the record (the affine model a candidate). Both are
 //! scored on a validation record of 1000 rows (seed 1000): mode accuracy of
 //! the regions, and the largest relative parameter error after matching
 //! (infinite when a true mode has no identified partner).
 //!
 //! ```text
-//! cargo run --release -p hysid-select --example benchmarks [-- FIRST..LAST]
+//! cargo run --release -p hysid --example auto_benchmarks [-- FIRST..LAST]
 //! ```
 //!
 //! The optional argument replaces the seeds `1..=20` (both ends included),
 //! so that a rule tuned on those seeds can be checked on others, for
 //! example `21..40`.
 
+use hysid::select::{Plan, Request, select};
 use hysid_cluster::Cluster;
 use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::model::Model;
@@ -27,7 +28,6 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::Setup;
 use hysid_model::metrics::{mode_accuracy, parameter_error};
-use hysid_select::{Plan, Request, select};
 use hysid_testkit::{Benchmark, Noise, median};
 use std::collections::BTreeMap;
 

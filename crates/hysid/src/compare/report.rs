@@ -1,7 +1,7 @@
 //! Writing a comparison: `report.md`, `report.json`, `models/*.json` and
 //! the figures under `plots/` (SVG, `hysid-plot`).
 
-use crate::{Comparison, RunResult};
+use crate::compare::{Comparison, RunResult};
 use hysid_core::model::Model;
 use hysid_model::data::Dataset;
 use hysid_model::geometry::Polyhedron;

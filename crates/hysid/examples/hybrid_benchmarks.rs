@@ -5,7 +5,7 @@
 //! after the best matching). Figures in docs/klinreg.md, docs/parc.md and
 //! docs/bayes.md.
 //!
-//! Run: cargo run --release -p hysid-backends --example hybrid_benchmarks
+//! Run: cargo run --release -p hysid --example hybrid_benchmarks
 //! [-- METHOD[:KEY=VALUE,...] ...] (default: cluster, klinreg, parc and
 //! bayes at their defaults; `cluster` always gets the reference options).
 
@@ -45,7 +45,7 @@ fn main() {
         system("H3", 61, 3, hysid_testkit::h3, &[("c", "6")]),
         system("H4", 61, 3, hysid_testkit::h4, &[("c", "6")]),
     ];
-    let registry = hysid_backends::registry();
+    let registry = hysid::registry();
     let mut runs: Vec<(String, Vec<(String, String)>)> = std::env::args()
         .skip(1)
         .map(|arg| {

@@ -1,14 +1,12 @@
-//! # hysid-backends
-//!
 //! The one place where identification back-ends are registered. Adding a
 //! back-end is one crate and one line in [`registry`].
 
+use crate::select::AgainstAffine;
 use hysid_core::backend::Identifier as _;
 use hysid_core::backend::{Backend, Registry};
 use hysid_core::model::Model;
 use hysid_core::priors::Priors;
 use hysid_model::data::Dataset;
-use hysid_select::AgainstAffine;
 
 /// Every back-end hysid ships, in the order `hysid methods` lists them.
 pub fn registry() -> Registry {
@@ -34,7 +32,7 @@ pub fn affine_reference<'r>(registry: &'r Registry, method: &str) -> Option<&'r 
 
 /// `model` (with ARX orders, identified by another back-end than the
 /// reference) beside the affine reference model of its orders and
-/// `priors` fitted on `data` (`hysid_select::against_affine`); `None` when
+/// `priors` fitted on `data` (`crate::select::against_affine`); `None` when
 /// there is nothing to compare.
 pub fn against_affine(
     model: &Model,
@@ -45,7 +43,7 @@ pub fn against_affine(
     let registry = registry();
     let orders = model.orders()?;
     let affine = affine_reference(&registry, &model.info().method)?;
-    hysid_select::against_affine(model, affine, data, orders, priors, warmup)
+    crate::select::against_affine(model, affine, data, orders, priors, warmup)
 }
 
 #[cfg(test)]

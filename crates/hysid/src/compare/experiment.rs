@@ -72,7 +72,7 @@ fn ten() -> usize {
     10
 }
 fn default_refit_starts() -> usize {
-    hysid_select::DEFAULT_REFIT_STARTS
+    crate::select::DEFAULT_REFIT_STARTS
 }
 fn yes() -> bool {
     true
@@ -264,7 +264,7 @@ pub enum ExperimentError {
         /// Data file.
         path: String,
         /// Cause.
-        source: Box<crate::truth::TruthError>,
+        source: Box<crate::compare::truth::TruthError>,
     },
     /// Inconsistent entries.
     #[error("{path}: {problem}")]
@@ -404,7 +404,7 @@ impl Experiment {
             return Err(E::NothingToRun);
         }
         self.priors.check().map_err(E::Priors)?;
-        let registry = hysid_backends::registry();
+        let registry = crate::registry();
         let mut names: Vec<&str> = Vec::new();
         let all = self
             .runs

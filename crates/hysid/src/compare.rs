@@ -1,5 +1,3 @@
-//! # hysid-compare
-//!
 //! `hysid compare EXPERIMENT.toml -o DIR`: several back-ends run on the same
 //! data with the same priors, in parallel (rayon) and deterministically
 //! (each run has its own seed; results keep the file's order), scored on the
@@ -14,6 +12,7 @@ pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, ScoredRows,
 pub use hysid_plot::FigureFormat;
 pub use report::write_report;
 
+use crate::select::{Plan, Request};
 use hysid_core::backend::{Backend, Problem, Progress, Registry, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
@@ -23,7 +22,6 @@ use hysid_io::load;
 use hysid_model::data::Dataset;
 use hysid_model::regressors::RegressorSpec;
 use hysid_model::simulate::Simulation;
-use hysid_select::{Plan, Request};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
@@ -284,7 +282,7 @@ impl Experiment {
             ),
         };
         let jobs = self.jobs()?;
-        let registry = hysid_backends::registry();
+        let registry = crate::registry();
         progress.start(jobs.len() as u64, "identifying");
         let results: Vec<RunResult> = jobs
             .par_iter()
@@ -364,10 +362,10 @@ fn identify(
         first_row: spec.identification.start.unwrap_or(0),
         refit_starts: spec.refit_starts,
     };
-    let affine = hysid_backends::affine_reference(registry, backend.name());
+    let affine = crate::affine_reference(registry, backend.name());
     let request =
         Request::from_problem(backend, affine, &problem, job.settings.clone(), space, plan);
-    hysid_select::select(&request, &ctx).map_err(|e| format!("auto: {e}"))
+    crate::select::select(&request, &ctx).map_err(|e| format!("auto: {e}"))
 }
 
 fn run_job(
