@@ -318,7 +318,11 @@ const NOT_RUN: &[(&str, &str)] = &[
         "an example of minutes; its existence is checked above",
     ),
     (
-        "cargo run -p hysid-plot --example",
+        "cargo run -p hysid --example plot_pick_and_place",
+        "regenerates two figures of the gallery; its existence is checked above",
+    ),
+    (
+        "cargo run -p hysid-plot --example gallery",
         "regenerates the figure gallery; its existence is checked above",
     ),
     (

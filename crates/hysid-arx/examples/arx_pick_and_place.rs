@@ -8,6 +8,7 @@ use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_io::load;
 use hysid_model::data::DataSelection;
 use hysid_model::regressors::RegressorSpec;
@@ -31,7 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             priors: &Priors::default(),
             priors_origin: None,
         };
-        let model = Arx.run(&problem, &Settings::default(), &RunContext::quiet(0))?;
+        let model = Pwarx(Arx).run(&problem, &Settings::default(), &RunContext::quiet(0))?;
         let (report, _, _) = validate(&model, &valid, 10)?;
         println!(
             "{na:>4} {nb:>4} {:>8.2}% {:>8.2}%",

@@ -16,21 +16,20 @@
 //! mode plus a mode on each stop's guard set, so a simulation never passes a
 //! stop).
 
-use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::Model;
-use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
+use hysid_core::backend::{IdentifyError, Problem, RunContext};
+use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
 use hysid_estimation::linalg;
-use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
+use hysid_estimation::pwarx::{ModeCount, ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::PwarxMode;
 use hysid_model::regressors::{RegressorSpec, Regressors};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-hysid_estimation::pwarx_options! {
+hysid_core::backend_options! {
     /// Options of the `arx` back-end.
     pub struct ArxOptions {
         /// Tikhonov (ridge) weight lambda: minimises |y - Phi theta|^2 + lambda |theta|^2
@@ -47,7 +46,7 @@ impl CheckOptions for ArxOptions {
             |r| r >= 0.0,
             "must be a finite number >= 0",
         )?;
-        self.refinement().check()
+        Ok(())
     }
 }
 
@@ -55,8 +54,10 @@ impl CheckOptions for ArxOptions {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Arx;
 
-impl Identifier for Arx {
+impl PwarxMethod for Arx {
     type Options = ArxOptions;
+    type Diagnostics = ArxDiagnostics;
+    const MODE_RULE: ModeRule = ModeRule::Method;
     const NAME: &'static str = "arx";
     const SEEDED: bool = false;
     const SUMMARY: &'static str = "one affine ARX model by least squares: the linear baseline";
@@ -70,18 +71,14 @@ impl Identifier for Arx {
             .with("nb", 1..=nb.max(1)))
     }
 
-    fn identify(
+    fn fit(
         &self,
-        problem: &Problem<'_>,
-        options: &Checked<ArxOptions>,
+        data: &PwarxData<'_>,
+        options: &ArxOptions,
         _ctx: &RunContext<'_>,
-    ) -> Result<Model, IdentifyError> {
-        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
-            fit(options, data)
-        })
+    ) -> Result<PwarxFit<ArxDiagnostics>, IdentifyError> {
+        fit(options, data)
     }
-
-    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `arx` back-end reports besides the common diagnostics.
@@ -310,9 +307,11 @@ impl From<ArxError> for IdentifyError {
 mod tests {
     use super::*;
     use hysid_core::backend::Backend;
+    use hysid_core::model::Model;
     use hysid_core::options::Settings;
     use hysid_core::priors::Priors;
     use hysid_core::simulate::simulate;
+    use hysid_estimation::pwarx::Pwarx;
     use hysid_model::data::Dataset;
     use hysid_model::model::{ModelInfo, PwarxModel};
     use hysid_model::regressors::RegressorSpec;
@@ -363,7 +362,7 @@ mod tests {
             priors,
             priors_origin: None,
         };
-        Arx.run(
+        Pwarx(Arx).run(
             &problem,
             &Settings::parse(set).unwrap(),
             &RunContext::quiet(1),
@@ -531,7 +530,12 @@ mod tests {
                 priors: pri,
                 priors_origin: None,
             };
-            run_standardized(&Arx, &problem, &Settings::default(), &RunContext::quiet(1))
+            run_standardized(
+                &Pwarx(Arx),
+                &problem,
+                &Settings::default(),
+                &RunContext::quiet(1),
+            )
         };
         let tie = |p: &str| Priors {
             tie: vec![Tie {

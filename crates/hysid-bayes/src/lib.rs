@@ -34,14 +34,14 @@ pub use gaussian::GaussianPosterior;
 pub use particles::{MAX_REDRAWS, ParticleCloud, log_sum_exp, systematic};
 pub use prior::{ModePrior, black_box_priors, sqrt_psd};
 
-use hysid_core::backend::{Deadline, Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::Model;
-use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
+use hysid_core::backend::{Deadline, IdentifyError, Problem, RunContext};
+use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
+use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::noise::{local_noise_sigma, noise_floor};
-use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
+use hysid_estimation::pwarx::{PwarxData, PwarxFit, PwarxMethod};
 use hysid_estimation::regions::RegionMethod;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
@@ -74,7 +74,7 @@ hysid_core::option_enum! {
         Nearest => "nearest" }
 }
 
-hysid_estimation::pwarx_options! {
+hysid_core::backend_options! {
     /// Options of the `bayes` back-end.
     pub struct BayesOptions {
         /// Particles per mode.
@@ -135,7 +135,7 @@ impl CheckOptions for BayesOptions {
             |h| (0.0..1.0).contains(&h),
             "must lie in [0, 1) (0: the default bandwidth)",
         )?;
-        self.refinement().check()
+        Ok(())
     }
 }
 
@@ -143,12 +143,14 @@ impl CheckOptions for BayesOptions {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Bayes;
 
-impl Identifier for Bayes {
+impl PwarxMethod for Bayes {
     type Options = BayesOptions;
+    type Diagnostics = BayesDiagnostics;
     const NAME: &'static str = "bayes";
     const SUMMARY: &'static str = "Bayesian procedure (Juloski, Weiland, Heemels 2005): mode parameter pdfs (exact Gaussian or particle clouds), samples assigned and pdfs updated one by one; then regions";
     const HONOURS: &'static [PriorKind] = &[
         PriorKind::Modes,
+        PriorKind::MaxModes,
         PriorKind::Saturation,
         PriorKind::Fixed,
         PriorKind::Bounds,
@@ -159,22 +161,18 @@ impl Identifier for Bayes {
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Ok(SearchSpace::default()
-            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
+            .with(Stages::TRIM, [AUTO_TRIM])
             .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
-    fn identify(
+    fn fit(
         &self,
-        problem: &Problem<'_>,
-        options: &Checked<BayesOptions>,
+        data: &PwarxData<'_>,
+        options: &BayesOptions,
         ctx: &RunContext<'_>,
-    ) -> Result<Model, IdentifyError> {
-        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
-            fit(options, data, ctx)
-        })
+    ) -> Result<PwarxFit<BayesDiagnostics>, IdentifyError> {
+        fit(options, data, ctx)
     }
-
-    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `bayes` back-end reports besides the common diagnostics.

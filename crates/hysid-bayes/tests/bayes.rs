@@ -10,6 +10,7 @@ use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::regressors::RegressorSpec;
 use hysid_testkit::{Benchmark, Noise, as_pwarx, median};
 use nalgebra::{DMatrix, DVector};
@@ -201,7 +202,7 @@ fn run_with(
     set: &[&str],
     seed: u64,
 ) -> Result<Model, IdentifyError> {
-    b.run(&Bayes, priors, &Settings::parse(set).unwrap(), seed)
+    b.run(&Pwarx(Bayes), priors, &Settings::parse(set).unwrap(), seed)
 }
 
 /// B1 (the classic one-dimensional 3-mode PWARX) on five draws, beside
@@ -220,7 +221,7 @@ fn b1_beside_cluster() {
             acc.push(fresh.recovery(as_pwarx(&m)).0);
             err.push(b.recovery(as_pwarx(&m)).1);
             let c = b
-                .run(&Cluster, &priors(3), &Settings::default(), seed)
+                .run(&Pwarx(Cluster), &priors(3), &Settings::default(), seed)
                 .unwrap();
             c_acc.push(fresh.recovery(as_pwarx(&c)).0);
             c_err.push(b.recovery(as_pwarx(&c)).1);
@@ -296,7 +297,7 @@ fn a_mode_count_is_needed() {
         priors: &Priors::default(),
         priors_origin: None,
     };
-    let e = Bayes
+    let e = Pwarx(Bayes)
         .run(&problem, &Settings::default(), &RunContext::quiet(0))
         .unwrap_err();
     assert!(
@@ -304,7 +305,7 @@ fn a_mode_count_is_needed() {
             e,
             IdentifyError::NeedsModeCount {
                 method: "bayes",
-                bounded: false
+                bounded: true
             }
         ),
         "{e}"

@@ -4,9 +4,10 @@
 //! Figures in `docs/performance-bounded.md`.
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
-use hysid_core::backend::{Identifier, Problem, RunContext};
-use hysid_core::options::Checked;
+use hysid_core::backend::{Backend, Problem, RunContext};
+use hysid_core::options::{Checked, Settings};
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::regressors::RegressorSpec;
 
 fn main() {
@@ -24,14 +25,10 @@ fn identify(bencher: divan::Bencher, n: usize) {
         priors: &pri,
         priors_origin: None,
     };
-    let opts = Checked::new(BoundedOptions {
-        delta: Some(Delta::Value(0.1)),
-        ..Default::default()
-    })
-    .unwrap();
+    let settings = Settings::parse(&["delta=0.1"]).unwrap();
     bencher.bench(|| {
-        Bounded
-            .identify(&problem, &opts, &RunContext::quiet(1))
+        Pwarx(Bounded)
+            .run(&problem, &settings, &RunContext::quiet(1))
             .unwrap()
     });
 }

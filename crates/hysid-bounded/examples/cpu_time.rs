@@ -5,8 +5,10 @@
 //! `taskset -c 0 cargo run --release -p hysid-bounded --example cpu_time [regions=METHOD]`
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
-use hysid_core::backend::{Identifier, Problem, RunContext};
+use hysid_core::backend::{Backend, Problem, RunContext};
+use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::regressors::RegressorSpec;
 use std::time::Instant;
 
@@ -39,6 +41,7 @@ fn main() {
             delta: Some(Delta::Value(0.1)),
             ..Default::default()
         };
+        let settings = Settings::parse(&["delta=0.1"]).unwrap();
         let c0 = cpu_seconds();
         let mut modes = 0;
         for _ in 0..reps {
@@ -51,12 +54,8 @@ fn main() {
         let c1 = cpu_seconds();
         let w = Instant::now();
         for _ in 0..reps {
-            Bounded
-                .identify(
-                    &problem,
-                    &hysid_core::options::Checked::new(opts.clone()).unwrap(),
-                    &RunContext::quiet(1),
-                )
+            Pwarx(Bounded)
+                .run(&problem, &settings, &RunContext::quiet(1))
                 .unwrap();
         }
         let wall = w.elapsed().as_secs_f64() / reps as f64;

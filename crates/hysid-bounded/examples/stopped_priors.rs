@@ -11,6 +11,7 @@ use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::metrics::mode_accuracy;
 use hysid_model::regressors::RegressorSpec;
 
@@ -46,7 +47,7 @@ fn main() {
             priors_origin: None,
         };
         let t = std::time::Instant::now();
-        let m = match Bounded.run(
+        let m = match Pwarx(Bounded).run(
             &problem,
             &Settings::parse(&set).expect("settings"),
             &RunContext::quiet(seed),

@@ -12,8 +12,8 @@
 //! classification to a fixed point ([`procedure`]), refits every mode by a
 //! Chebyshev LP that certifies `|y_k - phi_k' theta_i| <= delta` on its
 //! samples ([`refit`]), and estimates the regions with `hysid_estimation::regions`.
-//! `delta` trades fit for the number of modes: [`sweep::delta_sweep`]
-//! reports the trade-off. `docs/bounded.md` lists every constant and which
+//! `delta` trades fit for the number of modes (a sweep over `delta`
+//! reports the trade-off). `docs/bounded.md` lists every constant and which
 //! parts are the paper's and which are ours.
 //!
 //! The set-up shared by the PWARX back-ends (prior names, regressors, the
@@ -36,17 +36,17 @@ pub mod procedure;
 pub mod refit;
 pub mod samples;
 pub mod split;
-pub mod sweep;
 
 pub use fit::{BoundedDiagnostics, Classified, fit};
 
-use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::Model;
+use hysid_core::backend::{IdentifyError, Problem, RunContext};
 use hysid_core::options::OptionType;
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
+use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::pwarx;
+use hysid_estimation::pwarx::{ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_estimation::regions::RegionMethod;
 use procedure::{Classification, ProcedureSettings};
 use samples::Samples;
@@ -88,7 +88,7 @@ hysid_core::option_enum! {
     }
 }
 
-hysid_estimation::pwarx_options! {
+hysid_core::backend_options! {
     /// Options of the `bounded` back-end.
     pub struct BoundedOptions {
         /// Bound delta on the identification error |y - phi' theta|, in output
@@ -165,7 +165,7 @@ impl CheckOptions for BoundedOptions {
             |b| (0.0..1.0).contains(&b),
             "must be in [0, 1)",
         )?;
-        self.refinement().check()
+        Ok(())
     }
 }
 
@@ -176,7 +176,7 @@ pub struct Bounded;
 impl Bounded {
     /// Runs the procedure and returns the classification with the samples
     /// it was computed on (the ordinary samples: saturated ones removed)
-    /// and the settings (for tests, benchmarks and the sweep).
+    /// and the settings (for tests and benchmarks).
     pub fn classify(
         problem: &Problem<'_>,
         options: &BoundedOptions,
@@ -210,8 +210,10 @@ fn three_digits(v: f64) -> String {
     format!("{v:.2e}")
 }
 
-impl Identifier for Bounded {
+impl PwarxMethod for Bounded {
     type Options = BoundedOptions;
+    type Diagnostics = BoundedDiagnostics;
+    const MODE_RULE: ModeRule = ModeRule::Method;
     const NAME: &'static str = "bounded";
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
@@ -232,21 +234,17 @@ impl Identifier for Bounded {
                 DELTA_SIGMAS.iter().map(|k| three_digits(k * sigma)),
             )
             .with("alternation", [hysid_estimation::regions::AUTO_ROUNDS])
-            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF]))
+            .with(Stages::TRIM, [AUTO_TRIM]))
     }
 
-    fn identify(
+    fn fit(
         &self,
-        problem: &Problem<'_>,
-        options: &Checked<BoundedOptions>,
+        data: &PwarxData<'_>,
+        options: &BoundedOptions,
         ctx: &RunContext<'_>,
-    ) -> Result<Model, IdentifyError> {
-        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
-            fit(options, data, ctx)
-        })
+    ) -> Result<PwarxFit<BoundedDiagnostics>, IdentifyError> {
+        fit(options, data, ctx)
     }
-
-    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// Bad input of the `bounded` back-end (an [`IdentifyError::Input`]).
@@ -263,12 +261,6 @@ pub enum BoundedError {
     /// The record or a setting does not allow the procedure.
     #[error(transparent)]
     Procedure(procedure::ProcedureError),
-    /// A delta sweep of no bound.
-    #[error("delta sweep: no bound given")]
-    NoDelta,
-    /// A delta sweep bound that is not a positive number.
-    #[error("delta sweep: bound {0} must be a finite number > 0")]
-    BadDelta(f64),
 }
 
 impl From<BoundedError> for IdentifyError {
@@ -281,9 +273,11 @@ impl From<BoundedError> for IdentifyError {
 mod tests {
     use super::*;
     use hysid_core::backend::Backend;
+    use hysid_core::model::Model;
     use hysid_core::options::Settings;
     use hysid_core::priors::Priors;
     use hysid_core::simulate::validate;
+    use hysid_estimation::pwarx::Pwarx;
     use hysid_model::data::Dataset;
     use hysid_model::model::{PwarxModel, RunStatus};
     use hysid_model::regressors::RegressorSpec;
@@ -300,7 +294,7 @@ mod tests {
             priors,
             priors_origin: None,
         };
-        Bounded.run(
+        Pwarx(Bounded).run(
             &problem,
             &Settings::parse(set).unwrap(),
             &RunContext::quiet(seed),
@@ -487,7 +481,7 @@ mod tests {
             deadline: hysid_core::backend::Deadline::at(std::time::Instant::now()),
             ..RunContext::quiet(7)
         };
-        let m = Bounded
+        let m = Pwarx(Bounded)
             .run(&problem, &Settings::parse(&["delta=0.1"]).unwrap(), &ctx)
             .unwrap();
         let dg = &m.info().diagnostics;

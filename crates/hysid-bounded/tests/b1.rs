@@ -4,6 +4,7 @@
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Problem, RunContext};
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::metrics::mode_accuracy;
 use hysid_model::regressors::RegressorSpec;
 
@@ -66,7 +67,7 @@ fn b1_standardized_takes_delta_in_data_units() {
         };
         let settings = hysid_core::options::Settings::parse(&[format!("delta={delta}")]).unwrap();
         let model = hysid_estimation::pwarx::run_standardized(
-            &Bounded,
+            &Pwarx(Bounded),
             &problem,
             &settings,
             &RunContext::quiet(1),

@@ -9,6 +9,7 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_estimation::pwarx::{self, UnknownName};
 use hysid_model::data::Dataset;
 use hysid_model::metrics::mode_accuracy;
@@ -40,7 +41,7 @@ fn run_with(
         priors_origin: None,
     };
     let set: Vec<&str> = set.iter().map(String::as_str).collect();
-    Bounded.run(
+    Pwarx(Bounded).run(
         &problem,
         &Settings::parse(&set).unwrap(),
         &RunContext::quiet(seed),
@@ -258,7 +259,7 @@ fn bad_prior_names_and_counts_are_bad_data() {
         priors: &pri,
         priors_origin: None,
     };
-    let e = Bounded
+    let e = Pwarx(Bounded)
         .run(&problem, &set, &RunContext::quiet(1))
         .unwrap_err();
     assert!(e.to_string().contains("max_modes=1"), "{e}");

@@ -8,6 +8,7 @@ use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::data::Dataset;
 use hysid_model::regressors::RegressorSpec;
 use proptest::prelude::*;
@@ -62,7 +63,7 @@ proptest! {
             priors_origin: None,
         };
         let set = Settings::parse(&[format!("delta={delta}")]).unwrap();
-        let Model::Pwarx(m) = Bounded.run(&problem, &set, &RunContext::quiet(seed)).unwrap() else {
+        let Model::Pwarx(m) = Pwarx(Bounded).run(&problem, &set, &RunContext::quiet(seed)).unwrap() else {
             panic!("a PWARX model")
         };
         let reg = RegressorSpec::new(1, 1, 1).build(&g.data).unwrap();

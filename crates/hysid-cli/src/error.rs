@@ -95,9 +95,9 @@ impl From<IdentifyError> for CliError {
                 method,
                 bounded: true,
             } => format!(
-                "method '{method}' needs the number of modes: --modes S (or --max-modes S to \
-                 choose it by hold-out simulation FIT), or modes = S / max_modes = S in the \
-                 prior file"
+                "method '{method}' needs the number of modes: --modes S, --max-modes S (the \
+                 count chosen by hold-out simulation FIT) or --auto (chosen on selection rows), \
+                 or modes = S / max_modes = S in the prior file"
             ),
             IdentifyError::NeedsModeCount {
                 method,

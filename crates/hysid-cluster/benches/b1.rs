@@ -13,6 +13,7 @@ use hysid_cluster::Cluster;
 use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::regressors::RegressorSpec;
 use hysid_testkit::Noise;
 
@@ -46,7 +47,7 @@ fn bench_orders(bencher: divan::Bencher, n: usize, orders: Option<RegressorSpec>
             priors: &priors,
             priors_origin: None,
         };
-        Cluster
+        Pwarx(Cluster)
             .run(&problem, &settings, &RunContext::quiet(1))
             .expect("B1 identifies")
     });

@@ -24,6 +24,7 @@ use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::data::Standardization;
 use hysid_model::metrics::mode_accuracy;
 use hysid_testkit::Noise;
@@ -160,7 +161,7 @@ fn main() {
                 priors_origin: None,
             };
             let t = Instant::now();
-            let m = Cluster
+            let m = Pwarx(Cluster)
                 .run(&problem, &settings_all, &RunContext::quiet(1))
                 .unwrap();
             ta.push(t.elapsed().as_secs_f64());

@@ -19,6 +19,7 @@ use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::data::{DataSelection, Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
 use hysid_model::statistics::median;
@@ -65,7 +66,9 @@ fn score(data: &Dataset, test: &Dataset, (na, nb, modes, c): Setting) -> Option<
         priors_origin: None,
     };
     let set = Settings::parse(&[format!("c={c}")]).ok()?;
-    let model = Cluster.run(&problem, &set, &RunContext::quiet(1)).ok()?;
+    let model = Pwarx(Cluster)
+        .run(&problem, &set, &RunContext::quiet(1))
+        .ok()?;
     let (report, _, _) = validate(&model, test, 10).ok()?;
     report.fit_sim.is_finite().then_some(report.fit_sim)
 }

@@ -42,18 +42,15 @@ pub mod knn;
 pub mod local;
 pub mod priors;
 pub mod procedure;
-pub mod sweep;
 
 pub use fit::{ClusterDiagnostics, default_c, fit};
-pub use sweep::{SweepPoint, sweep};
 
-use hysid_core::backend::{Deadline, Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::Model;
-use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
-use hysid_core::priors::{PriorKind, Priors};
+use hysid_core::backend::{IdentifyError, Problem, RunContext};
+use hysid_core::options::{CheckOptions, OptionError, check_float};
+use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
-use hysid_estimation::parsimony;
-use hysid_estimation::pwarx::{self, ModeCount, PwarxData};
+use hysid_core::stages::{AUTO_TRIM, Stages};
+use hysid_estimation::pwarx::{PwarxData, PwarxFit, PwarxMethod};
 
 hysid_core::option_enum! {
     /// What is clustered (HIT `what_to_clust`).
@@ -99,7 +96,7 @@ hysid_core::option_enum! {
     }
 }
 
-hysid_estimation::pwarx_options! {
+hysid_core::backend_options! {
     /// Options of the `cluster` back-end.
     pub struct ClusterOptions {
         /// Local dataset size c (each sample and its c-1 nearest neighbours); at least
@@ -207,7 +204,7 @@ impl CheckOptions for ClusterOptions {
                 "must be a finite number >= 0",
             )?;
         }
-        self.refinement().check()
+        Ok(())
     }
 }
 
@@ -246,8 +243,9 @@ pub use hysid_estimation::regions::AUTO_ROUNDS as AUTO_ALTERNATION;
 /// Most modes automatic selection tries when the priors give no bound.
 pub const DEFAULT_MAX_MODES: usize = 5;
 
-impl Identifier for Cluster {
+impl PwarxMethod for Cluster {
     type Options = ClusterOptions;
+    type Diagnostics = ClusterDiagnostics;
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
@@ -265,173 +263,19 @@ impl Identifier for Cluster {
         Ok(SearchSpace::default()
             .with("c", c)
             .with("alternation", [AUTO_ALTERNATION])
-            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
+            .with(Stages::TRIM, [AUTO_TRIM])
             .with_mode_counts(priors, DEFAULT_MAX_MODES))
     }
 
-    fn identify(
+    fn fit(
         &self,
-        problem: &Problem<'_>,
-        options: &Checked<ClusterOptions>,
+        data: &PwarxData<'_>,
+        options: &ClusterOptions,
         ctx: &RunContext<'_>,
-    ) -> Result<Model, IdentifyError> {
-        let data = pwarx::prepare(problem, Self::NAME)?;
-        let stops = data.stops();
-        match data.modes {
-            ModeCount::Exact(s) => {
-                let fit = fit(options, &data, s + stops, ctx)?;
-                let fit = pwarx::finish(&data, fit, &options.refinement())?;
-                Ok(pwarx::assemble(&data, fit))
-            }
-            ModeCount::AtMost(max) => choose_modes(&data, options, max + stops, ctx),
-            ModeCount::Free => Err(IdentifyError::NeedsModeCount {
-                method: Self::NAME,
-                bounded: true,
-            }),
-        }
+    ) -> Result<PwarxFit<ClusterDiagnostics>, IdentifyError> {
+        let modes = data.exact_modes(Self::NAME)? + data.stops();
+        fit(options, data, modes, ctx)
     }
-
-    hysid_estimation::refine_fitted_pwarx!();
-}
-
-/// Identifies a model with `s` modes (the whole procedure, [`fit()`]), in
-/// original units: a PWARX model, or, with `[[saturation]]` priors, the
-/// hybrid automaton of `HybridAutomaton::from_pwarx_with_stops` whose
-/// `s - stops` ordinary modes are identified here (`s` counts every mode,
-/// as the prior `modes` does; the priors' own mode count is not used). No
-/// K-means restart starts after `deadline` (the model then records the
-/// restarts run in `status`).
-pub fn identify_with(
-    problem: &Problem<'_>,
-    o: &ClusterOptions,
-    s: usize,
-    seed: u64,
-    deadline: Deadline,
-) -> Result<Model, IdentifyError> {
-    identify_labelled(problem, o, s, seed, deadline).map(|l| l.model)
-}
-
-/// What [`identify_labelled`] returns: the model and the mode every
-/// regression row of the record was assigned to.
-#[derive(Debug, Clone)]
-pub struct Labelled {
-    /// The identified model, as [`identify_with`] returns it.
-    pub model: Model,
-    /// Mode of every regression row: ordinary modes `0..k`, then the known
-    /// stops in prior order (`k + stop`), where `k` is the number of
-    /// ordinary modes. Ordinary rows carry the mode of the final
-    /// weighted least squares (the region of the row after the region
-    /// refit, when `region_refit` is on).
-    pub row_labels: Vec<usize>,
-}
-
-/// [`identify_with`], also returning the mode of every regression row.
-/// The options are checked here, as callers of the library pass them
-/// unchecked.
-pub fn identify_labelled(
-    problem: &Problem<'_>,
-    o: &ClusterOptions,
-    s: usize,
-    seed: u64,
-    deadline: Deadline,
-) -> Result<Labelled, IdentifyError> {
-    o.check()?;
-    // `s` is the mode count: the priors' own one is not used.
-    let priors = Priors {
-        modes: None,
-        max_modes: None,
-        ..problem.priors.clone()
-    };
-    let problem = Problem {
-        priors: &priors,
-        ..*problem
-    };
-    let data = pwarx::prepare(&problem, Cluster::NAME)?;
-    let quiet = RunContext {
-        seed,
-        progress: &hysid_core::backend::NoProgress,
-        deadline,
-    };
-    let fit = pwarx::finish(&data, fit(o, &data, s, &quiet)?, &o.refinement())?;
-    let ordinary_modes = fit.modes.len();
-    let mut row_labels: Vec<usize> = data
-        .stop_of
-        .iter()
-        .map(|k| k.map_or(0, |k| ordinary_modes + k))
-        .collect();
-    for (&row, &l) in data.ordinary.iter().zip(&fit.diagnostics.labels) {
-        row_labels[row] = l;
-    }
-    Ok(Labelled {
-        model: pwarx::assemble(&data, fit),
-        row_labels,
-    })
-}
-
-/// `max_modes` without `modes`: every mode count `stops + 1 ..= max` is
-/// identified on the first 75 % of the record and scored by free-run
-/// simulation FIT on the last 25 %; the fewest modes within one standard
-/// error of the best count ([`parsimony::simplest_within_one_se`]) are
-/// identified on the whole record, the scores recorded as `mode_choice`.
-fn choose_modes(
-    data: &PwarxData<'_>,
-    o: &ClusterOptions,
-    max: usize,
-    ctx: &RunContext<'_>,
-) -> Result<Model, IdentifyError> {
-    let problem = &data.problem;
-    let len = problem.data.len();
-    let cut = len * 3 / 4;
-    let ident = problem.data.slice(hysid_model::data::RowRange {
-        start: None,
-        end: Some(cut),
-    })?;
-    let valid = problem.data.slice(hysid_model::data::RowRange {
-        start: Some(cut),
-        end: None,
-    })?;
-    let sub = Problem {
-        data: &ident,
-        ..*problem
-    };
-    let first = data.stops() + 1;
-    let points = sweep::sweep(
-        &sub,
-        &valid,
-        0,
-        &[],
-        &(first..=max).collect::<Vec<_>>(),
-        o,
-        ctx,
-    );
-    // Ranked by hold-out FIT; the fewest modes within one standard error
-    // of the best (the rule `--auto` applies).
-    let mut ranked: Vec<usize> = (0..points.len())
-        .filter(|&i| points[i].fit_sim.is_some_and(f64::is_finite))
-        .collect();
-    let score = |i: usize| points[i].fit_sim.unwrap_or(f64::NEG_INFINITY);
-    ranked.sort_by(|&a, &b| score(b).total_cmp(&score(a)).then(a.cmp(&b)));
-    let errors: Vec<Vec<f64>> = points.iter().map(|p| p.sim_errors.clone()).collect();
-    let counts: Vec<Option<usize>> = points.iter().map(|p| p.modes_found).collect();
-    let dependence = parsimony::Dependence::of_output_lags(problem.orders.na);
-    let best = parsimony::simplest_within_one_se(&ranked, &errors, &counts, dependence)
-        .map(|i| &points[i])
-        .ok_or_else(|| {
-            IdentifyError::failed(format!(
-                "no mode count in 1..={max} could be identified and simulated on the hold-out part"
-            ))
-        })?;
-    let mut model = pwarx::assemble(data, fit(o, data, best.modes, ctx)?);
-    model.info_mut().diagnostics.method.insert(
-        "mode_choice".into(),
-        serde_json::json!(
-            points
-                .iter()
-                .map(|p| (p.modes, p.fit_sim))
-                .collect::<Vec<_>>()
-        ),
-    );
-    Ok(model)
 }
 
 /// Bad input of the `cluster` back-end (an [`IdentifyError::Input`]).

@@ -3,15 +3,15 @@
 //! known stops (saturated samples assigned to the stop modes, simulation
 //! never passing a stop), and the gain on the stopped test system.
 
-use hysid_cluster::{Cluster, ClusterOptions, Labelled, identify_labelled};
-use hysid_core::backend::{Backend, Deadline, IdentifyError, Problem, RunContext};
+use hysid_cluster::{Cluster, ClusterOptions};
+use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::{Equality, Priors, Tie};
 use hysid_core::simulate::simulate;
 use hysid_core::simulate::validate;
 use hysid_estimation::constrained::PriorConflict;
-use hysid_estimation::pwarx;
+use hysid_estimation::pwarx::{self, Pwarx};
 use hysid_model::data::Dataset;
 use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_model::model::PwarxModel;
@@ -20,6 +20,24 @@ use hysid_model::regressors::RegressorSpec;
 use hysid_model::simulate::SimulationOptions;
 use hysid_testkit::{Noise, StoppedBenchmark, b1, h3, stopped_head};
 use proptest::prelude::*;
+
+/// The model of `s` modes (stops included) on `problem` and the mode of
+/// every regression row: the ordinary modes of the final weighted least
+/// squares, then the known stops in prior order.
+fn labelled(problem: &Problem<'_>, opts: &ClusterOptions, s: usize) -> (Model, Vec<usize>) {
+    let data = pwarx::prepare(problem, "cluster").unwrap();
+    let fit = hysid_cluster::fit(opts, &data, s, &RunContext::quiet(7)).unwrap();
+    let ordinary = fit.modes.len();
+    let mut labels: Vec<usize> = data
+        .stop_of
+        .iter()
+        .map(|k| k.map_or(0, |k| ordinary + k))
+        .collect();
+    for (&row, &l) in data.ordinary.iter().zip(&fit.diagnostics.labels) {
+        labels[row] = l;
+    }
+    (pwarx::assemble(&data, fit), labels)
+}
 
 fn run(
     data: &Dataset,
@@ -33,7 +51,7 @@ fn run(
         priors,
         priors_origin: Some("p.toml"),
     };
-    Cluster.run(
+    Pwarx(Cluster).run(
         &problem,
         &Settings::parse(set).unwrap(),
         &RunContext::quiet(7),
@@ -207,7 +225,7 @@ proptest! {
             priors_origin: None,
         };
         let opts = ClusterOptions { restarts: 3, ..Default::default() };
-        let Labelled { model, row_labels } = identify_labelled(&problem, &opts, 4, 7, Deadline::none()).unwrap();
+        let (model, row_labels) = labelled(&problem, &opts, 4);
         prop_assert!(matches!(model, Model::HybridAutomaton(_)));
         prop_assert_eq!(model.mode_count(), 4);
         let d = &model.info().diagnostics;

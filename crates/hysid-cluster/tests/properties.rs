@@ -6,6 +6,7 @@ use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::data::{Dataset, Signal};
 use hysid_model::metrics::parameter_error;
 use hysid_model::model::{PwarxModel, Stop, StopBound};
@@ -32,7 +33,7 @@ fn try_identify(
         priors: &priors,
         priors_origin: None,
     };
-    Cluster.run(
+    Pwarx(Cluster).run(
         &problem,
         &Settings::parse(set).unwrap(),
         &RunContext::quiet(7),
@@ -170,7 +171,7 @@ proptest! {
         };
         let problem = Problem { data: &clipped, orders: ex.truth.spec(), priors: &priors, priors_origin: None };
         let method = format!("regions={regions}");
-        let model = Cluster.run(&problem, &Settings::parse(&["discard=0", &method]).unwrap(), &RunContext::quiet(7)).unwrap();
+        let model = Pwarx(Cluster).run(&problem, &Settings::parse(&["discard=0", &method]).unwrap(), &RunContext::quiet(7)).unwrap();
         let u: Vec<f64> = (0..300).map(|_| rng.random_range(-8.0..8.0)).collect();
         let run = Dataset::siso(u, vec![0.0; 300], None).unwrap();
         let sim = hysid_core::simulate::simulate(&model, &run, SimulationOptions::for_data(&run)).unwrap();
@@ -250,7 +251,7 @@ fn errors_are_clear() {
             priors: p,
             priors_origin: None,
         };
-        Cluster
+        Pwarx(Cluster)
             .run(
                 &problem,
                 &Settings::parse(set).unwrap(),
@@ -309,7 +310,7 @@ fn max_modes_chooses_the_true_count() {
             priors: &priors,
             priors_origin: None,
         };
-        let m = Cluster
+        let m = Pwarx(Cluster)
             .run(&problem, &Settings::default(), &RunContext::quiet(1))
             .unwrap();
         let choice = &m.info().diagnostics.method["mode_choice"];
@@ -423,7 +424,9 @@ fn a_spent_time_budget_still_gives_a_complete_model() {
         deadline: hysid_core::backend::Deadline::at(std::time::Instant::now()),
         ..RunContext::quiet(1)
     };
-    let m = Cluster.run(&problem, &Settings::default(), &ctx).unwrap();
+    let m = Pwarx(Cluster)
+        .run(&problem, &Settings::default(), &ctx)
+        .unwrap();
     let d = &m.info().diagnostics;
     assert_eq!(d.run_status, hysid_model::model::RunStatus::TimeBudget);
     assert_eq!(d.regions_complete, Some(true));
@@ -474,7 +477,9 @@ fn a_run_reports_its_steps_as_progress() {
         progress: &counted,
         ..RunContext::quiet(1)
     };
-    Cluster.run(&problem, &Settings::default(), &ctx).unwrap();
+    Pwarx(Cluster)
+        .run(&problem, &Settings::default(), &ctx)
+        .unwrap();
     let started = counted.started.lock().unwrap().clone();
     assert_eq!(started.len(), 1, "{started:?}");
     assert_eq!(started[0].0, 3);

@@ -21,6 +21,7 @@ use hysid_core::backend::{Backend, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_model::model::PwarxModel;
 use hysid_testkit::{Benchmark, Noise, median};
@@ -45,7 +46,7 @@ fn identify(ex: &Benchmark, modes: usize, set: &[&str]) -> PwarxModel {
         priors: &priors,
         priors_origin: None,
     };
-    match Cluster
+    match Pwarx(Cluster)
         .run(
             &problem,
             &Settings::parse(set).unwrap(),

@@ -14,6 +14,7 @@
 //! | [`options`] | typed back-end options and `--set` |
 //! | [`backend`] | the plugin contract and registry |
 //! | [`search`] | the candidate settings of automatic selection |
+//! | [`stages`] | the typed options of the stages after a PWARX fit (trim, refine) |
 
 pub mod backend;
 pub mod model;
@@ -21,6 +22,7 @@ pub mod options;
 pub mod priors;
 pub mod search;
 pub mod simulate;
+pub mod stages;
 
 /// The types most programs need.
 pub mod prelude {

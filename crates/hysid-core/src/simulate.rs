@@ -129,3 +129,45 @@ pub fn validate(
     };
     Ok((report, sim, pred))
 }
+
+/// A model scored on rows it was not fitted on: what automatic selection
+/// and the mode-count choice under `max_modes` compare candidates by.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Holdout {
+    /// FIT of the free-run simulation, percent (finite).
+    pub fit_sim: f64,
+    /// The simulation errors `y - y_sim` of the scored samples, in order:
+    /// what the one-standard-error rule compares.
+    pub errors: Vec<f64>,
+}
+
+/// Why a model could not be scored on held-out rows.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum HoldoutError {
+    /// The simulation failed.
+    #[error("simulation on the held-out rows: {0}")]
+    Simulation(#[from] SimError),
+    /// The simulation FIT is not a number.
+    #[error("the simulation FIT is not finite")]
+    NotFinite,
+}
+
+/// `model` scored on `data` by free-run simulation, the first `warmup`
+/// samples left out ([`validate`]).
+pub fn holdout(model: &Model, data: &Dataset, warmup: usize) -> Result<Holdout, HoldoutError> {
+    let (report, sim, _) = validate(model, data, warmup)?;
+    if !report.fit_sim.is_finite() {
+        return Err(HoldoutError::NotFinite);
+    }
+    let y = data.y();
+    let first = y.len() - report.n;
+    let errors = y[first..]
+        .iter()
+        .zip(&sim.y[first..])
+        .map(|(a, b)| a - b)
+        .collect();
+    Ok(Holdout {
+        fit_sim: report.fit_sim,
+        errors,
+    })
+}

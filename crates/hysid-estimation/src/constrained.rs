@@ -525,7 +525,7 @@ pub fn fit_modes_on(
 /// box). Every estimate of the mode parameters goes through here: the
 /// ordinary fit ([`fit_modes`]), the projection ([`Parametrisation::project`])
 /// and the damped steps of the simulation-error refinement
-/// ([`crate::refine`]).
+/// ([`crate::pwarx::refine`]).
 pub fn solve_in_z(
     par: &Parametrisation,
     z_mat: &DMatrix<f64>,

@@ -1,5 +1,5 @@
 //! Random priors shared by the tests of the stages after a PWARX fit
-//! ([`crate::trim`], [`crate::refine`]).
+//! ([`crate::pwarx::trim`], [`crate::pwarx::refine`]).
 
 use hysid_core::priors::Priors;
 

@@ -12,6 +12,7 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::pwarx;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_klinreg::{KLinReg, KLinRegOptions, best_restart, restart_count};
 use hysid_model::regressors::RegressorSpec;
 use hysid_testkit::Noise;
@@ -62,7 +63,7 @@ fn main() {
         let whole = |regions: &str| {
             let settings = Settings::from_pairs(vec![("regions".into(), regions.into())]);
             let t = Instant::now();
-            let model = KLinReg
+            let model = Pwarx(KLinReg)
                 .run(&problem, &settings, &RunContext::quiet(1))
                 .expect("identified");
             let wall = t.elapsed().as_secs_f64();

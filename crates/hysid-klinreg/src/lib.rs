@@ -30,13 +30,13 @@ pub use restarts::{
     draw_parameters, restart_count, run_restart, success_probability,
 };
 
-use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::Model;
-use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
+use hysid_core::backend::{IdentifyError, Problem, RunContext};
+use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
+use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equations};
-use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
+use hysid_estimation::pwarx::{PwarxData, PwarxFit, PwarxMethod};
 use hysid_estimation::regions::RegionMethod;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
@@ -53,7 +53,7 @@ pub const DEFAULT_MAX_MODES: usize = 5;
 /// would miss the global minimum about once in eight problems.
 pub const DEFAULT_MIN_RESTARTS: usize = 20;
 
-hysid_estimation::pwarx_options! {
+hysid_core::backend_options! {
     /// Options of the `klinreg` back-end.
     pub struct KLinRegOptions {
         /// Random restarts; 0: Lauer's r* (the count that reaches the global
@@ -82,7 +82,7 @@ impl CheckOptions for KLinRegOptions {
         if self.max_iter == 0 {
             return Err(OptionError::invalid("max_iter", 0, "must be at least 1"));
         }
-        self.refinement().check()
+        Ok(())
     }
 }
 
@@ -90,12 +90,14 @@ impl CheckOptions for KLinRegOptions {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct KLinReg;
 
-impl Identifier for KLinReg {
+impl PwarxMethod for KLinReg {
     type Options = KLinRegOptions;
+    type Diagnostics = KLinRegDiagnostics;
     const NAME: &'static str = "klinreg";
     const SUMMARY: &'static str = "k-LinReg (Lauer 2013): assignment to the mode of least residual and least squares per mode, from random starts; then regions";
     const HONOURS: &'static [PriorKind] = &[
         PriorKind::Modes,
+        PriorKind::MaxModes,
         PriorKind::Saturation,
         PriorKind::Tie,
         PriorKind::Fixed,
@@ -107,22 +109,18 @@ impl Identifier for KLinReg {
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Ok(SearchSpace::default()
-            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
+            .with(Stages::TRIM, [AUTO_TRIM])
             .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
-    fn identify(
+    fn fit(
         &self,
-        problem: &Problem<'_>,
-        options: &Checked<KLinRegOptions>,
+        data: &PwarxData<'_>,
+        options: &KLinRegOptions,
         ctx: &RunContext<'_>,
-    ) -> Result<Model, IdentifyError> {
-        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
-            fit(options, data, ctx)
-        })
+    ) -> Result<PwarxFit<KLinRegDiagnostics>, IdentifyError> {
+        fit(options, data, ctx)
     }
-
-    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `klinreg` back-end reports besides the common diagnostics.

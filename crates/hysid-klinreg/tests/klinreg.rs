@@ -8,6 +8,7 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::{Priors, Tie};
 use hysid_estimation::constrained::Parametrisation;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_klinreg::{
     DEFAULT_MIN_RESTARTS, KLinReg, KLinRegOptions, SuccessModel, restart_count, run_restart,
     success_probability,
@@ -155,8 +156,8 @@ fn b1_beside_cluster() {
     let mut rows = Vec::new();
     for seed in 1..=5 {
         let b = hysid_testkit::b1(500, 4.0, Noise::Uniform(0.1), seed);
-        let k = b.score(&run(&KLinReg, &b, 3, seed));
-        let c = b.score(&run(&Cluster, &b, 3, seed));
+        let k = b.score(&run(&Pwarx(KLinReg), &b, 3, seed));
+        let c = b.score(&run(&Pwarx(Cluster), &b, 3, seed));
         eprintln!(
             "B1 draw {seed}: klinreg acc {:.3} err {:.4}; cluster acc {:.3} err {:.4}",
             k.0, k.1, c.0, c.1
@@ -188,7 +189,7 @@ fn the_model_does_not_depend_on_the_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| run(&KLinReg, &b, 3, 4).to_json())
+            .install(|| run(&Pwarx(KLinReg), &b, 3, 4).to_json())
     };
     assert_eq!(fit(1), fit(2));
 }
@@ -204,7 +205,7 @@ fn a_mode_count_is_needed() {
         priors: &Priors::default(),
         priors_origin: None,
     };
-    let e = KLinReg
+    let e = Pwarx(KLinReg)
         .run(&problem, &Settings::default(), &RunContext::quiet(0))
         .unwrap_err();
     assert!(
@@ -212,7 +213,7 @@ fn a_mode_count_is_needed() {
             e,
             hysid_core::backend::IdentifyError::NeedsModeCount {
                 method: "klinreg",
-                bounded: false
+                bounded: true
             }
         ),
         "{e}"

@@ -5,16 +5,17 @@
 //!
 //! Run: cargo run --release -p hysid-milp --example milp_cost
 
-use hysid_core::backend::{Identifier as _, RunContext};
+use hysid_core::backend::RunContext;
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::{Pwarx, PwarxMethod as _};
 use hysid_milp::Milp;
 use hysid_testkit::Noise;
 use std::time::Instant;
 
 fn main() {
-    let registry = hysid_core::backend::Registry::new().with(Milp);
+    let registry = hysid_core::backend::Registry::new().with(Pwarx(Milp));
     let milp = registry.require(Milp::NAME).expect("registered");
     println!("| N | program | wall | nodes | proven optimal | modes | largest parameter error |");
     println!("|---|---|---|---|---|---|---|");

@@ -25,13 +25,13 @@ pub mod program;
 
 pub use program::{Limits, MilpSolution, Objective, ProgramError};
 
-use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::Model;
-use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
+use hysid_core::backend::{IdentifyError, Problem, RunContext};
+use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
+use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::constrained::Parametrisation;
-use hysid_estimation::pwarx::{self, PwarxData, PwarxFit};
+use hysid_estimation::pwarx::{ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_estimation::regions::RegionMethod;
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
@@ -41,7 +41,7 @@ use serde::Serialize;
 /// `max_modes`, and `--auto` without `modes`.
 pub const DEFAULT_MAX_MODES: usize = 4;
 
-hysid_estimation::pwarx_options! {
+hysid_core::backend_options! {
     /// Options of the `milp` back-end.
     pub struct MilpOptions {
         /// Bound on every residual, data units: the fewest modes within it, then the least
@@ -78,7 +78,7 @@ impl CheckOptions for MilpOptions {
         if self.node_limit == 0 {
             return Err(OptionError::invalid("node_limit", 0, "must be at least 1"));
         }
-        self.refinement().check()
+        Ok(())
     }
 }
 
@@ -86,8 +86,10 @@ impl CheckOptions for MilpOptions {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Milp;
 
-impl Identifier for Milp {
+impl PwarxMethod for Milp {
     type Options = MilpOptions;
+    type Diagnostics = MilpDiagnostics;
+    const MODE_RULE: ModeRule = ModeRule::Method;
     const NAME: &'static str = "milp";
     const SEEDED: bool = false;
     const SUMMARY: &'static str = "exact mixed-integer switched regression (l1 with a mode count, or the fewest modes within delta) for records of tens of samples; then regions";
@@ -97,22 +99,18 @@ impl Identifier for Milp {
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Ok(SearchSpace::default()
-            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
+            .with(Stages::TRIM, [AUTO_TRIM])
             .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
-    fn identify(
+    fn fit(
         &self,
-        problem: &Problem<'_>,
-        options: &Checked<MilpOptions>,
+        data: &PwarxData<'_>,
+        options: &MilpOptions,
         ctx: &RunContext<'_>,
-    ) -> Result<Model, IdentifyError> {
-        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
-            fit(options, data, ctx)
-        })
+    ) -> Result<PwarxFit<MilpDiagnostics>, IdentifyError> {
+        fit(options, data, ctx)
     }
-
-    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `milp` back-end reports besides the common diagnostics.

@@ -8,6 +8,7 @@ use hysid_core::backend::{Backend, IdentifyError};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::{Priors, Tie};
+use hysid_estimation::pwarx::Pwarx;
 use hysid_klinreg::KLinReg;
 use hysid_milp::Milp;
 use hysid_model::regressors::Regressors;
@@ -63,7 +64,7 @@ fn diagnostic(m: &Model, key: &str) -> serde_json::Value {
 #[test]
 fn noise_free_b1_gives_the_true_parameters() {
     let b = hysid_testkit::b1(17, 4.0, Noise::None, 2);
-    let m = run(&Milp, &b, &priors(Some(3)), &[]).unwrap();
+    let m = run(&Pwarx(Milp), &b, &priors(Some(3)), &[]).unwrap();
     assert!(diagnostic(&m, "l1_error").as_f64().unwrap() < 1e-7);
     assert_eq!(diagnostic(&m, "proven_optimal"), true);
     let (_, error) = b.recovery(as_pwarx(&m));
@@ -84,12 +85,12 @@ proptest! {
     ) {
         let b = hysid_testkit::b1(n + 1, 4.0, Noise::Uniform(noise), seed);
         let reg = rows(&b);
-        let m = run(&Milp, &b, &priors(Some(3)), &[]).unwrap();
+        let m = run(&Pwarx(Milp), &b, &priors(Some(3)), &[]).unwrap();
         let optimum = diagnostic(&m, "l1_error").as_f64().unwrap();
         prop_assert!((l1_cost(&reg, &thetas(&m)) - optimum).abs() < 1e-6 * (1.0 + optimum));
         let truth: Vec<Vec<f64>> = b.truth.modes.iter().map(|q| q.theta.clone()).collect();
         prop_assert!(optimum <= l1_cost(&reg, &truth) + 1e-7, "optimum {optimum} above the truth");
-        if let Ok(k) = run(&KLinReg, &b, &priors(Some(3)), &[]) {
+        if let Ok(k) = run(&Pwarx(KLinReg), &b, &priors(Some(3)), &[]) {
             let heuristic = l1_cost(&reg, &thetas(&k));
             prop_assert!(optimum <= heuristic + 1e-7, "optimum {optimum} above k-LinReg's {heuristic}");
         }
@@ -108,7 +109,7 @@ proptest! {
         let b = hysid_testkit::b1(n + 1, 4.0, Noise::Uniform(0.05), seed);
         let reg = rows(&b);
         let set = format!("delta={delta}");
-        let exact = run(&Milp, &b, &priors(None), &[set.as_str()]).unwrap();
+        let exact = run(&Pwarx(Milp), &b, &priors(None), &[set.as_str()]).unwrap();
         let minimum = diagnostic(&exact, "fewest_modes").as_u64().unwrap() as usize;
         prop_assert_eq!(as_pwarx(&exact).modes.len(), minimum);
         let within = |thetas: &[Vec<f64>]| {
@@ -119,7 +120,7 @@ proptest! {
             }))
         };
         prop_assert!(within(&thetas(&exact)));
-        if let Ok(g) = run(&Bounded, &b, &priors(None), &[set.as_str(), "refine=none"]) {
+        if let Ok(g) = run(&Pwarx(Bounded), &b, &priors(None), &[set.as_str(), "refine=none"]) {
             let greedy = diagnostic(&g, "greedy_modes").as_u64().unwrap() as usize;
             if diagnostic(&g, "infeasible") == 0 {
                 prop_assert!(greedy >= minimum, "bounded's greedy {greedy} modes, exact minimum {minimum}");
@@ -138,7 +139,7 @@ fn ties_and_fixed_values_hold() {
         params: vec!["b1".into()],
     });
     p.fixed.insert("a1".into(), 0.1);
-    let m = run(&Milp, &b, &p, &[]).unwrap();
+    let m = run(&Pwarx(Milp), &b, &p, &[]).unwrap();
     let t = thetas(&m);
     assert_eq!(t[0][1].to_bits(), t[1][1].to_bits());
     assert!(t.iter().all(|q| q[0] == 0.1));
@@ -149,10 +150,10 @@ fn ties_and_fixed_values_hold() {
 #[test]
 fn refusals() {
     let b = hysid_testkit::b1(60, 4.0, Noise::Uniform(0.05), 1);
-    let e = run(&Milp, &b, &priors(Some(2)), &[]).unwrap_err();
+    let e = run(&Pwarx(Milp), &b, &priors(Some(2)), &[]).unwrap_err();
     assert!(e.to_string().contains("max_samples = 40"), "{e}");
     let small = hysid_testkit::b1(10, 4.0, Noise::Uniform(0.05), 1);
-    let e = run(&Milp, &small, &priors(None), &[]).unwrap_err();
+    let e = run(&Pwarx(Milp), &small, &priors(None), &[]).unwrap_err();
     assert!(
         matches!(e, IdentifyError::NeedsModeCount { method: "milp", .. }),
         "{e}"
@@ -164,7 +165,7 @@ fn refusals() {
 #[test]
 fn the_node_limit_bounds_the_search() {
     let b = hysid_testkit::b1(21, 4.0, Noise::Uniform(0.1), 3);
-    let m = run(&Milp, &b, &priors(Some(3)), &["node_limit=1"]);
+    let m = run(&Pwarx(Milp), &b, &priors(Some(3)), &["node_limit=1"]);
     match m {
         Ok(m) => assert_eq!(diagnostic(&m, "proven_optimal"), false),
         Err(e) => assert!(e.to_string().contains("before a first solution"), "{e}"),

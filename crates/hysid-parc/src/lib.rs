@@ -32,12 +32,12 @@ pub use steps::{
     Clusters, Finished, finish, fit_local_models, fit_separator, initial_labels, reassign,
 };
 
-use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::Model;
-use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
+use hysid_core::backend::{IdentifyError, Problem, RunContext};
+use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
-use hysid_estimation::pwarx::{self, ModeCount, PwarxData, PwarxFit};
+use hysid_core::stages::{AUTO_TRIM, Stages};
+use hysid_estimation::pwarx::{ModeCount, ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_model::model::{PwarxMode, RunStatus};
 use serde::Serialize;
 
@@ -59,7 +59,7 @@ hysid_core::option_enum! {
     }
 }
 
-hysid_estimation::pwarx_options! {
+hysid_core::backend_options! {
     /// Options of the `parc` back-end.
     pub struct ParcOptions {
         /// Weight sigma of the separation term; the cost uses sigma / N.
@@ -105,7 +105,7 @@ impl CheckOptions for ParcOptions {
         if self.max_iter == 0 {
             return Err(OptionError::invalid("max_iter", 0, "must be at least 1"));
         }
-        self.refinement().check()
+        Ok(())
     }
 }
 
@@ -113,8 +113,10 @@ impl CheckOptions for ParcOptions {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Parc;
 
-impl Identifier for Parc {
+impl PwarxMethod for Parc {
     type Options = ParcOptions;
+    type Diagnostics = ParcDiagnostics;
+    const MODE_RULE: ModeRule = ModeRule::Method;
     const NAME: &'static str = "parc";
     const SUMMARY: &'static str = "PARC (Bemporad 2023): local models and a softmax partition learned together by block-coordinate descent";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
@@ -122,22 +124,18 @@ impl Identifier for Parc {
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Ok(SearchSpace::default()
-            .with("trim", [hysid_estimation::trim::AUTO_CUTOFF])
+            .with(Stages::TRIM, [AUTO_TRIM])
             .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
     }
 
-    fn identify(
+    fn fit(
         &self,
-        problem: &Problem<'_>,
-        options: &Checked<ParcOptions>,
+        data: &PwarxData<'_>,
+        options: &ParcOptions,
         ctx: &RunContext<'_>,
-    ) -> Result<Model, IdentifyError> {
-        pwarx::identify(problem, Self::NAME, &options.refinement(), |data| {
-            fit(options, data, ctx)
-        })
+    ) -> Result<PwarxFit<ParcDiagnostics>, IdentifyError> {
+        fit(options, data, ctx)
     }
-
-    hysid_estimation::refine_fitted_pwarx!();
 }
 
 /// What the `parc` back-end reports besides the common diagnostics.

@@ -7,6 +7,7 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_estimation::pwarx;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::data::{Dataset, Signal};
 use hysid_model::regressors::RegressorSpec;
 use hysid_parc::{Parc, ParcOptions};
@@ -64,7 +65,7 @@ fn pyparc_unit_test() {
         ..Priors::default()
     };
     let settings = Settings::from_pairs(vec![("max_iter".into(), "15".into())]);
-    let model = Parc
+    let model = Pwarx(Parc)
         .run(
             &problem(&train, RegressorSpec::new(0, 1, 2), &priors),
             &settings,
@@ -145,9 +146,9 @@ fn b1_beside_cluster() {
     let mut rows = Vec::new();
     for seed in 1..=5 {
         let b = hysid_testkit::b1(500, 4.0, Noise::Uniform(0.1), seed);
-        let parc = run(&Parc, &b, 3, true, seed);
+        let parc = run(&Pwarx(Parc), &b, 3, true, seed);
         let p = b.score(&parc);
-        let c = b.score(&run(&Cluster, &b, 3, false, seed));
+        let c = b.score(&run(&Pwarx(Cluster), &b, 3, false, seed));
         eprintln!(
             "B1 draw {seed}: parc {} modes, acc {:.3} err {:.4}; cluster acc {:.3} err {:.4}",
             parc.mode_count(),

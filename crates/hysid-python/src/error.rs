@@ -63,8 +63,9 @@ impl From<IdentifyError> for Failure {
                 method,
                 bounded: true,
             } => Self(format!(
-                "method '{method}' needs the number of modes: modes=S (or max_modes=S to choose \
-                 it by hold-out simulation FIT), or modes / max_modes in the priors"
+                "method '{method}' needs the number of modes: modes=S, max_modes=S (the count \
+                 chosen by hold-out simulation FIT) or auto=True (chosen on selection rows), or \
+                 modes / max_modes in the priors"
             )),
             IdentifyError::NeedsModeCount {
                 method,

@@ -27,6 +27,7 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::Setup;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_model::metrics::{mode_accuracy, parameter_error};
 use hysid_testkit::{Benchmark, Noise, median};
 use std::collections::BTreeMap;
@@ -110,19 +111,20 @@ fn main() {
                 priors_origin: None,
             };
             // A default run that fails gives the user no model: accuracy 0.
-            let (a, e) = match Cluster.run(&problem, &Settings::default(), &RunContext::quiet(1)) {
-                Ok(defaults) => {
-                    let (a, e, _) = score(&ex, &valid, &defaults);
-                    (a, e)
-                }
-                Err(_) => {
-                    def_failed += 1;
-                    (0.0, f64::INFINITY)
-                }
-            };
+            let (a, e) =
+                match Pwarx(Cluster).run(&problem, &Settings::default(), &RunContext::quiet(1)) {
+                    Ok(defaults) => {
+                        let (a, e, _) = score(&ex, &valid, &defaults);
+                        (a, e)
+                    }
+                    Err(_) => {
+                        def_failed += 1;
+                        (0.0, f64::INFINITY)
+                    }
+                };
             def_acc.push(a);
             def_err.push(e);
-            let reference = Cluster
+            let reference = Pwarx(Cluster)
                 .run(
                     &problem,
                     &Settings::parse(set).expect("settings"),
@@ -138,8 +140,8 @@ fn main() {
                 ..problem
             };
             let request = Request {
-                backend: &Cluster,
-                affine: Some(&hysid_arx::Arx),
+                backend: &Pwarx(Cluster),
+                affine: Some(&Pwarx(hysid_arx::Arx)),
                 data: &ex.data,
                 setup: Setup {
                     orders: spec,
@@ -147,7 +149,7 @@ fn main() {
                     settings: Settings::default(),
                 },
                 priors_origin: None,
-                space: Cluster.search_space(&problem).expect("search space"),
+                space: Pwarx(Cluster).search_space(&problem).expect("search space"),
                 plan: Plan::default(),
             };
             let model = select(&request, &RunContext::quiet(1)).expect("auto run");

@@ -2,23 +2,23 @@
 //! back-end is one crate and one line in [`registry`].
 
 use crate::select::AgainstAffine;
-use hysid_core::backend::Identifier as _;
 use hysid_core::backend::{Backend, Registry};
 use hysid_core::model::Model;
 use hysid_core::priors::Priors;
+use hysid_estimation::pwarx::{Pwarx, PwarxMethod as _};
 use hysid_model::data::Dataset;
 
 /// Every back-end hysid ships, in the order `hysid methods` lists them.
 pub fn registry() -> Registry {
     Registry::new()
-        .with(hysid_arx::Arx)
-        .with(hysid_cluster::Cluster)
-        .with(hysid_bounded::Bounded)
+        .with(Pwarx(hysid_arx::Arx))
+        .with(Pwarx(hysid_cluster::Cluster))
+        .with(Pwarx(hysid_bounded::Bounded))
         .with(hysid_physical::Physical)
-        .with(hysid_klinreg::KLinReg)
-        .with(hysid_parc::Parc)
-        .with(hysid_bayes::Bayes)
-        .with(hysid_milp::Milp)
+        .with(Pwarx(hysid_klinreg::KLinReg))
+        .with(Pwarx(hysid_parc::Parc))
+        .with(Pwarx(hysid_bayes::Bayes))
+        .with(Pwarx(hysid_milp::Milp))
 }
 
 /// The back-end whose model is the affine reference a hybrid model is

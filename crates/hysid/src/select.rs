@@ -977,7 +977,7 @@ mod tests {
     fn arx_selection_scores_every_order_and_keeps_the_best() {
         let data = affine_record(300);
         let request = Request {
-            backend: &hysid_arx::Arx,
+            backend: &hysid_estimation::pwarx::Pwarx(hysid_arx::Arx),
             affine: None,
             data: &data,
             setup: Setup {
@@ -1043,7 +1043,7 @@ mod tests {
         });
         let c = against_affine(
             &wrong,
-            &hysid_arx::Arx,
+            &hysid_estimation::pwarx::Pwarx(hysid_arx::Arx),
             &data,
             orders,
             &Default::default(),
@@ -1059,7 +1059,7 @@ mod tests {
     fn first_order_request<'a>(backend: &'a dyn Backend, data: &'a Dataset) -> Request<'a> {
         Request {
             backend,
-            affine: Some(&hysid_arx::Arx),
+            affine: Some(&hysid_estimation::pwarx::Pwarx(hysid_arx::Arx)),
             data,
             setup: Setup {
                 orders: hysid_model::regressors::RegressorSpec::new(1, 1, 1),
@@ -1088,7 +1088,10 @@ mod tests {
     #[test]
     fn the_best_of_every_mode_count_is_refined_but_not_the_affine_reference() {
         let data = affine_record(300);
-        let request = first_order_request(&hysid_cluster::Cluster, &data);
+        let request = first_order_request(
+            &hysid_estimation::pwarx::Pwarx(hysid_cluster::Cluster),
+            &data,
+        );
         let c = ["10", "20", "40", "80"];
         let mut trials: Vec<Trial<'_>> = c
             .iter()
@@ -1105,7 +1108,7 @@ mod tests {
             })
             .collect();
         trials.push(Trial {
-            backend: &hysid_arx::Arx,
+            backend: &hysid_estimation::pwarx::Pwarx(hysid_arx::Arx),
             values: vec![],
             setup: request.setup.clone(),
             start: Vec::new(),
@@ -1248,10 +1251,10 @@ mod tests {
             "test back-end"
         }
         fn options(&self) -> Vec<hysid_core::options::OptionSpec> {
-            Backend::options(&hysid_arx::Arx)
+            Backend::options(&hysid_estimation::pwarx::Pwarx(hysid_arx::Arx))
         }
         fn honours(&self) -> &'static [hysid_core::priors::PriorKind] {
-            Backend::honours(&hysid_arx::Arx)
+            Backend::honours(&hysid_estimation::pwarx::Pwarx(hysid_arx::Arx))
         }
         fn search_doc(&self) -> &'static str {
             "its defaults"
@@ -1272,7 +1275,12 @@ mod tests {
             ctx: &RunContext<'_>,
         ) -> Result<Model, IdentifyError> {
             self.runs.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-            Backend::run(&hysid_arx::Arx, problem, settings, ctx)
+            Backend::run(
+                &hysid_estimation::pwarx::Pwarx(hysid_arx::Arx),
+                problem,
+                settings,
+                ctx,
+            )
         }
         fn refine_fitted(
             &self,
@@ -1283,7 +1291,13 @@ mod tests {
         ) -> Option<Result<Model, IdentifyError>> {
             self.refines
                 .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-            Backend::refine_fitted(&hysid_arx::Arx, problem, fitted, settings, ctx)
+            Backend::refine_fitted(
+                &hysid_estimation::pwarx::Pwarx(hysid_arx::Arx),
+                problem,
+                fitted,
+                settings,
+                ctx,
+            )
         }
     }
 

@@ -4,7 +4,7 @@
 //! identification rows.
 //!
 //! ```text
-//! cargo run -p hysid-plot --example plot_pick_and_place -- docs/figures/gallery
+//! cargo run -p hysid --example plot_pick_and_place -- docs/figures/gallery
 //! ```
 
 use std::path::PathBuf;
@@ -15,6 +15,7 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
+use hysid_estimation::pwarx::Pwarx;
 use hysid_io::load;
 use hysid_model::data::{DataSelection, RowRange};
 use hysid_model::regressors::RegressorSpec;
@@ -45,7 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         priors: &priors,
         priors_origin: None,
     };
-    let model = Arx.run(&problem, &Settings::default(), &RunContext::quiet(1))?;
+    let model = Pwarx(Arx).run(&problem, &Settings::default(), &RunContext::quiet(1))?;
     let (report, sim, _pred) = validate(&model, &valid, 10)?;
 
     let fig = SimulationFigure::from_dataset(

@@ -1,6 +1,6 @@
 //! Trimmed re-estimation of the mode parameters on the samples of their
 //! regions, the stage between a PWARX back-end's `fit` and the
-//! simulation-error refinement ([`crate::refine`]) when the option `trim`
+//! simulation-error refinement ([`crate::pwarx::refine`]) when the option `trim`
 //! is set.
 //!
 //! A back-end's regions are estimated from its own mode assignment, and a
@@ -36,9 +36,6 @@ use hysid_model::model::{PwarxMode, Trimming, TrimmingStatus, region_of};
 use hysid_model::regressors::Regressors;
 use hysid_model::statistics::{MAD_TO_SIGMA, median};
 
-/// The cutoff automatic selection gives every candidate of a PWARX
-/// back-end (`trim = 3`, the usual rejection level of Hampel et al.).
-pub const AUTO_CUTOFF: f64 = 3.0;
 /// Bound on the least-squares rounds.
 pub const MAX_ROUNDS: usize = 20;
 /// `fit` with its ordinary modes' parameters estimated again on the samples

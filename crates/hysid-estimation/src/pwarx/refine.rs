@@ -59,10 +59,10 @@
 //! everywhere, so this is the derivative of `V` wherever the mode sequence
 //! does not change.
 
+use super::{PwarxData, PwarxFit};
 use crate::constrained::{self, Parametrisation, Slot};
-use crate::pwarx::{PwarxData, PwarxFit};
 use hysid_core::backend::IdentifyError;
-use hysid_core::options::OptionError;
+use hysid_core::stages::{Refine, Stages};
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::model::{
     HybridAutomaton, ModelInfo, PwarxMode, PwarxModel, RunStatus, arx_state_positions,
@@ -74,203 +74,29 @@ use nalgebra::{DMatrix, DVector};
 
 pub mod regions;
 
-hysid_core::option_enum! {
-    /// The refinement a PWARX back-end ends with (option `refine`).
-    pub enum RefineMethod {
-        /// None: the back-end's own estimate.
-        None => "none",
-        /// The multiple-shooting simulation error, by Levenberg-Marquardt.
-        Sim => "sim",
-        /// `sim`, then the region boundaries moved by a softmax relaxation
-        /// of the same error and hardened again.
-        SimRegions => "sim_regions",
-    }
-}
-
-impl RefineMethod {
-    /// Whether no refinement is asked for (the default, not recorded in a
-    /// model's options).
-    pub fn is_none(&self) -> bool {
-        *self == RefineMethod::None
-    }
-}
-
-/// Default samples per shooting segment (option `refine_segment`).
-pub const DEFAULT_SEGMENT: usize = 200;
-/// Default bound on the Levenberg-Marquardt iterations (option
-/// `refine_iterations`).
-pub const DEFAULT_ITERATIONS: usize = 50;
-/// Largest `refine_iterations` accepted.
-pub const MAX_ITERATIONS: usize = 100_000;
 /// A step that lowers the cost by less than this fraction of it ends the
 /// refinement (converged).
 pub const RELATIVE_TOLERANCE: f64 = 1e-10;
 
-/// Whether `segment` is [`DEFAULT_SEGMENT`] (then not recorded in a
-/// model's options).
-pub fn is_default_segment(segment: &usize) -> bool {
-    *segment == DEFAULT_SEGMENT
-}
-
-/// Whether `iterations` is [`DEFAULT_ITERATIONS`] (then not recorded in a
-/// model's options).
-pub fn is_default_iterations(iterations: &usize) -> bool {
-    *iterations == DEFAULT_ITERATIONS
-}
-
-/// What a back-end's options ask of the stages after its fit: the trimmed
-/// re-estimation ([`crate::trim`]) and the refinement.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RefineSettings {
-    /// `trim`: the cutoff of the trimmed re-estimation, in robust standard
-    /// deviations; `None`: no re-estimation.
-    pub trim: Option<f64>,
-    /// `refine`.
-    pub method: RefineMethod,
-    /// `refine_segment`: samples per shooting segment.
-    pub segment: usize,
-    /// `refine_iterations`: bound on the Levenberg-Marquardt iterations.
-    pub iterations: usize,
-}
-
-impl Default for RefineSettings {
-    fn default() -> Self {
-        Self {
-            trim: None,
-            method: RefineMethod::None,
-            segment: DEFAULT_SEGMENT,
-            iterations: DEFAULT_ITERATIONS,
-        }
-    }
-}
-
-impl RefineSettings {
-    /// The checks of `trim` (finite and positive), `refine_segment` (at
-    /// least 1) and `refine_iterations` (1 ..= [`MAX_ITERATIONS`]).
-    pub fn check(&self) -> Result<(), OptionError> {
-        if let Some(t) = self.trim
-            && !(t.is_finite() && t > 0.0)
-        {
-            return Err(OptionError::invalid(
-                "trim",
-                t,
-                "must be a finite number > 0 (robust standard deviations)",
-            ));
-        }
-        if self.segment == 0 {
-            return Err(OptionError::invalid(
-                "refine_segment",
-                0,
-                "must be at least 1 sample",
-            ));
-        }
-        if !(1..=MAX_ITERATIONS).contains(&self.iterations) {
-            return Err(OptionError::invalid(
-                "refine_iterations",
-                self.iterations,
-                format!("must be in 1..={MAX_ITERATIONS}"),
-            ));
-        }
-        Ok(())
-    }
-}
-
-/// Inside `impl Identifier for ...` of a back-end whose options come from
-/// [`pwarx_options!`](crate::pwarx_options): `Identifier::refine_fitted` by
-/// [`crate::pwarx::refine_fitted`], so that automatic selection refines a
-/// candidate's own fit instead of fitting it again.
-#[macro_export]
-macro_rules! refine_fitted_pwarx {
-    () => {
-        fn refine_fitted(
-            &self,
-            problem: &hysid_core::backend::Problem<'_>,
-            fitted: hysid_core::model::Model,
-            options: &hysid_core::options::Checked<Self::Options>,
-        ) -> Option<Result<hysid_core::model::Model, hysid_core::backend::IdentifyError>> {
-            Some($crate::pwarx::refine_fitted(
-                problem,
-                Self::NAME,
-                fitted,
-                &options.refinement(),
-            ))
-        }
-    };
-}
-
-/// Declares the options of a PWARX back-end: `hysid_core::backend_options!`
-/// with the options of the stages after the fit (`trim`, `refine`,
-/// `refine_segment`, `refine_iterations`) appended, not recorded in a model
-/// while at their defaults, and `refinement()`, the [`RefineSettings`]
-/// they make.
-#[macro_export]
-macro_rules! pwarx_options {
-    (
-        $(#[$($meta:tt)*])*
-        $vis:vis struct $name:ident {
-            $( $(#[$($attr:tt)*])* $field:ident : $ty:ty = $default:expr ),* $(,)?
-        }
-    ) => {
-        ::hysid_core::backend_options! {
-            $(#[$($meta)*])*
-            $vis struct $name {
-                $( $(#[$($attr)*])* $field : $ty = $default, )*
-                /// After the fit, before refine: every mode's parameters estimated again by least
-                /// squares under the priors on the samples its region holds, leaving out those whose
-                /// residual exceeds trim robust standard deviations of the mode (1.4826 times the median
-                /// absolute residual), repeated until the samples left out no longer change; none: the
-                /// back-end's estimate (docs/refinement.md).
-                #[serde(skip_serializing_if = "Option::is_none")]
-                trim: Option<f64> = None,
-                /// Refinement after the fit: none; sim (the mode parameters by Levenberg-Marquardt on
-                /// the multiple-shooting simulation error under the priors, regions fixed); or
-                /// sim_regions (sim, then the region boundaries moved by a softmax relaxation of that
-                /// error and hardened), docs/refinement.md.
-                #[serde(skip_serializing_if = "hysid_estimation::refine::RefineMethod::is_none")]
-                refine: hysid_estimation::refine::RefineMethod = hysid_estimation::refine::RefineMethod::None,
-                /// Samples per shooting segment of refine=sim, each simulated free-run from the measured
-                /// outputs before it; at least the record's length: output error (pure free run).
-                #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_segment")]
-                refine_segment: usize = hysid_estimation::refine::DEFAULT_SEGMENT,
-                /// Bound on the Levenberg-Marquardt iterations of refine=sim.
-                #[serde(skip_serializing_if = "hysid_estimation::refine::is_default_iterations")]
-                refine_iterations: usize = hysid_estimation::refine::DEFAULT_ITERATIONS,
-            }
-        }
-
-        impl $name {
-            /// The refinement the options ask for.
-            pub fn refinement(&self) -> $crate::refine::RefineSettings {
-                $crate::refine::RefineSettings {
-                    trim: self.trim,
-                    method: self.refine,
-                    segment: self.refine_segment,
-                    iterations: self.refine_iterations,
-                }
-            }
-        }
-    };
-}
-
 /// `fit` with its ordinary modes' parameters refined by the
 /// multiple-shooting simulation error (see the module doc), the regions
-/// unchanged, and with [`RefineMethod::SimRegions`] then the region
+/// unchanged, and with [`Refine::SimRegions`] then the region
 /// boundaries moved ([`regions`]); the outcome in `fit.refinement`. With
-/// [`RefineMethod::None`], `fit` unchanged. The settings are those a
-/// back-end's checked options hold ([`RefineSettings::check`]). When no
+/// [`Refine::None`], `fit` unchanged. The settings are those a
+/// back-end's checked options hold ([`Stages`]). When no
 /// step lowers the cost, the parameters stay as the back-end gave them. A
 /// refinement stopped by its iteration bound marks the run
 /// [`RunStatus::IterationLimit`].
 pub fn refine<D>(
     data: &PwarxData<'_>,
     mut fit: PwarxFit<D>,
-    settings: &RefineSettings,
+    settings: &Stages,
 ) -> Result<PwarxFit<D>, IdentifyError> {
-    if settings.method == RefineMethod::None {
+    if settings.refine == Refine::None {
         return Ok(fit);
     }
     let mut r = fit_parameters(data, &mut fit.modes, settings)?;
-    if settings.method == RefineMethod::SimRegions {
+    if settings.refine == Refine::SimRegions {
         r.regions = Some(regions::move_regions(data, &mut fit, settings)?);
     }
     if r.status == RefinementStatus::IterationLimit {
@@ -292,11 +118,11 @@ pub fn refine<D>(
 fn fit_parameters(
     data: &PwarxData<'_>,
     modes: &mut [PwarxMode],
-    settings: &RefineSettings,
+    settings: &Stages,
 ) -> Result<Refinement, IdentifyError> {
     let par = Parametrisation::from_priors(data.priors(), &data.spec, modes.len())
         .map_err(|e| data.prior_error(e))?;
-    let shooting = Shooting::new(data, modes, settings.segment)?;
+    let shooting = Shooting::new(data, modes, settings.refine_segment)?;
     let thetas: Vec<Vec<f64>> = modes.iter().map(|m| m.theta.clone()).collect();
     let start = par
         .free_values(&thetas)
@@ -305,7 +131,7 @@ fn fit_parameters(
         shooting: &shooting,
         par: &par,
     };
-    let descent = levenberg_marquardt(&problem, start, settings.iterations)?;
+    let descent = levenberg_marquardt(&problem, start, settings.refine_iterations)?;
     if let Some(z) = &descent.v {
         for (mode, theta) in modes.iter_mut().zip(par.thetas(z)) {
             mode.theta = theta;
@@ -316,7 +142,7 @@ fn fit_parameters(
         segment: shooting.segment,
         segments: shooting.segments(),
         iterations: descent.iterations,
-        max_iterations: settings.iterations,
+        max_iterations: settings.refine_iterations,
         cost_before: finite.then_some(descent.cost_before),
         cost_after: finite.then_some(descent.cost_after),
         status: descent.status,
@@ -857,12 +683,12 @@ mod tests {
         PwarxFit::complete(PwarxMode::unnamed(thetas, regions()), ())
     }
 
-    fn sim_settings(segment: usize, iterations: usize) -> RefineSettings {
-        RefineSettings {
+    fn sim_settings(segment: usize, iterations: usize) -> Stages {
+        Stages {
             trim: None,
-            method: RefineMethod::Sim,
-            segment,
-            iterations,
+            refine: Refine::Sim,
+            refine_segment: segment,
+            refine_iterations: iterations,
         }
     }
 
@@ -914,12 +740,7 @@ mod tests {
         let priors = Priors::default();
         let problem = problem(&data, &priors);
         let prepared = pwarx::prepare(&problem, "test").unwrap();
-        let fit = refine(
-            &prepared,
-            start_fit(perturbed()),
-            &RefineSettings::default(),
-        )
-        .unwrap();
+        let fit = refine(&prepared, start_fit(perturbed()), &Stages::default()).unwrap();
         assert!(fit.refinement.is_none());
         assert_eq!(fit.modes[0].theta, perturbed()[0]);
     }
@@ -1089,8 +910,8 @@ mod tests {
                 Ok(t) => t,
                 Err(_) => return Ok(()), // bounds and equality without a common point
             };
-            let settings = RefineSettings {
-                method: if move_regions { RefineMethod::SimRegions } else { RefineMethod::Sim },
+            let settings = Stages {
+                refine: if move_regions { Refine::SimRegions } else { Refine::Sim },
                 ..sim_settings(40, 15)
             };
             let fit = refine(&prepared, start_fit(start), &settings).unwrap();

@@ -48,9 +48,10 @@
 //! at `beta = 1` a typical sample is then weighted about 0.73 to its own
 //! mode, at `beta = 10` nearly 1.
 
-use super::{Evaluation, RefineSettings, Residuals, Shooting, fit_parameters, levenberg_marquardt};
+use super::{Evaluation, Residuals, Shooting, fit_parameters, levenberg_marquardt};
 use crate::pwarx::{PwarxData, PwarxFit};
 use hysid_core::backend::IdentifyError;
+use hysid_core::stages::Stages;
 use hysid_model::geometry::{argmax_regions, argmax_scores};
 use hysid_model::model::{PwarxMode, RegionRefinement, RegionRefinementStatus};
 use hysid_model::simulate::pwarx as pwarx_sim;
@@ -68,7 +69,7 @@ pub const SHARPNESS: [f64; 3] = [1.0, 10.0, 100.0];
 pub(super) fn move_regions<D>(
     data: &PwarxData<'_>,
     fit: &mut PwarxFit<D>,
-    settings: &RefineSettings,
+    settings: &Stages,
 ) -> Result<RegionRefinement, IdentifyError> {
     let d = data.spec.dim();
     if fit.modes.len() < 2 {
@@ -81,7 +82,7 @@ pub(super) fn move_regions<D>(
     let Some(scores) = argmax_scores(&regions, d) else {
         return Ok(RegionRefinement::skipped(RegionRefinementStatus::NotArgmax));
     };
-    let shooting = Shooting::new(data, &fit.modes, settings.segment)?;
+    let shooting = Shooting::new(data, &fit.modes, settings.refine_segment)?;
     let before = shooting.hard_cost(&fit.modes)?;
     if !before.is_finite() {
         return Ok(RegionRefinement::skipped(RegionRefinementStatus::Diverged));
@@ -139,14 +140,14 @@ struct Hardened {
 fn sharpen(
     gate: &mut RelaxedGate<'_, '_>,
     modes: &[PwarxMode],
-    settings: &RefineSettings,
+    settings: &Stages,
 ) -> Result<(Option<Hardened>, usize), IdentifyError> {
     let mut v = gate.unknowns_of(&gate.base);
     let mut best: Option<Hardened> = None;
     let mut iterations = 0;
     for sharpness in SHARPNESS {
         gate.sharpness = sharpness;
-        let descent = levenberg_marquardt(gate, v.clone(), settings.iterations)?;
+        let descent = levenberg_marquardt(gate, v.clone(), settings.refine_iterations)?;
         iterations += descent.iterations;
         if let Some(next) = descent.v {
             v = next;
@@ -494,9 +495,10 @@ impl Residuals for RelaxedGate<'_, '_> {
 mod tests {
     use super::*;
     use crate::pwarx;
-    use crate::refine::tests::{problem, simulated_record};
-    use crate::refine::{RefineMethod, refine};
+    use crate::pwarx::refine::refine;
+    use crate::pwarx::refine::tests::{problem, simulated_record};
     use hysid_core::priors::Priors;
+    use hysid_core::stages::Refine;
     use hysid_model::data::Dataset;
     use hysid_model::geometry::Polyhedron;
     use hysid_model::model::{ModelInfo, PwarxModel};
@@ -528,12 +530,12 @@ mod tests {
         simulated_record(&truth, &[], n, 17)
     }
 
-    fn settings(method: RefineMethod) -> RefineSettings {
-        RefineSettings {
+    fn settings(refine: Refine) -> Stages {
+        Stages {
             trim: None,
-            method,
-            segment: 100,
-            iterations: 60,
+            refine,
+            refine_segment: 100,
+            refine_iterations: 60,
         }
     }
 
@@ -547,8 +549,8 @@ mod tests {
         let priors = Priors::default();
         let prepared = pwarx::prepare(&problem(&data, &priors), "test").unwrap();
         let start = || PwarxFit::complete(modes(0.4), ());
-        let fixed = refine(&prepared, start(), &settings(RefineMethod::Sim)).unwrap();
-        let moved = refine(&prepared, start(), &settings(RefineMethod::SimRegions)).unwrap();
+        let fixed = refine(&prepared, start(), &settings(Refine::Sim)).unwrap();
+        let moved = refine(&prepared, start(), &settings(Refine::SimRegions)).unwrap();
         let r = moved.refinement.clone().unwrap();
         let g = r.regions.clone().unwrap();
         assert_eq!(g.status, RegionRefinementStatus::Moved, "{g:?}");

@@ -1,0 +1,297 @@
+//! Step 1 of the pipeline: the set-up every PWARX back-end shares.
+//! [`prepare`] checks the prior names against the regressors once, builds
+//! the regressors of the record, splits off the samples whose target sits
+//! at a known stop (Juloski, Heemels, Ferrari-Trecate 2003, section 5: the
+//! saturation modes live on lower-dimensional guard sets and are not
+//! identified), and resolves the switching regressors and the mode count.
+
+use hysid_core::backend::{IdentifyError, Problem};
+use hysid_core::priors::Priors;
+use hysid_model::regressors::{RegressorSpec, Regressors};
+
+/// How many ordinary (non-saturation) modes the priors ask for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeCount {
+    /// Exactly this many (`modes` minus the stops).
+    Exact(usize),
+    /// At most this many (`max_modes` minus the stops).
+    AtMost(usize),
+    /// The method decides.
+    Free,
+}
+
+impl ModeCount {
+    /// The exact count, if one is asked for.
+    pub fn exact(self) -> Option<usize> {
+        match self {
+            ModeCount::Exact(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The largest count allowed, if bounded.
+    pub fn at_most(self) -> Option<usize> {
+        match self {
+            ModeCount::Exact(s) | ModeCount::AtMost(s) => Some(s),
+            ModeCount::Free => None,
+        }
+    }
+}
+
+/// The identification data of a PWARX back-end after the common set-up,
+/// in data units.
+#[derive(Debug, Clone)]
+pub struct PwarxData<'a> {
+    /// The problem as given.
+    pub problem: Problem<'a>,
+    /// Orders and inputs.
+    pub spec: RegressorSpec,
+    /// Every regression row of the record.
+    pub regressors: Regressors,
+    /// For every regression row, the known stop its target sits at.
+    pub stop_of: Vec<Option<usize>>,
+    /// The rows whose target sits at no stop: the samples the method
+    /// identifies its modes from.
+    pub ordinary: Vec<usize>,
+    /// Ordinary modes asked for.
+    pub modes: ModeCount,
+    /// Regressor columns the region boundaries may use (`switching`,
+    /// sorted, without repeats); `None`: all of them.
+    pub switching: Option<Vec<usize>>,
+}
+
+impl PwarxData<'_> {
+    /// The exact number of ordinary modes, for a back-end that cannot
+    /// choose it (`method` names it in the error).
+    pub fn exact_modes(&self, method: &'static str) -> Result<usize, IdentifyError> {
+        self.modes.exact().ok_or(IdentifyError::NeedsModeCount {
+            method,
+            bounded: false,
+        })
+    }
+
+    /// The priors.
+    pub fn priors(&self) -> &Priors {
+        self.problem.priors
+    }
+
+    /// Number of known stops.
+    pub fn stops(&self) -> usize {
+        self.problem.priors.saturation.len()
+    }
+
+    /// The regressors and targets of the ordinary rows.
+    pub fn ordinary_regressors(&self) -> Regressors {
+        self.regressors.select(&self.ordinary)
+    }
+
+    /// Rows at each known stop, in prior order.
+    pub fn saturated_per_stop(&self) -> Vec<usize> {
+        let mut n = vec![0; self.stops()];
+        for k in self.stop_of.iter().flatten() {
+            n[*k] += 1;
+        }
+        n
+    }
+
+    /// Whether the priors constrain the mode parameters (`[[tie]]`,
+    /// `[fixed]`, `[bounds]` or `[[equality]]`).
+    pub fn constrains_parameters(&self) -> bool {
+        let p = self.priors();
+        !(p.tie.is_empty() && p.fixed.is_empty() && p.bounds.is_empty() && p.equality.is_empty())
+    }
+
+    /// A prior that does not fit this problem, named with the file the
+    /// priors came from ([`IdentifyError::PriorMismatch`]).
+    pub fn prior_error(
+        &self,
+        problem: impl std::error::Error + Send + Sync + 'static,
+    ) -> IdentifyError {
+        IdentifyError::prior_mismatch(self.problem.priors_origin, problem)
+    }
+}
+
+/// A prior entry naming a parameter or regressor the PWARX structure does
+/// not have.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{entry}: unknown name '{name}' (known: {})", known.join(", "))]
+pub struct UnknownName {
+    /// The entry (`[[tie]] params`, `[fixed]`, `switching`, ...).
+    pub entry: String,
+    /// The name.
+    pub name: String,
+    /// The names of that kind the structure has.
+    pub known: Vec<String>,
+}
+
+/// Checks the parameter names of `[[tie]]`, `[[equality]]`, `[fixed]` and
+/// `[bounds]`, and the regressor names of `switching`, against `spec`.
+pub fn check_names(priors: &Priors, spec: &RegressorSpec) -> Result<(), UnknownName> {
+    let params = spec.param_names();
+    let regs = spec.regressor_names();
+    let known = |n: &str, list: &[String], entry: &str| {
+        if list.iter().any(|p| p == n) {
+            Ok(())
+        } else {
+            Err(UnknownName {
+                entry: entry.to_string(),
+                name: n.to_string(),
+                known: list.to_vec(),
+            })
+        }
+    };
+    for t in &priors.tie {
+        for p in &t.params {
+            known(p, &params, "[[tie]] params")?;
+        }
+    }
+    for (i, e) in priors.equality.iter().enumerate() {
+        for p in e.coefficients.keys() {
+            known(p, &params, &format!("[[equality]] #{} coefficients", i + 1))?;
+        }
+    }
+    for p in priors.fixed.keys() {
+        known(p, &params, "[fixed]")?;
+    }
+    for p in priors.bounds.keys() {
+        known(p, &params, "[bounds]")?;
+    }
+    for r in &priors.switching {
+        known(r, &regs, "switching")?;
+    }
+    Ok(())
+}
+
+/// The known stop the output value `y` sits at ([`Stop::holds`]), if any.
+///
+/// [`Stop::holds`]: hysid_model::model::Stop::holds
+pub fn stop_at(priors: &Priors, y: f64) -> Option<usize> {
+    priors.saturation.iter().position(|s| s.holds(y))
+}
+
+/// For every regression target `y(k)`, the stop it sits at: the samples a
+/// back-end assigns to the saturation modes before clustering or
+/// bounded-error extraction (Juloski et al. 2003, section 5).
+pub fn saturated_samples(priors: &Priors, targets: &[f64]) -> Vec<Option<usize>> {
+    targets.iter().map(|&y| stop_at(priors, y)).collect()
+}
+
+/// The common set-up of `method` on `problem` (see the module doc).
+pub fn prepare<'a>(problem: &Problem<'a>, method: &str) -> Result<PwarxData<'a>, IdentifyError> {
+    let spec = problem.orders;
+    let priors = problem.priors;
+    check_names(priors, &spec)
+        .map_err(|e| IdentifyError::prior_mismatch(problem.priors_origin, e))?;
+    let regressors = spec.build(problem.data)?;
+    if let Some(&value) = regressors
+        .x
+        .iter()
+        .chain(regressors.y.iter())
+        .find(|v| !v.is_finite())
+    {
+        return Err(IdentifyError::NonFinite { value });
+    }
+    let stop_of = saturated_samples(priors, regressors.y.as_slice());
+    let ordinary: Vec<usize> = (0..regressors.len())
+        .filter(|&k| stop_of[k].is_none())
+        .collect();
+    if ordinary.is_empty() && !stop_of.is_empty() {
+        return Err(IdentifyError::AllAtStops {
+            samples: stop_of.len(),
+        });
+    }
+    Ok(PwarxData {
+        problem: *problem,
+        spec,
+        modes: mode_count(priors, method)?,
+        switching: switching_columns(priors, &spec),
+        regressors,
+        stop_of,
+        ordinary,
+    })
+}
+
+/// `modes` and `max_modes` count every mode, the stops included; the
+/// ordinary modes are what is left, at least one.
+fn mode_count(priors: &Priors, method: &str) -> Result<ModeCount, IdentifyError> {
+    let stops = priors.saturation.len();
+    let too_few = |key: &'static str, count: usize| IdentifyError::NoOrdinaryMode {
+        key,
+        count,
+        method: method.to_string(),
+        stops,
+    };
+    Ok(match (priors.modes, priors.max_modes) {
+        (Some(s), _) if s <= stops => return Err(too_few("modes", s)),
+        (_, Some(m)) if m <= stops => return Err(too_few("max_modes", m)),
+        (Some(modes), Some(max)) if modes > max => {
+            return Err(IdentifyError::ModesExceedMax { modes, max });
+        }
+        (Some(s), _) => ModeCount::Exact(s - stops),
+        (None, Some(m)) => ModeCount::AtMost(m - stops),
+        (None, None) => ModeCount::Free,
+    })
+}
+
+/// The regressor columns named by `switching`, sorted, without repeats.
+fn switching_columns(priors: &Priors, spec: &RegressorSpec) -> Option<Vec<usize>> {
+    if priors.switching.is_empty() {
+        return None;
+    }
+    let names = spec.regressor_names();
+    let mut cols: Vec<usize> = priors
+        .switching
+        .iter()
+        .filter_map(|r| names.iter().position(|n| n == r))
+        .collect();
+    cols.sort_unstable();
+    cols.dedup();
+    Some(cols)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_checked_against_the_structure() {
+        let p = Priors::from_toml(
+            "switching = [\"y1\"]\n[[tie]]\nparams = [\"a1\", \"a2\"]\n[[equality]]\ncoefficients = { a1 = 1.0, a2 = 1.0 }\n[fixed]\nc = 0.0\n",
+            "p.toml",
+        )
+        .unwrap();
+        check_names(&p, &RegressorSpec::new(2, 2, 1)).unwrap();
+        let e = check_names(&p, &RegressorSpec::new(1, 1, 1)).unwrap_err();
+        assert_eq!(e.name, "a2");
+        assert_eq!(
+            e.to_string(),
+            "[[tie]] params: unknown name 'a2' (known: a1, b1, c)"
+        );
+        let mut p = p;
+        p.tie.clear();
+        let e = check_names(&p, &RegressorSpec::new(1, 2, 1)).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("[[equality]] #1 coefficients: unknown name 'a2'"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn saturated_samples_by_level_side_and_tolerance() {
+        let sat = Priors::from_toml(
+            "[[saturation]]\nlevel = 25.0\nbound = \"max\"\ntol = 0.005\n[[saturation]]\nlevel = 0.0\nbound = \"min\"\n",
+            "p",
+        )
+        .unwrap();
+        assert_eq!(stop_at(&sat, 24.996), Some(0));
+        assert_eq!(stop_at(&sat, 25.3), Some(0), "beyond the stop counts");
+        assert_eq!(stop_at(&sat, 24.9), None);
+        assert_eq!(stop_at(&sat, -0.1), Some(1));
+        assert_eq!(stop_at(&sat, 1e-5), None, "default tolerance is 1e-6");
+        assert_eq!(
+            saturated_samples(&sat, &[3.0, 25.0, 0.0]),
+            vec![None, Some(0), Some(1)]
+        );
+    }
+}
