@@ -16,13 +16,12 @@
 //!   variables, for the joint Chebyshev LP ([`crate::refit::chebyshev_joint`])
 //!   and the joint least squares (`hysid_estimation::constrained::fit_modes`).
 
-use crate::refit::{self, ChebyshevFit};
+use crate::refit::{self, ChebyshevFit, least_squares_joint};
 use crate::samples::Samples;
 use hysid_core::priors::Priors;
-use hysid_estimation::constrained::{ModeSamples, Parametrisation, PriorConflict, Slot, fit_modes};
+use hysid_estimation::constrained::{Parametrisation, PriorConflict, Slot};
 use hysid_estimation::pwarx::PwarxData;
 use hysid_model::regressors::RegressorSpec;
-use nalgebra::DMatrix;
 
 /// The parameter priors of a run that restrict the modes' parameters:
 /// `[[tie]]`, `[fixed]`, `[bounds]` and `[[equality]]` of the priors, for
@@ -282,33 +281,4 @@ impl ModeSpace {
             max_residual: f.max_residual,
         })
     }
-}
-
-/// Joint least squares of the modes with samples `groups` under `par`
-/// (`hysid_estimation::constrained::fit_modes`).
-pub fn least_squares_joint(
-    s: &Samples,
-    par: &Parametrisation,
-    groups: &[Vec<usize>],
-) -> Option<Vec<Vec<f64>>> {
-    let d = s.p - 1;
-    let data: Vec<(DMatrix<f64>, Vec<f64>)> = groups
-        .iter()
-        .map(|g| {
-            (
-                DMatrix::from_fn(g.len(), d, |r, j| s.row(g[r])[j]),
-                g.iter().map(|&k| s.y[k]).collect(),
-            )
-        })
-        .collect();
-    let ms: Vec<ModeSamples<'_>> = data
-        .iter()
-        .map(|(phi, y)| ModeSamples {
-            phi,
-            y,
-            weights: None,
-        })
-        .collect();
-    let t = fit_modes(par, &ms).ok()?;
-    t.iter().flatten().all(|v| v.is_finite()).then_some(t)
 }

@@ -9,9 +9,10 @@
 //! region estimation of `hysid_estimation::regions`.
 
 use crate::constraints::ModeConstraints;
+use crate::noise;
+use crate::options::{BoundedOptions, Delta, Refit};
 use crate::procedure::{self, Classification, ProcedureError, ProcedureSettings, RefitKind};
 use crate::samples::Samples;
-use crate::{BoundedError, BoundedOptions, Delta, Refit, noise};
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
@@ -395,5 +396,27 @@ fn diagnostics(
         tie_projection_within_delta: c.tie_projection_error.map(|e| e <= delta),
         stopped_by_deadline: c.stopped_by_deadline,
         alternation,
+    }
+}
+
+/// Bad input of the `bounded` back-end (an [`IdentifyError::Input`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoundedError {
+    /// A `modes` prior above the option `max_modes`.
+    #[error("prior modes = {modes} exceeds the bound max_modes = {max}")]
+    ModesExceedBound {
+        /// `modes`, stops included.
+        modes: usize,
+        /// `max_modes`, stops included.
+        max: usize,
+    },
+    /// The record or a setting does not allow the procedure.
+    #[error(transparent)]
+    Procedure(procedure::ProcedureError),
+}
+
+impl From<BoundedError> for IdentifyError {
+    fn from(e: BoundedError) -> Self {
+        IdentifyError::input(e)
     }
 }

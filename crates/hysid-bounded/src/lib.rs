@@ -32,142 +32,24 @@ pub mod constraints;
 pub mod fit;
 pub mod maxfs;
 pub mod noise;
+pub mod options;
 pub mod procedure;
 pub mod refit;
 pub mod samples;
 pub mod split;
 
-pub use fit::{BoundedDiagnostics, Classified, fit};
+pub use fit::{BoundedDiagnostics, BoundedError, Classified, fit};
+pub use options::{AutoKeyword, BoundedOptions, Delta, NAME, Refit};
 
 use hysid_core::backend::{IdentifyError, Problem, RunContext};
-use hysid_core::options::OptionType;
-use hysid_core::options::{CheckOptions, Checked, OptionError, check_float};
+use hysid_core::options::Checked;
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::pwarx;
 use hysid_estimation::pwarx::{ModeRule, PwarxData, PwarxFit, PwarxMethod};
-use hysid_estimation::regions::RegionMethod;
 use procedure::{Classification, ProcedureSettings};
 use samples::Samples;
-use serde::{Deserialize, Serialize};
-
-/// The keyword `auto` of `--set delta=auto`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum AutoKeyword {
-    /// `auto`.
-    #[serde(rename = "auto")]
-    Auto,
-}
-
-/// The error bound: a number (output units) or `auto`
-/// ([`noise::auto_delta`]). Parses from `--set delta=0.1` and
-/// `--set delta=auto`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum Delta {
-    /// A bound in output units.
-    Value(f64),
-    /// Estimated from the data.
-    Auto(AutoKeyword),
-}
-
-impl OptionType for Delta {
-    fn type_name() -> String {
-        "float|auto".into()
-    }
-}
-
-hysid_core::option_enum! {
-    /// How each mode is re-estimated on its assigned samples.
-    pub enum Refit {
-        /// Chebyshev (l-infinity) LP: certifies |residual| <= delta on every assigned sample.
-        Linf => "linf",
-        /// Least squares (not certified).
-        Ls => "ls",
-    }
-}
-
-hysid_core::backend_options! {
-    /// Options of the `bounded` back-end.
-    pub struct BoundedOptions {
-        /// Bound delta on the identification error |y - phi' theta|, in output
-        /// units; required. `auto`: 3 times the median noise standard deviation
-        /// of local affine fits (docs/bounded.md). Larger delta, fewer modes.
-        delta: Option<Delta> = None,
-        /// Thermal relaxation cycles per MAX FS problem (each visits all remaining
-        /// samples once in a random order).
-        cycles: usize = 100,
-        /// Initial temperature T0 as a multiple of max(median |residual of the start|,
-        /// delta), per relaxed start; the temperature falls linearly to 0 over the cycles.
-        t0: f64 = 2.0,
-        /// Candidate starts of each MAX FS problem besides the least-squares fit of the
-        /// remaining samples: least-squares fits of random local neighbourhoods (3p nearest
-        /// samples in standardised regressor space); the best candidate is relaxed too.
-        restarts: usize = 8,
-        /// Merge two modes when |theta_i - theta_j| / min(|theta_i|, |theta_j|) <= alpha.
-        alpha: f64 = 0.05,
-        /// Drop modes with fewer than max(beta N, number of parameters) assigned samples.
-        beta: f64 = 0.02,
-        /// Re-estimation of each mode: linf (Chebyshev LP, certified) or ls.
-        refit: Refit = Refit::Linf,
-        /// Upper bound on the number of modes, saturation modes included (also taken
-        /// from the prior max_modes); none: no bound.
-        max_modes: Option<usize> = None,
-        /// Region estimation from the classified samples (docs/regions.md): mrlp
-        /// (multicategory robust LP, complete partition), msvm (multicategory SVM,
-        /// complete partition), psvc (pairwise proximal SVM, may leave holes) or
-        /// softmax (multinomial logistic regression, complete partition).
-        regions: RegionMethod = RegionMethod::Mrlp,
-        /// Bound on the rounds of the alternation between the modes' least squares, a
-        /// softmax gate and the mode of every sample that follows the classification
-        /// (docs/bounded.md, "Alternation"); 0: none, the published procedure.
-        alternation: usize = 0,
-    }
-}
-
-impl CheckOptions for BoundedOptions {
-    fn check(&self) -> Result<(), OptionError> {
-        match self.delta {
-            None => {
-                return Err(OptionError::Missing {
-                    key: "delta",
-                    method: Bounded::NAME,
-                    what: "an error bound",
-                    forms: &["<bound in output units>", "auto"],
-                });
-            }
-            Some(Delta::Value(d)) => check_float(
-                "delta",
-                d,
-                |d| d > 0.0,
-                "must be a finite number > 0 (or auto)",
-            )?,
-            Some(Delta::Auto(_)) => {}
-        }
-        if !(1..=100_000).contains(&self.cycles) {
-            return Err(OptionError::invalid(
-                "cycles",
-                self.cycles,
-                "must be in 1..=100000",
-            ));
-        }
-        check_float("t0", self.t0, |t| t > 0.0, "must be a finite number > 0")?;
-        check_float(
-            "alpha",
-            self.alpha,
-            |a| a >= 0.0,
-            "must be a finite number >= 0",
-        )?;
-        check_float(
-            "beta",
-            self.beta,
-            |b| (0.0..1.0).contains(&b),
-            "must be in [0, 1)",
-        )?;
-        Ok(())
-    }
-}
 
 /// The `bounded` back-end.
 #[derive(Debug, Clone, Copy, Default)]
@@ -214,7 +96,7 @@ impl PwarxMethod for Bounded {
     type Options = BoundedOptions;
     type Diagnostics = BoundedDiagnostics;
     const MODE_RULE: ModeRule = ModeRule::Method;
-    const NAME: &'static str = "bounded";
+    const NAME: &'static str = NAME;
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const OUTPUT_UNITS: &'static [&'static str] =
@@ -247,28 +129,6 @@ impl PwarxMethod for Bounded {
     }
 }
 
-/// Bad input of the `bounded` back-end (an [`IdentifyError::Input`]).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum BoundedError {
-    /// A `modes` prior above the option `max_modes`.
-    #[error("prior modes = {modes} exceeds the bound max_modes = {max}")]
-    ModesExceedBound {
-        /// `modes`, stops included.
-        modes: usize,
-        /// `max_modes`, stops included.
-        max: usize,
-    },
-    /// The record or a setting does not allow the procedure.
-    #[error(transparent)]
-    Procedure(procedure::ProcedureError),
-}
-
-impl From<BoundedError> for IdentifyError {
-    fn from(e: BoundedError) -> Self {
-        IdentifyError::input(e)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -278,6 +138,7 @@ mod tests {
     use hysid_core::priors::Priors;
     use hysid_core::simulate::validate;
     use hysid_estimation::pwarx::Pwarx;
+    use hysid_estimation::regions::RegionMethod;
     use hysid_model::data::Dataset;
     use hysid_model::model::{PwarxModel, RunStatus};
     use hysid_model::regressors::RegressorSpec;

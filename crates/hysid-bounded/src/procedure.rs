@@ -27,9 +27,10 @@
 //! within delta, so every later step keeps the bound), and merges fix the
 //! tied parameters at their shared values (ours, `docs/bounded.md`).
 
-use crate::constraints::{ModeConstraints, ModeSpace, least_squares_joint};
+use crate::constraints::{ModeConstraints, ModeSpace};
 use crate::maxfs::{MaxFsSettings, max_fs};
 use crate::refit::chebyshev_joint;
+use crate::refit::least_squares_joint;
 use crate::samples::Samples;
 use crate::split;
 use hysid_core::backend::Deadline;

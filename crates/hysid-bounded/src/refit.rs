@@ -14,7 +14,7 @@
 
 use crate::samples::Samples;
 use hysid_estimation::conic::{self, Cone, Program, Settings, Triplets};
-use hysid_estimation::constrained::{Parametrisation, Slot};
+use hysid_estimation::constrained::{ModeSamples, Parametrisation, Slot, fit_modes};
 use hysid_estimation::linalg;
 use nalgebra::{DMatrix, DVector};
 
@@ -225,8 +225,8 @@ pub fn chebyshev_joint(
     if n <= 2 * m {
         return chebyshev_joint_lp(s, par, bounds, &pairs);
     }
-    let start = crate::constraints::least_squares_joint(s, par, groups)
-        .unwrap_or_else(|| vec![vec![0.0; s.p]; groups.len()]);
+    let start =
+        least_squares_joint(s, par, groups).unwrap_or_else(|| vec![vec![0.0; s.p]; groups.len()]);
     let mut by_r: Vec<(f64, usize)> = pairs
         .iter()
         .enumerate()
@@ -383,6 +383,35 @@ fn chebyshev_joint_lp(
         thetas,
         max_residual,
     })
+}
+
+/// Joint least squares of the modes with samples `groups` under `par`
+/// (`hysid_estimation::constrained::fit_modes`).
+pub fn least_squares_joint(
+    s: &Samples,
+    par: &Parametrisation,
+    groups: &[Vec<usize>],
+) -> Option<Vec<Vec<f64>>> {
+    let d = s.p - 1;
+    let data: Vec<(DMatrix<f64>, Vec<f64>)> = groups
+        .iter()
+        .map(|g| {
+            (
+                DMatrix::from_fn(g.len(), d, |r, j| s.row(g[r])[j]),
+                g.iter().map(|&k| s.y[k]).collect(),
+            )
+        })
+        .collect();
+    let ms: Vec<ModeSamples<'_>> = data
+        .iter()
+        .map(|(phi, y)| ModeSamples {
+            phi,
+            y,
+            weights: None,
+        })
+        .collect();
+    let t = fit_modes(par, &ms).ok()?;
+    t.iter().flatten().all(|v| v.is_finite()).then_some(t)
 }
 
 /// Least-squares fit on samples `idx` (minimum-norm when rank deficient).

@@ -8,6 +8,9 @@ use hysid_core::priors::PriorError;
 use hysid_model::data::DataError;
 use hysid_model::simulate::SimError;
 
+/// What a command returns.
+pub type Result<T> = std::result::Result<T, CliError>;
+
 /// A failed command.
 #[derive(Debug)]
 pub struct CliError {
@@ -130,6 +133,36 @@ impl From<hysid::select::SelectError> for CliError {
                 Self::input(format!("--grid {}={}: not a count", c.key, c.value))
             }
             e @ SelectError::NoCandidate { .. } => Self::failure(format!("--auto: {e}")),
+        }
+    }
+}
+
+impl From<hysid::identify::Error> for CliError {
+    fn from(e: hysid::identify::Error) -> Self {
+        use hysid::identify::{Error, Field};
+        match e {
+            Error::Field { field, value, what } => {
+                let flag = match field {
+                    Field::Modes => "--modes",
+                    Field::MaxModes => "--max-modes",
+                    Field::TimeBudget => "--time-budget",
+                    Field::RefitStarts => "--refit-starts",
+                };
+                Self::input(format!("{flag} {value}: {what}"))
+            }
+            Error::Modes {
+                modes,
+                max_modes,
+                problem,
+            } => {
+                let given: Vec<String> = [("--modes", modes), ("--max-modes", max_modes)]
+                    .iter()
+                    .filter_map(|(flag, v)| v.map(|s| format!("{flag} {s}")))
+                    .collect();
+                Self::input(format!("{}: {problem}", given.join(" ")))
+            }
+            Error::Identify(e) => e.into(),
+            Error::Select(e) => e.into(),
         }
     }
 }

@@ -12,7 +12,7 @@ mod progress;
 mod selection;
 
 use clap::{Parser, Subcommand};
-use error::CliError;
+use error::{CliError, Result};
 
 /// Identify hybrid systems (piecewise ARX models, hybrid automata) from data.
 #[derive(Parser, Debug)]
@@ -147,6 +147,3 @@ fn quiet_guarded_panics() {
 /// The location of the last unguarded panic on any thread (a rayon worker's
 /// panic is re-raised on the calling thread with the worker's payload).
 static LAST_PANIC_LOCATION: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
-
-/// Keeps `CliError` in use from every module.
-pub(crate) type Result<T> = std::result::Result<T, CliError>;

@@ -7,6 +7,16 @@ use hysid_model::data::{DataSelection, RowRange, SignalNameError};
 /// Which signals and samples of a data file to use.
 #[derive(clap::Args, Debug, Clone)]
 pub struct DataArgs {
+    #[command(flatten)]
+    pub signals: SignalArgs,
+    /// Rows A..B (A inclusive, B exclusive) after decimation; either bound may be left out.
+    #[arg(long)]
+    pub rows: Option<RowRange>,
+}
+
+/// Which signals of a data file to use, and how they are sampled.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SignalArgs {
     /// Input column/variable name(s), comma separated (MISO: several).
     #[arg(long, value_delimiter = ',', default_value = "u")]
     pub input: Vec<String>,
@@ -16,16 +26,9 @@ pub struct DataArgs {
     /// Keep every K-th sample (0, K, 2K, ...; no filter).
     #[arg(long, default_value_t = 1, value_parser = parse_at_least_one)]
     pub decimate: usize,
-    /// Rows A..B (A inclusive, B exclusive) after decimation; either bound may be left out.
-    #[arg(long, value_parser = parse_rows)]
-    pub rows: Option<RowRange>,
     /// Sampling time in seconds when the file has no `t` signal.
     #[arg(long, value_parser = parse_ts)]
     pub ts: Option<f64>,
-}
-
-fn parse_rows(s: &str) -> Result<RowRange, String> {
-    s.parse()
 }
 
 /// A whole number of at least 1 (`--decimate`, `--refit-starts`).
@@ -50,15 +53,22 @@ fn parse_ts(s: &str) -> Result<f64, String> {
 }
 
 impl DataArgs {
-    /// The selection for `hysid_io::load`. A signal named twice
+    /// The selection for `hysid_io::load` ([`SignalArgs::selection`]).
+    pub fn selection(&self) -> Result<DataSelection, CliError> {
+        self.signals.selection(self.rows.unwrap_or_default())
+    }
+}
+
+impl SignalArgs {
+    /// The selection of `rows` for `hysid_io::load`. A signal named twice
     /// (twice among the inputs, or as an input and the output) is refused:
     /// the regressors would be collinear copies of each other.
-    pub fn selection(&self) -> Result<DataSelection, CliError> {
+    pub fn selection(&self, rows: RowRange) -> Result<DataSelection, CliError> {
         let selection = DataSelection {
             inputs: self.input.clone(),
             output: self.output.clone(),
             decimate: self.decimate,
-            rows: self.rows.unwrap_or_default(),
+            rows,
             ts: self.ts,
         };
         selection.check_names().map_err(|e| {

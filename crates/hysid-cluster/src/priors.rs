@@ -15,7 +15,6 @@
 //! procedure compares. Residuals in working units are those in original
 //! units divided by `s_y`, so without constraints the minimiser is the same.
 
-use crate::procedure::Thetas;
 use hysid_core::priors::Priors;
 use hysid_estimation::constrained::{
     self, EstimationError, ModeSamples, Parametrisation, PriorConflict,
@@ -38,6 +37,16 @@ pub struct ConstrainedFit {
     std: Vec<f64>,
     my: f64,
     sy: f64,
+}
+
+/// Parameters of the modes in working units and, under gray-box priors, in
+/// original units (where the priors hold exactly).
+#[derive(Debug, Clone)]
+pub struct Thetas {
+    /// Working units (used for residuals).
+    pub working: Vec<Vec<f64>>,
+    /// Original units, when fitted under priors.
+    pub original: Option<Vec<Vec<f64>>>,
 }
 
 /// Why [`ConstrainedFit::fit`] gave no parameters.

@@ -22,7 +22,7 @@
 
 use crate::kmeans::{self, Clusters, KmeansInit};
 use crate::local::{self, Degeneracy, FeatureVectors};
-use crate::priors::ConstrainedFit;
+use crate::priors::{ConstrainedFit, Thetas};
 use crate::{Clustering, Features, Weights};
 use hysid_core::backend::Deadline;
 use hysid_estimation::linalg;
@@ -178,16 +178,6 @@ pub fn fit_modes(
         out.push(sol.theta.iter().copied().collect());
     }
     Ok(out)
-}
-
-/// Parameters of the modes in working units and, under gray-box priors, in
-/// original units (where the priors hold exactly).
-#[derive(Debug, Clone)]
-pub struct Thetas {
-    /// Working units (used for residuals).
-    pub working: Vec<Vec<f64>>,
-    /// Original units, when fitted under priors.
-    pub original: Option<Vec<Vec<f64>>>,
 }
 
 /// Step 4 with or without gray-box priors: [`fit_modes`] without

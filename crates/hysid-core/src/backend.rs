@@ -374,6 +374,10 @@ pub trait Identifier: Send + Sync {
     /// identification rows best; a back-end whose fit is a function of the
     /// data alone says `false`, and is refitted once.
     const SEEDED: bool = true;
+    /// Whether the back-end runs the stages after a PWARX fit
+    /// ([`crate::stages::Stages`]): its options include theirs, and
+    /// automatic selection may set them.
+    const STAGES: bool = false;
 
     /// The candidate settings that automatic selection (`--auto`) tries on
     /// `problem`; the default is the back-end's defaults only.
@@ -422,6 +426,9 @@ pub trait Backend: Send + Sync {
     fn output_units(&self) -> &'static [&'static str];
     /// Whether the seed can change the model ([`Identifier::SEEDED`]).
     fn seeded(&self) -> bool;
+    /// Whether the back-end runs the stages after a PWARX fit
+    /// ([`Identifier::STAGES`]).
+    fn has_stages(&self) -> bool;
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
     /// Resolves options, checks priors, identifies, records provenance.
@@ -467,6 +474,9 @@ impl<T: Identifier> Backend for T {
     }
     fn seeded(&self) -> bool {
         T::SEEDED
+    }
+    fn has_stages(&self) -> bool {
+        T::STAGES
     }
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)

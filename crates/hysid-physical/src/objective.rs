@@ -66,7 +66,7 @@ pub fn simulation_mse(model: &dyn Simulator, values: &[f64], data: &Dataset) -> 
 pub struct VelocityTolerances {
     /// Output noise standard deviation, estimated.
     pub noise: f64,
-    /// For [`segment_velocity`] (a 3-point slope).
+    /// For [`crate::target::segment_velocity`] (a 3-point slope).
     pub centred: f64,
     /// For the initial-state estimator of the simulator (backward quadratic).
     pub backward: f64,
@@ -109,47 +109,9 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
     }
 }
 
-/// Velocity at sample `k` for re-initialising a segment (offline, so it
-/// may look ahead): the slopes `b` over `k-2..=k` and `f` over `k..=k+2`
-/// (clipped to the record) are compared. Both within `tol`, or of opposite
-/// signs: at rest (0). Within a factor 2 of each other: smooth motion,
-/// their mean (the centred slope). Otherwise an event lies in the window
-/// (break-away, impact on a stop) and the smaller one is the velocity at
-/// `k` (0 at a break-away, the stop's 0 after an impact).
-pub fn segment_velocity(y: &[f64], k: usize, ts: f64, tol: f64) -> f64 {
-    let n = y.len();
-    let slope = |a: usize, b: usize| {
-        if b > a {
-            (y[b] - y[a]) / ((b - a) as f64 * ts)
-        } else {
-            0.0
-        }
-    };
-    let b = slope(k.saturating_sub(2), k);
-    let f = slope(k, (k + 2).min(n - 1));
-    let (ab, af) = (b.abs(), f.abs());
-    if (ab <= tol && af <= tol) || b * f < 0.0 {
-        return 0.0;
-    }
-    if k < 2 {
-        return f;
-    }
-    if k + 2 >= n {
-        return b;
-    }
-    let (lo, hi) = if ab < af { (ab, af) } else { (af, ab) };
-    if hi <= 2.0 * lo {
-        0.5 * (b + f)
-    } else if ab < af {
-        b
-    } else {
-        f
-    }
-}
-
 /// The segmented (multiple-shooting) simulation error: the record is cut
 /// into segments of `segment` samples, each simulated from the state
-/// measured at its start (position, [`segment_velocity`]). Errors do not
+/// measured at its start (position, [`crate::target::segment_velocity`]). Errors do not
 /// accumulate across segments, so the cost is much smoother in the
 /// parameters than the free-run error; it serves the global stage.
 pub fn segmented_mse(
@@ -170,7 +132,7 @@ pub fn segmented_mse(
 pub struct Objective<'a> {
     /// 0: free-run error; else the segment length of the segmented error.
     pub segment: usize,
-    /// Rest threshold of [`segment_velocity`] ([`VelocityTolerances::centred`]).
+    /// Rest threshold of [`crate::target::segment_velocity`] ([`VelocityTolerances::centred`]).
     pub velocity_tol: f64,
     /// The model whose parameters are fitted.
     pub model: &'a dyn Simulator,

@@ -3,7 +3,6 @@
 //! the mass-spring-friction [`MechanicalModel`] and any [`GrayBoxModel`]
 //! (with its compiled form, [`GrayBoxTarget`]).
 
-use crate::objective::segment_velocity;
 use hysid_graybox::compile::CompiledInitial;
 use hysid_graybox::{CompiledModel, GrayBoxInitialState, GrayBoxModel, InvalidGrayBox};
 use hysid_mechanical::simulate as mechanical;
@@ -249,5 +248,43 @@ impl Simulator for GrayBoxTarget {
             CompiledInitial::Given { .. } => self.free_run(values, data)?.1,
         };
         Some(y[1..].iter().zip(&yhat[1..]).map(|(a, b)| a - b).collect())
+    }
+}
+
+/// Velocity at sample `k` for re-initialising a segment (offline, so it
+/// may look ahead): the slopes `b` over `k-2..=k` and `f` over `k..=k+2`
+/// (clipped to the record) are compared. Both within `tol`, or of opposite
+/// signs: at rest (0). Within a factor 2 of each other: smooth motion,
+/// their mean (the centred slope). Otherwise an event lies in the window
+/// (break-away, impact on a stop) and the smaller one is the velocity at
+/// `k` (0 at a break-away, the stop's 0 after an impact).
+pub fn segment_velocity(y: &[f64], k: usize, ts: f64, tol: f64) -> f64 {
+    let n = y.len();
+    let slope = |a: usize, b: usize| {
+        if b > a {
+            (y[b] - y[a]) / ((b - a) as f64 * ts)
+        } else {
+            0.0
+        }
+    };
+    let b = slope(k.saturating_sub(2), k);
+    let f = slope(k, (k + 2).min(n - 1));
+    let (ab, af) = (b.abs(), f.abs());
+    if (ab <= tol && af <= tol) || b * f < 0.0 {
+        return 0.0;
+    }
+    if k < 2 {
+        return f;
+    }
+    if k + 2 >= n {
+        return b;
+    }
+    let (lo, hi) = if ab < af { (ab, af) } else { (af, ab) };
+    if hi <= 2.0 * lo {
+        0.5 * (b + f)
+    } else if ab < af {
+        b
+    } else {
+        f
     }
 }

@@ -49,6 +49,36 @@ macro_rules! displayed {
 
 displayed!(DataError, ModelError, PriorError, SimError);
 
+impl From<hysid::identify::Error> for Failure {
+    fn from(e: hysid::identify::Error) -> Self {
+        use hysid::identify::{Error, Field};
+        match e {
+            Error::Field { field, value, what } => {
+                let name = match field {
+                    Field::Modes => "modes",
+                    Field::MaxModes => "max_modes",
+                    Field::TimeBudget => "time_budget",
+                    Field::RefitStarts => "refit_starts",
+                };
+                Self(format!("{name}={value}: {what}"))
+            }
+            Error::Modes {
+                modes,
+                max_modes,
+                problem,
+            } => {
+                let given: Vec<String> = [("modes", modes), ("max_modes", max_modes)]
+                    .iter()
+                    .filter_map(|(name, v)| v.map(|s| format!("{name}={s}")))
+                    .collect();
+                Self(format!("{}: {problem}", given.join(" ")))
+            }
+            Error::Identify(e) => e.into(),
+            Error::Select(e) => e.into(),
+        }
+    }
+}
+
 impl From<OptionError> for Failure {
     fn from(e: OptionError) -> Self {
         Self(e.render("option"))

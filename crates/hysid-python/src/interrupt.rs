@@ -4,11 +4,10 @@
 //! released, waits for it in slices of [`SLICE`]; between slices Python
 //! checks its signals. On Ctrl-C (`KeyboardInterrupt` from
 //! `check_signals`) the run's stop flag is raised: the back-end finds its
-//! [`Deadline`] passed at its next check and returns, its model is dropped,
+//! deadline passed at its next check and returns, its model is dropped,
 //! and the `KeyboardInterrupt` reaches Python. No thread outlives the call.
 
 use crate::error::Failure;
-use hysid_core::backend::{Deadline, NoProgress, RunContext};
 use pyo3::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
@@ -27,17 +26,12 @@ struct Slot<T> {
     ready: Condvar,
 }
 
-/// Runs `work` with a context of `seed` and `deadline` (plus the stop
-/// flag of Ctrl-C) on a worker thread; returns its value, a `KeyboardInterrupt` when the user
-/// pressed Ctrl-C, or a `HysidError` naming a panic (a bug).
-pub fn run<T: Send>(
-    py: Python<'_>,
-    seed: u64,
-    deadline: Deadline,
-    work: impl FnOnce(&RunContext<'_>) -> T + Send,
-) -> PyResult<T> {
+/// Runs `work`, given the stop flag that Ctrl-C raises, on a worker
+/// thread; returns its value, a `KeyboardInterrupt` when the user pressed
+/// Ctrl-C, or a `HysidError` naming a panic (a bug).
+pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce(Arc<AtomicBool>) -> T + Send) -> PyResult<T> {
     let stop = Arc::new(AtomicBool::new(false));
-    let deadline = deadline.with_stop(Arc::clone(&stop));
+    let flag = Arc::clone(&stop);
     let slot = Slot {
         value: Mutex::new(None),
         ready: Condvar::new(),
@@ -48,12 +42,7 @@ pub fn run<T: Send>(
             .name("hysid-identify".into())
             .stack_size(STACK)
             .spawn_scoped(scope, move || {
-                let ctx = RunContext {
-                    seed,
-                    progress: &NoProgress,
-                    deadline,
-                };
-                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&ctx)));
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(flag)));
                 *slot.value.lock().unwrap_or_else(PoisonError::into_inner) = Some(result);
                 slot.ready.notify_all();
             })

@@ -13,13 +13,11 @@ mod model;
 mod record;
 
 use error::{Failure, HysidError};
-use hysid::select::{Plan, Request};
-use hysid_core::backend::{Deadline, Problem, RunContext};
+use hysid::identify::{Auto, Identify, Mode};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
 use hysid_model::data::{DataSelection, Dataset, RowRange, SignalNameError};
-use hysid_model::regressors::RegressorSpec;
 use model::Model;
 use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
@@ -32,26 +30,28 @@ pub(crate) fn json<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAn
     py.import("json")?.call_method1("loads", (text,))
 }
 
+/// A `UserWarning` with `text`.
+fn warn(py: Python<'_>, text: &str) -> PyResult<()> {
+    let text = CString::new(text).unwrap_or_default();
+    PyErr::warn(py, &py.get_type::<PyUserWarning>(), &text, 1)
+}
+
 /// A `UserWarning` when `model` simulates `data` worse than the affine ARX
-/// model of its orders fitted on `data` (`hysid::select::against_affine`),
-/// as the program's `identify` and `validate` warn.
+/// model of its orders fitted on `data` (`hysid::against_affine`), as the
+/// program's `validate` warns.
 pub(crate) fn warn_if_below_affine(
     py: Python<'_>,
     model: &hysid_core::model::Model,
     data: &Dataset,
-    priors: Option<&Priors>,
     warmup: usize,
     rows: &str,
 ) -> PyResult<()> {
-    let priors = priors.cloned().unwrap_or_default();
+    let priors = Priors::default();
     let compared = py.detach(|| hysid::against_affine(model, data, &priors, warmup));
-    if let Some(c) = compared
-        && c.below()
-    {
-        let text = CString::new(c.warning(rows)).unwrap_or_default();
-        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &text, 1)?;
+    match compared {
+        Some(c) if c.below() => warn(py, &c.warning(rows)),
+        _ => Ok(()),
     }
-    Ok(())
 }
 
 /// The back-ends as a list of dictionaries: name, summary, options (key,
@@ -205,29 +205,7 @@ fn identify<'py>(
         input_names,
         output_name,
     )?;
-    let registry = hysid::registry();
-    let backend = registry.require(method).map_err(Failure::from)?;
-    let settings = settings(options)?;
-    let (mut priors, origin) = self::priors(py, priors)?;
-    let mut given = Vec::new();
-    for (name, value, prior) in [
-        ("modes", modes, &mut priors.modes),
-        ("max_modes", max_modes, &mut priors.max_modes),
-    ] {
-        match value {
-            Some(0) => return Err(Failure::new(format!("{name}=0: must be at least 1")).into()),
-            Some(s) => {
-                *prior = Some(s);
-                given.push(format!("{name}={s}"));
-            }
-            None => {}
-        }
-    }
-    if !given.is_empty() {
-        priors
-            .check()
-            .map_err(|e| Failure::new(format!("{}: {e}", given.join(" "))))?;
-    }
+    let (priors, priors_origin) = self::priors(py, priors)?;
     let (select_rows, grid) = (
         parse_rows("select_rows", select_rows.as_deref())?,
         grid.unwrap_or_default(),
@@ -239,68 +217,52 @@ fn identify<'py>(
             Failure::new("select_rows, folds, refit_starts and grid need auto=True").into(),
         );
     }
-    if refit_starts == Some(0) {
-        return Err(Failure::new("refit_starts=0: must be at least 1").into());
-    }
     if auto && standardize {
         return Err(Failure::new("auto=True and standardize=True cannot be combined").into());
     }
-    let deadline = match time_budget {
-        Some(t) => Deadline::after_seconds(t).ok_or_else(|| {
-            Failure::new(format!(
-                "time_budget={t}: must be a positive number of seconds"
-            ))
-        })?,
-        None => Deadline::none(),
+    let mode = if auto {
+        let grid = (!grid.is_empty())
+            .then(|| SearchSpace::parse_grid(&grid))
+            .transpose()
+            .map_err(|e| Failure::new(e.render("grid")))?;
+        Mode::Auto(Auto {
+            select_rows,
+            folds,
+            refit_starts: refit_starts.unwrap_or(hysid::select::DEFAULT_REFIT_STARTS),
+            grid,
+        })
+    } else if standardize {
+        Mode::Standardized
+    } else {
+        Mode::Plain
     };
-    let problem = Problem {
-        data: &data,
-        orders: RegressorSpec::new(na, nb, data.inputs.len()),
-        priors: &priors,
-        priors_origin: origin.as_deref(),
-    };
-    let model = interrupt::run(
-        py,
+    let request = Identify {
+        priors,
+        priors_origin,
+        modes,
+        max_modes,
+        options: settings(options)?,
         seed,
-        deadline,
-        |ctx: &RunContext<'_>| -> Result<_, Failure> {
-            if auto {
-                let space = if grid.is_empty() {
-                    backend.search_space(&problem)?.without_given(&settings)
-                } else {
-                    SearchSpace::parse_grid(&grid).map_err(|e| Failure::new(e.render("grid")))?
-                };
-                let plan = Plan {
-                    select: select_rows,
-                    folds,
-                    warmup,
-                    first_row: 0,
-                    refit_starts: refit_starts.unwrap_or(hysid::select::DEFAULT_REFIT_STARTS),
-                };
-                let affine = hysid::affine_reference(&registry, backend.name());
-                let request =
-                    Request::from_problem(backend, affine, &problem, settings, space, plan);
-                Ok(hysid::select::select(&request, ctx)?)
-            } else if standardize {
-                Ok(hysid_estimation::pwarx::run_standardized(
-                    backend, &problem, &settings, ctx,
-                )?)
-            } else {
-                Ok(backend.run(&problem, &settings, ctx)?)
-            }
-        },
-    )??;
-    if model.info().selection.is_none() {
-        warn_if_below_affine(
-            py,
-            &model,
-            &data,
-            Some(&priors),
-            warmup,
-            "its identification rows",
-        )?;
+        time_budget,
+        warmup,
+        mode,
+        ..Identify::new(method, &data).orders(na, nb)
+    };
+    let registry = hysid::registry();
+    let identified = interrupt::run(py, |stop| {
+        Identify {
+            stop: Some(stop),
+            ..request.clone()
+        }
+        .run(&registry)
+        .map_err(Failure::from)
+    })??;
+    if let Some(c) = identified.against_affine(&request)
+        && c.below()
+    {
+        warn(py, &c.warning("its identification rows"))?;
     }
-    Ok(Model::new(model))
+    Ok(Model::new(identified.model))
 }
 
 /// Runs the experiment file `experiment` (TOML, as `hysid compare`), writes

@@ -287,7 +287,7 @@ impl Model {
             .detach(|| simulate::validate(&self.inner, &data, warmup))
             .map_err(Failure::from)?;
         warn_divergence(py, &sim)?;
-        crate::warn_if_below_affine(py, &self.inner, &data, None, warmup, "these rows")?;
+        crate::warn_if_below_affine(py, &self.inner, &data, warmup, "these rows")?;
         let text = serde_json::to_string(&report).map_err(|e| Failure::new(e.to_string()))?;
         crate::json(py, &text)
     }

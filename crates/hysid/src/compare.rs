@@ -8,19 +8,20 @@ pub mod experiment;
 pub mod report;
 pub mod truth;
 
-pub use experiment::{DataSpec, Experiment, ExperimentError, RunSpec, ScoredRows, SweepSpec};
+pub use experiment::{
+    DataSpec, Experiment, ExperimentError, RunSpec, ScoredRows, SweepSpec, value_text,
+};
 pub use hysid_plot::FigureFormat;
 pub use report::write_report;
 
-use crate::select::{Plan, Request};
-use hysid_core::backend::{Backend, Problem, Progress, Registry, RunContext};
+use crate::identify::{Auto, Identify, Mode};
+use hysid_core::backend::{Progress, Registry};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::{ValidationReport, validate};
 use hysid_io::load;
 use hysid_model::data::Dataset;
-use hysid_model::regressors::RegressorSpec;
 use hysid_model::simulate::Simulation;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -134,13 +135,6 @@ pub struct Comparison {
     pub input_label: String,
 }
 
-fn value_text(v: &toml::Value) -> String {
-    match v {
-        toml::Value::String(s) => s.clone(),
-        other => other.to_string(),
-    }
-}
-
 fn merge(shared: &Priors, run: &RunSpec) -> Priors {
     let mut p = if run.use_priors {
         shared.clone()
@@ -211,33 +205,28 @@ impl Experiment {
             }
         }
         for s in &self.sweeps {
-            for point in s.points() {
+            for point in s.space().candidates() {
                 let mut r = s.run.clone();
-                let mut shown = Vec::with_capacity(point.len());
-                for (key, v) in point {
-                    let text = value_text(&v);
+                for (key, text) in &point.values {
                     let as_count = || -> Result<usize, ExperimentError> {
-                        v.as_integer()
-                            .filter(|&i| i >= 0)
-                            .map(|i| i as usize)
-                            .ok_or_else(|| ExperimentError::Invalid {
-                                path: "experiment".into(),
-                                message: format!(
-                                    "[[sweep]] '{}': {key} = {text} is not a count",
-                                    s.run.name
-                                ),
-                            })
+                        text.parse::<usize>().map_err(|_| ExperimentError::Invalid {
+                            path: "experiment".into(),
+                            message: format!(
+                                "[[sweep]] '{}': {key} = {text} is not a count",
+                                s.run.name
+                            ),
+                        })
                     };
                     match key.as_str() {
                         "modes" => r.modes = Some(as_count()?),
                         "na" => r.na = Some(as_count()?),
                         "nb" => r.nb = Some(as_count()?),
                         _ => {
-                            r.set.insert(key.clone(), v.clone());
+                            r.set.insert(key.clone(), toml::Value::String(text.clone()));
                         }
                     }
-                    shown.push((key, text));
                 }
+                let shown = point.values;
                 let label = shown
                     .iter()
                     .map(|(k, v)| format!("{k}={v}"))
@@ -334,38 +323,37 @@ impl Experiment {
 /// when it is an `auto` run).
 fn identify(
     registry: &Registry,
-    backend: &dyn Backend,
     job: &Job,
     ident: &Dataset,
     spec: &DataSpec,
 ) -> Result<Model, String> {
-    let problem = Problem {
-        data: ident,
-        orders: RegressorSpec::new(job.na, job.nb, ident.inputs.len()),
-        priors: &job.priors,
-        priors_origin: Some("the experiment"),
+    let mode = if job.auto {
+        Mode::Auto(Auto {
+            select_rows: spec.selection,
+            folds: spec.folds,
+            refit_starts: spec.refit_starts,
+            grid: None,
+        })
+    } else {
+        Mode::Plain
     };
-    let ctx = RunContext::quiet(job.seed);
-    if !job.auto {
-        return backend
-            .run(&problem, &job.settings, &ctx)
-            .map_err(|e| e.to_string());
-    }
-    let space = backend
-        .search_space(&problem)
-        .map_err(|e| e.to_string())?
-        .without_given(&job.settings);
-    let plan = Plan {
-        select: spec.selection,
-        folds: spec.folds,
-        warmup: spec.warmup,
+    let request = Identify {
         first_row: spec.identification.start.unwrap_or(0),
-        refit_starts: spec.refit_starts,
+        priors: job.priors.clone(),
+        priors_origin: Some("the experiment".into()),
+        options: job.settings.clone(),
+        seed: job.seed,
+        warmup: spec.warmup,
+        mode,
+        ..Identify::new(&job.method, ident).orders(job.na, job.nb)
     };
-    let affine = crate::affine_reference(registry, backend.name());
-    let request =
-        Request::from_problem(backend, affine, &problem, job.settings.clone(), space, plan);
-    crate::select::select(&request, &ctx).map_err(|e| format!("auto: {e}"))
+    request.run(registry).map(|i| i.model).map_err(|e| {
+        if job.auto {
+            format!("auto: {e}")
+        } else {
+            e.to_string()
+        }
+    })
 }
 
 fn run_job(
@@ -394,15 +382,8 @@ fn run_job(
         simulation: None,
         mode_recovery: None,
     };
-    let backend = match registry.require(&job.method) {
-        Ok(b) => b,
-        Err(e) => {
-            out.error = Some(e.to_string());
-            return out;
-        }
-    };
     let t0 = Instant::now();
-    let model = identify(registry, backend, job, ident, spec);
+    let model = identify(registry, job, ident, spec);
     out.seconds = t0.elapsed().as_secs_f64();
     match model {
         Err(e) => out.error = Some(e),

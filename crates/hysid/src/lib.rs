@@ -1,13 +1,30 @@
 //! # hysid
 //!
-//! The entry point of the library: the registry of every back-end
-//! ([`registry`]), automatic selection of a back-end's options on
-//! selection rows ([`select`]), and experiments that run several back-ends
-//! on the same data and report them side by side ([`compare`]). The
-//! `hysid` program and the Python package are front ends over it.
+//! The entry point of the library. An [`Identify`] request names a
+//! back-end, a record and what is known about the system, and returns the
+//! model; automatic selection ([`select`]) chooses a back-end's options on
+//! selection rows inside the identification rows; experiments
+//! ([`compare`]) run several back-ends on the same data and report them
+//! side by side. The [`registry`] holds every back-end hysid ships. The
+//! `hysid` program and the Python package are front ends over these.
+//!
+//! ```
+//! use hysid_testkit::{Noise, b1};
+//!
+//! let record = b1(300, 4.0, Noise::Uniform(0.05), 1).data;
+//! let model = hysid::Identify::new("cluster", &record)
+//!     .orders(1, 1)
+//!     .modes(3)
+//!     .run(&hysid::registry())?
+//!     .model;
+//! assert_eq!(model.mode_count(), 3);
+//! # Ok::<(), hysid::identify::Error>(())
+//! ```
 
 pub mod backends;
 pub mod compare;
+pub mod identify;
 pub mod select;
 
 pub use backends::{affine_reference, against_affine, registry};
+pub use identify::{Identified, Identify};

@@ -30,8 +30,9 @@ use hysid_estimation::parsimony;
 use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
-use hysid_core::search::{Candidate, CandidateError, SearchSpace, Setup};
+use hysid_core::search::{CandidateError, SearchSpace, Setup};
 use hysid_core::simulate::validate;
+use hysid_core::stages::{Refine, Stages};
 use hysid_model::data::{DataError, Dataset, RowRange};
 use hysid_model::model::{RefinementChoice, RefitStart, ScoredCandidate, Selection, SplitRows};
 use rayon::prelude::*;
@@ -689,35 +690,33 @@ fn fit_on(model: &Model, data: &Dataset, warmup: usize) -> Option<f64> {
         .filter(|f| f.is_finite())
 }
 
-/// The option that switches the simulation-error refinement on.
-pub const REFINE_KEY: &str = "refine";
-/// Its values tried, in order: the mode parameters on simulation error,
-/// then also the region boundaries (for two or more modes).
-pub const REFINE_VALUES: [&str; 2] = ["sim", "sim_regions"];
+/// The refinements tried, in order: the mode parameters on simulation
+/// error, then also the region boundaries (for two or more modes).
+pub const REFINEMENTS: [Refine; 2] = [Refine::Sim, Refine::SimRegions];
 
-/// `trial` with `refine = value`, starting from `fits`, its models on the
-/// fit rows, when its back-end offers the refinement and the user did not
-/// set it.
-fn refined<'a>(trial: &Trial<'a>, fits: &[Model], value: &str) -> Option<Trial<'a>> {
-    let offered = trial.backend.options().iter().any(|o| o.key == REFINE_KEY);
-    if !offered || trial.setup.settings.get(REFINE_KEY).is_some() {
+/// `trial` with the refinement `refine`, starting from `fits`, its models
+/// on the fit rows, when its back-end runs the stages after a PWARX fit
+/// and the user did not set the refinement.
+fn refined<'a>(trial: &Trial<'a>, fits: &[Model], refine: Refine) -> Option<Trial<'a>> {
+    let settings = &trial.setup.settings;
+    if !trial.backend.has_stages() || Stages::refine_given(settings).is_some() {
         return None;
     }
-    let refine = Candidate {
-        values: vec![(REFINE_KEY.into(), value.into())],
-    };
     let mut values = trial.values.clone();
-    values.extend(refine.values.iter().cloned());
+    values.push((Stages::REFINE.into(), refine.as_str().into()));
     Some(Trial {
         backend: trial.backend,
         values,
-        setup: trial.setup.with(&refine).ok()?,
+        setup: Setup {
+            settings: Stages::with_refine(settings, refine),
+            ..trial.setup.clone()
+        },
         start: fits.to_vec(),
     })
 }
 
 /// The refinements worth scoring: for every mode count, the back-end's
-/// candidate of best selection FIT with each value of [`REFINE_VALUES`]
+/// candidate of best selection FIT with each of [`REFINEMENTS`]
 /// (the region stage only for two or more modes and no known stops, where
 /// it can run). Every choice the one-standard-error rule can make among
 /// the unrefined candidates is the best of its mode count, so each can be
@@ -736,11 +735,11 @@ fn refinement_trials<'a>(
             continue;
         };
         let regions_can_move = modes > 1 && request.setup.priors.saturation.is_empty();
-        let values = &REFINE_VALUES[..if regions_can_move { 2 } else { 1 }];
+        let tried = &REFINEMENTS[..if regions_can_move { 2 } else { 1 }];
         out.extend(
-            values
+            tried
                 .iter()
-                .filter_map(|v| refined(&trials[i], &scored[i].fits, v)),
+                .filter_map(|&r| refined(&trials[i], &scored[i].fits, r)),
         );
     }
     out
@@ -774,7 +773,7 @@ fn refinement_record(scored: &[ScoredCandidate], chosen: usize) -> Vec<Refinemen
     let unrefined = |c: &ScoredCandidate| -> Vec<(String, String)> {
         c.values
             .iter()
-            .filter(|(k, _)| k != REFINE_KEY)
+            .filter(|(k, _)| k != Stages::REFINE)
             .cloned()
             .collect()
     };
@@ -784,7 +783,7 @@ fn refinement_record(scored: &[ScoredCandidate], chosen: usize) -> Vec<Refinemen
         .enumerate()
         .filter(|(_, c)| c.method == scored[chosen].method && unrefined(c) == origin)
         .filter_map(|(i, c)| {
-            let (_, value) = c.values.iter().find(|(k, _)| k == REFINE_KEY)?;
+            let (_, value) = c.values.iter().find(|(k, _)| k == Stages::REFINE)?;
             Some(RefinementChoice {
                 refine: value.clone(),
                 fit_sim: c.fit_sim,
@@ -1096,7 +1095,7 @@ mod tests {
         let mut trials: Vec<Trial<'_>> = c
             .iter()
             .map(|&c| {
-                let cand = Candidate {
+                let cand = hysid_core::search::Candidate {
                     values: vec![("c".into(), c.into())],
                 };
                 Trial {
@@ -1212,6 +1211,9 @@ mod tests {
         fn seeded(&self) -> bool {
             self.seeded
         }
+        fn has_stages(&self) -> bool {
+            false
+        }
         fn search_space(&self, _: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
             Ok(SearchSpace::default())
         }
@@ -1264,6 +1266,9 @@ mod tests {
         }
         fn seeded(&self) -> bool {
             false
+        }
+        fn has_stages(&self) -> bool {
+            true
         }
         fn search_space(&self, _: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
             Ok(SearchSpace::default())

@@ -1,7 +1,7 @@
 //! `hysid compare`: several back-ends side by side on one experiment.
 
-use crate::Result;
 use crate::error::CliError;
+use crate::error::Result;
 use crate::progress::TerminalProgress;
 use hysid::compare::{Experiment, FigureFormat};
 use std::path::PathBuf;

@@ -1,18 +1,15 @@
 //! `hysid identify`: one back-end on one record.
 
-use crate::Result;
 use crate::error::CliError;
+use crate::error::Result;
 use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
-use hysid::select::{Plan, Request};
-use hysid_core::backend::{Deadline, Problem, RunContext};
+use hysid::identify::{Auto, Identify, Mode};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
-use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::RowRange;
 use hysid_model::model::Selection;
-use hysid_model::regressors::RegressorSpec;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -66,7 +63,7 @@ pub struct Args {
     /// With --auto: the selection rows A..B, in the rows of the file (after
     /// decimation); they must start or end the identification rows. Default:
     /// the last 20 % of them (fewer than 100: also as many at their start).
-    #[arg(long, value_parser = parse_rows, requires = "auto")]
+    #[arg(long, requires = "auto")]
     pub select_rows: Option<RowRange>,
     /// With --auto: instead of one split, K contiguous blocks on a rolling
     /// origin (block j scored by the model fitted on the blocks before it).
@@ -89,89 +86,54 @@ pub struct Args {
     pub select: DataArgs,
 }
 
-fn parse_rows(s: &str) -> std::result::Result<RowRange, String> {
-    s.parse()
-}
-
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let registry = hysid::registry();
-    let backend = registry.require(&args.method)?;
-    let settings = Settings::parse(&args.set)?;
-    let mut priors = match &args.prior {
-        Some(p) => Priors::load(p)?,
-        None => Priors::default(),
-    };
-    for (flag, value, prior) in [
-        ("--modes", args.modes, &mut priors.modes),
-        ("--max-modes", args.max_modes, &mut priors.max_modes),
-    ] {
-        if let Some(s) = value {
-            if s == 0 {
-                return Err(CliError::input(format!("{flag} must be at least 1")));
-            }
-            *prior = Some(s);
-        }
-    }
-    let given: Vec<String> = [("--modes", args.modes), ("--max-modes", args.max_modes)]
-        .iter()
-        .filter_map(|(flag, v)| v.map(|s| format!("{flag} {s}")))
-        .collect();
-    if !given.is_empty() {
-        priors
-            .check()
-            .map_err(|e| CliError::input(format!("{}: {e}", given.join(" "))))?;
-    }
-    let deadline = match args.time_budget {
-        Some(t) => Deadline::after_seconds(t).ok_or_else(|| {
-            CliError::input(format!(
-                "--time-budget {t}: must be a positive number of seconds"
-            ))
-        })?,
-        None => Deadline::none(),
-    };
     let data = hysid_io::load(&args.data, &args.select.selection()?)?;
-    let first_row = args.select.rows.and_then(|r| r.start).unwrap_or(0);
-    let origin = args.prior.as_ref().map(|p| p.display().to_string());
-    let problem = Problem {
-        data: &data,
-        orders: RegressorSpec::new(args.na, args.nb, data.inputs.len()),
-        priors: &priors,
-        priors_origin: origin.as_deref(),
+    let mode = if args.auto {
+        let grid = (!args.grid.is_empty())
+            .then(|| SearchSpace::parse_grid(&args.grid))
+            .transpose()
+            .map_err(|e| CliError::input(e.render("--grid")))?;
+        Mode::Auto(Auto {
+            select_rows: args.select_rows,
+            folds: args.folds,
+            refit_starts: args.refit_starts,
+            grid,
+        })
+    } else if args.standardize {
+        Mode::Standardized
+    } else {
+        Mode::Plain
     };
-    let progress = TerminalProgress::new();
-    let ctx = RunContext {
+    let request = Identify {
+        method: args.method.clone(),
+        data: &data,
+        first_row: args.select.rows.and_then(|r| r.start).unwrap_or(0),
+        na: args.na,
+        nb: args.nb,
+        priors: match &args.prior {
+            Some(p) => Priors::load(p)?,
+            None => Priors::default(),
+        },
+        priors_origin: args.prior.as_ref().map(|p| p.display().to_string()),
+        modes: args.modes,
+        max_modes: args.max_modes,
+        options: Settings::parse(&args.set)?,
         seed: args.seed,
-        progress: &progress,
-        deadline,
+        time_budget: args.time_budget,
+        stop: None,
+        warmup: args.warmup,
+        mode,
     };
     let started = Instant::now();
-    let model = if args.auto {
-        let space = if args.grid.is_empty() {
-            backend.search_space(&problem)?.without_given(&settings)
-        } else {
-            SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?
-        };
-        let plan = Plan {
-            select: args.select_rows,
-            folds: args.folds,
-            warmup: args.warmup,
-            first_row,
-            refit_starts: args.refit_starts,
-        };
-        let affine = hysid::affine_reference(&registry, backend.name());
-        let request = Request::from_problem(backend, affine, &problem, settings, space, plan);
-        hysid::select::select(&request, &ctx)?
-    } else if args.standardize {
-        run_standardized(backend, &problem, &settings, &ctx)?
-    } else {
-        backend.run(&problem, &settings, &ctx)?
-    };
+    let identified = request.run_with(&registry, &TerminalProgress::new())?;
     let elapsed = started.elapsed();
-    hysid_io::save_model(&model, &args.out)?;
+    let model = &identified.model;
+    hysid_io::save_model(model, &args.out)?;
     eprintln!(
         "hysid: {} identified a {} model with {} mode(s) from {} samples in {:.3} s -> {}",
-        backend.name(),
+        args.method,
         model.kind(),
         model.mode_count(),
         data.len(),
@@ -182,18 +144,20 @@ pub fn run(args: Args) -> Result<()> {
     // warnings, says so.
     let d = &model.info().diagnostics;
     if d.run_status.cut_short() || !d.status.is_empty() {
-        eprintln!("hysid: {}: {}", backend.name(), d.status.join("; "));
+        eprintln!("hysid: {}: {}", args.method, d.status.join("; "));
     }
     match &model.info().selection {
-        Some(selection) => report_selection(backend.name(), selection),
-        None => crate::affine::warn_if_below(
-            &model,
-            &data,
-            &priors,
-            args.warmup,
-            "its identification rows",
-            "; try --auto",
-        ),
+        Some(selection) => report_selection(&args.method, selection),
+        None => {
+            if let Some(c) = identified.against_affine(&request)
+                && c.below()
+            {
+                eprintln!(
+                    "hysid: warning: {}; try --auto",
+                    c.warning("its identification rows")
+                );
+            }
+        }
     }
     Ok(())
 }

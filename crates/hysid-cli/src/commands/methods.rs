@@ -1,7 +1,7 @@
 //! `hysid methods`: the registered back-ends, one per line, with their
 //! options, and the version of the gray-box model format this build reads.
 
-use crate::Result;
+use crate::error::Result;
 
 /// Arguments of `hysid methods`.
 #[derive(clap::Args, Debug)]

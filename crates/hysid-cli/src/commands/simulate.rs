@@ -1,8 +1,8 @@
 //! `hysid simulate`: a model driven by measured inputs or a generated
 //! excitation, written as CSV (`t`, inputs, `y`, `mode`).
 
-use crate::Result;
 use crate::error::CliError;
+use crate::error::Result;
 use crate::selection::DataArgs;
 use hysid_core::model::Model;
 use hysid_core::simulate::simulate;
@@ -73,7 +73,7 @@ pub fn run(args: Args) -> Result<()> {
                 .zip(names)
                 .map(|(values, name)| Signal { name, values })
                 .collect();
-            let ts = e.ts.or(args.select.ts).or(model.info().ts);
+            let ts = e.ts.or(args.select.signals.ts).or(model.info().ts);
             Dataset::new(
                 inputs,
                 Signal {

@@ -5,13 +5,15 @@
 //! command line. Its best point is a choice made on those rows: scored on
 //! test rows, it is an oracle figure.
 
-use crate::Result;
 use crate::error::CliError;
+use crate::error::Result;
 use crate::progress::TerminalProgress;
+use crate::selection::SignalArgs;
 use hysid::compare::{DataSpec, Experiment, RunSpec, ScoredRows, SweepSpec};
+use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
+use hysid_core::search::SearchSpace;
 use hysid_model::data::RowRange;
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Arguments of `hysid sweep`.
@@ -26,12 +28,12 @@ pub struct Args {
     #[arg(long = "grid", value_name = "KEY=V1,V2,..", required = true)]
     pub grid: Vec<String>,
     /// Rows used for identification (after decimation).
-    #[arg(long = "identify-rows", value_parser = parse_rows)]
+    #[arg(long = "identify-rows")]
     pub identify_rows: RowRange,
     /// Rows every point is scored on (after decimation): selection rows
     /// when the sweep chooses options (keep them inside the identification
     /// data, away from the test rows); `--validate-rows` is the same flag.
-    #[arg(long = "select-rows", alias = "validate-rows", value_parser = parse_rows)]
+    #[arg(long = "select-rows", alias = "validate-rows")]
     pub select_rows: RowRange,
     /// Scored samples left out at the start.
     #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
@@ -57,53 +59,8 @@ pub struct Args {
     /// Also write report.md, report.json and the models into this folder.
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
-    /// Input column/variable name(s), comma separated.
-    #[arg(long, value_delimiter = ',', default_value = "u")]
-    pub input: Vec<String>,
-    /// Output column/variable name.
-    #[arg(long, default_value = "y")]
-    pub output: String,
-    /// Keep every K-th sample (no filter).
-    #[arg(long, default_value_t = 1)]
-    pub decimate: usize,
-    /// Sampling time in seconds when the file has no `t` signal.
-    #[arg(long)]
-    pub ts: Option<f64>,
-}
-
-fn parse_rows(s: &str) -> std::result::Result<RowRange, String> {
-    s.parse()
-}
-
-fn scalar(text: &str) -> toml::Value {
-    format!("v = {text}")
-        .parse::<toml::Table>()
-        .ok()
-        .and_then(|mut t| t.remove("v"))
-        .filter(|v| !v.is_table() && !v.is_array())
-        .unwrap_or_else(|| toml::Value::String(text.to_string()))
-}
-
-fn key_values(items: &[String], flag: &str) -> Result<BTreeMap<String, Vec<toml::Value>>> {
-    let mut out = BTreeMap::new();
-    for it in items {
-        let (k, v) = it
-            .split_once('=')
-            .ok_or_else(|| CliError::input(format!("{flag} '{it}': expected KEY=VALUE")))?;
-        let values: Vec<toml::Value> = v
-            .split(',')
-            .map(str::trim)
-            .filter(|x| !x.is_empty())
-            .map(scalar)
-            .collect();
-        if values.is_empty() {
-            return Err(CliError::input(format!("{flag} {k}: no value")));
-        }
-        if out.insert(k.trim().to_string(), values).is_some() {
-            return Err(CliError::input(format!("{flag} {k}: given twice")));
-        }
-    }
-    Ok(out)
+    #[command(flatten)]
+    pub signals: SignalArgs,
 }
 
 /// Refuses, before anything runs, a grid key that is neither an option of
@@ -138,21 +95,29 @@ pub fn run(args: Args) -> Result<()> {
     if args.modes.is_some() {
         priors.modes = args.modes;
     }
-    let set = key_values(&args.set, "--set")?
-        .into_iter()
-        .map(|(k, mut v)| (k, v.remove(0)))
+    let text = |v: &str| toml::Value::String(v.to_string());
+    let set = Settings::parse(&args.set)?
+        .pairs()
+        .iter()
+        .map(|(k, v)| (k.clone(), text(v)))
         .collect();
-    let grid = key_values(&args.grid, "--grid")?;
-    check_grid_keys(&args.method, grid.keys())?;
+    let space =
+        SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
+    check_grid_keys(&args.method, space.axes.iter().map(|a| &a.key))?;
+    let grid = space
+        .axes
+        .iter()
+        .map(|a| (a.key.clone(), a.values.iter().map(|v| text(v)).collect()))
+        .collect();
     let exp = Experiment {
         title: format!("{} sweep on {}", args.method, args.data.display()),
         description: String::new(),
         data: DataSpec {
             file: args.data.clone(),
-            input: args.input.clone(),
-            output: args.output.clone(),
-            decimate: args.decimate,
-            ts: args.ts,
+            input: args.signals.input.clone(),
+            output: args.signals.output.clone(),
+            decimate: args.signals.decimate,
+            ts: args.signals.ts,
             identification: args.identify_rows,
             validation: args.select_rows,
             warmup: args.warmup,

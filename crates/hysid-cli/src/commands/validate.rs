@@ -1,7 +1,7 @@
 //! `hysid validate`: scores of a model on a record.
 
-use crate::Result;
 use crate::error::CliError;
+use crate::error::Result;
 use crate::selection::DataArgs;
 use hysid_core::model::Model;
 use hysid_core::priors::Priors;

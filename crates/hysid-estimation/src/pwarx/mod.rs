@@ -158,6 +158,7 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
     const SEARCH: &'static str = M::SEARCH;
     const OUTPUT_UNITS: &'static [&'static str] = M::OUTPUT_UNITS;
     const SEEDED: bool = M::SEEDED;
+    const STAGES: bool = true;
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         self.0.search_space(problem)
@@ -172,7 +173,9 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
         let data = prepare(problem, M::NAME)?;
         match (M::MODE_RULE, data.modes) {
             (ModeRule::Given, ModeCount::AtMost(max)) => {
-                mode_count::choose(self, &data, options, max, ctx)
+                mode_count::choose(&data, max, ctx, |problem, ctx| {
+                    self.run_pipeline(&prepare(problem, M::NAME)?, options, ctx)
+                })
             }
             (ModeRule::Given, ModeCount::Free) => Err(IdentifyError::NeedsModeCount {
                 method: M::NAME,

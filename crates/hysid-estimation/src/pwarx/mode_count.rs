@@ -8,11 +8,10 @@
 //! recorded in the model's diagnostics as `mode_choice`, pairs of the
 //! count and its hold-out FIT.
 
-use super::{Pwarx, PwarxData, PwarxMethod, PwarxOptions, prepare};
+use super::prepare::PwarxData;
 use crate::parsimony;
-use hysid_core::backend::{Identifier, IdentifyError, NoProgress, Problem, RunContext};
+use hysid_core::backend::{IdentifyError, NoProgress, Problem, RunContext};
 use hysid_core::model::Model;
-use hysid_core::options::Checked;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::{Holdout, holdout};
 use hysid_model::data::RowRange;
@@ -31,13 +30,13 @@ struct Scored {
 }
 
 /// The model with the count chosen as the module doc says; `max` is the
-/// largest number of ordinary modes.
-pub fn choose<M: PwarxMethod>(
-    pipeline: &Pwarx<M>,
+/// largest number of ordinary modes, `identify` the rest of the pipeline
+/// on a problem whose priors fix the count.
+pub fn choose(
     data: &PwarxData<'_>,
-    options: &Checked<PwarxOptions<M::Options>>,
     max: usize,
     ctx: &RunContext<'_>,
+    identify: impl Fn(&Problem<'_>, &RunContext<'_>) -> Result<Model, IdentifyError>,
 ) -> Result<Model, IdentifyError> {
     let problem = &data.problem;
     let cut = problem.data.len() * FIT_PERCENT / 100;
@@ -65,7 +64,7 @@ pub fn choose<M: PwarxMethod>(
             priors: &priors,
             ..*problem
         };
-        let model = Identifier::identify(pipeline, &candidate, options, &quiet);
+        let model = identify(&candidate, &quiet);
         let score = model.ok().and_then(|m| {
             let h = holdout(&m, &held_out, 0).ok()?;
             Some((m.mode_count(), h))
@@ -88,14 +87,11 @@ pub fn choose<M: PwarxMethod>(
         ))
     })?;
     let priors = with_modes(problem.priors, best);
-    let chosen = prepare(
-        &Problem {
-            priors: &priors,
-            ..*problem
-        },
-        M::NAME,
-    )?;
-    let mut model = pipeline.run_pipeline(&chosen, options, ctx)?;
+    let chosen = Problem {
+        priors: &priors,
+        ..*problem
+    };
+    let mut model = identify(&chosen, ctx)?;
     let record: Vec<(usize, Option<f64>)> = scored
         .iter()
         .map(|s| (s.modes, s.holdout.as_ref().map(|h| h.fit_sim)))

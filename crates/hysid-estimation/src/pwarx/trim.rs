@@ -30,7 +30,8 @@
 //! at most [`MAX_ROUNDS`] rounds. The regions are not changed.
 
 use crate::constrained::{self, Parametrisation};
-use crate::pwarx::{PwarxData, PwarxFit};
+use crate::pwarx::assemble::PwarxFit;
+use crate::pwarx::prepare::PwarxData;
 use hysid_core::backend::IdentifyError;
 use hysid_model::model::{PwarxMode, Trimming, TrimmingStatus, region_of};
 use hysid_model::regressors::Regressors;

@@ -3,7 +3,8 @@
 //! point to an adjacent mode.
 
 use crate::conic::{Cone, Program, Triplets};
-use crate::regions::{Context, RegionError};
+use crate::regions::options::RegionError;
+use crate::regions::problem::Context;
 use hysid_core::backend::Deadline;
 use hysid_model::geometry::Polyhedron;
 
@@ -114,7 +115,7 @@ pub fn adjacency(
                 deadline: Deadline::none(),
             };
             let (variables, rows) = (prog.variables(), prog.rows());
-            match crate::regions::solve_program(prog) {
+            match crate::regions::problem::solve_program(prog) {
                 Ok(sol) => {
                     let t = sol.x[d];
                     adj[i][j] = t > 1e-9 * (1.0 + size);

@@ -24,7 +24,7 @@
 //!    its samples (the back-end's own least squares, under its priors);
 //! 2. `noise_variance`: `sigma^2`, the mean squared residual;
 //! 3. `fit_gate`: the scores, by multinomial logistic regression of the
-//!    labels on the regressors ([`crate::regions::RegionMethod::Softmax`],
+//!    labels on the regressors ([`crate::regions::options::RegionMethod::Softmax`],
 //!    unbalanced, warm-started from the previous round);
 //! 4. `reassign`: every sample to the mode of least
 //!    `r_{j,i}^2 / (2 sigma^2) - f_i(x_j)`.
@@ -40,7 +40,8 @@
 //! K-means may gather into a cluster of their own in place of a small true
 //! mode (`docs/cluster.md`).
 
-use crate::regions::{RegionMethod, RegionOptions, SoftmaxSettings, estimate};
+use crate::regions::estimate;
+use crate::regions::options::{RegionMethod, RegionOptions, SoftmaxSettings};
 use hysid_core::backend::{Deadline, IdentifyError};
 use nalgebra::DMatrix;
 
@@ -84,7 +85,7 @@ impl AlternationSettings {
             max_rounds,
             min_mode_size,
             switching: None,
-            ridge: crate::regions::softmax::RIDGE,
+            ridge: crate::regions::options::RIDGE,
             gate_points: Some(GATE_POINTS),
             deadline: Deadline::none(),
         }

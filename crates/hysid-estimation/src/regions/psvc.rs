@@ -9,7 +9,8 @@
 //! Region `i` keeps `w.z - g >= 0` against every `j`, so regions are
 //! intersections of pairwise half-spaces and may leave holes.
 
-use crate::regions::{Prepared, RegionError};
+use crate::regions::options::RegionError;
+use crate::regions::problem::Prepared;
 use hysid_model::geometry::Polyhedron;
 use nalgebra::{DMatrix, DVector};
 

@@ -44,7 +44,7 @@
 //! zero-loss face is large) the caller keeps clarabel's solution, whose
 //! boundaries sit inside the gaps between modes.
 
-use crate::regions::Prepared;
+use crate::regions::problem::Prepared;
 
 /// A margin within this of 1 counts as 1 (reduced-cost tolerance).
 const REDUCED_TOL: f64 = 1e-9;

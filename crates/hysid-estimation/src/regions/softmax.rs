@@ -16,11 +16,10 @@
 //! dispatch to an AVX/FMA variant, which was up to 14 times slower per call
 //! when it followed the clustering steps (`docs/performance-cluster.md`).
 
-use crate::regions::{Prepared, RegionError, SoftmaxSettings};
+use crate::regions::options::{RegionError, SoftmaxSettings};
+use crate::regions::problem::Prepared;
 use nalgebra::{DMatrix, DVector};
 
-/// Ridge on the normals (standardised units).
-pub const RIDGE: f64 = 1e-4;
 /// Newton iteration bound.
 const MAX_NEWTON: usize = 100;
 /// Stop when the Newton decrement squared falls below this.

@@ -12,8 +12,9 @@
 //! full program (to the solver's tolerance), not an approximation.
 
 use crate::conic::{Cone, Program, Triplets};
+use crate::regions::options::{RegionError, RegionMethod, RegionOptions, SolveStats};
+use crate::regions::problem::{Context, Prepared};
 use crate::regions::simplex::Simplex;
-use crate::regions::{Context, Prepared, RegionError, RegionMethod, RegionOptions, SolveStats};
 use hysid_core::backend::Deadline;
 
 /// Margin below which a point outside the working set counts as having a
@@ -121,7 +122,7 @@ fn softmax_instead(
         prep,
         labels,
         modes,
-        &crate::regions::SoftmaxSettings::default(),
+        &crate::regions::options::SoftmaxSettings::default(),
     )?;
     stats.newton_steps = steps;
     stats.cut_short = true;
@@ -246,7 +247,7 @@ fn solve_clarabel(
             deadline: deadline.clone(),
         };
         let prog = program(prep, labels, modes, weight, quadratic, &set);
-        let sol = crate::regions::solve_in_context(prog, &ctx)?;
+        let sol = crate::regions::problem::solve_in_context(prog, &ctx)?;
         stats.solves += 1;
         stats.solver_iterations += u64::from(sol.iterations);
         stats.working_points = set.len();
@@ -315,7 +316,7 @@ fn scaled_softmax_set(
         &sub,
         &sub_labels,
         modes,
-        &crate::regions::SoftmaxSettings::default(),
+        &crate::regions::options::SoftmaxSettings::default(),
     )?;
     stats.newton_steps = steps;
     let score = |z: &[f64], f: &mut [f64]| {
@@ -371,7 +372,7 @@ fn initial_set(
         prep,
         labels,
         modes,
-        &crate::regions::SoftmaxSettings::default(),
+        &crate::regions::options::SoftmaxSettings::default(),
     )?;
     stats.newton_steps = steps;
     let per_mode = INITIAL_PER_MODE_FACTOR * (prep.p + 1);
@@ -643,7 +644,7 @@ mod tests {
                 method,
                 ..RegionOptions::default()
             };
-            let prep = crate::regions::prepare(&x, &labels, 3, &opts).unwrap();
+            let prep = crate::regions::problem::prepare(&x, &labels, 3, &opts).unwrap();
             let quadratic = method == RegionMethod::Msvm;
             let weight: Vec<f64> = prep
                 .counts
@@ -668,7 +669,7 @@ mod tests {
                 round: 1,
                 deadline: hysid_core::backend::Deadline::none(),
             };
-            let full = crate::regions::solve_in_context(
+            let full = crate::regions::problem::solve_in_context(
                 program(&prep, &labels, 3, &weight, quadratic, &all),
                 &ctx,
             )
@@ -695,7 +696,7 @@ mod tests {
             round: 1,
             deadline: hysid_core::backend::Deadline::none(),
         };
-        let full = crate::regions::solve_in_context(
+        let full = crate::regions::problem::solve_in_context(
             program(prep, labels, modes, weight, false, &all),
             &ctx,
         )
@@ -753,7 +754,7 @@ mod tests {
                 labels.push(l);
             }
             let opts = RegionOptions::default();
-            let prep = crate::regions::prepare(&x, &labels, modes, &opts).unwrap();
+            let prep = crate::regions::problem::prepare(&x, &labels, modes, &opts).unwrap();
             let weight: Vec<f64> = prep.counts.iter().map(|&c| 1.0 / c as f64).collect();
             let mut stats = SolveStats::default();
             let set = scaled_softmax_set(&prep, &labels, modes, &weight, false, &mut stats).unwrap();

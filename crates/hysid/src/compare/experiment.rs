@@ -2,6 +2,7 @@
 //! (`docs/compare.md`).
 
 use hysid_core::priors::{InconsistentPrior, Priors};
+use hysid_core::search::{Axis, SearchSpace};
 use hysid_model::data::{DataSelection, RowRange};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -151,31 +152,30 @@ pub struct SweepSpec {
 }
 
 impl SweepSpec {
-    /// The varied keys with their values, `vary` first.
-    pub fn axes(&self) -> Vec<(String, Vec<toml::Value>)> {
-        let mut axes = Vec::new();
+    /// The grid: `vary` first, then the `grid` keys in alphabetical order
+    /// (the last varying fastest), values as `--set` writes them.
+    pub fn space(&self) -> SearchSpace {
+        let mut space = SearchSpace::default();
         if let Some(v) = &self.vary {
-            axes.push((v.clone(), self.values.clone()));
+            space.axes.push(Axis {
+                key: v.clone(),
+                values: self.values.iter().map(value_text).collect(),
+            });
         }
-        axes.extend(self.grid.iter().map(|(k, v)| (k.clone(), v.clone())));
-        axes
+        space.axes.extend(self.grid.iter().map(|(k, v)| Axis {
+            key: k.clone(),
+            values: v.iter().map(value_text).collect(),
+        }));
+        space
     }
+}
 
-    /// Every combination of values, in order.
-    pub fn points(&self) -> Vec<Vec<(String, toml::Value)>> {
-        let mut points: Vec<Vec<(String, toml::Value)>> = vec![vec![]];
-        for (key, values) in self.axes() {
-            let mut next = Vec::with_capacity(points.len() * values.len());
-            for p in &points {
-                for v in &values {
-                    let mut q = p.clone();
-                    q.push((key.clone(), v.clone()));
-                    next.push(q);
-                }
-            }
-            points = next;
-        }
-        points
+/// A TOML value as `--set` writes it: text without quotes, other scalars
+/// as TOML writes them.
+pub fn value_text(v: &toml::Value) -> String {
+    match v {
+        toml::Value::String(s) => s.clone(),
+        other => other.to_string(),
     }
 }
 
@@ -446,17 +446,17 @@ impl Experiment {
             if s.run.auto || !s.run.seeds.is_empty() {
                 return Err(E::SweepOfRuns(name()));
             }
-            let axes = s.axes();
-            if axes.is_empty() {
+            let space = s.space();
+            if space.axes.is_empty() {
                 return Err(E::NoAxis(name()));
             }
             if s.vary.is_none() && !s.values.is_empty() {
                 return Err(E::ValuesWithoutVary(name()));
             }
-            if let Some((k, _)) = axes.iter().find(|(_, v)| v.is_empty()) {
+            if let Some(axis) = space.axes.iter().find(|a| a.values.is_empty()) {
                 return Err(E::NoValues {
                     name: name(),
-                    key: k.to_string(),
+                    key: axis.key.clone(),
                 });
             }
         }
@@ -498,16 +498,16 @@ values = [1, 2]
         let e = Experiment::from_toml(text, "x.toml").unwrap();
         assert_eq!(e.runs[0].set["ridge"], toml::Value::Float(0.1));
         assert_eq!(e.sweeps[0].vary.as_deref(), Some("na"));
-        assert_eq!(e.sweeps[0].points().len(), 2);
+        assert_eq!(e.sweeps[0].space().count(), 2);
         let grid = text.replace(
             "vary = \"na\"\nvalues = [1, 2]",
             "grid = { na = [1, 2], modes = [1, 2, 3] }",
         );
         let g = Experiment::from_toml(&grid, "x.toml").unwrap();
-        let pts = g.sweeps[0].points();
+        let pts = g.sweeps[0].space().candidates();
         assert_eq!(pts.len(), 6);
-        assert_eq!(pts[1][0].0, "modes");
-        assert_eq!(pts[1][1], ("na".to_string(), toml::Value::Integer(2)));
+        assert_eq!(pts[1].values[0].0, "modes");
+        assert_eq!(pts[1].values[1], ("na".to_string(), "2".to_string()));
         let bad = text.replace("method = \"arx\"\nset", "method = \"nope\"\nset");
         assert!(
             Experiment::from_toml(&bad, "x")

@@ -48,8 +48,11 @@
 //! at `beta = 1` a typical sample is then weighted about 0.73 to its own
 //! mode, at `beta = 10` nearly 1.
 
-use super::{Evaluation, Residuals, Shooting, fit_parameters, levenberg_marquardt};
-use crate::pwarx::{PwarxData, PwarxFit};
+use super::parameters::fit_parameters;
+use super::shooting::{Evaluation, Shooting};
+use crate::lm::{LeastSquares, Linearisation, levenberg_marquardt};
+use crate::pwarx::assemble::PwarxFit;
+use crate::pwarx::prepare::PwarxData;
 use hysid_core::backend::IdentifyError;
 use hysid_core::stages::Stages;
 use hysid_model::geometry::{argmax_regions, argmax_scores};
@@ -376,7 +379,11 @@ impl<'s, 'a> RelaxedGate<'s, 'a> {
 
     /// The relaxed simulation of one segment and `d y_sim(k) / dv`
     /// (row-major, `len x unknowns`); `None` when it diverges.
-    fn simulate(&self, seg: &super::Segment, scores: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<f64>)> {
+    fn simulate(
+        &self,
+        seg: &super::shooting::Segment,
+        scores: &[Vec<f64>],
+    ) -> Option<(Vec<f64>, Vec<f64>)> {
         let spec = self.shooting.spec;
         let (d, na, lag) = (spec.dim(), spec.na, spec.lag());
         let nv = self.unknowns();
@@ -440,11 +447,13 @@ impl<'s, 'a> RelaxedGate<'s, 'a> {
     }
 }
 
-impl Residuals for RelaxedGate<'_, '_> {
+impl RelaxedGate<'_, '_> {
+    /// Number of unknowns: the scores of every mode but the last.
     fn unknowns(&self) -> usize {
         (self.thetas.len() - 1) * self.block()
     }
 
+    /// The simulation of every segment with the relaxed gate at `v`.
     fn evaluate(&self, v: &[f64]) -> Result<Evaluation, IdentifyError> {
         let scores = self.scores(v);
         let norm = self.normal_norm(v);
@@ -482,6 +491,18 @@ impl Residuals for RelaxedGate<'_, '_> {
             errors,
             cost,
         })
+    }
+}
+
+impl LeastSquares for RelaxedGate<'_, '_> {
+    type Error = IdentifyError;
+
+    fn unknowns(&self) -> usize {
+        RelaxedGate::unknowns(self)
+    }
+
+    fn linearise(&self, v: &[f64]) -> Result<Linearisation, IdentifyError> {
+        Ok(self.evaluate(v)?.into())
     }
 
     fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {

@@ -1,0 +1,242 @@
+//! Levenberg-Marquardt for nonlinear least squares (Levenberg 1944,
+//! Marquardt 1963), the one local optimiser of the workspace: the damping
+//! update of Madsen, Nielsen & Tingleff, *Methods for non-linear least
+//! squares problems*, 2004, section 3.2. Each step solves
+//!
+//! ```text
+//! min_v' |J v' - (e + J v)|^2 + mu |v' - v|^2
+//! ```
+//!
+//! (`e` the errors, `J = d y / d v` the Jacobian of the model's outputs)
+//! through the problem's own [`LeastSquares::solve`], so that constraints
+//! on the unknowns (the priors' equalities and bounds) hold after every
+//! step. A step is accepted only when the cost decreases; a point whose
+//! cost is not finite is never accepted.
+
+use nalgebra::{DMatrix, DVector};
+
+/// A step that lowers the cost by less than this fraction of it ends the
+/// descent ([`Stop::Converged`]).
+pub const RELATIVE_TOLERANCE: f64 = 1e-10;
+
+/// The errors of a model at a point and their Jacobian.
+#[derive(Debug, Clone)]
+pub struct Linearisation {
+    /// Errors `y - y_model`.
+    pub errors: DVector<f64>,
+    /// `d y_model / d v`, one row per error.
+    pub jacobian: DMatrix<f64>,
+    /// Sum of squared errors; `+inf` when the model cannot be evaluated
+    /// (a diverging simulation).
+    pub cost: f64,
+}
+
+/// A nonlinear least-squares problem: the errors and their Jacobian at a
+/// point, and the damped linearised step under the problem's constraints.
+pub trait LeastSquares {
+    /// Why an evaluation failed (not a diverging model, which costs
+    /// `+inf`, but a problem that cannot be evaluated at all).
+    type Error;
+    /// Number of unknowns.
+    fn unknowns(&self) -> usize;
+    /// The errors, Jacobian and cost at `v`.
+    fn linearise(&self, v: &[f64]) -> Result<Linearisation, Self::Error>;
+    /// `argmin |design v - rhs|^2` under the problem's constraints; `None`
+    /// when the subproblem fails (the step is then rejected).
+    fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>>;
+}
+
+/// Why the descent ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stop {
+    /// The relative decrease of the cost (or the step) fell below the
+    /// tolerance, or the cost reached zero.
+    Converged,
+    /// No step of any damping decreased the cost.
+    NoDescent,
+    /// The iteration bound was reached first.
+    IterationLimit,
+    /// The cost at the start is not finite: nothing was done.
+    Diverged,
+}
+
+/// What [`levenberg_marquardt`] found.
+#[derive(Debug, Clone)]
+pub struct Descent {
+    /// The unknowns reached (`None` when no step was accepted).
+    pub v: Option<Vec<f64>>,
+    /// Solved steps, accepted or not.
+    pub iterations: usize,
+    /// The cost at the start (`+inf` when the model diverges there).
+    pub cost_before: f64,
+    /// The cost at the end.
+    pub cost_after: f64,
+    /// How it ended.
+    pub stop: Stop,
+}
+
+/// Levenberg-Marquardt on `problem` from `v` (see the module doc), at most
+/// `max_iterations` solved steps.
+pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
+    problem: &P,
+    mut v: Vec<f64>,
+    max_iterations: usize,
+) -> Result<Descent, P::Error> {
+    let mut current = problem.linearise(&v)?;
+    let mut descent = Descent {
+        v: None,
+        iterations: 0,
+        cost_before: current.cost,
+        cost_after: current.cost,
+        stop: Stop::IterationLimit,
+    };
+    if !current.cost.is_finite() {
+        descent.stop = Stop::Diverged;
+        return Ok(descent);
+    }
+    let n = problem.unknowns();
+    let scale = largest_gram_diagonal(&current.jacobian).max(f64::MIN_POSITIVE);
+    let mut mu = 1e-3 * scale;
+    let mut nu = 2.0;
+    let mut accepted = false;
+    while descent.iterations < max_iterations {
+        if current.cost == 0.0 || n == 0 {
+            descent.stop = Stop::Converged;
+            break;
+        }
+        descent.iterations += 1;
+        let (design, rhs) = damped_system(&current, &v, mu);
+        // A failed subproblem is a rejected step: more damping.
+        let trial_v = problem.solve(&design, &rhs);
+        let trial = match &trial_v {
+            Some(t) => {
+                let vv = DVector::from_column_slice(&v);
+                let step = DVector::from_iterator(n, t.iter().zip(&v).map(|(a, b)| a - b));
+                if step.norm() <= 1e-14 * (vv.norm() + 1e-14) {
+                    descent.stop = Stop::Converged;
+                    break;
+                }
+                let predicted =
+                    current.cost - (&current.errors - &current.jacobian * &step).norm_squared();
+                Some((problem.linearise(t)?, predicted))
+            }
+            None => None,
+        };
+        match (trial, trial_v) {
+            (Some((next, predicted)), Some(t)) if next.cost < current.cost => {
+                let decrease = current.cost - next.cost;
+                let rho = if predicted > 0.0 {
+                    decrease / predicted
+                } else {
+                    0.0
+                };
+                let relative = decrease / current.cost;
+                v = t;
+                current = next;
+                accepted = true;
+                mu *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
+                nu = 2.0;
+                if relative < RELATIVE_TOLERANCE {
+                    descent.stop = Stop::Converged;
+                    break;
+                }
+            }
+            _ => {
+                mu *= nu;
+                nu *= 2.0;
+                if !mu.is_finite() || mu > 1e16 * scale {
+                    descent.stop = Stop::NoDescent;
+                    break;
+                }
+            }
+        }
+    }
+    descent.cost_after = current.cost;
+    descent.v = accepted.then_some(v);
+    Ok(descent)
+}
+
+/// The largest diagonal entry of `J^T J`: the scale of the damping.
+fn largest_gram_diagonal(j: &DMatrix<f64>) -> f64 {
+    (0..j.ncols())
+        .map(|c| j.column(c).norm_squared())
+        .fold(0.0, f64::max)
+}
+
+/// The damped step as one least-squares system,
+/// `[J; sqrt(mu) I] v' = [e + J v; sqrt(mu) v]`.
+fn damped_system(at: &Linearisation, v: &[f64], mu: f64) -> (DMatrix<f64>, DVector<f64>) {
+    let (rows, n) = (at.jacobian.nrows(), v.len());
+    let vv = DVector::from_column_slice(v);
+    let target = &at.errors + &at.jacobian * &vv;
+    let sm = mu.sqrt();
+    let mut design = DMatrix::zeros(rows + n, n);
+    design.rows_mut(0, rows).copy_from(&at.jacobian);
+    let mut rhs = DVector::zeros(rows + n);
+    rhs.rows_mut(0, rows).copy_from(&target);
+    for c in 0..n {
+        design[(rows + c, c)] = sm;
+        rhs[rows + c] = sm * v[c];
+    }
+    (design, rhs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `y = exp(a t) + b` at five points, unconstrained.
+    struct Exponential {
+        t: Vec<f64>,
+        y: Vec<f64>,
+    }
+
+    impl LeastSquares for Exponential {
+        type Error = ();
+        fn unknowns(&self) -> usize {
+            2
+        }
+        fn linearise(&self, v: &[f64]) -> Result<Linearisation, ()> {
+            let errors = DVector::from_iterator(
+                self.t.len(),
+                self.t
+                    .iter()
+                    .zip(&self.y)
+                    .map(|(t, y)| y - (v[0] * t).exp() - v[1]),
+            );
+            let mut jacobian = DMatrix::zeros(self.t.len(), 2);
+            for (k, t) in self.t.iter().enumerate() {
+                jacobian[(k, 0)] = t * (v[0] * t).exp();
+                jacobian[(k, 1)] = 1.0;
+            }
+            let cost = errors.norm_squared();
+            Ok(Linearisation {
+                errors,
+                jacobian,
+                cost,
+            })
+        }
+        fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
+            let qr = design.clone().qr();
+            let x = qr.r().solve_upper_triangular(&(qr.q().transpose() * rhs))?;
+            Some(x.iter().copied().collect())
+        }
+    }
+
+    #[test]
+    fn a_nonlinear_fit_converges_to_the_truth() {
+        let t: Vec<f64> = (0..5).map(|k| k as f64 * 0.25).collect();
+        let y = t.iter().map(|t| (0.7 * t).exp() - 0.3).collect();
+        let problem = Exponential { t, y };
+        let d = levenberg_marquardt(&problem, vec![0.0, 0.0], 100).unwrap();
+        assert_eq!(d.stop, Stop::Converged);
+        let v = d.v.unwrap();
+        assert!(
+            (v[0] - 0.7).abs() < 1e-8 && (v[1] + 0.3).abs() < 1e-8,
+            "{v:?}"
+        );
+        assert!(d.cost_after < 1e-16 && d.cost_before > 0.5);
+        let short = levenberg_marquardt(&problem, vec![0.0, 0.0], 1).unwrap();
+        assert_eq!((short.stop, short.iterations), (Stop::IterationLimit, 1));
+    }
+}

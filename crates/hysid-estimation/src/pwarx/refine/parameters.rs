@@ -1,0 +1,74 @@
+//! The first stage of the refinement: the mode parameters by
+//! Levenberg-Marquardt ([`crate::lm`]) on the shooting cost, the regions
+//! fixed, over the free variables of the priors' parametrisation.
+
+use super::shooting::Shooting;
+use crate::constrained::{self, Parametrisation};
+use crate::lm::{LeastSquares, Linearisation, levenberg_marquardt};
+use crate::pwarx::prepare::PwarxData;
+use hysid_core::backend::IdentifyError;
+use hysid_core::stages::Stages;
+use hysid_model::model::{PwarxMode, Refinement};
+use nalgebra::{DMatrix, DVector};
+
+/// The parameters of `modes` refined by Levenberg-Marquardt on the
+/// shooting cost with their regions fixed (see the module doc); the
+/// outcome.
+pub(super) fn fit_parameters(
+    data: &PwarxData<'_>,
+    modes: &mut [PwarxMode],
+    settings: &Stages,
+) -> Result<Refinement, IdentifyError> {
+    let par = Parametrisation::from_priors(data.priors(), &data.spec, modes.len())
+        .map_err(|e| data.prior_error(e))?;
+    let shooting = Shooting::new(data, modes, settings.refine_segment)?;
+    let thetas: Vec<Vec<f64>> = modes.iter().map(|m| m.theta.clone()).collect();
+    let start = par
+        .free_values(&thetas)
+        .map_err(|e| IdentifyError::failed(format!("refinement: {e}")))?;
+    let problem = ParameterResiduals {
+        shooting: &shooting,
+        par: &par,
+    };
+    let descent = levenberg_marquardt(&problem, start, settings.refine_iterations)?;
+    if let Some(z) = &descent.v {
+        for (mode, theta) in modes.iter_mut().zip(par.thetas(z)) {
+            mode.theta = theta;
+        }
+    }
+    let finite = descent.cost_before.is_finite();
+    Ok(Refinement {
+        segment: shooting.segment,
+        segments: shooting.segments(),
+        iterations: descent.iterations,
+        max_iterations: settings.refine_iterations,
+        cost_before: finite.then_some(descent.cost_before),
+        cost_after: finite.then_some(descent.cost_after),
+        status: descent.stop.into(),
+        regions: None,
+    })
+}
+
+/// The mode parameters' problem: the shooting cost over the free
+/// variables of the priors' parametrisation, steps solved under its
+/// equalities and bounds.
+struct ParameterResiduals<'s, 'a> {
+    shooting: &'s Shooting<'a>,
+    par: &'s Parametrisation,
+}
+
+impl LeastSquares for ParameterResiduals<'_, '_> {
+    type Error = IdentifyError;
+
+    fn unknowns(&self) -> usize {
+        self.par.n_free()
+    }
+
+    fn linearise(&self, z: &[f64]) -> Result<Linearisation, IdentifyError> {
+        Ok(self.shooting.evaluate(self.par, z)?.into())
+    }
+
+    fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
+        constrained::solve_in_z(self.par, design, rhs).ok()
+    }
+}

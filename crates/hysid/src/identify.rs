@@ -1,0 +1,305 @@
+//! The one entry point of identification: an [`Identify`] request, checked
+//! once, whose [`Identify::run`] returns the model. The `hysid` program,
+//! the Python package and experiments are front ends over it; each words
+//! the typed [`Error`] with its own argument names.
+
+use crate::select::{self, AgainstAffine, Plan, Request, SelectError};
+use hysid_core::backend::{
+    Deadline, IdentifyError, NoProgress, Problem, Progress, Registry, RunContext,
+};
+use hysid_core::model::Model;
+use hysid_core::options::Settings;
+use hysid_core::priors::{InconsistentPrior, Priors};
+use hysid_core::search::SearchSpace;
+use hysid_estimation::pwarx::run_standardized;
+use hysid_model::data::{Dataset, RowRange};
+use hysid_model::regressors::RegressorSpec;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+/// How the options are settled.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum Mode {
+    /// As given (the back-end's defaults for the rest).
+    #[default]
+    Plain,
+    /// As given, on standardised data; the model in original units.
+    Standardized,
+    /// Chosen on selection rows inside the identification rows
+    /// ([`crate::select`]).
+    Auto(Auto),
+}
+
+/// What automatic selection is asked to do.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Auto {
+    /// Selection rows, in rows of the file; `None`: the default split.
+    pub select_rows: Option<RowRange>,
+    /// Rolling-origin folds instead of one split.
+    pub folds: Option<usize>,
+    /// Starts of the refit of the choice (at least 1).
+    pub refit_starts: usize,
+    /// The user's grid, replacing the back-end's search space.
+    pub grid: Option<SearchSpace>,
+}
+
+impl Default for Auto {
+    fn default() -> Self {
+        Self {
+            select_rows: None,
+            folds: None,
+            refit_starts: select::DEFAULT_REFIT_STARTS,
+            grid: None,
+        }
+    }
+}
+
+/// One identification: a back-end, a record and what is known.
+#[derive(Debug, Clone)]
+pub struct Identify<'a> {
+    /// The back-end's name (`hysid methods`).
+    pub method: String,
+    /// The identification record.
+    pub data: &'a Dataset,
+    /// Row of the file where `data` starts (selection rows are given in
+    /// rows of the file).
+    pub first_row: usize,
+    /// Output lags.
+    pub na: usize,
+    /// Input lags.
+    pub nb: usize,
+    /// Prior knowledge.
+    pub priors: Priors,
+    /// Where the priors came from (a file), for messages.
+    pub priors_origin: Option<String>,
+    /// The mode count, overriding the priors' `modes`.
+    pub modes: Option<usize>,
+    /// The largest mode count, overriding the priors' `max_modes`.
+    pub max_modes: Option<usize>,
+    /// The back-end's options (`--set`).
+    pub options: Settings,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// A time budget in seconds.
+    pub time_budget: Option<f64>,
+    /// A flag that stops the run when raised (Ctrl-C in Python).
+    pub stop: Option<Arc<AtomicBool>>,
+    /// Samples at the start of a scored record left out of its score.
+    pub warmup: usize,
+    /// How the options are settled.
+    pub mode: Mode,
+}
+
+/// What a request produced.
+#[derive(Debug, Clone)]
+pub struct Identified {
+    /// The model, its provenance, diagnostics and (for automatic
+    /// selection) the selection record in `info`.
+    pub model: Model,
+}
+
+/// A request field that is out of range, named as the library names it;
+/// each front end words it with its own argument name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Field {
+    /// The mode count.
+    Modes,
+    /// The largest mode count.
+    MaxModes,
+    /// The time budget.
+    TimeBudget,
+    /// The refit's starts.
+    RefitStarts,
+}
+
+/// Why a request could not be run.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A field out of range.
+    #[error("{field:?} = {value}: {what}")]
+    Field {
+        /// The field.
+        field: Field,
+        /// Its value, as given.
+        value: String,
+        /// What a valid value is.
+        what: &'static str,
+    },
+    /// The mode counts given contradict each other or the priors.
+    #[error("{problem}")]
+    Modes {
+        /// The mode count given.
+        modes: Option<usize>,
+        /// The largest mode count given.
+        max_modes: Option<usize>,
+        /// What is inconsistent.
+        problem: InconsistentPrior,
+    },
+    /// The back-end refused the problem or failed.
+    #[error(transparent)]
+    Identify(#[from] IdentifyError),
+    /// Automatic selection could not choose.
+    #[error(transparent)]
+    Select(#[from] SelectError),
+}
+
+impl<'a> Identify<'a> {
+    /// A request for `method` on `data` with every other field at its
+    /// default: orders 2 and 2, no priors, the back-end's options, seed 0.
+    pub fn new(method: &str, data: &'a Dataset) -> Self {
+        Self {
+            method: method.to_string(),
+            data,
+            first_row: 0,
+            na: 2,
+            nb: 2,
+            priors: Priors::default(),
+            priors_origin: None,
+            modes: None,
+            max_modes: None,
+            options: Settings::default(),
+            seed: 0,
+            time_budget: None,
+            stop: None,
+            warmup: 10,
+            mode: Mode::Plain,
+        }
+    }
+
+    /// With output lags `na` and input lags `nb`.
+    pub fn orders(self, na: usize, nb: usize) -> Self {
+        Self { na, nb, ..self }
+    }
+
+    /// With `modes` modes.
+    pub fn modes(self, modes: usize) -> Self {
+        Self {
+            modes: Some(modes),
+            ..self
+        }
+    }
+
+    /// With seed `seed`.
+    pub fn seed(self, seed: u64) -> Self {
+        Self { seed, ..self }
+    }
+
+    /// The priors with the mode counts given, checked.
+    pub fn resolved_priors(&self) -> Result<Priors, Error> {
+        let mut priors = self.priors.clone();
+        for (field, value, prior) in [
+            (Field::Modes, self.modes, &mut priors.modes),
+            (Field::MaxModes, self.max_modes, &mut priors.max_modes),
+        ] {
+            if let Some(s) = value {
+                if s == 0 {
+                    return Err(Error::Field {
+                        field,
+                        value: s.to_string(),
+                        what: "must be at least 1",
+                    });
+                }
+                *prior = Some(s);
+            }
+        }
+        if self.modes.is_some() || self.max_modes.is_some() {
+            priors.check().map_err(|problem| Error::Modes {
+                modes: self.modes,
+                max_modes: self.max_modes,
+                problem,
+            })?;
+        }
+        Ok(priors)
+    }
+
+    /// When the run must end.
+    fn deadline(&self) -> Result<Deadline, Error> {
+        let deadline = match self.time_budget {
+            Some(t) => Deadline::after_seconds(t).ok_or(Error::Field {
+                field: Field::TimeBudget,
+                value: t.to_string(),
+                what: "must be a positive number of seconds",
+            })?,
+            None => Deadline::none(),
+        };
+        Ok(match &self.stop {
+            Some(flag) => deadline.with_stop(Arc::clone(flag)),
+            None => deadline,
+        })
+    }
+
+    /// Runs the request with the back-ends of `registry`, quietly.
+    pub fn run(&self, registry: &Registry) -> Result<Identified, Error> {
+        self.run_with(registry, &NoProgress)
+    }
+
+    /// Runs the request, showing progress on `progress`.
+    pub fn run_with(
+        &self,
+        registry: &Registry,
+        progress: &dyn Progress,
+    ) -> Result<Identified, Error> {
+        let backend = registry.require(&self.method)?;
+        let priors = self.resolved_priors()?;
+        let ctx = RunContext {
+            seed: self.seed,
+            progress,
+            deadline: self.deadline()?,
+        };
+        let problem = Problem {
+            data: self.data,
+            orders: RegressorSpec::new(self.na, self.nb, self.data.inputs.len()),
+            priors: &priors,
+            priors_origin: self.priors_origin.as_deref(),
+        };
+        let model = match &self.mode {
+            Mode::Plain => backend.run(&problem, &self.options, &ctx)?,
+            Mode::Standardized => run_standardized(backend, &problem, &self.options, &ctx)?,
+            Mode::Auto(auto) => {
+                if auto.refit_starts == 0 {
+                    return Err(Error::Field {
+                        field: Field::RefitStarts,
+                        value: "0".into(),
+                        what: "must be at least 1",
+                    });
+                }
+                let space = match &auto.grid {
+                    Some(grid) => grid.clone(),
+                    None => backend.search_space(&problem)?.without_given(&self.options),
+                };
+                let plan = Plan {
+                    select: auto.select_rows,
+                    folds: auto.folds,
+                    warmup: self.warmup,
+                    first_row: self.first_row,
+                    refit_starts: auto.refit_starts,
+                };
+                let affine = crate::affine_reference(registry, backend.name());
+                let request = Request::from_problem(
+                    backend,
+                    affine,
+                    &problem,
+                    self.options.clone(),
+                    space,
+                    plan,
+                );
+                select::select(&request, &ctx)?
+            }
+        };
+        Ok(Identified { model })
+    }
+}
+
+impl Identified {
+    /// The model's free-run FIT on the identification record beside the
+    /// affine ARX model's of the same orders and priors fitted on it;
+    /// `None` when the model has no ARX orders, is that reference itself,
+    /// or was chosen by automatic selection (which compared it already).
+    pub fn against_affine(&self, request: &Identify<'_>) -> Option<AgainstAffine> {
+        if self.model.info().selection.is_some() {
+            return None;
+        }
+        let priors = request.resolved_priors().ok()?;
+        crate::against_affine(&self.model, request.data, &priors, request.warmup)
+    }
+}
