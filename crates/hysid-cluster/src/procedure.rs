@@ -261,111 +261,42 @@ pub fn run_with(
 ) -> Result<ModeFit, ProcedureError> {
     let big_n = y.len();
     let f = local::feature_vectors(x, n, y, s.c, s.features, s.regularization);
-    let clusters: Clusters = match s.clustering {
-        Clustering::Kmeans => kmeans::weighted_kmeans_until(
-            &f,
-            s.modes,
-            s.restarts,
-            s.max_iter,
-            s.init,
-            rng,
-            &s.deadline,
-        ),
-        Clustering::SingleLinkage => kmeans::single_linkage(&f, s.modes, s.sl_distance),
-    };
-    let discard_size = if s.discard > 0.0 {
-        s.c.max((s.discard * (n + 1) as f64).ceil() as usize)
-    } else {
-        1
-    };
+    let clusters = cluster(&f, s, rng);
+    let discard_size = discard_size(s, n);
     let mut labels = clusters.labels.clone();
     let (mut modes, mut discarded) = discard_small(&mut labels, clusters.count, discard_size);
     if modes == 0 {
         return Err(ProcedureError::AllDiscarded(discard_size));
     }
     let outliers = labels.iter().filter(|&&l| l == usize::MAX).count();
-    let fitted = fit_modes_with(
-        x,
-        n,
-        y,
-        &f,
-        &labels,
-        modes,
-        s.min_weight,
-        s.weights,
-        constraints,
-    )?;
+    let fit = |labels: &[usize], modes: usize| {
+        fit_modes_with(
+            x,
+            n,
+            y,
+            &f,
+            labels,
+            modes,
+            s.min_weight,
+            s.weights,
+            constraints,
+        )
+    };
+    let fitted = fit(&labels, modes)?;
     let mut theta = fitted.working;
     let mut theta_original = fitted.original;
-    let best_mode =
-        |j: usize, cands: &mut dyn Iterator<Item = usize>, theta: &[Vec<f64>]| -> usize {
-            let xj = &x[j * n..(j + 1) * n];
-            let mut best = (f64::INFINITY, usize::MAX);
-            for i in cands {
-                let r = residual2(xj, y[j], &theta[i]);
-                if r < best.0 || (r == best.0 && i < best.1) {
-                    best = (r, i);
-                }
-            }
-            best.1
-        };
-    // Outliers: least residual over all modes.
-    for (j, l) in labels.iter_mut().enumerate() {
-        if *l == usize::MAX {
-            *l = best_mode(j, &mut (0..modes), &theta);
-        }
-    }
+    place_by_residual(&mut labels, modes, x, n, y, &theta);
     let mut reattributed = 0;
     if s.reattribute {
-        let before = labels.clone();
-        let mut cand = Vec::with_capacity(s.c);
-        for j in 0..big_n {
-            let own = before[j];
-            cand.clear();
-            cand.push(own);
-            for &m in f.members(j) {
-                let l = before[m as usize];
-                if !cand.contains(&l) {
-                    cand.push(l);
-                }
-            }
-            if cand.len() > 1 {
-                // Own mode wins ties: it is listed first and compared strictly.
-                let xj = &x[j * n..(j + 1) * n];
-                let mut best = (residual2(xj, y[j], &theta[own]), own);
-                for &i in &cand[1..] {
-                    let r = residual2(xj, y[j], &theta[i]);
-                    if r < best.0 {
-                        best = (r, i);
-                    }
-                }
-                labels[j] = best.1;
-            }
-        }
-        reattributed = labels.iter().zip(&before).filter(|(a, b)| a != b).count();
+        reattributed = reattribute(&mut labels, &f, x, n, y, &theta);
         // Second discard check, then points of dropped modes go by residual.
         let (kept, dropped) = discard_small(&mut labels, modes, discard_size);
         if kept == 0 {
             return Err(ProcedureError::AllDiscarded(discard_size));
         }
         if dropped > 0 {
-            theta = fit_modes_with(
-                x,
-                n,
-                y,
-                &f,
-                &labels,
-                kept,
-                s.min_weight,
-                s.weights,
-                constraints,
-            )?
-            .working;
-            for (j, l) in labels.iter_mut().enumerate() {
-                if *l == usize::MAX {
-                    *l = best_mode(j, &mut (0..kept), &theta);
-                }
-            }
+            theta = fit(&labels, kept)?.working;
+            place_by_residual(&mut labels, kept, x, n, y, &theta);
             discarded += dropped;
             modes = kept;
         }
@@ -373,17 +304,7 @@ pub fn run_with(
     // The parameters are estimated again from the final labels whenever a
     // point moved: outliers placed by residual, or a reattribution.
     if outliers > 0 || s.reattribute {
-        let fitted = fit_modes_with(
-            x,
-            n,
-            y,
-            &f,
-            &labels,
-            modes,
-            s.min_weight,
-            s.weights,
-            constraints,
-        )?;
+        let fitted = fit(&labels, modes)?;
         theta = fitted.working;
         theta_original = fitted.original;
     }
@@ -406,4 +327,94 @@ pub fn run_with(
         },
         features: f,
     })
+}
+
+/// Step 2: the feature vectors clustered into `s.modes` clusters.
+fn cluster(f: &FeatureVectors, s: &Settings, rng: &mut ChaCha8Rng) -> Clusters {
+    match s.clustering {
+        Clustering::Kmeans => kmeans::weighted_kmeans_until(
+            f,
+            s.modes,
+            s.restarts,
+            s.max_iter,
+            s.init,
+            rng,
+            &s.deadline,
+        ),
+        Clustering::SingleLinkage => kmeans::single_linkage(f, s.modes, s.sl_distance),
+    }
+}
+
+/// The smallest cluster kept: `max(c, discard (n + 1))`, or 1 without a
+/// discard factor.
+fn discard_size(s: &Settings, n: usize) -> usize {
+    if s.discard > 0.0 {
+        s.c.max((s.discard * (n + 1) as f64).ceil() as usize)
+    } else {
+        1
+    }
+}
+
+/// Every point without a mode (`usize::MAX`) to the mode of least
+/// residual among `0..modes` (the lower index among equals).
+fn place_by_residual(
+    labels: &mut [usize],
+    modes: usize,
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    theta: &[Vec<f64>],
+) {
+    for (j, l) in labels.iter_mut().enumerate() {
+        if *l == usize::MAX {
+            let xj = &x[j * n..(j + 1) * n];
+            let mut best = (f64::INFINITY, usize::MAX);
+            for i in 0..modes {
+                let r = residual2(xj, y[j], &theta[i]);
+                if r < best.0 || (r == best.0 && i < best.1) {
+                    best = (r, i);
+                }
+            }
+            *l = best.1;
+        }
+    }
+}
+
+/// HIT's reattribution of mixed points: every point whose local dataset
+/// spans several modes goes to the one among them of least residual (its
+/// own mode wins ties); the number of points moved.
+fn reattribute(
+    labels: &mut [usize],
+    f: &FeatureVectors,
+    x: &[f64],
+    n: usize,
+    y: &[f64],
+    theta: &[Vec<f64>],
+) -> usize {
+    let before = labels.to_vec();
+    let mut cand = Vec::new();
+    for j in 0..labels.len() {
+        let own = before[j];
+        cand.clear();
+        cand.push(own);
+        for &m in f.members(j) {
+            let l = before[m as usize];
+            if !cand.contains(&l) {
+                cand.push(l);
+            }
+        }
+        if cand.len() > 1 {
+            // Own mode wins ties: it is listed first and compared strictly.
+            let xj = &x[j * n..(j + 1) * n];
+            let mut best = (residual2(xj, y[j], &theta[own]), own);
+            for &i in &cand[1..] {
+                let r = residual2(xj, y[j], &theta[i]);
+                if r < best.0 {
+                    best = (r, i);
+                }
+            }
+            labels[j] = best.1;
+        }
+    }
+    labels.iter().zip(&before).filter(|(a, b)| a != b).count()
 }
