@@ -4,7 +4,7 @@
 //! that names the problem (file, row, column, option or entry), and no
 //! output file.
 
-mod common;
+use crate::common;
 
 use common::{fail, hysid, one_line_error, report, s, write};
 use std::path::{Path, PathBuf};

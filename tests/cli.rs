@@ -2,7 +2,7 @@
 //! `docs/cli.md` and `docs/file-formats.md` (commands, files, exit codes, no
 //! partial output).
 
-mod common;
+use crate::common;
 
 use common::{hysid, ok, one_line_error, s, two_mode_record};
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! Determinism: the same inputs and seed give
 //! byte-identical files, across runs and across thread counts.
 
-mod common;
+use crate::common;
 
 use common::{ok_env, s, two_mode_record};
 use std::collections::BTreeMap;

@@ -11,7 +11,7 @@
 //!   `...`) is listed in [`NOT_RUN`] with the reason, so a new command in
 //!   the docs must be classified.
 
-mod common;
+use crate::common;
 
 use common::{hysid, s};
 use std::collections::BTreeSet;

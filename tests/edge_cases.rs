@@ -8,7 +8,7 @@
 //! never a hang: the records are tiny. The outcomes are tabulated in
 //! docs/errors.md, "Numerical edge cases".
 
-mod common;
+use crate::common;
 
 use common::{fail, hysid, one_line_error, report, s, write};
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! Invariants of the bounded-error procedure, on random PWARX
 //! systems.
 
-mod common;
+use crate::common;
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Backend, Problem, RunContext};

@@ -1,7 +1,7 @@
 //! Gray-box priors in the bounded back-end: ties, fixed values,
 //! bounds, switching variables and known stops.
 
-mod common;
+use crate::common;
 
 use hysid_bounded::{Bounded, BoundedOptions, Delta};
 use hysid_core::backend::{Backend, IdentifyError, Problem, RunContext};

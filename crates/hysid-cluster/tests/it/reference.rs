@@ -12,7 +12,7 @@
 //! which is asserted. `docs/cluster.md` ("Reference examples") has the
 //! per-draw figures and medians over 31 draws.
 //!
-//! `cargo test -p hysid-cluster --test reference -- --nocapture` prints one
+//! `cargo test -p hysid-cluster --test it reference:: -- --nocapture` prints one
 //! table row per draw: example, seed, validation mode accuracy, parameter
 //! error, oracle, excess.
 

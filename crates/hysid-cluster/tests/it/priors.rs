@@ -326,7 +326,7 @@ fn max_modes_counts_the_stops() {
 }
 
 /// Figures for the report (H3 with `c = 0` fixed, B1 with ties): run with
-/// `cargo test -p hysid-cluster --test priors -- --ignored --nocapture`.
+/// `cargo test -p hysid-cluster --test it priors:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn figures() {

@@ -1,0 +1,6 @@
+//! The integration tests of this crate, as one test binary.
+
+mod ball;
+mod delay;
+mod examples;
+mod head;

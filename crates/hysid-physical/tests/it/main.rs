@@ -1,0 +1,5 @@
+//! The integration tests of this crate, as one test binary.
+
+mod backend;
+mod graybox;
+mod recovery;
