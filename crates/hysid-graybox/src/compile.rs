@@ -23,6 +23,12 @@ pub const MAX_DEFINITIONS: usize = 10_000;
 /// Most modes a model may have.
 pub const MAX_MODES: usize = 1_000;
 
+/// Most definitions checked with the values of the modes that give
+/// definitions of their own: each such mode checks every definition
+/// (cycles, depths) with its own values, so these modes times the
+/// definitions may be at most this.
+pub const MAX_MODE_DEFINITIONS: usize = 1_000_000;
+
 /// Most elements (frictions and stops) a model may have: every mode holds
 /// a friction level for each.
 pub const MAX_ELEMENTS: usize = 100;
@@ -117,6 +123,18 @@ pub enum Problem {
         count: usize,
         /// The limit ([`MAX_DEFINITIONS`], [`MAX_MODES`], [`MAX_ELEMENTS`]).
         limit: usize,
+    },
+    /// More modes with definitions of their own, times the definitions,
+    /// than [`MAX_MODE_DEFINITIONS`].
+    #[error(
+        "{modes} modes give definitions of their own and the model has {definitions} \
+         definitions: each such mode checks them all, at most {MAX_MODE_DEFINITIONS} in all"
+    )]
+    ModeDefinitions {
+        /// Modes with definitions of their own.
+        modes: usize,
+        /// Definitions of the model.
+        definitions: usize,
     },
     /// The compiled expressions would hold more than [`MAX_OPERATIONS`].
     #[error(
@@ -303,6 +321,17 @@ impl CompiledModel {
                 ));
             }
         }
+        let own = m.modes.iter().filter(|q| !q.definitions.is_empty()).count();
+        if own * names.len() > MAX_MODE_DEFINITIONS {
+            return Err(InvalidGrayBox::new(
+                "modes",
+                None,
+                Problem::ModeDefinitions {
+                    modes: own,
+                    definitions: names.len(),
+                },
+            ));
+        }
         let symbols = symbol_table(m)?;
         let resolve = |n: &str| symbols.get(n).map(|&slot| slot as u32);
         let nx = m.states.len();
@@ -378,18 +407,28 @@ impl CompiledModel {
 
         // The model's definitions, compiled when a mode first reads them;
         // the names only modes give, which every mode must give.
+        let model_texts: Vec<Option<&String>> =
+            names.iter().map(|d| m.definitions.get(*d)).collect();
         let mut model_definitions: Vec<Option<Rc<Expression>>> = vec![None; names.len()];
         let mode_only: Vec<usize> = (0..names.len())
-            .filter(|&i| !m.definitions.contains_key(names[i]))
+            .filter(|&i| model_texts[i].is_none())
             .collect();
         // A mode's definitions, checked: every name has a value, no cycle,
         // none too deep once written out.
         let mut definitions_of = |q: &GrayBoxMode| -> Result<Definitions, InvalidGrayBox> {
             let place = format!("mode '{}'", q.name);
-            if let Some(&i) = mode_only
+            // The mode's own values, by index (every name is in the table).
+            let mut own: Vec<(usize, &String)> = q
+                .definitions
                 .iter()
-                .find(|&&i| !q.definitions.contains_key(names[i]))
-            {
+                .filter_map(|(d, text)| Some((symbols.get(d)?.checked_sub(first_def)?, text)))
+                .collect();
+            own.sort_unstable_by_key(|&(i, _)| i);
+            let text_of = |i: usize| match own.binary_search_by_key(&i, |&(j, _)| j) {
+                Ok(k) => Some(own[k].1),
+                Err(_) => model_texts[i],
+            };
+            if let Some(&i) = mode_only.iter().find(|&&i| text_of(i).is_none()) {
                 let d = names[i];
                 return Err(InvalidGrayBox::new(
                     &place,
@@ -398,24 +437,18 @@ impl CompiledModel {
                 ));
             }
             let mut written = Vec::with_capacity(names.len());
-            let mut texts = Vec::with_capacity(names.len());
+            let mut mine = own.iter().peekable();
             for (i, d) in names.iter().enumerate() {
                 let at = || format!("{place}, definition '{d}'");
-                let (e, text) = match q.definitions.get(*d) {
-                    Some(text) => (Rc::new(expr(&at(), text)?), text),
-                    None => {
-                        let text = &m.definitions[*d];
-                        let e = match &model_definitions[i] {
-                            Some(e) => Rc::clone(e),
-                            None => {
-                                Rc::clone(model_definitions[i].insert(Rc::new(expr(&at(), text)?)))
-                            }
-                        };
-                        (e, text)
-                    }
+                let e = match (mine.next_if(|&&(j, _)| j == i), model_texts[i]) {
+                    (Some((_, text)), _) => Rc::new(expr(&at(), text)?),
+                    (None, Some(text)) => match &model_definitions[i] {
+                        Some(e) => Rc::clone(e),
+                        None => Rc::clone(model_definitions[i].insert(Rc::new(expr(&at(), text)?))),
+                    },
+                    (None, None) => unreachable!("every name only modes give is given above"),
                 };
                 written.push(e);
-                texts.push(text.as_str());
             }
             Definitions::new(first_def as u32, written).map_err(|e| match e {
                 DefinitionError::Cycle(i) => InvalidGrayBox::new(
@@ -423,11 +456,14 @@ impl CompiledModel {
                     Some(names[i]),
                     Problem::Cycle(names[i].to_string()),
                 ),
-                DefinitionError::TooDeep(i) => InvalidGrayBox::new(
-                    format!("{place}, definition '{}'", names[i]),
-                    Some(texts[i]),
-                    ExprError::TooDeep(texts[i].to_string()),
-                ),
+                DefinitionError::TooDeep(i) => {
+                    let text = text_of(i).map_or("", String::as_str);
+                    InvalidGrayBox::new(
+                        format!("{place}, definition '{}'", names[i]),
+                        Some(text),
+                        ExprError::TooDeep(text.to_string()),
+                    )
+                }
             })
         };
         // An expression of a mode with its definitions written in, counted

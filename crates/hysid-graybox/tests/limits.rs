@@ -2,7 +2,9 @@
 //! `docs/gray-box-models.md` ("Limits") refused with a clear error at its
 //! boundary, and definitions written out once each, whatever their number.
 
-use hysid_graybox::compile::{MAX_DEFINITIONS, MAX_ELEMENTS, MAX_MODES, MAX_OPERATIONS, Problem};
+use hysid_graybox::compile::{
+    MAX_DEFINITIONS, MAX_ELEMENTS, MAX_MODE_DEFINITIONS, MAX_MODES, MAX_OPERATIONS, Problem,
+};
 use hysid_graybox::expr::{ExprError, MAX_LENGTH, MAX_NESTING};
 use hysid_graybox::{CompiledModel, GrayBoxModel, InvalidGrayBox};
 use hysid_model::data::{Dataset, Signal};
@@ -179,4 +181,35 @@ fn modes_and_elements_are_counted() {
             limit: MAX_ELEMENTS
         }
     );
+}
+
+#[test]
+fn modes_with_definitions_of_their_own_are_counted_with_the_definitions() {
+    // Each mode gives its own first link of a chain at the limit: the
+    // modes times the definitions, at the limit and one mode past it.
+    let n = MAX_DEFINITIONS;
+    let mut m = model(&["u - a*v0".into()], &chain(n), "");
+    let only = m.modes[0].clone();
+    let modes = |count: usize| {
+        (0..count)
+            .map(|i| {
+                let mut q = only.clone();
+                q.name = format!("m{i}");
+                q.definitions
+                    .insert("zz0".into(), format!("-a*v0 + u + {i}"));
+                q
+            })
+            .collect()
+    };
+    let fit = MAX_MODE_DEFINITIONS / n;
+    m.modes = modes(fit + 1);
+    assert_eq!(
+        error(&m).problem,
+        Problem::ModeDefinitions {
+            modes: fit + 1,
+            definitions: n
+        }
+    );
+    m.modes = modes(fit);
+    assert!(CompiledModel::new(&m).is_ok());
 }
