@@ -487,7 +487,9 @@ impl Expression {
             defs.expand(&mut ops, &self.ops, None, limit)?;
             let e = Expression::from_ops(ops);
             if recurs && matches!(e.form, Form::Tape) {
-                defs.shared(&self.ops, &uses, limit)?
+                // Registers add their keeps: within them of the limit, the
+                // plain tape stays.
+                defs.shared(&self.ops, &uses, limit).unwrap_or(e)
             } else {
                 e
             }
