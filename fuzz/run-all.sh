@@ -3,7 +3,7 @@
 # niced; logs in fuzz/logs/<target>.log. Usage: fuzz/run-all.sh [targets...]
 cd "$(dirname "$0")" || exit 1
 SECS=${SECS:-600}
-TARGETS=${*:-"mat_reader csv_reader model_json model_toml model_extends prior_toml experiment_toml"}
+TARGETS=${*:-"mat_reader csv_reader model_json model_toml model_extends model_graybox expression prior_toml experiment_toml"}
 mkdir -p logs
 for t in $TARGETS; do
   mkdir -p "work/$t"

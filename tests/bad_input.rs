@@ -810,6 +810,95 @@ fn malformed_gray_box_files() {
     report();
 }
 
+/// Gray-box files a program generated: a flow of 200 000 terms, 200 000
+/// parentheses deep, 20 000 chained definitions, and nesting one past the
+/// limit. Each is refused by a stated limit, in one line naming the file,
+/// the entry and the limit.
+#[test]
+fn gray_box_files_beyond_the_limits() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let model = |flow: &str, definitions: &str| {
+        format!(
+            "kind = \"gray_box\"\nformat = 1\ninternal_step = 0.001\nstates = [\"v1\"]\n\
+             inputs = [\"u\"]\noutputs = [{{ name = \"y\", value = \"v1\" }}]\n\
+             initial_state = {{ from = \"given\", values = {{ v1 = 0.0 }} }}\n\
+             [[parameters]]\nname = \"a\"\nvalue = 1.0\nbounds = [0.0, 2.0]\n\
+             [definitions]\n{definitions}\n\
+             [[modes]]\nname = \"only\"\nflow = {{ v1 = \"{flow}\" }}\n"
+        )
+    };
+    let chain: String = (0..20_000)
+        .map(|i| match i {
+            0 => "zz0 = \"-a*v1 + u\"\n".to_string(),
+            i => format!("zz{i} = \"zz{} + 0\"\n", i - 1),
+        })
+        .collect();
+    let terms = format!("-a*v1 + u{}", " + 0".repeat(200_000));
+    let parens = format!("{}-a*v1 + u{}", "(".repeat(200_000), ")".repeat(200_000));
+    let nested = format!("{}u - a*v1{}", "(".repeat(65), ")".repeat(65));
+    let cases: Vec<(&str, String, Vec<String>)> = vec![
+        (
+            "terms.toml",
+            model(&terms, ""),
+            vec![
+                "line 16".into(),
+                "mode 'only', flow of 'v1'".into(),
+                format!(
+                    "the expression is {} bytes long; the limit is 10000",
+                    terms.len()
+                ),
+            ],
+        ),
+        (
+            "parens.toml",
+            model(&parens, ""),
+            vec![
+                "line 16".into(),
+                "mode 'only', flow of 'v1'".into(),
+                format!(
+                    "the expression is {} bytes long; the limit is 10000",
+                    parens.len()
+                ),
+            ],
+        ),
+        (
+            "nested.toml",
+            model(&nested, ""),
+            vec![
+                "line 16".into(),
+                "mode 'only', flow of 'v1'".into(),
+                "more than 64 deep".into(),
+            ],
+        ),
+        (
+            "chain.toml",
+            model("zz19999", &chain),
+            vec!["definitions: 20000 definitions; a model may have at most 10000".into()],
+        ),
+    ];
+    for (name, text, needles) in &cases {
+        let m = write(d, name, text);
+        let needles: Vec<&str> = std::iter::once(*name)
+            .chain(needles.iter().map(String::as_str))
+            .collect();
+        bad(
+            &[
+                "simulate",
+                s(&m),
+                "--excite",
+                "n=100,hold=10,low=0,high=1,ts=0.01",
+                "-o",
+                s(&out),
+            ],
+            &needles,
+            &out,
+        );
+    }
+    report();
+}
+
 #[test]
 fn malformed_prior_files() {
     let dir = tempfile::tempdir().unwrap();

@@ -99,9 +99,13 @@ impl SearchSpace {
         self.axes.iter().any(|a| a.key == key)
     }
 
-    /// Number of grid points (1 for an empty space: the defaults).
+    /// Number of grid points (1 for an empty space: the defaults),
+    /// `usize::MAX` when the product overflows.
     pub fn count(&self) -> usize {
-        self.axes.iter().map(|a| a.values.len()).product()
+        self.axes
+            .iter()
+            .try_fold(1usize, |n, a| n.checked_mul(a.values.len()))
+            .unwrap_or(usize::MAX)
     }
 
     /// The grid points, the last axis varying fastest.

@@ -8,9 +8,34 @@
 //! (a definition an expression uses more than once is evaluated once, into
 //! a register of that expression's tape: [`Expression::inline`]).
 
-use crate::expr::{ExprError, Expression, Function, Relation};
-use crate::model::{Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxModel};
-use std::collections::{BTreeMap, BTreeSet};
+use crate::expr::{
+    DefinitionError, Definitions, ExprError, Expression, Function, InlineError, Relation,
+};
+use crate::model::{Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode, GrayBoxModel};
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::rc::Rc;
+
+/// Most definitions a model may have (the model's and those only modes
+/// give): each mode's are checked as a whole, so modes times definitions
+/// is the work of reading a file.
+pub const MAX_DEFINITIONS: usize = 10_000;
+
+/// Most modes a model may have.
+pub const MAX_MODES: usize = 1_000;
+
+/// Most definitions checked with the values of the modes that give
+/// definitions of their own: each such mode checks every definition
+/// (cycles, depths) with its own values, so these modes times the
+/// definitions may be at most this.
+pub const MAX_MODE_DEFINITIONS: usize = 1_000_000;
+
+/// Most elements (frictions and stops) a model may have: every mode holds
+/// a friction level for each.
+pub const MAX_ELEMENTS: usize = 100;
+
+/// Most operations the compiled expressions of a model may hold, counted
+/// with their definitions written out ([`Expression::inline`]).
+pub const MAX_OPERATIONS: usize = 1_000_000;
 
 /// What is wrong with a gray-box model: where, and the source text that a
 /// reader can look for in the file ([`InvalidGrayBox::line_in`]).
@@ -89,6 +114,34 @@ pub enum Problem {
     /// Two friction elements on one velocity.
     #[error("state '{0}' has two friction elements")]
     TwoFrictions(String),
+    /// More of something than a model may have.
+    #[error("{count} {what}; a model may have at most {limit}")]
+    TooMany {
+        /// What (`definitions`, `modes`, `elements`).
+        what: &'static str,
+        /// How many the model has.
+        count: usize,
+        /// The limit ([`MAX_DEFINITIONS`], [`MAX_MODES`], [`MAX_ELEMENTS`]).
+        limit: usize,
+    },
+    /// More modes with definitions of their own, times the definitions,
+    /// than [`MAX_MODE_DEFINITIONS`].
+    #[error(
+        "{modes} modes give definitions of their own and the model has {definitions} \
+         definitions: each such mode checks them all, at most {MAX_MODE_DEFINITIONS} in all"
+    )]
+    ModeDefinitions {
+        /// Modes with definitions of their own.
+        modes: usize,
+        /// Definitions of the model.
+        definitions: usize,
+    },
+    /// The compiled expressions would hold more than [`MAX_OPERATIONS`].
+    #[error(
+        "the model's expressions, with their definitions written out, hold more than \
+         {MAX_OPERATIONS} operations (the limit)"
+    )]
+    TooLarge,
 }
 
 impl InvalidGrayBox {
@@ -254,6 +307,31 @@ impl CompiledModel {
                 Problem::InternalStep,
             ));
         }
+        let names = definition_names(m);
+        for (what, count, limit) in [
+            ("definitions", names.len(), MAX_DEFINITIONS),
+            ("modes", m.modes.len(), MAX_MODES),
+            ("elements", m.elements.len(), MAX_ELEMENTS),
+        ] {
+            if count > limit {
+                return Err(InvalidGrayBox::new(
+                    what,
+                    None,
+                    Problem::TooMany { what, count, limit },
+                ));
+            }
+        }
+        let own = m.modes.iter().filter(|q| !q.definitions.is_empty()).count();
+        if own * names.len() > MAX_MODE_DEFINITIONS {
+            return Err(InvalidGrayBox::new(
+                "modes",
+                None,
+                Problem::ModeDefinitions {
+                    modes: own,
+                    definitions: names.len(),
+                },
+            ));
+        }
         let symbols = symbol_table(m)?;
         let resolve = |n: &str| symbols.get(n).map(|&slot| slot as u32);
         let nx = m.states.len();
@@ -325,77 +403,142 @@ impl CompiledModel {
                 .ok_or_else(|| InvalidGrayBox::new(place, Some(n), Problem::UnknownMode(n.into())))
         };
 
-        // Each mode's definitions, in dependency order.
-        let names = definition_names(m);
-        let mut mode_definitions = Vec::with_capacity(m.modes.len());
-        for q in &m.modes {
+        let elements = compile_elements(m, &mode_index, &state_of, &parametric)?;
+
+        // The model's definitions, compiled when a mode first reads them;
+        // the names only modes give, which every mode must give.
+        let model_texts: Vec<Option<&String>> =
+            names.iter().map(|d| m.definitions.get(*d)).collect();
+        let mut model_definitions: Vec<Option<Rc<Expression>>> = vec![None; names.len()];
+        let mode_only: Vec<usize> = (0..names.len())
+            .filter(|&i| model_texts[i].is_none())
+            .collect();
+        // A mode's definitions, checked: every name has a value, no cycle,
+        // none too deep once written out.
+        let mut definitions_of = |q: &GrayBoxMode| -> Result<Definitions, InvalidGrayBox> {
             let place = format!("mode '{}'", q.name);
-            let mut defs = Vec::with_capacity(names.len());
-            for (i, d) in names.iter().enumerate() {
-                let text = q
-                    .definitions
-                    .get(*d)
-                    .or_else(|| m.definitions.get(*d))
-                    .ok_or_else(|| {
-                        InvalidGrayBox::new(&place, Some(d), Problem::Undefined(d.to_string()))
-                    })?;
-                defs.push((
-                    first_def + i,
-                    expr(&format!("{place}, definition '{d}'"), text)?,
-                    text,
+            // The mode's own values, by index (every name is in the table).
+            let mut own: Vec<(usize, &String)> = q
+                .definitions
+                .iter()
+                .filter_map(|(d, text)| Some((symbols.get(d)?.checked_sub(first_def)?, text)))
+                .collect();
+            own.sort_unstable_by_key(|&(i, _)| i);
+            let text_of = |i: usize| match own.binary_search_by_key(&i, |&(j, _)| j) {
+                Ok(k) => Some(own[k].1),
+                Err(_) => model_texts[i],
+            };
+            if let Some(&i) = mode_only.iter().find(|&&i| text_of(i).is_none()) {
+                let d = names[i];
+                return Err(InvalidGrayBox::new(
+                    &place,
+                    Some(d),
+                    Problem::Undefined(d.to_string()),
                 ));
             }
-            let order = order_definitions(&defs, first_def).map_err(|i| {
-                InvalidGrayBox::new(&place, Some(names[i]), Problem::Cycle(names[i].to_string()))
-            })?;
-            // Kept as written (expanded where they are used), each checked
-            // once expanded.
-            let mut written: Vec<Option<Expression>> = vec![None; names.len()];
-            for i in order {
-                let (_, e, text) = &defs[i];
-                e.inline(first_def as u32, &written).ok_or_else(|| {
+            let mut written = Vec::with_capacity(names.len());
+            let mut mine = own.iter().peekable();
+            for (i, d) in names.iter().enumerate() {
+                let at = || format!("{place}, definition '{d}'");
+                let e = match (mine.next_if(|&&(j, _)| j == i), model_texts[i]) {
+                    (Some((_, text)), _) => Rc::new(expr(&at(), text)?),
+                    (None, Some(text)) => match &model_definitions[i] {
+                        Some(e) => Rc::clone(e),
+                        None => Rc::clone(model_definitions[i].insert(Rc::new(expr(&at(), text)?))),
+                    },
+                    (None, None) => unreachable!("every name only modes give is given above"),
+                };
+                written.push(e);
+            }
+            Definitions::new(first_def as u32, written).map_err(|e| match e {
+                DefinitionError::Cycle(i) => InvalidGrayBox::new(
+                    &place,
+                    Some(names[i]),
+                    Problem::Cycle(names[i].to_string()),
+                ),
+                DefinitionError::TooDeep(i) => {
+                    let text = text_of(i).map_or("", String::as_str);
                     InvalidGrayBox::new(
                         format!("{place}, definition '{}'", names[i]),
                         Some(text),
                         ExprError::TooDeep(text.to_string()),
                     )
-                })?;
-                written[i] = Some(e.clone());
-            }
-            mode_definitions.push(written);
-        }
-        // An expression of mode `q` with its definitions inlined.
-        let direct = |q: usize, place: &str, text: &str| -> Result<Expression, InvalidGrayBox> {
-            expr(place, text)?
-                .inline(first_def as u32, &mode_definitions[q])
-                .ok_or_else(|| {
-                    InvalidGrayBox::new(place, Some(text), ExprError::TooDeep(text.into()))
-                })
+                }
+            })
         };
-        let direct_relation =
-            |q: usize, place: &str, text: &str| -> Result<Relation, InvalidGrayBox> {
-                let r = relation(place, text)?;
-                Ok(Relation {
-                    surface: r
-                        .surface
-                        .inline(first_def as u32, &mode_definitions[q])
-                        .ok_or_else(|| {
-                            InvalidGrayBox::new(place, Some(text), ExprError::TooDeep(text.into()))
-                        })?,
-                    crossing: r.crossing,
+        // An expression of a mode with its definitions written in, counted
+        // into the operations compiled so far (at most [`MAX_OPERATIONS`]).
+        let inlined = |defs: &mut Definitions,
+                       operations: &mut usize,
+                       place: &str,
+                       text: &str,
+                       e: Expression|
+         -> Result<Expression, InvalidGrayBox> {
+            let at = |problem: Problem| InvalidGrayBox::new(place, Some(text), problem);
+            let e = e.inline(defs, MAX_OPERATIONS).map_err(|e| {
+                at(match e {
+                    InlineError::TooDeep => ExprError::TooDeep(text.into()).into(),
+                    InlineError::TooLarge => ExprError::TooLarge(MAX_OPERATIONS).into(),
                 })
-            };
+            })?;
+            *operations += e.operations();
+            if *operations > MAX_OPERATIONS {
+                return Err(at(Problem::TooLarge));
+            }
+            Ok(e)
+        };
+        let direct = |defs: &mut Definitions, operations: &mut usize, place: &str, text: &str| {
+            let e = expr(place, text)?;
+            inlined(defs, operations, place, text, e)
+        };
+        let direct_relation = |defs: &mut Definitions,
+                               operations: &mut usize,
+                               place: &str,
+                               text: &str|
+         -> Result<Relation, InvalidGrayBox> {
+            let r = relation(place, text)?;
+            Ok(Relation {
+                surface: inlined(defs, operations, place, text, r.surface)?,
+                crossing: r.crossing,
+            })
+        };
+        let mut operations = 0usize;
 
-        let elements = compile_elements(m, &mode_index, &state_of, &parametric)?;
+        // The transitions leaving each mode, compiled with its definitions;
+        // their errors are reported in file order, after the modes'.
+        let mut leaving = vec![Vec::new(); m.modes.len()];
+        for (i, t) in m.transitions.iter().enumerate() {
+            if let Some(&from) = mode_index.get(t.from.as_str()) {
+                leaving[from].push(i);
+            }
+        }
+        let mut transitions: Vec<Option<Result<CompiledTransition, InvalidGrayBox>>> =
+            vec![None; m.transitions.len()];
+        // The definitions of the modes that give none of their own.
+        let mut common: Option<Definitions> = None;
         let mut modes = Vec::with_capacity(m.modes.len());
         for (qi, q) in m.modes.iter().enumerate() {
+            let mut own = None;
+            if !q.definitions.is_empty() {
+                own = Some(definitions_of(q)?);
+            } else if common.is_none() {
+                common = Some(definitions_of(q)?);
+            }
+            let Some(defs) = own.as_mut().or(common.as_mut()) else {
+                unreachable!("a mode's definitions are made above");
+            };
             let place = format!("mode '{}'", q.name);
             let mut flow = Vec::with_capacity(nx);
             for s in &m.states {
                 let text = q.flow.get(s).ok_or_else(|| {
                     InvalidGrayBox::new(&place, Some(&q.name), Problem::MissingFlow(s.clone()))
                 })?;
-                flow.push(direct(qi, &format!("{place}, flow of '{s}'"), text)?);
+                flow.push(direct(
+                    defs,
+                    &mut operations,
+                    &format!("{place}, flow of '{s}'"),
+                    text,
+                )?);
             }
             for s in q.flow.keys() {
                 state_of(&format!("{place}, flow"), s)?;
@@ -403,7 +546,7 @@ impl CompiledModel {
             let invariant = q
                 .invariant
                 .iter()
-                .map(|t| direct_relation(qi, &format!("{place}, invariant"), t))
+                .map(|t| direct_relation(defs, &mut operations, &format!("{place}, invariant"), t))
                 .collect::<Result<_, _>>()?;
             let mut friction = Vec::with_capacity(m.elements.len());
             for e in &m.elements {
@@ -415,46 +558,80 @@ impl CompiledModel {
                     } => {
                         let at = format!("{place}, element '{}'", e.name());
                         (
-                            direct(qi, &format!("{at}, kinetic"), kinetic)?,
-                            direct(qi, &format!("{at}, static"), static_level)?,
+                            direct(defs, &mut operations, &format!("{at}, kinetic"), kinetic)?,
+                            direct(
+                                defs,
+                                &mut operations,
+                                &format!("{at}, static"),
+                                static_level,
+                            )?,
                         )
                     }
                     Element::Stop { .. } => (Expression::constant(0.0), Expression::constant(0.0)),
                 });
             }
             let output = &m.outputs[0];
+            let output = direct(
+                defs,
+                &mut operations,
+                &format!("output '{}'", output.name),
+                &output.value,
+            )?;
+            for &i in &leaving[qi] {
+                let t = &m.transitions[i];
+                let place = format!("transition {} -> {}", t.from, t.to);
+                let mut compile = || -> Result<CompiledTransition, InvalidGrayBox> {
+                    let guard = direct_relation(
+                        defs,
+                        &mut operations,
+                        &format!("{place}, guard"),
+                        &t.guard,
+                    )?;
+                    let when = t
+                        .when
+                        .as_deref()
+                        .map(|w| direct(defs, &mut operations, &format!("{place}, when"), w))
+                        .transpose()?;
+                    let mut reset = Vec::with_capacity(t.reset.len());
+                    for (s, text) in &t.reset {
+                        reset.push((
+                            state_of(&format!("{place}, reset"), s)?,
+                            direct(
+                                defs,
+                                &mut operations,
+                                &format!("{place}, reset of '{s}'"),
+                                text,
+                            )?,
+                        ));
+                    }
+                    Ok(CompiledTransition {
+                        label: format!("{} -> {}", t.from, t.to),
+                        to: 0,
+                        guard,
+                        when,
+                        reset,
+                    })
+                };
+                transitions[i] = Some(compile());
+            }
             modes.push(CompiledMode {
                 flow,
                 invariant,
                 transitions: Vec::new(),
                 friction,
-                output: direct(qi, &format!("output '{}'", output.name), &output.value)?,
+                output,
             });
         }
-        for t in &m.transitions {
+        for (t, compiled) in m.transitions.iter().zip(transitions) {
             let place = format!("transition {} -> {}", t.from, t.to);
             let from = mode_of(&place, &t.from)?;
             let to = mode_of(&place, &t.to)?;
-            let guard = direct_relation(from, &format!("{place}, guard"), &t.guard)?;
-            let when = t
-                .when
-                .as_deref()
-                .map(|w| direct(from, &format!("{place}, when"), w))
-                .transpose()?;
-            let mut reset = Vec::with_capacity(t.reset.len());
-            for (s, text) in &t.reset {
-                reset.push((
-                    state_of(&format!("{place}, reset"), s)?,
-                    direct(from, &format!("{place}, reset of '{s}'"), text)?,
-                ));
-            }
-            modes[from].transitions.push(CompiledTransition {
-                label: format!("{} -> {}", t.from, t.to),
-                to,
-                guard,
-                when,
-                reset,
-            });
+            let Some(compiled) = compiled else {
+                unreachable!("every transition from a mode is compiled with it");
+            };
+            modes[from]
+                .transitions
+                .push(CompiledTransition { to, ..compiled? });
         }
         let mut delays = vec![Expression::constant(0.0); m.inputs.len()];
         for (input, text) in &m.delays {
@@ -576,12 +753,14 @@ impl CompiledModel {
     }
 }
 
-/// Every definition name: the model's, then those only modes give.
+/// Every definition name: the model's, then those only modes give, in the
+/// order the modes first give them.
 fn definition_names(m: &GrayBoxModel) -> Vec<&String> {
     let mut names: Vec<&String> = m.definitions.keys().collect();
+    let mut seen: HashSet<&String> = names.iter().copied().collect();
     for q in &m.modes {
         for d in q.definitions.keys() {
-            if !names.contains(&d) {
+            if seen.insert(d) {
                 names.push(d);
             }
         }
@@ -640,44 +819,6 @@ fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, usize>, InvalidGray
     Ok(table)
 }
 
-/// Orders a mode's definitions so that each comes after those it reads;
-/// `Err(name)` for a definition on a cycle.
-fn order_definitions(
-    defs: &[(usize, Expression, &String)],
-    first: usize,
-) -> Result<Vec<usize>, usize> {
-    let n = defs.len();
-    let deps: Vec<Vec<usize>> = defs
-        .iter()
-        .map(|(_, e, _)| {
-            e.slots()
-                .map(|s| s as usize)
-                .filter(|s| *s >= first)
-                .map(|s| s - first)
-                .collect()
-        })
-        .collect();
-    let mut order = Vec::with_capacity(n);
-    let mut placed = vec![false; n];
-    // At most n passes, each placing at least one definition unless a cycle remains.
-    for _ in 0..n {
-        let before = order.len();
-        for i in 0..n {
-            if !placed[i] && deps[i].iter().all(|d| placed[*d]) {
-                placed[i] = true;
-                order.push(i);
-            }
-        }
-        if order.len() == before {
-            break;
-        }
-    }
-    match (0..n).find(|i| !placed[*i]) {
-        Some(i) => Err(i),
-        None => Ok(order),
-    }
-}
-
 /// The elements, checked: names, states, labels, one friction per velocity,
 /// stop quantities of parameters only.
 fn compile_elements(
@@ -687,12 +828,12 @@ fn compile_elements(
     parametric: &dyn Fn(&str, &str) -> Result<Expression, InvalidGrayBox>,
 ) -> Result<Vec<CompiledElement>, InvalidGrayBox> {
     let labels = m.mode_names();
-    let label_of = |l: &str| {
-        labels
-            .iter()
-            .position(|n| n == l)
-            .expect("labels hold every element's")
-    };
+    let label_index: HashMap<&str, usize> = labels
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.as_str(), i))
+        .collect();
+    let label_of = |l: &str| label_index[l];
     let mut elements = Vec::with_capacity(m.elements.len());
     let mut names = BTreeSet::new();
     let mut friction_on = BTreeSet::new();

@@ -8,9 +8,23 @@
 //! true and `0` when false. The functions are [`Function`]'s.
 
 use evalexpr::{DefaultNumericTypes, Node, Operator, Value};
+use std::collections::HashMap;
+use std::rc::Rc;
 
 /// Deepest evaluation stack an expression may need (checked at compile).
 pub const MAX_DEPTH: usize = 32;
+
+/// Longest expression text, in bytes (checked before parsing). evalexpr's
+/// tree of a sum is as deep as the sum has terms, and its parser drops a
+/// tree it gives up on recursively, one level at a time; at this length
+/// that stays within a small thread stack.
+pub const MAX_LENGTH: usize = 10_000;
+
+/// Deepest nesting of an expression's text (checked before parsing): each
+/// open parenthesis is a level, and so is each unary sign (`-`, `!`) and
+/// function name written since the last binary operator within the same
+/// parentheses (`-(-x)` nests 3 deep, `sin(cos(x))` 4).
+pub const MAX_NESTING: usize = 64;
 
 /// Registers of one tape: values of definitions that an expression uses
 /// more than once, kept at their first evaluation and read again at the
@@ -225,6 +239,20 @@ pub enum ExprError {
     /// Assignments, `;` chains, strings and empty expressions.
     #[error("'{0}' is not a numeric expression")]
     NotNumeric(String),
+    /// Longer than [`MAX_LENGTH`] bytes: the length.
+    #[error("the expression is {0} bytes long; the limit is {MAX_LENGTH}")]
+    TooLong(usize),
+    /// Nested deeper than [`MAX_NESTING`].
+    #[error(
+        "the expression nests parentheses, function calls and signs more than {MAX_NESTING} deep"
+    )]
+    TooNested,
+    /// With its definitions written out, more operations than a model may
+    /// hold.
+    #[error(
+        "with its definitions written out, the expression has more than {0} operations (the limit)"
+    )]
+    TooLarge(usize),
     /// Deeper than [`MAX_DEPTH`].
     #[error("'{0}' is nested too deeply (at most {MAX_DEPTH} pending operands)")]
     TooDeep(String),
@@ -265,26 +293,42 @@ struct Affine {
 }
 
 impl Affine {
-    fn scale(&mut self, c: f64) {
+    /// Scales every coefficient; returns the terms touched.
+    fn scale(&mut self, c: f64) -> usize {
         self.constant *= c;
         for t in &mut self.terms {
             t.1 *= c;
         }
+        self.terms.len()
     }
 
-    fn add(&mut self, other: Affine, sign: f64) {
+    /// Adds `sign` times `other`; returns the terms compared.
+    fn add(&mut self, other: Affine, sign: f64) -> usize {
         self.constant += sign * other.constant;
+        let mut work = 0;
         for (s, c) in other.terms {
-            match self.terms.iter_mut().find(|t| t.0 == s) {
-                Some(t) => t.1 += sign * c,
-                None => self.terms.push((s, sign * c)),
+            match self.terms.iter_mut().position(|t| t.0 == s) {
+                Some(i) => {
+                    work += i + 1;
+                    self.terms[i].1 += sign * c;
+                }
+                None => {
+                    work += self.terms.len() + 1;
+                    self.terms.push((s, sign * c));
+                }
             }
         }
+        work
     }
 
     /// The affine form of a postfix tape, if it has one: sums, differences,
     /// negations, products with a constant and divisions by a non-zero one.
+    /// Collecting the terms costs up to the product of the terms and the
+    /// operations (each scaling touches every term so far); past
+    /// `4096 + 64` per operation, the tape is left to be run as it is.
     fn of(ops: &[Op]) -> Option<Affine> {
+        let budget = 4096 + 64 * ops.len();
+        let mut work = 0usize;
         let mut stack: Vec<Affine> = Vec::new();
         for op in ops {
             match *op {
@@ -296,27 +340,30 @@ impl Affine {
                     constant: 0.0,
                     terms: vec![(s, 1.0)],
                 }),
-                Op::Neg => stack.last_mut()?.scale(-1.0),
+                Op::Neg => work += stack.last_mut()?.scale(-1.0),
                 Op::Binary(b @ (Binary::Add | Binary::Sub | Binary::Mul | Binary::Div)) => {
                     let rhs = stack.pop()?;
                     let mut lhs = stack.pop()?;
-                    match b {
+                    work += match b {
                         Binary::Add => lhs.add(rhs, 1.0),
                         Binary::Sub => lhs.add(rhs, -1.0),
                         Binary::Mul if rhs.terms.is_empty() => lhs.scale(rhs.constant),
                         Binary::Mul if lhs.terms.is_empty() => {
                             let c = lhs.constant;
                             lhs = rhs;
-                            lhs.scale(c);
+                            lhs.scale(c)
                         }
                         Binary::Div if rhs.terms.is_empty() && rhs.constant != 0.0 => {
                             lhs.scale(1.0 / rhs.constant)
                         }
                         _ => return None,
-                    }
+                    };
                     stack.push(lhs);
                 }
                 _ => return None,
+            }
+            if work > budget {
+                return None;
             }
         }
         match stack.len() {
@@ -349,7 +396,7 @@ impl Expression {
     pub fn compile(text: &str, resolve: &dyn Fn(&str) -> Option<u32>) -> Result<Self, ExprError> {
         let root = parse(text)?;
         let mut b = Builder::new(text, resolve);
-        b.node(&root)?;
+        b.node(&root.0)?;
         b.finish()
     }
 
@@ -396,6 +443,11 @@ impl Expression {
         }
     }
 
+    /// The number of operations of its tape.
+    pub fn operations(&self) -> usize {
+        self.ops.len()
+    }
+
     /// The tape's deepest stack.
     fn depth(&self) -> usize {
         let (mut depth, mut deepest) = (0usize, 0usize);
@@ -406,111 +458,380 @@ impl Expression {
         deepest
     }
 
-    /// The expression with every slot from `first` on that `definitions`
-    /// gives (`definitions[slot - first]`, which may use other definitions)
-    /// replaced by that expression's tape and folded: a flow written with
-    /// definitions becomes one expression of the states, inputs and
-    /// parameters. A definition that the result would evaluate more than
-    /// once is evaluated once into a register ([`REGISTERS`]) and read back
-    /// where it recurs, unless the result is affine (whose evaluation reads
-    /// no tape). `None` when the result would need more than [`MAX_DEPTH`]
-    /// pending operands.
-    pub fn inline(&self, first: u32, definitions: &[Option<Expression>]) -> Option<Expression> {
-        let mut plain = Sharing::off(definitions.len());
-        plain.count(&self.ops, first, definitions);
-        let recurs = plain.uses.iter().any(|&n| n > 1);
-        let mut ops = Vec::with_capacity(self.ops.len());
-        plain.expand(&mut ops, &self.ops, first, definitions);
-        let mut e = Expression::from_ops(ops);
-        if recurs && matches!(e.form, Form::Tape) {
-            let mut shared = Sharing { on: true, ..plain };
-            let mut ops = Vec::with_capacity(e.ops.len());
-            shared.expand(&mut ops, &self.ops, first, definitions);
-            e = Expression::from_ops(ops);
+    /// The expression with every definition it reads (slots from
+    /// `defs`' first on, which may use other definitions) replaced by that
+    /// definition's tape and folded: a flow written with definitions
+    /// becomes one expression of the states, inputs and parameters. A
+    /// definition that the result would evaluate more than once is
+    /// evaluated once into a register ([`REGISTERS`]) and read back where it
+    /// recurs, unless the result is affine (whose evaluation reads no
+    /// tape). A definition that folds to a constant is written as that
+    /// constant.
+    ///
+    /// The work is proportional to the result: each definition's
+    /// expansion is summarised once per mode ([`Definitions::new`]), so the
+    /// size of the plain expansion is known before it is written, and the
+    /// tape written holds every operation walked. A result of more than
+    /// `limit` operations is refused ([`InlineError::TooLarge`]): the plain
+    /// expansion is written when it fits, else the one with registers,
+    /// when it fits.
+    pub fn inline(&self, defs: &mut Definitions, limit: usize) -> Result<Expression, InlineError> {
+        let plain = summarise(&self.ops, defs.first, &defs.summary, &mut Vec::new());
+        if let Some(v) = plain.constant {
+            return Ok(Expression::constant(v));
         }
-        (e.depth() <= MAX_DEPTH).then_some(e)
+        let uses = defs.count(&self.ops);
+        let recurs = uses.values().any(|&n| n > 1);
+        let e = if plain.size <= limit as u64 {
+            let mut ops = Vec::with_capacity(plain.size as usize);
+            defs.expand(&mut ops, &self.ops, None, limit)?;
+            let e = Expression::from_ops(ops);
+            if recurs && matches!(e.form, Form::Tape) {
+                // Registers add their keeps: within them of the limit, the
+                // plain tape stays.
+                defs.shared(&self.ops, &uses, limit).unwrap_or(e)
+            } else {
+                e
+            }
+        } else if recurs {
+            defs.shared(&self.ops, &uses, limit)?
+        } else {
+            return Err(InlineError::TooLarge);
+        };
+        if e.depth() > MAX_DEPTH {
+            return Err(InlineError::TooDeep);
+        }
+        Ok(e)
     }
 }
 
-/// How [`Expression::inline`] expands definitions: how often each is used,
-/// and the register each kept one is in.
-struct Sharing {
-    /// Keep recurring definitions in registers.
-    on: bool,
-    /// Uses of each definition in the expansion that keeps them.
-    uses: Vec<usize>,
-    /// The register of each definition evaluated so far and kept.
-    register: Vec<Option<u8>>,
-    /// Registers taken.
-    taken: usize,
+/// Why [`Expression::inline`] refuses an expression.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InlineError {
+    /// The result needs more than [`MAX_DEPTH`] pending operands.
+    TooDeep,
+    /// The result holds more operations than the limit given.
+    TooLarge,
 }
 
-impl Sharing {
-    fn off(definitions: usize) -> Self {
-        Sharing {
-            on: false,
-            uses: vec![0; definitions],
-            register: vec![None; definitions],
-            taken: 0,
+/// Why a mode's definitions cannot be written into its expressions
+/// ([`Definitions::new`]); the index is the definition's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DefinitionError {
+    /// The definition reaches itself, or a definition that does.
+    Cycle(usize),
+    /// Written out, the definition needs more than [`MAX_DEPTH`] pending
+    /// operands.
+    TooDeep(usize),
+}
+
+/// What a definition's tape becomes once the definitions it reads are
+/// written into it without registers, as [`push_folded`] folds it: its
+/// value when it folds to a constant, else its size and its deepest
+/// stack. Sizes saturate (a definition used twice by the next, again and
+/// again, doubles at each step).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Summary {
+    constant: Option<f64>,
+    size: u64,
+    peak: u64,
+}
+
+impl Summary {
+    fn constant(v: f64) -> Self {
+        Summary {
+            constant: Some(v),
+            size: 1,
+            peak: 1,
         }
     }
 
-    /// The definition `ops` reads from slot `s`, with its index.
-    fn definition(
-        s: u32,
-        first: u32,
-        definitions: &[Option<Expression>],
-    ) -> Option<(usize, &Expression)> {
-        let i = s.checked_sub(first)? as usize;
-        definitions.get(i)?.as_ref().map(|d| (i, d))
+    fn slot() -> Self {
+        Summary {
+            constant: None,
+            size: 1,
+            peak: 1,
+        }
+    }
+}
+
+/// The definition read from slot `s`, if it is one: its index.
+fn definition_of(s: u32, first: u32, count: usize) -> Option<usize> {
+    let i = s.checked_sub(first)? as usize;
+    (i < count).then_some(i)
+}
+
+/// The [`Summary`] of the tape `ops` with the definitions of `summary`
+/// (slots from `first` on) written in. The operands of an operation are
+/// the last entries of the stack: their tapes lie one after the other, so
+/// the deepest stack of the result is the deepest of `j + peak` over its
+/// operands `j = 0, 1, ..`, and an operation whose operands are all
+/// constants folds exactly as [`push_folded`] folds it (the same
+/// [`run_tape`] on the same constants). `stack` is scratch space.
+fn summarise(ops: &[Op], first: u32, summary: &[Summary], stack: &mut Vec<Summary>) -> Summary {
+    stack.clear();
+    for op in ops {
+        let entry = match *op {
+            Op::Const(v) => Summary::constant(v),
+            Op::Load(s) => {
+                definition_of(s, first, summary.len()).map_or_else(Summary::slot, |i| summary[i])
+            }
+            Op::Recall(_) => Summary::slot(),
+            op => {
+                let k = op.operands();
+                let args = &stack[stack.len() - k..];
+                let folds = !matches!(op, Op::Keep(_)) && args.iter().all(|a| a.constant.is_some());
+                let entry = if folds {
+                    let mut tape = [Op::Const(0.0); 4];
+                    for (t, a) in tape.iter_mut().zip(args) {
+                        *t = Op::Const(a.constant.unwrap_or_default());
+                    }
+                    tape[k] = op;
+                    Summary::constant(run_tape(&tape[..=k], &[]))
+                } else {
+                    let size = args.iter().fold(1u64, |s, a| s.saturating_add(a.size));
+                    let peak = args
+                        .iter()
+                        .enumerate()
+                        .map(|(j, a)| a.peak.saturating_add(j as u64))
+                        .max()
+                        .unwrap_or(1);
+                    Summary {
+                        constant: None,
+                        size,
+                        peak,
+                    }
+                };
+                stack.truncate(stack.len() - k);
+                entry
+            }
+        };
+        stack.push(entry);
+    }
+    stack.pop().unwrap_or_else(Summary::slot)
+}
+
+/// The definitions of one mode, ready to be written into its expressions
+/// ([`Expression::inline`]): each definition's tape as written, what it
+/// becomes written out (its constant value, or its size and deepest
+/// stack), and, made when an expression first reads it, its tape with
+/// the constant definitions it reads folded in (every operation of that
+/// tape stays in any expansion, so writing a definition out costs what it
+/// adds to the result).
+#[derive(Debug)]
+pub struct Definitions {
+    first: u32,
+    written: Vec<Rc<Expression>>,
+    summary: Vec<Summary>,
+    folded: Vec<Option<Vec<Op>>>,
+}
+
+/// A definition's state in the walk of [`Definitions::new`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Walk {
+    New,
+    Open,
+    Done,
+    Cyclic,
+}
+
+impl Definitions {
+    /// The definitions `written[i]` of the slots `first + i`. Walks them
+    /// in dependency order, without recursion, once each: a definition
+    /// that reaches itself (or one that does) is refused, the first in
+    /// index order ([`DefinitionError::Cycle`]); then each is summarised
+    /// after those it reads, and the first found whose expansion needs
+    /// more than [`MAX_DEPTH`] pending operands (its own definitions
+    /// within it) is refused ([`DefinitionError::TooDeep`]).
+    pub fn new(first: u32, written: Vec<Rc<Expression>>) -> Result<Self, DefinitionError> {
+        let n = written.len();
+        let mut walk = vec![Walk::New; n];
+        let mut order = Vec::with_capacity(n);
+        // (definition, next operation to look at, reaches a cycle)
+        let mut open: Vec<(usize, usize, bool)> = Vec::new();
+        for root in 0..n {
+            if walk[root] != Walk::New {
+                continue;
+            }
+            walk[root] = Walk::Open;
+            open.push((root, 0, false));
+            while let Some((i, pos, cyclic)) = open.last_mut() {
+                let ops = &written[*i].ops;
+                let mut next = None;
+                while *pos < ops.len() {
+                    let op = ops[*pos];
+                    *pos += 1;
+                    if let Op::Load(s) = op
+                        && let Some(j) = definition_of(s, first, n)
+                    {
+                        match walk[j] {
+                            Walk::New => {
+                                next = Some(j);
+                                break;
+                            }
+                            Walk::Open | Walk::Cyclic => *cyclic = true,
+                            Walk::Done => {}
+                        }
+                    }
+                }
+                if let Some(j) = next {
+                    walk[j] = Walk::Open;
+                    open.push((j, 0, false));
+                    continue;
+                }
+                let (i, _, cyclic) = *open.last().expect("an open definition");
+                open.pop();
+                walk[i] = if cyclic { Walk::Cyclic } else { Walk::Done };
+                if let Some(parent) = open.last_mut() {
+                    parent.2 |= cyclic;
+                }
+                order.push(i);
+            }
+        }
+        if let Some(i) = walk.iter().position(|w| *w == Walk::Cyclic) {
+            return Err(DefinitionError::Cycle(i));
+        }
+        let mut summary = vec![Summary::slot(); n];
+        let mut stack = Vec::new();
+        for i in order {
+            summary[i] = summarise(&written[i].ops, first, &summary, &mut stack);
+            if summary[i].peak > MAX_DEPTH as u64 {
+                return Err(DefinitionError::TooDeep(i));
+            }
+        }
+        Ok(Definitions {
+            first,
+            written,
+            folded: vec![None; n],
+            summary,
+        })
     }
 
-    /// Counts the uses of every definition in `ops`, a definition's own
-    /// uses once (a kept definition is expanded once). Definitions do not
-    /// use themselves (the caller has checked for cycles), so this ends.
-    fn count(&mut self, ops: &[Op], first: u32, definitions: &[Option<Expression>]) {
+    fn index(&self, s: u32) -> Option<usize> {
+        definition_of(s, self.first, self.written.len())
+    }
+
+    /// The index of a definition read from slot `s` that does not fold to
+    /// a constant.
+    fn variable(&self, s: u32) -> Option<usize> {
+        self.index(s)
+            .filter(|&i| self.summary[i].constant.is_none())
+    }
+
+    /// Makes the tape of definition `i` with the constant definitions it
+    /// reads folded in, once.
+    fn fold(&mut self, i: usize) {
+        if self.folded[i].is_some() {
+            return;
+        }
+        let mut ops = Vec::with_capacity(self.written[i].ops.len());
+        for op in &self.written[i].ops {
+            match *op {
+                Op::Load(s) => match self.index(s).and_then(|j| self.summary[j].constant) {
+                    Some(v) => push_folded(&mut ops, Op::Const(v)),
+                    None => push_folded(&mut ops, *op),
+                },
+                op => push_folded(&mut ops, op),
+            }
+        }
+        self.folded[i] = Some(ops);
+    }
+
+    /// The uses of every definition that does not fold to a constant in
+    /// the expansion of `ops`, a definition's own uses counted once (a kept
+    /// definition is expanded once), with their folded tapes made.
+    fn count(&mut self, ops: &[Op]) -> HashMap<usize, usize> {
+        let mut uses = HashMap::new();
+        let mut pending = Vec::new();
+        let note = |uses: &mut HashMap<usize, usize>, pending: &mut Vec<usize>, i: usize| {
+            let n = uses.entry(i).or_insert(0);
+            *n += 1;
+            if *n == 1 {
+                pending.push(i);
+            }
+        };
         for op in ops {
             if let Op::Load(s) = *op
-                && let Some((i, d)) = Self::definition(s, first, definitions)
+                && let Some(i) = self.variable(s)
             {
-                self.uses[i] += 1;
-                if self.uses[i] == 1 {
-                    self.count(&d.ops, first, definitions);
+                note(&mut uses, &mut pending, i);
+            }
+        }
+        while let Some(i) = pending.pop() {
+            self.fold(i);
+            let folded = self.folded[i].as_deref().unwrap_or_default();
+            for op in folded {
+                if let Op::Load(s) = *op
+                    && let Some(j) = self.variable(s)
+                {
+                    note(&mut uses, &mut pending, j);
                 }
             }
         }
+        uses
     }
 
-    /// Appends `ops` to `out` with every definition expanded (or read from
-    /// its register), folding constants.
+    /// Appends `ops` to `out` with every definition written out, folding
+    /// constants; with `sharing` (the uses of [`Definitions::count`]) a
+    /// definition used more than once is kept in a register after its
+    /// first expansion and read back at the others, while registers last.
+    /// `Err` once `out` holds more than `limit` operations.
     fn expand(
-        &mut self,
+        &self,
         out: &mut Vec<Op>,
         ops: &[Op],
-        first: u32,
-        definitions: &[Option<Expression>],
-    ) {
-        for op in ops {
-            let Op::Load(s) = *op else {
-                push_folded(out, *op);
+        sharing: Option<&HashMap<usize, usize>>,
+        limit: usize,
+    ) -> Result<(), InlineError> {
+        let mut register: HashMap<usize, u8> = HashMap::new();
+        // (tape, next operation, the definition it is)
+        let mut tapes: Vec<(&[Op], usize, Option<usize>)> = vec![(ops, 0, None)];
+        while let Some((tape, pos, def)) = tapes.last_mut() {
+            let Some(&op) = tape.get(*pos) else {
+                let def = *def;
+                tapes.pop();
+                if let (Some(i), Some(uses)) = (def, sharing)
+                    && uses.get(&i).is_some_and(|&n| n > 1)
+                    && register.len() < REGISTERS
+                {
+                    let r = register.len() as u8;
+                    out.push(Op::Keep(r));
+                    register.insert(i, r);
+                }
                 continue;
             };
-            let Some((i, d)) = Self::definition(s, first, definitions) else {
-                push_folded(out, *op);
-                continue;
-            };
-            if let Some(r) = self.register[i] {
-                out.push(Op::Recall(r));
-                continue;
+            *pos += 1;
+            if let Op::Load(s) = op
+                && let Some(i) = self.index(s)
+            {
+                if let Some(v) = self.summary[i].constant {
+                    push_folded(out, Op::Const(v));
+                } else if let Some(&r) = register.get(&i) {
+                    out.push(Op::Recall(r));
+                } else {
+                    let folded = self.folded[i].as_deref().unwrap_or_default();
+                    tapes.push((folded, 0, Some(i)));
+                }
+            } else {
+                push_folded(out, op);
             }
-            self.expand(out, &d.ops, first, definitions);
-            if self.on && self.uses[i] > 1 && self.taken < REGISTERS {
-                let r = self.taken as u8;
-                out.push(Op::Keep(r));
-                self.register[i] = Some(r);
-                self.taken += 1;
+            if out.len() > limit {
+                return Err(InlineError::TooLarge);
             }
         }
+        Ok(())
+    }
+
+    /// The expansion of `ops` with recurring definitions in registers.
+    fn shared(
+        &self,
+        ops: &[Op],
+        uses: &HashMap<usize, usize>,
+        limit: usize,
+    ) -> Result<Expression, InlineError> {
+        let mut out = Vec::with_capacity(ops.len());
+        self.expand(&mut out, ops, Some(uses), limit)?;
+        Ok(Expression::from_ops(out))
     }
 }
 
@@ -624,7 +945,7 @@ impl Relation {
     /// Parses `a >= b` (also `>`, `<=`, `<`, `==`) and compiles `a - b`.
     pub fn compile(text: &str, resolve: &dyn Fn(&str) -> Option<u32>) -> Result<Self, ExprError> {
         let root = parse(text)?;
-        let node = strip_root(&root);
+        let node = strip_root(&root.0);
         let crossing = match node.operator() {
             Operator::Gt | Operator::Geq => Crossing::Rising,
             Operator::Lt | Operator::Leq => Crossing::Falling,
@@ -657,11 +978,158 @@ impl Relation {
     }
 }
 
-fn parse(text: &str) -> Result<Node<DefaultNumericTypes>, ExprError> {
-    evalexpr::build_operator_tree::<DefaultNumericTypes>(text).map_err(|e| ExprError::Syntax {
-        text: text.to_string(),
-        message: e.to_string(),
-    })
+/// Parses `text` with evalexpr, after [`check_size`].
+fn parse(text: &str) -> Result<Tree, ExprError> {
+    check_size(text)?;
+    evalexpr::build_operator_tree::<DefaultNumericTypes>(text)
+        .map(Tree)
+        .map_err(|e| ExprError::Syntax {
+            text: text.to_string(),
+            message: e.to_string(),
+        })
+}
+
+/// evalexpr's tree of an expression. A sum of many terms is a tree as deep
+/// as it has terms; it is taken apart here without recursion (the tree's
+/// own drop recurses once per level).
+struct Tree(Node<DefaultNumericTypes>);
+
+impl Drop for Tree {
+    fn drop(&mut self) {
+        let mut pending = std::mem::take(self.0.children_mut());
+        while let Some(mut node) = pending.pop() {
+            pending.append(node.children_mut());
+        }
+    }
+}
+
+/// Refuses a text longer than [`MAX_LENGTH`] or nested deeper than
+/// [`MAX_NESTING`] ([`nesting`]) before evalexpr parses it.
+fn check_size(text: &str) -> Result<(), ExprError> {
+    if text.len() > MAX_LENGTH {
+        return Err(ExprError::TooLong(text.len()));
+    }
+    if nesting(text) > MAX_NESTING {
+        return Err(ExprError::TooNested);
+    }
+    Ok(())
+}
+
+/// The operator characters of evalexpr's tokenizer; any other character
+/// that is not whitespace belongs to a name or a number.
+fn is_operator(c: char) -> bool {
+    "+-*/%^(),;=!<>&|\"".contains(c)
+}
+
+/// How deeply `text` nests, counted as evalexpr's parser descends: an open
+/// parenthesis is one level, and so is each prefix item since the last
+/// binary operator within the same parentheses (a unary `-` or `!`, a
+/// function name followed by its argument). evalexpr inserts each token
+/// by recursing down the right edge of the tree built so far, and that
+/// edge holds these levels plus one node per operator precedence (a
+/// binary operator cuts it back to its own place), so a text within
+/// [`MAX_NESTING`] is parsed with a recursion of at most about
+/// `MAX_NESTING` plus the number of precedences. Strings and comments are
+/// skipped as evalexpr skips them; a number's exponent sign
+/// (`1e-3`) is not an operator. Counting stops past [`MAX_NESTING`].
+fn nesting(text: &str) -> usize {
+    // Each open parenthesis: the depth before it and the base of its level.
+    let mut levels: Vec<(usize, usize)> = Vec::new();
+    let (mut depth, mut base, mut deepest) = (0usize, 0usize, 0usize);
+    // The last token ends an operand (a name, a number, a string or `)`).
+    let mut operand = false;
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            c if c.is_whitespace() => continue,
+            '"' => {
+                while let Some(c) = chars.next() {
+                    match c {
+                        '"' => break,
+                        '\\' => {
+                            chars.next();
+                        }
+                        _ => {}
+                    }
+                }
+                operand = true;
+            }
+            '/' if chars.peek() == Some(&'/') => {
+                for c in chars.by_ref() {
+                    if c == '\n' {
+                        break;
+                    }
+                }
+                continue;
+            }
+            '/' if chars.peek() == Some(&'*') => {
+                chars.next();
+                let mut star = false;
+                for c in chars.by_ref() {
+                    if star && c == '/' {
+                        break;
+                    }
+                    star = c == '*';
+                }
+                continue;
+            }
+            '(' => {
+                levels.push((depth, base));
+                depth += 1;
+                base = depth;
+                operand = false;
+            }
+            ')' => {
+                (depth, base) = levels.pop().unwrap_or((base, base));
+                operand = true;
+            }
+            '-' if !operand => depth += 1,
+            '!' if chars.peek() != Some(&'=') => depth += 1,
+            c if is_operator(c) => {
+                depth = base;
+                operand = false;
+            }
+            c => {
+                // A name or a number, and an exponent's sign with its digits.
+                let mut last = c;
+                while let Some(&next) = chars.peek() {
+                    let literal = !next.is_whitespace() && !is_operator(next);
+                    let exponent = matches!(next, '+' | '-')
+                        && matches!(last, 'e' | 'E')
+                        && (c.is_ascii_digit() || c == '.');
+                    if !(literal || exponent) {
+                        break;
+                    }
+                    last = next;
+                    chars.next();
+                }
+                // Followed by a value, it is a function name (evalexpr calls
+                // a name followed by a value); counted as one whatever it is.
+                let mut ahead = chars.clone();
+                let next = loop {
+                    match ahead.next() {
+                        Some(w) if w.is_whitespace() => continue,
+                        other => break other,
+                    }
+                };
+                // A comment may hide what follows: counted as a value.
+                let comment = next == Some('/') && matches!(ahead.next(), Some('/' | '*'));
+                let value_follows =
+                    comment || next.is_some_and(|n| n == '(' || n == '"' || !is_operator(n));
+                if value_follows {
+                    depth += 1;
+                    operand = false;
+                } else {
+                    operand = true;
+                }
+            }
+        }
+        deepest = deepest.max(depth);
+        if deepest > MAX_NESTING {
+            break;
+        }
+    }
+    deepest
 }
 
 /// The node under evalexpr's `RootNode` wrappers.
@@ -712,76 +1180,90 @@ impl<'a> Builder<'a> {
         self.depth = self.depth + 1 - op.operands();
     }
 
-    fn node(&mut self, node: &Node<DefaultNumericTypes>) -> Result<(), ExprError> {
-        let node = strip_root(node);
-        let children = node.children();
-        let binary = |b| Some(Op::Binary(b));
-        let op = match node.operator() {
-            Operator::Const { value } => {
-                let v = match value {
-                    Value::Float(f) => *f,
-                    Value::Int(i) => *i as f64,
-                    Value::Boolean(b) => f64::from(u8::from(*b)),
-                    _ => return Err(self.not_numeric()),
-                };
-                return self.push(Op::Const(v));
-            }
-            Operator::VariableIdentifierRead { identifier } => {
-                let slot = (self.resolve)(identifier)
-                    .ok_or_else(|| ExprError::UnknownSymbol(identifier.clone()))?;
-                return self.push(Op::Load(slot));
-            }
-            Operator::FunctionIdentifier { identifier } => {
-                let args: Vec<&Node<DefaultNumericTypes>> = match children {
-                    [] => Vec::new(),
-                    [one] => {
-                        let inner = strip_root(one);
-                        if matches!(inner.operator(), Operator::Tuple) {
-                            inner.children().iter().collect()
-                        } else {
-                            vec![inner]
-                        }
-                    }
-                    _ => return Err(self.not_numeric()),
-                };
-                let f = Function::by_name(identifier)
-                    .filter(|f| f.arity() == args.len())
-                    .ok_or_else(|| ExprError::UnknownFunction {
-                        name: identifier.clone(),
-                        args: args.len(),
-                    })?;
-                for a in &args {
-                    self.node(a)?;
+    /// Emits the tape of the tree `root`: its nodes in postfix order,
+    /// walked with a stack of its own (a sum of many terms is a deep tree).
+    fn node(&mut self, root: &Node<DefaultNumericTypes>) -> Result<(), ExprError> {
+        // A node to visit, or an operation to emit once its operands are.
+        enum Step<'n> {
+            Visit(&'n Node<DefaultNumericTypes>),
+            Emit(Op),
+        }
+        let mut steps = vec![Step::Visit(root)];
+        while let Some(step) = steps.pop() {
+            let node = match step {
+                Step::Emit(op) => {
+                    self.op(op);
+                    continue;
                 }
-                self.op(Op::Call(f));
-                return Ok(());
+                Step::Visit(node) => strip_root(node),
+            };
+            let children = node.children();
+            let binary = |b| Some(Op::Binary(b));
+            let op = match node.operator() {
+                Operator::Const { value } => {
+                    let v = match value {
+                        Value::Float(f) => *f,
+                        Value::Int(i) => *i as f64,
+                        Value::Boolean(b) => f64::from(u8::from(*b)),
+                        _ => return Err(self.not_numeric()),
+                    };
+                    self.push(Op::Const(v))?;
+                    continue;
+                }
+                Operator::VariableIdentifierRead { identifier } => {
+                    let slot = (self.resolve)(identifier)
+                        .ok_or_else(|| ExprError::UnknownSymbol(identifier.clone()))?;
+                    self.push(Op::Load(slot))?;
+                    continue;
+                }
+                Operator::FunctionIdentifier { identifier } => {
+                    let args: Vec<&Node<DefaultNumericTypes>> = match children {
+                        [] => Vec::new(),
+                        [one] => {
+                            let inner = strip_root(one);
+                            if matches!(inner.operator(), Operator::Tuple) {
+                                inner.children().iter().collect()
+                            } else {
+                                vec![inner]
+                            }
+                        }
+                        _ => return Err(self.not_numeric()),
+                    };
+                    let f = Function::by_name(identifier)
+                        .filter(|f| f.arity() == args.len())
+                        .ok_or_else(|| ExprError::UnknownFunction {
+                            name: identifier.clone(),
+                            args: args.len(),
+                        })?;
+                    steps.push(Step::Emit(Op::Call(f)));
+                    steps.extend(args.into_iter().rev().map(Step::Visit));
+                    continue;
+                }
+                Operator::Neg => Some(Op::Neg),
+                Operator::Not => Some(Op::Not),
+                Operator::Add => binary(Binary::Add),
+                Operator::Sub => binary(Binary::Sub),
+                Operator::Mul => binary(Binary::Mul),
+                Operator::Div => binary(Binary::Div),
+                Operator::Mod => binary(Binary::Rem),
+                Operator::Exp => binary(Binary::Pow),
+                Operator::Lt => binary(Binary::Lt),
+                Operator::Leq => binary(Binary::Le),
+                Operator::Gt => binary(Binary::Gt),
+                Operator::Geq => binary(Binary::Ge),
+                Operator::Eq => binary(Binary::Eq),
+                Operator::Neq => binary(Binary::Ne),
+                Operator::And => binary(Binary::And),
+                Operator::Or => binary(Binary::Or),
+                _ => None,
             }
-            Operator::Neg => Some(Op::Neg),
-            Operator::Not => Some(Op::Not),
-            Operator::Add => binary(Binary::Add),
-            Operator::Sub => binary(Binary::Sub),
-            Operator::Mul => binary(Binary::Mul),
-            Operator::Div => binary(Binary::Div),
-            Operator::Mod => binary(Binary::Rem),
-            Operator::Exp => binary(Binary::Pow),
-            Operator::Lt => binary(Binary::Lt),
-            Operator::Leq => binary(Binary::Le),
-            Operator::Gt => binary(Binary::Gt),
-            Operator::Geq => binary(Binary::Ge),
-            Operator::Eq => binary(Binary::Eq),
-            Operator::Neq => binary(Binary::Ne),
-            Operator::And => binary(Binary::And),
-            Operator::Or => binary(Binary::Or),
-            _ => None,
+            .ok_or_else(|| self.not_numeric())?;
+            if children.len() != op.operands() {
+                return Err(self.not_numeric());
+            }
+            steps.push(Step::Emit(op));
+            steps.extend(children.iter().rev().map(Step::Visit));
         }
-        .ok_or_else(|| self.not_numeric())?;
-        if children.len() != op.operands() {
-            return Err(self.not_numeric());
-        }
-        for c in children {
-            self.node(c)?;
-        }
-        self.op(op);
         Ok(())
     }
 
@@ -868,6 +1350,69 @@ mod tests {
     }
 
     #[test]
+    fn nesting_is_counted_as_the_parser_descends() {
+        for (text, levels) in [
+            ("a + b * c - d / e", 0),
+            ("(x)", 1),
+            ("-x", 1),
+            ("- - !x", 3),
+            ("-(-(x))", 4),
+            ("sin(cos(x))", 4),
+            ("sin x", 1),
+            ("((x) + (y)) * ((z))", 2),
+            ("x != -y", 1),
+            ("2e-3 * -x", 1),
+            ("-(1) - -(2)", 2),
+            ("\"((((\" + /* (((( */ x + // ((((\n 1", 0),
+            // What a comment hides may be a function's argument.
+            ("x // (\n", 1),
+        ] {
+            assert_eq!(nesting(text), levels, "{text}");
+        }
+    }
+
+    #[test]
+    fn long_and_deep_texts_are_refused_before_parsing() {
+        let err = |t: &str| Expression::compile(t, &names).unwrap_err();
+        // A sum of 200 000 terms and 200 000 parentheses: the length
+        // refuses both at once.
+        let terms = format!("x{}", " + 0".repeat(200_000));
+        assert_eq!(err(&terms), ExprError::TooLong(terms.len()));
+        let parens = format!("{}x{}", "(".repeat(200_000), ")".repeat(200_000));
+        assert_eq!(err(&parens), ExprError::TooLong(parens.len()));
+        // Within the length, each way evalexpr's parser recurses, past the
+        // nesting limit.
+        for deep in [
+            format!("{}x{}", "(".repeat(4_000), ")".repeat(4_000)),
+            format!("{}x", "-".repeat(9_000)),
+            format!("{}x", "!".repeat(9_000)),
+            format!("{}x", "sin ".repeat(2_000)),
+            format!("{}x{}", "abs(".repeat(1_999), ")".repeat(1_999)),
+        ] {
+            assert!(deep.len() <= MAX_LENGTH);
+            assert_eq!(err(&deep), ExprError::TooNested, "{:.20}", deep);
+        }
+        // At the limit the text is parsed; one level more is refused.
+        let at = |n: usize| format!("{}x{}", "(".repeat(n), ")".repeat(n));
+        assert_eq!(
+            Expression::compile(&at(MAX_NESTING), &names)
+                .unwrap()
+                .eval(&[2.0]),
+            2.0
+        );
+        assert_eq!(err(&at(MAX_NESTING + 1)), ExprError::TooNested);
+        // The longest sum is a tree as deep as it has terms: compiled and
+        // dropped without recursion; with a stray parenthesis at its end,
+        // evalexpr gives up on that tree and drops it itself.
+        let sum = format!("x{}", "+x".repeat((MAX_LENGTH - 1) / 2));
+        assert!(sum.len() <= MAX_LENGTH && sum.len() + 2 > MAX_LENGTH);
+        let e = Expression::compile(&sum, &names).unwrap();
+        assert_eq!(e.eval(&[1.0]), (1 + (MAX_LENGTH - 1) / 2) as f64);
+        let stray = format!("{})", &sum[..sum.len() - 1]);
+        assert!(matches!(err(&stray), ExprError::Syntax { .. }));
+    }
+
+    #[test]
     fn relations_give_their_surface_and_direction() {
         let r = Relation::compile("x >= y + 1", &names).unwrap();
         assert_eq!(r.crossing, Crossing::Rising);
@@ -950,23 +1495,48 @@ mod tests {
             .map(|i| i as u32)
     }
 
-    /// `text` with the definitions `a` and `b` (texts) expanded, without
-    /// registers: every use evaluated where it stands.
-    fn expanded_plainly(text: &str, a: &str, b: &str) -> Expression {
-        let e = Expression::compile(text, &with_definitions).unwrap();
-        let defs = [a, b].map(|d| Some(Expression::compile(d, &with_definitions).unwrap()));
+    /// The definitions `texts` of the slots from 3 on (after `x, y, z`).
+    fn definitions(texts: &[&str]) -> Definitions {
+        let written = texts
+            .iter()
+            .map(|d| Rc::new(Expression::compile(d, &with_definitions).unwrap()))
+            .collect();
+        Definitions::new(3, written).unwrap()
+    }
+
+    /// `text` with the definitions `texts` (of the slots from 3 on) written
+    /// out without registers, every use where it stands, by recursion: what
+    /// the plain expansion of [`Expression::inline`] must give.
+    fn expanded_plainly(text: &str, texts: &[&str]) -> Expression {
+        fn expand(out: &mut Vec<Op>, ops: &[Op], defs: &[Expression]) {
+            for op in ops {
+                match *op {
+                    Op::Load(s) if s >= 3 && ((s - 3) as usize) < defs.len() => {
+                        expand(out, &defs[(s - 3) as usize].ops, defs)
+                    }
+                    op => push_folded(out, op),
+                }
+            }
+        }
+        let defs: Vec<Expression> = texts
+            .iter()
+            .map(|d| Expression::compile(d, &with_definitions).unwrap())
+            .collect();
         let mut ops = Vec::new();
-        Sharing::off(2).expand(&mut ops, &e.ops, 3, &defs);
+        expand(
+            &mut ops,
+            &Expression::compile(text, &with_definitions).unwrap().ops,
+            &defs,
+        );
         Expression::from_ops(ops)
     }
 
     #[test]
     fn a_definition_used_twice_is_evaluated_once() {
         let (a, b) = ("sin(x) * y + z", "a * a - 1");
-        let defs = [a, b].map(|d| Some(Expression::compile(d, &with_definitions).unwrap()));
         let e = Expression::compile("b / (1 + a) + sign(a)", &with_definitions)
             .unwrap()
-            .inline(3, &defs)
+            .inline(&mut definitions(&[a, b]), usize::MAX)
             .unwrap();
         let count = |f: fn(&Op) -> bool| e.ops.iter().filter(|o| f(o)).count();
         // `a` is evaluated once (inside `b`), kept, and read three times.
@@ -978,22 +1548,76 @@ mod tests {
             "{:?}",
             e.ops
         );
-        let plain = expanded_plainly("b / (1 + a) + sign(a)", a, b);
+        let plain = expanded_plainly("b / (1 + a) + sign(a)", &[a, b]);
         assert!(e.ops.len() < plain.ops.len());
         let s = [0.7, -1.3, 2.1];
         assert_eq!(e.eval(&s).to_bits(), plain.eval(&s).to_bits());
         // An affine result keeps its affine form (no tape is run).
         let affine = Expression::compile("a + a", &with_definitions)
             .unwrap()
-            .inline(
-                3,
-                &[
-                    Some(Expression::compile("2 * x + y", &with_definitions).unwrap()),
-                    None,
-                ],
-            )
+            .inline(&mut definitions(&["2 * x + y", "0"]), usize::MAX)
             .unwrap();
         assert!(affine.affine().is_some());
+    }
+
+    #[test]
+    fn definitions_on_a_cycle_or_too_deep_are_named() {
+        let written = |texts: &[&str]| -> Vec<Rc<Expression>> {
+            texts
+                .iter()
+                .map(|d| Rc::new(Expression::compile(d, &with_definitions).unwrap()))
+                .collect()
+        };
+        // `a` reads `b`, which reads itself: the first in index order.
+        assert_eq!(
+            Definitions::new(3, written(&["b + 1", "b * x"])).unwrap_err(),
+            DefinitionError::Cycle(0)
+        );
+        // Each definition nests 20 pending operands inside the other's:
+        // `a` fits, `b` with `a` written in does not.
+        let nest = |inner: &str| format!("{}{inner}{}", "x * (".repeat(20), ")".repeat(20));
+        let (a, b) = (nest("x"), nest("a"));
+        assert_eq!(
+            Definitions::new(3, written(&[&a, &b])).unwrap_err(),
+            DefinitionError::TooDeep(1)
+        );
+    }
+
+    #[test]
+    fn a_doubling_chain_of_definitions_is_refused_by_its_size() {
+        // d_i = d_(i-1) * d_(i-1), d_0 = sin(x): written out, d_30 holds
+        // 2^30 sines; with registers, sixteen levels cost three operations
+        // each and the fourteen above them double.
+        let names: Vec<String> = (0..31).map(|i| format!("d{i}")).collect();
+        let resolve = |n: &str| {
+            (n == "x")
+                .then_some(0)
+                .or_else(|| names.iter().position(|d| d == n).map(|i| i as u32 + 1))
+        };
+        let written = (0..31)
+            .map(|i| {
+                let text = match i {
+                    0 => "sin(x)".to_string(),
+                    i => format!("d{} * d{}", i - 1, i - 1),
+                };
+                Rc::new(Expression::compile(&text, &resolve).unwrap())
+            })
+            .collect();
+        let mut defs = Definitions::new(1, written).unwrap();
+        let d30 = Expression::compile("d30", &resolve).unwrap();
+        assert_eq!(d30.inline(&mut defs, 10_000), Err(InlineError::TooLarge));
+        assert!(d30.inline(&mut defs, 100_000).unwrap().ops.len() > 10_000);
+        // Sixteen levels fit in the registers: one product each.
+        let e = Expression::compile("d16", &resolve)
+            .unwrap()
+            .inline(&mut defs, 10_000)
+            .unwrap();
+        assert_eq!(e.ops.len(), 2 + 16 * 3, "{:?}", e.ops);
+        let mut v = 1.5f64.sin();
+        for _ in 0..16 {
+            v *= v;
+        }
+        assert_eq!(e.eval(&[1.5]).to_bits(), v.to_bits());
     }
 
     proptest! {
@@ -1009,10 +1633,11 @@ mod tests {
         ) {
             let (a, b) = (ta.text(), format!("({}) * a", tb.text()));
             let text = format!("({}) + a * b - min(a, b)", te.text());
-            let defs = [&a, &b].map(|d| Some(Expression::compile(d, &with_definitions).unwrap()));
-            let e = Expression::compile(&text, &with_definitions).unwrap().inline(3, &defs);
-            let plain = expanded_plainly(&text, &a, &b);
-            prop_assume!(e.is_some());
+            let e = Expression::compile(&text, &with_definitions)
+                .unwrap()
+                .inline(&mut definitions(&[&a, &b]), usize::MAX);
+            let plain = expanded_plainly(&text, &[&a, &b]);
+            prop_assume!(e.is_ok());
             let (kept, plain) = (e.unwrap().eval(&s), plain.eval(&s));
             prop_assert!(kept.to_bits() == plain.to_bits() || (kept.is_nan() && plain.is_nan()),
                 "{}: kept {} plain {}", text, kept, plain);

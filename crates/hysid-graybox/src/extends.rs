@@ -26,6 +26,7 @@
 //! already in it.
 
 use serde_json::{Map, Value};
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// The longest chain of files `extends` may follow.
@@ -162,9 +163,7 @@ fn resolve(path: &Path, sources: &mut Vec<Source>) -> Result<Value, ExtendsError
 /// module's documentation). The error says what is wrong in `own`.
 pub fn extend(mut base: Value, mut own: Value) -> Result<Value, String> {
     let removals = removals(own.as_object_mut().and_then(|t| t.remove("remove")))?;
-    for entry in &removals {
-        remove(&mut base, entry)?;
-    }
+    remove(&mut base, &removals)?;
     check_unique_names(&own)?;
     merge(&mut base, own);
     Ok(base)
@@ -243,11 +242,17 @@ fn merge(base: &mut Value, over: Value) {
             }
         }
         (Value::Array(base), Value::Array(over)) if merges_by_name(base, &over) => {
+            // The first entry of each name, as a search from the start finds.
+            let mut first = first_by_name(base);
             for entry in over {
-                let name = name_of(&entry).map(str::to_owned);
-                match base.iter_mut().find(|b| name_of(b) == name.as_deref()) {
-                    Some(slot) => merge(slot, entry),
-                    None => base.push(entry),
+                match name_of(&entry).and_then(|n| first.get(n)) {
+                    Some(&i) => merge(&mut base[i], entry),
+                    None => {
+                        if let Some(n) = name_of(&entry) {
+                            first.insert(n.to_owned(), base.len());
+                        }
+                        base.push(entry);
+                    }
                 }
             }
         }
@@ -279,33 +284,95 @@ fn check_unique_names(value: &Value) -> Result<(), String> {
     }
 }
 
-/// Deletes the entry `path` (keys and names joined by dots) from `value`.
-fn remove(value: &mut Value, path: &str) -> Result<(), String> {
-    let missing = || format!("remove: the base has no entry `{path}`");
-    let mut parts: Vec<&str> = path.split('.').map(str::trim).collect();
-    let last = parts.pop().ok_or_else(missing)?;
-    let mut at = value;
-    for part in parts {
-        at = child(at, part).ok_or_else(missing)?;
-    }
-    let removed = match at {
-        Value::Object(table) => table.remove(last).is_some(),
-        Value::Array(items) => {
-            let before = items.len();
-            items.retain(|item| name_of(item) != Some(last));
-            items.len() < before
+/// The position of the first entry of each name in `items`.
+fn first_by_name(items: &[Value]) -> HashMap<String, usize> {
+    let mut first = HashMap::with_capacity(items.len());
+    for (i, item) in items.iter().enumerate() {
+        if let Some(n) = name_of(item) {
+            first.entry(n.to_owned()).or_insert(i);
         }
-        _ => false,
-    };
-    removed.then_some(()).ok_or_else(missing)
+    }
+    first
 }
 
-/// The entry `key` of a table, or the entry named `key` of an array.
-fn child<'v>(value: &'v mut Value, key: &str) -> Option<&'v mut Value> {
+/// The entries `remove` deletes, as a tree of their keys and names: a
+/// node marked `removed` goes with everything under it.
+#[derive(Default)]
+struct Removals<'p> {
+    removed: bool,
+    under: HashMap<&'p str, Removals<'p>>,
+}
+
+/// Deletes the entries `paths` (keys and names joined by dots) from
+/// `base`, as if one after the other: an entry the base does not have, or
+/// that an earlier one deleted (itself or with what holds it), is an error
+/// naming it. Each path is looked up once, by name, and each table or
+/// array is rewritten once, however many entries it loses. A path is
+/// looked up in the base before it is followed, so the walks go no deeper
+/// than the base (whose parser limits its nesting).
+fn remove(base: &mut Value, paths: &[String]) -> Result<(), String> {
+    let mut removals = Removals::default();
+    // The first entry of each name in the arrays looked into, by array.
+    let mut arrays: HashMap<*const Vec<Value>, HashMap<String, usize>> = HashMap::new();
+    for path in paths {
+        let missing = || format!("remove: the base has no entry `{path}`");
+        let parts: Vec<&str> = path.split('.').map(str::trim).collect();
+        let mut at: &Value = base;
+        for part in &parts {
+            at = match at {
+                Value::Object(table) => table.get(*part),
+                Value::Array(items) => arrays
+                    .entry(std::ptr::from_ref(items))
+                    .or_insert_with(|| first_by_name(items))
+                    .get(*part)
+                    .map(|&i| &items[i]),
+                _ => None,
+            }
+            .ok_or_else(missing)?;
+        }
+        let mut node = &mut removals;
+        for part in &parts {
+            if node.removed {
+                return Err(missing());
+            }
+            node = node.under.entry(part).or_default();
+        }
+        if node.removed {
+            return Err(missing());
+        }
+        node.removed = true;
+    }
+    delete(base, &removals);
+    Ok(())
+}
+
+/// Deletes what `removals` marks under `value`.
+fn delete(value: &mut Value, removals: &Removals) {
     match value {
-        Value::Object(table) => table.get_mut(key),
-        Value::Array(items) => items.iter_mut().find(|item| name_of(item) == Some(key)),
-        _ => None,
+        Value::Object(table) => {
+            for (key, node) in &removals.under {
+                if node.removed {
+                    table.remove(*key);
+                } else if let Some(v) = table.get_mut(*key) {
+                    delete(v, node);
+                }
+            }
+        }
+        Value::Array(items) => {
+            let first = first_by_name(items);
+            let mut gone = HashSet::new();
+            for (name, node) in &removals.under {
+                if node.removed {
+                    gone.insert(*name);
+                } else if let Some(&i) = first.get(*name) {
+                    delete(&mut items[i], node);
+                }
+            }
+            if !gone.is_empty() {
+                items.retain(|item| name_of(item).is_none_or(|n| !gone.contains(n)));
+            }
+        }
+        _ => {}
     }
 }
 
@@ -406,6 +473,69 @@ name = "friction"
             })
         );
         std::fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn removals_apply_as_if_one_after_the_other() {
+        let base = json!({
+            "parameters": [{"name": "a", "v": 1}, {"name": "b", "v": 2}, {"name": "a", "v": 3}],
+            "modes": [{"name": "m", "definitions": {"F": "x", "G": "y"}}],
+        });
+        let removing = |paths: &[&str]| extend(base.clone(), json!({ "remove": paths }));
+        // Every entry of a name goes; a child may go before what holds it.
+        assert_eq!(
+            removing(&["modes.m.definitions.F", "parameters.a", "modes.m"]).unwrap(),
+            json!({"parameters": [{"name": "b", "v": 2}], "modes": []})
+        );
+        // An entry already deleted, itself or with what holds it, is not there.
+        for (paths, missing) in [
+            (&["parameters.b", "parameters.b"][..], "parameters.b"),
+            (
+                &["modes.m", "modes.m.definitions.G"][..],
+                "modes.m.definitions.G",
+            ),
+            (&["parameters.b.v", "parameters.b.v"][..], "parameters.b.v"),
+            (&["modes.m.definitions"][..], ""),
+        ] {
+            match removing(paths) {
+                Ok(_) => assert!(missing.is_empty(), "{paths:?}"),
+                Err(e) => assert_eq!(e, format!("remove: the base has no entry `{missing}`")),
+            }
+        }
+        // A path is followed through the first entry of a name.
+        assert!(removing(&["parameters.a.v"]).is_ok());
+        assert_eq!(
+            removing(&["parameters.a.w"]).unwrap_err(),
+            "remove: the base has no entry `parameters.a.w`"
+        );
+    }
+
+    #[test]
+    fn large_arrays_merge_and_lose_entries_by_name() {
+        // 50 000 parameters: every other one removed, every third amended,
+        // and as many new ones appended.
+        let n = 50_000;
+        let base = json!({
+            "parameters": (0..n).map(|i| json!({"name": format!("p{i}"), "value": i})).collect::<Vec<_>>()
+        });
+        let remove: Vec<String> = (0..n)
+            .step_by(2)
+            .map(|i| format!("parameters.p{i}"))
+            .collect();
+        let over: Vec<Value> = (0..n)
+            .filter(|i| i % 3 == 0 && i % 2 == 1)
+            .map(|i| json!({"name": format!("p{i}"), "bounds": [0, i]}))
+            .chain((n..2 * n).map(|i| json!({"name": format!("p{i}"), "value": i})))
+            .collect();
+        let merged = extend(base, json!({"remove": remove, "parameters": over})).unwrap();
+        let params = merged["parameters"].as_array().unwrap();
+        assert_eq!(params.len(), n / 2 + n);
+        assert_eq!(params[0], json!({"name": "p1", "value": 1}));
+        assert_eq!(
+            params[1],
+            json!({"name": "p3", "value": 3, "bounds": [0, 3]})
+        );
+        assert_eq!(params[n / 2], json!({"name": format!("p{n}"), "value": n}));
     }
 
     #[test]

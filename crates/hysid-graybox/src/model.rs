@@ -266,8 +266,10 @@ impl GrayBoxModel {
     /// elements (a stop's rest, a friction's stick), each name once.
     pub fn mode_names(&self) -> Vec<String> {
         let mut names: Vec<String> = self.modes.iter().map(|m| m.name.clone()).collect();
+        let mut seen: std::collections::HashSet<&str> =
+            self.modes.iter().map(|m| m.name.as_str()).collect();
         for e in &self.elements {
-            if !names.iter().any(|n| n == e.mode()) {
+            if seen.insert(e.mode()) {
                 names.push(e.mode().to_string());
             }
         }

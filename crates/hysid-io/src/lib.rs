@@ -25,11 +25,50 @@ pub fn save_model(model: &Model, path: &Path) -> Result<(), ModelError> {
     })
 }
 
+/// How many of a file's names an error about a missing one lists.
+const AVAILABLE_LISTED: usize = 20;
+
 /// Named columns as read from a file, before selection.
 pub(crate) struct RawTable {
     pub(crate) path: PathBuf,
     pub(crate) what: &'static str,
+    /// The columns read: those asked for that the file has.
     pub(crate) columns: Vec<(String, Vec<f64>)>,
+    /// Every name of the file, for an error about a missing one.
+    pub(crate) available: Available,
+}
+
+/// The names of a file's columns as an error lists them: the first
+/// [`AVAILABLE_LISTED`] and how many there are.
+pub(crate) struct Available {
+    first: Vec<String>,
+    count: usize,
+}
+
+impl Available {
+    /// `names`, all of them, in file order.
+    pub(crate) fn of<'a>(names: impl ExactSizeIterator<Item = &'a str>) -> Self {
+        let count = names.len();
+        Available {
+            // Escaped, so that a stray byte-order mark or control character
+            // in a header is visible in the message.
+            first: names
+                .take(AVAILABLE_LISTED)
+                .map(|n| n.escape_debug().to_string())
+                .collect(),
+            count,
+        }
+    }
+}
+
+impl std::fmt::Display for Available {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.first.join(", "))?;
+        match self.count - self.first.len() {
+            0 => Ok(()),
+            more => write!(f, ", and {more} more"),
+        }
+    }
 }
 
 impl RawTable {
@@ -42,14 +81,7 @@ impl RawTable {
                 path: self.path.clone(),
                 what: self.what,
                 name: name.to_string(),
-                available: self
-                    .columns
-                    .iter()
-                    // Escaped, so that a stray byte-order mark or control
-                    // character in a header is visible in the message.
-                    .map(|(n, _)| n.escape_debug().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                available: self.available.to_string(),
             })
     }
 

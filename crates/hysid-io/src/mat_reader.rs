@@ -1,7 +1,7 @@
 //! MATLAB level-5 MAT-file input (compressed or not), through the pure-Rust
 //! `matrw` crate. Variables are chosen by name, like CSV columns.
 
-use super::{DataError, RawTable};
+use super::{Available, DataError, RawTable};
 use matrw::MatVariable;
 use rayon::prelude::*;
 use std::path::Path;
@@ -150,17 +150,11 @@ pub(crate) fn read_bytes(
     if columns.is_empty() && available.is_empty() {
         return Err(perr(String::new(), "holds no variable".into()));
     }
-    // Keep the names of every variable so that a missing one is reported with
-    // what is there; unselected ones carry no data.
-    for name in available {
-        if !columns.iter().any(|(n, _)| *n == name) {
-            columns.push((name, Vec::new()));
-        }
-    }
     Ok(RawTable {
         path: path.to_path_buf(),
         what: "variable",
         columns,
+        available: Available::of(available.iter().map(String::as_str)),
     })
 }
 

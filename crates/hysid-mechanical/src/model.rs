@@ -19,6 +19,7 @@
 
 use hysid_model::model::{ModelInfo, PhysicalParameter};
 use serde::{Deserialize, Serialize};
+use std::collections::HashSet;
 
 /// A number, or the name of a parameter.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -519,8 +520,10 @@ impl MechanicalModel {
         if self.inputs.is_empty() {
             return Err(E::NoInput);
         }
-        for (i, p) in self.parameters.iter().enumerate() {
-            if self.parameters[..i].iter().any(|o| o.name == p.name) {
+        // Names looked up by set: a file's lists may be long.
+        let mut parameters = HashSet::with_capacity(self.parameters.len());
+        for p in &self.parameters {
+            if !parameters.insert(p.name.as_str()) {
                 return Err(E::DuplicateParameter(p.name.clone()));
             }
             let [lo, hi] = p.bounds;
@@ -542,7 +545,7 @@ impl MechanicalModel {
                 Quantity::Value(_) => Err(E::NonFiniteQuantity {
                     what: what.to_string(),
                 }),
-                Quantity::Param(n) if self.parameter_index(n).is_some() => Ok(()),
+                Quantity::Param(n) if parameters.contains(n.as_str()) => Ok(()),
                 Quantity::Param(n) => Err(E::UnknownParameter {
                     what: what.to_string(),
                     name: n.clone(),
@@ -570,8 +573,9 @@ impl MechanicalModel {
         if self.contacts.len() > MAX_CONTACTS {
             return Err(E::TooManyContacts);
         }
-        for (i, c) in self.contacts.iter().enumerate() {
-            if self.contacts[..i].iter().any(|o| o.name == c.name) {
+        let mut contacts = HashSet::with_capacity(self.contacts.len());
+        for c in &self.contacts {
+            if !contacts.insert(c.name.as_str()) {
                 return Err(E::DuplicateContact(c.name.clone()));
             }
             let w = |s: &str| format!("contact '{}' {s}", c.name);
@@ -580,8 +584,9 @@ impl MechanicalModel {
             check(&c.damping, &w("damping"))?;
             check(&c.friction, &w("friction"))?;
         }
-        for (i, s) in self.stops.iter().enumerate() {
-            if self.stops[..i].iter().any(|o| o.name == s.name) {
+        let mut stops = HashSet::with_capacity(self.stops.len());
+        for s in &self.stops {
+            if !stops.insert(s.name.as_str()) {
                 return Err(E::DuplicateStop(s.name.clone()));
             }
             check(&s.position, &format!("stop '{}' position", s.name))?;
@@ -589,13 +594,18 @@ impl MechanicalModel {
                 return Err(E::Restitution(s.name.clone()));
             }
         }
-        for (i, m) in self.modes.iter().enumerate() {
-            if self.modes[..i].iter().any(|o| o.name == m.name) {
+        let mut modes = HashSet::with_capacity(self.modes.len());
+        // The stops with a rest mode.
+        let mut resting = HashSet::new();
+        for m in &self.modes {
+            if !modes.insert(m.name.as_str()) {
                 return Err(E::DuplicateMode(m.name.clone()));
             }
             match m.kind {
                 MechanicalModeKind::Stop => match &m.stop {
-                    Some(s) if self.stops.iter().any(|x| &x.name == s) => {}
+                    Some(s) if stops.contains(s.as_str()) => {
+                        resting.insert(s.as_str());
+                    }
                     Some(s) => {
                         return Err(E::UnknownStop {
                             mode: m.name.clone(),
@@ -611,7 +621,7 @@ impl MechanicalModel {
                 }
             }
             for c in m.contacts.iter().flatten() {
-                if !self.contacts.iter().any(|x| &x.name == c) {
+                if !contacts.contains(c.as_str()) {
                     return Err(E::UnknownContact {
                         mode: m.name.clone(),
                         contact: c.clone(),
@@ -619,10 +629,11 @@ impl MechanicalModel {
                 }
             }
         }
-        // Every regime needs a mode.
-        for s in 0..self.stops.len() {
-            if self.mode_of(Some(s), true, 0).is_none() {
-                return Err(E::NoRestMode(self.stops[s].name.clone()));
+        // Every regime needs a mode (a stop's: a stop mode naming it, as
+        // `mode_of` finds it).
+        for s in &self.stops {
+            if !resting.contains(s.name.as_str()) {
+                return Err(E::NoRestMode(s.name.clone()));
             }
         }
         for mask in 0..(1u32 << self.contacts.len()) {

@@ -595,6 +595,38 @@ mod tests {
         let mut bad = m.clone();
         bad.modes.retain(|q| q.kind != MechanicalModeKind::Stick);
         assert!(bad.validate().unwrap_err().to_string().contains("stick"));
+        // Long lists are checked by name sets: a name repeated at the end
+        // of 50 000 parameters or modes is found, and a stop without a
+        // rest mode is named.
+        let mut long = m.clone();
+        let p = long.parameters[0].clone();
+        long.parameters
+            .extend((0..50_000).map(|i| hysid_model::model::PhysicalParameter {
+                name: format!("extra{i}"),
+                ..p.clone()
+            }));
+        long.parameters.push(hysid_model::model::PhysicalParameter {
+            name: "extra7".into(),
+            ..p
+        });
+        assert_eq!(
+            long.validate().unwrap_err().to_string(),
+            crate::InvalidMechanical::DuplicateParameter("extra7".into()).to_string()
+        );
+        let mut long = m.clone();
+        let q = long.modes[1].clone();
+        long.modes
+            .extend((0..50_000).map(|i| crate::MechanicalMode {
+                name: format!("extra{i}"),
+                ..q.clone()
+            }));
+        assert!(long.validate().is_ok());
+        long.modes
+            .retain(|q| q.stop.as_deref() != Some(m.stops[1].name.as_str()));
+        assert_eq!(
+            long.validate().unwrap_err().to_string(),
+            crate::InvalidMechanical::NoRestMode(m.stops[1].name.clone()).to_string()
+        );
         let json = serde_json::to_string(&m).unwrap();
         assert_eq!(serde_json::from_str::<MechanicalModel>(&json).unwrap(), m);
     }

@@ -4,3 +4,4 @@ mod ball;
 mod delay;
 mod examples;
 mod head;
+mod limits;

@@ -388,9 +388,10 @@ impl HybridAutomaton {
                 inputs: m,
             });
         }
-        for (i, q) in self.modes.iter().enumerate() {
+        let mut names = std::collections::HashSet::with_capacity(self.modes.len());
+        for q in &self.modes {
             let mode = || q.name.clone();
-            if self.modes[..i].iter().any(|p| p.name == q.name) {
+            if !names.insert(q.name.as_str()) {
                 return Err(E::DuplicateMode(mode()));
             }
             let w = |s: &str| format!("mode '{}': {s}", q.name);
@@ -411,7 +412,7 @@ impl HybridAutomaton {
         for t in &self.transitions {
             let (from, to) = (|| t.from.clone(), || t.to.clone());
             for name in [&t.from, &t.to] {
-                if self.mode_index(name).is_none() {
+                if !names.contains(name.as_str()) {
                     return Err(E::TransitionMode {
                         from: from(),
                         to: to(),
@@ -440,7 +441,7 @@ impl HybridAutomaton {
             }
         }
         if let Some(q) = &self.initial_mode
-            && self.mode_index(q).is_none()
+            && !names.contains(q.as_str())
         {
             return Err(E::InitialMode(q.clone()));
         }
@@ -790,6 +791,50 @@ impl HybridAutomaton {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn long_lists_of_modes_are_checked_by_name() {
+        let p = PwarxModel {
+            na: 1,
+            nb: 1,
+            inputs: 1,
+            modes: vec![crate::model::PwarxMode {
+                theta: vec![0.5, 0.1, 0.0],
+                region: Polyhedron::default(),
+                name: None,
+            }],
+            info: ModelInfo::default(),
+        };
+        let mut a = HybridAutomaton::from_pwarx(&p);
+        let q = a.modes[0].clone();
+        a.modes.extend((0..50_000).map(|i| AutomatonMode {
+            name: format!("m{i}"),
+            ..q.clone()
+        }));
+        assert_eq!(a.validate(), Ok(()));
+        // A transition to the last mode, then to none; a name repeated last.
+        let t = Transition {
+            from: q.name.clone(),
+            to: "m49999".into(),
+            guard: GuardSet(Polyhedron::default()),
+            reset: ResetMap::default(),
+        };
+        a.transitions.push(t.clone());
+        assert_eq!(a.validate(), Ok(()));
+        a.transitions.push(Transition {
+            to: "m50000".into(),
+            ..t
+        });
+        assert!(
+            matches!(a.validate(), Err(InvalidModel::TransitionMode { name, .. }) if name == "m50000")
+        );
+        a.transitions.pop();
+        a.modes.push(AutomatonMode {
+            name: "m7".into(),
+            ..q
+        });
+        assert_eq!(a.validate(), Err(InvalidModel::DuplicateMode("m7".into())));
+    }
 
     #[test]
     fn stops_are_read_back_from_the_automaton() {

@@ -5,8 +5,12 @@ use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::{Axis, SearchSpace};
 use hysid_model::data::{DataSelection, RowRange};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
+
+/// Most jobs an experiment may expand into ([`Experiment::jobs`]): each
+/// is an identification.
+pub const MAX_JOBS: usize = 10_000;
 
 /// Where the data come from and how they are split.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -291,6 +295,10 @@ pub enum InconsistentExperiment {
     /// Neither runs nor sweeps.
     #[error("no [[run]] and no [[sweep]]")]
     NothingToRun,
+    /// More jobs than [`MAX_JOBS`]: runs, their seeds, and every point of
+    /// every sweep.
+    #[error("the runs, their seeds and the points of the sweeps make more than {MAX_JOBS} jobs")]
+    TooManyJobs,
     /// The shared priors are inconsistent.
     #[error("[priors]: {0}")]
     Priors(InconsistentPrior),
@@ -405,20 +413,19 @@ impl Experiment {
         }
         self.priors.check().map_err(E::Priors)?;
         let registry = crate::registry();
-        let mut names: Vec<&str> = Vec::new();
+        let mut names = HashSet::new();
         let all = self
             .runs
             .iter()
             .map(|r| (r, "run"))
             .chain(self.sweeps.iter().map(|s| (&s.run, "sweep")));
         for (r, what) in all {
-            if names.contains(&r.name.as_str()) {
+            if !names.insert(r.name.as_str()) {
                 return Err(E::DuplicateName {
                     what,
                     name: r.name.clone(),
                 });
             }
-            names.push(&r.name);
             if registry.get(&r.method).is_none() {
                 return Err(E::UnknownMethod {
                     what,
@@ -460,6 +467,17 @@ impl Experiment {
                 });
             }
         }
+        // Counted before any is made: a sweep's points are the product of
+        // its axes' lengths.
+        let runs = self.runs.iter().map(|r| r.seeds.len().max(1));
+        let sweeps = self.sweeps.iter().map(|s| s.space().count());
+        if runs
+            .chain(sweeps)
+            .try_fold(0usize, |n, k| n.checked_add(k))
+            .is_none_or(|n| n > MAX_JOBS)
+        {
+            return Err(E::TooManyJobs);
+        }
         if self.data.decimate == 0 {
             return Err(E::Decimate);
         }
@@ -476,6 +494,37 @@ impl Experiment {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_jobs_are_counted_before_they_are_made() {
+        let text = |grid: &str| {
+            format!(
+                "title = \"t\"\n[data]\nfile = \"d.csv\"\nidentification = \"0..100\"\n\
+                 validation = \"100..\"\n[[run]]\nname = \"a\"\nmethod = \"arx\"\n\
+                 seeds = [1, 2, 3]\n[[sweep]]\nname = \"s\"\nmethod = \"arx\"\ngrid = {{ {grid} }}\n"
+            )
+        };
+        // `k` axes of `n` values each.
+        let axes = |k: usize, n: usize| {
+            let values: Vec<String> = (0..n).map(|v| v.to_string()).collect();
+            (0..k)
+                .map(|i| format!("o{i} = [{}]", values.join(", ")))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        // 3 seeds and 99 * 101 points: 10 002 jobs, two more than the limit.
+        let over = format!("{}, {}", axes(1, 99), axes(1, 101).replace("o0", "p0"));
+        let e = Experiment::from_toml(&text(&over), "x.toml").unwrap_err();
+        assert!(e.to_string().contains("more than 10000 jobs"), "{e}");
+        let at = format!("{}, {}", axes(1, 99), axes(1, 101).replace("o0", "p0"))
+            .replace("p0 = [0, ", "p0 = [");
+        // One value fewer: 3 + 99 * 100 = 9 903 jobs.
+        let e = Experiment::from_toml(&text(&at), "x.toml").unwrap();
+        assert_eq!(e.sweeps[0].space().count(), 9_900);
+        // 64 axes of two values: 2^64 points, counted without overflow.
+        let e = Experiment::from_toml(&text(&axes(64, 2)), "x.toml").unwrap_err();
+        assert!(e.to_string().contains("more than 10000 jobs"), "{e}");
+    }
 
     #[test]
     fn parses_and_rejects_typos() {
