@@ -11,7 +11,9 @@
 use crate::expr::{
     DefinitionError, Definitions, ExprError, Expression, Function, InlineError, Relation,
 };
-use crate::model::{Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode, GrayBoxModel};
+use crate::model::{
+    Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode, GrayBoxModel, GrayBoxTransition,
+};
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::rc::Rc;
 
@@ -291,376 +293,25 @@ fn is_identifier(name: &str) -> bool {
 }
 
 impl CompiledModel {
-    /// Checks `m` and compiles it.
+    /// Checks `m` and compiles it: the header and the sizes, the names,
+    /// the elements, each mode with the transitions that leave it, then
+    /// the delays, the energy and the initial state.
     pub fn new(m: &GrayBoxModel) -> Result<Self, InvalidGrayBox> {
-        if m.format != FORMAT_VERSION {
-            return Err(InvalidGrayBox::new(
-                "format",
-                None,
-                Problem::Version(m.format),
-            ));
-        }
-        if !(m.internal_step > 0.0 && m.internal_step.is_finite()) {
-            return Err(InvalidGrayBox::new(
-                "internal_step",
-                None,
-                Problem::InternalStep,
-            ));
-        }
+        check_header(m)?;
         let names = definition_names(m);
-        for (what, count, limit) in [
-            ("definitions", names.len(), MAX_DEFINITIONS),
-            ("modes", m.modes.len(), MAX_MODES),
-            ("elements", m.elements.len(), MAX_ELEMENTS),
-        ] {
-            if count > limit {
-                return Err(InvalidGrayBox::new(
-                    what,
-                    None,
-                    Problem::TooMany { what, count, limit },
-                ));
-            }
-        }
-        let own = m.modes.iter().filter(|q| !q.definitions.is_empty()).count();
-        if own * names.len() > MAX_MODE_DEFINITIONS {
-            return Err(InvalidGrayBox::new(
-                "modes",
-                None,
-                Problem::ModeDefinitions {
-                    modes: own,
-                    definitions: names.len(),
-                },
-            ));
-        }
-        let symbols = symbol_table(m)?;
-        let resolve = |n: &str| symbols.get(n).map(|&slot| slot as u32);
-        let nx = m.states.len();
-        let first_def = nx + m.inputs.len() + m.parameters.len();
-        // The states take the first slots.
-        let state_of = |place: &str, n: &str| -> Result<usize, InvalidGrayBox> {
-            match symbols.get(n) {
-                Some(&slot) if slot < nx => Ok(slot),
-                _ => Err(InvalidGrayBox::new(
-                    place,
-                    Some(n),
-                    Problem::UnknownState(n.into()),
-                )),
-            }
-        };
-        let expr = |place: &str, text: &str| {
-            Expression::compile(text, &resolve)
-                .map_err(|e| InvalidGrayBox::new(place, Some(text), e))
-        };
-        let relation = |place: &str, text: &str| {
-            Relation::compile(text, &resolve).map_err(|e| InvalidGrayBox::new(place, Some(text), e))
-        };
-        // The parameters' slots.
-        let params = (nx + m.inputs.len()) as u32..first_def as u32;
-        let parametric = |place: &str, text: &str| -> Result<Expression, InvalidGrayBox> {
-            let e = expr(place, text)?;
-            if e.slots().all(|s| params.contains(&s)) {
-                Ok(e)
-            } else {
-                Err(InvalidGrayBox::new(
-                    place,
-                    Some(text),
-                    Problem::NotParametric(text.into()),
-                ))
-            }
-        };
-
-        if m.outputs.len() != 1 {
-            return Err(InvalidGrayBox::new(
-                "outputs",
-                None,
-                Problem::Outputs(m.outputs.len()),
-            ));
-        }
-        if m.modes.is_empty() {
-            return Err(InvalidGrayBox::new("modes", None, Problem::NoMode));
-        }
-        let mut mode_index = BTreeMap::new();
-        for (i, q) in m.modes.iter().enumerate() {
-            if !is_identifier(&q.name) {
-                return Err(InvalidGrayBox::new(
-                    "modes",
-                    Some(&q.name),
-                    Problem::BadName(q.name.clone()),
-                ));
-            }
-            if mode_index.insert(q.name.as_str(), i).is_some() {
-                return Err(InvalidGrayBox::new(
-                    "modes",
-                    Some(&q.name),
-                    Problem::Duplicate(q.name.clone()),
-                ));
-            }
-        }
-        let mode_of = |place: &str, n: &str| {
-            mode_index
-                .get(n)
-                .copied()
-                .ok_or_else(|| InvalidGrayBox::new(place, Some(n), Problem::UnknownMode(n.into())))
-        };
-
-        let elements = compile_elements(m, &mode_index, &state_of, &parametric)?;
-
-        // The model's definitions, compiled when a mode first reads them;
-        // the names only modes give, which every mode must give.
-        let model_texts: Vec<Option<&String>> =
-            names.iter().map(|d| m.definitions.get(*d)).collect();
-        let mut model_definitions: Vec<Option<Rc<Expression>>> = vec![None; names.len()];
-        let mode_only: Vec<usize> = (0..names.len())
-            .filter(|&i| model_texts[i].is_none())
-            .collect();
-        // A mode's definitions, checked: every name has a value, no cycle,
-        // none too deep once written out.
-        let mut definitions_of = |q: &GrayBoxMode| -> Result<Definitions, InvalidGrayBox> {
-            let place = format!("mode '{}'", q.name);
-            // The mode's own values, by index (every name is in the table).
-            let mut own: Vec<(usize, &String)> = q
-                .definitions
-                .iter()
-                .filter_map(|(d, text)| Some((symbols.get(d)?.checked_sub(first_def)?, text)))
-                .collect();
-            own.sort_unstable_by_key(|&(i, _)| i);
-            let text_of = |i: usize| match own.binary_search_by_key(&i, |&(j, _)| j) {
-                Ok(k) => Some(own[k].1),
-                Err(_) => model_texts[i],
-            };
-            if let Some(&i) = mode_only.iter().find(|&&i| text_of(i).is_none()) {
-                let d = names[i];
-                return Err(InvalidGrayBox::new(
-                    &place,
-                    Some(d),
-                    Problem::Undefined(d.to_string()),
-                ));
-            }
-            let mut written = Vec::with_capacity(names.len());
-            let mut mine = own.iter().peekable();
-            for (i, d) in names.iter().enumerate() {
-                let at = || format!("{place}, definition '{d}'");
-                let e = match (mine.next_if(|&&(j, _)| j == i), model_texts[i]) {
-                    (Some((_, text)), _) => Rc::new(expr(&at(), text)?),
-                    (None, Some(text)) => match &model_definitions[i] {
-                        Some(e) => Rc::clone(e),
-                        None => Rc::clone(model_definitions[i].insert(Rc::new(expr(&at(), text)?))),
-                    },
-                    (None, None) => unreachable!("every name only modes give is given above"),
-                };
-                written.push(e);
-            }
-            Definitions::new(first_def as u32, written).map_err(|e| match e {
-                DefinitionError::Cycle(i) => InvalidGrayBox::new(
-                    &place,
-                    Some(names[i]),
-                    Problem::Cycle(names[i].to_string()),
-                ),
-                DefinitionError::TooDeep(i) => {
-                    let text = text_of(i).map_or("", String::as_str);
-                    InvalidGrayBox::new(
-                        format!("{place}, definition '{}'", names[i]),
-                        Some(text),
-                        ExprError::TooDeep(text.to_string()),
-                    )
-                }
-            })
-        };
-        // An expression of a mode with its definitions written in, counted
-        // into the operations compiled so far (at most [`MAX_OPERATIONS`]).
-        let inlined = |defs: &mut Definitions,
-                       operations: &mut usize,
-                       place: &str,
-                       text: &str,
-                       e: Expression|
-         -> Result<Expression, InvalidGrayBox> {
-            let at = |problem: Problem| InvalidGrayBox::new(place, Some(text), problem);
-            let e = e.inline(defs, MAX_OPERATIONS).map_err(|e| {
-                at(match e {
-                    InlineError::TooDeep => ExprError::TooDeep(text.into()).into(),
-                    InlineError::TooLarge => ExprError::TooLarge(MAX_OPERATIONS).into(),
-                })
-            })?;
-            *operations += e.operations();
-            if *operations > MAX_OPERATIONS {
-                return Err(at(Problem::TooLarge));
-            }
-            Ok(e)
-        };
-        let direct = |defs: &mut Definitions, operations: &mut usize, place: &str, text: &str| {
-            let e = expr(place, text)?;
-            inlined(defs, operations, place, text, e)
-        };
-        let direct_relation = |defs: &mut Definitions,
-                               operations: &mut usize,
-                               place: &str,
-                               text: &str|
-         -> Result<Relation, InvalidGrayBox> {
-            let r = relation(place, text)?;
-            Ok(Relation {
-                surface: inlined(defs, operations, place, text, r.surface)?,
-                crossing: r.crossing,
-            })
-        };
-        let mut operations = 0usize;
-
-        // The transitions leaving each mode, compiled with its definitions;
-        // their errors are reported in file order, after the modes'.
-        let mut leaving = vec![Vec::new(); m.modes.len()];
-        for (i, t) in m.transitions.iter().enumerate() {
-            if let Some(&from) = mode_index.get(t.from.as_str()) {
-                leaving[from].push(i);
-            }
-        }
-        let mut transitions: Vec<Option<Result<CompiledTransition, InvalidGrayBox>>> =
-            vec![None; m.transitions.len()];
-        // The definitions of the modes that give none of their own.
-        let mut common: Option<Definitions> = None;
-        let mut modes = Vec::with_capacity(m.modes.len());
-        for (qi, q) in m.modes.iter().enumerate() {
-            let mut own = None;
-            if !q.definitions.is_empty() {
-                own = Some(definitions_of(q)?);
-            } else if common.is_none() {
-                common = Some(definitions_of(q)?);
-            }
-            let Some(defs) = own.as_mut().or(common.as_mut()) else {
-                unreachable!("a mode's definitions are made above");
-            };
-            let place = format!("mode '{}'", q.name);
-            let mut flow = Vec::with_capacity(nx);
-            for s in &m.states {
-                let text = q.flow.get(s).ok_or_else(|| {
-                    InvalidGrayBox::new(&place, Some(&q.name), Problem::MissingFlow(s.clone()))
-                })?;
-                flow.push(direct(
-                    defs,
-                    &mut operations,
-                    &format!("{place}, flow of '{s}'"),
-                    text,
-                )?);
-            }
-            for s in q.flow.keys() {
-                state_of(&format!("{place}, flow"), s)?;
-            }
-            let invariant = q
-                .invariant
-                .iter()
-                .map(|t| direct_relation(defs, &mut operations, &format!("{place}, invariant"), t))
-                .collect::<Result<_, _>>()?;
-            let mut friction = Vec::with_capacity(m.elements.len());
-            for e in &m.elements {
-                friction.push(match e {
-                    Element::DryFriction {
-                        kinetic,
-                        static_level,
-                        ..
-                    } => {
-                        let at = format!("{place}, element '{}'", e.name());
-                        (
-                            direct(defs, &mut operations, &format!("{at}, kinetic"), kinetic)?,
-                            direct(
-                                defs,
-                                &mut operations,
-                                &format!("{at}, static"),
-                                static_level,
-                            )?,
-                        )
-                    }
-                    Element::Stop { .. } => (Expression::constant(0.0), Expression::constant(0.0)),
-                });
-            }
-            let output = &m.outputs[0];
-            let output = direct(
-                defs,
-                &mut operations,
-                &format!("output '{}'", output.name),
-                &output.value,
-            )?;
-            for &i in &leaving[qi] {
-                let t = &m.transitions[i];
-                let place = format!("transition {} -> {}", t.from, t.to);
-                let mut compile = || -> Result<CompiledTransition, InvalidGrayBox> {
-                    let guard = direct_relation(
-                        defs,
-                        &mut operations,
-                        &format!("{place}, guard"),
-                        &t.guard,
-                    )?;
-                    let when = t
-                        .when
-                        .as_deref()
-                        .map(|w| direct(defs, &mut operations, &format!("{place}, when"), w))
-                        .transpose()?;
-                    let mut reset = Vec::with_capacity(t.reset.len());
-                    for (s, text) in &t.reset {
-                        reset.push((
-                            state_of(&format!("{place}, reset"), s)?,
-                            direct(
-                                defs,
-                                &mut operations,
-                                &format!("{place}, reset of '{s}'"),
-                                text,
-                            )?,
-                        ));
-                    }
-                    Ok(CompiledTransition {
-                        label: format!("{} -> {}", t.from, t.to),
-                        to: 0,
-                        guard,
-                        when,
-                        reset,
-                    })
-                };
-                transitions[i] = Some(compile());
-            }
-            modes.push(CompiledMode {
-                flow,
-                invariant,
-                transitions: Vec::new(),
-                friction,
-                output,
-            });
-        }
-        for (t, compiled) in m.transitions.iter().zip(transitions) {
-            let place = format!("transition {} -> {}", t.from, t.to);
-            let from = mode_of(&place, &t.from)?;
-            let to = mode_of(&place, &t.to)?;
-            let Some(compiled) = compiled else {
-                unreachable!("every transition from a mode is compiled with it");
-            };
-            modes[from]
-                .transitions
-                .push(CompiledTransition { to, ..compiled? });
-        }
-        let mut delays = vec![Expression::constant(0.0); m.inputs.len()];
-        for (input, text) in &m.delays {
-            let i = m.inputs.iter().position(|n| n == input).ok_or_else(|| {
-                InvalidGrayBox::new("delays", Some(input), Problem::UnknownInput(input.clone()))
-            })?;
-            delays[i] = parametric(&format!("delays, input '{input}'"), text)?;
-        }
-        let energy = m
-            .energy
-            .as_deref()
-            .map(|text| {
-                let e = expr("energy", text)?;
-                if e.slots().all(|s| (s as usize) < nx || params.contains(&s)) {
-                    Ok(e)
-                } else {
-                    Err(InvalidGrayBox::new(
-                        "energy",
-                        Some(text),
-                        Problem::NotStateFunction(text.into()),
-                    ))
-                }
-            })
-            .transpose()?;
-        let initial = initial_rule(m, &state_of, &mode_of)?;
+        check_sizes(m, names.len())?;
+        let mut c = Compiler::new(m, names)?;
+        let elements = compile_elements(m, &c.mode_index, &|p, n| c.state_of(p, n), &|p, n| {
+            c.parametric(p, n)
+        })?;
+        let modes = c.compile_modes()?;
+        let delays = c.compile_delays()?;
+        let energy = c.compile_energy()?;
+        let initial = initial_rule(m, &|p, n| c.state_of(p, n), &|p, n| c.mode_of(p, n))?;
         Ok(CompiledModel {
             energy,
             delays,
-            states: nx,
+            states: c.nx,
             inputs: m.inputs.len(),
             parameters: m.parameters.len(),
             modes,
@@ -750,6 +401,454 @@ impl CompiledModel {
     /// The first slot of the parameters.
     pub fn parameter_slot(&self) -> usize {
         self.states + self.inputs
+    }
+}
+
+/// The format version and the internal step.
+fn check_header(m: &GrayBoxModel) -> Result<(), InvalidGrayBox> {
+    if m.format != FORMAT_VERSION {
+        return Err(InvalidGrayBox::new(
+            "format",
+            None,
+            Problem::Version(m.format),
+        ));
+    }
+    if !(m.internal_step > 0.0 && m.internal_step.is_finite()) {
+        return Err(InvalidGrayBox::new(
+            "internal_step",
+            None,
+            Problem::InternalStep,
+        ));
+    }
+    Ok(())
+}
+
+/// The limits on definitions, modes and elements ([`MAX_DEFINITIONS`],
+/// [`MAX_MODES`], [`MAX_ELEMENTS`], [`MAX_MODE_DEFINITIONS`]), checked
+/// before any is compiled.
+fn check_sizes(m: &GrayBoxModel, definitions: usize) -> Result<(), InvalidGrayBox> {
+    for (what, count, limit) in [
+        ("definitions", definitions, MAX_DEFINITIONS),
+        ("modes", m.modes.len(), MAX_MODES),
+        ("elements", m.elements.len(), MAX_ELEMENTS),
+    ] {
+        if count > limit {
+            return Err(InvalidGrayBox::new(
+                what,
+                None,
+                Problem::TooMany { what, count, limit },
+            ));
+        }
+    }
+    let own = m.modes.iter().filter(|q| !q.definitions.is_empty()).count();
+    if own * definitions > MAX_MODE_DEFINITIONS {
+        return Err(InvalidGrayBox::new(
+            "modes",
+            None,
+            Problem::ModeDefinitions {
+                modes: own,
+                definitions,
+            },
+        ));
+    }
+    Ok(())
+}
+
+/// The modes by name, checked: one output, at least one mode, modes
+/// named by identifiers, none twice.
+fn mode_index(m: &GrayBoxModel) -> Result<BTreeMap<&str, usize>, InvalidGrayBox> {
+    if m.outputs.len() != 1 {
+        return Err(InvalidGrayBox::new(
+            "outputs",
+            None,
+            Problem::Outputs(m.outputs.len()),
+        ));
+    }
+    if m.modes.is_empty() {
+        return Err(InvalidGrayBox::new("modes", None, Problem::NoMode));
+    }
+    let mut index = BTreeMap::new();
+    for (i, q) in m.modes.iter().enumerate() {
+        if !is_identifier(&q.name) {
+            return Err(InvalidGrayBox::new(
+                "modes",
+                Some(&q.name),
+                Problem::BadName(q.name.clone()),
+            ));
+        }
+        if index.insert(q.name.as_str(), i).is_some() {
+            return Err(InvalidGrayBox::new(
+                "modes",
+                Some(&q.name),
+                Problem::Duplicate(q.name.clone()),
+            ));
+        }
+    }
+    Ok(index)
+}
+
+/// What compiling one model keeps at hand: the slots of its names, its
+/// modes by name, the model's definitions (compiled when a mode first
+/// reads them) and the operations compiled so far (at most
+/// [`MAX_OPERATIONS`]).
+struct Compiler<'m> {
+    m: &'m GrayBoxModel,
+    /// Every definition name ([`definition_names`]).
+    names: Vec<&'m String>,
+    symbols: BTreeMap<String, usize>,
+    mode_index: BTreeMap<&'m str, usize>,
+    /// Number of states: the first slots.
+    nx: usize,
+    /// The slot of the first definition.
+    first_def: usize,
+    /// Per definition name, the model's text, if it gives one.
+    model_texts: Vec<Option<&'m String>>,
+    /// Per definition name, the model's text compiled, once a mode read it.
+    model_definitions: Vec<Option<Rc<Expression>>>,
+    /// The definitions only modes give: every mode must give them.
+    mode_only: Vec<usize>,
+    operations: usize,
+}
+
+impl<'m> Compiler<'m> {
+    fn new(m: &'m GrayBoxModel, names: Vec<&'m String>) -> Result<Self, InvalidGrayBox> {
+        let symbols = symbol_table(m)?;
+        let mode_index = mode_index(m)?;
+        let model_texts: Vec<Option<&String>> =
+            names.iter().map(|d| m.definitions.get(*d)).collect();
+        let mode_only = (0..names.len())
+            .filter(|&i| model_texts[i].is_none())
+            .collect();
+        Ok(Compiler {
+            nx: m.states.len(),
+            first_def: m.states.len() + m.inputs.len() + m.parameters.len(),
+            model_definitions: vec![None; names.len()],
+            model_texts,
+            mode_only,
+            names,
+            symbols,
+            mode_index,
+            m,
+            operations: 0,
+        })
+    }
+
+    fn resolve(&self, n: &str) -> Option<u32> {
+        self.symbols.get(n).map(|&slot| slot as u32)
+    }
+
+    /// The slot of the state `n` (the states take the first slots).
+    fn state_of(&self, place: &str, n: &str) -> Result<usize, InvalidGrayBox> {
+        match self.symbols.get(n) {
+            Some(&slot) if slot < self.nx => Ok(slot),
+            _ => Err(InvalidGrayBox::new(
+                place,
+                Some(n),
+                Problem::UnknownState(n.into()),
+            )),
+        }
+    }
+
+    fn mode_of(&self, place: &str, n: &str) -> Result<usize, InvalidGrayBox> {
+        self.mode_index
+            .get(n)
+            .copied()
+            .ok_or_else(|| InvalidGrayBox::new(place, Some(n), Problem::UnknownMode(n.into())))
+    }
+
+    /// The parameters' slots.
+    fn parameter_slots(&self) -> std::ops::Range<u32> {
+        (self.nx + self.m.inputs.len()) as u32..self.first_def as u32
+    }
+
+    fn expr(&self, place: &str, text: &str) -> Result<Expression, InvalidGrayBox> {
+        Expression::compile(text, &|n| self.resolve(n))
+            .map_err(|e| InvalidGrayBox::new(place, Some(text), e))
+    }
+
+    /// An expression of the parameters only.
+    fn parametric(&self, place: &str, text: &str) -> Result<Expression, InvalidGrayBox> {
+        let e = self.expr(place, text)?;
+        let params = self.parameter_slots();
+        if e.slots().all(|s| params.contains(&s)) {
+            Ok(e)
+        } else {
+            Err(InvalidGrayBox::new(
+                place,
+                Some(text),
+                Problem::NotParametric(text.into()),
+            ))
+        }
+    }
+
+    /// A mode's definitions, checked: every name has a value, no cycle,
+    /// none too deep once written out.
+    fn definitions_of(&mut self, q: &GrayBoxMode) -> Result<Definitions, InvalidGrayBox> {
+        let place = format!("mode '{}'", q.name);
+        // The mode's own values, by index (every name is in the table).
+        let mut own: Vec<(usize, &String)> = q
+            .definitions
+            .iter()
+            .filter_map(|(d, text)| Some((self.symbols.get(d)?.checked_sub(self.first_def)?, text)))
+            .collect();
+        own.sort_unstable_by_key(|&(i, _)| i);
+        let model_texts = &self.model_texts;
+        let text_of = |i: usize| match own.binary_search_by_key(&i, |&(j, _)| j) {
+            Ok(k) => Some(own[k].1),
+            Err(_) => model_texts[i],
+        };
+        if let Some(&i) = self.mode_only.iter().find(|&&i| text_of(i).is_none()) {
+            let d = self.names[i];
+            return Err(InvalidGrayBox::new(
+                &place,
+                Some(d),
+                Problem::Undefined(d.to_string()),
+            ));
+        }
+        let mut written = Vec::with_capacity(self.names.len());
+        let mut mine = own.iter().peekable();
+        for (i, d) in self.names.iter().enumerate() {
+            let at = || format!("{place}, definition '{d}'");
+            let e = match (mine.next_if(|&&(j, _)| j == i), self.model_texts[i]) {
+                (Some((_, text)), _) => Rc::new(self.expr(&at(), text)?),
+                (None, Some(text)) => match &self.model_definitions[i] {
+                    Some(e) => Rc::clone(e),
+                    None => {
+                        let e = Rc::new(self.expr(&at(), text)?);
+                        self.model_definitions[i] = Some(Rc::clone(&e));
+                        e
+                    }
+                },
+                (None, None) => unreachable!("every name only modes give is given above"),
+            };
+            written.push(e);
+        }
+        Definitions::new(self.first_def as u32, written).map_err(|e| match e {
+            DefinitionError::Cycle(i) => InvalidGrayBox::new(
+                &place,
+                Some(self.names[i]),
+                Problem::Cycle(self.names[i].to_string()),
+            ),
+            DefinitionError::TooDeep(i) => {
+                let text = text_of(i).map_or("", String::as_str);
+                InvalidGrayBox::new(
+                    format!("{place}, definition '{}'", self.names[i]),
+                    Some(text),
+                    ExprError::TooDeep(text.to_string()),
+                )
+            }
+        })
+    }
+
+    /// An expression of a mode with its definitions written in, counted
+    /// into the operations compiled so far.
+    fn inlined(
+        &mut self,
+        defs: &mut Definitions,
+        place: &str,
+        text: &str,
+        e: Expression,
+    ) -> Result<Expression, InvalidGrayBox> {
+        let at = |problem: Problem| InvalidGrayBox::new(place, Some(text), problem);
+        let e = e.inline(defs, MAX_OPERATIONS).map_err(|e| {
+            at(match e {
+                InlineError::TooDeep => ExprError::TooDeep(text.into()).into(),
+                InlineError::TooLarge => ExprError::TooLarge(MAX_OPERATIONS).into(),
+            })
+        })?;
+        self.operations += e.operations();
+        if self.operations > MAX_OPERATIONS {
+            return Err(at(Problem::TooLarge));
+        }
+        Ok(e)
+    }
+
+    /// The text `text` compiled in a mode whose definitions are `defs`.
+    fn direct(
+        &mut self,
+        defs: &mut Definitions,
+        place: &str,
+        text: &str,
+    ) -> Result<Expression, InvalidGrayBox> {
+        let e = self.expr(place, text)?;
+        self.inlined(defs, place, text, e)
+    }
+
+    fn direct_relation(
+        &mut self,
+        defs: &mut Definitions,
+        place: &str,
+        text: &str,
+    ) -> Result<Relation, InvalidGrayBox> {
+        let r = Relation::compile(text, &|n| self.resolve(n))
+            .map_err(|e| InvalidGrayBox::new(place, Some(text), e))?;
+        Ok(Relation {
+            surface: self.inlined(defs, place, text, r.surface)?,
+            crossing: r.crossing,
+        })
+    }
+
+    /// Every mode with the transitions leaving it, each compiled with the
+    /// definitions of the mode it leaves; the transitions' errors are
+    /// reported in file order, after the modes'.
+    fn compile_modes(&mut self) -> Result<Vec<CompiledMode>, InvalidGrayBox> {
+        let m = self.m;
+        let mut leaving = vec![Vec::new(); m.modes.len()];
+        for (i, t) in m.transitions.iter().enumerate() {
+            if let Some(&from) = self.mode_index.get(t.from.as_str()) {
+                leaving[from].push(i);
+            }
+        }
+        let mut transitions: Vec<Option<Result<CompiledTransition, InvalidGrayBox>>> =
+            vec![None; m.transitions.len()];
+        // The definitions of the modes that give none of their own.
+        let mut common: Option<Definitions> = None;
+        let mut modes = Vec::with_capacity(m.modes.len());
+        for (qi, q) in m.modes.iter().enumerate() {
+            let mut own = None;
+            if !q.definitions.is_empty() {
+                own = Some(self.definitions_of(q)?);
+            } else if common.is_none() {
+                common = Some(self.definitions_of(q)?);
+            }
+            let Some(defs) = own.as_mut().or(common.as_mut()) else {
+                unreachable!("a mode's definitions are made above");
+            };
+            modes.push(self.compile_mode(q, defs)?);
+            for &i in &leaving[qi] {
+                transitions[i] = Some(self.compile_transition(&m.transitions[i], defs));
+            }
+        }
+        for (t, compiled) in m.transitions.iter().zip(transitions) {
+            let place = format!("transition {} -> {}", t.from, t.to);
+            let from = self.mode_of(&place, &t.from)?;
+            let to = self.mode_of(&place, &t.to)?;
+            let Some(compiled) = compiled else {
+                unreachable!("every transition from a mode is compiled with it");
+            };
+            modes[from]
+                .transitions
+                .push(CompiledTransition { to, ..compiled? });
+        }
+        Ok(modes)
+    }
+
+    /// A mode's flows, invariant, friction levels and output (its
+    /// transitions are added by [`Compiler::compile_modes`]).
+    fn compile_mode(
+        &mut self,
+        q: &GrayBoxMode,
+        defs: &mut Definitions,
+    ) -> Result<CompiledMode, InvalidGrayBox> {
+        let m = self.m;
+        let place = format!("mode '{}'", q.name);
+        let mut flow = Vec::with_capacity(self.nx);
+        for s in &m.states {
+            let text = q.flow.get(s).ok_or_else(|| {
+                InvalidGrayBox::new(&place, Some(&q.name), Problem::MissingFlow(s.clone()))
+            })?;
+            flow.push(self.direct(defs, &format!("{place}, flow of '{s}'"), text)?);
+        }
+        for s in q.flow.keys() {
+            self.state_of(&format!("{place}, flow"), s)?;
+        }
+        let invariant = q
+            .invariant
+            .iter()
+            .map(|t| self.direct_relation(defs, &format!("{place}, invariant"), t))
+            .collect::<Result<_, _>>()?;
+        let mut friction = Vec::with_capacity(m.elements.len());
+        for e in &m.elements {
+            friction.push(match e {
+                Element::DryFriction {
+                    kinetic,
+                    static_level,
+                    ..
+                } => {
+                    let at = format!("{place}, element '{}'", e.name());
+                    (
+                        self.direct(defs, &format!("{at}, kinetic"), kinetic)?,
+                        self.direct(defs, &format!("{at}, static"), static_level)?,
+                    )
+                }
+                Element::Stop { .. } => (Expression::constant(0.0), Expression::constant(0.0)),
+            });
+        }
+        let output = &m.outputs[0];
+        let output = self.direct(defs, &format!("output '{}'", output.name), &output.value)?;
+        Ok(CompiledMode {
+            flow,
+            invariant,
+            transitions: Vec::new(),
+            friction,
+            output,
+        })
+    }
+
+    /// A transition's guard, condition and reset, in the definitions of
+    /// the mode it leaves; `to` is set by [`Compiler::compile_modes`].
+    fn compile_transition(
+        &mut self,
+        t: &GrayBoxTransition,
+        defs: &mut Definitions,
+    ) -> Result<CompiledTransition, InvalidGrayBox> {
+        let place = format!("transition {} -> {}", t.from, t.to);
+        let guard = self.direct_relation(defs, &format!("{place}, guard"), &t.guard)?;
+        let when = t
+            .when
+            .as_deref()
+            .map(|w| self.direct(defs, &format!("{place}, when"), w))
+            .transpose()?;
+        let mut reset = Vec::with_capacity(t.reset.len());
+        for (s, text) in &t.reset {
+            reset.push((
+                self.state_of(&format!("{place}, reset"), s)?,
+                self.direct(defs, &format!("{place}, reset of '{s}'"), text)?,
+            ));
+        }
+        Ok(CompiledTransition {
+            label: format!("{} -> {}", t.from, t.to),
+            to: 0,
+            guard,
+            when,
+            reset,
+        })
+    }
+
+    /// Per input, its delay (parameters only; a constant 0 without one).
+    fn compile_delays(&self) -> Result<Vec<Expression>, InvalidGrayBox> {
+        let m = self.m;
+        let mut delays = vec![Expression::constant(0.0); m.inputs.len()];
+        for (input, text) in &m.delays {
+            let i = m.inputs.iter().position(|n| n == input).ok_or_else(|| {
+                InvalidGrayBox::new("delays", Some(input), Problem::UnknownInput(input.clone()))
+            })?;
+            delays[i] = self.parametric(&format!("delays, input '{input}'"), text)?;
+        }
+        Ok(delays)
+    }
+
+    /// The stored energy: states and parameters only.
+    fn compile_energy(&self) -> Result<Option<Expression>, InvalidGrayBox> {
+        let params = self.parameter_slots();
+        self.m
+            .energy
+            .as_deref()
+            .map(|text| {
+                let e = self.expr("energy", text)?;
+                if e.slots()
+                    .all(|s| (s as usize) < self.nx || params.contains(&s))
+                {
+                    Ok(e)
+                } else {
+                    Err(InvalidGrayBox::new(
+                        "energy",
+                        Some(text),
+                        Problem::NotStateFunction(text.into()),
+                    ))
+                }
+            })
+            .transpose()
     }
 }
 

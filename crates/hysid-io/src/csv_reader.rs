@@ -1,6 +1,7 @@
 //! CSV input: a header row, then one sample per row; columns chosen by name.
 
-use super::{Available, DataError, RawTable};
+use crate::table::{Available, RawTable};
+use hysid_model::data::DataError;
 use std::path::Path;
 
 /// Reads the columns of `path` whose names are in `wanted` (others are only

@@ -1,7 +1,8 @@
 //! MATLAB level-5 MAT-file input (compressed or not), through the pure-Rust
 //! `matrw` crate. Variables are chosen by name, like CSV columns.
 
-use super::{Available, DataError, RawTable};
+use crate::table::{Available, RawTable};
+use hysid_model::data::DataError;
 use matrw::MatVariable;
 use rayon::prelude::*;
 use std::path::Path;

@@ -1,0 +1,137 @@
+//! Named columns as a reader returns them, and the selection that turns
+//! them into a [`Dataset`]: columns by name, decimation, the time base,
+//! the rows.
+
+use hysid_model::data::{DataError, DataSelection, Dataset, RowRange, Signal};
+use std::path::PathBuf;
+
+/// How many of a file's names an error about a missing one lists.
+const AVAILABLE_LISTED: usize = 20;
+
+/// Named columns as read from a file, before selection.
+pub(crate) struct RawTable {
+    pub(crate) path: PathBuf,
+    pub(crate) what: &'static str,
+    /// The columns read: those asked for that the file has.
+    pub(crate) columns: Vec<(String, Vec<f64>)>,
+    /// Every name of the file, for an error about a missing one.
+    pub(crate) available: Available,
+}
+
+/// The names of a file's columns as an error lists them: the first
+/// [`AVAILABLE_LISTED`] and how many there are.
+pub(crate) struct Available {
+    first: Vec<String>,
+    count: usize,
+}
+
+impl Available {
+    /// `names`, all of them, in file order.
+    pub(crate) fn of<'a>(names: impl ExactSizeIterator<Item = &'a str>) -> Self {
+        let count = names.len();
+        Available {
+            // Escaped, so that a stray byte-order mark or control character
+            // in a header is visible in the message.
+            first: names
+                .take(AVAILABLE_LISTED)
+                .map(|n| n.escape_debug().to_string())
+                .collect(),
+            count,
+        }
+    }
+}
+
+impl std::fmt::Display for Available {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.first.join(", "))?;
+        match self.count - self.first.len() {
+            0 => Ok(()),
+            more => write!(f, ", and {more} more"),
+        }
+    }
+}
+
+impl RawTable {
+    fn take(&self, name: &str) -> Result<&[f64], DataError> {
+        self.columns
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+            .ok_or_else(|| DataError::Missing {
+                path: self.path.clone(),
+                what: self.what,
+                name: name.to_string(),
+                available: self.available.to_string(),
+            })
+    }
+
+    fn has(&self, name: &str) -> bool {
+        self.columns.iter().any(|(n, _)| n == name)
+    }
+}
+
+/// Names the readers keep: the selected inputs, the output and `t`.
+pub(crate) fn wanted_names(sel: &DataSelection) -> Vec<&str> {
+    sel.inputs
+        .iter()
+        .map(String::as_str)
+        .chain([sel.output.as_str(), "t"])
+        .collect()
+}
+
+pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
+    let pick = |v: &[f64]| -> Vec<f64> { v.iter().step_by(sel.decimate).copied().collect() };
+    let output = Signal {
+        name: sel.output.clone(),
+        values: pick(table.take(&sel.output)?),
+    };
+    let mut inputs = Vec::with_capacity(sel.inputs.len());
+    for name in &sel.inputs {
+        inputs.push(Signal {
+            name: name.clone(),
+            values: pick(table.take(name)?),
+        });
+    }
+    let ts = if table.has("t") && !sel.inputs.iter().any(|n| n == "t") && sel.output != "t" {
+        let t = pick(table.take("t")?);
+        if t.len() >= 2 {
+            let dt = t[1] - t[0];
+            if !(dt.is_finite() && dt > 0.0) {
+                return Err(DataError::Parse {
+                    path: table.path.clone(),
+                    location: format!("{} 't': ", table.what),
+                    message: "time does not increase".into(),
+                });
+            }
+            Some(dt)
+        } else {
+            sel.ts
+        }
+    } else {
+        sel.ts
+    };
+    let ds = Dataset::new(inputs, output, ts)?;
+    let n = ds.len();
+    if sel.rows.end.is_some_and(|end| end > n) {
+        return Err(DataError::Selection(format!(
+            "{}: --rows {} ends beyond the {} rows left after decimation by {}",
+            table.path.display(),
+            sel.rows,
+            n,
+            sel.decimate
+        )));
+    }
+    let (a, b) = sel.rows.resolve(n).map_err(|_| {
+        DataError::Selection(format!(
+            "{}: --rows {} selects no sample of the {} rows left after decimation by {}",
+            table.path.display(),
+            sel.rows,
+            n,
+            sel.decimate
+        ))
+    })?;
+    ds.slice(RowRange {
+        start: Some(a),
+        end: Some(b),
+    })
+}
