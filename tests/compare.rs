@@ -253,6 +253,7 @@ fn a_bad_experiment_is_a_usage_error_with_no_output() {
 
 /// `--format png`: every figure the report links is a PNG image in
 /// `plots/`, no SVG is written; an unknown format is refused up front.
+#[cfg(feature = "png")]
 #[test]
 fn figures_as_png_on_request() {
     let dir = tempfile::tempdir().unwrap();
@@ -328,5 +329,22 @@ fn auto_runs_choose_on_folds() {
     let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
     assert_eq!(code, 2);
     assert!(err.contains("refit_starts must be at least 1"), "{err}");
+    assert!(!out.exists());
+}
+
+/// A build without the `png` feature refuses `--format png` up front,
+/// saying how to build it, and writes nothing.
+#[cfg(not(feature = "png"))]
+#[test]
+fn png_figures_need_the_png_feature() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = small_experiment(dir.path());
+    let out = dir.path().join("out");
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out), "--format", "png"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--format") && err.contains("--features png"),
+        "{err}"
+    );
     assert!(!out.exists());
 }

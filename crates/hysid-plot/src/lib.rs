@@ -77,6 +77,11 @@ pub enum PlotError {
     /// The drawing library failed.
     #[error("drawing failed: {0}")]
     Draw(String),
+    /// A PNG figure from a build without the `png` feature.
+    #[error(
+        "PNG figures need hysid built with the png feature (cargo install --path crates/hysid-cli --features png); SVG figures need nothing"
+    )]
+    PngNotBuilt,
     /// The file could not be written.
     #[error("cannot write {path}: {source}")]
     Io {

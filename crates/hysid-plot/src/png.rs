@@ -1,7 +1,8 @@
 //! PNG figures: the SVG of a figure rasterised by `resvg` (pure Rust), its
 //! text drawn with DejaVu Sans embedded in the program (Bitstream Vera
 //! licence, `fonts/DejaVuSans-LICENSE.txt`), so the image is the same on
-//! every machine and needs no system font.
+//! every machine and needs no system font. Built with the `png` feature
+//! only (`cargo install --path crates/hysid-cli --features png`).
 
 use crate::PlotError;
 
@@ -16,6 +17,14 @@ pub enum FigureFormat {
 }
 
 impl FigureFormat {
+    /// Whether this build writes the format (PNG needs the `png` feature).
+    pub fn is_built(self) -> bool {
+        match self {
+            FigureFormat::Svg => true,
+            FigureFormat::Png => cfg!(feature = "png"),
+        }
+    }
+
     /// The file extension, without the dot.
     pub fn extension(self) -> &'static str {
         match self {
@@ -37,6 +46,7 @@ impl std::str::FromStr for FigureFormat {
 }
 
 /// The embedded font, registered as the `sans-serif` family the figures use.
+#[cfg(feature = "png")]
 const FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
 
 /// Pixels per SVG unit: figures are drawn in SVG pixels and rasterised at
@@ -44,6 +54,7 @@ const FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
 pub const PNG_SCALE: f32 = 2.0;
 
 /// The PNG image of the SVG document `svg`, at [`PNG_SCALE`].
+#[cfg(feature = "png")]
 pub fn svg_to_png(svg: &str) -> Result<Vec<u8>, PlotError> {
     let mut options = resvg::usvg::Options::default();
     let fonts = options.fontdb_mut();
@@ -68,4 +79,10 @@ pub fn svg_to_png(svg: &str) -> Result<Vec<u8>, PlotError> {
     pixmap
         .encode_png()
         .map_err(|e| PlotError::Draw(format!("PNG encoding: {e}")))
+}
+
+/// Without the `png` feature: the error that says how to build it.
+#[cfg(not(feature = "png"))]
+pub fn svg_to_png(_svg: &str) -> Result<Vec<u8>, PlotError> {
+    Err(PlotError::PngNotBuilt)
 }

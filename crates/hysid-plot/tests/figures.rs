@@ -420,6 +420,7 @@ proptest! {
 }
 
 /// Non-white pixels of `png` in rows `rows` (pixel rows of the image).
+#[cfg(feature = "png")]
 fn inked(png: &[u8], rows: std::ops::Range<u32>) -> (u32, u32, usize) {
     let img = resvg::tiny_skia::Pixmap::decode_png(png).expect("a readable PNG");
     let (w, h) = (img.width(), img.height());
@@ -437,6 +438,7 @@ fn inked(png: &[u8], rows: std::ops::Range<u32>) -> (u32, u32, usize) {
 /// A `.png` path gives the SVG rasterised at twice its size, text drawn
 /// with the embedded font (a long title inks its band, a one-dot title
 /// hardly); any other extension is refused, and nothing is written.
+#[cfg(feature = "png")]
 #[test]
 fn png_figures_are_the_svg_rasterised_with_their_text() {
     let dir = tempfile::tempdir().unwrap();
@@ -471,4 +473,25 @@ fn png_figures_are_the_svg_rasterised_with_their_text() {
         Err(PlotError::Format { .. })
     ));
     assert!(!gif.exists());
+}
+
+/// Without the `png` feature a `.png` path is refused with the error that
+/// says how to build it, and nothing is written; any other extension than
+/// `.svg` and `.png` is refused too.
+#[cfg(not(feature = "png"))]
+#[test]
+fn png_figures_need_the_png_feature() {
+    let dir = tempfile::tempdir().unwrap();
+    let fig = simulation_figure();
+    for (name, png) in [("sim.png", true), ("sim.gif", false)] {
+        let path = dir.path().join(name);
+        let e = simulation_plot(&path, &fig).unwrap_err();
+        assert_eq!(matches!(e, PlotError::PngNotBuilt), png, "{e}");
+        assert!(!path.exists());
+    }
+    assert!(
+        PlotError::PngNotBuilt
+            .to_string()
+            .contains("--features png")
+    );
 }

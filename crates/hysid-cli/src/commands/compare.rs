@@ -21,7 +21,13 @@ pub struct Args {
 }
 
 fn parse_format(s: &str) -> std::result::Result<FigureFormat, String> {
-    s.parse()
+    let format: FigureFormat = s.parse()?;
+    if !format.is_built() {
+        return Err(format!(
+            "'{s}': this hysid was built without PNG figures (cargo install --path crates/hysid-cli --features png)"
+        ));
+    }
+    Ok(format)
 }
 
 /// Runs the command.
