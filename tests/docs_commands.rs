@@ -273,7 +273,7 @@ const NOT_RUN: &[(&str, &str)] = &[
     ),
     (
         "cargo run --release -p hysid-cli -- compare",
-        "the main job (about 100 s in release); its figures are the committed report it regenerates",
+        "the main job (about 5 minutes in release on 2 cores); its figures are the committed report it regenerates, which the README's results table is checked against",
     ),
     (
         "hysid compare models/pick-and-place/",
@@ -332,6 +332,10 @@ const NOT_RUN: &[(&str, &str)] = &[
     ("cargo bench", "a benchmark build"),
     ("cargo build --release", "a release build for a benchmark"),
     ("cargo install cargo-fuzz", "installs a tool"),
+    (
+        "cargo install --path crates/hysid-cli",
+        "installs the program (a release build)",
+    ),
 ];
 
 /// Whether `command` holds a placeholder (`DATA`, `OUT_DIR`, `[..]`, `...`,

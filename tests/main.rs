@@ -10,4 +10,5 @@ mod determinism;
 mod docs_commands;
 mod edge_cases;
 mod pick_and_place;
+mod results_table;
 mod stops;

@@ -116,6 +116,6 @@ def test_priors_that_contradict_each_other_are_refused():
     assert message.startswith("priors: ")
 
 
-def test_klinreg_without_a_mode_count_points_to_auto():
+def test_klinreg_without_a_mode_count_says_how_to_give_one():
     message = raised(hysid.identify, U, Y, method="klinreg")
-    assert "modes=S" in message and "auto=True" in message and "max_modes" not in message
+    assert "modes=S" in message and "max_modes=S" in message and "auto=True" in message

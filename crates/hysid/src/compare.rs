@@ -9,7 +9,7 @@ pub mod report;
 pub mod truth;
 
 pub use experiment::{
-    DataSpec, Experiment, ExperimentError, RunSpec, ScoredRows, SweepSpec, value_text,
+    DataSpec, Experiment, ExperimentError, Provenance, RunSpec, ScoredRows, SweepSpec, value_text,
 };
 pub use hysid_plot::FigureFormat;
 pub use report::write_report;
@@ -50,6 +50,64 @@ pub struct Job {
     pub seed_group: Option<String>,
     /// Options chosen on the selection rows (`auto = true`).
     pub auto: bool,
+    /// Where its options come from.
+    pub origin: Origin,
+}
+
+/// Where a run's options come from, as the report labels it
+/// ([`Origin::label`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Origin {
+    /// Chosen on selection rows inside the identification rows (`auto`).
+    SelectionRows,
+    /// Declared: a setting of a published study.
+    Paper,
+    /// Declared: chosen on the scored rows.
+    Oracle,
+    /// Declared: the user's own.
+    User,
+    /// Not declared by the experiment file.
+    Unstated,
+    /// A point of a sweep.
+    SweepPoint,
+    /// The sweep's point of highest `fit_sim` on the scored rows (the
+    /// first of equals): an oracle figure when those are test rows.
+    SweepBest,
+}
+
+impl Origin {
+    /// The run's declared provenance, or the program's label of an `auto`
+    /// run.
+    fn of_run(r: &RunSpec) -> Self {
+        match (r.auto, r.provenance) {
+            (true, _) => Origin::SelectionRows,
+            (false, Some(Provenance::Paper)) => Origin::Paper,
+            (false, Some(Provenance::Oracle)) => Origin::Oracle,
+            (false, Some(Provenance::User)) => Origin::User,
+            (false, None) => Origin::Unstated,
+        }
+    }
+
+    /// The label in the report's provenance column, for runs scored on
+    /// `rows`.
+    pub fn label(self, rows: ScoredRows) -> &'static str {
+        match (self, rows) {
+            (Origin::SelectionRows, _) => "chosen on selection rows",
+            (Origin::Paper, _) => "paper setting",
+            (Origin::Oracle, ScoredRows::Validation) => "oracle (chosen on these test rows)",
+            (Origin::Oracle, ScoredRows::Selection) => "chosen on these selection rows",
+            (Origin::User, _) => "user setting",
+            (Origin::Unstated, _) => "not stated",
+            (Origin::SweepPoint, _) => "sweep point",
+            (Origin::SweepBest, ScoredRows::Validation) => {
+                "oracle (best of the sweep on these test rows)"
+            }
+            (Origin::SweepBest, ScoredRows::Selection) => {
+                "best of the sweep on these selection rows"
+            }
+        }
+    }
 }
 
 /// Position of a run in a sweep.
@@ -74,6 +132,8 @@ pub struct RunResult {
     /// The `[[run]]` this result repeats with one of its seeds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seed_group: Option<String>,
+    /// Where its options come from.
+    pub origin: Origin,
     /// Seed of the run.
     pub seed: u64,
     /// Orders used.
@@ -176,6 +236,11 @@ impl Experiment {
     pub fn jobs(&self) -> Result<Vec<Job>, ExperimentError> {
         let job = |r: &RunSpec, name: String, sweep: Option<SweepPoint>| Job {
             name,
+            origin: if sweep.is_some() {
+                Origin::SweepPoint
+            } else {
+                Origin::of_run(r)
+            },
             sweep,
             seed_group: None,
             auto: r.auto,
@@ -288,6 +353,8 @@ impl Experiment {
             })
             .collect();
         progress.finish();
+        let mut results = results;
+        label_sweep_best(&mut results);
         Ok(Comparison {
             title: self.title.clone(),
             description: self.description.clone(),
@@ -316,6 +383,30 @@ impl Experiment {
                 .clone()
                 .unwrap_or_else(|| format!("input {}", self.data.input.join(", "))),
         })
+    }
+}
+
+/// Labels the point of highest `fit_sim` of each sweep (the first of
+/// equals) [`Origin::SweepBest`].
+fn label_sweep_best(results: &mut [RunResult]) {
+    let mut best: Vec<(String, usize, f64)> = Vec::new();
+    for (i, r) in results.iter().enumerate() {
+        let (Some(point), Some(v)) = (&r.sweep, &r.report) else {
+            continue;
+        };
+        let fit = if v.fit_sim.is_nan() {
+            f64::NEG_INFINITY
+        } else {
+            v.fit_sim
+        };
+        match best.iter_mut().find(|(s, _, _)| *s == point.sweep) {
+            Some(b) if fit > b.2 => *b = (point.sweep.clone(), i, fit),
+            Some(_) => {}
+            None => best.push((point.sweep.clone(), i, fit)),
+        }
+    }
+    for (_, i, _) in best {
+        results[i].origin = Origin::SweepBest;
     }
 }
 
@@ -369,6 +460,7 @@ fn run_job(
         method: job.method.clone(),
         sweep: job.sweep.clone(),
         seed_group: job.seed_group.clone(),
+        origin: job.origin,
         seed: job.seed,
         na: job.na,
         nb: job.nb,

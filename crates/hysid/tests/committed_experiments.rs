@@ -1,8 +1,9 @@
 //! The committed experiments still load and expand into the runs the
 //! reports were made from, so a schema change cannot silently break the
-//! README's main job or the saturation experiments (nothing is run here).
+//! README's main job or the saturation experiments (nothing is run here);
+//! every fixed-option run says where its options come from.
 
-use hysid::compare::Experiment;
+use hysid::compare::{Experiment, Origin};
 use std::path::{Path, PathBuf};
 
 fn models() -> PathBuf {
@@ -31,7 +32,7 @@ fn the_main_job_expands_into_its_runs_and_sweep_points() {
     let runs = j.iter().filter(|(_, _, s)| s.is_none()).count();
     let mut sweeps: Vec<&str> = j.iter().filter_map(|(_, _, s)| s.as_deref()).collect();
     sweeps.dedup();
-    assert_eq!((j.len(), runs), (49, 15), "{j:?}");
+    assert_eq!((j.len(), runs), (79, 45), "{j:?}");
     assert_eq!(sweeps, ["arx orders", "cluster c", "bounded delta"]);
     for m in [
         "arx", "cluster", "bounded", "physical", "klinreg", "parc", "bayes",
@@ -39,6 +40,64 @@ fn the_main_job_expands_into_its_runs_and_sweep_points() {
         assert!(j.iter().any(|(_, method, _)| method == m), "no {m} run");
     }
     assert!(j.iter().any(|(n, _, _)| n == "cluster c [c=320, modes=5]"));
+}
+
+/// The main job opens with the honest comparison: every back-end's
+/// options chosen on the selection rows (five seeds for the seeded ones),
+/// then the physical model; the paper's section 4 settings and the oracle
+/// ones follow.
+#[test]
+fn the_main_job_opens_with_the_runs_chosen_on_selection_rows() {
+    let e = Experiment::load(&models().join("experiment.toml")).unwrap();
+    let jobs = e.jobs().unwrap();
+    let first_fixed = jobs
+        .iter()
+        .position(|j| j.origin != Origin::SelectionRows)
+        .unwrap();
+    let chosen = &jobs[..first_fixed];
+    for m in ["arx", "cluster", "bounded", "klinreg", "parc", "bayes"] {
+        let seeds = chosen.iter().filter(|j| j.method == m).count();
+        assert!(seeds >= if m == "arx" { 1 } else { 5 }, "{m}: {seeds}");
+    }
+    assert_eq!(jobs[first_fixed].method, "physical");
+    let origin = |name: &str| jobs.iter().find(|j| j.name == name).unwrap().origin;
+    assert_eq!(origin("cluster(5 modes, c=320)"), Origin::Oracle);
+    assert_eq!(origin("cluster(3 modes, c=35)"), Origin::Paper);
+}
+
+/// Every experiment file under `models/` declares the provenance of each
+/// run whose options are fixed (a run without `auto`).
+#[test]
+fn every_fixed_option_run_declares_its_provenance() {
+    let mut files = Vec::new();
+    let mut folders = vec![models().join("..")];
+    while let Some(dir) = folders.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.extension().is_some_and(|e| e == "toml") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                let table: toml::Table = text.parse().unwrap();
+                if table.contains_key("run") || table.contains_key("sweep") {
+                    files.push(path);
+                }
+            }
+        }
+    }
+    assert!(files.len() >= 5, "{files:?}");
+    let mut missing = Vec::new();
+    for f in &files {
+        let e = Experiment::load(f).unwrap_or_else(|err| panic!("{}: {err}", f.display()));
+        for r in e.runs.iter().filter(|r| !r.auto && r.provenance.is_none()) {
+            missing.push(format!("{}: [[run]] '{}'", f.display(), r.name));
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "runs without provenance:\n{}",
+        missing.join("\n")
+    );
 }
 
 #[test]

@@ -9,7 +9,7 @@ use crate::error::CliError;
 use crate::error::Result;
 use crate::progress::TerminalProgress;
 use crate::selection::SignalArgs;
-use hysid::compare::{DataSpec, Experiment, RunSpec, ScoredRows, SweepSpec};
+use hysid::compare::{DataSpec, Experiment, Origin, RunSpec, ScoredRows, SweepSpec};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
@@ -147,6 +147,7 @@ pub fn run(args: Args) -> Result<()> {
                 seed: None,
                 seeds: vec![],
                 auto: false,
+                provenance: None,
             },
             vary: None,
             values: vec![],
@@ -178,15 +179,15 @@ pub fn run(args: Args) -> Result<()> {
             "every point of the sweep failed (the first: {first})"
         )));
     }
-    if let Some(best) = comparison
+    if let Some((best, fit)) = comparison
         .results
         .iter()
-        .filter_map(|r| r.report.as_ref().map(|v| (r, v.fit_sim)))
-        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .find(|r| r.origin == Origin::SweepBest)
+        .and_then(|r| Some((r, r.report.as_ref()?.fit_sim)))
     {
         eprintln!(
-            "hysid: best fit_sim {:.2} % at {} (on the rows it was chosen on: quote it only if they are selection rows, else as an oracle figure)",
-            best.1, best.0.name
+            "hysid: best fit_sim {fit:.2} % at {} (on the rows it was chosen on: quote it only if they are selection rows, else as an oracle figure)",
+            best.name
         );
     }
     Ok(())

@@ -133,6 +133,25 @@ pub struct RunSpec {
     /// docs/selection.md); `set` and `modes` fix what is not searched.
     #[serde(default)]
     pub auto: bool,
+    /// Where the fixed options of a run without `auto` come from; the
+    /// report labels the run by it (an `auto` run and the points of a
+    /// sweep are labelled by the program).
+    #[serde(default)]
+    pub provenance: Option<Provenance>,
+}
+
+/// Where a run's fixed options come from, as its experiment file declares
+/// them (`provenance = "paper"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Provenance {
+    /// A setting of a published study (the founding paper's section 4).
+    Paper,
+    /// Chosen on the rows the run is scored on: what the method reaches
+    /// with hindsight, not what a user gets.
+    Oracle,
+    /// The user's own choice or knowledge, made without the scored rows.
+    User,
 }
 
 /// A sweep: one run repeated over values of one parameter (`vary`,
@@ -343,6 +362,18 @@ pub enum InconsistentExperiment {
     /// A sweep with `auto` or `seeds`.
     #[error("[[sweep]] '{0}': auto and seeds belong to a [[run]] (a sweep is its own grid)")]
     SweepOfRuns(String),
+    /// A `provenance` the program gives itself: an `auto` run's options
+    /// are chosen on the selection rows, a sweep's points are labelled by
+    /// where its best point was chosen.
+    #[error(
+        "[[{what}]] '{name}': provenance is for a [[run]] without auto (the program labels {what}s of this kind)"
+    )]
+    ProvenanceGiven {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// Entry name.
+        name: String,
+    },
     /// A sweep with nothing to vary.
     #[error("[[sweep]] '{0}': give vary and values, or grid")]
     NoAxis(String),
@@ -446,6 +477,12 @@ impl Experiment {
                     name: r.name.clone(),
                     problem,
                 })?;
+            }
+            if r.provenance.is_some() && (r.auto || what == "sweep") {
+                return Err(E::ProvenanceGiven {
+                    what,
+                    name: r.name.clone(),
+                });
             }
         }
         for s in &self.sweeps {

@@ -433,11 +433,12 @@ pub fn markdown(c: &Comparison) -> String {
         capitalised(c.scored_rows.word()),
         c.warmup
     );
+    seeds_table(&mut s, c);
     let _ = writeln!(
         s,
-        "| run | method | na | nb | modes | fit_sim [%] | rmse_sim | fit_pred [%] | coverage | time [s] | note |"
+        "| run | provenance | method | na | nb | modes | fit_sim [%] | rmse_sim | fit_pred [%] | coverage | time [s] | note |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &c.results {
         let (fs, rs, fp, cov) = match &r.report {
             Some(v) => (
@@ -468,8 +469,9 @@ pub fn markdown(c: &Comparison) -> String {
         let order = |v: usize| order_text(r.model.as_ref(), v);
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {} |",
             r.name.replace('|', "/"),
+            r.origin.label(c.scored_rows),
             r.method,
             order(r.na),
             order(r.nb),
@@ -482,7 +484,6 @@ pub fn markdown(c: &Comparison) -> String {
             note.replace('|', "/")
         );
     }
-    seeds_table(&mut s, c);
     mode_recovery_table(&mut s, c);
     let mut figs: Vec<String> = Vec::new();
     if c.results
@@ -622,7 +623,8 @@ fn seeds_table(s: &mut String, c: &Comparison) {
     }
     let _ = writeln!(
         s,
-        "\nOver seeds (each `[[run]]` with `seeds`, validation fit_sim [%]):\n\n| run | seeds | scored | median | min | max |\n|---|---|---|---|---|---|"
+        "Over seeds (each `[[run]]` with `seeds`, {} fit_sim [%]):\n\n| run | provenance | seeds | scored | median | min | max |\n|---|---|---|---|---|---|---|",
+        c.scored_rows.word()
     );
     for g in groups {
         let runs: Vec<&RunResult> = c
@@ -639,8 +641,9 @@ fn seeds_table(s: &mut String, c: &Comparison) {
         let show = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} |",
             g.replace('|', "/"),
+            runs[0].origin.label(c.scored_rows),
             runs.len(),
             fits.len(),
             show(median(&mut fits)),
@@ -648,6 +651,7 @@ fn seeds_table(s: &mut String, c: &Comparison) {
             show(highest),
         );
     }
+    s.push('\n');
 }
 
 fn mode_recovery_table(s: &mut String, c: &Comparison) {
