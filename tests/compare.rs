@@ -157,8 +157,16 @@ fn report_matches_the_models_it_wrote() {
             assert_eq!(v[key], r["report"][key], "{key} of {}", r["name"]);
         }
         let f = |key: &str| v[key].as_f64().unwrap();
+        // The runs declare no provenance; the sweep's better point is
+        // labelled oracle (checked below).
+        let provenance = match r["origin"].as_str().unwrap() {
+            "unstated" => "not stated",
+            "sweep_point" => "sweep point",
+            "sweep_best" => "oracle (best of the sweep on these test rows)",
+            other => panic!("{}: origin {other}", r["name"]),
+        };
         let row = format!(
-            "| {} | {} | {} | {} | {modes} | {:.2} | {:.4} | {:.2} | {:.3} |",
+            "| {} | {provenance} | {} | {} | {} | {modes} | {:.2} | {:.4} | {:.2} | {:.3} |",
             r["name"].as_str().unwrap(),
             r["method"].as_str().unwrap(),
             r["na"],
@@ -171,6 +179,15 @@ fn report_matches_the_models_it_wrote() {
         assert!(md.contains(&row), "missing row {row} in\n{md}");
     }
     assert_eq!(results[2]["modes"], 2, "the cluster run has two modes");
+    let origins: Vec<&str> = results
+        .iter()
+        .map(|r| r["origin"].as_str().unwrap())
+        .collect();
+    let sweep_fit = |k: usize| results[k]["report"]["fit_sim"].as_f64().unwrap();
+    let best = if sweep_fit(4) > sweep_fit(3) { 4 } else { 3 };
+    assert_eq!(origins[..3], ["unstated"; 3]);
+    assert_eq!(origins[best], "sweep_best", "{origins:?}");
+    assert_eq!(origins[7 - best], "sweep_point", "{origins:?}");
     // On this two-mode record the two-mode model simulates better than ARX.
     let fit = |k: usize| results[k]["report"]["fit_sim"].as_f64().unwrap();
     assert!(

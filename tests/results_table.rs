@@ -64,7 +64,7 @@ fn the_readme_results_table_quotes_the_main_job_report() {
     let rows = table_after(&readme, "## Results");
     assert_eq!(rows.len(), QUOTED.len(), "{rows:?}");
     let seeds = table_after(&report, "Over seeds");
-    let runs = table_after(&report, "| run | provenance |");
+    let runs = table_after(&report, "| run | provenance | method |");
     for row in &rows {
         let (_, run) = QUOTED
             .iter()

@@ -36,7 +36,7 @@ pub struct ModeConstraints {
 
 impl ModeConstraints {
     /// The constraints of the priors of `data` (their names were checked by
-    /// [`hysid_estimation::pwarx::prepare`]). A fixed value outside its bounds is an error
+    /// [`prepare`](fn@hysid_estimation::pwarx::prepare)). A fixed value outside its bounds is an error
     /// naming it.
     pub fn new(data: &PwarxData<'_>) -> Result<Self, PriorConflict> {
         let priors = data.priors();

@@ -16,7 +16,7 @@ pub enum AutoKeyword {
 }
 
 /// The error bound: a number (output units) or `auto`
-/// ([`noise::auto_delta`]). Parses from `--set delta=0.1` and
+/// ([`crate::noise::auto_delta`]). Parses from `--set delta=0.1` and
 /// `--set delta=auto`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]

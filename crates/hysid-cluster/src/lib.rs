@@ -22,8 +22,8 @@
 //!    ([`procedure`]);
 //! 5. regions by `hysid_estimation::regions` (MRLP by default: a complete partition).
 //!
-//! [`sweep()`] scores a grid of `c` and mode counts by validation simulation
-//! FIT.
+//! `hysid sweep` scores a grid of `c` and mode counts by simulation FIT on
+//! selection rows.
 //!
 //! Priors honoured (`docs/cluster.md`, "Priors"): `modes`
 //! (required unless `max_modes` is given, in which case the mode count is

@@ -369,8 +369,8 @@ fn place_by_residual(
         if *l == usize::MAX {
             let xj = &x[j * n..(j + 1) * n];
             let mut best = (f64::INFINITY, usize::MAX);
-            for i in 0..modes {
-                let r = residual2(xj, y[j], &theta[i]);
+            for (i, t) in theta.iter().enumerate().take(modes) {
+                let r = residual2(xj, y[j], t);
                 if r < best.0 || (r == best.0 && i < best.1) {
                     best = (r, i);
                 }

@@ -5,7 +5,7 @@
 //! prepare -> [mode count] -> fit -> trim -> refine -> assemble
 //! ```
 //!
-//! 1. [`prepare`]: the regressors, the samples at known stops set aside,
+//! 1. [`prepare()`]: the regressors, the samples at known stops set aside,
 //!    the prior names checked, the mode count resolved.
 //! 2. The mode count: given by the priors (`modes`), chosen by the method
 //!    itself ([`ModeRule::Method`], the bounded-error procedure), or under
@@ -18,7 +18,7 @@
 //! 4. The stages after the fit ([`stages`]), typed by
 //!    [`hysid_core::stages::Stages`]: the trimmed re-estimation ([`trim`]),
 //!    then the simulation-error refinement ([`refine`]).
-//! 5. [`assemble`]: the PWARX model, or with known stops the hybrid
+//! 5. [`assemble()`]: the PWARX model, or with known stops the hybrid
 //!    automaton with a mode on each stop's guard set, and the common
 //!    diagnostics.
 //!

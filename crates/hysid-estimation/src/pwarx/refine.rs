@@ -1,6 +1,6 @@
 //! Refinement of the mode parameters of a PWARX fit by the
 //! multiple-shooting **simulation error**, the stage any PWARX back-end may
-//! end with, between its `fit` and [`crate::pwarx::assemble`].
+//! end with, between its `fit` and [`assemble`](fn@crate::pwarx::assemble).
 //!
 //! A back-end fits its modes by one-step prediction error (equation error,
 //! the ARX criterion of Ljung, *System Identification*, 2nd ed., 1999,
@@ -24,12 +24,12 @@
 //! the mode, the mode of least violation outside every region, and with
 //! known stops (`[[saturation]]`) the automaton of
 //! `HybridAutomaton::from_pwarx_with_stops`, so `V` is the simulation error
-//! of exactly the model [`crate::pwarx::assemble`] writes.
+//! of exactly the model [`assemble`](fn@crate::pwarx::assemble) writes.
 //!
 //! The minimisation is Levenberg-Marquardt (Marquardt 1963; the damping
 //! update of Madsen, Nielsen & Tingleff, *Methods for non-linear least
 //! squares problems*, 2004, section 3.2) over the free variables `z` of
-//! [`Parametrisation::from_priors`] (`theta = T z + t0`), so ties and
+//! [`Parametrisation::from_priors`](crate::constrained::Parametrisation::from_priors) (`theta = T z + t0`), so ties and
 //! fixed values hold exactly. Each step solves
 //!
 //! ```text
@@ -37,7 +37,7 @@
 //! ```
 //!
 //! (`e = y - y_sim` the errors, `J = d y_sim / d z`) by
-//! [`constrained::solve_in_z`], under the same `[[equality]]` entries and
+//! [`constrained::solve_in_z`](crate::constrained::solve_in_z), under the same `[[equality]]` entries and
 //! `[bounds]` as the ordinary fit, so they hold after every step. A step
 //! is accepted only when the cost decreases; a simulation that diverges
 //! costs `+inf`.

@@ -23,7 +23,7 @@ pub fn run<D>(
 /// the same model as the pipeline with that refinement gives, since the
 /// refinement starts from the fit alone. Automatic selection refines its
 /// candidates' own fits this way. A model of another kind than
-/// [`super::assemble`] writes, or one refined already, is refused.
+/// [`assemble`](fn@super::assemble) writes, or one refined already, is refused.
 pub fn refine_fitted(
     problem: &Problem<'_>,
     method: &str,

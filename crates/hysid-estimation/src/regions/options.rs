@@ -35,7 +35,7 @@ impl std::fmt::Display for RegionMethod {
     }
 }
 
-/// Options of [`estimate`].
+/// Options of [`estimate`](crate::regions::estimate).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RegionOptions {
     /// The method. Default [`RegionMethod::Mrlp`].

@@ -137,8 +137,11 @@ fn ball_parameters_are_recovered() {
 }
 
 /// Two masses: input gain, both springs, the damper of mass 1 and the gap
-/// recovered from 30 s of the first mass's position.
+/// recovered from 30 s of the first mass's position. Long (half a minute to
+/// a minute in the test profile): `cargo test -p hysid-physical --test it
+/// -- --ignored` runs it.
 #[test]
+#[ignore = "long recovery fit: cargo test -p hysid-physical --test it -- --ignored"]
 fn two_mass_parameters_are_recovered() {
     let mut truth = load("two-masses.toml");
     for (n, v) in [
@@ -155,8 +158,11 @@ fn two_mass_parameters_are_recovered() {
 }
 
 /// The drive: torque gain, both viscous frictions, the shaft stiffness and
-/// the backlash recovered from 30 s of the load angle.
+/// the backlash recovered from 30 s of the load angle. Long (one to two
+/// minutes in the test profile): `cargo test -p hysid-physical --test it --
+/// --ignored` runs it.
 #[test]
+#[ignore = "long recovery fit: cargo test -p hysid-physical --test it -- --ignored"]
 fn backlash_parameters_are_recovered() {
     let mut truth = load("backlash-drive.toml");
     for (n, v) in [
