@@ -190,7 +190,7 @@ fn a_hybrid_model_below_the_affine_one_is_flagged() {
         m,
     ]);
     assert!(
-        err.contains("is below that of an affine ARX model of the same orders"),
+        err.contains("is below that of an affine ARX(2,2) fitted on these same rows"),
         "{err}"
     );
     // ARX itself is never compared with itself.

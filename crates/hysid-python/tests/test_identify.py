@@ -28,10 +28,10 @@ def test_a_model_from_python_validates_in_the_program_to_the_same_figures(record
     theirs = json.loads(out.stdout)
     # This model simulates the test rows worse than ARX(2,2) does, and
     # both front ends say so.
-    with pytest.warns(UserWarning, match="below that of an affine ARX model"):
+    with pytest.warns(UserWarning, match="below that of an affine ARX"):
         ours = model.validate(u[5000:6001], y[5000:6001])
     assert theirs == ours
-    assert "below that of an affine ARX model" in out.stderr
+    assert "below that of an affine ARX" in out.stderr and "fitted on these same rows" in out.stderr
 
 
 def test_a_model_from_the_program_loads_and_validates_here_to_the_same_figures(record, program, tmp_path):

@@ -801,6 +801,8 @@ pub struct AgainstAffine {
     /// The free-run FIT of the affine ARX model of the same orders (and the
     /// same priors, without a mode count) fitted on the same record.
     pub affine: f64,
+    /// The orders `(na, nb)` of both.
+    pub orders: (usize, usize),
 }
 
 impl AgainstAffine {
@@ -810,10 +812,13 @@ impl AgainstAffine {
     }
 
     /// The warning every front end gives when [`AgainstAffine::below`];
-    /// `rows` names the rows ("its identification rows", "these rows").
+    /// `rows` names the rows ("its identification rows", "these rows"). The
+    /// baseline is fitted on the rows it is scored on: what a user who has
+    /// only these rows could have had with one linear model.
     pub fn warning(&self, rows: &str) -> String {
+        let (na, nb) = self.orders;
         format!(
-            "the model's free-run FIT on {rows} ({:.2} %) is below that of an affine ARX model of the same orders fitted on them ({:.2} %)",
+            "the model's free-run FIT on {rows} ({:.2} %) is below that of an affine ARX({na},{nb}) fitted on these same rows ({:.2} %)",
             self.model, self.affine
         )
     }
@@ -847,6 +852,7 @@ pub fn against_affine(
     Some(AgainstAffine {
         model: fit_on(model, data, warmup)?,
         affine: fit_on(&reference, data, warmup)?,
+        orders: (orders.na, orders.nb),
     })
 }
 
