@@ -46,7 +46,21 @@ fn methods_lists_arx_with_its_options() {
     assert!(out.contains("model files: gray_box format 1"), "{out}");
     assert!(out.lines().any(|l| l.starts_with("arx")), "{out}");
     assert!(out.contains("ridge"));
-    assert!(out.contains("--auto tries: the orders"), "{out}");
+    let arx = ok(&["methods", "arx"]);
+    assert!(arx.contains("--auto tries: the orders"), "{arx}");
+    assert!(arx.lines().any(|l| l.starts_with("    ridge (")), "{arx}");
+    // Every line of the list and of one method in full fits 120 columns.
+    for text in [&out, &arx, &ok(&["methods", "cluster"])] {
+        let long: Vec<&str> = text.lines().filter(|l| l.chars().count() > 120).collect();
+        assert!(long.is_empty(), "{long:?}");
+    }
+    let bad = hysid(&["methods", "nosuch"]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("unknown method") && err.contains("cluster"),
+        "{err}"
+    );
     let json: serde_json::Value = serde_json::from_str(&ok(&["methods", "--json"])).unwrap();
     assert_eq!(json[0]["name"], "arx");
     assert!(
@@ -61,7 +75,7 @@ fn methods_lists_arx_with_its_options() {
         (&json[0]["seeded"], &json[1]["seeded"]),
         (&false.into(), &true.into())
     );
-    assert!(out.contains("seed: does not change the model"), "{out}");
+    assert!(arx.contains("seed: does not change the model"), "{arx}");
 }
 
 #[test]

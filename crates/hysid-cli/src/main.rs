@@ -24,7 +24,7 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// List the registered back-ends with their options and the priors they honour.
+    /// List the back-ends with their options and the priors they honour (one in full: NAME).
     Methods(commands::methods::Args),
     /// Identify a model from data with one back-end.
     Identify(commands::identify::Args),
