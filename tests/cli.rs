@@ -78,6 +78,68 @@ fn methods_lists_arx_with_its_options() {
     assert!(arx.contains("seed: does not change the model"), "{arx}");
 }
 
+/// A record whose columns have the user's names: `--time` names the time
+/// column (the sampling time is its first step), and the model names its
+/// signals as the file does; a time column that is not there is an error
+/// naming it.
+#[test]
+fn a_record_with_its_own_column_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let text = std::fs::read_to_string(&data).unwrap();
+    let (header, rows) = text.split_once('\n').unwrap();
+    assert!(header.starts_with("t,u,y"), "{header}");
+    let renamed = dir.path().join("rec.csv");
+    let header = header.replacen("t,u,y", "time,force,pos", 1);
+    std::fs::write(&renamed, format!("{header}\n{rows}")).unwrap();
+    let model = dir.path().join("m.json");
+    let args = |time: &str| {
+        vec![
+            "identify".to_string(),
+            s(&renamed).to_string(),
+            "--time".into(),
+            time.into(),
+            "--input".into(),
+            "force".into(),
+            "--output".into(),
+            "pos".into(),
+            "-m".into(),
+            "arx".into(),
+            "--na".into(),
+            "1".into(),
+            "--nb".into(),
+            "1".into(),
+            "-o".into(),
+            s(&model).to_string(),
+        ]
+    };
+    let run = |time: &str| {
+        let a = args(time);
+        hysid(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let out = run("time");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["info"]["input_names"], serde_json::json!(["force"]));
+    assert_eq!(m["info"]["output_name"], "pos");
+    assert!(
+        (m["info"]["ts"].as_f64().unwrap() - 0.01).abs() < 1e-12,
+        "{m}"
+    );
+    std::fs::remove_file(&model).unwrap();
+    let out = run("clock");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("'clock'") && err.contains("time"), "{err}");
+    assert!(!model.exists());
+}
+
 #[test]
 fn simulate_identify_validate_round_trip() {
     let dir = tempfile::tempdir().unwrap();

@@ -26,9 +26,12 @@ pub struct SignalArgs {
     /// Keep every K-th sample (0, K, 2K, ...; no filter).
     #[arg(long, default_value_t = 1, value_parser = parse_at_least_one)]
     pub decimate: usize,
-    /// Sampling time in seconds when the file has no `t` signal.
+    /// Sampling time in seconds when the file has no time signal.
     #[arg(long, value_parser = parse_ts)]
     pub ts: Option<f64>,
+    /// Column/variable holding the time in seconds (its first step is the sampling time).
+    #[arg(long, default_value = hysid_model::data::DEFAULT_TIME)]
+    pub time: String,
 }
 
 /// A whole number of at least 1 (`--decimate`, `--refit-starts`).
@@ -70,6 +73,7 @@ impl SignalArgs {
             decimate: self.decimate,
             rows,
             ts: self.ts,
+            time: self.time.clone(),
         };
         selection.check_names().map_err(|e| {
             CliError::input(match e {

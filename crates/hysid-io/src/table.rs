@@ -2,7 +2,7 @@
 //! them into a [`Dataset`]: columns by name, decimation, the time base,
 //! the rows.
 
-use hysid_model::data::{DataError, DataSelection, Dataset, RowRange, Signal};
+use hysid_model::data::{DEFAULT_TIME, DataError, DataSelection, Dataset, RowRange, Signal};
 use std::path::PathBuf;
 
 /// How many of a file's names an error about a missing one lists.
@@ -70,12 +70,12 @@ impl RawTable {
     }
 }
 
-/// Names the readers keep: the selected inputs, the output and `t`.
+/// Names the readers keep: the selected inputs, the output and the time.
 pub(crate) fn wanted_names(sel: &DataSelection) -> Vec<&str> {
     sel.inputs
         .iter()
         .map(String::as_str)
-        .chain([sel.output.as_str(), "t"])
+        .chain([sel.output.as_str(), sel.time.as_str()])
         .collect()
 }
 
@@ -92,14 +92,20 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
             values: pick(table.take(name)?),
         });
     }
-    let ts = if table.has("t") && !sel.inputs.iter().any(|n| n == "t") && sel.output != "t" {
-        let t = pick(table.take("t")?);
+    let time = sel.time.as_str();
+    if time != DEFAULT_TIME && !table.has(time) {
+        // A time column named by the user must exist (the error lists the
+        // file's names).
+        table.take(time)?;
+    }
+    let ts = if table.has(time) && !sel.inputs.iter().any(|n| n == time) && sel.output != time {
+        let t = pick(table.take(time)?);
         if t.len() >= 2 {
             let dt = t[1] - t[0];
             if !(dt.is_finite() && dt > 0.0) {
                 return Err(DataError::Parse {
                     path: table.path.clone(),
-                    location: format!("{} 't': ", table.what),
+                    location: format!("{} '{time}': ", table.what),
                     message: "time does not increase".into(),
                 });
             }

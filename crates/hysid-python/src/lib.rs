@@ -17,7 +17,7 @@ use hysid::identify::{Auto, Identify, Mode};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
-use hysid_model::data::{DataSelection, Dataset, RowRange, SignalNameError};
+use hysid_model::data::{DEFAULT_TIME, DataSelection, Dataset, RowRange, SignalNameError};
 use model::Model;
 use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
@@ -66,7 +66,8 @@ fn methods(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
 /// Reads a CSV or MAT record with the program's selection rules; returns
 /// `(u, y, ts)` with `u` of shape `(N, m)`.
 #[pyfunction]
-#[pyo3(signature = (path, inputs=None, output=None, decimate=1, rows=None, ts=None))]
+#[pyo3(signature = (path, inputs=None, output=None, decimate=1, rows=None, ts=None, time=None))]
+#[allow(clippy::too_many_arguments)]
 fn load<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -75,6 +76,7 @@ fn load<'py>(
     decimate: usize,
     rows: Option<String>,
     ts: Option<f64>,
+    time: Option<String>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Option<f64>)> {
     if decimate == 0 {
         return Err(Failure::new("decimate=0: must be at least 1").into());
@@ -86,6 +88,7 @@ fn load<'py>(
         decimate,
         rows,
         ts,
+        time: time.unwrap_or_else(|| DEFAULT_TIME.into()),
     };
     selection.check_names().map_err(|e| match e {
         SignalNameError::Empty => Failure::new("inputs/output: an empty signal name"),

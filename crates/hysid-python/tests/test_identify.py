@@ -125,3 +125,17 @@ def test_methods_lists_every_back_end_with_options_and_priors():
     keys = {o["key"] for o in listed["cluster"]["options"]}
     assert {"c", "regions", "refine"} <= keys
     assert "saturation" in listed["cluster"]["priors"]
+
+
+def test_a_record_with_its_own_column_names_loads_with_its_time(tmp_path):
+    path = tmp_path / "rec.csv"
+    t = np.arange(200) * 0.004
+    rows = "\n".join(f"{a:.3f},{np.sin(a):.6f},{np.cos(a):.6f}" for a in t)
+    path.write_text("clock,force,pos\n" + rows + "\n")
+    u, y, ts = hysid.load(path, inputs="force", output="pos", time="clock")
+    assert u.shape == (200, 1) and y.shape == (200,)
+    assert ts == pytest.approx(0.004)
+    # Without the name, the time column is not found and no sampling time is read.
+    assert hysid.load(path, inputs="force", output="pos")[2] is None
+    with pytest.raises(hysid.HysidError, match="'stamp'"):
+        hysid.load(path, inputs="force", output="pos", time="stamp")

@@ -118,6 +118,7 @@ pub fn run(args: Args) -> Result<()> {
             output: args.signals.output.clone(),
             decimate: args.signals.decimate,
             ts: args.signals.ts,
+            time: args.signals.time.clone(),
             identification: args.identify_rows,
             validation: args.select_rows,
             warmup: args.warmup,

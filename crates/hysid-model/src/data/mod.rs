@@ -130,9 +130,15 @@ pub struct DataSelection {
     pub decimate: usize,
     /// Rows to keep, counted after decimation (default: all).
     pub rows: RowRange,
-    /// Sampling time in seconds when the file has no `t` signal.
+    /// Sampling time in seconds when the file has no time signal.
     pub ts: Option<f64>,
+    /// The column/variable holding the time in seconds (default `"t"`):
+    /// the sampling time is its first step.
+    pub time: String,
 }
+
+/// The default name of the time column/variable.
+pub const DEFAULT_TIME: &str = "t";
 
 impl Default for DataSelection {
     fn default() -> Self {
@@ -142,6 +148,7 @@ impl Default for DataSelection {
             decimate: 1,
             rows: RowRange::default(),
             ts: None,
+            time: DEFAULT_TIME.into(),
         }
     }
 }

@@ -62,14 +62,17 @@ def load(
     decimate: int = 1,
     rows: Rows = None,
     ts: Optional[float] = None,
+    time: Optional[str] = None,
 ) -> Tuple[np.ndarray, np.ndarray, Optional[float]]:
     """Reads a ``.csv`` or ``.mat`` record.
 
     ``inputs`` (default ``"u"``) and ``output`` (default ``"y"``) name the
     columns or variables; ``decimate=K`` keeps samples 0, K, 2K, ...
     without a filter; ``rows`` (``"A..B"``, ``(A, B)`` or a range) applies
-    after decimation; ``ts`` is the sampling time when the file has no
-    ``t`` signal. Returns ``(u, y, ts)`` with ``u`` of shape ``(N, m)``.
+    after decimation; ``time`` (default ``"t"``) names the column or
+    variable of the time in seconds, whose first step is the sampling time;
+    ``ts`` is the sampling time when the file has none. Returns
+    ``(u, y, ts)`` with ``u`` of shape ``(N, m)``.
     """
     if isinstance(inputs, str):
         inputs = [s for s in inputs.split(",")]
@@ -80,6 +83,7 @@ def load(
         decimate=decimate,
         rows=_rows("rows", rows),
         ts=ts,
+        time=time,
     )
 
 

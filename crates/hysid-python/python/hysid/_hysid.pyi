@@ -61,6 +61,7 @@ def load(
     decimate: int = 1,
     rows: Optional[str] = None,
     ts: Optional[float] = None,
+    time: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], Optional[float]]: ...
 def identify(
     u: ArrayLike,

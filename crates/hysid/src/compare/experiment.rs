@@ -30,6 +30,9 @@ pub struct DataSpec {
     /// Sampling time when the file has no `t` signal.
     #[serde(default)]
     pub ts: Option<f64>,
+    /// The column/variable holding the time in seconds (default `t`).
+    #[serde(default = "default_time")]
+    pub time: String,
     /// Rows used for identification (after decimation).
     pub identification: RowRange,
     /// Rows used for validation (after decimation).
@@ -67,6 +70,10 @@ pub struct DataSpec {
 fn default_inputs() -> Vec<String> {
     vec!["u".into()]
 }
+fn default_time() -> String {
+    hysid_model::data::DEFAULT_TIME.into()
+}
+
 fn default_output() -> String {
     "y".into()
 }
@@ -92,6 +99,7 @@ impl DataSpec {
             decimate: self.decimate,
             rows,
             ts: self.ts,
+            time: self.time.clone(),
         }
     }
 }
