@@ -54,6 +54,13 @@ fn methods_lists_arx_with_its_options() {
         let long: Vec<&str> = text.lines().filter(|l| l.chars().count() > 120).collect();
         assert!(long.is_empty(), "{long:?}");
     }
+    // `identify -h` groups its flags under headings, one short line each.
+    let help = ok(&["identify", "-h"]);
+    let long: Vec<&str> = help.lines().filter(|l| l.chars().count() > 100).collect();
+    assert!(long.is_empty(), "{long:?}");
+    for heading in ["Method:", "Priors:", "Selection:", "Data:", "Output:"] {
+        assert!(help.lines().any(|l| l == heading), "{heading} in {help}");
+    }
     let bad = hysid(&["methods", "nosuch"]);
     let err = String::from_utf8_lossy(&bad.stderr);
     assert_eq!(bad.status.code(), Some(2), "{err}");

@@ -9,7 +9,9 @@ use hysid_model::data::{DataSelection, RowRange, SignalNameError};
 pub struct DataArgs {
     #[command(flatten)]
     pub signals: SignalArgs,
-    /// Rows A..B (A inclusive, B exclusive) after decimation; either bound may be left out.
+    /// Rows A..B after decimation (A inclusive, B exclusive).
+    ///
+    /// Either bound may be left out.
     #[arg(long)]
     pub rows: Option<RowRange>,
 }
@@ -17,7 +19,7 @@ pub struct DataArgs {
 /// Which signals of a data file to use, and how they are sampled.
 #[derive(clap::Args, Debug, Clone)]
 pub struct SignalArgs {
-    /// Input column/variable name(s), comma separated (MISO: several).
+    /// Input column/variable name(s), comma separated.
     #[arg(long, value_delimiter = ',', default_value = "u")]
     pub input: Vec<String>,
     /// Output column/variable name.
@@ -29,7 +31,9 @@ pub struct SignalArgs {
     /// Sampling time in seconds when the file has no time signal.
     #[arg(long, value_parser = parse_ts)]
     pub ts: Option<f64>,
-    /// Column/variable holding the time in seconds (its first step is the sampling time).
+    /// Column/variable of the time in seconds.
+    ///
+    /// Its first step (after decimation) is the sampling time.
     #[arg(long, default_value = hysid_model::data::DEFAULT_TIME)]
     pub time: String,
 }

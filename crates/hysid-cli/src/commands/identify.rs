@@ -13,77 +13,113 @@ use hysid_model::model::Selection;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// Arguments of `hysid identify`.
+/// Arguments of `hysid identify`. `-h` gives each flag's first sentence,
+/// `--help` the whole text; the flags are grouped under headings.
 #[derive(clap::Args, Debug)]
 #[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Data file (.csv or .mat).
     pub data: PathBuf,
     /// Back-end (see `hysid methods`).
-    #[arg(short = 'm', long = "method")]
+    #[arg(short = 'm', long = "method", help_heading = "Method")]
     pub method: String,
     /// Number of past outputs in the regressor.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, help_heading = "Method")]
     pub na: usize,
     /// Number of past values of each input in the regressor.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, help_heading = "Method")]
     pub nb: usize,
-    /// Number of modes (the prior `modes`; overrides the prior file).
-    #[arg(long)]
-    pub modes: Option<usize>,
-    /// Largest number of modes, the count chosen by the back-end (the prior
-    /// `max_modes`; overrides the prior file).
-    #[arg(long)]
-    pub max_modes: Option<usize>,
-    /// Prior file (TOML), see docs/priors.md.
-    #[arg(long)]
-    pub prior: Option<PathBuf>,
-    /// Back-end option KEY=VALUE (repeatable), see `hysid methods`.
-    #[arg(long = "set", value_name = "KEY=VALUE")]
+    /// Back-end option KEY=VALUE (repeatable).
+    ///
+    /// The options and their defaults: `hysid methods NAME`.
+    #[arg(long = "set", value_name = "KEY=VALUE", help_heading = "Method")]
     pub set: Vec<String>,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, help_heading = "Method")]
     pub seed: u64,
-    /// Identify on standardised data (zero mean, unit variance); the model is
-    /// written in original units with the statistics recorded.
-    #[arg(long)]
+    /// Identify on standardised data.
+    ///
+    /// Zero mean, unit variance; the model is written in original units with
+    /// the statistics recorded.
+    #[arg(long, help_heading = "Method")]
     pub standardize: bool,
-    /// Time budget in seconds: long back-ends return their best model by then.
+    /// Time budget in seconds.
+    ///
+    /// Long back-ends return their best model by then, marked cut short.
     // Hyphen values are taken, so `-inf` is refused as a budget, not read as a flag.
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true, help_heading = "Method")]
     pub time_budget: Option<f64>,
-    /// Output model file (JSON).
-    #[arg(short = 'o', long = "out", value_name = "MODEL.json")]
-    pub out: PathBuf,
-    /// Choose the back-end's options on selection rows inside the
-    /// identification rows (free-run simulation FIT), then fit the choice on
-    /// all of them; see docs/selection.md.
-    #[arg(long, conflicts_with = "standardize")]
+    /// Number of modes (the prior `modes`).
+    ///
+    /// Overrides the prior file's.
+    #[arg(long, help_heading = "Priors")]
+    pub modes: Option<usize>,
+    /// Largest number of modes; the count is chosen.
+    ///
+    /// The prior `max_modes` (overrides the prior file's): the count is
+    /// chosen by hold-out simulation FIT, or by the back-end itself.
+    #[arg(long, help_heading = "Priors")]
+    pub max_modes: Option<usize>,
+    /// Prior file (TOML), see docs/priors.md.
+    #[arg(long, help_heading = "Priors")]
+    pub prior: Option<PathBuf>,
+    /// Choose the options on selection rows (docs/selection.md).
+    ///
+    /// The candidates are fitted on the identification rows before the
+    /// selection rows and scored by free-run simulation FIT on them; the
+    /// choice is then fitted on all the identification rows.
+    #[arg(long, conflicts_with = "standardize", help_heading = "Selection")]
     pub auto: bool,
-    /// With --auto: the selection rows A..B, in the rows of the file (after
-    /// decimation); they must start or end the identification rows. Default:
-    /// the last 20 % of them (fewer than 100: also as many at their start).
-    #[arg(long, requires = "auto")]
+    /// With --auto: the selection rows A..B.
+    ///
+    /// In the rows of the file (after decimation); they must start or end
+    /// the identification rows. Default: the last 20 % of them (fewer than
+    /// 100: also as many at their start).
+    #[arg(long, requires = "auto", help_heading = "Selection")]
     pub select_rows: Option<RowRange>,
-    /// With --auto: instead of one split, K contiguous blocks on a rolling
-    /// origin (block j scored by the model fitted on the blocks before it).
-    #[arg(long, requires = "auto", conflicts_with = "select_rows")]
+    /// With --auto: K rolling folds instead of one split.
+    ///
+    /// K contiguous blocks on a rolling origin, block j scored by the model
+    /// fitted on the blocks before it.
+    #[arg(
+        long,
+        requires = "auto",
+        conflicts_with = "select_rows",
+        help_heading = "Selection"
+    )]
     pub folds: Option<usize>,
-    /// With --auto: starts of the refit of the choice on all the
-    /// identification rows when the back-end's seed can change its fit
-    /// (the start that simulates those rows best is written).
-    #[arg(long, requires = "auto", default_value_t = hysid::select::DEFAULT_REFIT_STARTS, value_parser = crate::selection::parse_at_least_one)]
+    /// With --auto: starts of the refit of the choice.
+    ///
+    /// Used when the back-end's seed can change its fit: the start that
+    /// simulates the identification rows best is written.
+    #[arg(long, requires = "auto", default_value_t = hysid::select::DEFAULT_REFIT_STARTS, value_parser = crate::selection::parse_at_least_one, help_heading = "Selection")]
     pub refit_starts: usize,
-    /// With --auto: a grid axis KEY=V1,V2,... (repeatable; a back-end option,
-    /// or modes, na, nb) replacing the back-end's search space.
-    #[arg(long = "grid", value_name = "KEY=V1,V2,..", requires = "auto")]
+    /// With --auto: a grid axis KEY=V1,V2,.. (repeatable).
+    ///
+    /// A back-end option, or modes, na, nb; the axes replace the back-end's
+    /// search space.
+    #[arg(
+        long = "grid",
+        value_name = "KEY=V1,V2,..",
+        requires = "auto",
+        help_heading = "Selection"
+    )]
     pub grid: Vec<String>,
-    /// Samples at the start of the scored rows left out of a free-run score
-    /// (the selection rows, and the comparison with the affine model).
-    #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
+    /// Samples left out at the start of a free-run score.
+    ///
+    /// Of the selection rows, and of the comparison with the affine model.
+    #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count, help_heading = "Selection")]
     pub warmup: usize,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Data")]
     pub select: DataArgs,
+    /// Output model file (JSON).
+    #[arg(
+        short = 'o',
+        long = "out",
+        value_name = "MODEL.json",
+        help_heading = "Output"
+    )]
+    pub out: PathBuf,
 }
 
 /// Runs the command.
