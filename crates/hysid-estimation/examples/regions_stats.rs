@@ -1,36 +1,10 @@
 //! Prints working-set statistics and one-shot times for the benchmark data.
 //! `cargo run --release -p hysid-estimation --example regions_stats`
-use hysid_estimation::regions::{RegionMethod, RegionOptions, estimate};
-use nalgebra::DMatrix;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+#[path = "../benches/regions_data/mod.rs"]
+mod regions_data;
 
-fn data(n: usize) -> (DMatrix<f64>, Vec<usize>) {
-    let mut rng = ChaCha8Rng::seed_from_u64(42);
-    let mut x = DMatrix::zeros(n, 3);
-    let mut labels = Vec::with_capacity(n);
-    for r in 0..n {
-        let z: [f64; 3] = std::array::from_fn(|_| rng.random_range(-5.0..5.0));
-        for k in 0..3 {
-            x[(r, k)] = z[k];
-        }
-        let h1 = 4.0 * z[0] - z[2] + 10.0;
-        let h2 = 5.0 * z[0] + z[2] - 6.0;
-        let mut label = if h1 < 0.0 {
-            0
-        } else if h2 <= 0.0 {
-            1
-        } else {
-            2
-        };
-        let near = h1.abs() < 0.5 || h2.abs() < 0.5;
-        if near && rng.random::<f64>() < 0.1 {
-            label = (label + 1) % 3;
-        }
-        labels.push(label);
-    }
-    (x, labels)
-}
+use hysid_estimation::regions::{RegionMethod, RegionOptions, estimate};
+use regions_data::data;
 
 fn main() {
     let sizes: Vec<usize> = match std::env::args().nth(1) {

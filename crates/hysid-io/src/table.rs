@@ -93,7 +93,7 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
         });
     }
     let time = sel.time.as_str();
-    if time != DEFAULT_TIME && !table.has(time) {
+    if time != DEFAULT_TIME {
         // A time column named by the user must exist (the error lists the
         // file's names).
         table.take(time)?;

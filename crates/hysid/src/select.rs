@@ -31,7 +31,7 @@ use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContex
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::search::{CandidateError, SearchSpace, Setup};
-use hysid_core::simulate::validate;
+use hysid_core::simulate::{HoldoutError, holdout, validate};
 use hysid_core::stages::{Refine, Stages};
 use hysid_model::data::{DataError, Dataset, RowRange};
 use hysid_model::model::{RefinementChoice, RefitStart, ScoredCandidate, Selection, SplitRows};
@@ -476,19 +476,12 @@ fn score_part(
     model: &Model,
     part: &Part,
 ) -> Result<(f64, Vec<f64>), String> {
-    let (report, sim, _) = validate(model, &part.select, request.plan.warmup)
-        .map_err(|e| format!("simulation on the selection rows: {e}"))?;
-    if !report.fit_sim.is_finite() {
-        return Err("the simulation FIT is not finite".into());
-    }
-    let y = part.select.y();
-    let first = y.len() - report.n;
-    let errors = y[first..]
-        .iter()
-        .zip(&sim.y[first..])
-        .map(|(a, b)| a - b)
-        .collect();
-    Ok((report.fit_sim, errors))
+    holdout(model, &part.select, request.plan.warmup)
+        .map(|h| (h.fit_sim, h.errors))
+        .map_err(|e| match e {
+            HoldoutError::Simulation(e) => format!("simulation on the selection rows: {e}"),
+            HoldoutError::NotFinite => e.to_string(),
+        })
 }
 
 /// Every trial scored, in order (in parallel; each run has the same seed,

@@ -127,7 +127,6 @@ mod tests {
     use hysid_core::model::Model;
     use hysid_core::priors::Priors;
     use hysid_model::data::Dataset;
-    use hysid_model::data::Signal;
     use hysid_model::geometry::Polyhedron;
     use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel};
     use hysid_model::model::{RegionRefinementStatus, Stop, StopBound};
@@ -162,18 +161,7 @@ mod tests {
     }
 
     fn record(u: Vec<f64>, y: Vec<f64>) -> Dataset {
-        Dataset::new(
-            vec![Signal {
-                name: "u".into(),
-                values: u,
-            }],
-            Signal {
-                name: "y".into(),
-                values: y,
-            },
-            None,
-        )
-        .unwrap()
+        Dataset::siso(u, y, None).unwrap()
     }
 
     /// The noise-free record of `model` (or of its automaton with `stops`)
