@@ -40,6 +40,24 @@ fn arx_record(dir: &Path) -> PathBuf {
     data
 }
 
+/// `hysid methods | head`: a reader that stops reading ends the program
+/// quietly, not with an internal error.
+#[test]
+fn a_closed_standard_output_ends_quietly() {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_hysid"))
+        .arg("methods")
+        .env_remove("RUST_BACKTRACE")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.is_empty(), "{err}");
+    assert!(out.status.success(), "{:?}", out.status);
+}
+
 #[test]
 fn methods_lists_arx_with_its_options() {
     let out = ok(&["methods"]);
@@ -145,6 +163,58 @@ fn a_record_with_its_own_column_names() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("'clock'") && err.contains("time"), "{err}");
     assert!(!model.exists());
+}
+
+/// The README's "Your own record": identify with options chosen inside the
+/// rows given, validate on rows the fit did not see, draw the figure.
+#[test]
+fn your_own_record_identified_validated_and_plotted() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let text = std::fs::read_to_string(&data).unwrap();
+    let rec = dir.path().join("rec.csv");
+    std::fs::write(&rec, text.replacen("t,u,y", "time,force,pos", 1)).unwrap();
+    let (model, figure) = (dir.path().join("m.json"), dir.path().join("fit.svg"));
+    let signals = ["--time", "time", "--input", "force", "--output", "pos"];
+    let mut identify = vec!["identify", s(&rec)];
+    identify.extend(signals);
+    identify.extend([
+        "--rows",
+        "0..220",
+        "-m",
+        "cluster",
+        "--auto",
+        "-o",
+        s(&model),
+    ]);
+    ok(&identify);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["info"]["input_names"], serde_json::json!(["force"]));
+    assert_eq!(m["info"]["output_name"], "pos");
+    let mut validate = vec!["validate", s(&model), s(&rec)];
+    validate.extend(signals);
+    validate.extend(["--rows", "220..", "--plot", s(&figure)]);
+    let printed = ok(&validate);
+    let fit = printed
+        .lines()
+        .find_map(|l| l.strip_prefix("fit_sim"))
+        .and_then(|l| l.split_whitespace().next())
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("no fit_sim: {printed}"));
+    let svg = std::fs::read_to_string(&figure).unwrap();
+    assert!(
+        svg.starts_with("<svg") || svg.starts_with("<?xml"),
+        "not an SVG"
+    );
+    for needle in ["measured pos", "simulated", &format!("fit_sim {fit:.1} %")] {
+        assert!(svg.contains(needle), "the figure lacks '{needle}'");
+    }
+    // A figure this build cannot write is refused before anything is printed.
+    let pdf = dir.path().join("fit.pdf");
+    validate.pop();
+    validate.push(s(&pdf));
+    bad(&validate, &["--plot", "fit.pdf", ".svg"], &pdf);
 }
 
 #[test]
@@ -408,6 +478,16 @@ fn bad_options_and_files_are_usage_errors() {
         &["p.toml", "mdoes"],
         &out,
     );
+    // No silent stand-in: the physical back-end fits the model file it is given.
+    bad(
+        &["identify", d, "-m", "physical", "-o", o],
+        &[
+            "--set model=<FILE>",
+            "docs/gray-box-models.md",
+            "models/pick-and-place/head.toml",
+        ],
+        &out,
+    );
     std::fs::write(&prior, "switching = [\"y1\"]\n").unwrap();
     bad(
         &[
@@ -415,6 +495,8 @@ fn bad_options_and_files_are_usage_errors() {
             d,
             "-m",
             "physical",
+            "--set",
+            common::HEAD_MODEL_SET,
             "--prior",
             s(&prior),
             "-o",
@@ -579,6 +661,8 @@ fn methods_declare_priors_and_backends_refuse_or_honour_them() {
             s(&data),
             "-m",
             "physical",
+            "--set",
+            common::HEAD_MODEL_SET,
             "--prior",
             s(&prior),
             "-o",

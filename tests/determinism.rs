@@ -56,9 +56,10 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
             "\n[[run]]\nname = \"{name}\"\nmethod = \"{name}\"\n{}{}",
             if modes { "modes = 2\n" } else { "" },
             match name {
-                "bounded" => "set = { delta = 0.03 }\n",
-                "milp" => "set = { max_samples = 300, node_limit = 200 }\n",
-                _ => "",
+                "bounded" => "set = { delta = 0.03 }\n".to_string(),
+                "milp" => "set = { max_samples = 300, node_limit = 200 }\n".to_string(),
+                "physical" => format!("set = {{ model = \"{}\" }}\n", common::HEAD_MODEL),
+                _ => String::new(),
             }
         ));
     }
@@ -158,6 +159,8 @@ fn identify_is_byte_identical_across_runs_and_thread_counts() {
         (
             "physical",
             &[
+                "--set",
+                common::HEAD_MODEL_SET,
                 "--set",
                 "particles=6",
                 "--set",

@@ -215,8 +215,8 @@ const RUN: &[(&str, &str, Quote)] = &[
     ),
     (
         "README.md",
-        "hysid methods",
-        Quote::Stdout(&["arx", "cluster", "bounded", "physical", "klinreg", "parc"]),
+        "hysid methods cluster",
+        Quote::Stdout(&["Ferrari-Trecate", "restarts (int, default 15)", "regions"]),
     ),
     (
         "physical.md",
@@ -336,6 +336,11 @@ const NOT_RUN: &[(&str, &str)] = &[
         "cargo install --path crates/hysid-cli",
         "installs the program (a release build)",
     ),
+    (
+        "hysid identify rec.csv",
+        "rec.csv stands for the reader's record; cli::your_own_record_identified_validated_and_plotted runs the same commands on a simulated one",
+    ),
+    ("hysid validate m.json rec.csv", "see rec.csv"),
 ];
 
 /// Whether `command` holds a placeholder (`DATA`, `OUT_DIR`, `[..]`, `...`,

@@ -237,6 +237,11 @@ fn multi(scale: f64) -> Vec<(&'static str, Vec<String>)> {
 
 /// Runs `identify data -m method extra...` (with `--na 1 --nb 1` unless
 /// `extra` sets the orders).
+/// The options that make `-m physical` fit the mounting head.
+fn head() -> Vec<String> {
+    vec!["--set".into(), common::HEAD_MODEL_SET.into()]
+}
+
 fn run(case: &str, dir: &Path, data: &Path, method: &str, extra: &[String]) -> Option<Outcome> {
     let mut a = vec![s(data), "-m", method];
     if !extra.iter().any(|x| x == "--na") {
@@ -282,7 +287,7 @@ fn constant_output_and_collinear_regressors() {
         ("constant input", &held),
         ("all zero", &zeros),
     ] {
-        let mut methods = vec![("arx", vec![]), ("physical", vec![])];
+        let mut methods = vec![("arx", vec![]), ("physical", head())];
         methods.extend(multi(1.0));
         for (method, extra) in methods {
             let case = format!("{name} [{method}]");
@@ -356,7 +361,7 @@ fn too_few_samples_too_many_modes_and_bad_settings() {
     let u = input(4, 6);
     let tiny = csv(d, "tiny.csv", &u, &pwarx(&u, &[ONE]), 1.0);
     let orders = ["--na", "2", "--nb", "2"].map(String::from);
-    for (method, mut extra) in [("arx", vec![]), ("physical", vec![])]
+    for (method, mut extra) in [("arx", vec![]), ("physical", head())]
         .into_iter()
         .chain(multi(1.0))
     {
@@ -498,7 +503,7 @@ fn a_tiny_time_budget_returns_the_best_model_with_a_status() {
     let u = input(240, 9);
     let two = csv(d, "two.csv", &u, &pwarx(&u, &TWO), 1.0);
     let mut methods = multi(1.0);
-    methods.push(("physical", vec![]));
+    methods.push(("physical", head()));
     for (method, mut extra) in methods {
         extra.extend(["--time-budget", "0.001"].map(String::from));
         let case = format!("time budget [{method}]");

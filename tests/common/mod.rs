@@ -115,3 +115,16 @@ pub fn two_mode_record(dir: &Path, n: usize) -> PathBuf {
     ]);
     data
 }
+
+/// The pick-and-place head's model file.
+pub const HEAD_MODEL: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../models/pick-and-place/head.toml"
+);
+
+/// The `--set` that makes `-m physical` fit the mounting head.
+pub const HEAD_MODEL_SET: &str = concat!(
+    "model=",
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../models/pick-and-place/head.toml"
+);

@@ -97,7 +97,9 @@ fn dispatch(command: Command) -> Result<()> {
 
 /// Runs `f`; a panic (on this thread, or on a rayon worker, which rayon
 /// passes on to the caller) becomes `CliError::failure("internal error:
-/// <message> at <file:line> (please report)")`.
+/// <message> at <file:line> (please report)")`, except the one `println!`
+/// raises when the reader of standard output has gone (`hysid methods |
+/// head`): that ends the command quietly, as it ends other Unix tools.
 fn guarded(f: impl FnOnce() -> Result<()>) -> Result<()> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
         let message = if let Some(s) = payload.downcast_ref::<&str>() {
@@ -107,6 +109,9 @@ fn guarded(f: impl FnOnce() -> Result<()>) -> Result<()> {
         } else {
             "a panic without a message".to_string()
         };
+        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+            return Ok(());
+        }
         let at = LAST_PANIC_LOCATION
             .lock()
             .unwrap_or_else(|e| e.into_inner())

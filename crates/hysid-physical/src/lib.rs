@@ -60,10 +60,12 @@ use hysid_core::priors::PriorKind;
 use hysid_mechanical::MechanicalModel;
 use std::path::Path;
 
-/// The built-in mounting-head model (`models/pick-and-place/head.toml`).
+/// The mounting-head model (`models/pick-and-place/head.toml`), for
+/// examples and tests; the back-end fits only the file its `model` option
+/// names.
 pub const HEAD_MODEL_TOML: &str = include_str!("../models/head.toml");
 
-/// The built-in mounting-head model, parsed.
+/// The mounting-head model, parsed.
 pub fn head_model() -> MechanicalModel {
     match Model::from_toml(HEAD_MODEL_TOML, "head.toml (built in)") {
         Ok(Model::Mechanical(m)) => m,
@@ -75,8 +77,8 @@ hysid_core::backend_options! {
     /// Options of the `physical` back-end.
     pub struct PhysicalOptions {
         /// Path of the model file (TOML or JSON, a mechanical or a gray-box model) whose
-        /// parameters are fitted; empty: the built-in pick-and-place head
-        /// (models/pick-and-place/head.toml).
+        /// parameters are fitted; required (the pick-and-place head:
+        /// models/pick-and-place/head.toml).
         model: String = String::new(),
         /// Particles of the swarm (global stage); 0 skips the global stage.
         particles: usize = 24,
@@ -116,6 +118,14 @@ pub const MAX_SWARMS: usize = 100;
 
 impl CheckOptions for PhysicalOptions {
     fn check(&self) -> Result<(), OptionError> {
+        if self.model.trim().is_empty() {
+            return Err(OptionError::Missing {
+                key: "model",
+                method: Physical::NAME,
+                what: "the file of the model whose parameters it fits (docs/gray-box-models.md)",
+                forms: &["<FILE>", "models/pick-and-place/head.toml"],
+            });
+        }
         if !(1..=MAX_SWARMS).contains(&self.swarms) {
             return Err(OptionError::invalid(
                 "swarms",
@@ -148,7 +158,7 @@ pub struct Physical;
 impl Identifier for Physical {
     type Options = PhysicalOptions;
     const NAME: &'static str = "physical";
-    const SUMMARY: &'static str = "physical parameters of a mechanical or gray-box hybrid model (default: the mounting head) by simulation error: swarm + Levenberg-Marquardt + Nelder-Mead";
+    const SUMMARY: &'static str = "physical parameters of a mechanical or gray-box hybrid model (--set model=FILE) by simulation error: swarm + Levenberg-Marquardt + Nelder-Mead";
     const HONOURS: &'static [PriorKind] = &[PriorKind::Fixed, PriorKind::Bounds, PriorKind::Tie];
 
     fn identify(
@@ -157,24 +167,17 @@ impl Identifier for Physical {
         options: &Checked<PhysicalOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let model = if options.model.trim().is_empty() {
-            Model::Mechanical(head_model())
-        } else {
-            Model::load(Path::new(options.model.trim())).map_err(|e| {
-                IdentifyError::Options(OptionError::invalid("model", &options.model, e.to_string()))
-            })?
-        };
+        let model = Model::load(Path::new(options.model.trim())).map_err(|e| {
+            IdentifyError::Options(OptionError::invalid("model", &options.model, e.to_string()))
+        })?;
         // A model file's structural problems name the file.
-        let in_file = |e: IdentifyError| match e.downcast_ref::<PhysicalError>() {
-            Some(PhysicalError::Model(problem)) if !options.model.trim().is_empty() => {
-                IdentifyError::Options(OptionError::invalid(
-                    "model",
-                    options.model.trim(),
-                    problem.to_string(),
-                ))
-            }
-            _ => e,
-        };
+        let in_file =
+            |e: IdentifyError| match e.downcast_ref::<PhysicalError>() {
+                Some(PhysicalError::Model(problem)) => IdentifyError::Options(
+                    OptionError::invalid("model", options.model.trim(), problem.to_string()),
+                ),
+                _ => e,
+            };
         let (data, priors) = (problem.data, problem.priors);
         match model {
             Model::Mechanical(m) => fit_model(&m, data, priors, options, ctx)

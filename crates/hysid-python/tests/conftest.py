@@ -9,6 +9,7 @@ import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[3]
 PICK_AND_PLACE = REPO / "models" / "pick-and-place" / "headdata_1v6.mat"
+HEAD_MODEL = REPO / "models" / "pick-and-place" / "head.toml"
 BOTH_STOPS = REPO / "models" / "pick-and-place" / "simulated" / "both-saturations.csv"
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import hysid
-from conftest import PICK_AND_PLACE
+from conftest import HEAD_MODEL, PICK_AND_PLACE
 
 
 def program_message(run, *args):
@@ -70,10 +70,17 @@ def test_unknown_method_has_the_program_message(program, tmp_path):
 def test_a_prior_the_back_end_cannot_honour_has_the_program_message(program, tmp_path):
     prior = tmp_path / "fixed.toml"
     prior.write_text('[[saturation]]\nlevel = 25.0\nbound = "max"\n')
-    ours = raised(hysid.identify, U, Y, method="physical", priors=prior)
-    theirs = program_message(program, "identify", PICK_AND_PLACE, "-m", "physical", "--prior", prior,
-                             "-o", tmp_path / "m.json")
+    ours = raised(hysid.identify, U, Y, method="physical", priors=prior, options={"model": str(HEAD_MODEL)})
+    theirs = program_message(program, "identify", PICK_AND_PLACE, "-m", "physical", "--set", f"model={HEAD_MODEL}",
+                             "--prior", prior, "-o", tmp_path / "m.json")
     assert ours == theirs and "does not honour the prior" in ours
+
+
+def test_physical_without_a_model_file_names_the_option(program, tmp_path):
+    ours = raised(hysid.identify, U, Y, method="physical", ts=0.0025)
+    theirs = program_message(program, "identify", PICK_AND_PLACE, "-m", "physical", "-o", tmp_path / "m.json")
+    assert "model=<FILE>" in ours and "model=<FILE>" in theirs and "docs/gray-box-models.md" in ours
+    assert not (tmp_path / "m.json").exists()
 
 
 def test_a_missing_column_has_the_program_message(program, tmp_path):

@@ -9,7 +9,7 @@ import time
 import pytest
 
 import hysid
-from conftest import REPO
+from conftest import HEAD_MODEL, REPO
 
 
 def test_other_python_threads_run_while_identifying(record):
@@ -20,7 +20,7 @@ def test_other_python_threads_run_while_identifying(record):
     def work():
         started = time.perf_counter()
         result["model"] = hysid.identify(u[:5000], y[:5000], method="physical", seed=1, ts=ts,
-                                         options={"particles": 8, "swarm_iters": 4, "local_iters": 20,
+                                         options={"model": str(HEAD_MODEL), "particles": 8, "swarm_iters": 4, "local_iters": 20,
                                                   "restarts": 1, "starts": 1, "lm_iters": 2})
         result["seconds"] = time.perf_counter() - started
         done.set()
@@ -46,7 +46,7 @@ def test_ctrl_c_stops_a_long_run(record):
     with pytest.raises(KeyboardInterrupt):
         # Minutes without the interruption (every stage at its default, a long swarm).
         hysid.identify(u[:5000], y[:5000], method="physical", seed=1, ts=ts,
-                       options={"particles": 400, "swarm_iters": 400})
+                       options={"model": str(HEAD_MODEL), "particles": 400, "swarm_iters": 400})
     elapsed = time.perf_counter() - started
     timer.cancel()
     assert elapsed < 60, elapsed

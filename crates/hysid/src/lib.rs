@@ -27,4 +27,6 @@ pub mod identify;
 pub mod select;
 
 pub use backends::{affine_reference, against_affine, registry};
+/// The figures (`hysid-plot`), for the front ends.
+pub use hysid_plot as plot;
 pub use identify::{Identified, Identify};

@@ -87,12 +87,26 @@ fn every_fixed_option_run_declares_its_provenance() {
     }
     assert!(files.len() >= 5, "{files:?}");
     let mut missing = Vec::new();
+    let mut physical = 0;
     for f in &files {
         let e = Experiment::load(f).unwrap_or_else(|err| panic!("{}: {err}", f.display()));
         for r in e.runs.iter().filter(|r| !r.auto && r.provenance.is_none()) {
             missing.push(format!("{}: [[run]] '{}'", f.display(), r.name));
         }
+        // physical fits the model file it names, resolved against the
+        // experiment's folder.
+        for r in e.runs.iter().filter(|r| r.method == "physical") {
+            physical += 1;
+            let model = r.set.get("model").and_then(|v| v.as_str()).unwrap_or("");
+            assert!(
+                Path::new(model).is_file(),
+                "{}: '{}' names no model file ({model:?})",
+                f.display(),
+                r.name
+            );
+        }
     }
+    assert!(physical >= 3, "{physical} physical runs");
     assert!(
         missing.is_empty(),
         "runs without provenance:\n{}",

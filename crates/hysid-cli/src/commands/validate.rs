@@ -3,6 +3,7 @@
 use crate::error::CliError;
 use crate::error::Result;
 use crate::selection::DataArgs;
+use hysid::plot::{FigureFormat, SimulationFigure};
 use hysid_core::model::Model;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
@@ -22,6 +23,10 @@ pub struct Args {
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Also draw the measured and simulated output (and the input) into
+    /// this figure: FILE.svg, or FILE.png in a build with the png feature.
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub select: DataArgs,
 }
@@ -38,8 +43,25 @@ pub fn run(args: Args) -> Result<()> {
             data.len()
         )));
     }
-    let (report, _, _) =
+    if let Some(path) = &args.plot {
+        check_figure_path(path)?;
+    }
+    let (report, sim, _) =
         validate(&model, &data, args.warmup).map_err(|e| CliError::simulation(&args.model, e))?;
+    if let Some(path) = &args.plot {
+        let first_row = args.select.rows.and_then(|r| r.start).unwrap_or(0);
+        let figure = SimulationFigure::from_dataset(
+            format!("{}: fit_sim {:.1} %", args.model.display(), report.fit_sim),
+            &data,
+            first_row,
+            data.output.name.clone(),
+            "input",
+        )
+        .with_warmup(args.warmup)
+        .with_simulation("simulated", &sim);
+        hysid::plot::simulation_plot(path, &figure)
+            .map_err(|e| CliError::input(format!("--plot {}: {e}", path.display())))?;
+    }
     if let Some(k) = report.diverged_at {
         eprintln!(
             "hysid: warning: the simulation diverged at sample {k}; the output is held from there on"
@@ -83,6 +105,25 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// A figure path this build can write, checked before any work.
+fn check_figure_path(path: &std::path::Path) -> Result<()> {
+    let format = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .and_then(|e| e.parse::<FigureFormat>().ok());
+    match format {
+        Some(f) if f.is_built() => Ok(()),
+        Some(_) => Err(CliError::input(format!(
+            "--plot {}: this build writes no PNG (build with --features png, or write .svg)",
+            path.display()
+        ))),
+        None => Err(CliError::input(format!(
+            "--plot {}: the figure's extension must be .svg or .png",
+            path.display()
+        ))),
+    }
 }
 
 /// `v`, or `0.0` when it shows as zero with three decimals: a FIT of

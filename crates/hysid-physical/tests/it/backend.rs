@@ -14,8 +14,10 @@ use hysid_model::regressors::RegressorSpec;
 use hysid_physical::{HEAD_MODEL_TOML, Physical, bridge, head_model};
 
 const TS: f64 = 0.0025;
-/// Small budgets: these tests check the contract, not the optimum.
-const QUICK: [&str; 6] = [
+/// The head's model file and small budgets: these tests check the
+/// contract, not the optimum.
+const QUICK: [&str; 7] = [
+    crate::HEAD_MODEL_SET,
     "particles=6",
     "swarm_iters=3",
     "local_iters=30",
@@ -270,6 +272,37 @@ fn refuses_what_it_cannot_honour() {
             .to_string()
             .contains("sampling time")
     );
+}
+
+#[test]
+fn refuses_to_run_without_a_model_file() {
+    let d = data(400, 3);
+    let problem = Problem {
+        data: &d,
+        orders: RegressorSpec::new(2, 2, 1),
+        priors: &Priors::default(),
+        priors_origin: None,
+    };
+    for set in [&[][..], &["model=  "][..], &["particles=6"][..]] {
+        let e = Physical
+            .run(
+                &problem,
+                &Settings::parse(set).unwrap(),
+                &RunContext::quiet(1),
+            )
+            .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                IdentifyError::Options(hysid_core::options::OptionError::Missing {
+                    key: "model",
+                    ..
+                })
+            ),
+            "{set:?}: {e}"
+        );
+        assert!(e.to_string().contains("option model=<FILE>"), "{e}");
+    }
 }
 
 #[test]

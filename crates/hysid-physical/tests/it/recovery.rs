@@ -104,7 +104,11 @@ fn recovers_parameters_and_validates() {
         priors_origin: None,
     };
     let model = Physical
-        .run(&problem, &Settings::default(), &RunContext::quiet(7))
+        .run(
+            &problem,
+            &Settings::parse(&[crate::HEAD_MODEL_SET]).unwrap(),
+            &RunContext::quiet(7),
+        )
         .unwrap();
     eprintln!(
         "cost at truth {:.6}, fitted {:.6}, evals {}",

@@ -210,6 +210,10 @@ pub fn value_text(v: &toml::Value) -> String {
     }
 }
 
+/// The back-end option that names a model file (`physical`'s `model`): in
+/// an experiment file it is relative to the file's folder, as `data.file` is.
+pub const MODEL_FILE_OPTION: &str = "model";
+
 /// An experiment file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -430,7 +434,8 @@ impl Experiment {
         Ok(e)
     }
 
-    /// Reads an experiment file; the data path is resolved against its folder.
+    /// Reads an experiment file; the data path and the runs' model files
+    /// ([`MODEL_FILE_OPTION`]) are resolved against its folder.
     pub fn load(path: &Path) -> Result<Self, ExperimentError> {
         let origin = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|source| ExperimentError::Io {
@@ -438,8 +443,20 @@ impl Experiment {
             source,
         })?;
         let mut e = Self::from_toml(&text, &origin)?;
+        let folder = path.parent().unwrap_or(Path::new("."));
         if e.data.file.is_relative() {
-            e.data.file = path.parent().unwrap_or(Path::new(".")).join(&e.data.file);
+            e.data.file = folder.join(&e.data.file);
+        }
+        let runs = e
+            .runs
+            .iter_mut()
+            .chain(e.sweeps.iter_mut().map(|s| &mut s.run));
+        for run in runs {
+            if let Some(toml::Value::String(file)) = run.set.get_mut(MODEL_FILE_OPTION)
+                && Path::new(file.as_str()).is_relative()
+            {
+                *file = folder.join(&*file).display().to_string();
+            }
         }
         Ok(e)
     }
