@@ -222,9 +222,9 @@ impl Model {
         crate::json(py, &text)
     }
 
-    /// Free-run simulation driven by `u`; `y0` gives the outputs of the
-    /// first samples (the initial condition; zeros when left out). Returns
-    /// `(y, mode)`.
+    /// Free-run simulation driven by `u`; `y0` (shape `(k,)` or `(k, 1)`)
+    /// gives the outputs of the first samples (the initial condition; zeros
+    /// when left out). Returns `(y, mode)`.
     #[pyo3(signature = (u, y0=None, ts=None))]
     fn simulate<'py>(
         &self,
@@ -237,9 +237,10 @@ impl Model {
         let mut y = vec![0.0; n];
         if let Some(y0) = y0 {
             let given = record::floats("y0", y0)?;
-            if given.ndim() != 1 || given.len() > n {
+            let column = matches!(given.shape(), [_] | [_, 1]);
+            if !column || given.len() > n {
                 return Err(Failure::input(format!(
-                    "y0: expected at most {n} initial outputs (shape (k,)), got shape {}",
+                    "y0: expected at most {n} initial outputs (shape (k,) or (k, 1)), got shape {}",
                     record::shape_text(given.shape())
                 ))
                 .into());

@@ -147,6 +147,7 @@ def test_y_as_a_column_is_one_output(record, head):
     assert a.to_json() == b.to_json()
     assert a.validate(u[3000:4000], y[3000:4000, None]) == b.validate(u[3000:4000], y[3000:4000])
     assert np.array_equal(a.predict(u[:100], column[:100])[0], b.predict(u[:100], y[:100])[0])
+    assert np.array_equal(a.simulate(u[:100], y0=column[:2])[0], b.simulate(u[:100], y0=y[:2])[0])
     est = hysid.Estimator(method="arx").fit(u[:3000], column, ts=ts)
     assert est.model_.to_json() == b.to_json()
     with pytest.raises(hysid.InputError, match=r"y: expected an array of shape \(N,\) or \(N, 1\), got shape \(100, 2\)"):
@@ -180,3 +181,14 @@ def test_a_record_file_loads_as_load_reads_it(tmp_path):
     assert repr(named) == "Record(N=10, inputs=['force'], output='pos', ts=0.5)"
     with pytest.raises(hysid.InputError, match="decimate=-2: must be a whole number >= 0"):
         hysid.Record.load(csv, decimate=-2)
+
+
+def test_a_fitted_estimator_pickles_and_copies(arx, head):
+    import copy
+    import pickle
+
+    again = pickle.loads(pickle.dumps(arx))
+    assert again.get_params() == arx.get_params()
+    assert again.model_.to_json() == arx.model_.to_json()
+    assert again.score(head[5000:]) == arx.score(head[5000:])
+    assert copy.deepcopy(arx.model_).to_json() == arx.model_.to_json()

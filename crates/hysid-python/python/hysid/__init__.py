@@ -23,6 +23,7 @@ matplotlib).
 
 from __future__ import annotations
 
+import copyreg
 import os
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
@@ -51,6 +52,16 @@ __version__ = "0.1.0"
 # Shown (help, repr, pickle) as the package's, where users find them.
 Record.__module__ = "hysid"
 Estimator.__module__ = "hysid"
+
+
+def _model_from_json(text: str) -> Model:
+    """A model from its file's JSON text (how a pickled model is restored)."""
+    return Model.from_json(text)
+
+
+# A model pickles (and copies) as its model file's JSON text, so that a
+# fitted Estimator pickles too.
+copyreg.pickle(Model, lambda model: (_model_from_json, (model.to_json(),)))
 
 
 def _counts(**given: Any) -> None:

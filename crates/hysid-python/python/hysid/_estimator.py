@@ -164,12 +164,16 @@ class Estimator:
     ) -> npt.NDArray[np.float64]:
         """The fitted model's free-run simulation driven by the inputs
         alone: ``data`` is a :class:`hysid.Record` (its ``u`` and ``ts``;
-        its ``y`` is not used) or the inputs ``u``. The outputs before the
-        simulation starts (the model's ``max(na, nb)`` first samples for a
-        PWARX model; the initial position of a mechanical model) are zero,
-        or ``y0`` when given, as ``hysid simulate --excite`` starts from
-        ``--y0 0``. Returns ``y`` of shape ``(N,)``; ``model_.simulate``
-        also returns the active modes."""
+        its ``y`` is not used) or the inputs ``u``.
+
+        The simulation starts as the model's initial-state rule says, with
+        zeros (or ``y0`` when given) for the measured outputs that rule
+        reads: a PWARX model starts from zero outputs in its first
+        ``max(na, nb)`` samples, as ``hysid simulate --excite`` does with
+        ``--y0 0``; a mechanical model that reads its state from the
+        outputs starts at rest at position 0; a model whose file gives its
+        initial state starts from that state. Returns ``y`` of shape
+        ``(N,)``; ``model_.simulate`` also returns the active modes."""
         model = self._fitted()
         if isinstance(data, (Record, list, tuple)) and not _is_array_like(data):
             record = one_record(data, "data")

@@ -92,9 +92,9 @@ class Model:
     def simulate(
         self, u: ArrayLike, y0: Optional[ArrayLike] = None, ts: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
-        """Free-run simulation driven by `u`; `y0` gives the outputs of the
-        first samples (the initial condition; zeros when left out). Returns
-        `(y, mode)`."""
+        """Free-run simulation driven by `u`; `y0` (shape `(k,)` or `(k, 1)`)
+        gives the outputs of the first samples (the initial condition; zeros
+        when left out). Returns `(y, mode)`."""
     def predict(
         self, u: ArrayLike, y: ArrayLike, ts: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
