@@ -192,3 +192,26 @@ def test_a_fitted_estimator_pickles_and_copies(arx, head):
     assert again.model_.to_json() == arx.model_.to_json()
     assert again.score(head[5000:]) == arx.score(head[5000:])
     assert copy.deepcopy(arx.model_).to_json() == arx.model_.to_json()
+
+
+def test_a_column_name_with_a_comma_is_one_column_and_ts_is_a_number():
+    df = pd.DataFrame({"force, N": np.arange(20.0), "pos": np.arange(20.0) ** 0.5})
+    record = hysid.Record.from_dataframe(df, inputs="force, N", output="pos", ts=0.01)
+    assert record.input_names == ["force, N"] and record.ts == 0.01
+    with pytest.raises(hysid.InputError, match="ts: expected a number of seconds, got 'fast'"):
+        hysid.Record(np.zeros(5), np.zeros(5), ts="fast")
+    with pytest.raises(hysid.InputError, match="sampling time must be positive, got -1"):
+        hysid.Record(np.zeros(5), np.zeros(5), ts=-1)
+    with pytest.raises(hysid.InputError, match="time: no column 'clock'"):
+        hysid.Record.from_dataframe(df, inputs="force, N", output="pos", time="clock")
+
+
+def test_arrays_and_lists_of_numbers_are_inputs_not_records(arx, head):
+    rows = head[5000:5100]
+    assert np.array_equal(arx.simulate(rows), arx.simulate(rows.u))
+    assert np.array_equal(arx.simulate(rows.u[:, 0].tolist()), arx.simulate(rows))
+    predicted = arx.predict_one_step(rows)
+    # Before the regressor is complete the prediction is the measurement.
+    assert predicted[:2].tolist() == rows.y[:2].tolist()
+    with pytest.raises(hysid.InputError, match="data: an empty list of records"):
+        arx.score([])

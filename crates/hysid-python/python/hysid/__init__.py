@@ -71,7 +71,7 @@ def _counts(**given: Any) -> None:
     for name, value in given.items():
         try:
             negative = value is not None and not isinstance(value, bool) and value < 0
-        except TypeError:
+        except (TypeError, ValueError):
             continue
         if negative:
             raise InputError(f"{name}={value}: must be a whole number >= 0")

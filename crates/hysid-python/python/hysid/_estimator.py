@@ -175,11 +175,12 @@ class Estimator:
         initial state starts from that state. Returns ``y`` of shape
         ``(N,)``; ``model_.simulate`` also returns the active modes."""
         model = self._fitted()
-        if isinstance(data, (Record, list, tuple)) and not _is_array_like(data):
+        u = data
+        if _records_given(data):
             record = one_record(data, "data")
-            u, ts = record.u, record.ts if ts is None else ts
-        else:
-            u = data
+            u = record.u
+            if ts is None:
+                ts = record.ts
         y, _ = model.simulate(u, y0=y0, ts=ts)
         return y
 
@@ -191,8 +192,9 @@ class Estimator:
         """The fitted model's one-step-ahead prediction of each output from
         the measured past inputs and outputs: ``data`` is a
         :class:`hysid.Record`, or the inputs ``u`` with the outputs ``y``.
-        Returns the predicted ``y`` of shape ``(N,)`` (the first samples,
-        without a full regressor, are zero)."""
+        Returns the predicted ``y`` of shape ``(N,)``; the first samples,
+        before the model's regressor is complete (``max(na, nb)`` for a
+        PWARX model), are the measured outputs."""
         model = self._fitted()
         record = self._record(data, y, None, None, None, "predict_one_step")
         prediction, _ = model.predict(record.u, record.y, ts=record.ts)
@@ -240,7 +242,7 @@ class Estimator:
     ) -> Record:
         """The record of ``data`` (a record, a list of one) or of the
         arrays ``data`` and ``y``."""
-        if isinstance(data, (Record, list, tuple)) and not _is_array_like(data):
+        if _records_given(data):
             given = [n for n, v in (("y", y), ("ts", ts), ("input_names", input_names),
                                     ("output_name", output_name)) if v is not None]
             if given:
@@ -258,7 +260,10 @@ class Estimator:
         return f"Estimator({', '.join(shown)})"
 
 
-def _is_array_like(data: Any) -> bool:
-    """True for a list or tuple that is not made of records (numbers: the
-    inputs ``u``)."""
-    return isinstance(data, (list, tuple)) and not any(isinstance(r, Record) for r in data) and len(data) > 0
+def _records_given(data: Any) -> bool:
+    """True for a :class:`Record` or a list of records (an empty list
+    too, refused by :func:`one_record`); False for arrays and lists of
+    numbers (the inputs ``u``)."""
+    if isinstance(data, Record):
+        return True
+    return isinstance(data, (list, tuple)) and (not data or any(isinstance(r, Record) for r in data))

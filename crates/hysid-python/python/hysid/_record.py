@@ -77,16 +77,21 @@ class Record:
         output_name: Optional[str] = None,
     ) -> None:
         """Checks and stores the record; see :meth:`from_numpy`."""
+        if ts is not None:
+            try:
+                ts = float(ts)
+            except (TypeError, ValueError):
+                raise InputError(f"ts: expected a number of seconds, got {ts!r}") from None
         u, y, names, output = _hysid.check_record(
             u,
             y,
-            ts=None if ts is None else float(ts),
+            ts=ts,
             input_names=_names("input_names", input_names),
             output_name=output_name,
         )
         self.u = u
         self.y = y
-        self.ts = None if ts is None else float(ts)
+        self.ts = ts
         self.input_names = names
         self.output_name = output
 
@@ -118,24 +123,28 @@ class Record:
         column name or a list of them) and ``output`` (one column) keep
         their names. ``time`` names a column of times (in seconds, or
         timestamps) whose first step is the sampling time (as the program
-        reads a record's time column); ``ts`` gives the sampling time instead. pandas itself
-        is not imported: any object with ``columns`` and ``df[name]`` whose
-        columns convert to float arrays will do."""
+        reads a record's time column); ``ts`` gives the sampling time
+        instead. pandas itself is not imported: any object with ``columns``
+        and ``df[name]`` whose columns convert to float arrays will do."""
         columns = getattr(df, "columns", None)
         if columns is None:
             raise InputError(f"df: expected a pandas DataFrame, got {type(df).__name__}")
-        names = _names("inputs", inputs)
+        # One text is one column name (a DataFrame's names may hold commas).
+        names = [inputs] if isinstance(inputs, str) else _names("inputs", inputs)
         if not names:
             raise InputError("inputs: no input column named")
         if not isinstance(output, str):
             raise InputError(f"output: expected one column name, got {output!r}")
         known = [str(c) for c in columns]
 
-        def column(argument: str, name: str) -> npt.NDArray[np.float64]:
+        def present(argument: str, name: str) -> None:
             if name not in known:
                 raise InputError(
                     f"{argument}: no column '{name}' in the DataFrame (columns: {', '.join(known)})"
                 )
+
+        def column(argument: str, name: str) -> npt.NDArray[np.float64]:
+            present(argument, name)
             try:
                 return np.asarray(df[name], dtype=np.float64)
             except (TypeError, ValueError) as e:
@@ -146,8 +155,7 @@ class Record:
         if time is not None:
             if ts is not None:
                 raise InputError(f"time='{time}' and ts={ts}: give the sampling time one way")
-            if time not in known:
-                column("time", time)
+            present("time", time)
             t = np.asarray(df[time])
             if len(t) < 2:
                 raise InputError(f"time: column '{time}' has {len(t)} sample(s); its first step is the sampling time")
