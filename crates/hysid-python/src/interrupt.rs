@@ -28,7 +28,7 @@ struct Slot<T> {
 
 /// Runs `work`, given the stop flag that Ctrl-C raises, on a worker
 /// thread; returns its value, a `KeyboardInterrupt` when the user pressed
-/// Ctrl-C, or a `HysidError` naming a panic (a bug).
+/// Ctrl-C, or a `MethodError` naming a panic (a bug).
 pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce(Arc<AtomicBool>) -> T + Send) -> PyResult<T> {
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -46,7 +46,7 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce(Arc<AtomicBool>) -> T + Se
                 *slot.value.lock().unwrap_or_else(PoisonError::into_inner) = Some(result);
                 slot.ready.notify_all();
             })
-            .map_err(|e| Failure::new(format!("cannot start the identification thread: {e}")))?;
+            .map_err(|e| Failure::method(format!("cannot start the identification thread: {e}")))?;
         let wait = |limit: Option<Duration>| {
             py.detach(|| {
                 let guard = slot.value.lock().unwrap_or_else(PoisonError::into_inner);
@@ -84,7 +84,7 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce(Arc<AtomicBool>) -> T + Se
                 .map(|s| (*s).to_string())
                 .or_else(|| panic.downcast_ref::<String>().cloned())
                 .unwrap_or_else(|| "a panic without a message".into());
-            Failure::new(format!("internal error: {message} (please report)")).into()
+            Failure::method(format!("internal error: {message} (please report)")).into()
         })
     })
 }

@@ -4,15 +4,17 @@
 //! (`python/hysid/`): identification, simulation, validation and
 //! comparison on numpy arrays, through the library calls the `hysid`
 //! program makes, with its model files, priors, options and one-line
-//! errors (`hysid.HysidError`, module `error`). Identification runs without the GIL and
-//! stops cleanly on Ctrl-C (module `interrupt`).
+//! errors (`hysid.InputError` for bad input, `hysid.MethodError` for a
+//! method that failed, both `hysid.HysidError`; module `error`).
+//! Identification runs without the GIL and stops cleanly on Ctrl-C (module
+//! `interrupt`).
 
 mod error;
 mod interrupt;
 mod model;
 mod record;
 
-use error::{Failure, HysidError};
+use error::Failure;
 use hysid::identify::{Auto, Identify, Mode};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
@@ -59,7 +61,7 @@ pub(crate) fn warn_if_below_affine(
 #[pyfunction]
 fn methods(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
     let list = hysid::registry().describe();
-    let text = serde_json::to_string(&list).map_err(|e| Failure::new(e.to_string()))?;
+    let text = serde_json::to_string(&list).map_err(|e| Failure::method(e.to_string()))?;
     json(py, &text)
 }
 
@@ -79,7 +81,7 @@ fn load<'py>(
     time: Option<String>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Option<f64>)> {
     if decimate == 0 {
-        return Err(Failure::new("decimate=0: must be at least 1").into());
+        return Err(Failure::input("decimate=0: must be at least 1").into());
     }
     let rows = parse_rows("rows", rows.as_deref())?.unwrap_or_default();
     let selection = DataSelection {
@@ -90,10 +92,7 @@ fn load<'py>(
         ts,
         time: time.unwrap_or_else(|| DEFAULT_TIME.into()),
     };
-    selection.check_names().map_err(|e| match e {
-        SignalNameError::Empty => Failure::new("inputs/output: an empty signal name"),
-        e => Failure::new(format!("inputs: {e}")),
-    })?;
+    check_names(&selection, "inputs", "output")?;
     let data = py
         .detach(|| hysid_io::load(&path, &selection))
         .map_err(Failure::from)?;
@@ -104,12 +103,62 @@ fn load<'py>(
     ))
 }
 
+/// The signal names of `selection` checked as the program checks them;
+/// `inputs` and `output` name the arguments that gave them.
+fn check_names(selection: &DataSelection, inputs: &str, output: &str) -> Result<(), Failure> {
+    selection.check_names().map_err(|e| match e {
+        SignalNameError::Empty => {
+            Failure::input(format!("{inputs}/{output}: an empty signal name"))
+        }
+        e => Failure::input(format!("{inputs}: {e}")),
+    })
+}
+
+/// A checked record as Python receives it: `(u, y, input_names,
+/// output_name)`.
+type CheckedRecord<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>, Vec<String>, String);
+
+/// Checks a record as `identify` checks it (shapes, lengths, finite
+/// values, the sampling time, the names); returns `(u, y, input_names,
+/// output_name)` with `u` of shape `(N, m)`, `y` of shape `(N,)` and the
+/// default names filled in. `hysid.Record` is made through it.
+#[pyfunction]
+#[pyo3(signature = (u, y, ts=None, input_names=None, output_name=None))]
+fn check_record<'py>(
+    py: Python<'py>,
+    u: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    ts: Option<f64>,
+    input_names: Option<Vec<String>>,
+    output_name: Option<String>,
+) -> PyResult<CheckedRecord<'py>> {
+    let data = record::dataset(
+        record::input_columns(u)?,
+        record::output(y)?,
+        ts,
+        input_names,
+        output_name,
+    )?;
+    let selection = DataSelection {
+        inputs: data.input_names(),
+        output: data.output.name.clone(),
+        ..DataSelection::default()
+    };
+    check_names(&selection, "input_names", "output_name")?;
+    Ok((
+        record::inputs_array(py, &data).into_any(),
+        record::vector(py, data.y().to_vec()).into_any(),
+        selection.inputs,
+        selection.output,
+    ))
+}
+
 /// A row range `A..B` given as text (the Python layer turns tuples and
 /// slices into it).
 fn parse_rows(name: &str, rows: Option<&str>) -> Result<Option<RowRange>, Failure> {
     rows.map(|r| {
         r.parse::<RowRange>()
-            .map_err(|e| Failure::new(format!("{name}: {e}")))
+            .map_err(|e| Failure::input(format!("{name}: {e}")))
     })
     .transpose()
 }
@@ -125,14 +174,16 @@ fn priors(py: Python<'_>, given: Option<&Bound<'_, PyAny>>) -> PyResult<(Priors,
             .import("json")?
             .call_method1("dumps", (given,))
             .and_then(|t| t.extract())
-            .map_err(|e| Failure::new(format!("priors: not expressible as a prior file ({e})")))?;
+            .map_err(|e| {
+                Failure::input(format!("priors: not expressible as a prior file ({e})"))
+            })?;
         return Ok((
             Priors::from_json(&text, "priors").map_err(Failure::from)?,
             Some("priors".into()),
         ));
     }
     let path: PathBuf = given.extract().map_err(|_| {
-        Failure::new("priors: expected a dictionary in the prior file's shape or a file path")
+        Failure::input("priors: expected a dictionary in the prior file's shape or a file path")
     })?;
     Ok((
         Priors::load(&path).map_err(Failure::from)?,
@@ -147,7 +198,7 @@ fn settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
     for (k, v) in options.into_iter().flat_map(|d| d.iter()) {
         let key: String = k
             .extract()
-            .map_err(|_| Failure::new(format!("options: the key {k} is not text")))?;
+            .map_err(|_| Failure::input(format!("options: the key {k} is not text")))?;
         let value = if let Ok(b) = v.extract::<bool>() {
             b.to_string()
         } else if v.is_instance_of::<PyString>() {
@@ -155,7 +206,7 @@ fn settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
         } else if v.extract::<f64>().is_ok() {
             v.str()?.to_string()
         } else {
-            return Err(Failure::new(format!(
+            return Err(Failure::input(format!(
                 "option {key}: {} is not a number, a boolean or text",
                 v.repr()?
             ))
@@ -167,7 +218,7 @@ fn settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
 }
 
 /// Identifies a model from inputs `u` (`(N,)` or `(N, m)`) and outputs `y`
-/// (`(N,)`) with back-end `method`; the arguments are those of
+/// (`(N,)` or `(N, 1)`) with back-end `method`; the arguments are those of
 /// `hysid identify` (see the package's docstrings).
 #[pyfunction]
 #[pyo3(signature = (
@@ -217,17 +268,17 @@ fn identify<'py>(
         && (select_rows.is_some() || folds.is_some() || refit_starts.is_some() || !grid.is_empty())
     {
         return Err(
-            Failure::new("select_rows, folds, refit_starts and grid need auto=True").into(),
+            Failure::input("select_rows, folds, refit_starts and grid need auto=True").into(),
         );
     }
     if auto && standardize {
-        return Err(Failure::new("auto=True and standardize=True cannot be combined").into());
+        return Err(Failure::input("auto=True and standardize=True cannot be combined").into());
     }
     let mode = if auto {
         let grid = (!grid.is_empty())
             .then(|| SearchSpace::parse_grid(&grid))
             .transpose()
-            .map_err(|e| Failure::new(e.render("grid")))?;
+            .map_err(|e| Failure::input(e.render("grid")))?;
         Mode::Auto(Auto {
             select_rows,
             folds,
@@ -278,23 +329,25 @@ fn compare<'py>(
     out_dir: PathBuf,
 ) -> PyResult<Bound<'py, PyAny>> {
     let exp =
-        hysid::compare::Experiment::load(&experiment).map_err(|e| Failure::new(e.to_string()))?;
+        hysid::compare::Experiment::load(&experiment).map_err(|e| Failure::input(e.to_string()))?;
     let mut comparison = py
         .detach(|| exp.run(&hysid_core::backend::NoProgress))
-        .map_err(|e| Failure::new(e.to_string()))?;
+        .map_err(|e| Failure::input(e.to_string()))?;
+    // As the program's exit code 1: the report could not be written.
     hysid::compare::write_report(&mut comparison, &out_dir)
-        .map_err(|e| Failure::new(format!("{}: {e}", out_dir.display())))?;
-    let text = serde_json::to_string(&comparison).map_err(|e| Failure::new(e.to_string()))?;
+        .map_err(|e| Failure::method(format!("{}: {e}", out_dir.display())))?;
+    let text = serde_json::to_string(&comparison).map_err(|e| Failure::method(e.to_string()))?;
     json(py, &text)
 }
 
 /// The module `hysid._hysid`.
 #[pymodule]
 fn _hysid(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add("HysidError", m.py().get_type::<HysidError>())?;
+    error::register(m)?;
     m.add_class::<Model>()?;
     m.add_function(wrap_pyfunction!(methods, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(check_record, m)?)?;
     m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
     Ok(())

@@ -15,7 +15,8 @@ use pyo3::prelude::*;
 use std::ffi::CString;
 use std::path::PathBuf;
 
-/// A hysid model: a PWARX model, a hybrid automaton or a mechanical model.
+/// A hysid model: a PWARX model, a hybrid automaton, a mechanical or a
+/// gray-box model.
 ///
 /// Files are the program's: a model saved here loads in `hysid validate`,
 /// and a model written by `hysid identify` loads here.
@@ -101,7 +102,7 @@ impl Model {
         Ok(hysid_io::save_model(&self.inner, &path).map_err(Failure::from)?)
     }
 
-    /// `"pwarx"`, `"hybrid_automaton"` or `"mechanical"`.
+    /// `"pwarx"`, `"hybrid_automaton"`, `"mechanical"` or `"gray_box"`.
     #[getter]
     fn kind(&self) -> &'static str {
         self.inner.kind()
@@ -119,7 +120,8 @@ impl Model {
         self.inner.mode_count()
     }
 
-    /// Mode names.
+    /// Mode names, in mode order: the active `mode` of `simulate` and
+    /// `predict` indexes them.
     #[getter]
     fn mode_names(&self) -> Vec<String> {
         self.inner.mode_names()
@@ -135,6 +137,19 @@ impl Model {
     #[getter]
     fn orders(&self) -> Option<(usize, usize)> {
         self.inner.orders().map(|o| (o.na, o.nb))
+    }
+
+    /// Input names of the record it was identified on (the columns of a
+    /// DataFrame, `input_names` of `identify`); empty when unknown.
+    #[getter]
+    fn input_names(&self) -> Vec<String> {
+        self.inner.info().input_names.clone()
+    }
+
+    /// Output name of the record it was identified on; empty when unknown.
+    #[getter]
+    fn output_name(&self) -> String {
+        self.inner.info().output_name.clone()
     }
 
     /// Sampling time in seconds of the data it was identified on, if known.
@@ -203,13 +218,13 @@ impl Model {
     #[getter]
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let text =
-            serde_json::to_string(self.inner.info()).map_err(|e| Failure::new(e.to_string()))?;
+            serde_json::to_string(self.inner.info()).map_err(|e| Failure::method(e.to_string()))?;
         crate::json(py, &text)
     }
 
-    /// Free-run simulation driven by `u`; `y0` gives the outputs of the
-    /// first samples (the initial condition; zeros when left out). Returns
-    /// `(y, mode)`.
+    /// Free-run simulation driven by `u`; `y0` (shape `(k,)` or `(k, 1)`)
+    /// gives the outputs of the first samples (the initial condition; zeros
+    /// when left out). Returns `(y, mode)`.
     #[pyo3(signature = (u, y0=None, ts=None))]
     fn simulate<'py>(
         &self,
@@ -222,9 +237,10 @@ impl Model {
         let mut y = vec![0.0; n];
         if let Some(y0) = y0 {
             let given = record::floats("y0", y0)?;
-            if given.ndim() != 1 || given.len() > n {
-                return Err(Failure::new(format!(
-                    "y0: expected at most {n} initial outputs (shape (k,)), got shape {}",
+            let column = matches!(given.shape(), [_] | [_, 1]);
+            if !column || given.len() > n {
+                return Err(Failure::input(format!(
+                    "y0: expected at most {n} initial outputs (shape (k,) or (k, 1)), got shape {}",
                     record::shape_text(given.shape())
                 ))
                 .into());
@@ -242,8 +258,8 @@ impl Model {
         ))
     }
 
-    /// One-step-ahead prediction from the measured `u` and `y`. Returns
-    /// `(y_pred, mode)`.
+    /// One-step-ahead prediction from the measured `u` and `y` (`y` of
+    /// shape `(N,)` or `(N, 1)`). Returns `(y_pred, mode)`.
     #[pyo3(signature = (u, y, ts=None))]
     fn predict<'py>(
         &self,
@@ -277,7 +293,7 @@ impl Model {
     ) -> PyResult<Bound<'py, PyAny>> {
         let data = self.record(u, output(y)?, ts)?;
         if warmup >= data.len() {
-            return Err(Failure::new(format!(
+            return Err(Failure::input(format!(
                 "warmup={warmup} leaves no sample to score: the record has {} samples",
                 data.len()
             ))
@@ -288,7 +304,7 @@ impl Model {
             .map_err(Failure::from)?;
         warn_divergence(py, &sim)?;
         crate::warn_if_below_affine(py, &self.inner, &data, warmup, "these rows")?;
-        let text = serde_json::to_string(&report).map_err(|e| Failure::new(e.to_string()))?;
+        let text = serde_json::to_string(&report).map_err(|e| Failure::method(e.to_string()))?;
         crate::json(py, &text)
     }
 

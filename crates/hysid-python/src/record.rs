@@ -1,5 +1,6 @@
 //! Records between numpy and hysid: `u` as an `(N, m)` array (or `(N,)`
-//! for one input), `y` as `(N,)`, into a checked [`Dataset`] and back.
+//! for one input), `y` as `(N,)` (or `(N, 1)`), into a checked [`Dataset`]
+//! and back.
 
 use crate::error::Failure;
 use hysid_model::data::{Dataset, Signal};
@@ -12,7 +13,7 @@ use pyo3::prelude::*;
 pub fn floats(name: &str, obj: &Bound<'_, PyAny>) -> Result<ArrayD<f64>, Failure> {
     let a = obj
         .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
-        .map_err(|e| Failure::new(format!("{name}: not an array of numbers ({e})")))?;
+        .map_err(|e| Failure::input(format!("{name}: not an array of numbers ({e})")))?;
     Ok(a.as_array().to_owned())
 }
 
@@ -44,20 +45,20 @@ pub fn input_columns(u: &Bound<'_, PyAny>) -> Result<Vec<Vec<f64>>, Failure> {
                     .collect()
             })
             .collect()),
-        shape => Err(Failure::new(format!(
+        shape => Err(Failure::input(format!(
             "u: expected an array of shape (N,) or (N, m), got shape {}",
             shape_text(shape)
         ))),
     }
 }
 
-/// The outputs `y`, shape `(N,)`.
+/// The outputs `y`, shape `(N,)` or `(N, 1)` (one output as a column).
 pub fn output(y: &Bound<'_, PyAny>) -> Result<Vec<f64>, Failure> {
     let a = floats("y", y)?;
     match a.shape() {
-        [_] => Ok(a.iter().copied().collect()),
-        shape => Err(Failure::new(format!(
-            "y: expected an array of shape (N,), got shape {}",
+        [_] | [_, 1] => Ok(a.iter().copied().collect()),
+        shape => Err(Failure::input(format!(
+            "y: expected an array of shape (N,) or (N, 1), got shape {}",
             shape_text(shape)
         ))),
     }
@@ -67,7 +68,7 @@ pub fn output(y: &Bound<'_, PyAny>) -> Result<Vec<f64>, Failure> {
 /// default), `u1 .. um` for several.
 fn input_names(m: usize, given: Option<Vec<String>>) -> Result<Vec<String>, Failure> {
     match given {
-        Some(names) if names.len() != m => Err(Failure::new(format!(
+        Some(names) if names.len() != m => Err(Failure::input(format!(
             "input_names: {} name(s) for {m} input(s)",
             names.len()
         ))),

@@ -1,5 +1,6 @@
-"""Bad input raises HysidError (a ValueError) with the program's one-line
-message; nothing panics across the boundary."""
+"""Bad input raises InputError (a ValueError), a method that ran and failed
+raises MethodError (a RuntimeError), both HysidError, with the program's
+one-line message; nothing panics across the boundary."""
 
 import numpy as np
 import pytest
@@ -18,7 +19,8 @@ def program_message(run, *args):
 
 
 def raised(f, *args, **kwargs):
-    with pytest.raises(hysid.HysidError) as e:
+    """The message of the InputError that f(*args, **kwargs) raises."""
+    with pytest.raises(hysid.InputError) as e:
         f(*args, **kwargs)
     message = str(e.value)
     assert "\n" not in message and message
@@ -29,8 +31,15 @@ U = np.sin(np.arange(300) * 0.05)
 Y = np.cos(np.arange(300) * 0.07)
 
 
-def test_the_error_is_a_value_error():
-    assert issubclass(hysid.HysidError, ValueError)
+def test_bad_input_is_a_value_error_and_a_failed_method_a_runtime_error():
+    assert issubclass(hysid.InputError, hysid.HysidError) and issubclass(hysid.InputError, ValueError)
+    assert issubclass(hysid.MethodError, hysid.HysidError) and issubclass(hysid.MethodError, RuntimeError)
+    assert not issubclass(hysid.MethodError, ValueError)
+    assert not issubclass(hysid.InputError, RuntimeError)
+    assert hysid.InputError.__module__ == hysid.MethodError.__module__ == "hysid"
+    # `except ValueError` still catches bad input.
+    with pytest.raises(ValueError, match="modes=0"):
+        hysid.identify(U, Y, method="cluster", modes=0)
 
 
 @pytest.mark.parametrize(
@@ -126,3 +135,27 @@ def test_priors_that_contradict_each_other_are_refused():
 def test_klinreg_without_a_mode_count_says_how_to_give_one():
     message = raised(hysid.identify, U, Y, method="klinreg")
     assert "modes=S" in message and "max_modes=S" in message and "auto=True" in message
+
+
+def test_python_side_checks_raise_input_errors_too():
+    assert "step" in raised(hysid.load, PICK_AND_PLACE, rows=slice(0, 10, 2))
+    assert "not fitted" in raised(hysid.Estimator().score, hysid.Record(U, Y))
+
+
+# Four modes of at least 100 points each from 300 samples: the clustering
+# runs and leaves no cluster that large.
+FAILING_OPTIONS = {"c": 100}
+
+
+def test_a_method_that_fails_raises_a_method_error_with_the_program_message(program, tmp_path):
+    csv = tmp_path / "r.csv"
+    np.savetxt(csv, np.column_stack([U, Y]), delimiter=",", header="u,y", comments="")
+    with pytest.raises(hysid.MethodError) as e:
+        hysid.identify(U, Y, method="cluster", modes=4, options=FAILING_OPTIONS)
+    ours = str(e.value)
+    assert not isinstance(e.value, ValueError) and "\n" not in ours
+    r = program("identify", csv, "-m", "cluster", "--modes", "4",
+                *[f"--set={k}={v}" for k, v in FAILING_OPTIONS.items()], "-o", tmp_path / "m.json", check=False)
+    # The program's exit code 1: a failure of the computation, not of the input.
+    assert r.returncode == 1, r.stderr
+    assert r.stderr.strip() == f"hysid: error: {ours}"

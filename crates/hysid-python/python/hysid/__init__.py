@@ -8,47 +8,76 @@ The functions here are those of the ``hysid`` program, on numpy arrays:
 - :func:`identify` fits a :class:`Model` (``hysid identify``);
 - :class:`Model` simulates, predicts, validates (``hysid validate``) and
   reads and writes the program's model files;
-- :func:`compare` runs an experiment file (``hysid compare``).
+- :func:`compare` runs an experiment file (``hysid compare``);
+- :class:`Record` holds one experiment (inputs, output, sampling time,
+  names) from numpy arrays, a pandas DataFrame or a record file;
+- :class:`Estimator` identifies in scikit-learn's manner (``fit``,
+  ``score``, ``get_params``, ``set_params``).
 
-Bad input raises :class:`HysidError` (a ``ValueError``) with the program's
-one-line message. Identification releases the GIL, and Ctrl-C stops it.
-Figures: :mod:`hysid.plot` (needs matplotlib).
+Bad input raises :class:`InputError` (a ``ValueError``), a method that ran
+and failed raises :class:`MethodError` (a ``RuntimeError``); both are
+:class:`HysidError`, with the program's one-line message. Identification
+releases the GIL, and Ctrl-C stops it. Figures: :mod:`hysid.plot` (needs
+matplotlib).
 """
 
 from __future__ import annotations
 
+import copyreg
 import os
-from typing import Any, Dict, Iterable, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _hysid
-from ._hysid import HysidError, Model
+from ._hysid import HysidError, InputError, MethodError, Model
+from ._record import Record, Rows, _rows
+from ._estimator import Estimator
 
-__all__ = ["HysidError", "Model", "compare", "identify", "load", "methods"]
+__all__ = [
+    "Estimator",
+    "HysidError",
+    "InputError",
+    "MethodError",
+    "Model",
+    "Record",
+    "compare",
+    "identify",
+    "load",
+    "methods",
+]
 __version__ = "0.1.0"
 
-Rows = Union[str, Tuple[Optional[int], Optional[int]], slice, range, None]
+# Shown (help, repr, pickle) as the package's, where users find them.
+Record.__module__ = "hysid"
+Estimator.__module__ = "hysid"
 
 
-def _rows(name: str, rows: Rows) -> Optional[str]:
-    """A row selection as the program's ``A..B`` text."""
-    if rows is None or isinstance(rows, str):
-        return rows
-    if isinstance(rows, (slice, range)):
-        if rows.step not in (None, 1):
-            raise HysidError(f"{name}: a step other than 1 is not a row range (use decimate)")
-        start, stop = rows.start, rows.stop
-    elif isinstance(rows, tuple) and len(rows) == 2:
-        start, stop = rows
-    else:
-        raise HysidError(f"{name}: expected 'A..B', (A, B), range(A, B) or slice(A, B), got {rows!r}")
-    a = "" if start is None else str(int(start))
-    b = "" if stop is None else str(int(stop))
-    return f"{a}..{b}"
+def _model_from_json(text: str) -> Model:
+    """A model from its file's JSON text (how a pickled model is restored)."""
+    return Model.from_json(text)
 
 
-def methods() -> list:
+# A model pickles (and copies) as its model file's JSON text, so that a
+# fitted Estimator pickles too.
+copyreg.pickle(Model, lambda model: (_model_from_json, (model.to_json(),)))
+
+
+def _counts(**given: Any) -> None:
+    """Refuses a negative count (orders, modes, seeds, folds, ...) with an
+    :class:`InputError` naming the argument; types are checked on the way
+    to the extension (a ``TypeError`` for text where a number goes)."""
+    for name, value in given.items():
+        try:
+            negative = value is not None and not isinstance(value, bool) and value < 0
+        except (TypeError, ValueError):
+            continue
+        if negative:
+            raise InputError(f"{name}={value}: must be a whole number >= 0")
+
+
+def methods() -> List[Dict[str, Any]]:
     """The registered back-ends: for each, a dictionary with ``name``,
     ``summary``, ``options`` (``key``, ``ty``, ``default``, ``doc``), the
     ``priors`` it honours and what ``auto`` tries (``search``)."""
@@ -63,7 +92,7 @@ def load(
     rows: Rows = None,
     ts: Optional[float] = None,
     time: Optional[str] = None,
-) -> Tuple[np.ndarray, np.ndarray, Optional[float]]:
+) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], Optional[float]]:
     """Reads a ``.csv`` or ``.mat`` record.
 
     ``inputs`` (default ``"u"``) and ``output`` (default ``"y"``) name the
@@ -72,8 +101,10 @@ def load(
     after decimation; ``time`` (default ``"t"``) names the column or
     variable of the time in seconds, whose first step is the sampling time;
     ``ts`` is the sampling time when the file has none. Returns
-    ``(u, y, ts)`` with ``u`` of shape ``(N, m)``.
+    ``(u, y, ts)`` with ``u`` of shape ``(N, m)``; :meth:`Record.load`
+    returns the same as a :class:`Record`, with the names.
     """
+    _counts(decimate=decimate)
     if isinstance(inputs, str):
         inputs = [s for s in inputs.split(",")]
     return _hysid.load(
@@ -88,8 +119,8 @@ def load(
 
 
 def identify(
-    u: Any,
-    y: Any,
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
     method: str = "cluster",
     na: int = 2,
     nb: int = 2,
@@ -113,7 +144,8 @@ def identify(
 ) -> Model:
     """Identifies a model with back-end ``method`` (see :func:`methods`).
 
-    ``u``: inputs, shape ``(N,)`` or ``(N, m)``; ``y``: outputs, ``(N,)``.
+    ``u``: inputs, shape ``(N,)`` or ``(N, m)``; ``y``: outputs, ``(N,)``
+    or ``(N, 1)``.
     ``na``, ``nb``: ARX orders of the regressor. ``modes``: the number of
     modes (exact); ``max_modes``: the largest, the count chosen by the
     back-end. ``priors``: a dictionary in the prior file's shape (e.g.
@@ -134,7 +166,15 @@ def identify(
 
     Without ``auto``, a ``UserWarning`` says when the model simulates its
     identification rows worse than an affine ARX model of the same orders.
+    ``input_names`` and ``output_name`` name the signals in the model
+    (``model.input_names``, ``model.output_name``).
+
+    Bad input raises :class:`InputError`; a back-end that ran and failed
+    raises :class:`MethodError`. :class:`Estimator` is the same in
+    scikit-learn's manner.
     """
+    _counts(na=na, nb=nb, modes=modes, max_modes=max_modes, seed=seed, folds=folds,
+            refit_starts=refit_starts, warmup=warmup)
     grid_items = None
     if grid is not None:
         grid_items = [f"{k}={','.join(str(v) for v in values)}" for k, values in grid.items()]
@@ -165,7 +205,7 @@ def identify(
     )
 
 
-def compare(experiment: Union[str, os.PathLike], out_dir: Union[str, os.PathLike]) -> dict:
+def compare(experiment: Union[str, os.PathLike], out_dir: Union[str, os.PathLike]) -> Dict[str, Any]:
     """Runs an experiment file (TOML, as ``hysid compare``), writes
     ``report.md``, ``report.json``, the figures and the models into
     ``out_dir``, and returns the report as a dictionary."""

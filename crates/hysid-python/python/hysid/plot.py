@@ -4,11 +4,12 @@ PWARX model's regions (where holes between regions show as white)."""
 
 from __future__ import annotations
 
-from typing import Any, Optional, Sequence, Tuple
+from typing import Any, List, Optional, Sequence, Tuple
 
 import numpy as np
+import numpy.typing as npt
 
-from ._hysid import HysidError, Model
+from ._hysid import InputError, Model
 
 
 def _pyplot():
@@ -19,18 +20,25 @@ def _pyplot():
     return plt
 
 
-def _inputs(u: Any) -> np.ndarray:
+def _inputs(u: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Inputs as an ``(N, m)`` array."""
     u = np.asarray(u, dtype=float)
     return u.reshape(-1, 1) if u.ndim == 1 else u
 
 
-def regressors(model: Model, u: Any, y: Any) -> np.ndarray:
+def _output(y: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """The output as an ``(N,)`` array (an ``(N, 1)`` column is one output)."""
+    y = np.asarray(y, dtype=float)
+    return y.ravel() if y.ndim == 2 and y.shape[1] == 1 else y
+
+
+def regressors(model: Model, u: npt.ArrayLike, y: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """The PWARX regressors ``x(k) = [y(k-1) .. y(k-na), u_i(k-1) ..
     u_i(k-nb)]`` of a record, one row per sample ``k >= max(na, nb)``."""
     if model.orders is None:
-        raise HysidError(f"a {model.kind} model has no ARX regressor")
+        raise InputError(f"a {model.kind} model has no ARX regressor")
     na, nb = model.orders
-    u, y = _inputs(u), np.asarray(y, dtype=float)
+    u, y = _inputs(u), _output(y)
     start = max(na, nb)
     rows = range(start, len(y))
     cols = [y[[k - j for k in rows]] for j in range(1, na + 1)]
@@ -39,10 +47,10 @@ def regressors(model: Model, u: Any, y: Any) -> np.ndarray:
     return np.column_stack(cols) if cols else np.zeros((len(rows), 0))
 
 
-def regressor_names(model: Model) -> list:
+def regressor_names(model: Model) -> List[str]:
     """Names of the regressor coordinates, as :func:`regressors` orders them."""
     if model.orders is None:
-        raise HysidError(f"a {model.kind} model has no ARX regressor")
+        raise InputError(f"a {model.kind} model has no ARX regressor")
     na, nb = model.orders
     names = [f"y(k-{j})" for j in range(1, na + 1)]
     for i in range(model.inputs):
@@ -51,12 +59,18 @@ def regressor_names(model: Model) -> list:
     return names
 
 
-def simulation(model: Model, u: Any, y: Any, ax: Optional[Sequence[Any]] = None, ts: Optional[float] = None):
+def simulation(
+    model: Model,
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    ax: Optional[Sequence[Any]] = None,
+    ts: Optional[float] = None,
+) -> Any:
     """Measured ``y`` against the model's free-run simulation driven by
     ``u`` (started from the measured outputs), with the active mode below.
     Returns the figure."""
     plt = _pyplot()
-    y = np.asarray(y, dtype=float)
+    y = _output(y)
     sim, mode = model.simulate(u, y0=y, ts=ts)
     step = ts or model.ts or 1.0
     t = np.arange(len(y)) * step
@@ -80,10 +94,10 @@ def regions(
     dims: Tuple[int, int] = (0, 1),
     at: Optional[Any] = None,
     lims: Optional[Tuple[Tuple[float, float], Tuple[float, float]]] = None,
-    data: Optional[Tuple[Any, Any]] = None,
+    data: Optional[Tuple[npt.ArrayLike, npt.ArrayLike]] = None,
     resolution: int = 200,
     ax: Any = None,
-):
+) -> Any:
     """A slice of a PWARX model's regions through regressor coordinates
     ``dims``, the others held at ``at`` (default: the mean of ``data``'s
     regressors, else zero). ``lims`` bounds the two axes (default: the
@@ -92,16 +106,16 @@ def regions(
     Returns the figure."""
     plt = _pyplot()
     if model.kind != "pwarx":
-        raise HysidError(f"regions are drawn for PWARX models; this one is {model.kind}")
+        raise InputError(f"regions are drawn for PWARX models; this one is {model.kind}")
     names = regressor_names(model)
     d = len(names)
     i, j = dims
     if not (0 <= i < d and 0 <= j < d and i != j):
-        raise HysidError(f"dims={dims}: two different coordinates in 0..{d - 1} ({', '.join(names)})")
+        raise InputError(f"dims={dims}: two different coordinates in 0..{d - 1} ({', '.join(names)})")
     x = regressors(model, *data) if data is not None else None
     centre = np.asarray(at, dtype=float) if at is not None else (x.mean(axis=0) if x is not None else np.zeros(d))
     if centre.shape != (d,):
-        raise HysidError(f"at: expected {d} values ({', '.join(names)}), got shape {centre.shape}")
+        raise InputError(f"at: expected {d} values ({', '.join(names)}), got shape {centre.shape}")
     if lims is None:
         lims = tuple((x[:, k].min(), x[:, k].max()) if x is not None else (-1.0, 1.0) for k in (i, j))
     gx = np.linspace(*lims[0], resolution)
