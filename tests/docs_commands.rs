@@ -435,3 +435,13 @@ fn commands_run_as_shown_give_what_the_text_quotes() {
         }
     }
 }
+
+/// The README is a newcomer's page: at most 120 lines.
+#[test]
+fn the_readme_stays_short() {
+    let lines = std::fs::read_to_string(root().join("README.md"))
+        .unwrap()
+        .lines()
+        .count();
+    assert!(lines <= 120, "README.md has {lines} lines");
+}

@@ -16,7 +16,7 @@
 //! Euclidean distance between feature vectors, by Prim's minimum spanning
 //! tree, cut at a distance threshold or into a given number of clusters.
 
-use crate::dense;
+use hysid_estimation::dense;
 use crate::local::FeatureVectors;
 use hysid_core::backend::Deadline;
 use rand::Rng;

@@ -35,7 +35,6 @@
 //! ([`priors`]);
 //! `switching` (region normals restricted to the chosen regressors).
 
-pub mod dense;
 pub mod fit;
 pub mod kmeans;
 pub mod knn;

@@ -29,7 +29,7 @@
 //! millions of times more than ordinary ones.
 
 use crate::Features;
-use crate::dense;
+use hysid_estimation::dense;
 use crate::knn::KdTree;
 use hysid_model::statistics::upper_median;
 use rayon::prelude::*;

@@ -19,6 +19,7 @@
 
 pub mod conic;
 pub mod constrained;
+pub mod dense;
 #[cfg(test)]
 mod fixtures;
 pub mod linalg;

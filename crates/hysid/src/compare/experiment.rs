@@ -210,6 +210,25 @@ pub fn value_text(v: &toml::Value) -> String {
     }
 }
 
+/// `folder/file` with each `name/..` pair dropped (`models/a/../head.toml`
+/// is `models/head.toml`), without reading the file system.
+fn lexically_joined(folder: &Path, file: &str) -> std::path::PathBuf {
+    use std::path::Component;
+    let mut out = std::path::PathBuf::new();
+    for c in folder.join(file).components() {
+        match c {
+            Component::ParentDir
+                if matches!(out.components().next_back(), Some(Component::Normal(_))) =>
+            {
+                out.pop();
+            }
+            Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    out
+}
+
 /// The back-end option that names a model file (`physical`'s `model`): in
 /// an experiment file it is relative to the file's folder, as `data.file` is.
 pub const MODEL_FILE_OPTION: &str = "model";
@@ -455,7 +474,7 @@ impl Experiment {
             if let Some(toml::Value::String(file)) = run.set.get_mut(MODEL_FILE_OPTION)
                 && Path::new(file.as_str()).is_relative()
             {
-                *file = folder.join(&*file).display().to_string();
+                *file = lexically_joined(folder, file).display().to_string();
             }
         }
         Ok(e)
@@ -556,6 +575,16 @@ impl Experiment {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_model_file_is_joined_to_the_folder_without_dot_dot() {
+        let j = |folder: &str, file: &str| lexically_joined(Path::new(folder), file);
+        assert_eq!(j("models/a/sim", "../head.toml"), Path::new("models/a/head.toml"));
+        assert_eq!(j("models/a", "./head.toml"), Path::new("models/a/head.toml"));
+        assert_eq!(j("", "../x.toml"), Path::new("../x.toml"));
+        assert_eq!(j("a", "../../x.toml"), Path::new("../x.toml"));
+        assert_eq!(j("/m", "/abs/x.toml"), Path::new("/abs/x.toml"));
+    }
 
     #[test]
     fn the_jobs_are_counted_before_they_are_made() {

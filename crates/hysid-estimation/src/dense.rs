@@ -1,14 +1,21 @@
 //! Tiny dense kernels on row-major `p x p` slices (p is the regressor
 //! dimension plus one, rarely above 10): Cholesky factorisation, solves,
-//! inverse and log-determinant. They are called once or twice per local
-//! dataset, so they avoid allocation; larger problems go through
-//! `hysid_estimation::linalg`.
+//! inverse and log-determinant, for `cluster`'s local datasets. They are
+//! called once or twice per local dataset, so they avoid allocation; larger
+//! problems go through [`crate::linalg`] (faer).
+//!
+//! Why not faer's `Llt` here: factor and solve one right-hand side take
+//! 57 / 125 / 258 / 542 ns here against 395 / 575 / 625 / 1046 ns with faer
+//! for p = 3 / 5 / 8 / 12 (medians, `cargo bench -p hysid-estimation
+//! --bench dense`, docs/performance-cluster.md): with one factorisation
+//! per local dataset, faer would add about 3.6 ms to the 47 ms of a
+//! B1 record of 8000 samples.
 
 /// Cholesky factorisation in place (lower triangle of `a` becomes `L`,
 /// `a = L L^T`). Returns the smallest squared pivot `L_kk^2`, or `None` when
 /// a pivot is not positive (the matrix is not numerically positive
 /// definite).
-pub(crate) fn cholesky(a: &mut [f64], p: usize) -> Option<f64> {
+pub fn cholesky(a: &mut [f64], p: usize) -> Option<f64> {
     let mut min_pivot = f64::INFINITY;
     for j in 0..p {
         let mut d = a[j * p + j];
@@ -33,7 +40,7 @@ pub(crate) fn cholesky(a: &mut [f64], p: usize) -> Option<f64> {
 }
 
 /// Solves `L L^T x = b` in place of `b`, `l` from [`cholesky`].
-pub(crate) fn cholesky_solve(l: &[f64], p: usize, b: &mut [f64]) {
+pub fn cholesky_solve(l: &[f64], p: usize, b: &mut [f64]) {
     for i in 0..p {
         let mut s = b[i];
         for k in 0..i {
@@ -51,12 +58,12 @@ pub(crate) fn cholesky_solve(l: &[f64], p: usize, b: &mut [f64]) {
 }
 
 /// `log det(L L^T)`.
-pub(crate) fn cholesky_log_det(l: &[f64], p: usize) -> f64 {
+pub fn cholesky_log_det(l: &[f64], p: usize) -> f64 {
     (0..p).map(|i| 2.0 * l[i * p + i].ln()).sum()
 }
 
 /// Inverse of `L L^T` written to `out` (full, symmetric).
-pub(crate) fn cholesky_inverse(l: &[f64], p: usize, out: &mut [f64], col: &mut [f64]) {
+pub fn cholesky_inverse(l: &[f64], p: usize, out: &mut [f64], col: &mut [f64]) {
     for j in 0..p {
         col.iter_mut().for_each(|v| *v = 0.0);
         col[j] = 1.0;
@@ -68,7 +75,7 @@ pub(crate) fn cholesky_inverse(l: &[f64], p: usize, out: &mut [f64], col: &mut [
 }
 
 /// Mean of the diagonal.
-pub(crate) fn mean_diag(a: &[f64], p: usize) -> f64 {
+pub fn mean_diag(a: &[f64], p: usize) -> f64 {
     if p == 0 {
         return 0.0;
     }
@@ -80,7 +87,7 @@ pub(crate) fn mean_diag(a: &[f64], p: usize) -> f64 {
 /// `rel * mean_diag(a)` and at least `floor`, else of `a + floor I`
 /// (`floor > 0`). Returns `true` when the ridge was needed. The factor
 /// replaces `a`; `scratch` holds a copy.
-pub(crate) fn regularised_cholesky(
+pub fn regularised_cholesky(
     a: &mut [f64],
     p: usize,
     rel: f64,
