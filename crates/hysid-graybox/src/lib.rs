@@ -14,19 +14,22 @@
 //! - [`expr`]: expressions, parsed by evalexpr once and compiled into a
 //!   tape evaluated without parsing or allocating;
 //! - [`compile`]: the checks and the compiled model;
-//! - [`mod@simulate`]: the event-located simulator.
+//! - [`mod@simulate`]: the event-located simulator;
+//! - [`initial`]: initial states the rule leaves unknown (estimated from
+//!   a record's warm-up, or at rest).
 //!
 //! The file format is documented in `docs/gray-box-models.md`.
 
 pub mod compile;
 pub mod expr;
 pub mod extends;
+pub mod initial;
 pub mod model;
 pub mod simulate;
 
 pub use compile::{CompiledModel, InvalidGrayBox, Problem};
 pub use model::{
-    Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode, GrayBoxModel, GrayBoxTransition,
+    DEFAULT_SAMPLES, Element, Estimates, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode, GrayBoxModel, GrayBoxTransition,
     OutputMap, StopSide,
 };
 
@@ -88,6 +91,19 @@ pub fn simulate(
 ) -> Result<Simulation, SimError> {
     let c = compiled(m)?;
     simulate::run(&c, &m.values(), data).map(|r| to_simulation(r, opts))
+}
+
+/// The states the initial-state rule leaves unknown (`estimate`), by
+/// name, as estimated from the warm-up outputs of `data` at the model's
+/// parameter values ([`initial::estimate`]); empty when it estimates none.
+pub fn initial_states(m: &GrayBoxModel, data: &Dataset) -> Result<Vec<(String, f64)>, SimError> {
+    let c = compiled(m)?;
+    let values = initial::estimate(&c, &m.values(), data)?;
+    Ok(c.estimates
+        .iter()
+        .map(|e| e.name.clone())
+        .zip(values)
+        .collect())
 }
 
 /// One-step prediction of a gray-box model ([`simulate::predict`]).
