@@ -83,9 +83,7 @@ impl CliError {
         match e {
             SimError::TooManySubsteps { .. }
             | SimError::ResetOutsideInvariant { .. }
-            | SimError::InitialState(_) => {
-                Self::input(format!("{}: {e}", model_file.display()))
-            }
+            | SimError::InitialState(_) => Self::input(format!("{}: {e}", model_file.display())),
             e => e.into(),
         }
     }

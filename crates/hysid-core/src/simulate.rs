@@ -100,7 +100,9 @@ pub struct ValidationReport {
 pub fn initial_states(model: &Model, data: &Dataset) -> Result<BTreeMap<String, f64>, SimError> {
     check_inputs(model, data)?;
     match model {
-        Model::GrayBox(m) => Ok(hysid_graybox::initial_states(m, data)?.into_iter().collect()),
+        Model::GrayBox(m) => Ok(hysid_graybox::initial_states(m, data)?
+            .into_iter()
+            .collect()),
         _ => Ok(BTreeMap::new()),
     }
 }

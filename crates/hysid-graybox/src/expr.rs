@@ -474,7 +474,11 @@ impl Expression {
                     let args = stack.split_off(stack.len().saturating_sub(f.arity()));
                     match (f, args.as_slice()) {
                         (Function::If, [Class::Free, a, b]) => {
-                            if a > b { *a } else { *b }
+                            if a > b {
+                                *a
+                            } else {
+                                *b
+                            }
                         }
                         _ => free_or_other(&args),
                     }

@@ -102,8 +102,8 @@ pub(crate) fn steady(
         let Some(f0) = flows(guess) else { continue };
         let scale = f0.iter().fold(1.0f64, |a, v| a.max(v.abs()));
         let (x, _) = levenberg_marquardt(&flows, guess, None, 1e-7, STEADY_ITERATIONS);
-        let at_rest = flows(&x)
-            .is_some_and(|f| f.iter().all(|v| v.abs() <= STEADY_TOLERANCE * scale));
+        let at_rest =
+            flows(&x).is_some_and(|f| f.iter().all(|v| v.abs() <= STEADY_TOLERANCE * scale));
         if at_rest && cell.borrow_mut().in_invariant(&x, u, q) {
             return Ok((x, q));
         }
@@ -233,7 +233,13 @@ mod tests {
         assert!(cost < 1e-24, "{cost}");
         assert!((x[0] - 2f64.sqrt()).abs() < 1e-12);
         assert!((x[1] - 3.0 / 2f64.sqrt()).abs() < 1e-12);
-        let (x, _) = levenberg_marquardt(&res, &[1.0, 1.0], Some(&[[0.0, 1.2], [0.0, 5.0]]), 1e-7, 100);
+        let (x, _) = levenberg_marquardt(
+            &res,
+            &[1.0, 1.0],
+            Some(&[[0.0, 1.2], [0.0, 5.0]]),
+            1e-7,
+            100,
+        );
         assert!(x[0] <= 1.2 && x[0] > 1.19, "{x:?}");
     }
 }

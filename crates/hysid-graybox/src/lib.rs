@@ -29,8 +29,8 @@ pub mod simulate;
 
 pub use compile::{CompiledModel, InvalidGrayBox, Problem};
 pub use model::{
-    DEFAULT_SAMPLES, Element, Estimates, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode, GrayBoxModel, GrayBoxTransition,
-    OutputMap, StopSide,
+    DEFAULT_SAMPLES, Element, Estimates, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode,
+    GrayBoxModel, GrayBoxTransition, OutputMap, StopSide,
 };
 
 use hysid_model::data::Dataset;

@@ -951,7 +951,15 @@ fn initial(
             } else {
                 forward_slope(&ym[..*samples], schedule.ts)
             };
-            let x = measured_state(m, machine, (data, schedule), first, estimates, slope, *velocity_tol)?;
+            let x = measured_state(
+                m,
+                machine,
+                (data, schedule),
+                first,
+                estimates,
+                slope,
+                *velocity_tol,
+            )?;
             Ok((first, machine.state_at(x, &u, *mode)))
         }
     }
@@ -1019,7 +1027,11 @@ fn measured_state(
     schedule.inputs(data, k, 0.0, &mut u);
     let gain = machine.sensor(&mut x, &u, mode.unwrap_or(0), *position, data.y()[k])?;
     if let Some(v) = velocity {
-        x[*v] = if slope.abs() <= tol { 0.0 } else { slope / gain };
+        x[*v] = if slope.abs() <= tol {
+            0.0
+        } else {
+            slope / gain
+        };
     }
     Ok(x)
 }
@@ -1165,7 +1177,15 @@ pub fn segmented(
     while s + 1 < n {
         schedule.inputs(data, s, 0.0, &mut u);
         let at_s = free.as_ref().map(|r| carried(m, r, s)).unwrap_or_default();
-        let x = measured_state(&bound, &mut machine, (data, &schedule), s, &at_s, slope_at(s), 0.0)?;
+        let x = measured_state(
+            &bound,
+            &mut machine,
+            (data, &schedule),
+            s,
+            &at_s,
+            slope_at(s),
+            0.0,
+        )?;
         let hs = machine.state_at(x, &u, None);
         let end = (s + segment.max(1) + 1).min(n);
         // The previous segment's last output stays: this one starts there.
@@ -1217,7 +1237,15 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     for k in first..n.saturating_sub(1) {
         let at_k = free.as_ref().map(|r| carried(m, r, k)).unwrap_or_default();
         let slope = estimate_velocity(data.y(), k, ts);
-        let x = measured_state(&bound, &mut machine, (data, &schedule), k, &at_k, slope, velocity_tol)?;
+        let x = measured_state(
+            &bound,
+            &mut machine,
+            (data, &schedule),
+            k,
+            &at_k,
+            slope,
+            velocity_tol,
+        )?;
         schedule.inputs(data, k, 0.0, &mut u);
         let mut hs = machine.state_at(x, &u, mode);
         let count = schedule.fill(data, k, &mut buffer)?;

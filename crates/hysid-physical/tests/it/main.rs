@@ -2,4 +2,5 @@
 
 mod backend;
 mod graybox;
+mod initial;
 mod recovery;
