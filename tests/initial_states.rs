@@ -85,14 +85,7 @@ fn validate_and_simulate_report_the_estimated_initial_state() {
     assert_eq!(estimate(&changed).to_bits(), x1.to_bits());
 
     let out = d.join("sim.csv");
-    let o = hysid(&[
-        "simulate",
-        s(&model),
-        "--data",
-        s(&record),
-        "-o",
-        s(&out),
-    ]);
+    let o = hysid(&["simulate", s(&model), "--data", s(&record), "-o", s(&out)]);
     assert!(o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
@@ -112,7 +105,14 @@ fn bad_initial_state_rules_name_the_file() {
         d,
         "record.csv",
         (0..40)
-            .map(|k| format!("{},{},{}\n", k as f64 * 0.05, (k % 7) as f64 * 0.1, k as f64 * 0.01))
+            .map(|k| {
+                format!(
+                    "{},{},{}\n",
+                    k as f64 * 0.05,
+                    (k % 7) as f64 * 0.1,
+                    k as f64 * 0.01
+                )
+            })
             .fold("t,u,y\n".to_string(), |a, l| a + &l),
     );
     let cases = [
@@ -126,7 +126,10 @@ fn bad_initial_state_rules_name_the_file() {
         ),
         (
             "bounds.toml",
-            cascade("x2", r#"{ from = "given", estimate = { x1 = [2.0, 1.0] } }"#),
+            cascade(
+                "x2",
+                r#"{ from = "given", estimate = { x1 = [2.0, 1.0] } }"#,
+            ),
             "estimate of 'x1': need finite bounds [low, high] with low <= high",
         ),
         (

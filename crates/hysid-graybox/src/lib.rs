@@ -14,18 +14,18 @@
 //! - [`expr`]: expressions, parsed by evalexpr once and compiled into a
 //!   tape evaluated without parsing or allocating;
 //! - [`compile`]: the checks and the compiled model;
-//! - [`mod@simulate`]: the event-located simulator;
-//! - [`initial`]: initial states the rule leaves unknown (estimated from
-//!   a record's warm-up, or at rest).
+//! - [`mod@simulate`]: the event-located simulator, and the initial
+//!   states a rule leaves unknown (estimated from a record's warm-up, or
+//!   at rest), solved by [`solve`]'s Levenberg-Marquardt.
 //!
 //! The file format is documented in `docs/gray-box-models.md`.
 
 pub mod compile;
 pub mod expr;
 pub mod extends;
-pub mod initial;
 pub mod model;
 pub mod simulate;
+pub mod solve;
 
 pub use compile::{CompiledModel, InvalidGrayBox, Problem};
 pub use model::{
@@ -95,10 +95,10 @@ pub fn simulate(
 
 /// The states the initial-state rule leaves unknown (`estimate`), by
 /// name, as estimated from the warm-up outputs of `data` at the model's
-/// parameter values ([`initial::estimate`]); empty when it estimates none.
+/// parameter values ([`simulate::estimate`]); empty when it estimates none.
 pub fn initial_states(m: &GrayBoxModel, data: &Dataset) -> Result<Vec<(String, f64)>, SimError> {
     let c = compiled(m)?;
-    let values = initial::estimate(&c, &m.values(), data)?;
+    let values = simulate::estimate(&c, &m.values(), data)?;
     Ok(c.estimates
         .iter()
         .map(|e| e.name.clone())

@@ -35,10 +35,17 @@
 //! A sample whose every state derivative is exactly zero (resting at a stop,
 //! stuck, at an equilibrium) is skipped: with the input held, nothing in it
 //! can change.
+//!
+//! **Initial states** come from the model's rule: given values; the
+//! measured output read through the inverse of the output map (affine in
+//! the state it sets: a sensor's gain and offset); or the rest state under
+//! the first input ([`STEADY_ITERATIONS`] of Levenberg-Marquardt on the
+//! flows). States a rule leaves unknown are estimated from the record's
+//! warm-up outputs alone ([`estimate`]), or given ([`run_from`]).
 
 use crate::compile::{CompiledElement, CompiledInitial, CompiledModel};
 use crate::expr::Crossing;
-use hysid_model::data::Dataset;
+use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
 
 /// Bound on the events handled within one sub-step (the Zeno guard).
@@ -936,7 +943,7 @@ fn initial(
             Ok((0, machine.state_at(x, &u, *mode)))
         }
         CompiledInitial::Steady { x, mode } => {
-            let (x, mode) = crate::initial::steady(machine, x, &u, *mode)?;
+            let (x, mode) = steady(machine, x, &u, *mode)?;
             Ok((0, machine.state_at(x, &u, Some(mode))))
         }
         CompiledInitial::Measured {
@@ -1046,9 +1053,9 @@ fn carried(m: &CompiledModel, run: &GrayBoxRun, k: usize) -> Vec<f64> {
 /// Runs the compiled model with parameter values `values` on the inputs of
 /// `data` (sampling time `data.ts`), from the model's initial-state rule;
 /// the states the rule leaves unknown are estimated from the record's
-/// warm-up outputs ([`crate::initial::estimate`]).
+/// warm-up outputs ([`estimate`]).
 pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxRun, SimError> {
-    let estimates = crate::initial::estimate(m, values, data)?;
+    let estimates = estimate(m, values, data)?;
     run_from(m, values, &estimates, data)
 }
 
@@ -1273,4 +1280,117 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     out.events = machine.events;
     out.zeno_steps = machine.zeno_steps;
     Ok(out)
+}
+
+/// Iterations of the warm-up estimate's solver.
+pub const ESTIMATE_ITERATIONS: usize = 100;
+
+/// Iterations of the rest state's Newton (Levenberg-Marquardt) solve.
+pub const STEADY_ITERATIONS: usize = 100;
+
+/// Largest flow (relative to the flows at the guess, at least 1) that
+/// counts as at rest.
+pub const STEADY_TOLERANCE: f64 = 1e-9;
+
+/// The states [`CompiledModel::estimates`] lists, estimated from the
+/// outputs of `data`'s warm-up alone (its first
+/// [`crate::compile::CompiledInitial::warmup`] samples; the rows after it
+/// are not read): the values within their bounds that minimise the sum of
+/// squared differences between the measured and the simulated outputs
+/// over the warm-up, from the rule's starting guesses, by
+/// [`crate::solve::levenberg_marquardt`] in box-normalised coordinates
+/// (steps projected onto the bounds). Empty when the rule estimates
+/// nothing.
+pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec<f64>, SimError> {
+    if m.estimates.is_empty() {
+        return Ok(Vec::new());
+    }
+    let w = m.initial.warmup().unwrap_or(1);
+    if data.len() < w {
+        return Err(SimError::TooShort {
+            samples: data.len(),
+            needed: w,
+        });
+    }
+    let window = data
+        .slice(RowRange {
+            start: Some(0),
+            end: Some(w),
+        })
+        .map_err(|e| SimError::InitialState(e.to_string()))?;
+    let to_values = |z: &[f64]| -> Vec<f64> {
+        m.estimates
+            .iter()
+            .zip(z)
+            .map(|(e, z)| e.bounds[0] + (e.bounds[1] - e.bounds[0]) * z.clamp(0.0, 1.0))
+            .collect()
+    };
+    let residuals = |z: &[f64]| -> Option<Vec<f64>> {
+        let r = run_from(m, values, &to_values(z), &window).ok()?;
+        let e: Vec<f64> = window.y().iter().zip(&r.y).map(|(a, b)| a - b).collect();
+        e.iter().all(|v| v.is_finite()).then_some(e)
+    };
+    let z0: Vec<f64> = m
+        .estimates
+        .iter()
+        .map(|e| {
+            let [lo, hi] = e.bounds;
+            if hi > lo {
+                (e.start - lo) / (hi - lo)
+            } else {
+                0.5
+            }
+        })
+        .collect();
+    let unit = vec![[0.0, 1.0]; z0.len()];
+    let (z, _) =
+        crate::solve::levenberg_marquardt(&residuals, &z0, Some(&unit), 1e-7, ESTIMATE_ITERATIONS);
+    Ok(to_values(&z))
+}
+
+/// The rest state under the input `u`: the states where every flow of the
+/// mode is zero (the elements aside: at rest a friction holds a velocity
+/// at zero whatever its level), solved by
+/// [`crate::solve::levenberg_marquardt`] (Newton's method, damped) from
+/// the guess `guess` ([`STEADY_ITERATIONS`] iterations at most), in
+/// `mode`, or else in the first mode whose rest state satisfies its
+/// invariant. Returns the state and its mode; an error when no mode has
+/// one (the solve does not reach [`STEADY_TOLERANCE`], or its rest state
+/// leaves the invariant).
+pub(crate) fn steady(
+    machine: &mut Machine,
+    guess: &[f64],
+    u: &[f64],
+    mode: Option<usize>,
+) -> Result<(Vec<f64>, usize), SimError> {
+    let modes: Vec<usize> = match mode {
+        Some(q) => vec![q],
+        None => (0..machine.modes()).collect(),
+    };
+    let n = guess.len();
+    let cell = std::cell::RefCell::new(machine);
+    for &q in &modes {
+        let flows = |x: &[f64]| -> Option<Vec<f64>> {
+            let mut out = vec![0.0; n];
+            cell.borrow_mut().bare_flows(x, u, q, &mut out);
+            out.iter().all(|v| v.is_finite()).then_some(out)
+        };
+        let Some(f0) = flows(guess) else { continue };
+        let scale = f0.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        let (x, _) =
+            crate::solve::levenberg_marquardt(&flows, guess, None, 1e-7, STEADY_ITERATIONS);
+        let at_rest =
+            flows(&x).is_some_and(|f| f.iter().all(|v| v.abs() <= STEADY_TOLERANCE * scale));
+        if at_rest && cell.borrow_mut().in_invariant(&x, u, q) {
+            return Ok((x, q));
+        }
+    }
+    Err(SimError::InitialState(format!(
+        "no rest state under the first input: in {} the flows do not vanish at a state within \
+         the invariant (Newton's method from the guess, at most {STEADY_ITERATIONS} iterations)",
+        match mode {
+            Some(_) => "the rule's mode".to_string(),
+            None => format!("none of the {} modes", modes.len()),
+        }
+    )))
 }

@@ -278,7 +278,10 @@ fn the_two_tanks_example_is_recovered() {
         } else {
             relative(got, want)
         };
-        assert!(error <= if name == "off" { 0.01 } else { 0.02 }, "{name}: {got} against {want}");
+        assert!(
+            error <= if name == "off" { 0.01 } else { 0.02 },
+            "{name}: {got} against {want}"
+        );
     }
     let h1 = fitted.info.diagnostics.method["initial_states"]["h1"]
         .as_f64()
