@@ -1135,14 +1135,14 @@ fn initial_rule(
         if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
             return Err(InvalidGrayBox::new(
                 place,
-                Some(name),
+                None,
                 Problem::EstimateBounds(name.clone()),
             ));
         }
         if measured.contains(&name) {
             return Err(InvalidGrayBox::new(
                 place,
-                Some(name),
+                None,
                 Problem::MeasuredAndEstimated(name.clone()),
             ));
         }

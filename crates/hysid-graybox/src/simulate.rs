@@ -1385,12 +1385,12 @@ pub(crate) fn steady(
             return Ok((x, q));
         }
     }
+    let place = match mode {
+        Some(_) => "in the rule's mode the flows do not vanish",
+        None => "in no mode do the flows vanish",
+    };
     Err(SimError::InitialState(format!(
-        "no rest state under the first input: in {} the flows do not vanish at a state within \
-         the invariant (Newton's method from the guess, at most {STEADY_ITERATIONS} iterations)",
-        match mode {
-            Some(_) => "the rule's mode".to_string(),
-            None => format!("none of the {} modes", modes.len()),
-        }
+        "no rest state under the first input: {place} at a state within its invariant \
+         (damped Newton from the guess, at most {STEADY_ITERATIONS} iterations)"
     )))
 }
