@@ -85,15 +85,18 @@ pub struct HybridState {
 /// The result of a run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GrayBoxRun {
-    /// Output at every sample (before `start`: the measured output).
+    /// Output at every sample (before `start`: the measured output, or
+    /// the simulated one over the warm-up of a rule that estimates states).
     pub y: Vec<f64>,
-    /// States at every sample, row-major (`states` per sample; zeros before `start`).
+    /// States at every sample, row-major (`states` per sample; zeros before
+    /// `start`, but over the warm-up of a rule that estimates states).
     pub x: Vec<f64>,
     /// Mode label per sample (into [`crate::GrayBoxModel::mode_names`]).
     pub modes: Vec<Option<usize>>,
     /// Per sample: the state satisfied its mode's invariant.
     pub covered: Vec<bool>,
-    /// First simulated sample.
+    /// First scored sample: the first simulated one, or the last of the
+    /// warm-up of a rule that estimates states (simulated from sample 0).
     pub start: usize,
     /// RK4 sub-steps integrated.
     pub steps: usize,
