@@ -1357,6 +1357,34 @@ mod tests {
     }
 
     #[test]
+    fn affinity_in_one_slot_is_read_on_the_tape() {
+        let affine = |t: &str| Expression::compile(t, &names).unwrap().affine_in(0);
+        for t in [
+            "x",
+            "y*x + z",
+            "(x - y)/z",
+            "-(2*x) + sin(y)*z",
+            "if(y > 0, x, 2*x - z)",
+            "y - x/3",
+            "z^2 + y",
+        ] {
+            assert!(affine(t), "{t}");
+        }
+        for t in [
+            "x*x",
+            "x^2",
+            "y/x",
+            "sin(x)",
+            "if(x > 0, x, 0)",
+            "abs(x) + y",
+            "x*(y + x)",
+            "(x > 1) + x",
+        ] {
+            assert!(!affine(t), "{t}");
+        }
+    }
+
+    #[test]
     fn precedence_and_functions_follow_the_usual_rules() {
         let s = [2.0, 3.0, -1.0];
         assert_eq!(eval("-x^2*y + 1/2", &s), -11.5);
