@@ -9,6 +9,7 @@ mod compare;
 mod determinism;
 mod docs_commands;
 mod edge_cases;
+mod initial_states;
 mod pick_and_place;
 mod results_table;
 mod stops;

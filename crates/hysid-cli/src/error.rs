@@ -81,9 +81,9 @@ impl CliError {
     /// invariant) names the file.
     pub fn simulation(model_file: &std::path::Path, e: SimError) -> Self {
         match e {
-            SimError::TooManySubsteps { .. } | SimError::ResetOutsideInvariant { .. } => {
-                Self::input(format!("{}: {e}", model_file.display()))
-            }
+            SimError::TooManySubsteps { .. }
+            | SimError::ResetOutsideInvariant { .. }
+            | SimError::InitialState(_) => Self::input(format!("{}: {e}", model_file.display())),
             e => e.into(),
         }
     }

@@ -15,6 +15,7 @@ use hysid_model::metrics::{fit, rmse};
 use hysid_model::model::InitialState;
 use hysid_model::simulate::{SimError, Simulation, SimulationOptions, automaton, pwarx};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 fn check_inputs(model: &Model, data: &Dataset) -> Result<(), SimError> {
     if model.inputs() != data.inputs.len() {
@@ -85,6 +86,25 @@ pub struct ValidationReport {
     pub diverged_at: Option<usize>,
     /// Scored samples per mode in the simulation (by mode index).
     pub mode_counts: Vec<usize>,
+    /// The initial states the model leaves unknown, by name, as estimated
+    /// from the record's warm-up outputs ([`initial_states`]); absent when
+    /// it estimates none.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub initial_states: BTreeMap<String, f64>,
+}
+
+/// The initial states `model` leaves unknown, by name, as its simulation
+/// of `data` estimates them from the warm-up outputs (a gray-box model's
+/// `estimate`, `hysid_graybox::initial_states`); empty for every other
+/// model.
+pub fn initial_states(model: &Model, data: &Dataset) -> Result<BTreeMap<String, f64>, SimError> {
+    check_inputs(model, data)?;
+    match model {
+        Model::GrayBox(m) => Ok(hysid_graybox::initial_states(m, data)?
+            .into_iter()
+            .collect()),
+        _ => Ok(BTreeMap::new()),
+    }
 }
 
 /// Scores `model` on `data`, leaving out the first `warmup` samples (and
@@ -126,6 +146,7 @@ pub fn validate(
         coverage_sim: frac(&sim),
         diverged_at: sim.diverged_at,
         mode_counts,
+        initial_states: initial_states(model, data)?,
     };
     Ok((report, sim, pred))
 }

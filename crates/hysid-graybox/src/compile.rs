@@ -12,7 +12,8 @@ use crate::expr::{
     DefinitionError, Definitions, ExprError, Expression, Function, InlineError, Relation,
 };
 use crate::model::{
-    Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode, GrayBoxModel, GrayBoxTransition,
+    DEFAULT_SAMPLES, Element, Estimates, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode,
+    GrayBoxModel, GrayBoxTransition,
 };
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::rc::Rc;
@@ -138,6 +139,25 @@ pub enum Problem {
         /// Definitions of the model.
         definitions: usize,
     },
+    /// An estimated state's bounds that are not finite with low <= high.
+    #[error("estimate of '{0}': need finite bounds [low, high] with low <= high")]
+    EstimateBounds(String),
+    /// A state both measured (the rule's position or velocity) and estimated.
+    #[error("'{0}' is measured by the rule; it cannot also be estimated")]
+    MeasuredAndEstimated(String),
+    /// An output map not affine in the state the measured rule reads it into.
+    #[error(
+        "output '{output}' = '{value}' is not affine in '{state}', the state the measured rule \
+         reads it into: write the output as a sensor map such as 'c*{state} + off'"
+    )]
+    NotAffine {
+        /// The output's name.
+        output: String,
+        /// Its expression.
+        value: String,
+        /// The rule's position state.
+        state: String,
+    },
     /// The compiled expressions would hold more than [`MAX_OPERATIONS`].
     #[error(
         "the model's expressions, with their definitions written out, hold more than \
@@ -235,16 +255,18 @@ pub enum CompiledElement {
 pub enum CompiledInitial {
     /// Given state at sample 0.
     Given {
-        /// Values of every state.
+        /// Values of every state (estimated ones at their starting guess).
         x: Vec<f64>,
         /// Starting mode, if given.
         mode: Option<usize>,
+        /// Warm-up samples whose outputs estimate the unknown states.
+        samples: usize,
     },
     /// From the measured output.
     Measured {
         /// Samples of warm-up.
         samples: usize,
-        /// State taking the output.
+        /// State taking the output (through the inverse of the output map).
         position: usize,
         /// State taking the slope.
         velocity: Option<usize>,
@@ -255,6 +277,41 @@ pub enum CompiledInitial {
         /// Starting mode, if given.
         mode: Option<usize>,
     },
+    /// At rest under the first input sample.
+    Steady {
+        /// The starting guess of every state.
+        x: Vec<f64>,
+        /// The mode, if given.
+        mode: Option<usize>,
+    },
+}
+
+impl CompiledInitial {
+    /// The warm-up samples whose outputs estimate the unknown states
+    /// (`None` for a rest state, which estimates none).
+    pub fn warmup(&self) -> Option<usize> {
+        match self {
+            CompiledInitial::Given { samples, .. } | CompiledInitial::Measured { samples, .. } => {
+                Some(*samples)
+            }
+            CompiledInitial::Steady { .. } => None,
+        }
+    }
+}
+
+/// A state of the initial state that the rule leaves unknown: estimated
+/// within its bounds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimatedState {
+    /// The state's index.
+    pub state: usize,
+    /// Its name.
+    pub name: String,
+    /// `[low, high]`.
+    pub bounds: [f64; 2],
+    /// The starting guess: the rule's value, clamped into the bounds, or
+    /// the middle of the bounds.
+    pub start: f64,
 }
 
 /// A checked gray-box model with every expression compiled.
@@ -275,6 +332,8 @@ pub struct CompiledModel {
     pub delays: Vec<Expression>,
     /// The initial-state rule.
     pub initial: CompiledInitial,
+    /// The states the rule leaves unknown, in the order of their names.
+    pub estimates: Vec<EstimatedState>,
     /// Maximum integration step.
     pub internal_step: f64,
     /// The declared stored energy ([`GrayBoxModel::energy`]): states and
@@ -307,8 +366,11 @@ impl CompiledModel {
         let modes = c.compile_modes()?;
         let delays = c.compile_delays()?;
         let energy = c.compile_energy()?;
-        let initial = initial_rule(m, &|p, n| c.state_of(p, n), &|p, n| c.mode_of(p, n))?;
+        let (initial, estimates) =
+            initial_rule(m, &|p, n| c.state_of(p, n), &|p, n| c.mode_of(p, n))?;
+        check_sensor(m, &initial, &modes)?;
         Ok(CompiledModel {
+            estimates,
             energy,
             delays,
             states: c.nx,
@@ -380,6 +442,7 @@ impl CompiledModel {
             delays: self.delays.iter().map(b).collect(),
             energy: self.energy.as_ref().map(b),
             initial: self.initial.clone(),
+            estimates: self.estimates.clone(),
             ..*self
         }
     }
@@ -990,11 +1053,14 @@ fn compile_elements(
     Ok(elements)
 }
 
+/// The initial-state rule and the states it estimates, checked: known
+/// states and modes, finite values, bounds with low <= high, no state both
+/// measured and estimated.
 fn initial_rule(
     m: &GrayBoxModel,
     state_of: &dyn Fn(&str, &str) -> Result<usize, InvalidGrayBox>,
     mode_of: &dyn Fn(&str, &str) -> Result<usize, InvalidGrayBox>,
-) -> Result<CompiledInitial, InvalidGrayBox> {
+) -> Result<(CompiledInitial, Vec<EstimatedState>), InvalidGrayBox> {
     let place = "initial_state";
     let values = |given: &BTreeMap<String, f64>| -> Result<Vec<f64>, InvalidGrayBox> {
         let mut x = vec![0.0; m.states.len()];
@@ -1011,11 +1077,23 @@ fn initial_rule(
         Ok(x)
     };
     let mode = |q: &Option<String>| q.as_deref().map(|q| mode_of(place, q)).transpose();
-    Ok(match &m.initial_state {
-        GrayBoxInitialState::Given { values: v, mode: q } => CompiledInitial::Given {
-            x: values(v)?,
-            mode: mode(q)?,
-        },
+    let no_estimate = Estimates::new();
+    let (rule, estimate, given, measured) = match &m.initial_state {
+        GrayBoxInitialState::Given {
+            values: v,
+            mode: q,
+            estimate,
+            samples,
+        } => (
+            CompiledInitial::Given {
+                x: values(v)?,
+                mode: mode(q)?,
+                samples: samples.unwrap_or(DEFAULT_SAMPLES).max(1),
+            },
+            estimate,
+            v,
+            vec![],
+        ),
         GrayBoxInitialState::Measured {
             samples,
             position,
@@ -1023,16 +1101,84 @@ fn initial_rule(
             velocity_tol,
             values: v,
             mode: q,
-        } => CompiledInitial::Measured {
-            samples: (*samples).max(1),
-            position: state_of(place, position)?,
-            velocity: velocity
-                .as_deref()
-                .map(|s| state_of(place, s))
-                .transpose()?,
-            velocity_tol: velocity_tol.max(0.0),
-            x: values(v)?,
-            mode: mode(q)?,
+            estimate,
+        } => (
+            CompiledInitial::Measured {
+                samples: (*samples).max(1),
+                position: state_of(place, position)?,
+                velocity: velocity
+                    .as_deref()
+                    .map(|s| state_of(place, s))
+                    .transpose()?,
+                velocity_tol: velocity_tol.max(0.0),
+                x: values(v)?,
+                mode: mode(q)?,
+            },
+            estimate,
+            v,
+            std::iter::once(position).chain(velocity).collect(),
+        ),
+        GrayBoxInitialState::Steady { values: v, mode: q } => (
+            CompiledInitial::Steady {
+                x: values(v)?,
+                mode: mode(q)?,
+            },
+            &no_estimate,
+            v,
+            vec![],
+        ),
+    };
+    let mut estimates = Vec::with_capacity(estimate.len());
+    for (name, &[lo, hi]) in estimate {
+        let place = "initial_state, estimate";
+        let state = state_of(place, name)?;
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+            return Err(InvalidGrayBox::new(
+                place,
+                None,
+                Problem::EstimateBounds(name.clone()),
+            ));
+        }
+        if measured.contains(&name) {
+            return Err(InvalidGrayBox::new(
+                place,
+                None,
+                Problem::MeasuredAndEstimated(name.clone()),
+            ));
+        }
+        let start = given.get(name).map_or(0.5 * (lo + hi), |v| v.clamp(lo, hi));
+        estimates.push(EstimatedState {
+            state,
+            name: name.clone(),
+            bounds: [lo, hi],
+            start,
+        });
+    }
+    Ok((rule, estimates))
+}
+
+/// With the measured rule, the output map of every mode must be affine in
+/// the position state ([`Expression::affine_in`]): the state is read from
+/// the output through its inverse.
+fn check_sensor(
+    m: &GrayBoxModel,
+    initial: &CompiledInitial,
+    modes: &[CompiledMode],
+) -> Result<(), InvalidGrayBox> {
+    let CompiledInitial::Measured { position, .. } = initial else {
+        return Ok(());
+    };
+    if modes.iter().all(|q| q.output.affine_in(*position as u32)) {
+        return Ok(());
+    }
+    let output = &m.outputs[0];
+    Err(InvalidGrayBox::new(
+        "initial_state",
+        Some(&output.value),
+        Problem::NotAffine {
+            output: output.name.clone(),
+            value: output.value.clone(),
+            state: m.states[*position].clone(),
         },
-    })
+    ))
 }

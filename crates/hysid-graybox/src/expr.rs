@@ -424,6 +424,71 @@ impl Expression {
         }
     }
 
+    /// Whether the expression is affine in slot `slot` whatever the other
+    /// slots hold: `a + b * slot` with `a` and `b` free of it (`c*x + off`,
+    /// `(x - x0)/k`, `if(u > 0, x, 2*x)`). Decided on the tape: sums,
+    /// differences and negations keep the form, a product or a quotient
+    /// keeps it when the other factor (the divisor) is free of the slot, an
+    /// `if` whose condition is free of it keeps it, and anything else of
+    /// the slot (a power, a function, a comparison) is not affine.
+    pub fn affine_in(&self, slot: u32) -> bool {
+        #[derive(Clone, Copy, PartialEq, PartialOrd)]
+        enum Class {
+            Free,
+            Affine,
+            Other,
+        }
+        let mut stack: Vec<Class> = Vec::with_capacity(self.depth());
+        let mut registers = [Class::Free; REGISTERS];
+        let free_or_other = |args: &[Class]| {
+            if args.iter().all(|c| *c == Class::Free) {
+                Class::Free
+            } else {
+                Class::Other
+            }
+        };
+        for op in &self.ops {
+            let class = match *op {
+                Op::Const(_) => Class::Free,
+                Op::Load(s) if s == slot => Class::Affine,
+                Op::Load(_) => Class::Free,
+                Op::Recall(r) => registers[r as usize],
+                Op::Keep(r) => {
+                    registers[r as usize] = stack.last().copied().unwrap_or(Class::Other);
+                    continue;
+                }
+                Op::Neg => stack.pop().unwrap_or(Class::Other),
+                Op::Not => free_or_other(&[stack.pop().unwrap_or(Class::Other)]),
+                Op::Binary(b) => {
+                    let y = stack.pop().unwrap_or(Class::Other);
+                    let x = stack.pop().unwrap_or(Class::Other);
+                    let higher = if x > y { x } else { y };
+                    match b {
+                        Binary::Add | Binary::Sub => higher,
+                        Binary::Mul if x == Class::Free || y == Class::Free => higher,
+                        Binary::Div if y == Class::Free => x,
+                        _ => free_or_other(&[x, y]),
+                    }
+                }
+                Op::Call(f) => {
+                    let args = stack.split_off(stack.len().saturating_sub(f.arity()));
+                    match (f, args.as_slice()) {
+                        (Function::If, [Class::Free, a, b]) => {
+                            if a > b {
+                                *a
+                            } else {
+                                *b
+                            }
+                        }
+                        _ => free_or_other(&args),
+                    }
+                }
+            };
+            stack.push(class);
+        }
+        stack.pop().is_some_and(|c| c != Class::Other)
+    }
+
     /// The constant value, when the expression reads no slot.
     pub fn as_constant(&self) -> Option<f64> {
         match self.form {
@@ -1289,6 +1354,34 @@ mod tests {
 
     fn eval(text: &str, slots: &[f64]) -> f64 {
         Expression::compile(text, &names).unwrap().eval(slots)
+    }
+
+    #[test]
+    fn affinity_in_one_slot_is_read_on_the_tape() {
+        let affine = |t: &str| Expression::compile(t, &names).unwrap().affine_in(0);
+        for t in [
+            "x",
+            "y*x + z",
+            "(x - y)/z",
+            "-(2*x) + sin(y)*z",
+            "if(y > 0, x, 2*x - z)",
+            "y - x/3",
+            "z^2 + y",
+        ] {
+            assert!(affine(t), "{t}");
+        }
+        for t in [
+            "x*x",
+            "x^2",
+            "y/x",
+            "sin(x)",
+            "if(x > 0, x, 0)",
+            "abs(x) + y",
+            "x*(y + x)",
+            "(x > 1) + x",
+        ] {
+            assert!(!affine(t), "{t}");
+        }
     }
 
     #[test]

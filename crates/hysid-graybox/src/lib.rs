@@ -14,7 +14,9 @@
 //! - [`expr`]: expressions, parsed by evalexpr once and compiled into a
 //!   tape evaluated without parsing or allocating;
 //! - [`compile`]: the checks and the compiled model;
-//! - [`mod@simulate`]: the event-located simulator.
+//! - [`mod@simulate`]: the event-located simulator, and the initial
+//!   states a rule leaves unknown (estimated from a record's warm-up, or
+//!   at rest), solved by [`solve`]'s Levenberg-Marquardt.
 //!
 //! The file format is documented in `docs/gray-box-models.md`.
 
@@ -23,11 +25,12 @@ pub mod expr;
 pub mod extends;
 pub mod model;
 pub mod simulate;
+pub mod solve;
 
 pub use compile::{CompiledModel, InvalidGrayBox, Problem};
 pub use model::{
-    Element, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode, GrayBoxModel, GrayBoxTransition,
-    OutputMap, StopSide,
+    DEFAULT_SAMPLES, Element, Estimates, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode,
+    GrayBoxModel, GrayBoxTransition, OutputMap, StopSide,
 };
 
 use hysid_model::data::Dataset;
@@ -88,6 +91,19 @@ pub fn simulate(
 ) -> Result<Simulation, SimError> {
     let c = compiled(m)?;
     simulate::run(&c, &m.values(), data).map(|r| to_simulation(r, opts))
+}
+
+/// The states the initial-state rule leaves unknown (`estimate`), by
+/// name, as estimated from the warm-up outputs of `data` at the model's
+/// parameter values ([`simulate::estimate`]); empty when it estimates none.
+pub fn initial_states(m: &GrayBoxModel, data: &Dataset) -> Result<Vec<(String, f64)>, SimError> {
+    let c = compiled(m)?;
+    let values = simulate::estimate(&c, &m.values(), data)?;
+    Ok(c.estimates
+        .iter()
+        .map(|e| e.name.clone())
+        .zip(values)
+        .collect())
 }
 
 /// One-step prediction of a gray-box model ([`simulate::predict`]).

@@ -161,7 +161,18 @@ impl Element {
     }
 }
 
+/// Bounds `[low, high]` of the states a rule leaves unknown, by name: each
+/// is estimated within its bounds ([`GrayBoxInitialState`]).
+pub type Estimates = BTreeMap<String, [f64; 2]>;
+
 /// How a simulation obtains its initial state.
+///
+/// `given` and `measured` may leave states unknown (`estimate`): those are
+/// estimated within their bounds, at fit time with the parameters (as
+/// nuisance parameters of the record), and on a record to simulate or
+/// validate from its warm-up outputs alone (the first `samples`). With an
+/// estimate, the run starts at sample 0 and the warm-up samples are not
+/// scored.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "from", rename_all = "snake_case", deny_unknown_fields)]
 pub enum GrayBoxInitialState {
@@ -173,11 +184,23 @@ pub enum GrayBoxInitialState {
         /// The starting mode; absent: the first mode whose invariant holds.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         mode: Option<String>,
+        /// States estimated within `[low, high]` (a listed value is the
+        /// starting guess; absent: the middle of the bounds).
+        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        estimate: Estimates,
+        /// The warm-up with an estimate: its outputs estimate the states
+        /// (absent: [`DEFAULT_SAMPLES`]).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        samples: Option<usize>,
     },
     /// Read from the first `samples` measured outputs: the simulation starts
     /// at sample `samples - 1`, `position` takes the measured output there
-    /// and `velocity` the slope of a least-squares quadratic through the
-    /// last (up to 5) of them; slopes at most `velocity_tol` count as zero.
+    /// (through the inverse of the output map, which must be affine in it:
+    /// a sensor's gain and offset) and `velocity` the slope of a
+    /// least-squares quadratic through the last (up to 5) of them, divided
+    /// by the output's gain; slopes at most `velocity_tol` count as zero.
+    /// With an `estimate`, the simulation starts at sample 0, from the
+    /// output there and the forward slope of the first (up to 5) samples.
     Measured {
         /// Samples used (the protocol's warm-up).
         #[serde(default = "ten")]
@@ -196,8 +219,26 @@ pub enum GrayBoxInitialState {
         /// The starting mode; absent: the first mode whose invariant holds.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         mode: Option<String>,
+        /// States estimated within `[low, high]`, as for `given`.
+        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        estimate: Estimates,
+    },
+    /// At rest under the first input sample: the states where every flow
+    /// of the mode is zero, solved by Newton's method from `values`
+    /// (absent: zero) in the mode `mode`, or else in the first mode where
+    /// a rest state satisfies the invariant.
+    Steady {
+        /// The starting guess (absent: zero).
+        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        values: BTreeMap<String, f64>,
+        /// The mode; absent: the first mode with a rest state in its invariant.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        mode: Option<String>,
     },
 }
+
+/// The warm-up of a `given` rule with an estimate, when it names none.
+pub const DEFAULT_SAMPLES: usize = 10;
 
 fn ten() -> usize {
     10

@@ -35,10 +35,17 @@
 //! A sample whose every state derivative is exactly zero (resting at a stop,
 //! stuck, at an equilibrium) is skipped: with the input held, nothing in it
 //! can change.
+//!
+//! **Initial states** come from the model's rule: given values; the
+//! measured output read through the inverse of the output map (affine in
+//! the state it sets: a sensor's gain and offset); or the rest state under
+//! the first input ([`STEADY_ITERATIONS`] of Levenberg-Marquardt on the
+//! flows). States a rule leaves unknown are estimated from the record's
+//! warm-up outputs alone ([`estimate`]), or given ([`run_from`]).
 
 use crate::compile::{CompiledElement, CompiledInitial, CompiledModel};
 use crate::expr::Crossing;
-use hysid_model::data::Dataset;
+use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
 
 /// Bound on the events handled within one sub-step (the Zeno guard).
@@ -78,15 +85,18 @@ pub struct HybridState {
 /// The result of a run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GrayBoxRun {
-    /// Output at every sample (before `start`: the measured output).
+    /// Output at every sample (before `start`: the measured output, or
+    /// the simulated one over the warm-up of a rule that estimates states).
     pub y: Vec<f64>,
-    /// States at every sample, row-major (`states` per sample; zeros before `start`).
+    /// States at every sample, row-major (`states` per sample; zeros before
+    /// `start`, but over the warm-up of a rule that estimates states).
     pub x: Vec<f64>,
     /// Mode label per sample (into [`crate::GrayBoxModel::mode_names`]).
     pub modes: Vec<Option<usize>>,
     /// Per sample: the state satisfied its mode's invariant.
     pub covered: Vec<bool>,
-    /// First simulated sample.
+    /// First scored sample: the first simulated one, or the last of the
+    /// warm-up of a rule that estimates states (simulated from sample 0).
     pub start: usize,
     /// RK4 sub-steps integrated.
     pub steps: usize,
@@ -198,6 +208,11 @@ impl<'a> Machine<'a> {
     pub fn stops(&self) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
         self.stops_with_velocity()
             .map(|(position, _, at, sign)| (position, at, sign))
+    }
+
+    /// Number of modes.
+    pub(crate) fn modes(&self) -> usize {
+        self.m.modes.len()
     }
 
     /// Loads `(x, u)` into the slots.
@@ -710,6 +725,55 @@ impl<'a> Machine<'a> {
         (y, mode, covered)
     }
 
+    /// Sets the state `position` of `x` to the inverse of `mode`'s output
+    /// map at the measured output `y` (the map is affine in it, checked when
+    /// the model is compiled: `y = a + b x`, with `a` and `b` read at
+    /// `x = 0` and `x = 1`, the other states and the inputs `u` held);
+    /// returns the gain `b`. A gain of zero (or not finite) is an error:
+    /// the output then says nothing of the state.
+    pub(crate) fn sensor(
+        &mut self,
+        x: &mut [f64],
+        u: &[f64],
+        mode: usize,
+        position: usize,
+        y: f64,
+    ) -> Result<f64, SimError> {
+        let output = &self.m.modes[mode].output;
+        x[position] = 0.0;
+        self.load(x, u);
+        let a = output.eval(&self.slots);
+        x[position] = 1.0;
+        self.load(x, u);
+        let gain = output.eval(&self.slots) - a;
+        if !(gain.is_finite() && gain != 0.0 && a.is_finite()) {
+            return Err(SimError::InitialState(format!(
+                "the output map's gain in the measured state is {gain}: the output does not give the state"
+            )));
+        }
+        x[position] = (y - a) / gain;
+        Ok(gain)
+    }
+
+    /// The flows of `mode` at `(x, u)` into `out`, without the elements
+    /// (what a rest state zeroes: a friction holds a velocity at zero
+    /// whatever its level, a stop a position at its level).
+    pub(crate) fn bare_flows(&mut self, x: &[f64], u: &[f64], mode: usize, out: &mut [f64]) {
+        self.load(x, u);
+        for (o, f) in out.iter_mut().zip(&self.m.modes[mode].flow) {
+            *o = f.eval(&self.slots);
+        }
+    }
+
+    /// Whether `(x, u)` satisfies `mode`'s invariant.
+    pub(crate) fn in_invariant(&mut self, x: &[f64], u: &[f64], mode: usize) -> bool {
+        self.load(x, u);
+        self.m.modes[mode]
+            .invariant
+            .iter()
+            .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE)
+    }
+
     /// The hybrid state at `(x, u)`: positions clamped to their stops, the
     /// mode `mode` or the first whose invariant holds, every velocity at
     /// zero settled.
@@ -851,70 +915,170 @@ impl Schedule {
     }
 }
 
-/// The initial sample and state of a run on `data` from the model's rule.
+/// The initial sample and state of a run on `data` from the model's rule,
+/// the estimated states at `estimates` ([`CompiledModel::estimates`]'
+/// order; a missing value: the starting guess).
 fn initial(
     m: &CompiledModel,
     machine: &mut Machine,
     data: &Dataset,
     schedule: &Schedule,
-    upto: Option<usize>,
+    estimates: &[f64],
 ) -> Result<(usize, HybridState), SimError> {
-    let (n, ts) = (data.len(), schedule.ts);
-    let ym = data.y();
+    let n = data.len();
     let mut u = vec![0.0; m.inputs];
+    let first = match &m.initial {
+        CompiledInitial::Measured { samples, .. } if m.estimates.is_empty() => samples - 1,
+        _ => 0,
+    };
+    // The measured rule reads its warm-up; an estimate scores after it.
+    let needed = match m.initial.warmup() {
+        Some(w) if !m.estimates.is_empty() || first > 0 => w,
+        _ => 1,
+    };
+    if n < needed {
+        return Err(SimError::TooShort { samples: n, needed });
+    }
+    schedule.inputs(data, first, 0.0, &mut u);
     match &m.initial {
-        CompiledInitial::Given { x, mode } => {
-            if n == 0 {
-                return Err(SimError::TooShort {
-                    samples: 0,
-                    needed: 1,
-                });
-            }
-            schedule.inputs(data, 0, 0.0, &mut u);
-            Ok((0, machine.state_at(x.clone(), &u, *mode)))
+        CompiledInitial::Given { x, mode, .. } => {
+            let x = with_estimates(m, x.clone(), estimates);
+            Ok((0, machine.state_at(x, &u, *mode)))
+        }
+        CompiledInitial::Steady { x, mode } => {
+            let (x, mode) = steady(machine, x, &u, *mode)?;
+            Ok((0, machine.state_at(x, &u, Some(mode))))
         }
         CompiledInitial::Measured {
             samples,
-            position,
-            velocity,
             velocity_tol,
-            x,
             mode,
+            ..
         } => {
-            let s = upto.unwrap_or(samples - 1);
-            if n <= s {
-                return Err(SimError::TooShort {
-                    samples: n,
-                    needed: s + 1,
-                });
-            }
-            let mut x = x.clone();
-            x[*position] = ym[s];
-            if let Some(v) = velocity {
-                let slope = estimate_velocity(ym, s, ts);
-                x[*v] = if slope.abs() <= *velocity_tol {
-                    0.0
-                } else {
-                    slope
-                };
-            }
-            schedule.inputs(data, s, 0.0, &mut u);
-            Ok((s, machine.state_at(x, &u, *mode)))
+            let ym = data.y();
+            let slope = if m.estimates.is_empty() {
+                estimate_velocity(ym, first, schedule.ts)
+            } else {
+                forward_slope(&ym[..*samples], schedule.ts)
+            };
+            let x = measured_state(
+                m,
+                machine,
+                (data, schedule),
+                first,
+                estimates,
+                slope,
+                *velocity_tol,
+            )?;
+            Ok((first, machine.state_at(x, &u, *mode)))
         }
     }
 }
 
+/// The first sample a run scores: after the measured rule's warm-up, or
+/// after the warm-up that estimates unknown states; 0 otherwise.
+fn scored_from(m: &CompiledModel) -> usize {
+    match m.initial {
+        CompiledInitial::Measured { samples, .. } => samples - 1,
+        CompiledInitial::Given { samples, .. } if !m.estimates.is_empty() => samples - 1,
+        _ => 0,
+    }
+}
+
+/// `x` with the estimated states at `estimates` (a missing value: the
+/// starting guess).
+fn with_estimates(m: &CompiledModel, mut x: Vec<f64>, estimates: &[f64]) -> Vec<f64> {
+    for (j, e) in m.estimates.iter().enumerate() {
+        x[e.state] = estimates.get(j).copied().unwrap_or(e.start);
+    }
+    x
+}
+
+/// The slope at the first of the samples `y` (at most 5 read) of a
+/// least-squares quadratic through them: [`estimate_velocity`] on the
+/// samples reversed, negated.
+fn forward_slope(y: &[f64], ts: f64) -> f64 {
+    let mut ahead: Vec<f64> = y.iter().take(5).copied().collect();
+    ahead.reverse();
+    match ahead.len() {
+        0 => 0.0,
+        m => -estimate_velocity(&ahead, m - 1, ts),
+    }
+}
+
+/// The measured rule's state at sample `k` of the record (with its
+/// schedule): the rule's values, the estimated states at `estimates`, the
+/// position from the output through the inverse of the output map, the
+/// velocity from the output's slope `slope` divided by the map's gain (0
+/// when the slope is at most `tol`).
+fn measured_state(
+    m: &CompiledModel,
+    machine: &mut Machine,
+    (data, schedule): (&Dataset, &Schedule),
+    k: usize,
+    estimates: &[f64],
+    slope: f64,
+    tol: f64,
+) -> Result<Vec<f64>, SimError> {
+    let CompiledInitial::Measured {
+        position,
+        velocity,
+        x,
+        mode,
+        ..
+    } = &m.initial
+    else {
+        return Err(SimError::InvalidModel(
+            "the state is read from the output only by the measured rule".into(),
+        ));
+    };
+    let mut x = with_estimates(m, x.clone(), estimates);
+    let mut u = vec![0.0; m.inputs];
+    schedule.inputs(data, k, 0.0, &mut u);
+    let gain = machine.sensor(&mut x, &u, mode.unwrap_or(0), *position, data.y()[k])?;
+    if let Some(v) = velocity {
+        x[*v] = if slope.abs() <= tol {
+            0.0
+        } else {
+            slope / gain
+        };
+    }
+    Ok(x)
+}
+
+/// The estimated states at every sample of a run (`run.x`), in
+/// [`CompiledModel::estimates`]' order, at sample `k`.
+fn carried(m: &CompiledModel, run: &GrayBoxRun, k: usize) -> Vec<f64> {
+    let row = &run.x[k * m.states..(k + 1) * m.states];
+    m.estimates.iter().map(|e| row[e.state]).collect()
+}
+
 /// Runs the compiled model with parameter values `values` on the inputs of
-/// `data` (sampling time `data.ts`), from the model's initial-state rule.
+/// `data` (sampling time `data.ts`), from the model's initial-state rule;
+/// the states the rule leaves unknown are estimated from the record's
+/// warm-up outputs ([`estimate`]).
 pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxRun, SimError> {
+    let estimates = estimate(m, values, data)?;
+    run_from(m, values, &estimates, data)
+}
+
+/// [`run`] with the states the rule leaves unknown at `estimates`
+/// ([`CompiledModel::estimates`]' order).
+pub fn run_from(
+    m: &CompiledModel,
+    values: &[f64],
+    estimates: &[f64],
+    data: &Dataset,
+) -> Result<GrayBoxRun, SimError> {
     let ts = timing(m, data)?;
     let n = data.len();
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
-    let (start, hs) = initial(m, &mut machine, data, &schedule, None)?;
-    let mut out = GrayBoxRun::empty(data, m.states, start);
-    span(&mut machine, hs, data, start..n, &schedule, &mut out)?;
+    let (first, hs) = initial(&bound, &mut machine, data, &schedule, estimates)?;
+    let mut out = GrayBoxRun::empty(data, m.states, first);
+    span(&mut machine, hs, data, first..n, &schedule, &mut out)?;
+    out.start = scored_from(m);
     out.steps = machine.steps;
     out.events = machine.events;
     out.zeno_steps = machine.zeno_steps;
@@ -988,17 +1152,30 @@ fn span(
 }
 
 /// Multiple shooting: the record cut into segments of `segment` samples,
-/// each simulated from the state `state_at(s)` at its first sample `s`
-/// (the mode: the first whose invariant holds). Returns the outputs of
-/// every sample: the first sample's is its initial state's, every other is
-/// the one its segment simulated (a boundary sample: the earlier segment's).
+/// each simulated from the measured rule's state at its first sample `s`
+/// (the position from the output, the velocity from the output's slope
+/// `slope_at(s)`, the estimated states from the free run from
+/// `estimates`; the mode: the first whose invariant holds). Returns the
+/// outputs of every sample: the first sample's is its initial state's,
+/// every other is the one its segment simulated (a boundary sample: the
+/// earlier segment's). A model without the measured rule gives its free
+/// run from `estimates`.
 pub fn segmented(
     m: &CompiledModel,
     values: &[f64],
+    estimates: &[f64],
     data: &Dataset,
     segment: usize,
-    state_at: &dyn Fn(usize) -> Vec<f64>,
+    slope_at: &dyn Fn(usize) -> f64,
 ) -> Result<Vec<f64>, SimError> {
+    if !matches!(m.initial, CompiledInitial::Measured { .. }) {
+        return run_from(m, values, estimates, data).map(|r| r.y);
+    }
+    let free = if m.estimates.is_empty() {
+        None
+    } else {
+        Some(run_from(m, values, estimates, data)?)
+    };
     let ts = timing(m, data)?;
     let n = data.len();
     let bound = m.bind(values);
@@ -1009,7 +1186,17 @@ pub fn segmented(
     let mut s = 0;
     while s + 1 < n {
         schedule.inputs(data, s, 0.0, &mut u);
-        let hs = machine.state_at(state_at(s), &u, None);
+        let at_s = free.as_ref().map(|r| carried(m, r, s)).unwrap_or_default();
+        let x = measured_state(
+            &bound,
+            &mut machine,
+            (data, &schedule),
+            s,
+            &at_s,
+            slope_at(s),
+            0.0,
+        )?;
+        let hs = machine.state_at(x, &u, None);
         let end = (s + segment.max(1) + 1).min(n);
         // The previous segment's last output stays: this one starts there.
         let last = out.y[s];
@@ -1023,12 +1210,24 @@ pub fn segmented(
 }
 
 /// One-step prediction: at each sample the state is read again from the
-/// measured outputs up to it (the model's `measured` rule) and advanced by
-/// one sample. A model with a given initial state has no such reading:
-/// its prediction is its free run.
+/// measured outputs up to it (the model's `measured` rule; the states it
+/// leaves unknown are taken from the free run) and advanced by one
+/// sample. A model with a given or a rest initial state has no such
+/// reading: its prediction is its free run.
 pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxRun, SimError> {
-    let CompiledInitial::Measured { samples, .. } = m.initial else {
+    let CompiledInitial::Measured {
+        samples,
+        velocity_tol,
+        mode,
+        ..
+    } = m.initial
+    else {
         return run(m, values, data);
+    };
+    let free = if m.estimates.is_empty() {
+        None
+    } else {
+        Some(run(m, values, data)?)
     };
     let ts = timing(m, data)?;
     let n = data.len();
@@ -1046,7 +1245,19 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     let mut u = vec![0.0; m.inputs];
     let mut buffer = Vec::new();
     for k in first..n.saturating_sub(1) {
-        let (_, mut hs) = initial(m, &mut machine, data, &schedule, Some(k))?;
+        let at_k = free.as_ref().map(|r| carried(m, r, k)).unwrap_or_default();
+        let slope = estimate_velocity(data.y(), k, ts);
+        let x = measured_state(
+            &bound,
+            &mut machine,
+            (data, &schedule),
+            k,
+            &at_k,
+            slope,
+            velocity_tol,
+        )?;
+        schedule.inputs(data, k, 0.0, &mut u);
+        let mut hs = machine.state_at(x, &u, mode);
         let count = schedule.fill(data, k, &mut buffer)?;
         let pieces = &buffer[..count];
         let mut g_end = Vec::new();
@@ -1072,4 +1283,117 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     out.events = machine.events;
     out.zeno_steps = machine.zeno_steps;
     Ok(out)
+}
+
+/// Iterations of the warm-up estimate's solver.
+pub const ESTIMATE_ITERATIONS: usize = 100;
+
+/// Iterations of the rest state's Newton (Levenberg-Marquardt) solve.
+pub const STEADY_ITERATIONS: usize = 100;
+
+/// Largest flow (relative to the flows at the guess, at least 1) that
+/// counts as at rest.
+pub const STEADY_TOLERANCE: f64 = 1e-9;
+
+/// The states [`CompiledModel::estimates`] lists, estimated from the
+/// outputs of `data`'s warm-up alone (its first
+/// [`crate::compile::CompiledInitial::warmup`] samples; the rows after it
+/// are not read): the values within their bounds that minimise the sum of
+/// squared differences between the measured and the simulated outputs
+/// over the warm-up, from the rule's starting guesses, by
+/// [`crate::solve::levenberg_marquardt`] in box-normalised coordinates
+/// (steps projected onto the bounds). Empty when the rule estimates
+/// nothing.
+pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec<f64>, SimError> {
+    if m.estimates.is_empty() {
+        return Ok(Vec::new());
+    }
+    let w = m.initial.warmup().unwrap_or(1);
+    if data.len() < w {
+        return Err(SimError::TooShort {
+            samples: data.len(),
+            needed: w,
+        });
+    }
+    let window = data
+        .slice(RowRange {
+            start: Some(0),
+            end: Some(w),
+        })
+        .map_err(|e| SimError::InitialState(e.to_string()))?;
+    let to_values = |z: &[f64]| -> Vec<f64> {
+        m.estimates
+            .iter()
+            .zip(z)
+            .map(|(e, z)| e.bounds[0] + (e.bounds[1] - e.bounds[0]) * z.clamp(0.0, 1.0))
+            .collect()
+    };
+    let residuals = |z: &[f64]| -> Option<Vec<f64>> {
+        let r = run_from(m, values, &to_values(z), &window).ok()?;
+        let e: Vec<f64> = window.y().iter().zip(&r.y).map(|(a, b)| a - b).collect();
+        e.iter().all(|v| v.is_finite()).then_some(e)
+    };
+    let z0: Vec<f64> = m
+        .estimates
+        .iter()
+        .map(|e| {
+            let [lo, hi] = e.bounds;
+            if hi > lo {
+                (e.start - lo) / (hi - lo)
+            } else {
+                0.5
+            }
+        })
+        .collect();
+    let unit = vec![[0.0, 1.0]; z0.len()];
+    let (z, _) =
+        crate::solve::levenberg_marquardt(&residuals, &z0, Some(&unit), 1e-7, ESTIMATE_ITERATIONS);
+    Ok(to_values(&z))
+}
+
+/// The rest state under the input `u`: the states where every flow of the
+/// mode is zero (the elements aside: at rest a friction holds a velocity
+/// at zero whatever its level), solved by
+/// [`crate::solve::levenberg_marquardt`] (Newton's method, damped) from
+/// the guess `guess` ([`STEADY_ITERATIONS`] iterations at most), in
+/// `mode`, or else in the first mode whose rest state satisfies its
+/// invariant. Returns the state and its mode; an error when no mode has
+/// one (the solve does not reach [`STEADY_TOLERANCE`], or its rest state
+/// leaves the invariant).
+pub(crate) fn steady(
+    machine: &mut Machine,
+    guess: &[f64],
+    u: &[f64],
+    mode: Option<usize>,
+) -> Result<(Vec<f64>, usize), SimError> {
+    let modes: Vec<usize> = match mode {
+        Some(q) => vec![q],
+        None => (0..machine.modes()).collect(),
+    };
+    let n = guess.len();
+    let cell = std::cell::RefCell::new(machine);
+    for &q in &modes {
+        let flows = |x: &[f64]| -> Option<Vec<f64>> {
+            let mut out = vec![0.0; n];
+            cell.borrow_mut().bare_flows(x, u, q, &mut out);
+            out.iter().all(|v| v.is_finite()).then_some(out)
+        };
+        let Some(f0) = flows(guess) else { continue };
+        let scale = f0.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        let (x, _) =
+            crate::solve::levenberg_marquardt(&flows, guess, None, 1e-7, STEADY_ITERATIONS);
+        let at_rest =
+            flows(&x).is_some_and(|f| f.iter().all(|v| v.abs() <= STEADY_TOLERANCE * scale));
+        if at_rest && cell.borrow_mut().in_invariant(&x, u, q) {
+            return Ok((x, q));
+        }
+    }
+    let place = match mode {
+        Some(_) => "in the rule's mode the flows do not vanish",
+        None => "in no mode do the flows vanish",
+    };
+    Err(SimError::InitialState(format!(
+        "no rest state under the first input: {place} at a state within its invariant \
+         (damped Newton from the guess, at most {STEADY_ITERATIONS} iterations)"
+    )))
 }

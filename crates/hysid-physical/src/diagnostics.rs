@@ -52,6 +52,11 @@ pub struct PhysicalDiagnostics {
     pub free_parameters: usize,
     /// Per non-fixed parameter name.
     pub parameters: BTreeMap<String, ParameterDiagnostics>,
+    /// The initial states the model leaves unknown (`estimate`), as fitted
+    /// with the parameters: nuisance parameters of this record, not written
+    /// into the model (whose rule estimates them again on every record).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub initial_states: BTreeMap<String, f64>,
     /// [`CONFIDENCE_METHOD`].
     pub confidence_method: String,
     /// `sqrt` of the condition number of `J^T J` ([`Sensitivity::condition`];
@@ -207,6 +212,9 @@ impl PhysicalDiagnostics {
     ) -> BTreeMap<String, ParameterDiagnostics> {
         let mut out = BTreeMap::new();
         for (gi, g) in map.groups.iter().enumerate() {
+            if map.is_initial_state(gi) {
+                continue;
+            }
             let entry = ParameterDiagnostics::new(
                 values[g[0]],
                 sens.std_errors[gi],
@@ -312,6 +320,7 @@ mod tests {
                 ),
             ]
             .into(),
+            initial_states: BTreeMap::new(),
             confidence_method: CONFIDENCE_METHOD.into(),
             jacobian_condition: None,
             zero_sensitivity: vec![],

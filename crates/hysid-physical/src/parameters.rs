@@ -36,9 +36,15 @@ pub enum ParameterError {
 
 /// How the free coordinates `z in [0, 1]^d` map onto the model's parameters:
 /// fixed parameters keep their value, tied ones share a coordinate, each
-/// coordinate spans its (intersected) bounds.
+/// coordinate spans its (intersected) bounds. The initial states the model
+/// leaves unknown ([`Target::estimated_states`]) follow the parameters,
+/// one coordinate each over their bounds: nuisance parameters of the
+/// record, searched with the parameters but not written into the model.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParameterMap {
+    /// Number of the model's parameters: the values after them are the
+    /// estimated initial states.
+    pub parameters: usize,
     /// Value of every parameter when `z` is not involved (fixed ones).
     pub base: Vec<f64>,
     /// Per free coordinate: the parameters it sets.
@@ -56,7 +62,7 @@ impl ParameterMap {
     /// priors (`[fixed]`, `[bounds]`, `[[tie]]`), checking every name.
     pub fn new(model: &impl Target, priors: &Priors) -> Result<Self, ParameterError> {
         let parameters = model.parameters();
-        let names: Vec<String> = parameters.iter().map(|p| p.name.clone()).collect();
+        let mut names: Vec<String> = parameters.iter().map(|p| p.name.clone()).collect();
         let idx = |n: &str, entry: &'static str| {
             names
                 .iter()
@@ -103,7 +109,16 @@ impl ParameterMap {
                 bounds[i] = *b;
             }
         }
+        let np = names.len();
+        for (name, b, start) in model.estimated_states() {
+            free_groups.push(vec![names.len()]);
+            free_bounds.push(b);
+            bounds.push(b);
+            base.push(start);
+            names.push(name);
+        }
         Ok(Self {
+            parameters: np,
             base,
             groups: free_groups,
             bounds: free_bounds,
@@ -115,6 +130,19 @@ impl ParameterMap {
     /// Number of free coordinates.
     pub fn dim(&self) -> usize {
         self.groups.len()
+    }
+
+    /// Whether free coordinate `g` is an estimated initial state rather
+    /// than a parameter.
+    pub fn is_initial_state(&self, g: usize) -> bool {
+        self.groups[g][0] >= self.parameters
+    }
+
+    /// The estimated initial states at the values `values`, by name.
+    pub fn initial_states(&self, values: &[f64]) -> std::collections::BTreeMap<String, f64> {
+        (self.parameters..self.names.len())
+            .map(|i| (self.names[i].clone(), values[i]))
+            .collect()
     }
 
     /// Parameter values for `z` (clamped into `[0, 1]`).
@@ -166,6 +194,9 @@ impl ParameterMap {
     pub fn at_bound(&self, values: &[f64]) -> Vec<String> {
         let mut at_bound = Vec::new();
         for (g, [lo, hi]) in self.groups.iter().zip(&self.bounds) {
+            if g[0] >= self.parameters {
+                continue;
+            }
             let v = values[g[0]];
             if (v - lo).abs() <= 1e-6 * (hi - lo) || (hi - v).abs() <= 1e-6 * (hi - lo) {
                 at_bound.extend(g.iter().map(|&i| self.names[i].clone()));

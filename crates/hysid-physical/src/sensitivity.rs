@@ -36,9 +36,10 @@ impl Sensitivity {
         }
     }
 
-    /// Names of the parameters with no effect on the simulated output under
-    /// a small change: not identifiable from this record (a stop never
-    /// reached), or a threshold (static friction) that no small change flips.
+    /// Names of the parameters (and estimated initial states) with no
+    /// effect on the simulated output under a small change: not
+    /// identifiable from this record (a stop never reached), or a threshold
+    /// (static friction) that no small change flips.
     pub fn insensitive(&self, map: &ParameterMap) -> Vec<String> {
         map.groups
             .iter()

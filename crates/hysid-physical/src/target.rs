@@ -49,6 +49,13 @@ pub trait Target: Simulator + Clone {
     /// samples, velocities below `velocity_tol` taken as zero (at least
     /// the model's own tolerance).
     fn with_measured_start(&self, samples: usize, velocity_tol: f64) -> Self;
+    /// The states of the initial state that the model leaves unknown:
+    /// `(name, [low, high], starting guess)`. They are fitted with the
+    /// parameters, as nuisance parameters of the record: their values
+    /// follow the parameters' in the values a [`Simulator`] takes.
+    fn estimated_states(&self) -> Vec<(String, [f64; 2], f64)> {
+        Vec::new()
+    }
 }
 
 impl Target for MechanicalModel {
@@ -181,8 +188,16 @@ impl Target for GrayBoxTarget {
     fn measured_samples(&self) -> Option<usize> {
         match self.model.initial_state {
             GrayBoxInitialState::Measured { samples, .. } => Some(samples),
-            GrayBoxInitialState::Given { .. } => None,
+            GrayBoxInitialState::Given { .. } | GrayBoxInitialState::Steady { .. } => None,
         }
+    }
+
+    fn estimated_states(&self) -> Vec<(String, [f64; 2], f64)> {
+        self.compiled
+            .estimates
+            .iter()
+            .map(|e| (e.name.clone(), e.bounds, e.start))
+            .collect()
     }
 
     /// A model with a given initial state keeps it: which state the
@@ -211,9 +226,18 @@ impl Target for GrayBoxTarget {
     }
 }
 
+impl GrayBoxTarget {
+    /// `values` split into the parameters and the estimated initial states
+    /// ([`Target::estimated_states`]) that follow them.
+    fn split<'v>(&self, values: &'v [f64]) -> (&'v [f64], &'v [f64]) {
+        values.split_at(self.compiled.parameters.min(values.len()))
+    }
+}
+
 impl Simulator for GrayBoxTarget {
     fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)> {
-        let r = hysid_graybox::simulate::run(&self.compiled, values, data).ok()?;
+        let (values, initial) = self.split(values);
+        let r = hysid_graybox::simulate::run_from(&self.compiled, values, initial, data).ok()?;
         Some((r.start, r.y))
     }
 
@@ -226,27 +250,19 @@ impl Simulator for GrayBoxTarget {
     ) -> Option<Vec<f64>> {
         let ts = data.ts?;
         let y = data.y();
-        let yhat = match &self.compiled.initial {
-            CompiledInitial::Measured {
-                position,
-                velocity,
-                x,
-                ..
-            } => {
-                let state_at = |s: usize| {
-                    let mut x = x.clone();
-                    x[*position] = y[s];
-                    if let Some(v) = velocity {
-                        x[*v] = segment_velocity(y, s, ts, velocity_tol);
-                    }
-                    x
-                };
-                hysid_graybox::simulate::segmented(&self.compiled, values, data, segment, &state_at)
-                    .ok()?
-            }
-            // Nothing measured to restart from: the free run.
-            CompiledInitial::Given { .. } => self.free_run(values, data)?.1,
-        };
+        let (values, initial) = self.split(values);
+        // Without the measured rule there is nothing to restart from: the
+        // free run.
+        let slope_at = |s: usize| segment_velocity(y, s, ts, velocity_tol);
+        let yhat = hysid_graybox::simulate::segmented(
+            &self.compiled,
+            values,
+            initial,
+            data,
+            segment,
+            &slope_at,
+        )
+        .ok()?;
         Some(y[1..].iter().zip(&yhat[1..]).map(|(a, b)| a - b).collect())
     }
 }

@@ -91,6 +91,16 @@ pub fn run(args: Args) -> Result<()> {
     };
     let sim = simulate(&model, &data, SimulationOptions::default())
         .map_err(|e| CliError::simulation(&args.model, e))?;
+    if args.data.is_some() {
+        let states = hysid_core::simulate::initial_states(&model, &data)
+            .map_err(|e| CliError::simulation(&args.model, e))?;
+        if !states.is_empty() {
+            eprintln!(
+                "hysid: initial state estimated from the warm-up: {}",
+                super::states_text(&states)
+            );
+        }
+    }
     if let Some(k) = sim.diverged_at {
         eprintln!(
             "hysid: warning: the simulation diverged at sample {k}; the output is held from there on"

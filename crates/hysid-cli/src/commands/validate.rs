@@ -103,6 +103,12 @@ pub fn run(args: Args) -> Result<()> {
             "modes     {:?} samples per mode in simulation",
             report.mode_counts
         );
+        if !report.initial_states.is_empty() {
+            println!(
+                "initial   {} (estimated from the warm-up)",
+                super::states_text(&report.initial_states)
+            );
+        }
     }
     Ok(())
 }

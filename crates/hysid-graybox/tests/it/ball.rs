@@ -95,6 +95,8 @@ fn located_events_match_a_fine_step_reference() {
     m.initial_state = GrayBoxInitialState::Given {
         values: [("y".to_string(), y0), ("z".to_string(), z0)].into(),
         mode: Some("fly".into()),
+        estimate: Default::default(),
+        samples: None,
     };
     let (ts, n) = (0.01, 151);
     let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(ts)).unwrap();

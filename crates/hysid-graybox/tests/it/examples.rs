@@ -169,6 +169,8 @@ proptest! {
         m.initial_state = hysid_graybox::GrayBoxInitialState::Given {
             values: names.iter().map(|n| n.to_string()).zip(x0.iter().map(|v| v * 0.5)).collect(),
             mode: None,
+            estimate: Default::default(),
+            samples: None,
         };
         let n = 400;
         let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(0.01)).unwrap();

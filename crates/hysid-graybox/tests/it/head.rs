@@ -140,6 +140,8 @@ proptest! {
         g.initial_state = hysid_graybox::GrayBoxInitialState::Given {
             values: [("y".to_string(), y0), ("v".to_string(), v0)].into(),
             mode: None,
+            estimate: Default::default(),
+            samples: None,
         };
         let n = 400;
         let data = Dataset::siso(vec![0.0; n], vec![0.0; n], Some(TS)).unwrap();
@@ -188,6 +190,8 @@ proptest! {
         g.initial_state = hysid_graybox::GrayBoxInitialState::Given {
             values: [("y".to_string(), y0)].into(),
             mode: None,
+            estimate: Default::default(),
+            samples: None,
         };
         let c = CompiledModel::new(&g).unwrap();
         let n = 200;

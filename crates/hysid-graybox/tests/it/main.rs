@@ -4,4 +4,5 @@ mod ball;
 mod delay;
 mod examples;
 mod head;
+mod initial;
 mod limits;

@@ -114,6 +114,10 @@ pub enum SimError {
     /// without them; model files are checked when read).
     #[error("invalid model: {0}")]
     InvalidModel(String),
+    /// The model's initial-state rule could not be met on this record (no
+    /// rest state, a sensor map of zero gain).
+    #[error("initial state: {0}")]
+    InitialState(String),
     /// A transition's reset map put the state outside its target mode's
     /// invariant (a modelling error: the reset and the invariant disagree).
     #[error(

@@ -1,0 +1,159 @@
+//! Gray-box initial states the rule leaves unknown, from the program:
+//! `validate` and `simulate --data` estimate them from the record's
+//! warm-up and report them; bad rules are one-line errors naming the file.
+
+use crate::common;
+
+use common::{hysid, ok, one_line_error, s, write};
+
+/// Two first-order lags in cascade with the output `output` and the
+/// initial state `initial`.
+fn cascade(output: &str, initial: &str) -> String {
+    format!(
+        r#"kind = "gray_box"
+format = 1
+internal_step = 0.025
+states = ["x1", "x2"]
+inputs = ["u"]
+outputs = [{{ name = "y", value = "{output}" }}]
+initial_state = {initial}
+parameters = [
+    {{ name = "a", value = 0.8, bounds = [0.2, 4.0] }},
+    {{ name = "b", value = 2.0, bounds = [0.2, 4.0] }},
+    {{ name = "c", value = 1.5, bounds = [0.2, 4.0] }},
+    {{ name = "off", value = -0.3, bounds = [-2.0, 2.0] }},
+]
+
+[[modes]]
+name = "only"
+flow = {{ x1 = "-a*x1 + u", x2 = "b*(x1 - x2)" }}
+"#
+    )
+}
+
+const ESTIMATE: &str =
+    r#"{ from = "measured", samples = 10, position = "x2", estimate = { x1 = [-5.0, 5.0] } }"#;
+
+/// `validate` prints the state estimated from the warm-up and its JSON
+/// carries it; rows after the warm-up changed leave it unchanged;
+/// `simulate --data` reports it on stderr.
+#[test]
+fn validate_and_simulate_report_the_estimated_initial_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let truth = write(
+        d,
+        "truth.toml",
+        cascade(
+            "c*x2 + off",
+            r#"{ from = "given", values = { x1 = 2.25, x2 = 0.5 } }"#,
+        ),
+    );
+    let record = d.join("record.csv");
+    ok(&[
+        "simulate",
+        s(&truth),
+        "--excite",
+        "n=200,hold=10,low=-1,high=1,ts=0.05",
+        "--seed",
+        "1",
+        "-o",
+        s(&record),
+    ]);
+    let model = write(d, "estimate.toml", cascade("c*x2 + off", ESTIMATE));
+    let text = ok(&["validate", s(&model), s(&record), "--warmup", "10"]);
+    assert!(text.contains("initial   x1 = 2.2"), "{text}");
+    let estimate = |data: &std::path::Path| -> f64 {
+        let json = ok(&["validate", s(&model), s(data), "--warmup", "10", "--json"]);
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        v["initial_states"]["x1"].as_f64().unwrap()
+    };
+    let x1 = estimate(&record);
+    assert!((x1 - 2.25).abs() <= 1e-6 * 2.25, "{x1}");
+
+    // The same record with every row after the warm-up changed.
+    let csv = std::fs::read_to_string(&record).unwrap();
+    let mut lines: Vec<String> = csv.lines().map(str::to_string).collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let y = header.iter().position(|h| *h == "y").unwrap();
+    for line in lines.iter_mut().skip(11) {
+        let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
+        cells[y] = format!("{}", cells[y].parse::<f64>().unwrap() + 1.5);
+        *line = cells.join(",");
+    }
+    let changed = write(d, "changed.csv", lines.join("\n") + "\n");
+    assert_eq!(estimate(&changed).to_bits(), x1.to_bits());
+
+    let out = d.join("sim.csv");
+    let o = hysid(&["simulate", s(&model), "--data", s(&record), "-o", s(&out)]);
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("initial state estimated from the warm-up: x1 = 2.2"),
+        "{err}"
+    );
+}
+
+/// An estimate of an unknown state, bounds with low above high, an output
+/// map not affine in the measured state, and a `steady` rule without a rest
+/// state: each a one-line error naming the file, exit code 2.
+#[test]
+fn bad_initial_state_rules_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let record = write(
+        d,
+        "record.csv",
+        (0..40)
+            .map(|k| {
+                format!(
+                    "{},{},{}\n",
+                    k as f64 * 0.05,
+                    (k % 7) as f64 * 0.1,
+                    k as f64 * 0.01
+                )
+            })
+            .fold("t,u,y\n".to_string(), |a, l| a + &l),
+    );
+    let cases = [
+        (
+            "unknown.toml",
+            cascade(
+                "x2",
+                r#"{ from = "measured", position = "x2", estimate = { x3 = [0.0, 1.0] } }"#,
+            ),
+            "'x3' is not a state",
+        ),
+        (
+            "bounds.toml",
+            cascade(
+                "x2",
+                r#"{ from = "given", estimate = { x1 = [2.0, 1.0] } }"#,
+            ),
+            "estimate of 'x1': need finite bounds [low, high] with low <= high",
+        ),
+        (
+            "affine.toml",
+            cascade("c*x2^2 + off", r#"{ from = "measured", position = "x2" }"#),
+            "output 'y' = 'c*x2^2 + off' is not affine in 'x2'",
+        ),
+        (
+            "rest.toml",
+            cascade("x2", r#"{ from = "steady" }"#).replace("-a*x1 + u", "1 + x1^2"),
+            "initial state: no rest state under the first input",
+        ),
+    ];
+    for (name, text, needle) in cases {
+        let model = write(d, name, text);
+        let err = one_line_error(&hysid(&["validate", s(&model), s(&record)]), 2)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(err.contains(name) && err.contains(needle), "{name}: {err}");
+    }
+    // The affine map's error also gives the line of the output.
+    let err = one_line_error(
+        &hysid(&["validate", s(&d.join("affine.toml")), s(&record)]),
+        2,
+    )
+    .unwrap();
+    assert!(err.contains("affine.toml, line 6"), "{err}");
+}
