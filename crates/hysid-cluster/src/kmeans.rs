@@ -16,9 +16,9 @@
 //! Euclidean distance between feature vectors, by Prim's minimum spanning
 //! tree, cut at a distance threshold or into a given number of clusters.
 
-use hysid_estimation::dense;
 use crate::local::FeatureVectors;
 use hysid_core::backend::Deadline;
+use hysid_estimation::dense;
 use rand::Rng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;

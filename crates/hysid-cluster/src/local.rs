@@ -29,8 +29,8 @@
 //! millions of times more than ordinary ones.
 
 use crate::Features;
-use hysid_estimation::dense;
 use crate::knn::KdTree;
+use hysid_estimation::dense;
 use hysid_model::statistics::upper_median;
 use rayon::prelude::*;
 

@@ -16,7 +16,9 @@ const SIZES: [usize; 4] = [3, 5, 8, 12];
 /// A well-conditioned SPD matrix `B^T B + p I` (row-major) and a
 /// right-hand side.
 fn system(p: usize) -> (Vec<f64>, Vec<f64>) {
-    let b: Vec<f64> = (0..p * p).map(|k| ((k * 7919) % 101) as f64 / 101.0 - 0.5).collect();
+    let b: Vec<f64> = (0..p * p)
+        .map(|k| ((k * 7919) % 101) as f64 / 101.0 - 0.5)
+        .collect();
     let mut a = vec![0.0; p * p];
     for i in 0..p {
         for j in 0..p {

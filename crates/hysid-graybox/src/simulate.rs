@@ -45,6 +45,7 @@
 
 use crate::compile::{CompiledElement, CompiledInitial, CompiledModel};
 use crate::expr::Crossing;
+use crate::solve::{LmSettings, levenberg_marquardt};
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
 
@@ -1346,8 +1347,11 @@ pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec
         })
         .collect();
     let unit = vec![[0.0, 1.0]; z0.len()];
-    let (z, _) =
-        crate::solve::levenberg_marquardt(&residuals, &z0, Some(&unit), 1e-7, ESTIMATE_ITERATIONS);
+    let settings = LmSettings {
+        bounds: Some(&unit),
+        ..LmSettings::states(ESTIMATE_ITERATIONS)
+    };
+    let z = levenberg_marquardt(&residuals, &z0, &settings, &|| false, &|_| {}).x;
     Ok(to_values(&z))
 }
 
@@ -1380,8 +1384,8 @@ pub(crate) fn steady(
         };
         let Some(f0) = flows(guess) else { continue };
         let scale = f0.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-        let (x, _) =
-            crate::solve::levenberg_marquardt(&flows, guess, None, 1e-7, STEADY_ITERATIONS);
+        let settings = LmSettings::states(STEADY_ITERATIONS);
+        let x = levenberg_marquardt(&flows, guess, &settings, &|| false, &|_| {}).x;
         let at_rest =
             flows(&x).is_some_and(|f| f.iter().all(|v| v.abs() <= STEADY_TOLERANCE * scale));
         if at_rest && cell.borrow_mut().in_invariant(&x, u, q) {

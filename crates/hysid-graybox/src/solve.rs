@@ -1,31 +1,90 @@
-//! The small Levenberg-Marquardt solver of initial states that a rule
-//! leaves unknown: the states estimated from a record's warm-up outputs
-//! and the rest state of the `steady` rule
-//! ([`crate::simulate::estimate`], the `steady` rule of
-//! [`crate::simulate::run`]).
+//! The finite-difference Levenberg-Marquardt of the physics models: the
+//! initial states a rule leaves unknown (estimated from a record's warm-up
+//! outputs, [`crate::simulate::estimate`]), the rest state of the `steady`
+//! rule, and the local stages of the `physical` back-end, which fit the
+//! parameters in box-normalised coordinates.
 
 use nalgebra::{DMatrix, DVector};
 
+/// Settings of [`levenberg_marquardt`].
+#[derive(Debug, Clone, Copy)]
+pub struct LmSettings<'a> {
+    /// Box the points are projected onto (steps and finite differences);
+    /// `None`: unbounded.
+    pub bounds: Option<&'a [[f64; 2]]>,
+    /// Finite-difference step, times `max(1, |x_i|)`.
+    pub fd: f64,
+    /// Iteration bound.
+    pub iterations: usize,
+    /// An accepted step whose relative decrease of the sum of squares is
+    /// below this ends the solve ([`LmEnd::Converged`]).
+    pub relative_tolerance: f64,
+    /// Damping past which no step is tried ([`LmEnd::NoDecrease`]).
+    pub max_damping: f64,
+    /// Smallest damping after successful steps.
+    pub min_damping: f64,
+}
+
+impl LmSettings<'_> {
+    /// The settings of the initial-state and rest-state solves.
+    pub fn states(iterations: usize) -> LmSettings<'static> {
+        LmSettings {
+            bounds: None,
+            fd: 1e-7,
+            iterations,
+            relative_tolerance: 1e-15,
+            max_damping: 1e10,
+            min_damping: 1e-15,
+        }
+    }
+}
+
+/// Why [`levenberg_marquardt`] ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LmEnd {
+    /// The sum of squares reached zero, or a step decreased it by less
+    /// than the relative tolerance.
+    Converged,
+    /// No step decreased it, up to the largest damping.
+    NoDecrease,
+    /// The iteration bound was reached first.
+    IterationLimit,
+    /// The caller's stop request (a deadline) held.
+    Stopped,
+    /// The residuals could not be evaluated at the start.
+    NotEvaluated,
+}
+
+/// What [`levenberg_marquardt`] reached.
+#[derive(Debug, Clone)]
+pub struct LmOutcome {
+    /// The best point.
+    pub x: Vec<f64>,
+    /// Its sum of squares (`+inf` when the start could not be evaluated).
+    pub cost: f64,
+    /// Why the solve ended.
+    pub end: LmEnd,
+}
+
 /// Levenberg-Marquardt (Levenberg 1944, Marquardt 1963) on the residuals
-/// `res(x)` from `x0`, at most `iters` iterations: the damped Gauss-Newton
-/// step `(J^T J + mu diag(J^T J)) dx = -J^T r` with a central
-/// finite-difference Jacobian (step `fd` times `max(1, |x_i|)`, or `fd`
-/// in `[0, 1]` coordinates), projected onto `bounds` when given. The
+/// `res(x)` from `x0`: the damped Gauss-Newton step
+/// `(J^T J + mu (diag(J^T J) + 1e-12)) dx = -J^T r` with a central
+/// finite-difference Jacobian, projected onto the settings' box. The
 /// damping starts at `1e-3`, is divided by 3 after a step that lowers the
-/// sum of squares and multiplied by 4 after one that does not; the solve
-/// stops when the sum of squares is zero, its relative decrease falls
-/// below `1e-15`, or the damping exceeds `1e10`. Returns the best point
-/// and its sum of squares (infinite when `res(x0)` fails).
+/// sum of squares and multiplied by 4 after one that does not (by 10 when
+/// the damped matrix is not positive definite). `stop` is asked before
+/// every iteration; `evaluated(n)` is told of every `n` evaluations of
+/// `res`.
 pub fn levenberg_marquardt(
     res: &dyn Fn(&[f64]) -> Option<Vec<f64>>,
     x0: &[f64],
-    bounds: Option<&[[f64; 2]]>,
-    fd: f64,
-    iters: usize,
-) -> (Vec<f64>, f64) {
+    settings: &LmSettings<'_>,
+    stop: &dyn Fn() -> bool,
+    evaluated: &dyn Fn(u64),
+) -> LmOutcome {
     let sse = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
     let project = |x: &mut [f64]| {
-        if let Some(b) = bounds {
+        if let Some(b) = settings.bounds {
             for (v, [lo, hi]) in x.iter_mut().zip(b) {
                 *v = v.clamp(*lo, *hi);
             }
@@ -33,59 +92,82 @@ pub fn levenberg_marquardt(
     };
     let mut x = x0.to_vec();
     let Some(mut r) = res(&x) else {
-        return (x, f64::INFINITY);
+        return LmOutcome {
+            x,
+            cost: f64::INFINITY,
+            end: LmEnd::NotEvaluated,
+        };
     };
+    evaluated(1);
     let mut cost = sse(&r);
     let mut mu = 1e-3;
     let mut jac: Option<DMatrix<f64>> = None;
-    for _ in 0..iters {
+    let mut end = LmEnd::IterationLimit;
+    for _ in 0..settings.iterations {
         if cost == 0.0 {
+            end = LmEnd::Converged;
             break;
         }
-        let j = jac.get_or_insert_with(|| jacobian(res, &x, r.len(), fd, &project));
-        let jtj = j.transpose() * &*j;
-        let g = j.transpose() * DVector::from_column_slice(&r);
-        let mut a = jtj.clone();
-        for c in 0..a.ncols() {
-            a[(c, c)] += mu * (jtj[(c, c)] + 1e-12);
+        if stop() {
+            end = LmEnd::Stopped;
+            break;
         }
-        let Some(step) = a.cholesky().map(|ch| ch.solve(&(-g))) else {
+        let j =
+            jac.get_or_insert_with(|| jacobian(res, &x, r.len(), settings.fd, &project, evaluated));
+        let Some(step) = damped_step(j, &r, mu) else {
             mu *= 10.0;
             continue;
         };
         let mut xn: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
         project(&mut xn);
+        evaluated(1);
         match res(&xn) {
             Some(rn) if sse(&rn) < cost => {
                 let decrease = (cost - sse(&rn)) / cost;
                 (x, r) = (xn, rn);
                 cost = sse(&r);
-                mu = (mu / 3.0).max(1e-15);
+                mu = (mu / 3.0).max(settings.min_damping);
                 jac = None;
-                if decrease < 1e-15 {
+                if decrease < settings.relative_tolerance {
+                    end = LmEnd::Converged;
                     break;
                 }
             }
             _ => {
                 mu *= 4.0;
-                if mu > 1e10 {
+                if mu > settings.max_damping {
+                    end = LmEnd::NoDecrease;
                     break;
                 }
             }
         }
     }
-    (x, cost)
+    LmOutcome { x, cost, end }
 }
 
-/// Central finite-difference Jacobian (`rows` residuals) of `res` at `x`,
-/// the perturbed points projected by `project`; a column whose residuals
-/// fail stays zero.
+/// The damped Gauss-Newton step `-(J^T J + mu (diag(J^T J) + 1e-12))^-1 J^T r`
+/// (`None` when the damped matrix is not positive definite).
+fn damped_step(j: &DMatrix<f64>, r: &[f64], mu: f64) -> Option<DVector<f64>> {
+    let jtj = j.transpose() * j;
+    let g = j.transpose() * DVector::from_column_slice(r);
+    let mut a = jtj.clone();
+    for c in 0..jtj.ncols() {
+        a[(c, c)] += mu * (jtj[(c, c)] + 1e-12);
+    }
+    let ch = a.cholesky()?;
+    Some(ch.solve(&(-g)))
+}
+
+/// Central finite-difference Jacobian (`rows` residuals) of `res` at `x`
+/// (step `fd max(1, |x_i|)`), the perturbed points projected by
+/// `project`; a column whose residuals fail stays zero.
 fn jacobian(
     res: &dyn Fn(&[f64]) -> Option<Vec<f64>>,
     x: &[f64],
     rows: usize,
     fd: f64,
     project: &dyn Fn(&mut [f64]),
+    evaluated: &dyn Fn(u64),
 ) -> DMatrix<f64> {
     let mut j = DMatrix::zeros(rows, x.len());
     for c in 0..x.len() {
@@ -99,6 +181,7 @@ fn jacobian(
         if width <= 0.0 {
             continue;
         }
+        evaluated(2);
         let (Some(rp), Some(rm)) = (res(&xp), res(&xm)) else {
             continue;
         };
@@ -111,23 +194,38 @@ fn jacobian(
 
 #[cfg(test)]
 mod tests {
-    use super::levenberg_marquardt;
+    use super::{LmEnd, LmSettings, levenberg_marquardt};
 
     #[test]
     fn levenberg_marquardt_solves_a_nonlinear_system_and_keeps_to_its_bounds() {
         // x^2 = 2, x y = 3: x = sqrt 2, y = 3 / sqrt 2.
         let res = |x: &[f64]| Some(vec![x[0] * x[0] - 2.0, x[0] * x[1] - 3.0]);
-        let (x, cost) = levenberg_marquardt(&res, &[1.0, 1.0], None, 1e-7, 100);
-        assert!(cost < 1e-24, "{cost}");
-        assert!((x[0] - 2f64.sqrt()).abs() < 1e-12);
-        assert!((x[1] - 3.0 / 2f64.sqrt()).abs() < 1e-12);
-        let (x, _) = levenberg_marquardt(
-            &res,
-            &[1.0, 1.0],
-            Some(&[[0.0, 1.2], [0.0, 5.0]]),
-            1e-7,
-            100,
-        );
-        assert!(x[0] <= 1.2 && x[0] > 1.19, "{x:?}");
+        let free = LmSettings::states(100);
+        let o = levenberg_marquardt(&res, &[1.0, 1.0], &free, &|| false, &|_| {});
+        assert!(o.cost < 1e-24, "{}", o.cost);
+        assert!((o.x[0] - 2f64.sqrt()).abs() < 1e-12);
+        assert!((o.x[1] - 3.0 / 2f64.sqrt()).abs() < 1e-12);
+        let boxed = LmSettings {
+            bounds: Some(&[[0.0, 1.2], [0.0, 5.0]]),
+            ..free
+        };
+        let o = levenberg_marquardt(&res, &[1.0, 1.0], &boxed, &|| false, &|_| {});
+        assert!(o.x[0] <= 1.2 && o.x[0] > 1.19, "{:?}", o.x);
+    }
+
+    #[test]
+    fn a_stop_request_and_a_failing_start_end_the_solve() {
+        let res = |x: &[f64]| Some(vec![x[0] - 1.0]);
+        let s = LmSettings::states(10);
+        let o = levenberg_marquardt(&res, &[0.0], &s, &|| true, &|_| {});
+        assert_eq!((o.end, o.x[0]), (LmEnd::Stopped, 0.0));
+        let o = levenberg_marquardt(&|_: &[f64]| None, &[0.0], &s, &|| false, &|_| {});
+        assert_eq!(o.end, LmEnd::NotEvaluated);
+        assert!(o.cost.is_infinite());
+        let count = std::cell::Cell::new(0);
+        let o = levenberg_marquardt(&res, &[0.0], &s, &|| false, &|n| count.set(count.get() + n));
+        assert_eq!(o.end, LmEnd::Converged);
+        // The start, two per Jacobian column, one per trial step.
+        assert!(count.get() >= 4, "{}", count.get());
     }
 }

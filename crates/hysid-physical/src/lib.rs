@@ -20,7 +20,7 @@
 //!    the free-run one with `segment=0`);
 //! 2. local stages ([`local`]), on the segmented error and then on the
 //!    free-run one: Levenberg-Marquardt (Marquardt 1963,
-//!    [`levenberg_marquardt`]) from each start (the swarm's best, the
+//!    [`hysid_graybox::solve`]) from each start (the swarm's best, the
 //!    nominal values, the next best particles), then argmin's Nelder-Mead
 //!    (Nelder and Mead 1965) from the best point, restarted with a fresh
 //!    simplex a few times (bounded iterations each).
@@ -39,7 +39,6 @@ pub mod bridge;
 pub mod diagnostics;
 pub mod fit;
 pub mod identifiability;
-pub mod levenberg_marquardt;
 pub mod local;
 pub mod objective;
 pub mod parameters;

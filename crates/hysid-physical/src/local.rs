@@ -3,11 +3,16 @@
 //! on the segmented simulation error (when enabled), then on the free-run
 //! one.
 
-use crate::levenberg_marquardt::levenberg_marquardt;
 use crate::stages::{Search, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use hysid_core::backend::IdentifyError;
+use hysid_graybox::solve::{LmEnd, LmSettings, levenberg_marquardt};
+use std::sync::atomic::Ordering;
+
+/// A Levenberg-Marquardt step that lowers the cost by less than this
+/// fraction of it ends the stage ([`Termination::Converged`]).
+const LM_RELATIVE_TOLERANCE: f64 = 1e-9;
 
 /// What the local stages found.
 #[derive(Debug, Clone, PartialEq)]
@@ -105,15 +110,32 @@ fn local_stage(
             continue;
         }
         let res = |z: &[f64]| objective.residuals(z);
-        let (z, _, stop) = levenberg_marquardt(
+        let unit = vec![[0.0, 1.0]; start.len()];
+        let settings = LmSettings {
+            bounds: Some(&unit),
+            fd: options.fd_step,
+            iterations: options.lm_iters,
+            relative_tolerance: LM_RELATIVE_TOLERANCE,
+            max_damping: 1e8,
+            min_damping: 1e-12,
+        };
+        let outcome = levenberg_marquardt(
             &res,
             &start,
-            options.fd_step,
-            options.lm_iters,
-            &search.ctx.deadline,
-            search.evals,
+            &settings,
+            &|| search.ctx.deadline.passed(),
+            &|n| {
+                search.evals.fetch_add(n, Ordering::Relaxed);
+            },
         );
-        log.levenberg_marquardt.push(stop);
+        log.levenberg_marquardt.push(match outcome.end {
+            LmEnd::Converged => Termination::Converged,
+            LmEnd::NoDecrease => Termination::NoDecrease,
+            LmEnd::IterationLimit => Termination::MaxIterations,
+            LmEnd::Stopped => Termination::TimeBudget,
+            LmEnd::NotEvaluated => Termination::Other,
+        });
+        let z = outcome.x;
         let c = objective.mse(&z);
         best.offer(z, c);
         search.past_deadline(log, Stage::LevenbergMarquardt);

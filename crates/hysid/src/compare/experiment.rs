@@ -579,8 +579,14 @@ mod tests {
     #[test]
     fn a_model_file_is_joined_to_the_folder_without_dot_dot() {
         let j = |folder: &str, file: &str| lexically_joined(Path::new(folder), file);
-        assert_eq!(j("models/a/sim", "../head.toml"), Path::new("models/a/head.toml"));
-        assert_eq!(j("models/a", "./head.toml"), Path::new("models/a/head.toml"));
+        assert_eq!(
+            j("models/a/sim", "../head.toml"),
+            Path::new("models/a/head.toml")
+        );
+        assert_eq!(
+            j("models/a", "./head.toml"),
+            Path::new("models/a/head.toml")
+        );
         assert_eq!(j("", "../x.toml"), Path::new("../x.toml"));
         assert_eq!(j("a", "../../x.toml"), Path::new("../x.toml"));
         assert_eq!(j("/m", "/abs/x.toml"), Path::new("/abs/x.toml"));
