@@ -44,6 +44,8 @@ fn given(m: &mut GrayBoxModel, values: &[(&str, f64)], mode: Option<&str>) {
     m.initial_state = GrayBoxInitialState::Given {
         values: values.iter().map(|(n, v)| (n.to_string(), *v)).collect(),
         mode: mode.map(str::to_string),
+        estimate: Default::default(),
+        samples: None,
     };
 }
 
