@@ -341,6 +341,22 @@ const NOT_RUN: &[(&str, &str)] = &[
         "rec.csv stands for the reader's record; cli::your_own_record_identified_validated_and_plotted runs the same commands on a simulated one",
     ),
     ("hysid validate m.json rec.csv", "see rec.csv"),
+    (
+        "hysid identify DATA_EMPS.mat",
+        "the EMPS benchmark's estimation record, published at nonlinearbenchmark.org and not in the repository",
+    ),
+    (
+        "hysid validate emps.json DATA_EMPS",
+        "the EMPS benchmark's records, not in the repository",
+    ),
+    (
+        "hysid identify dataBenchmark.mat",
+        "the Cascaded Tanks benchmark's record, published at nonlinearbenchmark.org and not in the repository",
+    ),
+    (
+        "hysid validate tanks.json dataBenchmark.mat",
+        "the Cascaded Tanks benchmark's record, not in the repository",
+    ),
 ];
 
 /// Whether `command` holds a placeholder (`DATA`, `OUT_DIR`, `[..]`, `...`,

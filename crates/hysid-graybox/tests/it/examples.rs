@@ -59,6 +59,8 @@ fn the_scan_finds_the_head_and_the_example_models() {
         "models/examples/ball-on-table.toml",
         "models/examples/two-masses.toml",
         "models/examples/backlash-drive.toml",
+        "models/examples/positioning-axis.toml",
+        "models/examples/cascaded-tanks.toml",
     ] {
         assert!(
             FILES.iter().any(|f| f == path),

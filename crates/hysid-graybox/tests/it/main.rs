@@ -6,3 +6,4 @@ mod examples;
 mod head;
 mod initial;
 mod limits;
+mod real_systems;
