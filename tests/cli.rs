@@ -482,7 +482,7 @@ fn bad_options_and_files_are_usage_errors() {
     bad(
         &["identify", d, "-m", "physical", "-o", o],
         &[
-            "--set model=<FILE>",
+            "--set model=FILE or",
             "docs/gray-box-models.md",
             "models/pick-and-place/head.toml",
         ],

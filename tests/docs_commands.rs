@@ -461,3 +461,44 @@ fn the_readme_stays_short() {
         .count();
     assert!(lines <= 120, "README.md has {lines} lines");
 }
+
+/// Every recommendation of docs/choosing.md (a row of its table) links a
+/// section of docs/results.md that exists.
+#[test]
+fn every_choice_links_a_measured_figure() {
+    let slug = |heading: &str| -> String {
+        heading
+            .trim()
+            .to_lowercase()
+            .chars()
+            .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-')
+            .map(|c| if c == ' ' { '-' } else { c })
+            .collect()
+    };
+    let results = std::fs::read_to_string(root().join("docs/results.md")).unwrap();
+    let anchors: BTreeSet<String> = results
+        .lines()
+        .filter_map(|l| l.strip_prefix("## "))
+        .map(slug)
+        .collect();
+    let choosing = std::fs::read_to_string(root().join("docs/choosing.md")).unwrap();
+    let rows: Vec<&str> = choosing
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| you know"))
+        .collect();
+    assert!(rows.len() >= 5, "{rows:?}");
+    for row in rows {
+        let links: Vec<&str> = row
+            .split("(results.md#")
+            .skip(1)
+            .map(|rest| rest.split(')').next().unwrap())
+            .collect();
+        assert!(!links.is_empty(), "no figure linked: {row}");
+        for a in links {
+            assert!(
+                anchors.contains(a),
+                "results.md has no section #{a}: {anchors:?}"
+            );
+        }
+    }
+}

@@ -122,7 +122,7 @@ impl CheckOptions for PhysicalOptions {
                 key: "model",
                 method: Physical::NAME,
                 what: "the file of the model whose parameters it fits (docs/gray-box-models.md)",
-                forms: &["<FILE>", "models/pick-and-place/head.toml"],
+                forms: &["FILE", "models/pick-and-place/head.toml"],
             });
         }
         if !(1..=MAX_SWARMS).contains(&self.swarms) {

@@ -88,7 +88,7 @@ def test_a_prior_the_back_end_cannot_honour_has_the_program_message(program, tmp
 def test_physical_without_a_model_file_names_the_option(program, tmp_path):
     ours = raised(hysid.identify, U, Y, method="physical", ts=0.0025)
     theirs = program_message(program, "identify", PICK_AND_PLACE, "-m", "physical", "-o", tmp_path / "m.json")
-    assert "model=<FILE>" in ours and "model=<FILE>" in theirs and "docs/gray-box-models.md" in ours
+    assert "option model=FILE" in ours and "--set model=FILE" in theirs and "docs/gray-box-models.md" in ours
     assert not (tmp_path / "m.json").exists()
 
 

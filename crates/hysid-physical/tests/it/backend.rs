@@ -301,7 +301,7 @@ fn refuses_to_run_without_a_model_file() {
             ),
             "{set:?}: {e}"
         );
-        assert!(e.to_string().contains("option model=<FILE>"), "{e}");
+        assert!(e.to_string().contains("option model=FILE or"), "{e}");
     }
 }
 
