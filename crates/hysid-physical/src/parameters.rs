@@ -193,8 +193,8 @@ impl ParameterMap {
     /// its range from either bound, in coordinate order.
     pub fn at_bound(&self, values: &[f64]) -> Vec<String> {
         let mut at_bound = Vec::new();
-        for (g, [lo, hi]) in self.groups.iter().zip(&self.bounds) {
-            if g[0] >= self.parameters {
+        for (gi, (g, [lo, hi])) in self.groups.iter().zip(&self.bounds).enumerate() {
+            if self.is_initial_state(gi) {
                 continue;
             }
             let v = values[g[0]];

@@ -73,7 +73,11 @@ fn simulated(truth: &GrayBoxModel, ex: &Excitation, seed: u64, noise: f64) -> Da
     Dataset::siso(u, y, Some(TS)).unwrap()
 }
 
-fn fit(data: &Dataset, priors: &Priors, file: &str, seed: u64) -> GrayBoxModel {
+/// The search of the recovery tests: a small swarm.
+const SMALL_SEARCH: [&str; 2] = ["particles=12", "swarm_iters=15"];
+
+/// `file` fitted on `data` under `priors` with the options `settings`.
+fn fit(data: &Dataset, priors: &Priors, file: &str, settings: &[&str], seed: u64) -> GrayBoxModel {
     let problem = Problem {
         data,
         orders: RegressorSpec::new(2, 2, 1),
@@ -81,9 +85,14 @@ fn fit(data: &Dataset, priors: &Priors, file: &str, seed: u64) -> GrayBoxModel {
         priors_origin: None,
     };
     let model = format!("model={file}");
-    let settings = Settings::parse(&[model.as_str(), "particles=12", "swarm_iters=15"]).unwrap();
+    let mut all = vec![model.as_str()];
+    all.extend(settings);
     match Physical
-        .run(&problem, &settings, &RunContext::quiet(seed))
+        .run(
+            &problem,
+            &Settings::parse(&all).unwrap(),
+            &RunContext::quiet(seed),
+        )
         .unwrap()
     {
         Model::GrayBox(m) => m,
@@ -91,26 +100,11 @@ fn fit(data: &Dataset, priors: &Priors, file: &str, seed: u64) -> GrayBoxModel {
     }
 }
 
-/// Every free parameter of `truth` recovered within 5 % from `data`,
-/// starting from the nominal values of the example file `file`.
+/// Every free parameter of `truth` recovered within 5 % from `data` by the
+/// small search, starting from the nominal values of the example file
+/// `file`.
 fn recovers(truth: &GrayBoxModel, data: &Dataset, file: &str) -> GrayBoxModel {
-    let path = example(file);
-    let fitted = fit(data, &Priors::default(), path.to_str().unwrap(), 1);
-    for (t, f) in truth.parameters.iter().zip(&fitted.parameters) {
-        let rel = ((f.value - t.value) / t.value).abs();
-        eprintln!(
-            "{}: true {}, fitted {}, relative error {rel:.4}",
-            t.name, t.value, f.value
-        );
-        assert!(
-            rel <= 0.05,
-            "{}: true {}, fitted {}",
-            t.name,
-            t.value,
-            f.value
-        );
-    }
-    fitted
+    recovers_within(truth, data, file, &SMALL_SEARCH, 0.05)
 }
 
 /// Restitution, suspension frequency and damping recovered within 5 % from
@@ -187,7 +181,7 @@ fn priors_name_gray_box_parameters() {
     let file = example("ball-on-table.toml");
     let priors =
         Priors::from_toml("[fixed]\nzeta = 0.3\n[bounds]\ne = [0.5, 0.7]\n", "p.toml").unwrap();
-    let fitted = fit(&data, &priors, file.to_str().unwrap(), 2);
+    let fitted = fit(&data, &priors, file.to_str().unwrap(), &SMALL_SEARCH, 2);
     let value = |n: &str| fitted.parameters[fitted.parameter_index(n).unwrap()].value;
     assert_eq!(value("zeta"), 0.3);
     assert!((0.5..=0.7).contains(&value("e")), "e = {}", value("e"));
@@ -315,26 +309,14 @@ fn recovers_within(
     settings: &[&str],
     tolerance: f64,
 ) -> GrayBoxModel {
-    let problem = Problem {
+    let path = example(file);
+    let fitted = fit(
         data,
-        orders: RegressorSpec::new(2, 2, 1),
-        priors: &Priors::default(),
-        priors_origin: None,
-    };
-    let model = format!("model={}", example(file).display());
-    let mut all = vec![model.as_str()];
-    all.extend(settings);
-    let fitted = match Physical
-        .run(
-            &problem,
-            &Settings::parse(&all).unwrap(),
-            &RunContext::quiet(1),
-        )
-        .unwrap()
-    {
-        Model::GrayBox(m) => m,
-        other => panic!("kind {}", other.kind()),
-    };
+        &Priors::default(),
+        path.to_str().unwrap(),
+        settings,
+        1,
+    );
     for (t, f) in truth.parameters.iter().zip(&fitted.parameters) {
         let rel = ((f.value - t.value) / t.value).abs();
         eprintln!(
@@ -380,13 +362,7 @@ fn positioning_axis_parameters_are_recovered() {
     assert!(stuck_samples > 50, "{stuck_samples} samples stuck");
     let v: Vec<f64> = r.x.chunks(2).map(|x| x[1]).collect();
     assert!(v.iter().any(|v| *v > 0.01) && v.iter().any(|v| *v < -0.01));
-    recovers_within(
-        &truth,
-        &data,
-        "positioning-axis.toml",
-        &["particles=12", "swarm_iters=15"],
-        1e-3,
-    );
+    recovers_within(&truth, &data, "positioning-axis.toml", &SMALL_SEARCH, 1e-3);
 }
 
 /// The cascaded tanks (the Cascaded Tanks benchmark's physics): pump gain,
