@@ -95,14 +95,9 @@ pub enum PlotError {
 /// Writes the figure `svg` to `path` atomically, in the format its extension
 /// names: `.svg` as it is, `.png` rasterised ([`svg_to_png`]).
 fn write_figure(path: &Path, svg: &str) -> Result<(), PlotError> {
-    let bytes = match path.extension().and_then(|e| e.to_str()) {
-        Some("svg") => svg.as_bytes().to_vec(),
-        Some("png") => svg_to_png(svg)?,
-        _ => {
-            return Err(PlotError::Format {
-                path: path.to_path_buf(),
-            });
-        }
+    let bytes = match FigureFormat::of_path(path)? {
+        FigureFormat::Svg => svg.as_bytes().to_vec(),
+        FigureFormat::Png => svg_to_png(svg)?,
     };
     hysid_io::write(path, &bytes).map_err(|source| PlotError::Io {
         path: path.to_path_buf(),

@@ -25,6 +25,25 @@ impl FigureFormat {
         }
     }
 
+    /// The format the extension of `path` names (`.svg`, `.png`), when this
+    /// build writes it.
+    pub fn of_path(path: &std::path::Path) -> Result<Self, PlotError> {
+        let format = match path.extension().and_then(|e| e.to_str()) {
+            Some("svg") => FigureFormat::Svg,
+            Some("png") => FigureFormat::Png,
+            _ => {
+                return Err(PlotError::Format {
+                    path: path.to_path_buf(),
+                });
+            }
+        };
+        if format.is_built() {
+            Ok(format)
+        } else {
+            Err(PlotError::PngNotBuilt)
+        }
+    }
+
     /// The file extension, without the dot.
     pub fn extension(self) -> &'static str {
         match self {

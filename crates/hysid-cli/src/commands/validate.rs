@@ -43,8 +43,9 @@ pub fn run(args: Args) -> Result<()> {
             data.len()
         )));
     }
+    // A figure this build cannot write is refused before any work.
     if let Some(path) = &args.plot {
-        check_figure_path(path)?;
+        FigureFormat::of_path(path).map_err(|e| CliError::input(format!("--plot: {e}")))?;
     }
     let (report, sim, _) =
         validate(&model, &data, args.warmup).map_err(|e| CliError::simulation(&args.model, e))?;
@@ -60,7 +61,7 @@ pub fn run(args: Args) -> Result<()> {
         .with_warmup(args.warmup)
         .with_simulation("simulated", &sim);
         hysid::plot::simulation_plot(path, &figure)
-            .map_err(|e| CliError::input(format!("--plot {}: {e}", path.display())))?;
+            .map_err(|e| CliError::input(format!("--plot: {e}")))?;
     }
     if let Some(k) = report.diverged_at {
         eprintln!(
@@ -111,25 +112,6 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// A figure path this build can write, checked before any work.
-fn check_figure_path(path: &std::path::Path) -> Result<()> {
-    let format = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .and_then(|e| e.parse::<FigureFormat>().ok());
-    match format {
-        Some(f) if f.is_built() => Ok(()),
-        Some(_) => Err(CliError::input(format!(
-            "--plot {}: this build writes no PNG (build with --features png, or write .svg)",
-            path.display()
-        ))),
-        None => Err(CliError::input(format!(
-            "--plot {}: the figure's extension must be .svg or .png",
-            path.display()
-        ))),
-    }
 }
 
 /// `v`, or `0.0` when it shows as zero with three decimals: a FIT of
