@@ -99,6 +99,7 @@ impl PwarxMethod for Bounded {
     const NAME: &'static str = NAME;
     const SUMMARY: &'static str = "bounded-error PWARX (Bemporad et al. 2005): the number of modes follows from the error bound delta";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
+    const PAPER: &'static [(&'static str, &'static str)] = &[("alternation", "0")];
     const OUTPUT_UNITS: &'static [&'static str] =
         &["delta", "max_residual", "tie_projection_error"];
     const SEARCH: &'static str = "delta at 1, 1.5, 2, 3, 4 and 6 times the noise standard deviation of local affine fits (delta = auto is 3 times it); the mode count follows; every candidate with alternation = 50 and trim = 3";
@@ -196,7 +197,14 @@ mod tests {
     #[test]
     fn b1_model_with_regions_in_original_units() {
         let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 7);
-        let m = run(&g.data, &Priors::default(), &["delta=0.1"], 7).unwrap();
+        // The published procedure, whose modes certify delta.
+        let m = run(
+            &g.data,
+            &Priors::default(),
+            &["delta=0.1", "preset=paper"],
+            7,
+        )
+        .unwrap();
         let p = pwarx(&m);
         assert_eq!(p.modes.len(), 3);
         let common = &m.info().diagnostics;

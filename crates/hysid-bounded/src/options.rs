@@ -76,8 +76,9 @@ hysid_core::backend_options! {
         regions: RegionMethod = RegionMethod::Mrlp,
         /// Bound on the rounds of the alternation between the modes' least squares, a
         /// softmax gate and the mode of every sample that follows the classification
-        /// (docs/bounded.md, "Alternation"); 0: none, the published procedure.
-        alternation: usize = 0,
+        /// (docs/bounded.md, "Alternation"); 0: none, the published procedure
+        /// (preset=paper).
+        alternation: usize = hysid_estimation::regions::AUTO_ROUNDS,
     }
 }
 

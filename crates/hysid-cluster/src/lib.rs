@@ -140,8 +140,8 @@ hysid_core::backend_options! {
         region_refit: bool = true,
         /// Bound on the rounds of the alternation between the modes' parameters, a softmax
         /// gate and the mode of every sample that follows the clustering (docs/cluster.md,
-        /// "Alternation"); 0: none.
-        alternation: usize = 0,
+        /// "Alternation"); 0: none (the paper's procedure, preset=paper).
+        alternation: usize = AUTO_ALTERNATION,
         /// With more samples than this, steps 1 to 7 run on every ceil(N / cluster_points)-th
         /// sample and every sample then goes to the mode of its region (docs/cluster.md,
         /// "Large records"); 0: every sample.
@@ -248,6 +248,7 @@ impl PwarxMethod for Cluster {
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
+    const PAPER: &'static [(&'static str, &'static str)] = &[("alternation", "0")];
     const SEARCH: &'static str = "c: the five largest of 4, 6, 8, 10, 14, 20, 40, 80, 160, 320 from n+2 to an eighth of the rows (and c = none, the automatic rule, when fewer fit), and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none; every candidate with alternation = 50 and trim = 3";
 
     /// The local dataset sizes of [`c_candidates`] times the ordinary mode

@@ -8,7 +8,9 @@
 //! [`Registry`].
 
 use crate::model::Model;
-use crate::options::{BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, Settings};
+use crate::options::{
+    BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, Settings, preset_spec,
+};
 use crate::priors::{PriorError, PriorKind, Priors};
 use crate::search::SearchSpace;
 use hysid_model::data::{DataError, Dataset};
@@ -378,6 +380,11 @@ pub trait Identifier: Send + Sync {
     /// ([`crate::stages::Stages`]): its options include theirs, and
     /// automatic selection may set them.
     const STAGES: bool = false;
+    /// The options that turn the defaults into the procedure of the
+    /// back-end's paper exactly (`--set preset=paper`,
+    /// [`crate::options::PRESET`]); empty when the defaults are that
+    /// procedure.
+    const PAPER: &'static [(&'static str, &'static str)] = &[];
 
     /// The candidate settings that automatic selection (`--auto`) tries on
     /// `problem`; the default is the back-end's defaults only.
@@ -404,6 +411,7 @@ pub trait Identifier: Send + Sync {
         _problem: &Problem<'_>,
         _fitted: Model,
         _options: &Checked<Self::Options>,
+        _ctx: &RunContext<'_>,
     ) -> Option<Result<Model, IdentifyError>> {
         None
     }
@@ -461,7 +469,9 @@ impl<T: Identifier> Backend for T {
         T::SUMMARY
     }
     fn options(&self) -> Vec<OptionSpec> {
-        T::Options::specs()
+        let mut specs = T::Options::specs();
+        specs.push(preset_spec(T::PAPER));
+        specs
     }
     fn honours(&self) -> &'static [PriorKind] {
         T::HONOURS
@@ -504,7 +514,7 @@ impl<T: Identifier> Backend for T {
             Ok(options) => options,
             Err(e) => return Some(Err(e)),
         };
-        let refined = Identifier::refine_fitted(self, problem, fitted, &options)?;
+        let refined = Identifier::refine_fitted(self, problem, fitted, &options, ctx)?;
         Some(
             refined
                 .map(|model| with_provenance::<T>(model, problem, &options, ctx))
@@ -513,12 +523,13 @@ impl<T: Identifier> Backend for T {
     }
 }
 
-/// `settings` resolved into `T`'s checked options, with the priors checked
-/// against those `T` honours.
+/// `settings` with their preset written out, resolved into `T`'s checked
+/// options, with the priors checked against those `T` honours.
 fn checked_options<T: Identifier>(
     problem: &Problem<'_>,
     settings: &Settings,
 ) -> Result<Checked<T::Options>, IdentifyError> {
+    let settings = settings.with_preset(T::PAPER)?;
     let options = Checked::new(settings.resolve::<T::Options>(T::NAME)?)?;
     problem
         .priors

@@ -56,6 +56,33 @@ impl<T: OptionType> OptionType for Option<T> {
     }
 }
 
+/// The key of the preset every back-end accepts (`--set preset=paper`):
+/// `default`, the back-end's documented defaults, or `paper`, the
+/// procedure of the back-end's paper exactly
+/// ([`Identifier::PAPER`](crate::backend::Identifier::PAPER)). Options
+/// given beside it override it.
+pub const PRESET: &str = "preset";
+
+/// The description of [`PRESET`] for a back-end whose paper's procedure
+/// is its defaults with `paper` set.
+pub fn preset_spec(paper: &[(&str, &str)]) -> OptionSpec {
+    let differs = if paper.is_empty() {
+        "the same as the defaults".to_string()
+    } else {
+        let pairs: Vec<String> = paper.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        format!("the defaults with {}", pairs.join(", "))
+    };
+    OptionSpec {
+        key: PRESET,
+        ty: "default|paper".to_string(),
+        default: "default".to_string(),
+        doc: format!(
+            "default: the defaults above, hysid's best measured configuration; paper: the \
+             procedure as its paper publishes it ({differs}). Options given beside it override it."
+        ),
+    }
+}
+
 /// Text of a default value: TOML scalar syntax, `none` for `None`.
 pub fn show_default<T: Serialize>(v: &T) -> String {
     match serde_json::to_value(v) {
@@ -279,6 +306,31 @@ impl Settings {
                 .filter(|(k, _)| k != key)
                 .cloned()
                 .collect(),
+        }
+    }
+
+    /// The settings with the preset ([`PRESET`]) written out: with
+    /// `preset=paper`, the pairs of `paper` whose keys are not given, then
+    /// the given pairs; without a preset or with `preset=default`, the
+    /// given pairs. The preset's own key is not kept.
+    pub fn with_preset(&self, paper: &[(&str, &str)]) -> Result<Self, OptionError> {
+        let given = self.without(PRESET);
+        match self.get(PRESET) {
+            None | Some("default") => Ok(given),
+            Some("paper") => {
+                let mut pairs: Vec<(String, String)> = paper
+                    .iter()
+                    .filter(|(k, _)| given.get(k).is_none())
+                    .map(|(k, v)| (k.to_string(), v.to_string()))
+                    .collect();
+                pairs.extend(given.pairs);
+                Ok(Self { pairs })
+            }
+            Some(other) => Err(OptionError::invalid(
+                PRESET,
+                other,
+                "must be default or paper",
+            )),
         }
     }
 

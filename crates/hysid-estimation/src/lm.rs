@@ -12,12 +12,36 @@
 //! on the unknowns (the priors' equalities and bounds) hold after every
 //! step. A step is accepted only when the cost decreases; a point whose
 //! cost is not finite is never accepted.
+//!
+//! The descent ends by the convergence tests of MINPACK's `lmder` (Moré,
+//! Garbow & Hillstrom, *User guide for MINPACK-1*, 1980, section 2.3),
+//! which do not depend on the units of the data:
+//!
+//! - **cost**: an accepted step lowered the cost by less than
+//!   [`COST_TOLERANCE`] of it, and the linearisation predicted no more
+//!   (`ftol`);
+//! - **gradient**: the errors are nearly orthogonal to every column of the
+//!   Jacobian, the cosine of their angle at most [`GRADIENT_TOLERANCE`]
+//!   (`gtol`);
+//! - **step**: the step is negligible against the unknowns.
+//!
+//! The iteration bound and the run's deadline are safety nets: each ends
+//! the descent with its own [`Stop`].
 
+use hysid_core::backend::Deadline;
 use nalgebra::{DMatrix, DVector};
 
-/// A step that lowers the cost by less than this fraction of it ends the
-/// descent ([`Stop::Converged`]).
-pub const RELATIVE_TOLERANCE: f64 = 1e-10;
+/// The cost test: an accepted step that lowers the cost by less than this
+/// fraction of it, when the linearisation predicted no more, ends the
+/// descent ([`Stop::Converged`]). A relative change of `d` in the cost
+/// moves a FIT of `f` percent by `(100 - f) d / 2` points: at this
+/// tolerance, by less than `1e-4` points.
+pub const COST_TOLERANCE: f64 = 1e-6;
+
+/// The gradient test: when the cosine of the angle between the errors and
+/// every column of the Jacobian is at most this, the point is stationary
+/// ([`Stop::Converged`]).
+pub const GRADIENT_TOLERANCE: f64 = 1e-8;
 
 /// The errors of a model at a point and their Jacobian.
 #[derive(Debug, Clone)]
@@ -49,13 +73,15 @@ pub trait LeastSquares {
 /// Why the descent ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stop {
-    /// The relative decrease of the cost (or the step) fell below the
-    /// tolerance, or the cost reached zero.
+    /// A convergence test held (cost, gradient or step; see the module
+    /// doc), or the cost reached zero.
     Converged,
     /// No step of any damping decreased the cost.
     NoDescent,
     /// The iteration bound was reached first.
     IterationLimit,
+    /// The run's deadline passed first.
+    TimeBudget,
     /// The cost at the start is not finite: nothing was done.
     Diverged,
 }
@@ -76,11 +102,12 @@ pub struct Descent {
 }
 
 /// Levenberg-Marquardt on `problem` from `v` (see the module doc), at most
-/// `max_iterations` solved steps.
+/// `max_iterations` solved steps, none begun after `deadline`.
 pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     problem: &P,
     mut v: Vec<f64>,
     max_iterations: usize,
+    deadline: &Deadline,
 ) -> Result<Descent, P::Error> {
     let mut current = problem.linearise(&v)?;
     let mut descent = Descent {
@@ -99,9 +126,18 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     let mut mu = 1e-3 * scale;
     let mut nu = 2.0;
     let mut accepted = false;
-    while descent.iterations < max_iterations {
-        if current.cost == 0.0 || n == 0 {
+    let mut converged = stationary(&current);
+    loop {
+        if converged || current.cost == 0.0 || n == 0 {
             descent.stop = Stop::Converged;
+            break;
+        }
+        if descent.iterations >= max_iterations {
+            descent.stop = Stop::IterationLimit;
+            break;
+        }
+        if deadline.passed() {
+            descent.stop = Stop::TimeBudget;
             break;
         }
         descent.iterations += 1;
@@ -130,16 +166,14 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
                 } else {
                     0.0
                 };
-                let relative = decrease / current.cost;
+                converged = (decrease <= COST_TOLERANCE * current.cost
+                    && predicted <= COST_TOLERANCE * current.cost)
+                    || stationary(&next);
                 v = t;
                 current = next;
                 accepted = true;
                 mu *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
                 nu = 2.0;
-                if relative < RELATIVE_TOLERANCE {
-                    descent.stop = Stop::Converged;
-                    break;
-                }
             }
             _ => {
                 mu *= nu;
@@ -154,6 +188,17 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     descent.cost_after = current.cost;
     descent.v = accepted.then_some(v);
     Ok(descent)
+}
+
+/// The gradient test: every column of the Jacobian at most
+/// [`GRADIENT_TOLERANCE`] in cosine from the errors (a column of zeros
+/// counts as orthogonal).
+fn stationary(at: &Linearisation) -> bool {
+    let errors = at.errors.norm();
+    at.jacobian.column_iter().all(|column| {
+        let scale = column.norm() * errors;
+        scale == 0.0 || column.dot(&at.errors).abs() <= GRADIENT_TOLERANCE * scale
+    })
 }
 
 /// The largest diagonal entry of `J^T J`: the scale of the damping.
@@ -228,7 +273,7 @@ mod tests {
         let t: Vec<f64> = (0..5).map(|k| k as f64 * 0.25).collect();
         let y = t.iter().map(|t| (0.7 * t).exp() - 0.3).collect();
         let problem = Exponential { t, y };
-        let d = levenberg_marquardt(&problem, vec![0.0, 0.0], 100).unwrap();
+        let d = levenberg_marquardt(&problem, vec![0.0, 0.0], 100, &Deadline::none()).unwrap();
         assert_eq!(d.stop, Stop::Converged);
         let v = d.v.unwrap();
         assert!(
@@ -236,7 +281,7 @@ mod tests {
             "{v:?}"
         );
         assert!(d.cost_after < 1e-16 && d.cost_before > 0.5);
-        let short = levenberg_marquardt(&problem, vec![0.0, 0.0], 1).unwrap();
+        let short = levenberg_marquardt(&problem, vec![0.0, 0.0], 1, &Deadline::none()).unwrap();
         assert_eq!((short.stop, short.iterations), (Stop::IterationLimit, 1));
     }
 }

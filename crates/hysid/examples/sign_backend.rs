@@ -260,7 +260,8 @@ mod tests {
     }
 
     /// The pipeline's stages come with the method: `trim` is an option of
-    /// the registered back-end and runs.
+    /// the registered back-end and runs; so is the preset every back-end
+    /// takes.
     #[test]
     fn the_pipeline_adds_the_stages() {
         let m = run(&Priors::default(), &["trim=3"]).unwrap();
@@ -275,7 +276,8 @@ mod tests {
                 "trim",
                 "refine",
                 "refine_segment",
-                "refine_iterations"
+                "refine_iterations",
+                "preset"
             ]
         );
     }

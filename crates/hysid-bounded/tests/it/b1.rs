@@ -65,7 +65,12 @@ fn b1_standardized_takes_delta_in_data_units() {
             priors: &pri,
             priors_origin: None,
         };
-        let settings = hysid_core::options::Settings::parse(&[format!("delta={delta}")]).unwrap();
+        // The published procedure, whose modes certify delta.
+        let settings = hysid_core::options::Settings::parse(&[
+            format!("delta={delta}"),
+            "preset=paper".into(),
+        ])
+        .unwrap();
         let model = hysid_estimation::pwarx::run_standardized(
             &Pwarx(Bounded),
             &problem,

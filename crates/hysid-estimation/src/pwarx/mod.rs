@@ -83,6 +83,9 @@ pub trait PwarxMethod: Send + Sync {
     const SEEDED: bool = true;
     /// Who chooses the mode count.
     const MODE_RULE: ModeRule = ModeRule::Given;
+    /// The options that make the method its paper's procedure
+    /// ([`Identifier::PAPER`]).
+    const PAPER: &'static [(&'static str, &'static str)] = &[];
 
     /// The candidates automatic selection tries ([`Identifier::search_space`]).
     fn search_space(&self, _problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
@@ -159,6 +162,7 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
     const OUTPUT_UNITS: &'static [&'static str] = M::OUTPUT_UNITS;
     const SEEDED: bool = M::SEEDED;
     const STAGES: bool = true;
+    const PAPER: &'static [(&'static str, &'static str)] = M::PAPER;
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         self.0.search_space(problem)
@@ -190,12 +194,14 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
         problem: &Problem<'_>,
         fitted: Model,
         options: &Checked<Self::Options>,
+        ctx: &RunContext<'_>,
     ) -> Option<Result<Model, IdentifyError>> {
         Some(stages::refine_fitted(
             problem,
             M::NAME,
             fitted,
             &options.stages,
+            &ctx.deadline,
         ))
     }
 }
@@ -209,7 +215,7 @@ impl<M: PwarxMethod> Pwarx<M> {
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
         let fit = self.0.fit(data, &options.method, ctx)?;
-        let fit = stages::run(data, fit, &options.stages)?;
+        let fit = stages::run(data, fit, &options.stages, &ctx.deadline)?;
         Ok(assemble(data, fit))
     }
 }

@@ -68,7 +68,7 @@ pub use shooting::{Evaluation, Shooting};
 
 use crate::pwarx::assemble::PwarxFit;
 use crate::pwarx::prepare::PwarxData;
-use hysid_core::backend::IdentifyError;
+use hysid_core::backend::{Deadline, IdentifyError};
 use hysid_core::stages::{Refine, Stages};
 use hysid_model::model::RunStatus;
 
@@ -79,6 +79,7 @@ impl From<crate::lm::Stop> for RefinementStatus {
             Stop::Converged => RefinementStatus::Converged,
             Stop::NoDescent => RefinementStatus::NoDescent,
             Stop::IterationLimit => RefinementStatus::IterationLimit,
+            Stop::TimeBudget => RefinementStatus::TimeBudget,
             Stop::Diverged => RefinementStatus::Diverged,
         }
     }
@@ -92,27 +93,37 @@ impl From<crate::lm::Stop> for RefinementStatus {
 /// back-end's checked options hold ([`Stages`]). When no
 /// step lowers the cost, the parameters stay as the back-end gave them. A
 /// refinement stopped by its iteration bound marks the run
-/// [`RunStatus::IterationLimit`].
+/// [`RunStatus::IterationLimit`]; one stopped by `deadline`,
+/// [`RunStatus::TimeBudget`].
 pub fn refine<D>(
     data: &PwarxData<'_>,
     mut fit: PwarxFit<D>,
     settings: &Stages,
+    deadline: &Deadline,
 ) -> Result<PwarxFit<D>, IdentifyError> {
     if settings.refine == Refine::None {
         return Ok(fit);
     }
-    let mut r = parameters::fit_parameters(data, &mut fit.modes, settings)?;
+    let mut r = parameters::fit_parameters(data, &mut fit.modes, settings, deadline)?;
     if settings.refine == Refine::SimRegions {
-        r.regions = Some(regions::move_regions(data, &mut fit, settings)?);
+        r.regions = Some(regions::move_regions(data, &mut fit, settings, deadline)?);
     }
-    if r.status == RefinementStatus::IterationLimit {
-        if fit.run_status == RunStatus::Completed {
-            fit.run_status = RunStatus::IterationLimit;
+    match r.status {
+        RefinementStatus::IterationLimit => {
+            if fit.run_status == RunStatus::Completed {
+                fit.run_status = RunStatus::IterationLimit;
+            }
+            fit.status.push(format!(
+                "the simulation-error refinement stopped at its iteration bound ({})",
+                r.max_iterations
+            ));
         }
-        fit.status.push(format!(
-            "the simulation-error refinement stopped at its iteration bound ({})",
-            r.max_iterations
-        ));
+        RefinementStatus::TimeBudget => {
+            fit.run_status = RunStatus::TimeBudget;
+            fit.status
+                .push("the simulation-error refinement stopped at the time budget".to_string());
+        }
+        _ => {}
     }
     fit.refinement = Some(r);
     Ok(fit)
@@ -233,6 +244,7 @@ mod tests {
                 &prepared,
                 start_fit(perturbed()),
                 &sim_settings(segment, 100),
+                &Deadline::none(),
             )
             .unwrap();
             let r = fit.refinement.clone().unwrap();
@@ -263,7 +275,13 @@ mod tests {
         let priors = Priors::default();
         let problem = problem(&data, &priors);
         let prepared = pwarx::prepare(&problem, "test").unwrap();
-        let fit = refine(&prepared, start_fit(perturbed()), &Stages::default()).unwrap();
+        let fit = refine(
+            &prepared,
+            start_fit(perturbed()),
+            &Stages::default(),
+            &Deadline::none(),
+        )
+        .unwrap();
         assert!(fit.refinement.is_none());
         assert_eq!(fit.modes[0].theta, perturbed()[0]);
     }
@@ -358,7 +376,13 @@ mod tests {
             }
             // Refinement lowers the cost, and the written cost is the
             // objective at the refined parameters.
-            let fit = refine(&prepared, start_fit(perturbed()), &sim_settings(60, 30)).unwrap();
+            let fit = refine(
+                &prepared,
+                start_fit(perturbed()),
+                &sim_settings(60, 30),
+                &Deadline::none(),
+            )
+            .unwrap();
             let r = fit.refinement.clone().unwrap();
             assert!(r.cost_after.unwrap() <= r.cost_before.unwrap(), "{r:?}");
             assert!(
@@ -388,6 +412,7 @@ mod tests {
             &prepared,
             start_fit(wild.clone()),
             &sim_settings(10_000, 20),
+            &Deadline::none(),
         )
         .unwrap();
         let r = fit.refinement.unwrap();
@@ -437,7 +462,7 @@ mod tests {
                 refine: if move_regions { Refine::SimRegions } else { Refine::Sim },
                 ..sim_settings(40, 15)
             };
-            let fit = refine(&prepared, start_fit(start), &settings).unwrap();
+            let fit = refine(&prepared, start_fit(start), &settings, &Deadline::none()).unwrap();
             let r = fit.refinement.clone().unwrap();
             if let (Some(b), Some(a)) = (r.cost_before, r.cost_after) {
                 prop_assert!(a <= b, "{:?}", r);

@@ -4,18 +4,20 @@
 
 use super::assemble::{PwarxFit, with_stops};
 use super::prepare::{PwarxData, prepare};
-use hysid_core::backend::{IdentifyError, Problem};
+use hysid_core::backend::{Deadline, IdentifyError, Problem};
 use hysid_core::model::Model;
 use hysid_core::stages::Stages;
 
-/// `fit` after the stages `stages` asks for.
+/// `fit` after the stages `stages` asks for, the refinement ending by
+/// `deadline`.
 pub fn run<D>(
     data: &PwarxData<'_>,
     fit: PwarxFit<D>,
     stages: &Stages,
+    deadline: &Deadline,
 ) -> Result<PwarxFit<D>, IdentifyError> {
     let fit = super::trim::trim(data, fit, stages.trim)?;
-    super::refine::refine(data, fit, stages)
+    super::refine::refine(data, fit, stages, deadline)
 }
 
 /// `fitted`, a model the pipeline returned on `problem` without a
@@ -29,6 +31,7 @@ pub fn refine_fitted(
     method: &str,
     fitted: Model,
     stages: &Stages,
+    deadline: &Deadline,
 ) -> Result<Model, IdentifyError> {
     let data = prepare(problem, method)?;
     let mut pwarx = match fitted {
@@ -60,7 +63,7 @@ pub fn refine_fitted(
         trimming: None,
         diagnostics: (),
     };
-    let fit = super::refine::refine(&data, fit, stages)?;
+    let fit = super::refine::refine(&data, fit, stages, deadline)?;
     pwarx.modes = fit.modes;
     diagnostics.regions_complete = Some(fit.regions_complete);
     diagnostics.uncovered_fraction_of_data_box = fit.uncovered_fraction;

@@ -31,8 +31,9 @@ impl RunStatus {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum RefinementStatus {
-    /// The relative decrease of the cost (or the step) fell below the
-    /// tolerance, or the cost reached zero.
+    /// A convergence test of the Levenberg-Marquardt descent held (the
+    /// relative decrease of the cost, the gradient or the step; see
+    /// `docs/refinement.md`), or the cost reached zero.
     Converged,
     /// No step of any damping decreased the cost: a local minimum to the
     /// precision of the linearisation.
@@ -40,6 +41,8 @@ pub enum RefinementStatus {
     /// The iteration bound stopped the refinement before its convergence
     /// test held.
     IterationLimit,
+    /// The run's time budget stopped the refinement first.
+    TimeBudget,
     /// The simulation of the starting parameters diverges: nothing was
     /// refined.
     Diverged,

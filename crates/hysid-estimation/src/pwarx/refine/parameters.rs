@@ -6,18 +6,19 @@ use super::shooting::Shooting;
 use crate::constrained::{self, Parametrisation};
 use crate::lm::{LeastSquares, Linearisation, levenberg_marquardt};
 use crate::pwarx::prepare::PwarxData;
-use hysid_core::backend::IdentifyError;
+use hysid_core::backend::{Deadline, IdentifyError};
 use hysid_core::stages::Stages;
 use hysid_model::model::{PwarxMode, Refinement};
 use nalgebra::{DMatrix, DVector};
 
 /// The parameters of `modes` refined by Levenberg-Marquardt on the
-/// shooting cost with their regions fixed (see the module doc); the
-/// outcome.
+/// shooting cost with their regions fixed (see the module doc), no step
+/// begun after `deadline`; the outcome.
 pub(super) fn fit_parameters(
     data: &PwarxData<'_>,
     modes: &mut [PwarxMode],
     settings: &Stages,
+    deadline: &Deadline,
 ) -> Result<Refinement, IdentifyError> {
     let par = Parametrisation::from_priors(data.priors(), &data.spec, modes.len())
         .map_err(|e| data.prior_error(e))?;
@@ -30,7 +31,7 @@ pub(super) fn fit_parameters(
         shooting: &shooting,
         par: &par,
     };
-    let descent = levenberg_marquardt(&problem, start, settings.refine_iterations)?;
+    let descent = levenberg_marquardt(&problem, start, settings.refine_iterations, deadline)?;
     if let Some(z) = &descent.v {
         for (mode, theta) in modes.iter_mut().zip(par.thetas(z)) {
             mode.theta = theta;

@@ -53,7 +53,7 @@ use super::shooting::{Evaluation, Shooting};
 use crate::lm::{LeastSquares, Linearisation, levenberg_marquardt};
 use crate::pwarx::assemble::PwarxFit;
 use crate::pwarx::prepare::PwarxData;
-use hysid_core::backend::IdentifyError;
+use hysid_core::backend::{Deadline, IdentifyError};
 use hysid_core::stages::Stages;
 use hysid_model::geometry::{argmax_regions, argmax_scores};
 use hysid_model::model::{PwarxMode, RegionRefinement, RegionRefinementStatus};
@@ -68,11 +68,13 @@ pub const ROUNDS: usize = 5;
 pub const SHARPNESS: [f64; 3] = [1.0, 10.0, 100.0];
 
 /// Moves the regions of `fit` (see the module doc), refining its mode
-/// parameters under the moved regions; the outcome.
+/// parameters under the moved regions, no descent step begun after
+/// `deadline`; the outcome.
 pub(super) fn move_regions<D>(
     data: &PwarxData<'_>,
     fit: &mut PwarxFit<D>,
     settings: &Stages,
+    deadline: &Deadline,
 ) -> Result<RegionRefinement, IdentifyError> {
     let d = data.spec.dim();
     if fit.modes.len() < 2 {
@@ -100,11 +102,12 @@ pub(super) fn move_regions<D>(
     for _ in 0..ROUNDS {
         let thetas: Vec<Vec<f64>> = modes.iter().map(|m| m.theta.clone()).collect();
         let mut gate = RelaxedGate::new(&shooting, &thetas, &scores, columns.clone());
-        let (hardened, iterations) = sharpen(&mut gate, &modes, settings)?;
+        let (hardened, iterations) = sharpen(&mut gate, &modes, settings, deadline)?;
         outcome.gate_iterations += iterations;
         let Some(hardened) = hardened else { break };
         let mut next = with_regions(&modes, &hardened.scores);
-        outcome.parameter_iterations += fit_parameters(data, &mut next, settings)?.iterations;
+        outcome.parameter_iterations +=
+            fit_parameters(data, &mut next, settings, deadline)?.iterations;
         let next_cost = shooting.hard_cost(&next)?;
         if next_cost >= cost {
             break;
@@ -144,13 +147,14 @@ fn sharpen(
     gate: &mut RelaxedGate<'_, '_>,
     modes: &[PwarxMode],
     settings: &Stages,
+    deadline: &Deadline,
 ) -> Result<(Option<Hardened>, usize), IdentifyError> {
     let mut v = gate.unknowns_of(&gate.base);
     let mut best: Option<Hardened> = None;
     let mut iterations = 0;
     for sharpness in SHARPNESS {
         gate.sharpness = sharpness;
-        let descent = levenberg_marquardt(gate, v.clone(), settings.refine_iterations)?;
+        let descent = levenberg_marquardt(gate, v.clone(), settings.refine_iterations, deadline)?;
         iterations += descent.iterations;
         if let Some(next) = descent.v {
             v = next;
@@ -570,8 +574,20 @@ mod tests {
         let priors = Priors::default();
         let prepared = pwarx::prepare(&problem(&data, &priors), "test").unwrap();
         let start = || PwarxFit::complete(modes(0.4), ());
-        let fixed = refine(&prepared, start(), &settings(Refine::Sim)).unwrap();
-        let moved = refine(&prepared, start(), &settings(Refine::SimRegions)).unwrap();
+        let fixed = refine(
+            &prepared,
+            start(),
+            &settings(Refine::Sim),
+            &Deadline::none(),
+        )
+        .unwrap();
+        let moved = refine(
+            &prepared,
+            start(),
+            &settings(Refine::SimRegions),
+            &Deadline::none(),
+        )
+        .unwrap();
         let r = moved.refinement.clone().unwrap();
         let g = r.regions.clone().unwrap();
         assert_eq!(g.status, RegionRefinementStatus::Moved, "{g:?}");
