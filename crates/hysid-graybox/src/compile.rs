@@ -558,7 +558,8 @@ struct Compiler<'m> {
     m: &'m GrayBoxModel,
     /// Every definition name ([`definition_names`]).
     names: Vec<&'m String>,
-    symbols: BTreeMap<String, usize>,
+    /// The slot of every name ([`symbol_table`]).
+    symbols: HashMap<&'m str, usize>,
     mode_index: BTreeMap<&'m str, usize>,
     /// Number of states: the first slots.
     nx: usize,
@@ -575,10 +576,17 @@ struct Compiler<'m> {
 
 impl<'m> Compiler<'m> {
     fn new(m: &'m GrayBoxModel, names: Vec<&'m String>) -> Result<Self, InvalidGrayBox> {
-        let symbols = symbol_table(m)?;
+        let symbols = symbol_table(m, &names)?;
         let mode_index = mode_index(m)?;
-        let model_texts: Vec<Option<&String>> =
-            names.iter().map(|d| m.definitions.get(*d)).collect();
+        // The model's definitions are the first names, in their order
+        // ([`definition_names`]); the others only modes give.
+        let model_texts: Vec<Option<&String>> = m
+            .definitions
+            .values()
+            .map(Some)
+            .chain(std::iter::repeat(None))
+            .take(names.len())
+            .collect();
         let mode_only = (0..names.len())
             .filter(|&i| model_texts[i].is_none())
             .collect();
@@ -625,8 +633,17 @@ impl<'m> Compiler<'m> {
     }
 
     fn expr(&self, place: &str, text: &str) -> Result<Expression, InvalidGrayBox> {
+        self.expr_at(|| place.to_string(), text)
+    }
+
+    /// [`Compiler::expr`], with the place worded only for an error.
+    fn expr_at(
+        &self,
+        place: impl FnOnce() -> String,
+        text: &str,
+    ) -> Result<Expression, InvalidGrayBox> {
         Expression::compile(text, &|n| self.resolve(n))
-            .map_err(|e| InvalidGrayBox::new(place, Some(text), e))
+            .map_err(|e| InvalidGrayBox::new(place(), Some(text), e))
     }
 
     /// An expression of the parameters only.
@@ -652,7 +669,12 @@ impl<'m> Compiler<'m> {
         let mut own: Vec<(usize, &String)> = q
             .definitions
             .iter()
-            .filter_map(|(d, text)| Some((self.symbols.get(d)?.checked_sub(self.first_def)?, text)))
+            .filter_map(|(d, text)| {
+                Some((
+                    self.symbols.get(d.as_str())?.checked_sub(self.first_def)?,
+                    text,
+                ))
+            })
             .collect();
         own.sort_unstable_by_key(|&(i, _)| i);
         let model_texts = &self.model_texts;
@@ -673,11 +695,11 @@ impl<'m> Compiler<'m> {
         for (i, d) in self.names.iter().enumerate() {
             let at = || format!("{place}, definition '{d}'");
             let e = match (mine.next_if(|&&(j, _)| j == i), self.model_texts[i]) {
-                (Some((_, text)), _) => Rc::new(self.expr(&at(), text)?),
+                (Some((_, text)), _) => Rc::new(self.expr_at(at, text)?),
                 (None, Some(text)) => match &self.model_definitions[i] {
                     Some(e) => Rc::clone(e),
                     None => {
-                        let e = Rc::new(self.expr(&at(), text)?);
+                        let e = Rc::new(self.expr_at(at, text)?);
                         self.model_definitions[i] = Some(Rc::clone(&e));
                         e
                     }
@@ -930,12 +952,18 @@ fn definition_names(m: &GrayBoxModel) -> Vec<&String> {
     names
 }
 
-/// The slot of every state, input, parameter and definition, in that
-/// order; checks names and parameters.
-fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, usize>, InvalidGrayBox> {
-    let mut table = BTreeMap::new();
+/// The slot of every state, input, parameter and definition
+/// (`definitions`, as [`definition_names`] lists them), in that order;
+/// checks names and parameters.
+fn symbol_table<'m>(
+    m: &'m GrayBoxModel,
+    definitions: &[&'m String],
+) -> Result<HashMap<&'m str, usize>, InvalidGrayBox> {
+    let mut table = HashMap::with_capacity(
+        m.states.len() + m.inputs.len() + m.parameters.len() + definitions.len(),
+    );
     let mut slot = 0;
-    let mut add = |what: &str, name: &str| -> Result<(), InvalidGrayBox> {
+    let mut add = |what: &str, name: &'m str| -> Result<(), InvalidGrayBox> {
         if !is_identifier(name) {
             return Err(InvalidGrayBox::new(
                 what,
@@ -943,7 +971,7 @@ fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, usize>, InvalidGray
                 Problem::BadName(name.into()),
             ));
         }
-        if table.insert(name.to_string(), slot).is_some() {
+        if table.insert(name, slot).is_some() {
             return Err(InvalidGrayBox::new(
                 what,
                 Some(name),
@@ -975,7 +1003,7 @@ fn symbol_table(m: &GrayBoxModel) -> Result<BTreeMap<String, usize>, InvalidGray
             ));
         }
     }
-    for d in definition_names(m) {
+    for d in definitions {
         add("definitions", d)?;
     }
     Ok(table)

@@ -178,10 +178,9 @@ fn parse(path: &Path, text: &str) -> Result<Value, ExtendsError> {
     if path.extension().is_some_and(|e| e == "json") {
         serde_json::from_str(text).map_err(|e| syntax(e.to_string()))
     } else {
-        let table: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| syntax(e.to_string()))?;
-        serde_json::to_value(table).map_err(|e| syntax(e.to_string()))
+        // Read straight into the JSON document, as a `toml::Table` would
+        // serialise into it (datetimes as their private tables).
+        toml::from_str(text).map_err(|e: toml::de::Error| syntax(e.to_string()))
     }
 }
 
@@ -554,6 +553,55 @@ name = "friction"
         assert_eq!(r.value, serde_json::to_value(direct).unwrap());
         assert_eq!(r.sources.len(), 1);
         std::fs::remove_dir_all(d).unwrap();
+    }
+
+    /// Every kind of TOML value (datetimes, non-finite floats, nested and
+    /// inline tables, arrays of tables) reads into the document that the
+    /// file parsed as a `toml::Table` serialises into.
+    #[test]
+    fn toml_values_read_as_a_table_serialises_them() {
+        let text = r#"
+i = -7
+big = 9223372036854775807
+f = 1.5e-3
+inf = inf
+nan = nan
+b = true
+s = "a \"quoted\" \u00e9"
+lit = 'C:\raw'
+odt = 1979-05-27T07:32:00-08:00
+ldt = 1979-05-27T07:32:00
+ld = 1979-05-27
+lt = 07:32:00.5
+mixed = [1, 2.0, "x", [3], { k = 1979-05-27 }]
+inline = { a = 1, b = { c = [] } }
+"dotted.key" = 1
+a.b.c = 2
+[t]
+x = 1
+[[arr]]
+name = "one"
+[[arr]]
+name = "two"
+[arr.sub]
+y = 1e300
+"#;
+        let path = Path::new("x.toml");
+        let table: toml::Table = text.parse().unwrap();
+        assert_eq!(
+            parse(path, text).unwrap(),
+            serde_json::to_value(table).unwrap()
+        );
+        // Not TOML: the parser's message, on one line.
+        let e = parse(path, "a = \n[b\n").unwrap_err().to_string();
+        let table_error = "a = \n[b\n".parse::<toml::Table>().unwrap_err();
+        assert_eq!(
+            e,
+            format!(
+                "x.toml: {}",
+                table_error.to_string().trim().replace('\n', " ")
+            )
+        );
     }
 
     #[test]

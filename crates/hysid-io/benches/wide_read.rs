@@ -14,6 +14,9 @@
 //!   checked and compiled, the flow written out with every definition).
 //! - `csv_lines`, `model_lines`: the baseline, the same file read line by
 //!   line as text (`BufRead::lines`, one `String` per line).
+//! - `model_toml`: the model file read and parsed by the toml crate alone
+//!   (`toml::from_str::<toml::Table>`), the share of `model_load` that is
+//!   the TOML parse.
 //!
 //! Under `cargo test` (no `--bench` argument) the files are 100 times
 //! smaller, so that the benchmarks only check that they run.
@@ -168,4 +171,13 @@ fn model_lines(bencher: Bencher, definitions: usize) {
     bencher
         .counter(BytesCount::new(len))
         .bench_local(|| lines(path));
+}
+
+#[divan::bench(args = sizes("model"), sample_count = 20, sample_size = 1)]
+fn model_toml(bencher: Bencher, definitions: usize) {
+    let (path, len) = file("model", definitions);
+    bencher.counter(BytesCount::new(len)).bench_local(|| {
+        let text = std::fs::read_to_string(path).expect("the file reads");
+        toml::from_str::<toml::Table>(&text).expect("the file is TOML")
+    });
 }

@@ -57,8 +57,9 @@ pub(crate) fn read_from(bytes: &[u8], path: &Path, wanted: &[&str]) -> Result<Ra
     read_rows(bytes, path, wanted, true)
 }
 
-/// [`read_from`]; with `plain`, the data rows are first read as plain
-/// rows ([`plain_rows`]), else by the csv crate alone.
+/// [`read_from`]; with `plain`, the header row and the data rows are
+/// first read as plain rows ([`plain_header`], [`plain_rows`]), else by
+/// the csv crate alone.
 fn read_rows(
     bytes: &[u8],
     path: &Path,
@@ -77,14 +78,22 @@ fn read_rows(
         location,
         message,
     };
-    let headers = rdr
-        .headers()
-        .map_err(|e| parse_err(String::new(), format!("cannot read the header row: {e}")))?
-        .clone();
-    if headers.is_empty() || headers.iter().all(str::is_empty) {
+    let header_error =
+        |e: csv::Error| parse_err(String::new(), format!("cannot read the header row: {e}"));
+    // The header as the csv crate reads it, when it is not plain.
+    let headers: csv::StringRecord;
+    let (names, start): (Vec<&str>, usize) = match plain.then(|| plain_header(bytes)).flatten() {
+        Some(header) => header,
+        None => {
+            headers = rdr.headers().map_err(header_error)?.clone();
+            let start =
+                usize::try_from(rdr.position().byte()).map_or(bytes.len(), |b| b.min(bytes.len()));
+            (headers.iter().collect(), start)
+        }
+    };
+    if names.is_empty() || names.iter().all(|n| n.is_empty()) {
         return Err(parse_err(String::new(), "the header row is empty".into()));
     }
-    let names: Vec<&str> = headers.iter().collect();
     if let [only] = names.as_slice()
         && let Some(sep) = [';', '\t', '|'].into_iter().find(|&c| only.contains(c))
     {
@@ -98,22 +107,27 @@ fn read_rows(
             ),
         ));
     }
-    if let Some(i) = first_repeat(&names) {
+    let sorted = SortedNames::new(&names);
+    if let Some(i) = sorted.first_repeat() {
         return Err(parse_err(
             format!("column {}: ", i + 1),
             format!("column name '{}' appears twice in the header", names[i]),
         ));
     }
-    let keep: Vec<usize> = (0..names.len())
-        .filter(|&i| wanted.contains(&names[i]))
-        .collect();
-    let start = usize::try_from(rdr.position().byte()).map_or(bytes.len(), |b| b.min(bytes.len()));
+    // The positions of the wanted names (each name appears once).
+    let mut keep: Vec<usize> = wanted.iter().filter_map(|w| sorted.position(w)).collect();
+    keep.sort_unstable();
+    keep.dedup();
     let plain = plain
         .then(|| plain_rows(&bytes[start..], names.len(), &keep))
         .flatten();
     let cols = match plain {
         Some(cols) => cols,
         None => {
+            // The header is read again by the reader when it was read as a
+            // plain row, so that the positions it gives the rows are the
+            // same.
+            rdr.headers().map_err(header_error)?;
             // One record buffer for the whole file: read as bytes, then
             // checked to be UTF-8 in place (the same check `StringRecord`
             // reading makes).
@@ -182,39 +196,104 @@ fn read_rows(
     })
 }
 
-/// The kept columns (`keep`, in order) of the data rows `data` when every
-/// record is plain: no quote, lines ending in `\n` or `\r\n` (blank ones
-/// skipped, as the csv crate skips them), `width` fields separated by
-/// commas, valid UTF-8, and every kept cell, trimmed, a finite number.
-/// Such records read as they do through the csv crate, which stores the
-/// bounds of every field; here a row costs a search for its end, a count
-/// of its commas and a search for its kept cells. `None` at the first
-/// record that is not plain: the csv crate then reads the rows, and words
-/// any error.
-fn plain_rows(data: &[u8], width: usize, keep: &[usize]) -> Option<Vec<Vec<f64>>> {
-    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); keep.len()];
-    let mut rest = data;
-    while !rest.is_empty() {
-        let (mut line, next) = match memchr::memchr(b'\n', rest) {
-            Some(i) => (&rest[..i], &rest[i + 1..]),
-            None => (rest, &rest[rest.len()..]),
-        };
-        rest = next;
-        if let [head @ .., b'\r'] = line {
-            line = head;
+/// The first line of `bytes` without its ending (`\n` or `\r\n`), as
+/// text, when it is a plain row: no quote, no other `\r`, valid UTF-8.
+/// The rest of `bytes` starts after the ending.
+fn plain_line(bytes: &[u8]) -> Option<(&str, &[u8])> {
+    let (mut line, rest) = match memchr::memchr(b'\n', bytes) {
+        Some(i) => (&bytes[..i], &bytes[i + 1..]),
+        None => (bytes, &bytes[bytes.len()..]),
+    };
+    if let [head @ .., b'\r'] = line {
+        line = head;
+    }
+    if memchr::memchr2(b'"', b'\r', line).is_some() {
+        return None;
+    }
+    Some((std::str::from_utf8(line).ok()?, rest))
+}
+
+/// The number of commas in `line`: on a long line by memchr's vectorised
+/// count, whose call costs more than a plain loop on a short one.
+fn commas(line: &[u8]) -> usize {
+    if line.len() < 256 {
+        line.iter().filter(|&&b| b == b',').count()
+    } else {
+        memchr::memchr_iter(b',', line).count()
+    }
+}
+
+/// `field.trim()`, with the common case of nothing to trim told by its
+/// first and last bytes: visible ASCII characters are no whitespace, and
+/// a character of more than one byte neither starts nor ends with one.
+fn trim(field: &str) -> &str {
+    match field.as_bytes() {
+        [first, .., last] if first.is_ascii_graphic() && last.is_ascii_graphic() => field,
+        [only] if only.is_ascii_graphic() => field,
+        _ => field.trim(),
+    }
+}
+
+/// The names of the header row, trimmed, and the offset of the data rows
+/// in `bytes`, when the header row is plain: a first line that is not
+/// blank, not started by a byte-order mark, and a plain row
+/// ([`plain_line`]). Such a header reads as it does through the csv crate
+/// (trimmed as `Trim::Headers` trims it), without the crate storing and
+/// trimming each field twice. `None` otherwise: the csv crate then reads
+/// the header, and words any error.
+fn plain_header(bytes: &[u8]) -> Option<(Vec<&str>, usize)> {
+    if bytes.starts_with("\u{feff}".as_bytes()) {
+        return None;
+    }
+    let (line, rest) = plain_line(bytes)?;
+    if line.is_empty() {
+        return None;
+    }
+    Some((names_of(line), bytes.len() - rest.len()))
+}
+
+/// The names of a plain header line: split at its commas, trimmed. Names
+/// are short, so their commas are close together: a loop over the bytes
+/// finds them faster than memchr's search, whose call costs more than the
+/// few bytes it skips.
+fn names_of(line: &str) -> Vec<&str> {
+    let mut names = Vec::with_capacity(1 + commas(line.as_bytes()));
+    let mut start = 0;
+    for (i, b) in line.bytes().enumerate() {
+        if b == b',' {
+            names.push(trim(&line[start..i]));
+            start = i + 1;
         }
+    }
+    names.push(trim(&line[start..]));
+    names
+}
+
+/// The kept columns (`keep`, in order) of the data rows `data` when every
+/// record is plain ([`plain_line`]; blank lines skipped, as the csv crate
+/// skips them) with `width` fields separated by commas, and every kept
+/// cell, trimmed, a finite number. Such records read as they do through
+/// the csv crate, which stores the bounds of every field; here a row costs
+/// a search for its end, its check, a count of its commas and a search
+/// for its kept cells. `None` at the first record that is not plain: the
+/// csv crate then reads the rows, and words any error.
+fn plain_rows(data: &[u8], width: usize, keep: &[usize]) -> Option<Vec<Vec<f64>>> {
+    let mut rest = data;
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); keep.len()];
+    while !rest.is_empty() {
+        let (line, next) = plain_line(rest)?;
+        rest = next;
         if line.is_empty() {
             continue;
         }
-        if memchr::memchr2(b'"', b'\r', line).is_some()
-            || 1 + line.iter().filter(|&&b| b == b',').count() != width
-        {
+        if 1 + commas(line.as_bytes()) != width {
             return None;
         }
-        let text = std::str::from_utf8(line).ok()?;
+        // The kept cells, up to the last one: cells of numbers are long
+        // enough for memchr to find their commas faster than a byte loop.
         let mut kept = keep.iter().zip(cols.iter_mut()).peekable();
         let mut start = 0;
-        for (field, end) in memchr::memchr_iter(b',', line)
+        for (field, end) in memchr::memchr_iter(b',', line.as_bytes())
             .chain([line.len()])
             .enumerate()
         {
@@ -225,7 +304,7 @@ fn plain_rows(data: &[u8], width: usize, keep: &[usize]) -> Option<Vec<Vec<f64>>
                 start = end + 1;
                 continue;
             };
-            let v: f64 = text[start..end].trim().parse().ok()?;
+            let v: f64 = line[start..end].trim().parse().ok()?;
             if !v.is_finite() {
                 return None;
             }
@@ -236,30 +315,64 @@ fn plain_rows(data: &[u8], width: usize, keep: &[usize]) -> Option<Vec<Vec<f64>>
     Some(cols)
 }
 
-/// The position of the first name that repeats an earlier one. The
-/// positions are sorted by name (a hash set would do, but sorting has no
-/// bad case): first by length and first eight bytes, which tells most
-/// names apart with one integer comparison, then by the whole name.
-fn first_repeat(names: &[&str]) -> Option<usize> {
-    let key = |name: &str| {
-        let mut head = [0u8; 8];
-        let n = name.len().min(8);
-        head[..n].copy_from_slice(&name.as_bytes()[..n]);
-        (name.len(), u64::from_be_bytes(head))
-    };
-    let mut order: Vec<((usize, u64), usize)> =
-        names.iter().enumerate().map(|(i, n)| (key(n), i)).collect();
-    order.sort_unstable_by(|(ka, a), (kb, b)| {
-        ka.cmp(kb)
-            .then_with(|| names[*a].cmp(names[*b]))
-            .then(a.cmp(b))
-    });
-    // In each run of equal names the second position is its first repeat.
-    order
-        .windows(2)
-        .filter(|w| names[w[0].1] == names[w[1].1])
-        .map(|w| w[1].1)
-        .min()
+/// A header's names sorted so that equal names are neighbours (a hash
+/// set would do, but sorting has no bad case): first by length and first
+/// eight bytes, which tells most names apart with one integer comparison,
+/// then by the whole name, then by position.
+struct SortedNames<'a> {
+    names: &'a [&'a str],
+    /// `(key, position)` of every name, in order.
+    order: Vec<((usize, u64), usize)>,
+}
+
+impl<'a> SortedNames<'a> {
+    fn new(names: &'a [&'a str]) -> Self {
+        let mut order: Vec<((usize, u64), usize)> = names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (Self::key(n), i))
+            .collect();
+        order.sort_unstable_by(|(ka, a), (kb, b)| {
+            ka.cmp(kb)
+                .then_with(|| names[*a].cmp(names[*b]))
+                .then(a.cmp(b))
+        });
+        SortedNames { names, order }
+    }
+
+    /// The length and the first eight bytes of `name`: equal names have
+    /// equal keys (how names of different keys are ordered does not
+    /// matter).
+    fn key(name: &str) -> (usize, u64) {
+        let head = name
+            .bytes()
+            .take(8)
+            .fold(0u64, |k, b| (k << 8) | u64::from(b));
+        (name.len(), head)
+    }
+
+    /// The position of the first name that repeats an earlier one.
+    fn first_repeat(&self) -> Option<usize> {
+        // In each run of equal names the second position is its first
+        // repeat; names of different keys differ.
+        self.order
+            .windows(2)
+            .filter(|w| w[0].0 == w[1].0 && self.names[w[0].1] == self.names[w[1].1])
+            .map(|w| w[1].1)
+            .min()
+    }
+
+    /// The first position of `name` among the names, if it is one.
+    fn position(&self, name: &str) -> Option<usize> {
+        let key = Self::key(name);
+        let at = self
+            .order
+            .partition_point(|&(k, i)| (k, self.names[i]) < (key, name));
+        self.order
+            .get(at)
+            .filter(|&&(k, i)| k == key && self.names[i] == name)
+            .map(|&(_, i)| i)
+    }
 }
 
 #[cfg(test)]
@@ -463,7 +576,8 @@ mod tests {
 
     #[test]
     fn the_first_repeated_name_is_found_past_shared_prefixes() {
-        use super::first_repeat;
+        use super::SortedNames;
+        let first_repeat = |names: &[&str]| SortedNames::new(names).first_repeat();
         assert_eq!(first_repeat(&["u", "y", "t"]), None);
         // Same length and first eight bytes: told apart by the whole name.
         let names = ["aaaaaaaaX", "aaaaaaaaY", "b", "aaaaaaaaY", "aaaaaaaaX", "b"];
@@ -471,10 +585,22 @@ mod tests {
         assert_eq!(first_repeat(&["", "x", ""]), Some(2));
     }
 
-    /// Random files of plain and not so plain rows: read as plain rows
-    /// first (the fast path, falling back to the csv crate at the first
-    /// record that is not plain), they give what the csv crate alone gives,
-    /// the same columns or the same error.
+    #[test]
+    fn names_are_found_by_their_sorted_order() {
+        let names = ["aaaaaaaaX", "aaaaaaaaY", "b", "", "aaaaaaaaZ1", "c"];
+        let sorted = super::SortedNames::new(&names);
+        for (i, n) in names.iter().enumerate() {
+            assert_eq!(sorted.position(n), Some(i), "{n}");
+        }
+        for n in ["aaaaaaaa", "aaaaaaaaW", "aaaaaaaaZ", "a", "d", " "] {
+            assert_eq!(sorted.position(n), None, "{n}");
+        }
+    }
+
+    /// Random files of plain and not so plain rows, under plain and not so
+    /// plain headers: read as plain rows first (the fast path, falling back
+    /// to the csv crate at the first record that is not plain), they give
+    /// what the csv crate alone gives, the same columns or the same error.
     #[test]
     fn plain_rows_read_as_the_csv_crate_reads_them() {
         use proptest::prelude::*;
@@ -500,7 +626,17 @@ mod tests {
                 row
             });
         let file = (
-            prop::sample::select(vec!["t,u,y\n", "u,y,z\r\n", "y, u ,x\n", "u,t,t2\n"]),
+            prop::sample::select(vec![
+                "t,u,y\n",
+                "u,y,z\r\n",
+                "y, u ,x\n",
+                "u,t,t2\n",
+                "\u{feff}u,y,t\n",
+                "\"u\",y,t\n",
+                "\nu,y,t\n",
+                "u,y\rt\n",
+                "u,\u{a0}y\u{2003},t\r\n",
+            ]),
             prop::collection::vec(row, 0..6),
         )
             .prop_map(|(header, rows)| [header.as_bytes().to_vec(), rows.concat()].concat());
