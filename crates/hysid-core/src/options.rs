@@ -567,4 +567,37 @@ mod tests {
         assert!(Settings::parse(&["novalue"]).is_err());
         assert!(Settings::parse(&["c=1", "c=2"]).is_err());
     }
+
+    #[test]
+    fn a_preset_is_written_out_under_the_options_given() {
+        let paper = [("alternation", "0"), ("c", "none")];
+        let pairs = |items: &[&str]| {
+            Settings::parse(items)
+                .unwrap()
+                .with_preset(&paper)
+                .map(|s| s.pairs().to_vec())
+        };
+        let owned = |v: &[(&str, &str)]| -> Vec<(String, String)> {
+            v.iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect()
+        };
+        assert_eq!(
+            pairs(&["preset=paper", "c=40"]).unwrap(),
+            owned(&[("alternation", "0"), ("c", "40")])
+        );
+        assert_eq!(
+            pairs(&["preset=default", "c=40"]).unwrap(),
+            owned(&[("c", "40")])
+        );
+        assert_eq!(pairs(&["c=40"]).unwrap(), owned(&[("c", "40")]));
+        let e = pairs(&["preset=hit"]).unwrap_err();
+        assert_eq!(
+            e.render("--set"),
+            "--set preset=hit: must be default or paper"
+        );
+        let spec = preset_spec(&paper);
+        assert!(spec.doc.contains("alternation=0, c=none"), "{}", spec.doc);
+        assert!(preset_spec(&[]).doc.contains("the same as the defaults"));
+    }
 }

@@ -284,4 +284,32 @@ mod tests {
         let short = levenberg_marquardt(&problem, vec![0.0, 0.0], 1, &Deadline::none()).unwrap();
         assert_eq!((short.stop, short.iterations), (Stop::IterationLimit, 1));
     }
+
+    /// With errors that no point removes, the descent ends by a
+    /// convergence test well before its bound, at a point where the
+    /// gradient is small against the errors; a deadline already passed
+    /// ends it before the first step.
+    #[test]
+    fn a_residual_fit_converges_before_its_bound_and_a_deadline_stops_it() {
+        let t: Vec<f64> = (0..9).map(|k| k as f64 * 0.25).collect();
+        let y = t
+            .iter()
+            .enumerate()
+            .map(|(k, t)| (0.7 * t).exp() - 0.3 + if k % 2 == 0 { 0.05 } else { -0.05 })
+            .collect();
+        let problem = Exponential { t, y };
+        let d = levenberg_marquardt(&problem, vec![0.0, 0.0], 1000, &Deadline::none()).unwrap();
+        assert_eq!(d.stop, Stop::Converged);
+        assert!(d.iterations < 100, "{}", d.iterations);
+        let at = problem.linearise(d.v.as_ref().unwrap()).unwrap();
+        let gradient = at.jacobian.transpose() * &at.errors;
+        assert!(
+            gradient.amax() <= 1e-3 * at.jacobian.norm() * at.errors.norm(),
+            "{gradient}"
+        );
+        let passed = Deadline::at(std::time::Instant::now());
+        let cut = levenberg_marquardt(&problem, vec![0.0, 0.0], 1000, &passed).unwrap();
+        assert_eq!((cut.stop, cut.iterations), (Stop::TimeBudget, 0));
+        assert!(cut.v.is_none());
+    }
 }

@@ -246,3 +246,23 @@ fn h4_static_three_wedges() {
     let excess = median(d.iter().map(Draw::excess).collect());
     assert!(excess <= 0.15, "median excess parameter error {excess}");
 }
+
+/// `preset=paper` is the published procedure, the fit of
+/// `alternation = 0`, while the defaults run the alternation; an option
+/// given beside the preset wins.
+#[test]
+fn the_paper_preset_is_the_procedure_without_the_alternation() {
+    let b1 = hysid_testkit::b1(300, 4.0, Noise::Uniform(0.1), 1);
+    let paper = identify(&b1, 3, &["preset=paper"]);
+    let without = identify(&b1, 3, &["alternation=0"]);
+    let default = identify(&b1, 3, &[]);
+    let beside = identify(&b1, 3, &["preset=paper", "alternation=50"]);
+    let thetas =
+        |m: &PwarxModel| -> Vec<Vec<f64>> { m.modes.iter().map(|q| q.theta.clone()).collect() };
+    assert_eq!(thetas(&paper), thetas(&without));
+    assert_eq!(paper.info.options["alternation"], 0);
+    assert_eq!(default.info.options["alternation"], 50);
+    assert!(!paper.info.diagnostics.method.contains_key("alternation"));
+    assert!(default.info.diagnostics.method.contains_key("alternation"));
+    assert_eq!(thetas(&beside), thetas(&default));
+}
