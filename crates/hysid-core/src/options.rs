@@ -77,8 +77,8 @@ pub fn preset_spec(paper: &[(&str, &str)]) -> OptionSpec {
         ty: "default|paper".to_string(),
         default: "default".to_string(),
         doc: format!(
-            "default: the defaults above, hysid's best measured configuration; paper: the \
-             procedure as its paper publishes it ({differs}). Options given beside it override it."
+            "default: the defaults above; paper: the procedure as its paper publishes it \
+             ({differs}). Options given beside it override it."
         ),
     }
 }
