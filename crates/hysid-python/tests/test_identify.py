@@ -21,7 +21,9 @@ def test_arx_reproduces_the_pick_and_place_figure(record):
 
 def test_a_model_from_python_validates_in_the_program_to_the_same_figures(record, program, tmp_path):
     u, y, ts = record
-    model = hysid.identify(u[:5000], y[:5000], method="cluster", modes=3, seed=2, ts=ts)
+    # The published procedure, which on these rows falls below ARX(2,2).
+    model = hysid.identify(u[:5000], y[:5000], method="cluster", modes=3, seed=2, ts=ts,
+                           options={"preset": "paper"})
     path = tmp_path / "cluster.json"
     model.save(path)
     out = program("validate", path, PICK_AND_PLACE, "--decimate", "10", "--rows", "5000..6001", "--json")
