@@ -1,5 +1,5 @@
 //! Levenberg-Marquardt for nonlinear least squares (Levenberg 1944,
-//! Marquardt 1963), the one local optimiser of the workspace: the damping
+//! Marquardt 1963), the local optimiser of the PWARX refinement: the damping
 //! update of Madsen, Nielsen & Tingleff, *Methods for non-linear least
 //! squares problems*, 2004, section 3.2. Each step solves
 //!
