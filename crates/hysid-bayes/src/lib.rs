@@ -34,11 +34,9 @@ pub use gaussian::GaussianPosterior;
 pub use particles::{MAX_REDRAWS, ParticleCloud, log_sum_exp, systematic};
 pub use prior::{ModePrior, black_box_priors, sqrt_psd};
 
-use hysid_core::backend::{Deadline, IdentifyError, Problem, RunContext};
+use hysid_core::backend::{Deadline, IdentifyError, RunContext};
 use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
-use hysid_core::search::SearchSpace;
-use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::noise::{local_noise_sigma, noise_floor};
 use hysid_estimation::pwarx::{PwarxData, PwarxFit, PwarxMethod};
@@ -158,12 +156,7 @@ impl PwarxMethod for Bayes {
     ];
     const OUTPUT_UNITS: &'static [&'static str] = &["noise_std"];
     const SEARCH: &'static str = "the mode count from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
-
-    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        Ok(SearchSpace::default()
-            .with(Stages::TRIM, [AUTO_TRIM])
-            .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
-    }
+    const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
     fn fit(
         &self,

@@ -30,11 +30,9 @@ pub use restarts::{
     draw_parameters, restart_count, run_restart, success_probability,
 };
 
-use hysid_core::backend::{IdentifyError, Problem, RunContext};
+use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
-use hysid_core::search::SearchSpace;
-use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equations};
 use hysid_estimation::pwarx::{PwarxData, PwarxFit, PwarxMethod};
 use hysid_estimation::regions::RegionMethod;
@@ -106,12 +104,7 @@ impl PwarxMethod for KLinReg {
         PriorKind::Switching,
     ];
     const SEARCH: &'static str = "the mode count from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
-
-    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        Ok(SearchSpace::default()
-            .with(Stages::TRIM, [AUTO_TRIM])
-            .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
-    }
+    const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
     fn fit(
         &self,

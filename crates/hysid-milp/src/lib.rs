@@ -25,11 +25,9 @@ pub mod program;
 
 pub use program::{Limits, MilpSolution, Objective, ProgramError};
 
-use hysid_core::backend::{IdentifyError, Problem, RunContext};
+use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
-use hysid_core::search::SearchSpace;
-use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::pwarx::{ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_estimation::regions::RegionMethod;
@@ -96,12 +94,7 @@ impl PwarxMethod for Milp {
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const OUTPUT_UNITS: &'static [&'static str] = &["delta", "theta_max", "l1_error"];
     const SEARCH: &'static str = "the mode count from 1 to 4 (saturation modes added), unless --modes is given; every candidate with trim = 3";
-
-    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        Ok(SearchSpace::default()
-            .with(Stages::TRIM, [AUTO_TRIM])
-            .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
-    }
+    const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
     fn fit(
         &self,

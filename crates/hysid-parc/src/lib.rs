@@ -32,11 +32,9 @@ pub use steps::{
     Clusters, Finished, finish, fit_local_models, fit_separator, initial_labels, reassign,
 };
 
-use hysid_core::backend::{IdentifyError, Problem, RunContext};
+use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
-use hysid_core::search::SearchSpace;
-use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_estimation::pwarx::{ModeCount, ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_model::model::{PwarxMode, RunStatus};
 use serde::Serialize;
@@ -121,12 +119,7 @@ impl PwarxMethod for Parc {
     const SUMMARY: &'static str = "PARC (Bemporad 2023): local models and a softmax partition learned together by block-coordinate descent";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const SEARCH: &'static str = "the number of clusters from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
-
-    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        Ok(SearchSpace::default()
-            .with(Stages::TRIM, [AUTO_TRIM])
-            .with_mode_counts(problem.priors, DEFAULT_MAX_MODES))
-    }
+    const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
     fn fit(
         &self,

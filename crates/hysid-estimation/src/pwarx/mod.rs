@@ -44,7 +44,7 @@ use hysid_core::model::Model;
 use hysid_core::options::{BackendOptions, CheckOptions, Checked, OptionError, OptionSpec};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
-use hysid_core::stages::Stages;
+use hysid_core::stages::{AUTO_TRIM, Stages};
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
 
@@ -77,6 +77,10 @@ pub trait PwarxMethod: Send + Sync {
     const HONOURS: &'static [PriorKind];
     /// What automatic selection tries ([`Identifier::SEARCH`]).
     const SEARCH: &'static str = "";
+    /// With the default [`PwarxMethod::search_space`], the most modes
+    /// automatic selection tries when the priors give no count; `None`: no
+    /// search of the mode count.
+    const MAX_MODES: Option<usize> = None;
     /// Options and diagnostics in output units ([`Identifier::OUTPUT_UNITS`]).
     const OUTPUT_UNITS: &'static [&'static str] = &[];
     /// Whether the seed can change the fit ([`Identifier::SEEDED`]).
@@ -87,9 +91,17 @@ pub trait PwarxMethod: Send + Sync {
     /// ([`Identifier::PAPER`]).
     const PAPER: &'static [(&'static str, &'static str)] = &[];
 
-    /// The candidates automatic selection tries ([`Identifier::search_space`]).
-    fn search_space(&self, _problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
-        Ok(SearchSpace::default())
+    /// The candidates automatic selection tries ([`Identifier::search_space`]);
+    /// by default, with [`PwarxMethod::MAX_MODES`], every mode count from 1
+    /// (the affine model) to it, the known stops added, each with the
+    /// trimmed re-estimation at [`AUTO_TRIM`], and without, nothing.
+    fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
+        Ok(match Self::MAX_MODES {
+            Some(max_modes) => SearchSpace::default()
+                .with(Stages::TRIM, [AUTO_TRIM])
+                .with_mode_counts(problem.priors, max_modes),
+            None => SearchSpace::default(),
+        })
     }
 
     /// The method's steps: the ordinary modes of `data` (their number is
