@@ -230,10 +230,12 @@ fn damped_system(at: &Linearisation, v: &[f64], mu: f64) -> (DMatrix<f64>, DVect
 mod tests {
     use super::*;
 
-    /// `y = exp(a t) + b` at five points, unconstrained.
+    /// `y = s (exp(a t) + b)` at the points `t`, unconstrained; `s` is the
+    /// unit of the outputs (1 unless a test changes it).
     struct Exponential {
         t: Vec<f64>,
         y: Vec<f64>,
+        s: f64,
     }
 
     impl LeastSquares for Exponential {
@@ -247,12 +249,12 @@ mod tests {
                 self.t
                     .iter()
                     .zip(&self.y)
-                    .map(|(t, y)| y - (v[0] * t).exp() - v[1]),
+                    .map(|(t, y)| y - self.s * ((v[0] * t).exp() + v[1])),
             );
             let mut jacobian = DMatrix::zeros(self.t.len(), 2);
             for (k, t) in self.t.iter().enumerate() {
-                jacobian[(k, 0)] = t * (v[0] * t).exp();
-                jacobian[(k, 1)] = 1.0;
+                jacobian[(k, 0)] = self.s * t * (v[0] * t).exp();
+                jacobian[(k, 1)] = self.s;
             }
             let cost = errors.norm_squared();
             Ok(Linearisation {
@@ -272,7 +274,7 @@ mod tests {
     fn a_nonlinear_fit_converges_to_the_truth() {
         let t: Vec<f64> = (0..5).map(|k| k as f64 * 0.25).collect();
         let y = t.iter().map(|t| (0.7 * t).exp() - 0.3).collect();
-        let problem = Exponential { t, y };
+        let problem = Exponential { t, y, s: 1.0 };
         let d = levenberg_marquardt(&problem, vec![0.0, 0.0], 100, &Deadline::none()).unwrap();
         assert_eq!(d.stop, Stop::Converged);
         let v = d.v.unwrap();
@@ -297,7 +299,7 @@ mod tests {
             .enumerate()
             .map(|(k, t)| (0.7 * t).exp() - 0.3 + if k % 2 == 0 { 0.05 } else { -0.05 })
             .collect();
-        let problem = Exponential { t, y };
+        let problem = Exponential { t, y, s: 1.0 };
         let d = levenberg_marquardt(&problem, vec![0.0, 0.0], 1000, &Deadline::none()).unwrap();
         assert_eq!(d.stop, Stop::Converged);
         assert!(d.iterations < 100, "{}", d.iterations);
@@ -311,5 +313,29 @@ mod tests {
         let cut = levenberg_marquardt(&problem, vec![0.0, 0.0], 1000, &passed).unwrap();
         assert_eq!((cut.stop, cut.iterations), (Stop::TimeBudget, 0));
         assert!(cut.v.is_none());
+    }
+
+    proptest::proptest! {
+        /// The convergence tests do not depend on the outputs' unit: the
+        /// same record in another unit takes the same steps and ends the
+        /// same way at the same point.
+        #[test]
+        fn the_descent_does_not_depend_on_the_unit_of_the_outputs(
+            unit in -6i32..6,
+            noise in proptest::collection::vec(-0.1f64..0.1, 9),
+        ) {
+            let t: Vec<f64> = (0..9).map(|k| k as f64 * 0.25).collect();
+            let y: Vec<f64> = t.iter().zip(&noise).map(|(t, e)| (0.7 * t).exp() - 0.3 + e).collect();
+            let s = 10f64.powi(unit);
+            let base = Exponential { t: t.clone(), y: y.clone(), s: 1.0 };
+            let scaled = Exponential { t, y: y.iter().map(|y| s * y).collect(), s };
+            let a = levenberg_marquardt(&base, vec![0.0, 0.0], 200, &Deadline::none()).unwrap();
+            let b = levenberg_marquardt(&scaled, vec![0.0, 0.0], 200, &Deadline::none()).unwrap();
+            proptest::prop_assert_eq!((a.stop, a.iterations), (b.stop, b.iterations));
+            proptest::prop_assert_eq!(a.stop, Stop::Converged);
+            for (p, q) in a.v.unwrap().iter().zip(b.v.unwrap()) {
+                proptest::prop_assert!((p - q).abs() <= 1e-6 * (1.0 + p.abs()), "{} {}", p, q);
+            }
+        }
     }
 }
