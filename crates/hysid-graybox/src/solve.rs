@@ -121,11 +121,10 @@ pub fn levenberg_marquardt(
         let mut xn: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
         project(&mut xn);
         evaluated(1);
-        match res(&xn) {
-            Some(rn) if sse(&rn) < cost => {
-                let decrease = (cost - sse(&rn)) / cost;
-                (x, r) = (xn, rn);
-                cost = sse(&r);
+        match res(&xn).map(|rn| (sse(&rn), rn)) {
+            Some((next, rn)) if next < cost => {
+                let decrease = (cost - next) / cost;
+                (x, r, cost) = (xn, rn, next);
                 mu = (mu / 3.0).max(settings.min_damping);
                 jac = None;
                 if decrease < settings.relative_tolerance {

@@ -132,13 +132,7 @@ fn check_record<'py>(
     input_names: Option<Vec<String>>,
     output_name: Option<String>,
 ) -> PyResult<CheckedRecord<'py>> {
-    let data = record::dataset(
-        record::input_columns(u)?,
-        record::output(y)?,
-        ts,
-        input_names,
-        output_name,
-    )?;
+    let data = record::from_arrays(u, y, ts, input_names, output_name)?;
     let selection = DataSelection {
         inputs: data.input_names(),
         output: data.output.name.clone(),
@@ -252,13 +246,7 @@ fn identify<'py>(
     input_names: Option<Vec<String>>,
     output_name: Option<String>,
 ) -> PyResult<Model> {
-    let data = record::dataset(
-        record::input_columns(u)?,
-        record::output(y)?,
-        ts,
-        input_names,
-        output_name,
-    )?;
+    let data = record::from_arrays(u, y, ts, input_names, output_name)?;
     let (priors, priors_origin) = self::priors(py, priors)?;
     let (select_rows, grid) = (
         parse_rows("select_rows", select_rows.as_deref())?,

@@ -100,6 +100,18 @@ pub fn dataset(
     Ok(Dataset::new(inputs, output, ts)?)
 }
 
+/// The record of Python's inputs `u` (`(N,)` or `(N, m)`) and outputs `y`
+/// (`(N,)` or `(N, 1)`), checked as `identify` checks it ([`dataset`]).
+pub fn from_arrays(
+    u: &Bound<'_, PyAny>,
+    y: &Bound<'_, PyAny>,
+    ts: Option<f64>,
+    names: Option<Vec<String>>,
+    output_name: Option<String>,
+) -> Result<Dataset, Failure> {
+    dataset(input_columns(u)?, output(y)?, ts, names, output_name)
+}
+
 /// The inputs of `data` as an `(N, m)` array.
 pub fn inputs_array<'py>(py: Python<'py>, data: &Dataset) -> Bound<'py, PyArray2<f64>> {
     let (n, m) = (data.len(), data.inputs.len());
