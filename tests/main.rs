@@ -11,5 +11,6 @@ mod docs_commands;
 mod edge_cases;
 mod initial_states;
 mod pick_and_place;
+mod records;
 mod results_table;
 mod stops;

@@ -129,6 +129,9 @@ impl From<hysid::select::SelectError> for CliError {
             SelectError::Rows { rows, reason } => {
                 Self::input(format!("--select-rows {rows}: {reason}"))
             }
+            SelectError::Records { records, reason } => {
+                Self::input(format!("--select-records {records}: {reason}"))
+            }
             SelectError::Candidate(c) => {
                 Self::input(format!("--grid {}={}: not a count", c.key, c.value))
             }

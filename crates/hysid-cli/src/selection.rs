@@ -2,7 +2,8 @@
 //! selection").
 
 use crate::error::CliError;
-use hysid_model::data::{DataSelection, RowRange, SignalNameError};
+use hysid_model::data::{DataError, DataSelection, Dataset, RowRange, SignalNameError};
+use std::path::PathBuf;
 
 /// Which signals and samples of a data file to use.
 #[derive(clap::Args, Debug, Clone)]
@@ -11,9 +12,10 @@ pub struct DataArgs {
     pub signals: SignalArgs,
     /// Rows A..B after decimation (A inclusive, B exclusive).
     ///
-    /// Either bound may be left out.
+    /// Either bound may be left out. With several data files: once for
+    /// every file, or once per file in their order.
     #[arg(long)]
-    pub rows: Option<RowRange>,
+    pub rows: Vec<RowRange>,
 }
 
 /// Which signals of a data file to use, and how they are sampled.
@@ -60,9 +62,49 @@ fn parse_ts(s: &str) -> Result<f64, String> {
 }
 
 impl DataArgs {
-    /// The selection for `hysid_io::load` ([`SignalArgs::selection`]).
+    /// The selection of one data file for `hysid_io::load`
+    /// ([`SignalArgs::selection`]).
     pub fn selection(&self) -> Result<DataSelection, CliError> {
-        self.signals.selection(self.rows.unwrap_or_default())
+        match self.rows[..] {
+            [] => self.signals.selection(RowRange::default()),
+            [rows] => self.signals.selection(rows),
+            _ => Err(CliError::input(format!(
+                "--rows: given {} times for one data file",
+                self.rows.len()
+            ))),
+        }
+    }
+
+    /// The records of `files`, each with its `--rows`, joined into one
+    /// dataset ([`Dataset::join`]); one file is read as it is.
+    pub fn load(&self, files: &[PathBuf]) -> Result<Dataset, CliError> {
+        if self.rows.len() > 1 && self.rows.len() != files.len() {
+            return Err(CliError::input(format!(
+                "--rows: given {} times for {} data files; give it once for every file or once per file",
+                self.rows.len(),
+                files.len()
+            )));
+        }
+        let records = files
+            .iter()
+            .enumerate()
+            .map(|(i, file)| {
+                let rows = self.rows.get(i).or(self.rows.first()).copied();
+                let selection = self.signals.selection(rows.unwrap_or_default())?;
+                Ok(hysid_io::load(file, &selection)?)
+            })
+            .collect::<Result<Vec<_>, CliError>>()?;
+        Dataset::join(&records).map_err(|e| match e {
+            DataError::Join { record, reason } => {
+                CliError::input(format!("{}: {reason}", files[record - 1].display()))
+            }
+            e => e.into(),
+        })
+    }
+
+    /// Row of the file where the (first) record starts.
+    pub fn first_row(&self) -> usize {
+        self.rows.first().and_then(|r| r.start).unwrap_or(0)
     }
 }
 

@@ -13,7 +13,9 @@ use hysid_mechanical::simulate as mechanical;
 use hysid_model::data::Dataset;
 use hysid_model::metrics::{fit, rmse};
 use hysid_model::model::InitialState;
-use hysid_model::simulate::{SimError, Simulation, SimulationOptions, automaton, pwarx};
+use hysid_model::simulate::{
+    SimError, Simulation, SimulationOptions, automaton, per_record, pwarx,
+};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -28,19 +30,20 @@ fn check_inputs(model: &Model, data: &Dataset) -> Result<(), SimError> {
 }
 
 /// Free-run simulation driven by the inputs of `data`; measured outputs are
-/// used only for the initial condition.
+/// used only for the initial condition. Each record of a joined dataset
+/// is simulated from its own initial state ([`per_record`]).
 pub fn simulate(
     model: &Model,
     data: &Dataset,
     opts: SimulationOptions,
 ) -> Result<Simulation, SimError> {
     check_inputs(model, data)?;
-    match model {
+    per_record(data, |data| match model {
         Model::Pwarx(m) => pwarx::simulate(m, data, opts),
         Model::HybridAutomaton(m) => automaton::simulate(m, data, opts),
         Model::Mechanical(m) => mechanical::simulate(m, data, opts),
         Model::GrayBox(m) => hysid_graybox::simulate(m, data, opts),
-    }
+    })
 }
 
 /// One-step-ahead prediction: every step starts from the measured state.
@@ -52,7 +55,7 @@ pub fn predict(
     opts: SimulationOptions,
 ) -> Result<Simulation, SimError> {
     check_inputs(model, data)?;
-    match model {
+    per_record(data, |data| match model {
         Model::Pwarx(m) => pwarx::predict(m, data),
         Model::HybridAutomaton(m) => match m.initial_state {
             InitialState::ArxHistory { .. } => automaton::predict(m, data),
@@ -60,7 +63,7 @@ pub fn predict(
         },
         Model::Mechanical(m) => mechanical::predict(m, data),
         Model::GrayBox(m) => hysid_graybox::predict(m, data),
-    }
+    })
 }
 
 /// What `hysid validate --json` prints (`docs/cli.md`).
@@ -88,9 +91,15 @@ pub struct ValidationReport {
     pub mode_counts: Vec<usize>,
     /// The initial states the model leaves unknown, by name, as estimated
     /// from the record's warm-up outputs ([`initial_states`]); absent when
-    /// it estimates none.
+    /// it estimates none or the data join several records (each record's
+    /// are in its own report).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub initial_states: BTreeMap<String, f64>,
+    /// For data that join several records: each record scored on its own,
+    /// with its own warm-up; the figures above pool their scored samples.
+    /// Absent for one record.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub records: Vec<ValidationReport>,
 }
 
 /// The initial states `model` leaves unknown, by name, as its simulation
@@ -108,13 +117,75 @@ pub fn initial_states(model: &Model, data: &Dataset) -> Result<BTreeMap<String, 
 }
 
 /// Scores `model` on `data`, leaving out the first `warmup` samples (and
-/// any before the simulation can start).
+/// any before the simulation can start). Data that join several records
+/// are scored record by record, each with its own warm-up and initial
+/// state, and as a whole over the samples scored in each.
 pub fn validate(
     model: &Model,
     data: &Dataset,
     warmup: usize,
 ) -> Result<(ValidationReport, Simulation, Simulation), SimError> {
     let opts = SimulationOptions::for_data(data);
+    if data.record_count() == 1 {
+        return validate_record(model, data, warmup, opts);
+    }
+    let mut parts = Vec::new();
+    let (mut sims, mut preds) = (Vec::new(), Vec::new());
+    for (i, record) in data.records().iter().enumerate() {
+        let (report, sim, pred) =
+            validate_record(model, record, warmup, opts).map_err(|e| SimError::InRecord {
+                record: i + 1,
+                source: Box::new(e),
+            })?;
+        parts.push(report);
+        sims.push(sim);
+        preds.push(pred);
+    }
+    let sim = Simulation::join(sims, &data.boundaries);
+    let pred = Simulation::join(preds, &data.boundaries);
+    let scored: Vec<usize> = data
+        .record_ranges()
+        .iter()
+        .zip(&parts)
+        .flat_map(|(r, p)| r.end - p.n..r.end)
+        .collect();
+    let pick = |v: &[f64]| scored.iter().map(|&k| v[k]).collect::<Vec<_>>();
+    let y = pick(data.y());
+    let (ys, yp) = (pick(&sim.y), pick(&pred.y));
+    let n = scored.len();
+    let weighted = |f: fn(&ValidationReport) -> f64| {
+        parts.iter().map(|p| f(p) * p.n as f64).sum::<f64>() / n as f64
+    };
+    let mut mode_counts = vec![0; model.mode_count()];
+    for p in &parts {
+        for (c, q) in mode_counts.iter_mut().zip(&p.mode_counts) {
+            *c += q;
+        }
+    }
+    let report = ValidationReport {
+        n,
+        warmup,
+        fit_sim: fit(&y, &ys),
+        rmse_sim: rmse(&y, &ys),
+        fit_pred: fit(&y, &yp),
+        rmse_pred: rmse(&y, &yp),
+        coverage: weighted(|p| p.coverage),
+        coverage_sim: weighted(|p| p.coverage_sim),
+        diverged_at: sim.diverged_at,
+        mode_counts,
+        initial_states: BTreeMap::new(),
+        records: parts,
+    };
+    Ok((report, sim, pred))
+}
+
+/// [`validate`] on one record.
+fn validate_record(
+    model: &Model,
+    data: &Dataset,
+    warmup: usize,
+    opts: SimulationOptions,
+) -> Result<(ValidationReport, Simulation, Simulation), SimError> {
     let sim = simulate(model, data, opts)?;
     let pred = predict(model, data, opts)?;
     let first = warmup.max(sim.start).max(pred.start);
@@ -147,6 +218,7 @@ pub fn validate(
         diverged_at: sim.diverged_at,
         mode_counts,
         initial_states: initial_states(model, data)?,
+        records: Vec::new(),
     };
     Ok((report, sim, pred))
 }
@@ -173,6 +245,15 @@ pub enum HoldoutError {
     NotFinite,
 }
 
+/// The samples scored at the end of each record of a report.
+fn scored_counts(report: &ValidationReport) -> Vec<usize> {
+    if report.records.is_empty() {
+        vec![report.n]
+    } else {
+        report.records.iter().map(|r| r.n).collect()
+    }
+}
+
 /// `model` scored on `data` by free-run simulation, the first `warmup`
 /// samples left out ([`validate`]).
 pub fn holdout(model: &Model, data: &Dataset, warmup: usize) -> Result<Holdout, HoldoutError> {
@@ -181,11 +262,12 @@ pub fn holdout(model: &Model, data: &Dataset, warmup: usize) -> Result<Holdout, 
         return Err(HoldoutError::NotFinite);
     }
     let y = data.y();
-    let first = y.len() - report.n;
-    let errors = y[first..]
+    let errors = data
+        .record_ranges()
         .iter()
-        .zip(&sim.y[first..])
-        .map(|(a, b)| a - b)
+        .zip(scored_counts(&report))
+        .flat_map(|(r, n)| r.end - n..r.end)
+        .map(|k| y[k] - sim.y[k])
         .collect();
     Ok(Holdout {
         fit_sim: report.fit_sim,

@@ -102,7 +102,7 @@ mod tests {
         let mut reg = Regressors {
             x,
             y: DVector::zeros(n),
-            first: 0,
+            samples: (0..n).collect(),
         };
         for k in 0..n {
             let u = 2.0 * inputs[k];
@@ -123,7 +123,7 @@ mod tests {
         let reg = Regressors {
             x: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
             y: DVector::from_vec(vec![0.0, 1.0]),
-            first: 0,
+            samples: vec![0, 1],
         };
         assert_eq!(local_noise_sigma(&reg), 0.0);
     }

@@ -47,7 +47,15 @@ fn switched(
         };
         t[d] + (0..d).map(|j| t[j] * x[(k, j)]).sum::<f64>() + noise
     });
-    (Regressors { x, y, first: 0 }, truth, thetas)
+    (
+        Regressors {
+            x,
+            y,
+            samples: (0..n).collect(),
+        },
+        truth,
+        thetas,
+    )
 }
 
 fn options() -> KLinRegOptions {

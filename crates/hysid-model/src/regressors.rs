@@ -28,8 +28,9 @@ pub struct Regressors {
     pub x: DMatrix<f64>,
     /// Targets `y(k)`.
     pub y: DVector<f64>,
-    /// Sample index of the first row: row `r` is sample `r + first`.
-    pub first: usize,
+    /// The sample `k` of each row. Within a record the rows are the
+    /// samples `lag..`; a row's lags never reach into the record before.
+    pub samples: Vec<usize>,
 }
 
 impl Regressors {
@@ -56,7 +57,7 @@ impl Regressors {
         Regressors {
             x: self.x.select_rows(rows),
             y: self.y.select_rows(rows),
-            first: self.first,
+            samples: rows.iter().map(|&r| self.samples[r]).collect(),
         }
     }
 }
@@ -128,8 +129,9 @@ impl RegressorSpec {
         }
     }
 
-    /// All regressors of a record (`N - lag` rows). Errors when the record is
-    /// too short or its input count differs from the spec.
+    /// All regressors of a dataset: `N - lag` rows per record, none whose
+    /// lags cross into the record before. Errors when a record is too
+    /// short or the input count differs from the spec.
     pub fn build(&self, data: &Dataset) -> Result<Regressors, RegressorError> {
         if data.inputs.len() != self.inputs {
             return Err(RegressorError::Inputs {
@@ -138,25 +140,35 @@ impl RegressorSpec {
             });
         }
         let lag = self.lag();
-        let n = data.len();
-        if n <= lag {
-            return Err(RegressorError::TooShort { samples: n, lag });
+        let ranges = data.record_ranges();
+        if let Some(r) = ranges.iter().find(|r| r.len() <= lag) {
+            return Err(RegressorError::TooShort {
+                samples: r.len(),
+                lag,
+            });
         }
+        let samples: Vec<usize> = ranges
+            .into_iter()
+            .flat_map(|r| r.start + lag..r.end)
+            .collect();
         let u: Vec<&[f64]> = (0..self.inputs).map(|i| data.u(i)).collect();
         let d = self.dim();
-        let rows = n - lag;
-        let mut x = DMatrix::zeros(rows, d);
+        let mut x = DMatrix::zeros(samples.len(), d);
         let mut buf = vec![0.0; d];
-        for r in 0..rows {
-            self.fill(data.y(), &u, r + lag, &mut buf);
+        for (r, &k) in samples.iter().enumerate() {
+            self.fill(data.y(), &u, k, &mut buf);
             for c in 0..d {
                 x[(r, c)] = buf[c];
             }
         }
         Ok(Regressors {
             x,
-            y: DVector::from_column_slice(&data.y()[lag..]),
-            first: lag,
+            y: samples
+                .iter()
+                .map(|&k| data.y()[k])
+                .collect::<Vec<_>>()
+                .into(),
+            samples,
         })
     }
 }
@@ -211,9 +223,9 @@ mod tests {
             let lag = na.max(nb);
             let r = spec.build(&data).unwrap();
             prop_assert_eq!(r.x.shape(), (n - lag, na + nb * m));
-            prop_assert_eq!(r.first, lag);
             for row in 0..r.len() {
                 let k = row + lag;
+                prop_assert_eq!(r.samples[row], k);
                 prop_assert_eq!(r.y[row], k as f64);
                 for i in 1..=na { prop_assert_eq!(r.x[(row, i - 1)], (k - i) as f64); }
                 for j in 0..m { for l in 1..=nb {
@@ -221,6 +233,36 @@ mod tests {
                 }}
             }
             prop_assert_eq!(r.phi().column(na + nb * m).iter().all(|&v| v == 1.0), true);
+        }
+    }
+
+    proptest! {
+        /// Joined records give the rows of each record, in order, and no
+        /// row whose lags cross a boundary.
+        #[test]
+        fn joined_records_give_each_records_rows(na in 0usize..4, nb in 0usize..4, cuts in proptest::collection::vec(5usize..20, 1..4)) {
+            prop_assume!(na + nb > 0);
+            let spec = RegressorSpec::new(na, nb, 1);
+            let mut start = 0;
+            let records: Vec<Dataset> = cuts.iter().map(|&n| {
+                let v: Vec<f64> = (start..start + n).map(|k| (k * k % 17) as f64).collect();
+                start += n;
+                Dataset::siso(v.iter().map(|x| x + 0.5).collect(), v, None).unwrap()
+            }).collect();
+            let joined = spec.build(&Dataset::join(&records).unwrap()).unwrap();
+            let mut row = 0;
+            let mut offset = 0;
+            for d in &records {
+                let own = spec.build(d).unwrap();
+                for r in 0..own.len() {
+                    prop_assert_eq!(joined.x.row(row), own.x.row(r));
+                    prop_assert_eq!(joined.y[row], own.y[r]);
+                    prop_assert_eq!(joined.samples[row], own.samples[r] + offset);
+                    row += 1;
+                }
+                offset += d.len();
+            }
+            prop_assert_eq!(row, joined.len());
         }
     }
 

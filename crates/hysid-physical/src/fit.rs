@@ -60,7 +60,8 @@ pub fn fit_model<M: Target>(
     } else {
         model.clone()
     };
-    let map = ParameterMap::new(&model, priors).map_err(PhysicalError::Parameters)?;
+    let map = ParameterMap::new(&model, priors, data.record_count())
+        .map_err(PhysicalError::Parameters)?;
     check_length(&model, &map, data)?;
     let evals = AtomicU64::new(0);
     let search = Search {

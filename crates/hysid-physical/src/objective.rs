@@ -16,20 +16,51 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub const FAILED: f64 = 1e30;
 
 /// Free-run simulation residuals `y(k) - yhat(k)` after the initial state,
-/// as simulated (`None` only when the simulation fails).
+/// as simulated (`None` only when the simulation fails). Each record of a
+/// joined dataset is simulated from its own initial state ([`per_record`]).
 pub fn free_run_residuals(
     model: &dyn Simulator,
     values: &[f64],
     data: &Dataset,
 ) -> Option<Vec<f64>> {
-    let (start, y) = model.free_run(values, data)?;
-    Some(
-        data.y()[start + 1..]
-            .iter()
-            .zip(&y[start + 1..])
-            .map(|(a, b)| a - b)
-            .collect(),
-    )
+    per_record(model, values, data, |values, data| {
+        let (start, y) = model.free_run(values, data)?;
+        Some(
+            data.y()[start + 1..]
+                .iter()
+                .zip(&y[start + 1..])
+                .map(|(a, b)| a - b)
+                .collect(),
+        )
+    })
+}
+
+/// The residuals `residuals` gives on each record of `data`, one record
+/// after the other. `values` holds the parameters, then the estimated
+/// initial states of each record in turn
+/// ([`Simulator::estimated_count`] each); a record is simulated with the
+/// parameters and its own states. One record: `residuals(values, data)`.
+pub fn per_record(
+    model: &dyn Simulator,
+    values: &[f64],
+    data: &Dataset,
+    residuals: impl Fn(&[f64], &Dataset) -> Option<Vec<f64>>,
+) -> Option<Vec<f64>> {
+    if data.record_count() == 1 {
+        return residuals(values, data);
+    }
+    let records = data.records();
+    let states = model.estimated_count();
+    let parameters = values.len().checked_sub(states * records.len())?;
+    let mut all = Vec::new();
+    let mut own = values[..parameters].to_vec();
+    for (i, record) in records.iter().enumerate() {
+        let at = parameters + i * states;
+        own.truncate(parameters);
+        own.extend_from_slice(&values[at..at + states]);
+        all.extend(residuals(&own, record)?);
+    }
+    Some(all)
 }
 
 /// Free-run simulation residuals `y(k) - yhat(k)` after the initial state
@@ -109,6 +140,19 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
     }
 }
 
+/// [`Simulator::segmented_residuals`] of each record ([`per_record`]).
+fn segmented_residuals(
+    model: &dyn Simulator,
+    values: &[f64],
+    data: &Dataset,
+    segment: usize,
+    velocity_tol: f64,
+) -> Option<Vec<f64>> {
+    per_record(model, values, data, |values, data| {
+        model.segmented_residuals(values, data, segment, velocity_tol)
+    })
+}
+
 /// The segmented (multiple-shooting) simulation error: the record is cut
 /// into segments of `segment` samples, each simulated from the state
 /// measured at its start (position, [`crate::target::segment_velocity`]). Errors do not
@@ -121,9 +165,7 @@ pub fn segmented_mse(
     segment: usize,
     velocity_tol: f64,
 ) -> f64 {
-    mse(model
-        .segmented_residuals(values, data, segment, velocity_tol)
-        .and_then(finite))
+    mse(segmented_residuals(model, values, data, segment, velocity_tol).and_then(finite))
 }
 
 /// The simulation error as a function of the normalised coordinates `z`:
@@ -154,8 +196,7 @@ impl Objective<'_> {
         if self.segment == 0 {
             simulation_residuals(self.model, &v, self.data)
         } else {
-            self.model
-                .segmented_residuals(&v, self.data, self.segment, self.velocity_tol)
+            segmented_residuals(self.model, &v, self.data, self.segment, self.velocity_tol)
                 .and_then(finite)
         }
     }

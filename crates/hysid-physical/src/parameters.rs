@@ -38,8 +38,10 @@ pub enum ParameterError {
 /// fixed parameters keep their value, tied ones share a coordinate, each
 /// coordinate spans its (intersected) bounds. The initial states the model
 /// leaves unknown ([`Target::estimated_states`]) follow the parameters,
-/// one coordinate each over their bounds: nuisance parameters of the
-/// record, searched with the parameters but not written into the model.
+/// one coordinate each over their bounds, for each record in turn:
+/// nuisance parameters of the record, searched with the parameters but not
+/// written into the model. With several records a state is named
+/// `name[r]` (`r` counted from 1).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParameterMap {
     /// Number of the model's parameters: the values after them are the
@@ -59,8 +61,13 @@ pub struct ParameterMap {
 
 impl ParameterMap {
     /// Builds the map from the model (its `fixed` flags and bounds) and the
-    /// priors (`[fixed]`, `[bounds]`, `[[tie]]`), checking every name.
-    pub fn new(model: &impl Target, priors: &Priors) -> Result<Self, ParameterError> {
+    /// priors (`[fixed]`, `[bounds]`, `[[tie]]`), checking every name, with
+    /// the estimated initial states of `records` records.
+    pub fn new(
+        model: &impl Target,
+        priors: &Priors,
+        records: usize,
+    ) -> Result<Self, ParameterError> {
         let parameters = model.parameters();
         let mut names: Vec<String> = parameters.iter().map(|p| p.name.clone()).collect();
         let idx = |n: &str, entry: &'static str| {
@@ -110,12 +117,18 @@ impl ParameterMap {
             }
         }
         let np = names.len();
-        for (name, b, start) in model.estimated_states() {
-            free_groups.push(vec![names.len()]);
-            free_bounds.push(b);
-            bounds.push(b);
-            base.push(start);
-            names.push(name);
+        for r in 1..=records {
+            for (name, b, start) in model.estimated_states() {
+                free_groups.push(vec![names.len()]);
+                free_bounds.push(b);
+                bounds.push(b);
+                base.push(start);
+                names.push(if records > 1 {
+                    format!("{name}[{r}]")
+                } else {
+                    name
+                });
+            }
         }
         Ok(Self {
             parameters: np,

@@ -27,6 +27,11 @@ pub trait Simulator: Sync {
         segment: usize,
         velocity_tol: f64,
     ) -> Option<Vec<f64>>;
+    /// Number of initial states estimated per record: the values a
+    /// simulation takes are the parameters, then these.
+    fn estimated_count(&self) -> usize {
+        0
+    }
 }
 
 /// What the fit needs of a model declared by its physics.
@@ -235,6 +240,10 @@ impl GrayBoxTarget {
 }
 
 impl Simulator for GrayBoxTarget {
+    fn estimated_count(&self) -> usize {
+        self.compiled.estimates.len()
+    }
+
     fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)> {
         let (values, initial) = self.split(values);
         let r = hysid_graybox::simulate::run_from(&self.compiled, values, initial, data).ok()?;

@@ -108,6 +108,15 @@ impl Failure {
         Self::of(Kind::Method, message)
     }
 
+    /// The same failure, said of record `record` (counted from 1) of a
+    /// list of records.
+    pub fn in_record(self, record: usize) -> Self {
+        Self {
+            message: format!("record {record}: {}", self.message),
+            ..self
+        }
+    }
+
     /// A failure of kind `kind`.
     pub fn of(kind: Kind, message: impl Into<String>) -> Self {
         Self {
@@ -225,6 +234,9 @@ impl From<SelectError> for Failure {
             SelectError::Folds { folds, reason } => Self::input(format!("folds={folds}: {reason}")),
             SelectError::Rows { rows, reason } => {
                 Self::input(format!("select_rows={rows}: {reason}"))
+            }
+            SelectError::Records { records, reason } => {
+                Self::input(format!("select_records={records}: {reason}"))
             }
             SelectError::Candidate(c) => {
                 Self::input(format!("grid {}={}: not a count", c.key, c.value))

@@ -218,7 +218,7 @@ fn settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
 #[pyo3(signature = (
     u, y, method="cluster", na=2, nb=2, modes=None, max_modes=None, priors=None,
     options=None, seed=0, ts=None, auto=false, select_rows=None, folds=None,
-    refit_starts=None, grid=None, warmup=10, standardize=false, time_budget=None, input_names=None,
+    select_records=None, refit_starts=None, grid=None, warmup=10, standardize=false, time_budget=None, input_names=None,
     output_name=None
 ))]
 #[allow(clippy::too_many_arguments)]
@@ -238,6 +238,7 @@ fn identify<'py>(
     auto: bool,
     select_rows: Option<String>,
     folds: Option<usize>,
+    select_records: Option<usize>,
     refit_starts: Option<usize>,
     grid: Option<Vec<String>>,
     warmup: usize,
@@ -246,18 +247,29 @@ fn identify<'py>(
     input_names: Option<Vec<String>>,
     output_name: Option<String>,
 ) -> PyResult<Model> {
-    let data = record::from_arrays(u, y, ts, input_names, output_name)?;
+    let data = record::from_arrays_or_lists(u, y, ts, input_names, output_name)?;
     let (priors, priors_origin) = self::priors(py, priors)?;
     let (select_rows, grid) = (
         parse_rows("select_rows", select_rows.as_deref())?,
         grid.unwrap_or_default(),
     );
     if !auto
-        && (select_rows.is_some() || folds.is_some() || refit_starts.is_some() || !grid.is_empty())
+        && (select_rows.is_some()
+            || folds.is_some()
+            || select_records.is_some()
+            || refit_starts.is_some()
+            || !grid.is_empty())
     {
-        return Err(
-            Failure::input("select_rows, folds, refit_starts and grid need auto=True").into(),
-        );
+        return Err(Failure::input(
+            "select_rows, folds, select_records, refit_starts and grid need auto=True",
+        )
+        .into());
+    }
+    if data.record_count() > 1 && select_rows.is_some() {
+        return Err(Failure::input(
+            "select_rows: not with several records; hold out whole records with select_records=K",
+        )
+        .into());
     }
     if auto && standardize {
         return Err(Failure::input("auto=True and standardize=True cannot be combined").into());
@@ -270,6 +282,7 @@ fn identify<'py>(
         Mode::Auto(Auto {
             select_rows,
             folds,
+            select_records,
             refit_starts: refit_starts.unwrap_or(hysid::select::DEFAULT_REFIT_STARTS),
             grid,
         })

@@ -291,13 +291,33 @@ impl Model {
         warmup: usize,
         ts: Option<f64>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let data = self.record(u, output(y)?, ts)?;
-        if warmup >= data.len() {
-            return Err(Failure::input(format!(
-                "warmup={warmup} leaves no sample to score: the record has {} samples",
-                data.len()
-            ))
-            .into());
+        let data = match record::record_lists(u, y)? {
+            None => self.record(u, output(y)?, ts)?,
+            Some(pairs) => hysid_model::data::Dataset::join(
+                &pairs
+                    .iter()
+                    .enumerate()
+                    .map(|(i, (u, y))| {
+                        self.record(u, output(y)?, ts)
+                            .map_err(|e| e.in_record(i + 1))
+                    })
+                    .collect::<Result<Vec<_>, _>>()?,
+            )
+            .map_err(Failure::from)?,
+        };
+        for (i, range) in data.record_ranges().into_iter().enumerate() {
+            if warmup >= range.len() {
+                let which = if data.record_count() > 1 {
+                    format!("record {} has", i + 1)
+                } else {
+                    "the record has".into()
+                };
+                return Err(Failure::input(format!(
+                    "warmup={warmup} leaves no sample to score: {which} {} samples",
+                    range.len()
+                ))
+                .into());
+            }
         }
         let (report, sim, _) = py
             .detach(|| simulate::validate(&self.inner, &data, warmup))

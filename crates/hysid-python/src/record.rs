@@ -5,8 +5,9 @@
 use crate::error::Failure;
 use hysid_model::data::{Dataset, Signal};
 use numpy::ndarray::{Array2, ArrayD};
-use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn};
+use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn, PyUntypedArray};
 use pyo3::prelude::*;
+use pyo3::types::{PyList, PyTuple};
 
 /// `obj` as an array of floats (anything `numpy.asarray` takes); `name`
 /// names the argument in the error.
@@ -110,6 +111,71 @@ pub fn from_arrays(
     output_name: Option<String>,
 ) -> Result<Dataset, Failure> {
     dataset(input_columns(u)?, output(y)?, ts, names, output_name)
+}
+
+/// Several records: `y` is a list or tuple of numpy arrays, and `u` a list
+/// or tuple of as many. Anything else is one record (a list of numbers, or
+/// of lists, is one array, as numpy reads it).
+pub fn record_lists<'a, 'py>(
+    u: &'a Bound<'py, PyAny>,
+    y: &'a Bound<'py, PyAny>,
+) -> Result<Option<Vec<(Bound<'py, PyAny>, Bound<'py, PyAny>)>>, Failure> {
+    let items = |obj: &Bound<'py, PyAny>| -> Option<Vec<Bound<'py, PyAny>>> {
+        let list: Vec<Bound<'py, PyAny>> = if let Ok(l) = obj.cast::<PyList>() {
+            l.iter().collect()
+        } else if let Ok(t) = obj.cast::<PyTuple>() {
+            t.iter().collect()
+        } else {
+            return None;
+        };
+        (!list.is_empty() && list.iter().all(|x| x.is_instance_of::<PyUntypedArray>()))
+            .then_some(list)
+    };
+    let Some(ys) = items(y) else {
+        return Ok(None);
+    };
+    let us: Vec<Bound<'py, PyAny>> = match (u.cast::<PyList>(), u.cast::<PyTuple>()) {
+        (Ok(l), _) => l.iter().collect(),
+        (_, Ok(t)) => t.iter().collect(),
+        _ => {
+            return Err(Failure::input(format!(
+                "u: y is a list of {} records, u must be a list of as many input arrays",
+                ys.len()
+            )));
+        }
+    };
+    if us.len() != ys.len() {
+        return Err(Failure::input(format!(
+            "u: {} input record(s) for {} output record(s)",
+            us.len(),
+            ys.len()
+        )));
+    }
+    Ok(Some(us.into_iter().zip(ys).collect()))
+}
+
+/// The record of `u`, `y` ([`from_arrays`]), or, for lists of records
+/// ([`record_lists`]), the records joined ([`Dataset::join`]); an error
+/// names the record (counted from 1).
+pub fn from_arrays_or_lists(
+    u: &Bound<'_, PyAny>,
+    y: &Bound<'_, PyAny>,
+    ts: Option<f64>,
+    names: Option<Vec<String>>,
+    output_name: Option<String>,
+) -> Result<Dataset, Failure> {
+    let Some(pairs) = record_lists(u, y)? else {
+        return from_arrays(u, y, ts, names, output_name);
+    };
+    let records = pairs
+        .iter()
+        .enumerate()
+        .map(|(i, (u, y))| {
+            from_arrays(u, y, ts, names.clone(), output_name.clone())
+                .map_err(|e| e.in_record(i + 1))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Dataset::join(&records)?)
 }
 
 /// The inputs of `data` as an `(N, m)` array.

@@ -422,6 +422,7 @@ fn identify(
         Mode::Auto(Auto {
             select_rows: spec.selection,
             folds: spec.folds,
+            select_records: None,
             refit_starts: spec.refit_starts,
             grid: None,
         })

@@ -37,6 +37,9 @@ pub struct Auto {
     pub select_rows: Option<RowRange>,
     /// Rolling-origin folds instead of one split.
     pub folds: Option<usize>,
+    /// For data that join several records: hold out the last `K` records
+    /// for selection.
+    pub select_records: Option<usize>,
     /// Starts of the refit of the choice (at least 1).
     pub refit_starts: usize,
     /// The user's grid, replacing the back-end's search space.
@@ -48,6 +51,7 @@ impl Default for Auto {
         Self {
             select_rows: None,
             folds: None,
+            select_records: None,
             refit_starts: select::DEFAULT_REFIT_STARTS,
             grid: None,
         }
@@ -270,6 +274,7 @@ impl<'a> Identify<'a> {
                 let plan = Plan {
                     select: auto.select_rows,
                     folds: auto.folds,
+                    select_records: auto.select_records,
                     warmup: self.warmup,
                     first_row: self.first_row,
                     refit_starts: auto.refit_starts,

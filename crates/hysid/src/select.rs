@@ -50,6 +50,10 @@ pub struct Plan {
     /// origin: block `j` (from the second) is scored by the model fitted on
     /// the blocks before it, and a candidate's score is the mean.
     pub folds: Option<usize>,
+    /// For data that join several records: the last `K` records are the
+    /// selection rows, the records before them the fit rows (instead of
+    /// `select` and `folds`).
+    pub select_records: Option<usize>,
     /// Samples at the start of the selection rows left out of the score.
     pub warmup: usize,
     /// Row of the file where the identification record starts: `select`
@@ -66,6 +70,7 @@ impl Default for Plan {
         Plan {
             select: None,
             folds: None,
+            select_records: None,
             warmup: 0,
             first_row: 0,
             refit_starts: DEFAULT_REFIT_STARTS,
@@ -144,6 +149,14 @@ pub enum SelectError {
         /// What is wrong.
         reason: String,
     },
+    /// The held-out records do not split the records.
+    #[error("{records} selection records: {reason}")]
+    Records {
+        /// Records asked for.
+        records: usize,
+        /// What is wrong.
+        reason: String,
+    },
     /// A grid value that cannot be applied.
     #[error(transparent)]
     Candidate(#[from] CandidateError),
@@ -165,12 +178,36 @@ pub type Split = ((usize, usize), (usize, usize));
 /// The splits of an identification record of `n` rows that `plan` asks
 /// for: one ([`split`]), the two ends of a short record ([`both_ends`]),
 /// or the rolling-origin folds ([`folds`]).
-pub fn splits(n: usize, plan: &Plan) -> Result<Vec<Split>, SelectError> {
+pub fn splits(data: &Dataset, plan: &Plan) -> Result<Vec<Split>, SelectError> {
+    let n = data.len();
+    if let Some(k) = plan.select_records {
+        return Ok(vec![record_split(data, k, plan)?]);
+    }
     match plan.folds {
         Some(k) => folds(n, k, plan.warmup),
         None if plan.select.is_none() => Ok(both_ends(n, split(n, plan)?)),
         None => Ok(vec![split(n, plan)?]),
     }
+}
+
+/// The fit rows and selection rows when the last `k` records of `data`
+/// are held out for selection.
+pub fn record_split(data: &Dataset, k: usize, plan: &Plan) -> Result<Split, SelectError> {
+    let bad = |reason: String| SelectError::Records { records: k, reason };
+    if plan.select.is_some() || plan.folds.is_some() {
+        return Err(bad(
+            "selection rows and folds are not taken beside it".into()
+        ));
+    }
+    let count = data.record_count();
+    if k == 0 || k >= count {
+        return Err(bad(format!(
+            "must be between 1 and the number of records less one ({})",
+            count - 1
+        )));
+    }
+    let a = data.boundaries[count - k - 1];
+    Ok(((0, a), (a, data.len())))
 }
 
 /// Default selection blocks shorter than this are joined by the block of
@@ -299,7 +336,7 @@ struct Part {
 /// returns the choice fitted on all the identification rows, with the
 /// record of the selection in `info.selection`.
 pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, SelectError> {
-    let rows = splits(request.data.len(), &request.plan)?;
+    let rows = splits(request.data, &request.plan)?;
     let parts = cut(request.data, &rows)?;
     let mut trials = trials(request)?;
     let first = score_all(request, &trials, &parts, ctx, "selecting");
@@ -861,6 +898,38 @@ mod tests {
         }
     }
 
+    fn rows_of(n: usize) -> Dataset {
+        Dataset::siso(vec![0.0; n], vec![0.0; n], None).unwrap()
+    }
+
+    #[test]
+    fn held_out_records_are_the_last_ones() {
+        let data = Dataset::join(&[rows_of(50), rows_of(30), rows_of(20)]).unwrap();
+        let records = |k| Plan {
+            select_records: Some(k),
+            ..Plan::default()
+        };
+        assert_eq!(splits(&data, &records(1)).unwrap(), [((0, 80), (80, 100))]);
+        assert_eq!(splits(&data, &records(2)).unwrap(), [((0, 50), (50, 100))]);
+        for k in [0, 3] {
+            let e = splits(&data, &records(k)).unwrap_err().to_string();
+            assert_eq!(
+                e,
+                format!(
+                    "{k} selection records: must be between 1 and the number of records less one (2)"
+                )
+            );
+        }
+        let with_folds = Plan {
+            folds: Some(3),
+            ..records(1)
+        };
+        assert!(matches!(
+            splits(&data, &with_folds),
+            Err(SelectError::Records { .. })
+        ));
+    }
+
     #[test]
     fn default_split_is_the_last_fifth() {
         let (fit, sel) = split(5000, &Plan::default()).unwrap();
@@ -915,16 +984,19 @@ mod tests {
     fn short_records_are_scored_at_both_ends() {
         let plan = Plan::default();
         assert_eq!(
-            splits(5000, &plan).unwrap(),
+            splits(&rows_of(5000), &plan).unwrap(),
             vec![((0, 4000), (4000, 5000))]
         );
-        assert_eq!(splits(500, &plan).unwrap(), vec![((0, 400), (400, 500))]);
         assert_eq!(
-            splits(60, &plan).unwrap(),
+            splits(&rows_of(500), &plan).unwrap(),
+            vec![((0, 400), (400, 500))]
+        );
+        assert_eq!(
+            splits(&rows_of(60), &plan).unwrap(),
             vec![((12, 60), (0, 12)), ((0, 48), (48, 60))]
         );
         // Rows the user gives are taken as given.
-        assert_eq!(splits(60, &self::plan("48..")).unwrap().len(), 1);
+        assert_eq!(splits(&rows_of(60), &self::plan("48..")).unwrap().len(), 1);
     }
 
     #[test]

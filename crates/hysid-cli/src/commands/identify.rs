@@ -1,4 +1,5 @@
-//! `hysid identify`: one back-end on one record.
+//! `hysid identify`: one back-end on one record, or on several records of
+//! one system.
 
 use crate::error::CliError;
 use crate::error::Result;
@@ -18,8 +19,13 @@ use std::time::Instant;
 #[derive(clap::Args, Debug)]
 #[command(allow_negative_numbers = true)]
 pub struct Args {
-    /// Data file (.csv or .mat).
-    pub data: PathBuf,
+    /// Data file(s) (.csv or .mat).
+    ///
+    /// Several files are records of one system: one model is fitted on
+    /// all of them, nothing spans two records, and each starts from its own
+    /// initial state.
+    #[arg(required = true, num_args = 1..)]
+    pub data: Vec<PathBuf>,
     /// Back-end (see `hysid methods`).
     #[arg(short = 'm', long = "method", help_heading = "Method")]
     pub method: String,
@@ -88,6 +94,17 @@ pub struct Args {
         help_heading = "Selection"
     )]
     pub folds: Option<usize>,
+    /// With --auto and several data files: hold out the last K files.
+    ///
+    /// The candidates are fitted on the records before them and scored on
+    /// them (instead of selection rows).
+    #[arg(
+        long,
+        requires = "auto",
+        conflicts_with_all = ["select_rows", "folds"],
+        help_heading = "Selection"
+    )]
+    pub select_records: Option<usize>,
     /// With --auto: starts of the refit of the choice.
     ///
     /// Used when the back-end's seed can change its fit: the start that
@@ -125,7 +142,12 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let registry = hysid::registry();
-    let data = hysid_io::load(&args.data, &args.select.selection()?)?;
+    if args.data.len() > 1 && args.select_rows.is_some() {
+        return Err(CliError::input(
+            "--select-rows: not with several data files; hold out whole records with --select-records K",
+        ));
+    }
+    let data = args.select.load(&args.data)?;
     let mode = if args.auto {
         let grid = (!args.grid.is_empty())
             .then(|| SearchSpace::parse_grid(&args.grid))
@@ -134,6 +156,7 @@ pub fn run(args: Args) -> Result<()> {
         Mode::Auto(Auto {
             select_rows: args.select_rows,
             folds: args.folds,
+            select_records: args.select_records,
             refit_starts: args.refit_starts,
             grid,
         })
@@ -145,7 +168,7 @@ pub fn run(args: Args) -> Result<()> {
     let request = Identify {
         method: args.method.clone(),
         data: &data,
-        first_row: args.select.rows.and_then(|r| r.start).unwrap_or(0),
+        first_row: args.select.first_row(),
         na: args.na,
         nb: args.nb,
         priors: match &args.prior {
@@ -168,11 +191,15 @@ pub fn run(args: Args) -> Result<()> {
     let model = &identified.model;
     hysid_io::save_model(model, &args.out)?;
     eprintln!(
-        "hysid: {} identified a {} model with {} mode(s) from {} samples in {:.3} s -> {}",
+        "hysid: {} identified a {} model with {} mode(s) from {} samples{} in {:.3} s -> {}",
         args.method,
         model.kind(),
         model.mode_count(),
         data.len(),
+        match data.record_count() {
+            1 => String::new(),
+            n => format!(" of {n} records"),
+        },
         elapsed.as_secs_f64(),
         args.out.display()
     );

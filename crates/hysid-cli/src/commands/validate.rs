@@ -1,4 +1,5 @@
-//! `hysid validate`: scores of a model on a record.
+//! `hysid validate`: scores of a model on a record, or on several records
+//! (each, and all together).
 
 use crate::error::CliError;
 use crate::error::Result;
@@ -15,8 +16,12 @@ use std::path::PathBuf;
 pub struct Args {
     /// Model file (.json, or .toml for hand-written models).
     pub model: PathBuf,
-    /// Data file (.csv or .mat).
-    pub data: PathBuf,
+    /// Data file(s) (.csv or .mat).
+    ///
+    /// Several files are records of one system: each is scored from its
+    /// own initial state and warm-up, and all together.
+    #[arg(required = true, num_args = 1..)]
+    pub data: Vec<PathBuf>,
     /// Samples at the start that are not scored.
     #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
     pub warmup: usize,
@@ -34,14 +39,16 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let model = Model::load(&args.model)?;
-    let data = hysid_io::load(&args.data, &args.select.selection()?)?;
-    if args.warmup >= data.len() {
-        return Err(CliError::input(format!(
-            "--warmup {} leaves no sample to score: {} has {} samples after selection",
-            args.warmup,
-            args.data.display(),
-            data.len()
-        )));
+    let data = args.select.load(&args.data)?;
+    for (file, range) in args.data.iter().zip(data.record_ranges()) {
+        if args.warmup >= range.len() {
+            return Err(CliError::input(format!(
+                "--warmup {} leaves no sample to score: {} has {} samples after selection",
+                args.warmup,
+                file.display(),
+                range.len()
+            )));
+        }
     }
     // A figure this build cannot write is refused before any work.
     if let Some(path) = &args.plot {
@@ -50,7 +57,7 @@ pub fn run(args: Args) -> Result<()> {
     let (report, sim, _) =
         validate(&model, &data, args.warmup).map_err(|e| CliError::simulation(&args.model, e))?;
     if let Some(path) = &args.plot {
-        let first_row = args.select.rows.and_then(|r| r.start).unwrap_or(0);
+        let first_row = args.select.first_row();
         let figure = SimulationFigure::from_dataset(
             format!("{}: fit_sim {:.1} %", args.model.display(), report.fit_sim),
             &data,
@@ -109,6 +116,20 @@ pub fn run(args: Args) -> Result<()> {
                 "initial   {} (estimated from the warm-up)",
                 super::states_text(&report.initial_states)
             );
+        }
+        for (file, r) in args.data.iter().zip(&report.records) {
+            print!(
+                "record    {}: fit_sim {:.3} %  rmse_sim {:.6}  fit_pred {:.3} %  ({} samples)",
+                file.display(),
+                unsigned_zero(r.fit_sim),
+                r.rmse_sim,
+                unsigned_zero(r.fit_pred),
+                r.n
+            );
+            if !r.initial_states.is_empty() {
+                print!("  initial {}", super::states_text(&r.initial_states));
+            }
+            println!();
         }
     }
     Ok(())

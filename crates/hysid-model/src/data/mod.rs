@@ -21,6 +21,12 @@ pub struct Signal {
 
 /// A multi-input single-output (MISO) record: the inputs `u_1 .. u_m`,
 /// the output `y`, and the sampling time when known.
+///
+/// A dataset may join several records (experiments) of one system
+/// ([`Dataset::join`]): their samples follow each other and
+/// [`Dataset::boundaries`] says where each record after the first begins.
+/// Nothing spans a boundary: no regressor, no shooting segment, no
+/// simulation (each record starts from its own initial state).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Dataset {
     /// Input signals `u_1 .. u_m`, all of the output's length.
@@ -29,6 +35,10 @@ pub struct Dataset {
     pub output: Signal,
     /// Sampling time in seconds (after decimation), when known.
     pub ts: Option<f64>,
+    /// Samples at which a new record begins, increasing, each inside
+    /// `1..len` (empty for one record).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub boundaries: Vec<usize>,
 }
 
 impl Dataset {
@@ -60,7 +70,107 @@ impl Dataset {
                 "sampling time must be positive, got {t}"
             )));
         }
-        Ok(Self { inputs, output, ts })
+        Ok(Self {
+            inputs,
+            output,
+            ts,
+            boundaries: Vec::new(),
+        })
+    }
+
+    /// One dataset of several records of one system, in order: the same
+    /// signal names and sampling time in each, every record non-empty.
+    pub fn join(records: &[Dataset]) -> Result<Self, DataError> {
+        let Some(first) = records.first() else {
+            return Err(DataError::Shape("no record to join".into()));
+        };
+        let join_error = |i: usize, reason: String| DataError::Join {
+            record: i + 1,
+            reason,
+        };
+        let names = |d: &Dataset| (d.input_names(), d.output.name.clone());
+        let mut joined = first.clone();
+        for (i, r) in records.iter().enumerate() {
+            if r.is_empty() {
+                return Err(join_error(i, "holds no sample".into()));
+            }
+            if names(r) != names(first) {
+                return Err(join_error(
+                    i,
+                    format!(
+                        "signals {:?} -> '{}' differ from record 1's {:?} -> '{}'",
+                        r.input_names(),
+                        r.output.name,
+                        first.input_names(),
+                        first.output.name
+                    ),
+                ));
+            }
+            if r.ts != first.ts {
+                return Err(join_error(
+                    i,
+                    format!(
+                        "sampling time {} differs from record 1's {}",
+                        show_ts(r.ts),
+                        show_ts(first.ts)
+                    ),
+                ));
+            }
+            if i == 0 {
+                continue;
+            }
+            let at = joined.len();
+            joined.boundaries.push(at);
+            joined
+                .boundaries
+                .extend(r.boundaries.iter().map(|b| b + at));
+            for (s, t) in joined.inputs.iter_mut().zip(&r.inputs) {
+                s.values.extend_from_slice(&t.values);
+            }
+            joined.output.values.extend_from_slice(&r.output.values);
+        }
+        Ok(joined)
+    }
+
+    /// The samples of each record, in order (one range for one record).
+    pub fn record_ranges(&self) -> Vec<std::ops::Range<usize>> {
+        let mut starts = vec![0];
+        starts.extend(&self.boundaries);
+        let mut ends = self.boundaries.clone();
+        ends.push(self.len());
+        starts.into_iter().zip(ends).map(|(a, b)| a..b).collect()
+    }
+
+    /// Number of records joined in the dataset (1 for a single record).
+    pub fn record_count(&self) -> usize {
+        self.boundaries.len() + 1
+    }
+
+    /// Each record as a dataset of its own.
+    pub fn records(&self) -> Vec<Dataset> {
+        self.record_ranges()
+            .into_iter()
+            .map(|r| self.cut(r.start, r.end))
+            .collect()
+    }
+
+    /// Samples `a..b`, with the boundaries inside them.
+    fn cut(&self, a: usize, b: usize) -> Self {
+        let cut = |s: &Signal| Signal {
+            name: s.name.clone(),
+            values: s.values[a..b].to_vec(),
+        };
+        Self {
+            inputs: self.inputs.iter().map(cut).collect(),
+            output: cut(&self.output),
+            ts: self.ts,
+            boundaries: self
+                .boundaries
+                .iter()
+                .filter(|&&k| k > a && k < b)
+                .map(|k| k - a)
+                .collect(),
+        }
     }
 
     /// A single-input dataset named `u`, `y`.
@@ -103,19 +213,16 @@ impl Dataset {
         self.inputs.iter().map(|s| s.name.clone()).collect()
     }
 
-    /// Keeps rows `range` (clamped to the record).
+    /// Keeps rows `range` (clamped to the dataset), with the record
+    /// boundaries inside them.
     pub fn slice(&self, range: RowRange) -> Result<Self, DataError> {
         let (a, b) = range.resolve(self.len())?;
-        let cut = |s: &Signal| Signal {
-            name: s.name.clone(),
-            values: s.values[a..b].to_vec(),
-        };
-        Ok(Self {
-            inputs: self.inputs.iter().map(cut).collect(),
-            output: cut(&self.output),
-            ts: self.ts,
-        })
+        Ok(self.cut(a, b))
     }
+}
+
+fn show_ts(ts: Option<f64>) -> String {
+    ts.map_or_else(|| "unknown".into(), |t| format!("{t} s"))
 }
 
 /// Which signals to read and which samples to keep.
@@ -313,6 +420,14 @@ pub enum DataError {
     /// Bad decimation or row selection.
     #[error("{0}")]
     Selection(String),
+    /// A record that cannot be joined to the first ([`Dataset::join`]).
+    #[error("record {record}: {reason}")]
+    Join {
+        /// The record, counted from 1.
+        record: usize,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 #[cfg(test)]
@@ -346,5 +461,38 @@ mod tests {
         assert!(Dataset::siso(vec![1.0], vec![1.0, 2.0], None).is_err());
         assert!(Dataset::siso(vec![1.0, f64::NAN], vec![1.0, 2.0], None).is_err());
         assert!(Dataset::siso(vec![1.0, 2.0], vec![1.0, 2.0], Some(0.0)).is_err());
+    }
+
+    fn ramp(a: usize, b: usize, ts: Option<f64>) -> Dataset {
+        let v: Vec<f64> = (a..b).map(|k| k as f64).collect();
+        Dataset::siso(v.clone(), v, ts).unwrap()
+    }
+
+    #[test]
+    fn joined_records_keep_their_boundaries_through_slices() {
+        let d = Dataset::join(&[ramp(0, 4, None), ramp(4, 6, None), ramp(6, 9, None)]).unwrap();
+        assert_eq!(d.y(), ramp(0, 9, None).y());
+        assert_eq!(d.boundaries, [4, 6]);
+        assert_eq!(d.record_ranges(), [0..4, 4..6, 6..9]);
+        let parts = d.records();
+        assert_eq!(parts[1], ramp(4, 6, None));
+        assert_eq!(Dataset::join(&parts).unwrap(), d);
+        let s = d.slice("5..8".parse().unwrap()).unwrap();
+        assert_eq!((s.y(), &s.boundaries[..]), (&[5.0, 6.0, 7.0][..], &[1][..]));
+        assert_eq!(d.slice("6..".parse().unwrap()).unwrap().record_count(), 1);
+    }
+
+    #[test]
+    fn records_of_other_signals_or_sampling_do_not_join() {
+        let e = Dataset::join(&[ramp(0, 3, Some(0.1)), ramp(0, 3, Some(0.2))]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "record 2 has sampling time 0.2 s, record 1 0.1 s"
+        );
+        let mut other = ramp(0, 3, None);
+        other.output.name = "z".into();
+        let e = Dataset::join(&[ramp(0, 3, None), other]).unwrap_err();
+        assert!(e.to_string().starts_with("record 2: signals"), "{e}");
+        assert!(Dataset::join(&[]).is_err());
     }
 }

@@ -94,6 +94,7 @@ impl Standardization {
                 .collect(),
             output: map(&data.output, &self.output),
             ts: data.ts,
+            boundaries: data.boundaries.clone(),
         }
     }
 }

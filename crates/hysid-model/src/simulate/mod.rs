@@ -88,6 +88,60 @@ impl Simulation {
     }
 }
 
+/// Simulates every record of `data` on its own with `run` (each from its
+/// own initial state) and joins the simulations in the dataset's order:
+/// `start` is the first record's, and a later record's samples before its
+/// own start keep its initial outputs with no mode. One record: `run(data)`.
+pub fn per_record(
+    data: &Dataset,
+    mut run: impl FnMut(&Dataset) -> Result<Simulation, SimError>,
+) -> Result<Simulation, SimError> {
+    if data.record_count() == 1 {
+        return run(data);
+    }
+    let parts = data
+        .records()
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            run(r).map_err(|e| SimError::InRecord {
+                record: i + 1,
+                source: Box::new(e),
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Simulation::join(parts, &data.boundaries))
+}
+
+impl Simulation {
+    /// The simulations of consecutive records joined, the later ones
+    /// beginning at `boundaries` ([`per_record`]).
+    pub fn join(parts: Vec<Simulation>, boundaries: &[usize]) -> Simulation {
+        let mut parts = parts.into_iter();
+        let mut joined = parts.next().unwrap_or(Simulation {
+            y: Vec::new(),
+            modes: Vec::new(),
+            start: 0,
+            covered: Vec::new(),
+            diverged_at: None,
+        });
+        for (part, &at) in parts.zip(boundaries) {
+            joined.modes.extend(
+                part.modes
+                    .iter()
+                    .enumerate()
+                    .map(|(k, q)| if k < part.start { None } else { *q }),
+            );
+            joined.y.extend(part.y);
+            joined.covered.extend(part.covered);
+            if joined.diverged_at.is_none() {
+                joined.diverged_at = part.diverged_at.map(|k| k + at);
+            }
+        }
+        joined
+    }
+}
+
 /// Errors of simulation set-up (bad data for this model).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SimError {
@@ -106,6 +160,14 @@ pub enum SimError {
         samples: usize,
         /// Needed for the initial condition.
         needed: usize,
+    },
+    /// A record of a dataset that joins several (counted from 1).
+    #[error("record {record}: {source}")]
+    InRecord {
+        /// The record, counted from 1.
+        record: usize,
+        /// What went wrong in it.
+        source: Box<SimError>,
     },
     /// A continuous-time model needs the sampling time.
     #[error("a continuous-time model needs the sampling time: give a 't' signal or --ts")]

@@ -214,6 +214,47 @@ fn parameters_and_the_initial_state_are_recovered_together() {
     assert!(relative(got, 1.9) <= 1e-4, "x1: {got}");
 }
 
+/// Two records of the cascade, each from its own unknown `x1`, fitted
+/// together: the parameters and both initial states are recovered (named
+/// `x1[1]`, `x1[2]`), and the joined fit's cost is the pooled cost of its
+/// model on the two records alone, not on their concatenation (which a
+/// single simulation would run across the boundary).
+#[test]
+fn two_records_are_fitted_together_each_from_its_own_initial_state() {
+    let text = cascade(false, "x2", ESTIMATE);
+    let mut truth = parse(&text);
+    set(&mut truth, "a", 0.7);
+    set(&mut truth, "b", 2.6);
+    let first = record(&truth, &[("x1", 1.9), ("x2", -0.4)], 160, 3, 0.0);
+    let second = record(&truth, &[("x1", -1.2), ("x2", 0.8)], 140, 4, 0.0);
+    let joined = Dataset::join(&[first.clone(), second.clone()]).unwrap();
+    let fitted = fit(&text, "two", &joined, 3);
+    for (name, want) in [("a", 0.7), ("b", 2.6)] {
+        let got = value(&fitted, name);
+        assert!(relative(got, want) <= 1e-4, "{name}: {got} against {want}");
+    }
+    let states = &fitted.info.diagnostics.method["initial_states"];
+    for (name, want) in [("x1[1]", 1.9), ("x1[2]", -1.2)] {
+        let got = states[name].as_f64().unwrap();
+        assert!(relative(got, want) <= 1e-4, "{name}: {got} against {want}");
+    }
+    let model = Model::GrayBox(fitted);
+    let (whole, _, _) = validate(&model, &joined, 10).unwrap();
+    assert_eq!(whole.records.len(), 2);
+    for (part, data) in whole.records.iter().zip([&first, &second]) {
+        let (alone, _, _) = validate(&model, data, 10).unwrap();
+        assert_eq!(part, &alone);
+        assert!(alone.fit_sim > 99.9, "{alone:?}");
+    }
+    let mut run_across = joined.clone();
+    run_across.boundaries.clear();
+    let (across, _, _) = validate(&model, &run_across, 10).unwrap();
+    assert!(
+        across.fit_sim < whole.fit_sim - 1.0,
+        "{across:?} against {whole:?}"
+    );
+}
+
 /// A sensor with a gain and an offset, `y = c*x2 + off`: the measured rule
 /// reads `x2` through the inverse of the map, and the fit recovers the
 /// gain and the offset with the dynamics (and the unknown `x1`) from a

@@ -119,8 +119,8 @@ def load(
 
 
 def identify(
-    u: npt.ArrayLike,
-    y: npt.ArrayLike,
+    u: Union[npt.ArrayLike, Sequence[npt.ArrayLike]],
+    y: Union[npt.ArrayLike, Sequence[npt.ArrayLike]],
     method: str = "cluster",
     na: int = 2,
     nb: int = 2,
@@ -134,6 +134,7 @@ def identify(
     auto: bool = False,
     select_rows: Rows = None,
     folds: Optional[int] = None,
+    select_records: Optional[int] = None,
     refit_starts: Optional[int] = None,
     grid: Optional[Dict[str, Iterable[Any]]] = None,
     warmup: int = 10,
@@ -145,7 +146,11 @@ def identify(
     """Identifies a model with back-end ``method`` (see :func:`methods`).
 
     ``u``: inputs, shape ``(N,)`` or ``(N, m)``; ``y``: outputs, ``(N,)``
-    or ``(N, 1)``.
+    or ``(N, 1)``. Several records of one system: ``y`` a list of numpy
+    arrays and ``u`` a list of as many (``identify([u1, u2], [y1, y2])``);
+    one model is fitted on all, nothing spans two records, each starts from
+    its own initial state, and ``select_records=K`` (with ``auto``) holds
+    out the last ``K`` records for selection.
     ``na``, ``nb``: ARX orders of the regressor. ``modes``: the number of
     modes (exact); ``max_modes``: the largest, the count chosen by the
     back-end. ``priors``: a dictionary in the prior file's shape (e.g.
@@ -174,7 +179,7 @@ def identify(
     scikit-learn's manner.
     """
     _counts(na=na, nb=nb, modes=modes, max_modes=max_modes, seed=seed, folds=folds,
-            refit_starts=refit_starts, warmup=warmup)
+            select_records=select_records, refit_starts=refit_starts, warmup=warmup)
     grid_items = None
     if grid is not None:
         grid_items = [f"{k}={','.join(str(v) for v in values)}" for k, values in grid.items()]
@@ -195,6 +200,7 @@ def identify(
         auto=auto,
         select_rows=_rows("select_rows", select_rows),
         folds=folds,
+        select_records=select_records,
         refit_starts=refit_starts,
         grid=grid_items,
         warmup=warmup,

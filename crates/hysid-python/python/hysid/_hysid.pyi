@@ -103,7 +103,8 @@ class Model:
     def validate(
         self, u: ArrayLike, y: ArrayLike, warmup: int = 10, ts: Optional[float] = None
     ) -> Dict[str, Any]:
-        """Scores the model on a record, leaving out the first `warmup`
+        """Scores the model on a record (or on lists of records: each in
+        `records`, and all together), leaving out the first `warmup`
         samples: the dictionary of `hysid validate --json` (`fit_sim`,
         `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...)."""
 
@@ -150,6 +151,7 @@ def identify(
     auto: bool = False,
     select_rows: Optional[str] = None,
     folds: Optional[int] = None,
+    select_records: Optional[int] = None,
     refit_starts: Optional[int] = None,
     grid: Optional[Sequence[str]] = None,
     warmup: int = 10,
@@ -159,8 +161,8 @@ def identify(
     output_name: Optional[str] = None,
 ) -> Model:
     """Identifies a model from inputs `u` (`(N,)` or `(N, m)`) and outputs `y`
-    (`(N,)` or `(N, 1)`) with back-end `method`; the arguments are those of
-    `hysid identify`."""
+    (`(N,)` or `(N, 1)`), or lists of such arrays (several records), with
+    back-end `method`; the arguments are those of `hysid identify`."""
 
 def compare(experiment: PathLike, out_dir: PathLike) -> Dict[str, Any]:
     """Runs the experiment file `experiment` (TOML, as `hysid compare`),

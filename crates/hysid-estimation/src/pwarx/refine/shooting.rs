@@ -52,7 +52,8 @@ pub struct Evaluation {
 
 impl<'a> Shooting<'a> {
     /// The segments of `segment` samples of `data`'s identification rows,
-    /// for modes with the regions of `modes`.
+    /// for modes with the regions of `modes`; each record of a joined
+    /// dataset is cut on its own.
     pub fn new(
         data: &'a PwarxData<'_>,
         modes: &[PwarxMode],
@@ -64,27 +65,30 @@ impl<'a> Shooting<'a> {
         let lag = spec.lag();
         // Samples of measured initial outputs the model's simulator takes.
         let initial = if stops.is_empty() { lag } else { lag.max(1) };
-        let rows = data.regressors.len();
         let segment = segment.max(1);
         let mut segments = Vec::new();
-        let mut a = lag;
-        while a < lag + rows {
-            let b = (a + segment).min(lag + rows);
-            let offset = a.saturating_sub(initial);
-            let slice = record
-                .slice(RowRange {
-                    start: Some(offset),
-                    end: Some(b),
-                })
-                .map_err(IdentifyError::Data)?;
-            if slice.len() > initial {
-                segments.push(Segment {
-                    data: slice,
-                    offset,
-                    first: a - offset,
-                });
+        // Segments of each record's regressor samples; none spans two
+        // records.
+        for range in record.record_ranges() {
+            let mut a = range.start + lag;
+            while a < range.end {
+                let b = (a + segment).min(range.end);
+                let offset = a.saturating_sub(initial).max(range.start);
+                let slice = record
+                    .slice(RowRange {
+                        start: Some(offset),
+                        end: Some(b),
+                    })
+                    .map_err(IdentifyError::Data)?;
+                if slice.len() > initial {
+                    segments.push(Segment {
+                        data: slice,
+                        offset,
+                        first: a - offset,
+                    });
+                }
+                a = b;
             }
-            a = b;
         }
         Ok(Self {
             spec,

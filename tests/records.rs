@@ -1,0 +1,237 @@
+//! Several records of one system, from the program: `identify` fits one
+//! model on all of them (every back-end), `validate` scores each record as
+//! on its own and all together; bad combinations are one-line errors.
+
+use crate::common;
+
+use common::{hysid, ok, one_line_error, s, write};
+use std::path::{Path, PathBuf};
+
+/// The two-mode PWARX record of [`common::two_mode_record`]'s model,
+/// `n` samples from the excitation seed `seed`, written into `dir/name`.
+fn record(dir: &Path, name: &str, n: usize, seed: u64, ts: f64) -> PathBuf {
+    let truth = write(
+        dir,
+        "truth.json",
+        r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[
+            {"theta":[0.5,1.0,0.3],"region":{"a":[[1.0,0.0]],"b":[0.0]}},
+            {"theta":[-0.4,0.8,-0.2],"region":{"a":[[-1.0,0.0]],"b":[0.0]}}]}"#,
+    );
+    let data = dir.join(name);
+    ok(&[
+        "simulate",
+        s(&truth),
+        "--excite",
+        &format!("n={n},hold=3,low=-1,high=1,ts={ts}"),
+        "--noise",
+        "0.01",
+        "--seed",
+        &seed.to_string(),
+        "-o",
+        s(&data),
+    ]);
+    data
+}
+
+fn json(text: &str) -> serde_json::Value {
+    serde_json::from_str(text).unwrap()
+}
+
+/// Every PWARX back-end fits two records together, and its two-mode model
+/// predicts them better than the affine one; `validate` on both scores each
+/// record exactly as on its own and pools their samples.
+#[test]
+fn every_backend_fits_several_records_and_validate_scores_each() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let a = record(d, "a.csv", 160, 11, 0.01);
+    let b = record(d, "b.csv", 120, 12, 0.01);
+    let model = d.join("m.json");
+    let mut affine = f64::NAN;
+    for method in [
+        "arx", "cluster", "bounded", "klinreg", "bayes", "parc", "milp",
+    ] {
+        let mut args = vec![
+            "identify",
+            s(&a),
+            s(&b),
+            "-m",
+            method,
+            "--na",
+            "1",
+            "--nb",
+            "1",
+        ];
+        if method != "arx" {
+            args.extend(["--modes", "2"]);
+        }
+        if method == "bounded" {
+            args.extend(["--set", "delta=auto"]);
+        }
+        // The exact program takes 40 samples by default: 20 of each record.
+        let samples = if method == "milp" {
+            args.extend(["--rows", "..21"]);
+            42
+        } else {
+            280
+        };
+        args.extend(["-o", s(&model)]);
+        let o = hysid(&args);
+        assert!(
+            o.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            said.contains(&format!("from {samples} samples of 2 records")),
+            "{method}: {said}"
+        );
+        let whole = json(&ok(&["validate", s(&model), s(&a), s(&b), "--json"]));
+        let parts = whole["records"].as_array().unwrap();
+        assert_eq!(parts.len(), 2, "{method}");
+        for (part, file) in parts.iter().zip([&a, &b]) {
+            let alone = json(&ok(&["validate", s(&model), s(file), "--json"]));
+            assert_eq!(part, &alone, "{method}: {}", file.display());
+        }
+        assert_eq!(whole["n"], 150 + 110, "{method}");
+        let fit_pred = whole["fit_pred"].as_f64().unwrap();
+        eprintln!(
+            "{method}: fit_pred {fit_pred:.2} %, fit_sim {}",
+            whole["fit_sim"]
+        );
+        if method == "arx" {
+            affine = fit_pred;
+        } else {
+            assert!(
+                fit_pred > affine + 5.0,
+                "{method}: {fit_pred} against {affine}"
+            );
+        }
+    }
+}
+
+/// An affine ARX model fitted on two records is the least-squares fit of
+/// each record's rows: the same as the fit on the two records written one
+/// after the other into one file and read back as two records cut at the
+/// seam (`--rows` per record), and not the fit on that file as one record,
+/// whose first rows of the second part regress on the first part's last
+/// samples.
+#[test]
+fn two_records_give_the_fit_of_their_rows_and_not_of_their_concatenation() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let a = record(d, "a.csv", 150, 21, 0.01);
+    let b = record(d, "b.csv", 150, 22, 0.01);
+    let theta = |args: &[&str]| {
+        let m = d.join("arx.json");
+        let mut all = vec!["identify"];
+        all.extend(args);
+        all.extend(["-m", "arx", "--na", "2", "--nb", "2", "-o", s(&m)]);
+        ok(&all);
+        json(&std::fs::read_to_string(&m).unwrap())["modes"][0]["theta"].clone()
+    };
+    // One file holding `a`'s rows, then `b`'s (the time column dropped: it
+    // would restart).
+    let keep = |text: &str| -> Vec<String> {
+        text.lines()
+            .map(|l| {
+                let cells: Vec<&str> = l.split(',').collect();
+                cells[1..].join(",")
+            })
+            .collect()
+    };
+    let (rows_a, rows_b) = (
+        keep(&std::fs::read_to_string(&a).unwrap()),
+        keep(&std::fs::read_to_string(&b).unwrap()),
+    );
+    assert!(
+        rows_a[0].contains('u') && rows_a[0] == rows_b[0],
+        "{}",
+        rows_a[0]
+    );
+    let mut text = rows_a.join("\n");
+    for row in &rows_b[1..] {
+        text.push('\n');
+        text.push_str(row);
+    }
+    let joined = write(d, "joined.csv", text + "\n");
+    let together = theta(&[s(&a), s(&b)]);
+    let cut = theta(&[s(&joined), s(&joined), "--rows", "..150", "--rows", "150.."]);
+    assert_eq!(together, cut);
+    let across = theta(&[s(&joined)]);
+    assert_ne!(together, across);
+}
+
+/// `--auto --select-records K` fits the candidates on the records before
+/// the last K and scores them on those; the split is recorded in rows of
+/// the joined records.
+#[test]
+fn auto_holds_out_whole_records() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let files: Vec<PathBuf> = (0..3)
+        .map(|i| record(d, &format!("r{i}.csv"), 120, 31 + i, 0.01))
+        .collect();
+    let model = d.join("auto.json");
+    let mut args = vec!["identify"];
+    args.extend(files.iter().map(|f| s(f)));
+    args.extend(["-m", "cluster", "--na", "1", "--nb", "1", "--auto"]);
+    args.extend([
+        "--select-records",
+        "1",
+        "--grid",
+        "modes=1,2",
+        "-o",
+        s(&model),
+    ]);
+    ok(&args);
+    let m = json(&std::fs::read_to_string(&model).unwrap());
+    let split = &m["info"]["selection"]["splits"][0];
+    assert_eq!(split["fit_rows"], "0..240", "{split}");
+    assert_eq!(split["select_rows"], "240..360", "{split}");
+    assert_eq!(m["modes"].as_array().unwrap().len(), 2);
+}
+
+/// Records that cannot be joined, `--rows` counts that fit neither rule,
+/// selection rows with several records and held-out records that leave no
+/// record to fit: one line each, exit code 2, no model written.
+#[test]
+fn bad_combinations_of_records_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let a = record(d, "a.csv", 80, 41, 0.01);
+    let b = record(d, "b.csv", 80, 42, 0.01);
+    let slow = record(d, "slow.csv", 80, 43, 0.02);
+    let out = d.join("never.json");
+    let cases: Vec<(Vec<&str>, String)> = vec![
+        (
+            vec![s(&a), s(&slow)],
+            format!(
+                "{}: sampling time 0.02 s differs from record 1's 0.01 s",
+                slow.display()
+            ),
+        ),
+        (
+            vec![s(&a), s(&b), s(&a), "--rows", "0..50", "--rows", "0..60"],
+            "--rows: given 2 times for 3 data files".into(),
+        ),
+        (
+            vec![s(&a), s(&b), "--auto", "--select-rows", "60.."],
+            "--select-rows: not with several data files".into(),
+        ),
+        (
+            vec![s(&a), s(&b), "--auto", "--select-records", "2"],
+            "--select-records 2: must be between 1 and the number of records less one (1)".into(),
+        ),
+    ];
+    for (given, want) in cases {
+        let mut args = vec!["identify"];
+        args.extend(&given);
+        args.extend(["-m", "arx", "-o", s(&out)]);
+        let o = hysid(&args);
+        let line = one_line_error(&o, 2).unwrap_or_else(|e| panic!("{given:?}: {e}"));
+        assert!(line.contains(&want), "{given:?}: {line}");
+        assert!(!out.exists(), "{given:?} wrote a model");
+    }
+}
