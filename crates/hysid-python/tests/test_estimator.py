@@ -112,7 +112,7 @@ def test_clone_copies_the_parameters_not_the_fit(arx):
     assert not hasattr(clone(arx), "model_") and clone(arx).get_params() == arx.get_params()
     assert set(est.get_params()) == {
         "method", "na", "nb", "modes", "max_modes", "auto", "priors", "options", "seed", "select_rows",
-        "folds", "refit_starts", "grid", "warmup", "standardize", "time_budget"}
+        "folds", "refit_starts", "grid", "warmup", "standardize", "time_budget", "select_records"}
     assert copy.set_params(na=3, seed=4) is copy and (copy.na, copy.seed) == (3, 4)
     with pytest.raises(hysid.InputError, match="set_params: Estimator has no parameter 'order'"):
         copy.set_params(order=3)
@@ -154,13 +154,23 @@ def test_y_as_a_column_is_one_output(record, head):
         hysid.identify(u[:100], np.zeros((100, 2)), method="arx")
 
 
-def test_one_record_at_a_time(head):
+def test_several_records_fit_one_model_and_simulation_takes_one(head):
     est = hysid.Estimator(method="arx")
-    assert est.fit([head[:2000]]).model_.inputs == 1
-    with pytest.raises(hysid.InputError, match="2 records given; one record is supported for now"):
-        est.fit([head[:2000], head[2000:4000]])
-    with pytest.raises(hysid.InputError, match="2 records given; one record is supported for now"):
-        est.score([head[:2000], head[2000:4000]])
+    assert est.fit([head[:2000]]).model_.to_json() == est.fit(head[:2000]).model_.to_json()
+    two = [head[:2000], head[2000:4000]]
+    model = est.fit(two).model_
+    same = hysid.identify([r.u for r in two], [r.y for r in two], method="arx", ts=head.ts)
+    assert json.loads(model.to_json())["modes"] == json.loads(same.to_json())["modes"]
+    metrics = est.metrics(two)
+    assert [r["n"] for r in metrics["records"]] == [1990, 1990]
+    assert est.score(two) == metrics["fit_sim"]
+    with pytest.raises(hysid.InputError, match="2 records given; this takes one record at a time"):
+        est.simulate(two)
+    with pytest.raises(hysid.InputError, match="2 records given; this takes one record at a time"):
+        est.predict_one_step(two)
+    other = hysid.Record(head.u[:100], head.y[:100], ts=head.ts, output_name="z")
+    with pytest.raises(hysid.InputError, match="record 2 has signals"):
+        est.fit([head[:2000], other])
     with pytest.raises(hysid.InputError, match="fit: ts given with a record"):
         est.fit(head, ts=0.1)
     with pytest.raises(hysid.InputError, match="fit: y is missing"):

@@ -141,3 +141,32 @@ def test_a_record_with_its_own_column_names_loads_with_its_time(tmp_path):
     assert hysid.load(path, inputs="force", output="pos")[2] is None
     with pytest.raises(hysid.HysidError, match="'stamp'"):
         hysid.load(path, inputs="force", output="pos", time="stamp")
+
+
+def test_several_records_fit_one_model_and_validate_each(record, program, tmp_path):
+    u, y, ts = record
+    us, ys = [u[:2500], u[2500:5000]], [y[:2500], y[2500:5000]]
+    model = hysid.identify(us, ys, method="arx", na=2, nb=2, ts=ts)
+    # The same records as two files in the program give the same model.
+    files = []
+    for i, (ui, yi) in enumerate(zip(us, ys)):
+        path = tmp_path / f"r{i}.csv"
+        t = ts * np.arange(len(yi))
+        np.savetxt(path, np.column_stack([t, ui[:, 0], yi]), delimiter=",", header="t,u,y",
+                   comments="")
+        files.append(path)
+    out = tmp_path / "arx.json"
+    program("identify", *files, "-m", "arx", "--na", "2", "--nb", "2", "-o", out)
+    assert json.loads(model.to_json())["modes"] == json.loads(out.read_text())["modes"]
+    # Not the model of the rows as one record.
+    one = hysid.identify(u[:5000], y[:5000], method="arx", na=2, nb=2, ts=ts)
+    assert json.loads(one.to_json())["modes"] != json.loads(model.to_json())["modes"]
+    report = model.validate(us, ys)
+    assert [r["n"] for r in report["records"]] == [2490, 2490] and report["n"] == 4980
+    assert report["records"][1] == model.validate(us[1], ys[1])
+    with pytest.raises(hysid.InputError, match="record 2: "):
+        hysid.identify(us, [ys[0], ys[1][:-1]], method="arx")
+    with pytest.raises(hysid.InputError, match=r"3 input record\(s\) for 2 output record"):
+        hysid.identify(us + [u[:10]], ys, method="arx")
+    with pytest.raises(hysid.InputError, match="select_records=2: must be between 1"):
+        hysid.identify(us, ys, method="arx", auto=True, select_records=2)

@@ -487,7 +487,7 @@ mod tests {
         let e = Dataset::join(&[ramp(0, 3, Some(0.1)), ramp(0, 3, Some(0.2))]).unwrap_err();
         assert_eq!(
             e.to_string(),
-            "record 2 has sampling time 0.2 s, record 1 0.1 s"
+            "record 2: sampling time 0.2 s differs from record 1's 0.1 s"
         );
         let mut other = ramp(0, 3, None);
         other.output.name = "z".into();

@@ -12,7 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ._hysid import InputError, Model
-from ._record import Record, Rows, one_record
+from ._record import Record, Rows, one_record, records
 
 #: The bound on the mode count an :class:`Estimator` gives by default, so
 #: that ``Estimator().fit(record)`` runs: the back-end fits 1 .. 3 modes and
@@ -29,7 +29,9 @@ class Estimator:
     them): ``method``, ``na``, ``nb``, ``modes``, ``max_modes``, ``auto``,
     ``priors``, ``options``, ``seed``, ``select_rows``, ``folds``,
     ``refit_starts``, ``grid``, ``warmup``, ``standardize``,
-    ``time_budget``. The record gives the sampling time and the names.
+    ``time_budget``, ``select_records``. The record gives the sampling
+    time and the names; :meth:`fit` and :meth:`metrics` also take a list
+    of records of one system.
 
     One default differs from :func:`hysid.identify`'s: ``max_modes=3``, so
     that the default back-end, ``cluster``, which needs a mode count, runs
@@ -67,6 +69,7 @@ class Estimator:
         warmup: int = 10,
         standardize: bool = False,
         time_budget: Optional[float] = None,
+        select_records: Optional[int] = None,
     ) -> None:
         """Stores the parameters unchanged; :meth:`fit` checks them."""
         self.method = method
@@ -85,6 +88,7 @@ class Estimator:
         self.warmup = warmup
         self.standardize = standardize
         self.time_budget = time_budget
+        self.select_records = select_records
 
     @classmethod
     def _param_names(cls) -> List[str]:
@@ -120,19 +124,22 @@ class Estimator:
         """Identifies the model and returns the estimator, with ``model_``
         set.
 
-        ``data`` is a :class:`hysid.Record` (or a list of one; several
-        records raise :class:`hysid.InputError`, as hysid does not yet fit
-        several experiments at once), or the inputs ``u`` (``(N,)`` or
-        ``(N, m)``) with the outputs ``y`` (``(N,)`` or ``(N, 1)``) and,
-        optionally, ``ts`` and the names. The record's names are kept in
-        the model (``model_.input_names``, ``model_.output_name``).
+        ``data`` is a :class:`hysid.Record`, a list of records of one
+        system (one model fitted on all of them, each from its own initial
+        state; ``select_records=K`` with ``auto`` holds out the last ``K``),
+        or the inputs ``u`` (``(N,)`` or ``(N, m)``) with the outputs ``y``
+        (``(N,)`` or ``(N, 1)``) and, optionally, ``ts`` and the names. The
+        record's names are kept in the model (``model_.input_names``,
+        ``model_.output_name``).
         """
         from . import identify
 
-        record = self._record(data, y, ts, input_names, output_name, "fit")
+        found = self._records(data, y, ts, input_names, output_name, "fit")
+        record = found[0]
+        several = len(found) > 1
         self.model_ = identify(
-            record.u,
-            record.y,
+            [r.u for r in found] if several else record.u,
+            [r.y for r in found] if several else record.y,
             method=self.method,
             na=self.na,
             nb=self.nb,
@@ -145,6 +152,7 @@ class Estimator:
             auto=self.auto,
             select_rows=self.select_rows,
             folds=self.folds,
+            select_records=self.select_records,
             refit_starts=self.refit_starts,
             grid=self.grid,
             warmup=self.warmup,
@@ -196,7 +204,10 @@ class Estimator:
         before the model's regressor is complete (``max(na, nb)`` for a
         PWARX model), are the measured outputs."""
         model = self._fitted()
-        record = self._record(data, y, None, None, None, "predict_one_step")
+        record = self._records(data, y, None, None, None, "predict_one_step")
+        if len(record) > 1:
+            raise InputError(f"predict_one_step: {len(record)} records given; this takes one record at a time")
+        record = record[0]
         prediction, _ = model.predict(record.u, record.y, ts=record.ts)
         return prediction
 
@@ -208,10 +219,15 @@ class Estimator:
         """The fitted model's scores on a record, leaving out the first
         ``warmup`` samples: the dictionary of ``hysid validate --json``
         (``fit_sim``, ``rmse_sim``, ``fit_pred``, ``rmse_pred``,
-        ``coverage``, ...). ``data`` is a :class:`hysid.Record`, or ``u``
+        ``coverage``, ...). ``data`` is a :class:`hysid.Record`, a list of
+        records (each scored in ``records``, the figures over all), or ``u``
         with ``y``."""
         model = self._fitted()
-        record = self._record(data, y, None, None, None, "metrics")
+        found = self._records(data, y, None, None, None, "metrics")
+        if len(found) > 1:
+            return model.validate([r.u for r in found], [r.y for r in found], warmup=self.warmup,
+                                  ts=found[0].ts)
+        record = found[0]
         return model.validate(record.u, record.y, warmup=self.warmup, ts=record.ts)
 
     def score(
@@ -232,25 +248,25 @@ class Estimator:
         return model
 
     @staticmethod
-    def _record(
+    def _records(
         data: Any,
         y: Optional[npt.ArrayLike],
         ts: Optional[float],
         input_names: Optional[List[str]],
         output_name: Optional[str],
         call: str,
-    ) -> Record:
-        """The record of ``data`` (a record, a list of one) or of the
-        arrays ``data`` and ``y``."""
+    ) -> List[Record]:
+        """The records of ``data`` (a record, a list of records) or the
+        record of the arrays ``data`` and ``y``."""
         if _records_given(data):
             given = [n for n, v in (("y", y), ("ts", ts), ("input_names", input_names),
                                     ("output_name", output_name)) if v is not None]
             if given:
                 raise InputError(f"{call}: {', '.join(given)} given with a record, which has its own")
-            return one_record(data, "data")
+            return records(data, "data")
         if y is None:
             raise InputError(f"{call}: y is missing (give a hysid.Record, or u and y)")
-        return Record(data, y, ts=ts, input_names=input_names, output_name=output_name)
+        return [Record(data, y, ts=ts, input_names=input_names, output_name=output_name)]
 
     def __repr__(self) -> str:
         """The parameters that differ from their defaults, as scikit-learn
@@ -262,7 +278,7 @@ class Estimator:
 
 def _records_given(data: Any) -> bool:
     """True for a :class:`Record` or a list of records (an empty list
-    too, refused by :func:`one_record`); False for arrays and lists of
+    too, refused by :func:`records`); False for arrays and lists of
     numbers (the inputs ``u``)."""
     if isinstance(data, Record):
         return True

@@ -56,10 +56,11 @@ class Record:
     :class:`hysid.InputError`. ``record[a:b]`` is the record of rows
     ``a..b``; ``len(record)`` is ``N``.
 
-    One record is one experiment. Where a list of records is accepted
-    (:class:`hysid.Estimator`), a list of one is that record, and several
-    raise :class:`hysid.InputError`: hysid does not yet identify one model
-    from several experiments at once.
+    One record is one experiment. :meth:`hysid.Estimator.fit` and
+    :meth:`~hysid.Estimator.metrics` take a list of records of one system
+    (one model fitted on all, each record scored on its own and all
+    together); simulation and prediction take one record (a list of one is
+    that record).
     """
 
     u: npt.NDArray[np.float64]
@@ -225,18 +226,31 @@ class Record:
         )
 
 
-def one_record(given: Any, argument: str = "record") -> Record:
-    """The record in ``given``: a :class:`Record` or a list of one; a list
-    of several raises :class:`InputError` (one experiment at a time)."""
+def records(given: Any, argument: str = "record") -> List[Record]:
+    """The records in ``given``: a :class:`Record` or a non-empty list of
+    them, all with the same signal names and sampling time."""
     if isinstance(given, Record):
-        return given
+        return [given]
     if isinstance(given, (list, tuple)) and all(isinstance(r, Record) for r in given):
-        if len(given) == 1:
-            return given[0]
         if not given:
             raise InputError(f"{argument}: an empty list of records")
-        raise InputError(
-            f"{argument}: {len(given)} records given; one record is supported for now "
-            "(hysid does not yet identify one model from several experiments)"
-        )
+        first = given[0]
+        for i, r in enumerate(given[1:], start=2):
+            if (r.input_names, r.output_name) != (first.input_names, first.output_name):
+                raise InputError(
+                    f"{argument}: record {i} has signals {r.input_names} -> {r.output_name!r}, "
+                    f"record 1 {first.input_names} -> {first.output_name!r}"
+                )
+            if r.ts != first.ts:
+                raise InputError(f"{argument}: record {i} has ts={r.ts!r}, record 1 ts={first.ts!r}")
+        return list(given)
     raise InputError(f"{argument}: expected a hysid.Record (or u and y arrays), got {type(given).__name__}")
+
+
+def one_record(given: Any, argument: str = "record") -> Record:
+    """The record in ``given``: a :class:`Record` or a list of one; a list
+    of several raises :class:`InputError`."""
+    found = records(given, argument)
+    if len(found) > 1:
+        raise InputError(f"{argument}: {len(found)} records given; this takes one record at a time")
+    return found[0]
