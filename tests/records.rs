@@ -235,3 +235,82 @@ fn bad_combinations_of_records_are_one_line_errors() {
         assert!(!out.exists(), "{given:?} wrote a model");
     }
 }
+
+/// An experiment file with `[[data.records]]`: the identification rows of
+/// the file and of one more record are fitted together, and the runs are
+/// scored on the validation rows of the file and of a third record, as
+/// `identify` and `validate` do with several files.
+#[test]
+fn an_experiment_joins_the_records_it_lists() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    record(d, "a.csv", 200, 51, 0.01);
+    record(d, "b.csv", 120, 52, 0.01);
+    record(d, "c.csv", 100, 53, 0.01);
+    let experiment = write(
+        d,
+        "experiment.toml",
+        r#"title = "records"
+na = 1
+nb = 1
+[data]
+file = "a.csv"
+identification = "0..150"
+validation = "150.."
+
+[[data.records]]
+file = "b.csv"
+identification = ".."
+
+[[data.records]]
+file = "c.csv"
+validation = ".."
+
+[[run]]
+name = "arx"
+method = "arx"
+"#,
+    );
+    let out = d.join("out");
+    ok(&["compare", s(&experiment), "-o", s(&out)]);
+    let report = json(&std::fs::read_to_string(out.join("report.json")).unwrap());
+    let run = &report["results"][0];
+    let model = out.join("models/arx.json");
+    let (a, b, c) = (d.join("a.csv"), d.join("b.csv"), d.join("c.csv"));
+    let alone = d.join("alone.json");
+    ok(&[
+        "identify",
+        s(&a),
+        s(&b),
+        "--rows",
+        "0..150",
+        "--rows",
+        "..",
+        "-m",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "-o",
+        s(&alone),
+    ]);
+    let theta = |p: &Path| json(&std::fs::read_to_string(p).unwrap())["modes"].clone();
+    assert_eq!(theta(&model), theta(&alone));
+    let scored = json(&ok(&[
+        "validate",
+        s(&model),
+        s(&a),
+        s(&c),
+        "--rows",
+        "150..",
+        "--rows",
+        "..",
+        "--json",
+    ]));
+    assert_eq!(run["report"]["fit_sim"], scored["fit_sim"], "{run}");
+    assert_eq!(run["report"]["records"].as_array().unwrap().len(), 2);
+    let data = report["data"].as_str().unwrap();
+    assert!(data.contains("b.csv (identification rows ..)"), "{data}");
+    assert!(data.contains("c.csv (validation rows ..)"), "{data}");
+}

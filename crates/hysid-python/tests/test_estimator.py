@@ -168,8 +168,8 @@ def test_several_records_fit_one_model_and_simulation_takes_one(head):
         est.simulate(two)
     with pytest.raises(hysid.InputError, match="2 records given; this takes one record at a time"):
         est.predict_one_step(two)
-    other = hysid.Record(head.u[:100], head.y[:100], ts=head.ts, output_name="z")
-    with pytest.raises(hysid.InputError, match="record 2 has signals"):
+    other = hysid.Record(np.column_stack([head.u[:100], head.u[:100]]), head.y[:100], ts=head.ts)
+    with pytest.raises(hysid.InputError, match="record 2 has 2 input"):
         est.fit([head[:2000], other])
     with pytest.raises(hysid.InputError, match="fit: ts given with a record"):
         est.fit(head, ts=0.1)

@@ -9,7 +9,8 @@ pub mod report;
 pub mod truth;
 
 pub use experiment::{
-    DataSpec, Experiment, ExperimentError, Provenance, RunSpec, ScoredRows, SweepSpec, value_text,
+    DataSpec, Experiment, ExperimentError, Provenance, RecordSpec, RunSpec, ScoredRows, SweepSpec,
+    value_text,
 };
 pub use hysid_plot::FigureFormat;
 pub use report::write_report;
@@ -21,7 +22,7 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::{ValidationReport, validate};
 use hysid_io::load;
-use hysid_model::data::Dataset;
+use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::Simulation;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -307,19 +308,84 @@ impl Experiment {
         Ok(jobs)
     }
 
+    /// The identification and the scored records: the rows of `[data]
+    /// file`, joined by those of every `[[data.records]]` that has them.
+    fn records(&self) -> Result<(Dataset, Dataset), ExperimentError> {
+        let data = &self.data;
+        let read = |file: &std::path::Path, selection| {
+            load(file, &selection).map_err(|source| ExperimentError::Data {
+                path: file.display().to_string(),
+                source,
+            })
+        };
+        let mut ident = vec![read(&data.file, data.selection(data.identification))?];
+        let mut valid = vec![read(&data.file, data.selection(data.validation))?];
+        for r in &data.records {
+            if let Some(rows) = r.identification {
+                ident.push(read(&r.file, data.record_selection(r, rows))?);
+            }
+            if let Some(rows) = r.validation {
+                valid.push(read(&r.file, data.record_selection(r, rows))?);
+            }
+        }
+        let join = |records: Vec<Dataset>, files: Vec<&std::path::Path>| {
+            Dataset::join(&records).map_err(|source| {
+                let path = match &source {
+                    hysid_model::data::DataError::Join { record, .. } => files[record - 1],
+                    _ => &data.file,
+                };
+                ExperimentError::Data {
+                    path: path.display().to_string(),
+                    source,
+                }
+            })
+        };
+        let files = |pick: fn(&RecordSpec) -> bool| {
+            std::iter::once(data.file.as_path())
+                .chain(
+                    data.records
+                        .iter()
+                        .filter(|r| pick(r))
+                        .map(|r| r.file.as_path()),
+                )
+                .collect::<Vec<_>>()
+        };
+        Ok((
+            join(ident, files(|r| r.identification.is_some()))?,
+            join(valid, files(|r| r.validation.is_some()))?,
+        ))
+    }
+
+    /// What the report says of the data: the file, its rows and the other
+    /// records'.
+    fn data_text(&self) -> String {
+        let d = &self.data;
+        let mut text = format!(
+            "{} (decimate {}, identification rows {}, {} rows {})",
+            d.file.display(),
+            d.decimate,
+            d.identification,
+            self.scored_rows.word(),
+            d.validation
+        );
+        for r in &d.records {
+            let rows =
+                |what: &str, rows: Option<RowRange>| rows.map(|rows| format!("{what} rows {rows}"));
+            let parts: Vec<String> = [
+                rows("identification", r.identification),
+                rows(self.scored_rows.word(), r.validation),
+            ]
+            .into_iter()
+            .flatten()
+            .collect();
+            text.push_str(&format!(" + {} ({})", r.file.display(), parts.join(", ")));
+        }
+        text
+    }
+
     /// Loads the data once, then runs every job in parallel and scores it.
     pub fn run(&self, progress: &dyn Progress) -> Result<Comparison, ExperimentError> {
-        let data_err = |source| ExperimentError::Data {
-            path: self.data.file.display().to_string(),
-            source,
-        };
-        let ident = load(
-            &self.data.file,
-            &self.data.selection(self.data.identification),
-        )
-        .map_err(data_err)?;
-        let valid =
-            load(&self.data.file, &self.data.selection(self.data.validation)).map_err(data_err)?;
+        let (ident, valid) = self.records()?;
         let true_modes = match &self.data.truth {
             None => None,
             Some(column) => Some(
@@ -358,14 +424,7 @@ impl Experiment {
         Ok(Comparison {
             title: self.title.clone(),
             description: self.description.clone(),
-            data: format!(
-                "{} (decimate {}, identification rows {}, {} rows {})",
-                self.data.file.display(),
-                self.data.decimate,
-                self.data.identification,
-                self.scored_rows.word(),
-                self.data.validation
-            ),
+            data: self.data_text(),
             scored_rows: self.scored_rows,
             warmup: self.data.warmup,
             results,
@@ -422,7 +481,7 @@ fn identify(
         Mode::Auto(Auto {
             select_rows: spec.selection,
             folds: spec.folds,
-            select_records: None,
+            select_records: spec.select_records,
             refit_starts: spec.refit_starts,
             grid: None,
         })

@@ -124,6 +124,8 @@ pub fn run(args: Args) -> Result<()> {
             warmup: args.warmup,
             selection: None,
             folds: None,
+            select_records: None,
+            records: Vec::new(),
             refit_starts: hysid::select::DEFAULT_REFIT_STARTS,
             output_label: None,
             input_label: None,

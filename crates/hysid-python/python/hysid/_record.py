@@ -228,7 +228,8 @@ class Record:
 
 def records(given: Any, argument: str = "record") -> List[Record]:
     """The records in ``given``: a :class:`Record` or a non-empty list of
-    them, all with the same signal names and sampling time."""
+    them, all with as many inputs and the same sampling time (the model
+    takes the first record's names)."""
     if isinstance(given, Record):
         return [given]
     if isinstance(given, (list, tuple)) and all(isinstance(r, Record) for r in given):
@@ -236,10 +237,9 @@ def records(given: Any, argument: str = "record") -> List[Record]:
             raise InputError(f"{argument}: an empty list of records")
         first = given[0]
         for i, r in enumerate(given[1:], start=2):
-            if (r.input_names, r.output_name) != (first.input_names, first.output_name):
+            if len(r.input_names) != len(first.input_names):
                 raise InputError(
-                    f"{argument}: record {i} has signals {r.input_names} -> {r.output_name!r}, "
-                    f"record 1 {first.input_names} -> {first.output_name!r}"
+                    f"{argument}: record {i} has {len(r.input_names)} input(s), record 1 {len(first.input_names)}"
                 )
             if r.ts != first.ts:
                 raise InputError(f"{argument}: record {i} has ts={r.ts!r}, record 1 ts={first.ts!r}")

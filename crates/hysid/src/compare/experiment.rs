@@ -49,6 +49,17 @@ pub struct DataSpec {
     /// identification rows on a rolling origin (`hysid identify --folds K`).
     #[serde(default)]
     pub folds: Option<usize>,
+    /// With identification rows from several records: the last `K` of
+    /// them are the selection rows of the runs with `auto = true`
+    /// (`hysid identify --select-records K`).
+    #[serde(default)]
+    pub select_records: Option<usize>,
+    /// More records of the system (`[[data.records]]`), after the rows of
+    /// `file`: their identification rows join the identification record,
+    /// their validation rows the scored one, each record simulated from
+    /// its own initial state.
+    #[serde(default)]
+    pub records: Vec<RecordSpec>,
     /// Starts of the refit of an auto run's choice on all the
     /// identification rows, for a back-end the seed changes
     /// (`hysid identify --refit-starts K`; default 3).
@@ -65,6 +76,29 @@ pub struct DataSpec {
     /// then scored on how its simulated modes follow it (`truth.rs`).
     #[serde(default)]
     pub truth: Option<String>,
+}
+
+/// One more record of the system in an experiment file
+/// (`[[data.records]]`): rows of a file for identification, for
+/// validation, or both, read with the `[data]` table's decimation, time and
+/// sampling time, and its signal names unless given.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordSpec {
+    /// Data file, relative to the experiment file.
+    pub file: PathBuf,
+    /// Input names (default: the `[data]` table's).
+    #[serde(default)]
+    pub input: Option<Vec<String>>,
+    /// Output name (default: the `[data]` table's).
+    #[serde(default)]
+    pub output: Option<String>,
+    /// Rows of this record used for identification (after decimation).
+    #[serde(default)]
+    pub identification: Option<RowRange>,
+    /// Rows of this record scored (after decimation).
+    #[serde(default)]
+    pub validation: Option<RowRange>,
 }
 
 fn default_inputs() -> Vec<String> {
@@ -100,6 +134,15 @@ impl DataSpec {
             rows,
             ts: self.ts,
             time: self.time.clone(),
+        }
+    }
+
+    /// Selection of rows `rows` of the extra record `record`.
+    pub fn record_selection(&self, record: &RecordSpec, rows: RowRange) -> DataSelection {
+        DataSelection {
+            inputs: record.input.clone().unwrap_or_else(|| self.input.clone()),
+            output: record.output.clone().unwrap_or_else(|| self.output.clone()),
+            ..self.selection(rows)
         }
     }
 }
@@ -428,6 +471,27 @@ pub enum InconsistentExperiment {
     /// Both selection rows and folds.
     #[error("[data] selection and folds are two ways of choosing: give one")]
     SelectionAndFolds,
+    /// Held-out records beside selection rows or folds.
+    #[error(
+        "[data] select_records is one more way of choosing: give one of selection, folds and select_records"
+    )]
+    SelectRecordsAndRows,
+    /// Selection rows or true modes with more records.
+    #[error("[data] {0} counts rows of the file: not with [[data.records]]")]
+    RowsWithRecords(&'static str),
+    /// A record with neither identification nor validation rows.
+    #[error("[[data.records]] #{0}: give identification or validation rows")]
+    EmptyRecord(usize),
+    /// A record with another number of inputs.
+    #[error("[[data.records]] #{record}: {found} input(s), [data] has {expected}")]
+    RecordInputs {
+        /// The record, counted from 1.
+        record: usize,
+        /// Its inputs.
+        found: usize,
+        /// The `[data]` table's.
+        expected: usize,
+    },
 }
 
 impl Experiment {
@@ -465,6 +529,11 @@ impl Experiment {
         let folder = path.parent().unwrap_or(Path::new("."));
         if e.data.file.is_relative() {
             e.data.file = folder.join(&e.data.file);
+        }
+        for r in &mut e.data.records {
+            if r.file.is_relative() {
+                r.file = folder.join(&r.file);
+            }
         }
         let runs = e
             .runs
@@ -567,6 +636,33 @@ impl Experiment {
         }
         if self.data.selection.is_some() && self.data.folds.is_some() {
             return Err(E::SelectionAndFolds);
+        }
+        if self.data.select_records.is_some()
+            && (self.data.selection.is_some() || self.data.folds.is_some())
+        {
+            return Err(E::SelectRecordsAndRows);
+        }
+        if !self.data.records.is_empty() {
+            if self.data.selection.is_some() {
+                return Err(E::RowsWithRecords("selection"));
+            }
+            if self.data.truth.is_some() {
+                return Err(E::RowsWithRecords("truth"));
+            }
+        }
+        for (i, r) in self.data.records.iter().enumerate() {
+            if r.identification.is_none() && r.validation.is_none() {
+                return Err(E::EmptyRecord(i + 1));
+            }
+            if let Some(input) = &r.input
+                && input.len() != self.data.input.len()
+            {
+                return Err(E::RecordInputs {
+                    record: i + 1,
+                    found: input.len(),
+                    expected: self.data.input.len(),
+                });
+            }
         }
         Ok(())
     }
