@@ -129,9 +129,10 @@ impl RegressorSpec {
         }
     }
 
-    /// All regressors of a dataset: `N - lag` rows per record, none whose
-    /// lags cross into the record before. Errors when a record is too
-    /// short or the input count differs from the spec.
+    /// All regressors of a dataset: `N - lag` rows per record (none from a
+    /// record of `lag` samples or fewer), none whose lags cross into the
+    /// record before. Errors when no record is long enough or the input
+    /// count differs from the spec.
     pub fn build(&self, data: &Dataset) -> Result<Regressors, RegressorError> {
         if data.inputs.len() != self.inputs {
             return Err(RegressorError::Inputs {
@@ -141,16 +142,13 @@ impl RegressorSpec {
         }
         let lag = self.lag();
         let ranges = data.record_ranges();
-        if let Some(r) = ranges.iter().find(|r| r.len() <= lag) {
+        let samples: Vec<usize> = ranges.iter().flat_map(|r| r.start + lag..r.end).collect();
+        if samples.is_empty() {
             return Err(RegressorError::TooShort {
-                samples: r.len(),
+                samples: ranges.iter().map(|r| r.len()).max().unwrap_or(0),
                 lag,
             });
         }
-        let samples: Vec<usize> = ranges
-            .into_iter()
-            .flat_map(|r| r.start + lag..r.end)
-            .collect();
         let u: Vec<&[f64]> = (0..self.inputs).map(|i| data.u(i)).collect();
         let d = self.dim();
         let mut x = DMatrix::zeros(samples.len(), d);
@@ -276,6 +274,16 @@ mod tests {
         assert!(matches!(
             RegressorSpec::new(1, 1, 2).build(&d),
             Err(RegressorError::Inputs { .. })
+        ));
+        // A record of `lag` samples or fewer beside a longer one gives no row.
+        let long = Dataset::siso(vec![0.0; 6], vec![0.0; 6], None).unwrap();
+        let joined = Dataset::join(&[long, d.clone()]).unwrap();
+        let r = RegressorSpec::new(2, 2, 1).build(&joined).unwrap();
+        assert_eq!(r.samples, [2, 3, 4, 5]);
+        let both_short = Dataset::join(&[d.clone(), d]).unwrap();
+        assert!(matches!(
+            RegressorSpec::new(2, 2, 1).build(&both_short),
+            Err(RegressorError::TooShort { samples: 2, lag: 2 })
         ));
     }
 }

@@ -113,13 +113,16 @@ pub fn from_arrays(
     dataset(input_columns(u)?, output(y)?, ts, names, output_name)
 }
 
+/// The inputs and the outputs of one record, as Python gave them.
+pub type ArrayPair<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
+
 /// Several records: `y` is a list or tuple of numpy arrays, and `u` a list
 /// or tuple of as many. Anything else is one record (a list of numbers, or
 /// of lists, is one array, as numpy reads it).
 pub fn record_lists<'a, 'py>(
     u: &'a Bound<'py, PyAny>,
     y: &'a Bound<'py, PyAny>,
-) -> Result<Option<Vec<(Bound<'py, PyAny>, Bound<'py, PyAny>)>>, Failure> {
+) -> Result<Option<Vec<ArrayPair<'py>>>, Failure> {
     let items = |obj: &Bound<'py, PyAny>| -> Option<Vec<Bound<'py, PyAny>>> {
         let list: Vec<Bound<'py, PyAny>> = if let Ok(l) = obj.cast::<PyList>() {
             l.iter().collect()
