@@ -245,32 +245,104 @@ pub enum HoldoutError {
     NotFinite,
 }
 
-/// The samples scored at the end of each record of a report.
-fn scored_counts(report: &ValidationReport) -> Vec<usize> {
-    if report.records.is_empty() {
-        vec![report.n]
-    } else {
-        report.records.iter().map(|r| r.n).collect()
-    }
-}
-
 /// `model` scored on `data` by free-run simulation, the first `warmup`
-/// samples left out ([`validate`]).
+/// samples of each record left out ([`validate`]). A record of a joined
+/// dataset too short to be scored (held-out rows that begin or end a few
+/// samples from a record's boundary) is left out, unless every one is.
 pub fn holdout(model: &Model, data: &Dataset, warmup: usize) -> Result<Holdout, HoldoutError> {
-    let (report, sim, _) = validate(model, data, warmup)?;
-    if !report.fit_sim.is_finite() {
+    let opts = SimulationOptions::for_data(data);
+    let several = data.record_count() > 1;
+    let records = if several {
+        data.records()
+    } else {
+        vec![data.clone()]
+    };
+    let (mut y, mut simulated) = (Vec::new(), Vec::new());
+    let mut short = None;
+    for record in &records {
+        let (report, sim, _) = match validate_record(model, record, warmup, opts) {
+            Err(e @ SimError::TooShort { .. }) if several => {
+                short.get_or_insert(e);
+                continue;
+            }
+            scored => scored?,
+        };
+        let first = record.len() - report.n;
+        y.extend_from_slice(&record.y()[first..]);
+        simulated.extend_from_slice(&sim.y[first..]);
+    }
+    if y.is_empty()
+        && let Some(e) = short
+    {
+        return Err(e.into());
+    }
+    let fit_sim = fit(&y, &simulated);
+    if !fit_sim.is_finite() {
         return Err(HoldoutError::NotFinite);
     }
-    let y = data.y();
-    let errors = data
-        .record_ranges()
-        .iter()
-        .zip(scored_counts(&report))
-        .flat_map(|(r, n)| r.end - n..r.end)
-        .map(|k| y[k] - sim.y[k])
-        .collect();
     Ok(Holdout {
-        fit_sim: report.fit_sim,
-        errors,
+        fit_sim,
+        errors: y.iter().zip(&simulated).map(|(a, b)| a - b).collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `y(k) = 0.5 y(k-1) + u(k-1)`, one mode.
+    fn first_order() -> Model {
+        Model::from_json(
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[
+                {"theta":[0.5,1.0,0.0],"region":{"a":[],"b":[]}}]}"#,
+            "m.json",
+        )
+        .unwrap()
+    }
+
+    /// A record of the model, with a disturbance `bias` on the output.
+    fn record(n: usize, bias: f64) -> Dataset {
+        let u: Vec<f64> = (0..n).map(|k| ((k * 7 % 5) as f64) - 2.0).collect();
+        let mut y = vec![0.0; n];
+        for k in 1..n {
+            y[k] = 0.5 * y[k - 1] + u[k - 1];
+        }
+        Dataset::siso(
+            u,
+            y.iter().map(|v| v + bias * (1.0 + v.abs())).collect(),
+            None,
+        )
+        .unwrap()
+    }
+
+    /// Each record of a joined dataset is scored as on its own; the pooled
+    /// figures are over the scored samples of both; a record too short to
+    /// score is an error of `validate` and left out by `holdout`.
+    #[test]
+    fn joined_records_are_scored_each_and_together() {
+        let model = first_order();
+        let (a, b) = (record(40, 0.02), record(30, -0.05));
+        let joined = Dataset::join(&[a.clone(), b.clone()]).unwrap();
+        let (whole, sim, _) = validate(&model, &joined, 5).unwrap();
+        let (ra, _, _) = validate(&model, &a, 5).unwrap();
+        let (rb, _, _) = validate(&model, &b, 5).unwrap();
+        assert_eq!(whole.records, [ra.clone(), rb.clone()]);
+        assert_eq!(whole.n, ra.n + rb.n);
+        assert_eq!(sim.y.len(), 70);
+        let h = holdout(&model, &joined, 5).unwrap();
+        assert_eq!(h.errors.len(), whole.n);
+        assert_eq!(h.fit_sim, whole.fit_sim);
+        assert!(whole.fit_sim < ra.fit_sim.max(rb.fit_sim));
+        assert!(whole.fit_sim > ra.fit_sim.min(rb.fit_sim));
+        let with_short = Dataset::join(&[a.clone(), record(3, 0.0)]).unwrap();
+        let e = validate(&model, &with_short, 5).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "record 2: the record has 3 samples; the model needs more than 5"
+        );
+        assert_eq!(
+            holdout(&model, &with_short, 5).unwrap(),
+            holdout(&model, &a, 5).unwrap()
+        );
+    }
 }

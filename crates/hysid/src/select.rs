@@ -337,7 +337,7 @@ struct Part {
 /// record of the selection in `info.selection`.
 pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, SelectError> {
     let rows = splits(request.data, &request.plan)?;
-    let parts = cut(request.data, &rows, request.plan.warmup)?;
+    let parts = cut(request.data, &rows)?;
     let mut trials = trials(request)?;
     let first = score_all(request, &trials, &parts, ctx, "selecting");
     let (mut scored, errors): (Vec<_>, Vec<_>) =
@@ -377,7 +377,7 @@ fn range_text((a, b): (usize, usize)) -> String {
     format!("{a}..{b}")
 }
 
-fn cut(data: &Dataset, rows: &[Split], warmup: usize) -> Result<Vec<Part>, SelectError> {
+fn cut(data: &Dataset, rows: &[Split]) -> Result<Vec<Part>, SelectError> {
     let slice = |(a, b): (usize, usize)| {
         data.slice(RowRange {
             start: Some(a),
@@ -392,28 +392,10 @@ fn cut(data: &Dataset, rows: &[Split], warmup: usize) -> Result<Vec<Part>, Selec
         .map(|&(fit, select)| {
             Ok(Part {
                 fit: slice(fit)?,
-                select: scoreable(slice(select)?, warmup),
+                select: slice(select)?,
             })
         })
         .collect()
-}
-
-/// `data` without the pieces of records too short to be scored after a
-/// warm-up of `warmup` samples (selection rows that begin or end a few
-/// rows from a record's boundary), unless no piece is longer.
-fn scoreable(data: Dataset, warmup: usize) -> Dataset {
-    if data.record_count() == 1 {
-        return data;
-    }
-    let kept: Vec<Dataset> = data
-        .records()
-        .into_iter()
-        .filter(|r| r.len() > warmup)
-        .collect();
-    if kept.is_empty() {
-        return data;
-    }
-    Dataset::join(&kept).unwrap_or(data)
 }
 
 /// The back-end's candidates, then the affine reference of the same orders
@@ -946,25 +928,6 @@ mod tests {
             splits(&data, &with_folds),
             Err(SelectError::Records { .. })
         ));
-    }
-
-    /// Selection rows that begin two rows before a record's end score the
-    /// next record alone: two rows cannot be scored after a warm-up.
-    #[test]
-    fn record_pieces_too_short_to_score_are_left_out_of_the_selection_rows() {
-        let data = Dataset::join(&[rows_of(82), rows_of(18)]).unwrap();
-        let plan = Plan {
-            warmup: 10,
-            ..Plan::default()
-        };
-        let rows = splits(&data, &plan).unwrap();
-        assert_eq!(rows[1], ((0, 80), (80, 100)));
-        let parts = cut(&data, &rows, plan.warmup).unwrap();
-        assert_eq!(parts[1].select.len(), 18);
-        assert_eq!(parts[1].select.record_count(), 1);
-        assert_eq!(parts[1].fit.len(), 80);
-        // The first split's selection rows 0..20 lie in the first record.
-        assert_eq!(parts[0].select.len(), 20);
     }
 
     #[test]
