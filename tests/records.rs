@@ -4,34 +4,8 @@
 
 use crate::common;
 
-use common::{hysid, ok, one_line_error, s, write};
+use common::{hysid, ok, one_line_error, s, two_mode_record_as as record, write};
 use std::path::{Path, PathBuf};
-
-/// The two-mode PWARX record of [`common::two_mode_record`]'s model,
-/// `n` samples from the excitation seed `seed`, written into `dir/name`.
-fn record(dir: &Path, name: &str, n: usize, seed: u64, ts: f64) -> PathBuf {
-    let truth = write(
-        dir,
-        "truth.json",
-        r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[
-            {"theta":[0.5,1.0,0.3],"region":{"a":[[1.0,0.0]],"b":[0.0]}},
-            {"theta":[-0.4,0.8,-0.2],"region":{"a":[[-1.0,0.0]],"b":[0.0]}}]}"#,
-    );
-    let data = dir.join(name);
-    ok(&[
-        "simulate",
-        s(&truth),
-        "--excite",
-        &format!("n={n},hold=3,low=-1,high=1,ts={ts}"),
-        "--noise",
-        "0.01",
-        "--seed",
-        &seed.to_string(),
-        "-o",
-        s(&data),
-    ]);
-    data
-}
 
 fn json(text: &str) -> serde_json::Value {
     serde_json::from_str(text).unwrap()

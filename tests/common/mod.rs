@@ -93,6 +93,12 @@ pub fn report() {
 /// A noisy record of `n` samples of a two-mode PWARX model (modes split by
 /// the sign of y(k-1)), written by `hysid simulate` into `dir/data.csv`.
 pub fn two_mode_record(dir: &Path, n: usize) -> PathBuf {
+    two_mode_record_as(dir, "data.csv", n, 11, 0.01)
+}
+
+/// The record of [`two_mode_record`]'s model from the excitation seed
+/// `seed`, sampled every `ts` seconds, written into `dir/name`.
+pub fn two_mode_record_as(dir: &Path, name: &str, n: usize, seed: u64, ts: f64) -> PathBuf {
     let truth = write(
         dir,
         "truth.json",
@@ -100,16 +106,16 @@ pub fn two_mode_record(dir: &Path, n: usize) -> PathBuf {
             {"theta":[0.5,1.0,0.3],"region":{"a":[[1.0,0.0]],"b":[0.0]}},
             {"theta":[-0.4,0.8,-0.2],"region":{"a":[[-1.0,0.0]],"b":[0.0]}}]}"#,
     );
-    let data = dir.join("data.csv");
+    let data = dir.join(name);
     ok(&[
         "simulate",
         s(&truth),
         "--excite",
-        &format!("n={n},hold=3,low=-1,high=1,ts=0.01"),
+        &format!("n={n},hold=3,low=-1,high=1,ts={ts}"),
         "--noise",
         "0.01",
         "--seed",
-        "11",
+        &seed.to_string(),
         "-o",
         s(&data),
     ]);

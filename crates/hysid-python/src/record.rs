@@ -119,34 +119,21 @@ pub type ArrayPair<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
 /// Several records: `y` is a list or tuple of numpy arrays, and `u` a list
 /// or tuple of as many. Anything else is one record (a list of numbers, or
 /// of lists, is one array, as numpy reads it).
-pub fn record_lists<'a, 'py>(
-    u: &'a Bound<'py, PyAny>,
-    y: &'a Bound<'py, PyAny>,
+pub fn record_lists<'py>(
+    u: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
 ) -> Result<Option<Vec<ArrayPair<'py>>>, Failure> {
-    let items = |obj: &Bound<'py, PyAny>| -> Option<Vec<Bound<'py, PyAny>>> {
-        let list: Vec<Bound<'py, PyAny>> = if let Ok(l) = obj.cast::<PyList>() {
-            l.iter().collect()
-        } else if let Ok(t) = obj.cast::<PyTuple>() {
-            t.iter().collect()
-        } else {
-            return None;
-        };
-        (!list.is_empty() && list.iter().all(|x| x.is_instance_of::<PyUntypedArray>()))
-            .then_some(list)
-    };
-    let Some(ys) = items(y) else {
+    let Some(ys) = items(y)
+        .filter(|ys| !ys.is_empty() && ys.iter().all(|x| x.is_instance_of::<PyUntypedArray>()))
+    else {
         return Ok(None);
     };
-    let us: Vec<Bound<'py, PyAny>> = match (u.cast::<PyList>(), u.cast::<PyTuple>()) {
-        (Ok(l), _) => l.iter().collect(),
-        (_, Ok(t)) => t.iter().collect(),
-        _ => {
-            return Err(Failure::input(format!(
-                "u: y is a list of {} records, u must be a list of as many input arrays",
-                ys.len()
-            )));
-        }
-    };
+    let us = items(u).ok_or_else(|| {
+        Failure::input(format!(
+            "u: y is a list of {} records, u must be a list of as many input arrays",
+            ys.len()
+        ))
+    })?;
     if us.len() != ys.len() {
         return Err(Failure::input(format!(
             "u: {} input record(s) for {} output record(s)",
@@ -155,6 +142,15 @@ pub fn record_lists<'a, 'py>(
         )));
     }
     Ok(Some(us.into_iter().zip(ys).collect()))
+}
+
+/// The items of a Python list or tuple; `None` for anything else.
+fn items<'py>(obj: &Bound<'py, PyAny>) -> Option<Vec<Bound<'py, PyAny>>> {
+    if let Ok(l) = obj.cast::<PyList>() {
+        Some(l.iter().collect())
+    } else {
+        obj.cast::<PyTuple>().ok().map(|t| t.iter().collect())
+    }
 }
 
 /// The record of `u`, `y` ([`from_arrays`]), or, for lists of records
