@@ -9,7 +9,10 @@
 //!   and reaches its terminal velocity;
 //! - `cascaded-tanks.toml` (the Cascaded Tanks benchmark): the levels stay
 //!   between zero and their tops, and the stored volume changes by what the
-//!   pump brings minus what the lower outlet and the overflows lose.
+//!   pump brings minus what the lower outlet and the overflows lose;
+//! - `coupled-drives.toml` (the Coupled Electric Drives benchmark): the
+//!   unsigned speed does not see the input's sign, and a held input brings
+//!   the pulley to the drives' static gain.
 
 use hysid_graybox::simulate::{GrayBoxRun, run};
 use hysid_graybox::{CompiledModel, GrayBoxInitialState, GrayBoxModel, extends};
@@ -21,6 +24,7 @@ use std::path::Path;
 const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 const AXIS: &str = "models/examples/positioning-axis.toml";
 const TANKS: &str = "models/examples/cascaded-tanks.toml";
+const DRIVES: &str = "models/examples/coupled-drives.toml";
 
 fn load(path: &str) -> GrayBoxModel {
     let resolved = extends::read(Path::new(&format!("{ROOT}/{path}"))).unwrap();
@@ -311,5 +315,68 @@ fn tanks_visit_every_overflow_and_drain() {
     for s in 0..2 {
         let h = r.x[4 * last + s];
         assert!(h > 0.0 && h < hl, "h{}: {h}", s + 1);
+    }
+}
+
+/// The coupled drives with the parameters given by name.
+fn drives(values: &[(&str, f64)]) -> GrayBoxModel {
+    let mut m = load(DRIVES);
+    for (name, v) in values {
+        set(&mut m, name, *v);
+    }
+    m
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// From rest, an input and its negative give the same unsigned speed,
+    /// never below zero: the drives' power law is odd and the pulley's
+    /// dynamics linear.
+    #[test]
+    fn drives_output_does_not_see_the_input_sign(
+        k in 0.5f64..10.0,
+        tm in 0.02f64..1.0,
+        wn in 2.0f64..50.0,
+        z in 0.02f64..1.0,
+        pw in 0.5f64..2.5,
+        seed in 0u64..1000,
+    ) {
+        let m = drives(&[("k", k), ("tm", tm), ("wn", wn), ("z", z), ("pw", pw)]);
+        let u = Excitation {
+            n: 200,
+            hold: 5,
+            low: -1.5,
+            high: 1.5,
+            ts: Some(0.02),
+            inputs: 1,
+        }
+        .generate(seed)
+        .remove(0);
+        let flipped: Vec<f64> = u.iter().map(|v| -v).collect();
+        let (a, b) = (simulate(&m, u, 0.02), simulate(&m, flipped, 0.02));
+        for (x, y) in a.y.iter().zip(&b.y) {
+            prop_assert!(*x >= 0.0);
+            prop_assert!((x - y).abs() <= 1e-12 * (1.0 + x.abs()), "{} against {}", x, y);
+        }
+    }
+
+    /// Held at `u0`, the pulley's speed settles at `k*|u0|^pw` (after more
+    /// than 20 of the slowest time constants).
+    #[test]
+    fn drives_settle_at_their_static_gain(
+        k in 0.5f64..10.0,
+        tm in 0.02f64..1.0,
+        wn in 5.0f64..50.0,
+        z in 0.1f64..1.0,
+        pw in 0.5f64..2.5,
+        u0 in -1.5f64..1.5,
+    ) {
+        prop_assume!(u0.abs() > 0.05);
+        let m = drives(&[("k", k), ("tm", tm), ("wn", wn), ("z", z), ("pw", pw)]);
+        let r = simulate(&m, vec![u0; 2500], 0.02);
+        let settled = k * u0.abs().powf(pw);
+        let last = *r.y.last().unwrap();
+        prop_assert!((last - settled).abs() <= 1e-6 * settled, "{} against {}", last, settled);
     }
 }
