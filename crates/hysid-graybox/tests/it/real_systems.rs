@@ -331,8 +331,9 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(32))]
 
     /// From rest, an input and its negative give the same unsigned speed,
-    /// never below zero: the drives' power law is odd and the pulley's
-    /// dynamics linear.
+    /// never below zero: the drives and the pulley are symmetric (an odd
+    /// power law, linear dynamics from rest) and the counter does not see
+    /// the direction. An offset in the drives' force fails it.
     #[test]
     fn drives_output_does_not_see_the_input_sign(
         k in 0.5f64..10.0,
