@@ -141,10 +141,10 @@ pub fn validate(
         sims.push(sim);
         preds.push(pred);
     }
-    let sim = Simulation::join(sims, &data.boundaries);
-    let pred = Simulation::join(preds, &data.boundaries);
-    let scored: Vec<usize> = data
-        .record_ranges()
+    let ranges = data.record_ranges();
+    let sim = Simulation::join(sims, &ranges);
+    let pred = Simulation::join(preds, &ranges);
+    let scored: Vec<usize> = ranges
         .iter()
         .zip(&parts)
         .flat_map(|(r, p)| r.end - p.n..r.end)

@@ -132,17 +132,24 @@ impl Dataset {
     }
 
     /// The samples of each record, in order (one range for one record).
+    /// A boundary out of order or outside `1..len` (set by hand) is
+    /// ignored.
     pub fn record_ranges(&self) -> Vec<std::ops::Range<usize>> {
-        let mut starts = vec![0];
-        starts.extend(&self.boundaries);
-        let mut ends = self.boundaries.clone();
-        ends.push(self.len());
-        starts.into_iter().zip(ends).map(|(a, b)| a..b).collect()
+        let mut ranges = Vec::with_capacity(self.boundaries.len() + 1);
+        let mut start = 0;
+        for &b in &self.boundaries {
+            if b > start && b < self.len() {
+                ranges.push(start..b);
+                start = b;
+            }
+        }
+        ranges.push(start..self.len());
+        ranges
     }
 
     /// Number of records joined in the dataset (1 for a single record).
     pub fn record_count(&self) -> usize {
-        self.boundaries.len() + 1
+        self.record_ranges().len()
     }
 
     /// Each record as a dataset of its own.
@@ -479,6 +486,9 @@ mod tests {
         let s = d.slice("5..8".parse().unwrap()).unwrap();
         assert_eq!((s.y(), &s.boundaries[..]), (&[5.0, 6.0, 7.0][..], &[1][..]));
         assert_eq!(d.slice("6..".parse().unwrap()).unwrap().record_count(), 1);
+        let mut by_hand = d.clone();
+        by_hand.boundaries = vec![6, 4, 9, 12];
+        assert_eq!(by_hand.record_ranges(), [0..6, 6..9]);
     }
 
     #[test]

@@ -110,13 +110,13 @@ pub fn per_record(
             })
         })
         .collect::<Result<Vec<_>, _>>()?;
-    Ok(Simulation::join(parts, &data.boundaries))
+    Ok(Simulation::join(parts, &data.record_ranges()))
 }
 
 impl Simulation {
-    /// The simulations of consecutive records joined, the later ones
-    /// beginning at `boundaries` ([`per_record`]).
-    pub fn join(parts: Vec<Simulation>, boundaries: &[usize]) -> Simulation {
+    /// The simulations of consecutive records joined, part `i` of the
+    /// samples `ranges[i]` ([`per_record`]).
+    pub fn join(parts: Vec<Simulation>, ranges: &[std::ops::Range<usize>]) -> Simulation {
         let mut parts = parts.into_iter();
         let mut joined = parts.next().unwrap_or(Simulation {
             y: Vec::new(),
@@ -125,7 +125,7 @@ impl Simulation {
             covered: Vec::new(),
             diverged_at: None,
         });
-        for (part, &at) in parts.zip(boundaries) {
+        for (part, at) in parts.zip(ranges.iter().skip(1).map(|r| r.start)) {
             joined.modes.extend(
                 part.modes
                     .iter()
