@@ -284,6 +284,13 @@ method = "arx"
     ]));
     assert_eq!(run["report"]["fit_sim"], scored["fit_sim"], "{run}");
     assert_eq!(run["report"]["records"].as_array().unwrap().len(), 2);
+    let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let per_record = format!(
+        "| arx | {:.2} | {:.2} |",
+        scored["records"][0]["fit_sim"].as_f64().unwrap(),
+        scored["records"][1]["fit_sim"].as_f64().unwrap()
+    );
+    assert!(markdown.contains(&per_record), "{markdown}");
     let data = report["data"].as_str().unwrap();
     assert!(data.contains("b.csv (identification rows ..)"), "{data}");
     assert!(data.contains("c.csv (validation rows ..)"), "{data}");

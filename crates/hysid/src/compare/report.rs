@@ -484,6 +484,7 @@ pub fn markdown(c: &Comparison) -> String {
             note.replace('|', "/")
         );
     }
+    records_table(&mut s, c);
     mode_recovery_table(&mut s, c);
     let mut figs: Vec<String> = Vec::new();
     if c.results
@@ -652,6 +653,45 @@ fn seeds_table(s: &mut String, c: &Comparison) {
         );
     }
     s.push('\n');
+}
+
+/// When the scored rows join several records: each run's `fit_sim` on each
+/// record (the table above pools them).
+fn records_table(s: &mut String, c: &Comparison) {
+    let count = c
+        .results
+        .iter()
+        .filter_map(|r| r.report.as_ref())
+        .map(|v| v.records.len())
+        .max()
+        .unwrap_or(0);
+    if count == 0 {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "
+Per record ({} fit_sim [%], each record from its own initial state and warm-up; the table above pools their scored samples):
+",
+        c.scored_rows.word()
+    );
+    let heads: Vec<String> = (1..=count).map(|i| format!("record {i}")).collect();
+    let _ = writeln!(s, "| run | {} |", heads.join(" | "));
+    let _ = writeln!(s, "|---|{}", "---|".repeat(count));
+    for r in &c.results {
+        let Some(v) = &r.report else { continue };
+        let cells: Vec<String> = v
+            .records
+            .iter()
+            .map(|p| format!("{:.2}", p.fit_sim))
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} |",
+            r.name.replace('|', "/"),
+            cells.join(" | ")
+        );
+    }
 }
 
 fn mode_recovery_table(s: &mut String, c: &Comparison) {
