@@ -168,8 +168,9 @@ fn auto_holds_out_whole_records() {
 }
 
 /// Records that cannot be joined, `--rows` counts that fit neither rule,
-/// selection rows with several records and held-out records that leave no
-/// record to fit: one line each, exit code 2, no model written.
+/// selection rows with several records, held-out records that leave no
+/// record to fit and a record no longer than a physical model's initial
+/// state: one line each, exit code 2, no model written.
 #[test]
 fn bad_combinations_of_records_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
@@ -199,10 +200,29 @@ fn bad_combinations_of_records_are_one_line_errors() {
             "--select-records 2: must be between 1 and the number of records less one (1)".into(),
         ),
     ];
+    let physical = format!("model={}", common::HEAD_MODEL);
+    let cases = cases.into_iter().chain([(
+        vec![
+            s(&a),
+            s(&b),
+            "--rows",
+            "..60",
+            "--rows",
+            "..5",
+            "-m",
+            "physical",
+            "--set",
+            &physical,
+        ],
+        "record 2 has 5 samples; the initial state reads 10: need more".to_string(),
+    )]);
     for (given, want) in cases {
         let mut args = vec!["identify"];
         args.extend(&given);
-        args.extend(["-m", "arx", "-o", s(&out)]);
+        if !given.contains(&"-m") {
+            args.extend(["-m", "arx"]);
+        }
+        args.extend(["-o", s(&out)]);
         let o = hysid(&args);
         let line = one_line_error(&o, 2).unwrap_or_else(|e| panic!("{given:?}: {e}"));
         assert!(line.contains(&want), "{given:?}: {line}");

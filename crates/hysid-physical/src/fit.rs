@@ -246,15 +246,31 @@ fn check_inputs(model: &impl Target, data: &Dataset) -> Result<f64, IdentifyErro
     Ok(ts)
 }
 
-/// Checks that the record has a sample per free parameter, plus one,
-/// after the initial state.
+/// Checks that the data have a sample per free parameter, plus one, after
+/// the initial state, and that every record of a joined dataset has a
+/// sample after its own.
 fn check_length(
     model: &impl Target,
     map: &ParameterMap,
     data: &Dataset,
 ) -> Result<(), IdentifyError> {
     let d = map.dim();
-    let needed = model.measured_samples().unwrap_or(0) + d + 1;
+    let initial = model.measured_samples().unwrap_or(0);
+    if data.record_count() > 1
+        && let Some((i, r)) = data
+            .record_ranges()
+            .into_iter()
+            .enumerate()
+            .find(|(_, r)| r.len() <= initial.max(1))
+    {
+        return Err(PhysicalError::ShortRecord {
+            record: i + 1,
+            samples: r.len(),
+            initial,
+        }
+        .into());
+    }
+    let needed = initial + d + 1;
     if data.len() < needed {
         return Err(PhysicalError::TooFewSamples {
             samples: data.len(),

@@ -231,6 +231,16 @@ pub enum PhysicalError {
         /// Samples needed.
         needed: usize,
     },
+    /// A record of a joined dataset with no sample after its initial state.
+    #[error("record {record} has {samples} samples; the initial state reads {initial}: need more")]
+    ShortRecord {
+        /// The record, counted from 1.
+        record: usize,
+        /// Its samples.
+        samples: usize,
+        /// Samples the initial state reads.
+        initial: usize,
+    },
     /// Priors that do not fit the model's parameters.
     #[error(transparent)]
     Parameters(#[from] parameters::ParameterError),
