@@ -260,6 +260,10 @@ const RUN: &[(&str, &str, Quote)] = &[
 /// with the reason.
 const NOT_RUN: &[(&str, &str)] = &[
     (
+        "hysid identify models/pick-and-place/headdata_1v6.mat --decimate 10 --rows 0..5000 -m physical --set model=models/pick-and-place/head.toml --seed 1 --set restarts=0",
+        "one of five timed fits in release; its figures are the table beside it",
+    ),
+    (
         "cargo run --release -p hysid-physical --example structure_study",
         "24 fits of the real record, about 17 minutes; its figures are the table beside it",
     ),

@@ -89,7 +89,8 @@ hysid_core::backend_options! {
         swarm_iters: usize = 40,
         /// Iterations of each Nelder-Mead run (local refinement).
         local_iters: usize = 400,
-        /// Nelder-Mead runs, each restarted from the previous best with a fresh simplex.
+        /// Nelder-Mead runs, each restarted from the previous best with a fresh simplex;
+        /// 0: the local stages are Levenberg-Marquardt alone.
         restarts: usize = 3,
         /// Segment length (samples) of the multiple-shooting cost used by the swarm and
         /// the first local stage: each segment is simulated from the state measured at

@@ -24,9 +24,10 @@ pub struct LocalResult {
 }
 
 /// Runs the local stages from `best_z` (the first stage also from
-/// `extra_starts`) when there is something to search (`d > 0`,
-/// `local_iters` and `restarts` not 0); each stage starts from the best
-/// point of the previous one.
+/// `extra_starts`) when there is something to search (`d > 0`, and
+/// Levenberg-Marquardt or Nelder-Mead to run: `lm_iters`, or `local_iters`
+/// and `restarts`, not 0); each stage starts from the best point of the
+/// previous one.
 pub fn local_stages(
     search: &Search<'_>,
     best_z: Vec<f64>,
@@ -39,7 +40,8 @@ pub fn local_stages(
         segmented_cost: None,
     };
     let d = search.objective.map.dim();
-    if !(d > 0 && options.local_iters > 0 && options.restarts > 0) {
+    let nelder_mead = options.local_iters > 0 && options.restarts > 0;
+    if !(d > 0 && (options.lm_iters > 0 || nelder_mead)) {
         return Ok(result);
     }
     // The segmented cost (when enabled), then the free run.

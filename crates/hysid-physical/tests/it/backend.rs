@@ -422,6 +422,35 @@ fn the_termination_of_every_stage_is_recorded_and_an_iteration_limit_reported() 
     assert!(!g.contains_key("status"), "{g:?}");
 }
 
+/// `restarts = 0`: the local stages are Levenberg-Marquardt alone (one run
+/// per start, no Nelder-Mead), and they bring the swarm's best point to a
+/// fit of the noise-free record.
+#[test]
+fn no_restarts_leave_levenberg_marquardt_alone() {
+    let d = data(400, 3);
+    let m = run(&d, &Priors::default(), &["restarts=0", "lm_iters=20"], 1).unwrap();
+    let g = m.info().diagnostics.to_map();
+    let t = &g["termination"];
+    assert!(t.get("nelder_mead").is_none(), "{t}");
+    let lm: u64 = t["levenberg_marquardt"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(lm, 3, "{t}");
+    // From the swarm's best point (segmented cost 0.64 on this record) to
+    // a free run within 1e-4 of the output's variance.
+    let cost = g["cost"].as_f64().unwrap();
+    let y = d.y();
+    let mean = y.iter().sum::<f64>() / y.len() as f64;
+    let variance = y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / y.len() as f64;
+    assert!(
+        cost < 1e-4 * variance,
+        "{cost} against the variance {variance}"
+    );
+}
+
 #[test]
 fn a_record_no_candidate_can_simulate_is_a_method_failure() {
     // Outputs of +-1e20 alternating each sample: no simulation follows
