@@ -24,7 +24,9 @@ use std::time::{Duration, Instant};
 /// What to identify: a record, the model orders and the priors.
 #[derive(Debug, Clone, Copy)]
 pub struct Problem<'a> {
-    /// Identification record, in original units.
+    /// Identification record, in original units; it may join several
+    /// records of the system, whose boundaries no regressor, segment or
+    /// simulation of the back-end crosses.
     pub data: &'a Dataset,
     /// PWARX orders (ignored by back-ends with their own structure).
     pub orders: RegressorSpec,

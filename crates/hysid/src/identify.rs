@@ -63,7 +63,7 @@ impl Default for Auto {
 pub struct Identify<'a> {
     /// The back-end's name (`hysid methods`).
     pub method: String,
-    /// The identification record.
+    /// The identification record (several records joined, or one).
     pub data: &'a Dataset,
     /// Row of the file where `data` starts (selection rows are given in
     /// rows of the file).
