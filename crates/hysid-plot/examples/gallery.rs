@@ -143,7 +143,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ],
         input_label: "input u [-]".into(),
         inputs: vec![Series::new("input u", u.clone())],
-        scoring_starts: Some(time[warm]),
+        warm_ups: vec![(time[0], time[warm])],
+        record_starts: Vec::new(),
     };
     simulation_plot(&dir.join("simulation.svg"), &sim)?;
 

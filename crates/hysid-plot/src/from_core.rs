@@ -38,7 +38,8 @@ impl SimulationFigure {
                 .iter()
                 .map(|s| Series::new(s.name.clone(), s.values.clone()))
                 .collect(),
-            scoring_starts: None,
+            warm_ups: Vec::new(),
+            record_starts: data.record_ranges().iter().map(|r| r.start).collect(),
         }
     }
 
@@ -56,9 +57,19 @@ impl SimulationFigure {
         self
     }
 
-    /// Marks the first `warmup` samples as warm-up (not scored).
+    /// Marks the first `warmup` samples of each record as warm-up (not
+    /// scored).
     pub fn with_warmup(mut self, warmup: usize) -> Self {
-        self.scoring_starts = self.time.get(warmup).copied();
+        let at = |k: usize| self.time.get(k).copied();
+        let starts = if self.record_starts.is_empty() {
+            vec![0]
+        } else {
+            self.record_starts.clone()
+        };
+        self.warm_ups = starts
+            .into_iter()
+            .filter_map(|k| Some((at(k)?, at(k + warmup)?)))
+            .collect();
         self
     }
 }
@@ -199,7 +210,14 @@ mod tests {
         assert_eq!(fig.time_label, "time t [s]");
         assert!(fig.simulated[0].values[0].is_nan());
         assert_eq!(&fig.simulated[0].values[1..], &[0.4, 0.3, 0.6]);
-        assert_eq!(fig.scoring_starts, Some(1.02));
+        assert_eq!(fig.warm_ups, [(1.0, 1.02)]);
+        // Joined records: each record's warm-up is shaded.
+        let joined = Dataset::join(&[data.clone(), data.clone()]).unwrap();
+        let fig =
+            SimulationFigure::from_dataset("t", &joined, 100, "y [mm]", "u [-]").with_warmup(2);
+        assert_eq!(fig.record_starts, [0, 4]);
+        assert_eq!(fig.warm_ups, [(1.0, 1.02), (1.04, 1.06)]);
+        crate::simulation_svg(&fig).unwrap();
         assert_eq!(fig.inputs.len(), 1);
         crate::simulation_svg(&fig).unwrap();
         assert_eq!(ModeSequence::from_simulation("m", &sim).modes, sim.modes);

@@ -51,9 +51,12 @@ pub struct SimulationFigure {
     pub input_label: String,
     /// The inputs; empty draws no input panel.
     pub inputs: Vec<Series>,
-    /// Time at which validation scoring starts (the end of the warm-up):
-    /// the samples before it are shaded.
-    pub scoring_starts: Option<f64>,
+    /// The warm-ups (not scored), shaded: `(from, to)` times, `to` where
+    /// scoring starts; one per record of a dataset that joins several.
+    pub warm_ups: Vec<(f64, f64)>,
+    /// The sample at which each record begins, for data that join several
+    /// records (empty, or `[0]`, for one).
+    pub record_starts: Vec<usize>,
 }
 
 /// The time vector and axis label for `n` samples starting at row `first`:
@@ -126,7 +129,7 @@ fn draw_panel(
     time: &[f64],
     x_range: (f64, f64),
     y_area: u32,
-    warm: Option<f64>,
+    warm_ups: &[(f64, f64)],
     panel: Panel<'_>,
 ) -> Result<(), PlotError> {
     let (y0, y1) = panel.y_range;
@@ -154,8 +157,11 @@ fn draw_panel(
         mesh.x_desc(d);
     }
     mesh.draw().map_err(draw_err)?;
-    if let Some(w) = warm.filter(|w| w.is_finite() && *w > x_range.0) {
-        draw_warm_up(&mut chart, (x_range.0, w.min(x_range.1)), (y0, y1))?;
+    for &(from, to) in warm_ups {
+        let from = from.max(x_range.0);
+        if from.is_finite() && to.is_finite() && to > from {
+            draw_warm_up(&mut chart, (from, to.min(x_range.1)), (y0, y1))?;
+        }
     }
     for (values, colour, width) in panel.lines {
         for run in finite_runs(time, values) {
@@ -254,7 +260,7 @@ fn legend_entries(fig: &SimulationFigure) -> Vec<LegendEntry> {
             s.label.clone(),
         ));
     }
-    if fig.scoring_starts.is_some() {
+    if !fig.warm_ups.is_empty() {
         entries.push(LegendEntry::new(
             Swatch::Fill(WARMUP_COLOUR, WARMUP_ALPHA),
             "warm-up (not scored)",
@@ -282,7 +288,7 @@ fn draw_output_panel(
         y_range: r.y,
         lines,
     };
-    draw_panel(area, &fig.time, r.x, y_area, fig.scoring_starts, panel)
+    draw_panel(area, &fig.time, r.x, y_area, &fig.warm_ups, panel)
 }
 
 /// The input panel on `area`, with the time label under it.
@@ -305,7 +311,7 @@ fn draw_input_panel(
         y_range: u_range,
         lines,
     };
-    draw_panel(area, &fig.time, r.x, y_area, fig.scoring_starts, panel)
+    draw_panel(area, &fig.time, r.x, y_area, &fig.warm_ups, panel)
 }
 
 /// Renders a [`SimulationFigure`] to an SVG string.

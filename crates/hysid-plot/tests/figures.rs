@@ -46,7 +46,8 @@ fn simulation_figure() -> SimulationFigure {
         ],
         input_label: "input u [-]".into(),
         inputs: vec![Series::new("u", u)],
-        scoring_starts: Some(5010.0 * 0.0025),
+        warm_ups: vec![(5000.0 * 0.0025, 5010.0 * 0.0025)],
+        record_starts: Vec::new(),
     }
 }
 
@@ -150,7 +151,7 @@ fn simulation_plot_has_title_labels_legend_and_writes_the_file() {
     // Without inputs: one panel, the time label still there.
     let mut no_u = fig.clone();
     no_u.inputs.clear();
-    no_u.scoring_starts = None;
+    no_u.warm_ups.clear();
     let t = texts(&simulation_svg(&no_u).unwrap());
     assert!(has(&t, "time t [s]") && !has(&t, "input u [-]") && !has(&t, "warm-up (not scored)"));
 }
@@ -384,7 +385,8 @@ proptest! {
             simulated: vec![Series::new("s", y.iter().map(|v| v + shift).collect())],
             input_label: "u [-]".into(),
             inputs: vec![Series::new("u", y.clone())],
-            scoring_starts: Some(shift),
+            warm_ups: vec![(f64::NEG_INFINITY, shift)],
+            record_starts: Vec::new(),
         };
         if let Ok(svg) = simulation_svg(&fig) { texts(&svg); }
         let sweep = SweepFigure {
