@@ -458,7 +458,7 @@ fn coupled_drives_are_recovered_from_three_records_of_three_amplitudes() {
         .into_iter()
         .map(|(amplitude, seed)| {
             let levels = Excitation {
-                n: 300,
+                n: 200,
                 hold: 4,
                 low: -1.0,
                 high: 1.0,
