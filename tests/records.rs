@@ -314,4 +314,15 @@ method = "arx"
     let data = report["data"].as_str().unwrap();
     assert!(data.contains("b.csv (identification rows ..)"), "{data}");
     assert!(data.contains("c.csv (validation rows ..)"), "{data}");
+    // A record sampled otherwise is refused in one line naming its file.
+    let slow = record(d, "slow.csv", 100, 54, 0.02);
+    let text = std::fs::read_to_string(&experiment).unwrap();
+    let bad = write(d, "bad.toml", text.replace("\"c.csv\"", "\"slow.csv\""));
+    let o = hysid(&["compare", s(&bad), "-o", s(&d.join("never"))]);
+    let line = one_line_error(&o, 2).unwrap();
+    let want = format!(
+        "{}: sampling time 0.02 s differs from record 1's 0.01 s",
+        slow.display()
+    );
+    assert!(line.contains(&want), "{line}");
 }

@@ -2,7 +2,7 @@
 //! selection").
 
 use crate::error::CliError;
-use hysid_model::data::{DataError, DataSelection, Dataset, RowRange, SignalNameError};
+use hysid_model::data::{DataSelection, Dataset, RowRange, SignalNameError};
 use std::path::PathBuf;
 
 /// Which signals and samples of a data file to use.
@@ -76,7 +76,7 @@ impl DataArgs {
     }
 
     /// The records of `files`, each with its `--rows`, joined into one
-    /// dataset ([`Dataset::join`]); one file is read as it is.
+    /// dataset ([`hysid_io::load_records`]).
     pub fn load(&self, files: &[PathBuf]) -> Result<Dataset, CliError> {
         if self.rows.len() > 1 && self.rows.len() != files.len() {
             return Err(CliError::input(format!(
@@ -90,16 +90,13 @@ impl DataArgs {
             .enumerate()
             .map(|(i, file)| {
                 let rows = self.rows.get(i).or(self.rows.first()).copied();
-                let selection = self.signals.selection(rows.unwrap_or_default())?;
-                Ok(hysid_io::load(file, &selection)?)
+                Ok((
+                    file.as_path(),
+                    self.signals.selection(rows.unwrap_or_default())?,
+                ))
             })
             .collect::<Result<Vec<_>, CliError>>()?;
-        Dataset::join(&records).map_err(|e| match e {
-            DataError::Join { record, reason } => {
-                CliError::input(format!("{}: {reason}", files[record - 1].display()))
-            }
-            e => e.into(),
-        })
+        Ok(hysid_io::load_records(&records)?)
     }
 
     /// Row of the file where the (first) record starts.

@@ -27,6 +27,24 @@ pub fn save_model(model: &Model, path: &Path) -> Result<(), ModelError> {
     })
 }
 
+/// Reads every record, a file with its selection, and joins them in order
+/// into one dataset ([`Dataset::join`]); a record that cannot be joined to
+/// the first is [`DataError::NotJoined`], naming its file. One record is
+/// read as it is.
+pub fn load_records(records: &[(&Path, DataSelection)]) -> Result<Dataset, DataError> {
+    let read = records
+        .iter()
+        .map(|(path, sel)| load(path, sel))
+        .collect::<Result<Vec<_>, _>>()?;
+    Dataset::join(&read).map_err(|e| match e {
+        DataError::Join { record, reason } => DataError::NotJoined {
+            path: records[record - 1].0.to_path_buf(),
+            reason,
+        },
+        e => e,
+    })
+}
+
 /// Reads a `.csv` or `.mat` file and applies `sel`.
 pub fn load(path: &Path, sel: &DataSelection) -> Result<Dataset, DataError> {
     if sel.decimate == 0 {

@@ -21,7 +21,7 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::{ValidationReport, validate};
-use hysid_io::load;
+use hysid_io::load_records;
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::Simulation;
 use rayon::prelude::*;
@@ -312,48 +312,23 @@ impl Experiment {
     /// file`, joined by those of every `[[data.records]]` that has them.
     fn records(&self) -> Result<(Dataset, Dataset), ExperimentError> {
         let data = &self.data;
-        let read = |file: &std::path::Path, selection| {
-            load(file, &selection).map_err(|source| ExperimentError::Data {
-                path: file.display().to_string(),
+        let mut ident = vec![(data.file.as_path(), data.selection(data.identification))];
+        let mut valid = vec![(data.file.as_path(), data.selection(data.validation))];
+        for r in &data.records {
+            if let Some(rows) = r.identification {
+                ident.push((r.file.as_path(), data.record_selection(r, rows)));
+            }
+            if let Some(rows) = r.validation {
+                valid.push((r.file.as_path(), data.record_selection(r, rows)));
+            }
+        }
+        let read = |records: &[(&std::path::Path, _)]| {
+            load_records(records).map_err(|source| ExperimentError::Data {
+                path: data.file.display().to_string(),
                 source,
             })
         };
-        let mut ident = vec![read(&data.file, data.selection(data.identification))?];
-        let mut valid = vec![read(&data.file, data.selection(data.validation))?];
-        for r in &data.records {
-            if let Some(rows) = r.identification {
-                ident.push(read(&r.file, data.record_selection(r, rows))?);
-            }
-            if let Some(rows) = r.validation {
-                valid.push(read(&r.file, data.record_selection(r, rows))?);
-            }
-        }
-        let join = |records: Vec<Dataset>, files: Vec<&std::path::Path>| {
-            Dataset::join(&records).map_err(|source| {
-                let path = match &source {
-                    hysid_model::data::DataError::Join { record, .. } => files[record - 1],
-                    _ => &data.file,
-                };
-                ExperimentError::Data {
-                    path: path.display().to_string(),
-                    source,
-                }
-            })
-        };
-        let files = |pick: fn(&RecordSpec) -> bool| {
-            std::iter::once(data.file.as_path())
-                .chain(
-                    data.records
-                        .iter()
-                        .filter(|r| pick(r))
-                        .map(|r| r.file.as_path()),
-                )
-                .collect::<Vec<_>>()
-        };
-        Ok((
-            join(ident, files(|r| r.identification.is_some()))?,
-            join(valid, files(|r| r.validation.is_some()))?,
-        ))
+        Ok((read(&ident)?, read(&valid)?))
     }
 
     /// What the report says of the data: the file, its rows and the other

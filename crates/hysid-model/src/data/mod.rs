@@ -434,6 +434,14 @@ pub enum DataError {
         /// What is wrong.
         reason: String,
     },
+    /// The record read from a file that cannot be joined to the first.
+    #[error("{path}: {reason}")]
+    NotJoined {
+        /// File of the record.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 #[cfg(test)]
