@@ -125,23 +125,23 @@ pub fn validate(
     data: &Dataset,
     warmup: usize,
 ) -> Result<(ValidationReport, Simulation, Simulation), SimError> {
-    let opts = SimulationOptions::for_data(data);
-    if data.record_count() == 1 {
-        return validate_record(model, data, warmup, opts);
+    let mut scored = scores(model, data, warmup);
+    if scored.len() == 1 {
+        return scored.remove(0).1;
     }
+    let mut ranges = Vec::new();
     let mut parts = Vec::new();
     let (mut sims, mut preds) = (Vec::new(), Vec::new());
-    for (i, record) in data.records().iter().enumerate() {
-        let (report, sim, pred) =
-            validate_record(model, record, warmup, opts).map_err(|e| SimError::InRecord {
-                record: i + 1,
-                source: Box::new(e),
-            })?;
+    for (i, (range, result)) in scored.into_iter().enumerate() {
+        let (report, sim, pred) = result.map_err(|e| SimError::InRecord {
+            record: i + 1,
+            source: Box::new(e),
+        })?;
+        ranges.push(range);
         parts.push(report);
         sims.push(sim);
         preds.push(pred);
     }
-    let ranges = data.record_ranges();
     let sim = Simulation::join(sims, &ranges);
     let pred = Simulation::join(preds, &ranges);
     let scored: Vec<usize> = ranges
@@ -179,13 +179,34 @@ pub fn validate(
     Ok((report, sim, pred))
 }
 
+/// A record's report, free-run simulation and prediction.
+type Scored = (ValidationReport, Simulation, Simulation);
+
+/// Each record of `data` (the dataset itself when it is one record) with
+/// its samples in `data`, scored on its own ([`validate_record`]).
+fn scores(
+    model: &Model,
+    data: &Dataset,
+    warmup: usize,
+) -> Vec<(std::ops::Range<usize>, Result<Scored, SimError>)> {
+    let opts = SimulationOptions::for_data(data);
+    if data.record_count() == 1 {
+        return vec![(0..data.len(), validate_record(model, data, warmup, opts))];
+    }
+    data.records()
+        .iter()
+        .zip(data.record_ranges())
+        .map(|(record, range)| (range, validate_record(model, record, warmup, opts)))
+        .collect()
+}
+
 /// [`validate`] on one record.
 fn validate_record(
     model: &Model,
     data: &Dataset,
     warmup: usize,
     opts: SimulationOptions,
-) -> Result<(ValidationReport, Simulation, Simulation), SimError> {
+) -> Result<Scored, SimError> {
     let sim = simulate(model, data, opts)?;
     let pred = predict(model, data, opts)?;
     let first = warmup.max(sim.start).max(pred.start);
@@ -250,26 +271,19 @@ pub enum HoldoutError {
 /// dataset too short to be scored (held-out rows that begin or end a few
 /// samples from a record's boundary) is left out, unless every one is.
 pub fn holdout(model: &Model, data: &Dataset, warmup: usize) -> Result<Holdout, HoldoutError> {
-    let opts = SimulationOptions::for_data(data);
     let several = data.record_count() > 1;
-    let records = if several {
-        data.records()
-    } else {
-        vec![data.clone()]
-    };
     let (mut y, mut simulated) = (Vec::new(), Vec::new());
     let mut short = None;
-    for record in &records {
-        let (report, sim, _) = match validate_record(model, record, warmup, opts) {
+    for (range, scored) in scores(model, data, warmup) {
+        let (report, sim, _) = match scored {
             Err(e @ SimError::TooShort { .. }) if several => {
                 short.get_or_insert(e);
                 continue;
             }
             scored => scored?,
         };
-        let first = record.len() - report.n;
-        y.extend_from_slice(&record.y()[first..]);
-        simulated.extend_from_slice(&sim.y[first..]);
+        y.extend_from_slice(&data.y()[range.end - report.n..range.end]);
+        simulated.extend_from_slice(&sim.y[sim.y.len() - report.n..]);
     }
     if y.is_empty()
         && let Some(e) = short

@@ -199,14 +199,15 @@ pub fn record_split(data: &Dataset, k: usize, plan: &Plan) -> Result<Split, Sele
             "selection rows and folds are not taken beside it".into()
         ));
     }
-    let count = data.record_count();
+    let ranges = data.record_ranges();
+    let count = ranges.len();
     if k == 0 || k >= count {
         return Err(bad(format!(
             "must be between 1 and the number of records less one ({})",
             count - 1
         )));
     }
-    let a = data.boundaries[count - k - 1];
+    let a = ranges[count - k].start;
     Ok(((0, a), (a, data.len())))
 }
 
