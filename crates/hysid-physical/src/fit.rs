@@ -63,13 +63,14 @@ pub fn fit_model<M: Target>(
     let map = ParameterMap::new(&model, priors, data.record_count())
         .map_err(PhysicalError::Parameters)?;
     check_length(&model, &map, data)?;
+    let records = data.records();
     let evals = AtomicU64::new(0);
     let search = Search {
         objective: Objective {
             segment: 0,
             velocity_tol: tols.centred,
             model: &model,
-            data,
+            records: &records,
             map: &map,
         },
         options,
@@ -89,8 +90,9 @@ pub fn fit_model<M: Target>(
             "every candidate simulation failed or diverged ({evaluations} simulations): the model cannot follow this record"
         )));
     }
-    let sens = sensitivity(&model, &map, &values, data, options.fd_step);
-    let identifiability = identifiability::classify(&model, &map, &mut values, cost, data, &sens);
+    let sens = sensitivity(&model, &map, &values, &records, options.fd_step);
+    let identifiability =
+        identifiability::classify(&model, &map, &mut values, cost, &records, &sens);
     let status = Status::of(&log, evaluations, options.local_iters);
     let diagnostics = PhysicalDiagnostics {
         cost,
@@ -216,7 +218,7 @@ fn one_search(
     let swarm = global_stage(&run, nominal_z, nominal_cost, &mut log)?;
     let local = local_stages(&run, swarm.best_z, &swarm.extra_starts, &mut log)?;
     let values = run.objective.map.values(&local.best_z);
-    let cost = simulation_mse(run.objective.model, &values, run.objective.data);
+    let cost = simulation_mse(run.objective.model, &values, run.objective.records);
     Ok(SearchRun {
         index,
         swarm_cost: swarm.cost,

@@ -40,14 +40,14 @@ pub enum Identifiability {
 }
 
 /// Per free coordinate of `map`, its [`Identifiability`] at the fitted
-/// `values` (cost `cost` on `data`); the coordinates not identifiable are
+/// `values` (cost `cost` on `records`); the coordinates not identifiable are
 /// moved to their nominal values in `values`.
 pub fn classify(
     model: &dyn Simulator,
     map: &ParameterMap,
     values: &mut [f64],
     cost: f64,
-    data: &Dataset,
+    records: &[Dataset],
     sens: &Sensitivity,
 ) -> Vec<Identifiability> {
     (0..map.groups.len())
@@ -65,7 +65,7 @@ pub fn classify(
             for &i in g {
                 moved[i] = nominal;
             }
-            let changed = simulation_mse(model, &moved, data) - cost;
+            let changed = simulation_mse(model, &moved, records) - cost;
             if changed.abs() <= UNCHANGED * cost.max(f64::MIN_POSITIVE) {
                 values.copy_from_slice(&moved);
                 Identifiability::NotIdentifiable

@@ -16,14 +16,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub const FAILED: f64 = 1e30;
 
 /// Free-run simulation residuals `y(k) - yhat(k)` after the initial state,
-/// as simulated (`None` only when the simulation fails). Each record of a
-/// joined dataset is simulated from its own initial state ([`per_record`]).
+/// as simulated (`None` only when the simulation fails), of each record of
+/// `records` from its own initial state ([`per_record`]).
 pub fn free_run_residuals(
     model: &dyn Simulator,
     values: &[f64],
-    data: &Dataset,
+    records: &[Dataset],
 ) -> Option<Vec<f64>> {
-    per_record(model, values, data, |values, data| {
+    per_record(model, values, records, |values, data| {
         let (start, y) = model.free_run(values, data)?;
         Some(
             data.y()[start + 1..]
@@ -35,21 +35,21 @@ pub fn free_run_residuals(
     })
 }
 
-/// The residuals `residuals` gives on each record of `data`, one record
-/// after the other. `values` holds the parameters, then the estimated
-/// initial states of each record in turn
-/// ([`Simulator::estimated_count`] each); a record is simulated with the
-/// parameters and its own states. One record: `residuals(values, data)`.
+/// The residuals `residuals` gives on each of `records` (the records of
+/// the data, [`Dataset::records`], split once per fit), one record after
+/// the other. `values` holds the parameters, then the estimated initial
+/// states of each record in turn ([`Simulator::estimated_count`] each); a
+/// record is simulated with the parameters and its own states. One record:
+/// `residuals(values, record)`.
 pub fn per_record(
     model: &dyn Simulator,
     values: &[f64],
-    data: &Dataset,
+    records: &[Dataset],
     residuals: impl Fn(&[f64], &Dataset) -> Option<Vec<f64>>,
 ) -> Option<Vec<f64>> {
-    if data.record_count() == 1 {
-        return residuals(values, data);
+    if let [record] = records {
+        return residuals(values, record);
     }
-    let records = data.records();
     let states = model.estimated_count();
     let parameters = values.len().checked_sub(states * records.len())?;
     let mut all = Vec::new();
@@ -68,9 +68,9 @@ pub fn per_record(
 pub fn simulation_residuals(
     model: &dyn Simulator,
     values: &[f64],
-    data: &Dataset,
+    records: &[Dataset],
 ) -> Option<Vec<f64>> {
-    free_run_residuals(model, values, data).and_then(finite)
+    free_run_residuals(model, values, records).and_then(finite)
 }
 
 /// `e` when it is non-empty and finite.
@@ -87,8 +87,8 @@ fn mse(e: Option<Vec<f64>>) -> f64 {
 }
 
 /// Mean squared free-run simulation error over the samples after the initial state.
-pub fn simulation_mse(model: &dyn Simulator, values: &[f64], data: &Dataset) -> f64 {
-    mse(simulation_residuals(model, values, data))
+pub fn simulation_mse(model: &dyn Simulator, values: &[f64], records: &[Dataset]) -> f64 {
+    mse(simulation_residuals(model, values, records))
 }
 
 /// Velocity thresholds below which an estimated velocity counts as zero
@@ -144,11 +144,11 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
 fn segmented_residuals(
     model: &dyn Simulator,
     values: &[f64],
-    data: &Dataset,
+    records: &[Dataset],
     segment: usize,
     velocity_tol: f64,
 ) -> Option<Vec<f64>> {
-    per_record(model, values, data, |values, data| {
+    per_record(model, values, records, |values, data| {
         model.segmented_residuals(values, data, segment, velocity_tol)
     })
 }
@@ -161,11 +161,11 @@ fn segmented_residuals(
 pub fn segmented_mse(
     model: &dyn Simulator,
     values: &[f64],
-    data: &Dataset,
+    records: &[Dataset],
     segment: usize,
     velocity_tol: f64,
 ) -> f64 {
-    mse(segmented_residuals(model, values, data, segment, velocity_tol).and_then(finite))
+    mse(segmented_residuals(model, values, records, segment, velocity_tol).and_then(finite))
 }
 
 /// The simulation error as a function of the normalised coordinates `z`:
@@ -178,8 +178,8 @@ pub struct Objective<'a> {
     pub velocity_tol: f64,
     /// The model whose parameters are fitted.
     pub model: &'a dyn Simulator,
-    /// The record.
-    pub data: &'a Dataset,
+    /// The records of the data ([`Dataset::records`]).
+    pub records: &'a [Dataset],
     /// Coordinates to parameter values.
     pub map: &'a ParameterMap,
 }
@@ -194,10 +194,16 @@ impl Objective<'_> {
     pub fn residuals(&self, z: &[f64]) -> Option<Vec<f64>> {
         let v = self.map.values(z);
         if self.segment == 0 {
-            simulation_residuals(self.model, &v, self.data)
+            simulation_residuals(self.model, &v, self.records)
         } else {
-            segmented_residuals(self.model, &v, self.data, self.segment, self.velocity_tol)
-                .and_then(finite)
+            segmented_residuals(
+                self.model,
+                &v,
+                self.records,
+                self.segment,
+                self.velocity_tol,
+            )
+            .and_then(finite)
         }
     }
 

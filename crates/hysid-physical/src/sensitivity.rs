@@ -57,14 +57,14 @@ pub fn sensitivity(
     model: &dyn Simulator,
     map: &ParameterMap,
     values: &[f64],
-    data: &Dataset,
+    records: &[Dataset],
     step: f64,
 ) -> Sensitivity {
     let d = map.dim();
-    let Some(r0) = free_run_residuals(model, values, data) else {
+    let Some(r0) = free_run_residuals(model, values, records) else {
         return Sensitivity::undefined(d);
     };
-    let Some(jac) = output_jacobian(model, map, values, data, step, r0.len()) else {
+    let Some(jac) = output_jacobian(model, map, values, records, step, r0.len()) else {
         return Sensitivity::undefined(d);
     };
     let n = r0.len();
@@ -93,7 +93,7 @@ fn output_jacobian(
     model: &dyn Simulator,
     map: &ParameterMap,
     values: &[f64],
-    data: &Dataset,
+    records: &[Dataset],
     step: f64,
     n: usize,
 ) -> Option<DMatrix<f64>> {
@@ -112,8 +112,8 @@ fn output_jacobian(
             }
             v
         };
-        let rp = free_run_residuals(model, &set(xp), data)?;
-        let rm = free_run_residuals(model, &set(xm), data)?;
+        let rp = free_run_residuals(model, &set(xp), records)?;
+        let rm = free_run_residuals(model, &set(xm), records)?;
         for k in 0..n {
             // d yhat / d theta = - d r / d theta
             jac[(k, j)] = -(rp[k] - rm[k]) / (xp - xm);

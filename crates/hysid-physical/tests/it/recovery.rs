@@ -112,7 +112,11 @@ fn recovers_parameters_and_validates() {
         .unwrap();
     eprintln!(
         "cost at truth {:.6}, fitted {:.6}, evals {}",
-        hysid_physical::objective::simulation_mse(&truth, &truth.values(), &ident),
+        hysid_physical::objective::simulation_mse(
+            &truth,
+            &truth.values(),
+            std::slice::from_ref(&ident)
+        ),
         model.info().diagnostics.method["cost"],
         model.info().diagnostics.method["evaluations"]
     );
