@@ -247,7 +247,9 @@ fn identify<'py>(
     input_names: Option<Vec<String>>,
     output_name: Option<String>,
 ) -> PyResult<Model> {
-    let data = record::from_arrays_or_lists(u, y, ts, input_names, output_name)?;
+    let data = record::one_or_joined(u, y, |u, y| {
+        record::from_arrays(u, y, ts, input_names.clone(), output_name.clone())
+    })?;
     let (priors, priors_origin) = self::priors(py, priors)?;
     let (select_rows, grid) = (
         parse_rows("select_rows", select_rows.as_deref())?,

@@ -291,20 +291,7 @@ impl Model {
         warmup: usize,
         ts: Option<f64>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let data = match record::record_lists(u, y)? {
-            None => self.record(u, output(y)?, ts)?,
-            Some(pairs) => hysid_model::data::Dataset::join(
-                &pairs
-                    .iter()
-                    .enumerate()
-                    .map(|(i, (u, y))| {
-                        self.record(u, output(y)?, ts)
-                            .map_err(|e| e.in_record(i + 1))
-                    })
-                    .collect::<Result<Vec<_>, _>>()?,
-            )
-            .map_err(Failure::from)?,
-        };
+        let data = record::one_or_joined(u, y, |u, y| self.record(u, output(y)?, ts))?;
         for (i, range) in data.record_ranges().into_iter().enumerate() {
             if warmup >= range.len() {
                 let which = if data.record_count() > 1 {

@@ -114,12 +114,12 @@ pub fn from_arrays(
 }
 
 /// The inputs and the outputs of one record, as Python gave them.
-pub type ArrayPair<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
+type ArrayPair<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
 
 /// Several records: `y` is a list or tuple of numpy arrays, and `u` a list
 /// or tuple of as many. Anything else is one record (a list of numbers, or
 /// of lists, is one array, as numpy reads it).
-pub fn record_lists<'py>(
+fn record_lists<'py>(
     u: &Bound<'py, PyAny>,
     y: &Bound<'py, PyAny>,
 ) -> Result<Option<Vec<ArrayPair<'py>>>, Failure> {
@@ -153,26 +153,21 @@ fn items<'py>(obj: &Bound<'py, PyAny>) -> Option<Vec<Bound<'py, PyAny>>> {
     }
 }
 
-/// The record of `u`, `y` ([`from_arrays`]), or, for lists of records
-/// ([`record_lists`]), the records joined ([`Dataset::join`]); an error
-/// names the record (counted from 1).
-pub fn from_arrays_or_lists(
+/// The record `read` makes of `u`, `y`, or, for lists of records
+/// ([`record_lists`]), the records it makes of each pair, joined
+/// ([`Dataset::join`]); an error names the record (counted from 1).
+pub fn one_or_joined(
     u: &Bound<'_, PyAny>,
     y: &Bound<'_, PyAny>,
-    ts: Option<f64>,
-    names: Option<Vec<String>>,
-    output_name: Option<String>,
+    read: impl Fn(&Bound<'_, PyAny>, &Bound<'_, PyAny>) -> Result<Dataset, Failure>,
 ) -> Result<Dataset, Failure> {
     let Some(pairs) = record_lists(u, y)? else {
-        return from_arrays(u, y, ts, names, output_name);
+        return read(u, y);
     };
     let records = pairs
         .iter()
         .enumerate()
-        .map(|(i, (u, y))| {
-            from_arrays(u, y, ts, names.clone(), output_name.clone())
-                .map_err(|e| e.in_record(i + 1))
-        })
+        .map(|(i, (u, y))| read(u, y).map_err(|e| e.in_record(i + 1)))
         .collect::<Result<Vec<_>, _>>()?;
     Ok(Dataset::join(&records)?)
 }
