@@ -384,6 +384,15 @@ fn bridge_modes_reproduce_the_simulator_in_their_regime() {
     );
 }
 
+/// The runs a stage's termination counts record, whatever their ends.
+fn runs(ends: &serde_json::Value) -> u64 {
+    ends.as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum()
+}
+
 #[test]
 fn the_termination_of_every_stage_is_recorded_and_an_iteration_limit_reported() {
     let d = data(400, 3);
@@ -398,12 +407,7 @@ fn the_termination_of_every_stage_is_recorded_and_an_iteration_limit_reported() 
         "{t}"
     );
     assert_eq!(t["last_local_run"], "max_iterations", "{t}");
-    let lm: u64 = t["levenberg_marquardt"]
-        .as_object()
-        .unwrap()
-        .values()
-        .map(|v| v.as_u64().unwrap())
-        .sum();
+    let lm = runs(&t["levenberg_marquardt"]);
     // One LM run per start: starts = 2 in the segmented stage, 1 in the
     // free-run stage; one Nelder-Mead run (restarts = 1) per stage.
     assert_eq!(lm, 3, "{t}");
@@ -432,12 +436,7 @@ fn no_restarts_leave_levenberg_marquardt_alone() {
     let g = m.info().diagnostics.to_map();
     let t = &g["termination"];
     assert!(t.get("nelder_mead").is_none(), "{t}");
-    let lm: u64 = t["levenberg_marquardt"]
-        .as_object()
-        .unwrap()
-        .values()
-        .map(|v| v.as_u64().unwrap())
-        .sum();
+    let lm = runs(&t["levenberg_marquardt"]);
     assert_eq!(lm, 3, "{t}");
     // From the swarm's best point (segmented cost 0.64 on this record) to
     // a free run within 1e-4 of the output's variance.
