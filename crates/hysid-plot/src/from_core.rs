@@ -61,15 +61,16 @@ impl SimulationFigure {
     /// scored).
     pub fn with_warmup(mut self, warmup: usize) -> Self {
         let at = |k: usize| self.time.get(k).copied();
-        let starts = if self.record_starts.is_empty() {
-            vec![0]
+        let starts: &[usize] = if self.record_starts.is_empty() {
+            &[0]
         } else {
-            self.record_starts.clone()
+            &self.record_starts
         };
-        self.warm_ups = starts
-            .into_iter()
-            .filter_map(|k| Some((at(k)?, at(k + warmup)?)))
+        let warm_ups = starts
+            .iter()
+            .filter_map(|&k| Some((at(k)?, at(k + warmup)?)))
             .collect();
+        self.warm_ups = warm_ups;
         self
     }
 }
@@ -211,6 +212,9 @@ mod tests {
         assert!(fig.simulated[0].values[0].is_nan());
         assert_eq!(&fig.simulated[0].values[1..], &[0.4, 0.3, 0.6]);
         assert_eq!(fig.warm_ups, [(1.0, 1.02)]);
+        assert_eq!(fig.inputs.len(), 1);
+        crate::simulation_svg(&fig).unwrap();
+        assert_eq!(ModeSequence::from_simulation("m", &sim).modes, sim.modes);
         // Joined records: each record's warm-up is shaded.
         let joined = Dataset::join(&[data.clone(), data.clone()]).unwrap();
         let fig =
@@ -218,9 +222,6 @@ mod tests {
         assert_eq!(fig.record_starts, [0, 4]);
         assert_eq!(fig.warm_ups, [(1.0, 1.02), (1.04, 1.06)]);
         crate::simulation_svg(&fig).unwrap();
-        assert_eq!(fig.inputs.len(), 1);
-        crate::simulation_svg(&fig).unwrap();
-        assert_eq!(ModeSequence::from_simulation("m", &sim).modes, sim.modes);
 
         let model = PwarxModel {
             na: 1,
