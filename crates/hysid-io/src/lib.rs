@@ -29,8 +29,8 @@ pub fn save_model(model: &Model, path: &Path) -> Result<(), ModelError> {
 
 /// Reads every record, a file with its selection, and joins them in order
 /// into one dataset ([`Dataset::join`]); a record that cannot be joined to
-/// the first is [`DataError::NotJoined`], naming its file. One record is
-/// read as it is.
+/// the first is [`DataError::NotJoined`], naming its file. One record
+/// goes through the same checks (it holds a sample).
 pub fn load_records(records: &[(&Path, DataSelection)]) -> Result<Dataset, DataError> {
     let read = records
         .iter()

@@ -66,11 +66,10 @@ impl SimulationFigure {
         } else {
             &self.record_starts
         };
-        let warm_ups = starts
+        self.warm_ups = starts
             .iter()
             .filter_map(|&k| Some((at(k)?, at(k + warmup)?)))
             .collect();
-        self.warm_ups = warm_ups;
         self
     }
 }

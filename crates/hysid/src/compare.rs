@@ -323,10 +323,7 @@ impl Experiment {
             }
         }
         let read = |records: &[(&std::path::Path, _)]| {
-            load_records(records).map_err(|source| ExperimentError::Data {
-                path: data.file.display().to_string(),
-                source,
-            })
+            load_records(records).map_err(|source| ExperimentError::Data { source })
         };
         Ok((read(&ident)?, read(&valid)?))
     }

@@ -346,12 +346,11 @@ pub enum ExperimentError {
         /// Cause.
         source: std::io::Error,
     },
-    /// The data file could not be read as selected (the cause names the
-    /// file as resolved).
+    /// A record of the data (`[data] file` or a `[[data.records]]` file)
+    /// could not be read as selected, or joined to the first (the cause
+    /// names the file, as resolved, where it concerns one).
     #[error("[data] file: {source}")]
     Data {
-        /// Data file.
-        path: String,
         /// Cause.
         source: hysid_model::data::DataError,
     },
