@@ -11,6 +11,8 @@ use evalexpr::{DefaultNumericTypes, Node, Operator, Value};
 use std::collections::HashMap;
 use std::rc::Rc;
 
+mod derivative;
+
 /// Deepest evaluation stack an expression may need (checked at compile).
 pub const MAX_DEPTH: usize = 32;
 
@@ -1345,7 +1347,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn names(n: &str) -> Option<u32> {
+    pub(super) fn names(n: &str) -> Option<u32> {
         ["x", "y", "z"]
             .iter()
             .position(|s| *s == n)
@@ -1525,7 +1527,7 @@ mod tests {
     /// A random arithmetic tree, printed fully parenthesised, evaluates on
     /// the tape as the tree does directly.
     #[derive(Debug, Clone)]
-    enum Tree {
+    pub(super) enum Tree {
         Num(f64),
         Var(usize),
         Neg(Box<Tree>),
@@ -1534,7 +1536,7 @@ mod tests {
     }
 
     impl Tree {
-        fn text(&self) -> String {
+        pub(super) fn text(&self) -> String {
             match self {
                 Tree::Num(v) => format!("{v:?}"),
                 Tree::Var(i) => ["x", "y", "z"][*i].to_string(),
@@ -1548,7 +1550,7 @@ mod tests {
                 Tree::Min(a, b) => format!("min({}, {})", a.text(), b.text()),
             }
         }
-        fn value(&self, s: &[f64]) -> f64 {
+        pub(super) fn value(&self, s: &[f64]) -> f64 {
             match self {
                 Tree::Num(v) => *v,
                 Tree::Var(i) => s[*i],
@@ -1562,7 +1564,7 @@ mod tests {
         }
     }
 
-    fn tree() -> impl Strategy<Value = Tree> {
+    pub(super) fn tree() -> impl Strategy<Value = Tree> {
         let leaf = prop_oneof![
             (0.5f64..9.5).prop_map(Tree::Num),
             (0usize..3).prop_map(Tree::Var)
@@ -1581,7 +1583,7 @@ mod tests {
     }
 
     /// Slots `x, y, z`, then the definitions `a` and `b`.
-    fn with_definitions(n: &str) -> Option<u32> {
+    pub(super) fn with_definitions(n: &str) -> Option<u32> {
         ["x", "y", "z", "a", "b"]
             .iter()
             .position(|s| *s == n)
@@ -1589,7 +1591,7 @@ mod tests {
     }
 
     /// The definitions `texts` of the slots from 3 on (after `x, y, z`).
-    fn definitions(texts: &[&str]) -> Definitions {
+    pub(super) fn definitions(texts: &[&str]) -> Definitions {
         let written = texts
             .iter()
             .map(|d| Rc::new(Expression::compile(d, &with_definitions).unwrap()))
@@ -1600,7 +1602,7 @@ mod tests {
     /// `text` with the definitions `texts` (of the slots from 3 on) written
     /// out without registers, every use where it stands, by recursion: what
     /// the plain expansion of [`Expression::inline`] must give.
-    fn expanded_plainly(text: &str, texts: &[&str]) -> Expression {
+    pub(super) fn expanded_plainly(text: &str, texts: &[&str]) -> Expression {
         fn expand(out: &mut Vec<Op>, ops: &[Op], defs: &[Expression]) {
             for op in ops {
                 match *op {

@@ -1,0 +1,374 @@
+//! Exact first derivatives of a compiled expression: forward-mode
+//! differentiation through the postfix tape, each value on the stack (and
+//! in a register) carrying its tangents, the partial derivatives of the
+//! value in the slots asked for (Griewank & Walther, *Evaluating
+//! Derivatives*, 2nd ed., SIAM 2008, section 3.1).
+//!
+//! Where an expression is not differentiable (a comparison, `sign`, the
+//! branch of `if`, `min`, `max`, `clamp`, `abs` at 0, `%` at a jump), the
+//! derivative is the one of the branch the value takes: between the events
+//! of a simulation, where no branch changes, that is the derivative of the
+//! flow. A term whose tangent is zero is left out, so a partial derivative
+//! that is not finite in a direction the value does not depend on (`ln` of
+//! a negative base in `x^2`) does not spoil the others.
+
+use super::{Binary, Expression, Form, Function, MAX_DEPTH, Op, REGISTERS};
+
+impl Expression {
+    /// The value at `slots`, and in `gradient[i]` its partial derivative in
+    /// slot `wrt[i]` (see the module doc for the points where it is not
+    /// differentiable). `gradient` is filled up to the shorter of the two.
+    pub fn gradient(&self, slots: &[f64], wrt: &[u32], gradient: &mut [f64]) -> f64 {
+        gradient.fill(0.0);
+        let seed = |slot: u32, coefficient: f64, gradient: &mut [f64]| {
+            for (g, &w) in gradient.iter_mut().zip(wrt) {
+                if w == slot {
+                    *g += coefficient;
+                }
+            }
+        };
+        match &self.form {
+            Form::Constant(v) => *v,
+            Form::Slot(s) => {
+                seed(*s, 1.0, gradient);
+                slots[*s as usize]
+            }
+            Form::Affine(a) => {
+                for &(s, c) in &a.terms {
+                    seed(s, c, gradient);
+                }
+                a.eval(slots)
+            }
+            Form::Tape => tape_gradient(&self.ops, slots, wrt, gradient),
+        }
+    }
+}
+
+/// [`Expression::gradient`] of a postfix tape: the values on one stack,
+/// their tangents (`m = wrt.len()` each) on another.
+fn tape_gradient(ops: &[Op], slots: &[f64], wrt: &[u32], gradient: &mut [f64]) -> f64 {
+    let m = wrt.len();
+    let mut values = [0.0f64; MAX_DEPTH];
+    let mut registers = [0.0f64; REGISTERS];
+    let mut tangents = vec![0.0f64; (MAX_DEPTH + REGISTERS) * m];
+    let (stack, kept) = tangents.split_at_mut(MAX_DEPTH * m);
+    let mut sp = 0usize;
+    for op in ops {
+        match *op {
+            Op::Const(v) => {
+                values[sp] = v;
+                stack[sp * m..(sp + 1) * m].fill(0.0);
+                sp += 1;
+            }
+            Op::Load(s) => {
+                values[sp] = slots[s as usize];
+                for (t, &w) in stack[sp * m..(sp + 1) * m].iter_mut().zip(wrt) {
+                    *t = if w == s { 1.0 } else { 0.0 };
+                }
+                sp += 1;
+            }
+            Op::Neg => {
+                values[sp - 1] = -values[sp - 1];
+                for t in &mut stack[(sp - 1) * m..sp * m] {
+                    *t = -*t;
+                }
+            }
+            Op::Not => {
+                values[sp - 1] = if values[sp - 1] == 0.0 { 1.0 } else { 0.0 };
+                stack[(sp - 1) * m..sp * m].fill(0.0);
+            }
+            Op::Binary(b) => {
+                sp -= 1;
+                let (x, y) = (values[sp - 1], values[sp]);
+                let value = b.apply(x, y);
+                chain(stack, sp - 1, &b.partials(x, y, value), m);
+                values[sp - 1] = value;
+            }
+            Op::Call(f) => {
+                let k = f.arity();
+                sp -= k;
+                let args = &values[sp..sp + k];
+                let value = f.apply(args);
+                chain(stack, sp, &f.partials(args, value)[..k], m);
+                values[sp] = value;
+                sp += 1;
+            }
+            Op::Keep(r) => {
+                let r = r as usize;
+                registers[r] = values[sp - 1];
+                kept[r * m..(r + 1) * m].copy_from_slice(&stack[(sp - 1) * m..sp * m]);
+            }
+            Op::Recall(r) => {
+                let r = r as usize;
+                values[sp] = registers[r];
+                stack[sp * m..(sp + 1) * m].copy_from_slice(&kept[r * m..(r + 1) * m]);
+                sp += 1;
+            }
+        }
+    }
+    for (g, t) in gradient.iter_mut().zip(&stack[..m]) {
+        *g = *t;
+    }
+    values[0]
+}
+
+/// The tangents of the operands at stack positions `at..at + partials.len()`
+/// replaced, at `at`, by the chain rule `sum_j partials[j] tangent_j`; a
+/// zero tangent adds nothing, whatever its partial derivative.
+fn chain(stack: &mut [f64], at: usize, partials: &[f64], m: usize) {
+    for i in 0..m {
+        let mut total = 0.0;
+        for (j, p) in partials.iter().enumerate() {
+            let t = stack[(at + j) * m + i];
+            if t != 0.0 {
+                total += p * t;
+            }
+        }
+        stack[at * m + i] = total;
+    }
+}
+
+impl Binary {
+    /// `(d/dx, d/dy)` of `x op y`, whose value is `value`.
+    fn partials(self, x: f64, y: f64, value: f64) -> [f64; 2] {
+        match self {
+            Binary::Add => [1.0, 1.0],
+            Binary::Sub => [1.0, -1.0],
+            Binary::Mul => [y, x],
+            Binary::Div => [1.0 / y, -(x / y) / y],
+            // x % y = x - y trunc(x / y), the quotient constant between jumps.
+            Binary::Rem => [1.0, -(x / y).trunc()],
+            Binary::Pow => [
+                if y == 0.0 { 0.0 } else { y * x.powf(y - 1.0) },
+                if value == 0.0 { 0.0 } else { value * x.ln() },
+            ],
+            Binary::Lt
+            | Binary::Le
+            | Binary::Gt
+            | Binary::Ge
+            | Binary::Eq
+            | Binary::Ne
+            | Binary::And
+            | Binary::Or => [0.0, 0.0],
+        }
+    }
+}
+
+impl Function {
+    /// The partial derivatives of the function in its arguments `a` (the
+    /// first [`Function::arity`] entries), at the value `value`; the branch
+    /// taken for `min`, `max`, `clamp` and `if`, as [`Function::apply`]
+    /// takes it.
+    fn partials(self, a: &[f64], value: f64) -> [f64; 3] {
+        // `first.min(second)` is `first` unless `first` is NaN or larger.
+        let first_of_min = |x: f64, y: f64| !x.is_nan() && (y.is_nan() || x <= y);
+        let first_of_max = |x: f64, y: f64| !x.is_nan() && (y.is_nan() || x >= y);
+        let pick = |first: bool| {
+            if first {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 1.0, 0.0]
+            }
+        };
+        match self {
+            Function::Abs => [
+                if a[0] > 0.0 {
+                    1.0
+                } else if a[0] < 0.0 {
+                    -1.0
+                } else {
+                    0.0
+                },
+                0.0,
+                0.0,
+            ],
+            Function::Sign => [0.0; 3],
+            Function::Sqrt => [0.5 / value, 0.0, 0.0],
+            Function::Exp => [value, 0.0, 0.0],
+            Function::Ln => [1.0 / a[0], 0.0, 0.0],
+            Function::Sin => [a[0].cos(), 0.0, 0.0],
+            Function::Cos => [-a[0].sin(), 0.0, 0.0],
+            Function::Tan => [1.0 + value * value, 0.0, 0.0],
+            Function::Tanh => [1.0 - value * value, 0.0, 0.0],
+            Function::Atan => [1.0 / (1.0 + a[0] * a[0]), 0.0, 0.0],
+            Function::Min => pick(first_of_min(a[0], a[1])),
+            Function::Max => pick(first_of_max(a[0], a[1])),
+            Function::Atan2 => {
+                let r = a[0] * a[0] + a[1] * a[1];
+                [a[1] / r, -a[0] / r, 0.0]
+            }
+            // clamp(x, lo, hi) = min(max(x, lo), hi).
+            Function::Clamp => {
+                let low = a[0].max(a[1]);
+                if first_of_min(low, a[2]) {
+                    if first_of_max(a[0], a[1]) {
+                        [1.0, 0.0, 0.0]
+                    } else {
+                        [0.0, 1.0, 0.0]
+                    }
+                } else {
+                    [0.0, 0.0, 1.0]
+                }
+            }
+            Function::If => {
+                if a[0] != 0.0 {
+                    [0.0, 1.0, 0.0]
+                } else {
+                    [0.0, 0.0, 1.0]
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tests::{Tree, definitions, expanded_plainly, names, tree, with_definitions};
+    use super::*;
+    use proptest::prelude::*;
+
+    /// `gradient` in the slots `x, y, z`.
+    fn gradient_of(e: &Expression, s: &[f64]) -> (f64, [f64; 3]) {
+        let mut g = [0.0; 3];
+        let v = e.gradient(s, &[0, 1, 2], &mut g);
+        (v, g)
+    }
+
+    /// The derivative of a tree in variable `i`, by recursion over the tree
+    /// (the tape's rule for zero tangents included): the oracle of the
+    /// tape's forward mode.
+    fn tree_derivative(t: &Tree, s: &[f64], i: usize) -> f64 {
+        let term = |p: f64, d: f64| if d == 0.0 { 0.0 } else { p * d };
+        match t {
+            Tree::Num(_) => 0.0,
+            Tree::Var(j) => f64::from(u8::from(*j == i)),
+            Tree::Neg(a) => -tree_derivative(a, s, i),
+            Tree::Bin(o, a, b) => {
+                let (x, y) = (a.value(s), b.value(s));
+                let (dx, dy) = (tree_derivative(a, s, i), tree_derivative(b, s, i));
+                match o {
+                    0 => term(1.0, dx) + term(1.0, dy),
+                    1 => term(1.0, dx) + term(-1.0, dy),
+                    2 => term(y, dx) + term(x, dy),
+                    _ => term(1.0 / y, dx) + term(-(x / y) / y, dy),
+                }
+            }
+            Tree::Min(a, b) => {
+                let (x, y) = (a.value(s), b.value(s));
+                if !x.is_nan() && (y.is_nan() || x <= y) {
+                    tree_derivative(a, s, i)
+                } else {
+                    tree_derivative(b, s, i)
+                }
+            }
+        }
+    }
+
+    /// Equal to `1e-9` of their size, or both NaN.
+    fn close(a: f64, b: f64) -> bool {
+        a == b
+            || (a.is_nan() && b.is_nan())
+            || (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0)
+    }
+
+    #[test]
+    fn the_slots_asked_for_may_repeat_or_be_unread() {
+        let e = Expression::compile("x * y + sin(x)", &names).unwrap();
+        let mut g = [9.0; 4];
+        let v = e.gradient(&[0.5, 2.0, 7.0], &[2, 0, 1, 0], &mut g);
+        assert_eq!(v, 1.0 + 0.5f64.sin());
+        assert_eq!(g, [0.0, 2.0 + 0.5f64.cos(), 0.5, 2.0 + 0.5f64.cos()]);
+        // The affine, one-slot and constant forms.
+        for (text, expected) in [
+            ("2*x - y/4 + 3", [2.0, -0.25, 0.0]),
+            ("z", [0.0, 0.0, 1.0]),
+            ("sqrt(16)", [0.0; 3]),
+        ] {
+            let (_, g) = gradient_of(
+                &Expression::compile(text, &names).unwrap(),
+                &[1.0, 2.0, 3.0],
+            );
+            assert_eq!(g, expected, "{text}");
+        }
+        // The branch a kink takes: `abs` at 0, `min` on a tie, `if`.
+        let at = |text: &str, s: [f64; 3]| {
+            gradient_of(&Expression::compile(text, &names).unwrap(), &s).1
+        };
+        assert_eq!(at("abs(x)", [0.0, 0.0, 0.0]), [0.0; 3]);
+        assert_eq!(at("min(x, y)", [1.0, 1.0, 0.0]), [1.0, 0.0, 0.0]);
+        assert_eq!(at("if(x > y, y, z)", [1.0, 2.0, 0.0]), [0.0, 0.0, 1.0]);
+        // `ln` of a negative base does not reach a constant exponent.
+        assert_eq!(at("x^2", [-3.0, 0.0, 0.0]), [-6.0, 0.0, 0.0]);
+    }
+
+    proptest! {
+        /// Every operator and function against central finite differences
+        /// (relative `1e-6`), at points away from their kinks and poles.
+        #[test]
+        fn every_operator_and_function_matches_central_differences(
+            x in 0.5f64..2.0, y in 0.5f64..2.0, z in -2.0f64..-0.5,
+        ) {
+            let s = [x, y, z];
+            for text in [
+                "x + y - z", "x * y / z", "x % (y + 3)", "x ^ y", "z ^ 2", "-(x * z)",
+                "abs(z) * sign(z) + abs(x)", "sqrt(x * y)", "exp(x - y)", "ln(x + y)",
+                "sin(x * z)", "cos(y + z)", "tan(x / 4)", "tanh(x * z)", "atan(x * y)",
+                "min(x, y + 3) + max(z, -3)", "atan2(z, x)",
+                "clamp(x, 0, 5) + clamp(z, 0, 1) + clamp(y, 0, 0.25)",
+                "if(x > 0, y * z, x) + (x > 3) * y + !(z > 0) * x",
+                "(x < 3 && y > 0 || z > 0) * z + (x == 9) + (x != 9) * y",
+            ] {
+                let e = Expression::compile(text, &names).unwrap();
+                let (value, g) = gradient_of(&e, &s);
+                prop_assert_eq!(value.to_bits(), e.eval(&s).to_bits(), "{}", text);
+                for i in 0..3 {
+                    let h = 1e-6 * s[i].abs().max(1.0);
+                    let (mut up, mut down) = (s, s);
+                    up[i] += h;
+                    down[i] -= h;
+                    let fd = (e.eval(&up) - e.eval(&down)) / (2.0 * h);
+                    prop_assert!((g[i] - fd).abs() <= 1e-6 * g[i].abs().max(1.0),
+                        "{}: d/ds{} exact {} differences {}", text, i, g[i], fd);
+                }
+            }
+        }
+
+        /// A random arithmetic tree: the tape's forward mode gives the
+        /// derivative the tree gives by recursion, and the value `eval`
+        /// gives.
+        #[test]
+        fn the_tape_differentiates_as_the_tree(
+            t in tree(), s in proptest::collection::vec(-5.0f64..5.0, 3),
+        ) {
+            let e = Expression::compile(&t.text(), &names).unwrap();
+            let (value, g) = gradient_of(&e, &s);
+            prop_assert!(value.to_bits() == e.eval(&s).to_bits() || value.is_nan());
+            for (i, gi) in g.iter().enumerate() {
+                let oracle = tree_derivative(&t, &s, i);
+                prop_assert!(close(*gi, oracle), "{}: d/ds{} tape {} tree {}", t.text(), i, gi, oracle);
+            }
+        }
+
+        /// Definitions kept in registers give the derivatives, bit for bit,
+        /// of their plain expansion.
+        #[test]
+        fn kept_definitions_give_the_same_derivatives(
+            ta in tree(), tb in tree(), te in tree(),
+            s in proptest::collection::vec(-5.0f64..5.0, 3),
+        ) {
+            let (a, b) = (ta.text(), format!("({}) * a", tb.text()));
+            let text = format!("({}) + a * b - min(a, b)", te.text());
+            let kept = Expression::compile(&text, &with_definitions)
+                .unwrap()
+                .inline(&mut definitions(&[&a, &b]), usize::MAX);
+            prop_assume!(kept.is_ok());
+            let (kept, plain) = (kept.unwrap(), expanded_plainly(&text, &[&a, &b]));
+            let (_, gk) = gradient_of(&kept, &s);
+            let (_, gp) = gradient_of(&plain, &s);
+            for (k, p) in gk.iter().zip(&gp) {
+                prop_assert!(k.to_bits() == p.to_bits() || (k.is_nan() && p.is_nan()),
+                    "{}: kept {:?} plain {:?}", text, gk, gp);
+            }
+        }
+    }
+}
