@@ -187,8 +187,7 @@ fn equality_least_squares(
             e.column_mut(j).unscale_mut(c);
         }
     }
-    let sol = linalg::lstsq_equality(&phi, &y, &e, &f)
-        .map_err(|err| IdentifyError::failed(format!("least squares failed: {err}")))?;
+    let sol = linalg::lstsq_equality(&phi, &y, &e, &f).map_err(ArxError::LeastSquares)?;
     let mut theta: Vec<f64> = sol.theta.iter().zip(&scale).map(|(t, d)| t / d).collect();
     // Fixed values come back exactly as given.
     for (name, value) in &data.priors().fixed {
@@ -257,19 +256,17 @@ fn box_least_squares(
             weights: None,
         }],
     )
-    .map_err(|err| IdentifyError::failed(format!("bounded least squares failed: {err}")))?;
-    fitted
-        .into_iter()
-        .next()
-        .ok_or_else(|| IdentifyError::failed("bounded least squares returned no mode"))
+    .map_err(ArxError::BoundedLeastSquares)?;
+    Ok(fitted.into_iter().next().ok_or(ArxError::NoMode)?)
 }
 
 fn rmse(reg: &Regressors, theta: &[f64]) -> f64 {
     (reg.phi() * DVector::from_column_slice(theta) - &reg.y).norm() / (reg.len() as f64).sqrt()
 }
 
-/// Bad input of the `arx` back-end (an [`IdentifyError::Input`]).
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+/// What the `arx` back-end refuses (an [`IdentifyError::Input`]) or fails
+/// at (an [`IdentifyError::Failed`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ArxError {
     /// A `modes` prior asking for other than one ordinary mode.
     #[error(
@@ -295,11 +292,25 @@ pub enum ArxError {
         /// Free parameters.
         free: usize,
     },
+    /// The equality-constrained least squares failed.
+    #[error("least squares failed: {0}")]
+    LeastSquares(linalg::LinalgError),
+    /// The least squares under the priors' bounds failed.
+    #[error("bounded least squares failed: {0}")]
+    BoundedLeastSquares(constrained::EstimationError),
+    /// The least squares under the priors' bounds returned no mode.
+    #[error("bounded least squares returned no mode")]
+    NoMode,
 }
 
 impl From<ArxError> for IdentifyError {
+    /// The mode count and the sample count are the input's; the least
+    /// squares', the method's.
     fn from(e: ArxError) -> Self {
-        IdentifyError::input(e)
+        match e {
+            ArxError::ModeCount { .. } | ArxError::TooFewSamples { .. } => IdentifyError::input(e),
+            e => IdentifyError::failed(e),
+        }
     }
 }
 

@@ -279,9 +279,8 @@ pub fn mode_priors(
     reg: &Regressors,
     par: &Parametrisation,
 ) -> Result<Vec<ModePrior>, IdentifyError> {
-    let priors = black_box_priors(reg, par, options.prior_std).ok_or_else(|| {
-        IdentifyError::failed("the affine least-squares fit the prior is centred on failed")
-    })?;
+    let priors =
+        black_box_priors(reg, par, options.prior_std).ok_or(BayesError::AffineFitFailed)?;
     if options.posterior == Posterior::Gaussian && priors.iter().any(ModePrior::is_truncated) {
         return Err(BayesError::BoundsNeedParticles.into());
     }
@@ -608,13 +607,17 @@ pub enum BayesError {
         "option posterior=gaussian cannot honour [bounds] (a truncated Gaussian is not Gaussian): use posterior=particles"
     )]
     BoundsNeedParticles,
+    /// The affine least-squares fit the black-box prior is centred on
+    /// failed.
+    #[error("the affine least-squares fit the prior is centred on failed")]
+    AffineFitFailed,
 }
 
 impl From<BayesError> for IdentifyError {
     fn from(e: BayesError) -> Self {
         match e {
             BayesError::BoundsNeedParticles => IdentifyError::input(e),
-            e => IdentifyError::failed(e.to_string()),
+            e => IdentifyError::failed(e),
         }
     }
 }

@@ -16,7 +16,9 @@ use crate::samples::Samples;
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
-use hysid_estimation::regions::{AlternationReport, AlternationSettings, Partition, RegionOptions};
+use hysid_estimation::regions::{
+    AlternationReport, AlternationSettings, Partition, RegionFailure, RegionOptions,
+};
 use hysid_model::model::{PwarxMode, RunStatus};
 use hysid_model::regressors::Regressors;
 use nalgebra::DMatrix;
@@ -145,7 +147,7 @@ pub fn classify(
     let reg = data.ordinary_regressors();
     let samples = Samples::from_regressors(&reg);
     let settings = procedure_settings(options, data, &reg, ctx)?;
-    let classification = procedure::run(&samples, &settings).map_err(procedure_error)?;
+    let classification = procedure::run(&samples, &settings).map_err(BoundedError::Procedure)?;
     Ok(Classified {
         classification,
         samples,
@@ -195,7 +197,7 @@ pub fn alternate_classification(
     let out = hysid_estimation::regions::alternate(&x, &s.y, labels, modes, &settings, |labels| {
         constraints
             .least_squares_modes(s, &groups(labels, modes))
-            .ok_or_else(|| IdentifyError::failed("alternation: the least squares of a mode failed"))
+            .ok_or_else(|| BoundedError::AlternationLeastSquares.into())
     })?;
     let report = AlternationReport::from(&out);
     c.labels = out.labels.into_iter().map(Some).collect();
@@ -301,19 +303,6 @@ fn mode_counts(
     Ok((max_modes, exact))
 }
 
-/// Too few samples and a failed tie projection are the data's fault; no
-/// mode within delta, or fewer modes than the priors ask, the method's.
-fn procedure_error(e: ProcedureError) -> IdentifyError {
-    match e {
-        ProcedureError::TooFewSamples { .. } | ProcedureError::Setting(_) => {
-            BoundedError::Procedure(e).into()
-        }
-        ProcedureError::TooFewModes { .. } | ProcedureError::NoMode { .. } => {
-            IdentifyError::failed(e.to_string())
-        }
-    }
-}
-
 /// Step 4: the regions from the labelled samples (`hysid_estimation::regions`, the
 /// method of option `regions`; normals restricted to the `switching`
 /// regressors).
@@ -332,7 +321,7 @@ pub fn estimate_regions(
         ..Default::default()
     };
     hysid_estimation::regions::estimate(&rows, &labels, c.thetas.len(), &region_options)
-        .map_err(|e| IdentifyError::failed(format!("regions: {e}")))
+        .map_err(|e| IdentifyError::failed(RegionFailure::Estimate(e)))
 }
 
 /// How the run ended: cut short by the time budget or not, and the
@@ -399,7 +388,8 @@ fn diagnostics(
     }
 }
 
-/// Bad input of the `bounded` back-end (an [`IdentifyError::Input`]).
+/// What the `bounded` back-end refuses (an [`IdentifyError::Input`]) or
+/// fails at (an [`IdentifyError::Failed`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum BoundedError {
     /// A `modes` prior above the option `max_modes`.
@@ -413,10 +403,22 @@ pub enum BoundedError {
     /// The record or a setting does not allow the procedure.
     #[error(transparent)]
     Procedure(procedure::ProcedureError),
+    /// The least squares of a mode failed inside the alternation.
+    #[error("alternation: the least squares of a mode failed")]
+    AlternationLeastSquares,
 }
 
 impl From<BoundedError> for IdentifyError {
+    /// Too few samples and a failed tie projection are the data's fault;
+    /// no mode within delta, fewer modes than the priors ask, or a failed
+    /// least squares, the method's.
     fn from(e: BoundedError) -> Self {
-        IdentifyError::input(e)
+        match e {
+            BoundedError::ModesExceedBound { .. }
+            | BoundedError::Procedure(
+                ProcedureError::TooFewSamples { .. } | ProcedureError::Setting(_),
+            ) => IdentifyError::input(e),
+            e => IdentifyError::failed(e),
+        }
     }
 }

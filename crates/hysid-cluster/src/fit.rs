@@ -32,7 +32,7 @@ use hysid_core::backend::{Deadline, IdentifyError, RunContext};
 use hysid_core::options::OptionError;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 pub use hysid_estimation::regions::AlternationReport;
-use hysid_estimation::regions::AlternationSettings;
+use hysid_estimation::regions::{AlternationSettings, RegionFailure};
 use hysid_model::data::Standardization;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{ModelInfo, PwarxMode, PwarxModel, RunStatus, region_of};
@@ -361,9 +361,7 @@ fn choose_c(
 fn check_sample_count(work: &Working, modes: usize) -> Result<(), IdentifyError> {
     let (n, big_n) = (work.n, work.y.len());
     if u32::try_from(big_n).is_err() {
-        return Err(IdentifyError::failed(format!(
-            "{big_n} samples: the local datasets index at most 2^32 - 1 (use a subset of the rows)"
-        )));
+        return Err(ClusterError::TooManySamples { samples: big_n }.into());
     }
     if modes.checked_mul(n + 1).is_none_or(|need| big_n < need) {
         return Err(IdentifyError::TooFewRegressors {
@@ -434,7 +432,7 @@ fn cluster_features(
     };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     procedure::run_with(&work.x, work.n, &work.y, &settings, &mut rng, prior_fit)
-        .map_err(|e| IdentifyError::failed(e.to_string()))
+        .map_err(|e| ClusterError::Procedure(e).into())
 }
 
 /// `modes = S` is exact (`docs/priors.md`): fewer modes (clusters under the
@@ -449,19 +447,24 @@ fn check_modes_found(
     let found = fit.theta.len();
     let discard_size = fit.diagnostics.discard_size;
     if found < modes {
-        return Err(IdentifyError::failed(format!(
-            "exactly {s} modes were asked for, but only {found} of the {modes} clusters kept at least {discard_size} \
-             points (the discard size max(c, discard (n+1)), c = {c}): lower c, set discard=0, or give \
-             max_modes = {s} to allow fewer modes"
-        )));
+        return Err(ClusterError::FewerModesFound {
+            asked: s,
+            found,
+            clusters: modes,
+            discard_size,
+            c,
+        }
+        .into());
     }
     if found > modes {
-        return Err(IdentifyError::failed(format!(
-            "exactly {s} modes were asked for, but {found} clusters of at least {discard_size} points are \
-             left (single linkage with sl_distance = {}): raise sl_distance, or leave it unset to \
-             cut the tree into {modes} clusters",
-            o.sl_distance.map_or("none".into(), |t| t.to_string())
-        )));
+        return Err(ClusterError::MoreModesFound {
+            asked: s,
+            found,
+            clusters: modes,
+            discard_size,
+            sl_distance: o.sl_distance,
+        }
+        .into());
     }
     Ok(())
 }
@@ -502,7 +505,7 @@ fn alternate_partition(
             weights,
             prior_fit,
         )
-        .map_err(|e| IdentifyError::failed(e.to_string()))
+        .map_err(|e| ClusterError::Procedure(e).into())
     };
     let out = hysid_estimation::regions::alternate(
         &work.xs,
@@ -558,7 +561,7 @@ fn estimate_regions(
         ..Default::default()
     };
     let part = hysid_estimation::regions::estimate(&work.xs, &fit.labels, modes, &options)
-        .map_err(|e| IdentifyError::failed(format!("region estimation: {e}")))?;
+        .map_err(|e| IdentifyError::failed(RegionFailure::Estimate(e)))?;
     Ok(Regions {
         polyhedra: part.regions,
         training_accuracy: part.training_accuracy,
@@ -601,7 +604,7 @@ fn refit_on_regions(
             weights,
             prior_fit,
         )
-        .map_err(|e| IdentifyError::failed(e.to_string()))?;
+        .map_err(ClusterError::Procedure)?;
         fit.theta = refit.working;
         fit.theta_original = refit.original;
     }

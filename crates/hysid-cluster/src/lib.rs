@@ -35,6 +35,7 @@
 //! ([`priors`]);
 //! `switching` (region normals restricted to the chosen regressors).
 
+mod error;
 pub mod fit;
 pub mod kmeans;
 pub mod knn;
@@ -42,6 +43,7 @@ pub mod local;
 pub mod priors;
 pub mod procedure;
 
+pub use error::ClusterError;
 pub use fit::{ClusterDiagnostics, default_c, fit};
 
 use hysid_core::backend::{IdentifyError, Problem, RunContext};
@@ -275,57 +277,6 @@ impl PwarxMethod for Cluster {
     ) -> Result<PwarxFit<ClusterDiagnostics>, IdentifyError> {
         let modes = data.exact_modes(Self::NAME)? + data.stops();
         fit(options, data, modes, ctx)
-    }
-}
-
-/// Bad input of the `cluster` back-end (an [`IdentifyError::Input`]).
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum ClusterError {
-    /// A mode count of zero.
-    #[error("the number of modes must be at least 1")]
-    NoMode,
-    /// A mode count that leaves no ordinary mode beside the stops.
-    #[error(
-        "{modes} mode(s) requested, but the mode count includes the {stops} saturation mode(s) of the priors: \
-         need at least {} for one ordinary mode",
-        .stops + 1
-    )]
-    NoOrdinaryMode {
-        /// Modes requested, stops included.
-        modes: usize,
-        /// Known stops.
-        stops: usize,
-    },
-    /// Orders giving no regressor.
-    #[error("method 'cluster' needs at least one regressor (na + nb > 0)")]
-    NoRegressor,
-    /// Too many regressors for the local datasets.
-    #[error("method 'cluster' supports regressors of dimension up to {max}, got {dim}")]
-    Dimension {
-        /// Regressor dimension.
-        dim: usize,
-        /// Largest supported.
-        max: usize,
-    },
-    /// Fewer samples than the automatic local dataset size.
-    #[error(
-        "{samples} samples (regressors) are too few: method 'cluster' needs local datasets of at \
-         least n+2 = {} samples (n = {n} parameters besides the constant; automatic c = {c})",
-        .n + 2
-    )]
-    TooFewForLocalDatasets {
-        /// Ordinary samples.
-        samples: usize,
-        /// Regressor dimension.
-        n: usize,
-        /// The automatic local dataset size.
-        c: usize,
-    },
-}
-
-impl From<ClusterError> for IdentifyError {
-    fn from(e: ClusterError) -> Self {
-        IdentifyError::input(e)
     }
 }
 

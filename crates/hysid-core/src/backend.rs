@@ -260,13 +260,15 @@ pub enum IdentifyError {
     /// (`ArxError`, `ClusterError`, ...), reached with `downcast_ref`.
     #[error(transparent)]
     Input(Box<dyn std::error::Error + Send + Sync>),
-    /// The method ran and failed (solver failure, every restart diverged...).
-    #[error("{method}: {message}")]
+    /// The method ran and failed (solver failure, every restart diverged...):
+    /// the back-end's or the shared step's own typed error, reached with
+    /// [`IdentifyError::downcast_ref`].
+    #[error("{method}: {cause}")]
     Failed {
         /// Back-end (filled in by [`Backend::run`]).
         method: &'static str,
-        /// What happened.
-        message: String,
+        /// What failed.
+        cause: Box<dyn std::error::Error + Send + Sync>,
     },
 }
 
@@ -296,13 +298,14 @@ impl IdentifyError {
         }
     }
 
-    /// The back-end's own error inside [`IdentifyError::Input`] or
-    /// [`IdentifyError::PriorMismatch`], if it is an `E`.
+    /// The back-end's own error inside [`IdentifyError::Input`],
+    /// [`IdentifyError::PriorMismatch`] or [`IdentifyError::Failed`], if it
+    /// is an `E`.
     pub fn downcast_ref<E: std::error::Error + 'static>(&self) -> Option<&E> {
         match self {
-            IdentifyError::Input(e) | IdentifyError::PriorMismatch { problem: e, .. } => {
-                e.downcast_ref()
-            }
+            IdentifyError::Input(e)
+            | IdentifyError::PriorMismatch { problem: e, .. }
+            | IdentifyError::Failed { cause: e, .. } => e.downcast_ref(),
             _ => None,
         }
     }
@@ -320,11 +323,12 @@ impl IdentifyError {
         )
     }
 
-    /// A failure of the method itself; [`Backend::run`] names the method.
-    pub fn failed(message: impl Into<String>) -> Self {
+    /// A failure of the method itself, its typed cause; [`Backend::run`]
+    /// names the method.
+    pub fn failed(cause: impl std::error::Error + Send + Sync + 'static) -> Self {
         IdentifyError::Failed {
             method: "",
-            message: message.into(),
+            cause: Box::new(cause),
         }
     }
 
@@ -332,12 +336,9 @@ impl IdentifyError {
     /// for callers of [`Identifier::identify`] outside it).
     pub fn of_method(self, name: &'static str) -> Self {
         match self {
-            IdentifyError::Failed {
-                method: "",
-                message,
-            } => IdentifyError::Failed {
+            IdentifyError::Failed { method: "", cause } => IdentifyError::Failed {
                 method: name,
-                message,
+                cause,
             },
             other => other,
         }
@@ -670,12 +671,9 @@ mod tests {
         assert!(!e.is_setup_error());
         let e = IdentifyError::input(Unknown);
         assert_eq!(e.to_string(), "[fixed]: unknown name 'a9'");
-        assert!(
-            IdentifyError::failed("diverged")
-                .of_method("arx")
-                .to_string()
-                == "arx: diverged"
-        );
+        let e = IdentifyError::failed(Unknown).of_method("arx");
+        assert_eq!(e.to_string(), "arx: [fixed]: unknown name 'a9'");
+        assert!(e.downcast_ref::<Unknown>().is_some() && !e.is_bad_input());
     }
 
     #[test]

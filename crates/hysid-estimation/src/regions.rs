@@ -61,8 +61,8 @@ pub use alternation::{
 };
 pub use hysid_model::geometry::argmax_regions;
 pub use options::{
-    DEFAULT_MAX_POINTS, Partition, RegionError, RegionMethod, RegionOptions, SoftmaxSettings,
-    SolveStats,
+    DEFAULT_MAX_POINTS, Partition, RegionError, RegionFailure, RegionMethod, RegionOptions,
+    SoftmaxSettings, SolveStats,
 };
 
 mod adjacency;
@@ -184,7 +184,7 @@ pub fn for_pwarx(
         ..Default::default()
     };
     estimate(&reg.x, labels, modes, &options)
-        .map_err(|e| hysid_core::backend::IdentifyError::failed(format!("regions: {e}")))
+        .map_err(|e| hysid_core::backend::IdentifyError::failed(RegionFailure::Estimate(e)))
 }
 
 /// `wg` holds per mode `[w (p); g]` on standardised selected columns, with

@@ -318,7 +318,7 @@ impl From<KLinRegError> for IdentifyError {
     fn from(e: KLinRegError) -> Self {
         match e {
             KLinRegError::TooFewSamples { .. } => IdentifyError::input(e),
-            e => IdentifyError::failed(e.to_string()),
+            e => IdentifyError::failed(e),
         }
     }
 }

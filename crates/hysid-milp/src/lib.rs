@@ -274,7 +274,7 @@ fn parametrisation(data: &PwarxData<'_>, modes: usize) -> Result<Parametrisation
 fn program_error(e: ProgramError) -> IdentifyError {
     match e {
         ProgramError::OutsideBox { .. } => IdentifyError::input(e),
-        e => IdentifyError::failed(e.to_string()),
+        e => IdentifyError::failed(e),
     }
 }
 

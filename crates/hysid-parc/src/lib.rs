@@ -228,14 +228,29 @@ pub enum ParcError {
     },
     /// The local least squares failed.
     #[error("local models: {0}")]
-    LocalModels(String),
+    LocalModels(hysid_estimation::constrained::EstimationError),
+    /// Every cluster fell below `min_number` samples.
+    #[error("local models: every cluster has fewer than min_number = {min_number} samples")]
+    EveryClusterTooSmall {
+        /// The option's value.
+        min_number: usize,
+    },
+    /// Every cell of the separator's partition fell below `min_number`
+    /// samples.
+    #[error(
+        "local models: every cell of the partition has fewer than min_number = {min_number} samples"
+    )]
+    EveryCellTooSmall {
+        /// The option's value.
+        min_number: usize,
+    },
     /// The separator could not be fitted.
     #[error("separator: {0}")]
-    Separator(String),
+    Separator(hysid_estimation::regions::RegionError),
 }
 
 impl From<ParcError> for IdentifyError {
     fn from(e: ParcError) -> Self {
-        IdentifyError::failed(e.to_string())
+        IdentifyError::failed(e)
     }
 }

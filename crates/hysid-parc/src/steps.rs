@@ -201,8 +201,7 @@ pub fn fit_local_models(
     {
         return Ok(thetas);
     }
-    fit_modes_on(&par, reg, &clusters.members())
-        .map_err(|e| ParcError::LocalModels(e.to_string()).into())
+    fit_modes_on(&par, reg, &clusters.members()).map_err(|e| ParcError::LocalModels(e).into())
 }
 
 /// Step 2: the separator, a multinomial logistic regression of the
@@ -237,7 +236,7 @@ pub fn fit_separator(
     };
     hysid_estimation::regions::estimate(&x, &labels, live, &region_options)
         .map(|p| p.scores)
-        .map_err(|e| ParcError::Separator(e.to_string()).into())
+        .map_err(|e| ParcError::Separator(e).into())
 }
 
 fn score(f: &[f64], x: &[f64]) -> f64 {
@@ -314,10 +313,7 @@ pub fn finish(
     let min_number = options.min_number.unwrap_or(d + 1);
     drop_small(&mut clusters, min_number);
     if clusters.live() == 0 {
-        return Err(ParcError::LocalModels(format!(
-            "every cluster has fewer than min_number = {min_number} samples"
-        ))
-        .into());
+        return Err(ParcError::EveryClusterTooSmall { min_number }.into());
     }
     let mut scores = fit_separator(options, data, reg, &clusters, None)?;
     if options.fit_on_partition {
@@ -342,10 +338,7 @@ pub fn finish(
             .filter(|&j| sizes[j] >= min_number)
             .collect();
         if kept.is_empty() {
-            return Err(ParcError::LocalModels(format!(
-                "every cell of the partition has fewer than min_number = {min_number} samples"
-            ))
-            .into());
+            return Err(ParcError::EveryCellTooSmall { min_number }.into());
         }
         for l in clusters.labels.iter_mut() {
             *l = l.and_then(|q| kept.iter().position(|&j| j == q));

@@ -12,7 +12,7 @@ use crate::local::{LocalResult, local_stages};
 use crate::objective::{FAILED, Objective, simulation_mse, velocity_tolerances};
 use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
-use crate::stages::{Search, StageLog};
+use crate::stages::{Search, SearchFailure, StageLog};
 use crate::swarm::global_stage;
 use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
@@ -86,9 +86,9 @@ pub fn fit_model<M: Target>(
     let cost = kept.cost;
     let evaluations = evals.load(Ordering::Relaxed);
     if cost >= FAILED {
-        return Err(IdentifyError::failed(format!(
-            "every candidate simulation failed or diverged ({evaluations} simulations): the model cannot follow this record"
-        )));
+        return Err(IdentifyError::failed(SearchFailure::EveryCandidateFailed {
+            evaluations,
+        }));
     }
     let sens = sensitivity(&model, &map, &values, &records, options.fd_step);
     let identifiability =
@@ -190,7 +190,7 @@ fn best_search(
             best = Some(run);
         }
     }
-    best.ok_or_else(|| IdentifyError::failed("no search ran"))
+    best.ok_or_else(|| IdentifyError::failed(SearchFailure::NoSearch))
 }
 
 /// Search number `index` of [`best_search`], on `seed`, reporting to

@@ -3,7 +3,7 @@
 //! on the segmented simulation error (when enabled), then on the free-run
 //! one.
 
-use crate::stages::{Search, Stage, StageLog, Termination};
+use crate::stages::{Search, SearchFailure, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use hysid_core::backend::IdentifyError;
@@ -166,7 +166,7 @@ fn nelder_mead(
 ) -> Result<(Termination, Option<Vec<f64>>), IdentifyError> {
     let nm: NelderMead<Vec<f64>, f64> = NelderMead::new(simplex(z, search.options.simplex))
         .with_sd_tolerance(1e-12)
-        .map_err(|e| IdentifyError::failed(format!("Nelder-Mead: {e}")))?;
+        .map_err(|e| SearchFailure::solver(Stage::NelderMead, e))?;
     let mut ex = Executor::new(search.problem(segment), nm)
         .configure(|s| s.max_iters(search.options.local_iters as u64));
     if let Some(t) = search.timeout() {
@@ -174,7 +174,7 @@ fn nelder_mead(
     }
     let res = ex
         .run()
-        .map_err(|e| IdentifyError::failed(format!("Nelder-Mead: {e}")))?;
+        .map_err(|e| SearchFailure::solver(Stage::NelderMead, e))?;
     let st = res.state();
     let best = st
         .get_best_param()

@@ -5,7 +5,7 @@
 use crate::PhysicalOptions;
 use crate::objective::{Objective, SimulationCost};
 use argmin::core::TerminationReason;
-use hysid_core::backend::RunContext;
+use hysid_core::backend::{IdentifyError, RunContext};
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicU64;
 use std::time::Duration;
@@ -75,6 +75,41 @@ impl Stage {
             Stage::LevenbergMarquardt => "Levenberg-Marquardt",
             Stage::NelderMead => "Nelder-Mead",
         }
+    }
+}
+
+/// A search that ran and failed, carried by
+/// [`hysid_core::backend::IdentifyError::Failed`].
+#[derive(Debug, thiserror::Error)]
+pub enum SearchFailure {
+    /// argmin's solver of a stage returned an error.
+    #[error("{}: {cause}", .stage.name())]
+    Solver {
+        /// The stage.
+        stage: Stage,
+        /// argmin's error.
+        cause: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// Every simulation of the search failed or diverged.
+    #[error(
+        "every candidate simulation failed or diverged ({evaluations} simulations): the model cannot follow this record"
+    )]
+    EveryCandidateFailed {
+        /// Simulations run.
+        evaluations: u64,
+    },
+    /// No search ran (no swarm asked for).
+    #[error("no search ran")]
+    NoSearch,
+}
+
+impl SearchFailure {
+    /// The failure of `stage`'s argmin solver.
+    pub fn solver(stage: Stage, cause: argmin::core::Error) -> IdentifyError {
+        IdentifyError::failed(SearchFailure::Solver {
+            stage,
+            cause: cause.into(),
+        })
     }
 }
 

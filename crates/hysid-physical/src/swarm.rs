@@ -2,7 +2,7 @@
 //! the segmented simulation error (the free-run one with `segment=0`) in
 //! the box `[0, 1]^d`, seeded with `ChaCha8Rng::seed_from_u64(seed)`.
 
-use crate::stages::{Search, Stage, StageLog, Termination};
+use crate::stages::{Search, SearchFailure, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::particleswarm::{Particle, ParticleSwarm};
 use hysid_core::backend::IdentifyError;
@@ -55,7 +55,7 @@ pub fn global_stage(
     }
     let res = ex
         .run()
-        .map_err(|e| IdentifyError::failed(format!("particle swarm: {e}")))?;
+        .map_err(|e| SearchFailure::solver(Stage::ParticleSwarm, e))?;
     progress.finish();
     let state = res.state();
     log.particle_swarm = Some(Termination::of_argmin(state.get_termination_reason()));

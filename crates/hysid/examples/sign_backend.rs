@@ -124,7 +124,7 @@ fn least_squares(
 ) -> Result<Vec<Vec<f64>>, IdentifyError> {
     let par = Parametrisation::from_priors(data.priors(), &data.spec, 2)
         .map_err(|e| data.prior_error(e))?;
-    fit_modes_on(&par, &data.regressors, split).map_err(|e| IdentifyError::failed(e.to_string()))
+    fit_modes_on(&par, &data.regressors, split).map_err(IdentifyError::failed)
 }
 
 /// `u1(k-1) <= threshold` and `u1(k-1) >= threshold` as polyhedra.

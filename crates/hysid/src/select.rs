@@ -708,9 +708,15 @@ fn refit(
             Ok((model, record))
         }
         // The first start always runs, so without a model there is an error.
-        None => Err(first_error.unwrap_or_else(|| IdentifyError::failed("no refit start ran"))),
+        None => Err(first_error.unwrap_or_else(|| IdentifyError::failed(NoRefitStart))),
     }
 }
+
+/// The refit of a choice ran no start (the first always runs: a refit
+/// asked for zero starts).
+#[derive(Debug, thiserror::Error)]
+#[error("no refit start ran")]
+pub struct NoRefitStart;
 
 /// A model's free-run FIT on `data`, percent; `None` when its simulation
 /// fails or is not finite.

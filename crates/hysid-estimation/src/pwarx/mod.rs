@@ -26,6 +26,7 @@
 //! [`Identifier`] (one registration line: `.with(Pwarx(Method))`).
 
 pub mod assemble;
+mod failure;
 pub mod mode_count;
 pub mod prepare;
 pub mod refine;
@@ -34,6 +35,7 @@ pub mod standardize;
 pub mod trim;
 
 pub use assemble::{PwarxFit, assemble};
+pub use failure::PwarxFailure;
 pub use prepare::{
     ModeCount, PwarxData, UnknownName, check_names, prepare, saturated_samples, stop_at,
 };

@@ -8,6 +8,7 @@
 //! recorded in the model's diagnostics as `mode_choice`, pairs of the
 //! count and its hold-out FIT.
 
+use super::failure::PwarxFailure;
 use super::prepare::PwarxData;
 use crate::parsimony;
 use hysid_core::backend::{IdentifyError, NoProgress, Problem, RunContext};
@@ -81,10 +82,9 @@ pub fn choose(
     }
     ctx.progress.finish();
     let best = simplest(&scored, problem.orders.na).ok_or_else(|| {
-        IdentifyError::failed(format!(
-            "no mode count in 1..={} could be identified and simulated on the hold-out part",
-            data.stops() + max
-        ))
+        IdentifyError::failed(PwarxFailure::NoModeCount {
+            max: data.stops() + max,
+        })
     })?;
     let priors = with_modes(problem.priors, best);
     let chosen = Problem {

@@ -3,6 +3,7 @@
 //! simulation-error refinement ([`super::refine`]).
 
 use super::assemble::{PwarxFit, with_stops};
+use super::failure::PwarxFailure;
 use super::prepare::{PwarxData, prepare};
 use hysid_core::backend::{Deadline, IdentifyError, Problem};
 use hysid_core::model::Model;
@@ -36,21 +37,18 @@ pub fn refine_fitted(
     let data = prepare(problem, method)?;
     let mut pwarx = match fitted {
         Model::Pwarx(p) => p,
-        Model::HybridAutomaton(a) => a.ordinary_pwarx().ok_or_else(|| {
-            IdentifyError::failed("refinement: the automaton was not built from a PWARX model")
-        })?,
+        Model::HybridAutomaton(a) => a
+            .ordinary_pwarx()
+            .ok_or_else(|| IdentifyError::failed(PwarxFailure::AutomatonNotPwarx))?,
         other => {
-            return Err(IdentifyError::failed(format!(
-                "refinement: a {} model is not a PWARX fit",
-                other.kind()
-            )));
+            return Err(IdentifyError::failed(PwarxFailure::NotPwarx {
+                kind: other.kind(),
+            }));
         }
     };
     let diagnostics = &mut pwarx.info.diagnostics;
     if diagnostics.refinement.is_some() {
-        return Err(IdentifyError::failed(
-            "refinement: the model was refined when it was fitted",
-        ));
+        return Err(IdentifyError::failed(PwarxFailure::AlreadyRefined));
     }
     let fit = PwarxFit {
         modes: std::mem::take(&mut pwarx.modes),

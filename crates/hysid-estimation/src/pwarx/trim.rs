@@ -31,6 +31,7 @@
 
 use crate::constrained::{self, Parametrisation};
 use crate::pwarx::assemble::PwarxFit;
+use crate::pwarx::failure::PwarxFailure;
 use crate::pwarx::prepare::PwarxData;
 use hysid_core::backend::IdentifyError;
 use hysid_model::model::{PwarxMode, Trimming, TrimmingStatus, region_of};
@@ -72,7 +73,7 @@ pub fn trim<D>(
             break;
         }
         thetas = constrained::fit_modes_on(&par, &reg, &kept)
-            .map_err(|e| IdentifyError::failed(format!("trimmed re-estimation: {e}")))?;
+            .map_err(|e| IdentifyError::failed(PwarxFailure::Trim(e)))?;
         used = Some(kept);
         rounds += 1;
     }

@@ -41,7 +41,7 @@
 //! mode (`docs/cluster.md`).
 
 use crate::regions::estimate;
-use crate::regions::options::{RegionMethod, RegionOptions, SoftmaxSettings};
+use crate::regions::options::{RegionFailure, RegionMethod, RegionOptions, SoftmaxSettings};
 use hysid_core::backend::{Deadline, IdentifyError};
 use nalgebra::DMatrix;
 
@@ -258,7 +258,7 @@ fn fit_gate(
         ..RegionOptions::default()
     };
     let partition = estimate(x, labels, modes, &options)
-        .map_err(|e| IdentifyError::failed(format!("alternation gate: {e}")))?;
+        .map_err(|e| IdentifyError::failed(RegionFailure::Gate(e)))?;
     Ok(partition.scores)
 }
 

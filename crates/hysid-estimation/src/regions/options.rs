@@ -162,6 +162,18 @@ pub struct Partition {
     pub stats: SolveStats,
 }
 
+/// A region estimation that ran inside a method and failed, carried by
+/// [`hysid_core::backend::IdentifyError::Failed`].
+#[derive(Debug, thiserror::Error)]
+pub enum RegionFailure {
+    /// The regions of the modes' samples.
+    #[error("regions: {0}")]
+    Estimate(RegionError),
+    /// The gate of the alternation.
+    #[error("alternation gate: {0}")]
+    Gate(RegionError),
+}
+
 /// Errors of region estimation.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

@@ -60,7 +60,7 @@ fn least_squares(
             let sol = phi
                 .svd(true, true)
                 .solve(&t, 1e-12)
-                .map_err(|e| IdentifyError::failed(e.to_string()))?;
+                .map_err(|e| IdentifyError::failed(Svd(e)))?;
             Ok(sol.iter().copied().collect())
         })
         .collect()
@@ -183,3 +183,8 @@ proptest! {
         }
     }
 }
+
+/// nalgebra's SVD solve failing.
+#[derive(Debug, thiserror::Error)]
+#[error("svd: {0}")]
+struct Svd(&'static str);

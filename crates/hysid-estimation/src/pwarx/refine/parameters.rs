@@ -5,6 +5,7 @@
 use super::shooting::Shooting;
 use crate::constrained::{self, Parametrisation};
 use crate::lm::{LeastSquares, Linearisation, levenberg_marquardt};
+use crate::pwarx::failure::PwarxFailure;
 use crate::pwarx::prepare::PwarxData;
 use hysid_core::backend::{Deadline, IdentifyError};
 use hysid_core::stages::Stages;
@@ -26,7 +27,7 @@ pub(super) fn fit_parameters(
     let thetas: Vec<Vec<f64>> = modes.iter().map(|m| m.theta.clone()).collect();
     let start = par
         .free_values(&thetas)
-        .map_err(|e| IdentifyError::failed(format!("refinement: {e}")))?;
+        .map_err(|e| IdentifyError::failed(PwarxFailure::RefinementStart(e)))?;
     let problem = ParameterResiduals {
         shooting: &shooting,
         par: &par,
