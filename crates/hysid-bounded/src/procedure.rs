@@ -33,7 +33,7 @@ use crate::refit::chebyshev_joint;
 use crate::refit::least_squares_joint;
 use crate::samples::Samples;
 use crate::split;
-use hysid_core::backend::Deadline;
+use hysid_core::backend::{Budget, Deadline, Exhausted};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -167,10 +167,6 @@ pub enum ProcedureError {
     },
 }
 
-fn past(deadline: &Deadline) -> bool {
-    deadline.passed()
-}
-
 /// Smallest admissible mode size: `max(ceil(beta N), p)`.
 pub fn min_mode_size(n: usize, p: usize, beta: f64) -> usize {
     ((beta * n as f64).ceil() as usize).max(p).max(1)
@@ -294,7 +290,7 @@ fn greedy_min_pfs(
     };
     let mut remaining: Vec<usize> = (0..n).collect();
     while greedy.thetas.len() < limits.cap && remaining.len() >= limits.min_size {
-        if past(&set.deadline) && !greedy.thetas.is_empty() {
+        if set.deadline.passed() && !greedy.thetas.is_empty() {
             greedy.stopped = true;
             break;
         }
@@ -377,12 +373,13 @@ fn refine(
         stopped: false,
     };
     let mut prev: Option<Vec<Option<usize>>> = None;
-    while r.rounds < MAX_ROUNDS {
-        if past(&set.deadline) {
-            r.stopped = true;
+    let mut budget = Budget::new(MAX_ROUNDS, &set.deadline);
+    loop {
+        if let Err(end) = budget.begin() {
+            r.stopped = end == Exhausted::TimeBudget;
             break;
         }
-        r.rounds += 1;
+        r.rounds = budget.taken();
         let assigned = assign(s, &r.thetas, set.delta);
         if r.thetas.len() > limits.floor
             && let Some(i) = smallest_short_mode(&assigned, r.thetas.len(), limits.min_size)

@@ -328,7 +328,9 @@ pub fn weighted_kmeans_until(
         .into_par_iter()
         .enumerate()
         .map(|(r, centres)| {
-            (r == 0 || !deadline.passed()).then(|| sweeps(f, &av, s, max_iter, centres))
+            deadline
+                .admits(r)
+                .then(|| sweeps(f, &av, s, max_iter, centres))
         })
         .collect();
     let runs: Vec<Clusters> = runs.into_iter().map_while(|run| run).collect();

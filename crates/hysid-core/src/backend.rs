@@ -130,6 +130,62 @@ impl Deadline {
         }
         self.at.map(|t| t.saturating_duration_since(Instant::now()))
     }
+
+    /// Whether start `index` of independent starts (restarts, seeds,
+    /// searches) may run: the first always does, so a run cut short still
+    /// has a result; the others only before the deadline.
+    pub fn admits(&self, index: usize) -> bool {
+        index == 0 || !self.passed()
+    }
+}
+
+/// The bound of an iterative method's loop: at most `max` iterations, none
+/// begun after the run's [`Deadline`]. A loop takes each iteration from its
+/// budget ([`Budget::begin`]), which says why the loop must end before the
+/// method's own convergence test ends it.
+#[derive(Debug)]
+pub struct Budget<'d> {
+    max: usize,
+    taken: usize,
+    deadline: &'d Deadline,
+}
+
+/// Why a [`Budget`] gives no further iteration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Exhausted {
+    /// The iteration bound was reached.
+    IterationLimit,
+    /// The deadline passed, or a stop was requested.
+    TimeBudget,
+}
+
+impl<'d> Budget<'d> {
+    /// At most `max` iterations, none begun after `deadline`.
+    pub fn new(max: usize, deadline: &'d Deadline) -> Self {
+        Self {
+            max,
+            taken: 0,
+            deadline,
+        }
+    }
+
+    /// One more iteration, counted; or why none may begin (the bound is
+    /// asked before the deadline).
+    pub fn begin(&mut self) -> Result<(), Exhausted> {
+        if self.taken >= self.max {
+            return Err(Exhausted::IterationLimit);
+        }
+        if self.deadline.passed() {
+            return Err(Exhausted::TimeBudget);
+        }
+        self.taken += 1;
+        Ok(())
+    }
+
+    /// Iterations taken.
+    pub fn taken(&self) -> usize {
+        self.taken
+    }
 }
 
 /// Seed, progress and time budget of one run.
@@ -674,6 +730,24 @@ mod tests {
         let e = IdentifyError::failed(Unknown).of_method("arx");
         assert_eq!(e.to_string(), "arx: [fixed]: unknown name 'a9'");
         assert!(e.downcast_ref::<Unknown>().is_some() && !e.is_bad_input());
+    }
+
+    #[test]
+    fn a_budget_counts_its_iterations_and_ends_at_its_bound_or_deadline() {
+        let none = Deadline::none();
+        let mut b = Budget::new(2, &none);
+        assert_eq!((b.begin(), b.begin()), (Ok(()), Ok(())));
+        assert_eq!(b.begin(), Err(Exhausted::IterationLimit));
+        assert_eq!(b.taken(), 2);
+        let passed = Deadline::at(Instant::now());
+        let mut b = Budget::new(2, &passed);
+        assert_eq!((b.begin(), b.taken()), (Err(Exhausted::TimeBudget), 0));
+        // The bound is asked first.
+        assert_eq!(
+            Budget::new(0, &passed).begin(),
+            Err(Exhausted::IterationLimit)
+        );
+        assert!(passed.admits(0) && !passed.admits(1) && none.admits(7));
     }
 
     #[test]

@@ -28,7 +28,7 @@
 //! The iteration bound and the run's deadline are safety nets: each ends
 //! the descent with its own [`Stop`].
 
-use hysid_core::backend::Deadline;
+use hysid_core::backend::{Budget, Deadline, Exhausted};
 use nalgebra::{DMatrix, DVector};
 
 /// The cost test: an accepted step that lowers the cost by less than this
@@ -86,6 +86,15 @@ pub enum Stop {
     Diverged,
 }
 
+impl From<Exhausted> for Stop {
+    fn from(end: Exhausted) -> Self {
+        match end {
+            Exhausted::IterationLimit => Stop::IterationLimit,
+            Exhausted::TimeBudget => Stop::TimeBudget,
+        }
+    }
+}
+
 /// What [`levenberg_marquardt`] found.
 #[derive(Debug, Clone)]
 pub struct Descent {
@@ -127,20 +136,17 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     let mut nu = 2.0;
     let mut accepted = false;
     let mut converged = stationary(&current);
+    let mut budget = Budget::new(max_iterations, deadline);
     loop {
         if converged || current.cost == 0.0 || n == 0 {
             descent.stop = Stop::Converged;
             break;
         }
-        if descent.iterations >= max_iterations {
-            descent.stop = Stop::IterationLimit;
+        if let Err(end) = budget.begin() {
+            descent.stop = end.into();
             break;
         }
-        if deadline.passed() {
-            descent.stop = Stop::TimeBudget;
-            break;
-        }
-        descent.iterations += 1;
+        descent.iterations = budget.taken();
         let (design, rhs) = damped_system(&current, &v, mu);
         // A failed subproblem is a rejected step: more damping.
         let trial_v = problem.solve(&design, &rhs);

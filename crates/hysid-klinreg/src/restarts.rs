@@ -143,8 +143,9 @@ pub struct Restarts {
 }
 
 /// `planned` restarts in parallel (rayon), each on its own random stream,
-/// so that the result is the same for any number of threads. Restarts not
-/// begun when the run's deadline passes are skipped.
+/// so that the result is the same for any number of threads. The first
+/// restart always runs; the others not begun when the run's deadline
+/// passes are skipped ([`hysid_core::backend::Deadline::admits`]).
 pub fn best_restart(
     reg: &Regressors,
     par: &Parametrisation,
@@ -156,7 +157,7 @@ pub fn best_restart(
     let outcomes: Vec<Option<Option<Restart>>> = (0..planned)
         .into_par_iter()
         .map(|i| {
-            if ctx.deadline.passed() {
+            if !ctx.deadline.admits(i) {
                 return None;
             }
             Some(run_restart(reg, par, modes, options, ctx.seed, i))

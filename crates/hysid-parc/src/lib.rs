@@ -32,7 +32,7 @@ pub use steps::{
     Clusters, Finished, finish, fit_local_models, fit_separator, initial_labels, reassign,
 };
 
-use hysid_core::backend::{IdentifyError, RunContext};
+use hysid_core::backend::{Budget, Exhausted, IdentifyError, RunContext};
 use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_estimation::pwarx::{ModeCount, ModeRule, PwarxData, PwarxFit, PwarxMethod};
@@ -159,9 +159,10 @@ pub fn fit(
     let mut cost = Vec::new();
     let mut cut_short = false;
     let mut scores: Option<Vec<Vec<f64>>> = None;
-    while cost.len() < options.max_iter {
-        if ctx.deadline.passed() {
-            cut_short = true;
+    let mut budget = Budget::new(options.max_iter, &ctx.deadline);
+    loop {
+        if let Err(end) = budget.begin() {
+            cut_short = end == Exhausted::TimeBudget;
             break;
         }
         clusters.drop_empty();

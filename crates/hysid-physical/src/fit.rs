@@ -174,7 +174,7 @@ fn best_search(
         .par_iter()
         .enumerate()
         .map(|(index, &seed)| {
-            if index > 0 && search.ctx.deadline.passed() {
+            if !search.ctx.deadline.admits(index) {
                 return None;
             }
             let run = one_search(search, index, seed, &NoProgress, nominal_z, nominal_cost);

@@ -664,7 +664,7 @@ fn refit(
         .into_par_iter()
         .enumerate()
         .map(|(k, seed)| {
-            if k > 0 && ctx.deadline.passed() {
+            if !ctx.deadline.admits(k) {
                 return (seed, None);
             }
             let start = RunContext {

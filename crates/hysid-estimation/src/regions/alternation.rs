@@ -42,7 +42,7 @@
 
 use crate::regions::estimate;
 use crate::regions::options::{RegionFailure, RegionMethod, RegionOptions, SoftmaxSettings};
-use hysid_core::backend::{Deadline, IdentifyError};
+use hysid_core::backend::{Budget, Deadline, Exhausted, IdentifyError};
 use nalgebra::DMatrix;
 
 /// The default of [`AlternationSettings::gate_points`].
@@ -176,15 +176,15 @@ where
     let mut gate_scores: Option<Vec<Vec<f64>>> = None;
     let mut cost = Vec::new();
     let floor = VARIANCE_FLOOR * y.iter().map(|v| v * v).sum::<f64>() / y.len().max(1) as f64;
+    let mut budget = Budget::new(settings.max_rounds, &settings.deadline);
     let status = loop {
         if modes < 2 {
             break AlternationStatus::Converged;
         }
-        if cost.len() >= settings.max_rounds {
-            break AlternationStatus::RoundLimit;
-        }
-        if settings.deadline.passed() {
-            break AlternationStatus::TimeBudget;
+        match budget.begin() {
+            Err(Exhausted::IterationLimit) => break AlternationStatus::RoundLimit,
+            Err(Exhausted::TimeBudget) => break AlternationStatus::TimeBudget,
+            Ok(()) => {}
         }
         let residuals = squared_residuals(x, y, &theta);
         let sigma2 = noise_variance(&residuals, &labels, modes).max(floor);

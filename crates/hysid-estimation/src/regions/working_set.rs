@@ -70,7 +70,7 @@ pub(crate) fn solve(
         })
         .collect();
 
-    if past(&opts.deadline) {
+    if opts.deadline.passed() {
         return softmax_instead(prep, labels, modes, SolveStats::default());
     }
     if !quadratic && (modes - 1) * (prep.p + 1) <= SIMPLEX_MAX_UNKNOWNS {
@@ -127,11 +127,6 @@ fn softmax_instead(
     stats.newton_steps = steps;
     stats.cut_short = true;
     Ok((blocks, stats))
-}
-
-/// Whether `deadline` has passed.
-fn past(deadline: &Deadline) -> bool {
-    deadline.passed()
 }
 
 /// Points outside the set (`in_set` false) whose margin under the scores
@@ -204,7 +199,7 @@ fn solve_simplex(
         if new.is_empty() {
             return sx.unique().then_some(blocks);
         }
-        if past(deadline) {
+        if deadline.passed() {
             stats.cut_short = true;
             return Some(blocks);
         }
@@ -269,7 +264,7 @@ fn solve_clarabel(
         if new.is_empty() {
             return Ok((blocks, stats));
         }
-        if past(deadline) {
+        if deadline.passed() {
             stats.cut_short = true;
             return Ok((blocks, stats));
         }
