@@ -370,32 +370,7 @@ fn initial_set(
         &crate::regions::options::SoftmaxSettings::default(),
     )?;
     stats.newton_steps = steps;
-    let per_mode = INITIAL_PER_MODE_FACTOR * (prep.p + 1);
-    let mut seen = vec![0usize; modes];
-    let mut set = Vec::new();
-    let mut f = vec![0.0; modes];
-    for (r, &l) in labels.iter().enumerate() {
-        let c = prep.counts[l];
-        // take point number k of mode l when floor(k * per_mode / c) advances
-        let k = seen[l];
-        seen[l] += 1;
-        let stride = c <= per_mode || (k * per_mode) / c != ((k + 1) * per_mode) / c;
-        let z = prep.row(r);
-        for (i, fi) in f.iter_mut().enumerate() {
-            let v = &wg[i];
-            *fi = z.iter().zip(v).map(|(a, b)| a * b).sum::<f64>() - v[prep.p];
-        }
-        let worst = f
-            .iter()
-            .enumerate()
-            .filter(|&(j, _)| j != l)
-            .map(|(_, &v)| v)
-            .fold(f64::NEG_INFINITY, f64::max);
-        if stride || f[l] - worst < SOFTMAX_BAND {
-            set.push(r);
-        }
-    }
-    Ok(set)
+    Ok(small_margin(prep, labels, modes, &wg, SOFTMAX_BAND))
 }
 
 /// Rows whose margin under the scores `wg` is below `band`, plus up to
