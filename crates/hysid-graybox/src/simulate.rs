@@ -45,9 +45,10 @@
 
 use crate::compile::{CompiledElement, CompiledInitial, CompiledModel};
 use crate::expr::Crossing;
-use crate::solve::{LmSettings, levenberg_marquardt};
+use crate::solve::{LmSettings, levenberg_marquardt, levenberg_marquardt_exact};
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
+use nalgebra::DMatrix;
 
 /// Bound on the events handled within one sub-step (the Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
@@ -766,6 +767,24 @@ impl<'a> Machine<'a> {
         }
     }
 
+    /// The Jacobian of [`Machine::bare_flows`] in the states at `(x, u)`
+    /// (row `i`: the flow of state `i`), exact through the expressions'
+    /// tapes ([`crate::expr::Expression::gradient`]).
+    pub(crate) fn bare_flow_jacobian(&mut self, x: &[f64], u: &[f64], mode: usize) -> DMatrix<f64> {
+        self.load(x, u);
+        let n = x.len();
+        let states: Vec<u32> = (0..n as u32).collect();
+        let mut jac = DMatrix::zeros(n, n);
+        let mut row = vec![0.0; n];
+        for (i, f) in self.m.modes[mode].flow.iter().enumerate().take(n) {
+            f.gradient(&self.slots, &states, &mut row);
+            for (j, d) in row.iter().enumerate() {
+                jac[(i, j)] = *d;
+            }
+        }
+        jac
+    }
+
     /// Whether `(x, u)` satisfies `mode`'s invariant.
     pub(crate) fn in_invariant(&mut self, x: &[f64], u: &[f64], mode: usize) -> bool {
         self.load(x, u);
@@ -1358,7 +1377,8 @@ pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec
 /// The rest state under the input `u`: the states where every flow of the
 /// mode is zero (the elements aside: at rest a friction holds a velocity
 /// at zero whatever its level), solved by
-/// [`crate::solve::levenberg_marquardt`] (Newton's method, damped) from
+/// [`crate::solve::levenberg_marquardt_exact`] (Newton's method, damped, on
+/// the flows' exact Jacobian) from
 /// the guess `guess` ([`STEADY_ITERATIONS`] iterations at most), in
 /// `mode`, or else in the first mode whose rest state satisfies its
 /// invariant. Returns the state and its mode; an error when no mode has
@@ -1382,10 +1402,11 @@ pub(crate) fn steady(
             cell.borrow_mut().bare_flows(x, u, q, &mut out);
             out.iter().all(|v| v.is_finite()).then_some(out)
         };
+        let jacobian = |x: &[f64]| cell.borrow_mut().bare_flow_jacobian(x, u, q);
         let Some(f0) = flows(guess) else { continue };
         let scale = f0.iter().fold(1.0f64, |a, v| a.max(v.abs()));
         let settings = LmSettings::states(STEADY_ITERATIONS);
-        let x = levenberg_marquardt(&flows, guess, &settings, &|| false, &|_| {}).x;
+        let x = levenberg_marquardt_exact(&flows, &jacobian, guess, &settings, &|| false).x;
         let at_rest =
             flows(&x).is_some_and(|f| f.iter().all(|v| v.abs() <= STEADY_TOLERANCE * scale));
         if at_rest && cell.borrow_mut().in_invariant(&x, u, q) {

@@ -82,14 +82,44 @@ pub fn levenberg_marquardt(
     stop: &dyn Fn() -> bool,
     evaluated: &dyn Fn(u64),
 ) -> LmOutcome {
-    let sse = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
-    let project = |x: &mut [f64]| {
-        if let Some(b) = settings.bounds {
-            for (v, [lo, hi]) in x.iter_mut().zip(b) {
-                *v = v.clamp(*lo, *hi);
-            }
+    let project = |x: &mut [f64]| project_into(settings.bounds, x);
+    let differences =
+        |x: &[f64], rows: usize| jacobian(res, x, rows, settings.fd, &project, evaluated);
+    descend(res, &differences, x0, settings, stop, evaluated)
+}
+
+/// [`levenberg_marquardt`] with the exact Jacobian `jac(x)` of the
+/// residuals (one row per residual) instead of finite differences.
+pub fn levenberg_marquardt_exact(
+    res: &dyn Fn(&[f64]) -> Option<Vec<f64>>,
+    jac: &dyn Fn(&[f64]) -> DMatrix<f64>,
+    x0: &[f64],
+    settings: &LmSettings<'_>,
+    stop: &dyn Fn() -> bool,
+) -> LmOutcome {
+    descend(res, &|x, _| jac(x), x0, settings, stop, &|_| {})
+}
+
+/// `x` projected onto `bounds`, when there are bounds.
+fn project_into(bounds: Option<&[[f64; 2]]>, x: &mut [f64]) {
+    if let Some(b) = bounds {
+        for (v, [lo, hi]) in x.iter_mut().zip(b) {
+            *v = v.clamp(*lo, *hi);
         }
-    };
+    }
+}
+
+/// The descent of [`levenberg_marquardt`], with the Jacobian of `jac(x,
+/// rows)`.
+fn descend(
+    res: &dyn Fn(&[f64]) -> Option<Vec<f64>>,
+    jac: &dyn Fn(&[f64], usize) -> DMatrix<f64>,
+    x0: &[f64],
+    settings: &LmSettings<'_>,
+    stop: &dyn Fn() -> bool,
+    evaluated: &dyn Fn(u64),
+) -> LmOutcome {
+    let sse = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
     let mut x = x0.to_vec();
     let Some(mut r) = res(&x) else {
         return LmOutcome {
@@ -101,7 +131,7 @@ pub fn levenberg_marquardt(
     evaluated(1);
     let mut cost = sse(&r);
     let mut mu = 1e-3;
-    let mut jac: Option<DMatrix<f64>> = None;
+    let mut jacobian_at: Option<DMatrix<f64>> = None;
     let mut end = LmEnd::IterationLimit;
     for _ in 0..settings.iterations {
         if cost == 0.0 {
@@ -112,21 +142,20 @@ pub fn levenberg_marquardt(
             end = LmEnd::Stopped;
             break;
         }
-        let j =
-            jac.get_or_insert_with(|| jacobian(res, &x, r.len(), settings.fd, &project, evaluated));
+        let j = jacobian_at.get_or_insert_with(|| jac(&x, r.len()));
         let Some(step) = damped_step(j, &r, mu) else {
             mu *= 10.0;
             continue;
         };
         let mut xn: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
-        project(&mut xn);
+        project_into(settings.bounds, &mut xn);
         evaluated(1);
         match res(&xn).map(|rn| (sse(&rn), rn)) {
             Some((next, rn)) if next < cost => {
                 let decrease = (cost - next) / cost;
                 (x, r, cost) = (xn, rn, next);
                 mu = (mu / 3.0).max(settings.min_damping);
-                jac = None;
+                jacobian_at = None;
                 if decrease < settings.relative_tolerance {
                     end = LmEnd::Converged;
                     break;
@@ -193,7 +222,8 @@ fn jacobian(
 
 #[cfg(test)]
 mod tests {
-    use super::{LmEnd, LmSettings, levenberg_marquardt};
+    use super::{LmEnd, LmSettings, levenberg_marquardt, levenberg_marquardt_exact};
+    use nalgebra::DMatrix;
 
     #[test]
     fn levenberg_marquardt_solves_a_nonlinear_system_and_keeps_to_its_bounds() {
@@ -210,6 +240,16 @@ mod tests {
         };
         let o = levenberg_marquardt(&res, &[1.0, 1.0], &boxed, &|| false, &|_| {});
         assert!(o.x[0] <= 1.2 && o.x[0] > 1.19, "{:?}", o.x);
+        // The same system on its exact Jacobian reaches the same root.
+        let jac = |x: &[f64]| DMatrix::from_row_slice(2, 2, &[2.0 * x[0], 0.0, x[1], x[0]]);
+        let o = levenberg_marquardt_exact(&res, &jac, &[1.0, 1.0], &free, &|| false);
+        assert!(o.cost < 1e-24, "{o:?}");
+        assert!((o.x[0] - 2f64.sqrt()).abs() < 1e-12);
+        assert!((o.x[1] - 3.0 / 2f64.sqrt()).abs() < 1e-12);
+        // A wrong Jacobian gives steps that do not descend.
+        let wrong = |_: &[f64]| DMatrix::from_row_slice(2, 2, &[-1.0, 0.0, 0.0, -1.0]);
+        let o = levenberg_marquardt_exact(&res, &wrong, &[1.0, 1.0], &free, &|| false);
+        assert!(o.cost > 1e-6, "{o:?}");
     }
 
     #[test]

@@ -316,6 +316,26 @@ fn steady_starts_at_rest_or_says_there_is_none() {
     // The same rest state from the estimate's run: nothing to estimate.
     assert_eq!(run_from(&c, &m.values(), &[], &data).unwrap(), r);
 
+    // A nonlinear rest state: a tank's Torricelli outflow `c sqrt(x)`
+    // balances the inflow `u` at `x = (u / c)^2`.
+    let tank = model(
+        r#"
+format = 1
+internal_step = 0.01
+states = ["x"]
+inputs = ["u"]
+outputs = [{ name = "y", value = "x" }]
+initial_state = { from = "steady", values = { x = 1.0 } }
+
+[[modes]]
+name = "draining"
+flow = { x = "u - 0.3*sqrt(max(x, 0))" }
+"#,
+    );
+    let c = CompiledModel::new(&tank).unwrap();
+    let r = run(&c, &tank.values(), &data).unwrap();
+    assert!(close(r.x[0], (u0 / 0.3f64).powi(2), 1e-12), "x {}", r.x[0]);
+
     let none = model(
         r#"
 format = 1
