@@ -3,11 +3,13 @@
 //! on the segmented simulation error (when enabled), then on the free-run
 //! one.
 
+use crate::objective::Objective;
 use crate::stages::{Search, SearchFailure, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use hysid_core::backend::IdentifyError;
-use hysid_graybox::solve::{LmEnd, LmSettings, levenberg_marquardt};
+use hysid_graybox::solve::{LmEnd, LmOutcome, LmSettings, levenberg_marquardt};
+use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 
 /// A Levenberg-Marquardt step that lowers the cost by less than this
@@ -106,40 +108,33 @@ fn local_stage(
         z: from.to_vec(),
         cost: objective.mse(from),
     };
-    for start in starts {
-        best.offer(start.clone(), objective.mse(&start));
-        if options.lm_iters == 0 {
+    // The starts run in parallel; their outcomes are offered in start
+    // order, so the result is the same for any number of threads.
+    let outcomes: Vec<_> = starts
+        .par_iter()
+        .map(|start| {
+            let at_start = objective.mse(start);
+            let descent = (options.lm_iters > 0).then(|| {
+                let end = descend(search, &objective, start);
+                let cost = objective.mse(&end.x);
+                (end.end, end.x, cost)
+            });
+            (at_start, descent)
+        })
+        .collect();
+    for (start, (at_start, descent)) in starts.into_iter().zip(outcomes) {
+        best.offer(start, at_start);
+        let Some((end, z, cost)) = descent else {
             continue;
-        }
-        let res = |z: &[f64]| objective.residuals(z);
-        let unit = vec![[0.0, 1.0]; start.len()];
-        let settings = LmSettings {
-            bounds: Some(&unit),
-            fd: options.fd_step,
-            iterations: options.lm_iters,
-            relative_tolerance: LM_RELATIVE_TOLERANCE,
-            max_damping: 1e8,
-            min_damping: 1e-12,
         };
-        let outcome = levenberg_marquardt(
-            &res,
-            &start,
-            &settings,
-            &|| search.ctx.deadline.passed(),
-            &|n| {
-                search.evals.fetch_add(n, Ordering::Relaxed);
-            },
-        );
-        log.levenberg_marquardt.push(match outcome.end {
+        log.levenberg_marquardt.push(match end {
             LmEnd::Converged => Termination::Converged,
             LmEnd::NoDecrease => Termination::NoDecrease,
             LmEnd::IterationLimit => Termination::MaxIterations,
             LmEnd::Stopped => Termination::TimeBudget,
             LmEnd::NotEvaluated => Termination::Other,
         });
-        let z = outcome.x;
-        let c = objective.mse(&z);
-        best.offer(z, c);
+        best.offer(z, cost);
         search.past_deadline(log, Stage::LevenbergMarquardt);
     }
     for _ in 0..options.restarts {
@@ -155,6 +150,32 @@ fn local_stage(
         }
     }
     Ok(best)
+}
+
+/// Levenberg-Marquardt from `start` on the residuals of `objective`, in
+/// the unit box, at most `lm_iters` iterations, none begun after the
+/// deadline.
+fn descend(search: &Search<'_>, objective: &Objective<'_>, start: &[f64]) -> LmOutcome {
+    let options = search.options;
+    let res = |z: &[f64]| objective.residuals(z);
+    let unit = vec![[0.0, 1.0]; start.len()];
+    let settings = LmSettings {
+        bounds: Some(&unit),
+        fd: options.fd_step,
+        iterations: options.lm_iters,
+        relative_tolerance: LM_RELATIVE_TOLERANCE,
+        max_damping: 1e8,
+        min_damping: 1e-12,
+    };
+    levenberg_marquardt(
+        &res,
+        start,
+        &settings,
+        &|| search.ctx.deadline.passed(),
+        &|n| {
+            search.evals.fetch_add(n, Ordering::Relaxed);
+        },
+    )
 }
 
 /// One Nelder-Mead run of at most `local_iters` iterations from a fresh
