@@ -105,8 +105,7 @@ impl From<ClusterError> for IdentifyError {
     /// the method's.
     fn from(e: ClusterError) -> Self {
         match e {
-            ClusterError::TooManySamples { .. }
-            | ClusterError::Procedure(_)
+            ClusterError::Procedure(_)
             | ClusterError::FewerModesFound { .. }
             | ClusterError::MoreModesFound { .. } => IdentifyError::failed(e),
             e => IdentifyError::input(e),
