@@ -5,6 +5,7 @@
 //! parameters in box-normalised coordinates.
 
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 /// Settings of [`levenberg_marquardt`].
 #[derive(Debug, Clone, Copy)]
@@ -76,11 +77,11 @@ pub struct LmOutcome {
 /// every iteration; `evaluated(n)` is told of every `n` evaluations of
 /// `res`.
 pub fn levenberg_marquardt(
-    res: &dyn Fn(&[f64]) -> Option<Vec<f64>>,
+    res: &(dyn Fn(&[f64]) -> Option<Vec<f64>> + Sync),
     x0: &[f64],
     settings: &LmSettings<'_>,
     stop: &dyn Fn() -> bool,
-    evaluated: &dyn Fn(u64),
+    evaluated: &(dyn Fn(u64) + Sync),
 ) -> LmOutcome {
     let project = |x: &mut [f64]| project_into(settings.bounds, x);
     let differences =
@@ -188,33 +189,39 @@ fn damped_step(j: &DMatrix<f64>, r: &[f64], mu: f64) -> Option<DVector<f64>> {
 
 /// Central finite-difference Jacobian (`rows` residuals) of `res` at `x`
 /// (step `fd max(1, |x_i|)`), the perturbed points projected by
-/// `project`; a column whose residuals fail stays zero.
+/// `project`; a column whose residuals fail stays zero. The columns are
+/// evaluated in parallel, each on its own.
 fn jacobian(
-    res: &dyn Fn(&[f64]) -> Option<Vec<f64>>,
+    res: &(dyn Fn(&[f64]) -> Option<Vec<f64>> + Sync),
     x: &[f64],
     rows: usize,
     fd: f64,
-    project: &dyn Fn(&mut [f64]),
-    evaluated: &dyn Fn(u64),
+    project: &(dyn Fn(&mut [f64]) + Sync),
+    evaluated: &(dyn Fn(u64) + Sync),
 ) -> DMatrix<f64> {
+    let columns: Vec<Option<Vec<f64>>> = (0..x.len())
+        .into_par_iter()
+        .map(|c| {
+            let h = fd * x[c].abs().max(1.0);
+            let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
+            xp[c] += h;
+            xm[c] -= h;
+            project(&mut xp);
+            project(&mut xm);
+            let width = xp[c] - xm[c];
+            if width <= 0.0 {
+                return None;
+            }
+            evaluated(2);
+            let (rp, rm) = (res(&xp)?, res(&xm)?);
+            let n = rows.min(rp.len()).min(rm.len());
+            Some((0..n).map(|k| (rp[k] - rm[k]) / width).collect())
+        })
+        .collect();
     let mut j = DMatrix::zeros(rows, x.len());
-    for c in 0..x.len() {
-        let h = fd * x[c].abs().max(1.0);
-        let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
-        xp[c] += h;
-        xm[c] -= h;
-        project(&mut xp);
-        project(&mut xm);
-        let width = xp[c] - xm[c];
-        if width <= 0.0 {
-            continue;
-        }
-        evaluated(2);
-        let (Some(rp), Some(rm)) = (res(&xp), res(&xm)) else {
-            continue;
-        };
-        for k in 0..rows.min(rp.len()).min(rm.len()) {
-            j[(k, c)] = (rp[k] - rm[k]) / width;
+    for (c, column) in columns.into_iter().enumerate() {
+        for (k, v) in column.into_iter().flatten().enumerate() {
+            j[(k, c)] = v;
         }
     }
     j
@@ -261,10 +268,13 @@ mod tests {
         let o = levenberg_marquardt(&|_: &[f64]| None, &[0.0], &s, &|| false, &|_| {});
         assert_eq!(o.end, LmEnd::NotEvaluated);
         assert!(o.cost.is_infinite());
-        let count = std::cell::Cell::new(0);
-        let o = levenberg_marquardt(&res, &[0.0], &s, &|| false, &|n| count.set(count.get() + n));
+        let count = std::sync::atomic::AtomicU64::new(0);
+        let o = levenberg_marquardt(&res, &[0.0], &s, &|| false, &|n| {
+            count.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+        });
         assert_eq!(o.end, LmEnd::Converged);
         // The start, two per Jacobian column, one per trial step.
-        assert!(count.get() >= 4, "{}", count.get());
+        let count = count.into_inner();
+        assert!(count >= 4, "{count}");
     }
 }

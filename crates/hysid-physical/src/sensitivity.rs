@@ -11,6 +11,7 @@ use crate::parameters::ParameterMap;
 use crate::target::Simulator;
 use hysid_model::data::Dataset;
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 
 /// Per free coordinate: standard error and scaled sensitivity; and the
 /// condition of the Jacobian.
@@ -88,7 +89,8 @@ pub fn sensitivity(
 /// `d yhat / d theta` (`n` rows, one column per free coordinate), by
 /// central differences of `step` times the coordinate's range, clipped to
 /// its bounds; a coordinate with no room to move keeps a zero column.
-/// `None` when a perturbed simulation fails.
+/// `None` when a perturbed simulation fails. The columns are simulated in
+/// parallel, each on its own.
 fn output_jacobian(
     model: &dyn Simulator,
     map: &ParameterMap,
@@ -97,26 +99,34 @@ fn output_jacobian(
     step: f64,
     n: usize,
 ) -> Option<DMatrix<f64>> {
-    let mut jac = DMatrix::zeros(n, map.dim());
-    for (j, (g, [lo, hi])) in map.groups.iter().zip(&map.bounds).enumerate() {
-        let h = step * (hi - lo).max(1e-12);
-        let x = values[g[0]];
-        let (xp, xm) = ((x + h).min(*hi), (x - h).max(*lo));
-        if xp <= xm {
-            continue;
-        }
-        let set = |val: f64| {
-            let mut v = values.to_vec();
-            for &i in g {
-                v[i] = val;
+    let columns: Vec<Option<Option<Vec<f64>>>> = map
+        .groups
+        .par_iter()
+        .zip(&map.bounds)
+        .map(|(g, [lo, hi])| {
+            let h = step * (hi - lo).max(1e-12);
+            let x = values[g[0]];
+            let (xp, xm) = ((x + h).min(*hi), (x - h).max(*lo));
+            if xp <= xm {
+                return Some(None);
             }
-            v
-        };
-        let rp = free_run_residuals(model, &set(xp), records)?;
-        let rm = free_run_residuals(model, &set(xm), records)?;
-        for k in 0..n {
+            let set = |val: f64| {
+                let mut v = values.to_vec();
+                for &i in g {
+                    v[i] = val;
+                }
+                v
+            };
+            let rp = free_run_residuals(model, &set(xp), records)?;
+            let rm = free_run_residuals(model, &set(xm), records)?;
             // d yhat / d theta = - d r / d theta
-            jac[(k, j)] = -(rp[k] - rm[k]) / (xp - xm);
+            Some(Some((0..n).map(|k| -(rp[k] - rm[k]) / (xp - xm)).collect()))
+        })
+        .collect();
+    let mut jac = DMatrix::zeros(n, map.dim());
+    for (j, column) in columns.into_iter().enumerate() {
+        if let Some(column) = column? {
+            jac.column_mut(j).copy_from_slice(&column);
         }
     }
     Some(jac)
