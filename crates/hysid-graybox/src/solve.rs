@@ -1,8 +1,9 @@
-//! The finite-difference Levenberg-Marquardt of the physics models: the
-//! initial states a rule leaves unknown (estimated from a record's warm-up
-//! outputs, [`crate::simulate::estimate`]), the rest state of the `steady`
-//! rule, and the local stages of the `physical` back-end, which fit the
-//! parameters in box-normalised coordinates.
+//! The Levenberg-Marquardt of the physics models, on finite-difference
+//! Jacobians: the initial states a rule leaves unknown (estimated from a
+//! record's warm-up outputs, [`crate::simulate::estimate`]) and the local
+//! stages of the `physical` back-end, which fit the parameters in
+//! box-normalised coordinates; on an exact Jacobian: the rest state of the
+//! `steady` rule.
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -83,9 +84,8 @@ pub fn levenberg_marquardt(
     stop: &dyn Fn() -> bool,
     evaluated: &(dyn Fn(u64) + Sync),
 ) -> LmOutcome {
-    let project = |x: &mut [f64]| project_into(settings.bounds, x);
     let differences =
-        |x: &[f64], rows: usize| jacobian(res, x, rows, settings.fd, &project, evaluated);
+        |x: &[f64], rows: usize| jacobian(res, x, rows, settings.fd, settings.bounds, evaluated);
     descend(res, &differences, x0, settings, stop, evaluated)
 }
 
@@ -188,15 +188,15 @@ fn damped_step(j: &DMatrix<f64>, r: &[f64], mu: f64) -> Option<DVector<f64>> {
 }
 
 /// Central finite-difference Jacobian (`rows` residuals) of `res` at `x`
-/// (step `fd max(1, |x_i|)`), the perturbed points projected by
-/// `project`; a column whose residuals fail stays zero. The columns are
+/// (step `fd max(1, |x_i|)`), the perturbed points projected onto
+/// `bounds`; a column whose residuals fail stays zero. The columns are
 /// evaluated in parallel, each on its own.
 fn jacobian(
     res: &(dyn Fn(&[f64]) -> Option<Vec<f64>> + Sync),
     x: &[f64],
     rows: usize,
     fd: f64,
-    project: &(dyn Fn(&mut [f64]) + Sync),
+    bounds: Option<&[[f64; 2]]>,
     evaluated: &(dyn Fn(u64) + Sync),
 ) -> DMatrix<f64> {
     let columns: Vec<Option<Vec<f64>>> = (0..x.len())
@@ -206,8 +206,8 @@ fn jacobian(
             let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
             xp[c] += h;
             xm[c] -= h;
-            project(&mut xp);
-            project(&mut xm);
+            project_into(bounds, &mut xp);
+            project_into(bounds, &mut xm);
             let width = xp[c] - xm[c];
             if width <= 0.0 {
                 return None;
