@@ -1599,6 +1599,26 @@ mod tests {
         Definitions::new(3, written).unwrap()
     }
 
+    /// The random expression `te` using the random definitions `a = ta`
+    /// (of the slots) and `b = (tb) * a` several times, as
+    /// `(te) + a * b - min(a, b)`: its text, the expression with each
+    /// recurring definition kept in a register (`None` when inlining
+    /// refuses it), and its plain expansion ([`expanded_plainly`]).
+    pub(super) fn with_recurring_definitions(
+        ta: &Tree,
+        tb: &Tree,
+        te: &Tree,
+    ) -> (String, Option<Expression>, Expression) {
+        let (a, b) = (ta.text(), format!("({}) * a", tb.text()));
+        let text = format!("({}) + a * b - min(a, b)", te.text());
+        let kept = Expression::compile(&text, &with_definitions)
+            .unwrap()
+            .inline(&mut definitions(&[&a, &b]), usize::MAX)
+            .ok();
+        let plain = expanded_plainly(&text, &[&a, &b]);
+        (text, kept, plain)
+    }
+
     /// `text` with the definitions `texts` (of the slots from 3 on) written
     /// out without registers, every use where it stands, by recursion: what
     /// the plain expansion of [`Expression::inline`] must give.
@@ -1726,14 +1746,9 @@ mod tests {
             ta in tree(), tb in tree(), te in tree(),
             s in proptest::collection::vec(-5.0f64..5.0, 3),
         ) {
-            let (a, b) = (ta.text(), format!("({}) * a", tb.text()));
-            let text = format!("({}) + a * b - min(a, b)", te.text());
-            let e = Expression::compile(&text, &with_definitions)
-                .unwrap()
-                .inline(&mut definitions(&[&a, &b]), usize::MAX);
-            let plain = expanded_plainly(&text, &[&a, &b]);
-            prop_assume!(e.is_ok());
-            let (kept, plain) = (e.unwrap().eval(&s), plain.eval(&s));
+            let (text, kept, plain) = with_recurring_definitions(&ta, &tb, &te);
+            prop_assume!(kept.is_some());
+            let (kept, plain) = (kept.unwrap().eval(&s), plain.eval(&s));
             prop_assert!(kept.to_bits() == plain.to_bits() || (kept.is_nan() && plain.is_nan()),
                 "{}: kept {} plain {}", text, kept, plain);
             let (va, vt) = (ta.value(&s), tb.value(&s));

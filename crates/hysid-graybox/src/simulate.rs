@@ -778,9 +778,7 @@ impl<'a> Machine<'a> {
         let mut row = vec![0.0; n];
         for (i, f) in self.m.modes[mode].flow.iter().enumerate().take(n) {
             f.gradient(&self.slots, &states, &mut row);
-            for (j, d) in row.iter().enumerate() {
-                jac[(i, j)] = *d;
-            }
+            jac.row_mut(i).copy_from_slice(&row);
         }
         jac
     }

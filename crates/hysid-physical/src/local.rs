@@ -115,9 +115,9 @@ fn local_stage(
         .map(|start| {
             let at_start = objective.mse(start);
             let descent = (options.lm_iters > 0).then(|| {
-                let end = descend(search, &objective, start);
-                let cost = objective.mse(&end.x);
-                (end.end, end.x, cost)
+                let outcome = descend(search, &objective, start);
+                let cost = objective.mse(&outcome.x);
+                (outcome.end, outcome.x, cost)
             });
             (at_start, descent)
         })

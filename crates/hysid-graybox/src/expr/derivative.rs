@@ -223,7 +223,7 @@ impl Function {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{Tree, definitions, expanded_plainly, names, tree, with_definitions};
+    use super::super::tests::{Tree, names, tree, with_recurring_definitions};
     use super::*;
     use proptest::prelude::*;
 
@@ -356,14 +356,9 @@ mod tests {
             ta in tree(), tb in tree(), te in tree(),
             s in proptest::collection::vec(-5.0f64..5.0, 3),
         ) {
-            let (a, b) = (ta.text(), format!("({}) * a", tb.text()));
-            let text = format!("({}) + a * b - min(a, b)", te.text());
-            let kept = Expression::compile(&text, &with_definitions)
-                .unwrap()
-                .inline(&mut definitions(&[&a, &b]), usize::MAX);
-            prop_assume!(kept.is_ok());
-            let (kept, plain) = (kept.unwrap(), expanded_plainly(&text, &[&a, &b]));
-            let (_, gk) = gradient_of(&kept, &s);
+            let (text, kept, plain) = with_recurring_definitions(&ta, &tb, &te);
+            prop_assume!(kept.is_some());
+            let (_, gk) = gradient_of(&kept.unwrap(), &s);
             let (_, gp) = gradient_of(&plain, &s);
             for (k, p) in gk.iter().zip(&gp) {
                 prop_assert!(k.to_bits() == p.to_bits() || (k.is_nan() && p.is_nan()),

@@ -18,6 +18,25 @@ fn model(text: &str) -> GrayBoxModel {
     m
 }
 
+/// One state `x`, measured, with the initial state `initial` and the flow
+/// `flow` of its one mode.
+fn one_state(initial: &str, flow: &str) -> GrayBoxModel {
+    model(&format!(
+        r#"
+format = 1
+internal_step = 0.01
+states = ["x"]
+inputs = ["u"]
+outputs = [{{ name = "y", value = "x" }}]
+initial_state = {initial}
+
+[[modes]]
+name = "only"
+flow = {{ x = "{flow}" }}
+"#
+    ))
+}
+
 /// Two first-order lags in cascade, `x1 -> x2`, the output `output`, the
 /// initial state `initial`.
 fn cascade(output: &str, initial: &str) -> String {
@@ -318,38 +337,15 @@ fn steady_starts_at_rest_or_says_there_is_none() {
 
     // A nonlinear rest state: a tank's Torricelli outflow `c sqrt(x)`
     // balances the inflow `u` at `x = (u / c)^2`.
-    let tank = model(
-        r#"
-format = 1
-internal_step = 0.01
-states = ["x"]
-inputs = ["u"]
-outputs = [{ name = "y", value = "x" }]
-initial_state = { from = "steady", values = { x = 1.0 } }
-
-[[modes]]
-name = "draining"
-flow = { x = "u - 0.3*sqrt(max(x, 0))" }
-"#,
+    let tank = one_state(
+        r#"{ from = "steady", values = { x = 1.0 } }"#,
+        "u - 0.3*sqrt(max(x, 0))",
     );
     let c = CompiledModel::new(&tank).unwrap();
     let r = run(&c, &tank.values(), &data).unwrap();
     assert!(close(r.x[0], (u0 / 0.3f64).powi(2), 1e-12), "x {}", r.x[0]);
 
-    let none = model(
-        r#"
-format = 1
-internal_step = 0.01
-states = ["x"]
-inputs = ["u"]
-outputs = [{ name = "y", value = "x" }]
-initial_state = { from = "steady" }
-
-[[modes]]
-name = "rising"
-flow = { x = "1 + x^2 + u^2" }
-"#,
-    );
+    let none = one_state(r#"{ from = "steady" }"#, "1 + x^2 + u^2");
     let c = CompiledModel::new(&none).unwrap();
     let e = run(&c, &none.values(), &data).unwrap_err();
     assert!(
