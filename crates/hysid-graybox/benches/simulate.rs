@@ -62,7 +62,7 @@ fn gray_box(m: &MechanicalModel) -> GrayBoxModel {
     g
 }
 
-#[divan::bench(sample_count = 30)]
+#[divan::bench(sample_count = 200)]
 fn mechanical_head(bencher: divan::Bencher) {
     let data = record();
     let m = fitted();
@@ -70,7 +70,7 @@ fn mechanical_head(bencher: divan::Bencher) {
     bencher.bench(|| hysid_mechanical::simulate::run(&m, &values, &data).unwrap());
 }
 
-#[divan::bench(sample_count = 30)]
+#[divan::bench(sample_count = 200)]
 fn gray_box_head(bencher: divan::Bencher) {
     let data = record();
     let g = gray_box(&fitted());

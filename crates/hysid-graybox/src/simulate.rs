@@ -48,7 +48,10 @@ use crate::expr::Crossing;
 use crate::solve::{LmSettings, levenberg_marquardt, levenberg_marquardt_exact};
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
+use linear::{AffineFlows, AffineRow, ClosedStep, affine_guards};
 use nalgebra::DMatrix;
+
+mod linear;
 
 /// Bound on the events handled within one sub-step (the Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
@@ -160,6 +163,21 @@ pub struct Machine<'a> {
     g: Vec<f64>,
     /// The elements' effects in the regime of the step being integrated.
     effects: Vec<Effect>,
+    /// Per mode, its flows' affine form, when they have one.
+    affine: Vec<Option<AffineFlows>>,
+    /// Per mode, its guard surfaces read from the state and the input,
+    /// when every one is affine in them.
+    guards: Vec<Option<Vec<(Crossing, AffineRow)>>>,
+    /// The closed-form step of the last regime and step length integrated
+    /// (`None` inside: that regime has none), with its mode and regimes.
+    closed: Option<(usize, Vec<ElementRegime>, f64, Option<ClosedStep>)>,
+    /// The sub-step length of the sample being advanced, the length the
+    /// closed form is formed for; shorter steps around events take the
+    /// regime's Horner form.
+    full_step: f64,
+    /// Whether the steps of affine regimes take the closed form
+    /// ([`linear`]); off, every step runs stage by stage.
+    pub(crate) closed_form: bool,
     pub(crate) steps: usize,
     pub(crate) events: usize,
     pub(crate) zeno_steps: usize,
@@ -188,11 +206,26 @@ impl<'a> Machine<'a> {
             }
         }
         let n = m.states;
+        let affine = m
+            .modes
+            .iter()
+            .map(|q| AffineFlows::of(q, m.states, m.inputs))
+            .collect();
+        let guards = m
+            .modes
+            .iter()
+            .map(|q| affine_guards(q, m.states, m.inputs))
+            .collect();
         Machine {
             m,
             slots,
             fixed,
             friction_of,
+            affine,
+            guards,
+            closed: None,
+            full_step: f64::NAN,
+            closed_form: true,
             k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             dx: vec![0.0; n],
             x1: vec![0.0; n],
@@ -301,6 +334,18 @@ impl<'a> Machine<'a> {
     /// One RK4 step of length `h` from `hs.x` into `out`; the stages are
     /// written into the slots directly.
     fn rk4(&mut self, hs: &HybridState, u: &[f64], h: f64, out: &mut [f64]) {
+        if self.closed_form && self.closed_step(hs, self.full_step) {
+            if let Some((.., Some(step))) = &self.closed {
+                if h == self.full_step {
+                    step.apply(&hs.x, u, out);
+                } else {
+                    let [k, t, ..] = &mut self.k;
+                    step.apply_length(h, &hs.x, u, (k, t), out);
+                }
+            }
+            self.steps += 1;
+            return;
+        }
         let [mut k1, mut k2, mut k3, mut k4] = std::mem::take(&mut self.k);
         self.load(&hs.x, u);
         self.prepare(hs);
@@ -325,6 +370,33 @@ impl<'a> Machine<'a> {
         }
         self.k = [k1, k2, k3, k4];
         self.steps += 1;
+    }
+
+    /// Whether the regime of `hs` has a closed-form step of length `h`
+    /// ([`linear`]), formed when the regime or the length differs from the
+    /// last one's.
+    fn closed_step(&mut self, hs: &HybridState, h: f64) -> bool {
+        let cached = matches!(&self.closed, Some((mode, regimes, length, _))
+            if *mode == hs.mode && *length == h && *regimes == hs.regimes);
+        if !cached {
+            self.prepare(hs);
+            let step = match &self.affine[hs.mode] {
+                Some(flows) => {
+                    let mut held = vec![false; self.m.states];
+                    let mut sliding = Vec::new();
+                    for effect in &self.effects {
+                        match *effect {
+                            Effect::Friction(v, i, dir) => sliding.push((i, v, dir)),
+                            Effect::Hold(s) => held[s] = true,
+                        }
+                    }
+                    flows.step(h, &held, &sliding)
+                }
+                None => None,
+            };
+            self.closed = Some((hs.mode, hs.regimes.clone(), h, step));
+        }
+        matches!(&self.closed, Some((.., Some(_))))
     }
 
     /// Loads the RK4 stage state `x + step * k` into the slots.
@@ -352,6 +424,40 @@ impl<'a> Machine<'a> {
         let mut g = std::mem::take(&mut self.g);
         self.surfaces(mode, &mut g);
         self.g = g;
+    }
+
+    /// Whether the step to `x` under `u` certainly ends without an event,
+    /// decided from the state alone where it can be: no stop reached, no
+    /// sliding velocity at zero, no element held (a held element's
+    /// release depends on the forces), and no guard crossed, the surfaces
+    /// read from their affine forms into `g`. `false` when it cannot tell:
+    /// then [`Machine::first_event`] decides.
+    fn quiet_step(&mut self, hs: &HybridState, x: &[f64], u: &[f64]) -> bool {
+        let m = self.m;
+        let Some(guards) = &self.guards[hs.mode] else {
+            return false;
+        };
+        for (i, e) in m.elements.iter().enumerate() {
+            let event = match (e, hs.regimes[i]) {
+                (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away) => {
+                    sign * (x[*position] - self.fixed[i].0) >= 0.0
+                }
+                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
+                    dir * x[*velocity] <= 0.0
+                }
+                (_, ElementRegime::Stuck | ElementRegime::Resting) => true,
+                _ => false,
+            };
+            if event {
+                return false;
+            }
+        }
+        self.g.clear();
+        self.g.extend(guards.iter().map(|(_, row)| row.eval(x, u)));
+        !guards
+            .iter()
+            .zip(self.g0.iter().zip(&self.g))
+            .any(|((c, _), (g0, g1))| crossed(*c, *g0, *g1))
     }
 
     /// The first event at state `x` (loaded, with the guard surfaces `g`
@@ -585,6 +691,7 @@ impl<'a> Machine<'a> {
             return Ok(true);
         }
         let h = ts / n_sub as f64;
+        self.full_step = h;
         let mut x1 = std::mem::take(&mut self.x1);
         let mut xm = std::mem::take(&mut self.xm);
         let mut result = Ok(());
@@ -604,6 +711,11 @@ impl<'a> Machine<'a> {
                 if events >= MAX_EVENTS_PER_STEP {
                     hs.x.copy_from_slice(&x1);
                     fresh = false;
+                    break;
+                }
+                if self.quiet_step(hs, &x1, u) {
+                    hs.x.copy_from_slice(&x1);
+                    std::mem::swap(&mut self.g0, &mut self.g);
                     break;
                 }
                 self.surfaces_at(&x1, u, hs.mode);
