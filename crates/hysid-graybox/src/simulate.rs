@@ -5,7 +5,8 @@
 //! away or holds its position). The input is held over each sample
 //! (zero-order hold); each sample is split into equal sub-steps no longer
 //! than `internal_step`, each one classical RK4 step of the current
-//! regime's flow.
+//! regime's flow (in closed form where the flows are affine in the states
+//! and inputs: the module `linear`).
 //!
 //! **Events** are located inside the sub-step by bisection on the step
 //! length ([`LOCATE_HALVINGS`] halvings); the state is taken just past the
@@ -331,8 +332,9 @@ impl<'a> Machine<'a> {
         }
     }
 
-    /// One RK4 step of length `h` from `hs.x` into `out`; the stages are
-    /// written into the slots directly.
+    /// One RK4 step of length `h` from `hs.x` into `out`: in closed form
+    /// where the regime has one ([`linear`]), else stage by stage, the
+    /// stages written into the slots directly.
     fn rk4(&mut self, hs: &HybridState, u: &[f64], h: f64, out: &mut [f64]) {
         if self.closed_form && self.closed_step(hs, self.full_step) {
             if let Some((.., Some(step))) = &self.closed {
