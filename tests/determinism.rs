@@ -34,9 +34,10 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     two_mode_record(d, 300);
-    // Every registered back-end, with its default options; multi-mode
-    // back-ends are asked for the two modes of the record. Runs that fail
-    // write no model and are compared as absent.
+    // Every registered back-end, with its default options but for
+    // physical's search lengths; multi-mode back-ends are asked for the two
+    // modes of the record. Runs that fail write no model and are compared
+    // as absent.
     let methods: serde_json::Value =
         serde_json::from_str(&hysid(&["methods", "--json"], None)).unwrap();
     let mut exp = String::from(
@@ -58,7 +59,14 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
             match name {
                 "bounded" => "set = { delta = 0.03 }\n".to_string(),
                 "milp" => "set = { max_samples = 300, node_limit = 200 }\n".to_string(),
-                "physical" => format!("set = {{ model = \"{}\" }}\n", common::HEAD_MODEL),
+                // Every parallel part of the fit (two searches, the
+                // swarm's evaluations, the local stages' starts, the
+                // Jacobians' columns), each kept short.
+                "physical" => format!(
+                    "set = {{ model = \"{}\", swarms = 2, particles = 8, swarm_iters = 5, \
+                     starts = 2, restarts = 1, local_iters = 60, lm_iters = 10 }}\n",
+                    common::HEAD_MODEL
+                ),
                 _ => String::new(),
             }
         ));
