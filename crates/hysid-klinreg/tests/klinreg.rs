@@ -20,6 +20,7 @@ use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 /// A switched linear regression `y = theta_q . [x; 1]` with `x` uniform in
 /// `[-5, 5]^d`, the mode uniform, parameters uniform in `[-10, 10]`, plus
@@ -123,8 +124,10 @@ fn one_restart_beside_lauers_model_and_the_default_restarts_succeed() {
             )
         })
     };
+    // The problems are independent: solved in parallel, counted in any order.
     let trials = 300;
     let successes = (0..trials)
+        .into_par_iter()
         .filter(|&t| {
             let (reg, truth, _) = switched(n, d, modes, 0.0, 1000 + t as u64);
             succeeds(t, 0, &reg, &truth).is_some_and(|(_, ok)| ok)
@@ -134,7 +137,7 @@ fn one_restart_beside_lauers_model_and_the_default_restarts_succeed() {
     eprintln!("one restart: {successes}/{trials} = {rate:.3}; Lauer's model {model:.3}");
     assert!(rate >= 0.55, "one restart succeeds {rate}");
     let restarts = restart_count(n, modes, d + 1).max(DEFAULT_MIN_RESTARTS);
-    for t in 0..100 {
+    (0..100).into_par_iter().for_each(|t| {
         let (reg, truth, _) = switched(n, d, modes, 0.0, 5000 + t as u64);
         let best = (0..restarts)
             .filter_map(|i| succeeds(t, i, &reg, &truth))
@@ -144,7 +147,7 @@ fn one_restart_beside_lauers_model_and_the_default_restarts_succeed() {
             best.1,
             "problem {t}: the best of {restarts} restarts misses the true modes"
         );
-    }
+    });
 }
 
 fn run(backend: &dyn Backend, b: &Benchmark, modes: usize, seed: u64) -> Model {
