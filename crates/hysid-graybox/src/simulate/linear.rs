@@ -27,6 +27,9 @@
 //! A regime whose friction level is not constant (it depends on the state
 //! or the input) has no closed form: the caller integrates it stage by
 //! stage.
+//!
+//! Guard surfaces affine in the states and inputs are read the same way,
+//! from the state and the input directly ([`AffineRow`]).
 
 use crate::compile::CompiledMode;
 use crate::expr::{Crossing, Expression};
@@ -113,16 +116,13 @@ impl AffineFlows {
                 .collect(),
         };
         for (i, f) in mode.flow.iter().enumerate().take(n) {
-            let (constant, terms) = f.affine()?;
-            flows.c[i] = constant;
-            for (slot, coefficient) in terms {
-                let s = slot as usize;
+            let row = AffineRow::of(f, n, m)?;
+            flows.c[i] = row.constant;
+            for (s, coefficient) in row.terms {
                 if s < n {
                     flows.a[i * n + s] += coefficient;
-                } else if s < n + m {
-                    flows.b[i * m + s - n] += coefficient;
                 } else {
-                    return None;
+                    flows.b[i * m + s - n] += coefficient;
                 }
             }
         }
