@@ -435,22 +435,12 @@ impl<'a> Machine<'a> {
     /// read from their affine forms into `g`. `false` when it cannot tell:
     /// then [`Machine::first_event`] decides.
     fn quiet_step(&mut self, hs: &HybridState, x: &[f64], u: &[f64]) -> bool {
-        let m = self.m;
         let Some(guards) = &self.guards[hs.mode] else {
             return false;
         };
-        for (i, e) in m.elements.iter().enumerate() {
-            let event = match (e, hs.regimes[i]) {
-                (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away) => {
-                    sign * (x[*position] - self.fixed[i].0) >= 0.0
-                }
-                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
-                    dir * x[*velocity] <= 0.0
-                }
-                (_, ElementRegime::Stuck | ElementRegime::Resting) => true,
-                _ => false,
-            };
-            if event {
+        for (i, &regime) in hs.regimes.iter().enumerate() {
+            let held = matches!(regime, ElementRegime::Stuck | ElementRegime::Resting);
+            if held || self.ended_by_state(i, regime, x) {
                 return false;
             }
         }
@@ -462,6 +452,22 @@ impl<'a> Machine<'a> {
             .any(|((c, _), (g0, g1))| crossed(*c, *g0, *g1))
     }
 
+    /// Whether element `i` has left `regime` at the state `x`, for the
+    /// regimes whose end the state alone decides: a stop reached or passed
+    /// while away, a sliding velocity come to zero or reversed. A held
+    /// element's release depends on the forces ([`Machine::first_event`]).
+    fn ended_by_state(&self, i: usize, regime: ElementRegime, x: &[f64]) -> bool {
+        match (&self.m.elements[i], regime) {
+            (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away) => {
+                sign * (x[*position] - self.fixed[i].0) >= 0.0
+            }
+            (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
+                dir * x[*velocity] <= 0.0
+            }
+            _ => false,
+        }
+    }
+
     /// The first event at state `x` (loaded, with the guard surfaces `g`
     /// there), given the surfaces `g0` at the start of the step.
     fn first_event(&self, hs: &HybridState, x: &[f64]) -> Option<Event> {
@@ -469,8 +475,8 @@ impl<'a> Machine<'a> {
         let mut friction = None;
         for (i, e) in m.elements.iter().enumerate() {
             match (e, hs.regimes[i]) {
-                (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away)
-                    if sign * (x[*position] - self.fixed[i].0) >= 0.0 =>
+                (CompiledElement::Stop { .. }, regime @ ElementRegime::Away)
+                    if self.ended_by_state(i, regime, x) =>
                 {
                     return Some(Event::Element(i));
                 }
@@ -481,8 +487,8 @@ impl<'a> Machine<'a> {
                 {
                     return Some(Event::Element(i));
                 }
-                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir))
-                    if dir * x[*velocity] <= 0.0 =>
+                (CompiledElement::DryFriction { .. }, regime @ ElementRegime::Slip(_))
+                    if self.ended_by_state(i, regime, x) =>
                 {
                     friction = friction.or(Some(i));
                 }

@@ -18,8 +18,8 @@ fn model(text: &str) -> GrayBoxModel {
     m
 }
 
-/// One state `x`, measured, with the initial state `initial` and the flow
-/// `flow` of its one mode.
+/// One state `x`, the output `y = x`, the initial state `initial` and the
+/// flow `flow` of its one mode.
 fn one_state(initial: &str, flow: &str) -> GrayBoxModel {
     model(&format!(
         r#"
