@@ -122,6 +122,7 @@ fn local_stage(
             (at_start, descent)
         })
         .collect();
+    let descended = options.lm_iters > 0 && !starts.is_empty();
     for (start, (at_start, descent)) in starts.into_iter().zip(outcomes) {
         best.offer(start, at_start);
         let Some((end, z, cost)) = descent else {
@@ -135,6 +136,8 @@ fn local_stage(
             LmEnd::NotEvaluated => Termination::Other,
         });
         best.offer(z, cost);
+    }
+    if descended {
         search.past_deadline(log, Stage::LevenbergMarquardt);
     }
     for _ in 0..options.restarts {
