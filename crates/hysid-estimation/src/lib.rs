@@ -10,7 +10,6 @@
 //! |---|---|
 //! | [`conic`] | LPs and QPs on clarabel: `Program`, `Settings`, `solve`, and the status policy |
 //! | [`constrained`] | `Parametrisation` of the priors, mode fits under them |
-//! | [`lm`] | Levenberg-Marquardt, the one local optimiser of nonlinear least squares |
 //! | [`linalg`] | SVD least squares, weighted and equality-constrained (faer) |
 //! | [`noise`] | the noise level of a record from local affine fits |
 //! | [`parsimony`] | the one-standard-error rule: the fewest modes within one standard error of the best score |
@@ -23,7 +22,6 @@ pub mod dense;
 #[cfg(test)]
 mod fixtures;
 pub mod linalg;
-pub mod lm;
 pub mod noise;
 pub mod parsimony;
 pub mod pwarx;

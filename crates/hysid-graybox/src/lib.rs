@@ -16,7 +16,8 @@
 //! - [`compile`]: the checks and the compiled model;
 //! - [`mod@simulate`]: the event-located simulator, and the initial
 //!   states a rule leaves unknown (estimated from a record's warm-up, or
-//!   at rest), solved by [`solve`]'s Levenberg-Marquardt.
+//!   at rest), solved by hysid's one Levenberg-Marquardt
+//!   ([`hysid_numerics::least_squares`]).
 //!
 //! The file format is documented in `docs/gray-box-models.md`.
 
@@ -25,7 +26,6 @@ pub mod expr;
 pub mod extends;
 pub mod model;
 pub mod simulate;
-pub mod solve;
 
 pub use compile::{CompiledModel, InvalidGrayBox, Problem};
 pub use model::{

@@ -46,9 +46,12 @@
 
 use crate::compile::{CompiledElement, CompiledInitial, CompiledModel};
 use crate::expr::Crossing;
-use crate::solve::{LmSettings, levenberg_marquardt, levenberg_marquardt_exact};
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
+use hysid_numerics::budget::Deadline;
+use hysid_numerics::least_squares::{
+    Damping, ExactJacobian, FiniteDifferences, LmSettings, descend,
+};
 use linear::{AffineFlows, AffineRow, ClosedStep, affine_guards};
 use nalgebra::DMatrix;
 
@@ -1433,14 +1436,31 @@ pub const STEADY_ITERATIONS: usize = 100;
 /// counts as at rest.
 pub const STEADY_TOLERANCE: f64 = 1e-9;
 
+/// The cost test of the initial-state solves (the warm-up estimate, the
+/// rest state): a relative decrease this small, predicted and reached.
+const STATE_TOLERANCE: f64 = 1e-15;
+
+/// The finite-difference step of the warm-up estimate, in box-normalised
+/// coordinates.
+const STATE_DIFFERENCE: f64 = 1e-7;
+
+/// The settings of the initial-state solves: at most `iterations` steps,
+/// the cost test at [`STATE_TOLERANCE`], states of different units damped
+/// alike ([`Damping::Marquardt`]).
+fn state_solve(iterations: usize) -> LmSettings {
+    LmSettings::new(iterations)
+        .with_cost_tolerance(STATE_TOLERANCE)
+        .with_damping(Damping::Marquardt)
+}
+
 /// The states [`CompiledModel::estimates`] lists, estimated from the
 /// outputs of `data`'s warm-up alone (its first
 /// [`crate::compile::CompiledInitial::warmup`] samples; the rows after it
 /// are not read): the values within their bounds that minimise the sum of
 /// squared differences between the measured and the simulated outputs
 /// over the warm-up, from the rule's starting guesses, by
-/// [`crate::solve::levenberg_marquardt`] in box-normalised coordinates
-/// (steps projected onto the bounds). Empty when the rule estimates
+/// [`descend`] (Levenberg-Marquardt) on central differences in box-normalised
+/// coordinates (steps projected onto the bounds). Empty when the rule estimates
 /// nothing.
 pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec<f64>, SimError> {
     if m.estimates.is_empty() {
@@ -1484,19 +1504,17 @@ pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec
         })
         .collect();
     let unit = vec![[0.0, 1.0]; z0.len()];
-    let settings = LmSettings {
-        bounds: Some(&unit),
-        ..LmSettings::states(ESTIMATE_ITERATIONS)
-    };
-    let z = levenberg_marquardt(&residuals, &z0, &settings, &|| false, &|_| {}).x;
-    Ok(to_values(&z))
+    let problem = FiniteDifferences::new(residuals, z0.len(), Some(&unit), STATE_DIFFERENCE);
+    let settings = state_solve(ESTIMATE_ITERATIONS);
+    let descent = descend(&problem, z0.clone(), &settings, &Deadline::none());
+    Ok(to_values(&descent.v.unwrap_or(z0)))
 }
 
 /// The rest state under the input `u`: the states where every flow of the
 /// mode is zero (the elements aside: at rest a friction holds a velocity
 /// at zero whatever its level), solved by
-/// [`crate::solve::levenberg_marquardt_exact`] (Newton's method, damped, on
-/// the flows' exact Jacobian) from
+/// [`descend`] (Levenberg-Marquardt: Newton's method, damped, on the flows'
+/// exact Jacobian) from
 /// the guess `guess` ([`STEADY_ITERATIONS`] iterations at most), in
 /// `mode`, or else in the first mode whose rest state satisfies its
 /// invariant. Returns the state and its mode; an error when no mode has
@@ -1523,8 +1541,10 @@ pub(crate) fn steady(
         let jacobian = |x: &[f64]| cell.borrow_mut().bare_flow_jacobian(x, u, q);
         let Some(f0) = flows(guess) else { continue };
         let scale = f0.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-        let settings = LmSettings::states(STEADY_ITERATIONS);
-        let x = levenberg_marquardt_exact(&flows, &jacobian, guess, &settings, &|| false).x;
+        let problem = ExactJacobian::new(&flows, &jacobian, n);
+        let settings = state_solve(STEADY_ITERATIONS);
+        let descent = descend(&problem, guess.to_vec(), &settings, &Deadline::none());
+        let x = descent.v.unwrap_or_else(|| guess.to_vec());
         let at_rest =
             flows(&x).is_some_and(|f| f.iter().all(|v| v.abs() <= STEADY_TOLERANCE * scale));
         if at_rest && cell.borrow_mut().in_invariant(&x, u, q) {

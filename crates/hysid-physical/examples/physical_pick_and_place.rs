@@ -2,6 +2,8 @@
 //! identify on rows 0..5000, validate on rows 5000..6001 with warm-up 10.
 //!
 //! `cargo run --release -p hysid-physical --example physical_pick_and_place [-- OUT_DIR [KEY=VALUE..]]`
+//! (`KEY=VALUE`: `physical` options; `model=` defaults to
+//! `models/pick-and-place/head.toml`)
 //! (environment: `PHYS_SEED=N`, `PHYS_FIX_STOP=1` to fix the lower stop at 25 mm)
 //!
 //! Prints the fitted parameters, the fit time, `fit_sim` on both records and
@@ -23,9 +25,13 @@ use std::time::Instant;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let out_dir = args.first().cloned();
-    let sets: Vec<String> = args.iter().skip(1).cloned().collect();
-    let root =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pick-and-place/headdata_1v6.mat");
+    let head = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pick-and-place");
+    // The built-in head unless the options name another model.
+    let mut sets: Vec<String> = args.iter().skip(1).cloned().collect();
+    if !sets.iter().any(|s| s.starts_with("model=")) {
+        sets.insert(0, format!("model={}", head.join("head.toml").display()));
+    }
+    let root = head.join("headdata_1v6.mat");
     let sel = |rows: RowRange| DataSelection {
         decimate: 10,
         rows,

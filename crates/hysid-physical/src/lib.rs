@@ -20,7 +20,8 @@
 //!    the free-run one with `segment=0`);
 //! 2. local stages ([`local`]), on the segmented error and then on the
 //!    free-run one: Levenberg-Marquardt (Marquardt 1963,
-//!    [`hysid_graybox::solve`]) from each start (the swarm's best, the
+//!    [`hysid_numerics::least_squares`], central differences in the unit
+//!    box) from each start (the swarm's best, the
 //!    nominal values, the next best particles), then argmin's Nelder-Mead
 //!    (Nelder and Mead 1965) from the best point, restarted with a fresh
 //!    simplex a few times (bounded iterations each).

@@ -8,12 +8,13 @@ use crate::stages::{Search, SearchFailure, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use hysid_core::backend::IdentifyError;
-use hysid_graybox::solve::{LmEnd, LmOutcome, LmSettings, levenberg_marquardt};
+use hysid_numerics::least_squares::{Damping, FiniteDifferences, LmSettings, Stop, descend};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 
-/// A Levenberg-Marquardt step that lowers the cost by less than this
-/// fraction of it ends the stage ([`Termination::Converged`]).
+/// The cost test of the Levenberg-Marquardt stage: a step that lowers the
+/// cost by less than this fraction of it, as predicted, ends the stage
+/// ([`Termination::Converged`]).
 const LM_RELATIVE_TOLERANCE: f64 = 1e-9;
 
 /// What the local stages found.
@@ -115,9 +116,9 @@ fn local_stage(
         .map(|start| {
             let at_start = objective.mse(start);
             let descent = (options.lm_iters > 0).then(|| {
-                let outcome = descend(search, &objective, start);
-                let cost = objective.mse(&outcome.x);
-                (outcome.end, outcome.x, cost)
+                let (stop, z) = levenberg_marquardt(search, &objective, start);
+                let cost = objective.mse(&z);
+                (stop, z, cost)
             });
             (at_start, descent)
         })
@@ -129,11 +130,11 @@ fn local_stage(
             continue;
         };
         log.levenberg_marquardt.push(match end {
-            LmEnd::Converged => Termination::Converged,
-            LmEnd::NoDecrease => Termination::NoDecrease,
-            LmEnd::IterationLimit => Termination::MaxIterations,
-            LmEnd::Stopped => Termination::TimeBudget,
-            LmEnd::NotEvaluated => Termination::Other,
+            Stop::Converged => Termination::Converged,
+            Stop::NoDescent => Termination::NoDecrease,
+            Stop::IterationLimit => Termination::MaxIterations,
+            Stop::TimeBudget => Termination::TimeBudget,
+            Stop::Diverged => Termination::Other,
         });
         best.offer(z, cost);
     }
@@ -155,30 +156,26 @@ fn local_stage(
     Ok(best)
 }
 
-/// Levenberg-Marquardt from `start` on the residuals of `objective`, in
-/// the unit box, at most `lm_iters` iterations, none begun after the
-/// deadline.
-fn descend(search: &Search<'_>, objective: &Objective<'_>, start: &[f64]) -> LmOutcome {
+/// Levenberg-Marquardt from `start` on the residuals of `objective`, on
+/// central differences in the unit box, at most `lm_iters` iterations,
+/// none begun after the deadline: how it ended and the point it reached.
+fn levenberg_marquardt(
+    search: &Search<'_>,
+    objective: &Objective<'_>,
+    start: &[f64],
+) -> (Stop, Vec<f64>) {
     let options = search.options;
-    let res = |z: &[f64]| objective.residuals(z);
-    let unit = vec![[0.0, 1.0]; start.len()];
-    let settings = LmSettings {
-        bounds: Some(&unit),
-        fd: options.fd_step,
-        iterations: options.lm_iters,
-        relative_tolerance: LM_RELATIVE_TOLERANCE,
-        max_damping: 1e8,
-        min_damping: 1e-12,
+    let residuals = |z: &[f64]| {
+        search.evals.fetch_add(1, Ordering::Relaxed);
+        objective.residuals(z)
     };
-    levenberg_marquardt(
-        &res,
-        start,
-        &settings,
-        &|| search.ctx.deadline.passed(),
-        &|n| {
-            search.evals.fetch_add(n, Ordering::Relaxed);
-        },
-    )
+    let unit = vec![[0.0, 1.0]; start.len()];
+    let problem = FiniteDifferences::new(residuals, start.len(), Some(&unit), options.fd_step);
+    let settings = LmSettings::new(options.lm_iters)
+        .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
+        .with_damping(Damping::Marquardt);
+    let descent = descend(&problem, start.to_vec(), &settings, &search.ctx.deadline);
+    (descent.stop, descent.v.unwrap_or_else(|| start.to_vec()))
 }
 
 /// One Nelder-Mead run of at most `local_iters` iterations from a fresh

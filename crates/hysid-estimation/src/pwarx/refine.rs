@@ -72,19 +72,6 @@ use hysid_core::backend::{Deadline, IdentifyError};
 use hysid_core::stages::{Refine, Stages};
 use hysid_model::model::RunStatus;
 
-impl From<crate::lm::Stop> for RefinementStatus {
-    fn from(stop: crate::lm::Stop) -> Self {
-        use crate::lm::Stop;
-        match stop {
-            Stop::Converged => RefinementStatus::Converged,
-            Stop::NoDescent => RefinementStatus::NoDescent,
-            Stop::IterationLimit => RefinementStatus::IterationLimit,
-            Stop::TimeBudget => RefinementStatus::TimeBudget,
-            Stop::Diverged => RefinementStatus::Diverged,
-        }
-    }
-}
-
 /// `fit` with its ordinary modes' parameters refined by the
 /// multiple-shooting simulation error (see the module doc), the regions
 /// unchanged, and with [`Refine::SimRegions`] then the region

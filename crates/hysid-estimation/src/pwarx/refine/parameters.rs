@@ -1,15 +1,17 @@
 //! The first stage of the refinement: the mode parameters by
-//! Levenberg-Marquardt ([`crate::lm`]) on the shooting cost, the regions
+//! Levenberg-Marquardt ([`hysid_numerics::least_squares`]) on the shooting cost, the regions
 //! fixed, over the free variables of the priors' parametrisation.
 
 use super::shooting::Shooting;
 use crate::constrained::{self, Parametrisation};
-use crate::lm::{LeastSquares, Linearisation, levenberg_marquardt};
 use crate::pwarx::failure::PwarxFailure;
 use crate::pwarx::prepare::PwarxData;
 use hysid_core::backend::{Deadline, IdentifyError};
 use hysid_core::stages::Stages;
-use hysid_model::model::{PwarxMode, Refinement};
+use hysid_model::model::{PwarxMode, Refinement, RefinementStatus};
+use hysid_numerics::least_squares::{
+    Evaluation, LeastSquares, LmSettings, Stop, levenberg_marquardt,
+};
 use nalgebra::{DMatrix, DVector};
 
 /// The parameters of `modes` refined by Levenberg-Marquardt on the
@@ -32,7 +34,12 @@ pub(super) fn fit_parameters(
         shooting: &shooting,
         par: &par,
     };
-    let descent = levenberg_marquardt(&problem, start, settings.refine_iterations, deadline)?;
+    let descent = levenberg_marquardt(
+        &problem,
+        start,
+        &LmSettings::new(settings.refine_iterations),
+        deadline,
+    )?;
     if let Some(z) = &descent.v {
         for (mode, theta) in modes.iter_mut().zip(par.thetas(z)) {
             mode.theta = theta;
@@ -46,7 +53,7 @@ pub(super) fn fit_parameters(
         max_iterations: settings.refine_iterations,
         cost_before: finite.then_some(descent.cost_before),
         cost_after: finite.then_some(descent.cost_after),
-        status: descent.stop.into(),
+        status: status_of(descent.stop),
         regions: None,
     })
 }
@@ -66,11 +73,26 @@ impl LeastSquares for ParameterResiduals<'_, '_> {
         self.par.n_free()
     }
 
-    fn linearise(&self, z: &[f64]) -> Result<Linearisation, IdentifyError> {
+    fn evaluate(&self, z: &[f64]) -> Result<Evaluation, IdentifyError> {
         Ok(self.shooting.evaluate(self.par, z)?.into())
+    }
+
+    fn jacobian(&self, z: &[f64]) -> Result<DMatrix<f64>, IdentifyError> {
+        Ok(self.shooting.evaluate(self.par, z)?.jacobian)
     }
 
     fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
         constrained::solve_in_z(self.par, design, rhs).ok()
+    }
+}
+
+/// The refinement's status after a descent that ended by `stop`.
+fn status_of(stop: Stop) -> RefinementStatus {
+    match stop {
+        Stop::Converged => RefinementStatus::Converged,
+        Stop::NoDescent => RefinementStatus::NoDescent,
+        Stop::IterationLimit => RefinementStatus::IterationLimit,
+        Stop::TimeBudget => RefinementStatus::TimeBudget,
+        Stop::Diverged => RefinementStatus::Diverged,
     }
 }

@@ -50,7 +50,6 @@
 
 use super::parameters::fit_parameters;
 use super::shooting::{Evaluation, Shooting};
-use crate::lm::{LeastSquares, Linearisation, levenberg_marquardt};
 use crate::pwarx::assemble::PwarxFit;
 use crate::pwarx::prepare::PwarxData;
 use hysid_core::backend::{Deadline, IdentifyError};
@@ -59,6 +58,7 @@ use hysid_model::geometry::{argmax_regions, argmax_scores};
 use hysid_model::model::{PwarxMode, RegionRefinement, RegionRefinementStatus};
 use hysid_model::simulate::pwarx as pwarx_sim;
 use hysid_model::statistics::upper_median;
+use hysid_numerics::least_squares::{self, LeastSquares, LmSettings, levenberg_marquardt};
 use nalgebra::{DMatrix, DVector};
 
 /// Bound on the rounds of relaxed gate and mode parameters in turn.
@@ -154,7 +154,12 @@ fn sharpen(
     let mut iterations = 0;
     for sharpness in SHARPNESS {
         gate.sharpness = sharpness;
-        let descent = levenberg_marquardt(gate, v.clone(), settings.refine_iterations, deadline)?;
+        let descent = levenberg_marquardt(
+            gate,
+            v.clone(),
+            &LmSettings::new(settings.refine_iterations),
+            deadline,
+        )?;
         iterations += descent.iterations;
         if let Some(next) = descent.v {
             v = next;
@@ -458,7 +463,7 @@ impl RelaxedGate<'_, '_> {
     }
 
     /// The simulation of every segment with the relaxed gate at `v`.
-    fn evaluate(&self, v: &[f64]) -> Result<Evaluation, IdentifyError> {
+    fn shooting_cost(&self, v: &[f64]) -> Result<Evaluation, IdentifyError> {
         let scores = self.scores(v);
         let norm = self.normal_norm(v);
         let nv = self.unknowns();
@@ -505,8 +510,12 @@ impl LeastSquares for RelaxedGate<'_, '_> {
         RelaxedGate::unknowns(self)
     }
 
-    fn linearise(&self, v: &[f64]) -> Result<Linearisation, IdentifyError> {
-        Ok(self.evaluate(v)?.into())
+    fn evaluate(&self, v: &[f64]) -> Result<least_squares::Evaluation, IdentifyError> {
+        Ok(self.shooting_cost(v)?.into())
+    }
+
+    fn jacobian(&self, v: &[f64]) -> Result<DMatrix<f64>, IdentifyError> {
+        Ok(self.shooting_cost(v)?.jacobian)
     }
 
     fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
@@ -639,7 +648,7 @@ mod tests {
             let mut v = gate.unknowns_of(&base);
             v[1] = 0.4;
             v[2] -= 0.1;
-            let ev = gate.evaluate(&v).unwrap();
+            let ev = gate.shooting_cost(&v).unwrap();
             assert!(ev.cost.is_finite());
             let h = 1e-6;
             for j in 0..v.len() {
@@ -648,8 +657,8 @@ mod tests {
                 let mut minus = v.clone();
                 minus[j] -= h;
                 let (p, m) = (
-                    gate.evaluate(&plus).unwrap(),
-                    gate.evaluate(&minus).unwrap(),
+                    gate.shooting_cost(&plus).unwrap(),
+                    gate.shooting_cost(&minus).unwrap(),
                 );
                 for r in 0..ev.samples.len() {
                     let fd = (p.simulated[r] - m.simulated[r]) / (2.0 * h);

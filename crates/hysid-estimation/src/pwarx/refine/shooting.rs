@@ -3,13 +3,13 @@
 //! [`super`]): what both stages of the refinement minimise.
 
 use crate::constrained::{Parametrisation, Slot};
-use crate::lm::Linearisation;
 use crate::pwarx::prepare::PwarxData;
 use hysid_core::backend::IdentifyError;
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::model::{HybridAutomaton, ModelInfo, PwarxMode, PwarxModel, arx_state_positions};
 use hysid_model::regressors::RegressorSpec;
 use hysid_model::simulate::{Simulation, SimulationOptions, automaton, pwarx as pwarx_sim};
+use hysid_numerics::least_squares;
 use nalgebra::{DMatrix, DVector};
 
 /// One shooting segment: the record's samples `offset ..`, of which those
@@ -308,11 +308,11 @@ fn automaton_sensitivities(
     sens
 }
 
-impl From<Evaluation> for Linearisation {
+impl From<Evaluation> for least_squares::Evaluation {
     fn from(e: Evaluation) -> Self {
-        Linearisation {
+        least_squares::Evaluation {
             errors: e.errors,
-            jacobian: e.jacobian,
+            jacobian: Some(e.jacobian),
             cost: e.cost,
         }
     }
