@@ -50,7 +50,7 @@ use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
 use hysid_numerics::budget::Deadline;
 use hysid_numerics::least_squares::{
-    Damping, ExactJacobian, FiniteDifferences, LmSettings, descend,
+    CentralDifferences, Damping, Exact, LmSettings, Residuals, descend,
 };
 use linear::{AffineFlows, AffineRow, ClosedStep, affine_guards};
 use nalgebra::DMatrix;
@@ -1504,7 +1504,14 @@ pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec
         })
         .collect();
     let unit = vec![[0.0, 1.0]; z0.len()];
-    let problem = FiniteDifferences::new(residuals, z0.len(), Some(&unit), STATE_DIFFERENCE);
+    let problem = Residuals::new(
+        residuals,
+        z0.len(),
+        Some(&unit),
+        CentralDifferences {
+            step: STATE_DIFFERENCE,
+        },
+    );
     let settings = state_solve(ESTIMATE_ITERATIONS);
     let descent = descend(&problem, z0.clone(), &settings, &Deadline::none());
     Ok(to_values(&descent.v.unwrap_or(z0)))
@@ -1541,7 +1548,7 @@ pub(crate) fn steady(
         let jacobian = |x: &[f64]| cell.borrow_mut().bare_flow_jacobian(x, u, q);
         let Some(f0) = flows(guess) else { continue };
         let scale = f0.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-        let problem = ExactJacobian::new(&flows, &jacobian, n);
+        let problem = Residuals::new(&flows, n, None, Exact(&jacobian));
         let settings = state_solve(STEADY_ITERATIONS);
         let descent = descend(&problem, guess.to_vec(), &settings, &Deadline::none());
         let x = descent.v.unwrap_or_else(|| guess.to_vec());

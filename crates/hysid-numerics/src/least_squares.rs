@@ -2,8 +2,8 @@
 //! Marquardt 1963), the one local optimiser of hysid's least-squares
 //! problems: the PWARX refinement (exact Jacobians, the priors' constraints
 //! in every step), the `physical` back-end's local stages and the gray-box
-//! initial states (finite-difference or exact Jacobians, steps projected
-//! onto a box). The damping update is the one of Madsen, Nielsen &
+//! initial states ([`Residuals`]: finite-difference or exact Jacobians,
+//! steps projected onto a box). The damping update is the one of Madsen, Nielsen &
 //! Tingleff, *Methods for non-linear least squares problems*, 2004, section
 //! 3.2. Each step solves
 //!
@@ -322,7 +322,7 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
 }
 
 /// [`levenberg_marquardt`] on a problem whose evaluations cannot fail
-/// ([`FiniteDifferences`], [`ExactJacobian`]).
+/// ([`Residuals`]).
 pub fn descend<P: LeastSquares<Error = Infallible> + ?Sized>(
     problem: &P,
     v: Vec<f64>,
@@ -382,102 +382,31 @@ fn damped_system(
 }
 
 /// The problem of driving residuals `r(x)` (a closure; `None` where they
-/// cannot be evaluated) to zero in least squares, with central
-/// finite-difference Jacobians whose columns are evaluated in parallel,
-/// the steps and the perturbed points projected onto an optional box.
-pub struct FiniteDifferences<'a, F> {
+/// cannot be evaluated) to zero in least squares, the steps projected onto
+/// an optional box, with the Jacobian `d r / d x` formed by `J`
+/// ([`CentralDifferences`] or [`Exact`]).
+pub struct Residuals<'a, F, J> {
     residuals: F,
     unknowns: usize,
     bounds: Option<&'a [[f64; 2]]>,
-    step: f64,
+    jacobian: J,
 }
 
-impl<'a, F: Fn(&[f64]) -> Option<Vec<f64>> + Sync> FiniteDifferences<'a, F> {
-    /// The residuals `residuals` of `unknowns` unknowns, differenced with
-    /// the step `step max(1, |x_i|)`, in `bounds` when given.
-    pub fn new(residuals: F, unknowns: usize, bounds: Option<&'a [[f64; 2]]>, step: f64) -> Self {
+impl<'a, F: Fn(&[f64]) -> Option<Vec<f64>>, J: ResidualJacobian<F>> Residuals<'a, F, J> {
+    /// The residuals `residuals` of `unknowns` unknowns, in `bounds` when
+    /// given, their Jacobian by `jacobian`.
+    pub fn new(residuals: F, unknowns: usize, bounds: Option<&'a [[f64; 2]]>, jacobian: J) -> Self {
         Self {
             residuals,
             unknowns,
             bounds,
-            step,
-        }
-    }
-}
-
-impl<F: Fn(&[f64]) -> Option<Vec<f64>> + Sync> LeastSquares for FiniteDifferences<'_, F> {
-    type Error = Infallible;
-
-    fn unknowns(&self) -> usize {
-        self.unknowns
-    }
-
-    fn evaluate(&self, x: &[f64]) -> Result<Evaluation, Self::Error> {
-        Ok((self.residuals)(x).map_or_else(Evaluation::failed, Evaluation::of_errors))
-    }
-
-    /// Central differences `-(r(x + h e_c) - r(x - h e_c)) / width`, the
-    /// perturbed points projected onto the box (`width` their distance);
-    /// a column whose residuals fail, or whose points coincide, stays
-    /// zero.
-    fn jacobian(&self, x: &[f64]) -> Result<DMatrix<f64>, Self::Error> {
-        let columns: Vec<Option<Vec<f64>>> = (0..x.len())
-            .into_par_iter()
-            .map(|c| {
-                let h = self.step * x[c].abs().max(1.0);
-                let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
-                xp[c] += h;
-                xm[c] -= h;
-                project_into(self.bounds, &mut xp);
-                project_into(self.bounds, &mut xm);
-                let width = xp[c] - xm[c];
-                if width <= 0.0 {
-                    return None;
-                }
-                let (rp, rm) = ((self.residuals)(&xp)?, (self.residuals)(&xm)?);
-                Some(rp.iter().zip(&rm).map(|(p, m)| (m - p) / width).collect())
-            })
-            .collect();
-        let rows = columns.iter().flatten().map(Vec::len).max().unwrap_or(0);
-        let mut j = DMatrix::zeros(rows, x.len());
-        for (c, column) in columns.into_iter().enumerate() {
-            for (k, v) in column.into_iter().flatten().enumerate() {
-                j[(k, c)] = v;
-            }
-        }
-        Ok(j)
-    }
-
-    fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
-        let mut x = unconstrained(design, rhs)?;
-        project_into(self.bounds, &mut x);
-        Some(x)
-    }
-}
-
-/// The problem of driving residuals `r(x)` to zero in least squares, with
-/// their exact Jacobian `d r / d x` (a closure, one row per residual); no
-/// bounds.
-pub struct ExactJacobian<F, J> {
-    residuals: F,
-    jacobian: J,
-    unknowns: usize,
-}
-
-impl<F: Fn(&[f64]) -> Option<Vec<f64>>, J: Fn(&[f64]) -> DMatrix<f64>> ExactJacobian<F, J> {
-    /// The residuals `residuals` of `unknowns` unknowns and their
-    /// Jacobian `jacobian`.
-    pub fn new(residuals: F, jacobian: J, unknowns: usize) -> Self {
-        Self {
-            residuals,
             jacobian,
-            unknowns,
         }
     }
 }
 
-impl<F: Fn(&[f64]) -> Option<Vec<f64>>, J: Fn(&[f64]) -> DMatrix<f64>> LeastSquares
-    for ExactJacobian<F, J>
+impl<F: Fn(&[f64]) -> Option<Vec<f64>>, J: ResidualJacobian<F>> LeastSquares
+    for Residuals<'_, F, J>
 {
     type Error = Infallible;
 
@@ -492,11 +421,71 @@ impl<F: Fn(&[f64]) -> Option<Vec<f64>>, J: Fn(&[f64]) -> DMatrix<f64>> LeastSqua
     /// `-d r / d x`: the errors are the residuals, the model's outputs
     /// their negatives.
     fn jacobian(&self, x: &[f64]) -> Result<DMatrix<f64>, Self::Error> {
-        Ok(-(self.jacobian)(x))
+        Ok(-self.jacobian.of(&self.residuals, x, self.bounds))
     }
 
     fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
-        unconstrained(design, rhs)
+        let mut x = unconstrained(design, rhs)?;
+        project_into(self.bounds, &mut x);
+        Some(x)
+    }
+}
+
+/// How a [`Residuals`] problem forms the Jacobian `d r / d x` of its
+/// residuals `F` (one row per residual).
+pub trait ResidualJacobian<F> {
+    /// The Jacobian at `x`, the points it evaluates kept in `bounds`.
+    fn of(&self, residuals: &F, x: &[f64], bounds: Option<&[[f64; 2]]>) -> DMatrix<f64>;
+}
+
+/// Central differences of step `step max(1, |x_i|)`, the columns
+/// evaluated in parallel.
+#[derive(Debug, Clone, Copy)]
+pub struct CentralDifferences {
+    /// The relative step.
+    pub step: f64,
+}
+
+impl<F: Fn(&[f64]) -> Option<Vec<f64>> + Sync> ResidualJacobian<F> for CentralDifferences {
+    /// `(r(x + h e_c) - r(x - h e_c)) / width`, the perturbed points
+    /// projected onto the box (`width` their distance); a column whose
+    /// residuals fail, or whose points coincide, stays zero.
+    fn of(&self, residuals: &F, x: &[f64], bounds: Option<&[[f64; 2]]>) -> DMatrix<f64> {
+        let columns: Vec<Option<Vec<f64>>> = (0..x.len())
+            .into_par_iter()
+            .map(|c| {
+                let h = self.step * x[c].abs().max(1.0);
+                let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
+                xp[c] += h;
+                xm[c] -= h;
+                project_into(bounds, &mut xp);
+                project_into(bounds, &mut xm);
+                let width = xp[c] - xm[c];
+                if width <= 0.0 {
+                    return None;
+                }
+                let (rp, rm) = (residuals(&xp)?, residuals(&xm)?);
+                Some(rp.iter().zip(&rm).map(|(p, m)| (p - m) / width).collect())
+            })
+            .collect();
+        let rows = columns.iter().flatten().map(Vec::len).max().unwrap_or(0);
+        let mut j = DMatrix::zeros(rows, x.len());
+        for (c, column) in columns.into_iter().enumerate() {
+            for (k, v) in column.into_iter().flatten().enumerate() {
+                j[(k, c)] = v;
+            }
+        }
+        j
+    }
+}
+
+/// The exact Jacobian, a closure of the point.
+#[derive(Debug, Clone, Copy)]
+pub struct Exact<G>(pub G);
+
+impl<F, G: Fn(&[f64]) -> DMatrix<f64>> ResidualJacobian<F> for Exact<G> {
+    fn of(&self, _: &F, x: &[f64], _: Option<&[[f64; 2]]>) -> DMatrix<f64> {
+        (self.0)(x)
     }
 }
 
@@ -623,14 +612,14 @@ mod tests {
 
     #[test]
     fn residuals_reach_their_root_on_finite_differences_and_keep_to_a_box() {
-        let free = FiniteDifferences::new(system, 2, None, 1e-7);
+        let free = Residuals::new(system, 2, None, CentralDifferences { step: 1e-7 });
         let settings = LmSettings::new(100).with_cost_tolerance(1e-15);
         let d = levenberg_marquardt(&free, vec![1.0, 1.0], &settings, &none()).unwrap();
         let x = d.v.unwrap();
         assert!(d.cost_after < 1e-24, "{}", d.cost_after);
         assert!((x[0] - 2f64.sqrt()).abs() < 1e-12 && (x[1] - 3.0 / 2f64.sqrt()).abs() < 1e-12);
         let bounds = [[0.0, 1.2], [0.0, 5.0]];
-        let boxed = FiniteDifferences::new(system, 2, Some(&bounds), 1e-7);
+        let boxed = Residuals::new(system, 2, Some(&bounds), CentralDifferences { step: 1e-7 });
         let x = levenberg_marquardt(&boxed, vec![1.0, 1.0], &settings, &none())
             .unwrap()
             .v
@@ -641,14 +630,14 @@ mod tests {
     #[test]
     fn an_exact_jacobian_reaches_the_same_root_and_a_wrong_one_does_not_descend() {
         let jacobian = |x: &[f64]| DMatrix::from_row_slice(2, 2, &[2.0 * x[0], 0.0, x[1], x[0]]);
-        let exact = ExactJacobian::new(system, jacobian, 2);
+        let exact = Residuals::new(system, 2, None, Exact(jacobian));
         let settings = LmSettings::new(100).with_cost_tolerance(1e-15);
         let d = levenberg_marquardt(&exact, vec![1.0, 1.0], &settings, &none()).unwrap();
         let x = d.v.unwrap();
         assert!(d.cost_after < 1e-24, "{}", d.cost_after);
         assert!((x[0] - 2f64.sqrt()).abs() < 1e-12 && (x[1] - 3.0 / 2f64.sqrt()).abs() < 1e-12);
         let wrong = |_: &[f64]| DMatrix::from_row_slice(2, 2, &[-1.0, 0.0, 0.0, -1.0]);
-        let wrong = ExactJacobian::new(system, wrong, 2);
+        let wrong = Residuals::new(system, 2, None, Exact(wrong));
         let d = levenberg_marquardt(&wrong, vec![1.0, 1.0], &settings, &none()).unwrap();
         assert!(d.cost_after > 1e-6, "{d:?}");
         assert_eq!(d.stop, Stop::NoDescent);
@@ -656,14 +645,14 @@ mod tests {
 
     #[test]
     fn a_failing_start_diverges_and_failing_columns_stay_zero() {
-        let never = FiniteDifferences::new(|_: &[f64]| None, 1, None, 1e-7);
+        let never = Residuals::new(|_: &[f64]| None, 1, None, CentralDifferences { step: 1e-7 });
         let d = levenberg_marquardt(&never, vec![0.0], &LmSettings::new(10), &none()).unwrap();
         assert_eq!((d.stop, d.iterations), (Stop::Diverged, 0));
         assert!(d.cost_before.is_infinite() && d.v.is_none());
         // Residuals that fail right of 0.5: the column at 0.5 fails, the
         // descent still moves the other unknown to its root.
         let half = |x: &[f64]| (x[0] <= 0.5).then(|| vec![x[0] - 0.2, x[1] - 3.0]);
-        let problem = FiniteDifferences::new(half, 2, None, 1e-3);
+        let problem = Residuals::new(half, 2, None, CentralDifferences { step: 1e-3 });
         let j = problem.jacobian(&[0.5, 0.0]).unwrap();
         assert_eq!((j[(0, 0)], j[(1, 0)]), (0.0, 0.0));
         assert!((j[(1, 1)] + 1.0).abs() < 1e-9, "{j}");

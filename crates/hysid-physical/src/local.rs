@@ -8,7 +8,9 @@ use crate::stages::{Search, SearchFailure, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use hysid_core::backend::IdentifyError;
-use hysid_numerics::least_squares::{Damping, FiniteDifferences, LmSettings, Stop, descend};
+use hysid_numerics::least_squares::{
+    CentralDifferences, Damping, LmSettings, Residuals, Stop, descend,
+};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 
@@ -170,7 +172,14 @@ fn levenberg_marquardt(
         objective.residuals(z)
     };
     let unit = vec![[0.0, 1.0]; start.len()];
-    let problem = FiniteDifferences::new(residuals, start.len(), Some(&unit), options.fd_step);
+    let problem = Residuals::new(
+        residuals,
+        start.len(),
+        Some(&unit),
+        CentralDifferences {
+            step: options.fd_step,
+        },
+    );
     let settings = LmSettings::new(options.lm_iters)
         .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
         .with_damping(Damping::Marquardt);
