@@ -339,7 +339,8 @@ impl<'a> Machine<'a> {
     /// where the regime has one ([`linear`]), else stage by stage, the
     /// stages written into the slots directly.
     fn rk4(&mut self, hs: &HybridState, u: &[f64], h: f64, out: &mut [f64]) {
-        if self.closed_form && self.closed_step(hs, self.full_step) {
+        if self.closed_form {
+            self.form_closed_step(hs);
             if let Some((.., Some(step))) = &self.closed {
                 if h == self.full_step {
                     step.apply(&hs.x, u, out);
@@ -347,9 +348,9 @@ impl<'a> Machine<'a> {
                     let [k, t, ..] = &mut self.k;
                     step.apply_length(h, &hs.x, u, (k, t), out);
                 }
+                self.steps += 1;
+                return;
             }
-            self.steps += 1;
-            return;
         }
         let [mut k1, mut k2, mut k3, mut k4] = std::mem::take(&mut self.k);
         self.load(&hs.x, u);
@@ -377,10 +378,12 @@ impl<'a> Machine<'a> {
         self.steps += 1;
     }
 
-    /// Whether the regime of `hs` has a closed-form step of length `h`
-    /// ([`linear`]), formed when the regime or the length differs from the
-    /// last one's.
-    fn closed_step(&mut self, hs: &HybridState, h: f64) -> bool {
+    /// The closed-form step of the regime of `hs` and the sub-step length
+    /// ([`linear`]; `None` where the regime has none) into
+    /// [`Machine::closed`], formed when the regime or the length differs
+    /// from the last one's.
+    fn form_closed_step(&mut self, hs: &HybridState) {
+        let h = self.full_step;
         let cached = matches!(&self.closed, Some((mode, regimes, length, _))
             if *mode == hs.mode && *length == h && *regimes == hs.regimes);
         if !cached {
@@ -401,7 +404,6 @@ impl<'a> Machine<'a> {
             };
             self.closed = Some((hs.mode, hs.regimes.clone(), h, step));
         }
-        matches!(&self.closed, Some((.., Some(_))))
     }
 
     /// Loads the RK4 stage state `x + step * k` into the slots.

@@ -145,34 +145,25 @@ impl AffineFlows {
         for &(element, velocity, direction) in sliding {
             c[velocity] -= self.kinetic.get(element).copied().flatten()? * direction;
         }
-        let mut b = self.b.clone();
-        // M = h A with the held rows zeroed.
-        let mut mh = vec![0.0; n * n];
-        for i in 0..n {
-            if held[i] {
-                c[i] = 0.0;
-                b[i * m..(i + 1) * m].fill(0.0);
-            } else {
-                for j in 0..n {
-                    mh[i * n + j] = h * self.a[i * n + j];
-                }
-            }
+        // The regime's A' and B': the held rows zeroed.
+        let (mut a, mut b) = (self.a.clone(), self.b.clone());
+        for i in (0..n).filter(|&i| held[i]) {
+            c[i] = 0.0;
+            a[i * n..(i + 1) * n].fill(0.0);
+            b[i * m..(i + 1) * m].fill(0.0);
         }
-        // V = T - I = M (I/2 + M (I/6 + M/24)), by Horner; every product
+        let mh = scaled(&a, h);
+        // M = h A'; V = T - I = M (I/2 + M (I/6 + M/24)), by Horner; every product
         // takes M on the left, so two states with the same flow get the
         // same rows and the same increments, as stage by stage.
         let mut v = identity_plus(&scaled(&mh, 1.0 / 24.0), 1.0 / 6.0, n);
         v = identity_plus(&product(&mh, &v, n, n), 0.5, n);
         v = product(&mh, &v, n, n);
         // D = P - I = T M = M + V M, G = h T B', g = h T c'.
-        let along = |a: &[f64], cols: usize| -> Vec<f64> {
-            let va = product(&v, a, n, cols);
-            a.iter().zip(&va).map(|(a, va)| a + va).collect()
+        let along = |e: &[f64], cols: usize| -> Vec<f64> {
+            let ve = product(&v, e, n, cols);
+            e.iter().zip(&ve).map(|(e, ve)| e + ve).collect()
         };
-        let mut a = self.a.clone();
-        for i in (0..n).filter(|&i| held[i]) {
-            a[i * n..(i + 1) * n].fill(0.0);
-        }
         Some(ClosedStep {
             d: along(&mh, n),
             g: scaled(&along(&b, m), h),
@@ -215,9 +206,7 @@ impl ClosedStep {
             *o = x[i] + increment;
         }
     }
-}
 
-impl ClosedStep {
     /// RK4's step of another length `h` in the same regime, by Horner on
     /// the state: with `k = A' x + B' u + c'`,
     /// `x(t + h) = x + h (k + (h/2) A' (k + (h/3) A' (k + (h/4) A' k)))`;
