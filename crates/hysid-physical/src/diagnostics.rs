@@ -36,6 +36,10 @@ pub struct PhysicalDiagnostics {
     /// Best cost of the particle swarm (on its own, segmented, cost), when it ran.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub swarm_cost: Option<f64>,
+    /// Why the swarm did not run, when [`crate::swarm::nominal_suffices`]
+    /// skipped it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub swarm_skipped: Option<SwarmSkipped>,
     /// Best cost of the segmented local stage, when it ran.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub segmented_cost: Option<f64>,
@@ -68,6 +72,17 @@ pub struct PhysicalDiagnostics {
     /// Parameters at a bound ([`ParameterMap::at_bound`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub at_bound: Vec<String>,
+}
+
+/// The swarm was skipped: Levenberg-Marquardt from the nominal values
+/// ended at a free-run cost `nominal_descent_cost` of at most `noise_floor`
+/// (`swarm_skip` times the estimated noise variance).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SwarmSkipped {
+    /// Free-run cost at the end of Levenberg-Marquardt from the nominal values.
+    pub nominal_descent_cost: f64,
+    /// The cost below which the swarm is skipped.
+    pub noise_floor: f64,
 }
 
 /// Why each stage stopped: the termination of the swarm, how many runs of
@@ -298,6 +313,7 @@ mod tests {
             rmse_fit: 0.5,
             nominal_cost: 1.0,
             swarm_cost: None,
+            swarm_skipped: None,
             segmented_cost: None,
             segment: None,
             evaluations: 12,

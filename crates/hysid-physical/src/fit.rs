@@ -5,15 +5,15 @@
 //! nominal values, and write the diagnostics.
 
 use crate::diagnostics::{
-    CONFIDENCE_METHOD, COST_DEFINITION, PhysicalDiagnostics, Status, Terminations,
+    CONFIDENCE_METHOD, COST_DEFINITION, PhysicalDiagnostics, Status, SwarmSkipped, Terminations,
 };
 use crate::identifiability;
-use crate::local::{LocalResult, local_stages};
+use crate::local::{Descended, LocalResult, descend_from, local_stages};
 use crate::objective::{FAILED, Objective, simulation_mse, velocity_tolerances};
 use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
 use crate::stages::{Search, SearchFailure, StageLog};
-use crate::swarm::global_stage;
+use crate::swarm::{SwarmResult, global_stage, nominal_suffices};
 use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
 use hysid_core::backend::{IdentifyError, NoProgress, Progress, RunContext};
@@ -79,7 +79,8 @@ pub fn fit_model<M: Target>(
     };
     let nominal_z = map.coords(&map.base);
     let nominal_cost = search.objective.mse(&nominal_z);
-    let kept = best_search(&search, &nominal_z, nominal_cost)?;
+    let nominal = Nominal::descend(&search, nominal_z, nominal_cost, tols.resolved_noise());
+    let kept = best_search(&search, &nominal)?;
     let (local, log) = (kept.local, kept.log);
 
     let mut values = map.values(&local.best_z);
@@ -100,6 +101,7 @@ pub fn fit_model<M: Target>(
         rmse_fit: cost.sqrt(),
         nominal_cost,
         swarm_cost: kept.swarm_cost,
+        swarm_skipped: nominal.skip,
         segmented_cost: local.segmented_cost,
         segment: local.segmented_cost.map(|_| options.segment),
         evaluations,
@@ -133,6 +135,47 @@ pub fn fit_model<M: Target>(
     Ok((fitted, report))
 }
 
+/// The nominal values' free-run cost must lie within this factor of the
+/// floor of [`nominal_suffices`] (an RMS error within 10 times the noise's)
+/// for the descent that may skip the swarm to be tried; farther, it is
+/// taken to be out of reach, and no fit pays for the descent.
+const NOMINAL_REACH: f64 = 100.0;
+
+/// The nominal values, their cost and, where the swarm may be skipped,
+/// Levenberg-Marquardt from them on the free-run cost, with the verdict of
+/// [`nominal_suffices`].
+struct Nominal {
+    z: Vec<f64>,
+    cost: f64,
+    descent: Option<Descended>,
+    skip: Option<SwarmSkipped>,
+}
+
+impl Nominal {
+    /// Descends from `z` when the swarm and Levenberg-Marquardt would both
+    /// run and the rule may skip the swarm: `swarm_skip > 0`, a noise
+    /// estimate above rounding
+    /// ([`crate::objective::VelocityTolerances::resolved_noise`]), and the
+    /// nominal cost `cost` within [`NOMINAL_REACH`] of the floor.
+    fn descend(search: &Search<'_>, z: Vec<f64>, cost: f64, noise: f64) -> Self {
+        let o = search.options;
+        let swarm = !z.is_empty() && o.particles > 0 && o.swarm_iters > 0;
+        let floor = o.swarm_skip * noise * noise;
+        let within_reach = floor > 0.0 && cost <= NOMINAL_REACH * floor;
+        let descent =
+            (swarm && o.lm_iters > 0 && within_reach).then(|| descend_from(search, 0, &z));
+        let skip = descent
+            .as_ref()
+            .and_then(|d| nominal_suffices(d, noise, o.swarm_skip));
+        Nominal {
+            z,
+            cost,
+            descent,
+            skip,
+        }
+    }
+}
+
 /// One search of [`best_search`]: the swarm's best cost, the local stages
 /// from its best points, why each stopped, and the free-run cost of the
 /// result.
@@ -152,21 +195,10 @@ struct SearchRun {
 /// searches run in parallel, each on its own seed, so the one kept does
 /// not depend on the thread count; the progress then counts searches. No
 /// search but the first starts after the deadline.
-fn best_search(
-    search: &Search<'_>,
-    nominal_z: &[f64],
-    nominal_cost: f64,
-) -> Result<SearchRun, IdentifyError> {
+fn best_search(search: &Search<'_>, nominal: &Nominal) -> Result<SearchRun, IdentifyError> {
     let seeds = search.ctx.start_seeds(search.options.swarms);
     if let [seed] = seeds[..] {
-        return one_search(
-            search,
-            0,
-            seed,
-            search.ctx.progress,
-            nominal_z,
-            nominal_cost,
-        );
+        return one_search(search, 0, seed, search.ctx.progress, nominal);
     }
     let progress = search.ctx.progress;
     progress.start(seeds.len() as u64, "searches");
@@ -177,7 +209,7 @@ fn best_search(
             if !search.ctx.deadline.admits(index) {
                 return None;
             }
-            let run = one_search(search, index, seed, &NoProgress, nominal_z, nominal_cost);
+            let run = one_search(search, index, seed, &NoProgress, nominal);
             progress.advance(1);
             Some(run)
         })
@@ -194,14 +226,14 @@ fn best_search(
 }
 
 /// Search number `index` of [`best_search`], on `seed`, reporting to
-/// `progress`.
+/// `progress`; where [`Nominal::skip`] says so, without the swarm and the
+/// segmented local stage.
 fn one_search(
     search: &Search<'_>,
     index: usize,
     seed: u64,
     progress: &dyn Progress,
-    nominal_z: &[f64],
-    nominal_cost: f64,
+    nominal: &Nominal,
 ) -> Result<SearchRun, IdentifyError> {
     let ctx = RunContext {
         seed,
@@ -215,8 +247,20 @@ fn one_search(
         evals: search.evals,
     };
     let mut log = StageLog::default();
-    let swarm = global_stage(&run, nominal_z, nominal_cost, &mut log)?;
-    let local = local_stages(&run, swarm.best_z, &swarm.extra_starts, &mut log)?;
+    let (swarm, free_run_only) = match (&nominal.skip, &nominal.descent) {
+        (Some(_), Some(descent)) => (SwarmResult::skipped(descent), true),
+        _ => (
+            global_stage(&run, &nominal.z, nominal.cost, &mut log)?,
+            false,
+        ),
+    };
+    let local = local_stages(
+        &run,
+        swarm.best_z,
+        &swarm.extra_starts,
+        free_run_only,
+        &mut log,
+    )?;
     let values = run.objective.map.values(&local.best_z);
     let cost = simulation_mse(run.objective.model, &values, run.objective.records);
     Ok(SearchRun {

@@ -17,7 +17,9 @@
 //! 1. a global stage ([`swarm`]): argmin's particle swarm (Kennedy and
 //!    Eberhart 1995), seeded with `ChaCha8Rng::seed_from_u64(ctx.seed)`, in
 //!    the bounds, on the segmented (multiple-shooting) error ([`objective`];
-//!    the free-run one with `segment=0`);
+//!    the free-run one with `segment=0`), skipped where Levenberg-Marquardt
+//!    from the nominal values already fits the record to its noise
+//!    ([`swarm::nominal_suffices`]);
 //! 2. local stages ([`local`]), on the segmented error and then on the
 //!    free-run one: Levenberg-Marquardt (Marquardt 1963,
 //!    [`hysid_numerics::least_squares`], central differences in the unit
@@ -82,6 +84,11 @@ hysid_core::backend_options! {
         model: String = String::new(),
         /// Particles of the swarm (global stage); 0 skips the global stage.
         particles: usize = 24,
+        /// The swarm is skipped where Levenberg-Marquardt from the nominal values ends by
+        /// its own tests at a free-run cost of at most this multiple of the estimated
+        /// output noise variance: the nominal start already explains the record to its
+        /// noise. 0: the swarm always runs.
+        swarm_skip: f64 = 1.5,
         /// Independent searches (swarm, then the local stages), each from its own seed
         /// (the first from the run's seed); the one of least free-run cost on the rows is
         /// kept. The cost is multimodal on real records, and the seed picks the minimum.
@@ -132,6 +139,13 @@ impl CheckOptions for PhysicalOptions {
                 "swarms",
                 self.swarms,
                 format!("must be in 1..={MAX_SWARMS}"),
+            ));
+        }
+        if !(self.swarm_skip.is_finite() && self.swarm_skip >= 0.0) {
+            return Err(OptionError::invalid(
+                "swarm_skip",
+                self.swarm_skip,
+                "must be a finite number >= 0",
             ));
         }
         if !(self.simplex > 0.0 && self.simplex <= 1.0) {

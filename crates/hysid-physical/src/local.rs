@@ -19,6 +19,27 @@ use std::sync::atomic::Ordering;
 /// ([`Termination::Converged`]).
 const LM_RELATIVE_TOLERANCE: f64 = 1e-9;
 
+/// A Levenberg-Marquardt descent: how it ended, the point it reached and
+/// the cost there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Descended {
+    /// How it ended.
+    pub stop: Stop,
+    /// The point it reached.
+    pub z: Vec<f64>,
+    /// The cost there (on the cost it descended).
+    pub cost: f64,
+}
+
+/// Levenberg-Marquardt from `start` on the cost of segments of `segment`
+/// samples (0: free run).
+pub fn descend_from(search: &Search<'_>, segment: usize, start: &[f64]) -> Descended {
+    let objective = search.objective.with_segment(segment);
+    let (stop, z) = levenberg_marquardt(search, &objective, start);
+    let cost = objective.mse(&z);
+    Descended { stop, z, cost }
+}
+
 /// What the local stages found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LocalResult {
@@ -32,11 +53,12 @@ pub struct LocalResult {
 /// `extra_starts`) when there is something to search (`d > 0`, and
 /// Levenberg-Marquardt or Nelder-Mead to run: `lm_iters`, or `local_iters`
 /// and `restarts`, not 0); each stage starts from the best point of the
-/// previous one.
+/// previous one. `free_run_only`: the free-run stage alone.
 pub fn local_stages(
     search: &Search<'_>,
     best_z: Vec<f64>,
     extra_starts: &[Vec<f64>],
+    free_run_only: bool,
     log: &mut StageLog,
 ) -> Result<LocalResult, IdentifyError> {
     let options = search.options;
@@ -50,7 +72,7 @@ pub fn local_stages(
         return Ok(result);
     }
     // The segmented cost (when enabled), then the free run.
-    let stages: Vec<usize> = if options.segment > 0 {
+    let stages: Vec<usize> = if options.segment > 0 && !free_run_only {
         vec![options.segment, 0]
     } else {
         vec![0]
@@ -118,9 +140,8 @@ fn local_stage(
         .map(|start| {
             let at_start = objective.mse(start);
             let descent = (options.lm_iters > 0).then(|| {
-                let (stop, z) = levenberg_marquardt(search, &objective, start);
-                let cost = objective.mse(&z);
-                (stop, z, cost)
+                let d = descend_from(search, segment, start);
+                (d.stop, d.z, d.cost)
             });
             (at_start, descent)
         })

@@ -101,6 +101,25 @@ pub struct VelocityTolerances {
     pub centred: f64,
     /// For the initial-state estimator of the simulator (backward quadratic).
     pub backward: f64,
+    /// The output's range (largest minus smallest sample).
+    pub output_range: f64,
+}
+
+/// Below this fraction of the output's range a noise estimate is rounding
+/// (a quantised record whose repeated samples leave second differences of
+/// about 1e-15), not noise: [`VelocityTolerances::resolved_noise`].
+const NOISE_RESOLUTION: f64 = 1e-9;
+
+impl VelocityTolerances {
+    /// [`Self::noise`] where it exceeds rounding (`1e-9` of the output's
+    /// range), else 0.
+    pub fn resolved_noise(&self) -> f64 {
+        if self.noise > NOISE_RESOLUTION * self.output_range {
+            self.noise
+        } else {
+            0.0
+        }
+    }
 }
 
 /// Estimates the output noise robustly from second differences
@@ -137,6 +156,7 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
         noise,
         centred: 3.0 * noise * g_c + floor,
         backward: 3.0 * noise * g_b + floor,
+        output_range: (hi - lo).max(0.0),
     }
 }
 
@@ -244,5 +264,36 @@ impl CostFunction for SimulationCost<'_> {
         let out: f64 = z.iter().map(|x| (x - x.clamp(0.0, 1.0)).powi(2)).sum();
         let c = self.objective.mse(z);
         Ok(c * (1.0 + 10.0 * out) + out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_noise_estimate_of_rounding_is_resolved_to_zero() {
+        // A quantised record: steps of 0.1 held for a while, each sample
+        // off by rounding of 1e-15.
+        let quantised: Vec<f64> = (0..400)
+            .map(|k| 0.1 * (k / 7) as f64 + if k % 2 == 0 { 1e-15 } else { -1e-15 })
+            .collect();
+        let t = velocity_tolerances(&quantised, 0.01);
+        assert!(t.noise > 0.0 && t.noise < 1e-13, "{}", t.noise);
+        assert_eq!(t.resolved_noise(), 0.0);
+        // Noise of 0.01 on a slow ramp is kept as estimated.
+        let mut state = 12345u64;
+        let noisy: Vec<f64> = (0..400)
+            .map(|k| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let u = (state >> 11) as f64 / (1u64 << 53) as f64;
+                0.01 * k as f64 + 0.01 * (u - 0.5) * 12f64.sqrt()
+            })
+            .collect();
+        let t = velocity_tolerances(&noisy, 0.01);
+        assert!((t.noise - 0.01).abs() < 0.002, "{}", t.noise);
+        assert_eq!(t.resolved_noise(), t.noise);
     }
 }

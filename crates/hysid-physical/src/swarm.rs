@@ -1,11 +1,15 @@
 //! The global stage: argmin's particle swarm (Kennedy and Eberhart 1995) on
 //! the segmented simulation error (the free-run one with `segment=0`) in
-//! the box `[0, 1]^d`, seeded with `ChaCha8Rng::seed_from_u64(seed)`.
+//! the box `[0, 1]^d`, seeded with `ChaCha8Rng::seed_from_u64(seed)`; and
+//! the rule that skips it where the nominal values need no global search.
 
+use crate::diagnostics::SwarmSkipped;
+use crate::local::Descended;
 use crate::stages::{Search, SearchFailure, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::particleswarm::{Particle, ParticleSwarm};
 use hysid_core::backend::IdentifyError;
+use hysid_numerics::least_squares::Stop;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -20,6 +24,36 @@ pub struct SwarmResult {
     /// Further starts for the first local stage: the nominal values and the
     /// best other particles, by cost.
     pub extra_starts: Vec<Vec<f64>>,
+}
+
+impl SwarmResult {
+    /// The local stages start from `descended`'s end alone (the swarm
+    /// skipped).
+    pub fn skipped(descended: &Descended) -> Self {
+        SwarmResult {
+            best_z: descended.z.clone(),
+            cost: None,
+            extra_starts: Vec::new(),
+        }
+    }
+}
+
+/// The rule that skips the swarm: Levenberg-Marquardt from the nominal
+/// values on the free-run cost (`descended`) ended by its own tests
+/// (converged, or no step lowers the cost) at a cost of at most `factor`
+/// times the output noise variance `noise^2`
+/// ([`crate::objective::VelocityTolerances::noise`]). The free-run cost of
+/// the parameters that made a record is about its noise variance, and no
+/// search lowers it by more than the noise allows, so the swarm could only
+/// find another parameter set of about the same cost. `factor = 0` never
+/// skips.
+pub fn nominal_suffices(descended: &Descended, noise: f64, factor: f64) -> Option<SwarmSkipped> {
+    let floor = factor * noise * noise;
+    let ended = matches!(descended.stop, Stop::Converged | Stop::NoDescent);
+    (factor > 0.0 && ended && descended.cost <= floor).then_some(SwarmSkipped {
+        nominal_descent_cost: descended.cost,
+        noise_floor: floor,
+    })
 }
 
 /// Runs the swarm when there is something to search (`d > 0`, `particles`
@@ -102,4 +136,37 @@ fn extra_starts(
     }
     extra.truncate(starts.saturating_sub(1));
     extra
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn descended(stop: Stop, cost: f64) -> Descended {
+        Descended {
+            stop,
+            z: vec![0.4],
+            cost,
+        }
+    }
+
+    #[test]
+    fn the_swarm_is_skipped_only_after_a_descent_that_ended_at_the_noise() {
+        // noise 0.1: the floor of factor 1.5 is 0.015.
+        let skip = |stop, cost, factor| nominal_suffices(&descended(stop, cost), 0.1, factor);
+        let s = skip(Stop::Converged, 0.012, 1.5).unwrap();
+        assert_eq!(s.nominal_descent_cost, 0.012);
+        assert!((s.noise_floor - 0.015).abs() < 1e-15);
+        assert!(skip(Stop::NoDescent, 0.012, 1.5).is_some());
+        // Above the floor, or a descent its tests did not end.
+        assert!(skip(Stop::Converged, 0.016, 1.5).is_none());
+        for stop in [Stop::IterationLimit, Stop::TimeBudget, Stop::Diverged] {
+            assert!(skip(stop, 0.001, 1.5).is_none(), "{stop:?}");
+        }
+        // Factor 0 never skips, a perfect fit included.
+        assert!(skip(Stop::Converged, 0.0, 0.0).is_none());
+        let skipped = SwarmResult::skipped(&descended(Stop::Converged, 0.0));
+        assert_eq!(skipped.best_z, vec![0.4]);
+        assert!(skipped.extra_starts.is_empty());
+    }
 }

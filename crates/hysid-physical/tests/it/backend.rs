@@ -15,9 +15,12 @@ use hysid_physical::{HEAD_MODEL_TOML, Physical, bridge, head_model};
 
 const TS: f64 = 0.0025;
 /// The head's model file and small budgets: these tests check the
-/// contract, not the optimum.
-const QUICK: [&str; 7] = [
+/// contract, not the optimum. Their records are the nominal head's, which
+/// would skip the swarm ([`the_swarm_is_skipped_where_the_nominal_values_fit_to_the_noise`]),
+/// so the rule is off.
+const QUICK: [&str; 8] = [
     crate::HEAD_MODEL_SET,
+    "swarm_skip=0",
     "particles=6",
     "swarm_iters=3",
     "local_iters=30",
@@ -529,5 +532,76 @@ fn a_parameter_the_rows_do_not_reach_stays_nominal() {
                 "{name}: {entry}"
             );
         }
+    }
+}
+
+/// The swarm is skipped where Levenberg-Marquardt from the nominal values
+/// fits the record to its noise: on a record of the nominal head with
+/// noise added the fit runs neither the swarm nor the segmented stage, says
+/// why, runs fewer simulations and reaches the cost of the fit with the
+/// swarm. Where the rule does not hold, the fit is the one without the
+/// rule, plus the simulations of that descent.
+#[test]
+fn the_swarm_is_skipped_where_the_nominal_values_fit_to_the_noise() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let mut d = data(800, 3);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+    let noise = Normal::new(0.0, 0.02).unwrap();
+    for v in d.output.values.iter_mut() {
+        *v += noise.sample(&mut rng);
+    }
+    let diag = |m: &Model| m.info().diagnostics.to_map();
+    let fit = |skip: &str| {
+        let m = run(&d, &Priors::default(), &[skip, "lm_iters=20"], 1).unwrap();
+        (diag(&m), m)
+    };
+    let (skipped, _) = fit("swarm_skip=1.5");
+    let (full, full_model) = fit("swarm_skip=0");
+    let why = &skipped["swarm_skipped"];
+    let (reached, floor) = (
+        why["nominal_descent_cost"].as_f64().unwrap(),
+        why["noise_floor"].as_f64().unwrap(),
+    );
+    assert!(reached <= floor, "{why}");
+    let sigma = skipped["noise_estimate"].as_f64().unwrap();
+    assert!(
+        (floor - 1.5 * sigma * sigma).abs() <= 1e-12 * floor,
+        "{why}"
+    );
+    assert!(skipped["termination"].get("particle_swarm").is_none());
+    assert!(!skipped.contains_key("swarm_cost"));
+    assert!(!skipped.contains_key("segmented_cost"));
+    assert!(!full.contains_key("swarm_skipped"));
+    let evals = |g: &std::collections::BTreeMap<String, serde_json::Value>| {
+        g["evaluations"].as_u64().unwrap()
+    };
+    assert!(
+        evals(&skipped) < evals(&full),
+        "{} >= {}",
+        evals(&skipped),
+        evals(&full)
+    );
+    let cost =
+        |g: &std::collections::BTreeMap<String, serde_json::Value>| g["cost"].as_f64().unwrap();
+    assert!(
+        cost(&skipped) <= 1.01 * cost(&full),
+        "{} against {}",
+        cost(&skipped),
+        cost(&full)
+    );
+    // A floor below the noise variance (half of it): the descent is tried
+    // (the nominal cost lies within 100 floors) and fails the rule; the
+    // swarm runs, and the fit is the one without the rule, plus the
+    // descent's simulations. A floor far below the nominal cost: the
+    // descent is not even tried.
+    for (factor, tried) in [("swarm_skip=0.5", true), ("swarm_skip=1e-9", false)] {
+        let (never, never_model) = fit(factor);
+        assert!(!never.contains_key("swarm_skipped"), "{factor}");
+        assert_eq!(never["termination"], full["termination"], "{factor}");
+        assert_eq!(evals(&never) > evals(&full), tried, "{factor}");
+        assert_eq!(evals(&never) == evals(&full), !tried, "{factor}");
+        assert_eq!(mech(&never_model).values(), mech(&full_model).values());
+        assert_eq!(cost(&never).to_bits(), cost(&full).to_bits());
     }
 }
