@@ -101,7 +101,7 @@ pub fn fit_model<M: Target>(
         rmse_fit: cost.sqrt(),
         nominal_cost,
         swarm_cost: kept.swarm_cost,
-        swarm_skipped: nominal.skip,
+        swarm_skipped: nominal.skip.as_ref().map(|(why, _)| *why),
         segmented_cost: local.segmented_cost,
         segment: local.segmented_cost.map(|_| options.segment),
         evaluations,
@@ -141,20 +141,18 @@ pub fn fit_model<M: Target>(
 /// taken to be out of reach, and no fit pays for the descent.
 const NOMINAL_REACH: f64 = 100.0;
 
-/// The nominal values, their cost and, where the swarm may be skipped,
-/// Levenberg-Marquardt from them on the free-run cost, with the verdict of
-/// [`nominal_suffices`].
+/// The nominal values, their cost and, where [`nominal_suffices`] skips
+/// the swarm, why and the descent the local stages go on from.
 struct Nominal {
     z: Vec<f64>,
     cost: f64,
-    descent: Option<Descended>,
-    skip: Option<SwarmSkipped>,
+    skip: Option<(SwarmSkipped, Descended)>,
 }
 
 impl Nominal {
-    /// Descends from `z` when the swarm and Levenberg-Marquardt would both
-    /// run and the rule may skip the swarm: `swarm_skip > 0`, a noise
-    /// estimate above rounding
+    /// Levenberg-Marquardt from `z` on the free-run cost, tried when the
+    /// swarm and Levenberg-Marquardt would both run and the rule may skip
+    /// the swarm: `swarm_skip > 0`, a noise estimate above rounding
     /// ([`crate::objective::VelocityTolerances::resolved_noise`]), and the
     /// nominal cost `cost` within [`NOMINAL_REACH`] of the floor.
     fn descend(search: &Search<'_>, z: Vec<f64>, cost: f64, noise: f64) -> Self {
@@ -162,17 +160,10 @@ impl Nominal {
         let swarm = !z.is_empty() && o.particles > 0 && o.swarm_iters > 0;
         let floor = o.swarm_skip * noise * noise;
         let within_reach = floor > 0.0 && cost <= NOMINAL_REACH * floor;
-        let descent =
-            (swarm && o.lm_iters > 0 && within_reach).then(|| descend_from(search, 0, &z));
-        let skip = descent
-            .as_ref()
-            .and_then(|d| nominal_suffices(d, noise, o.swarm_skip));
-        Nominal {
-            z,
-            cost,
-            descent,
-            skip,
-        }
+        let skip = (swarm && o.lm_iters > 0 && within_reach)
+            .then(|| descend_from(search, 0, &z))
+            .and_then(|d| Some((nominal_suffices(&d, noise, o.swarm_skip)?, d)));
+        Nominal { z, cost, skip }
     }
 }
 
@@ -247,9 +238,9 @@ fn one_search(
         evals: search.evals,
     };
     let mut log = StageLog::default();
-    let (swarm, free_run_only) = match (&nominal.skip, &nominal.descent) {
-        (Some(_), Some(descent)) => (SwarmResult::skipped(descent), true),
-        _ => (
+    let (swarm, free_run_only) = match &nominal.skip {
+        Some((_, descent)) => (SwarmResult::skipped(descent), true),
+        None => (
             global_stage(&run, &nominal.z, nominal.cost, &mut log)?,
             false,
         ),

@@ -270,6 +270,7 @@ impl CostFunction for SimulationCost<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::SeedableRng;
 
     #[test]
     fn a_noise_estimate_of_rounding_is_resolved_to_zero() {
@@ -281,16 +282,11 @@ mod tests {
         let t = velocity_tolerances(&quantised, 0.01);
         assert!(t.noise > 0.0 && t.noise < 1e-13, "{}", t.noise);
         assert_eq!(t.resolved_noise(), 0.0);
-        // Noise of 0.01 on a slow ramp is kept as estimated.
-        let mut state = 12345u64;
+        // Gaussian noise of 0.01 on a slow ramp is kept as estimated.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let normal = rand_distr::Normal::new(0.0, 0.01).unwrap();
         let noisy: Vec<f64> = (0..400)
-            .map(|k| {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                let u = (state >> 11) as f64 / (1u64 << 53) as f64;
-                0.01 * k as f64 + 0.01 * (u - 0.5) * 12f64.sqrt()
-            })
+            .map(|k| 0.01 * k as f64 + rand_distr::Distribution::sample(&normal, &mut rng))
             .collect();
         let t = velocity_tolerances(&noisy, 0.01);
         assert!((t.noise - 0.01).abs() < 0.002, "{}", t.noise);
