@@ -293,7 +293,7 @@ const NOT_RUN: &[(&str, &str)] = &[
     ),
     (
         "hysid identify models/pick-and-place/headdata_1v6.mat -m physical",
-        "a physical fit (8 s in release, over a minute in debug); its output is the committed head-fitted.json, validated in RUN",
+        "a physical fit (4 s in release, over a minute in debug); its output is the committed head-fitted.json, validated in RUN",
     ),
     (
         "hysid identify models/pick-and-place/headdata_1v6.mat -m cluster --na 2 --nb 2 --decimate 10 --rows 0..5000 --auto",

@@ -6,12 +6,15 @@
 //! or resting at a stop. Within a regime the force law is smooth (affine),
 //! and it is integrated with classical RK4 at the model's fixed internal
 //! step (the sample time divided into equal sub-steps no longer than
-//! `internal_step`), the input held over each sample (zero-order hold).
+//! `internal_step`), the input held over each sample (zero-order hold). A
+//! full sub-step takes RK4's closed form for affine flows
+//! ([`hysid_numerics::affine_rk4`]), formed once per sliding regime
+//! ([`Integrator`]); shorter steps around events take the four stages.
 //!
 //! Events are located inside the internal step by bisection on the step
-//! length (60 halvings), the state taken just past the event, and the rest
-//! of the step integrated in the new regime (at most
-//! [`MAX_EVENTS_PER_STEP`] events per step):
+//! length (at most 60 halvings, to the last bit of the step), the state
+//! taken just past the event, and the rest of the step integrated in the
+//! new regime (at most [`MAX_EVENTS_PER_STEP`] events per step):
 //!
 //! - **velocity zero** (`s v <= 0`): `v := 0`; the mass sticks when the net
 //!   smooth force `|F| <= f_s` (static level), else it slides off in the
@@ -33,6 +36,7 @@ use crate::{MechanicalInitialState, MechanicalModel, ResolvedForce, ResolvedMech
 use hysid_model::data::Dataset;
 use hysid_model::simulate::{SimError, Simulation, SimulationOptions};
 pub use hysid_model::simulate::{estimate_velocity, substeps};
+use hysid_numerics::affine_rk4::ClosedStep;
 
 /// Bound on the events processed within one internal step (a Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
@@ -108,6 +112,40 @@ impl ResolvedMechanics {
             }
         }
         f
+    }
+
+    /// The flows of `(y, v)` while sliding in direction `dir` with the
+    /// contacts of `engaged`, `d(y, v)/dt = A (y, v) + B u + c`, for `inputs`
+    /// inputs: the terms of [`Self::smooth_force`] and the kinetic friction
+    /// against the motion, as `A` (2 x 2), `B` (2 x `inputs`) and `c`,
+    /// row-major.
+    pub fn affine_flows(&self, dir: f64, engaged: u32, inputs: usize) -> [Vec<f64>; 3] {
+        let (mut a, mut b, mut c) = (
+            vec![0.0, 1.0, 0.0, 0.0],
+            vec![0.0; 2 * inputs],
+            vec![0.0; 2],
+        );
+        for fe in &self.forces {
+            match *fe {
+                ResolvedForce::Input(i, g) => b[inputs + i] += g,
+                ResolvedForce::Constant(k) => c[1] += k,
+                ResolvedForce::Spring(k, rest) => {
+                    a[2] -= k;
+                    c[1] += k * rest;
+                }
+                ResolvedForce::Damper(d) => a[3] -= d,
+            }
+        }
+        for (i, contact) in self.contacts.iter().enumerate() {
+            if engaged & (1 << i) != 0 {
+                let s2 = contact.sign * contact.sign;
+                a[2] -= s2 * contact.stiffness;
+                a[3] -= s2 * contact.damping;
+                c[1] += s2 * contact.stiffness * contact.position;
+            }
+        }
+        c[1] -= dir * self.friction(engaged).0;
+        [a, b, c]
     }
 
     /// Kinetic and static friction levels with the contacts of `engaged`.
@@ -232,74 +270,6 @@ impl ResolvedMechanics {
         self.engaged_at(y, v) != engaged
     }
 
-    /// Advances the state by `dt` with input `u` held. Returns
-    /// (internal steps, events).
-    pub fn advance(
-        &self,
-        st: &mut MechanicalState,
-        u: &[f64],
-        dt: f64,
-        n_sub: usize,
-    ) -> (usize, usize) {
-        let h = dt / n_sub as f64;
-        let (mut steps, mut events) = (0, 0);
-        // At rest: a constant net force over the interval.
-        if !matches!(st.regime, Regime::Slip { .. }) {
-            st.v = 0.0;
-            st.regime = self.rest_regime(st.y, u);
-            if !matches!(st.regime, Regime::Slip { .. }) {
-                return (0, 0);
-            }
-        }
-        for _ in 0..n_sub {
-            let mut left = h;
-            let mut n_ev = 0;
-            while left > 0.0 {
-                let Regime::Slip { dir, engaged } = st.regime else {
-                    // Stuck or at a stop for the rest of the step; the force
-                    // stays constant, so for the rest of the sample too.
-                    return (steps, events);
-                };
-                let d = dir as f64;
-                steps += 1;
-                let (y1, v1) = self.rk4(st.y, st.v, u, d, engaged, left);
-                if !self.left_slip(y1, v1, d, engaged) {
-                    st.y = y1;
-                    st.v = v1;
-                    break;
-                }
-                // Locate the first exit in (0, left] by bisection.
-                let (mut lo, mut hi) = (0.0, left);
-                let (mut yh, mut vh) = (y1, v1);
-                for _ in 0..60 {
-                    let mid = 0.5 * (lo + hi);
-                    if mid <= lo || mid >= hi {
-                        break;
-                    }
-                    let (ym, vm) = self.rk4(st.y, st.v, u, d, engaged, mid);
-                    if self.left_slip(ym, vm, d, engaged) {
-                        hi = mid;
-                        yh = ym;
-                        vh = vm;
-                    } else {
-                        lo = mid;
-                    }
-                }
-                events += 1;
-                n_ev += 1;
-                left -= hi;
-                *st = self.handle_event(yh, vh, u, d);
-                if n_ev >= MAX_EVENTS_PER_STEP {
-                    // Zeno guard: come to rest here.
-                    st.v = 0.0;
-                    st.regime = self.rest_regime(st.y, u);
-                    break;
-                }
-            }
-        }
-        (steps, events)
-    }
-
     /// The state just after leaving a sliding regime at `(y, v)`.
     fn handle_event(&self, y: f64, v: f64, u: &[f64], dir: f64) -> MechanicalState {
         // A stop crossed in the direction of motion takes precedence.
@@ -351,12 +321,140 @@ impl ResolvedMechanics {
     }
 }
 
+/// The sub-steps of a run: RK4 over the model's internal step, a full
+/// sub-step of a sliding regime in closed form
+/// ([`ResolvedMechanics::affine_flows`], [`ClosedStep`], formed when the
+/// regime is first met), events located by bisection on the step length.
+#[derive(Debug, Clone)]
+pub struct Integrator<'a> {
+    mech: &'a ResolvedMechanics,
+    n_sub: usize,
+    /// The sub-step length.
+    h: f64,
+    /// The closed forms of the sliding regimes met, by direction and
+    /// engaged contacts.
+    closed: Vec<(i8, u32, ClosedStep)>,
+    /// Full sub-steps in closed form (else by RK4's four stages).
+    closed_form: bool,
+}
+
+impl<'a> Integrator<'a> {
+    /// Sub-steps of `mech` for samples of `dt` split into `n_sub`.
+    pub fn new(mech: &'a ResolvedMechanics, dt: f64, n_sub: usize) -> Self {
+        Integrator {
+            mech,
+            n_sub,
+            h: dt / n_sub as f64,
+            closed: Vec::new(),
+            closed_form: true,
+        }
+    }
+
+    /// The closed-form sub-step of the sliding regime `(dir, engaged)`.
+    fn closed(&mut self, dir: i8, engaged: u32, inputs: usize) -> &ClosedStep {
+        let at = match self
+            .closed
+            .iter()
+            .position(|(d, e, _)| (*d, *e) == (dir, engaged))
+        {
+            Some(at) => at,
+            None => {
+                let [a, b, c] = self.mech.affine_flows(dir as f64, engaged, inputs);
+                let step = ClosedStep::new(a, b, c, self.h);
+                self.closed.push((dir, engaged, step));
+                self.closed.len() - 1
+            }
+        };
+        &self.closed[at].2
+    }
+
+    /// Advances the state by one sample with input `u` held. Returns
+    /// (internal steps, events).
+    pub fn advance(&mut self, st: &mut MechanicalState, u: &[f64]) -> (usize, usize) {
+        let (mech, n_sub, h) = (self.mech, self.n_sub, self.h);
+        let (mut steps, mut events) = (0, 0);
+        // At rest: a constant net force over the interval.
+        if !matches!(st.regime, Regime::Slip { .. }) {
+            st.v = 0.0;
+            st.regime = mech.rest_regime(st.y, u);
+            if !matches!(st.regime, Regime::Slip { .. }) {
+                return (0, 0);
+            }
+        }
+        for _ in 0..n_sub {
+            let mut left = h;
+            let mut n_ev = 0;
+            while left > 0.0 {
+                let Regime::Slip { dir, engaged } = st.regime else {
+                    // Stuck or at a stop for the rest of the step; the force
+                    // stays constant, so for the rest of the sample too.
+                    return (steps, events);
+                };
+                let d = dir as f64;
+                steps += 1;
+                let (y1, v1) = if left == h && self.closed_form {
+                    let mut x1 = [0.0; 2];
+                    self.closed(dir, engaged, u.len())
+                        .apply(&[st.y, st.v], u, &mut x1);
+                    (x1[0], x1[1])
+                } else {
+                    mech.rk4(st.y, st.v, u, d, engaged, left)
+                };
+                if !mech.left_slip(y1, v1, d, engaged) {
+                    st.y = y1;
+                    st.v = v1;
+                    break;
+                }
+                // Locate the first exit in (0, left] by bisection.
+                let (mut lo, mut hi) = (0.0, left);
+                let (mut yh, mut vh) = (y1, v1);
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if mid <= lo || mid >= hi {
+                        break;
+                    }
+                    let (ym, vm) = mech.rk4(st.y, st.v, u, d, engaged, mid);
+                    if mech.left_slip(ym, vm, d, engaged) {
+                        hi = mid;
+                        yh = ym;
+                        vh = vm;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                events += 1;
+                n_ev += 1;
+                left -= hi;
+                *st = mech.handle_event(yh, vh, u, d);
+                if n_ev >= MAX_EVENTS_PER_STEP {
+                    // Zeno guard: come to rest here.
+                    st.v = 0.0;
+                    st.regime = mech.rest_regime(st.y, u);
+                    break;
+                }
+            }
+        }
+        (steps, events)
+    }
+}
+
 /// Runs a mechanical model with parameter values `values` on the inputs of
 /// `data` (sampling time `data.ts`), from the model's initial-state rule.
 pub fn run(
     model: &MechanicalModel,
     values: &[f64],
     data: &Dataset,
+) -> Result<MechanicalRun, SimError> {
+    run_with(model, values, data, true)
+}
+
+/// [`run`], full sub-steps in closed form or (`closed_form = false`) by
+/// RK4's four stages.
+fn run_with(
+    model: &MechanicalModel,
+    values: &[f64],
+    data: &Dataset,
+    closed_form: bool,
 ) -> Result<MechanicalRun, SimError> {
     let r = model.resolve_with(values);
     let ts = data.ts.ok_or(SimError::NoSamplingTime)?;
@@ -421,9 +519,11 @@ pub fn run(
     out.y[start] = st.y;
     out.v[start] = st.v;
     out.modes[start] = label(&st);
+    let mut integrator = Integrator::new(&r, ts, n_sub);
+    integrator.closed_form = closed_form;
     for k in start..n.saturating_sub(1) {
         input_at(k, &mut u);
-        let (s, e) = r.advance(&mut st, &u, ts, n_sub);
+        let (s, e) = integrator.advance(&mut st, &u);
         out.steps += s;
         out.events += e;
         out.y[k + 1] = st.y;
@@ -486,6 +586,7 @@ pub fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation, SimErr
         diverged_at: None,
     };
     let mut u = vec![0.0; m.inputs.len()];
+    let mut integrator = Integrator::new(&r, ts, n_sub);
     for k in first..n.saturating_sub(1) {
         for (i, x) in u.iter_mut().enumerate() {
             *x = data.inputs[i].values[k];
@@ -495,7 +596,7 @@ pub fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation, SimErr
             v = 0.0;
         }
         let mut st = r.state_at(ym[k], v, &u);
-        r.advance(&mut st, &u, ts, n_sub);
+        integrator.advance(&mut st, &u);
         sim.y[k + 1] = st.y;
         sim.modes[k + 1] = match st.regime {
             Regime::AtStop(i) => m.mode_of(Some(i), true, 0),
@@ -759,6 +860,43 @@ mod tests {
                     prop_assert_eq!(r.v[k], 0.0);
                 }
             }
+        }
+
+        /// The affine flows of a sliding regime are its acceleration: at
+        /// random states, inputs, directions and engaged contacts,
+        /// `A (y, v) + B u + c` equals `(v, slip_accel)`.
+        #[test]
+        fn the_affine_flows_are_the_sliding_acceleration(
+            z in unit(), y in 0.0f64..30.0, v in -500.0f64..500.0, u in -0.3f64..0.1,
+            dir in prop_oneof![Just(1.0), Just(-1.0)], engaged in 0u32..4,
+        ) {
+            let m = head_at(&z);
+            let r = m.resolve();
+            let engaged = engaged & ((1 << r.contacts.len()) - 1);
+            let [a, b, c] = r.affine_flows(dir, engaged, 1);
+            let (dy, dv) = (a[0] * y + a[1] * v + b[0] * u + c[0], a[2] * y + a[3] * v + b[1] * u + c[1]);
+            let want = r.slip_accel(y, v, &[u], dir, engaged);
+            prop_assert_eq!(dy, v);
+            prop_assert!((dv - want).abs() <= 1e-9 * (1.0 + want.abs() + a[2].abs() * y), "{dv} vs {want}");
+        }
+
+        /// Full sub-steps in closed form simulate the head as RK4's four
+        /// stages do, through its impacts, sticking and stops, with the
+        /// same modes.
+        #[test]
+        fn the_closed_form_runs_as_the_stages(z in unit(), seed in any::<u64>()) {
+            let mut m = head_at(&z);
+            given(&mut m, 0.0, 0.0);
+            let ex = Excitation { n: 1500, hold: 40, low: -0.3, high: 0.05, ts: Some(TS), inputs: 1 };
+            let data = Dataset::siso(ex.generate(seed).remove(0), vec![0.0; 1500], Some(TS)).unwrap();
+            let closed = run_with(&m, &m.values(), &data, true).unwrap();
+            let staged = run_with(&m, &m.values(), &data, false).unwrap();
+            let range = staged.y.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1.0);
+            for k in 0..data.len() {
+                prop_assert!((closed.y[k] - staged.y[k]).abs() <= 1e-8 * range, "sample {k}: {} vs {}", closed.y[k], staged.y[k]);
+            }
+            prop_assert_eq!(&closed.modes, &staged.modes);
+            prop_assert_eq!(closed.events, staged.events);
         }
 
         /// Without input the energy never grows (dampers, friction and the

@@ -129,6 +129,7 @@ impl Simulator for MechanicalModel {
         let n = y.len();
         let mut u = vec![0.0; data.inputs.len()];
         let mut e = Vec::with_capacity(n);
+        let mut integrator = mechanical::Integrator::new(&r, ts, n_sub);
         let mut s = 0;
         while s + 1 < n {
             for (i, x) in u.iter_mut().enumerate() {
@@ -140,7 +141,7 @@ impl Simulator for MechanicalModel {
                 for (i, x) in u.iter_mut().enumerate() {
                     *x = data.inputs[i].values[k];
                 }
-                r.advance(&mut st, &u, ts, n_sub);
+                integrator.advance(&mut st, &u);
                 e.push(y[k + 1] - st.y);
             }
             s += segment.max(1);

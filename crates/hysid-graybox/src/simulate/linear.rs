@@ -1,25 +1,9 @@
 //! RK4 in closed form for regimes whose flows are affine in the states and
 //! the inputs, as most mechanical and electrical models are once their
-//! parameters are bound.
-//!
-//! For `dx/dt = A x + w` with `w` constant over the step, the four stages
-//! of classical RK4 collapse into one affine map of the state: with
-//! `M = h A`,
-//!
-//! ```text
-//! x(t + h) = P x(t) + Q w,   T = I + M/2 + M^2/6 + M^3/24,   Q = h T,   P = I + T M
-//! ```
-//!
-//! (the stages `k2 = k1 + (h/2) A k1`, `k3 = k1 + (h/2) A k2`,
-//! `k4 = k1 + h A k3` summed with weights 1, 2, 2, 1 over 6). `P` and `Q`
-//! depend on the mode, the elements' regimes and `h` only, so they are
-//! formed once per regime and reused for every full sub-step spent in it:
-//! a step is then two small matrix-vector products instead of four
-//! evaluations of the flows. The step is applied as an increment,
-//! `x + (P - I) x + Q w`, whose rows are built with `M` on the left: two
-//! states with the same flow move by the same amount, bit for bit, as they
-//! do stage by stage. The result equals the stage-by-stage RK4 up to
-//! rounding.
+//! parameters are bound: the regime's `A`, `B` and `c` are read from the
+//! compiled flows ([`AffineFlows`]) and stepped by
+//! [`hysid_numerics::affine_rk4`], formed once per regime and step length
+//! and reused for every full sub-step spent in it.
 //!
 //! In a regime, a sliding friction adds its constant kinetic level against
 //! the motion (`w_v -= level * direction`), and a held state (a stuck
@@ -33,6 +17,7 @@
 
 use crate::compile::CompiledMode;
 use crate::expr::{Crossing, Expression};
+pub(super) use hysid_numerics::affine_rk4::ClosedStep;
 
 /// An expression affine in the states and the inputs,
 /// `constant + sum(coefficient * z)` over `z = [x; u]`: a guard surface
@@ -152,125 +137,8 @@ impl AffineFlows {
             a[i * n..(i + 1) * n].fill(0.0);
             b[i * m..(i + 1) * m].fill(0.0);
         }
-        let mh = scaled(&a, h);
-        // M = h A'; V = T - I = M (I/2 + M (I/6 + M/24)), by Horner; every product
-        // takes M on the left, so two states with the same flow get the
-        // same rows and the same increments, as stage by stage.
-        let mut v = identity_plus(&scaled(&mh, 1.0 / 24.0), 1.0 / 6.0, n);
-        v = identity_plus(&product(&mh, &v, n, n), 0.5, n);
-        v = product(&mh, &v, n, n);
-        // D = P - I = T M = M + V M, G = h T B', g = h T c'.
-        let along = |e: &[f64], cols: usize| -> Vec<f64> {
-            let ve = product(&v, e, n, cols);
-            e.iter().zip(&ve).map(|(e, ve)| e + ve).collect()
-        };
-        Some(ClosedStep {
-            d: along(&mh, n),
-            g: scaled(&along(&b, m), h),
-            offset: scaled(&along(&c, 1), h),
-            a,
-            b,
-            c,
-        })
+        Some(ClosedStep::new(a, b, c, h))
     }
-}
-
-/// One regime's closed-form step as an increment,
-/// `x(t + h) = x(t) + D x(t) + G u + g` with `D = P - I`, `G = Q B'` and
-/// `g = Q c'` (see the module doc).
-#[derive(Debug, Clone)]
-pub(super) struct ClosedStep {
-    d: Vec<f64>,
-    g: Vec<f64>,
-    offset: Vec<f64>,
-    /// The regime's `A'`, `B'` and `c'` (held rows zero, the frictions'
-    /// levels in `c'`), for steps of other lengths.
-    a: Vec<f64>,
-    b: Vec<f64>,
-    c: Vec<f64>,
-}
-
-impl ClosedStep {
-    /// `out = x + D x + G u + g`.
-    #[inline]
-    pub(super) fn apply(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
-        let (n, m) = (x.len(), u.len());
-        for (i, o) in out.iter_mut().enumerate().take(n) {
-            let mut increment = self.offset[i];
-            for (a, xj) in self.d[i * n..(i + 1) * n].iter().zip(x) {
-                increment += a * xj;
-            }
-            for (g, uj) in self.g[i * m..(i + 1) * m].iter().zip(u) {
-                increment += g * uj;
-            }
-            *o = x[i] + increment;
-        }
-    }
-
-    /// RK4's step of another length `h` in the same regime, by Horner on
-    /// the state: with `k = A' x + B' u + c'`,
-    /// `x(t + h) = x + h (k + (h/2) A' (k + (h/3) A' (k + (h/4) A' k)))`;
-    /// `k` and `t` are workspaces of `n`.
-    pub(super) fn apply_length(
-        &self,
-        h: f64,
-        x: &[f64],
-        u: &[f64],
-        (k, t): (&mut [f64], &mut [f64]),
-        out: &mut [f64],
-    ) {
-        let (n, m) = (x.len(), u.len());
-        let row = |i: usize| &self.a[i * n..(i + 1) * n];
-        for (i, ki) in k.iter_mut().enumerate().take(n) {
-            let mut sum = self.c[i];
-            for (a, xj) in row(i).iter().zip(x) {
-                sum += a * xj;
-            }
-            for (b, uj) in self.b[i * m..(i + 1) * m].iter().zip(u) {
-                sum += b * uj;
-            }
-            *ki = sum;
-        }
-        t[..n].copy_from_slice(&k[..n]);
-        for s in [h / 4.0, h / 3.0, h / 2.0] {
-            for (i, o) in out.iter_mut().enumerate().take(n) {
-                let at: f64 = row(i).iter().zip(&t[..n]).map(|(a, t)| a * t).sum();
-                *o = k[i] + s * at;
-            }
-            t[..n].copy_from_slice(&out[..n]);
-        }
-        for ((o, x), t) in out.iter_mut().zip(x).zip(&t[..n]) {
-            *o = x + h * t;
-        }
-    }
-}
-
-/// `a * s` entrywise.
-fn scaled(a: &[f64], s: f64) -> Vec<f64> {
-    a.iter().map(|v| v * s).collect()
-}
-
-/// `a + s I` for an `n x n` matrix.
-fn identity_plus(a: &[f64], s: f64, n: usize) -> Vec<f64> {
-    let mut out = a.to_vec();
-    for i in 0..n {
-        out[i * n + i] += s;
-    }
-    out
-}
-
-/// The product of the row-major `n x n` matrix `a` and `n x m` matrix `b`.
-fn product(a: &[f64], b: &[f64], n: usize, m: usize) -> Vec<f64> {
-    let mut out = vec![0.0; n * m];
-    for i in 0..n {
-        for k in 0..n {
-            let aik = a[i * n + k];
-            for j in 0..m {
-                out[i * m + j] += aik * b[k * m + j];
-            }
-        }
-    }
-    out
 }
 
 #[cfg(test)]
