@@ -277,7 +277,7 @@ const NOT_RUN: &[(&str, &str)] = &[
     ),
     (
         "cargo run --release -p hysid-cli -- compare",
-        "the main job (about 5 minutes in release on 2 cores); its figures are the committed report it regenerates, which the README's results table is checked against",
+        "the main job (2 to 5 minutes in release on 2 cores); its figures are the committed report it regenerates, which the README's results table is checked against",
     ),
     (
         "hysid compare models/pick-and-place/",
