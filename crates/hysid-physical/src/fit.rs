@@ -114,7 +114,7 @@ pub fn fit_model<M: Target>(
         jacobian_condition: Some(sens.condition).filter(|c| c.is_finite()),
         zero_sensitivity: sens.insensitive(&map),
         at_bound: map.at_bound(&values),
-        swarm_kept: (options.swarms > 1).then_some(kept.index),
+        swarm_kept: (options.swarms > 1 && nominal.skip.is_none()).then_some(kept.index),
     };
     let mut fitted = map.apply(&model, &values);
     let common = &mut fitted.info_mut().diagnostics;
@@ -185,9 +185,16 @@ struct SearchRun {
 /// one of least free-run cost is kept (the first among equals). Several
 /// searches run in parallel, each on its own seed, so the one kept does
 /// not depend on the thread count; the progress then counts searches. No
-/// search but the first starts after the deadline.
+/// search but the first starts after the deadline. Where the swarm is
+/// skipped, one search.
 fn best_search(search: &Search<'_>, nominal: &Nominal) -> Result<SearchRun, IdentifyError> {
-    let seeds = search.ctx.start_seeds(search.options.swarms);
+    // Without the swarm every search would run the same local stages.
+    let searches = if nominal.skip.is_some() {
+        1
+    } else {
+        search.options.swarms
+    };
+    let seeds = search.ctx.start_seeds(searches);
     if let [seed] = seeds[..] {
         return one_search(search, 0, seed, search.ctx.progress, nominal);
     }

@@ -552,11 +552,13 @@ fn the_swarm_is_skipped_where_the_nominal_values_fit_to_the_noise() {
         *v += noise.sample(&mut rng);
     }
     let diag = |m: &Model| m.info().diagnostics.to_map();
-    let fit = |skip: &str| {
-        let m = run(&d, &Priors::default(), &[skip, "lm_iters=20"], 1).unwrap();
+    let fit_with = |extra: &[&str]| {
+        let set: Vec<&str> = extra.iter().copied().chain(["lm_iters=20"]).collect();
+        let m = run(&d, &Priors::default(), &set, 1).unwrap();
         (diag(&m), m)
     };
-    let (skipped, _) = fit("swarm_skip=1.5");
+    let fit = |skip: &str| fit_with(&[skip]);
+    let (skipped, skipped_model) = fit("swarm_skip=1.5");
     let (full, full_model) = fit("swarm_skip=0");
     let why = &skipped["swarm_skipped"];
     let (reached, floor) = (
@@ -590,6 +592,13 @@ fn the_swarm_is_skipped_where_the_nominal_values_fit_to_the_noise() {
         cost(&skipped),
         cost(&full)
     );
+    // Several searches: without the swarm they would all be the same, so
+    // one runs.
+    let (several, several_model) = fit_with(&["swarm_skip=1.5", "swarms=3"]);
+    assert!(several.contains_key("swarm_skipped"));
+    assert!(!several.contains_key("swarm_kept"));
+    assert_eq!(evals(&several), evals(&skipped));
+    assert_eq!(mech(&several_model).values(), mech(&skipped_model).values());
     // A floor below the noise variance (half of it): the descent is tried
     // (the nominal cost lies within 100 floors) and fails the rule; the
     // swarm runs, and the fit is the one without the rule, plus the
