@@ -10,6 +10,7 @@ use hysid_core::backend::{Deadline, Progress};
 use hysid_model::data::Dataset;
 use hysid_model::simulate::estimate_velocity;
 use hysid_model::statistics::{MAD_TO_SIGMA, upper_median};
+use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Cost of a diverged or failed simulation.
@@ -36,8 +37,8 @@ pub fn free_run_residuals(
 }
 
 /// The residuals `residuals` gives on each of `records` (the records of
-/// the data, [`Dataset::records`], split once per fit), one record after
-/// the other. `values` holds the parameters, then the estimated initial
+/// the data, [`Dataset::records`], split once per fit), in parallel and
+/// concatenated in record order. `values` holds the parameters, then the estimated initial
 /// states of each record in turn ([`Simulator::estimated_count`] each); a
 /// record is simulated with the parameters and its own states. One record:
 /// `residuals(values, record)`.
@@ -45,22 +46,26 @@ pub fn per_record(
     model: &dyn Simulator,
     values: &[f64],
     records: &[Dataset],
-    residuals: impl Fn(&[f64], &Dataset) -> Option<Vec<f64>>,
+    residuals: impl Fn(&[f64], &Dataset) -> Option<Vec<f64>> + Sync,
 ) -> Option<Vec<f64>> {
     if let [record] = records {
         return residuals(values, record);
     }
     let states = model.estimated_count();
     let parameters = values.len().checked_sub(states * records.len())?;
-    let mut all = Vec::new();
-    let mut own = values[..parameters].to_vec();
-    for (i, record) in records.iter().enumerate() {
-        let at = parameters + i * states;
-        own.truncate(parameters);
-        own.extend_from_slice(&values[at..at + states]);
-        all.extend(residuals(&own, record)?);
-    }
-    Some(all)
+    // The records run in parallel, their residuals concatenated in record
+    // order.
+    let each: Vec<Vec<f64>> = records
+        .par_iter()
+        .enumerate()
+        .map(|(i, record)| {
+            let at = parameters + i * states;
+            let mut own = values[..parameters].to_vec();
+            own.extend_from_slice(&values[at..at + states]);
+            residuals(&own, record)
+        })
+        .collect::<Option<_>>()?;
+    Some(each.concat())
 }
 
 /// Free-run simulation residuals `y(k) - yhat(k)` after the initial state
