@@ -37,11 +37,11 @@ pub fn free_run_residuals(
 }
 
 /// The residuals `residuals` gives on each of `records` (the records of
-/// the data, [`Dataset::records`], split once per fit), in parallel and
-/// concatenated in record order. `values` holds the parameters, then the estimated initial
-/// states of each record in turn ([`Simulator::estimated_count`] each); a
-/// record is simulated with the parameters and its own states. One record:
-/// `residuals(values, record)`.
+/// the data, [`Dataset::records`], split once per fit), computed in
+/// parallel and concatenated in record order. `values` holds the
+/// parameters, then the estimated initial states of each record in turn
+/// ([`Simulator::estimated_count`] each); a record is simulated with the
+/// parameters and its own states. One record: `residuals(values, record)`.
 pub fn per_record(
     model: &dyn Simulator,
     values: &[f64],
@@ -53,8 +53,6 @@ pub fn per_record(
     }
     let states = model.estimated_count();
     let parameters = values.len().checked_sub(states * records.len())?;
-    // The records run in parallel, their residuals concatenated in record
-    // order.
     let each: Vec<Vec<f64>> = records
         .par_iter()
         .enumerate()
