@@ -13,7 +13,7 @@ use crate::objective::{FAILED, Objective, simulation_mse, velocity_tolerances};
 use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
 use crate::stages::{Search, SearchFailure, StageLog};
-use crate::swarm::{SwarmResult, global_stage, nominal_suffices};
+use crate::swarm::{SwarmResult, global_stage, noise_floor, nominal_suffices};
 use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
 use hysid_core::backend::{IdentifyError, NoProgress, Progress, RunContext};
@@ -158,11 +158,11 @@ impl Nominal {
     fn descend(search: &Search<'_>, z: Vec<f64>, cost: f64, noise: f64) -> Self {
         let o = search.options;
         let swarm = !z.is_empty() && o.particles > 0 && o.swarm_iters > 0;
-        let floor = o.swarm_skip * noise * noise;
+        let floor = noise_floor(noise, o.swarm_skip);
         let within_reach = floor > 0.0 && cost <= NOMINAL_REACH * floor;
         let skip = (swarm && o.lm_iters > 0 && within_reach)
             .then(|| descend_from(search, 0, &z))
-            .and_then(|d| Some((nominal_suffices(&d, noise, o.swarm_skip)?, d)));
+            .and_then(|d| Some((nominal_suffices(&d, floor)?, d)));
         Nominal { z, cost, skip }
     }
 }

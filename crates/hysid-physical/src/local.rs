@@ -3,7 +3,6 @@
 //! on the segmented simulation error (when enabled), then on the free-run
 //! one.
 
-use crate::objective::Objective;
 use crate::stages::{Search, SearchFailure, Stage, StageLog, Termination};
 use argmin::core::{Executor, State};
 use argmin::solver::neldermead::NelderMead;
@@ -31,13 +30,36 @@ pub struct Descended {
     pub cost: f64,
 }
 
-/// Levenberg-Marquardt from `start` on the cost of segments of `segment`
-/// samples (0: free run).
+/// Levenberg-Marquardt from `start` on the residuals of segments of
+/// `segment` samples (0: free run), on central differences in the unit
+/// box, at most `lm_iters` iterations, none begun after the deadline.
 pub fn descend_from(search: &Search<'_>, segment: usize, start: &[f64]) -> Descended {
+    let options = search.options;
     let objective = search.objective.with_segment(segment);
-    let (stop, z) = levenberg_marquardt(search, &objective, start);
+    let residuals = |z: &[f64]| {
+        search.evals.fetch_add(1, Ordering::Relaxed);
+        objective.residuals(z)
+    };
+    let unit = vec![[0.0, 1.0]; start.len()];
+    let problem = Residuals::new(
+        residuals,
+        start.len(),
+        Some(&unit),
+        CentralDifferences {
+            step: options.fd_step,
+        },
+    );
+    let settings = LmSettings::new(options.lm_iters)
+        .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
+        .with_damping(Damping::Marquardt);
+    let descent = descend(&problem, start.to_vec(), &settings, &search.ctx.deadline);
+    let z = descent.v.unwrap_or_else(|| start.to_vec());
     let cost = objective.mse(&z);
-    Descended { stop, z, cost }
+    Descended {
+        stop: descent.stop,
+        z,
+        cost,
+    }
 }
 
 /// What the local stages found.
@@ -177,35 +199,6 @@ fn local_stage(
         }
     }
     Ok(best)
-}
-
-/// Levenberg-Marquardt from `start` on the residuals of `objective`, on
-/// central differences in the unit box, at most `lm_iters` iterations,
-/// none begun after the deadline: how it ended and the point it reached.
-fn levenberg_marquardt(
-    search: &Search<'_>,
-    objective: &Objective<'_>,
-    start: &[f64],
-) -> (Stop, Vec<f64>) {
-    let options = search.options;
-    let residuals = |z: &[f64]| {
-        search.evals.fetch_add(1, Ordering::Relaxed);
-        objective.residuals(z)
-    };
-    let unit = vec![[0.0, 1.0]; start.len()];
-    let problem = Residuals::new(
-        residuals,
-        start.len(),
-        Some(&unit),
-        CentralDifferences {
-            step: options.fd_step,
-        },
-    );
-    let settings = LmSettings::new(options.lm_iters)
-        .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
-        .with_damping(Damping::Marquardt);
-    let descent = descend(&problem, start.to_vec(), &settings, &search.ctx.deadline);
-    (descent.stop, descent.v.unwrap_or_else(|| start.to_vec()))
 }
 
 /// One Nelder-Mead run of at most `local_iters` iterations from a fresh

@@ -141,7 +141,8 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
             (a.min(v), b.max(v))
         });
-    let floor = 1e-6 * (hi - lo).max(0.0) / ts;
+    let output_range = (hi - lo).max(0.0);
+    let floor = 1e-6 * output_range / ts;
     // Noise gain of an estimator: the norm of its weights (unit impulses).
     let gain = |f: &dyn Fn(&[f64]) -> f64| -> f64 {
         (0..5)
@@ -159,7 +160,7 @@ pub fn velocity_tolerances(y: &[f64], ts: f64) -> VelocityTolerances {
         noise,
         centred: 3.0 * noise * g_c + floor,
         backward: 3.0 * noise * g_b + floor,
-        output_range: (hi - lo).max(0.0),
+        output_range,
     }
 }
 

@@ -38,19 +38,24 @@ impl SwarmResult {
     }
 }
 
+/// The cost below which [`nominal_suffices`] skips the swarm: `factor`
+/// times the output noise variance `noise^2`
+/// ([`crate::objective::VelocityTolerances::noise`]).
+pub fn noise_floor(noise: f64, factor: f64) -> f64 {
+    factor * noise * noise
+}
+
 /// The rule that skips the swarm: Levenberg-Marquardt from the nominal
 /// values on the free-run cost (`descended`) ended by its own tests
-/// (converged, or no step lowers the cost) at a cost of at most `factor`
-/// times the output noise variance `noise^2`
-/// ([`crate::objective::VelocityTolerances::noise`]). The free-run cost of
-/// the parameters that made a record is about its noise variance, and no
-/// search lowers it by more than the noise allows, so the swarm could only
-/// find another parameter set of about the same cost. `factor = 0` never
-/// skips.
-pub fn nominal_suffices(descended: &Descended, noise: f64, factor: f64) -> Option<SwarmSkipped> {
-    let floor = factor * noise * noise;
+/// (converged, or no step lowers the cost) at a cost of at most `floor`
+/// ([`noise_floor`]). The free-run cost of the parameters that made a
+/// record is about its noise variance, and no search lowers it by more
+/// than the noise allows, so the swarm could only find another parameter
+/// set of about the same cost. A floor of 0 (`factor = 0`, or no noise)
+/// never skips.
+pub fn nominal_suffices(descended: &Descended, floor: f64) -> Option<SwarmSkipped> {
     let ended = matches!(descended.stop, Stop::Converged | Stop::NoDescent);
-    (factor > 0.0 && ended && descended.cost <= floor).then_some(SwarmSkipped {
+    (floor > 0.0 && ended && descended.cost <= floor).then_some(SwarmSkipped {
         nominal_descent_cost: descended.cost,
         noise_floor: floor,
     })
@@ -153,7 +158,8 @@ mod tests {
     #[test]
     fn the_swarm_is_skipped_only_after_a_descent_that_ended_at_the_noise() {
         // noise 0.1: the floor of factor 1.5 is 0.015.
-        let skip = |stop, cost, factor| nominal_suffices(&descended(stop, cost), 0.1, factor);
+        let skip =
+            |stop, cost, factor| nominal_suffices(&descended(stop, cost), noise_floor(0.1, factor));
         let s = skip(Stop::Converged, 0.012, 1.5).unwrap();
         assert_eq!(s.nominal_descent_cost, 0.012);
         assert!((s.noise_floor - 0.015).abs() < 1e-15);
