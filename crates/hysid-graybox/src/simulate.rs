@@ -54,8 +54,11 @@ use hysid_numerics::least_squares::{
 };
 use linear::{AffineFlows, AffineRow, ClosedStep, affine_guards};
 use nalgebra::DMatrix;
+use sensitivity::Tangent;
+pub use sensitivity::{Sensitivities, differentiable};
 
 mod linear;
+mod sensitivity;
 
 /// Bound on the events handled within one sub-step (the Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
@@ -113,6 +116,10 @@ pub struct GrayBoxRun {
     pub events: usize,
     /// Sub-steps that reached [`MAX_EVENTS_PER_STEP`].
     pub zeno_steps: usize,
+    /// The derivatives of the outputs and states in the parameters and the
+    /// estimated initial states, when asked for
+    /// ([`run_with_sensitivities`]).
+    pub sensitivities: Option<Sensitivities>,
 }
 
 /// What an element in its current regime does to the flows.
@@ -138,6 +145,7 @@ impl GrayBoxRun {
             steps: 0,
             events: 0,
             zeno_steps: 0,
+            sensitivities: None,
         }
     }
 }
@@ -185,6 +193,8 @@ pub struct Machine<'a> {
     pub(crate) steps: usize,
     pub(crate) events: usize,
     pub(crate) zeno_steps: usize,
+    /// The sensitivities carried beside the state, when asked for.
+    tangent: Option<Tangent<'a>>,
 }
 
 impl<'a> Machine<'a> {
@@ -240,13 +250,14 @@ impl<'a> Machine<'a> {
             steps: 0,
             events: 0,
             zeno_steps: 0,
+            tangent: None,
         }
     }
 
     /// The stops at these parameter values: `(position state, level, sign)`.
     pub fn stops(&self) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
         self.stops_with_velocity()
-            .map(|(position, _, at, sign)| (position, at, sign))
+            .map(|(_, position, _, at, sign)| (position, at, sign))
     }
 
     /// Number of modes.
@@ -525,6 +536,7 @@ impl<'a> Machine<'a> {
     /// into, stick within the static level, else slide off along the force.
     fn settle(&mut self, hs: &mut HybridState, u: &[f64], v: usize) {
         hs.x[v] = 0.0;
+        self.tangent_zero(v);
         self.load(&hs.x, u);
         let f = self.force(hs.mode, v);
         let fs = self.static_on(hs.mode, v);
@@ -590,8 +602,10 @@ impl<'a> Machine<'a> {
                 ) => {
                     let (at, e) = self.fixed[i];
                     hs.x[*position] = at;
+                    self.tangent_onto_stop(i);
                     let rebound = -e * hs.x[*velocity];
                     if sign * rebound < 0.0 && rebound.abs() > *rest_speed {
+                        self.tangent_rebound(i, hs.x[*velocity]);
                         hs.x[*velocity] = rebound;
                         if let Some(f) = self.friction_of[*velocity] {
                             hs.regimes[f] = ElementRegime::Slip(rebound.signum());
@@ -617,6 +631,7 @@ impl<'a> Machine<'a> {
                     .iter()
                     .map(|(s, e)| (*s, e.eval(&self.slots)))
                     .collect();
+                self.tangent_reset(hs.mode, j);
                 for (s, v) in values {
                     hs.x[s] = v;
                 }
@@ -700,18 +715,20 @@ impl<'a> Machine<'a> {
         n_sub: usize,
         sample: usize,
     ) -> Result<bool, SimError> {
+        let h = ts / n_sub as f64;
         if self.at_rest(hs, u) {
+            self.tangent_rest(hs, u, &vec![h; n_sub]);
             return Ok(true);
         }
-        let h = ts / n_sub as f64;
         self.full_step = h;
         let mut x1 = std::mem::take(&mut self.x1);
         let mut xm = std::mem::take(&mut self.xm);
         let mut result = Ok(());
         // The surfaces at hs.x, evaluated again only after an event.
         let mut fresh = false;
-        'steps: for _ in 0..n_sub {
+        'steps: for step in 0..n_sub {
             let mut left = h;
+            self.tangent_substep();
             let mut events = 0;
             // At most MAX_EVENTS_PER_STEP events, then one event-free step.
             while left > 0.0 {
@@ -722,22 +739,27 @@ impl<'a> Machine<'a> {
                 }
                 self.rk4(hs, u, left, &mut x1);
                 if events >= MAX_EVENTS_PER_STEP {
+                    self.tangent_step(hs, u, left, true);
                     hs.x.copy_from_slice(&x1);
                     fresh = false;
                     break;
                 }
                 if self.quiet_step(hs, &x1, u) {
+                    self.tangent_step(hs, u, left, true);
                     hs.x.copy_from_slice(&x1);
                     std::mem::swap(&mut self.g0, &mut self.g);
                     break;
                 }
                 self.surfaces_at(&x1, u, hs.mode);
                 let Some(mut ev) = self.first_event(hs, &x1) else {
+                    self.tangent_step(hs, u, left, true);
                     hs.x.copy_from_slice(&x1);
                     std::mem::swap(&mut self.g0, &mut self.g);
                     break;
                 };
                 let (mut lo, mut hi) = (0.0, left);
+                // The last state before the event, for the sensitivities.
+                let mut before = self.differentiates().then(|| hs.clone());
                 for _ in 0..LOCATE_HALVINGS {
                     let mid = 0.5 * (lo + hi);
                     if mid <= lo || mid >= hi {
@@ -751,7 +773,14 @@ impl<'a> Machine<'a> {
                         x1.copy_from_slice(&xm);
                     } else {
                         lo = mid;
+                        if let Some(b) = before.as_mut() {
+                            b.x.copy_from_slice(&xm);
+                        }
                     }
+                }
+                if let Some(before) = before {
+                    self.tangent_step(hs, u, lo, false);
+                    self.tangent_event(&before, u, ev);
                 }
                 hs.x.copy_from_slice(&x1);
                 fresh = false;
@@ -766,7 +795,11 @@ impl<'a> Machine<'a> {
                     self.hold_reached_stops(hs, u);
                 }
                 if self.at_rest(hs, u) {
-                    // Come to rest: the rest of the sample changes nothing.
+                    // Come to rest: the rest of the sample changes nothing
+                    // but the sensitivities.
+                    let mut rest = vec![h; n_sub - step];
+                    rest[0] = left;
+                    self.tangent_rest(hs, u, &rest);
                     break 'steps;
                 }
             }
@@ -787,33 +820,35 @@ impl<'a> Machine<'a> {
 
     /// The Zeno bound's action: every stop that has been reached holds.
     fn hold_reached_stops(&mut self, hs: &mut HybridState, u: &[f64]) {
-        for (position, velocity, at, _) in self.reached_stops(&hs.x) {
+        for (i, position, velocity, at, _) in self.reached_stops(&hs.x) {
             hs.x[position] = at;
+            self.tangent_onto_stop(i);
             self.settle(hs, u, velocity);
         }
     }
 
-    /// The stops that `x` has reached or passed: `(position state,
-    /// velocity state, level, sign)`.
-    fn reached_stops(&self, x: &[f64]) -> Vec<(usize, usize, f64, f64)> {
+    /// The stops that `x` has reached or passed: `(element, position
+    /// state, velocity state, level, sign)`.
+    fn reached_stops(&self, x: &[f64]) -> Vec<(usize, usize, usize, f64, f64)> {
         self.stops_with_velocity()
-            .filter(|(position, _, at, sign)| sign * (x[*position] - at) >= 0.0)
+            .filter(|(_, position, _, at, sign)| sign * (x[*position] - at) >= 0.0)
             .collect()
     }
 
-    /// Every stop: `(position state, velocity state, level, sign)`.
-    fn stops_with_velocity(&self) -> impl Iterator<Item = (usize, usize, f64, f64)> + '_ {
+    /// Every stop: `(element, position state, velocity state, level, sign)`.
+    fn stops_with_velocity(&self) -> impl Iterator<Item = (usize, usize, usize, f64, f64)> + '_ {
         self.m
             .elements
             .iter()
             .zip(&self.fixed)
-            .filter_map(|(e, (at, _))| match e {
+            .enumerate()
+            .filter_map(|(i, (e, (at, _)))| match e {
                 CompiledElement::Stop {
                     position,
                     velocity,
                     sign,
                     ..
-                } => Some((*position, *velocity, *at, *sign)),
+                } => Some((i, *position, *velocity, *at, *sign)),
                 CompiledElement::DryFriction { .. } => None,
             })
     }
@@ -922,10 +957,12 @@ impl<'a> Machine<'a> {
     /// zero settled.
     pub fn state_at(&mut self, mut x: Vec<f64>, u: &[f64], mode: Option<usize>) -> HybridState {
         let m = self.m;
-        for (position, velocity, at, sign) in self.reached_stops(&x) {
+        for (i, position, velocity, at, sign) in self.reached_stops(&x) {
             x[position] = at;
+            self.tangent_onto_stop(i);
             if sign * x[velocity] > 0.0 {
                 x[velocity] = 0.0;
+                self.tangent_zero(velocity);
             }
         }
         let mode = mode.unwrap_or_else(|| {
@@ -1083,6 +1120,7 @@ fn initial(
         return Err(SimError::TooShort { samples: n, needed });
     }
     schedule.inputs(data, first, 0.0, &mut u);
+    machine.tangent_start(None);
     match &m.initial {
         CompiledInitial::Given { x, mode, .. } => {
             let x = with_estimates(m, x.clone(), estimates);
@@ -1090,6 +1128,7 @@ fn initial(
         }
         CompiledInitial::Steady { x, mode } => {
             let (x, mode) = steady(machine, x, &u, *mode)?;
+            machine.tangent_steady(&x, &u, mode);
             Ok((0, machine.state_at(x, &u, Some(mode))))
         }
         CompiledInitial::Measured {
@@ -1178,7 +1217,8 @@ fn measured_state(
     let mut x = with_estimates(m, x.clone(), estimates);
     let mut u = vec![0.0; m.inputs];
     schedule.inputs(data, k, 0.0, &mut u);
-    let gain = machine.sensor(&mut x, &u, mode.unwrap_or(0), *position, data.y()[k])?;
+    let mode = mode.unwrap_or(0);
+    let gain = machine.sensor(&mut x, &u, mode, *position, data.y()[k])?;
     if let Some(v) = velocity {
         x[*v] = if slope.abs() <= tol {
             0.0
@@ -1186,6 +1226,7 @@ fn measured_state(
             slope / gain
         };
     }
+    machine.tangent_measured(&x, &u, (mode, *position, *velocity), gain);
     Ok(x)
 }
 
@@ -1213,13 +1254,42 @@ pub fn run_from(
     estimates: &[f64],
     data: &Dataset,
 ) -> Result<GrayBoxRun, SimError> {
+    free_run(m, values, estimates, data, false)
+}
+
+/// [`run_from`] with the derivatives of its outputs and states in the
+/// parameters and the estimated states ([`GrayBoxRun::sensitivities`]:
+/// forward sensitivities, exact but for fitted delays, see
+/// [`differentiable`]). The outputs and states are [`run_from`]'s, bit
+/// for bit.
+pub fn run_with_sensitivities(
+    m: &CompiledModel,
+    values: &[f64],
+    estimates: &[f64],
+    data: &Dataset,
+) -> Result<GrayBoxRun, SimError> {
+    free_run(m, values, estimates, data, true)
+}
+
+/// [`run_from`], with the sensitivities when `differentiate`.
+fn free_run(
+    m: &CompiledModel,
+    values: &[f64],
+    estimates: &[f64],
+    data: &Dataset,
+    differentiate: bool,
+) -> Result<GrayBoxRun, SimError> {
     let ts = timing(m, data)?;
     let n = data.len();
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
+    let mut out = GrayBoxRun::empty(data, m.states, 0);
+    if differentiate {
+        machine.differentiate(m);
+        out.sensitivities = machine.sensitivities_for(n);
+    }
     let (first, hs) = initial(&bound, &mut machine, data, &schedule, estimates)?;
-    let mut out = GrayBoxRun::empty(data, m.states, first);
     span(&mut machine, hs, data, first..n, &schedule, &mut out)?;
     out.start = scored_from(m);
     out.steps = machine.steps;
@@ -1270,13 +1340,18 @@ fn span(
             out.modes[k] = Some(label);
             out.covered[k] = covered;
             out.x[k * states..(k + 1) * states].copy_from_slice(&hs.x);
+            if let Some(sens) = out.sensitivities.as_mut() {
+                machine.tangent_output(&hs, u, k, sens);
+            }
         } else {
             out.y[k] = out.y[k - 1];
             out.modes[k] = out.modes[k - 1];
             out.covered[k] = out.covered[k - 1];
             out.x.copy_within((k - 1) * states..k * states, k * states);
         }
-        repeat = k + 1 < end && !changed && rest;
+        // With sensitivities a sample at rest is integrated all the same:
+        // the state stays, its sensitivities may move.
+        repeat = k + 1 < end && !changed && rest && !machine.differentiates();
         if k + 1 < end && !repeat {
             for (j, (duration, u, n_sub)) in pieces.iter().enumerate() {
                 if k > start || j > 0 {
@@ -1311,13 +1386,44 @@ pub fn segmented(
     segment: usize,
     slope_at: &dyn Fn(usize) -> f64,
 ) -> Result<Vec<f64>, SimError> {
+    shoot(m, values, estimates, data, (segment, slope_at), false).map(|r| r.y)
+}
+
+/// [`segmented`]'s outputs and their derivatives in the parameters and
+/// the estimated states (as [`run_with_sensitivities`]; a segment's start
+/// depends on the parameters through the output map, its estimated states
+/// through the free run's).
+pub fn segmented_with_sensitivities(
+    m: &CompiledModel,
+    values: &[f64],
+    estimates: &[f64],
+    data: &Dataset,
+    segment: usize,
+    slope_at: &dyn Fn(usize) -> f64,
+) -> Result<(Vec<f64>, Sensitivities), SimError> {
+    let run = shoot(m, values, estimates, data, (segment, slope_at), true)?;
+    let sensitivities = run
+        .sensitivities
+        .ok_or_else(|| SimError::InvalidModel("no sensitivities were carried".into()))?;
+    Ok((run.y, sensitivities))
+}
+
+/// [`segmented`], with the sensitivities when `differentiate`.
+fn shoot(
+    m: &CompiledModel,
+    values: &[f64],
+    estimates: &[f64],
+    data: &Dataset,
+    (segment, slope_at): (usize, &dyn Fn(usize) -> f64),
+    differentiate: bool,
+) -> Result<GrayBoxRun, SimError> {
     if !matches!(m.initial, CompiledInitial::Measured { .. }) {
-        return run_from(m, values, estimates, data).map(|r| r.y);
+        return free_run(m, values, estimates, data, differentiate);
     }
     let free = if m.estimates.is_empty() {
         None
     } else {
-        Some(run_from(m, values, estimates, data)?)
+        Some(free_run(m, values, estimates, data, differentiate)?)
     };
     let ts = timing(m, data)?;
     let n = data.len();
@@ -1325,11 +1431,20 @@ pub fn segmented(
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
     let mut out = GrayBoxRun::empty(data, m.states, 0);
+    if differentiate {
+        machine.differentiate(m);
+        out.sensitivities = machine.sensitivities_for(n);
+    }
     let mut u = vec![0.0; m.inputs];
     let mut s = 0;
     while s + 1 < n {
         schedule.inputs(data, s, 0.0, &mut u);
         let at_s = free.as_ref().map(|r| carried(m, r, s)).unwrap_or_default();
+        let rows = free
+            .as_ref()
+            .and_then(|r| r.sensitivities.as_ref())
+            .map(|d| d.estimated_rows(m, s));
+        machine.tangent_start(rows.as_deref());
         let x = measured_state(
             &bound,
             &mut machine,
@@ -1343,13 +1458,17 @@ pub fn segmented(
         let end = (s + segment.max(1) + 1).min(n);
         // The previous segment's last output stays: this one starts there.
         let last = out.y[s];
+        let last_row = out.sensitivities.as_ref().map(|d| d.dy_row(s).to_vec());
         span(&mut machine, hs, data, s..end, &schedule, &mut out)?;
         if s > 0 {
             out.y[s] = last;
+            if let (Some(d), Some(row)) = (out.sensitivities.as_mut(), last_row) {
+                d.dy_row_mut(s).copy_from_slice(&row);
+            }
         }
         s = end - 1;
     }
-    Ok(out.y)
+    Ok(out)
 }
 
 /// One-step prediction: at each sample the state is read again from the

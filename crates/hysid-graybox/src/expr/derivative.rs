@@ -8,9 +8,10 @@
 //! branch of `if`, `min`, `max`, `clamp`, `abs` at 0, `%` at a jump), the
 //! derivative is the one of the branch the value takes: between the events
 //! of a simulation, where no branch changes, that is the derivative of the
-//! flow. A term whose tangent is zero is left out, so a partial derivative
-//! that is not finite in a direction the value does not depend on (`ln` of
-//! a negative base in `x^2`) does not spoil the others.
+//! flow. A term whose tangent or partial derivative is zero is left out,
+//! so a derivative that is not finite in a direction the value does not
+//! depend on (`ln` of a negative base in `x^2`, `sqrt` of a negative number
+//! in the branch `if` does not take) does not spoil the others.
 
 use super::{Binary, Expression, Form, Function, MAX_DEPTH, Op, REGISTERS};
 
@@ -114,13 +115,15 @@ fn tape_gradient(ops: &[Op], slots: &[f64], wrt: &[u32], gradient: &mut [f64]) -
 
 /// The tangents of the operands at stack positions `at..at + partials.len()`
 /// replaced, at `at`, by the chain rule `sum_j partials[j] tangent_j`; a
-/// zero tangent adds nothing, whatever its partial derivative.
+/// zero tangent adds nothing, whatever its partial derivative, nor does a
+/// zero partial derivative, whatever its tangent (the branch `if` does not
+/// take may be `sqrt` of a negative number).
 fn chain(stack: &mut [f64], at: usize, partials: &[f64], m: usize) {
     for i in 0..m {
         let mut total = 0.0;
         for (j, p) in partials.iter().enumerate() {
             let t = stack[(at + j) * m + i];
-            if t != 0.0 {
+            if t != 0.0 && *p != 0.0 {
                 total += p * t;
             }
         }
@@ -238,7 +241,7 @@ mod tests {
     /// (the tape's rule for zero tangents included): the oracle of the
     /// tape's forward mode.
     fn tree_derivative(t: &Tree, s: &[f64], i: usize) -> f64 {
-        let term = |p: f64, d: f64| if d == 0.0 { 0.0 } else { p * d };
+        let term = |p: f64, d: f64| if d == 0.0 || p == 0.0 { 0.0 } else { p * d };
         match t {
             Tree::Num(_) => 0.0,
             Tree::Var(j) => f64::from(u8::from(*j == i)),
@@ -297,8 +300,13 @@ mod tests {
         assert_eq!(at("abs(x)", [0.0, 0.0, 0.0]), [0.0; 3]);
         assert_eq!(at("min(x, y)", [1.0, 1.0, 0.0]), [1.0, 0.0, 0.0]);
         assert_eq!(at("if(x > y, y, z)", [1.0, 2.0, 0.0]), [0.0, 0.0, 1.0]);
-        // `ln` of a negative base does not reach a constant exponent.
+        // `ln` of a negative base does not reach a constant exponent, nor
+        // does the branch `if` does not take.
         assert_eq!(at("x^2", [-3.0, 0.0, 0.0]), [-6.0, 0.0, 0.0]);
+        assert_eq!(
+            at("if(x > 0, sqrt(x), y)", [-1.0, 2.0, 0.0]),
+            [0.0, 1.0, 0.0]
+        );
     }
 
     proptest! {

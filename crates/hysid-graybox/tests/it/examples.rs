@@ -22,7 +22,7 @@ const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 /// Every gray-box model file of the repository: the `.toml` files under
 /// `models/` whose `kind`, their own or their base's, is `gray_box`,
 /// relative to the repository root, in path order.
-static FILES: LazyLock<Vec<String>> = LazyLock::new(|| {
+pub(crate) static FILES: LazyLock<Vec<String>> = LazyLock::new(|| {
     fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
         for entry in std::fs::read_dir(dir).unwrap() {
             let path = entry.unwrap().path();
@@ -104,7 +104,7 @@ fn file(path: &str) -> (GrayBoxModel, Excitation) {
 
 /// The model of `path` with its free parameters at `z` (in [0, 1]) of the
 /// way through their bounds, and the excitation of its "Try:" line.
-fn randomised(path: &str, z: &[f64]) -> (GrayBoxModel, Excitation) {
+pub(crate) fn randomised(path: &str, z: &[f64]) -> (GrayBoxModel, Excitation) {
     let (mut m, ex) = file(path);
     for (p, zi) in m.parameters.iter_mut().zip(z) {
         if !p.fixed {

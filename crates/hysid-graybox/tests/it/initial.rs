@@ -12,7 +12,7 @@ use proptest::prelude::*;
 const TS: f64 = 0.05;
 
 /// A gray-box model from its TOML text (without `kind`).
-fn model(text: &str) -> GrayBoxModel {
+pub(crate) fn model(text: &str) -> GrayBoxModel {
     let m: GrayBoxModel = toml::from_str(text).unwrap();
     m.validate().unwrap();
     m
@@ -39,7 +39,7 @@ flow = {{ x = "{flow}" }}
 
 /// Two first-order lags in cascade, `x1 -> x2`, the output `output`, the
 /// initial state `initial`.
-fn cascade(output: &str, initial: &str) -> String {
+pub(crate) fn cascade(output: &str, initial: &str) -> String {
     format!(
         r#"
 format = 1
@@ -99,7 +99,7 @@ fn simulated(m: &GrayBoxModel, u: &[f64]) -> Dataset {
 }
 
 /// A record of `output` from the state `(x1, x2)` at sample 0.
-fn record(output: &str, x1: f64, x2: f64, n: usize, seed: u64) -> Dataset {
+pub(crate) fn record(output: &str, x1: f64, x2: f64, n: usize, seed: u64) -> Dataset {
     let truth = model(&cascade(
         output,
         &format!("{{ from = \"given\", values = {{ x1 = {x1}, x2 = {x2} }} }}"),

@@ -7,3 +7,4 @@ mod head;
 mod initial;
 mod limits;
 mod real_systems;
+mod sensitivities;

@@ -1,0 +1,615 @@
+//! Forward sensitivities of a run: the derivatives of the states and of
+//! the output in the parameters and the estimated initial states, carried
+//! through the simulation beside the state.
+//!
+//! Between events they follow the variational equations `S' = f_x S + f_θ`
+//! (`S = dx/dθ`), differentiated through the same RK4 stages as the state:
+//! the exact derivative of the discrete step `x+ = Φ(h, x, θ)`. At an event
+//! with surface `g`, located at the length `τ` into the step, with reset
+//! `x+ = R(x-)`, they jump by the saltation rule (Hiskens and Pai,
+//! "Trajectory sensitivity analysis of hybrid systems", IEEE Trans.
+//! Circuits and Systems I 47(2), 2000, section III), written for the
+//! discrete step, whose rate in its length `Φ_h` stands for the flow:
+//!
+//! ```text
+//! τ_θ = -(g_x S + g_θ) / (g_x Φ_h)      S at the event: Φ_x S + Φ_θ + Φ_h τ_θ
+//! S+  = R_x S + R_θ                    the rest of the step: length ℓ - τ
+//! ```
+//!
+//! The rest of the step then carries the derivative of its length,
+//! `ℓ_θ - τ_θ` (the sub-step grid is fixed: `ℓ_θ = 0` at each sub-step's
+//! start), which adds `Φ_h ℓ_θ` at its end: the continuous rule's
+//! `(R_x f- - f+) τ_θ`, for the discrete step, exact to rounding and the
+//! location's precision. The rates are taken at the last state the
+//! location found before the event, in the regime the event ends.
+//!
+//! The events the simulator handles are of this form: a stop reached
+//! (`g` the distance to the stop, `R` its position and rebound or rest), a
+//! sliding velocity come to zero (`g = v`, `R` puts it at zero), a stuck
+//! friction or a resting stop let go (`g` the applied force beyond the
+//! static level, no reset), a transition (its guard and reset). An event
+//! at a sample instant (the input's jump, a held element let go by the new
+//! input, the Zeno bound's hold) has a fixed time: `τ_θ = 0`; so has one
+//! whose surface does not move along the flow (`g_x f- = 0`).
+//!
+//! The derivatives of the expressions come from their tapes
+//! ([`crate::expr::Expression::gradient`]) in the model with the
+//! parameters as slots; the state itself is the run's, bit for bit.
+//! Delays are not differentiated: [`differentiable`] says whether a model
+//! has a fitted one.
+
+use super::{Effect, ElementRegime, Event, HybridState, Machine};
+use crate::compile::{CompiledElement, CompiledModel};
+use crate::expr::Expression;
+use nalgebra::DMatrix;
+
+/// The derivatives of a run in its parameters and estimated initial
+/// states ([`super::run_with_sensitivities`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sensitivities {
+    /// Columns: the model's parameters, then the states the initial-state
+    /// rule estimates ([`CompiledModel::estimates`]' order).
+    pub columns: usize,
+    /// `dy(k)/dθ`, row-major (samples x columns); zero where the run did
+    /// not simulate (before its first sample).
+    pub dy: Vec<f64>,
+    /// `dx(k)/dθ`, row-major (samples x states x columns).
+    pub dx: Vec<f64>,
+}
+
+impl Sensitivities {
+    /// Zeros for `samples` samples of a model with `states` states.
+    pub(super) fn zeros(samples: usize, states: usize, columns: usize) -> Self {
+        Sensitivities {
+            columns,
+            dy: vec![0.0; samples * columns],
+            dx: vec![0.0; samples * states * columns],
+        }
+    }
+
+    /// The row of `dy` at sample `k`.
+    pub fn dy_row(&self, k: usize) -> &[f64] {
+        &self.dy[k * self.columns..(k + 1) * self.columns]
+    }
+
+    /// The row of `dy` at sample `k`, to write.
+    pub(super) fn dy_row_mut(&mut self, k: usize) -> &mut [f64] {
+        &mut self.dy[k * self.columns..(k + 1) * self.columns]
+    }
+
+    /// The rows of `dx` at sample `k` of the states `m` estimates (in
+    /// [`CompiledModel::estimates`]' order), row-major.
+    pub(super) fn estimated_rows(&self, m: &CompiledModel, k: usize) -> Vec<f64> {
+        let c = self.columns;
+        let block = &self.dx[k * m.states * c..(k + 1) * m.states * c];
+        m.estimates
+            .iter()
+            .flat_map(|e| block[e.state * c..(e.state + 1) * c].iter().copied())
+            .collect()
+    }
+}
+
+/// Whether the sensitivities of `m`'s runs are exact in every parameter:
+/// no input delay depends on a parameter (a delay moves the instants at
+/// which the input is sampled, which the sensitivities do not follow).
+pub fn differentiable(m: &CompiledModel) -> bool {
+    m.delays.iter().all(|d| d.as_constant().is_some())
+}
+
+/// Total derivatives of expressions: the partial derivatives of an
+/// expression in the states and the parameters, composed with `S`.
+struct Differ {
+    states: usize,
+    parameters: usize,
+    columns: usize,
+    /// The slots differentiated: the states, then the parameters.
+    wrt: Vec<u32>,
+    /// The partial derivatives of the last expression, in `wrt`'s order.
+    grad: Vec<f64>,
+}
+
+impl Differ {
+    /// The value of `e` at `slots`, and its total derivative
+    /// `e_x s + e_θ` in `out` (`s`: states x columns, row-major).
+    fn total(&mut self, e: &Expression, slots: &[f64], s: &[f64], out: &mut [f64]) -> f64 {
+        let value = e.gradient(slots, &self.wrt, &mut self.grad);
+        out.fill(0.0);
+        let c = self.columns;
+        for (j, &g) in self.grad[..self.states].iter().enumerate() {
+            if g != 0.0 {
+                for (o, sj) in out.iter_mut().zip(&s[j * c..(j + 1) * c]) {
+                    *o += g * sj;
+                }
+            }
+        }
+        for (o, g) in out.iter_mut().zip(&self.grad[self.states..]) {
+            *o += g;
+        }
+        value
+    }
+
+    /// `e`'s rate along the flow `f`: its partial derivatives in the states
+    /// (of the last [`Differ::total`]) times `f`.
+    fn rate(&self, f: &[f64]) -> f64 {
+        self.grad[..self.states]
+            .iter()
+            .zip(f)
+            .map(|(g, f)| g * f)
+            .sum()
+    }
+}
+
+/// The sensitivities a [`Machine`] carries (see the module doc).
+pub(crate) struct Tangent<'a> {
+    /// The model with its parameters as slots: what is differentiated.
+    model: &'a CompiledModel,
+    d: Differ,
+    /// `dx/dθ`, row-major (states x columns).
+    s: Vec<f64>,
+    /// The RK4 stage's `S`, and the four stages' derivatives of the flows.
+    stage: Vec<f64>,
+    t: [Vec<f64>; 4],
+    /// The same in the step's length: the stage state's derivative, the
+    /// stages' flows' derivatives, and `Φ_h` of the last step.
+    stage_h: Vec<f64>,
+    t_h: [Vec<f64>; 4],
+    phi_h: Vec<f64>,
+    /// `ℓ_θ`: the derivative of the length left in the sub-step.
+    left: Vec<f64>,
+    /// Spare rows (columns long).
+    row: Vec<f64>,
+    spare: Vec<f64>,
+}
+
+impl<'a> Tangent<'a> {
+    /// Sensitivities in the parameters and estimated states of `model`
+    /// (not bound: its parameters are slots), at zero.
+    pub(super) fn new(model: &'a CompiledModel) -> Self {
+        let (n, p) = (model.states, model.parameters);
+        let columns = p + model.estimates.len();
+        let p0 = model.parameter_slot() as u32;
+        let wrt = (0..n as u32).chain(p0..p0 + p as u32).collect();
+        let matrix = || vec![0.0; n * columns];
+        Tangent {
+            model,
+            d: Differ {
+                states: n,
+                parameters: p,
+                columns,
+                wrt,
+                grad: vec![0.0; n + p],
+            },
+            s: matrix(),
+            stage: matrix(),
+            t: [matrix(), matrix(), matrix(), matrix()],
+            stage_h: vec![0.0; n],
+            t_h: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            phi_h: vec![0.0; n],
+            left: vec![0.0; columns],
+            row: vec![0.0; columns],
+            spare: vec![0.0; columns],
+        }
+    }
+
+    /// Row `i` of `S`.
+    fn s_row(&mut self, i: usize) -> &mut [f64] {
+        let c = self.d.columns;
+        &mut self.s[i * c..(i + 1) * c]
+    }
+
+    /// Stage `i`'s derivatives of the flows of `mode` under `effects`, at
+    /// the stage state loaded in `slots`, in the parameters (from the
+    /// stage's `S` in `stage`) and in the step's length (from `stage_h`).
+    fn stage_tangent(&mut self, mode: usize, effects: &[Effect], slots: &[f64], i: usize) {
+        let q = &self.model.modes[mode];
+        let c = self.d.columns;
+        let (out, out_h) = (&mut self.t[i], &mut self.t_h[i]);
+        for (r, f) in q.flow.iter().enumerate() {
+            self.d
+                .total(f, slots, &self.stage, &mut out[r * c..(r + 1) * c]);
+            out_h[r] = self.d.rate(&self.stage_h);
+        }
+        for effect in effects {
+            match *effect {
+                Effect::Friction(v, e, dir) => {
+                    let kinetic = &q.friction[e].0;
+                    if self.d.total(kinetic, slots, &self.stage, &mut self.row) > 0.0 {
+                        for (o, r) in out[v * c..(v + 1) * c].iter_mut().zip(&self.row) {
+                            *o -= dir * r;
+                        }
+                        out_h[v] -= dir * self.d.rate(&self.stage_h);
+                    }
+                }
+                Effect::Hold(s) => {
+                    out[s * c..(s + 1) * c].fill(0.0);
+                    out_h[s] = 0.0;
+                }
+            }
+        }
+    }
+
+    /// `S += Φ_h ⊗ l`.
+    fn add_rate(&mut self, l: &[f64]) {
+        let c = self.d.columns;
+        for (i, fi) in self.phi_h.iter().enumerate() {
+            for (s, t) in self.s[i * c..(i + 1) * c].iter_mut().zip(l) {
+                *s += fi * t;
+            }
+        }
+    }
+}
+
+impl<'a> Machine<'a> {
+    /// Carries sensitivities in the parameters and estimated states of
+    /// `unbound` (the machine's model before its parameters were bound).
+    pub(super) fn differentiate(&mut self, unbound: &'a CompiledModel) {
+        self.tangent = Some(Tangent::new(unbound));
+    }
+
+    /// Zero sensitivities for a run of `samples` samples (`None` when the
+    /// machine carries none).
+    pub(super) fn sensitivities_for(&self, samples: usize) -> Option<Sensitivities> {
+        let t = self.tangent.as_ref()?;
+        Some(Sensitivities::zeros(samples, t.d.states, t.d.columns))
+    }
+
+    /// Whether this machine carries sensitivities.
+    pub(super) fn differentiates(&self) -> bool {
+        self.tangent.is_some()
+    }
+
+    /// `S` at the start of a run: zero, but for the estimated states'
+    /// rows, which are `rows` (estimates x columns, row-major), or the unit
+    /// rows of their own columns when `None`.
+    pub(super) fn tangent_start(&mut self, rows: Option<&[f64]>) {
+        let Some(t) = self.tangent.as_mut() else {
+            return;
+        };
+        t.s.fill(0.0);
+        let (p, c) = (t.d.parameters, t.d.columns);
+        for (j, e) in t.model.estimates.iter().enumerate() {
+            let row = &mut t.s[e.state * c..(e.state + 1) * c];
+            match rows {
+                Some(rows) => row.copy_from_slice(&rows[j * c..(j + 1) * c]),
+                None => row[p + j] = 1.0,
+            }
+        }
+    }
+
+    /// A new sub-step: its length is fixed (`ℓ_θ = 0`).
+    pub(super) fn tangent_substep(&mut self) {
+        if let Some(t) = self.tangent.as_mut() {
+            t.left.fill(0.0);
+        }
+    }
+
+    /// Carries `S` over the RK4 step of length `h` from `hs.x` (the step
+    /// the state takes), stage by stage, into `Φ_x S + Φ_θ`, with `Φ_h`
+    /// kept; a step to the end of the sub-step (`to_end`) adds `Φ_h ℓ_θ`.
+    pub(super) fn tangent_step(&mut self, hs: &HybridState, u: &[f64], h: f64, to_end: bool) {
+        let Some(mut t) = self.tangent.take() else {
+            return;
+        };
+        let mut k = std::mem::take(&mut self.k);
+        self.load(&hs.x, u);
+        self.prepare(hs);
+        t.stage.copy_from_slice(&t.s);
+        t.stage_h.fill(0.0);
+        let lengths = [0.5 * h, 0.5 * h, h];
+        for i in 0..4 {
+            self.flows(hs.mode, &mut k[i]);
+            t.stage_tangent(hs.mode, &self.effects, &self.slots, i);
+            if let Some(&c) = lengths.get(i) {
+                self.stage(hs, &k[i], c);
+                let Tangent {
+                    stage,
+                    s,
+                    t: d,
+                    stage_h,
+                    t_h,
+                    ..
+                } = &mut t;
+                for ((st, s), d) in stage.iter_mut().zip(s.iter()).zip(&d[i]) {
+                    *st = s + c * d;
+                }
+                // d(x + c k_i)/dh, with c = h/2 or h.
+                let dc = c / h;
+                for ((st, k), d) in stage_h.iter_mut().zip(&k[i]).zip(&t_h[i]) {
+                    *st = dc * k + c * d;
+                }
+            }
+        }
+        let sixth = h / 6.0;
+        let Tangent {
+            s,
+            t: d,
+            phi_h,
+            t_h,
+            ..
+        } = &mut t;
+        for (j, s) in s.iter_mut().enumerate() {
+            *s += sixth * (d[0][j] + 2.0 * d[1][j] + 2.0 * d[2][j] + d[3][j]);
+        }
+        for (j, p) in phi_h.iter_mut().enumerate() {
+            let mean = (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]) / 6.0;
+            *p = mean + sixth * (2.0 * t_h[1][j] + 2.0 * t_h[2][j] + t_h[3][j]);
+        }
+        if to_end {
+            let left = std::mem::take(&mut t.left);
+            t.add_rate(&left);
+            t.left = left;
+        }
+        self.k = k;
+        self.tangent = Some(t);
+    }
+
+    /// Carries `S` over steps of the given lengths at a state at rest (its
+    /// derivative is zero, so is `Φ_h`; its sensitivities may still move).
+    pub(super) fn tangent_rest(&mut self, hs: &HybridState, u: &[f64], lengths: &[f64]) {
+        if self.tangent.is_some() {
+            for &h in lengths.iter().filter(|h| **h > 0.0) {
+                self.tangent_step(hs, u, h, false);
+            }
+        }
+    }
+
+    /// Before event `ev` is applied: at `before`, the last state the
+    /// location found before the event (under `u`; the end of the step
+    /// [`Machine::tangent_step`] just carried, so that the rates are the
+    /// regime's before the event), `τ_θ`; `S` moved to the event (`S +=
+    /// Φ_h τ_θ`) and the length left in the sub-step shortened by it (`ℓ_θ
+    /// -= τ_θ`).
+    pub(super) fn tangent_event(&mut self, before: &HybridState, u: &[f64], ev: Event) {
+        let hs = before;
+        let Some(mut t) = self.tangent.take() else {
+            return;
+        };
+        self.load(&hs.x, u);
+        self.prepare(hs);
+        let model = t.model;
+        let q = &model.modes[hs.mode];
+        let c = t.d.columns;
+        // The surface's total derivative (into `row`) and its rate in the
+        // step's length.
+        let mut rate = 0.0;
+        t.row.fill(0.0);
+        let mut add = |t: &mut Tangent, e: &Expression, weight: f64, slots: &[f64]| {
+            let mut spare = std::mem::take(&mut t.spare);
+            t.d.total(e, slots, &t.s, &mut spare);
+            rate += weight * t.d.rate(&t.phi_h);
+            for (r, s) in t.row.iter_mut().zip(&spare) {
+                *r += weight * s;
+            }
+            t.spare = spare;
+        };
+        match ev {
+            Event::Element(i) => match (&model.elements[i], hs.regimes[i]) {
+                (
+                    CompiledElement::Stop {
+                        position, sign, at, ..
+                    },
+                    ElementRegime::Away,
+                ) => {
+                    add(&mut t, at, -sign, &self.slots);
+                    let (s, row) = (&t.s[position * c..(position + 1) * c], &mut t.row);
+                    for (r, s) in row.iter_mut().zip(s) {
+                        *r += sign * s;
+                    }
+                    rate = sign * t.phi_h[*position];
+                }
+                (CompiledElement::Stop { velocity, sign, .. }, _) => {
+                    add(&mut t, &q.flow[*velocity], -sign, &self.slots);
+                    if let Some(level) = self.static_level(hs.mode, *velocity, model) {
+                        add(&mut t, level, -1.0, &self.slots);
+                    }
+                }
+                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(_)) => {
+                    let v = *velocity;
+                    t.row.copy_from_slice(&t.s[v * c..(v + 1) * c]);
+                    rate = t.phi_h[v];
+                }
+                (CompiledElement::DryFriction { velocity, .. }, _) => {
+                    let force = self.force(hs.mode, *velocity);
+                    add(&mut t, &q.flow[*velocity], force.signum(), &self.slots);
+                    if let Some(level) = self.static_level(hs.mode, *velocity, model) {
+                        add(&mut t, level, -1.0, &self.slots);
+                    }
+                }
+            },
+            Event::Transition(j) => add(&mut t, &q.transitions[j].guard.surface, 1.0, &self.slots),
+        }
+        if rate != 0.0 && rate.is_finite() {
+            let tau: Vec<f64> = t.row.iter().map(|r| -r / rate).collect();
+            t.add_rate(&tau);
+            for (l, tau) in t.left.iter_mut().zip(&tau) {
+                *l -= tau;
+            }
+        }
+        self.tangent = Some(t);
+    }
+
+    /// The expression of the static level on velocity `v` in `mode` at the
+    /// loaded slots, as [`Machine::static_on`] takes it (the larger of the
+    /// static and kinetic levels, at least 0): `None` at 0 or without
+    /// friction. Read from `model`'s (unbound) expressions.
+    fn static_level<'m>(
+        &self,
+        mode: usize,
+        v: usize,
+        model: &'m CompiledModel,
+    ) -> Option<&'m Expression> {
+        let e = self.friction_of[v]?;
+        let (kinetic, static_level) = &self.m.modes[mode].friction[e];
+        let (k, s) = (kinetic.eval(&self.slots), static_level.eval(&self.slots));
+        let (kinetic, static_level) = &model.modes[mode].friction[e];
+        if s >= k.max(0.0) && s > 0.0 {
+            Some(static_level)
+        } else {
+            (k > 0.0).then_some(kinetic)
+        }
+    }
+
+    /// The reset of a velocity to zero (Karnopp's rule, a stop's rest).
+    pub(super) fn tangent_zero(&mut self, v: usize) {
+        if let Some(t) = self.tangent.as_mut() {
+            t.s_row(v).fill(0.0);
+        }
+    }
+
+    /// The reset of a position onto stop element `i`'s level.
+    pub(super) fn tangent_onto_stop(&mut self, i: usize) {
+        let Some(t) = self.tangent.as_mut() else {
+            return;
+        };
+        let CompiledElement::Stop { position, at, .. } = &t.model.elements[i] else {
+            return;
+        };
+        let mut row = std::mem::take(&mut t.row);
+        t.d.total(at, &self.slots, &t.s, &mut row);
+        t.s_row(*position).copy_from_slice(&row);
+        t.row = row;
+    }
+
+    /// The rebound `v+ = -e v-` of stop element `i` (`v-`: `before`).
+    pub(super) fn tangent_rebound(&mut self, i: usize, before: f64) {
+        let Some(t) = self.tangent.as_mut() else {
+            return;
+        };
+        let CompiledElement::Stop {
+            velocity,
+            restitution,
+            ..
+        } = &t.model.elements[i]
+        else {
+            return;
+        };
+        let v = *velocity;
+        let mut row = std::mem::take(&mut t.row);
+        let e = t.d.total(restitution, &self.slots, &t.s, &mut row);
+        let inside = e > 0.0 && e < 1.0;
+        let e = e.clamp(0.0, 1.0);
+        for (s, de) in t.s_row(v).iter_mut().zip(&row) {
+            *s = -e * *s - if inside { before * de } else { 0.0 };
+        }
+        t.row = row;
+    }
+
+    /// The reset of transition `j` of `mode` at the loaded slots (every new
+    /// value from the state before it).
+    pub(super) fn tangent_reset(&mut self, mode: usize, j: usize) {
+        let Some(t) = self.tangent.as_mut() else {
+            return;
+        };
+        let model = t.model;
+        let c = t.d.columns;
+        let reset = &model.modes[mode].transitions[j].reset;
+        let mut rows = vec![0.0; reset.len() * c];
+        for ((_, e), row) in reset.iter().zip(rows.chunks_mut(c)) {
+            t.d.total(e, &self.slots, &t.s, row);
+        }
+        for ((s, _), row) in reset.iter().zip(rows.chunks(c)) {
+            t.s_row(*s).copy_from_slice(row);
+        }
+    }
+
+    /// The rows of the measured rule's states in `x` (loaded with `u`):
+    /// the position read through the output map of `mode`, affine in it
+    /// (`y = a + b x_p`, so `dx_p = -(da + x_p db) / b`), the velocity
+    /// `slope / b` (`dx_v = -x_v db / b`). The other states' rows are set
+    /// before ([`Machine::tangent_start`]); the output is taken not to read
+    /// the velocity.
+    pub(super) fn tangent_measured(
+        &mut self,
+        x: &[f64],
+        u: &[f64],
+        (mode, position, velocity): (usize, usize, Option<usize>),
+        gain: f64,
+    ) {
+        let Some(mut t) = self.tangent.take() else {
+            return;
+        };
+        let output = &t.model.modes[mode].output;
+        let mut at = x.to_vec();
+        t.s_row(position).fill(0.0);
+        let mut da = std::mem::take(&mut t.row);
+        let mut db = std::mem::take(&mut t.spare);
+        at[position] = 0.0;
+        self.load(&at, u);
+        t.d.total(output, &self.slots, &t.s, &mut da);
+        at[position] = 1.0;
+        self.load(&at, u);
+        t.d.total(output, &self.slots, &t.s, &mut db);
+        for (b, a) in db.iter_mut().zip(&da) {
+            *b -= a;
+        }
+        let xp = x[position];
+        for ((s, a), b) in t.s_row(position).iter_mut().zip(&da).zip(&db) {
+            *s = -(a + xp * b) / gain;
+        }
+        if let Some(v) = velocity {
+            let xv = x[v];
+            for (s, b) in t.s_row(v).iter_mut().zip(&db) {
+                *s = -xv * b / gain;
+            }
+        }
+        self.load(x, u);
+        t.row = da;
+        t.spare = db;
+        self.tangent = Some(t);
+    }
+
+    /// The rows of a rest state `x` of `mode` under `u` (implicit
+    /// function: `f(x, θ) = 0`, so `S = -f_x^+ f_θ`, the pseudo-inverse
+    /// as the rest state is a least-squares solve).
+    pub(super) fn tangent_steady(&mut self, x: &[f64], u: &[f64], mode: usize) {
+        let Some(mut t) = self.tangent.take() else {
+            return;
+        };
+        let (n, c) = (t.d.states, t.d.columns);
+        self.load(x, u);
+        let mut fx = DMatrix::zeros(n, n);
+        let mut ftheta = DMatrix::zeros(n, c);
+        let zero = vec![0.0; n * c];
+        for (i, f) in t.model.modes[mode].flow.iter().enumerate() {
+            t.d.total(f, &self.slots, &zero, &mut t.row);
+            for j in 0..n {
+                fx[(i, j)] = t.d.grad[j];
+            }
+            for (j, r) in t.row.iter().enumerate() {
+                ftheta[(i, j)] = *r;
+            }
+        }
+        if let Ok(pinv) = fx.pseudo_inverse(1e-12) {
+            let s = -pinv * ftheta;
+            for i in 0..n {
+                for j in 0..c {
+                    t.s[i * c + j] = s[(i, j)];
+                }
+            }
+        }
+        self.tangent = Some(t);
+    }
+
+    /// The output's derivative at sample `k` (state `hs`, input `u`) and
+    /// `S` into `out`.
+    pub(super) fn tangent_output(
+        &mut self,
+        hs: &HybridState,
+        u: &[f64],
+        k: usize,
+        out: &mut Sensitivities,
+    ) {
+        if self.tangent.is_none() {
+            return;
+        }
+        self.load(&hs.x, u);
+        let Some(t) = self.tangent.as_mut() else {
+            return;
+        };
+        let c = t.d.columns;
+        let row = &mut out.dy[k * c..(k + 1) * c];
+        t.d.total(&t.model.modes[hs.mode].output, &self.slots, &t.s, row);
+        let block = t.s.len();
+        out.dx[k * block..(k + 1) * block].copy_from_slice(&t.s);
+    }
+}
