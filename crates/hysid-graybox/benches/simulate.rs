@@ -1,6 +1,7 @@
 //! Simulation throughput of the mounting head written as a gray-box model
 //! against the hand-written mechanical simulator, in the same run. Run with
-//! `cargo bench -p hysid-graybox --bench simulate`.
+//! `cargo bench -p hysid-graybox --bench simulate`; the gray-box run also
+//! with its forward sensitivities.
 //!
 //! Data: the pick-and-place record, rows 0..5000 after decimating by 10
 //! (12.5 s at 400 Hz, 10 sub-steps per sample); parameters: the fitted
@@ -77,4 +78,18 @@ fn gray_box_head(bencher: divan::Bencher) {
     let c = CompiledModel::new(&g).unwrap();
     let values = g.values();
     bencher.bench(|| hysid_graybox::simulate::run(&c, &values, &data).unwrap());
+}
+
+/// The same run with the forward sensitivities in its 12 parameters (the
+/// exact Jacobian of one Levenberg-Marquardt step; central differences
+/// take 24 runs).
+#[divan::bench(sample_count = 100)]
+fn gray_box_head_sensitivities(bencher: divan::Bencher) {
+    let data = record();
+    let g = gray_box(&fitted());
+    let c = CompiledModel::new(&g).unwrap();
+    let values = g.values();
+    bencher.bench(|| {
+        hysid_graybox::simulate::run_with_sensitivities(&c, &values, &[], &data).unwrap()
+    });
 }

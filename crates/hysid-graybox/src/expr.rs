@@ -13,6 +13,8 @@ use std::rc::Rc;
 
 mod derivative;
 
+pub use derivative::Adjoints;
+
 /// Deepest evaluation stack an expression may need (checked at compile).
 pub const MAX_DEPTH: usize = 32;
 
@@ -1536,6 +1538,16 @@ mod tests {
     }
 
     impl Tree {
+        /// Whether the tree reads variable `i`.
+        pub(super) fn reads(&self, i: usize) -> bool {
+            match self {
+                Tree::Num(_) => false,
+                Tree::Var(j) => *j == i,
+                Tree::Neg(a) => a.reads(i),
+                Tree::Bin(_, a, b) | Tree::Min(a, b) => a.reads(i) || b.reads(i),
+            }
+        }
+
         pub(super) fn text(&self) -> String {
             match self {
                 Tree::Num(v) => format!("{v:?}"),

@@ -5,7 +5,7 @@
 
 use crate::identifiability::Identifiability;
 use crate::parameters::ParameterMap;
-use crate::sensitivity::Sensitivity;
+use crate::sensitivity::{JacobianKind, Sensitivity};
 use crate::stages::{Stage, StageLog, Termination};
 use hysid_model::model::RunStatus;
 use serde::{Deserialize, Serialize};
@@ -17,6 +17,18 @@ pub const COST_DEFINITION: &str = "mean squared free-run simulation error after 
 
 /// Method of [`PhysicalDiagnostics::parameters`]' standard errors.
 pub const CONFIDENCE_METHOD: &str = "Gauss-Newton s^2 (J^T J)^-1 from a central finite-difference Jacobian of the simulation residuals; local, and optimistic since the residuals are correlated";
+
+/// [`CONFIDENCE_METHOD`] on the exact Jacobian of the run's forward
+/// sensitivities.
+pub const CONFIDENCE_METHOD_EXACT: &str = "Gauss-Newton s^2 (J^T J)^-1 from the exact Jacobian of the simulation residuals (forward sensitivities); local, and optimistic since the residuals are correlated";
+
+/// The confidence method of a Jacobian of kind `kind`.
+pub fn confidence_method(kind: JacobianKind) -> &'static str {
+    match kind {
+        JacobianKind::Exact => CONFIDENCE_METHOD_EXACT,
+        JacobianKind::CentralDifferences => CONFIDENCE_METHOD,
+    }
+}
 
 /// The diagnostics of a `physical` fit (the keys of `info.diagnostics`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -61,8 +73,11 @@ pub struct PhysicalDiagnostics {
     /// into the model (whose rule estimates them again on every record).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub initial_states: BTreeMap<String, f64>,
-    /// [`CONFIDENCE_METHOD`].
+    /// [`confidence_method`] of `jacobian`.
     pub confidence_method: String,
+    /// The Jacobian of the confidence estimate.
+    #[serde(default)]
+    pub jacobian: JacobianKind,
     /// `sqrt` of the condition number of `J^T J` ([`Sensitivity::condition`];
     /// `None` when not computed or infinite).
     pub jacobian_condition: Option<f64>,
@@ -338,6 +353,7 @@ mod tests {
             .into(),
             initial_states: BTreeMap::new(),
             confidence_method: CONFIDENCE_METHOD.into(),
+            jacobian: JacobianKind::CentralDifferences,
             jacobian_condition: None,
             zero_sensitivity: vec![],
             at_bound: vec!["b".into()],
@@ -354,6 +370,7 @@ mod tests {
                 "cost_definition",
                 "evaluations",
                 "free_parameters",
+                "jacobian",
                 "jacobian_condition",
                 "noise_estimate",
                 "nominal_cost",

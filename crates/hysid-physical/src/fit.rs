@@ -5,7 +5,7 @@
 //! nominal values, and write the diagnostics.
 
 use crate::diagnostics::{
-    CONFIDENCE_METHOD, COST_DEFINITION, PhysicalDiagnostics, Status, SwarmSkipped, Terminations,
+    COST_DEFINITION, PhysicalDiagnostics, Status, SwarmSkipped, Terminations, confidence_method,
 };
 use crate::identifiability;
 use crate::local::{Descended, LocalResult, descend_from, local_stages};
@@ -91,7 +91,13 @@ pub fn fit_model<M: Target>(
             evaluations,
         }));
     }
-    let sens = sensitivity(&model, &map, &values, &records, options.fd_step);
+    let sens = sensitivity(
+        &model,
+        &map,
+        &values,
+        &records,
+        (options.exact_jacobian, options.fd_step),
+    );
     let identifiability =
         identifiability::classify(&model, &map, &mut values, cost, &records, &sens);
     let status = Status::of(&log, evaluations, options.local_iters);
@@ -110,7 +116,8 @@ pub fn fit_model<M: Target>(
         free_parameters: (0..map.dim()).filter(|&g| !map.is_initial_state(g)).count(),
         parameters: PhysicalDiagnostics::parameters(&map, &values, &sens, &identifiability),
         initial_states: map.initial_states(&values),
-        confidence_method: CONFIDENCE_METHOD.into(),
+        confidence_method: confidence_method(sens.jacobian).into(),
+        jacobian: sens.jacobian,
         jacobian_condition: Some(sens.condition).filter(|c| c.is_finite()),
         zero_sensitivity: sens.insensitive(&map),
         at_bound: map.at_bound(&values),

@@ -107,16 +107,22 @@ hysid_core::backend_options! {
         /// Starts of the first local stage: the swarm's best, the nominal values and the
         /// next best particles.
         starts: usize = 6,
-        /// Iterations of the Levenberg-Marquardt step (finite-difference Jacobian of the
-        /// residuals) that opens each local stage; 0 skips it.
+        /// Iterations of the Levenberg-Marquardt step that opens each local stage; 0
+        /// skips it.
         lm_iters: usize = 30,
+        /// Levenberg-Marquardt and the confidence estimate use the exact Jacobian of the
+        /// residuals, from the runs' forward sensitivities, where the model gives one (a
+        /// gray-box model without a fitted delay); false, or a model without one: central
+        /// differences of `fd_step`.
+        exact_jacobian: bool = true,
         /// Initial simplex size, as a fraction of each parameter's range.
         simplex: f64 = 0.05,
         /// Samples used to estimate the initial state (position and velocity) of the
         /// simulation; the cost is scored after them. 0: the model file's rule.
         init_samples: usize = 10,
         /// Step (fraction of each range) of the central finite-difference Jacobians of
-        /// the Levenberg-Marquardt stages and of the sensitivity and confidence estimate.
+        /// the Levenberg-Marquardt stages and of the sensitivity and confidence estimate,
+        /// where they are not exact (`exact_jacobian`).
         fd_step: f64 = 1e-3,
     }
 }

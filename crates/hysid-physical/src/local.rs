@@ -8,7 +8,7 @@ use argmin::core::{Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use hysid_core::backend::IdentifyError;
 use hysid_numerics::least_squares::{
-    CentralDifferences, Damping, LmSettings, Residuals, Stop, descend,
+    CentralDifferences, Damping, Exact, LmSettings, ResidualJacobian, Residuals, Stop, descend,
 };
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
@@ -31,8 +31,11 @@ pub struct Descended {
 }
 
 /// Levenberg-Marquardt from `start` on the residuals of segments of
-/// `segment` samples (0: free run), on central differences in the unit
-/// box, at most `lm_iters` iterations, none begun after the deadline.
+/// `segment` samples (0: free run) in the unit box, at most `lm_iters`
+/// iterations, none begun after the deadline; on the exact Jacobian of
+/// the runs' sensitivities where the model gives one and `exact_jacobian`
+/// is set (a run with sensitivities counts as one simulation), else on
+/// central differences of `fd_step`.
 pub fn descend_from(search: &Search<'_>, segment: usize, start: &[f64]) -> Descended {
     let options = search.options;
     let objective = search.objective.with_segment(segment);
@@ -40,19 +43,21 @@ pub fn descend_from(search: &Search<'_>, segment: usize, start: &[f64]) -> Desce
         search.evals.fetch_add(1, Ordering::Relaxed);
         objective.residuals(z)
     };
+    let differences = CentralDifferences {
+        step: options.fd_step,
+    };
     let unit = vec![[0.0, 1.0]; start.len()];
-    let problem = Residuals::new(
-        residuals,
-        start.len(),
-        Some(&unit),
-        CentralDifferences {
-            step: options.fd_step,
-        },
-    );
-    let settings = LmSettings::new(options.lm_iters)
-        .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
-        .with_damping(Damping::Marquardt);
-    let descent = descend(&problem, start.to_vec(), &settings, &search.ctx.deadline);
+    let descent = if options.exact_jacobian && objective.model.exact_jacobian() {
+        let jacobian = |z: &[f64]| {
+            search.evals.fetch_add(1, Ordering::Relaxed);
+            objective
+                .jacobian(z)
+                .unwrap_or_else(|| differences.of(&residuals, z, Some(&unit)))
+        };
+        levenberg_marquardt(search, start, &unit, residuals, Exact(jacobian))
+    } else {
+        levenberg_marquardt(search, start, &unit, residuals, differences)
+    };
     let z = descent.v.unwrap_or_else(|| start.to_vec());
     let cost = objective.mse(&z);
     Descended {
@@ -60,6 +65,26 @@ pub fn descend_from(search: &Search<'_>, segment: usize, start: &[f64]) -> Desce
         z,
         cost,
     }
+}
+
+/// [`descend`] on `residuals` from `start` in the box `unit`, with the
+/// Jacobian `jacobian`, under the search's settings.
+fn levenberg_marquardt<F, J>(
+    search: &Search<'_>,
+    start: &[f64],
+    unit: &[[f64; 2]],
+    residuals: F,
+    jacobian: J,
+) -> hysid_numerics::least_squares::Descent
+where
+    F: Fn(&[f64]) -> Option<Vec<f64>>,
+    J: ResidualJacobian<F>,
+{
+    let problem = Residuals::new(residuals, start.len(), Some(unit), jacobian);
+    let settings = LmSettings::new(search.options.lm_iters)
+        .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
+        .with_damping(Damping::Marquardt);
+    descend(&problem, start.to_vec(), &settings, &search.ctx.deadline)
 }
 
 /// What the local stages found.

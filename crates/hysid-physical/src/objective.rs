@@ -10,6 +10,7 @@ use hysid_core::backend::{Deadline, Progress};
 use hysid_model::data::Dataset;
 use hysid_model::simulate::estimate_velocity;
 use hysid_model::statistics::{MAD_TO_SIGMA, upper_median};
+use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -64,6 +65,54 @@ pub fn per_record(
         })
         .collect::<Option<_>>()?;
     Some(each.concat())
+}
+
+/// The residuals of the free run (`segment` 0) or of the segmented run of
+/// every record, as [`per_record`] orders them, and their exact Jacobian
+/// in `values` (each record's estimated states in their own columns):
+/// `None` where the model gives no exact Jacobian
+/// ([`Simulator::exact_jacobian`]), a run fails, or a value is not finite.
+pub fn residual_jacobian(
+    model: &dyn Simulator,
+    values: &[f64],
+    records: &[Dataset],
+    segment: usize,
+    velocity_tol: f64,
+) -> Option<(Vec<f64>, DMatrix<f64>)> {
+    if !model.exact_jacobian() {
+        return None;
+    }
+    let states = model.estimated_count();
+    let parameters = values.len().checked_sub(states * records.len())?;
+    let each: Vec<(Vec<f64>, DMatrix<f64>)> = records
+        .par_iter()
+        .enumerate()
+        .map(|(i, record)| {
+            let at = parameters + i * states;
+            let mut own = values[..parameters].to_vec();
+            own.extend_from_slice(&values[at..at + states]);
+            model.residual_jacobian(&own, record, segment, velocity_tol)
+        })
+        .collect::<Option<_>>()?;
+    let rows: usize = each.iter().map(|(r, _)| r.len()).sum();
+    let mut jacobian = DMatrix::zeros(rows, values.len());
+    let mut residuals = Vec::with_capacity(rows);
+    for (i, (r, j)) in each.into_iter().enumerate() {
+        let (row, n) = (residuals.len(), r.len());
+        let at = parameters + i * states;
+        jacobian
+            .view_mut((row, 0), (n, parameters))
+            .copy_from(&j.columns(0, parameters));
+        jacobian
+            .view_mut((row, at), (n, states))
+            .copy_from(&j.columns(parameters, states));
+        residuals.extend(r);
+    }
+    let finite = residuals
+        .iter()
+        .chain(jacobian.iter())
+        .all(|x| x.is_finite());
+    (finite && !residuals.is_empty()).then_some((residuals, jacobian))
 }
 
 /// Free-run simulation residuals `y(k) - yhat(k)` after the initial state
@@ -234,6 +283,21 @@ impl Objective<'_> {
     /// The mean squared error at `z` ([`FAILED`] when the simulation fails).
     pub fn mse(&self, z: &[f64]) -> f64 {
         mse(self.residuals(z))
+    }
+
+    /// The exact Jacobian of [`Objective::residuals`] in the coordinates
+    /// `z` ([`residual_jacobian`] through [`ParameterMap::in_coordinates`]);
+    /// `None` where there is none.
+    pub fn jacobian(&self, z: &[f64]) -> Option<DMatrix<f64>> {
+        let v = self.map.values(z);
+        let (_, jacobian) = residual_jacobian(
+            self.model,
+            &v,
+            self.records,
+            self.segment,
+            self.velocity_tol,
+        )?;
+        Some(self.map.in_coordinates(&jacobian))
     }
 }
 

@@ -4,6 +4,7 @@
 
 use crate::target::Target;
 use hysid_core::priors::Priors;
+use nalgebra::DMatrix;
 
 /// Priors that do not fit the mechanical model's parameters.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -168,6 +169,30 @@ impl ParameterMap {
             }
         }
         v
+    }
+
+    /// A Jacobian in the values (a column per value) as one in the free
+    /// coordinates: column `g` is `(high - low)` times the sum of the
+    /// columns of the values coordinate `g` sets ([`ParameterMap::values`]).
+    pub fn in_coordinates(&self, jacobian: &DMatrix<f64>) -> DMatrix<f64> {
+        let mut out = self.grouped(jacobian);
+        for (mut column, [lo, hi]) in out.column_iter_mut().zip(&self.bounds) {
+            column *= hi - lo;
+        }
+        out
+    }
+
+    /// A Jacobian in the values as one in the free coordinates' values
+    /// (physical units): column `g` is the sum of the columns of the values
+    /// coordinate `g` sets.
+    pub fn grouped(&self, jacobian: &DMatrix<f64>) -> DMatrix<f64> {
+        let mut out = DMatrix::zeros(jacobian.nrows(), self.dim());
+        for (mut column, g) in out.column_iter_mut().zip(&self.groups) {
+            for &i in g {
+                column += jacobian.column(i);
+            }
+        }
+        out
     }
 
     /// Normalised coordinates of the parameter values `values`.

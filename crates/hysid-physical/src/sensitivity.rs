@@ -1,17 +1,19 @@
-//! Local sensitivity and confidence of the fitted parameters: a central
-//! finite-difference Jacobian of the free-run simulation output with
-//! respect to each free coordinate (in physical units), the Gauss-Newton
+//! Local sensitivity and confidence of the fitted parameters: the Jacobian
+//! of the free-run simulation output with respect to each free coordinate
+//! (in physical units), exact from the run's forward sensitivities where
+//! the model gives them, else by central differences, the Gauss-Newton
 //! covariance `s^2 (J^T J)^-1` (the linear approximation of nonlinear
 //! least squares: Bates and Watts 1988, *Nonlinear Regression Analysis and
 //! Its Applications*, ch. 2), and which parameters the record does not
 //! identify.
 
-use crate::objective::free_run_residuals;
+use crate::objective::{free_run_residuals, residual_jacobian};
 use crate::parameters::ParameterMap;
 use crate::target::Simulator;
 use hysid_model::data::Dataset;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 /// Per free coordinate: standard error and scaled sensitivity; and the
 /// condition of the Jacobian.
@@ -25,6 +27,19 @@ pub struct Sensitivity {
     /// `sqrt` of the condition number of `J^T J` over the columns kept
     /// (infinite when singular, NaN when not computed).
     pub condition: f64,
+    /// How the Jacobian was computed.
+    pub jacobian: JacobianKind,
+}
+
+/// How a Jacobian of the residuals is computed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JacobianKind {
+    /// From the runs' forward sensitivities.
+    Exact,
+    /// By central differences.
+    #[default]
+    CentralDifferences,
 }
 
 impl Sensitivity {
@@ -34,6 +49,7 @@ impl Sensitivity {
             std_errors: vec![f64::NAN; d],
             sensitivity: vec![f64::NAN; d],
             condition: f64::NAN,
+            jacobian: JacobianKind::CentralDifferences,
         }
     }
 
@@ -52,21 +68,37 @@ impl Sensitivity {
 }
 
 /// The sensitivity and Gauss-Newton standard errors of the free
-/// coordinates of `map` at the parameter values `values`, with central
-/// differences of `step` times each coordinate's range.
+/// coordinates of `map` at the parameter values `values`: on the exact
+/// Jacobian where `exact` and the model gives one
+/// ([`residual_jacobian`]), else on central differences of `step` times
+/// each coordinate's range.
 pub fn sensitivity(
     model: &dyn Simulator,
     map: &ParameterMap,
     values: &[f64],
     records: &[Dataset],
-    step: f64,
+    (exact, step): (bool, f64),
 ) -> Sensitivity {
     let d = map.dim();
-    let Some(r0) = free_run_residuals(model, values, records) else {
-        return Sensitivity::undefined(d);
+    let exact = exact
+        .then(|| residual_jacobian(model, values, records, 0, 0.0))
+        .flatten();
+    let kind = match exact {
+        Some(_) => JacobianKind::Exact,
+        None => JacobianKind::CentralDifferences,
     };
-    let Some(jac) = output_jacobian(model, map, values, records, step, r0.len()) else {
-        return Sensitivity::undefined(d);
+    let (r0, jac) = match exact {
+        // d yhat / d theta = - d r / d theta
+        Some((r0, jacobian)) => (r0, -map.grouped(&jacobian)),
+        None => {
+            let Some(r0) = free_run_residuals(model, values, records) else {
+                return Sensitivity::undefined(d);
+            };
+            let Some(jac) = output_jacobian(model, map, values, records, step, r0.len()) else {
+                return Sensitivity::undefined(d);
+            };
+            (r0, jac)
+        }
     };
     let n = r0.len();
     let sse: f64 = r0.iter().map(|e| e * e).sum();
@@ -83,6 +115,7 @@ pub fn sensitivity(
         std_errors,
         sensitivity,
         condition,
+        jacobian: kind,
     }
 }
 

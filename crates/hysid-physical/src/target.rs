@@ -10,6 +10,7 @@ use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
 use hysid_model::model::{ModelInfo, PhysicalParameter};
 use hysid_model::simulate::{SimError, substeps};
+use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 /// Segments of the segmented cost per parallel task: enough work (8 x 100
@@ -36,6 +37,23 @@ pub trait Simulator: Sync {
     /// simulation takes are the parameters, then these.
     fn estimated_count(&self) -> usize {
         0
+    }
+    /// Whether [`Simulator::residual_jacobian`] gives the exact Jacobian.
+    fn exact_jacobian(&self) -> bool {
+        false
+    }
+    /// The residuals of [`Simulator::free_run`] (`segment` 0) or of
+    /// [`Simulator::segmented_residuals`], with their exact Jacobian in
+    /// `values` (a column per value); `None` where the model gives none or
+    /// the run fails.
+    fn residual_jacobian(
+        &self,
+        _values: &[f64],
+        _data: &Dataset,
+        _segment: usize,
+        _velocity_tol: f64,
+    ) -> Option<(Vec<f64>, DMatrix<f64>)> {
+        None
     }
 }
 
@@ -262,6 +280,44 @@ impl Simulator for GrayBoxTarget {
         let (values, initial) = self.split(values);
         let r = hysid_graybox::simulate::run_from(&self.compiled, values, initial, data).ok()?;
         Some((r.start, r.y))
+    }
+
+    fn exact_jacobian(&self) -> bool {
+        hysid_graybox::simulate::differentiable(&self.compiled)
+    }
+
+    /// The runs' forward sensitivities ([`mod@hysid_graybox::simulate`]).
+    fn residual_jacobian(
+        &self,
+        values: &[f64],
+        data: &Dataset,
+        segment: usize,
+        velocity_tol: f64,
+    ) -> Option<(Vec<f64>, DMatrix<f64>)> {
+        use hysid_graybox::simulate::{run_with_sensitivities, segmented_with_sensitivities};
+        let (parameters, initial) = self.split(values);
+        let y = data.y();
+        let (first, yhat, s) = if segment == 0 {
+            let r = run_with_sensitivities(&self.compiled, parameters, initial, data).ok()?;
+            (r.start + 1, r.y, r.sensitivities?)
+        } else {
+            let ts = data.ts?;
+            let slope_at = |s: usize| segment_velocity(y, s, ts, velocity_tol);
+            let (yhat, s) = segmented_with_sensitivities(
+                &self.compiled,
+                parameters,
+                initial,
+                data,
+                segment,
+                &slope_at,
+            )
+            .ok()?;
+            (1, yhat, s)
+        };
+        let rows = y.len().checked_sub(first)?;
+        let residuals = (first..y.len()).map(|k| y[k] - yhat[k]).collect();
+        let jacobian = DMatrix::from_fn(rows, s.columns, |i, j| -s.dy_row(first + i)[j]);
+        Some((residuals, jacobian))
     }
 
     fn segmented_residuals(

@@ -30,7 +30,7 @@
 //! static level, no reset), a transition (its guard and reset). An event
 //! at a sample instant (the input's jump, a held element let go by the new
 //! input, the Zeno bound's hold) has a fixed time: `τ_θ = 0`; so has one
-//! whose surface does not move along the flow (`g_x f- = 0`).
+//! whose surface does not move along the step (`g_x Φ_h = 0`).
 //!
 //! The derivatives of the expressions come from their tapes
 //! ([`crate::expr::Expression::gradient`]) in the model with the
@@ -40,7 +40,7 @@
 
 use super::{Effect, ElementRegime, Event, HybridState, Machine};
 use crate::compile::{CompiledElement, CompiledModel};
-use crate::expr::Expression;
+use crate::expr::{Adjoints, Expression};
 use nalgebra::DMatrix;
 
 /// The derivatives of a run in its parameters and estimated initial
@@ -106,13 +106,15 @@ struct Differ {
     wrt: Vec<u32>,
     /// The partial derivatives of the last expression, in `wrt`'s order.
     grad: Vec<f64>,
+    /// The tapes' workspace ([`Expression::gradient_with`]).
+    scratch: Adjoints,
 }
 
 impl Differ {
     /// The value of `e` at `slots`, and its total derivative
     /// `e_x s + e_θ` in `out` (`s`: states x columns, row-major).
     fn total(&mut self, e: &Expression, slots: &[f64], s: &[f64], out: &mut [f64]) -> f64 {
-        let value = e.gradient(slots, &self.wrt, &mut self.grad);
+        let value = e.gradient_with(slots, &self.wrt, &mut self.grad, &mut self.scratch);
         out.fill(0.0);
         let c = self.columns;
         for (j, &g) in self.grad[..self.states].iter().enumerate() {
@@ -159,7 +161,26 @@ pub(crate) struct Tangent<'a> {
     /// Spare rows (columns long).
     row: Vec<f64>,
     spare: Vec<f64>,
+    /// The regimes met, with their flows' derivatives where these are
+    /// affine in the state and the input ([`Linear`]).
+    regimes: Vec<(usize, Vec<ElementRegime>, Option<Linear>)>,
 }
+
+/// The derivatives of a regime's flows (the elements' effects included)
+/// that are affine in the states and inputs, `f = A(θ) x + B(θ) u + c(θ)`:
+/// `f_x = A` and `f_θ = G0 + Σ_j x_j Gx_j + Σ_i u_i Gu_i`, read once from
+/// the tapes, so that a stage costs a few small matrix products.
+struct Linear {
+    /// `A`, row-major (states x states).
+    a: Vec<f64>,
+    /// `G0`, then `Gx_j` per state, then `Gu_i` per input; each states x
+    /// parameters, row-major.
+    g: Vec<Vec<f64>>,
+}
+
+/// Relative agreement asked of a regime's derivatives at a check point
+/// before they are taken as affine.
+const AFFINE_CHECK: f64 = 1e-9;
 
 impl<'a> Tangent<'a> {
     /// Sensitivities in the parameters and estimated states of `model`
@@ -178,6 +199,7 @@ impl<'a> Tangent<'a> {
                 columns,
                 wrt,
                 grad: vec![0.0; n + p],
+                scratch: Adjoints::default(),
             },
             s: matrix(),
             stage: matrix(),
@@ -188,6 +210,7 @@ impl<'a> Tangent<'a> {
             left: vec![0.0; columns],
             row: vec![0.0; columns],
             spare: vec![0.0; columns],
+            regimes: Vec::new(),
         }
     }
 
@@ -226,6 +249,91 @@ impl<'a> Tangent<'a> {
                 }
             }
         }
+    }
+
+    /// Stage `i`'s derivatives (as [`Tangent::stage_tangent`]) from the
+    /// regime's affine derivatives, at the stage state and input in
+    /// `slots`.
+    fn stage_tangent_linear(&mut self, linear: &Linear, slots: &[f64], i: usize) {
+        let (n, p, c) = (self.d.states, self.d.parameters, self.d.columns);
+        let (out, out_h) = (&mut self.t[i], &mut self.t_h[i]);
+        out.fill(0.0);
+        for r in 0..n {
+            let row = &mut out[r * c..(r + 1) * c];
+            let mut h = 0.0;
+            for (j, &a) in linear.a[r * n..(r + 1) * n].iter().enumerate() {
+                if a != 0.0 {
+                    for (o, s) in row.iter_mut().zip(&self.stage[j * c..(j + 1) * c]) {
+                        *o += a * s;
+                    }
+                    h += a * self.stage_h[j];
+                }
+            }
+            out_h[r] = h;
+            // G0 + Σ x_j Gx_j + Σ u_i Gu_i: the slots hold (x, u) in order.
+            for (k, g) in linear.g.iter().enumerate() {
+                let weight = if k == 0 { 1.0 } else { slots[k - 1] };
+                if weight != 0.0 {
+                    for (o, g) in row[..p].iter_mut().zip(&g[r * p..(r + 1) * p]) {
+                        *o += weight * g;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Puts the affine derivatives of the regime of `hs` back into the
+    /// cache ([`Machine::linear_regime`]).
+    fn keep_linear(&mut self, hs: &HybridState, linear: Linear) {
+        if let Some(entry) = self
+            .regimes
+            .iter_mut()
+            .find(|(q, r, _)| *q == hs.mode && *r == hs.regimes)
+        {
+            entry.2 = Some(linear);
+        }
+    }
+
+    /// The flows' derivatives of `mode` under `effects` at the point loaded
+    /// in `slots`: in the states (`f_x`, states x states) and in the
+    /// parameters (`f_θ`, states x parameters).
+    fn derivatives_at(
+        &mut self,
+        mode: usize,
+        effects: &[Effect],
+        slots: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let (n, p) = (self.d.states, self.d.parameters);
+        let q = &self.model.modes[mode];
+        let (mut fx, mut ftheta) = (vec![0.0; n * n], vec![0.0; n * p]);
+        let grad = |e: &Expression, d: &mut Differ| -> Vec<f64> {
+            let mut g = vec![0.0; n + p];
+            e.gradient_with(slots, &d.wrt, &mut g, &mut d.scratch);
+            g
+        };
+        for (r, f) in q.flow.iter().enumerate() {
+            let g = grad(f, &mut self.d);
+            fx[r * n..(r + 1) * n].copy_from_slice(&g[..n]);
+            ftheta[r * p..(r + 1) * p].copy_from_slice(&g[n..]);
+        }
+        for effect in effects {
+            match *effect {
+                Effect::Friction(v, e, dir) => {
+                    let kinetic = &q.friction[e].0;
+                    if kinetic.eval(slots) > 0.0 {
+                        let g = grad(kinetic, &mut self.d);
+                        for (o, g) in ftheta[v * p..(v + 1) * p].iter_mut().zip(&g[n..]) {
+                            *o -= dir * g;
+                        }
+                    }
+                }
+                Effect::Hold(s) => {
+                    fx[s * n..(s + 1) * n].fill(0.0);
+                    ftheta[s * p..(s + 1) * p].fill(0.0);
+                }
+            }
+        }
+        (fx, ftheta)
     }
 
     /// `S += Φ_h ⊗ l`.
@@ -293,12 +401,17 @@ impl<'a> Machine<'a> {
         let mut k = std::mem::take(&mut self.k);
         self.load(&hs.x, u);
         self.prepare(hs);
+        let linear = self.linear_regime(&mut t, hs, u);
+        self.load(&hs.x, u);
         t.stage.copy_from_slice(&t.s);
         t.stage_h.fill(0.0);
         let lengths = [0.5 * h, 0.5 * h, h];
         for i in 0..4 {
             self.flows(hs.mode, &mut k[i]);
-            t.stage_tangent(hs.mode, &self.effects, &self.slots, i);
+            match &linear {
+                Some(l) => t.stage_tangent_linear(l, &self.slots, i),
+                None => t.stage_tangent(hs.mode, &self.effects, &self.slots, i),
+            }
             if let Some(&c) = lengths.get(i) {
                 self.stage(hs, &k[i], c);
                 let Tangent {
@@ -340,7 +453,75 @@ impl<'a> Machine<'a> {
             t.left = left;
         }
         self.k = k;
+        if let Some(l) = linear {
+            t.keep_linear(hs, l);
+        }
         self.tangent = Some(t);
+    }
+
+    /// The affine derivatives of the regime of `hs` (the effects
+    /// [`Machine::prepare`]d), taken out of `t`'s cache (put back by
+    /// [`Tangent::keep_linear`]), formed when first met: where the bound
+    /// flows are affine in the state and the input and every sliding
+    /// friction's level is a constant, and the tapes' derivatives at `x =
+    /// 1, u = 1` agree with the affine form read at `0` and the unit
+    /// vectors. `None` elsewhere: the stages read the tapes.
+    fn linear_regime(&mut self, t: &mut Tangent, hs: &HybridState, u: &[f64]) -> Option<Linear> {
+        let at = t
+            .regimes
+            .iter()
+            .position(|(q, r, _)| *q == hs.mode && *r == hs.regimes);
+        if let Some(i) = at {
+            return t.regimes[i].2.take();
+        }
+        let linear = self.form_linear(t, hs.mode, u.len());
+        t.regimes.push((hs.mode, hs.regimes.clone(), None));
+        linear
+    }
+
+    /// [`Machine::linear_regime`]'s affine derivatives of `mode` under the
+    /// prepared effects, `None` where they are not affine.
+    fn form_linear(&mut self, t: &mut Tangent, mode: usize, inputs: usize) -> Option<Linear> {
+        self.affine[mode].as_ref()?;
+        let q = &self.m.modes[mode];
+        let constant_levels = self.effects.iter().all(|e| match *e {
+            Effect::Friction(_, i, _) => q.friction[i].0.as_constant().is_some(),
+            Effect::Hold(_) => true,
+        });
+        if !constant_levels {
+            return None;
+        }
+        let (n, p) = (t.d.states, t.d.parameters);
+        let mut at = |x: &[f64], u: &[f64]| -> (Vec<f64>, Vec<f64>) {
+            self.load(x, u);
+            t.derivatives_at(mode, &self.effects, &self.slots)
+        };
+        let zero_x = vec![0.0; n];
+        let zero_u = vec![0.0; inputs];
+        let (a, g0) = at(&zero_x, &zero_u);
+        let mut g = vec![g0];
+        for j in 0..n + inputs {
+            let (mut x, mut u) = (zero_x.clone(), zero_u.clone());
+            if j < n {
+                x[j] = 1.0;
+            } else {
+                u[j - n] = 1.0;
+            }
+            let (_, gj) = at(&x, &u);
+            g.push(gj.iter().zip(&g[0]).map(|(a, b)| a - b).collect());
+        }
+        let (a_check, g_check) = at(&vec![1.0; n], &vec![1.0; inputs]);
+        let mut predicted = g[0].clone();
+        for gk in &g[1..] {
+            for (pr, v) in predicted.iter_mut().zip(gk) {
+                *pr += v;
+            }
+        }
+        let near = |x: &f64, y: &f64| (x - y).abs() <= AFFINE_CHECK * x.abs().max(y.abs()).max(1.0);
+        let affine = a.iter().zip(&a_check).all(|(x, y)| near(x, y))
+            && predicted.iter().zip(&g_check).all(|(x, y)| near(x, y));
+        debug_assert_eq!(g[0].len(), n * p);
+        affine.then_some(Linear { a, g })
     }
 
     /// Carries `S` over steps of the given lengths at a state at rest (its

@@ -7,4 +7,5 @@ const HEAD_MODEL_SET: &str = concat!("model=", env!("CARGO_MANIFEST_DIR"), "/mod
 mod backend;
 mod graybox;
 mod initial;
+mod jacobian;
 mod recovery;
