@@ -32,6 +32,11 @@
 //! input, the Zeno bound's hold) has a fixed time: `τ_θ = 0`; so has one
 //! whose surface does not move along the step (`g_x Φ_h = 0`).
 //!
+//! In a regime whose flows are affine in the states and inputs (the
+//! parameters bound), the flows' derivatives are read from the tapes once
+//! ([`Linear`]) and a step of the sub-step's length is one closed-form map
+//! ([`LinearStep`]), as the state's is.
+//!
 //! The derivatives of the expressions come from their tapes
 //! ([`crate::expr::Expression::gradient`]) in the model with the
 //! parameters as slots; the state itself is the run's, bit for bit.
@@ -167,15 +172,150 @@ pub(crate) struct Tangent<'a> {
 }
 
 /// The derivatives of a regime's flows (the elements' effects included)
-/// that are affine in the states and inputs, `f = A(θ) x + B(θ) u + c(θ)`:
+/// that are affine in the states and inputs, `f = A(θ) x + b(θ, u)`:
 /// `f_x = A` and `f_θ = G0 + Σ_j x_j Gx_j + Σ_i u_i Gu_i`, read once from
-/// the tapes, so that a stage costs a few small matrix products.
+/// the tapes, so that a stage costs a few small matrix products, and a
+/// step of the sub-step's length one ([`LinearStep`]).
 struct Linear {
     /// `A`, row-major (states x states).
     a: Vec<f64>,
     /// `G0`, then `Gx_j` per state, then `Gu_i` per input; each states x
     /// parameters, row-major.
     g: Vec<Vec<f64>>,
+    /// `b(u) = b0 + Σ_i u_i b_i`: `b0`, then `b_i` per input.
+    b: Vec<Vec<f64>>,
+    /// The step of the last length asked for.
+    step: Option<(f64, LinearStep)>,
+}
+
+/// One RK4 step of length `h` of a [`Linear`] regime's sensitivities in
+/// closed form: `S+ = T(hA) S + P(x, u)`, where
+/// `T(z) = 1 + z + z^2/2 + z^3/6 + z^4/24` and the forcing
+/// `P = P0 + Σ_j x_j Px_j + Σ_i u_i Pu_i` gathers the stages' `f_θ` terms;
+/// and the step's rate in its length, `Φ_h = T'(hA) f(x, u)` with
+/// `T'(z) = 1 + z + z^2/2 + z^3/6`.
+struct LinearStep {
+    /// `T(hA)` and `T'(hA)`, row-major.
+    t: Vec<f64>,
+    dt: Vec<f64>,
+    /// `P0`, then `Px_j`, then `Pu_i` (states x parameters each).
+    p: Vec<Vec<f64>>,
+}
+
+/// `a b` for row-major `n x n` `a` and `n x c` `b`.
+fn product(a: &[f64], b: &[f64], n: usize, c: usize) -> Vec<f64> {
+    let mut out = vec![0.0; n * c];
+    for r in 0..n {
+        for j in 0..n {
+            let arj = a[r * n + j];
+            if arj != 0.0 {
+                for (o, bj) in out[r * c..(r + 1) * c]
+                    .iter_mut()
+                    .zip(&b[j * c..(j + 1) * c])
+                {
+                    *o += arj * bj;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `Σ_k w_k m_k` over the affine pieces `m` (`w_0 = 1`, then `weights`).
+fn affine_sum(pieces: &[Vec<f64>], weights: &[f64]) -> Vec<f64> {
+    let mut out = pieces[0].clone();
+    for (m, &w) in pieces[1..].iter().zip(weights) {
+        if w != 0.0 {
+            for (o, v) in out.iter_mut().zip(m) {
+                *o += w * v;
+            }
+        }
+    }
+    out
+}
+
+impl Linear {
+    /// `f(x, u) = A x + b(u)`.
+    fn flow(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        let mut f = product(&self.a, x, x.len(), 1);
+        for (o, b) in f.iter_mut().zip(affine_sum(&self.b, u)) {
+            *o += b;
+        }
+        f
+    }
+
+    /// `f_θ` at `(x, u)` (states x parameters).
+    fn f_theta(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        let weights: Vec<f64> = x.iter().chain(u).copied().collect();
+        affine_sum(&self.g, &weights)
+    }
+
+    /// The stages' `f_θ` terms of a step of length `h` from `(x, u)` with
+    /// `S = 0`: the forcing `P(x, u)` of [`LinearStep`].
+    fn forcing(&self, h: f64, x: &[f64], u: &[f64]) -> Vec<f64> {
+        let n = x.len();
+        let p = self.g[0].len() / n;
+        let mut total = vec![0.0; n * p];
+        let (mut stage_x, mut stage_s) = (x.to_vec(), vec![0.0; n * p]);
+        for (i, (c, w)) in [(0.5, 1.0), (0.5, 2.0), (1.0, 2.0), (0.0, 1.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut d = product(&self.a, &stage_s, n, p);
+            for (o, g) in d.iter_mut().zip(self.f_theta(&stage_x, u)) {
+                *o += g;
+            }
+            for (o, d) in total.iter_mut().zip(&d) {
+                *o += w * h / 6.0 * d;
+            }
+            if i < 3 {
+                let k = self.flow(&stage_x, u);
+                stage_x = x.iter().zip(&k).map(|(x, k)| x + c * h * k).collect();
+                stage_s = d.iter().map(|d| c * h * d).collect();
+            }
+        }
+        total
+    }
+
+    /// Forms the closed-form step of length `h` into [`Linear::step`] when
+    /// the length differs from the last one's.
+    fn form_step(&mut self, h: f64, n: usize, inputs: usize) {
+        if !matches!(&self.step, Some((length, _)) if *length == h) {
+            let z: Vec<f64> = self.a.iter().map(|a| h * a).collect();
+            let mut t = vec![0.0; n * n];
+            let mut dt = vec![0.0; n * n];
+            let mut power = vec![0.0; n * n];
+            for i in 0..n {
+                power[i * n + i] = 1.0;
+            }
+            for (k, factor) in [1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0]
+                .into_iter()
+                .enumerate()
+            {
+                for ((t, dt), p) in t.iter_mut().zip(dt.iter_mut()).zip(&power) {
+                    *t += factor * p;
+                    if k < 4 {
+                        *dt += [1.0, 1.0, 0.5, 1.0 / 6.0][k] * p;
+                    }
+                }
+                power = product(&z, &power, n, n);
+            }
+            let (zero_x, zero_u) = (vec![0.0; n], vec![0.0; inputs]);
+            let p0 = self.forcing(h, &zero_x, &zero_u);
+            let mut p = vec![p0.clone()];
+            for j in 0..n + inputs {
+                let (mut x, mut u) = (zero_x.clone(), zero_u.clone());
+                if j < n {
+                    x[j] = 1.0;
+                } else {
+                    u[j - n] = 1.0;
+                }
+                let pj = self.forcing(h, &x, &u);
+                p.push(pj.iter().zip(&p0).map(|(a, b)| a - b).collect());
+            }
+            self.step = Some((h, LinearStep { t, dt, p }));
+        }
+    }
 }
 
 /// Relative agreement asked of a regime's derivatives at a check point
@@ -282,15 +422,51 @@ impl<'a> Tangent<'a> {
         }
     }
 
-    /// Puts the affine derivatives of the regime of `hs` back into the
-    /// cache ([`Machine::linear_regime`]).
-    fn keep_linear(&mut self, hs: &HybridState, linear: Linear) {
-        if let Some(entry) = self
-            .regimes
-            .iter_mut()
-            .find(|(q, r, _)| *q == hs.mode && *r == hs.regimes)
-        {
-            entry.2 = Some(linear);
+    /// `S` and `Φ_h` over the closed-form step `step` of `linear` from `(x,
+    /// u)`.
+    fn closed_step(&mut self, linear: &Linear, step: &LinearStep, x: &[f64], u: &[f64]) {
+        let (n, p, c) = (self.d.states, self.d.parameters, self.d.columns);
+        // T(hA) S + P(x, u), into `stage`, then swapped into `s`.
+        let out = &mut self.stage;
+        out.fill(0.0);
+        for r in 0..n {
+            let row = &mut out[r * c..(r + 1) * c];
+            for (j, &trj) in step.t[r * n..(r + 1) * n].iter().enumerate() {
+                if trj != 0.0 {
+                    for (o, s) in row.iter_mut().zip(&self.s[j * c..(j + 1) * c]) {
+                        *o += trj * s;
+                    }
+                }
+            }
+            let weights = std::iter::once(1.0)
+                .chain(x.iter().copied())
+                .chain(u.iter().copied());
+            for (piece, w) in step.p.iter().zip(weights) {
+                if w != 0.0 {
+                    for (o, v) in row[..p].iter_mut().zip(&piece[r * p..(r + 1) * p]) {
+                        *o += w * v;
+                    }
+                }
+            }
+        }
+        std::mem::swap(&mut self.s, &mut self.stage);
+        // Φ_h = T'(hA) f(x, u), f into a spare row.
+        let f = &mut self.t_h[0];
+        for (r, fr) in f.iter_mut().enumerate() {
+            let ax: f64 = linear.a[r * n..(r + 1) * n]
+                .iter()
+                .zip(x)
+                .map(|(a, x)| a * x)
+                .sum();
+            let bu: f64 = linear.b[1..].iter().zip(u).map(|(b, u)| b[r] * u).sum();
+            *fr = ax + linear.b[0][r] + bu;
+        }
+        for (r, ph) in self.phi_h.iter_mut().enumerate() {
+            *ph = step.dt[r * n..(r + 1) * n]
+                .iter()
+                .zip(f.iter())
+                .map(|(d, f)| d * f)
+                .sum();
         }
     }
 
@@ -398,17 +574,49 @@ impl<'a> Machine<'a> {
         let Some(mut t) = self.tangent.take() else {
             return;
         };
-        let mut k = std::mem::take(&mut self.k);
         self.load(&hs.x, u);
         self.prepare(hs);
-        let linear = self.linear_regime(&mut t, hs, u);
-        self.load(&hs.x, u);
+        let at = self.linear_regime(&mut t, hs, u);
+        let mut regimes = std::mem::take(&mut t.regimes);
+        let linear = regimes[at].2.as_mut();
+        match linear {
+            // The sub-step's length: the closed form.
+            Some(l) if h == self.full_step => {
+                l.form_step(h, t.d.states, u.len());
+                if let Some((_, step)) = &l.step {
+                    t.closed_step(l, step, &hs.x, u);
+                }
+            }
+            l => {
+                self.load(&hs.x, u);
+                self.stages_tangent(&mut t, hs, h, l.map(|l| &*l));
+            }
+        }
+        t.regimes = regimes;
+        if to_end {
+            let left = std::mem::take(&mut t.left);
+            t.add_rate(&left);
+            t.left = left;
+        }
+        self.tangent = Some(t);
+    }
+
+    /// [`Machine::tangent_step`] stage by stage (the stage states from the
+    /// flows, as [`Machine::rk4`] takes them), from the state loaded.
+    fn stages_tangent(
+        &mut self,
+        t: &mut Tangent,
+        hs: &HybridState,
+        h: f64,
+        linear: Option<&Linear>,
+    ) {
+        let mut k = std::mem::take(&mut self.k);
         t.stage.copy_from_slice(&t.s);
         t.stage_h.fill(0.0);
         let lengths = [0.5 * h, 0.5 * h, h];
         for i in 0..4 {
             self.flows(hs.mode, &mut k[i]);
-            match &linear {
+            match linear {
                 Some(l) => t.stage_tangent_linear(l, &self.slots, i),
                 None => t.stage_tangent(hs.mode, &self.effects, &self.slots, i),
             }
@@ -421,7 +629,7 @@ impl<'a> Machine<'a> {
                     stage_h,
                     t_h,
                     ..
-                } = &mut t;
+                } = t;
                 for ((st, s), d) in stage.iter_mut().zip(s.iter()).zip(&d[i]) {
                     *st = s + c * d;
                 }
@@ -439,7 +647,7 @@ impl<'a> Machine<'a> {
             phi_h,
             t_h,
             ..
-        } = &mut t;
+        } = t;
         for (j, s) in s.iter_mut().enumerate() {
             *s += sixth * (d[0][j] + 2.0 * d[1][j] + 2.0 * d[2][j] + d[3][j]);
         }
@@ -447,36 +655,26 @@ impl<'a> Machine<'a> {
             let mean = (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]) / 6.0;
             *p = mean + sixth * (2.0 * t_h[1][j] + 2.0 * t_h[2][j] + t_h[3][j]);
         }
-        if to_end {
-            let left = std::mem::take(&mut t.left);
-            t.add_rate(&left);
-            t.left = left;
-        }
         self.k = k;
-        if let Some(l) = linear {
-            t.keep_linear(hs, l);
-        }
-        self.tangent = Some(t);
     }
 
-    /// The affine derivatives of the regime of `hs` (the effects
-    /// [`Machine::prepare`]d), taken out of `t`'s cache (put back by
-    /// [`Tangent::keep_linear`]), formed when first met: where the bound
-    /// flows are affine in the state and the input and every sliding
-    /// friction's level is a constant, and the tapes' derivatives at `x =
-    /// 1, u = 1` agree with the affine form read at `0` and the unit
-    /// vectors. `None` elsewhere: the stages read the tapes.
-    fn linear_regime(&mut self, t: &mut Tangent, hs: &HybridState, u: &[f64]) -> Option<Linear> {
+    /// The entry of `t`'s cache of regimes for the regime of `hs` (the
+    /// effects [`Machine::prepare`]d), added when first met, with its affine
+    /// derivatives where the bound flows are affine in the state and the
+    /// input, every sliding friction's level is a constant, and the tapes'
+    /// derivatives at `x = 1, u = 1` agree with the affine form read at `0`
+    /// and the unit vectors; `None` elsewhere: the stages read the tapes.
+    fn linear_regime(&mut self, t: &mut Tangent, hs: &HybridState, u: &[f64]) -> usize {
         let at = t
             .regimes
             .iter()
             .position(|(q, r, _)| *q == hs.mode && *r == hs.regimes);
         if let Some(i) = at {
-            return t.regimes[i].2.take();
+            return i;
         }
         let linear = self.form_linear(t, hs.mode, u.len());
-        t.regimes.push((hs.mode, hs.regimes.clone(), None));
-        linear
+        t.regimes.push((hs.mode, hs.regimes.clone(), linear));
+        t.regimes.len() - 1
     }
 
     /// [`Machine::linear_regime`]'s affine derivatives of `mode` under the
@@ -492,14 +690,18 @@ impl<'a> Machine<'a> {
             return None;
         }
         let (n, p) = (t.d.states, t.d.parameters);
-        let mut at = |x: &[f64], u: &[f64]| -> (Vec<f64>, Vec<f64>) {
+        // f_x, f_θ and f at a point.
+        let mut at = |x: &[f64], u: &[f64]| -> (Vec<f64>, Vec<f64>, Vec<f64>) {
             self.load(x, u);
-            t.derivatives_at(mode, &self.effects, &self.slots)
+            let (fx, ftheta) = t.derivatives_at(mode, &self.effects, &self.slots);
+            let mut f = vec![0.0; n];
+            self.flows(mode, &mut f);
+            (fx, ftheta, f)
         };
         let zero_x = vec![0.0; n];
         let zero_u = vec![0.0; inputs];
-        let (a, g0) = at(&zero_x, &zero_u);
-        let mut g = vec![g0];
+        let (a, g0, b0) = at(&zero_x, &zero_u);
+        let (mut g, mut b) = (vec![g0], vec![b0]);
         for j in 0..n + inputs {
             let (mut x, mut u) = (zero_x.clone(), zero_u.clone());
             if j < n {
@@ -507,21 +709,34 @@ impl<'a> Machine<'a> {
             } else {
                 u[j - n] = 1.0;
             }
-            let (_, gj) = at(&x, &u);
+            let (_, gj, bj) = at(&x, &u);
             g.push(gj.iter().zip(&g[0]).map(|(a, b)| a - b).collect());
-        }
-        let (a_check, g_check) = at(&vec![1.0; n], &vec![1.0; inputs]);
-        let mut predicted = g[0].clone();
-        for gk in &g[1..] {
-            for (pr, v) in predicted.iter_mut().zip(gk) {
-                *pr += v;
+            if j >= n {
+                b.push(bj.iter().zip(&b[0]).map(|(a, b)| a - b).collect());
             }
         }
-        let near = |x: &f64, y: &f64| (x - y).abs() <= AFFINE_CHECK * x.abs().max(y.abs()).max(1.0);
-        let affine = a.iter().zip(&a_check).all(|(x, y)| near(x, y))
-            && predicted.iter().zip(&g_check).all(|(x, y)| near(x, y));
+        let ones = (vec![1.0; n], vec![1.0; inputs]);
+        let (a_check, g_check, f_check) = at(&ones.0, &ones.1);
         debug_assert_eq!(g[0].len(), n * p);
-        affine.then_some(Linear { a, g })
+        let linear = Linear {
+            a,
+            g,
+            b,
+            step: None,
+        };
+        let near = |x: &f64, y: &f64| (x - y).abs() <= AFFINE_CHECK * x.abs().max(y.abs()).max(1.0);
+        let affine = linear.a.iter().zip(&a_check).all(|(x, y)| near(x, y))
+            && linear
+                .f_theta(&ones.0, &ones.1)
+                .iter()
+                .zip(&g_check)
+                .all(|(x, y)| near(x, y))
+            && linear
+                .flow(&ones.0, &ones.1)
+                .iter()
+                .zip(&f_check)
+                .all(|(x, y)| near(x, y));
+        affine.then_some(linear)
     }
 
     /// Carries `S` over steps of the given lengths at a state at rest (its
