@@ -52,19 +52,32 @@ pub fn per_record(
     if let [record] = records {
         return residuals(values, record);
     }
+    let (_, each) = each_record(model, values, records, residuals)?;
+    Some(each.concat())
+}
+
+/// `f` of every record (in parallel, in record order) with the values it
+/// takes: the parameters, then its own estimated initial states; and the
+/// number of parameters. `None` when `values` is too short or `f` fails.
+fn each_record<T: Send>(
+    model: &dyn Simulator,
+    values: &[f64],
+    records: &[Dataset],
+    f: impl Fn(&[f64], &Dataset) -> Option<T> + Sync,
+) -> Option<(usize, Vec<T>)> {
     let states = model.estimated_count();
     let parameters = values.len().checked_sub(states * records.len())?;
-    let each: Vec<Vec<f64>> = records
+    let each = records
         .par_iter()
         .enumerate()
         .map(|(i, record)| {
             let at = parameters + i * states;
             let mut own = values[..parameters].to_vec();
             own.extend_from_slice(&values[at..at + states]);
-            residuals(&own, record)
+            f(&own, record)
         })
         .collect::<Option<_>>()?;
-    Some(each.concat())
+    Some((parameters, each))
 }
 
 /// The residuals of the free run (`segment` 0) or of the segmented run of
@@ -83,17 +96,9 @@ pub fn residual_jacobian(
         return None;
     }
     let states = model.estimated_count();
-    let parameters = values.len().checked_sub(states * records.len())?;
-    let each: Vec<(Vec<f64>, DMatrix<f64>)> = records
-        .par_iter()
-        .enumerate()
-        .map(|(i, record)| {
-            let at = parameters + i * states;
-            let mut own = values[..parameters].to_vec();
-            own.extend_from_slice(&values[at..at + states]);
-            model.residual_jacobian(&own, record, segment, velocity_tol)
-        })
-        .collect::<Option<_>>()?;
+    let (parameters, each) = each_record(model, values, records, |own, record| {
+        model.residual_jacobian(own, record, segment, velocity_tol)
+    })?;
     let rows: usize = each.iter().map(|(r, _)| r.len()).sum();
     let mut jacobian = DMatrix::zeros(rows, values.len());
     let mut residuals = Vec::with_capacity(rows);

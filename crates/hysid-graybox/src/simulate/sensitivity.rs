@@ -202,6 +202,20 @@ struct LinearStep {
     p: Vec<Vec<f64>>,
 }
 
+/// The points `(x, u)` at which an affine map of `n` states and `inputs`
+/// inputs is read: the unit vectors of the states, then of the inputs.
+fn unit_points(n: usize, inputs: usize) -> impl Iterator<Item = (Vec<f64>, Vec<f64>)> {
+    (0..n + inputs).map(move |j| {
+        let (mut x, mut u) = (vec![0.0; n], vec![0.0; inputs]);
+        if j < n {
+            x[j] = 1.0;
+        } else {
+            u[j - n] = 1.0;
+        }
+        (x, u)
+    })
+}
+
 /// `a b` for row-major `n x n` `a` and `n x c` `b`.
 fn product(a: &[f64], b: &[f64], n: usize, c: usize) -> Vec<f64> {
     let mut out = vec![0.0; n * c];
@@ -300,16 +314,9 @@ impl Linear {
                 }
                 power = product(&z, &power, n, n);
             }
-            let (zero_x, zero_u) = (vec![0.0; n], vec![0.0; inputs]);
-            let p0 = self.forcing(h, &zero_x, &zero_u);
+            let p0 = self.forcing(h, &vec![0.0; n], &vec![0.0; inputs]);
             let mut p = vec![p0.clone()];
-            for j in 0..n + inputs {
-                let (mut x, mut u) = (zero_x.clone(), zero_u.clone());
-                if j < n {
-                    x[j] = 1.0;
-                } else {
-                    u[j - n] = 1.0;
-                }
+            for (x, u) in unit_points(n, inputs) {
                 let pj = self.forcing(h, &x, &u);
                 p.push(pj.iter().zip(&p0).map(|(a, b)| a - b).collect());
             }
@@ -698,17 +705,9 @@ impl<'a> Machine<'a> {
             self.flows(mode, &mut f);
             (fx, ftheta, f)
         };
-        let zero_x = vec![0.0; n];
-        let zero_u = vec![0.0; inputs];
-        let (a, g0, b0) = at(&zero_x, &zero_u);
+        let (a, g0, b0) = at(&vec![0.0; n], &vec![0.0; inputs]);
         let (mut g, mut b) = (vec![g0], vec![b0]);
-        for j in 0..n + inputs {
-            let (mut x, mut u) = (zero_x.clone(), zero_u.clone());
-            if j < n {
-                x[j] = 1.0;
-            } else {
-                u[j - n] = 1.0;
-            }
+        for (j, (x, u)) in unit_points(n, inputs).enumerate() {
             let (_, gj, bj) = at(&x, &u);
             g.push(gj.iter().zip(&g[0]).map(|(a, b)| a - b).collect());
             if j >= n {

@@ -73,12 +73,42 @@ fn agrees(
     Ok(())
 }
 
+/// A model, a record, and the point `theta` the sensitivities are taken
+/// at: the parameters (`p` of them), then the estimated initial states.
+struct Case {
+    m: GrayBoxModel,
+    c: CompiledModel,
+    data: Dataset,
+    p: usize,
+    theta: Vec<f64>,
+}
+
+impl Case {
+    /// The parameters and the estimated states of `theta`.
+    fn split<'t>(&self, theta: &'t [f64]) -> (&'t [f64], &'t [f64]) {
+        theta.split_at(self.p)
+    }
+
+    /// The columns a fit moves: a parameter not fixed, or an estimated
+    /// state.
+    fn free(&self) -> Vec<bool> {
+        let estimates = self.theta.len() - self.p;
+        self.m
+            .parameters
+            .iter()
+            .map(|p| !p.fixed)
+            .chain(std::iter::repeat_n(true, estimates))
+            .collect()
+    }
+}
+
 /// The model of `path` at `z`, its input from `seed`, and a record of its
 /// own output at `z`; the parameters `shift` of the way further through
 /// their bounds (so that a measured start does not sit exactly on a stop of
 /// the record's own parameters: a fixed stop level can, and a fit never
-/// moves it).
-fn case(path: &str, z: &[f64], seed: u64, shift: f64) -> (GrayBoxModel, CompiledModel, Dataset) {
+/// moves it); the states the rule leaves unknown estimated from the
+/// record.
+fn case(path: &str, z: &[f64], seed: u64, shift: f64) -> Case {
     let (m, ex) = randomised(path, z);
     let c = CompiledModel::new(&m).unwrap();
     let u = ex.generate(seed).remove(0);
@@ -87,16 +117,18 @@ fn case(path: &str, z: &[f64], seed: u64, shift: f64) -> (GrayBoxModel, Compiled
     let moved: Vec<f64> = z.iter().map(|z| (z + shift).min(1.0)).collect();
     let (m, _) = randomised(path, &moved);
     let c = CompiledModel::new(&m).unwrap();
-    (m, c, Dataset::siso(u, y, ex.ts).unwrap())
-}
-
-/// Per column: a parameter not fixed, or one of `estimates` estimated states.
-fn free(m: &GrayBoxModel, estimates: usize) -> Vec<bool> {
-    m.parameters
-        .iter()
-        .map(|p| !p.fixed)
-        .chain(std::iter::repeat_n(true, estimates))
-        .collect()
+    let data = Dataset::siso(u, y, ex.ts).unwrap();
+    let values = m.values();
+    let estimates = estimate(&c, &values, &data).unwrap();
+    let p = values.len();
+    let theta = values.into_iter().chain(estimates).collect();
+    Case {
+        m,
+        c,
+        data,
+        p,
+        theta,
+    }
 }
 
 proptest! {
@@ -110,21 +142,21 @@ proptest! {
         shift in 0.001f64..0.05,
     ) {
         let path = &FILES[which];
-        let (m, c, data) = case(path, &z, seed, shift);
+        let k = case(path, &z, seed, shift);
         // A fitted delay is not differentiated (see below).
-        prop_assume!(differentiable(&c));
-        let values = m.values();
-        let p = values.len();
-        let estimates = estimate(&c, &values, &data).unwrap();
-        let with = run_with_sensitivities(&c, &values, &estimates, &data).unwrap();
-        let plain = run_from(&c, &values, &estimates, &data).unwrap();
+        prop_assume!(differentiable(&k.c));
+        let (values, estimates) = k.split(&k.theta);
+        let with = run_with_sensitivities(&k.c, values, estimates, &k.data).unwrap();
+        let plain = run_from(&k.c, values, estimates, &k.data).unwrap();
         prop_assert_eq!(&with.y, &plain.y, "{}", path);
         prop_assert_eq!(&with.x, &plain.x, "{}", path);
         let exact = with.sensitivities.unwrap();
-        prop_assert_eq!(exact.columns, p + estimates.len());
-        let theta: Vec<f64> = values.iter().chain(&estimates).copied().collect();
-        let outputs = |t: &[f64]| run_from(&c, &t[..p], &t[p..], &data).unwrap().y;
-        agrees(path, &exact, &outputs, &theta, &free(&m, estimates.len()))?;
+        prop_assert_eq!(exact.columns, k.theta.len());
+        let outputs = |t: &[f64]| {
+            let (values, estimates) = k.split(t);
+            run_from(&k.c, values, estimates, &k.data).unwrap().y
+        };
+        agrees(path, &exact, &outputs, &k.theta, &k.free())?;
     }
 
     #[test]
@@ -136,27 +168,27 @@ proptest! {
         segment in 5usize..60,
     ) {
         let path = &FILES[which];
-        let (m, c, data) = case(path, &z, seed, shift);
+        let k = case(path, &z, seed, shift);
         // A fitted delay is not differentiated (see below).
-        prop_assume!(differentiable(&c));
-        let values = m.values();
-        let p = values.len();
-        let estimates = estimate(&c, &values, &data).unwrap();
-        let ts = data.ts.unwrap();
-        let y = data.y().to_vec();
+        prop_assume!(differentiable(&k.c));
+        let (values, estimates) = k.split(&k.theta);
+        let ts = k.data.ts.unwrap();
+        let y = k.data.y().to_vec();
         // The segments' start velocities from the record (a central slope).
         let slope = move |k: usize| {
             let (a, b) = (k.saturating_sub(1), (k + 1).min(y.len() - 1));
             (y[b] - y[a]) / ((b - a).max(1) as f64 * ts)
         };
         let (yhat, exact) =
-            segmented_with_sensitivities(&c, &values, &estimates, &data, segment, &slope).unwrap();
-        let plain = segmented(&c, &values, &estimates, &data, segment, &slope).unwrap();
+            segmented_with_sensitivities(&k.c, values, estimates, &k.data, segment, &slope)
+                .unwrap();
+        let plain = segmented(&k.c, values, estimates, &k.data, segment, &slope).unwrap();
         prop_assert_eq!(&yhat, &plain, "{}", path);
-        let theta: Vec<f64> = values.iter().chain(&estimates).copied().collect();
-        let outputs =
-            |t: &[f64]| segmented(&c, &t[..p], &t[p..], &data, segment, &slope).unwrap();
-        agrees(path, &exact, &outputs, &theta, &free(&m, estimates.len()))?;
+        let outputs = |t: &[f64]| {
+            let (values, estimates) = k.split(t);
+            segmented(&k.c, values, estimates, &k.data, segment, &slope).unwrap()
+        };
+        agrees(path, &exact, &outputs, &k.theta, &k.free())?;
     }
 }
 
@@ -165,14 +197,13 @@ proptest! {
 #[test]
 fn without_events_every_sample_matches_central_differences() {
     let path = "models/examples/coupled-drives.toml";
-    let (m, c, data) = case(path, &[0.5; 16], 3, 0.01);
-    let values = m.values();
-    let with = run_with_sensitivities(&c, &values, &[], &data).unwrap();
+    let k = case(path, &[0.5; 16], 3, 0.01);
+    let with = run_with_sensitivities(&k.c, &k.theta, &[], &k.data).unwrap();
     assert_eq!(with.events, 0);
     let exact = with.sensitivities.unwrap();
-    let outputs = |t: &[f64]| run_from(&c, t, &[], &data).unwrap().y;
+    let outputs = |t: &[f64]| run_from(&k.c, t, &[], &k.data).unwrap().y;
     for j in 0..exact.columns {
-        let fd = central(&outputs, &values, j, 1e-6);
+        let fd = central(&outputs, &k.theta, j, 1e-6);
         let e = column(&exact, j);
         let scale = norm(&fd) / (fd.len() as f64).sqrt();
         for (k, (a, b)) in e.iter().zip(&fd).enumerate() {
