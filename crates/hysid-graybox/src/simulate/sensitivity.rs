@@ -163,6 +163,10 @@ pub(crate) struct Tangent<'a> {
     phi_h: Vec<f64>,
     /// `ℓ_θ`: the derivative of the length left in the sub-step.
     left: Vec<f64>,
+    /// The flows' partial derivatives at a point: in the states
+    /// (states x states) and in the parameters (states x parameters).
+    fx: Vec<f64>,
+    ftheta: Vec<f64>,
     /// Spare rows (columns long).
     row: Vec<f64>,
     spare: Vec<f64>,
@@ -216,9 +220,9 @@ fn unit_points(n: usize, inputs: usize) -> impl Iterator<Item = (Vec<f64>, Vec<f
     })
 }
 
-/// `a b` for row-major `n x n` `a` and `n x c` `b`.
-fn product(a: &[f64], b: &[f64], n: usize, c: usize) -> Vec<f64> {
-    let mut out = vec![0.0; n * c];
+/// `out = a b` for row-major `n x n` `a` and `n x c` `b`.
+fn product_into(a: &[f64], b: &[f64], n: usize, c: usize, out: &mut [f64]) {
+    out.fill(0.0);
     for r in 0..n {
         for j in 0..n {
             let arj = a[r * n + j];
@@ -232,36 +236,78 @@ fn product(a: &[f64], b: &[f64], n: usize, c: usize) -> Vec<f64> {
             }
         }
     }
+}
+
+/// [`product_into`] into a new matrix.
+fn product(a: &[f64], b: &[f64], n: usize, c: usize) -> Vec<f64> {
+    let mut out = vec![0.0; n * c];
+    product_into(a, b, n, c, &mut out);
     out
 }
 
-/// `Σ_k w_k m_k` over the affine pieces `m` (`w_0 = 1`, then `weights`).
-fn affine_sum(pieces: &[Vec<f64>], weights: &[f64]) -> Vec<f64> {
-    let mut out = pieces[0].clone();
-    for (m, &w) in pieces[1..].iter().zip(weights) {
+/// `out += m_0 + Σ_k w_k m_k` over the affine pieces `m` (`w_k` from
+/// `weights`, for `m_1`, `m_2`, ...).
+fn add_affine(pieces: &[Vec<f64>], weights: impl IntoIterator<Item = f64>, out: &mut [f64]) {
+    for (m, w) in pieces.iter().zip(std::iter::once(1.0).chain(weights)) {
         if w != 0.0 {
             for (o, v) in out.iter_mut().zip(m) {
                 *o += w * v;
             }
         }
     }
-    out
+}
+
+/// `out[.., ..p] += m` for `n x p` `m` and `n x c` `out` (a parameter
+/// term into the sensitivities' columns, the estimated states' left).
+fn add_parameter_columns(m: &[f64], out: &mut [f64], p: usize, c: usize) {
+    for (row, m) in out.chunks_mut(c).zip(m.chunks(p)) {
+        for (o, v) in row[..p].iter_mut().zip(m) {
+            *o += v;
+        }
+    }
+}
+
+/// A stage's derivatives of the flows from their partials `fx` (states x
+/// states) and `ftheta` (states x parameters) at the stage state: in the
+/// parameters `out = fx stage + ftheta`, in the step's length `out_h = fx
+/// stage_h`.
+fn compose(
+    (fx, ftheta): (&[f64], &[f64]),
+    (stage, stage_h): (&[f64], &[f64]),
+    (out, out_h): (&mut [f64], &mut [f64]),
+    (p, c): (usize, usize),
+) {
+    let n = stage_h.len();
+    product_into(fx, stage, n, c, out);
+    add_parameter_columns(ftheta, out, p, c);
+    product_into(fx, stage_h, n, 1, out_h);
 }
 
 impl Linear {
-    /// `f(x, u) = A x + b(u)`.
+    /// `f(x, u) = A x + b(u)` into `out`.
+    fn flow_into(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
+        product_into(&self.a, x, x.len(), 1, out);
+        add_affine(&self.b, u.iter().copied(), out);
+    }
+
+    /// `f(x, u)`.
     fn flow(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
-        let mut f = product(&self.a, x, x.len(), 1);
-        for (o, b) in f.iter_mut().zip(affine_sum(&self.b, u)) {
-            *o += b;
-        }
+        let mut f = vec![0.0; x.len()];
+        self.flow_into(x, u, &mut f);
         f
     }
 
-    /// `f_θ` at `(x, u)` (states x parameters).
+    /// `f_θ` at `(x, u)` into `out` (states x parameters).
+    fn f_theta_into(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        add_affine(&self.g, x.iter().chain(u).copied(), out);
+    }
+
+    /// `f_θ` at `(x, u)`.
     fn f_theta(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
-        let weights: Vec<f64> = x.iter().chain(u).copied().collect();
-        affine_sum(&self.g, &weights)
+        let mut g = vec![0.0; self.g[0].len()];
+        self.f_theta_into(x, u, &mut g);
+        g
     }
 
     /// The stages' `f_θ` terms of a step of length `h` from `(x, u)` with
@@ -355,6 +401,8 @@ impl<'a> Tangent<'a> {
             t_h: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             phi_h: vec![0.0; n],
             left: vec![0.0; columns],
+            fx: vec![0.0; n * n],
+            ftheta: vec![0.0; n * p],
             row: vec![0.0; columns],
             spare: vec![0.0; columns],
             regimes: Vec::new(),
@@ -367,66 +415,35 @@ impl<'a> Tangent<'a> {
         &mut self.s[i * c..(i + 1) * c]
     }
 
-    /// Stage `i`'s derivatives of the flows of `mode` under `effects`, at
-    /// the stage state loaded in `slots`, in the parameters (from the
-    /// stage's `S` in `stage`) and in the step's length (from `stage_h`).
-    fn stage_tangent(&mut self, mode: usize, effects: &[Effect], slots: &[f64], i: usize) {
-        let q = &self.model.modes[mode];
-        let c = self.d.columns;
-        let (out, out_h) = (&mut self.t[i], &mut self.t_h[i]);
-        for (r, f) in q.flow.iter().enumerate() {
-            self.d
-                .total(f, slots, &self.stage, &mut out[r * c..(r + 1) * c]);
-            out_h[r] = self.d.rate(&self.stage_h);
-        }
-        for effect in effects {
-            match *effect {
-                Effect::Friction(v, e, dir) => {
-                    let kinetic = &q.friction[e].0;
-                    if self.d.total(kinetic, slots, &self.stage, &mut self.row) > 0.0 {
-                        for (o, r) in out[v * c..(v + 1) * c].iter_mut().zip(&self.row) {
-                            *o -= dir * r;
-                        }
-                        out_h[v] -= dir * self.d.rate(&self.stage_h);
-                    }
-                }
-                Effect::Hold(s) => {
-                    out[s * c..(s + 1) * c].fill(0.0);
-                    out_h[s] = 0.0;
-                }
-            }
-        }
-    }
-
-    /// Stage `i`'s derivatives (as [`Tangent::stage_tangent`]) from the
-    /// regime's affine derivatives, at the stage state and input in
-    /// `slots`.
-    fn stage_tangent_linear(&mut self, linear: &Linear, slots: &[f64], i: usize) {
+    /// Stage `i`'s derivatives of the flows (into `t[i]` and `t_h[i]`) at
+    /// the stage state loaded in `slots`, from the stage's `S` in `stage`
+    /// and `stage_h`: the partials read from the tapes ([`Tangent::partials_at`])
+    /// or, in an affine regime, from `linear`.
+    fn stage_tangent(
+        &mut self,
+        (mode, effects): (usize, &[Effect]),
+        linear: Option<&Linear>,
+        slots: &[f64],
+        i: usize,
+    ) {
         let (n, p, c) = (self.d.states, self.d.parameters, self.d.columns);
-        let (out, out_h) = (&mut self.t[i], &mut self.t_h[i]);
-        out.fill(0.0);
-        for r in 0..n {
-            let row = &mut out[r * c..(r + 1) * c];
-            let mut h = 0.0;
-            for (j, &a) in linear.a[r * n..(r + 1) * n].iter().enumerate() {
-                if a != 0.0 {
-                    for (o, s) in row.iter_mut().zip(&self.stage[j * c..(j + 1) * c]) {
-                        *o += a * s;
-                    }
-                    h += a * self.stage_h[j];
-                }
+        let fx = match linear {
+            // f_θ = G0 + Σ x_j Gx_j + Σ u_i Gu_i: the slots hold (x, u) in order.
+            Some(l) => {
+                l.f_theta_into(&slots[..n], &slots[n..n + l.b.len() - 1], &mut self.ftheta);
+                &l.a
             }
-            out_h[r] = h;
-            // G0 + Σ x_j Gx_j + Σ u_i Gu_i: the slots hold (x, u) in order.
-            for (k, g) in linear.g.iter().enumerate() {
-                let weight = if k == 0 { 1.0 } else { slots[k - 1] };
-                if weight != 0.0 {
-                    for (o, g) in row[..p].iter_mut().zip(&g[r * p..(r + 1) * p]) {
-                        *o += weight * g;
-                    }
-                }
+            None => {
+                self.partials_at(mode, effects, slots);
+                &self.fx
             }
-        }
+        };
+        compose(
+            (fx, &self.ftheta),
+            (&self.stage, &self.stage_h),
+            (&mut self.t[i], &mut self.t_h[i]),
+            (p, c),
+        );
     }
 
     /// `S` and `Φ_h` over the closed-form step `step` of `linear` from `(x,
@@ -434,89 +451,49 @@ impl<'a> Tangent<'a> {
     fn closed_step(&mut self, linear: &Linear, step: &LinearStep, x: &[f64], u: &[f64]) {
         let (n, p, c) = (self.d.states, self.d.parameters, self.d.columns);
         // T(hA) S + P(x, u), into `stage`, then swapped into `s`.
-        let out = &mut self.stage;
-        out.fill(0.0);
-        for r in 0..n {
-            let row = &mut out[r * c..(r + 1) * c];
-            for (j, &trj) in step.t[r * n..(r + 1) * n].iter().enumerate() {
-                if trj != 0.0 {
-                    for (o, s) in row.iter_mut().zip(&self.s[j * c..(j + 1) * c]) {
-                        *o += trj * s;
-                    }
-                }
-            }
-            let weights = std::iter::once(1.0)
-                .chain(x.iter().copied())
-                .chain(u.iter().copied());
-            for (piece, w) in step.p.iter().zip(weights) {
-                if w != 0.0 {
-                    for (o, v) in row[..p].iter_mut().zip(&piece[r * p..(r + 1) * p]) {
-                        *o += w * v;
-                    }
-                }
-            }
-        }
+        product_into(&step.t, &self.s, n, c, &mut self.stage);
+        self.ftheta.fill(0.0);
+        add_affine(&step.p, x.iter().chain(u).copied(), &mut self.ftheta);
+        add_parameter_columns(&self.ftheta, &mut self.stage, p, c);
         std::mem::swap(&mut self.s, &mut self.stage);
         // Φ_h = T'(hA) f(x, u), f into a spare row.
         let f = &mut self.t_h[0];
-        for (r, fr) in f.iter_mut().enumerate() {
-            let ax: f64 = linear.a[r * n..(r + 1) * n]
-                .iter()
-                .zip(x)
-                .map(|(a, x)| a * x)
-                .sum();
-            let bu: f64 = linear.b[1..].iter().zip(u).map(|(b, u)| b[r] * u).sum();
-            *fr = ax + linear.b[0][r] + bu;
-        }
-        for (r, ph) in self.phi_h.iter_mut().enumerate() {
-            *ph = step.dt[r * n..(r + 1) * n]
-                .iter()
-                .zip(f.iter())
-                .map(|(d, f)| d * f)
-                .sum();
-        }
+        linear.flow_into(x, u, f);
+        product_into(&step.dt, f, n, 1, &mut self.phi_h);
     }
 
-    /// The flows' derivatives of `mode` under `effects` at the point loaded
-    /// in `slots`: in the states (`f_x`, states x states) and in the
-    /// parameters (`f_θ`, states x parameters).
-    fn derivatives_at(
-        &mut self,
-        mode: usize,
-        effects: &[Effect],
-        slots: &[f64],
-    ) -> (Vec<f64>, Vec<f64>) {
+    /// The partial derivatives of the flows of `mode` under `effects` at
+    /// the point loaded in `slots`, into `fx` (in the states) and `ftheta`
+    /// (in the parameters): a held state's row is zero, a sliding
+    /// friction's level (where positive) is subtracted in its direction.
+    fn partials_at(&mut self, mode: usize, effects: &[Effect], slots: &[f64]) {
         let (n, p) = (self.d.states, self.d.parameters);
         let q = &self.model.modes[mode];
-        let (mut fx, mut ftheta) = (vec![0.0; n * n], vec![0.0; n * p]);
-        let grad = |e: &Expression, d: &mut Differ| -> Vec<f64> {
-            let mut g = vec![0.0; n + p];
-            e.gradient_with(slots, &d.wrt, &mut g, &mut d.scratch);
-            g
-        };
+        let d = &mut self.d;
         for (r, f) in q.flow.iter().enumerate() {
-            let g = grad(f, &mut self.d);
-            fx[r * n..(r + 1) * n].copy_from_slice(&g[..n]);
-            ftheta[r * p..(r + 1) * p].copy_from_slice(&g[n..]);
+            f.gradient_with(slots, &d.wrt, &mut d.grad, &mut d.scratch);
+            self.fx[r * n..(r + 1) * n].copy_from_slice(&d.grad[..n]);
+            self.ftheta[r * p..(r + 1) * p].copy_from_slice(&d.grad[n..]);
         }
         for effect in effects {
             match *effect {
                 Effect::Friction(v, e, dir) => {
                     let kinetic = &q.friction[e].0;
-                    if kinetic.eval(slots) > 0.0 {
-                        let g = grad(kinetic, &mut self.d);
-                        for (o, g) in ftheta[v * p..(v + 1) * p].iter_mut().zip(&g[n..]) {
+                    if kinetic.gradient_with(slots, &d.wrt, &mut d.grad, &mut d.scratch) > 0.0 {
+                        let rows = self.fx[v * n..(v + 1) * n]
+                            .iter_mut()
+                            .chain(&mut self.ftheta[v * p..(v + 1) * p]);
+                        for (o, g) in rows.zip(&d.grad) {
                             *o -= dir * g;
                         }
                     }
                 }
                 Effect::Hold(s) => {
-                    fx[s * n..(s + 1) * n].fill(0.0);
-                    ftheta[s * p..(s + 1) * p].fill(0.0);
+                    self.fx[s * n..(s + 1) * n].fill(0.0);
+                    self.ftheta[s * p..(s + 1) * p].fill(0.0);
                 }
             }
         }
-        (fx, ftheta)
     }
 
     /// `S += Φ_h ⊗ l`.
@@ -581,7 +558,6 @@ impl<'a> Machine<'a> {
         let Some(mut t) = self.tangent.take() else {
             return;
         };
-        self.load(&hs.x, u);
         self.prepare(hs);
         let at = self.linear_regime(&mut t, hs, u);
         let mut regimes = std::mem::take(&mut t.regimes);
@@ -623,10 +599,7 @@ impl<'a> Machine<'a> {
         let lengths = [0.5 * h, 0.5 * h, h];
         for i in 0..4 {
             self.flows(hs.mode, &mut k[i]);
-            match linear {
-                Some(l) => t.stage_tangent_linear(l, &self.slots, i),
-                None => t.stage_tangent(hs.mode, &self.effects, &self.slots, i),
-            }
+            t.stage_tangent((hs.mode, &self.effects), linear, &self.slots, i);
             if let Some(&c) = lengths.get(i) {
                 self.stage(hs, &k[i], c);
                 let Tangent {
@@ -700,10 +673,10 @@ impl<'a> Machine<'a> {
         // f_x, f_θ and f at a point.
         let mut at = |x: &[f64], u: &[f64]| -> (Vec<f64>, Vec<f64>, Vec<f64>) {
             self.load(x, u);
-            let (fx, ftheta) = t.derivatives_at(mode, &self.effects, &self.slots);
+            t.partials_at(mode, &self.effects, &self.slots);
             let mut f = vec![0.0; n];
             self.flows(mode, &mut f);
-            (fx, ftheta, f)
+            (t.fx.clone(), t.ftheta.clone(), f)
         };
         let (a, g0, b0) = at(&vec![0.0; n], &vec![0.0; inputs]);
         let (mut g, mut b) = (vec![g0], vec![b0]);
@@ -748,14 +721,13 @@ impl<'a> Machine<'a> {
         }
     }
 
-    /// Before event `ev` is applied: at `before`, the last state the
+    /// Before event `ev` is applied: at `hs`, the last state the
     /// location found before the event (under `u`; the end of the step
     /// [`Machine::tangent_step`] just carried, so that the rates are the
     /// regime's before the event), `τ_θ`; `S` moved to the event (`S +=
     /// Φ_h τ_θ`) and the length left in the sub-step shortened by it (`ℓ_θ
     /// -= τ_θ`).
-    pub(super) fn tangent_event(&mut self, before: &HybridState, u: &[f64], ev: Event) {
-        let hs = before;
+    pub(super) fn tangent_event(&mut self, hs: &HybridState, u: &[f64], ev: Event) {
         let Some(mut t) = self.tangent.take() else {
             return;
         };
@@ -960,25 +932,17 @@ impl<'a> Machine<'a> {
         let Some(mut t) = self.tangent.take() else {
             return;
         };
-        let (n, c) = (t.d.states, t.d.columns);
+        let (n, p, c) = (t.d.states, t.d.parameters, t.d.columns);
         self.load(x, u);
-        let mut fx = DMatrix::zeros(n, n);
-        let mut ftheta = DMatrix::zeros(n, c);
-        let zero = vec![0.0; n * c];
-        for (i, f) in t.model.modes[mode].flow.iter().enumerate() {
-            t.d.total(f, &self.slots, &zero, &mut t.row);
-            for j in 0..n {
-                fx[(i, j)] = t.d.grad[j];
-            }
-            for (j, r) in t.row.iter().enumerate() {
-                ftheta[(i, j)] = *r;
-            }
-        }
+        t.partials_at(mode, &[], &self.slots);
+        let fx = DMatrix::from_row_slice(n, n, &t.fx);
+        let ftheta = DMatrix::from_row_slice(n, p, &t.ftheta);
         if let Ok(pinv) = fx.pseudo_inverse(1e-12) {
             let s = -pinv * ftheta;
-            for i in 0..n {
-                for j in 0..c {
-                    t.s[i * c + j] = s[(i, j)];
+            t.s.fill(0.0);
+            for (i, row) in t.s.chunks_mut(c).enumerate() {
+                for (j, v) in row[..p].iter_mut().enumerate() {
+                    *v = s[(i, j)];
                 }
             }
         }
