@@ -717,7 +717,7 @@ impl<'a> Machine<'a> {
     ) -> Result<bool, SimError> {
         let h = ts / n_sub as f64;
         if self.at_rest(hs, u) {
-            self.tangent_rest(hs, u, &vec![h; n_sub]);
+            self.tangent_rest(hs, u, std::iter::repeat_n(h, n_sub));
             return Ok(true);
         }
         self.full_step = h;
@@ -797,9 +797,8 @@ impl<'a> Machine<'a> {
                 if self.at_rest(hs, u) {
                     // Come to rest: the rest of the sample changes nothing
                     // but the sensitivities.
-                    let mut rest = vec![h; n_sub - step];
-                    rest[0] = left;
-                    self.tangent_rest(hs, u, &rest);
+                    let rest = std::iter::repeat_n(h, n_sub - step - 1);
+                    self.tangent_rest(hs, u, std::iter::once(left).chain(rest));
                     break 'steps;
                 }
             }

@@ -713,9 +713,14 @@ impl<'a> Machine<'a> {
 
     /// Carries `S` over steps of the given lengths at a state at rest (its
     /// derivative is zero, so is `Φ_h`; its sensitivities may still move).
-    pub(super) fn tangent_rest(&mut self, hs: &HybridState, u: &[f64], lengths: &[f64]) {
+    pub(super) fn tangent_rest(
+        &mut self,
+        hs: &HybridState,
+        u: &[f64],
+        lengths: impl Iterator<Item = f64>,
+    ) {
         if self.tangent.is_some() {
-            for &h in lengths.iter().filter(|h| **h > 0.0) {
+            for h in lengths.filter(|h| *h > 0.0) {
                 self.tangent_step(hs, u, h, false);
             }
         }
