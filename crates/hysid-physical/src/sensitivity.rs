@@ -83,13 +83,9 @@ pub fn sensitivity(
     let exact = exact
         .then(|| residual_jacobian(model, values, records, 0, 0.0))
         .flatten();
-    let kind = match exact {
-        Some(_) => JacobianKind::Exact,
-        None => JacobianKind::CentralDifferences,
-    };
-    let (r0, jac) = match exact {
+    let (kind, r0, jac) = match exact {
         // d yhat / d theta = - d r / d theta
-        Some((r0, jacobian)) => (r0, -map.grouped(&jacobian)),
+        Some((r0, jacobian)) => (JacobianKind::Exact, r0, -map.grouped(&jacobian)),
         None => {
             let Some(r0) = free_run_residuals(model, values, records) else {
                 return Sensitivity::undefined(d);
@@ -97,7 +93,7 @@ pub fn sensitivity(
             let Some(jac) = output_jacobian(model, map, values, records, step, r0.len()) else {
                 return Sensitivity::undefined(d);
             };
-            (r0, jac)
+            (JacobianKind::CentralDifferences, r0, jac)
         }
     };
     let n = r0.len();
