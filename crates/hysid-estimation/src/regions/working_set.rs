@@ -16,6 +16,8 @@ use crate::regions::options::{RegionError, RegionMethod, RegionOptions, SolveSta
 use crate::regions::problem::{Context, Prepared};
 use crate::regions::simplex::Simplex;
 use hysid_core::backend::Deadline;
+use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 
 /// Margin below which a point outside the working set counts as having a
 /// non-zero loss and is added (slightly below 1 so that points sitting on
@@ -73,11 +75,12 @@ pub(crate) fn solve(
     if opts.deadline.passed() {
         return softmax_instead(prep, labels, modes, SolveStats::default());
     }
+    let mut certified = None;
     if !quadratic && (modes - 1) * (prep.p + 1) <= SIMPLEX_MAX_UNKNOWNS {
         let mut stats = SolveStats::default();
         // A failed softmax on the sample only costs the fast path.
-        if let Ok(set) = scaled_softmax_set(prep, labels, modes, &weight, quadratic, &mut stats)
-            && let Some(blocks) = solve_simplex(
+        if let Ok(set) = scaled_softmax_set(prep, labels, modes, &weight, quadratic, &mut stats) {
+            match solve_simplex(
                 prep,
                 labels,
                 modes,
@@ -85,15 +88,22 @@ pub(crate) fn solve(
                 set,
                 &opts.deadline,
                 &mut stats,
-            )
-        {
-            return Ok((blocks, stats));
+            ) {
+                SimplexOutcome::Kept(blocks) => return Ok((blocks, stats)),
+                SimplexOutcome::Degenerate { set } => certified = Some(set),
+                SimplexOutcome::GaveUp => {}
+            }
         }
     }
     // The QP, large MRLPs, and MRLPs whose optimum is not unique (the
     // interior-point solution is kept there: see `crate::regions::simplex`).
+    // Where the simplex reached the optimum, its working set holds every
+    // point with a non-zero loss there, and clarabel starts from it.
     let mut stats = SolveStats::default();
-    let set = initial_set(prep, labels, modes, &mut stats)?;
+    let set = match certified {
+        Some(set) => set,
+        None => initial_set(prep, labels, modes, &mut stats)?,
+    };
     let solved = solve_clarabel(
         prep,
         labels,
@@ -162,10 +172,21 @@ fn violators(
     out
 }
 
+/// How [`solve_simplex`] ended.
+enum SimplexOutcome {
+    /// Scores to keep: the unique optimum, or past the deadline the last
+    /// round's.
+    Kept(Vec<Vec<f64>>),
+    /// An optimum that is not certified unique, reached on working set
+    /// `set`: every point outside it has zero loss there.
+    Degenerate { set: Vec<usize> },
+    /// The pivot bound or a singular basis.
+    GaveUp,
+}
+
 /// The MRLP by the dual simplex of [`crate::regions::simplex`], warm-started from
-/// round to round; `None` when the simplex gives up (pivot bound or a
-/// singular basis) or the optimum is not unique, in which case the caller
-/// uses clarabel. Past `deadline`, the scores of the last round.
+/// round to round. The caller uses clarabel when the simplex gives up or
+/// the optimum is not unique. Past `deadline`, the scores of the last round.
 fn solve_simplex(
     prep: &Prepared,
     labels: &[usize],
@@ -174,7 +195,7 @@ fn solve_simplex(
     mut set: Vec<usize>,
     deadline: &Deadline,
     stats: &mut SolveStats,
-) -> Option<Vec<Vec<f64>>> {
+) -> SimplexOutcome {
     let mut in_set = vec![false; prep.n];
     for &r in &set {
         in_set[r] = true;
@@ -190,18 +211,24 @@ fn solve_simplex(
             set = (0..prep.n).collect();
             in_set.iter_mut().for_each(|v| *v = true);
         }
-        sx.optimise(&set, max_pivots).ok()?;
+        if sx.optimise(&set, max_pivots).is_err() {
+            return SimplexOutcome::GaveUp;
+        }
         stats.solves += 1;
         stats.solver_iterations = sx.pivots;
         stats.working_points = set.len();
         let blocks = sx.blocks();
         let new = violators(prep, labels, modes, &blocks, &in_set);
         if new.is_empty() {
-            return sx.unique().then_some(blocks);
+            return if sx.unique() {
+                SimplexOutcome::Kept(blocks)
+            } else {
+                SimplexOutcome::Degenerate { set }
+            };
         }
         if deadline.passed() {
             stats.cut_short = true;
-            return Some(blocks);
+            return SimplexOutcome::Kept(blocks);
         }
         for &r in &new {
             in_set[r] = true;
@@ -480,10 +507,34 @@ fn golden_section(g: impl Fn(f64) -> f64, lo: f64, hi: f64) -> f64 {
     if g1 <= g2 { x1 } else { x2 }
 }
 
-/// Builds the LP (MRLP) or QP (MSVM) on the points `set`.
+/// The distinct points of `set` (same mode, same regressor), each once in
+/// order of first appearance, with how many points of `set` it stands for.
+/// Identical points have identical hinge terms, so one term weighted by
+/// their number is the same program with the same optimal set; an
+/// interior-point solver converges on it in fewer, cheaper iterations
+/// (duplicates make the KKT system nearly singular: a saturated output
+/// under a held input repeats its regressor).
+fn distinct_points(prep: &Prepared, labels: &[usize], set: &[usize]) -> Vec<(usize, f64)> {
+    let mut first: HashMap<(usize, Vec<u64>), usize> = HashMap::with_capacity(set.len());
+    let mut points: Vec<(usize, f64)> = Vec::with_capacity(set.len());
+    for &r in set {
+        let key = (labels[r], prep.row(r).iter().map(|v| v.to_bits()).collect());
+        match first.entry(key) {
+            Entry::Occupied(k) => points[*k.get()].1 += 1.0,
+            Entry::Vacant(v) => {
+                v.insert(points.len());
+                points.push((r, 1.0));
+            }
+        }
+    }
+    points
+}
+
+/// Builds the LP (MRLP) or QP (MSVM) on the points `set`, identical points
+/// merged ([`distinct_points`]).
 ///
-/// Variables: per mode `[w_i (p); g_i]`, then per point of the set and per
-/// other mode one slack. Rows: the normalisation in `ZeroConeT` first (MRLP:
+/// Variables: per mode `[w_i (p); g_i]`, then per distinct point of the set
+/// and per other mode one slack, weighted by the point's multiplicity. Rows: the normalisation in `ZeroConeT` first (MRLP:
 /// `w_last = 0, g_last = 0`, removing the invariance to adding a common
 /// affine function; MSVM: `g_last = 0` only, as its regulariser fixes the
 /// normals), then `-(w_i - w_j).z + (g_i - g_j) - y <= -1` and `-y <= 0` in
@@ -498,7 +549,8 @@ fn program(
 ) -> Program {
     let p = prep.p;
     let nw = modes * (p + 1);
-    let ns = set.len() * (modes - 1);
+    let points = distinct_points(prep, labels, set);
+    let ns = points.len() * (modes - 1);
     let n = nw + ns;
     let mut q = vec![0.0; n];
     let mut pt = Triplets::default();
@@ -523,7 +575,7 @@ fn program(
     }
     let zero_rows = b.len();
     let mut slack = nw;
-    for &r in set {
+    for &(r, count) in &points {
         let i = labels[r];
         let z = prep.row(r);
         for j in (0..modes).filter(|&j| j != i) {
@@ -536,7 +588,7 @@ fn program(
             a.push(row, j * (p + 1) + p, -1.0);
             a.push(row, slack, -1.0);
             b.push(-1.0);
-            q[slack] = weight[i];
+            q[slack] = weight[i] * count;
             slack += 1;
         }
     }
@@ -655,6 +707,52 @@ mod tests {
                 "{method}: working set {a} vs full {b}"
             );
         }
+    }
+
+    /// Identical points of one mode become one term weighted by their
+    /// number; the same regressor in two modes stays two terms. The merged
+    /// program has the optimum of the program with every point: the
+    /// simplex, which keeps every term, reaches the same objective.
+    #[test]
+    fn identical_points_are_one_weighted_term() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let n = 240;
+        let mut x = DMatrix::zeros(n, 2);
+        let mut labels = Vec::with_capacity(n);
+        for r in 0..n {
+            // Every third row repeats a saturated point of mode 0; a fifth
+            // of those carry mode 1 instead (an overlap at the same point).
+            let (a, b, l) = if r % 3 == 0 {
+                (1.5, -0.5, usize::from(r % 5 == 0))
+            } else {
+                let (a, b): (f64, f64) = (rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
+                (a, b, usize::from(a + 0.3 * b > 0.1))
+            };
+            x[(r, 0)] = a;
+            x[(r, 1)] = b;
+            labels.push(l);
+        }
+        let opts = RegionOptions::default();
+        let prep = crate::regions::problem::prepare(&x, &labels, 2, &opts).unwrap();
+        let all: Vec<usize> = (0..n).collect();
+        let points = distinct_points(&prep, &labels, &all);
+        let saturated = |l: usize| (0..n).filter(|r| r % 3 == 0 && labels[*r] == l).count();
+        assert_eq!(points.len(), n - n / 3 + 2);
+        assert_eq!(points[0], (0, saturated(1) as f64));
+        assert_eq!(points[1], (1, 1.0));
+        assert_eq!(points[2], (2, 1.0));
+        assert_eq!(points[3], (3, saturated(0) as f64));
+        assert_eq!(points.iter().map(|p| p.1).sum::<f64>(), n as f64);
+
+        let weight: Vec<f64> = prep.counts.iter().map(|&c| 1.0 / c as f64).collect();
+        let merged = clarabel_full(&prep, &labels, 2, &weight);
+        let mut sx = Simplex::new(&prep, &labels, &weight, 2);
+        sx.optimise(&all, 1_000_000).unwrap();
+        let exact = objective(&prep, &labels, &weight, false, &sx.blocks());
+        assert!(
+            (merged - exact).abs() <= 1e-6 * (1.0 + exact),
+            "merged program {merged} vs every term {exact}"
+        );
     }
 
     /// Objective of the clarabel solve of the MRLP on all points.
