@@ -807,6 +807,42 @@ fn truncated_csv(dir: &Path, data: &Path, rows: usize) -> PathBuf {
     out
 }
 
+/// `--auto` refits the choice from `--refit-starts` starts only where the
+/// seed can change the fit: once for `bayes` with its exact Gaussian
+/// posterior, three times with a random order.
+#[test]
+fn auto_refits_from_one_start_where_the_seed_is_not_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let out = dir.path().join("m.json");
+    let starts = |extra: &[&str]| {
+        let mut args = vec![
+            "identify",
+            s(&data),
+            "-m",
+            "bayes",
+            "--na",
+            "1",
+            "--nb",
+            "1",
+            "--modes",
+            "2",
+            "--auto",
+            "--refit-starts",
+            "3",
+            "-o",
+            s(&out),
+        ];
+        args.extend(extra);
+        ok(&args);
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        m["info"]["selection"]["refit"].as_array().unwrap().len()
+    };
+    assert_eq!(starts(&[]), 1);
+    assert_eq!(starts(&["--set", "order=random"]), 3);
+}
+
 #[test]
 fn auto_chooses_inside_the_identification_rows_only() {
     // Rows after the identification rows are test rows: deleting them from

@@ -349,6 +349,64 @@ fn auto_runs_choose_on_folds() {
     assert!(!out.exists());
 }
 
+/// A `[[run]]` with `seeds` whose fit does not depend on the seed (`bayes`
+/// with its exact Gaussian posterior) runs once for all its seeds, and the
+/// report says so; one that does (`cluster`) runs every seed.
+#[test]
+fn a_seed_free_run_runs_once_for_its_seeds() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = small_experiment(dir.path());
+    let text = std::fs::read_to_string(&exp).unwrap();
+    let head = &text[..text.find("[[run]]").unwrap()];
+    let seeded = head.to_string()
+        + "[[run]]\nname = \"bayes\"\nmethod = \"bayes\"\nmodes = 2\nseeds = [1, 2, 3]\n"
+        + "[[run]]\nname = \"particles\"\nmethod = \"bayes\"\nmodes = 2\nseeds = [1, 2]\n"
+        + "set = { posterior = \"particles\" }\n"
+        + "[[run]]\nname = \"cluster\"\nmethod = \"cluster\"\nmodes = 2\nseeds = [1, 2]\n";
+    std::fs::write(&exp, &seeded).unwrap();
+    let out = dir.path().join("out");
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
+    assert_eq!(code, 0, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let runs: Vec<(String, Vec<u64>)> = report["results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            let same = r["same_for_seeds"]
+                .as_array()
+                .map(|a| a.iter().map(|v| v.as_u64().unwrap()).collect())
+                .unwrap_or_default();
+            (r["name"].as_str().unwrap().to_string(), same)
+        })
+        .collect();
+    let names: Vec<&str> = runs.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "bayes [seed=1]",
+            "particles [seed=1]",
+            "particles [seed=2]",
+            "cluster [seed=1]",
+            "cluster [seed=2]"
+        ]
+    );
+    assert_eq!(runs[0].1, [2, 3]);
+    assert!(
+        runs[1..].iter().all(|(_, same)| same.is_empty()),
+        "{runs:?}"
+    );
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains(
+            "| bayes | not stated | 3 (one run: the fit does not depend on the seed) | 1 |"
+        ),
+        "{md}"
+    );
+    assert!(md.contains("| particles | not stated | 2 | 2 |"), "{md}");
+}
+
 /// A build without the `png` feature refuses `--format png` up front,
 /// saying how to build it, and writes nothing.
 #[cfg(not(feature = "png"))]

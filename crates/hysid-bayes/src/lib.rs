@@ -36,7 +36,7 @@ pub use prior::{ModePrior, black_box_priors, sqrt_psd};
 
 use hysid_core::backend::{Deadline, IdentifyError, RunContext};
 use hysid_core::options::{CheckOptions, OptionError, check_float};
-use hysid_core::priors::PriorKind;
+use hysid_core::priors::{PriorKind, Priors};
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::noise::{local_noise_sigma, noise_floor};
 use hysid_estimation::pwarx::{PwarxData, PwarxFit, PwarxMethod};
@@ -157,6 +157,19 @@ impl PwarxMethod for Bayes {
     const OUTPUT_UNITS: &'static [&'static str] = &["noise_std"];
     const SEARCH: &'static str = "the mode count from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
     const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
+
+    /// The seed draws the particle clouds and the random order only: the
+    /// exact Gaussian posterior (`posterior = auto` without [bounds], which
+    /// would truncate the prior) in time or nearest-neighbour order draws
+    /// nothing.
+    fn seeded_with(&self, priors: &Priors, options: &BayesOptions) -> bool {
+        let particles = match options.posterior {
+            Posterior::Particles => true,
+            Posterior::Gaussian => false,
+            Posterior::Auto => !priors.bounds.is_empty(),
+        };
+        particles || matches!(options.order, Order::Random)
+    }
 
     fn fit(
         &self,

@@ -293,6 +293,40 @@ fn same_seed_same_model() {
     assert_ne!(one, run_with(&b, &priors(3), &set, 10).unwrap().to_json());
 }
 
+/// The back-end declares the seed where it draws from it: with the exact
+/// Gaussian posterior in time or nearest-neighbour order two seeds give
+/// the same modes and regions (automatic selection then refits once, and
+/// an experiment runs one seed for all); with particles, a random order,
+/// or [bounds] that make `posterior = auto` draw particles, the seed is
+/// declared and changes the model.
+#[test]
+fn the_seed_counts_where_it_is_drawn() {
+    let b = hysid_testkit::b1(200, 4.0, Noise::Uniform(0.1), 5);
+    let mut bounded = priors(3);
+    bounded.bounds.insert("c".into(), [-1.0, 1.0]);
+    let fitted = |priors: &Priors, set: &[&str], seed: u64| {
+        let m = run_with(&b, priors, set, seed).unwrap();
+        let p = as_pwarx(&m);
+        p.modes.clone()
+    };
+    let cases: [(&Priors, &[&str], bool); 5] = [
+        (&priors(3), &[], false),
+        (&priors(3), &["order=time"], false),
+        (&priors(3), &["order=random"], true),
+        (&priors(3), &["posterior=particles"], true),
+        (&bounded, &[], true),
+    ];
+    for (priors, set, seeded) in cases {
+        let settings = Settings::parse(set).unwrap();
+        let declared = Pwarx(Bayes)
+            .seeded_with(&b.problem(priors), &settings)
+            .unwrap();
+        assert_eq!(declared, seeded, "{set:?}, bounds {:?}", priors.bounds);
+        let same = fitted(priors, set, 1) == fitted(priors, set, 2);
+        assert_eq!(same, !seeded, "{set:?}, bounds {:?}", priors.bounds);
+    }
+}
+
 /// Without a mode count the run is refused with the typed error that
 /// names the method.
 #[test]

@@ -306,6 +306,15 @@ pub trait Identifier: Send + Sync {
     /// procedure.
     const PAPER: &'static [(&'static str, &'static str)] = &[];
 
+    /// Whether the seed can change the model identified on `problem` with
+    /// `options`: [`Identifier::SEEDED`], unless these options draw
+    /// nothing at random. A run that returns `false` gives the same model
+    /// for every seed, so a refit from several starts, or a median over
+    /// seeds, needs that run once.
+    fn seeded_with(&self, _problem: &Problem<'_>, _options: &Self::Options) -> bool {
+        Self::SEEDED
+    }
+
     /// The candidate settings that automatic selection (`--auto`) tries on
     /// `problem`; the default is the back-end's defaults only.
     fn search_space(&self, _problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
@@ -354,6 +363,14 @@ pub trait Backend: Send + Sync {
     fn output_units(&self) -> &'static [&'static str];
     /// Whether the seed can change the model ([`Identifier::SEEDED`]).
     fn seeded(&self) -> bool;
+    /// Whether the seed can change the model identified on `problem` with
+    /// `settings` ([`Identifier::seeded_with`]); the errors of
+    /// [`Backend::run`] for settings it refuses.
+    fn seeded_with(
+        &self,
+        problem: &Problem<'_>,
+        settings: &Settings,
+    ) -> Result<bool, IdentifyError>;
     /// Whether the back-end runs the stages after a PWARX fit
     /// ([`Identifier::STAGES`]).
     fn has_stages(&self) -> bool;
@@ -404,6 +421,14 @@ impl<T: Identifier> Backend for T {
     }
     fn seeded(&self) -> bool {
         T::SEEDED
+    }
+    fn seeded_with(
+        &self,
+        problem: &Problem<'_>,
+        settings: &Settings,
+    ) -> Result<bool, IdentifyError> {
+        let options = checked_options::<T>(problem, settings)?;
+        Ok(Identifier::seeded_with(self, problem, &options))
     }
     fn has_stages(&self) -> bool {
         T::STAGES

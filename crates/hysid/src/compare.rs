@@ -49,6 +49,9 @@ pub struct Job {
     pub seed: u64,
     /// The `[[run]]` it repeats with one of its `seeds`.
     pub seed_group: Option<String>,
+    /// The group's other seeds, when its fit does not depend on the seed
+    /// ([`Identify::seeded`]): this run stands for them, and they do not run.
+    pub same_for_seeds: Vec<u64>,
     /// Options chosen on the selection rows (`auto = true`).
     pub auto: bool,
     /// Where its options come from.
@@ -133,6 +136,10 @@ pub struct RunResult {
     /// The `[[run]]` this result repeats with one of its seeds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seed_group: Option<String>,
+    /// The group's seeds this run stands for, its fit not depending on
+    /// the seed ([`Job::same_for_seeds`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub same_for_seeds: Vec<u64>,
     /// Where its options come from.
     pub origin: Origin,
     /// Seed of the run.
@@ -244,6 +251,7 @@ impl Experiment {
             },
             sweep,
             seed_group: None,
+            same_for_seeds: Vec::new(),
             auto: r.auto,
             method: r.method.clone(),
             na: r.na.unwrap_or(self.na),
@@ -373,8 +381,8 @@ impl Experiment {
                 })?,
             ),
         };
-        let jobs = self.jobs()?;
         let registry = crate::registry();
+        let jobs = once_where_seed_free(self.jobs()?, &registry, &ident, &self.data);
         progress.start(jobs.len() as u64, "identifying");
         let results: Vec<RunResult> = jobs
             .par_iter()
@@ -441,14 +449,41 @@ fn label_sweep_best(results: &mut [RunResult]) {
     }
 }
 
-/// Identifies `job` on `ident` (choosing its options on the selection rows
-/// when it is an `auto` run).
-fn identify(
+/// `jobs` with one job per seed group whose fit does not depend on the
+/// seed ([`Identify::seeded`]): its first, standing for the group's other
+/// seeds ([`Job::same_for_seeds`]). A group whose request fails that check
+/// runs every seed, and each run reports the failure.
+fn once_where_seed_free(
+    jobs: Vec<Job>,
     registry: &Registry,
-    job: &Job,
     ident: &Dataset,
     spec: &DataSpec,
-) -> Result<Model, String> {
+) -> Vec<Job> {
+    let mut out: Vec<Job> = Vec::with_capacity(jobs.len());
+    // Each group seen, and the index in `out` of its one run when the
+    // group is seed-free.
+    let mut groups: Vec<(String, Option<usize>)> = Vec::new();
+    for job in jobs {
+        let Some(group) = job.seed_group.clone() else {
+            out.push(job);
+            continue;
+        };
+        match groups.iter().find(|(g, _)| *g == group).map(|(_, k)| *k) {
+            Some(Some(k)) => out[k].same_for_seeds.push(job.seed),
+            Some(None) => out.push(job),
+            None => {
+                let free = matches!(request(&job, ident, spec).seeded(registry), Ok(false));
+                groups.push((group, free.then_some(out.len())));
+                out.push(job);
+            }
+        }
+    }
+    out
+}
+
+/// The request that identifies `job` on `ident` (choosing its options on
+/// the selection rows when it is an `auto` run).
+fn request<'a>(job: &'a Job, ident: &'a Dataset, spec: &DataSpec) -> Identify<'a> {
     let mode = if job.auto {
         Mode::Auto(Auto {
             select_rows: spec.selection,
@@ -460,7 +495,7 @@ fn identify(
     } else {
         Mode::Plain
     };
-    let request = Identify {
+    Identify {
         first_row: spec.identification.start.unwrap_or(0),
         priors: job.priors.clone(),
         priors_origin: Some("the experiment".into()),
@@ -469,14 +504,26 @@ fn identify(
         warmup: spec.warmup,
         mode,
         ..Identify::new(&job.method, ident).orders(job.na, job.nb)
-    };
-    request.run(registry).map(|i| i.model).map_err(|e| {
-        if job.auto {
-            format!("auto: {e}")
-        } else {
-            e.to_string()
-        }
-    })
+    }
+}
+
+/// Identifies `job` on `ident` ([`request`]).
+fn identify(
+    registry: &Registry,
+    job: &Job,
+    ident: &Dataset,
+    spec: &DataSpec,
+) -> Result<Model, String> {
+    request(job, ident, spec)
+        .run(registry)
+        .map(|i| i.model)
+        .map_err(|e| {
+            if job.auto {
+                format!("auto: {e}")
+            } else {
+                e.to_string()
+            }
+        })
 }
 
 fn run_job(
@@ -492,6 +539,7 @@ fn run_job(
         method: job.method.clone(),
         sweep: job.sweep.clone(),
         seed_group: job.seed_group.clone(),
+        same_for_seeds: job.same_for_seeds.clone(),
         origin: job.origin,
         seed: job.seed,
         na: job.na,

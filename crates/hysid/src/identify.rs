@@ -5,7 +5,7 @@
 
 use crate::select::{self, AgainstAffine, Plan, Request, SelectError};
 use hysid_core::backend::{
-    Deadline, IdentifyError, NoProgress, Problem, Progress, Registry, RunContext,
+    Backend, Deadline, IdentifyError, NoProgress, Problem, Progress, Registry, RunContext,
 };
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
@@ -250,48 +250,80 @@ impl<'a> Identify<'a> {
             progress,
             deadline: self.deadline()?,
         };
-        let problem = Problem {
-            data: self.data,
-            orders: RegressorSpec::new(self.na, self.nb, self.data.inputs.len()),
-            priors: &priors,
-            priors_origin: self.priors_origin.as_deref(),
-        };
+        let problem = self.problem(&priors);
         let model = match &self.mode {
             Mode::Plain => backend.run(&problem, &self.options, &ctx)?,
             Mode::Standardized => run_standardized(backend, &problem, &self.options, &ctx)?,
             Mode::Auto(auto) => {
-                if auto.refit_starts == 0 {
-                    return Err(Error::Field {
-                        field: Field::RefitStarts,
-                        value: "0".into(),
-                        what: "must be at least 1",
-                    });
-                }
-                let space = match &auto.grid {
-                    Some(grid) => grid.clone(),
-                    None => backend.search_space(&problem)?.without_given(&self.options),
-                };
-                let plan = Plan {
-                    select: auto.select_rows,
-                    folds: auto.folds,
-                    select_records: auto.select_records,
-                    warmup: self.warmup,
-                    first_row: self.first_row,
-                    refit_starts: auto.refit_starts,
-                };
-                let affine = crate::affine_reference(registry, backend.name());
-                let request = Request::from_problem(
-                    backend,
-                    affine,
-                    &problem,
-                    self.options.clone(),
-                    space,
-                    plan,
-                );
+                let request = self.selection(registry, backend, &problem, auto)?;
                 select::select(&request, &ctx)?
             }
         };
         Ok(Identified { model })
+    }
+
+    /// Whether the seed can change the model [`Identify::run`] returns
+    /// ([`Backend::seeded_with`]; with [`Mode::Auto`], of any candidate:
+    /// [`select::seeded`]). When it cannot, one seed stands for all.
+    pub fn seeded(&self, registry: &Registry) -> Result<bool, Error> {
+        let backend = registry.require(&self.method)?;
+        let priors = self.resolved_priors()?;
+        let problem = self.problem(&priors);
+        Ok(match &self.mode {
+            Mode::Plain | Mode::Standardized => backend.seeded_with(&problem, &self.options)?,
+            Mode::Auto(auto) => {
+                select::seeded(&self.selection(registry, backend, &problem, auto)?)?
+            }
+        })
+    }
+
+    /// The record, orders and `priors` of the request.
+    fn problem<'p>(&'p self, priors: &'p Priors) -> Problem<'p> {
+        Problem {
+            data: self.data,
+            orders: RegressorSpec::new(self.na, self.nb, self.data.inputs.len()),
+            priors,
+            priors_origin: self.priors_origin.as_deref(),
+        }
+    }
+
+    /// The automatic selection `auto` asks for on `problem`: the grid
+    /// given or the back-end's search space, the split and the refit.
+    fn selection<'p>(
+        &'p self,
+        registry: &'p Registry,
+        backend: &'p dyn Backend,
+        problem: &Problem<'p>,
+        auto: &Auto,
+    ) -> Result<Request<'p>, Error> {
+        if auto.refit_starts == 0 {
+            return Err(Error::Field {
+                field: Field::RefitStarts,
+                value: "0".into(),
+                what: "must be at least 1",
+            });
+        }
+        let space = match &auto.grid {
+            Some(grid) => grid.clone(),
+            None => backend.search_space(problem)?.without_given(&self.options),
+        };
+        let plan = Plan {
+            select: auto.select_rows,
+            folds: auto.folds,
+            select_records: auto.select_records,
+            warmup: self.warmup,
+            first_row: self.first_row,
+            refit_starts: auto.refit_starts,
+        };
+        let affine = crate::affine_reference(registry, backend.name());
+        Ok(Request::from_problem(
+            backend,
+            affine,
+            problem,
+            self.options.clone(),
+            space,
+            plan,
+        ))
     }
 }
 

@@ -315,6 +315,25 @@ struct Trial<'a> {
     start: Vec<Model>,
 }
 
+impl<'a> Trial<'a> {
+    /// The trial's orders and priors on `data`.
+    fn problem<'p>(&'p self, request: &Request<'p>, data: &'p Dataset) -> Problem<'p> {
+        Problem {
+            data,
+            orders: self.setup.orders,
+            priors: &self.setup.priors,
+            priors_origin: request.priors_origin,
+        }
+    }
+
+    /// Whether the seed can change the trial's fit on `data`
+    /// ([`Backend::seeded_with`]).
+    fn seeded(&self, request: &Request<'_>, data: &Dataset) -> Result<bool, IdentifyError> {
+        self.backend
+            .seeded_with(&self.problem(request, data), &self.setup.settings)
+    }
+}
+
 /// A trial fitted on the fit rows of every split and scored on their
 /// selection rows.
 struct Scored {
@@ -372,6 +391,19 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
         refit,
     });
     Ok(model)
+}
+
+/// Whether the seed can change the model `select` returns for `request`:
+/// whether it can change the fit of some candidate (the affine reference
+/// draws nothing at random). When it cannot, every seed gives the same
+/// selection and the same model.
+pub fn seeded(request: &Request<'_>) -> Result<bool, SelectError> {
+    for trial in trials(request)? {
+        if trial.seeded(request, request.data)? {
+            return Ok(true);
+        }
+    }
+    Ok(false)
 }
 
 fn range_text((a, b): (usize, usize)) -> String {
@@ -442,12 +474,7 @@ fn fit(
     start: Option<&Model>,
     ctx: &RunContext<'_>,
 ) -> Result<Model, IdentifyError> {
-    let problem = Problem {
-        data,
-        orders: trial.setup.orders,
-        priors: &trial.setup.priors,
-        priors_origin: request.priors_origin,
-    };
+    let problem = trial.problem(request, data);
     let quiet = RunContext {
         seed: ctx.seed,
         progress: &NoProgress,
@@ -642,7 +669,8 @@ fn choose(
 }
 
 /// `trial` fitted on all the identification rows from `plan.refit_starts`
-/// starts when its back-end is seeded, from one otherwise: the run's seed,
+/// starts when the seed can change its fit ([`Backend::seeded_with`]),
+/// from one otherwise: the run's seed,
 /// then the next ones ([`RunContext::start_seeds`]), in parallel. A refit is
 /// a new fit on more rows and may end in another local minimum than the
 /// fit that was scored; of the starts, the fit that simulates the
@@ -654,7 +682,7 @@ fn refit(
     trial: &Trial<'_>,
     ctx: &RunContext<'_>,
 ) -> Result<(Model, Vec<RefitStart>), IdentifyError> {
-    let starts = if trial.backend.seeded() {
+    let starts = if trial.seeded(request, request.data)? {
         request.plan.refit_starts.max(1)
     } else {
         1
@@ -1289,6 +1317,9 @@ mod tests {
         fn seeded(&self) -> bool {
             self.seeded
         }
+        fn seeded_with(&self, _: &Problem<'_>, _: &Settings) -> Result<bool, IdentifyError> {
+            Ok(self.seeded)
+        }
         fn has_stages(&self) -> bool {
             false
         }
@@ -1344,6 +1375,9 @@ mod tests {
         }
         fn seeded(&self) -> bool {
             false
+        }
+        fn seeded_with(&self, _: &Problem<'_>, _: &Settings) -> Result<bool, IdentifyError> {
+            Ok(false)
         }
         fn has_stages(&self) -> bool {
             true

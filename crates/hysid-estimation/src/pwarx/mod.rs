@@ -44,7 +44,7 @@ pub use standardize::{StandardizeError, run_standardized};
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{BackendOptions, CheckOptions, Checked, OptionError, OptionSpec};
-use hysid_core::priors::PriorKind;
+use hysid_core::priors::{PriorKind, Priors};
 use hysid_core::search::SearchSpace;
 use hysid_core::stages::{AUTO_TRIM, Stages};
 use serde::de::Error as _;
@@ -92,6 +92,13 @@ pub trait PwarxMethod: Send + Sync {
     /// The options that make the method its paper's procedure
     /// ([`Identifier::PAPER`]).
     const PAPER: &'static [(&'static str, &'static str)] = &[];
+
+    /// Whether the seed can change the fit with `options` under `priors`
+    /// ([`Identifier::seeded_with`]; the stages after the fit draw
+    /// nothing at random).
+    fn seeded_with(&self, _priors: &Priors, _options: &Self::Options) -> bool {
+        Self::SEEDED
+    }
 
     /// The candidates automatic selection tries ([`Identifier::search_space`]);
     /// by default, with [`PwarxMethod::MAX_MODES`], every mode count from 1
@@ -177,6 +184,10 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
     const SEEDED: bool = M::SEEDED;
     const STAGES: bool = true;
     const PAPER: &'static [(&'static str, &'static str)] = M::PAPER;
+
+    fn seeded_with(&self, problem: &Problem<'_>, options: &Self::Options) -> bool {
+        self.0.seeded_with(problem.priors, &options.method)
+    }
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         self.0.search_space(problem)

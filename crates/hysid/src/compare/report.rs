@@ -611,7 +611,8 @@ fn holes_note(m: &hysid_core::model::Model) -> Option<String> {
 /// The table of `[data] truth` scores: accuracy, and per true mode the
 /// fraction of its samples simulated in the matched identified mode.
 /// Median and range over the seeds of each `[[run]]` with `seeds`: the
-/// figure to quote for a stochastic back-end, not its best seed.
+/// figure to quote for a stochastic back-end, not its best seed. A run
+/// whose fit does not depend on the seed ran once for all its seeds.
 fn seeds_table(s: &mut String, c: &Comparison) {
     let mut groups: Vec<&str> = Vec::new();
     for g in c.results.iter().filter_map(|r| r.seed_group.as_deref()) {
@@ -640,12 +641,21 @@ fn seeds_table(s: &mut String, c: &Comparison) {
         fits.sort_by(f64::total_cmp);
         let (lowest, highest) = (fits.first().copied(), fits.last().copied());
         let show = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
+        let standing: usize = runs.iter().map(|r| r.same_for_seeds.len()).sum();
+        let seeds = if standing == 0 {
+            runs.len().to_string()
+        } else {
+            format!(
+                "{} (one run: the fit does not depend on the seed)",
+                runs.len() + standing
+            )
+        };
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {} | {} | {} |",
             g.replace('|', "/"),
             runs[0].origin.label(c.scored_rows),
-            runs.len(),
+            seeds,
             fits.len(),
             show(median(&mut fits)),
             show(lowest),
