@@ -159,7 +159,7 @@ impl PwarxMethod for Bayes {
     const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
     /// The seed draws the particle clouds and the random order only: the
-    /// exact Gaussian posterior (`posterior = auto` without [bounds], which
+    /// exact Gaussian posterior (`posterior = auto` without `[bounds]`, which
     /// would truncate the prior) in time or nearest-neighbour order draws
     /// nothing.
     fn seeded_with(&self, priors: &Priors, options: &BayesOptions) -> bool {
