@@ -66,6 +66,12 @@ fn methods_lists_arx_with_its_options() {
     assert!(out.contains("ridge"));
     let arx = ok(&["methods", "arx"]);
     assert!(arx.contains("--auto tries: the orders"), "{arx}");
+    assert!(arx.contains("seed: does not change the model"), "{arx}");
+    let bayes = ok(&["methods", "bayes"]).replace("\n          ", " ");
+    assert!(
+        bayes.contains("seed: can change the model with posterior = particles"),
+        "{bayes}"
+    );
     assert!(arx.lines().any(|l| l.starts_with("    ridge (")), "{arx}");
     // Every line of the list and of one method in full fits 120 columns.
     for text in [&out, &arx, &ok(&["methods", "cluster"])] {

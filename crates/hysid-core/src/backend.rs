@@ -296,6 +296,10 @@ pub trait Identifier: Send + Sync {
     /// identification rows best; a back-end whose fit is a function of the
     /// data alone says `false`, and is refitted once.
     const SEEDED: bool = true;
+    /// For a seeded back-end whose options decide whether the seed is
+    /// drawn from ([`Identifier::seeded_with`]): when it is, in one phrase
+    /// (printed by `hysid methods`); empty when it always is.
+    const SEED_USE: &'static str = "";
     /// Whether the back-end runs the stages after a PWARX fit
     /// ([`crate::stages::Stages`]): its options include theirs, and
     /// automatic selection may set them.
@@ -363,6 +367,8 @@ pub trait Backend: Send + Sync {
     fn output_units(&self) -> &'static [&'static str];
     /// Whether the seed can change the model ([`Identifier::SEEDED`]).
     fn seeded(&self) -> bool;
+    /// When the seed is drawn from ([`Identifier::SEED_USE`]).
+    fn seed_use(&self) -> &'static str;
     /// Whether the seed can change the model identified on `problem` with
     /// `settings` ([`Identifier::seeded_with`]); the errors of
     /// [`Backend::run`] for settings it refuses.
@@ -421,6 +427,9 @@ impl<T: Identifier> Backend for T {
     }
     fn seeded(&self) -> bool {
         T::SEEDED
+    }
+    fn seed_use(&self) -> &'static str {
+        T::SEED_USE
     }
     fn seeded_with(
         &self,
@@ -516,6 +525,8 @@ pub struct MethodDescription {
     pub search: &'static str,
     /// Whether the seed can change the model ([`Identifier::SEEDED`]).
     pub seeded: bool,
+    /// When it does, where the options decide ([`Identifier::SEED_USE`]).
+    pub seed_use: &'static str,
 }
 
 impl MethodDescription {
@@ -528,6 +539,7 @@ impl MethodDescription {
             priors: backend.honours(),
             search: backend.search_doc(),
             seeded: backend.seeded(),
+            seed_use: backend.seed_use(),
         }
     }
 }

@@ -1317,6 +1317,9 @@ mod tests {
         fn seeded(&self) -> bool {
             self.seeded
         }
+        fn seed_use(&self) -> &'static str {
+            ""
+        }
         fn seeded_with(&self, _: &Problem<'_>, _: &Settings) -> Result<bool, IdentifyError> {
             Ok(self.seeded)
         }
@@ -1375,6 +1378,9 @@ mod tests {
         }
         fn seeded(&self) -> bool {
             false
+        }
+        fn seed_use(&self) -> &'static str {
+            ""
         }
         fn seeded_with(&self, _: &Problem<'_>, _: &Settings) -> Result<bool, IdentifyError> {
             Ok(false)

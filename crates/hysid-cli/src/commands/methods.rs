@@ -81,12 +81,16 @@ fn in_full(b: &dyn Backend) -> String {
         b.search_doc()
     };
     s += &wrapped("    --auto tries: ", auto, 18);
-    let seed = if b.seeded() {
-        "can change the model (--auto refits the choice from --refit-starts seeds)"
-    } else {
-        "does not change the model"
+    let seed = match (b.seeded(), b.seed_use()) {
+        (false, _) => "does not change the model".to_string(),
+        (true, "") => {
+            "can change the model (--auto refits the choice from --refit-starts seeds)".to_string()
+        }
+        (true, when) => format!(
+            "can change the model {when} (--auto then refits the choice from --refit-starts seeds)"
+        ),
     };
-    s += &wrapped("    seed: ", seed, 10);
+    s += &wrapped("    seed: ", &seed, 10);
     s += &wrapped("    priors honoured: ", &priors(b), 21);
     s
 }

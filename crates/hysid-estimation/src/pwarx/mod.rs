@@ -87,6 +87,8 @@ pub trait PwarxMethod: Send + Sync {
     const OUTPUT_UNITS: &'static [&'static str] = &[];
     /// Whether the seed can change the fit ([`Identifier::SEEDED`]).
     const SEEDED: bool = true;
+    /// When the options decide ([`Identifier::SEED_USE`]).
+    const SEED_USE: &'static str = "";
     /// Who chooses the mode count.
     const MODE_RULE: ModeRule = ModeRule::Given;
     /// The options that make the method its paper's procedure
@@ -182,6 +184,7 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
     const SEARCH: &'static str = M::SEARCH;
     const OUTPUT_UNITS: &'static [&'static str] = M::OUTPUT_UNITS;
     const SEEDED: bool = M::SEEDED;
+    const SEED_USE: &'static str = M::SEED_USE;
     const STAGES: bool = true;
     const PAPER: &'static [(&'static str, &'static str)] = M::PAPER;
 
