@@ -98,6 +98,20 @@ values = [1, 3]
     exp
 }
 
+/// [`small_experiment`]'s file and its text up to its first `[[run]]`, to
+/// which a test adds runs of its own.
+fn small_experiment_head(dir: &Path) -> (std::path::PathBuf, String) {
+    let exp = small_experiment(dir);
+    let text = std::fs::read_to_string(&exp).unwrap();
+    let head = text[..text.find("[[run]]").unwrap()].to_string();
+    (exp, head)
+}
+
+/// The `report.json` a comparison wrote into `out`.
+fn report_json(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
+}
+
 /// The figure links `(plots/....svg)` or `(plots/....png)` of a report.
 fn linked_plots(md: &str) -> Vec<String> {
     md.split("](")
@@ -115,8 +129,7 @@ fn report_matches_the_models_it_wrote() {
     let out = dir.path().join("out");
     let (code, stdout, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
     assert_eq!(code, 0, "{err}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let report = report_json(&out);
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert_eq!(stdout, md);
     let results = report["results"].as_array().unwrap();
@@ -314,17 +327,14 @@ fn figures_as_png_on_request() {
 #[test]
 fn auto_runs_choose_on_folds() {
     let dir = tempfile::tempdir().unwrap();
-    let exp = small_experiment(dir.path());
-    let text = std::fs::read_to_string(&exp).unwrap();
-    let head = &text[..text.find("[[run]]").unwrap()];
+    let (exp, head) = small_experiment_head(dir.path());
     let folded = head.replace("warmup = 5\n", "warmup = 5\nfolds = 4\n")
         + "[[run]]\nname = \"auto\"\nmethod = \"arx\"\nauto = true\n";
     std::fs::write(&exp, &folded).unwrap();
     let out = dir.path().join("out");
     let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
     assert_eq!(code, 0, "{err}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let report = report_json(&out);
     let file = report["results"][0]["model_file"].as_str().unwrap();
     let model: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join(file)).unwrap()).unwrap();
@@ -355,10 +365,8 @@ fn auto_runs_choose_on_folds() {
 #[test]
 fn a_seed_free_run_runs_once_for_its_seeds() {
     let dir = tempfile::tempdir().unwrap();
-    let exp = small_experiment(dir.path());
-    let text = std::fs::read_to_string(&exp).unwrap();
-    let head = &text[..text.find("[[run]]").unwrap()];
-    let seeded = head.to_string()
+    let (exp, head) = small_experiment_head(dir.path());
+    let seeded = head
         + "[[run]]\nname = \"bayes\"\nmethod = \"bayes\"\nmodes = 2\nseeds = [1, 2, 3]\n"
         + "[[run]]\nname = \"particles\"\nmethod = \"bayes\"\nmodes = 2\nseeds = [1, 2]\n"
         + "set = { posterior = \"particles\" }\n"
@@ -367,8 +375,7 @@ fn a_seed_free_run_runs_once_for_its_seeds() {
     let out = dir.path().join("out");
     let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
     assert_eq!(code, 0, "{err}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let report = report_json(&out);
     let runs: Vec<(String, Vec<u64>)> = report["results"]
         .as_array()
         .unwrap()
