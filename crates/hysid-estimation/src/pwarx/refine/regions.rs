@@ -49,7 +49,7 @@
 //! mode, at `beta = 10` nearly 1.
 
 use super::parameters::fit_parameters;
-use super::shooting::{Evaluation, Shooting};
+use super::shooting::{Evaluation, JacobianRows, Shooting};
 use crate::pwarx::assemble::PwarxFit;
 use crate::pwarx::prepare::PwarxData;
 use hysid_core::backend::{Deadline, IdentifyError};
@@ -378,10 +378,13 @@ impl<'s, 'a> RelaxedGate<'s, 'a> {
         let k = self.sharpness * self.norm;
         let along: f64 = v.iter().zip(row.iter()).map(|(a, b)| a * b).sum();
         let normals = self.columns.len();
-        for (j, r) in row.iter_mut().enumerate() {
-            *r *= k / n;
-            if j % self.block() < normals {
-                *r -= k / (n * n * n) * v[j] * along;
+        for (block, v) in row.chunks_mut(self.block()).zip(v.chunks(self.block())) {
+            for r in block[normals..].iter_mut() {
+                *r *= k / n;
+            }
+            for (r, vj) in block[..normals].iter_mut().zip(v) {
+                *r *= k / n;
+                *r -= k / (n * n * n) * vj * along;
             }
         }
     }
@@ -467,23 +470,34 @@ impl RelaxedGate<'_, '_> {
         let scores = self.scores(v);
         let norm = self.normal_norm(v);
         let nv = self.unknowns();
-        let (mut samples, mut simulated, mut errors, mut rows) =
-            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let lag = self.shooting.spec.lag();
+        let first = |seg: &super::shooting::Segment| seg.first.max(lag);
+        let counted = self
+            .shooting
+            .segments
+            .iter()
+            .map(|seg| seg.data.len().saturating_sub(first(seg)))
+            .sum();
+        let mut jacobian = JacobianRows::new(counted, nv);
+        let (mut samples, mut simulated, mut errors) = (
+            Vec::with_capacity(counted),
+            Vec::with_capacity(counted),
+            Vec::with_capacity(counted),
+        );
         let mut diverged = false;
         for seg in &self.shooting.segments {
             let measured = seg.data.y();
-            let first = seg.first.max(self.shooting.spec.lag());
-            let Some((y, sens)) = self.simulate(seg, &scores) else {
+            let Some((y, mut sens)) = self.simulate(seg, &scores) else {
                 diverged = true;
                 continue;
             };
-            for k in first..measured.len() {
+            for k in first(seg)..measured.len() {
                 samples.push(seg.offset + k);
                 simulated.push(y[k]);
                 errors.push(measured[k] - y[k]);
-                let at = rows.len();
-                rows.extend_from_slice(&sens[k * nv..(k + 1) * nv]);
-                self.chain(v, norm, &mut rows[at..]);
+                let row = &mut sens[k * nv..(k + 1) * nv];
+                self.chain(v, norm, row);
+                jacobian.push(row);
             }
         }
         let errors = DVector::from_vec(errors);
@@ -494,7 +508,7 @@ impl RelaxedGate<'_, '_> {
             cost
         };
         Ok(Evaluation {
-            jacobian: DMatrix::from_row_slice(samples.len(), nv, &rows),
+            jacobian: jacobian.finish(),
             samples,
             simulated,
             errors,

@@ -144,10 +144,16 @@ impl<'a> Shooting<'a> {
         let automaton = (!self.stops.is_empty())
             .then(|| HybridAutomaton::from_pwarx_with_stops(&model, self.stops));
         let nz = par.n_free();
-        let mut samples = Vec::new();
-        let mut simulated = Vec::new();
-        let mut errors = Vec::new();
-        let mut rows: Vec<f64> = Vec::new();
+        // An upper bound: a segment counts from `first` on at the earliest.
+        let counted = self
+            .segments
+            .iter()
+            .map(|seg| seg.data.len().saturating_sub(seg.first))
+            .sum();
+        let mut samples = Vec::with_capacity(counted);
+        let mut simulated = Vec::with_capacity(counted);
+        let mut errors = Vec::with_capacity(counted);
+        let mut jacobian = JacobianRows::new(counted, nz);
         let mut diverged = false;
         let bad = |e: hysid_model::simulate::SimError| IdentifyError::input(e);
         for seg in &self.segments {
@@ -172,7 +178,7 @@ impl<'a> Shooting<'a> {
                 samples.push(seg.offset + k);
                 simulated.push(sim.y[k]);
                 errors.push(y[k] - sim.y[k]);
-                rows.extend_from_slice(&sens[k * nz..(k + 1) * nz]);
+                jacobian.push(&sens[k * nz..(k + 1) * nz]);
             }
         }
         let errors = DVector::from_vec(errors);
@@ -182,14 +188,54 @@ impl<'a> Shooting<'a> {
             let c = errors.norm_squared();
             if c.is_finite() { c } else { f64::INFINITY }
         };
-        let jacobian = DMatrix::from_row_slice(samples.len(), nz, &rows);
         Ok(Evaluation {
             samples,
             simulated,
             errors,
-            jacobian,
+            jacobian: jacobian.finish(),
             cost,
         })
+    }
+}
+
+/// A Jacobian gathered row by row, one row per counted sample, written
+/// straight into its column-major storage. The rows planned are an upper
+/// bound on the rows pushed (the counted samples of every segment).
+pub(super) struct JacobianRows {
+    matrix: DMatrix<f64>,
+    filled: usize,
+}
+
+impl JacobianRows {
+    /// Room for `rows` rows of `columns` entries.
+    pub(super) fn new(rows: usize, columns: usize) -> Self {
+        JacobianRows {
+            matrix: DMatrix::zeros(rows, columns),
+            filled: 0,
+        }
+    }
+
+    /// Appends `row` (`columns` entries); rows past the planned number are
+    /// dropped.
+    pub(super) fn push(&mut self, row: &[f64]) {
+        let rows = self.matrix.nrows();
+        if self.filled == rows {
+            return;
+        }
+        let at = self.filled;
+        for (column, value) in self.matrix.as_mut_slice().chunks_mut(rows).zip(row) {
+            column[at] = *value;
+        }
+        self.filled += 1;
+    }
+
+    /// The rows appended.
+    pub(super) fn finish(self) -> DMatrix<f64> {
+        if self.filled == self.matrix.nrows() {
+            self.matrix
+        } else {
+            self.matrix.rows(0, self.filled).into_owned()
+        }
     }
 }
 
