@@ -1,6 +1,9 @@
 //! Atomic file output: write to a temporary file beside the target, then
 //! rename it into place. A failure leaves no partial file and never
-//! overwrites a good one.
+//! overwrites a good one. A symbolic link is written through (its target
+//! is replaced, the link stays); a target that is not a regular file (a
+//! device such as `/dev/null`, a pipe) is written directly, since renaming
+//! over it would replace the device with a file.
 
 use std::io::Write;
 use std::path::Path;
@@ -9,6 +12,21 @@ use std::path::Path;
 /// that is a folder are errors that say so (not an error about the
 /// temporary file).
 pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    if let Ok(meta) = std::fs::metadata(path) {
+        if !meta.is_file() && !meta.is_dir() {
+            return std::fs::OpenOptions::new()
+                .write(true)
+                .open(path)?
+                .write_all(bytes);
+        }
+    }
+    let linked = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+    let resolved = if linked {
+        std::fs::canonicalize(path).ok()
+    } else {
+        None
+    };
+    let path = resolved.as_deref().unwrap_or(path);
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -64,5 +82,41 @@ mod tests {
         assert!(e.to_string().contains("no/such/dir does not exist"), "{e}");
         let e = super::write(dir.path(), b"x").unwrap_err();
         assert_eq!(e.to_string(), "it is a folder; give a file name");
+    }
+
+    /// A link is written through, and a pipe (as a device would be) is
+    /// written into, not replaced by a file.
+    #[cfg(unix)]
+    #[test]
+    fn links_and_special_files_stay_what_they_are() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("model.json");
+        std::fs::write(&target, b"old").unwrap();
+        let link = dir.path().join("link.json");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        super::write(&link, b"new").unwrap();
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            return; // no mkfifo on this system
+        }
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(fifo).unwrap())
+        };
+        super::write(&fifo, b"through the pipe").unwrap();
+        // Checked before waiting for the reader, which a pipe replaced by
+        // a file would leave waiting.
+        use std::os::unix::fs::FileTypeExt;
+        assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+        assert_eq!(reader.join().unwrap(), b"through the pipe");
     }
 }

@@ -363,3 +363,28 @@ impl From<Evaluation> for least_squares::Evaluation {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::JacobianRows;
+    use nalgebra::DMatrix;
+
+    #[test]
+    fn rows_pushed_form_the_row_major_matrix_cut_to_the_rows_given() {
+        let rows = [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]];
+        let mut planned = JacobianRows::new(4, 3);
+        for row in &rows {
+            planned.push(row);
+        }
+        let expected = DMatrix::from_row_slice(2, 3, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+        assert_eq!(planned.finish(), expected);
+        let mut exact = JacobianRows::new(1, 3);
+        exact.push(&rows[0]);
+        exact.push(&rows[1]);
+        assert_eq!(
+            exact.finish(),
+            DMatrix::from_row_slice(1, 3, &[1.0, 2.0, 3.0])
+        );
+        assert_eq!(JacobianRows::new(0, 3).finish().nrows(), 0);
+    }
+}
