@@ -1029,9 +1029,6 @@ struct Schedule {
     ts: f64,
     /// The model's longest integration step.
     internal_step: f64,
-    /// Sub-steps of a piece that lasts the whole sample (`None` when `ts`
-    /// takes too many), computed once.
-    whole: Option<usize>,
 }
 
 /// A piece of a sample: duration, the inputs held over it, sub-steps.
@@ -1060,7 +1057,6 @@ impl Schedule {
             cuts,
             ts,
             internal_step: m.internal_step,
-            whole: substeps(ts, m.internal_step).ok(),
         }
     }
 
@@ -1092,10 +1088,7 @@ impl Schedule {
             from = to;
         }
         for piece in &mut pieces[..count] {
-            piece.2 = match self.whole {
-                Some(n) if piece.0 == self.ts => n,
-                _ => substeps(piece.0, self.internal_step)?,
-            };
+            piece.2 = substeps(piece.0, self.internal_step)?;
         }
         Ok(count)
     }
