@@ -534,9 +534,10 @@ fn distinct_points(prep: &Prepared, labels: &[usize], set: &[usize]) -> Vec<(usi
 /// merged ([`distinct_points`]).
 ///
 /// Variables: per mode `[w_i (p); g_i]`, then per distinct point of the set
-/// and per other mode one slack, weighted by the point's multiplicity. Rows: the normalisation in `ZeroConeT` first (MRLP:
-/// `w_last = 0, g_last = 0`, removing the invariance to adding a common
-/// affine function; MSVM: `g_last = 0` only, as its regulariser fixes the
+/// and per other mode one slack, weighted by the point's multiplicity.
+/// Rows: the normalisation in `ZeroConeT` first (MRLP: `w_last = 0,
+/// g_last = 0`, removing the invariance to adding a common affine
+/// function; MSVM: `g_last = 0` only, as its regulariser fixes the
 /// normals), then `-(w_i - w_j).z + (g_i - g_j) - y <= -1` and `-y <= 0` in
 /// `NonnegativeConeT`.
 fn program(
