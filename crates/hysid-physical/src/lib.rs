@@ -26,7 +26,8 @@
 //!    box) from each start (the swarm's best, the
 //!    nominal values, the next best particles), then argmin's Nelder-Mead
 //!    (Nelder and Mead 1965) from the best point, restarted with a fresh
-//!    simplex a few times (bounded iterations each).
+//!    simplex a few times (bounded iterations each) until a run lowers
+//!    nothing.
 //!
 //! The fitted model carries the parameters (with their bounds), the final
 //! cost, and a local sensitivity / confidence estimate from a central
@@ -97,8 +98,9 @@ hysid_core::backend_options! {
         swarm_iters: usize = 40,
         /// Iterations of each Nelder-Mead run (local refinement).
         local_iters: usize = 400,
-        /// Nelder-Mead runs, each restarted from the previous best with a fresh simplex;
-        /// 0: the local stages are Levenberg-Marquardt alone.
+        /// Nelder-Mead runs at most, each restarted from the previous best with a fresh
+        /// simplex, until one lowers nothing; 0: the local stages are Levenberg-Marquardt
+        /// alone.
         restarts: usize = 3,
         /// Segment length (samples) of the multiple-shooting cost used by the swarm and
         /// the first local stage: each segment is simulated from the state measured at

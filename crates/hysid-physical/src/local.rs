@@ -155,18 +155,22 @@ struct Best {
 }
 
 impl Best {
-    /// Keeps `z` when its cost is lower.
-    fn offer(&mut self, z: Vec<f64>, cost: f64) {
-        if cost < self.cost {
+    /// Keeps `z` when its cost is lower; whether it did.
+    fn offer(&mut self, z: Vec<f64>, cost: f64) -> bool {
+        let lower = cost < self.cost;
+        if lower {
             self.cost = cost;
             self.z = z;
         }
+        lower
     }
 }
 
 /// One local stage on segments of `segment` samples (0: free run):
 /// Levenberg-Marquardt from each of `starts`, then the Nelder-Mead
-/// restarts from the best point found.
+/// restarts from the best point found. A restart that does not lower the
+/// best cost ends the restarts: the next would start from the same point
+/// with the same simplex and repeat it.
 fn local_stage(
     search: &Search<'_>,
     segment: usize,
@@ -218,9 +222,10 @@ fn local_stage(
         let (stop, z) = nelder_mead(search, segment, &best.z)?;
         search.past_deadline(log, Stage::NelderMead);
         log.nelder_mead.push(stop);
-        if let Some(z) = z {
-            let c = objective.mse(&z);
-            best.offer(z, c);
+        let Some(z) = z else { break };
+        let c = objective.mse(&z);
+        if !best.offer(z, c) {
+            break;
         }
     }
     Ok(best)
