@@ -1,6 +1,7 @@
 //! Simulation throughput of the mounting head written as a gray-box model
-//! against the hand-written mechanical simulator, in the same run. Run with
-//! `cargo bench -p hysid-graybox --bench simulate`; the gray-box run also
+//! against the hand-written mechanical simulator, in the same run, and of
+//! the positioning axis example. Run with
+//! `cargo bench -p hysid-graybox --bench simulate`; the gray-box head also
 //! with its forward sensitivities.
 //!
 //! Data: the pick-and-place record, rows 0..5000 after decimating by 10
@@ -41,13 +42,17 @@ fn fitted() -> MechanicalModel {
     serde_json::from_value(v).unwrap()
 }
 
-/// The gray-box head with the fitted head's parameters and initial rule.
-fn gray_box(m: &MechanicalModel) -> GrayBoxModel {
-    let text =
-        std::fs::read_to_string(root().join("models/pick-and-place/head-graybox.toml")).unwrap();
+/// The gray-box model of the file at `path` (from the repository's root).
+fn read_gray_box(path: &str) -> GrayBoxModel {
+    let text = std::fs::read_to_string(root().join(path)).unwrap();
     let mut table: toml::Table = text.parse().unwrap();
     table.remove("kind");
-    let mut g: GrayBoxModel = toml::Value::Table(table).try_into().unwrap();
+    toml::Value::Table(table).try_into().unwrap()
+}
+
+/// The gray-box head with the fitted head's parameters and initial rule.
+fn gray_box(m: &MechanicalModel) -> GrayBoxModel {
+    let mut g = read_gray_box("models/pick-and-place/head-graybox.toml");
     for p in &mut g.parameters {
         p.value = m.parameters[m.parameter_index(&p.name).unwrap()].value;
     }
@@ -91,5 +96,47 @@ fn gray_box_head_sensitivities(bencher: divan::Bencher) {
     let values = g.values();
     bencher.bench(|| {
         hysid_graybox::simulate::run_with_sensitivities(&c, &values, &[], &data).unwrap()
+    });
+}
+
+/// The positioning axis (`models/examples/positioning-axis.toml`, its file
+/// values) on 25 000 samples at 1 kHz of its own response to random drive
+/// levels held 0.2 s, the size of the EMPS benchmark's estimation record:
+/// the free run and the segmented run of the `physical` back-end's swarm
+/// (segments of 100 samples, each from the measured position and a
+/// centred slope).
+fn axis() -> (CompiledModel, Vec<f64>, Dataset) {
+    let m = read_gray_box("models/examples/positioning-axis.toml");
+    let ts = 0.001;
+    let u = hysid_model::excitation::Excitation {
+        n: 25_000,
+        hold: 200,
+        low: -2.0,
+        high: 2.0,
+        ts: Some(ts),
+        inputs: 1,
+    }
+    .generate(1)
+    .remove(0);
+    let c = CompiledModel::new(&m).unwrap();
+    let values = m.values();
+    let zeros = Dataset::siso(u.clone(), vec![0.0; u.len()], Some(ts)).unwrap();
+    let y = hysid_graybox::simulate::run(&c, &values, &zeros).unwrap().y;
+    (c, values, Dataset::siso(u, y, Some(ts)).unwrap())
+}
+
+#[divan::bench(sample_count = 100)]
+fn positioning_axis(bencher: divan::Bencher) {
+    let (c, values, data) = axis();
+    bencher.bench(|| hysid_graybox::simulate::run(&c, &values, &data).unwrap());
+}
+
+#[divan::bench(sample_count = 100)]
+fn positioning_axis_segmented(bencher: divan::Bencher) {
+    let (c, values, data) = axis();
+    let (y, ts) = (data.y(), 0.001);
+    let slope = |s: usize| (y[(s + 1).min(y.len() - 1)] - y[s.saturating_sub(1)]) / (2.0 * ts);
+    bencher.bench(|| {
+        hysid_graybox::simulate::segmented(&c, &values, &[], &data, 100, &slope).unwrap()
     });
 }

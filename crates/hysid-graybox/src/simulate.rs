@@ -166,8 +166,7 @@ pub struct Machine<'a> {
     /// Friction element of each state, if any.
     friction_of: Vec<Option<usize>>,
     k: [Vec<f64>; 4],
-    /// A derivative, the end of a trial step, and the bisection's trial state.
-    dx: Vec<f64>,
+    /// The end of a trial step, and the bisection's trial state.
     x1: Vec<f64>,
     xm: Vec<f64>,
     /// Guard surfaces at the start of the step, and a spare.
@@ -241,7 +240,6 @@ impl<'a> Machine<'a> {
             full_step: f64::NAN,
             closed_form: true,
             k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
-            dx: vec![0.0; n],
             x1: vec![0.0; n],
             xm: vec![0.0; n],
             g0: Vec::new(),
@@ -294,13 +292,6 @@ impl<'a> Machine<'a> {
     /// The static level on velocity `v` in `mode` (0 without friction).
     fn static_on(&self, mode: usize, v: usize) -> f64 {
         self.friction_of[v].map_or(0.0, |e| self.levels(mode, e).1)
-    }
-
-    /// The state derivative in the current regime at `(x, u)`.
-    fn derivative(&mut self, x: &[f64], u: &[f64], hs: &HybridState, out: &mut [f64]) {
-        self.load(x, u);
-        self.prepare(hs);
-        self.flows(hs.mode, out);
     }
 
     /// Lists what the elements do to the flows in the regimes of `hs`.
@@ -704,9 +695,7 @@ impl<'a> Machine<'a> {
     }
 
     /// Advances `hs` over one sample of length `ts` in `n_sub` sub-steps
-    /// with the input `u` held. Returns true when the state ends the sample
-    /// at rest (every derivative exactly zero): then nothing changes until
-    /// the input does.
+    /// with the input `u` held.
     pub fn advance(
         &mut self,
         hs: &mut HybridState,
@@ -714,11 +703,11 @@ impl<'a> Machine<'a> {
         ts: f64,
         n_sub: usize,
         sample: usize,
-    ) -> Result<bool, SimError> {
+    ) -> Result<(), SimError> {
         let h = ts / n_sub as f64;
         if self.at_rest(hs, u) {
             self.tangent_rest(hs, u, std::iter::repeat_n(h, n_sub));
-            return Ok(true);
+            return Ok(());
         }
         self.full_step = h;
         let mut x1 = std::mem::take(&mut self.x1);
@@ -805,16 +794,29 @@ impl<'a> Machine<'a> {
         }
         self.x1 = x1;
         self.xm = xm;
-        result.map(|()| self.at_rest(hs, u))
+        result
     }
 
-    /// Every derivative of the state is exactly zero under the input `u`.
+    /// Every derivative of the state is exactly zero under the input `u`
+    /// ([`Machine::flows`]' values, read state by state up to the first
+    /// that is not).
     fn at_rest(&mut self, hs: &HybridState, u: &[f64]) -> bool {
-        let mut dx = std::mem::take(&mut self.dx);
-        self.derivative(&hs.x, u, hs, &mut dx);
-        let rest = dx.iter().all(|d| *d == 0.0);
-        self.dx = dx;
-        rest
+        self.load(&hs.x, u);
+        self.prepare(hs);
+        let q = &self.m.modes[hs.mode];
+        (0..q.flow.len()).all(|s| {
+            let mut d = q.flow[s].eval(&self.slots);
+            for effect in &self.effects {
+                match *effect {
+                    Effect::Friction(v, i, dir) if v == s => {
+                        d -= q.friction[i].0.eval(&self.slots).max(0.0) * dir;
+                    }
+                    Effect::Hold(h) if h == s => d = 0.0,
+                    _ => {}
+                }
+            }
+            d == 0.0
+        })
     }
 
     /// The Zeno bound's action: every stop that has been reached holds.
@@ -1029,6 +1031,8 @@ struct Schedule {
     ts: f64,
     /// The model's longest integration step.
     internal_step: f64,
+    /// Sub-steps of a whole sample, where its step is valid.
+    whole: Option<usize>,
 }
 
 /// A piece of a sample: duration, the inputs held over it, sub-steps.
@@ -1057,6 +1061,7 @@ impl Schedule {
             cuts,
             ts,
             internal_step: m.internal_step,
+            whole: substeps(ts, m.internal_step).ok(),
         }
     }
 
@@ -1088,7 +1093,10 @@ impl Schedule {
             from = to;
         }
         for piece in &mut pieces[..count] {
-            piece.2 = substeps(piece.0, self.internal_step)?;
+            piece.2 = match self.whole {
+                Some(n) if piece.0 == self.ts => n,
+                _ => substeps(piece.0, self.internal_step)?,
+            };
         }
         Ok(count)
     }
@@ -1325,8 +1333,7 @@ fn span(
     let mut held = vec![0.0; data.inputs.len()];
     schedule.inputs(data, start, 0.0, &mut held);
     let mut g_end = Vec::new();
-    // At rest under an unchanged input, a sample repeats the one before.
-    let (mut rest, mut repeat) = (false, false);
+    let mut repeat = false;
     let mut buffer = Vec::new();
     for k in samples {
         let count = schedule.fill(data, k, &mut buffer)?;
@@ -1348,9 +1355,11 @@ fn span(
             out.covered[k] = out.covered[k - 1];
             out.x.copy_within((k - 1) * states..k * states, k * states);
         }
-        // With sensitivities a sample at rest is integrated all the same:
-        // the state stays, its sensitivities may move.
-        repeat = k + 1 < end && !changed && rest && !machine.differentiates();
+        // At rest (every derivative exactly zero) under an unchanged input,
+        // a sample repeats the one before. With sensitivities a sample at
+        // rest is integrated all the same: the state stays, its
+        // sensitivities may move.
+        repeat = k + 1 < end && !changed && !machine.differentiates() && machine.at_rest(&hs, u);
         if k + 1 < end && !repeat {
             for (j, (duration, u, n_sub)) in pieces.iter().enumerate() {
                 if k > start || j > 0 {
@@ -1358,7 +1367,7 @@ fn span(
                     let g_before = std::mem::take(&mut g_end);
                     machine.fire_at_sample(&mut hs, u, &g_before, k)?;
                 }
-                rest = machine.advance(&mut hs, u, *duration, *n_sub, k)?;
+                machine.advance(&mut hs, u, *duration, *n_sub, k)?;
                 machine.load(&hs.x, u);
                 machine.surfaces(hs.mode, &mut g_end);
             }
