@@ -383,6 +383,59 @@ impl CompiledModel {
         })
     }
 
+    /// Whether the direction of a sliding friction decides any comparison
+    /// in the model's flows and friction levels ([`CompiledModel::sliding`]
+    /// changes something).
+    pub fn decides_sliding(&self) -> bool {
+        let velocities: Vec<u32> = self
+            .elements
+            .iter()
+            .filter_map(|e| match e {
+                CompiledElement::DryFriction { velocity, .. } => Some(*velocity as u32),
+                CompiledElement::Stop { .. } => None,
+            })
+            .collect();
+        self.modes.iter().any(|q| {
+            let levels = q.friction.iter().flat_map(|(k, s)| [k, s]);
+            q.flow
+                .iter()
+                .chain(levels)
+                .any(|e| velocities.iter().any(|&v| e.with_sign(v, true).is_some()))
+        })
+    }
+
+    /// The model as it reads while the velocity states `sliding` slide,
+    /// each in the direction given (`true`: positive): in every mode's
+    /// flows and friction levels, the comparisons of those velocities with
+    /// zero are decided by the directions ([`Expression::with_sign`]), also
+    /// at the instant of break-away, when the velocity is still zero.
+    /// `None` when no expression changes.
+    pub fn sliding(&self, sliding: &[(usize, bool)]) -> Option<CompiledModel> {
+        let decide = |e: &Expression| {
+            sliding
+                .iter()
+                .fold(None, |decided: Option<Expression>, &(v, positive)| {
+                    decided
+                        .as_ref()
+                        .unwrap_or(e)
+                        .with_sign(v as u32, positive)
+                        .or(decided)
+                })
+        };
+        let mut model = self.clone();
+        let mut changed = false;
+        for q in &mut model.modes {
+            let levels = q.friction.iter_mut().flat_map(|(k, s)| [k, s]);
+            for e in q.flow.iter_mut().chain(levels) {
+                if let Some(d) = decide(e) {
+                    *e = d;
+                    changed = true;
+                }
+            }
+        }
+        changed.then_some(model)
+    }
+
     /// The model specialised to the parameter values `values`: every
     /// expression with the parameters folded in ([`Expression::bind`]), the
     /// slot layout unchanged. What a run evaluates.

@@ -180,6 +180,14 @@ enum Binary {
 }
 
 impl Binary {
+    /// Whether it compares its operands (`<`, `<=`, `>`, `>=`, `==`, `!=`).
+    fn compares(self) -> bool {
+        matches!(
+            self,
+            Binary::Lt | Binary::Le | Binary::Gt | Binary::Ge | Binary::Eq | Binary::Ne
+        )
+    }
+
     #[inline]
     fn apply(self, a: f64, b: f64) -> f64 {
         let truth = |c: bool| if c { 1.0 } else { 0.0 };
@@ -989,6 +997,92 @@ impl Expression {
     }
 }
 
+/// Where the operand of a postfix tape that ends just before `end` starts:
+/// walking back, each instruction takes its operands and gives one value.
+fn operand_start(ops: &[Op], end: usize) -> Option<usize> {
+    let mut need = 1;
+    let mut i = end;
+    while need > 0 {
+        i = i.checked_sub(1)?;
+        need = need - 1 + ops[i].operands();
+    }
+    Some(i)
+}
+
+impl Expression {
+    /// The expression where the value in slot `slot` is known to be
+    /// non-zero, of the sign `positive` says: its comparisons with the
+    /// number 0 (`v > 0`, `0 < v`, `v <= 0`, ...) and `sign(v)` are
+    /// decided, constants folded, and an `if` whose condition became a
+    /// number keeps the branch it selects (both stay where the other
+    /// branch sets a register a later instruction may read). `None` when
+    /// nothing is decided.
+    pub fn with_sign(&self, slot: u32, positive: bool) -> Option<Expression> {
+        let value = if positive { 1.0 } else { -1.0 };
+        let mut ops: Vec<Op> = Vec::with_capacity(self.ops.len());
+        let mut decided = false;
+        for &op in &self.ops {
+            let n = ops.len();
+            let folded = match op {
+                Op::Binary(b) if b.compares() && n >= 2 => match (ops[n - 2], ops[n - 1]) {
+                    (Op::Load(s), Op::Const(c)) if s == slot && c == 0.0 => {
+                        Some((n - 2, b.apply(value, 0.0)))
+                    }
+                    (Op::Const(c), Op::Load(s)) if s == slot && c == 0.0 => {
+                        Some((n - 2, b.apply(0.0, value)))
+                    }
+                    _ => None,
+                },
+                Op::Call(Function::Sign) if ops.last() == Some(&Op::Load(slot)) => {
+                    Some((n - 1, value))
+                }
+                _ => None,
+            };
+            if let Some((from, v)) = folded {
+                ops.truncate(from);
+                push_folded(&mut ops, Op::Const(v));
+                decided = true;
+                continue;
+            }
+            if op == Op::Call(Function::If)
+                && let Some(kept) = chosen_branch(&ops)
+            {
+                let condition = kept.1;
+                let branch = ops[kept.0.clone()].to_vec();
+                ops.truncate(condition);
+                ops.extend(branch);
+                decided = true;
+                continue;
+            }
+            push_folded(&mut ops, op);
+        }
+        decided.then(|| Expression::from_ops(ops))
+    }
+}
+
+/// For an `if` about to be appended to `ops`: where the branch its
+/// condition selects lies in `ops`, and where the condition starts, when
+/// the condition is a number and the other branch sets no register.
+fn chosen_branch(ops: &[Op]) -> Option<(std::ops::Range<usize>, usize)> {
+    let end = ops.len();
+    let b = operand_start(ops, end)?;
+    let a = operand_start(ops, b)?;
+    let condition = operand_start(ops, a)?;
+    let Op::Const(c) = ops[condition] else {
+        return None;
+    };
+    if a != condition + 1 {
+        return None;
+    }
+    let (kept, dropped) = if c != 0.0 {
+        (a..b, b..end)
+    } else {
+        (b..end, a..b)
+    };
+    let sets_register = ops[dropped].iter().any(|o| matches!(o, Op::Keep(_)));
+    (!sets_register).then_some((kept, condition))
+}
+
 /// The direction in which a relation's surface is crossed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Crossing {
@@ -1507,6 +1601,56 @@ mod tests {
         assert_eq!(e.eval(&[1.0]), (1 + (MAX_LENGTH - 1) / 2) as f64);
         let stray = format!("{})", &sum[..sum.len() - 1]);
         assert!(matches!(err(&stray), ExprError::Syntax { .. }));
+    }
+
+    #[test]
+    fn a_known_sign_decides_comparisons_with_zero_and_the_branches_they_select() {
+        let e = |t: &str| Expression::compile(t, &names).unwrap();
+        let plus = e("if(x > 0, y, z)*x + sign(x)").with_sign(0, true).unwrap();
+        assert_eq!(plus, e("y*x + 1"));
+        let minus = e("if(0 < x, y, z)*x").with_sign(0, false).unwrap();
+        assert_eq!(minus, e("z*x"));
+        // Affine once decided.
+        assert!(
+            e("if(x >= 0, 2, 3)*x + y")
+                .with_sign(0, true)
+                .unwrap()
+                .affine()
+                .is_some()
+        );
+        // Nothing to decide: other slots, other thresholds.
+        assert_eq!(e("if(y > 0, x, z)").with_sign(0, true), None);
+        assert_eq!(e("if(x > 1, y, z)").with_sign(0, true), None);
+    }
+
+    proptest! {
+        /// Wherever the slot has the sign given, the decided expression has
+        /// the value of the original (to rounding: a decided expression
+        /// that is affine is summed in its affine form).
+        #[test]
+        fn a_decided_expression_agrees_where_the_sign_holds(
+            a in tree(),
+            b in tree(),
+            relation in prop::sample::select(vec![">", ">=", "<", "<=", "==", "!="]),
+            flipped in any::<bool>(),
+            positive in any::<bool>(),
+            x in 1e-3f64..5.0,
+            y in -5.0f64..5.0,
+            z in -5.0f64..5.0,
+        ) {
+            let condition = if flipped {
+                format!("0 {relation} x")
+            } else {
+                format!("x {relation} 0")
+            };
+            let text = format!("if({condition}, {}, {}) + sign(x)*{}", a.text(), b.text(), a.text());
+            let e = Expression::compile(&text, &names).unwrap();
+            let d = e.with_sign(0, positive).unwrap();
+            let x = if positive { x } else { -x };
+            let (v, w) = (e.eval(&[x, y, z]), d.eval(&[x, y, z]));
+            let close = (v - w).abs() <= 1e-12 * v.abs().max(1.0);
+            prop_assert!(v == w || close || (v.is_nan() && w.is_nan()), "{text}: {v} against {w}");
+        }
     }
 
     #[test]

@@ -56,6 +56,7 @@ use linear::{AffineFlows, AffineRow, ClosedStep, affine_guards};
 use nalgebra::DMatrix;
 use sensitivity::Tangent;
 pub use sensitivity::{Sensitivities, differentiable};
+use std::rc::Rc;
 
 mod linear;
 mod sensitivity;
@@ -157,6 +158,19 @@ enum Event {
     Transition(usize),
 }
 
+/// The model as it reads in a sliding regime
+/// ([`CompiledModel::sliding`]): bound, with its flows' affine forms, and
+/// unbound for the sensitivities (when they are carried).
+struct Sliding {
+    bound: CompiledModel,
+    affine: Vec<Option<AffineFlows>>,
+    unbound: Option<CompiledModel>,
+}
+
+/// Per element, the direction it slides in (`true`: positive), `None`
+/// where it does not slide.
+type Directions = Vec<Option<bool>>;
+
 /// The simulator's workspace for one model and one parameter vector.
 pub struct Machine<'a> {
     m: &'a CompiledModel,
@@ -176,6 +190,19 @@ pub struct Machine<'a> {
     effects: Vec<Effect>,
     /// Per mode, its flows' affine form, when they have one.
     affine: Vec<Option<AffineFlows>>,
+    /// The models of the sliding regimes met, by the direction of each
+    /// element (`None`: not sliding; a `None` model: the same as `m`).
+    sliding: Vec<(Directions, Option<Rc<Sliding>>)>,
+    /// The one of the regime selected last (`None`: `m` itself), and that
+    /// regime's directions.
+    current: Option<Rc<Sliding>>,
+    directions: Directions,
+    /// Whether a sliding direction decides anything in the model
+    /// ([`CompiledModel::decides_sliding`]); if not, `current` stays `None`.
+    decides: bool,
+    /// The model with its parameters as slots, when the sensitivities are
+    /// carried.
+    unbound: Option<&'a CompiledModel>,
     /// Per mode, its guard surfaces read from the state and the input,
     /// when every one is affine in them.
     guards: Vec<Option<Vec<(Crossing, AffineRow)>>>,
@@ -235,6 +262,11 @@ impl<'a> Machine<'a> {
             fixed,
             friction_of,
             affine,
+            sliding: Vec::new(),
+            current: None,
+            directions: Vec::new(),
+            decides: m.decides_sliding(),
+            unbound: None,
             guards,
             closed: None,
             full_step: f64::NAN,
@@ -263,6 +295,81 @@ impl<'a> Machine<'a> {
         self.m.modes.len()
     }
 
+    /// The model the flows and friction levels are read from: the sliding
+    /// regime's ([`Machine::select`]), or the model itself.
+    #[inline]
+    fn bound(&self) -> &CompiledModel {
+        self.current.as_deref().map_or(self.m, |s| &s.bound)
+    }
+
+    /// The affine form of `mode`'s flows in the selected regime.
+    fn affine_of(&self, mode: usize) -> Option<&AffineFlows> {
+        match self.current.as_deref() {
+            Some(s) => s.affine[mode].as_ref(),
+            None => self.affine[mode].as_ref(),
+        }
+    }
+
+    /// Selects the model of the sliding regime of `hs` (every friction
+    /// element that slips, but on the velocity `except`), built the first
+    /// time the regime is met; nothing to do where no direction decides
+    /// anything.
+    fn select(&mut self, hs: &HybridState, except: Option<usize>) {
+        if !self.decides {
+            return;
+        }
+        let direction = |e: &CompiledElement, r: &ElementRegime| match (e, r) {
+            (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir))
+                if Some(*velocity) != except =>
+            {
+                Some(*dir > 0.0)
+            }
+            _ => None,
+        };
+        let pairs = self.m.elements.iter().zip(&hs.regimes);
+        if self.directions.len() == hs.regimes.len()
+            && pairs
+                .clone()
+                .zip(&self.directions)
+                .all(|((e, r), d)| direction(e, r) == *d)
+        {
+            return;
+        }
+        self.directions.clear();
+        self.directions.extend(pairs.map(|(e, r)| direction(e, r)));
+        if let Some((_, s)) = self.sliding.iter().find(|(d, _)| *d == self.directions) {
+            self.current = s.clone();
+        } else {
+            let sliding: Vec<(usize, bool)> = self
+                .m
+                .elements
+                .iter()
+                .zip(&self.directions)
+                .filter_map(|(e, d)| match e {
+                    CompiledElement::DryFriction { velocity, .. } => Some((*velocity, (*d)?)),
+                    CompiledElement::Stop { .. } => None,
+                })
+                .collect();
+            let model = self.m.sliding(&sliding).map(|bound| {
+                let affine = bound
+                    .modes
+                    .iter()
+                    .map(|q| AffineFlows::of(q, bound.states, bound.inputs))
+                    .collect();
+                let unbound = self
+                    .unbound
+                    .map(|m| m.sliding(&sliding).unwrap_or_else(|| m.clone()));
+                Rc::new(Sliding {
+                    bound,
+                    affine,
+                    unbound,
+                })
+            });
+            self.sliding.push((self.directions.clone(), model.clone()));
+            self.current = model;
+        }
+    }
+
     /// Loads `(x, u)` into the slots.
     #[inline]
     fn load(&mut self, x: &[f64], u: &[f64]) {
@@ -278,13 +385,13 @@ impl<'a> Machine<'a> {
     /// The applied force on velocity `v` (its flow without the friction).
     #[inline]
     fn force(&self, mode: usize, v: usize) -> f64 {
-        self.m.modes[mode].flow[v].eval(&self.slots)
+        self.bound().modes[mode].flow[v].eval(&self.slots)
     }
 
     /// Kinetic and static levels of friction element `e` in `mode`.
     #[inline]
     fn levels(&self, mode: usize, e: usize) -> (f64, f64) {
-        let (kinetic, static_level) = &self.m.modes[mode].friction[e];
+        let (kinetic, static_level) = &self.bound().modes[mode].friction[e];
         let k = kinetic.eval(&self.slots).max(0.0);
         (k, static_level.eval(&self.slots).max(k))
     }
@@ -294,8 +401,10 @@ impl<'a> Machine<'a> {
         self.friction_of[v].map_or(0.0, |e| self.levels(mode, e).1)
     }
 
-    /// Lists what the elements do to the flows in the regimes of `hs`.
+    /// Lists what the elements do to the flows in the regimes of `hs`, and
+    /// selects the model of its sliding regime.
     fn prepare(&mut self, hs: &HybridState) {
+        self.select(hs, None);
         self.effects.clear();
         for (i, e) in self.m.elements.iter().enumerate() {
             match (e, hs.regimes[i]) {
@@ -323,7 +432,7 @@ impl<'a> Machine<'a> {
     /// [`Machine::prepare`]d effects of the elements.
     #[inline]
     fn flows(&self, mode: usize, out: &mut [f64]) {
-        let q = &self.m.modes[mode];
+        let q = &self.bound().modes[mode];
         for (o, f) in out.iter_mut().zip(&q.flow) {
             *o = f.eval(&self.slots);
         }
@@ -390,7 +499,7 @@ impl<'a> Machine<'a> {
             if *mode == hs.mode && *length == h && *regimes == hs.regimes);
         if !cached {
             self.prepare(hs);
-            let step = match &self.affine[hs.mode] {
+            let step = match self.affine_of(hs.mode) {
                 Some(flows) => {
                     let mut held = vec![false; self.m.states];
                     let mut sliding = Vec::new();
@@ -529,6 +638,8 @@ impl<'a> Machine<'a> {
         hs.x[v] = 0.0;
         self.tangent_zero(v);
         self.load(&hs.x, u);
+        // At zero the velocity slides neither way.
+        self.select(hs, Some(v));
         let f = self.force(hs.mode, v);
         let fs = self.static_on(hs.mode, v);
         let m = self.m;
@@ -803,7 +914,7 @@ impl<'a> Machine<'a> {
     fn at_rest(&mut self, hs: &HybridState, u: &[f64]) -> bool {
         self.load(&hs.x, u);
         self.prepare(hs);
-        let q = &self.m.modes[hs.mode];
+        let q = &self.bound().modes[hs.mode];
         (0..q.flow.len()).all(|s| {
             let mut d = q.flow[s].eval(&self.slots);
             for effect in &self.effects {

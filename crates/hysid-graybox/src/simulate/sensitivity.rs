@@ -43,10 +43,11 @@
 //! Delays are not differentiated: [`differentiable`] says whether a model
 //! has a fitted one.
 
-use super::{Effect, ElementRegime, Event, HybridState, Machine};
+use super::{Effect, ElementRegime, Event, HybridState, Machine, Sliding};
 use crate::compile::{CompiledElement, CompiledModel};
 use crate::expr::{Adjoints, Expression};
 use nalgebra::DMatrix;
+use std::rc::Rc;
 
 /// The derivatives of a run in its parameters and estimated initial
 /// states ([`super::run_with_sensitivities`]).
@@ -173,6 +174,9 @@ pub(crate) struct Tangent<'a> {
     /// The regimes met, with their flows' derivatives where these are
     /// affine in the state and the input ([`Linear`]).
     regimes: Vec<(usize, Vec<ElementRegime>, Option<Linear>)>,
+    /// The sliding regime's model ([`Machine::select`]) of the step being
+    /// carried; `None`: `model`.
+    sliding: Option<Rc<Sliding>>,
 }
 
 /// The derivatives of a regime's flows (the elements' effects included)
@@ -406,6 +410,7 @@ impl<'a> Tangent<'a> {
             row: vec![0.0; columns],
             spare: vec![0.0; columns],
             regimes: Vec::new(),
+            sliding: None,
         }
     }
 
@@ -468,7 +473,12 @@ impl<'a> Tangent<'a> {
     /// friction's level (where positive) is subtracted in its direction.
     fn partials_at(&mut self, mode: usize, effects: &[Effect], slots: &[f64]) {
         let (n, p) = (self.d.states, self.d.parameters);
-        let q = &self.model.modes[mode];
+        let sliding = self.sliding.clone();
+        let model = sliding
+            .as_deref()
+            .and_then(|s| s.unbound.as_ref())
+            .unwrap_or(self.model);
+        let q = &model.modes[mode];
         let d = &mut self.d;
         for (r, f) in q.flow.iter().enumerate() {
             f.gradient_with(slots, &d.wrt, &mut d.grad, &mut d.scratch);
@@ -512,6 +522,10 @@ impl<'a> Machine<'a> {
     /// `unbound` (the machine's model before its parameters were bound).
     pub(super) fn differentiate(&mut self, unbound: &'a CompiledModel) {
         self.tangent = Some(Tangent::new(unbound));
+        self.unbound = Some(unbound);
+        self.sliding.clear();
+        self.directions.clear();
+        self.current = None;
     }
 
     /// Zero sensitivities for a run of `samples` samples (`None` when the
@@ -559,6 +573,7 @@ impl<'a> Machine<'a> {
             return;
         };
         self.prepare(hs);
+        t.sliding = self.current.clone();
         let at = self.linear_regime(&mut t, hs, u);
         let mut regimes = std::mem::take(&mut t.regimes);
         let linear = regimes[at].2.as_mut();
@@ -660,8 +675,8 @@ impl<'a> Machine<'a> {
     /// [`Machine::linear_regime`]'s affine derivatives of `mode` under the
     /// prepared effects, `None` where they are not affine.
     fn form_linear(&mut self, t: &mut Tangent, mode: usize, inputs: usize) -> Option<Linear> {
-        self.affine[mode].as_ref()?;
-        let q = &self.m.modes[mode];
+        self.affine_of(mode)?;
+        let q = &self.bound().modes[mode];
         let constant_levels = self.effects.iter().all(|e| match *e {
             Effect::Friction(_, i, _) => q.friction[i].0.as_constant().is_some(),
             Effect::Hold(_) => true,
@@ -738,7 +753,12 @@ impl<'a> Machine<'a> {
         };
         self.load(&hs.x, u);
         self.prepare(hs);
-        let model = t.model;
+        t.sliding = self.current.clone();
+        let sliding = t.sliding.clone();
+        let model = sliding
+            .as_deref()
+            .and_then(|s| s.unbound.as_ref())
+            .unwrap_or(t.model);
         let q = &model.modes[hs.mode];
         let c = t.d.columns;
         // The surface's total derivative (into `row`) and its rate in the
@@ -811,7 +831,7 @@ impl<'a> Machine<'a> {
         model: &'m CompiledModel,
     ) -> Option<&'m Expression> {
         let e = self.friction_of[v]?;
-        let (kinetic, static_level) = &self.m.modes[mode].friction[e];
+        let (kinetic, static_level) = &self.bound().modes[mode].friction[e];
         let (k, s) = (kinetic.eval(&self.slots), static_level.eval(&self.slots));
         let (kinetic, static_level) = &model.modes[mode].friction[e];
         if s >= k.max(0.0) && s > 0.0 {
@@ -939,6 +959,7 @@ impl<'a> Machine<'a> {
         };
         let (n, p, c) = (t.d.states, t.d.parameters, t.d.columns);
         self.load(x, u);
+        t.sliding = None;
         t.partials_at(mode, &[], &self.slots);
         let fx = DMatrix::from_row_slice(n, n, &t.fx);
         let ftheta = DMatrix::from_row_slice(n, p, &t.ftheta);

@@ -23,6 +23,7 @@ use std::path::Path;
 
 const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 const AXIS: &str = "models/examples/positioning-axis.toml";
+const AXIS_BY_DIRECTION: &str = "models/examples/positioning-axis-asymmetric.toml";
 const TANKS: &str = "models/examples/cascaded-tanks.toml";
 const DRIVES: &str = "models/examples/coupled-drives.toml";
 
@@ -186,6 +187,48 @@ proptest! {
         let terminal = -sign * (offset.abs() - fc) / fv;
         let v_end = r.x[2 * (n - 1) + 1];
         prop_assert!((v_end - terminal).abs() <= 1e-4 * terminal.abs(), "{} against {}", v_end, terminal);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Driven forwards only (the applied force `gtau*u - offset` never
+    /// negative), from rest, the axis with friction by direction moves as
+    /// the axis with the forward levels alone, to rounding: while it
+    /// slides forwards, `if(v > 0, ...)` reads the forward levels, also at
+    /// each break-away, when the velocity is still zero; the backward
+    /// levels (the Coulomb one below the forward one, so the break-away
+    /// level is the forward one) never act. The drive sticks the axis and
+    /// breaks it away again.
+    #[test]
+    fn axis_driven_forwards_feels_the_forward_friction_alone(
+        mass in 30.0f64..300.0,
+        fv in 20.0f64..800.0,
+        fvn in 20.0f64..800.0,
+        fc in 5.0f64..80.0,
+        backward in 0.2f64..1.0,
+        offset in -5.0f64..0.0,
+        levels in proptest::collection::vec(0.0f64..3.0, 20),
+    ) {
+        let mut both = load(AXIS_BY_DIRECTION);
+        for (n, v) in [("M", mass), ("Fv", fv), ("Fvn", fvn), ("Fc", fc), ("Fcn", backward * fc), ("offset", offset)] {
+            set(&mut both, n, v);
+        }
+        given(&mut both, &[("q", 0.0), ("v", 0.0)], None);
+        let forward = axis(mass, fv, fc, offset, 0.0, 0.0);
+        let gtau = value(&forward, "gtau");
+        // Forces from 0 to 3 times the Coulomb level, each held 25 samples.
+        let u: Vec<f64> = (0..500).map(|k| (offset + levels[k / 25] * fc) / gtau).collect();
+        let (a, b) = (simulate(&both, u.clone(), 0.01), simulate(&forward, u, 0.01));
+        let range = b.y.iter().fold(0.0f64, |m, y| m.max(y.abs()));
+        for k in 0..b.y.len() {
+            prop_assert!((a.y[k] - b.y[k]).abs() <= 1e-12 * range.max(1e-6), "sample {}: {} against {}", k, a.y[k], b.y[k]);
+            prop_assert_eq!(a.modes[k], b.modes[k], "sample {}", k);
+        }
+        let stuck = label(&forward, "stuck");
+        let breaks_away = b.modes.windows(2).any(|w| w[0] == Some(stuck) && w[1] != Some(stuck));
+        prop_assume!(breaks_away);
     }
 }
 
