@@ -167,6 +167,14 @@ struct Sliding {
     unbound: Option<CompiledModel>,
 }
 
+/// Per mode of `m`, its flows' affine form, when they have one.
+fn affine_forms(m: &CompiledModel) -> Vec<Option<AffineFlows>> {
+    m.modes
+        .iter()
+        .map(|q| AffineFlows::of(q, m.states, m.inputs))
+        .collect()
+}
+
 /// Per element, the direction it slides in (`true`: positive), `None`
 /// where it does not slide.
 type Directions = Vec<Option<bool>>;
@@ -246,11 +254,7 @@ impl<'a> Machine<'a> {
             }
         }
         let n = m.states;
-        let affine = m
-            .modes
-            .iter()
-            .map(|q| AffineFlows::of(q, m.states, m.inputs))
-            .collect();
+        let affine = affine_forms(m);
         let guards = m
             .modes
             .iter()
@@ -351,11 +355,7 @@ impl<'a> Machine<'a> {
                 })
                 .collect();
             let model = self.m.sliding(&sliding).map(|bound| {
-                let affine = bound
-                    .modes
-                    .iter()
-                    .map(|q| AffineFlows::of(q, bound.states, bound.inputs))
-                    .collect();
+                let affine = affine_forms(&bound);
                 let unbound = self
                     .unbound
                     .map(|m| m.sliding(&sliding).unwrap_or_else(|| m.clone()));
