@@ -44,7 +44,7 @@
 //! flows). States a rule leaves unknown are estimated from the record's
 //! warm-up outputs alone ([`estimate`]), or given ([`run_from`]).
 
-use crate::compile::{CompiledElement, CompiledInitial, CompiledModel};
+use crate::compile::{CompiledElement, CompiledInitial, CompiledMode, CompiledModel};
 use crate::expr::Crossing;
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
@@ -165,6 +165,14 @@ struct Sliding {
     bound: CompiledModel,
     affine: Vec<Option<AffineFlows>>,
     unbound: Option<CompiledModel>,
+}
+
+impl Sliding {
+    /// What the sensitivities differentiate in the regime of `sliding`:
+    /// its unbound model, or `model` outside a sliding regime.
+    fn unbound_or<'m>(sliding: Option<&'m Sliding>, model: &'m CompiledModel) -> &'m CompiledModel {
+        sliding.and_then(|s| s.unbound.as_ref()).unwrap_or(model)
+    }
 }
 
 /// Per mode of `m`, its flows' affine form, when they have one.
@@ -433,17 +441,27 @@ impl<'a> Machine<'a> {
     #[inline]
     fn flows(&self, mode: usize, out: &mut [f64]) {
         let q = &self.bound().modes[mode];
-        for (o, f) in out.iter_mut().zip(&q.flow) {
-            *o = f.eval(&self.slots);
+        for (s, o) in out.iter_mut().enumerate().take(q.flow.len()) {
+            *o = self.derivative_of(q, s);
         }
+    }
+
+    /// The derivative of state `s` in mode `q` at the loaded slots: its
+    /// flow, less the level of a friction sliding on it in its direction,
+    /// zero where the [`Machine::prepare`]d effects hold it.
+    #[inline]
+    fn derivative_of(&self, q: &CompiledMode, s: usize) -> f64 {
+        let mut d = q.flow[s].eval(&self.slots);
         for effect in &self.effects {
             match *effect {
-                Effect::Friction(v, i, dir) => {
-                    out[v] -= q.friction[i].0.eval(&self.slots).max(0.0) * dir;
+                Effect::Friction(v, i, dir) if v == s => {
+                    d -= q.friction[i].0.eval(&self.slots).max(0.0) * dir;
                 }
-                Effect::Hold(s) => out[s] = 0.0,
+                Effect::Hold(h) if h == s => d = 0.0,
+                _ => {}
             }
         }
+        d
     }
 
     /// One RK4 step of length `h` from `hs.x` into `out`: in closed form
@@ -909,25 +927,12 @@ impl<'a> Machine<'a> {
     }
 
     /// Every derivative of the state is exactly zero under the input `u`
-    /// ([`Machine::flows`]' values, read state by state up to the first
-    /// that is not).
+    /// (read state by state up to the first that is not).
     fn at_rest(&mut self, hs: &HybridState, u: &[f64]) -> bool {
         self.load(&hs.x, u);
         self.prepare(hs);
         let q = &self.bound().modes[hs.mode];
-        (0..q.flow.len()).all(|s| {
-            let mut d = q.flow[s].eval(&self.slots);
-            for effect in &self.effects {
-                match *effect {
-                    Effect::Friction(v, i, dir) if v == s => {
-                        d -= q.friction[i].0.eval(&self.slots).max(0.0) * dir;
-                    }
-                    Effect::Hold(h) if h == s => d = 0.0,
-                    _ => {}
-                }
-            }
-            d == 0.0
-        })
+        (0..q.flow.len()).all(|s| self.derivative_of(q, s) == 0.0)
     }
 
     /// The Zeno bound's action: every stop that has been reached holds.

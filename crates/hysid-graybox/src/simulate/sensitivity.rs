@@ -474,11 +474,7 @@ impl<'a> Tangent<'a> {
     fn partials_at(&mut self, mode: usize, effects: &[Effect], slots: &[f64]) {
         let (n, p) = (self.d.states, self.d.parameters);
         let sliding = self.sliding.clone();
-        let model = sliding
-            .as_deref()
-            .and_then(|s| s.unbound.as_ref())
-            .unwrap_or(self.model);
-        let q = &model.modes[mode];
+        let q = &Sliding::unbound_or(sliding.as_deref(), self.model).modes[mode];
         let d = &mut self.d;
         for (r, f) in q.flow.iter().enumerate() {
             f.gradient_with(slots, &d.wrt, &mut d.grad, &mut d.scratch);
@@ -753,12 +749,9 @@ impl<'a> Machine<'a> {
         };
         self.load(&hs.x, u);
         self.prepare(hs);
-        t.sliding = self.current.clone();
-        let sliding = t.sliding.clone();
-        let model = sliding
-            .as_deref()
-            .and_then(|s| s.unbound.as_ref())
-            .unwrap_or(t.model);
+        let sliding = self.current.clone();
+        t.sliding = sliding.clone();
+        let model = Sliding::unbound_or(sliding.as_deref(), t.model);
         let q = &model.modes[hs.mode];
         let c = t.d.columns;
         // The surface's total derivative (into `row`) and its rate in the
