@@ -131,6 +131,13 @@ fn positioning_axis(bencher: divan::Bencher) {
     bencher.bench(|| hysid_graybox::simulate::run(&c, &values, &data).unwrap());
 }
 
+/// The free run as a fit's residuals read it: the outputs alone.
+#[divan::bench(sample_count = 100)]
+fn positioning_axis_outputs(bencher: divan::Bencher) {
+    let (c, values, data) = axis();
+    bencher.bench(|| hysid_graybox::simulate::outputs_from(&c, &values, &[], &data).unwrap());
+}
+
 #[divan::bench(sample_count = 100)]
 fn positioning_axis_segmented(bencher: divan::Bencher) {
     let (c, values, data) = axis();

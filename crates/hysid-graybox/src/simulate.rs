@@ -134,9 +134,13 @@ enum Effect {
 
 impl GrayBoxRun {
     /// A run of `data` not simulated yet: the measured outputs, no mode,
-    /// every sample covered; the first simulated sample `start`.
-    fn empty(data: &Dataset, states: usize, start: usize) -> Self {
-        let n = data.len();
+    /// every sample covered; the first simulated sample `start`. With
+    /// [`Kept::Output`], no states, modes or coverage (empty).
+    fn empty(data: &Dataset, states: usize, start: usize, kept: Kept) -> Self {
+        let n = match kept {
+            Kept::Output => 0,
+            Kept::Everything => data.len(),
+        };
         GrayBoxRun {
             y: data.y().to_vec(),
             x: vec![0.0; n * states],
@@ -148,6 +152,53 @@ impl GrayBoxRun {
             zeno_steps: 0,
             sensitivities: None,
         }
+    }
+}
+
+/// What a run keeps of each sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kept {
+    /// The output alone (what a fit's residuals read).
+    Output,
+    /// The output, the state, the mode label and the coverage.
+    Everything,
+}
+
+/// The guard surfaces of `mode`'s transitions at `slots` into `out`.
+fn surfaces(mode: &CompiledMode, slots: &[f64], out: &mut Vec<f64>) {
+    out.clear();
+    out.extend(mode.transitions.iter().map(|t| t.guard.surface.eval(slots)));
+}
+
+/// The guard surfaces of the current mode at the start of a step and at
+/// its trial end; the end of a step taken is the start of the next.
+#[derive(Debug, Default)]
+struct Surfaces {
+    both: [Vec<f64>; 2],
+    /// Which of `both` holds the start.
+    start: usize,
+}
+
+impl Surfaces {
+    fn start(&self) -> &[f64] {
+        &self.both[self.start]
+    }
+
+    fn end(&self) -> &[f64] {
+        &self.both[1 - self.start]
+    }
+
+    fn start_mut(&mut self) -> &mut Vec<f64> {
+        &mut self.both[self.start]
+    }
+
+    fn end_mut(&mut self) -> &mut Vec<f64> {
+        &mut self.both[1 - self.start]
+    }
+
+    /// The trial end becomes the start (by index: no vector moves).
+    fn step(&mut self) {
+        self.start = 1 - self.start;
     }
 }
 
@@ -199,11 +250,12 @@ pub struct Machine<'a> {
     /// The end of a trial step, and the bisection's trial state.
     x1: Vec<f64>,
     xm: Vec<f64>,
-    /// Guard surfaces at the start of the step, and a spare.
-    g0: Vec<f64>,
-    g: Vec<f64>,
-    /// The elements' effects in the regime of the step being integrated.
+    /// Guard surfaces at the start of the step and at its trial end.
+    g: Surfaces,
+    /// The elements' effects in the regime of the step being integrated,
+    /// and the regimes they were listed for.
     effects: Vec<Effect>,
+    effects_of: Vec<ElementRegime>,
     /// Per mode, its flows' affine form, when they have one.
     affine: Vec<Option<AffineFlows>>,
     /// The models of the sliding regimes met, by the direction of each
@@ -286,9 +338,9 @@ impl<'a> Machine<'a> {
             k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             x1: vec![0.0; n],
             xm: vec![0.0; n],
-            g0: Vec::new(),
-            g: Vec::new(),
+            g: Surfaces::default(),
             effects: Vec::with_capacity(2 * m.elements.len()),
+            effects_of: Vec::new(),
             steps: 0,
             events: 0,
             zeno_steps: 0,
@@ -413,6 +465,10 @@ impl<'a> Machine<'a> {
     /// selects the model of its sliding regime.
     fn prepare(&mut self, hs: &HybridState) {
         self.select(hs, None);
+        if self.effects_of == hs.regimes {
+            return;
+        }
+        self.effects_of.clone_from(&hs.regimes);
         self.effects.clear();
         for (i, e) in self.m.elements.iter().enumerate() {
             match (e, hs.regimes[i]) {
@@ -543,31 +599,31 @@ impl<'a> Machine<'a> {
         }
     }
 
-    /// The guard surfaces of the mode's transitions at the loaded slots.
-    fn surfaces(&self, mode: usize, out: &mut Vec<f64>) {
-        out.clear();
-        out.extend(
-            self.m.modes[mode]
-                .transitions
-                .iter()
-                .map(|t| t.guard.surface.eval(&self.slots)),
-        );
+    /// The guard surfaces at the end of a sample (state `hs`, input `u`)
+    /// into `out`, for [`Machine::fire_at_sample`] to compare across the
+    /// next input's jump; nothing loaded where the mode has no transition.
+    fn surfaces_at_end(&mut self, hs: &HybridState, u: &[f64], out: &mut Vec<f64>) {
+        if self.m.modes[hs.mode].transitions.is_empty() {
+            out.clear();
+        } else {
+            self.load(&hs.x, u);
+            surfaces(&self.m.modes[hs.mode], &self.slots, out);
+        }
     }
 
-    /// Loads `(x, u)` and evaluates the guard surfaces there into `g`.
+    /// Loads `(x, u)` and evaluates the guard surfaces there into the
+    /// step's trial end.
     fn surfaces_at(&mut self, x: &[f64], u: &[f64], mode: usize) {
         self.load(x, u);
-        let mut g = std::mem::take(&mut self.g);
-        self.surfaces(mode, &mut g);
-        self.g = g;
+        surfaces(&self.m.modes[mode], &self.slots, self.g.end_mut());
     }
 
     /// Whether the step to `x` under `u` certainly ends without an event,
     /// decided from the state alone where it can be: no stop reached, no
     /// sliding velocity at zero, no element held (a held element's
     /// release depends on the forces), and no guard crossed, the surfaces
-    /// read from their affine forms into `g`. `false` when it cannot tell:
-    /// then [`Machine::first_event`] decides.
+    /// read from their affine forms into the trial end. `false` when it
+    /// cannot tell: then [`Machine::first_event`] decides.
     fn quiet_step(&mut self, hs: &HybridState, x: &[f64], u: &[f64]) -> bool {
         let Some(guards) = &self.guards[hs.mode] else {
             return false;
@@ -578,11 +634,12 @@ impl<'a> Machine<'a> {
                 return false;
             }
         }
-        self.g.clear();
-        self.g.extend(guards.iter().map(|(_, row)| row.eval(x, u)));
+        let end = self.g.end_mut();
+        end.clear();
+        end.extend(guards.iter().map(|(_, row)| row.eval(x, u)));
         !guards
             .iter()
-            .zip(self.g0.iter().zip(&self.g))
+            .zip(self.g.start().iter().zip(self.g.end()))
             .any(|((c, _), (g0, g1))| crossed(*c, *g0, *g1))
     }
 
@@ -602,8 +659,8 @@ impl<'a> Machine<'a> {
         }
     }
 
-    /// The first event at state `x` (loaded, with the guard surfaces `g`
-    /// there), given the surfaces `g0` at the start of the step.
+    /// The first event at state `x` (loaded, with the guard surfaces there
+    /// as the step's trial end), given the surfaces at the start of the step.
     fn first_event(&self, hs: &HybridState, x: &[f64]) -> Option<Event> {
         let m = self.m;
         let mut friction = None;
@@ -773,35 +830,38 @@ impl<'a> Machine<'a> {
     }
 
     /// Fires the transitions whose guards the input's jump crossed at a
-    /// sample instant (`g_before`: the surfaces with the previous input).
+    /// sample instant (`g_before`: the surfaces with the previous input);
+    /// whether one fired.
     fn fire_at_sample(
         &mut self,
         hs: &mut HybridState,
         u: &[f64],
         g_before: &[f64],
         sample: usize,
-    ) -> Result<(), SimError> {
+    ) -> Result<bool, SimError> {
         if g_before.is_empty() {
-            return Ok(());
+            return Ok(false);
         }
-        self.g0.clear();
-        self.g0.extend_from_slice(g_before);
+        let start = self.g.start_mut();
+        start.clear();
+        start.extend_from_slice(g_before);
         self.surfaces_at(&hs.x, u, hs.mode);
         if let Some(Event::Transition(j)) = self.first_transition(hs) {
             self.apply(hs, u, Event::Transition(j), sample)?;
+            return Ok(true);
         }
-        Ok(())
+        Ok(false)
     }
 
-    /// The first transition whose guard was crossed from `g0` to `g` and
-    /// whose condition holds (loaded slots).
+    /// The first transition whose guard was crossed from the step's start
+    /// to its trial end and whose condition holds (loaded slots).
     fn first_transition(&self, hs: &HybridState) -> Option<Event> {
         self.m.modes[hs.mode]
             .transitions
             .iter()
             .enumerate()
             .find(|(j, t)| {
-                crossed(t.guard.crossing, self.g0[*j], self.g[*j])
+                crossed(t.guard.crossing, self.g.start()[*j], self.g.end()[*j])
                     && t.when.as_ref().is_none_or(|w| w.eval(&self.slots) != 0.0)
             })
             .map(|(j, _)| Event::Transition(j))
@@ -809,8 +869,10 @@ impl<'a> Machine<'a> {
 
     /// Re-settles the held velocities under a new input: a stuck friction
     /// or a resting stop whose force now exceeds its level lets go.
-    fn resettle(&mut self, hs: &mut HybridState, u: &[f64]) {
+    /// Whether any element was held.
+    fn resettle(&mut self, hs: &mut HybridState, u: &[f64]) -> bool {
         let m = self.m;
+        let mut held = false;
         for i in 0..m.elements.len() {
             let v = match (&m.elements[i], hs.regimes[i]) {
                 (CompiledElement::Stop { velocity, .. }, ElementRegime::Resting)
@@ -820,7 +882,9 @@ impl<'a> Machine<'a> {
                 _ => continue,
             };
             self.settle(hs, u, v);
+            held = true;
         }
+        held
     }
 
     /// Advances `hs` over one sample of length `ts` in `n_sub` sub-steps
@@ -833,11 +897,24 @@ impl<'a> Machine<'a> {
         n_sub: usize,
         sample: usize,
     ) -> Result<(), SimError> {
-        let h = ts / n_sub as f64;
         if self.at_rest(hs, u) {
+            let h = ts / n_sub as f64;
             self.tangent_rest(hs, u, std::iter::repeat_n(h, n_sub));
             return Ok(());
         }
+        self.advance_moving(hs, u, ts, n_sub, sample)
+    }
+
+    /// [`Machine::advance`] from a state known not to be at rest under `u`.
+    fn advance_moving(
+        &mut self,
+        hs: &mut HybridState,
+        u: &[f64],
+        ts: f64,
+        n_sub: usize,
+        sample: usize,
+    ) -> Result<(), SimError> {
+        let h = ts / n_sub as f64;
         self.full_step = h;
         let mut x1 = std::mem::take(&mut self.x1);
         let mut xm = std::mem::take(&mut self.xm);
@@ -852,7 +929,7 @@ impl<'a> Machine<'a> {
             while left > 0.0 {
                 if !fresh {
                     self.surfaces_at(&hs.x, u, hs.mode);
-                    std::mem::swap(&mut self.g0, &mut self.g);
+                    self.g.step();
                     fresh = true;
                 }
                 self.rk4(hs, u, left, &mut x1);
@@ -865,14 +942,14 @@ impl<'a> Machine<'a> {
                 if self.quiet_step(hs, &x1, u) {
                     self.tangent_step(hs, u, left, true);
                     hs.x.copy_from_slice(&x1);
-                    std::mem::swap(&mut self.g0, &mut self.g);
+                    self.g.step();
                     break;
                 }
                 self.surfaces_at(&x1, u, hs.mode);
                 let Some(mut ev) = self.first_event(hs, &x1) else {
                     self.tangent_step(hs, u, left, true);
                     hs.x.copy_from_slice(&x1);
-                    std::mem::swap(&mut self.g0, &mut self.g);
+                    self.g.step();
                     break;
                 };
                 let (mut lo, mut hi) = (0.0, left);
@@ -970,18 +1047,25 @@ impl<'a> Machine<'a> {
             })
     }
 
+    /// The output of the state under the sample's input `u`.
+    fn output(&mut self, hs: &HybridState, u: &[f64]) -> f64 {
+        self.load(&hs.x, u);
+        self.m.modes[hs.mode].output.eval(&self.slots)
+    }
+
     /// The output of the state under the sample's input `u`, its mode label,
     /// and whether it satisfies its mode's invariant under `held`, the input
     /// that brought it there (the regime reached, before the new input acts).
     pub fn observe(&mut self, hs: &HybridState, u: &[f64], held: &[f64]) -> (f64, usize, bool) {
         let m = self.m;
-        self.load(&hs.x, held);
-        let covered = m.modes[hs.mode]
-            .invariant
-            .iter()
-            .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE);
-        self.load(&hs.x, u);
-        let y = m.modes[hs.mode].output.eval(&self.slots);
+        let invariant = &m.modes[hs.mode].invariant;
+        let covered = invariant.is_empty() || {
+            self.load(&hs.x, held);
+            invariant
+                .iter()
+                .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE)
+        };
+        let y = self.output(hs, u);
         let label = |want: &dyn Fn(&CompiledElement, ElementRegime) -> bool| {
             m.elements
                 .iter()
@@ -1377,7 +1461,18 @@ pub fn run_from(
     estimates: &[f64],
     data: &Dataset,
 ) -> Result<GrayBoxRun, SimError> {
-    free_run(m, values, estimates, data, false)
+    free_run(m, values, estimates, data, false, Kept::Everything)
+}
+
+/// [`run_from`]'s outputs alone: the run's `x`, `modes` and `covered` are
+/// empty (what a fit's residuals need, without writing the rest).
+pub fn outputs_from(
+    m: &CompiledModel,
+    values: &[f64],
+    estimates: &[f64],
+    data: &Dataset,
+) -> Result<GrayBoxRun, SimError> {
+    free_run(m, values, estimates, data, false, Kept::Output)
 }
 
 /// [`run_from`] with the derivatives of its outputs and states in the
@@ -1391,23 +1486,25 @@ pub fn run_with_sensitivities(
     estimates: &[f64],
     data: &Dataset,
 ) -> Result<GrayBoxRun, SimError> {
-    free_run(m, values, estimates, data, true)
+    free_run(m, values, estimates, data, true, Kept::Everything)
 }
 
-/// [`run_from`], with the sensitivities when `differentiate`.
+/// [`run_from`], with the sensitivities when `differentiate`, keeping
+/// `kept` of each sample.
 fn free_run(
     m: &CompiledModel,
     values: &[f64],
     estimates: &[f64],
     data: &Dataset,
     differentiate: bool,
+    kept: Kept,
 ) -> Result<GrayBoxRun, SimError> {
     let ts = timing(m, data)?;
     let n = data.len();
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
-    let mut out = GrayBoxRun::empty(data, m.states, 0);
+    let mut out = GrayBoxRun::empty(data, m.states, 0, kept);
     if differentiate {
         machine.differentiate(m);
         out.sensitivities = machine.sensitivities_for(n);
@@ -1435,7 +1532,8 @@ fn timing(m: &CompiledModel, data: &Dataset) -> Result<f64, SimError> {
 }
 
 /// Runs from `hs` at sample `samples.start` over `samples`, writing each
-/// sample's output, label, coverage and state into `out`.
+/// sample's output and, where `out` keeps them ([`Kept`]), its label,
+/// coverage and state into `out`.
 fn span(
     machine: &mut Machine,
     mut hs: HybridState,
@@ -1446,6 +1544,7 @@ fn span(
 ) -> Result<(), SimError> {
     let (start, end) = (samples.start, samples.end);
     let states = hs.x.len();
+    let everything = !out.modes.is_empty();
     let mut held = vec![0.0; data.inputs.len()];
     schedule.inputs(data, start, 0.0, &mut held);
     let mut g_end = Vec::new();
@@ -1457,35 +1556,48 @@ fn span(
         let u = &pieces[0].1;
         let changed = k == start || pieces.len() > 1 || *u != held;
         if changed || !repeat {
-            let (y, label, covered) = machine.observe(&hs, u, &held);
-            out.y[k] = y;
-            out.modes[k] = Some(label);
-            out.covered[k] = covered;
-            out.x[k * states..(k + 1) * states].copy_from_slice(&hs.x);
+            if everything {
+                let (y, label, covered) = machine.observe(&hs, u, &held);
+                out.y[k] = y;
+                out.modes[k] = Some(label);
+                out.covered[k] = covered;
+                out.x[k * states..(k + 1) * states].copy_from_slice(&hs.x);
+            } else {
+                out.y[k] = machine.output(&hs, u);
+            }
             if let Some(sens) = out.sensitivities.as_mut() {
                 machine.tangent_output(&hs, u, k, sens);
             }
         } else {
             out.y[k] = out.y[k - 1];
-            out.modes[k] = out.modes[k - 1];
-            out.covered[k] = out.covered[k - 1];
-            out.x.copy_within((k - 1) * states..k * states, k * states);
+            if everything {
+                out.modes[k] = out.modes[k - 1];
+                out.covered[k] = out.covered[k - 1];
+                out.x.copy_within((k - 1) * states..k * states, k * states);
+            }
         }
         // At rest (every derivative exactly zero) under an unchanged input,
         // a sample repeats the one before. With sensitivities a sample at
         // rest is integrated all the same: the state stays, its
         // sensitivities may move.
-        repeat = k + 1 < end && !changed && !machine.differentiates() && machine.at_rest(&hs, u);
+        let tested = k + 1 < end && !changed && !machine.differentiates();
+        repeat = tested && machine.at_rest(&hs, u);
         if k + 1 < end && !repeat {
             for (j, (duration, u, n_sub)) in pieces.iter().enumerate() {
+                // Found moving by the rest test, unless a held element is
+                // re-settled or a transition fires first.
+                let mut moving = tested;
                 if k > start || j > 0 {
-                    machine.resettle(&mut hs, u);
+                    moving &= !machine.resettle(&mut hs, u);
                     let g_before = std::mem::take(&mut g_end);
-                    machine.fire_at_sample(&mut hs, u, &g_before, k)?;
+                    moving &= !machine.fire_at_sample(&mut hs, u, &g_before, k)?;
                 }
-                machine.advance(&mut hs, u, *duration, *n_sub, k)?;
-                machine.load(&hs.x, u);
-                machine.surfaces(hs.mode, &mut g_end);
+                if moving {
+                    machine.advance_moving(&mut hs, u, *duration, *n_sub, k)?;
+                } else {
+                    machine.advance(&mut hs, u, *duration, *n_sub, k)?;
+                }
+                machine.surfaces_at_end(&hs, u, &mut g_end);
             }
         }
         held.copy_from_slice(&pieces[pieces.len() - 1].1);
@@ -1542,19 +1654,26 @@ fn shoot(
     differentiate: bool,
 ) -> Result<GrayBoxRun, SimError> {
     if !matches!(m.initial, CompiledInitial::Measured { .. }) {
-        return free_run(m, values, estimates, data, differentiate);
+        return free_run(m, values, estimates, data, differentiate, Kept::Output);
     }
     let free = if m.estimates.is_empty() {
         None
     } else {
-        Some(free_run(m, values, estimates, data, differentiate)?)
+        Some(free_run(
+            m,
+            values,
+            estimates,
+            data,
+            differentiate,
+            Kept::Everything,
+        )?)
     };
     let ts = timing(m, data)?;
     let n = data.len();
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
-    let mut out = GrayBoxRun::empty(data, m.states, 0);
+    let mut out = GrayBoxRun::empty(data, m.states, 0, Kept::Output);
     if differentiate {
         machine.differentiate(m);
         out.sensitivities = machine.sensitivities_for(n);
@@ -1627,7 +1746,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
-    let mut out = GrayBoxRun::empty(data, m.states, (first + 1).min(n - 1));
+    let mut out = GrayBoxRun::empty(data, m.states, (first + 1).min(n - 1), Kept::Everything);
     let mut u = vec![0.0; m.inputs];
     let mut buffer = Vec::new();
     for k in first..n.saturating_sub(1) {
@@ -1654,8 +1773,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
                 machine.fire_at_sample(&mut hs, u, &g_before, k)?;
             }
             machine.advance(&mut hs, u, *duration, *n_sub, k)?;
-            machine.load(&hs.x, u);
-            machine.surfaces(hs.mode, &mut g_end);
+            machine.surfaces_at_end(&hs, u, &mut g_end);
         }
         let held = &pieces[pieces.len() - 1].1;
         schedule.inputs(data, k + 1, 0.0, &mut u);

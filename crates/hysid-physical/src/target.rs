@@ -278,7 +278,8 @@ impl Simulator for GrayBoxTarget {
 
     fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)> {
         let (values, initial) = self.split(values);
-        let r = hysid_graybox::simulate::run_from(&self.compiled, values, initial, data).ok()?;
+        let r =
+            hysid_graybox::simulate::outputs_from(&self.compiled, values, initial, data).ok()?;
         Some((r.start, r.y))
     }
 

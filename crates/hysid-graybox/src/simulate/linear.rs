@@ -144,7 +144,7 @@ impl AffineFlows {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulate::{Machine, Schedule, initial, span};
+    use crate::simulate::{Kept, Machine, Schedule, initial, span};
     use crate::{CompiledModel, GrayBoxModel};
     use hysid_model::data::Dataset;
     use hysid_model::excitation::Excitation;
@@ -237,7 +237,7 @@ mod tests {
         let mut machine = Machine::new(&bound, values);
         machine.closed_form = closed_form;
         let (first, hs) = initial(&bound, &mut machine, data, &schedule, &[]).unwrap();
-        let mut out = super::super::GrayBoxRun::empty(data, m.states, first);
+        let mut out = super::super::GrayBoxRun::empty(data, m.states, first, Kept::Everything);
         span(
             &mut machine,
             hs,
