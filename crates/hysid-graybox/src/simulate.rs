@@ -888,33 +888,21 @@ impl<'a> Machine<'a> {
     }
 
     /// Advances `hs` over one sample of length `ts` in `n_sub` sub-steps
-    /// with the input `u` held.
-    pub fn advance(
+    /// with the input `u` held. `moving`: the caller's rest test already
+    /// found the state moving under `u`, so it is not repeated.
+    pub(crate) fn advance(
         &mut self,
         hs: &mut HybridState,
         u: &[f64],
-        ts: f64,
-        n_sub: usize,
+        (ts, n_sub): (f64, usize),
         sample: usize,
+        moving: bool,
     ) -> Result<(), SimError> {
-        if self.at_rest(hs, u) {
-            let h = ts / n_sub as f64;
+        let h = ts / n_sub as f64;
+        if !moving && self.at_rest(hs, u) {
             self.tangent_rest(hs, u, std::iter::repeat_n(h, n_sub));
             return Ok(());
         }
-        self.advance_moving(hs, u, ts, n_sub, sample)
-    }
-
-    /// [`Machine::advance`] from a state known not to be at rest under `u`.
-    fn advance_moving(
-        &mut self,
-        hs: &mut HybridState,
-        u: &[f64],
-        ts: f64,
-        n_sub: usize,
-        sample: usize,
-    ) -> Result<(), SimError> {
-        let h = ts / n_sub as f64;
         self.full_step = h;
         let mut x1 = std::mem::take(&mut self.x1);
         let mut xm = std::mem::take(&mut self.xm);
@@ -1592,11 +1580,7 @@ fn span(
                     let g_before = std::mem::take(&mut g_end);
                     moving &= !machine.fire_at_sample(&mut hs, u, &g_before, k)?;
                 }
-                if moving {
-                    machine.advance_moving(&mut hs, u, *duration, *n_sub, k)?;
-                } else {
-                    machine.advance(&mut hs, u, *duration, *n_sub, k)?;
-                }
+                machine.advance(&mut hs, u, (*duration, *n_sub), k, moving)?;
                 machine.surfaces_at_end(&hs, u, &mut g_end);
             }
         }
@@ -1772,7 +1756,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
                 let g_before = std::mem::take(&mut g_end);
                 machine.fire_at_sample(&mut hs, u, &g_before, k)?;
             }
-            machine.advance(&mut hs, u, *duration, *n_sub, k)?;
+            machine.advance(&mut hs, u, (*duration, *n_sub), k, false)?;
             machine.surfaces_at_end(&hs, u, &mut g_end);
         }
         let held = &pieces[pieces.len() - 1].1;
