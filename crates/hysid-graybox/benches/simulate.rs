@@ -1,6 +1,6 @@
 //! Simulation throughput of the mounting head written as a gray-box model
 //! against the hand-written mechanical simulator, in the same run, and of
-//! the positioning axis example. Run with
+//! the positioning axis and cascaded tanks examples. Run with
 //! `cargo bench -p hysid-graybox --bench simulate`; the gray-box head also
 //! with its forward sensitivities.
 //!
@@ -146,4 +146,31 @@ fn positioning_axis_segmented(bencher: divan::Bencher) {
     bencher.bench(|| {
         hysid_graybox::simulate::segmented(&c, &values, &[], &data, 100, &slope).unwrap()
     });
+}
+
+/// The cascaded tanks (`models/examples/cascaded-tanks.toml`, its file
+/// values) on 1 024 samples at 4 s of its own response to its "Try:"
+/// excitation, the size of the benchmark's records: Torricelli outflows
+/// and overflow guards, no closed form, every stage on the expression
+/// tapes. The free run as a fit reads it (the upper level given).
+#[divan::bench(sample_count = 100)]
+fn cascaded_tanks(bencher: divan::Bencher) {
+    let m = read_gray_box("models/examples/cascaded-tanks.toml");
+    let ts = 4.0;
+    let u = hysid_model::excitation::Excitation {
+        n: 1024,
+        hold: 50,
+        low: 0.0,
+        high: 10.0,
+        ts: Some(ts),
+        inputs: 1,
+    }
+    .generate(1)
+    .remove(0);
+    let c = CompiledModel::new(&m).unwrap();
+    let values = m.values();
+    let zeros = Dataset::siso(u.clone(), vec![0.0; u.len()], Some(ts)).unwrap();
+    let y = hysid_graybox::simulate::run(&c, &values, &zeros).unwrap().y;
+    let data = Dataset::siso(u, y, Some(ts)).unwrap();
+    bencher.bench(|| hysid_graybox::simulate::outputs_from(&c, &values, &[5.0], &data).unwrap());
 }

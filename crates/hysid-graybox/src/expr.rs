@@ -12,6 +12,7 @@ use std::collections::HashMap;
 use std::rc::Rc;
 
 mod derivative;
+mod program;
 
 pub use derivative::Adjoints;
 
@@ -293,8 +294,8 @@ enum Form {
     /// `constant + sum(coefficient * slot)`: most flows of physical models
     /// are affine in the states and inputs once the parameters are bound.
     Affine(Affine),
-    /// Anything else: the postfix tape.
-    Tape,
+    /// Anything else: the postfix tape, run as three-address code.
+    Tape(program::Program),
 }
 
 /// An affine form `constant + sum(coefficient * slot)`.
@@ -399,7 +400,8 @@ impl Expression {
         let form = match ops.as_slice() {
             [Op::Const(v)] => Form::Constant(*v),
             [Op::Load(s)] => Form::Slot(*s),
-            _ => Affine::of(&ops).map_or(Form::Tape, Form::Affine),
+            _ => Affine::of(&ops)
+                .map_or_else(|| Form::Tape(program::Program::of(&ops)), Form::Affine),
         };
         Expression { ops, form }
     }
@@ -432,7 +434,7 @@ impl Expression {
             Form::Constant(v) => Some((*v, Vec::new())),
             Form::Slot(s) => Some((0.0, vec![(*s, 1.0)])),
             Form::Affine(a) => Some((a.constant, a.terms.clone())),
-            Form::Tape => None,
+            Form::Tape(_) => None,
         }
     }
 
@@ -516,7 +518,7 @@ impl Expression {
             Form::Constant(v) => *v,
             Form::Slot(s) => slots[*s as usize],
             Form::Affine(a) => a.eval(slots),
-            Form::Tape => run_tape(&self.ops, slots),
+            Form::Tape(program) => program.run(slots),
         }
     }
 
@@ -563,7 +565,7 @@ impl Expression {
             let mut ops = Vec::with_capacity(plain.size as usize);
             defs.expand(&mut ops, &self.ops, None, limit)?;
             let e = Expression::from_ops(ops);
-            if recurs && matches!(e.form, Form::Tape) {
+            if recurs && matches!(e.form, Form::Tape(_)) {
                 // Registers add their keeps: within them of the limit, the
                 // plain tape stays.
                 defs.shared(&self.ops, &uses, limit).unwrap_or(e)
@@ -644,7 +646,7 @@ fn definition_of(s: u32, first: u32, count: usize) -> Option<usize> {
 /// the deepest stack of the result is the deepest of `j + peak` over its
 /// operands `j = 0, 1, ..`, and an operation whose operands are all
 /// constants folds exactly as [`push_folded`] folds it (the same
-/// [`run_tape`] on the same constants). `stack` is scratch space.
+/// [`fold_constants`] on the same constants). `stack` is scratch space.
 fn summarise(ops: &[Op], first: u32, summary: &[Summary], stack: &mut Vec<Summary>) -> Summary {
     stack.clear();
     for op in ops {
@@ -664,7 +666,7 @@ fn summarise(ops: &[Op], first: u32, summary: &[Summary], stack: &mut Vec<Summar
                         *t = Op::Const(a.constant.unwrap_or_default());
                     }
                     tape[k] = op;
-                    Summary::constant(run_tape(&tape[..=k], &[]))
+                    Summary::constant(fold_constants(&tape[..=k]))
                 } else {
                     let size = args.iter().fold(1u64, |s, a| s.saturating_add(a.size));
                     let peak = args
@@ -912,42 +914,9 @@ impl Definitions {
     }
 }
 
-/// The postfix interpreter.
-#[inline(never)]
-fn run_tape(ops: &[Op], slots: &[f64]) -> f64 {
-    let mut stack = [0.0f64; MAX_DEPTH];
-    let mut registers = [0.0f64; REGISTERS];
-    let mut sp = 0usize;
-    for op in ops {
-        match *op {
-            Op::Const(v) => {
-                stack[sp] = v;
-                sp += 1;
-            }
-            Op::Load(s) => {
-                stack[sp] = slots[s as usize];
-                sp += 1;
-            }
-            Op::Neg => stack[sp - 1] = -stack[sp - 1],
-            Op::Not => stack[sp - 1] = if stack[sp - 1] == 0.0 { 1.0 } else { 0.0 },
-            Op::Binary(b) => {
-                sp -= 1;
-                stack[sp - 1] = b.apply(stack[sp - 1], stack[sp]);
-            }
-            Op::Call(f) => {
-                let k = f.arity();
-                sp -= k;
-                stack[sp] = f.apply(&stack[sp..sp + k]);
-                sp += 1;
-            }
-            Op::Keep(r) => registers[r as usize] = stack[sp - 1],
-            Op::Recall(r) => {
-                stack[sp] = registers[r as usize];
-                sp += 1;
-            }
-        }
-    }
-    stack[0]
+/// The value of a tape that reads no slot (an operation on constants).
+fn fold_constants(ops: &[Op]) -> f64 {
+    program::Program::of(ops).run(&[])
 }
 
 impl Op {
@@ -973,7 +942,7 @@ fn push_folded(ops: &mut Vec<Op>, op: Op) {
     ops.push(op);
     let keeps = matches!(op, Op::Keep(_));
     if k > 0 && !keeps && ops[n - k..n].iter().all(|o| matches!(o, Op::Const(_))) {
-        let v = run_tape(&ops[n - k..], &[]);
+        let v = fold_constants(&ops[n - k..]);
         ops.truncate(n - k);
         ops.push(Op::Const(v));
     }

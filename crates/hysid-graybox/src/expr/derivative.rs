@@ -52,7 +52,7 @@ impl Expression {
                 }
                 a.eval(slots)
             }
-            Form::Tape => tape_gradient(&self.ops, slots, wrt, gradient, scratch),
+            Form::Tape(_) => tape_gradient(&self.ops, slots, wrt, gradient, scratch),
         }
     }
 }
