@@ -126,6 +126,7 @@ impl Function {
         Function::ALL.into_iter().find(|f| f.name() == name)
     }
 
+    #[inline]
     fn apply(self, a: &[f64]) -> f64 {
         match self {
             Function::Abs => a[0].abs(),
