@@ -12,6 +12,7 @@
 use hysid_graybox::{CompiledModel, GrayBoxModel};
 use hysid_mechanical::MechanicalModel;
 use hysid_model::data::{DataSelection, Dataset, RowRange};
+use hysid_model::excitation::Excitation;
 use std::path::Path;
 
 fn main() {
@@ -106,23 +107,29 @@ fn gray_box_head_sensitivities(bencher: divan::Bencher) {
 /// (segments of 100 samples, each from the measured position and a
 /// centred slope).
 fn axis() -> (CompiledModel, Vec<f64>, Dataset) {
-    let m = read_gray_box("models/examples/positioning-axis.toml");
-    let ts = 0.001;
-    let u = hysid_model::excitation::Excitation {
-        n: 25_000,
-        hold: 200,
-        low: -2.0,
-        high: 2.0,
-        ts: Some(ts),
-        inputs: 1,
-    }
-    .generate(1)
-    .remove(0);
+    own_response(
+        "models/examples/positioning-axis.toml",
+        Excitation {
+            n: 25_000,
+            hold: 200,
+            low: -2.0,
+            high: 2.0,
+            ts: Some(0.001),
+            inputs: 1,
+        },
+    )
+}
+
+/// The model of the file at `path` (its file values) and a record of its
+/// own response to the excitation `ex` (seed 1).
+fn own_response(path: &str, ex: Excitation) -> (CompiledModel, Vec<f64>, Dataset) {
+    let m = read_gray_box(path);
+    let u = ex.generate(1).remove(0);
     let c = CompiledModel::new(&m).unwrap();
     let values = m.values();
-    let zeros = Dataset::siso(u.clone(), vec![0.0; u.len()], Some(ts)).unwrap();
+    let zeros = Dataset::siso(u.clone(), vec![0.0; u.len()], ex.ts).unwrap();
     let y = hysid_graybox::simulate::run(&c, &values, &zeros).unwrap().y;
-    (c, values, Dataset::siso(u, y, Some(ts)).unwrap())
+    (c, values, Dataset::siso(u, y, ex.ts).unwrap())
 }
 
 #[divan::bench(sample_count = 100)]
@@ -155,22 +162,16 @@ fn positioning_axis_segmented(bencher: divan::Bencher) {
 /// tapes. The free run as a fit reads it (the upper level given).
 #[divan::bench(sample_count = 100)]
 fn cascaded_tanks(bencher: divan::Bencher) {
-    let m = read_gray_box("models/examples/cascaded-tanks.toml");
-    let ts = 4.0;
-    let u = hysid_model::excitation::Excitation {
-        n: 1024,
-        hold: 50,
-        low: 0.0,
-        high: 10.0,
-        ts: Some(ts),
-        inputs: 1,
-    }
-    .generate(1)
-    .remove(0);
-    let c = CompiledModel::new(&m).unwrap();
-    let values = m.values();
-    let zeros = Dataset::siso(u.clone(), vec![0.0; u.len()], Some(ts)).unwrap();
-    let y = hysid_graybox::simulate::run(&c, &values, &zeros).unwrap().y;
-    let data = Dataset::siso(u, y, Some(ts)).unwrap();
+    let (c, values, data) = own_response(
+        "models/examples/cascaded-tanks.toml",
+        Excitation {
+            n: 1024,
+            hold: 50,
+            low: 0.0,
+            high: 10.0,
+            ts: Some(4.0),
+            inputs: 1,
+        },
+    );
     bencher.bench(|| hysid_graybox::simulate::outputs_from(&c, &values, &[5.0], &data).unwrap());
 }
