@@ -12,12 +12,11 @@ use std::collections::HashMap;
 use std::rc::Rc;
 
 mod derivative;
-mod program;
+mod tape;
 
 pub use derivative::Adjoints;
-
-/// Deepest evaluation stack an expression may need (checked at compile).
-pub const MAX_DEPTH: usize = 32;
+use tape::{Binary, Op, Program};
+pub use tape::{Function, MAX_DEPTH, REGISTERS};
 
 /// Longest expression text, in bytes (checked before parsing). evalexpr's
 /// tree of a sum is as deep as the sum has terms, and its parser drops a
@@ -30,202 +29,6 @@ pub const MAX_LENGTH: usize = 10_000;
 /// function name written since the last binary operator within the same
 /// parentheses (`-(-x)` nests 3 deep, `sin(cos(x))` 4).
 pub const MAX_NESTING: usize = 64;
-
-/// Registers of one tape: values of definitions that an expression uses
-/// more than once, kept at their first evaluation and read again at the
-/// others ([`Expression::inline`]). Past this many, a definition is
-/// evaluated again where it recurs.
-pub const REGISTERS: usize = 16;
-
-/// The functions an expression may call, with their arities.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Function {
-    /// `abs(x)`.
-    Abs,
-    /// `sign(x)`: -1, 0 or 1.
-    Sign,
-    /// `sqrt(x)`.
-    Sqrt,
-    /// `exp(x)`.
-    Exp,
-    /// `ln(x)`, natural logarithm.
-    Ln,
-    /// `sin(x)`.
-    Sin,
-    /// `cos(x)`.
-    Cos,
-    /// `tan(x)`.
-    Tan,
-    /// `tanh(x)`.
-    Tanh,
-    /// `atan(x)`.
-    Atan,
-    /// `min(a, b)`.
-    Min,
-    /// `max(a, b)`.
-    Max,
-    /// `atan2(y, x)`.
-    Atan2,
-    /// `clamp(x, low, high)`.
-    Clamp,
-    /// `if(condition, a, b)`: `a` when the condition is non-zero, else `b`.
-    If,
-}
-
-impl Function {
-    /// Every function, for listings.
-    pub const ALL: [Function; 15] = [
-        Function::Abs,
-        Function::Sign,
-        Function::Sqrt,
-        Function::Exp,
-        Function::Ln,
-        Function::Sin,
-        Function::Cos,
-        Function::Tan,
-        Function::Tanh,
-        Function::Atan,
-        Function::Min,
-        Function::Max,
-        Function::Atan2,
-        Function::Clamp,
-        Function::If,
-    ];
-
-    /// The name in an expression.
-    pub fn name(self) -> &'static str {
-        match self {
-            Function::Abs => "abs",
-            Function::Sign => "sign",
-            Function::Sqrt => "sqrt",
-            Function::Exp => "exp",
-            Function::Ln => "ln",
-            Function::Sin => "sin",
-            Function::Cos => "cos",
-            Function::Tan => "tan",
-            Function::Tanh => "tanh",
-            Function::Atan => "atan",
-            Function::Min => "min",
-            Function::Max => "max",
-            Function::Atan2 => "atan2",
-            Function::Clamp => "clamp",
-            Function::If => "if",
-        }
-    }
-
-    /// Number of arguments.
-    pub fn arity(self) -> usize {
-        match self {
-            Function::Min | Function::Max | Function::Atan2 => 2,
-            Function::Clamp | Function::If => 3,
-            _ => 1,
-        }
-    }
-
-    fn by_name(name: &str) -> Option<Function> {
-        Function::ALL.into_iter().find(|f| f.name() == name)
-    }
-
-    #[inline]
-    fn apply(self, a: &[f64]) -> f64 {
-        match self {
-            Function::Abs => a[0].abs(),
-            Function::Sign => {
-                if a[0] > 0.0 {
-                    1.0
-                } else if a[0] < 0.0 {
-                    -1.0
-                } else {
-                    0.0
-                }
-            }
-            Function::Sqrt => a[0].sqrt(),
-            Function::Exp => a[0].exp(),
-            Function::Ln => a[0].ln(),
-            Function::Sin => a[0].sin(),
-            Function::Cos => a[0].cos(),
-            Function::Tan => a[0].tan(),
-            Function::Tanh => a[0].tanh(),
-            Function::Atan => a[0].atan(),
-            Function::Min => a[0].min(a[1]),
-            Function::Max => a[0].max(a[1]),
-            Function::Atan2 => a[0].atan2(a[1]),
-            Function::Clamp => a[0].max(a[1]).min(a[2]),
-            Function::If => {
-                if a[0] != 0.0 {
-                    a[1]
-                } else {
-                    a[2]
-                }
-            }
-        }
-    }
-}
-
-/// Binary operators of the tape.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Binary {
-    Add,
-    Sub,
-    Mul,
-    Div,
-    Rem,
-    Pow,
-    Lt,
-    Le,
-    Gt,
-    Ge,
-    Eq,
-    Ne,
-    And,
-    Or,
-}
-
-impl Binary {
-    /// Whether it compares its operands (`<`, `<=`, `>`, `>=`, `==`, `!=`).
-    fn compares(self) -> bool {
-        matches!(
-            self,
-            Binary::Lt | Binary::Le | Binary::Gt | Binary::Ge | Binary::Eq | Binary::Ne
-        )
-    }
-
-    #[inline]
-    fn apply(self, a: f64, b: f64) -> f64 {
-        let truth = |c: bool| if c { 1.0 } else { 0.0 };
-        match self {
-            Binary::Add => a + b,
-            Binary::Sub => a - b,
-            Binary::Mul => a * b,
-            Binary::Div => a / b,
-            Binary::Rem => a % b,
-            Binary::Pow => a.powf(b),
-            Binary::Lt => truth(a < b),
-            Binary::Le => truth(a <= b),
-            Binary::Gt => truth(a > b),
-            Binary::Ge => truth(a >= b),
-            Binary::Eq => truth(a == b),
-            Binary::Ne => truth(a != b),
-            Binary::And => truth(a != 0.0 && b != 0.0),
-            Binary::Or => truth(a != 0.0 || b != 0.0),
-        }
-    }
-}
-
-/// One instruction of the postfix tape.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Op {
-    Const(f64),
-    Load(u32),
-    Neg,
-    Not,
-    Binary(Binary),
-    Call(Function),
-    /// Copies the top of the stack into a register (the value stays).
-    Keep(u8),
-    /// Pushes a register's value.
-    Recall(u8),
-}
 
 /// Why an expression does not compile.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -296,7 +99,7 @@ enum Form {
     /// are affine in the states and inputs once the parameters are bound.
     Affine(Affine),
     /// Anything else: the postfix tape, run as three-address code.
-    Tape(program::Program),
+    Tape(Program),
 }
 
 /// An affine form `constant + sum(coefficient * slot)`.
@@ -401,8 +204,7 @@ impl Expression {
         let form = match ops.as_slice() {
             [Op::Const(v)] => Form::Constant(*v),
             [Op::Load(s)] => Form::Slot(*s),
-            _ => Affine::of(&ops)
-                .map_or_else(|| Form::Tape(program::Program::of(&ops)), Form::Affine),
+            _ => Affine::of(&ops).map_or_else(|| Form::Tape(Program::of(&ops)), Form::Affine),
         };
         Expression { ops, form }
     }
@@ -917,19 +719,7 @@ impl Definitions {
 
 /// The value of a tape that reads no slot (an operation on constants).
 fn fold_constants(ops: &[Op]) -> f64 {
-    program::Program::of(ops).run(&[])
-}
-
-impl Op {
-    /// Operands taken from the stack.
-    fn operands(self) -> usize {
-        match self {
-            Op::Const(_) | Op::Load(_) | Op::Recall(_) => 0,
-            Op::Neg | Op::Not | Op::Keep(_) => 1,
-            Op::Binary(_) => 2,
-            Op::Call(f) => f.arity(),
-        }
-    }
+    Program::of(ops).run(&[])
 }
 
 /// Appends `op` to a postfix tape, replacing it and its operands by their
@@ -1890,6 +1680,72 @@ mod tests {
             let (a, b) = (e.eval(&s), t.value(&s));
             prop_assert!(a == b || (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-12 * b.abs().max(1.0),
                 "{}: tape {} tree {}", t.text(), a, b);
+        }
+    }
+
+    /// The tape run on a stack, operation by operation: the reference the
+    /// program must agree with bit for bit.
+    fn on_a_stack(ops: &[Op], slots: &[f64]) -> f64 {
+        let (mut stack, mut registers) = (Vec::new(), [0.0; REGISTERS]);
+        for op in ops {
+            match *op {
+                Op::Const(v) => stack.push(v),
+                Op::Load(s) => stack.push(slots[s as usize]),
+                Op::Recall(r) => stack.push(registers[r as usize]),
+                Op::Keep(r) => registers[r as usize] = stack[stack.len() - 1],
+                Op::Neg | Op::Not | Op::Binary(_) | Op::Call(_) => {
+                    let args = stack.split_off(stack.len() - op.operands());
+                    stack.push(match *op {
+                        Op::Neg => -args[0],
+                        Op::Not => f64::from(args[0] == 0.0),
+                        Op::Binary(b) => b.apply(args[0], args[1]),
+                        Op::Call(f) => f.apply(&args),
+                        _ => unreachable!("operations only"),
+                    });
+                }
+            }
+        }
+        stack[0]
+    }
+
+    proptest! {
+        /// Random expressions over three slots, with two definitions used
+        /// several times and kept in registers (as the compiler keeps
+        /// them), and the same with every use written out: the program
+        /// gives the stack's bits.
+        #[test]
+        fn the_program_gives_the_stacks_bits(
+            ta in tree(), tb in tree(), te in tree(),
+            s in proptest::collection::vec(-5.0f64..5.0, 3),
+        ) {
+            let (text, kept, plain) = with_recurring_definitions(&ta, &tb, &te);
+            for e in kept.iter().chain([&plain]) {
+                let (program, stack) = (Program::of(&e.ops).run(&s), on_a_stack(&e.ops, &s));
+                prop_assert!(program.to_bits() == stack.to_bits() || (program.is_nan() && stack.is_nan()),
+                    "{}: program {} stack {}", text, program, stack);
+            }
+        }
+    }
+
+    #[test]
+    fn every_operation_reads_its_operands_in_order() {
+        let slots = [3.0, -2.0, 0.5];
+        let names = |n: &str| {
+            ["x", "y", "z"]
+                .iter()
+                .position(|s| *s == n)
+                .map(|i| i as u32)
+        };
+        for text in [
+            "x - y/z",
+            "-(x - y) + !(z > 1)",
+            "atan2(y, x) - clamp(x, y, z)",
+            "if(x > y, sqrt(x), y^2) % z",
+            "min(x, y) * max(y, z) + (x >= y && y != z || x == z)",
+        ] {
+            let e = Expression::compile(text, &names).unwrap();
+            let (program, stack) = (Program::of(&e.ops).run(&slots), on_a_stack(&e.ops, &slots));
+            assert_eq!(program.to_bits(), stack.to_bits(), "{text}");
         }
     }
 }

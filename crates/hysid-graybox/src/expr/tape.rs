@@ -1,0 +1,361 @@
+//! The postfix tape of a compiled expression: its operations (slots and
+//! constants pushed, operators and functions applied, values kept in
+//! registers), the limits of its stack, and the three-address form it is
+//! evaluated in.
+//!
+//! The tape pushes slots and constants onto a stack before every operation
+//! reads them. Its [`Program`] plays the stack out once, when the
+//! expression is made: an operand is read where it lies (a slot, a
+//! constant, the result of an earlier operation), and only the operations
+//! remain, each writing its result into the stack cell the tape would have
+//! left it in (a stack cell is read by the one operation that pops it, so
+//! cells can be reused as the tape reuses them). Kept values go to cells of
+//! their own. The operations, their operands and their order are the
+//! tape's, so a program's value is the tape's bit for bit.
+
+/// Deepest evaluation stack an expression may need (checked at compile).
+pub const MAX_DEPTH: usize = 32;
+
+/// Registers of one tape: values of definitions that an expression uses
+/// more than once, kept at their first evaluation and read again at the
+/// others ([`Expression::inline`](super::Expression::inline)). Past this
+/// many, a definition is evaluated again where it recurs.
+pub const REGISTERS: usize = 16;
+
+/// The functions an expression may call, with their arities.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Function {
+    /// `abs(x)`.
+    Abs,
+    /// `sign(x)`: -1, 0 or 1.
+    Sign,
+    /// `sqrt(x)`.
+    Sqrt,
+    /// `exp(x)`.
+    Exp,
+    /// `ln(x)`, natural logarithm.
+    Ln,
+    /// `sin(x)`.
+    Sin,
+    /// `cos(x)`.
+    Cos,
+    /// `tan(x)`.
+    Tan,
+    /// `tanh(x)`.
+    Tanh,
+    /// `atan(x)`.
+    Atan,
+    /// `min(a, b)`.
+    Min,
+    /// `max(a, b)`.
+    Max,
+    /// `atan2(y, x)`.
+    Atan2,
+    /// `clamp(x, low, high)`.
+    Clamp,
+    /// `if(condition, a, b)`: `a` when the condition is non-zero, else `b`.
+    If,
+}
+
+impl Function {
+    /// Every function, for listings.
+    pub const ALL: [Function; 15] = [
+        Function::Abs,
+        Function::Sign,
+        Function::Sqrt,
+        Function::Exp,
+        Function::Ln,
+        Function::Sin,
+        Function::Cos,
+        Function::Tan,
+        Function::Tanh,
+        Function::Atan,
+        Function::Min,
+        Function::Max,
+        Function::Atan2,
+        Function::Clamp,
+        Function::If,
+    ];
+
+    /// The name in an expression.
+    pub fn name(self) -> &'static str {
+        match self {
+            Function::Abs => "abs",
+            Function::Sign => "sign",
+            Function::Sqrt => "sqrt",
+            Function::Exp => "exp",
+            Function::Ln => "ln",
+            Function::Sin => "sin",
+            Function::Cos => "cos",
+            Function::Tan => "tan",
+            Function::Tanh => "tanh",
+            Function::Atan => "atan",
+            Function::Min => "min",
+            Function::Max => "max",
+            Function::Atan2 => "atan2",
+            Function::Clamp => "clamp",
+            Function::If => "if",
+        }
+    }
+
+    /// Number of arguments.
+    pub fn arity(self) -> usize {
+        match self {
+            Function::Min | Function::Max | Function::Atan2 => 2,
+            Function::Clamp | Function::If => 3,
+            _ => 1,
+        }
+    }
+
+    pub(super) fn by_name(name: &str) -> Option<Function> {
+        Function::ALL.into_iter().find(|f| f.name() == name)
+    }
+
+    #[inline]
+    pub(super) fn apply(self, a: &[f64]) -> f64 {
+        match self {
+            Function::Abs => a[0].abs(),
+            Function::Sign => {
+                if a[0] > 0.0 {
+                    1.0
+                } else if a[0] < 0.0 {
+                    -1.0
+                } else {
+                    0.0
+                }
+            }
+            Function::Sqrt => a[0].sqrt(),
+            Function::Exp => a[0].exp(),
+            Function::Ln => a[0].ln(),
+            Function::Sin => a[0].sin(),
+            Function::Cos => a[0].cos(),
+            Function::Tan => a[0].tan(),
+            Function::Tanh => a[0].tanh(),
+            Function::Atan => a[0].atan(),
+            Function::Min => a[0].min(a[1]),
+            Function::Max => a[0].max(a[1]),
+            Function::Atan2 => a[0].atan2(a[1]),
+            Function::Clamp => a[0].max(a[1]).min(a[2]),
+            Function::If => {
+                if a[0] != 0.0 {
+                    a[1]
+                } else {
+                    a[2]
+                }
+            }
+        }
+    }
+}
+
+/// Binary operators of the tape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Binary {
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Rem,
+    Pow,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Eq,
+    Ne,
+    And,
+    Or,
+}
+
+impl Binary {
+    /// Whether it compares its operands (`<`, `<=`, `>`, `>=`, `==`, `!=`).
+    pub(super) fn compares(self) -> bool {
+        matches!(
+            self,
+            Binary::Lt | Binary::Le | Binary::Gt | Binary::Ge | Binary::Eq | Binary::Ne
+        )
+    }
+
+    #[inline]
+    pub(super) fn apply(self, a: f64, b: f64) -> f64 {
+        let truth = |c: bool| if c { 1.0 } else { 0.0 };
+        match self {
+            Binary::Add => a + b,
+            Binary::Sub => a - b,
+            Binary::Mul => a * b,
+            Binary::Div => a / b,
+            Binary::Rem => a % b,
+            Binary::Pow => a.powf(b),
+            Binary::Lt => truth(a < b),
+            Binary::Le => truth(a <= b),
+            Binary::Gt => truth(a > b),
+            Binary::Ge => truth(a >= b),
+            Binary::Eq => truth(a == b),
+            Binary::Ne => truth(a != b),
+            Binary::And => truth(a != 0.0 && b != 0.0),
+            Binary::Or => truth(a != 0.0 || b != 0.0),
+        }
+    }
+}
+
+/// One instruction of the postfix tape.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Op {
+    Const(f64),
+    Load(u32),
+    Neg,
+    Not,
+    Binary(Binary),
+    Call(Function),
+    /// Copies the top of the stack into a register (the value stays).
+    Keep(u8),
+    /// Pushes a register's value.
+    Recall(u8),
+}
+
+impl Op {
+    /// Operands taken from the stack.
+    pub(super) fn operands(self) -> usize {
+        match self {
+            Op::Const(_) | Op::Load(_) | Op::Recall(_) => 0,
+            Op::Neg | Op::Not | Op::Keep(_) => 1,
+            Op::Binary(_) => 2,
+            Op::Call(f) => f.arity(),
+        }
+    }
+}
+
+/// Where an operation reads an operand.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Operand {
+    Slot(u32),
+    Const(f64),
+    /// A cell of the workspace: a stack cell, or a kept value's.
+    Cell(u8),
+}
+
+/// One operation, writing cell `to`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Instruction {
+    /// A kept value, copied into its register's cell.
+    Keep {
+        to: u8,
+        a: Operand,
+    },
+    Neg {
+        to: u8,
+        a: Operand,
+    },
+    Not {
+        to: u8,
+        a: Operand,
+    },
+    Binary {
+        op: Binary,
+        to: u8,
+        a: Operand,
+        b: Operand,
+    },
+    /// Its arguments, padded to three with zeros.
+    Call {
+        f: Function,
+        to: u8,
+        args: [Operand; 3],
+    },
+}
+
+/// Cells of the workspace: the stack's, then one per register.
+const CELLS: usize = MAX_DEPTH + REGISTERS;
+
+/// A tape's operations with their operands resolved.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Program {
+    code: Vec<Instruction>,
+    result: Operand,
+}
+
+impl Program {
+    /// The program of a well-formed tape (every operation finds its
+    /// operands, one value remains, at most [`MAX_DEPTH`] pending).
+    pub(super) fn of(ops: &[Op]) -> Program {
+        let mut stack: Vec<Operand> = Vec::with_capacity(MAX_DEPTH);
+        let mut code = Vec::with_capacity(ops.len());
+        for op in ops {
+            let operand = match *op {
+                Op::Const(v) => Operand::Const(v),
+                Op::Load(s) => Operand::Slot(s),
+                Op::Recall(r) => Operand::Cell((MAX_DEPTH + r as usize) as u8),
+                Op::Keep(r) => {
+                    let a = stack[stack.len() - 1];
+                    let to = (MAX_DEPTH + r as usize) as u8;
+                    code.push(Instruction::Keep { to, a });
+                    continue;
+                }
+                Op::Neg | Op::Not => {
+                    let a = stack.pop().expect("a well-formed tape");
+                    let to = stack.len() as u8;
+                    code.push(if matches!(op, Op::Neg) {
+                        Instruction::Neg { to, a }
+                    } else {
+                        Instruction::Not { to, a }
+                    });
+                    Operand::Cell(to)
+                }
+                Op::Binary(b) => {
+                    let y = stack.pop().expect("a well-formed tape");
+                    let x = stack.pop().expect("a well-formed tape");
+                    let to = stack.len() as u8;
+                    code.push(Instruction::Binary {
+                        op: b,
+                        to,
+                        a: x,
+                        b: y,
+                    });
+                    Operand::Cell(to)
+                }
+                Op::Call(f) => {
+                    let k = f.arity();
+                    let mut args = [Operand::Const(0.0); 3];
+                    let from = stack.len() - k;
+                    args[..k].copy_from_slice(&stack[from..]);
+                    stack.truncate(from);
+                    let to = stack.len() as u8;
+                    code.push(Instruction::Call { f, to, args });
+                    Operand::Cell(to)
+                }
+            };
+            stack.push(operand);
+        }
+        Program {
+            code,
+            result: stack.pop().expect("a well-formed tape"),
+        }
+    }
+
+    /// The value at `slots`.
+    #[inline(never)]
+    pub(super) fn run(&self, slots: &[f64]) -> f64 {
+        let mut cells = [0.0f64; CELLS];
+        let read = |o: Operand, cells: &[f64; CELLS]| match o {
+            Operand::Slot(s) => slots[s as usize],
+            Operand::Const(v) => v,
+            Operand::Cell(c) => cells[c as usize],
+        };
+        for instruction in &self.code {
+            match *instruction {
+                Instruction::Keep { to, a } => cells[to as usize] = read(a, &cells),
+                Instruction::Neg { to, a } => cells[to as usize] = -read(a, &cells),
+                Instruction::Not { to, a } => {
+                    cells[to as usize] = if read(a, &cells) == 0.0 { 1.0 } else { 0.0 }
+                }
+                Instruction::Binary { op, to, a, b } => {
+                    cells[to as usize] = op.apply(read(a, &cells), read(b, &cells));
+                }
+                Instruction::Call { f, to, args } => {
+                    let values = args.map(|o| read(o, &cells));
+                    cells[to as usize] = f.apply(&values[..f.arity()]);
+                }
+            }
+        }
+        read(self.result, &cells)
+    }
+}
