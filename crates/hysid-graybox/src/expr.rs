@@ -1730,12 +1730,6 @@ mod tests {
     #[test]
     fn every_operation_reads_its_operands_in_order() {
         let slots = [3.0, -2.0, 0.5];
-        let names = |n: &str| {
-            ["x", "y", "z"]
-                .iter()
-                .position(|s| *s == n)
-                .map(|i| i as u32)
-        };
         for text in [
             "x - y/z",
             "-(x - y) + !(z > 1)",

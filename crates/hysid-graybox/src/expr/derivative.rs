@@ -233,17 +233,8 @@ impl Function {
             }
         };
         match self {
-            Function::Abs => [
-                if a[0] > 0.0 {
-                    1.0
-                } else if a[0] < 0.0 {
-                    -1.0
-                } else {
-                    0.0
-                },
-                0.0,
-                0.0,
-            ],
+            // The slope of `abs` is the sign.
+            Function::Abs => [Function::Sign.apply(a), 0.0, 0.0],
             Function::Sign => [0.0; 3],
             Function::Sqrt => [0.5 / value, 0.0, 0.0],
             Function::Exp => [value, 0.0, 0.0],
