@@ -222,10 +222,10 @@ const RUN: &[(&str, &str, Quote)] = &[
         "physical.md",
         "hysid validate head-fitted.json models/pick-and-place/headdata_1v6.mat --decimate 10 --rows 5000..6001 --warmup 10 --json",
         Quote::Stdout(&[
-            "\"fit_sim\":90.569",
-            "\"rmse_sim\":0.4927",
+            "\"fit_sim\":90.702",
+            "\"rmse_sim\":0.4857",
             "\"fit_pred\":99.81",
-            "\"mode_counts\":[0,271,204,0,516]",
+            "\"mode_counts\":[0,271,202,0,518]",
         ]),
     ),
     (

@@ -284,6 +284,13 @@ pub struct Machine<'a> {
     /// Whether the steps of affine regimes take the closed form
     /// ([`linear`]); off, every step runs stage by stage.
     pub(crate) closed_form: bool,
+    /// Whether a reset that leaves its target mode's invariant is an error
+    /// ([`SimError::ResetOutsideInvariant`]): a fault of the model in a run
+    /// from its own initial state. Off where every segment or sample
+    /// restarts from measured states ([`segmented`], [`predict`]), which
+    /// may lie outside every invariant: such a state's transitions are
+    /// followed, its samples counted as not covered.
+    strict_resets: bool,
     pub(crate) steps: usize,
     pub(crate) events: usize,
     pub(crate) zeno_steps: usize,
@@ -335,6 +342,7 @@ impl<'a> Machine<'a> {
             closed: None,
             full_step: f64::NAN,
             closed_form: true,
+            strict_resets: true,
             k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             x1: vec![0.0; n],
             xm: vec![0.0; n],
@@ -814,10 +822,11 @@ impl<'a> Machine<'a> {
                 }
                 hs.mode = t.to;
                 self.load(&hs.x, u);
-                if m.modes[hs.mode]
-                    .invariant
-                    .iter()
-                    .any(|r| r.margin(&self.slots) < -INVARIANT_TOLERANCE)
+                if self.strict_resets
+                    && m.modes[hs.mode]
+                        .invariant
+                        .iter()
+                        .any(|r| r.margin(&self.slots) < -INVARIANT_TOLERANCE)
                 {
                     return Err(SimError::ResetOutsideInvariant {
                         transition: t.label.clone(),
@@ -1657,6 +1666,7 @@ fn shoot(
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
+    machine.strict_resets = false;
     let mut out = GrayBoxRun::empty(data, m.states, 0, Kept::Output);
     if differentiate {
         machine.differentiate(m);
@@ -1730,6 +1740,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     let bound = m.bind(values);
     let schedule = Schedule::new(&bound, ts);
     let mut machine = Machine::new(&bound, values);
+    machine.strict_resets = false;
     let mut out = GrayBoxRun::empty(data, m.states, (first + 1).min(n - 1), Kept::Everything);
     let mut u = vec![0.0; m.inputs];
     let mut buffer = Vec::new();

@@ -3,9 +3,9 @@
 //! problems: the PWARX refinement (exact Jacobians, the priors' constraints
 //! in every step), the `physical` back-end's local stages and the gray-box
 //! initial states ([`Residuals`]: finite-difference or exact Jacobians,
-//! steps projected onto a box). The damping update is the one of Madsen, Nielsen &
-//! Tingleff, *Methods for non-linear least squares problems*, 2004, section
-//! 3.2. Each step solves
+//! each step the damped subproblem's minimum in a box). The damping update
+//! is the one of Madsen, Nielsen & Tingleff, *Methods for non-linear least
+//! squares problems*, 2004, section 3.2. Each step solves
 //!
 //! ```text
 //! min_v' |J v' - (e + J v)|^2 + mu |v' - v|^2
@@ -37,6 +37,7 @@
 //! The iteration bound and the run's deadline are safety nets
 //! ([`Budget`]): each ends the descent with its own [`Stop`].
 
+use crate::box_least_squares::{self, unconstrained};
 use crate::budget::{Budget, Deadline, Exhausted};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -382,9 +383,9 @@ fn damped_system(
 }
 
 /// The problem of driving residuals `r(x)` (a closure; `None` where they
-/// cannot be evaluated) to zero in least squares, the steps projected onto
-/// an optional box, with the Jacobian `d r / d x` formed by `J`
-/// ([`CentralDifferences`] or [`Exact`]).
+/// cannot be evaluated) to zero in least squares, the steps solved in an
+/// optional box ([`box_least_squares::in_box`]), with the Jacobian
+/// `d r / d x` formed by `J` ([`CentralDifferences`] or [`Exact`]).
 pub struct Residuals<'a, F, J> {
     residuals: F,
     unknowns: usize,
@@ -424,10 +425,13 @@ impl<F: Fn(&[f64]) -> Option<Vec<f64>>, J: ResidualJacobian<F>> LeastSquares
         Ok(-self.jacobian.of(&self.residuals, x, self.bounds))
     }
 
+    /// The damped step in the box ([`box_least_squares::in_box`]), where
+    /// there is one.
     fn solve(&self, design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
-        let mut x = unconstrained(design, rhs)?;
-        project_into(self.bounds, &mut x);
-        Some(x)
+        match self.bounds {
+            Some(bounds) => box_least_squares::in_box(design, rhs, bounds),
+            None => unconstrained(design, rhs),
+        }
     }
 }
 
@@ -487,14 +491,6 @@ impl<F, G: Fn(&[f64]) -> DMatrix<f64>> ResidualJacobian<F> for Exact<G> {
     fn of(&self, _: &F, x: &[f64], _: Option<&[[f64; 2]]>) -> DMatrix<f64> {
         (self.0)(x)
     }
-}
-
-/// `argmin |design x - rhs|^2` by Householder QR (`design` has full column
-/// rank: its damping rows see to it).
-fn unconstrained(design: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<Vec<f64>> {
-    let qr = design.clone().qr();
-    let x = qr.r().solve_upper_triangular(&(qr.q().transpose() * rhs))?;
-    Some(x.iter().copied().collect())
 }
 
 /// `x` projected onto `bounds`, when there are bounds.

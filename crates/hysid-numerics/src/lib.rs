@@ -6,9 +6,11 @@
 //! | module | concept |
 //! |---|---|
 //! | [`affine_rk4`] | classical RK4 of affine flows in closed form, one matrix map per regime and step length |
+//! | [`box_least_squares`] | linear least squares, unconstrained and in a box (the bounded steps of Levenberg-Marquardt) |
 //! | [`budget`] | a run's [`Deadline`](budget::Deadline), the iteration [`Budget`](budget::Budget) of a loop |
 //! | [`least_squares`] | the one Levenberg-Marquardt, on exact or finite-difference Jacobians, under a problem's constraints |
 
 pub mod affine_rk4;
+pub mod box_least_squares;
 pub mod budget;
 pub mod least_squares;

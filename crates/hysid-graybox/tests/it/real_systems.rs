@@ -20,6 +20,7 @@ use hysid_graybox::simulate::{GrayBoxRun, run, segmented};
 use hysid_graybox::{CompiledModel, GrayBoxInitialState, GrayBoxModel, extends};
 use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
+use hysid_model::simulate::SimError;
 use proptest::prelude::*;
 use std::path::Path;
 
@@ -386,6 +387,46 @@ fn tank_segments_from_levels_above_the_tops_run() {
     let data = Dataset::siso(u, r.y.clone(), Some(TANK_TS)).unwrap();
     let c = CompiledModel::new(&shooting).unwrap();
     let y = segmented(&c, &shooting.values(), &[5.0], &data, 20, &|_| 0.0).unwrap();
+    assert!(y.iter().all(|v| v.is_finite()));
+}
+
+/// Without the file's resets on the overflows' exits, a level above its top
+/// leaves the overflow outside the invariant of the mode it enters. A free
+/// run, from the model's own initial state (here given above the lower
+/// top), stops there with the model's error; a multiple-shooting run, whose
+/// segments restart from measured levels that may lie above a trial top,
+/// follows the transition and goes on.
+#[test]
+fn only_a_free_run_stops_at_a_reset_outside_the_invariant() {
+    let mut m = load(TANKS);
+    for t in &mut m.transitions {
+        if t.guard.starts_with("net") {
+            t.reset.clear();
+        }
+    }
+    set(&mut m, "k1", 0.1);
+    let mut above = m.clone();
+    given(
+        &mut above,
+        &[("h1", 9.0), ("h2", 10.2)],
+        Some("lower_overflow"),
+    );
+    let c = CompiledModel::new(&above).unwrap();
+    let idle = Dataset::siso(vec![0.0; 200], vec![0.0; 200], Some(TANK_TS)).unwrap();
+    let error = run(&c, &above.values(), &idle).unwrap_err();
+    assert!(
+        matches!(error, SimError::ResetOutsideInvariant { .. }),
+        "{error}"
+    );
+
+    let mut truth = m.clone();
+    given(&mut truth, &[("h1", 5.0), ("h2", 5.0)], Some("filling"));
+    let u = pump(1001, 1);
+    let r = simulate(&truth, u.clone(), TANK_TS);
+    set(&mut m, "h2max", 0.98 * value(&truth, "h2max"));
+    let data = Dataset::siso(u, r.y.clone(), Some(TANK_TS)).unwrap();
+    let c = CompiledModel::new(&m).unwrap();
+    let y = segmented(&c, &m.values(), &[5.0], &data, 20, &|_| 0.0).unwrap();
     assert!(y.iter().all(|v| v.is_finite()));
 }
 
