@@ -288,8 +288,8 @@ pub struct Machine<'a> {
     /// ([`SimError::ResetOutsideInvariant`]): a fault of the model in a run
     /// from its own initial state. Off where every segment or sample
     /// restarts from measured states ([`segmented`], [`predict`]), which
-    /// may lie outside every invariant: such a state's transitions are
-    /// followed, its samples counted as not covered.
+    /// may lie outside every invariant: the transition is followed (and
+    /// where coverage is kept, such samples count as not covered).
     strict_resets: bool,
     pub(crate) steps: usize,
     pub(crate) events: usize,
