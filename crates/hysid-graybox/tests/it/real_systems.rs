@@ -364,30 +364,63 @@ fn tanks_visit_every_overflow_and_drain() {
     }
 }
 
+/// The record of `m` run from levels of 5 V (mode `filling`) on 1001
+/// samples of random pumping, with the run.
+fn own_record(m: &GrayBoxModel) -> (Dataset, GrayBoxRun) {
+    let mut truth = m.clone();
+    given(&mut truth, &[("h1", 5.0), ("h2", 5.0)], Some("filling"));
+    let u = pump(1001, 1);
+    let r = simulate(&truth, u.clone(), TANK_TS);
+    (Dataset::siso(u, r.y.clone(), Some(TANK_TS)).unwrap(), r)
+}
+
+/// `m`'s multiple-shooting run of `data` (segments of 20 samples, the
+/// upper level starting at 5 V) ends without error, every output finite.
+fn assert_segments_run(m: &GrayBoxModel, data: &Dataset) {
+    let c = CompiledModel::new(m).unwrap();
+    let y = segmented(&c, &m.values(), &[5.0], data, 20, &|_| 0.0).unwrap();
+    assert!(y.iter().all(|v| v.is_finite()));
+}
+
+/// `m` (with a wider upper outlet) run from the lower level 2 % above its
+/// top, overflowing, the upper tank draining into it with the pump off
+/// until the lower tank's net inflow turns negative and it leaves the
+/// overflow.
+fn run_down_from_above_the_lower_top(m: &GrayBoxModel) -> Result<GrayBoxRun, SimError> {
+    let mut above = m.clone();
+    set(&mut above, "k1", 0.1);
+    let h2 = 1.02 * value(&above, "h2max");
+    given(
+        &mut above,
+        &[("h1", 9.0), ("h2", h2)],
+        Some("lower_overflow"),
+    );
+    let c = CompiledModel::new(&above).unwrap();
+    let idle = Dataset::siso(vec![0.0; 200], vec![0.0; 200], Some(TANK_TS)).unwrap();
+    run(&c, &above.values(), &idle)
+}
+
 /// Multiple shooting starts segments from measured levels, which may lie
 /// above a trial parameter's top: on a record of the tanks overflowing,
 /// with both tops 2 % below the levels it reached, every segment runs
 /// (each overflow left by a reset onto the top, inside the invariant of
-/// the mode it enters) and every output is finite.
+/// the mode it enters) and every output is finite. A free run from a
+/// level above the top leaves the overflow onto the top likewise.
 #[test]
 fn tank_segments_from_levels_above_the_tops_run() {
-    let mut truth = load(TANKS);
+    let r = run_down_from_above_the_lower_top(&load(TANKS));
+    assert!(r.is_ok(), "{:?}", r.err());
+    let mut m = load(TANKS);
     for (n, v) in [("k", 0.04), ("k2", 0.04), ("p", 0.3)] {
-        set(&mut truth, n, v);
+        set(&mut m, n, v);
     }
-    let mut shooting = truth.clone();
-    given(&mut truth, &[("h1", 5.0), ("h2", 5.0)], Some("filling"));
-    let u = pump(1001, 1);
-    let r = simulate(&truth, u.clone(), TANK_TS);
+    let (data, r) = own_record(&m);
     let top = |s: usize| (0..r.y.len()).map(|k| r.x[2 * k + s]).fold(0.0, f64::max);
     let (h1, h2) = (top(0), top(1));
-    assert!(h1 >= value(&truth, "h1max") && h2 >= value(&truth, "h2max"));
-    set(&mut shooting, "h1max", 0.98 * h1);
-    set(&mut shooting, "h2max", 0.98 * h2);
-    let data = Dataset::siso(u, r.y.clone(), Some(TANK_TS)).unwrap();
-    let c = CompiledModel::new(&shooting).unwrap();
-    let y = segmented(&c, &shooting.values(), &[5.0], &data, 20, &|_| 0.0).unwrap();
-    assert!(y.iter().all(|v| v.is_finite()));
+    assert!(h1 >= value(&m, "h1max") && h2 >= value(&m, "h2max"));
+    set(&mut m, "h1max", 0.98 * h1);
+    set(&mut m, "h2max", 0.98 * h2);
+    assert_segments_run(&m, &data);
 }
 
 /// Without the file's resets on the overflows' exits, a level above its top
@@ -404,30 +437,16 @@ fn only_a_free_run_stops_at_a_reset_outside_the_invariant() {
             t.reset.clear();
         }
     }
-    set(&mut m, "k1", 0.1);
-    let mut above = m.clone();
-    given(
-        &mut above,
-        &[("h1", 9.0), ("h2", 10.2)],
-        Some("lower_overflow"),
-    );
-    let c = CompiledModel::new(&above).unwrap();
-    let idle = Dataset::siso(vec![0.0; 200], vec![0.0; 200], Some(TANK_TS)).unwrap();
-    let error = run(&c, &above.values(), &idle).unwrap_err();
+    let error = run_down_from_above_the_lower_top(&m).unwrap_err();
     assert!(
         matches!(error, SimError::ResetOutsideInvariant { .. }),
         "{error}"
     );
 
-    let mut truth = m.clone();
-    given(&mut truth, &[("h1", 5.0), ("h2", 5.0)], Some("filling"));
-    let u = pump(1001, 1);
-    let r = simulate(&truth, u.clone(), TANK_TS);
-    set(&mut m, "h2max", 0.98 * value(&truth, "h2max"));
-    let data = Dataset::siso(u, r.y.clone(), Some(TANK_TS)).unwrap();
-    let c = CompiledModel::new(&m).unwrap();
-    let y = segmented(&c, &m.values(), &[5.0], &data, 20, &|_| 0.0).unwrap();
-    assert!(y.iter().all(|v| v.is_finite()));
+    let (data, _) = own_record(&m);
+    let top = value(&m, "h2max");
+    set(&mut m, "h2max", 0.98 * top);
+    assert_segments_run(&m, &data);
 }
 
 /// The coupled drives with the parameters given by name.
