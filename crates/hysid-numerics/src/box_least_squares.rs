@@ -31,6 +31,17 @@ enum Side {
     Upper,
 }
 
+/// The side of the box `[lo, hi]` that `v` lies beyond; `Free` inside it.
+fn side_of(v: f64, [lo, hi]: [f64; 2]) -> Side {
+    if v < lo {
+        Side::Lower
+    } else if v > hi {
+        Side::Upper
+    } else {
+        Side::Free
+    }
+}
+
 /// `argmin |design x - rhs|^2` over `bounds[j][0] <= x_j <= bounds[j][1]`
 /// (`design` of full column rank, every `lo <= hi`; see the module doc).
 /// `None` when a solve is singular. After `3 n + 3` active-set changes
@@ -42,15 +53,7 @@ pub fn in_box(design: &DMatrix<f64>, rhs: &DVector<f64>, bounds: &[[f64; 2]]) ->
     let mut side: Vec<Side> = start
         .iter()
         .zip(bounds)
-        .map(|(&v, &[lo, hi])| {
-            if v < lo {
-                Side::Lower
-            } else if v > hi {
-                Side::Upper
-            } else {
-                Side::Free
-            }
-        })
+        .map(|(&v, &bound)| side_of(v, bound))
         .collect();
     if side.iter().all(|s| *s == Side::Free) {
         return Some(start);
@@ -107,12 +110,10 @@ fn advance_towards(
     let mut stop = None;
     for (&j, &target) in free.iter().zip(z) {
         let [lo, hi] = bounds[j];
-        let (bound, s) = if target < lo {
-            (lo, Side::Lower)
-        } else if target > hi {
-            (hi, Side::Upper)
-        } else {
-            continue;
+        let (bound, s) = match side_of(target, bounds[j]) {
+            Side::Free => continue,
+            Side::Lower => (lo, Side::Lower),
+            Side::Upper => (hi, Side::Upper),
         };
         let t = (x[j] - bound) / (x[j] - target);
         if t < alpha {
