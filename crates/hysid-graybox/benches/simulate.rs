@@ -1,17 +1,11 @@
-//! Simulation throughput of the mounting head written as a gray-box model
-//! against the hand-written mechanical simulator, in the same run, and of
-//! the positioning axis and cascaded tanks examples. Run with
-//! `cargo bench -p hysid-graybox --bench simulate`; the gray-box head also
-//! with its forward sensitivities.
-//!
-//! Data: the pick-and-place record, rows 0..5000 after decimating by 10
-//! (12.5 s at 400 Hz, 10 sub-steps per sample); parameters: the fitted
-//! head (`models/pick-and-place/head-fitted.json`). Output samples per
-//! second are 5000 divided by the time of one run.
+//! Simulation throughput of the positioning axis and cascaded tanks
+//! examples, on records of their own response. Run with
+//! `cargo bench -p hysid-graybox --bench simulate`. The mounting head
+//! against the mechanical simulator: `cargo bench -p hysid-physical
+//! --bench simulators`.
 
 use hysid_graybox::{CompiledModel, GrayBoxModel};
-use hysid_mechanical::MechanicalModel;
-use hysid_model::data::{DataSelection, Dataset, RowRange};
+use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use std::path::Path;
 
@@ -19,85 +13,13 @@ fn main() {
     divan::main();
 }
 
-fn root() -> &'static Path {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-}
-
-fn record() -> Dataset {
-    let sel = DataSelection {
-        decimate: 10,
-        rows: RowRange {
-            start: Some(0),
-            end: Some(5000),
-        },
-        ..DataSelection::default()
-    };
-    hysid_io::load(&root().join("models/pick-and-place/headdata_1v6.mat"), &sel).unwrap()
-}
-
-fn fitted() -> MechanicalModel {
-    let text =
-        std::fs::read_to_string(root().join("models/pick-and-place/head-fitted.json")).unwrap();
-    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    v.as_object_mut().unwrap().remove("kind");
-    serde_json::from_value(v).unwrap()
-}
-
 /// The gray-box model of the file at `path` (from the repository's root).
 fn read_gray_box(path: &str) -> GrayBoxModel {
-    let text = std::fs::read_to_string(root().join(path)).unwrap();
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
+    let text = std::fs::read_to_string(root.join(path)).unwrap();
     let mut table: toml::Table = text.parse().unwrap();
     table.remove("kind");
     toml::Value::Table(table).try_into().unwrap()
-}
-
-/// The gray-box head with the fitted head's parameters and initial rule.
-fn gray_box(m: &MechanicalModel) -> GrayBoxModel {
-    let mut g = read_gray_box("models/pick-and-place/head-graybox.toml");
-    for p in &mut g.parameters {
-        p.value = m.parameters[m.parameter_index(&p.name).unwrap()].value;
-    }
-    if let (
-        hysid_graybox::GrayBoxInitialState::Measured { velocity_tol, .. },
-        hysid_mechanical::MechanicalInitialState::Measured {
-            velocity_tol: tol, ..
-        },
-    ) = (&mut g.initial_state, &m.initial_state)
-    {
-        *velocity_tol = *tol;
-    }
-    g
-}
-
-#[divan::bench(sample_count = 200)]
-fn mechanical_head(bencher: divan::Bencher) {
-    let data = record();
-    let m = fitted();
-    let values = m.values();
-    bencher.bench(|| hysid_mechanical::simulate::run(&m, &values, &data).unwrap());
-}
-
-#[divan::bench(sample_count = 200)]
-fn gray_box_head(bencher: divan::Bencher) {
-    let data = record();
-    let g = gray_box(&fitted());
-    let c = CompiledModel::new(&g).unwrap();
-    let values = g.values();
-    bencher.bench(|| hysid_graybox::simulate::run(&c, &values, &data).unwrap());
-}
-
-/// The same run with the forward sensitivities in its 12 parameters (the
-/// exact Jacobian of one Levenberg-Marquardt step; central differences
-/// take 24 runs).
-#[divan::bench(sample_count = 100)]
-fn gray_box_head_sensitivities(bencher: divan::Bencher) {
-    let data = record();
-    let g = gray_box(&fitted());
-    let c = CompiledModel::new(&g).unwrap();
-    let values = g.values();
-    bencher.bench(|| {
-        hysid_graybox::simulate::run_with_sensitivities(&c, &values, &[], &data).unwrap()
-    });
 }
 
 /// The positioning axis (`models/examples/positioning-axis.toml`, its file
