@@ -623,11 +623,14 @@ mod tests {
         std::fs::read_to_string(format!("{root}/{path}")).unwrap()
     }
 
-    /// A mechanical model file (TOML, tagged `kind = "mechanical"`).
+    /// A mechanical model file (TOML, tagged `kind = "mechanical"`), read
+    /// into a `serde_json::Value` first, as model files are read, so that
+    /// these tests deserialize a model through one deserializer.
     fn parse(text: &str) -> MechanicalModel {
-        let mut table: toml::Table = text.parse().unwrap();
-        assert_eq!(table.remove("kind").unwrap().as_str(), Some("mechanical"));
-        let m: MechanicalModel = toml::Value::Table(table).try_into().unwrap();
+        let mut value: serde_json::Value = toml::from_str(text).unwrap();
+        let kind = value.as_object_mut().unwrap().remove("kind");
+        assert_eq!(kind.as_ref().and_then(|k| k.as_str()), Some("mechanical"));
+        let m: MechanicalModel = serde_json::from_value(value).unwrap();
         m.validate().unwrap();
         m
     }
@@ -728,8 +731,8 @@ mod tests {
             long.validate().unwrap_err().to_string(),
             crate::InvalidMechanical::NoRestMode(m.stops[1].name.clone()).to_string()
         );
-        let json = serde_json::to_string(&m).unwrap();
-        assert_eq!(serde_json::from_str::<MechanicalModel>(&json).unwrap(), m);
+        let json = serde_json::to_value(&m).unwrap();
+        assert_eq!(serde_json::from_value::<MechanicalModel>(json).unwrap(), m);
     }
 
     /// Without friction, contacts or stops reached, the simulator matches

@@ -1,6 +1,7 @@
 //! The ball on a moving table (`models/examples/ball-on-table.toml`):
 //! guards crossed in a direction, conditions and restitution resets.
 
+use crate::{from_toml, repository_file};
 use hysid_graybox::simulate::run;
 use hysid_graybox::{CompiledModel, GrayBoxInitialState, GrayBoxModel};
 use hysid_model::data::Dataset;
@@ -8,12 +9,10 @@ use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
 
 fn ball() -> GrayBoxModel {
-    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
-    let text =
-        std::fs::read_to_string(format!("{root}/models/examples/ball-on-table.toml")).unwrap();
-    let mut table: toml::Table = text.parse().unwrap();
-    assert_eq!(table.remove("kind").unwrap().as_str(), Some("gray_box"));
-    let m: GrayBoxModel = toml::Value::Table(table).try_into().unwrap();
+    let m: GrayBoxModel = from_toml(
+        &repository_file("models/examples/ball-on-table.toml"),
+        Some("gray_box"),
+    );
     m.validate().unwrap();
     m
 }

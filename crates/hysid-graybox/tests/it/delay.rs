@@ -1,6 +1,7 @@
 //! Input delays: the model sees an input `d = q ts + r` seconds late,
 //! switching inside the sample at `r`.
 
+use crate::from_toml;
 use hysid_graybox::simulate::run;
 use hysid_graybox::{CompiledModel, GrayBoxModel};
 use hysid_model::data::Dataset;
@@ -28,7 +29,7 @@ name = "only"
 flow = {{ x = "-a*x + b*u" }}
 "#
     );
-    let m: GrayBoxModel = toml::from_str(&text).unwrap();
+    let m: GrayBoxModel = from_toml(&text, None);
     m.validate().unwrap();
     m
 }

@@ -3,6 +3,7 @@
 //! simulator that runs `head.toml`: the same physics must give the same
 //! trajectory, for any parameters within the bounds and any input.
 
+use crate::{from_toml, repository_file};
 use hysid_graybox::simulate::run;
 use hysid_graybox::{CompiledModel, GrayBoxModel};
 use hysid_mechanical::MechanicalModel;
@@ -10,26 +11,14 @@ use hysid_model::data::Dataset;
 use hysid_model::excitation::Excitation;
 use proptest::prelude::*;
 
-fn repository_file(path: &str) -> String {
-    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
-    std::fs::read_to_string(format!("{root}/{path}")).unwrap()
-}
-
-/// A model file of kind `kind`, without its tag.
-fn untagged<T: serde::de::DeserializeOwned>(text: &str, kind: &str) -> T {
-    let mut table: toml::Table = text.parse().unwrap();
-    assert_eq!(table.remove("kind").unwrap().as_str(), Some(kind));
-    toml::Value::Table(table).try_into().unwrap()
-}
-
 fn models(z: &[f64]) -> (GrayBoxModel, MechanicalModel) {
-    let mut g: GrayBoxModel = untagged(
+    let mut g: GrayBoxModel = from_toml(
         &repository_file("models/pick-and-place/head-graybox.toml"),
-        "gray_box",
+        Some("gray_box"),
     );
-    let mut m: MechanicalModel = untagged(
+    let mut m: MechanicalModel = from_toml(
         &repository_file("models/pick-and-place/head.toml"),
-        "mechanical",
+        Some("mechanical"),
     );
     for (p, zi) in m.parameters.iter_mut().zip(z) {
         if !p.fixed {

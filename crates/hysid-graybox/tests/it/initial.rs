@@ -2,6 +2,7 @@
 //! (`steady`) and the measured rule through an affine output map (a
 //! sensor's gain and offset).
 
+use crate::from_toml;
 use hysid_graybox::simulate::{estimate, run, run_from};
 use hysid_graybox::{CompiledModel, GrayBoxModel, initial_states};
 use hysid_model::data::Dataset;
@@ -13,7 +14,7 @@ const TS: f64 = 0.05;
 
 /// A gray-box model from its TOML text (without `kind`).
 pub(crate) fn model(text: &str) -> GrayBoxModel {
-    let m: GrayBoxModel = toml::from_str(text).unwrap();
+    let m: GrayBoxModel = from_toml(text, None);
     m.validate().unwrap();
     m
 }
@@ -391,7 +392,7 @@ fn bad_rules_are_refused_when_read() {
         ),
     ];
     for (text, needle) in cases {
-        let m: GrayBoxModel = toml::from_str(&text).unwrap();
+        let m: GrayBoxModel = from_toml(&text, None);
         let e = m.validate().unwrap_err().to_string();
         assert!(e.contains(needle), "{e}");
     }

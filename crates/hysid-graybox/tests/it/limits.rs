@@ -10,6 +10,8 @@ use hysid_graybox::{CompiledModel, GrayBoxModel, InvalidGrayBox};
 use hysid_model::data::{Dataset, Signal};
 use hysid_model::simulate::SimulationOptions;
 
+use crate::from_toml;
+
 /// A model of the states `v0, v1, ..` (`v0` the output), the input `u`
 /// and the parameter `a`, with `definitions` and one mode `only` whose
 /// flows are `flows`, written as a TOML file is (without its `kind`).
@@ -34,7 +36,7 @@ fn model(flows: &[String], definitions: &[(String, String)], extra: &str) -> Gra
         .collect();
     text.push_str(&flows.join(", "));
     text.push_str(" }\n");
-    toml::from_str(&text).unwrap()
+    from_toml(&text, None)
 }
 
 /// `zz0 = "-a*v0 + u"` and `zz{i} = "zz{i-1} + 0"` up to `zz{n-1}`.
