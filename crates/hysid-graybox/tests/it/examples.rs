@@ -95,10 +95,7 @@ fn file(path: &str) -> (GrayBoxModel, Excitation) {
         ts: Some(field("ts")),
         inputs: 1,
     };
-    let mut value = resolved.value;
-    let kind = value.as_object_mut().unwrap().remove("kind").unwrap();
-    assert_eq!(kind.as_str(), Some("gray_box"));
-    let m: GrayBoxModel = serde_json::from_value(value).unwrap();
+    let m: GrayBoxModel = crate::from_value(resolved.value, Some("gray_box"));
     m.validate().unwrap();
     (m, ex)
 }

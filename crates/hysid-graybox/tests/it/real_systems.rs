@@ -32,9 +32,7 @@ const DRIVES: &str = "models/examples/coupled-drives.toml";
 
 fn load(path: &str) -> GrayBoxModel {
     let resolved = extends::read(Path::new(&format!("{ROOT}/{path}"))).unwrap();
-    let mut value = resolved.value;
-    value.as_object_mut().unwrap().remove("kind");
-    let m: GrayBoxModel = serde_json::from_value(value).unwrap();
+    let m: GrayBoxModel = crate::from_value(resolved.value, None);
     m.validate().unwrap();
     m
 }
