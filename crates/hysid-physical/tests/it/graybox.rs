@@ -154,9 +154,10 @@ fn two_mass_parameters_are_recovered() {
 /// The drive: torque gain, both viscous frictions, the shaft stiffness and
 /// the backlash recovered from 30 s of the load angle. Long (one to two
 /// minutes in the test profile): `cargo test -p hysid-physical --test it --
-/// --ignored` runs it.
+/// --ignored` runs it. It fails: the fit ends at a local minimum of the cost
+/// near the truth, `dl` 8 % low (docs/physical.md, "Recovery").
 #[test]
-#[ignore = "long recovery fit: cargo test -p hysid-physical --test it -- --ignored"]
+#[ignore = "long recovery fit, failing: the fit ends at a local minimum near the truth (docs/physical.md, Recovery)"]
 fn backlash_parameters_are_recovered() {
     let mut truth = load("backlash-drive.toml");
     for (n, v) in [
