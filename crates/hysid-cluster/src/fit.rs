@@ -14,14 +14,15 @@
 //!   and feature vectors, clustering, mode datasets and discard, weighted
 //!   least squares, reattribution (`procedure::run_with`);
 //! - `alternate_partition`: the alternation of
-//!   `hysid_estimation::regions::alternate` from the clustering's mode datasets (off by
-//!   default; `alternation` bounds its rounds);
+//!   `hysid_estimation::regions::alternate` from the clustering's mode datasets
+//!   (`alternation` bounds its rounds; 0: none);
 //! - `estimate_regions`: step 7, the regions of the modes
 //!   (`hysid_estimation::regions`);
 //! - `refit_on_regions`: step 7 continued, the mode datasets made
 //!   consistent with the regions and the parameters re-estimated;
 //! - `extend_to_all`: after a run on a clustering sample, every sample to
 //!   the mode of its region, and the parameters refitted on all of them;
+//!   `trimmed_on_all` then leaves out the mixed points;
 //! - `holes`: the part of the data box no region covers;
 //! - `modes_in_data_units`: step 8, the modes mapped back to data units.
 
@@ -30,6 +31,8 @@ use crate::procedure::{self, ModeFit};
 use crate::{ClusterError, ClusterOptions, Clustering, Init, Weights, kmeans, local};
 use hysid_core::backend::{Deadline, IdentifyError, RunContext};
 use hysid_core::options::OptionError;
+use hysid_core::stages::AUTO_TRIM;
+use hysid_estimation::pwarx::trim::trim;
 use hysid_estimation::pwarx::{PwarxData, PwarxFit};
 pub use hysid_estimation::regions::AlternationReport;
 use hysid_estimation::regions::{AlternationSettings, RegionFailure};
@@ -101,7 +104,8 @@ pub struct ClusterDiagnostics {
 /// run then reports `RunStatus::TimeBudget`. Its three steps (clustering,
 /// regions, region refit) advance `ctx.progress`. With more than
 /// `cluster_points` samples the steps before the region refit see the
-/// clustering sample (`clustering_sample`).
+/// clustering sample (`clustering_sample`), and the parameters are those of
+/// the trimmed re-estimation on every sample (`trimmed_on_all`).
 pub fn fit(
     o: &ClusterOptions,
     data: &PwarxData<'_>,
@@ -167,7 +171,7 @@ pub fn fit(
         alternation,
         labels: std::mem::take(&mut clustered.labels),
     };
-    Ok(PwarxFit {
+    let fit = PwarxFit {
         modes: modes_in_data_units(o, data, &work, clustered, regions.polyhedra),
         regions_complete: regions.complete,
         uncovered_fraction,
@@ -181,7 +185,29 @@ pub fn fit(
         refinement: None,
         trimming: None,
         diagnostics,
-    })
+    };
+    match sample {
+        Some(_) => trimmed_on_all(data, fit),
+        None => Ok(fit),
+    }
+}
+
+/// The cutoff of [`trimmed_on_all`], in robust standard deviations: that
+/// of the trimmed re-estimation under `--auto`.
+pub const SAMPLE_TRIM: f64 = AUTO_TRIM;
+
+/// After a run on a clustering sample: every mode estimated again on the
+/// samples its region holds, leaving out those whose residual exceeds
+/// [`SAMPLE_TRIM`] robust standard deviations ([`trim`], recorded in the
+/// model's `trimming`). The samples outside the clustering sample have no
+/// confidence weight (step 2), which is what keeps the mixed points near a
+/// boundary from pulling the clustered run's estimates; without it,
+/// ordinary least squares on every sample is pulled by them.
+fn trimmed_on_all(
+    data: &PwarxData<'_>,
+    fit: PwarxFit<ClusterDiagnostics>,
+) -> Result<PwarxFit<ClusterDiagnostics>, IdentifyError> {
+    trim(data, fit, Some(SAMPLE_TRIM))
 }
 
 /// The default `c`: `max(4(n+1), ceil(sqrt(N)/2))`, capped at `N/(2s)`, at

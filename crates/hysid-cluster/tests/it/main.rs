@@ -3,4 +3,5 @@
 mod priors;
 mod properties;
 mod reference;
+mod sample;
 mod steps;

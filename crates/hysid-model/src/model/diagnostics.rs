@@ -196,7 +196,7 @@ pub struct Diagnostics {
     /// back-end ran it (`refinement`).
     pub refinement: Option<Refinement>,
     /// The trimmed re-estimation of the mode parameters on their regions,
-    /// when the options asked for it (`trimming`).
+    /// when the options asked for it or the back-end ran it (`trimming`).
     pub trimming: Option<Trimming>,
     /// The back-end's own fields.
     pub method: BTreeMap<String, serde_json::Value>,
