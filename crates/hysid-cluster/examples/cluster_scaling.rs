@@ -1,6 +1,6 @@
 //! Cost of the `cluster` back-end on B1 (three-mode PWARX, na = nb = 1)
 //! from N = 10^3 to 10^7, with the time of each stage, for
-//! `docs/performance-cluster.md`. Above `cluster_points` samples (10^6 by
+//! `docs/performance-cluster.md`. Above `cluster_points` samples (10^5 by
 //! default) the stages before "end to end" run on the back-end's
 //! clustering sample (every `ceil(N / cluster_points)`-th sample), as the
 //! back-end does. The local datasets run in parallel (rayon;

@@ -145,9 +145,10 @@ hysid_core::backend_options! {
         /// "Alternation"); 0: none (the paper's procedure, preset=paper).
         alternation: usize = AUTO_ALTERNATION,
         /// With more samples than this, steps 1 to 7 run on every ceil(N / cluster_points)-th
-        /// sample and every sample then goes to the mode of its region (docs/cluster.md,
-        /// "Large records"); 0: every sample.
-        cluster_points: usize = 1_000_000,
+        /// sample, every sample then goes to the mode of its region and the parameters are
+        /// re-estimated on all of them, trimmed (docs/cluster.md, "Large records"); 0: every
+        /// sample (preset=paper: 1000000).
+        cluster_points: usize = 100_000,
         /// Weights of the per-mode least squares: capped (w_j relative to the mode's median
         /// confidence, capped at 1), confidence (HIT: w_j) or uniform.
         weights: Weights = Weights::Confidence,
@@ -250,7 +251,8 @@ impl PwarxMethod for Cluster {
     const NAME: &'static str = "cluster";
     const SUMMARY: &'static str = "Ferrari-Trecate clustering procedure (local LS, weighted K-means, WLS, MRLP regions): HIT, fixed";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
-    const PAPER: &'static [(&'static str, &'static str)] = &[("alternation", "0")];
+    const PAPER: &'static [(&'static str, &'static str)] =
+        &[("alternation", "0"), ("cluster_points", "1000000")];
     const SEARCH: &'static str = "c: the five largest of 4, 6, 8, 10, 14, 20, 40, 80, 160, 320 from n+2 to an eighth of the rows (and c = none, the automatic rule, when fewer fit), and the mode count from 1 (the affine model) to max_modes (5 unless the priors say) when the priors fix none; every candidate with alternation = 50 and trim = 3";
 
     /// The local dataset sizes of [`c_candidates`] times the ordinary mode
