@@ -3,5 +3,4 @@
 mod priors;
 mod properties;
 mod reference;
-mod sample;
 mod steps;
