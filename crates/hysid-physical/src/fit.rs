@@ -77,8 +77,7 @@ pub fn fit_model<M: Target>(
         ctx,
         evals: &evals,
     };
-    let nominal_z = map.coords(&map.base);
-    let nominal_cost = search.objective.mse(&nominal_z);
+    let (nominal_z, nominal_cost) = nominal_start(&search);
     let nominal = Nominal::descend(&search, nominal_z, nominal_cost, tols.resolved_noise());
     let kept = best_search(&search, &nominal)?;
     let (local, log) = (kept.local, kept.log);
@@ -140,6 +139,34 @@ pub fn fit_model<M: Target>(
         std_errors: sens.std_errors,
     };
     Ok((fitted, report))
+}
+
+/// The nominal point and its free-run cost: the model's parameter values
+/// and, for the initial states it estimates, their starting guesses or,
+/// where lower in cost, the states each record's warm-up outputs give at
+/// those values ([`crate::target::Simulator::warmup_states`]).
+fn nominal_start(search: &Search<'_>) -> (Vec<f64>, f64) {
+    let (map, records) = (search.objective.map, search.objective.records);
+    let guesses = map.coords(&map.base);
+    let cost = search.objective.mse(&guesses);
+    let parameters = &map.base[..map.parameters];
+    let warmup: Option<Vec<f64>> = records
+        .iter()
+        .map(|r| search.objective.model.warmup_states(parameters, r))
+        .collect::<Option<Vec<Vec<f64>>>>()
+        .map(|states| states.concat());
+    let Some(states) = warmup.filter(|s| s.len() == map.names.len() - map.parameters) else {
+        return (guesses, cost);
+    };
+    let mut values = map.base.clone();
+    values[map.parameters..].copy_from_slice(&states);
+    let z = map.coords(&values);
+    let warm = search.objective.mse(&z);
+    if warm < cost {
+        (z, warm)
+    } else {
+        (guesses, cost)
+    }
 }
 
 /// The nominal values' free-run cost must lie within this factor of the

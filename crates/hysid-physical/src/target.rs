@@ -38,6 +38,13 @@ pub trait Simulator: Sync {
     fn estimated_count(&self) -> usize {
         0
     }
+    /// The states of [`Target::estimated_states`] as the warm-up outputs of
+    /// `record` give them at the parameter values `parameters` (what
+    /// `validate` does on a record of its own); `None` where the model
+    /// estimates none or the estimate fails.
+    fn warmup_states(&self, _parameters: &[f64], _record: &Dataset) -> Option<Vec<f64>> {
+        None
+    }
     /// Whether [`Simulator::residual_jacobian`] gives the exact Jacobian.
     fn exact_jacobian(&self) -> bool {
         false
@@ -274,6 +281,13 @@ impl GrayBoxTarget {
 impl Simulator for GrayBoxTarget {
     fn estimated_count(&self) -> usize {
         self.compiled.estimates.len()
+    }
+
+    fn warmup_states(&self, parameters: &[f64], record: &Dataset) -> Option<Vec<f64>> {
+        if self.compiled.estimates.is_empty() {
+            return None;
+        }
+        hysid_graybox::simulate::estimate(&self.compiled, parameters, record).ok()
     }
 
     fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)> {

@@ -194,6 +194,30 @@ fn the_unknown_initial_state_is_fitted_as_a_nuisance_parameter() {
     }
 }
 
+/// The nominal point takes each record's unknown state from its warm-up,
+/// as `validate` does: on two noisy records of the cascade at the file's
+/// own values, each from an `x1` far from the rule's guess (0), the
+/// nominal cost is at the noise level, so the swarm is skipped (from the
+/// guess it is 0.13, 1300 times the noise variance).
+#[test]
+fn the_nominal_point_starts_from_the_warm_up_states() {
+    let text = cascade(false, "x2", ESTIMATE);
+    let truth = parse(&text);
+    let noise = 0.01;
+    let first = record(&truth, &[("x1", 2.4), ("x2", 0.3)], 200, 5, noise);
+    let second = record(&truth, &[("x1", -1.7), ("x2", 0.9)], 200, 6, noise);
+    let joined = Dataset::join(&[first, second]).unwrap();
+    let fitted = fit(&text, "warm", &joined, 5);
+    let d = &fitted.info.diagnostics.method;
+    let nominal = d["nominal_cost"].as_f64().unwrap();
+    assert!(nominal <= 1.5 * noise * noise, "nominal cost {nominal}");
+    assert!(d.contains_key("swarm_skipped"), "{d:?}");
+    for (name, want) in [("x1[1]", 2.4), ("x1[2]", -1.7)] {
+        let got = d["initial_states"][name].as_f64().unwrap();
+        assert!((got - want).abs() <= 0.05, "{name}: {got} against {want}");
+    }
+}
+
 /// Parameters and the unknown initial state fitted together on a
 /// noise-free record of the cascade: both recovered.
 #[test]
