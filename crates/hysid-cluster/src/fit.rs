@@ -192,8 +192,9 @@ pub fn fit(
     }
 }
 
-/// The cutoff of [`trimmed_on_all`], in robust standard deviations: that
-/// of the trimmed re-estimation under `--auto`.
+/// The cutoff, in robust standard deviations, of the trimmed
+/// re-estimation that ends a run on a clustering sample: that of the
+/// trimmed re-estimation under `--auto`.
 pub const SAMPLE_TRIM: f64 = AUTO_TRIM;
 
 /// After a run on a clustering sample: every mode estimated again on the
