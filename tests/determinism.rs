@@ -50,7 +50,7 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
             && m["priors"]
                 .as_array()
                 .is_some_and(|p| p.iter().any(|k| k == "modes"));
-        // bounded has no default error bound (noise std 0.01 here); milp
+        // bounded with an error bound of 3 noise std (0.01 here); milp
         // refuses a record this long unless allowed, and its branch and
         // bound is cut at a node limit (deterministic, unlike a time limit).
         exp.push_str(&format!(

@@ -45,7 +45,7 @@ fn classify(bencher: divan::Bencher, n: usize) {
         priors_origin: None,
     };
     let opts = Checked::new(BoundedOptions {
-        delta: Some(Delta::Value(0.1)),
+        delta: Delta::Value(0.1),
         ..Default::default()
     })
     .unwrap();

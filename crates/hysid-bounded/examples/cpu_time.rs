@@ -38,7 +38,7 @@ fn main() {
             priors_origin: None,
         };
         let opts = BoundedOptions {
-            delta: Some(Delta::Value(0.1)),
+            delta: Delta::Value(0.1),
             ..Default::default()
         };
         let settings = Settings::parse(&["delta=0.1"]).unwrap();

@@ -62,7 +62,7 @@ fn main() {
         // Classification accuracy on the identification record (infeasible
         // rows count as wrong).
         let opts = hysid_bounded::BoundedOptions {
-            delta: Some(hysid_bounded::Delta::Value(delta)),
+            delta: hysid_bounded::Delta::Value(delta),
             ..Default::default()
         };
         let cl =

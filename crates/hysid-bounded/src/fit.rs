@@ -218,7 +218,7 @@ fn groups(labels: &[usize], modes: usize) -> Vec<Vec<usize>> {
 /// The error bound: the given delta, or with `auto` the noise bound of
 /// [`noise::auto_delta`] on the ordinary samples.
 pub fn error_bound(options: &BoundedOptions, reg: &Regressors) -> f64 {
-    match options.delta.expect("delta is required by CheckOptions") {
+    match options.delta {
         Delta::Value(d) => d,
         Delta::Auto(_) => noise::auto_delta(reg),
     }
@@ -366,7 +366,7 @@ fn diagnostics(
     }
     BoundedDiagnostics {
         delta,
-        delta_auto: matches!(options.delta, Some(Delta::Auto(_))),
+        delta_auto: matches!(options.delta, Delta::Auto(_)),
         modes_found: c.thetas.len(),
         greedy_modes: c.greedy_modes,
         ordinary_samples: (data.stops() > 0).then_some(classified.samples.len()),

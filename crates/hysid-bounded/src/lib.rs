@@ -177,12 +177,11 @@ mod tests {
                 .unwrap()
                 .resolve::<BoundedOptions>("bounded")
         };
-        assert_eq!(r(&["delta=0.1"]).unwrap().delta, Some(Delta::Value(0.1)));
-        assert_eq!(r(&["delta=1"]).unwrap().delta, Some(Delta::Value(1.0)));
-        assert_eq!(
-            r(&["delta=auto"]).unwrap().delta,
-            Some(Delta::Auto(AutoKeyword::Auto))
-        );
+        assert_eq!(r(&["delta=0.1"]).unwrap().delta, Delta::Value(0.1));
+        assert_eq!(r(&["delta=1"]).unwrap().delta, Delta::Value(1.0));
+        let auto = Delta::Auto(AutoKeyword::Auto);
+        assert_eq!(r(&["delta=auto"]).unwrap().delta, auto);
+        assert_eq!(r(&[]).unwrap().delta, auto);
         let e = r(&["delta=foo"]).unwrap_err().to_string();
         assert!(e.contains("delta=foo") && e.contains("float|auto"), "{e}");
         assert_eq!(r(&["refit=ls"]).unwrap().refit, Refit::Ls);
@@ -315,10 +314,6 @@ mod tests {
     #[test]
     fn refuses_bad_options_and_priors() {
         let g = hysid_testkit::b1(100, 4.0, hysid_testkit::Noise::Uniform(0.1), 4);
-        let e = run(&g.data, &Priors::default(), &[], 1)
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("delta"), "{e}");
         assert!(run(&g.data, &Priors::default(), &["delta=-1"], 1).is_err());
         assert!(run(&g.data, &Priors::default(), &["delta=0.1", "beta=1.5"], 1).is_err());
         assert!(run(&g.data, &Priors::default(), &["delta=0.1", "cycles=0"], 1).is_err());
@@ -366,16 +361,8 @@ mod tests {
     }
 
     #[test]
-    fn missing_and_bad_options_are_option_errors() {
+    fn bad_options_are_option_errors() {
         let g = hysid_testkit::b1(100, 4.0, hysid_testkit::Noise::Uniform(0.1), 4);
-        let e = run(&g.data, &Priors::default(), &[], 1).unwrap_err();
-        let IdentifyError::Options(o) = e else {
-            panic!("{e}")
-        };
-        assert_eq!(
-            o.render("--set"),
-            "method 'bounded' needs an error bound: --set delta=<bound in output units> or --set delta=auto"
-        );
         for (set, want) in [
             (
                 "delta=0",
@@ -400,6 +387,18 @@ mod tests {
             };
             assert_eq!(o.render("--set"), want);
         }
+    }
+
+    /// Without `delta` the bound is `auto`'s, and the model says so.
+    #[test]
+    fn the_error_bound_is_auto_by_default() {
+        let g = hysid_testkit::b1(300, 4.0, hysid_testkit::Noise::Uniform(0.1), 2);
+        let given = run(&g.data, &Priors::default(), &["delta=auto"], 1).unwrap();
+        let default = run(&g.data, &Priors::default(), &[], 1).unwrap();
+        let d = &pwarx(&default).info.diagnostics.method;
+        assert_eq!(d["delta_auto"], true);
+        assert_eq!(d["delta"], pwarx(&given).info.diagnostics.method["delta"]);
+        assert_eq!(pwarx(&default).info.options["delta"], "auto");
     }
 
     #[test]

@@ -47,9 +47,9 @@ hysid_core::backend_options! {
     /// Options of the `bounded` back-end.
     pub struct BoundedOptions {
         /// Bound delta on the identification error |y - phi' theta|, in output
-        /// units; required. `auto`: 3 times the median noise standard deviation
-        /// of local affine fits (docs/bounded.md). Larger delta, fewer modes.
-        delta: Option<Delta> = None,
+        /// units, or `auto`: 3 times the median noise standard deviation of local
+        /// affine fits (docs/bounded.md). Larger delta, fewer modes.
+        delta: Delta = Delta::Auto(AutoKeyword::Auto),
         /// Thermal relaxation cycles per MAX FS problem (each visits all remaining
         /// samples once in a random order).
         cycles: usize = 100,
@@ -85,21 +85,13 @@ hysid_core::backend_options! {
 impl CheckOptions for BoundedOptions {
     fn check(&self) -> Result<(), OptionError> {
         match self.delta {
-            None => {
-                return Err(OptionError::Missing {
-                    key: "delta",
-                    method: NAME,
-                    what: "an error bound",
-                    forms: &["<bound in output units>", "auto"],
-                });
-            }
-            Some(Delta::Value(d)) => check_float(
+            Delta::Value(d) => check_float(
                 "delta",
                 d,
                 |d| d > 0.0,
                 "must be a finite number > 0 (or auto)",
             )?,
-            Some(Delta::Auto(_)) => {}
+            Delta::Auto(_) => {}
         }
         if !(1..=100_000).contains(&self.cycles) {
             return Err(OptionError::invalid(

@@ -20,7 +20,7 @@ fn b1_three_modes_ninety_percent() {
             priors_origin: None,
         };
         let opts = BoundedOptions {
-            delta: Some(Delta::Value(0.1)),
+            delta: Delta::Value(0.1),
             ..Default::default()
         };
         let (c, _, _) = Bounded::classify(&problem, &opts, &RunContext::quiet(seed)).unwrap();

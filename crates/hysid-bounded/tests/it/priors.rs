@@ -174,7 +174,7 @@ proptest! {
             priors_origin: None,
         };
         let opts = BoundedOptions {
-            delta: Some(Delta::Value(0.04)),
+            delta: Delta::Value(0.04),
             ..Default::default()
         };
         let cl = Bounded::classify_all(&problem, &opts, &RunContext::quiet(seed)).unwrap();
@@ -278,7 +278,7 @@ fn saturation_priors_beat_no_priors_on_the_stopped_head() {
     let val = hysid_testkit::stopped_head(1000, 60, 0.02, 101);
     let spec = RegressorSpec::new(2, 1, 1);
     let opts = BoundedOptions {
-        delta: Some(Delta::Value(0.08)),
+        delta: Delta::Value(0.08),
         ..Default::default()
     };
     let mut scores = Vec::new();

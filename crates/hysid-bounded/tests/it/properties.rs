@@ -24,7 +24,7 @@ fn classify(data: &Dataset, delta: f64, seed: u64) -> hysid_bounded::procedure::
         priors_origin: None,
     };
     let opts = BoundedOptions {
-        delta: Some(Delta::Value(delta)),
+        delta: Delta::Value(delta),
         ..Default::default()
     };
     Bounded::classify(&problem, &opts, &RunContext::quiet(seed))
