@@ -673,40 +673,51 @@ fn choose(
 /// from one otherwise: the run's seed,
 /// then the next ones ([`RunContext::start_seeds`]), in parallel. A refit is
 /// a new fit on more rows and may end in another local minimum than the
-/// fit that was scored; of the starts, the fit that simulates the
-/// identification rows best is kept (the first among equals), and each
-/// start is recorded. When every start fails, the first start's error. No
-/// start but the first begins after the deadline.
+/// fit that was scored, so a refined candidate has one start more: its
+/// own unrefined fit on the fit rows (of the last split), refined on all
+/// the identification rows, which continues from the model the selection
+/// rows scored. Of the starts, the fit that simulates the identification
+/// rows best is kept (the first among equals), and each start is
+/// recorded. When every start fails, the first start's error. No start
+/// but the first begins after the deadline.
 fn refit(
     request: &Request<'_>,
     trial: &Trial<'_>,
     ctx: &RunContext<'_>,
 ) -> Result<(Model, Vec<RefitStart>), IdentifyError> {
-    let starts = if trial.seeded(request, request.data)? {
+    let seeds = if trial.seeded(request, request.data)? {
         request.plan.refit_starts.max(1)
     } else {
         1
     };
-    let runs: Vec<(u64, Option<Result<Model, IdentifyError>>)> = ctx
-        .start_seeds(starts)
+    let mut starts: Vec<(u64, Option<&Model>)> = ctx
+        .start_seeds(seeds)
+        .into_iter()
+        .map(|seed| (seed, None))
+        .collect();
+    if let Some(candidate) = trial.start.last() {
+        starts.push((ctx.seed, Some(candidate)));
+    }
+    let runs: Vec<_> = starts
         .into_par_iter()
         .enumerate()
-        .map(|(k, seed)| {
+        .map(|(k, (seed, from))| {
             if !ctx.deadline.admits(k) {
-                return (seed, None);
+                return (seed, from.is_some(), None);
             }
             let start = RunContext {
                 seed,
                 progress: &NoProgress,
                 deadline: ctx.deadline.clone(),
             };
-            (seed, Some(fit(request, trial, request.data, None, &start)))
+            let run = fit(request, trial, request.data, from, &start);
+            (seed, from.is_some(), Some(run))
         })
         .collect();
     let mut record = Vec::with_capacity(runs.len());
     let mut kept: Option<(usize, Model, f64)> = None;
     let mut first_error = None;
-    for (seed, run) in runs {
+    for (seed, from_candidate, run) in runs {
         let Some(run) = run else { continue };
         let (fit_sim, error) = match run {
             Ok(model) => {
@@ -725,6 +736,7 @@ fn refit(
         };
         record.push(RefitStart {
             seed,
+            from_candidate,
             fit_sim,
             kept: false,
             error,
@@ -1290,9 +1302,11 @@ mod tests {
     /// A back-end that fits the affine record exactly on fewer than 300
     /// rows and returns a model of the wrong gain on 300: a refit that
     /// lands elsewhere than the fits that were scored. When `seeded`, only
-    /// the start from seed 0 lands there.
+    /// the start from seed 0 lands there. When `refines`, it has a
+    /// refinement stage that keeps the fit it is given.
     struct WorseOnMoreRows {
         seeded: bool,
+        refines: bool,
     }
 
     impl Backend for WorseOnMoreRows {
@@ -1324,10 +1338,19 @@ mod tests {
             Ok(self.seeded)
         }
         fn has_stages(&self) -> bool {
-            false
+            self.refines
         }
         fn search_space(&self, _: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
             Ok(SearchSpace::default())
+        }
+        fn refine_fitted(
+            &self,
+            _: &Problem<'_>,
+            fitted: Model,
+            _: &Settings,
+            _: &RunContext<'_>,
+        ) -> Option<Result<Model, IdentifyError>> {
+            self.refines.then_some(Ok(fitted))
         }
         fn run(
             &self,
@@ -1449,7 +1472,13 @@ mod tests {
     #[test]
     fn a_refit_below_the_affine_model_is_not_written() {
         let data = affine_record(300);
-        let request = first_order_request(&WorseOnMoreRows { seeded: false }, &data);
+        let request = first_order_request(
+            &WorseOnMoreRows {
+                seeded: false,
+                refines: false,
+            },
+            &data,
+        );
         let model = select(&request, &RunContext::quiet(0)).unwrap();
         let s = model.info().selection.clone().unwrap();
         // Both candidates are exact on the selection rows; the back-end's
@@ -1466,7 +1495,10 @@ mod tests {
     #[test]
     fn a_seeded_refit_keeps_the_start_that_simulates_best() {
         let data = affine_record(300);
-        let backend = WorseOnMoreRows { seeded: true };
+        let backend = WorseOnMoreRows {
+            seeded: true,
+            refines: false,
+        };
         let mut request = first_order_request(&backend, &data);
         let model = select(&request, &RunContext::quiet(0)).unwrap();
         let s = model.info().selection.clone().unwrap();
@@ -1490,5 +1522,29 @@ mod tests {
         let s = model.info().selection.clone().unwrap();
         assert_eq!(s.refit.len(), 1);
         assert_eq!(s.candidates[s.chosen].method, "arx");
+    }
+
+    #[test]
+    fn a_refined_choice_is_also_refitted_from_its_own_fit() {
+        let data = affine_record(300);
+        let backend = WorseOnMoreRows {
+            seeded: false,
+            refines: true,
+        };
+        let request = first_order_request(&backend, &data);
+        let model = select(&request, &RunContext::quiet(0)).unwrap();
+        let s = model.info().selection.clone().unwrap();
+        // A fresh fit on all the rows lands on the wrong gain; the refined
+        // candidate's own fit on the fit rows, refined on all of them,
+        // keeps the gain the selection rows scored, and is written.
+        let chosen = &s.candidates[s.chosen];
+        assert_eq!(chosen.method, "worse_on_more_rows");
+        assert_eq!(chosen.values.last().unwrap().1, "sim");
+        let starts: Vec<(bool, bool)> =
+            s.refit.iter().map(|r| (r.from_candidate, r.kept)).collect();
+        assert_eq!(starts, [(false, false), (true, true)]);
+        assert!(s.refit[0].fit_sim.unwrap() < 99.0);
+        let (v, _, _) = validate(&model, &data, 10).unwrap();
+        assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
     }
 }

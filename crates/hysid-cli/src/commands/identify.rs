@@ -281,9 +281,14 @@ fn report_selection(method: &str, s: &Selection) {
                     .map_or_else(|| "failed".into(), |f| format!("{f:.2}"))
             })
             .collect();
+        let last = if s.refit.last().is_some_and(|r| r.from_candidate) {
+            ", the last from the candidate's fit on the fit rows"
+        } else {
+            ""
+        };
         if let Some(kept) = s.refit.iter().position(|r| r.kept) {
             eprintln!(
-                "hysid: --auto: refitted on all the identification rows from {} starts (FIT {} %); start {} written",
+                "hysid: --auto: refitted on all the identification rows from {} starts{last} (FIT {} %); start {} written",
                 s.refit.len(),
                 fits.join(" / "),
                 kept + 1

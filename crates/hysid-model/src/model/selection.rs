@@ -130,6 +130,10 @@ pub struct RefinementChoice {
 pub struct RefitStart {
     /// Seed of the start: the run's seed for the first.
     pub seed: u64,
+    /// Whether the start refined the chosen candidate's own fit on the fit
+    /// rows instead of fitting afresh.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub from_candidate: bool,
     /// Free-run simulation FIT of the start's model on all the
     /// identification rows, percent; `None` when the fit failed or its
     /// simulation is not finite.
