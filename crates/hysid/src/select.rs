@@ -15,7 +15,8 @@
 //! standard error of the best, the one with the fewest modes is chosen
 //! ([`parsimony`]). The choice is then fitted again on all the
 //! identification rows, from several seeds when the seed can change the
-//! back-end's fit, keeping the start that simulates them best (the next
+//! back-end's fit and, for a refined choice, from its own fit on the fit
+//! rows, keeping the start that simulates them best (the next
 //! candidate when that refit simulates them below the affine reference),
 //! and the model file records every candidate, its score, the choice and
 //! the refit's starts ([`Selection`]).
