@@ -28,6 +28,13 @@
 //! residuals of the new parameters give the next round's samples, from the
 //! back-end's parameters on, until the samples kept no longer change, for
 //! at most [`MAX_ROUNDS`] rounds. The regions are not changed.
+//!
+//! A fit whose trimming converged at the same cutoff is returned as it
+//! came: its parameters are the rule's fixed point (their inliers are the
+//! samples they were estimated on), so another pass would estimate them
+//! again bit for bit and only lose the record of its rounds. A back-end
+//! that trims as a step of its own (`cluster` on a clustering sample)
+//! is thus not trimmed twice.
 
 use crate::constrained::{self, Parametrisation};
 use crate::pwarx::assemble::PwarxFit;
@@ -53,6 +60,13 @@ pub fn trim<D>(
     let Some(cutoff) = cutoff else {
         return Ok(fit);
     };
+    if fit
+        .trimming
+        .as_ref()
+        .is_some_and(|t| t.cutoff == cutoff && t.status == TrimmingStatus::Converged)
+    {
+        return Ok(fit);
+    }
     let par = Parametrisation::from_priors(data.priors(), &data.spec, fit.modes.len())
         .map_err(|e| data.prior_error(e))?;
     let reg = data.ordinary_regressors();
@@ -256,6 +270,39 @@ mod tests {
             trimmed.modes[0].region,
             shifted_fit(truth()).modes[0].region
         );
+    }
+
+    /// A converged trimming is the rule's fixed point: trimmed again at
+    /// the same cutoff, its parameters come back bit for bit in one round.
+    /// So a fit that carries that record is returned as it came, its
+    /// rounds kept; at another cutoff the stage runs again.
+    #[test]
+    fn a_converged_trimming_is_not_repeated() {
+        // A tight cutoff on uniform noise: the samples kept shrink over
+        // several rounds before they settle.
+        let data = record(2000, 0.02, 4);
+        let priors = Priors::default();
+        let prepared = prepared(&data, &priors);
+        let trimmed = trim(&prepared, shifted_fit(truth()), Some(1.0)).unwrap();
+        let first = trimmed.trimming.clone().unwrap();
+        assert_eq!(first.status, TrimmingStatus::Converged, "{first:?}");
+        assert!(first.rounds >= 2, "{first:?}");
+        let thetas = |f: &PwarxFit<()>| -> Vec<Vec<f64>> {
+            f.modes.iter().map(|m| m.theta.clone()).collect()
+        };
+
+        let mut unrecorded = trimmed.clone();
+        unrecorded.trimming = None;
+        let rerun = trim(&prepared, unrecorded, Some(1.0)).unwrap();
+        assert_eq!(thetas(&rerun), thetas(&trimmed));
+        assert_eq!(rerun.trimming.as_ref().unwrap().rounds, 1);
+
+        let again = trim(&prepared, trimmed.clone(), Some(1.0)).unwrap();
+        assert_eq!(thetas(&again), thetas(&trimmed));
+        assert_eq!(again.trimming, Some(first));
+
+        let other = trim(&prepared, trimmed, Some(3.0)).unwrap();
+        assert_eq!(other.trimming.unwrap().cutoff, 3.0);
     }
 
     /// A noise-free record keeps every sample its region's mode generated:
