@@ -1001,6 +1001,46 @@ fn malformed_experiment_files() {
             ),
             vec!["rows.toml", "150..0"],
         ),
+        // What the back-end would refuse is refused before anything runs.
+        (
+            "vary.toml",
+            format!(
+                "title = \"x\"\n{data}[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"naa\"\nvalues = [1, 2]\n"
+            ),
+            vec!["vary.toml", "[[sweep]] 's'", "vary naa", "no such option"],
+        ),
+        (
+            "grid.toml",
+            format!(
+                "title = \"x\"\n{data}[[sweep]]\nname = \"s\"\nmethod = \"cluster\"\ngrid = {{ c = [20, \"x\"] }}\n"
+            ),
+            vec!["grid.toml", "[[sweep]] 's'", "grid c=x"],
+        ),
+        (
+            "set.toml",
+            format!("title = \"x\"\n{data}{run}set = {{ ridgee = 0.0 }}\n"),
+            vec!["set.toml", "[[run]] 'a'", "set ridgee", "no such option"],
+        ),
+        (
+            "value.toml",
+            format!(
+                "title = \"x\"\n{data}{}set = {{ c = \"abc\" }}\n",
+                run.replace("arx", "cluster")
+            ),
+            vec!["value.toml", "[[run]] 'a'", "set c=abc"],
+        ),
+        (
+            "modes.toml",
+            format!("title = \"x\"\n{data}{run}modes = 0\n"),
+            vec!["modes.toml", "[[run]] 'a'", "modes"],
+        ),
+        (
+            "select-records.toml",
+            format!(
+                "title = \"x\"\n{data}select_records = 2\n[[data.records]]\nfile = \"data.csv\"\nidentification = \"0..150\"\n{run}auto = true\n"
+            ),
+            vec!["[data] select_records = 2"],
+        ),
     ];
     for (name, text, needles) in &cases {
         let p = write(d, name, text);

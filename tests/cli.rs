@@ -955,6 +955,30 @@ fn auto_selection_rows_are_checked() {
         args.extend(extra);
         bad(&args, &[needle], &out);
     }
+    // Every candidate's options are checked before any is fitted: a grid
+    // key the back-end lacks, a value it refuses, a given option it lacks.
+    for (extra, needle) in [
+        (
+            vec!["--grid", "cc=1,2"],
+            "--grid cc: method 'arx' has no such option",
+        ),
+        (vec!["--grid", "ridge=1,x"], "--grid ridge=x"),
+        (vec!["--grid", "modes=0,2"], "--grid modes=0"),
+        (
+            vec!["--set", "ridgee=1"],
+            "--set ridgee: method 'arx' has no such option",
+        ),
+    ] {
+        let mut args = base.to_vec();
+        args.extend(extra);
+        bad(&args, &[needle], &out);
+    }
+    // Selection rows the user did not give are named by where they come from.
+    bad(
+        &[base.to_vec(), vec!["--rows", "0..30"]].concat(),
+        &["--auto: the default selection rows", "--select-rows"],
+        &out,
+    );
     // --grid and --refit-starts without --auto are usage errors.
     for extra in [["--grid", "na=1"], ["--refit-starts", "2"]] {
         let mut args = vec!["identify", s(&data), "-m", "arx", "-o", s(&out)];
@@ -972,14 +996,78 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
     args.extend(rows);
     let err = one_line_error(&hysid(&args), 2).unwrap();
     assert!(
-        err.contains("--grid bogus: not an option of 'arx' (options: ridge"),
+        err.contains("--grid bogus: method 'arx' has no such option (options: ridge"),
         "{err}"
     );
+    assert!(err.contains("preset; or modes, na, nb)"), "{err}");
+    // A value the back-end refuses, or a count that is not one, is refused
+    // before any point runs, naming the flag.
+    for (grid, needle) in [
+        ("ridge=0,x", "--grid ridge=x"),
+        ("na=1,-2", "--grid na=-2: not a count"),
+    ] {
+        let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", grid];
+        args.extend(rows);
+        let err = one_line_error(&hysid(&args), 2).unwrap();
+        assert!(err.contains(needle), "{grid}: {err}");
+    }
     // cluster without a mode count fails at every point: exit code 1.
     let mut args = vec!["sweep", s(&data), "-m", "cluster", "--grid", "c=20,40"];
     args.extend(rows);
     let err = one_line_error(&hysid(&args), 1).unwrap();
     assert!(err.contains("every point of the sweep failed"), "{err}");
+}
+
+/// An output file that is one of the command's inputs is refused before
+/// anything runs, and the input is left as it was; a data file given where
+/// the model file goes is named as such.
+#[test]
+fn an_input_is_never_overwritten() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let model = dir.path().join("true.json");
+    let before = std::fs::read(&data).unwrap();
+    for args in [
+        vec!["identify", s(&data), "-m", "arx", "-o", s(&data)],
+        vec!["simulate", s(&model), "--data", s(&data), "-o", s(&data)],
+        vec!["validate", s(&model), s(&data), "--plot", s(&data)],
+    ] {
+        let err = one_line_error(&hysid(&args), 2).unwrap();
+        assert!(
+            err.contains("is an input of this command"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(std::fs::read(&data).unwrap(), before, "{args:?}");
+    }
+    let model_before = std::fs::read(&model).unwrap();
+    let err = one_line_error(
+        &hysid(&["simulate", s(&model), "--data", s(&data), "-o", s(&model)]),
+        2,
+    )
+    .unwrap();
+    assert!(err.contains("is an input"), "{err}");
+    assert_eq!(std::fs::read(&model).unwrap(), model_before);
+    let err = one_line_error(&hysid(&["validate", s(&data), s(&data)]), 2).unwrap();
+    assert!(
+        err.contains("a data file (.csv) where the model file"),
+        "{err}"
+    );
+    // Rows that start with a hyphen are refused as rows, not read as a flag.
+    let out = dir.path().join("m.json");
+    bad(
+        &[
+            "identify",
+            s(&data),
+            "-m",
+            "arx",
+            "--rows",
+            "-5..10",
+            "-o",
+            s(&out),
+        ],
+        &["--rows"],
+        &out,
+    );
 }
 
 /// `--max-modes` is the prior `max_modes`: cluster chooses the count.

@@ -133,7 +133,10 @@ impl From<hysid::select::SelectError> for CliError {
                 Self::input(format!("--select-records {records}: {reason}"))
             }
             SelectError::Candidate(c) => {
-                Self::input(format!("--grid {}={}: not a count", c.key, c.value))
+                Self::input(format!("--grid {}={}: {}", c.key, c.value, c.reason))
+            }
+            SelectError::Option { error, from_grid } => {
+                Self::input(error.render(if from_grid { "--grid" } else { "--set" }))
             }
             e @ SelectError::NoCandidate { .. } => Self::failure(format!("--auto: {e}")),
         }

@@ -14,7 +14,8 @@ pub struct DataArgs {
     ///
     /// Either bound may be left out. With several data files: once for
     /// every file, or once per file in their order.
-    #[arg(long)]
+    // Hyphen values are taken, so `-5..10` is refused as rows, not read as a flag.
+    #[arg(long, allow_hyphen_values = true)]
     pub rows: Vec<RowRange>,
 }
 

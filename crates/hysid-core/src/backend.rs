@@ -9,7 +9,7 @@
 
 use crate::model::Model;
 use crate::options::{
-    BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, Settings, preset_spec,
+    BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, PRESET, Settings, preset_spec,
 };
 use crate::priors::{PriorError, PriorKind, Priors};
 use crate::search::SearchSpace;
@@ -382,6 +382,12 @@ pub trait Backend: Send + Sync {
     fn has_stages(&self) -> bool;
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
+    /// Checks `settings` as [`Backend::run`] would (keys, values, the
+    /// preset and the checks across options) without touching any data.
+    /// The default accepts every setting: a back-end that checks in `run`.
+    fn check_settings(&self, _settings: &Settings) -> Result<(), OptionError> {
+        Ok(())
+    }
     /// Resolves options, checks priors, identifies, records provenance.
     fn run(
         &self,
@@ -445,6 +451,9 @@ impl<T: Identifier> Backend for T {
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)
     }
+    fn check_settings(&self, settings: &Settings) -> Result<(), OptionError> {
+        checked_settings::<T>(settings).map(|_| ())
+    }
     fn run(
         &self,
         problem: &Problem<'_>,
@@ -483,12 +492,31 @@ fn checked_options<T: Identifier>(
     problem: &Problem<'_>,
     settings: &Settings,
 ) -> Result<Checked<T::Options>, IdentifyError> {
-    let settings = settings.with_preset(T::PAPER)?;
-    let options = Checked::new(settings.resolve::<T::Options>(T::NAME)?)?;
+    let options = checked_settings::<T>(settings)?;
     problem
         .priors
         .ensure_honoured(T::NAME, T::HONOURS, problem.priors_origin)?;
     Ok(options)
+}
+
+/// `settings` with their preset written out, resolved into `T`'s checked
+/// options.
+fn checked_settings<T: Identifier>(
+    settings: &Settings,
+) -> Result<Checked<T::Options>, OptionError> {
+    let settings = settings.with_preset(T::PAPER)?;
+    let options = settings
+        .resolve::<T::Options>(T::NAME)
+        .map_err(|e| match e {
+            // `preset` is taken above; the list names it with the others.
+            OptionError::Unknown { key, method, known } => OptionError::Unknown {
+                key,
+                method,
+                known: format!("{known}, {PRESET}"),
+            },
+            other => other,
+        })?;
+    Checked::new(options)
 }
 
 /// `model` with its provenance: the method, options, seed and names.

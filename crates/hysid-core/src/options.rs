@@ -174,6 +174,15 @@ impl OptionError {
         }
     }
 
+    /// The option the error is about, where it names one.
+    pub fn key(&self) -> Option<&str> {
+        match self {
+            Self::Syntax(_) => None,
+            Self::Duplicate(key) | Self::Unknown { key, .. } | Self::Value { key, .. } => Some(key),
+            Self::Missing { key, .. } | Self::Invalid { key, .. } => Some(key),
+        }
+    }
+
     /// The message with `prefix` naming where options come from: `option`
     /// in libraries, `--set` on the command line.
     pub fn render(&self, prefix: &str) -> String {

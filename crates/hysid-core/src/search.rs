@@ -140,29 +140,41 @@ pub struct Setup {
 
 /// Why a candidate cannot be applied.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("grid {key} = {value}: not a count")]
+#[error("grid {key} = {value}: {reason}")]
 pub struct CandidateError {
     /// Axis.
     pub key: String,
     /// Value as given.
     pub value: String,
+    /// What is wrong: "not a count", or why the priors refuse the count.
+    pub reason: String,
 }
 
 impl Setup {
-    /// This set-up with `candidate`'s values: `modes` sets the prior, `na`
-    /// and `nb` the orders, any other key a back-end option.
+    /// This set-up with `candidate`'s values: `modes` sets the prior (one
+    /// the priors accept), `na` and `nb` the orders, any other key a
+    /// back-end option.
     pub fn with(&self, candidate: &Candidate) -> Result<Setup, CandidateError> {
         let mut out = self.clone();
         let mut pairs: Vec<(String, String)> = self.settings.pairs().to_vec();
         for (key, value) in &candidate.values {
+            let refused = |reason: String| CandidateError {
+                key: key.clone(),
+                value: value.clone(),
+                reason,
+            };
             let count = || {
-                value.parse::<usize>().map_err(|_| CandidateError {
-                    key: key.clone(),
-                    value: value.clone(),
-                })
+                value
+                    .parse::<usize>()
+                    .map_err(|_| refused("not a count".into()))
             };
             match key.as_str() {
-                "modes" => out.priors.modes = Some(count()?),
+                "modes" => {
+                    out.priors.modes = Some(count()?);
+                    out.priors
+                        .check()
+                        .map_err(|problem| refused(problem.to_string()))?;
+                }
                 "na" => out.orders.na = count()?,
                 "nb" => out.orders.nb = count()?,
                 _ => {
@@ -251,5 +263,11 @@ mod tests {
             base.with(&bad).unwrap_err().to_string(),
             "grid modes = two: not a count"
         );
+        let zero = Candidate {
+            values: vec![("modes".into(), "0".into())],
+        };
+        let e = base.with(&zero).unwrap_err();
+        assert_eq!((e.key.as_str(), e.value.as_str()), ("modes", "0"));
+        assert_ne!(e.reason, "not a count");
     }
 }

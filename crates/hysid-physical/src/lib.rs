@@ -193,12 +193,16 @@ impl Identifier for Physical {
         let model = Model::load(Path::new(options.model.trim())).map_err(|e| {
             IdentifyError::Options(OptionError::invalid("model", &options.model, e.to_string()))
         })?;
-        // A model file's structural problems name the file.
+        // A model file's structural problems name the file; priors that do
+        // not fit its parameters name the prior file.
         let in_file =
             |e: IdentifyError| match e.downcast_ref::<PhysicalError>() {
                 Some(PhysicalError::Model(problem)) => IdentifyError::Options(
                     OptionError::invalid("model", options.model.trim(), problem.to_string()),
                 ),
+                Some(PhysicalError::Parameters(p)) => {
+                    IdentifyError::prior_mismatch(problem.priors_origin, p.clone())
+                }
                 _ => e,
             };
         let (data, priors) = (problem.data, problem.priors);

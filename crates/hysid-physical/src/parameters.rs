@@ -6,11 +6,12 @@ use crate::target::Target;
 use hysid_core::priors::Priors;
 use nalgebra::DMatrix;
 
-/// Priors that do not fit the mechanical model's parameters.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+/// Priors that do not fit the model's parameters (worded with the prior
+/// file by the back-end).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ParameterError {
     /// An entry naming a parameter the model does not have.
-    #[error("prior {entry}: unknown parameter '{name}' (known: {})", .known.join(", "))]
+    #[error("{entry}: unknown parameter '{name}' (known: {})", .known.join(", "))]
     UnknownName {
         /// `[bounds]`, `[fixed]` or `[[tie]]`.
         entry: &'static str,
@@ -20,7 +21,7 @@ pub enum ParameterError {
         known: Vec<String>,
     },
     /// Two tied parameters fixed to different values.
-    #[error("prior [[tie]]: '{first}' and '{second}' are tied but fixed to different values")]
+    #[error("[[tie]]: '{first}' and '{second}' are tied but fixed to different values")]
     TiedFixedDiffer {
         /// One parameter.
         first: String,
@@ -28,10 +29,21 @@ pub enum ParameterError {
         second: String,
     },
     /// Bounds of a tied group (or one parameter) with no common value.
-    #[error("prior: the bounds of [{}] leave no admissible value", .params.join(", "))]
+    #[error("[bounds]: the bounds of [{}] leave no admissible value", .params.join(", "))]
     EmptyBounds {
         /// The parameters.
         params: Vec<String>,
+    },
+    /// A fixed value (of the parameter, or of one tied to it) outside the
+    /// parameter's bounds: the fitted model would not read back.
+    #[error("[fixed]: {name} = {value} lies outside its bounds [{}, {}] (widen them with [bounds])", .bounds[0], .bounds[1])]
+    FixedOutsideBounds {
+        /// The parameter.
+        name: String,
+        /// The value it would take.
+        value: f64,
+        /// Its bounds after the priors.
+        bounds: [f64; 2],
     },
 }
 
@@ -305,6 +317,14 @@ impl Group<'_> {
                 }
             }
             for &i in g {
+                let [lo, hi] = self.bounds[i];
+                if !(lo <= base[f] && base[f] <= hi) {
+                    return Err(ParameterError::FixedOutsideBounds {
+                        name: self.names[i].clone(),
+                        value: base[f],
+                        bounds: [lo, hi],
+                    });
+                }
                 base[i] = base[f];
             }
             return Ok(None);

@@ -239,8 +239,9 @@ impl From<SelectError> for Failure {
                 Self::input(format!("select_records={records}: {reason}"))
             }
             SelectError::Candidate(c) => {
-                Self::input(format!("grid {}={}: not a count", c.key, c.value))
+                Self::input(format!("grid {}={}: {}", c.key, c.value, c.reason))
             }
+            e @ SelectError::Option { .. } => Self::input(e.to_string()),
             e @ SelectError::NoCandidate { .. } => Self::method(format!("auto: {e}")),
         }
     }

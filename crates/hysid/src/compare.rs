@@ -265,8 +265,10 @@ impl Experiment {
             ),
             seed: r.seed.unwrap_or(self.seed),
         };
+        let registry = crate::registry();
         let mut jobs: Vec<Job> = Vec::new();
         for r in &self.runs {
+            check_job(&registry, &job(r, r.name.clone(), None), "run", |_| "set")?;
             if r.seeds.is_empty() {
                 jobs.push(job(r, r.name.clone(), None));
             }
@@ -310,7 +312,17 @@ impl Experiment {
                     sweep: s.run.name.clone(),
                     values: shown,
                 };
-                jobs.push(job(&r, format!("{} [{label}]", s.run.name), Some(point)));
+                let point = job(&r, format!("{} [{label}]", s.run.name), Some(point));
+                check_job(&registry, &point, "sweep", |key| {
+                    if s.vary.as_deref() == Some(key) {
+                        "vary"
+                    } else if s.grid.contains_key(key) {
+                        "grid"
+                    } else {
+                        "set"
+                    }
+                })?;
+                jobs.push(point);
             }
         }
         Ok(jobs)
@@ -382,7 +394,13 @@ impl Experiment {
             ),
         };
         let registry = crate::registry();
-        let jobs = once_where_seed_free(self.jobs()?, &registry, &ident, &self.data);
+        let jobs = self.jobs()?;
+        if let Some(job) = jobs.iter().find(|j| j.auto) {
+            request(job, &ident, &self.data)
+                .check_selection()
+                .map_err(|e| ExperimentError::Selection(self.data.selection_error(e)))?;
+        }
+        let jobs = once_where_seed_free(jobs, &registry, &ident, &self.data);
         progress.start(jobs.len() as u64, "identifying");
         let results: Vec<RunResult> = jobs
             .par_iter()
@@ -423,6 +441,34 @@ impl Experiment {
                 .unwrap_or_else(|| format!("input {}", self.data.input.join(", "))),
         })
     }
+}
+
+/// `job`'s priors and options as its back-end checks them before it fits
+/// (a `modes` of 0, an option it does not take, a value it refuses), so
+/// that a malformed entry is refused before anything runs. `what` is
+/// `run` or `sweep`; `source` names where an option's value comes from
+/// (`set`, or a sweep's `vary` or `grid`). An unknown method is left to
+/// [`Experiment::check`].
+fn check_job(
+    registry: &Registry,
+    job: &Job,
+    what: &str,
+    source: impl Fn(&str) -> &'static str,
+) -> Result<(), ExperimentError> {
+    let name = job.sweep.as_ref().map_or(job.name.as_str(), |p| &p.sweep);
+    let invalid = |message: String| ExperimentError::Invalid {
+        path: "experiment".into(),
+        message: format!("[[{what}]] '{name}': {message}"),
+    };
+    job.priors
+        .check()
+        .map_err(|problem| invalid(problem.to_string()))?;
+    if let Some(backend) = registry.get(&job.method) {
+        backend
+            .check_settings(&job.settings)
+            .map_err(|e| invalid(e.render(e.key().map_or("set", &source))))?;
+    }
+    Ok(())
 }
 
 /// Labels the point of highest `fit_sim` of each sweep (the first of

@@ -278,6 +278,28 @@ impl<'a> Identify<'a> {
     }
 
     /// The record, orders and `priors` of the request.
+    /// How `auto` splits the identification rows.
+    fn plan(&self, auto: &Auto) -> Plan {
+        Plan {
+            select: auto.select_rows,
+            folds: auto.folds,
+            select_records: auto.select_records,
+            warmup: self.warmup,
+            first_row: self.first_row,
+            refit_starts: auto.refit_starts,
+        }
+    }
+
+    /// Checks, without fitting anything, that an automatic selection's
+    /// selection rows, folds or held-out records split the data
+    /// ([`select::splits`]); nothing to check in the other modes.
+    pub fn check_selection(&self) -> Result<(), SelectError> {
+        match &self.mode {
+            Mode::Auto(auto) => select::splits(self.data, &self.plan(auto)).map(|_| ()),
+            Mode::Plain | Mode::Standardized => Ok(()),
+        }
+    }
+
     fn problem<'p>(&'p self, priors: &'p Priors) -> Problem<'p> {
         Problem {
             data: self.data,
@@ -307,14 +329,7 @@ impl<'a> Identify<'a> {
             Some(grid) => grid.clone(),
             None => backend.search_space(problem)?.without_given(&self.options),
         };
-        let plan = Plan {
-            select: auto.select_rows,
-            folds: auto.folds,
-            select_records: auto.select_records,
-            warmup: self.warmup,
-            first_row: self.first_row,
-            refit_starts: auto.refit_starts,
-        };
+        let plan = self.plan(auto);
         let affine = crate::affine_reference(registry, backend.name());
         Ok(Request::from_problem(
             backend,

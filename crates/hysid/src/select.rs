@@ -30,8 +30,8 @@ use hysid_estimation::parsimony;
 
 use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContext};
 use hysid_core::model::Model;
-use hysid_core::options::Settings;
-use hysid_core::search::{CandidateError, SearchSpace, Setup};
+use hysid_core::options::{OptionError, Settings};
+use hysid_core::search::{Candidate, CandidateError, SearchSpace, Setup};
 use hysid_core::simulate::{HoldoutError, holdout, validate};
 use hysid_core::stages::{Refine, Stages};
 use hysid_model::data::{DataError, Dataset, RowRange};
@@ -161,6 +161,15 @@ pub enum SelectError {
     /// A grid value that cannot be applied.
     #[error(transparent)]
     Candidate(#[from] CandidateError),
+    /// A candidate's option that the back-end does not take, or a value it
+    /// refuses: checked for every candidate before any is fitted.
+    #[error("{}", error.render(if *from_grid { "grid" } else { "option" }))]
+    Option {
+        /// What is wrong.
+        error: Box<OptionError>,
+        /// Whether the option is an axis of the grid (else a given option).
+        from_grid: bool,
+    },
     /// Every candidate failed; the first failure is given.
     #[error("no candidate could be fitted and scored (first failure: {first})")]
     NoCandidate {
@@ -436,10 +445,10 @@ fn cut(data: &Dataset, rows: &[Split]) -> Result<Vec<Part>, SelectError> {
 /// and priors (without a mode count: it has one mode).
 fn trials<'a>(request: &Request<'a>) -> Result<Vec<Trial<'a>>, SelectError> {
     let mut out = Vec::with_capacity(request.space.count() + 1);
-    for c in request.space.candidates() {
+    for (c, setup) in candidate_setups(request.backend, &request.setup, &request.space)? {
         out.push(Trial {
             backend: request.backend,
-            setup: request.setup.with(&c)?,
+            setup,
             values: c.values,
             start: Vec::new(),
         });
@@ -457,6 +466,44 @@ fn trials<'a>(request: &Request<'a>) -> Result<Vec<Trial<'a>>, SelectError> {
         });
     }
     Ok(out)
+}
+
+/// `setup` with each candidate of `space` put in ([`Setup::with`]: a count
+/// for `modes`, `na` and `nb`), its options checked as `backend` checks
+/// them before it fits; the first candidate refused is the error. Run
+/// before any candidate is fitted, so a grid with a typo fits nothing.
+pub fn candidate_setups(
+    backend: &dyn Backend,
+    setup: &Setup,
+    space: &SearchSpace,
+) -> Result<Vec<(Candidate, Setup)>, SelectError> {
+    space
+        .candidates()
+        .into_iter()
+        .map(|c| {
+            let setup = setup.with(&c)?;
+            backend.check_settings(&setup.settings).map_err(|error| {
+                let from_grid = error
+                    .key()
+                    .is_some_and(|k| c.values.iter().any(|(key, _)| key == k));
+                let error = match error {
+                    OptionError::Unknown { key, method, known } if from_grid => {
+                        OptionError::Unknown {
+                            key,
+                            method,
+                            known: format!("{known}; or modes, na, nb"),
+                        }
+                    }
+                    other => other,
+                };
+                SelectError::Option {
+                    error: Box::new(error),
+                    from_grid,
+                }
+            })?;
+            Ok((c, setup))
+        })
+        .collect()
 }
 
 /// Index of the affine reference among `n` trials (or their scores): it

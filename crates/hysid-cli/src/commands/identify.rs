@@ -6,6 +6,7 @@ use crate::error::Result;
 use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
 use hysid::identify::{Auto, Identify, Mode};
+use hysid::select::SelectError;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
@@ -81,7 +82,12 @@ pub struct Args {
     /// In the rows of the file (after decimation); they must start or end
     /// the identification rows. Default: the last 20 % of them (fewer than
     /// 100: also as many at their start).
-    #[arg(long, requires = "auto", help_heading = "Selection")]
+    #[arg(
+        long,
+        requires = "auto",
+        allow_hyphen_values = true,
+        help_heading = "Selection"
+    )]
     pub select_rows: Option<RowRange>,
     /// With --auto: K rolling folds instead of one split.
     ///
@@ -148,6 +154,8 @@ pub fn run(args: Args) -> Result<()> {
             "--select-rows: not with several data files; hold out whole records with --select-records K",
         ));
     }
+    let inputs = args.data.iter().chain(&args.prior).map(PathBuf::as_path);
+    super::not_an_input("-o", &args.out, inputs)?;
     let data = args.select.load(&args.data)?;
     let mode = if args.auto {
         let grid = (!args.grid.is_empty())
@@ -187,7 +195,21 @@ pub fn run(args: Args) -> Result<()> {
         mode,
     };
     let started = Instant::now();
-    let identified = request.run_with(&registry, &TerminalProgress::new())?;
+    let identified = request
+        .run_with(&registry, &TerminalProgress::new())
+        .map_err(|e| match e {
+            // Selection rows the user did not give are named by the rows
+            // they come from.
+            hysid::identify::Error::Select(SelectError::Rows { rows, reason })
+                if args.select_rows.is_none() =>
+            {
+                CliError::input(format!(
+                    "--auto: the default selection rows {rows} (the last {} % of the identification rows): {reason}; give more rows or --select-rows",
+                    hysid::select::DEFAULT_SELECTION_PERCENT
+                ))
+            }
+            e => e.into(),
+        })?;
     let elapsed = started.elapsed();
     let model = &identified.model;
     hysid_io::save_model(model, &args.out)?;

@@ -1,5 +1,9 @@
 //! One module per subcommand.
 
+use crate::error::{CliError, Result};
+use hysid_core::model::Model;
+use std::path::Path;
+
 pub mod compare;
 pub mod identify;
 pub mod methods;
@@ -15,4 +19,42 @@ pub(crate) fn states_text(states: &std::collections::BTreeMap<String, f64>) -> S
         .map(|(name, v)| format!("{name} = {v}"))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// Refuses an output file that is one of the command's input files (the
+/// same file by its resolved path), before anything runs: writing it would
+/// replace the record or model it reads.
+pub(crate) fn not_an_input<'a>(
+    flag: &str,
+    out: &Path,
+    inputs: impl IntoIterator<Item = &'a Path>,
+) -> Result<()> {
+    let Ok(target) = std::fs::canonicalize(out) else {
+        return Ok(()); // not there yet: no input can be it
+    };
+    for input in inputs {
+        if std::fs::canonicalize(input).is_ok_and(|p| p == target) {
+            return Err(CliError::input(format!(
+                "{flag} {}: is an input of this command; give another file",
+                out.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Reads the model file `path`; a data file given in its place (the
+/// arguments swapped) is named as such rather than failing to parse.
+pub(crate) fn load_model(path: &Path) -> Result<Model> {
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_lowercase);
+    if let Some(ext @ ("csv" | "mat")) = extension.as_deref() {
+        return Err(CliError::input(format!(
+            "{}: a data file (.{ext}) where the model file (.json or .toml) is expected; the model comes first",
+            path.display()
+        )));
+    }
+    Ok(Model::load(path)?)
 }

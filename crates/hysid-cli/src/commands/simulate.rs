@@ -52,7 +52,9 @@ pub fn run(args: Args) -> Result<()> {
             args.noise
         )));
     }
-    let model = Model::load(&args.model)?;
+    let inputs = std::iter::once(&args.model).chain(&args.data);
+    super::not_an_input("-o", &args.out, inputs.map(PathBuf::as_path))?;
+    let model = super::load_model(&args.model)?;
     let data = match (&args.data, &args.excite) {
         (Some(path), None) => hysid_io::load(path, &args.select.selection()?)?,
         (None, Some(spec)) => {

@@ -12,8 +12,9 @@ use crate::selection::SignalArgs;
 use hysid::compare::{DataSpec, Experiment, Origin, RunSpec, ScoredRows, SweepSpec};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
-use hysid_core::search::SearchSpace;
+use hysid_core::search::{SearchSpace, Setup};
 use hysid_model::data::RowRange;
+use hysid_model::regressors::RegressorSpec;
 use std::path::PathBuf;
 
 /// Arguments of `hysid sweep`.
@@ -28,12 +29,16 @@ pub struct Args {
     #[arg(long = "grid", value_name = "KEY=V1,V2,..", required = true)]
     pub grid: Vec<String>,
     /// Rows used for identification (after decimation).
-    #[arg(long = "identify-rows")]
+    #[arg(long = "identify-rows", allow_hyphen_values = true)]
     pub identify_rows: RowRange,
     /// Rows every point is scored on (after decimation): selection rows
     /// when the sweep chooses options (keep them inside the identification
     /// data, away from the test rows); `--validate-rows` is the same flag.
-    #[arg(long = "select-rows", alias = "validate-rows")]
+    #[arg(
+        long = "select-rows",
+        alias = "validate-rows",
+        allow_hyphen_values = true
+    )]
     pub select_rows: RowRange,
     /// Scored samples left out at the start.
     #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
@@ -63,26 +68,21 @@ pub struct Args {
     pub signals: SignalArgs,
 }
 
-/// Refuses, before anything runs, a grid key that is neither an option of
-/// `method` nor `modes`, `na` or `nb` (an unknown method is left to the
-/// experiment's own check, which names the known ones).
-fn check_grid_keys<'k>(method: &str, keys: impl Iterator<Item = &'k String>) -> Result<()> {
+/// Refuses, before anything runs, a grid point the back-end would refuse:
+/// a key that is neither one of its options nor `modes`, `na` or `nb`, a
+/// value it does not take ([`hysid::select::candidate_setups`]). An unknown
+/// method is left to the experiment's own check, which names the known ones.
+fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
     let registry = hysid::registry();
-    let Some(backend) = registry.get(method) else {
+    let Some(backend) = registry.get(&args.method) else {
         return Ok(());
     };
-    let options = backend.options();
-    for key in keys {
-        let known =
-            ["modes", "na", "nb"].contains(&key.as_str()) || options.iter().any(|o| o.key == key);
-        if !known {
-            let names: Vec<&str> = options.iter().map(|o| o.key).collect();
-            return Err(CliError::input(format!(
-                "--grid {key}: not an option of '{method}' (options: {}; or modes, na, nb)",
-                names.join(", ")
-            )));
-        }
-    }
+    let setup = Setup {
+        orders: RegressorSpec::new(args.na, args.nb, args.signals.input.len()),
+        priors: priors.clone(),
+        settings: Settings::parse(&args.set)?,
+    };
+    hysid::select::candidate_setups(backend, &setup, space)?;
     Ok(())
 }
 
@@ -103,7 +103,7 @@ pub fn run(args: Args) -> Result<()> {
         .collect();
     let space =
         SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
-    check_grid_keys(&args.method, space.axes.iter().map(|a| &a.key))?;
+    check_grid(&args, &priors, &space)?;
     let grid = space
         .axes
         .iter()
@@ -170,7 +170,13 @@ pub fn run(args: Args) -> Result<()> {
             dir.join("report.md").display()
         );
     }
-    print!("{}", hysid::compare::report::markdown(&comparison));
+    print!(
+        "{}",
+        match &args.out {
+            Some(_) => hysid::compare::report::markdown(&comparison),
+            None => hysid::compare::report::markdown_without_figures(&comparison),
+        }
+    );
     if let Some(first) = comparison
         .results
         .iter()

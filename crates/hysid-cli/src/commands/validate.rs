@@ -5,7 +5,6 @@ use crate::error::CliError;
 use crate::error::Result;
 use crate::selection::DataArgs;
 use hysid::plot::{FigureFormat, SimulationFigure};
-use hysid_core::model::Model;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
 use std::path::PathBuf;
@@ -38,7 +37,11 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    let model = Model::load(&args.model)?;
+    if let Some(plot) = &args.plot {
+        let inputs = std::iter::once(&args.model).chain(&args.data);
+        super::not_an_input("--plot", plot, inputs.map(PathBuf::as_path))?;
+    }
+    let model = super::load_model(&args.model)?;
     let data = args.select.load(&args.data)?;
     for (file, range) in args.data.iter().zip(data.record_ranges()) {
         if args.warmup >= range.len() {

@@ -79,7 +79,9 @@ impl Dataset {
     }
 
     /// One dataset of several records of one system, in order: as many
-    /// inputs and the same sampling time in each, every record non-empty.
+    /// inputs and the same sampling time in each (to [`TS_TOLERANCE`] of
+    /// it: a time column read from text gives its step with rounding),
+    /// every record non-empty; the joined dataset has the first's.
     /// The signals keep the first record's names (records of one file may
     /// name theirs `u1`, `u2`, ...).
     pub fn join(records: &[Dataset]) -> Result<Self, DataError> {
@@ -105,7 +107,7 @@ impl Dataset {
                     ),
                 ));
             }
-            if r.ts != first.ts {
+            if !same_sampling(r.ts, first.ts) {
                 return Err(join_error(
                     i,
                     format!(
@@ -224,6 +226,19 @@ impl Dataset {
     pub fn slice(&self, range: RowRange) -> Result<Self, DataError> {
         let (a, b) = range.resolve(self.len())?;
         Ok(self.cut(a, b))
+    }
+}
+
+/// Relative difference up to which two records' sampling times are the
+/// same ([`Dataset::join`]).
+pub const TS_TOLERANCE: f64 = 1e-6;
+
+/// Both unknown, or both known and equal to [`TS_TOLERANCE`] of the larger.
+fn same_sampling(a: Option<f64>, b: Option<f64>) -> bool {
+    match (a, b) {
+        (None, None) => true,
+        (Some(a), Some(b)) => (a - b).abs() <= TS_TOLERANCE * a.abs().max(b.abs()),
+        _ => false,
     }
 }
 
@@ -506,6 +521,11 @@ mod tests {
             e.to_string(),
             "record 2: sampling time 0.2 s differs from record 1's 0.1 s"
         );
+        // A step read from a text time column (50.01 - 50.0) is the same.
+        let rounded = Dataset::join(&[ramp(0, 3, Some(0.01)), ramp(0, 3, Some(50.01 - 50.0))]);
+        assert_eq!(rounded.unwrap().ts, Some(0.01));
+        let near = Dataset::join(&[ramp(0, 3, Some(0.01)), ramp(0, 3, Some(0.01001))]);
+        assert!(near.is_err());
         let mut other = ramp(0, 3, None);
         other.output.name = "z".into();
         assert_eq!(

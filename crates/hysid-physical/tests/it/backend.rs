@@ -241,6 +241,22 @@ fn refuses_what_it_cannot_honour() {
     pri.fixed.insert("a1".into(), 0.0);
     let e = run(&d, &pri, &[], 1).unwrap_err().to_string();
     assert!(e.contains("a1") && e.contains("ku"), "{e}");
+    assert!(e.starts_with("p.toml: [fixed]"), "{e}");
+    // A fixed value outside the model's bounds would write a model that
+    // does not read back; so would a tie that carries it to another one.
+    let mut pri = Priors::default();
+    pri.fixed.insert("yc".into(), 30.0);
+    let e = run(&d, &pri, &[], 1).unwrap_err().to_string();
+    assert!(e.contains("yc = 30") && e.contains("[8, 17]"), "{e}");
+    let mut pri = Priors::default();
+    pri.fixed.insert("c1".into(), 950.0);
+    pri.bounds.insert("c1".into(), [900.0, 1000.0]);
+    assert!(run(&d, &pri, &[], 1).is_ok_and(|m| {
+        let Model::Mechanical(m) = m else {
+            return false;
+        };
+        m.parameters[m.parameter_index("c1").unwrap()].value == 950.0
+    }));
     let mut pri = Priors::default();
     pri.tie.push(Tie {
         params: vec!["c1".into(), "c2".into()],

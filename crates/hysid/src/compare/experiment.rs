@@ -1,6 +1,7 @@
 //! The experiment file: data, protocol, shared priors, runs and sweeps
 //! (`docs/compare.md`).
 
+use crate::select::SelectError;
 use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::{Axis, SearchSpace};
 use hysid_model::data::{DataSelection, RowRange};
@@ -125,6 +126,24 @@ fn yes() -> bool {
 }
 
 impl DataSpec {
+    /// `e`, a selection that does not split the identification rows,
+    /// worded with the key of this table that set it.
+    pub fn selection_error(&self, e: SelectError) -> String {
+        match e {
+            SelectError::Rows { rows, reason } if self.selection.is_some() => {
+                format!("[data] selection = {rows}: {reason}")
+            }
+            SelectError::Rows { rows, reason } => format!(
+                "[data] identification: the default selection rows {rows} (an auto run's): {reason}"
+            ),
+            SelectError::Folds { folds, reason } => format!("[data] folds = {folds}: {reason}"),
+            SelectError::Records { records, reason } => {
+                format!("[data] select_records = {records}: {reason}")
+            }
+            other => other.to_string(),
+        }
+    }
+
     /// Selection of the identification or validation part.
     pub fn selection(&self, rows: RowRange) -> DataSelection {
         DataSelection {
@@ -370,6 +389,10 @@ pub enum ExperimentError {
         /// What is wrong.
         problem: InconsistentExperiment,
     },
+    /// The `[data]` table's selection rows, folds or held-out records do
+    /// not split the identification rows (the message names the key).
+    #[error("{0}")]
+    Selection(String),
     /// Malformed, or a sweep value that does not fit its option.
     #[error("{path}: {message}")]
     Invalid {
@@ -708,9 +731,12 @@ mod tests {
         let over = format!("{}, {}", axes(1, 99), axes(1, 101).replace("o0", "p0"));
         let e = Experiment::from_toml(&text(&over), "x.toml").unwrap_err();
         assert!(e.to_string().contains("more than 10000 jobs"), "{e}");
+        // One value fewer: 3 + 99 * 100 = 9 903 jobs (of keys arx takes, as
+        // every point is checked as a run).
         let at = format!("{}, {}", axes(1, 99), axes(1, 101).replace("o0", "p0"))
-            .replace("p0 = [0, ", "p0 = [");
-        // One value fewer: 3 + 99 * 100 = 9 903 jobs.
+            .replace("p0 = [0, ", "p0 = [")
+            .replace("o0", "na")
+            .replace("p0", "nb");
         let e = Experiment::from_toml(&text(&at), "x.toml").unwrap();
         assert_eq!(e.sweeps[0].space().count(), 9_900);
         // 64 axes of two values: 2^64 points, counted without overflow.

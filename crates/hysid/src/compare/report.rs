@@ -418,9 +418,17 @@ fn order_text(model: Option<&Model>, order: usize) -> String {
     }
 }
 
-/// The report as Markdown.
+/// The report as Markdown, with the links to the figures
+/// [`write_report`] draws.
 pub fn markdown(c: &Comparison) -> String {
-    let ext = c.figures.extension();
+    let mut s = markdown_without_figures(c);
+    figure_links(&mut s, c);
+    s
+}
+
+/// The report as Markdown without the figures' links: for a report whose
+/// figures are not written.
+pub fn markdown_without_figures(c: &Comparison) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# {}\n", c.title);
     if !c.description.trim().is_empty() {
@@ -486,6 +494,12 @@ pub fn markdown(c: &Comparison) -> String {
     }
     records_table(&mut s, c);
     mode_recovery_table(&mut s, c);
+    s
+}
+
+/// The list of the figures [`write_report`] draws, as links, into `s`.
+fn figure_links(s: &mut String, c: &Comparison) {
+    let ext = c.figures.extension();
     let mut figs: Vec<String> = Vec::new();
     if c.results
         .iter()
@@ -552,7 +566,6 @@ pub fn markdown(c: &Comparison) -> String {
             let _ = writeln!(s, "{f}");
         }
     }
-    s
 }
 
 /// What the back-end said about its run (cut short, warnings), as
