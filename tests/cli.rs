@@ -1011,11 +1011,18 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
         let err = one_line_error(&hysid(&args), 2).unwrap();
         assert!(err.contains(needle), "{grid}: {err}");
     }
-    // cluster without a mode count fails at every point: exit code 1.
+    // cluster without a mode count fails at every point: exit code 1, the
+    // report written with -o (with no sweep figure: nothing to draw).
+    let out = dir.path().join("failed");
     let mut args = vec!["sweep", s(&data), "-m", "cluster", "--grid", "c=20,40"];
     args.extend(rows);
-    let err = one_line_error(&hysid(&args), 1).unwrap();
+    args.extend(["-o", s(&out)]);
+    let o = hysid(&args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("every point of the sweep failed"), "{err}");
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(!report.contains("-sweep.svg"), "{report}");
 }
 
 /// An output file that is one of the command's inputs is refused before

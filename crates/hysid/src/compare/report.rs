@@ -135,12 +135,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
         }
     }
     for name in sweeps {
-        let points: Vec<&RunResult> = c
-            .results
-            .iter()
-            .filter(|r| r.sweep.as_ref().is_some_and(|s| s.sweep == name))
-            .collect();
-        let Some(fig) = sweep_figure(c, name, &points) else {
+        let Some(fig) = sweep_figure(c, name, &sweep_points(c, name)) else {
             continue;
         };
         let p = dir.join(format!("plots/{}-sweep.{ext}", slug(name)));
@@ -352,8 +347,17 @@ fn region_figure(c: &Comparison, r: &RunResult, valid: &Dataset) -> Option<Regio
     Some(fig)
 }
 
+/// The results of the points of sweep `name`, in order.
+fn sweep_points<'c>(c: &'c Comparison, name: &str) -> Vec<&'c RunResult> {
+    c.results
+        .iter()
+        .filter(|r| r.sweep.as_ref().is_some_and(|s| s.sweep == name))
+        .collect()
+}
+
 /// fit_sim and modes against the first varied key (numeric values only),
-/// one series per combination of the other keys.
+/// one series per combination of the other keys; `None` when no point was
+/// scored.
 fn sweep_figure(c: &Comparison, name: &str, points: &[&RunResult]) -> Option<SweepFigure> {
     let first = points.first()?.sweep.as_ref()?;
     let x_key = first.values.first()?.0.clone();
@@ -386,6 +390,11 @@ fn sweep_figure(c: &Comparison, name: &str, points: &[&RunResult]) -> Option<Swe
             .push(r.report.as_ref().map_or(f64::NAN, |v| v.fit_sim));
         modes[idx].x.push(x);
         modes[idx].y.push(r.modes.map_or(f64::NAN, |m| m as f64));
+    }
+    // A sweep none of whose points was scored has nothing to draw.
+    let empty = |panel: &[SweepSeries]| panel.iter().flat_map(|s| &s.y).all(|v| !v.is_finite());
+    if empty(&fit) || empty(&modes) {
+        return None;
     }
     Some(SweepFigure {
         title: format!(
@@ -515,8 +524,10 @@ fn figure_links(s: &mut String, c: &Comparison) {
             && !seen.contains(&sw.sweep.as_str())
         {
             seen.push(&sw.sweep);
-            let f = format!("plots/{}-sweep.{ext}", slug(&sw.sweep));
-            figs.push(format!("- sweep {}: [{f}]({f})", sw.sweep));
+            if sweep_figure(c, &sw.sweep, &sweep_points(c, &sw.sweep)).is_some() {
+                let f = format!("plots/{}-sweep.{ext}", slug(&sw.sweep));
+                figs.push(format!("- sweep {}: [{f}]({f})", sw.sweep));
+            }
         }
     }
     let mut with_regions = 0;
