@@ -1077,6 +1077,35 @@ fn an_input_is_never_overwritten() {
     );
 }
 
+/// Too few samples for the orders and modes are named by the file and the
+/// rows they were selected from.
+#[test]
+fn too_few_samples_name_their_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    let out = dir.path().join("m.json");
+    let args = [
+        "identify",
+        s(&data),
+        "-m",
+        "cluster",
+        "--modes",
+        "2",
+        "--rows",
+        "0..10",
+        "-o",
+        s(&out),
+    ];
+    bad(
+        &args,
+        &[
+            "data.csv --rows 0..10 (10 samples)",
+            "cannot identify 2 modes",
+        ],
+        &out,
+    );
+}
+
 /// `--max-modes` is the prior `max_modes`: cluster chooses the count.
 #[test]
 fn max_modes_on_the_command_line_lets_cluster_choose() {

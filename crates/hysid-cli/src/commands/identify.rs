@@ -7,6 +7,7 @@ use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
 use hysid::identify::{Auto, Identify, Mode};
 use hysid::select::SelectError;
+use hysid_core::backend::IdentifyError;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
@@ -206,6 +207,20 @@ pub fn run(args: Args) -> Result<()> {
                 CliError::input(format!(
                     "--auto: the default selection rows {rows} (the last {} % of the identification rows): {reason}; give more rows or --select-rows",
                     hysid::select::DEFAULT_SELECTION_PERCENT
+                ))
+            }
+            // Too few samples for the orders and modes: named by the
+            // records and rows they were selected from.
+            hysid::identify::Error::Identify(
+                e @ (IdentifyError::Regressors(_) | IdentifyError::TooFewRegressors { .. }),
+            ) => {
+                let files: Vec<String> = args.data.iter().map(|p| p.display().to_string()).collect();
+                let rows: Vec<String> = args.select.rows.iter().map(|r| format!(" --rows {r}")).collect();
+                CliError::input(format!(
+                    "{}{} ({} samples): {e}",
+                    files.join(", "),
+                    rows.concat(),
+                    data.len()
                 ))
             }
             e => e.into(),
