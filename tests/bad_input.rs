@@ -669,6 +669,66 @@ fn malformed_model_files() {
     report();
 }
 
+/// A misspelt field of a PWARX model or hybrid automaton is refused, in
+/// one line naming the file and the field: the ball of a misspelt reset
+/// does not fall through the floor.
+#[test]
+fn misspelt_fields_of_pwarx_models_and_automata() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let data = s(&data);
+    let out = d.join("never.csv");
+    let ball = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/examples/bouncing-ball.toml"
+    ))
+    .unwrap();
+    let cases: Vec<(&str, String, &[&str])> = vec![
+        (
+            "rest.toml",
+            ball.replace("reset = {", "rest = {"),
+            &["unknown field `rest`"],
+        ),
+        (
+            "invariant.toml",
+            ball.replace("invariant = {", "invarient = {"),
+            &["unknown field `invarient`"],
+        ),
+        (
+            "step.toml",
+            ball.replace("internal_step = ", "internal_stp = "),
+            &["unknown field `internal_stp`"],
+        ),
+        (
+            "region.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0],"regoin":{"a":[[1.0,0.0]],"b":[0.0]}}]}"#
+                .into(),
+            &["unknown field `regoin`"],
+        ),
+    ];
+    for (name, text, needles) in &cases {
+        let m = write(d, name, text);
+        let needles: Vec<&str> = std::iter::once(*name)
+            .chain(needles.iter().copied())
+            .collect();
+        let simulate = if name.ends_with(".json") {
+            vec!["simulate", s(&m), "--data", data, "-o", s(&out)]
+        } else {
+            vec![
+                "simulate",
+                s(&m),
+                "--excite",
+                "n=301,hold=301,low=0,high=0,ts=0.01",
+                "-o",
+                s(&out),
+            ]
+        };
+        bad(&simulate, &needles, &out);
+    }
+    report();
+}
+
 /// Each broken gray-box file names the file, the line and the symbol.
 #[test]
 fn malformed_gray_box_files() {

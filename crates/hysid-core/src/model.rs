@@ -356,6 +356,110 @@ mod tests {
         std::fs::remove_dir_all(dir).unwrap();
     }
 
+    /// A misspelt field of a PWARX model or hybrid automaton is refused,
+    /// in one line naming the file and the field, wherever it is written;
+    /// `info` keeps fields this version does not know.
+    #[test]
+    fn unknown_fields_of_pwarx_models_and_automata_are_refused() {
+        let ball = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/examples/bouncing-ball.toml"
+        ))
+        .unwrap();
+        Model::from_toml(&ball, "hb.toml").unwrap();
+        for (from, to) in [
+            ("reset = {", "rest = {"),
+            ("invariant = {", "invarient = {"),
+            ("internal_step = ", "internal_stp = "),
+            (
+                "[output]\nc = [1.0, 0.0]",
+                "[output]\nc = [1.0, 0.0]\nf = 1.0",
+            ),
+            ("flow = { a", "flow = { z = [], a"),
+            ("guard = { a", "guard = { a_qe = [], a"),
+            ("state = [2.0, 0.0]", "state = [2.0, 0.0], na = 2"),
+            ("from = \"fly\"", "from = \"fly\"\nwhen = \"v < 0\""),
+        ] {
+            assert_eq!(ball.matches(from).count(), 1, "{from}");
+            let typo = ball.replace(from, to);
+            let e = Model::from_toml(&typo, "hb.toml").unwrap_err().to_string();
+            let field = to
+                .split(['\n', ',', '{'])
+                .rev()
+                .find_map(|part| Some(part.split_once('=')?.0.trim()))
+                .unwrap();
+            assert!(
+                e.starts_with("hb.toml") && e.contains(&format!("unknown field `{field}`")),
+                "{to}: {e}"
+            );
+            assert!(!e.contains('\n'), "{e}");
+        }
+
+        let pwarx = r#"{"kind": "pwarx", "na": 1, "nb": 1, "inputs": 1,
+            "modes": [{"theta": [0.5, 1.0, 0.0], "region": {"a": [[1.0, 0.0]], "b": [0.0]}}],
+            "info": {"method": "arx", "written_by": "a later version",
+                     "diagnostics": {"own_count": 3}}}"#;
+        Model::from_json(pwarx, "m.json").unwrap();
+        for (from, to) in [
+            ("\"region\"", "\"regoin\""),
+            ("\"b\": [0.0]", "\"b\": [0.0], \"c\": [1.0]"),
+            ("\"inputs\": 1", "\"inputs\": 1, \"ny\": 1"),
+        ] {
+            let typo = pwarx.replace(from, to);
+            let e = Model::from_json(&typo, "m.json").unwrap_err().to_string();
+            let field = to.rsplit(", ").next().unwrap().split('"').nth(1).unwrap();
+            assert!(
+                e.starts_with("m.json") && e.contains(&format!("unknown field `{field}`")),
+                "{to}: {e}"
+            );
+        }
+    }
+
+    /// Every model file of the repository reads: the `.json` and `.toml`
+    /// files under `models/`, `docs/` and `crates/` whose document (with
+    /// its bases) has a `kind`. Model structures refuse unknown fields, so
+    /// a field a file carries outside `info` fails here.
+    #[test]
+    fn every_model_file_of_the_repository_reads() {
+        fn walk(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+            for entry in std::fs::read_dir(dir).unwrap() {
+                let path = entry.unwrap().path();
+                if path.is_dir() {
+                    if path.file_name().is_some_and(|n| n != "target") {
+                        walk(&path, out);
+                    }
+                } else if path.extension().is_some_and(|e| e == "json" || e == "toml") {
+                    out.push(path);
+                }
+            }
+        }
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
+        let mut paths = Vec::new();
+        for dir in ["models", "docs", "crates"] {
+            walk(&root.join(dir), &mut paths);
+        }
+        let mut kinds = std::collections::BTreeMap::<String, usize>::new();
+        let mut failures = Vec::new();
+        for path in &paths {
+            let Ok(file) = extends::read(path) else {
+                continue;
+            };
+            if file.value.get("kind").is_none() {
+                continue;
+            }
+            match Model::load(path) {
+                Ok(m) => *kinds.entry(m.kind().to_string()).or_default() += 1,
+                Err(e) => failures.push(e.to_string()),
+            }
+        }
+        assert!(failures.is_empty(), "{}", failures.join("\n"));
+        // The scan reaches every kind, and the identified models of docs/.
+        for kind in ["pwarx", "hybrid_automaton", "mechanical", "gray_box"] {
+            assert!(kinds.contains_key(kind), "no {kind} file: {kinds:?}");
+        }
+        assert!(kinds.values().sum::<usize>() >= 150, "{kinds:?}");
+    }
+
     fn arb_pwarx() -> impl Strategy<Value = PwarxModel> {
         (1usize..3, 0usize..3, 1usize..4).prop_flat_map(|(na, nb, s)| {
             let d = na + nb;
