@@ -729,6 +729,89 @@ fn misspelt_fields_of_pwarx_models_and_automata() {
     report();
 }
 
+/// A gray-box field of the wrong name, type or variant names the file, the
+/// line and the entry, as the other errors of a gray-box file do.
+#[test]
+fn gray_box_fields_of_the_wrong_name_type_or_variant() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let head = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/head-graybox.toml"
+    ))
+    .unwrap();
+    // The line of the `nth` line holding `part`, as the message words it.
+    let line = |text: &str, part: &str, nth: usize| {
+        let i = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| l.contains(part))
+            .nth(nth)
+            .unwrap()
+            .0;
+        format!("line {}: ", i + 1)
+    };
+    let case = |name: &'static str, from: &str, to: &str, entry: &str, message: &'static str| {
+        let text = head.replacen(from, to, 1);
+        let at = line(&text, to, 0);
+        (name, text, format!("{name}, {at}{entry}"), message)
+    };
+    let minimum = head.replace("side = \"min\"", "side = \"minimum\"");
+    let cases = vec![
+        case(
+            "flow.toml",
+            "flow = ",
+            "flwo = ",
+            "modes: ",
+            "unknown field `flwo`",
+        ),
+        case(
+            "value.toml",
+            "value = 640.0",
+            "value = \"640\"",
+            "parameters.value: ",
+            "invalid type: string \"640\", expected f64",
+        ),
+        case(
+            "type.toml",
+            "type = \"dry_friction\"",
+            "type = \"dry_fricton\"",
+            "elements.type: ",
+            "unknown variant `dry_fricton`",
+        ),
+        case(
+            "from.toml",
+            "from = \"measured\"",
+            "from = \"measurd\"",
+            "initial_state.from: ",
+            "unknown variant `measurd`",
+        ),
+        (
+            "side.toml",
+            minimum.clone(),
+            format!("side.toml, {}elements: ", line(&minimum, "[[elements]]", 1)),
+            "unknown variant `minimum`",
+        ),
+    ];
+    for (name, text, located, message) in &cases {
+        let m = write(d, name, text);
+        bad(
+            &[
+                "simulate",
+                s(&m),
+                "--excite",
+                "n=21,hold=10,low=-0.2,high=0,ts=0.0025",
+                "-o",
+                s(&out),
+            ],
+            &[located, message],
+            &out,
+        );
+    }
+    report();
+}
+
 /// Each broken gray-box file names the file, the line and the symbol.
 #[test]
 fn malformed_gray_box_files() {
