@@ -812,6 +812,43 @@ fn gray_box_fields_of_the_wrong_name_type_or_variant() {
     report();
 }
 
+/// An unknown estimated state is found at its key, not in the comment
+/// above it that holds its letter.
+#[test]
+fn an_unknown_estimated_state_gives_the_line_of_its_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let rule =
+        "initial_state = { from = \"measured\", samples = 10, position = \"y\", velocity = \"v\"";
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/head-graybox.toml"
+    ))
+    .unwrap()
+    .replace(rule, &format!("{rule}, estimate = {{ w = [0, 1] }}"));
+    let at = text.lines().position(|l| l.contains("estimate")).unwrap() + 1;
+    let first_w = text.lines().position(|l| l.contains('w')).unwrap() + 1;
+    assert!(first_w < at, "a comment above mentions w");
+    let m = write(d, "estimate.toml", &text);
+    bad(
+        &[
+            "simulate",
+            s(&m),
+            "--excite",
+            "n=21,hold=10,low=-0.2,high=0,ts=0.0025",
+            "-o",
+            s(&out),
+        ],
+        &[
+            &format!("estimate.toml, line {at}: "),
+            "initial_state, estimate: 'w' is not a state",
+        ],
+        &out,
+    );
+    report();
+}
+
 /// Each broken gray-box file names the file, the line and the symbol.
 #[test]
 fn malformed_gray_box_files() {
