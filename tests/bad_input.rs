@@ -669,6 +669,186 @@ fn malformed_model_files() {
     report();
 }
 
+/// A misspelt field of a PWARX model or hybrid automaton is refused, in
+/// one line naming the file and the field: the ball of a misspelt reset
+/// does not fall through the floor.
+#[test]
+fn misspelt_fields_of_pwarx_models_and_automata() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let data = s(&data);
+    let out = d.join("never.csv");
+    let ball = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/examples/bouncing-ball.toml"
+    ))
+    .unwrap();
+    let cases: Vec<(&str, String, &[&str])> = vec![
+        (
+            "rest.toml",
+            ball.replace("reset = {", "rest = {"),
+            &["unknown field `rest`"],
+        ),
+        (
+            "invariant.toml",
+            ball.replace("invariant = {", "invarient = {"),
+            &["unknown field `invarient`"],
+        ),
+        (
+            "step.toml",
+            ball.replace("internal_step = ", "internal_stp = "),
+            &["unknown field `internal_stp`"],
+        ),
+        (
+            "region.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0],"regoin":{"a":[[1.0,0.0]],"b":[0.0]}}]}"#
+                .into(),
+            &["unknown field `regoin`"],
+        ),
+    ];
+    for (name, text, needles) in &cases {
+        let m = write(d, name, text);
+        let needles: Vec<&str> = std::iter::once(*name)
+            .chain(needles.iter().copied())
+            .collect();
+        let simulate = if name.ends_with(".json") {
+            vec!["simulate", s(&m), "--data", data, "-o", s(&out)]
+        } else {
+            vec![
+                "simulate",
+                s(&m),
+                "--excite",
+                "n=301,hold=301,low=0,high=0,ts=0.01",
+                "-o",
+                s(&out),
+            ]
+        };
+        bad(&simulate, &needles, &out);
+    }
+    report();
+}
+
+/// A gray-box field of the wrong name, type or variant names the file, the
+/// line and the entry, as the other errors of a gray-box file do.
+#[test]
+fn gray_box_fields_of_the_wrong_name_type_or_variant() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let head = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/head-graybox.toml"
+    ))
+    .unwrap();
+    // The line of the `nth` line holding `part`, as the message words it.
+    let line = |text: &str, part: &str, nth: usize| {
+        let i = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| l.contains(part))
+            .nth(nth)
+            .unwrap()
+            .0;
+        format!("line {}: ", i + 1)
+    };
+    let case = |name: &'static str, from: &str, to: &str, entry: &str, message: &'static str| {
+        let text = head.replacen(from, to, 1);
+        let at = line(&text, to, 0);
+        (name, text, format!("{name}, {at}{entry}"), message)
+    };
+    let minimum = head.replace("side = \"min\"", "side = \"minimum\"");
+    let cases = vec![
+        case(
+            "flow.toml",
+            "flow = ",
+            "flwo = ",
+            "modes: ",
+            "unknown field `flwo`",
+        ),
+        case(
+            "value.toml",
+            "value = 640.0",
+            "value = \"640\"",
+            "parameters.value: ",
+            "invalid type: string \"640\", expected f64",
+        ),
+        case(
+            "type.toml",
+            "type = \"dry_friction\"",
+            "type = \"dry_fricton\"",
+            "elements.type: ",
+            "unknown variant `dry_fricton`",
+        ),
+        case(
+            "from.toml",
+            "from = \"measured\"",
+            "from = \"measurd\"",
+            "initial_state.from: ",
+            "unknown variant `measurd`",
+        ),
+        (
+            "side.toml",
+            minimum.clone(),
+            format!("side.toml, {}elements: ", line(&minimum, "[[elements]]", 1)),
+            "unknown variant `minimum`",
+        ),
+    ];
+    for (name, text, located, message) in &cases {
+        let m = write(d, name, text);
+        bad(
+            &[
+                "simulate",
+                s(&m),
+                "--excite",
+                "n=21,hold=10,low=-0.2,high=0,ts=0.0025",
+                "-o",
+                s(&out),
+            ],
+            &[located, message],
+            &out,
+        );
+    }
+    report();
+}
+
+/// An unknown estimated state is found at its key, not in the comment
+/// above it that holds its letter.
+#[test]
+fn an_unknown_estimated_state_gives_the_line_of_its_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let rule =
+        "initial_state = { from = \"measured\", samples = 10, position = \"y\", velocity = \"v\"";
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/head-graybox.toml"
+    ))
+    .unwrap()
+    .replace(rule, &format!("{rule}, estimate = {{ w = [0, 1] }}"));
+    let at = text.lines().position(|l| l.contains("estimate")).unwrap() + 1;
+    let first_w = text.lines().position(|l| l.contains('w')).unwrap() + 1;
+    assert!(first_w < at, "a comment above mentions w");
+    let m = write(d, "estimate.toml", &text);
+    bad(
+        &[
+            "simulate",
+            s(&m),
+            "--excite",
+            "n=21,hold=10,low=-0.2,high=0,ts=0.0025",
+            "-o",
+            s(&out),
+        ],
+        &[
+            &format!("estimate.toml, line {at}: "),
+            "initial_state, estimate: 'w' is not a state",
+        ],
+        &out,
+    );
+    report();
+}
+
 /// Each broken gray-box file names the file, the line and the symbol.
 #[test]
 fn malformed_gray_box_files() {

@@ -20,8 +20,11 @@ use hysid_model::model::{
     HybridAutomaton, InitialState, InvalidModel, ModelInfo, PwarxModel, Stop, StopBound,
 };
 use hysid_model::regressors::RegressorSpec;
+use located::Syntax;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+
+mod located;
 
 /// Any model hysid can simulate and validate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -73,6 +76,18 @@ pub enum StructureError {
     /// A gray-box model.
     #[error(transparent)]
     GrayBox(#[from] InvalidGrayBox),
+}
+
+/// A [`located::ReadError`] of the file `origin`: `origin, line N:` and
+/// the entry, as the checks of a gray-box model name theirs.
+fn located_error(origin: &str, e: &located::ReadError) -> ModelError {
+    ModelError::Format {
+        path: match e.line {
+            Some(line) => format!("{origin}, line {line}"),
+            None => origin.to_string(),
+        },
+        message: e.describe(),
+    }
 }
 
 impl Model {
@@ -193,11 +208,27 @@ impl Model {
 
     /// Parses a model from JSON text; `origin` names the source in errors.
     pub fn from_json(text: &str, origin: &str) -> Result<Self, ModelError> {
-        let m: Model = serde_json::from_str(text).map_err(|e| ModelError::Format {
-            path: origin.to_string(),
-            message: e.to_string(),
-        })?;
-        m.checked(text, origin)
+        match serde_json::from_str::<Model>(text) {
+            Ok(m) => m.checked(text, origin),
+            Err(e) => Err(Self::unreadable(text, origin, Syntax::Json, e.to_string())),
+        }
+    }
+
+    /// The error of a file's `text` that does not deserialize as a model:
+    /// the parser's error at its line ([`located`]), with the entry for
+    /// TOML, read straight into the struct of the kind the file declares;
+    /// `message`, the tagged reader's, when that finds no error or the
+    /// kind is unknown.
+    fn unreadable(text: &str, origin: &str, syntax: Syntax, message: String) -> ModelError {
+        let found = located::kind_of(text, syntax)
+            .and_then(|kind| located::read_error(&kind, text, syntax));
+        match found {
+            Some(e) => located_error(origin, &e),
+            None => ModelError::Format {
+                path: origin.to_string(),
+                message,
+            },
+        }
     }
 
     /// [`Model::validate`], with the line of `text` (the file) that a
@@ -228,11 +259,15 @@ impl Model {
 
     /// Parses a hand-written TOML model.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, ModelError> {
-        let m: Model = toml::from_str(text).map_err(|e| ModelError::Format {
-            path: origin.to_string(),
-            message: e.to_string().trim().replace('\n', " "),
-        })?;
-        m.checked(text, origin)
+        match toml::from_str::<Model>(text) {
+            Ok(m) => m.checked(text, origin),
+            Err(e) => Err(Self::unreadable(
+                text,
+                origin,
+                Syntax::Toml,
+                e.to_string().trim().replace('\n', " "),
+            )),
+        }
     }
 
     /// Reads a `.json` or `.toml` model file, with the bases it
@@ -250,22 +285,34 @@ impl Model {
                 message,
             },
         })?;
-        let m: Model = match serde_json::from_value(resolved.value) {
+        let m = match Model::deserialize(&resolved.value) {
             Ok(m) => m,
             // A file on its own is parsed again from its text, so that a
-            // wrong field gets the parser's line and column.
+            // wrong field gets the parser's line (and, in TOML, its entry).
             Err(_) if resolved.sources.len() == 1 => {
                 let text = &resolved.sources[0].text;
-                return match path.extension().and_then(|e| e.to_str()) {
-                    Some("toml") => Self::from_toml(text, &origin),
-                    _ => Self::from_json(text, &origin),
+                return match Syntax::of(&origin) {
+                    Syntax::Toml => Self::from_toml(text, &origin),
+                    Syntax::Json => Self::from_json(text, &origin),
                 };
             }
+            // The first file of the chain whose own text raises the same
+            // error names it, with its line.
             Err(e) => {
-                return Err(ModelError::Format {
-                    path: origin,
-                    message: format!("{e} (in the file or the files it extends)"),
+                let message = e.to_string();
+                let kind = resolved.value.get("kind").and_then(|k| k.as_str());
+                let found = kind.and_then(|kind| {
+                    resolved.sources.iter().find_map(|s| {
+                        let name = s.path.display().to_string();
+                        let syntax = Syntax::of(&name);
+                        let e = located::chain_error(kind, &s.text, syntax, &message)?;
+                        Some(located_error(&name, &e))
+                    })
                 });
+                return Err(found.unwrap_or_else(|| ModelError::Format {
+                    path: origin,
+                    message: format!("{message} (in the file or the files it extends)"),
+                }));
             }
         };
         let names: Vec<String> = resolved
@@ -354,6 +401,262 @@ mod tests {
             "{e}"
         );
         std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    /// A misspelt field of a PWARX model or hybrid automaton is refused,
+    /// in one line naming the file and the field, wherever it is written;
+    /// `info` keeps fields this version does not know.
+    #[test]
+    fn unknown_fields_of_pwarx_models_and_automata_are_refused() {
+        let ball = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/examples/bouncing-ball.toml"
+        ))
+        .unwrap();
+        Model::from_toml(&ball, "hb.toml").unwrap();
+        for (from, to) in [
+            ("reset = {", "rest = {"),
+            ("invariant = {", "invarient = {"),
+            ("internal_step = ", "internal_stp = "),
+            (
+                "[output]\nc = [1.0, 0.0]",
+                "[output]\nc = [1.0, 0.0]\nf = 1.0",
+            ),
+            ("flow = { a", "flow = { z = [], a"),
+            ("guard = { a", "guard = { a_qe = [], a"),
+            ("state = [2.0, 0.0]", "state = [2.0, 0.0], na = 2"),
+            ("from = \"fly\"", "from = \"fly\"\nwhen = \"v < 0\""),
+        ] {
+            assert_eq!(ball.matches(from).count(), 1, "{from}");
+            let typo = ball.replace(from, to);
+            let e = Model::from_toml(&typo, "hb.toml").unwrap_err().to_string();
+            let field = to
+                .split(['\n', ',', '{'])
+                .rev()
+                .find_map(|part| Some(part.split_once('=')?.0.trim()))
+                .unwrap();
+            assert!(
+                e.starts_with("hb.toml") && e.contains(&format!("unknown field `{field}`")),
+                "{to}: {e}"
+            );
+            assert!(!e.contains('\n'), "{e}");
+        }
+
+        let pwarx = r#"{"kind": "pwarx", "na": 1, "nb": 1, "inputs": 1,
+            "modes": [{"theta": [0.5, 1.0, 0.0], "region": {"a": [[1.0, 0.0]], "b": [0.0]}}],
+            "info": {"method": "arx", "written_by": "a later version",
+                     "diagnostics": {"own_count": 3}}}"#;
+        Model::from_json(pwarx, "m.json").unwrap();
+        for (from, to) in [
+            ("\"region\"", "\"regoin\""),
+            ("\"b\": [0.0]", "\"b\": [0.0], \"c\": [1.0]"),
+            ("\"inputs\": 1", "\"inputs\": 1, \"ny\": 1"),
+        ] {
+            let typo = pwarx.replace(from, to);
+            let e = Model::from_json(&typo, "m.json").unwrap_err().to_string();
+            let field = to.rsplit(", ").next().unwrap().split('"').nth(1).unwrap();
+            assert!(
+                e.starts_with("m.json") && e.contains(&format!("unknown field `{field}`")),
+                "{to}: {e}"
+            );
+        }
+    }
+
+    /// A field of the wrong name, type or variant in a gray-box file names
+    /// the file, the line and the entry, in TOML (also in a file that
+    /// extends another, and in its base) and in JSON.
+    #[test]
+    fn field_errors_name_the_line_and_the_entry() {
+        let head_path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/pick-and-place/head-graybox.toml"
+        );
+        let head = std::fs::read_to_string(head_path).unwrap();
+        // The 1-based line of the `nth` line of `text` that holds `part`.
+        let line = |text: &str, part: &str, nth: usize| {
+            text.lines()
+                .enumerate()
+                .filter(|(_, l)| l.contains(part))
+                .nth(nth)
+                .map(|(i, _)| i + 1)
+                .unwrap()
+        };
+        let cases = [
+            ("flow = ", "flwo = ", "modes", "unknown field `flwo`"),
+            (
+                "value = 640.0",
+                "value = \"640\"",
+                "parameters.value",
+                "invalid type: string \"640\", expected f64",
+            ),
+            (
+                "type = \"dry_friction\"",
+                "type = \"dry_fricton\"",
+                "elements.type",
+                "unknown variant `dry_fricton`",
+            ),
+            (
+                "from = \"measured\"",
+                "from = \"measurd\"",
+                "initial_state.from",
+                "unknown variant `measurd`",
+            ),
+            (
+                "internal_step =",
+                "internal_stp =",
+                "",
+                "unknown field `internal_stp`",
+            ),
+        ];
+        for (from, to, entry, message) in cases {
+            let g = head.replacen(from, to, 1);
+            let at = line(&g, to, 0);
+            let e = Model::from_toml(&g, "g.toml").unwrap_err().to_string();
+            let entry = if entry.is_empty() {
+                String::new()
+            } else {
+                format!("{entry}: ")
+            };
+            assert!(
+                e.starts_with(&format!("g.toml, line {at}: {entry}{message}")),
+                "{to}: {e}"
+            );
+        }
+        // A field of a stop element: the line of its entry, not of the
+        // first element's.
+        let g = head.replace("side = \"min\"", "side = \"minimum\"");
+        let e = Model::from_toml(&g, "g.toml").unwrap_err().to_string();
+        let at = line(&g, "[[elements]]", 1);
+        assert!(
+            e.starts_with(&format!(
+                "g.toml, line {at}: elements: unknown variant `minimum`"
+            )),
+            "{e}"
+        );
+        // A field of an automaton, and a missing field of the whole file
+        // (no line).
+        let ball = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/examples/bouncing-ball.toml"
+        ))
+        .unwrap();
+        let hb = ball.replace("reset = {", "rest = {");
+        let e = Model::from_toml(&hb, "hb.toml").unwrap_err().to_string();
+        let at = line(&hb, "rest = {", 0);
+        assert!(
+            e.starts_with(&format!(
+                "hb.toml, line {at}: transitions: unknown field `rest`"
+            )),
+            "{e}"
+        );
+        let hb = ball.replace("states = [\"y\", \"v\"]", "");
+        let e = Model::from_toml(&hb, "hb.toml").unwrap_err().to_string();
+        assert_eq!(e, "hb.toml: missing field `states`");
+
+        // JSON: the line of the value.
+        let value: serde_json::Value = toml::from_str(&head).unwrap();
+        let json = serde_json::to_string_pretty(&value)
+            .unwrap()
+            .replace("\"value\": 640.0", "\"value\": \"640\"");
+        let e = Model::from_json(&json, "g.json").unwrap_err().to_string();
+        let at = line(&json, "      \"value\": \"640\"", 0);
+        assert!(
+            e.starts_with(&format!(
+                "g.json, line {at}: invalid type: string \"640\", expected f64"
+            )),
+            "{e}"
+        );
+
+        // A chain of files: the file that writes the field, and its line.
+        let dir = std::env::temp_dir().join(format!("hysid-core-located-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let lag = "extends = \"base.toml\"\nremove = [\"energy\"]\nstates = [\"y\", \"v\", \"ul\"]\n\n\
+                   [initial_state]\nvalues = { ul = -0.05 }\n\n\
+                   [[parameters]]\nname = \"tau\"\nvalue = 0.005\nbounds = [0.0005, 0.05]\n\n\
+                   [definitions]\nF = \"ku*ul + f0 - c1*y - d1*v\"\n\n\
+                   [[modes]]\nname = \"free\"\nflow = { ul = \"(u - ul)/tau\" }\n\n\
+                   [[modes]]\nname = \"impact\"\nflow = { ul = \"(u - ul)/tau\" }\n";
+        let load = |base: &str, own: &str| {
+            std::fs::write(dir.join("base.toml"), base).unwrap();
+            std::fs::write(dir.join("lag.toml"), own).unwrap();
+            Model::load(&dir.join("lag.toml"))
+        };
+        load(&head, lag).unwrap();
+        for (from, to, entry, message) in [
+            (
+                "value = 0.005",
+                "value = \"0.005\"",
+                "parameters.value",
+                "invalid type: string \"0.005\", expected f64",
+            ),
+            (
+                "flow = { ul",
+                "flwo = { ul",
+                "modes",
+                "unknown field `flwo`",
+            ),
+        ] {
+            let own = lag.replacen(from, to, 1);
+            let e = load(&head, &own).unwrap_err().to_string();
+            let at = line(&own, to, 0);
+            let want = format!("lag.toml, line {at}: {entry}: {message}");
+            assert!(e.contains(&want) && !e.contains("base.toml"), "{e}");
+        }
+        let base = head.replace("value = 640.0", "value = \"640\"");
+        let e = load(&base, lag).unwrap_err().to_string();
+        let at = line(&base, "value = \"640\"", 0);
+        assert!(
+            e.contains(&format!(
+                "base.toml, line {at}: parameters.value: invalid type"
+            )),
+            "{e}"
+        );
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    /// Every model file of the repository reads: the `.json` and `.toml`
+    /// files under `models/`, `docs/` and `crates/` whose document (with
+    /// its bases) has a `kind`. Model structures refuse unknown fields, so
+    /// a field a file carries outside `info` fails here.
+    #[test]
+    fn every_model_file_of_the_repository_reads() {
+        fn walk(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+            for entry in std::fs::read_dir(dir).unwrap() {
+                let path = entry.unwrap().path();
+                if path.is_dir() {
+                    if path.file_name().is_some_and(|n| n != "target") {
+                        walk(&path, out);
+                    }
+                } else if path.extension().is_some_and(|e| e == "json" || e == "toml") {
+                    out.push(path);
+                }
+            }
+        }
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
+        let mut paths = Vec::new();
+        for dir in ["models", "docs", "crates"] {
+            walk(&root.join(dir), &mut paths);
+        }
+        let mut kinds = std::collections::BTreeMap::<String, usize>::new();
+        let mut failures = Vec::new();
+        for path in &paths {
+            let Ok(file) = extends::read(path) else {
+                continue;
+            };
+            if file.value.get("kind").is_none() {
+                continue;
+            }
+            match Model::load(path) {
+                Ok(m) => *kinds.entry(m.kind().to_string()).or_default() += 1,
+                Err(e) => failures.push(e.to_string()),
+            }
+        }
+        assert!(failures.is_empty(), "{}", failures.join("\n"));
+        // The scan reaches every kind, and the identified models of docs/.
+        for kind in ["pwarx", "hybrid_automaton", "mechanical", "gray_box"] {
+            assert!(kinds.contains_key(kind), "no {kind} file: {kinds:?}");
+        }
+        assert!(kinds.values().sum::<usize>() >= 150, "{kinds:?}");
     }
 
     fn arb_pwarx() -> impl Strategy<Value = PwarxModel> {

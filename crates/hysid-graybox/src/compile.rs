@@ -175,15 +175,14 @@ impl InvalidGrayBox {
         }
     }
 
-    /// The 1-based line of `source` (the model file's text) where the
-    /// offending text is written: the first line holding it as a quoted
-    /// string, else the first holding it at all.
+    /// The 1-based line of `source` (the model file's text, TOML or JSON)
+    /// where the offending text is written: the first line holding it as
+    /// a whole string, or a name as a key; an expression also inside a
+    /// longer string. Never a comment or part of another word: `None`
+    /// when it is written nowhere else.
     pub fn line_in(&self, source: &str) -> Option<usize> {
         let text = self.text.as_deref().filter(|t| !t.is_empty())?;
-        let quoted = [format!("\"{text}\""), format!("'{text}'")];
-        let find = |pred: &dyn Fn(&str) -> bool| source.lines().position(pred).map(|i| i + 1);
-        find(&|l| quoted.iter().any(|q| l.contains(q.as_str())))
-            .or_else(|| find(&|l| l.contains(text)))
+        crate::source::line_of(source, text)
     }
 }
 

@@ -26,6 +26,7 @@ pub mod expr;
 pub mod extends;
 pub mod model;
 pub mod simulate;
+mod source;
 
 pub use compile::{CompiledModel, InvalidGrayBox, Problem};
 pub use model::{

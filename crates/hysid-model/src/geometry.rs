@@ -10,6 +10,7 @@ pub const MEMBERSHIP_TOL: f64 = 1e-9;
 /// `{ z : a z <= b, a_eq z = b_eq }`, rows stored row-major. No rows means
 /// the whole space.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Polyhedron {
     /// Inequality rows.
     #[serde(default)]

@@ -403,3 +403,25 @@ fn bad_rules_are_refused_when_read() {
         r#"{ from = "measured", position = "x2" }"#,
     ));
 }
+
+/// The line of an unknown estimated state is the line of its key: not a
+/// comment that mentions it, nor a word or string that contains it.
+#[test]
+fn an_unknown_estimated_state_is_found_at_its_key() {
+    let text = format!(
+        "# w: the angular speed, not a state of this model\n\
+         # (a wheel would need one)\n{}",
+        cascade(
+            "x2",
+            r#"{ from = "measured", position = "x2", estimate = { w = [0.0, 1.0] } }"#,
+        )
+    );
+    let at = text.lines().position(|l| l.contains("estimate")).unwrap() + 1;
+    let m: GrayBoxModel = from_toml(&text, None);
+    let e = m.validate().unwrap_err();
+    assert!(e.to_string().contains("'w' is not a state"), "{e}");
+    assert_eq!(e.line_in(&text), Some(at));
+    // Written nowhere but in comments and other words: no line.
+    let elsewhere = text.replace("estimate = { w = [0.0, 1.0] }", "estimate = {}");
+    assert_eq!(e.line_in(&elsewhere), None);
+}

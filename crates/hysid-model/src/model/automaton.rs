@@ -28,6 +28,7 @@ pub enum TimeDomain {
 
 /// Affine dynamics `A x + B u + f` (next state or derivative).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct AffineDynamics {
     /// State matrix, rows.
     pub a: Vec<Vec<f64>>,
@@ -55,6 +56,7 @@ impl AffineDynamics {
 
 /// Output `y = c x + d u + e`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct OutputMap {
     /// State weights.
     pub c: Vec<f64>,
@@ -85,6 +87,7 @@ pub struct GuardSet(pub Polyhedron);
 /// Reset `x+ = r x + c` applied when a transition fires; an empty `r` means
 /// identity, an empty `c` zero.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ResetMap {
     /// Linear part, rows (empty: identity).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -126,6 +129,7 @@ impl ResetMap {
 
 /// One discrete mode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct AutomatonMode {
     /// Name, unique in the automaton.
     pub name: String,
@@ -138,6 +142,7 @@ pub struct AutomatonMode {
 
 /// A discrete transition with guard and reset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Transition {
     /// Source mode name.
     pub from: String,
@@ -152,7 +157,7 @@ pub struct Transition {
 
 /// How the initial state of a simulation is obtained.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "from", rename_all = "snake_case")]
+#[serde(tag = "from", rename_all = "snake_case", deny_unknown_fields)]
 pub enum InitialState {
     /// The state is the ARX history `[y(k) .. y(k-n+1), u_i(k-1) .. u_i(k-nb+1)]`
     /// with `n = max(na, 1)`, read from measured data.
@@ -171,6 +176,7 @@ pub enum InitialState {
 
 /// A hybrid automaton with affine dynamics.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct HybridAutomaton {
     /// Discrete or continuous time.
     #[serde(default)]

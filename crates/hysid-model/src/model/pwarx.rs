@@ -16,6 +16,7 @@ pub fn mode_name(name: Option<&str>, k: usize) -> String {
 
 /// One PWARX mode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PwarxMode {
     /// Parameters `[a_1 .. a_na, b_11 .. b_mnb, c]`.
     pub theta: Vec<f64>,
@@ -47,6 +48,7 @@ impl PwarxMode {
 
 /// A PWARX model in original units.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PwarxModel {
     /// Past outputs in the regressor.
     pub na: usize,

@@ -1,0 +1,184 @@
+//! Where a piece of text is written in a model file's source (TOML or
+//! JSON), for the line of an error ([`crate::InvalidGrayBox::line_in`]).
+//!
+//! The source is split into its strings and the rest of each line, its
+//! comments left out: a name counts where it is a whole string or a key,
+//! never inside a comment or as part of another word.
+
+/// A model file's source, read for where things are written.
+struct Lexed {
+    /// Every string: the line it starts on (from 0) and its text as
+    /// written (escapes not read), in source order.
+    strings: Vec<(usize, String)>,
+    /// Per line, the text outside strings and comments, each string
+    /// replaced by a space.
+    code: Vec<String>,
+}
+
+impl Lexed {
+    /// Splits `source` into strings, comments and the rest. TOML's four
+    /// kinds of string (`"..."`, `'...'`, `"""..."""`, `'''...'''`) and `#`
+    /// comments; JSON's strings are TOML's basic strings, and a JSON file
+    /// has no `#` or `'` outside them.
+    fn of(source: &str) -> Self {
+        let mut strings = Vec::new();
+        let mut code = vec![String::new()];
+        let mut line = 0;
+        let mut rest = source;
+        while let Some(c) = rest.chars().next() {
+            match c {
+                '"' | '\'' => {
+                    let triple = if c == '"' { "\"\"\"" } else { "'''" };
+                    let (open, close) = if rest.starts_with(triple) {
+                        (3, triple)
+                    } else {
+                        (1, if c == '"' { "\"" } else { "'" })
+                    };
+                    let body = &rest[open..];
+                    let escapes = c == '"';
+                    let end = string_end(body, close, escapes, open == 1);
+                    let text = &body[..end];
+                    strings.push((line, text.to_string()));
+                    for _ in text.matches('\n') {
+                        line += 1;
+                        code.push(String::new());
+                    }
+                    code[line].push(' ');
+                    rest = &body[(end + close.len()).min(body.len())..];
+                }
+                '#' => {
+                    let end = rest.find('\n').unwrap_or(rest.len());
+                    rest = &rest[end..];
+                }
+                '\n' => {
+                    line += 1;
+                    code.push(String::new());
+                    rest = &rest[1..];
+                }
+                _ => {
+                    code[line].push(c);
+                    rest = &rest[c.len_utf8()..];
+                }
+            }
+        }
+        Lexed { strings, code }
+    }
+}
+
+/// The length of the body of a string that `close` ends: up to the first
+/// `close` not escaped by a backslash (with `escapes`), or the end of the
+/// line for a one-line string left open, or of the source.
+fn string_end(body: &str, close: &str, escapes: bool, one_line: bool) -> usize {
+    let bytes = body.as_bytes();
+    let mut i = 0;
+    while i < bytes.len() {
+        if escapes && bytes[i] == b'\\' {
+            i += 2;
+            continue;
+        }
+        if one_line && bytes[i] == b'\n' {
+            return i;
+        }
+        if body[i..].starts_with(close) {
+            return i;
+        }
+        i += 1;
+    }
+    body.len()
+}
+
+/// True for text that may be a bare TOML key (`A-Za-z0-9_-`).
+fn is_bare_key(text: &str) -> bool {
+    !text.is_empty()
+        && text
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+}
+
+/// True when `code` (a line outside strings and comments) writes `key` as
+/// a key: a whole word followed by `=` (`key = ...`, `{ key = ...`,
+/// `table.key = ...`).
+fn writes_key(code: &str, key: &str) -> bool {
+    let word = |b: u8| b.is_ascii_alphanumeric() || b == b'_' || b == b'-';
+    code.match_indices(key).any(|(at, _)| {
+        let before = code[..at].bytes().next_back();
+        let after = &code[at + key.len()..];
+        !before.is_some_and(word)
+            && !after.bytes().next().is_some_and(word)
+            && after.trim_start().starts_with('=')
+    })
+}
+
+/// The 1-based line of `source` where `text` is written: the first line
+/// holding it as a whole string, or as a key when it is a name; else, for
+/// text that is not a name (an expression), the first line of a string
+/// that holds it (a string over several lines, or with escapes). Comments
+/// and words that merely contain it do not count.
+pub(crate) fn line_of(source: &str, text: &str) -> Option<usize> {
+    let lexed = Lexed::of(source);
+    let as_string = lexed
+        .strings
+        .iter()
+        .find(|(_, s)| s == text)
+        .map(|&(line, _)| line);
+    let as_key = is_bare_key(text)
+        .then(|| lexed.code.iter().position(|code| writes_key(code, text)))
+        .flatten();
+    let line = match (as_string, as_key) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
+    let line = line.or_else(|| {
+        if is_bare_key(text) {
+            return None;
+        }
+        lexed.strings.iter().find_map(|(line, s)| {
+            let at = s.find(text)?;
+            Some(line + s[..at].matches('\n').count())
+        })
+    });
+    line.map(|l| l + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_name_is_found_where_it_is_a_string_or_a_key() {
+        let toml = "# w is the angular speed\n\
+                    states = [\"x\"]  # no w here either\n\
+                    name = \"wheel, w\"\n\
+                    initial_state = { from = \"given\", estimate = { w = [0, 1] } }\n";
+        assert_eq!(line_of(toml, "w"), Some(4));
+        assert_eq!(line_of(toml, "x"), Some(2));
+        assert_eq!(line_of(toml, "estimate"), Some(4));
+        // Only in a comment, or inside another word or string.
+        assert_eq!(line_of(toml, "angular"), None);
+        assert_eq!(line_of(toml, "whe"), None);
+        assert_eq!(line_of(toml, "wheel"), None);
+        // Dotted keys, quoted keys and JSON keys.
+        assert_eq!(line_of("a = 1\nestimate.w = [0, 1]\n", "w"), Some(2));
+        assert_eq!(line_of("a = 1\n\"w\" = [0, 1]\n", "w"), Some(2));
+        assert_eq!(
+            line_of("{\n  \"estimate\": {\"w\": [0, 1]}\n}\n", "w"),
+            Some(2)
+        );
+    }
+
+    #[test]
+    fn an_expression_is_found_in_its_string() {
+        let toml = "# F = \"ku*u - c1*y\" before\n\
+                    energy = '0.5*v^2'\n\
+                    [definitions]\n\
+                    F = \"ku*u - c1*y\"\n\
+                    G = \"\"\"\n2*F + ku*u - c1*y\n\"\"\"\n\
+                    H = \"a \\\" # b\"\n\
+                    K = \"y\"\n";
+        assert_eq!(line_of(toml, "ku*u - c1*y"), Some(4));
+        assert_eq!(line_of(toml, "0.5*v^2"), Some(2));
+        assert_eq!(line_of(toml, "2*F"), Some(6));
+        // A `#` inside a string opens no comment.
+        assert_eq!(line_of(toml, "y"), Some(9));
+    }
+}
