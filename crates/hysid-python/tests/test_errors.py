@@ -64,6 +64,13 @@ def test_unknown_option_names_the_back_end_and_its_options():
     assert message.startswith("option nope: method 'arx' has no such option (options: ")
 
 
+def test_a_grid_is_checked_before_any_candidate_is_fitted():
+    message = raised(hysid.identify, U, Y, method="arx", auto=True, grid={"cc": [1, 2]})
+    assert message.startswith("grid cc: method 'arx' has no such option (options: "), message
+    message = raised(hysid.identify, U, Y, method="arx", auto=True, grid={"ridge": [1, "x"]})
+    assert message.startswith("grid ridge=x"), message
+
+
 def test_option_value_is_checked_as_set_checks_it():
     message = raised(hysid.identify, U, Y, method="cluster", modes=2, options={"c": -3})
     assert message.startswith("option c=")
