@@ -5,6 +5,7 @@ use hysid_core::backend::IdentifyError;
 use hysid_core::model::ModelError;
 use hysid_core::options::OptionError;
 use hysid_core::priors::PriorError;
+use hysid_estimation::pwarx::standardize::StandardizeError;
 use hysid_model::data::DataError;
 use hysid_model::simulate::SimError;
 
@@ -94,6 +95,7 @@ impl From<IdentifyError> for CliError {
         let bad = e.is_bad_input();
         let message = match &e {
             IdentifyError::Options(o) => o.render("--set"),
+            e if let Some(s) = e.downcast_ref::<StandardizeError>() => s.render("--standardize"),
             IdentifyError::NeedsModeCount {
                 method,
                 bounded: true,

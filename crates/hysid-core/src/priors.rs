@@ -445,6 +445,21 @@ mod tests {
     use super::*;
     use hysid_model::model::StopBound;
 
+    /// The example file of docs/priors.md reads as it is shown, every key
+    /// in the table its comment puts it in.
+    #[test]
+    fn the_documented_example_file_reads() {
+        let doc = include_str!("../../../docs/priors.md");
+        let start = doc.find("```toml\n").expect("a TOML block") + "```toml\n".len();
+        let end = start + doc[start..].find("```").unwrap();
+        let p = Priors::from_toml(&doc[start..end], "priors.md").unwrap();
+        assert_eq!(p.modes, Some(4));
+        assert_eq!(p.switching, ["y1"]);
+        assert_eq!(p.saturation.len(), 2);
+        assert_eq!(p.bounds.keys().collect::<Vec<_>>(), ["b1"]);
+        p.check().unwrap();
+    }
+
     const SPEC_EXAMPLE: &str = r#"
 modes = 4
 [[saturation]]

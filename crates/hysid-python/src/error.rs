@@ -14,6 +14,7 @@ use hysid_core::backend::IdentifyError;
 use hysid_core::model::ModelError;
 use hysid_core::options::OptionError;
 use hysid_core::priors::PriorError;
+use hysid_estimation::pwarx::standardize::StandardizeError;
 use hysid_model::data::DataError;
 use hysid_model::simulate::SimError;
 use pyo3::exceptions::{PyException, PyRuntimeError, PyValueError};
@@ -202,8 +203,12 @@ impl From<IdentifyError> for Failure {
         } else {
             Kind::Method
         };
+        let standardize = e
+            .downcast_ref::<StandardizeError>()
+            .map(|s| s.render("standardize=True"));
         let message = match e {
             IdentifyError::Options(o) => o.render("option"),
+            _ if let Some(m) = standardize => m,
             IdentifyError::NeedsModeCount {
                 method,
                 bounded: true,

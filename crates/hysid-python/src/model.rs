@@ -288,9 +288,11 @@ impl Model {
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
-        warmup: usize,
+        warmup: i64,
         ts: Option<f64>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let warmup = usize::try_from(warmup)
+            .map_err(|_| Failure::input(format!("warmup={warmup}: must be a whole number >= 0")))?;
         let data = record::one_or_joined(u, y, |u, y| self.record(u, output(y)?, ts))?;
         for (i, range) in data.record_ranges().into_iter().enumerate() {
             if warmup >= range.len() {

@@ -64,6 +64,38 @@ def test_unknown_option_names_the_back_end_and_its_options():
     assert message.startswith("option nope: method 'arx' has no such option (options: ")
 
 
+@pytest.mark.parametrize(
+    "given, words",
+    [
+        ({"na": "two"}, "na='two': must be a whole number"),
+        ({"modes": 2.5}, "modes=2.5: must be a whole number"),
+        ({"ts": "x"}, "ts='x': must be a number of seconds"),
+        ({"options": [1, 2]}, "options=[1, 2]: must be a dictionary"),
+        ({"priors": 5}, "priors=5: must be a dictionary or the path"),
+    ],
+)
+def test_an_argument_of_the_wrong_type_is_named(given, words):
+    kwargs = {"method": "arx", **given}
+    with pytest.raises(TypeError) as e:
+        hysid.identify(U, Y, **kwargs)
+    assert str(e.value).startswith(words), str(e.value)
+
+
+def test_the_ways_of_choosing_selection_rows_are_one_at_a_time():
+    message = raised(hysid.identify, U, Y, method="arx", auto=True, folds=2, select_rows=(200, 300))
+    assert message.startswith("folds=2: not with selection rows"), message
+
+
+def test_standardize_is_named_as_the_argument():
+    message = raised(hysid.identify, U, Y, method="arx", standardize=True, priors={"fixed": {"c": 0.0}})
+    assert message.startswith("standardize=True cannot be combined with priors in data units"), message
+
+
+def test_a_negative_warmup_of_validate_is_named():
+    model = hysid.identify(U, Y, method="arx")
+    assert raised(model.validate, U, Y, warmup=-1).startswith("warmup=-1: must be a whole number")
+
+
 def test_a_grid_is_checked_before_any_candidate_is_fitted():
     message = raised(hysid.identify, U, Y, method="arx", auto=True, grid={"cc": [1, 2]})
     assert message.startswith("grid cc: method 'arx' has no such option (options: "), message

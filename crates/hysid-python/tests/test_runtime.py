@@ -103,3 +103,8 @@ def test_figures_draw(record, tmp_path):
     assert (tmp_path / "sim.png").stat().st_size > 0 and (tmp_path / "regions.png").stat().st_size > 0
     x = hysid.plot.regressors(model, u[:10], y[:10])
     assert x.shape == (8, 4) and x[0].tolist() == [y[1], y[0], u[1, 0], u[0, 0]]
+    # One colour per mode on the colour bar, and a record of two lengths
+    # refused before matplotlib sees it.
+    assert fig.axes[-1].get_ylim() == (0.5, 3.5)
+    with pytest.raises(hysid.InputError, match="y: 1000 samples, u has 1001"):
+        hysid.plot.simulation(model, u[5000:6001], y[5000:6000])

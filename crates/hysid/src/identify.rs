@@ -325,6 +325,24 @@ impl<'a> Identify<'a> {
                 what: "must be at least 1",
             });
         }
+        // Three ways of choosing the selection rows: one at a time.
+        if let (Some(folds), Some(_)) = (auto.folds, auto.select_rows) {
+            return Err(SelectError::Folds {
+                folds,
+                reason: "not with selection rows: give one of the two".into(),
+            }
+            .into());
+        }
+        if let (Some(records), true) = (
+            auto.select_records,
+            auto.folds.is_some() || auto.select_rows.is_some(),
+        ) {
+            return Err(SelectError::Records {
+                records,
+                reason: "not with selection rows or folds: give one of the three".into(),
+            }
+            .into());
+        }
         let space = match &auto.grid {
             Some(grid) => grid.clone(),
             None => backend.search_space(problem)?.without_given(&self.options),

@@ -92,23 +92,35 @@ fn rescale_json(v: &mut serde_json::Value, factor: f64) {
     }
 }
 
+impl StandardizeError {
+    /// The message with `asked`, how the front end asks for a standardized
+    /// run (`--standardize` on the command line).
+    pub fn render(&self, asked: &str) -> String {
+        match self {
+            Self::PriorsInDataUnits => format!(
+                "{asked} cannot be combined with priors in data units ([[saturation]], [fixed], [bounds], [[equality]])"
+            ),
+            Self::TieOnOffset => format!(
+                "{asked} cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)"
+            ),
+            Self::ModelKind { method, kind } => format!(
+                "{asked}: method '{method}' returns a {kind} model, which cannot be mapped back to original units"
+            ),
+        }
+    }
+}
+
 /// Why [`run_standardized`] refuses a run.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum StandardizeError {
     /// Priors holding values in data units.
-    #[error(
-        "--standardize cannot be combined with priors in data units ([[saturation]], [fixed], [bounds], [[equality]])"
-    )]
+    #[error("{}", self.render("standardization"))]
     PriorsInDataUnits,
     /// A `[[tie]]` on the offset `c`.
-    #[error(
-        "--standardize cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)"
-    )]
+    #[error("{}", self.render("standardization"))]
     TieOnOffset,
     /// A back-end whose model has no original-units form.
-    #[error(
-        "--standardize: method '{method}' returns a {kind} model, which cannot be mapped back to original units"
-    )]
+    #[error("{}", self.render("standardization"))]
     ModelKind {
         /// Back-end name.
         method: &'static str,

@@ -24,6 +24,7 @@ matplotlib).
 from __future__ import annotations
 
 import copyreg
+import numbers
 import os
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
@@ -65,16 +66,25 @@ copyreg.pickle(Model, lambda model: (_model_from_json, (model.to_json(),)))
 
 
 def _counts(**given: Any) -> None:
-    """Refuses a negative count (orders, modes, seeds, folds, ...) with an
-    :class:`InputError` naming the argument; types are checked on the way
-    to the extension (a ``TypeError`` for text where a number goes)."""
+    """Refuses a count (orders, modes, seeds, folds, ...) that is not a
+    whole number with a ``TypeError``, and a negative one with an
+    :class:`InputError`, each naming the argument."""
     for name, value in given.items():
-        try:
-            negative = value is not None and not isinstance(value, bool) and value < 0
-        except (TypeError, ValueError):
+        if value is None:
             continue
-        if negative:
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            raise TypeError(f"{name}={value!r}: must be a whole number")
+        if value < 0:
             raise InputError(f"{name}={value}: must be a whole number >= 0")
+
+
+def _types(**given: Any) -> None:
+    """Refuses an argument of the wrong type with a ``TypeError`` naming
+    it: ``(value, allowed types, what they are)`` by name, ``None`` always
+    allowed."""
+    for name, (value, allowed, what) in given.items():
+        if value is not None and (isinstance(value, bool) or not isinstance(value, allowed)):
+            raise TypeError(f"{name}={value!r}: must be {what}")
 
 
 def methods() -> List[Dict[str, Any]]:
@@ -181,6 +191,14 @@ def identify(
     """
     _counts(na=na, nb=nb, modes=modes, max_modes=max_modes, seed=seed, folds=folds,
             select_records=select_records, refit_starts=refit_starts, warmup=warmup)
+    _types(
+        method=(method, str, "a method name"),
+        ts=(ts, numbers.Real, "a number of seconds"),
+        time_budget=(time_budget, numbers.Real, "a number of seconds"),
+        options=(options, dict, "a dictionary of options by name"),
+        priors=(priors, (dict, str, os.PathLike), "a dictionary or the path of a prior file"),
+        grid=(grid, dict, "a dictionary of values by option"),
+    )
     grid_items = None
     if grid is not None:
         grid_items = [f"{k}={','.join(str(v) for v in values)}" for k, values in grid.items()]

@@ -32,6 +32,19 @@ def _output(y: npt.ArrayLike) -> npt.NDArray[np.float64]:
     return y.ravel() if y.ndim == 2 and y.shape[1] == 1 else y
 
 
+def _mode_colours(n: int) -> Any:
+    """A colour per mode: the first ``n`` of a qualitative map, or a
+    continuous one beyond 20 modes."""
+    import matplotlib
+    from matplotlib.colors import ListedColormap
+
+    for name in ("tab10", "tab20"):
+        base = matplotlib.colormaps[name]
+        if n <= base.N:
+            return ListedColormap(base.colors[:n])
+    return matplotlib.colormaps["viridis"]
+
+
 def regressors(model: Model, u: npt.ArrayLike, y: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """The PWARX regressors ``x(k) = [y(k-1) .. y(k-na), u_i(k-1) ..
     u_i(k-nb)]`` of a record, one row per sample ``k >= max(na, nb)``."""
@@ -71,6 +84,9 @@ def simulation(
     Returns the figure."""
     plt = _pyplot()
     y = _output(y)
+    n = len(_inputs(u))
+    if len(y) != n:
+        raise InputError(f"y: {len(y)} samples, u has {n}")
     sim, mode = model.simulate(u, y0=y, ts=ts)
     step = ts or model.ts or 1.0
     t = np.arange(len(y)) * step
@@ -131,7 +147,8 @@ def regions(
         fig, ax = plt.subplots(figsize=(6, 5))
     else:
         fig = ax.figure
-    mesh = ax.pcolormesh(X, Y, owner.reshape(X.shape), cmap="tab10", vmin=0.5, vmax=10.5, shading="auto")
+    n = model.mode_count
+    mesh = ax.pcolormesh(X, Y, owner.reshape(X.shape), cmap=_mode_colours(n), vmin=0.5, vmax=n + 0.5, shading="auto")
     if x is not None:
         ax.scatter(x[:, i], x[:, j], s=2, color="black", alpha=0.4)
     ax.set_xlabel(names[i])
