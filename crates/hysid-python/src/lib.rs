@@ -133,6 +133,9 @@ fn check_record<'py>(
     output_name: Option<String>,
 ) -> PyResult<CheckedRecord<'py>> {
     let data = record::from_arrays(u, y, ts, input_names, output_name)?;
+    if data.is_empty() {
+        return Err(Failure::input("u, y: a record needs at least one sample").into());
+    }
     let selection = DataSelection {
         inputs: data.input_names(),
         output: data.output.name.clone(),

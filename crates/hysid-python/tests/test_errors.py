@@ -75,10 +75,8 @@ def test_unknown_option_names_the_back_end_and_its_options():
     ],
 )
 def test_an_argument_of_the_wrong_type_is_named(given, words):
-    kwargs = {"method": "arx", **given}
-    with pytest.raises(TypeError) as e:
-        hysid.identify(U, Y, **kwargs)
-    assert str(e.value).startswith(words), str(e.value)
+    message = raised(hysid.identify, U, Y, **{"method": "arx", **given})
+    assert message.startswith(words), message
 
 
 def test_the_ways_of_choosing_selection_rows_are_one_at_a_time():
@@ -89,6 +87,10 @@ def test_the_ways_of_choosing_selection_rows_are_one_at_a_time():
 def test_standardize_is_named_as_the_argument():
     message = raised(hysid.identify, U, Y, method="arx", standardize=True, priors={"fixed": {"c": 0.0}})
     assert message.startswith("standardize=True cannot be combined with priors in data units"), message
+
+
+def test_a_record_without_samples_is_refused():
+    assert raised(hysid.Record, np.zeros((0, 1)), np.zeros(0)).startswith("u, y: a record needs")
 
 
 def test_a_negative_warmup_of_validate_is_named():

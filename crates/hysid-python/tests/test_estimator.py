@@ -210,7 +210,7 @@ def test_a_column_name_with_a_comma_is_one_column_and_ts_is_a_number():
     assert record.input_names == ["force, N"] and record.ts == 0.01
     with pytest.raises(hysid.InputError, match="ts: expected a number of seconds, got 'fast'"):
         hysid.Record(np.zeros(5), np.zeros(5), ts="fast")
-    with pytest.raises(hysid.InputError, match="sampling time must be positive, got -1"):
+    with pytest.raises(hysid.InputError, match="sampling time must be a finite number of seconds > 0, got -1"):
         hysid.Record(np.zeros(5), np.zeros(5), ts=-1)
     with pytest.raises(hysid.InputError, match="time: no column 'clock'"):
         hysid.Record.from_dataframe(df, inputs="force, N", output="pos", time="clock")

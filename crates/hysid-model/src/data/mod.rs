@@ -67,7 +67,7 @@ impl Dataset {
             && !(t.is_finite() && t > 0.0)
         {
             return Err(DataError::Shape(format!(
-                "sampling time must be positive, got {t}"
+                "sampling time must be a finite number of seconds > 0, got {t}"
             )));
         }
         Ok(Self {

@@ -67,24 +67,24 @@ copyreg.pickle(Model, lambda model: (_model_from_json, (model.to_json(),)))
 
 def _counts(**given: Any) -> None:
     """Refuses a count (orders, modes, seeds, folds, ...) that is not a
-    whole number with a ``TypeError``, and a negative one with an
-    :class:`InputError`, each naming the argument."""
+    whole number, or is negative, with an :class:`InputError` naming the
+    argument."""
     for name, value in given.items():
         if value is None:
             continue
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-            raise TypeError(f"{name}={value!r}: must be a whole number")
+            raise InputError(f"{name}={value!r}: must be a whole number")
         if value < 0:
             raise InputError(f"{name}={value}: must be a whole number >= 0")
 
 
 def _types(**given: Any) -> None:
-    """Refuses an argument of the wrong type with a ``TypeError`` naming
-    it: ``(value, allowed types, what they are)`` by name, ``None`` always
-    allowed."""
+    """Refuses an argument of the wrong type with an :class:`InputError`
+    naming it: ``(value, allowed types, what they are)`` by name, ``None``
+    always allowed."""
     for name, (value, allowed, what) in given.items():
         if value is not None and (isinstance(value, bool) or not isinstance(value, allowed)):
-            raise TypeError(f"{name}={value!r}: must be {what}")
+            raise InputError(f"{name}={value!r}: must be {what}")
 
 
 def methods() -> List[Dict[str, Any]]:
