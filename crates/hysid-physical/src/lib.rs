@@ -245,7 +245,9 @@ pub enum PhysicalError {
         data: usize,
     },
     /// A record without sampling time.
-    #[error("the physical method needs the sampling time: give a 't' signal, or the sampling time (--ts; in Python, ts=)")]
+    #[error(
+        "the physical method needs the sampling time: give a 't' signal, or the sampling time (--ts; in Python, ts=)"
+    )]
     NoSamplingTime,
     /// Fewer samples than the free parameters and the initial state need.
     #[error(

@@ -170,7 +170,9 @@ pub enum SimError {
         source: Box<SimError>,
     },
     /// A continuous-time model needs the sampling time.
-    #[error("a continuous-time model needs the sampling time: give a 't' signal, or the sampling time (--ts; in Python, ts=)")]
+    #[error(
+        "a continuous-time model needs the sampling time: give a 't' signal, or the sampling time (--ts; in Python, ts=)"
+    )]
     NoSamplingTime,
     /// A model that does not pass its own checks (one built in code
     /// without them; model files are checked when read).
