@@ -1872,8 +1872,32 @@ pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec
     );
     let settings = state_solve(ESTIMATE_ITERATIONS);
     let descent = descend(&problem, z0.clone(), &settings, &Deadline::none());
-    Ok(to_values(&descent.v.unwrap_or(z0)))
+    let z = match descent.v {
+        Some(z) => z,
+        // No step from the guess: a flat spot of the warm-up's cost (a
+        // state a held friction or a dead zone hides). The descents from a
+        // quarter and three quarters of the bounds are tried; the lowest
+        // cost is kept, the guess among equals.
+        None => {
+            FLAT_SPOT_STARTS
+                .iter()
+                .map(|&q| {
+                    let start = vec![q; unit.len()];
+                    let d = descend(&problem, start.clone(), &settings, &Deadline::none());
+                    (d.cost_after, d.v.unwrap_or(start))
+                })
+                .fold((descent.cost_after, z0), |best, (cost, z)| {
+                    if cost < best.0 { (cost, z) } else { best }
+                })
+                .1
+        }
+    };
+    Ok(to_values(&z))
 }
+
+/// Where [`estimate`] starts again, in box-normalised coordinates, when
+/// the guess is a flat spot of the warm-up's cost.
+const FLAT_SPOT_STARTS: [f64; 2] = [0.25, 0.75];
 
 /// The rest state under the input `u`: the states where every flow of the
 /// mode is zero (the elements aside: at rest a friction holds a velocity

@@ -148,6 +148,24 @@ fn an_estimated_state_is_recovered_from_the_warm_up() {
     }
 }
 
+/// A guess at a flat spot of the warm-up's cost (the first lag's state
+/// reaches the output only beyond a dead zone it does not leave from the
+/// guess) takes no step; the estimate starts again inside the bounds and
+/// recovers the true state.
+#[test]
+fn an_estimate_leaves_a_flat_spot_of_its_guess() {
+    let text = |initial: &str| cascade("x2", initial).replace("b*(x1 - x2)", "b*max(x1 - 1, 0)");
+    let truth = model(&text(
+        r#"{ from = "given", values = { x1 = 3.0, x2 = 0.5 } }"#,
+    ));
+    let data = simulated(&truth, &input(120, 4));
+    let m = model(&text(
+        r#"{ from = "measured", samples = 10, position = "x2", estimate = { x1 = [-5.0, 5.0] } }"#,
+    ));
+    let states = initial_states(&m, &data).unwrap();
+    assert!(close(states[0].1, 3.0, 1e-6), "x1 = {}", states[0].1);
+}
+
 /// A `given` rule may estimate some states: the others keep their values.
 #[test]
 fn a_given_rule_estimates_the_listed_states_only() {
