@@ -575,7 +575,10 @@ mod tests {
             ..Default::default()
         };
         let e = go(&tie("c")).unwrap_err().to_string();
-        assert!(e.contains("--standardize") && e.contains("offset c"), "{e}");
+        assert!(
+            e.contains("standardization") && e.contains("offset c"),
+            "{e}"
+        );
         assert!(go(&tie("a1")).is_ok());
         let mut fixed = Priors::default();
         fixed.fixed.insert("c".into(), 0.3);
