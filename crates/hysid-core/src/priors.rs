@@ -4,7 +4,7 @@
 //! Each back-end declares the [`PriorKind`]s it honours; a prior it cannot
 //! honour is refused with an error naming the entry, never dropped.
 
-use hysid_model::model::Stop;
+use hysid_model::model::{Stop, StopBound};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
@@ -218,6 +218,28 @@ pub enum InconsistentPrior {
         /// Entry number.
         entry: usize,
     },
+    /// Two `[[saturation]]` entries of the same level and side.
+    #[error("[[saturation]] #{entry} repeats #{first} (the same level and bound)")]
+    SaturationRepeated {
+        /// The repeating entry's number.
+        entry: usize,
+        /// The first entry's number.
+        first: usize,
+    },
+    /// A lower stop (`bound = "min"`) at or above an upper one.
+    #[error(
+        "[[saturation]] #{lower} (bound = \"min\", level {low}) is at or above #{upper} (bound = \"max\", level {high}): the output would have no room between them"
+    )]
+    SaturationsCross {
+        /// The lower stop's entry number.
+        lower: usize,
+        /// Its level.
+        low: f64,
+        /// The upper stop's entry number.
+        upper: usize,
+        /// Its level.
+        high: f64,
+    },
     /// A tie of no parameter.
     #[error("[[tie]] #{entry}: params is empty")]
     EmptyTie {
@@ -339,6 +361,34 @@ impl Priors {
             if s.tol.is_some_and(|t| !(t.is_finite() && t >= 0.0)) {
                 return Err(E::SaturationTol { entry });
             }
+            if let Some(j) = self.saturation[..i]
+                .iter()
+                .position(|o| o.level == s.level && o.bound == s.bound)
+            {
+                return Err(E::SaturationRepeated {
+                    entry,
+                    first: j + 1,
+                });
+            }
+        }
+        // A stop the output never goes below at or above one it never
+        // exceeds leaves no room between them.
+        let level_of = |bound: StopBound| {
+            self.saturation
+                .iter()
+                .enumerate()
+                .filter(move |(_, s)| s.bound == bound)
+                .map(|(i, s)| (i + 1, s.level))
+        };
+        for (lower, low) in level_of(StopBound::Min) {
+            if let Some((upper, high)) = level_of(StopBound::Max).find(|&(_, high)| low >= high) {
+                return Err(E::SaturationsCross {
+                    lower,
+                    low,
+                    upper,
+                    high,
+                });
+            }
         }
         for (i, t) in self.tie.iter().enumerate() {
             if t.params.is_empty() {
@@ -444,6 +494,48 @@ impl Priors {
 mod tests {
     use super::*;
     use hysid_model::model::StopBound;
+
+    /// A stop given twice, and a lower stop at or above an upper one, are
+    /// refused; two stops with room between them are not.
+    #[test]
+    fn repeated_and_crossing_stops_are_refused() {
+        let stops = |pairs: &[(f64, StopBound)]| {
+            Priors {
+                saturation: pairs
+                    .iter()
+                    .map(|&(level, bound)| Stop {
+                        level,
+                        bound,
+                        tol: None,
+                    })
+                    .collect(),
+                ..Priors::default()
+            }
+            .check()
+        };
+        use StopBound::{Max, Min};
+        assert!(stops(&[(25.0, Max), (0.0, Min)]).is_ok());
+        assert_eq!(
+            stops(&[(25.0, Max), (25.0, Max)]),
+            Err(InconsistentPrior::SaturationRepeated { entry: 2, first: 1 })
+        );
+        assert!(matches!(
+            stops(&[(0.0, Max), (0.0, Min)]),
+            Err(InconsistentPrior::SaturationsCross {
+                lower: 2,
+                upper: 1,
+                ..
+            })
+        ));
+        assert!(matches!(
+            stops(&[(10.0, Min), (5.0, Max)]),
+            Err(InconsistentPrior::SaturationsCross {
+                lower: 1,
+                upper: 2,
+                ..
+            })
+        ));
+    }
 
     /// The example file of docs/priors.md reads as it is shown, every key
     /// in the table its comment puts it in.
