@@ -268,16 +268,18 @@ impl Experiment {
         let registry = crate::registry();
         let mut jobs: Vec<Job> = Vec::new();
         for r in &self.runs {
-            check_job(&registry, &job(r, r.name.clone(), None), "run", |_| "set")?;
-            if r.seeds.is_empty() {
-                jobs.push(job(r, r.name.clone(), None));
-            }
+            let run = job(r, r.name.clone(), None);
+            check_job(&registry, &run, "run", |_| "set")?;
             for &seed in &r.seeds {
                 jobs.push(Job {
+                    name: format!("{} [seed={seed}]", r.name),
                     seed,
                     seed_group: Some(r.name.clone()),
-                    ..job(r, format!("{} [seed={seed}]", r.name), None)
+                    ..run.clone()
                 });
+            }
+            if r.seeds.is_empty() {
+                jobs.push(run);
             }
         }
         for s in &self.sweeps {

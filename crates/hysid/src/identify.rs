@@ -277,7 +277,6 @@ impl<'a> Identify<'a> {
         })
     }
 
-    /// The record, orders and `priors` of the request.
     /// How `auto` splits the identification rows.
     fn plan(&self, auto: &Auto) -> Plan {
         Plan {
@@ -300,6 +299,7 @@ impl<'a> Identify<'a> {
         }
     }
 
+    /// The record, orders and `priors` of the request.
     fn problem<'p>(&'p self, priors: &'p Priors) -> Problem<'p> {
         Problem {
             data: self.data,

@@ -69,12 +69,9 @@ def _counts(**given: Any) -> None:
     """Refuses a count (orders, modes, seeds, folds, ...) that is not a
     whole number, or is negative, with an :class:`InputError` naming the
     argument."""
+    _types(**{name: (value, numbers.Integral, "a whole number") for name, value in given.items()})
     for name, value in given.items():
-        if value is None:
-            continue
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-            raise InputError(f"{name}={value!r}: must be a whole number")
-        if value < 0:
+        if value is not None and value < 0:
             raise InputError(f"{name}={value}: must be a whole number >= 0")
 
 
