@@ -6,7 +6,8 @@
 //! (zero-order hold); each sample is split into equal sub-steps no longer
 //! than `internal_step`, each one classical RK4 step of the current
 //! regime's flow (in closed form where the flows are affine in the states
-//! and inputs: the module `linear`).
+//! and inputs: the module `linear`). Sub-steps that end without an event
+//! are taken back to back by the module `quiet`, with the same results.
 //!
 //! **Events** are located inside the sub-step by bisection on the step
 //! length ([`LOCATE_HALVINGS`] halvings); the state is taken just past the
@@ -59,6 +60,7 @@ pub use sensitivity::{Sensitivities, differentiable};
 use std::rc::Rc;
 
 mod linear;
+mod quiet;
 mod sensitivity;
 
 /// Bound on the events handled within one sub-step (the Zeno guard).
@@ -196,6 +198,14 @@ impl Surfaces {
         &mut self.both[1 - self.start]
     }
 
+    /// The start, and the trial end resized to `len` surfaces.
+    fn start_and_end(&mut self, len: usize) -> (&[f64], &mut [f64]) {
+        let [a, b] = &mut self.both;
+        let (start, end) = if self.start == 0 { (a, b) } else { (b, a) };
+        end.resize(len, 0.0);
+        (start, end)
+    }
+
     /// The trial end becomes the start (by index: no vector moves).
     fn step(&mut self) {
         self.start = 1 - self.start;
@@ -252,6 +262,8 @@ pub struct Machine<'a> {
     xm: Vec<f64>,
     /// Guard surfaces at the start of the step and at its trial end.
     g: Surfaces,
+    /// The quiet lane's tests of the regime it steps in ([`quiet`]).
+    watch: Vec<(usize, f64, f64)>,
     /// The elements' effects in the regime of the step being integrated,
     /// and the regimes they were listed for.
     effects: Vec<Effect>,
@@ -284,6 +296,9 @@ pub struct Machine<'a> {
     /// Whether the steps of affine regimes take the closed form
     /// ([`linear`]); off, every step runs stage by stage.
     pub(crate) closed_form: bool,
+    /// Whether quiet full sub-steps take the [`quiet`] lane (off: the
+    /// general loop takes every step, with the same results).
+    pub(crate) quiet_lane: bool,
     /// Whether a reset that leaves its target mode's invariant is an error
     /// ([`SimError::ResetOutsideInvariant`]): a fault of the model in a run
     /// from its own initial state. Off where every segment or sample
@@ -292,6 +307,8 @@ pub struct Machine<'a> {
     /// where coverage is kept, such samples count as not covered).
     strict_resets: bool,
     pub(crate) steps: usize,
+    /// Of `steps`, those the [`quiet`] lane took.
+    pub(crate) quiet_steps: usize,
     pub(crate) events: usize,
     pub(crate) zeno_steps: usize,
     /// The sensitivities carried beside the state, when asked for.
@@ -342,14 +359,17 @@ impl<'a> Machine<'a> {
             closed: None,
             full_step: f64::NAN,
             closed_form: true,
+            quiet_lane: true,
             strict_resets: true,
             k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             x1: vec![0.0; n],
             xm: vec![0.0; n],
             g: Surfaces::default(),
+            watch: Vec::with_capacity(m.elements.len()),
             effects: Vec::with_capacity(2 * m.elements.len()),
             effects_of: Vec::new(),
             steps: 0,
+            quiet_steps: 0,
             events: 0,
             zeno_steps: 0,
             tangent: None,
@@ -441,13 +461,7 @@ impl<'a> Machine<'a> {
     /// Loads `(x, u)` into the slots.
     #[inline]
     fn load(&mut self, x: &[f64], u: &[f64]) {
-        let (states, rest) = self.slots.split_at_mut(x.len());
-        for (slot, v) in states.iter_mut().zip(x) {
-            *slot = *v;
-        }
-        for (slot, v) in rest.iter_mut().zip(u) {
-            *slot = *v;
-        }
+        load(&mut self.slots, x, u);
     }
 
     /// The applied force on velocity `v` (its flow without the friction).
@@ -918,7 +932,12 @@ impl<'a> Machine<'a> {
         let mut result = Ok(());
         // The surfaces at hs.x, evaluated again only after an event.
         let mut fresh = false;
-        'steps: for step in 0..n_sub {
+        let mut step = 0;
+        'steps: while step < n_sub {
+            step += self.quiet_substeps(hs, u, n_sub - step, &mut fresh, &mut x1);
+            if step == n_sub {
+                break;
+            }
             let mut left = h;
             self.tangent_substep();
             let mut events = 0;
@@ -952,22 +971,38 @@ impl<'a> Machine<'a> {
                 let (mut lo, mut hi) = (0.0, left);
                 // The last state before the event, for the sensitivities.
                 let mut before = self.differentiates().then(|| hs.clone());
+                // In the quiet lane's regimes, the halvings test the state
+                // alone; the event at the end is named as below.
+                let lane = self.quiet_lane_open(hs);
+                let mut moved = false;
                 for _ in 0..LOCATE_HALVINGS {
                     let mid = 0.5 * (lo + hi);
                     if mid <= lo || mid >= hi {
                         break;
                     }
                     self.rk4(hs, u, mid, &mut xm);
-                    self.surfaces_at(&xm, u, hs.mode);
-                    if let Some(e) = self.first_event(hs, &xm) {
+                    let found = if lane {
+                        self.ends_lane(&xm, u, hs.mode).then_some(ev)
+                    } else {
+                        self.surfaces_at(&xm, u, hs.mode);
+                        self.first_event(hs, &xm)
+                    };
+                    if let Some(e) = found {
                         hi = mid;
                         ev = e;
+                        moved = true;
                         x1.copy_from_slice(&xm);
                     } else {
                         lo = mid;
                         if let Some(b) = before.as_mut() {
                             b.x.copy_from_slice(&xm);
                         }
+                    }
+                }
+                if lane && moved {
+                    self.surfaces_at(&x1, u, hs.mode);
+                    if let Some(e) = self.first_event(hs, &x1) {
+                        ev = e;
                     }
                 }
                 if let Some(before) = before {
@@ -994,6 +1029,7 @@ impl<'a> Machine<'a> {
                     break 'steps;
                 }
             }
+            step += 1;
         }
         self.x1 = x1;
         self.xm = xm;
@@ -1196,6 +1232,18 @@ impl<'a> Machine<'a> {
             }
         }
         hs
+    }
+}
+
+/// Loads `(x, u)` into the first slots.
+#[inline]
+fn load(slots: &mut [f64], x: &[f64], u: &[f64]) {
+    let (states, rest) = slots.split_at_mut(x.len());
+    for (slot, v) in states.iter_mut().zip(x) {
+        *slot = *v;
+    }
+    for (slot, v) in rest.iter_mut().zip(u) {
+        *slot = *v;
     }
 }
 

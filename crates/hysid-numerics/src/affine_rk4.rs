@@ -104,14 +104,18 @@ impl ClosedStep {
             }
             *ki = sum;
         }
-        t[..n].copy_from_slice(&k[..n]);
-        for s in [h / 4.0, h / 3.0, h / 2.0] {
-            for (i, o) in out.iter_mut().enumerate().take(n) {
-                let at: f64 = row(i).iter().zip(&t[..n]).map(|(a, t)| a * t).sum();
+        // The three Horner terms written into `t`, `out` and `t` in turn
+        // (no copies: a few states are too few to pay for one).
+        let k: &[f64] = k;
+        let horner = |from: &[f64], s: f64, into: &mut [f64]| {
+            for (i, o) in into.iter_mut().enumerate().take(n) {
+                let at: f64 = row(i).iter().zip(&from[..n]).map(|(a, t)| a * t).sum();
                 *o = k[i] + s * at;
             }
-            t[..n].copy_from_slice(&out[..n]);
-        }
+        };
+        horner(k, h / 4.0, t);
+        horner(t, h / 3.0, out);
+        horner(out, h / 2.0, t);
         for ((o, x), t) in out.iter_mut().zip(x).zip(&t[..n]) {
             *o = x + h * t;
         }

@@ -142,7 +142,7 @@ impl AffineFlows {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::simulate::{Kept, Machine, Schedule, initial, span};
     use crate::{CompiledModel, GrayBoxModel};
@@ -216,7 +216,9 @@ mod tests {
         assert!(flows.step(0.01, &[false, true], &[]).is_some());
     }
 
-    fn head(z: &[f64]) -> GrayBoxModel {
+    /// The gray-box head with its free parameters at `z` (0..1) of their
+    /// bounds.
+    pub(in crate::simulate) fn head(z: &[f64]) -> GrayBoxModel {
         let text = include_str!("../../../../models/pick-and-place/head-graybox.toml");
         let mut table: toml::Table = text.parse().unwrap();
         table.remove("kind");

@@ -1,0 +1,186 @@
+//! The quiet lane: full sub-steps of one regime taken back to back while
+//! nothing happens, the common case of a free run.
+//!
+//! In a regime whose flows have a closed form and whose guard surfaces are
+//! affine, and where no element is held, a sub-step is one affine map of
+//! the state, and whether it ends without an event is decided from the
+//! state alone ([`Machine::quiet_step`]): no stop reached, no sliding
+//! velocity at zero, no guard crossed. The lane lists those tests once for
+//! the regime (`watch`: a state, a sign and a level, the event when
+//! `sign * (x - level) >= 0`) and steps until one fails; the sub-step where
+//! it fails is left to the general loop, which takes it again from the
+//! same state and locates its event. The states, the steps counted and
+//! the surfaces carried are the general loop's, bit for bit: the lane
+//! only skips its bookkeeping. Runs carrying sensitivities do not take it.
+
+use super::{CompiledElement, ElementRegime, HybridState, Machine, crossed, load};
+
+impl Machine<'_> {
+    /// Takes the full sub-steps `0..n_sub` of length `self.full_step` from
+    /// `hs` under the input `u` while each ends without an event, and
+    /// returns how many it took (`n_sub`: the whole sample). `fresh` says
+    /// whether the surfaces at `hs.x` are the step's start, as in
+    /// [`Machine::advance`]; `x1` is its trial state (swapped with the
+    /// state at each step taken, so it holds a scratch state).
+    pub(super) fn quiet_substeps(
+        &mut self,
+        hs: &mut HybridState,
+        u: &[f64],
+        n_sub: usize,
+        fresh: &mut bool,
+        x1: &mut Vec<f64>,
+    ) -> usize {
+        if !self.quiet_lane_open(hs) {
+            return 0;
+        }
+        if !*fresh {
+            self.surfaces_at(&hs.x, u, hs.mode);
+            self.g.step();
+            *fresh = true;
+        }
+        let (Some((.., Some(step))), Some(guards)) = (&self.closed, &self.guards[hs.mode]) else {
+            return 0;
+        };
+        let watch = &self.watch;
+        for taken in 0..n_sub {
+            step.apply(&hs.x, u, x1);
+            if watch
+                .iter()
+                .any(|&(s, sign, level)| sign * (x1[s] - level) >= 0.0)
+            {
+                return taken;
+            }
+            let (start, end) = self.g.start_and_end(guards.len());
+            for (((c, row), g0), g1) in guards.iter().zip(start).zip(end.iter_mut()) {
+                *g1 = row.eval(x1, u);
+                if crossed(*c, *g0, *g1) {
+                    return taken;
+                }
+            }
+            self.steps += 1;
+            self.quiet_steps += 1;
+            std::mem::swap(&mut hs.x, x1);
+            self.g.step();
+        }
+        n_sub
+    }
+
+    /// Whether the regime of `hs` takes the quiet lane: no sensitivities,
+    /// a closed-form step (formed here), affine guards and no element
+    /// held; lists the regime's tests into `watch` when it does.
+    pub(super) fn quiet_lane_open(&mut self, hs: &HybridState) -> bool {
+        if !self.quiet_lane
+            || self.differentiates()
+            || !self.closed_form
+            || self.guards[hs.mode].is_none()
+        {
+            return false;
+        }
+        self.watch.clear();
+        for (i, (e, &regime)) in self.m.elements.iter().zip(&hs.regimes).enumerate() {
+            match (e, regime) {
+                (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away) => {
+                    self.watch.push((*position, *sign, self.fixed[i].0));
+                }
+                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
+                    self.watch.push((*velocity, -dir, 0.0));
+                }
+                (_, ElementRegime::Stuck | ElementRegime::Resting) => return false,
+                _ => {}
+            }
+        }
+        self.form_closed_step(hs);
+        matches!(&self.closed, Some((.., Some(_))))
+    }
+
+    /// Whether the state `x` under `u` ends the lane's regime in `mode`
+    /// (opened by [`Machine::quiet_lane_open`]): what
+    /// [`Machine::first_event`] finds there, decided from the watched
+    /// states and the guards' affine forms against the step's start, the
+    /// slots loaded only for a crossed guard's `when` condition. The
+    /// event's bisection asks it at every halving.
+    pub(super) fn ends_lane(&mut self, x: &[f64], u: &[f64], mode: usize) -> bool {
+        if self
+            .watch
+            .iter()
+            .any(|&(s, sign, level)| sign * (x[s] - level) >= 0.0)
+        {
+            return true;
+        }
+        let m = self.m;
+        let Some(guards) = &self.guards[mode] else {
+            return true;
+        };
+        for (j, ((c, row), t)) in guards.iter().zip(&m.modes[mode].transitions).enumerate() {
+            if crossed(*c, self.g.start()[j], row.eval(x, u)) {
+                let Some(when) = &t.when else {
+                    return true;
+                };
+                load(&mut self.slots, x, u);
+                if when.eval(&self.slots) != 0.0 {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::CompiledModel;
+    use crate::simulate::linear::tests::head;
+    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, initial, span};
+    use hysid_model::data::Dataset;
+    use hysid_model::excitation::Excitation;
+    use proptest::prelude::*;
+
+    /// A run of `m` with the lane on or off, and the steps the lane took.
+    fn run(m: &CompiledModel, values: &[f64], data: &Dataset, lane: bool) -> (GrayBoxRun, usize) {
+        let bound = m.bind(values);
+        let schedule = Schedule::new(&bound, data.ts.unwrap());
+        let mut machine = Machine::new(&bound, values);
+        machine.quiet_lane = lane;
+        let (first, hs) = initial(&bound, &mut machine, data, &schedule, &[]).unwrap();
+        let mut out = GrayBoxRun::empty(data, m.states, first, Kept::Everything);
+        span(
+            &mut machine,
+            hs,
+            data,
+            first..data.len(),
+            &schedule,
+            &mut out,
+        )
+        .unwrap();
+        out.steps = machine.steps;
+        out.events = machine.events;
+        out.zeno_steps = machine.zeno_steps;
+        (out, machine.quiet_steps)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(16))]
+
+        /// The mounting head, anywhere in its parameters' bounds, through
+        /// impacts, sticking and stops: the lane takes most sub-steps and
+        /// changes no bit of the run (outputs, states, modes, coverage,
+        /// steps and events).
+        #[test]
+        fn the_quiet_lane_changes_no_bit(z in prop::collection::vec(0.0f64..1.0, 12), seed in 0u64..1000) {
+            let g = head(&z);
+            let m = CompiledModel::new(&g).unwrap();
+            let ex = Excitation { n: 1500, hold: 40, low: -0.3, high: 0.05, ts: Some(0.0025), inputs: 1 };
+            let data = Dataset::siso(ex.generate(seed).remove(0), vec![3.0; 1500], Some(0.0025)).unwrap();
+            let (with, quiet) = run(&m, &g.values(), &data, true);
+            let (without, none) = run(&m, &g.values(), &data, false);
+            prop_assert_eq!(none, 0);
+            prop_assert!(2 * quiet > with.steps, "{quiet} of {} steps in the lane", with.steps);
+            prop_assert!(with.events > 0);
+            prop_assert_eq!(with.y.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), without.y.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+            prop_assert_eq!(with.x.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), without.x.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+            prop_assert_eq!(&with.modes, &without.modes);
+            prop_assert_eq!(&with.covered, &without.covered);
+            prop_assert_eq!((with.steps, with.events, with.zeno_steps), (without.steps, without.events, without.zeno_steps));
+        }
+    }
+}
