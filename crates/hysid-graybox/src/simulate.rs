@@ -179,6 +179,11 @@ struct Surfaces {
     both: [Vec<f64>; 2],
     /// Which of `both` holds the start.
     start: usize,
+    /// The mode and state the start was evaluated at, kept when a sample
+    /// ends with it current ([`Surfaces::keep`]); forgotten when the start
+    /// changes.
+    kept: Option<usize>,
+    kept_x: Vec<f64>,
 }
 
 impl Surfaces {
@@ -191,6 +196,7 @@ impl Surfaces {
     }
 
     fn start_mut(&mut self) -> &mut Vec<f64> {
+        self.kept = None;
         &mut self.both[self.start]
     }
 
@@ -206,8 +212,28 @@ impl Surfaces {
         (start, end)
     }
 
+    /// Records that the start holds the surfaces of `mode` at `x`.
+    fn keep(&mut self, mode: usize, x: &[f64]) {
+        self.kept = Some(mode);
+        self.kept_x.clear();
+        self.kept_x.extend_from_slice(x);
+    }
+
+    /// Whether the start holds the surfaces of `mode` at `x` (the same
+    /// bits) by [`Surfaces::keep`].
+    fn kept_at(&self, mode: usize, x: &[f64]) -> bool {
+        self.kept == Some(mode)
+            && self.kept_x.len() == x.len()
+            && self
+                .kept_x
+                .iter()
+                .zip(x)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+    }
+
     /// The trial end becomes the start (by index: no vector moves).
     fn step(&mut self) {
+        self.kept = None;
         self.start = 1 - self.start;
     }
 }
@@ -248,6 +274,14 @@ fn affine_forms(m: &CompiledModel) -> Vec<Option<AffineFlows>> {
 /// where it does not slide.
 type Directions = Vec<Option<bool>>;
 
+/// A closed-form step with the mode, element regimes and step length it
+/// was formed for.
+type ClosedEntry = (usize, Vec<ElementRegime>, f64, Option<ClosedStep>);
+
+/// Closed-form steps kept besides the current one: a run returns to a few
+/// regimes (sliding either way, in or out of contact) again and again.
+const FORMED_STEPS: usize = 8;
+
 /// The simulator's workspace for one model and one parameter vector.
 pub struct Machine<'a> {
     m: &'a CompiledModel,
@@ -264,6 +298,8 @@ pub struct Machine<'a> {
     g: Surfaces,
     /// The quiet lane's tests of the regime it steps in ([`quiet`]).
     watch: Vec<(usize, f64, f64)>,
+    /// Per mode, whether a guard surface reads an input.
+    input_guards: Vec<bool>,
     /// The elements' effects in the regime of the step being integrated,
     /// and the regimes they were listed for.
     effects: Vec<Effect>,
@@ -288,7 +324,9 @@ pub struct Machine<'a> {
     guards: Vec<Option<Vec<(Crossing, AffineRow)>>>,
     /// The closed-form step of the last regime and step length integrated
     /// (`None` inside: that regime has none), with its mode and regimes.
-    closed: Option<(usize, Vec<ElementRegime>, f64, Option<ClosedStep>)>,
+    closed: Option<ClosedEntry>,
+    /// The closed-form steps formed before it, the oldest first.
+    formed: Vec<ClosedEntry>,
     /// The sub-step length of the sample being advanced, the length the
     /// closed form is formed for; shorter steps around events take the
     /// regime's Horner form.
@@ -296,9 +334,11 @@ pub struct Machine<'a> {
     /// Whether the steps of affine regimes take the closed form
     /// ([`linear`]); off, every step runs stage by stage.
     pub(crate) closed_form: bool,
-    /// Whether quiet full sub-steps take the [`quiet`] lane (off: the
-    /// general loop takes every step, with the same results).
-    pub(crate) quiet_lane: bool,
+    /// Whether the exact shortcuts are taken: the [`quiet`] lane, the
+    /// start surfaces kept from one sample to the next, and no surfaces
+    /// compared across an input's jump that no guard reads (off: every
+    /// step and surface by the general loop, with the same results).
+    pub(crate) shortcuts: bool,
     /// Whether a reset that leaves its target mode's invariant is an error
     /// ([`SimError::ResetOutsideInvariant`]): a fault of the model in a run
     /// from its own initial state. Off where every segment or sample
@@ -357,15 +397,26 @@ impl<'a> Machine<'a> {
             unbound: None,
             guards,
             closed: None,
+            formed: Vec::with_capacity(FORMED_STEPS),
             full_step: f64::NAN,
             closed_form: true,
-            quiet_lane: true,
+            shortcuts: true,
             strict_resets: true,
             k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             x1: vec![0.0; n],
             xm: vec![0.0; n],
             g: Surfaces::default(),
             watch: Vec::with_capacity(m.elements.len()),
+            input_guards: m
+                .modes
+                .iter()
+                .map(|q| {
+                    let inputs = m.states as u32..(m.states + m.inputs) as u32;
+                    q.transitions
+                        .iter()
+                        .any(|t| t.guard.surface.slots().any(|s| inputs.contains(&s)))
+                })
+                .collect(),
             effects: Vec::with_capacity(2 * m.elements.len()),
             effects_of: Vec::new(),
             steps: 0,
@@ -595,6 +646,14 @@ impl<'a> Machine<'a> {
             if *mode == hs.mode && *length == h && *regimes == hs.regimes);
         if !cached {
             self.prepare(hs);
+            let key = |(mode, regimes, length, _): &ClosedEntry| {
+                *mode == hs.mode && *length == h && *regimes == hs.regimes
+            };
+            if let Some(at) = self.formed.iter().position(key) {
+                let entry = self.formed.swap_remove(at);
+                self.keep_formed(entry);
+                return;
+            }
             let step = match self.affine_of(hs.mode) {
                 Some(flows) => {
                     let mut held = vec![false; self.m.states];
@@ -609,7 +668,18 @@ impl<'a> Machine<'a> {
                 }
                 None => None,
             };
-            self.closed = Some((hs.mode, hs.regimes.clone(), h, step));
+            self.keep_formed((hs.mode, hs.regimes.clone(), h, step));
+        }
+    }
+
+    /// Makes `entry` the current closed-form step, the one it replaces
+    /// kept among the [`FORMED_STEPS`] last formed.
+    fn keep_formed(&mut self, entry: ClosedEntry) {
+        if let Some(previous) = self.closed.replace(entry) {
+            if self.formed.len() == FORMED_STEPS {
+                self.formed.remove(0);
+            }
+            self.formed.push(previous);
         }
     }
 
@@ -623,9 +693,10 @@ impl<'a> Machine<'a> {
 
     /// The guard surfaces at the end of a sample (state `hs`, input `u`)
     /// into `out`, for [`Machine::fire_at_sample`] to compare across the
-    /// next input's jump; nothing loaded where the mode has no transition.
+    /// next input's jump; nothing where no guard surface of the mode reads
+    /// an input (the jump cannot move them).
     fn surfaces_at_end(&mut self, hs: &HybridState, u: &[f64], out: &mut Vec<f64>) {
-        if self.m.modes[hs.mode].transitions.is_empty() {
+        if self.shortcuts && !self.input_guards[hs.mode] {
             out.clear();
         } else {
             self.load(&hs.x, u);
@@ -930,8 +1001,11 @@ impl<'a> Machine<'a> {
         let mut x1 = std::mem::take(&mut self.x1);
         let mut xm = std::mem::take(&mut self.xm);
         let mut result = Ok(());
-        // The surfaces at hs.x, evaluated again only after an event.
-        let mut fresh = false;
+        // Whether the start surfaces are those at hs.x: kept from the
+        // sample before where no guard reads an input, evaluated again
+        // after an event.
+        let mut fresh =
+            self.shortcuts && !self.input_guards[hs.mode] && self.g.kept_at(hs.mode, &hs.x);
         let mut step = 0;
         'steps: while step < n_sub {
             step += self.quiet_substeps(hs, u, n_sub - step, &mut fresh, &mut x1);
@@ -1030,6 +1104,9 @@ impl<'a> Machine<'a> {
                 }
             }
             step += 1;
+        }
+        if fresh && result.is_ok() {
+            self.g.keep(hs.mode, &hs.x);
         }
         self.x1 = x1;
         self.xm = xm;

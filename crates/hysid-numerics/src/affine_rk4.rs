@@ -67,7 +67,22 @@ impl ClosedStep {
     /// `out = x + D x + G u + g`.
     #[inline]
     pub fn apply(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
-        let (n, m) = (x.len(), u.len());
+        match (x.len(), u.len()) {
+            (1, 1) => self.apply_sized(x, u, out, 1, 1),
+            (2, 1) => self.apply_sized(x, u, out, 2, 1),
+            (2, 2) => self.apply_sized(x, u, out, 2, 2),
+            (3, 1) => self.apply_sized(x, u, out, 3, 1),
+            (4, 1) => self.apply_sized(x, u, out, 4, 1),
+            (4, 2) => self.apply_sized(x, u, out, 4, 2),
+            (n, m) => self.apply_sized(x, u, out, n, m),
+        }
+    }
+
+    /// [`ClosedStep::apply`] for `n` states and `m` inputs; inlined where
+    /// they are constants (the common small models), so its loops unroll.
+    #[inline(always)]
+    fn apply_sized(&self, x: &[f64], u: &[f64], out: &mut [f64], n: usize, m: usize) {
+        let (x, u) = (&x[..n], &u[..m]);
         for (i, o) in out.iter_mut().enumerate().take(n) {
             let mut increment = self.offset[i];
             for (a, xj) in self.d[i * n..(i + 1) * n].iter().zip(x) {
@@ -89,10 +104,35 @@ impl ClosedStep {
         h: f64,
         x: &[f64],
         u: &[f64],
-        (k, t): (&mut [f64], &mut [f64]),
+        work: (&mut [f64], &mut [f64]),
         out: &mut [f64],
     ) {
-        let (n, m) = (x.len(), u.len());
+        match (x.len(), u.len()) {
+            (1, 1) => self.apply_length_sized(h, x, u, work, out, 1, 1),
+            (2, 1) => self.apply_length_sized(h, x, u, work, out, 2, 1),
+            (2, 2) => self.apply_length_sized(h, x, u, work, out, 2, 2),
+            (3, 1) => self.apply_length_sized(h, x, u, work, out, 3, 1),
+            (4, 1) => self.apply_length_sized(h, x, u, work, out, 4, 1),
+            (4, 2) => self.apply_length_sized(h, x, u, work, out, 4, 2),
+            (n, m) => self.apply_length_sized(h, x, u, work, out, n, m),
+        }
+    }
+
+    /// [`ClosedStep::apply_length`] for `n` states and `m` inputs, inlined
+    /// as [`ClosedStep::apply_sized`] is.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn apply_length_sized(
+        &self,
+        h: f64,
+        x: &[f64],
+        u: &[f64],
+        (k, t): (&mut [f64], &mut [f64]),
+        out: &mut [f64],
+        n: usize,
+        m: usize,
+    ) {
+        let (x, u) = (&x[..n], &u[..m]);
         let row = |i: usize| &self.a[i * n..(i + 1) * n];
         for (i, ki) in k.iter_mut().enumerate().take(n) {
             let mut sum = self.c[i];

@@ -69,7 +69,7 @@ impl Machine<'_> {
     /// a closed-form step (formed here), affine guards and no element
     /// held; lists the regime's tests into `watch` when it does.
     pub(super) fn quiet_lane_open(&mut self, hs: &HybridState) -> bool {
-        if !self.quiet_lane
+        if !self.shortcuts
             || self.differentiates()
             || !self.closed_form
             || self.guards[hs.mode].is_none()
@@ -135,12 +135,18 @@ mod tests {
     use hysid_model::excitation::Excitation;
     use proptest::prelude::*;
 
-    /// A run of `m` with the lane on or off, and the steps the lane took.
-    fn run(m: &CompiledModel, values: &[f64], data: &Dataset, lane: bool) -> (GrayBoxRun, usize) {
+    /// A run of `m` with the shortcuts on or off, and the steps the lane
+    /// took.
+    fn run(
+        m: &CompiledModel,
+        values: &[f64],
+        data: &Dataset,
+        shortcuts: bool,
+    ) -> (GrayBoxRun, usize) {
         let bound = m.bind(values);
         let schedule = Schedule::new(&bound, data.ts.unwrap());
         let mut machine = Machine::new(&bound, values);
-        machine.quiet_lane = lane;
+        machine.shortcuts = shortcuts;
         let (first, hs) = initial(&bound, &mut machine, data, &schedule, &[]).unwrap();
         let mut out = GrayBoxRun::empty(data, m.states, first, Kept::Everything);
         span(
@@ -162,9 +168,9 @@ mod tests {
         #![proptest_config(ProptestConfig::with_cases(16))]
 
         /// The mounting head, anywhere in its parameters' bounds, through
-        /// impacts, sticking and stops: the lane takes most sub-steps and
-        /// changes no bit of the run (outputs, states, modes, coverage,
-        /// steps and events).
+        /// impacts, sticking and stops: the lane takes most sub-steps, and
+        /// the shortcuts change no bit of the run (outputs, states, modes,
+        /// coverage, steps and events).
         #[test]
         fn the_quiet_lane_changes_no_bit(z in prop::collection::vec(0.0f64..1.0, 12), seed in 0u64..1000) {
             let g = head(&z);
