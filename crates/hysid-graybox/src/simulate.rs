@@ -650,7 +650,7 @@ impl<'a> Machine<'a> {
                 *mode == hs.mode && *length == h && *regimes == hs.regimes
             };
             if let Some(at) = self.formed.iter().position(key) {
-                let entry = self.formed.swap_remove(at);
+                let entry = self.formed.remove(at);
                 self.keep_formed(entry);
                 return;
             }
