@@ -1104,6 +1104,27 @@ fn too_few_samples_name_their_rows() {
         ],
         &out,
     );
+    // The back-ends' own shortages are named the same way.
+    for (method, modes, rows, want) in [
+        ("arx", None, "0..5", "free parameters"),
+        ("cluster", Some("2"), "0..4", "local datasets"),
+    ] {
+        let mut args = vec![
+            "identify",
+            s(&data),
+            "-m",
+            method,
+            "--rows",
+            rows,
+            "-o",
+            s(&out),
+        ];
+        if let Some(count) = modes {
+            args.extend(["--modes", count]);
+        }
+        let named = format!("data.csv --rows {rows} (");
+        bad(&args, &[named.as_str(), want], &out);
+    }
 }
 
 /// `--max-modes` is the prior `max_modes`: cluster chooses the count.

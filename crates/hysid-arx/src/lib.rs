@@ -308,7 +308,8 @@ impl From<ArxError> for IdentifyError {
     /// squares', the method's.
     fn from(e: ArxError) -> Self {
         match e {
-            ArxError::ModeCount { .. } | ArxError::TooFewSamples { .. } => IdentifyError::input(e),
+            ArxError::ModeCount { .. } => IdentifyError::input(e),
+            ArxError::TooFewSamples { .. } => IdentifyError::too_few_samples(e),
             e => IdentifyError::failed(e),
         }
     }

@@ -414,10 +414,11 @@ impl From<BoundedError> for IdentifyError {
     /// least squares, the method's.
     fn from(e: BoundedError) -> Self {
         match e {
+            BoundedError::Procedure(ProcedureError::TooFewSamples { .. }) => {
+                IdentifyError::too_few_samples(e)
+            }
             BoundedError::ModesExceedBound { .. }
-            | BoundedError::Procedure(
-                ProcedureError::TooFewSamples { .. } | ProcedureError::Setting(_),
-            ) => IdentifyError::input(e),
+            | BoundedError::Procedure(ProcedureError::Setting(_)) => IdentifyError::input(e),
             e => IdentifyError::failed(e),
         }
     }

@@ -108,6 +108,7 @@ impl From<ClusterError> for IdentifyError {
             ClusterError::Procedure(_)
             | ClusterError::FewerModesFound { .. }
             | ClusterError::MoreModesFound { .. } => IdentifyError::failed(e),
+            ClusterError::TooFewForLocalDatasets { .. } => IdentifyError::too_few_samples(e),
             e => IdentifyError::input(e),
         }
     }

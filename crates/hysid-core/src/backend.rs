@@ -177,6 +177,12 @@ pub enum IdentifyError {
     /// (`ArxError`, `ClusterError`, ...), reached with `downcast_ref`.
     #[error(transparent)]
     Input(Box<dyn std::error::Error + Send + Sync>),
+    /// Fewer samples than the back-end needs for the problem asked
+    /// (its orders, modes, free parameters or local datasets): its own
+    /// typed error, reached with `downcast_ref`. A front end names the
+    /// records and rows the samples came from.
+    #[error(transparent)]
+    TooFewSamples(Box<dyn std::error::Error + Send + Sync>),
     /// The method ran and failed (solver failure, every restart diverged...):
     /// the back-end's or the shared step's own typed error, reached with
     /// [`IdentifyError::downcast_ref`].
@@ -203,6 +209,24 @@ impl IdentifyError {
         IdentifyError::Input(Box::new(e))
     }
 
+    /// Too few samples for the back-end ([`IdentifyError::TooFewSamples`]).
+    pub fn too_few_samples(e: impl std::error::Error + Send + Sync + 'static) -> Self {
+        IdentifyError::TooFewSamples(Box::new(e))
+    }
+
+    /// Whether the record gave too few samples, or none of the shape asked
+    /// ([`IdentifyError::Regressors`], [`IdentifyError::TooFewRegressors`],
+    /// [`IdentifyError::TooFewSamples`]): a front end names where the
+    /// samples came from.
+    pub fn is_sample_shortage(&self) -> bool {
+        matches!(
+            self,
+            IdentifyError::Regressors(_)
+                | IdentifyError::TooFewRegressors { .. }
+                | IdentifyError::TooFewSamples(_)
+        )
+    }
+
     /// A prior that does not fit the problem ([`IdentifyError::PriorMismatch`]);
     /// `origin` is the prior file, if any.
     pub fn prior_mismatch(
@@ -216,11 +240,12 @@ impl IdentifyError {
     }
 
     /// The back-end's own error inside [`IdentifyError::Input`],
-    /// [`IdentifyError::PriorMismatch`] or [`IdentifyError::Failed`], if it
-    /// is an `E`.
+    /// [`IdentifyError::TooFewSamples`], [`IdentifyError::PriorMismatch`]
+    /// or [`IdentifyError::Failed`], if it is an `E`.
     pub fn downcast_ref<E: std::error::Error + 'static>(&self) -> Option<&E> {
         match self {
             IdentifyError::Input(e)
+            | IdentifyError::TooFewSamples(e)
             | IdentifyError::PriorMismatch { problem: e, .. }
             | IdentifyError::Failed { cause: e, .. } => e.downcast_ref(),
             _ => None,

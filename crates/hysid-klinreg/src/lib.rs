@@ -317,7 +317,7 @@ pub enum KLinRegError {
 impl From<KLinRegError> for IdentifyError {
     fn from(e: KLinRegError) -> Self {
         match e {
-            KLinRegError::TooFewSamples { .. } => IdentifyError::input(e),
+            KLinRegError::TooFewSamples { .. } => IdentifyError::too_few_samples(e),
             e => IdentifyError::failed(e),
         }
     }

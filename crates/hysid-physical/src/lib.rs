@@ -278,6 +278,9 @@ pub enum PhysicalError {
 
 impl From<PhysicalError> for IdentifyError {
     fn from(e: PhysicalError) -> Self {
-        IdentifyError::input(e)
+        match e {
+            PhysicalError::TooFewSamples { .. } => IdentifyError::too_few_samples(e),
+            e => IdentifyError::input(e),
+        }
     }
 }

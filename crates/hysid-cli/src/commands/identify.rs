@@ -7,7 +7,6 @@ use crate::progress::TerminalProgress;
 use crate::selection::DataArgs;
 use hysid::identify::{Auto, Identify, Mode};
 use hysid::select::SelectError;
-use hysid_core::backend::IdentifyError;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
@@ -211,9 +210,7 @@ pub fn run(args: Args) -> Result<()> {
             }
             // Too few samples for the orders and modes: named by the
             // records and rows they were selected from.
-            hysid::identify::Error::Identify(
-                e @ (IdentifyError::Regressors(_) | IdentifyError::TooFewRegressors { .. }),
-            ) => {
+            hysid::identify::Error::Identify(e) if e.is_sample_shortage() => {
                 let files: Vec<String> = args.data.iter().map(|p| p.display().to_string()).collect();
                 let rows: Vec<String> = args.select.rows.iter().map(|r| format!(" --rows {r}")).collect();
                 CliError::input(format!(
