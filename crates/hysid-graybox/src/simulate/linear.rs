@@ -144,7 +144,7 @@ impl AffineFlows {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::simulate::{Kept, Machine, Schedule, initial, span};
+    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, initial, span};
     use crate::{CompiledModel, GrayBoxModel};
     use hysid_model::data::Dataset;
     use hysid_model::excitation::Excitation;
@@ -231,15 +231,21 @@ pub(super) mod tests {
         g
     }
 
-    /// The outputs of a run of `m`, every full sub-step in closed form or
-    /// every step by stages.
-    fn outputs(m: &CompiledModel, values: &[f64], data: &Dataset, closed_form: bool) -> Vec<f64> {
+    /// A run of `m` on `data` from its initial rule, the machine set by
+    /// `set` first: the run with its steps, events and Zeno steps, and the
+    /// steps the quiet lane took.
+    pub(in crate::simulate) fn run_with(
+        m: &CompiledModel,
+        values: &[f64],
+        data: &Dataset,
+        set: impl FnOnce(&mut Machine),
+    ) -> (GrayBoxRun, usize) {
         let bound = m.bind(values);
         let schedule = Schedule::new(&bound, data.ts.unwrap());
         let mut machine = Machine::new(&bound, values);
-        machine.closed_form = closed_form;
+        set(&mut machine);
         let (first, hs) = initial(&bound, &mut machine, data, &schedule, &[]).unwrap();
-        let mut out = super::super::GrayBoxRun::empty(data, m.states, first, Kept::Everything);
+        let mut out = GrayBoxRun::empty(data, m.states, first, Kept::Everything);
         span(
             &mut machine,
             hs,
@@ -249,7 +255,18 @@ pub(super) mod tests {
             &mut out,
         )
         .unwrap();
-        out.y
+        out.steps = machine.steps;
+        out.events = machine.events;
+        out.zeno_steps = machine.zeno_steps;
+        (out, machine.quiet_steps)
+    }
+
+    /// The outputs of a run of `m`, every full sub-step in closed form or
+    /// every step by stages.
+    fn outputs(m: &CompiledModel, values: &[f64], data: &Dataset, closed_form: bool) -> Vec<f64> {
+        run_with(m, values, data, |machine| machine.closed_form = closed_form)
+            .0
+            .y
     }
 
     proptest! {

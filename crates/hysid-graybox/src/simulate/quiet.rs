@@ -129,40 +129,10 @@ impl Machine<'_> {
 #[cfg(test)]
 mod tests {
     use crate::CompiledModel;
-    use crate::simulate::linear::tests::head;
-    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, initial, span};
+    use crate::simulate::linear::tests::{head, run_with};
     use hysid_model::data::Dataset;
     use hysid_model::excitation::Excitation;
     use proptest::prelude::*;
-
-    /// A run of `m` with the shortcuts on or off, and the steps the lane
-    /// took.
-    fn run(
-        m: &CompiledModel,
-        values: &[f64],
-        data: &Dataset,
-        shortcuts: bool,
-    ) -> (GrayBoxRun, usize) {
-        let bound = m.bind(values);
-        let schedule = Schedule::new(&bound, data.ts.unwrap());
-        let mut machine = Machine::new(&bound, values);
-        machine.shortcuts = shortcuts;
-        let (first, hs) = initial(&bound, &mut machine, data, &schedule, &[]).unwrap();
-        let mut out = GrayBoxRun::empty(data, m.states, first, Kept::Everything);
-        span(
-            &mut machine,
-            hs,
-            data,
-            first..data.len(),
-            &schedule,
-            &mut out,
-        )
-        .unwrap();
-        out.steps = machine.steps;
-        out.events = machine.events;
-        out.zeno_steps = machine.zeno_steps;
-        (out, machine.quiet_steps)
-    }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(16))]
@@ -177,8 +147,8 @@ mod tests {
             let m = CompiledModel::new(&g).unwrap();
             let ex = Excitation { n: 1500, hold: 40, low: -0.3, high: 0.05, ts: Some(0.0025), inputs: 1 };
             let data = Dataset::siso(ex.generate(seed).remove(0), vec![3.0; 1500], Some(0.0025)).unwrap();
-            let (with, quiet) = run(&m, &g.values(), &data, true);
-            let (without, none) = run(&m, &g.values(), &data, false);
+            let (with, quiet) = run_with(&m, &g.values(), &data, |_| ());
+            let (without, none) = run_with(&m, &g.values(), &data, |machine| machine.shortcuts = false);
             prop_assert_eq!(none, 0);
             prop_assert!(2 * quiet > with.steps, "{quiet} of {} steps in the lane", with.steps);
             prop_assert!(with.events > 0);
