@@ -44,10 +44,7 @@ impl Machine<'_> {
         let watch = &self.watch;
         for taken in 0..n_sub {
             step.apply(&hs.x, u, x1);
-            if watch
-                .iter()
-                .any(|&(s, sign, level)| sign * (x1[s] - level) >= 0.0)
-            {
+            if watched_event(watch, x1) {
                 return taken;
             }
             let (start, end) = self.g.start_and_end(guards.len());
@@ -100,11 +97,7 @@ impl Machine<'_> {
     /// slots loaded only for a crossed guard's `when` condition. The
     /// event's bisection asks it at every halving.
     pub(super) fn ends_lane(&mut self, x: &[f64], u: &[f64], mode: usize) -> bool {
-        if self
-            .watch
-            .iter()
-            .any(|&(s, sign, level)| sign * (x[s] - level) >= 0.0)
-        {
+        if watched_event(&self.watch, x) {
             return true;
         }
         let m = self.m;
@@ -124,6 +117,15 @@ impl Machine<'_> {
         }
         false
     }
+}
+
+/// Whether `x` meets one of the `watch` list's events: `sign * (x[s] -
+/// level) >= 0` (a stop reached, a sliding velocity at zero or reversed).
+#[inline]
+fn watched_event(watch: &[(usize, f64, f64)], x: &[f64]) -> bool {
+    watch
+        .iter()
+        .any(|&(s, sign, level)| sign * (x[s] - level) >= 0.0)
 }
 
 #[cfg(test)]
