@@ -1176,26 +1176,21 @@ impl<'a> Machine<'a> {
                 .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE)
         };
         let y = self.output(hs, u);
-        let label = |want: &dyn Fn(&CompiledElement, ElementRegime) -> bool| {
-            m.elements
-                .iter()
-                .zip(&hs.regimes)
-                .find(|(e, r)| want(e, **r))
-                .map(|(e, _)| match e {
-                    CompiledElement::Stop { label, .. }
-                    | CompiledElement::DryFriction { label, .. } => *label,
-                })
-        };
-        let mode =
-            label(&|e, r| matches!(e, CompiledElement::Stop { .. }) && r == ElementRegime::Resting)
-                .or_else(|| {
-                    label(&|e, r| {
-                        matches!(e, CompiledElement::DryFriction { .. })
-                            && r == ElementRegime::Stuck
-                    })
-                })
-                .unwrap_or(hs.mode);
-        (y, mode, covered)
+        // A stop's label where one holds the state, else a stuck
+        // friction's, else the mode's.
+        let mut stuck = None;
+        for (e, r) in m.elements.iter().zip(&hs.regimes) {
+            match (e, r) {
+                (CompiledElement::Stop { label, .. }, ElementRegime::Resting) => {
+                    return (y, *label, covered);
+                }
+                (CompiledElement::DryFriction { label, .. }, ElementRegime::Stuck) => {
+                    stuck = stuck.or(Some(*label));
+                }
+                _ => {}
+            }
+        }
+        (y, stuck.unwrap_or(hs.mode), covered)
     }
 
     /// Sets the state `position` of `x` to the inverse of `mode`'s output
@@ -1399,6 +1394,16 @@ impl Schedule {
     /// in time order, consecutive pieces of equal inputs merged, and
     /// returns how many there are (one without delays).
     fn fill(&self, data: &Dataset, k: usize, pieces: &mut Vec<Piece>) -> Result<usize, SimError> {
+        if let (&[ts], Some(n)) = (&self.cuts[..], self.whole) {
+            // No delay cuts the sample: one piece of the whole sample.
+            if pieces.is_empty() {
+                pieces.push((0.0, vec![0.0; self.lags.len()], 0));
+            }
+            self.inputs(data, k, 0.0, &mut pieces[0].1);
+            pieces[0].0 = ts;
+            pieces[0].2 = n;
+            return Ok(1);
+        }
         let mut count = 0;
         let mut from = 0.0;
         for &to in &self.cuts {
