@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use common::{fail, hysid, one_line_error, report, s, write};
+use common::{fail, hysid, line_holding, one_line_error, report, repository_text, s, write};
 use std::path::{Path, PathBuf};
 
 /// Exit code `code`, a one-line `hysid: error:` message containing every
@@ -679,11 +679,7 @@ fn misspelt_fields_of_pwarx_models_and_automata() {
     let data = good_csv(d);
     let data = s(&data);
     let out = d.join("never.csv");
-    let ball = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../models/examples/bouncing-ball.toml"
-    ))
-    .unwrap();
+    let ball = repository_text("models/examples/bouncing-ball.toml");
     let cases: Vec<(&str, String, &[&str])> = vec![
         (
             "rest.toml",
@@ -729,6 +725,10 @@ fn misspelt_fields_of_pwarx_models_and_automata() {
     report();
 }
 
+/// A short input for the gray-box head (`simulate --excite`), for files
+/// refused before they run.
+const HEAD_EXCITE: &str = "n=21,hold=10,low=-0.2,high=0,ts=0.0025";
+
 /// A gray-box field of the wrong name, type or variant names the file, the
 /// line and the entry, as the other errors of a gray-box file do.
 #[test]
@@ -736,22 +736,10 @@ fn gray_box_fields_of_the_wrong_name_type_or_variant() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let out = d.join("never.csv");
-    let head = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../models/pick-and-place/head-graybox.toml"
-    ))
-    .unwrap();
+    let head = repository_text("models/pick-and-place/head-graybox.toml");
     // The line of the `nth` line holding `part`, as the message words it.
-    let line = |text: &str, part: &str, nth: usize| {
-        let i = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| l.contains(part))
-            .nth(nth)
-            .unwrap()
-            .0;
-        format!("line {}: ", i + 1)
-    };
+    let line =
+        |text: &str, part: &str, nth: usize| format!("line {}: ", line_holding(text, part, nth));
     let case = |name: &'static str, from: &str, to: &str, entry: &str, message: &'static str| {
         let text = head.replacen(from, to, 1);
         let at = line(&text, to, 0);
@@ -797,14 +785,7 @@ fn gray_box_fields_of_the_wrong_name_type_or_variant() {
     for (name, text, located, message) in &cases {
         let m = write(d, name, text);
         bad(
-            &[
-                "simulate",
-                s(&m),
-                "--excite",
-                "n=21,hold=10,low=-0.2,high=0,ts=0.0025",
-                "-o",
-                s(&out),
-            ],
+            &["simulate", s(&m), "--excite", HEAD_EXCITE, "-o", s(&out)],
             &[located, message],
             &out,
         );
@@ -821,25 +802,14 @@ fn an_unknown_estimated_state_gives_the_line_of_its_key() {
     let out = d.join("never.csv");
     let rule =
         "initial_state = { from = \"measured\", samples = 10, position = \"y\", velocity = \"v\"";
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../models/pick-and-place/head-graybox.toml"
-    ))
-    .unwrap()
-    .replace(rule, &format!("{rule}, estimate = {{ w = [0, 1] }}"));
-    let at = text.lines().position(|l| l.contains("estimate")).unwrap() + 1;
-    let first_w = text.lines().position(|l| l.contains('w')).unwrap() + 1;
+    let text = repository_text("models/pick-and-place/head-graybox.toml")
+        .replace(rule, &format!("{rule}, estimate = {{ w = [0, 1] }}"));
+    let at = line_holding(&text, "estimate", 0);
+    let first_w = line_holding(&text, "w", 0);
     assert!(first_w < at, "a comment above mentions w");
     let m = write(d, "estimate.toml", &text);
     bad(
-        &[
-            "simulate",
-            s(&m),
-            "--excite",
-            "n=21,hold=10,low=-0.2,high=0,ts=0.0025",
-            "-o",
-            s(&out),
-        ],
+        &["simulate", s(&m), "--excite", HEAD_EXCITE, "-o", s(&out)],
         &[
             &format!("estimate.toml, line {at}: "),
             "initial_state, estimate: 'w' is not a state",
@@ -857,17 +827,10 @@ fn malformed_gray_box_files() {
     let data = good_csv(d);
     let data = s(&data);
     let out = d.join("never.csv");
-    let good = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../models/examples/ball-on-table.toml"
-    ))
-    .unwrap()
-    .replace("inputs = [\"a\"]", "inputs = [\"u\"]")
-    .replace("a - 2*zeta", "u - 2*zeta");
-    let line_of = |needle: &str| {
-        let i = good.lines().position(|l| l.contains(needle)).unwrap();
-        format!("line {}", i + 1)
-    };
+    let good = repository_text("models/examples/ball-on-table.toml")
+        .replace("inputs = [\"a\"]", "inputs = [\"u\"]")
+        .replace("a - 2*zeta", "u - 2*zeta");
+    let line_of = |needle: &str| format!("line {}", line_holding(&good, needle, 0));
     let cases: Vec<(&str, String, Vec<String>)> = vec![
         (
             "symbol.toml",

@@ -122,6 +122,24 @@ pub fn two_mode_record_as(dir: &Path, name: &str, n: usize, seed: u64, ts: f64) 
     data
 }
 
+/// The text of the repository's file at `path` (from the repository's
+/// root).
+pub fn repository_text(path: &str) -> String {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+    std::fs::read_to_string(format!("{root}/{path}")).unwrap()
+}
+
+/// The 1-based number of the `nth` (from 0) line of `text` holding `part`.
+pub fn line_holding(text: &str, part: &str, nth: usize) -> usize {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| l.contains(part))
+        .nth(nth)
+        .unwrap_or_else(|| panic!("no line {nth} holding {part:?}"))
+        .0
+        + 1
+}
+
 /// The pick-and-place head's model file.
 pub const HEAD_MODEL: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
