@@ -9,9 +9,11 @@
 //! and inputs: the module `linear`). Sub-steps that end without an event
 //! are taken back to back by the module `quiet`, with the same results.
 //!
-//! **Events** are located inside the sub-step by bisection on the step
-//! length ([`LOCATE_HALVINGS`] halvings); the state is taken just past the
-//! event and the rest of the sub-step integrated in the new regime:
+//! **Events** are located inside the sub-step on the step length, to
+//! [`LOCATE_RESOLUTION`] of the sub-step, by regula falsi on the event's
+//! margin safeguarded by bisection
+//! ([`hysid_numerics::event_location`]); the state is
+//! taken just past the event and the rest of the sub-step integrated in the new regime:
 //!
 //! - an element's regime ends (checked on the state): a sliding velocity
 //!   reaches zero, a stop is reached, a stuck friction's applied force
@@ -50,6 +52,7 @@ use crate::expr::Crossing;
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::simulate::{SimError, estimate_velocity, substeps};
 use hysid_numerics::budget::Deadline;
+pub use hysid_numerics::event_location::LOCATE_RESOLUTION;
 use hysid_numerics::least_squares::{
     CentralDifferences, Damping, Exact, LmSettings, Residuals, descend,
 };
@@ -60,14 +63,12 @@ pub use sensitivity::{Sensitivities, differentiable};
 use std::rc::Rc;
 
 mod linear;
+mod locate;
 mod quiet;
 mod sensitivity;
 
 /// Bound on the events handled within one sub-step (the Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
-
-/// Halvings of the step length when locating an event.
-pub const LOCATE_HALVINGS: usize = 40;
 
 /// Tolerance on an invariant's margin when checking a mode (states in the
 /// model's own units).
@@ -291,7 +292,7 @@ pub struct Machine<'a> {
     /// Friction element of each state, if any.
     friction_of: Vec<Option<usize>>,
     k: [Vec<f64>; 4],
-    /// The end of a trial step, and the bisection's trial state.
+    /// The end of a trial step, and the event location's trial state.
     x1: Vec<f64>,
     xm: Vec<f64>,
     /// Guard surfaces at the start of the step and at its trial end.
@@ -350,6 +351,8 @@ pub struct Machine<'a> {
     /// Of `steps`, those the [`quiet`] lane took.
     pub(crate) quiet_steps: usize,
     pub(crate) events: usize,
+    /// The trial steps of the events' location.
+    pub(crate) locate_trials: usize,
     pub(crate) zeno_steps: usize,
     /// The sensitivities carried beside the state, when asked for.
     tangent: Option<Tangent<'a>>,
@@ -421,6 +424,7 @@ impl<'a> Machine<'a> {
             effects_of: Vec::new(),
             steps: 0,
             quiet_steps: 0,
+            locate_trials: 0,
             events: 0,
             zeno_steps: 0,
             tangent: None,
@@ -1042,43 +1046,9 @@ impl<'a> Machine<'a> {
                     self.g.step();
                     break;
                 };
-                let (mut lo, mut hi) = (0.0, left);
                 // The last state before the event, for the sensitivities.
                 let mut before = self.differentiates().then(|| hs.clone());
-                // In the quiet lane's regimes, the halvings test the state
-                // alone; the event at the end is named as below.
-                let lane = self.quiet_lane_open(hs);
-                let mut moved = false;
-                for _ in 0..LOCATE_HALVINGS {
-                    let mid = 0.5 * (lo + hi);
-                    if mid <= lo || mid >= hi {
-                        break;
-                    }
-                    self.rk4(hs, u, mid, &mut xm);
-                    let found = if lane {
-                        self.ends_lane(&xm, u, hs.mode).then_some(ev)
-                    } else {
-                        self.surfaces_at(&xm, u, hs.mode);
-                        self.first_event(hs, &xm)
-                    };
-                    if let Some(e) = found {
-                        hi = mid;
-                        ev = e;
-                        moved = true;
-                        x1.copy_from_slice(&xm);
-                    } else {
-                        lo = mid;
-                        if let Some(b) = before.as_mut() {
-                            b.x.copy_from_slice(&xm);
-                        }
-                    }
-                }
-                if lane && moved {
-                    self.surfaces_at(&x1, u, hs.mode);
-                    if let Some(e) = self.first_event(hs, &x1) {
-                        ev = e;
-                    }
-                }
+                let (lo, hi) = self.locate(hs, u, left, &mut ev, (&mut x1, &mut xm), &mut before);
                 if let Some(before) = before {
                     self.tangent_step(hs, u, lo, false);
                     self.tangent_event(&before, u, ev);

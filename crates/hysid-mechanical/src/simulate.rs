@@ -11,9 +11,11 @@
 //! ([`hysid_numerics::affine_rk4`]), formed once per sliding regime
 //! ([`Integrator`]); shorter steps around events take the four stages.
 //!
-//! Events are located inside the internal step by bisection on the step
-//! length (at most 60 halvings, to the last bit of the step), the state
-//! taken just past the event, and the rest of the step integrated in the
+//! Events are located inside the internal step on the step length, to
+//! [`LOCATE_RESOLUTION`] of the step, by regula falsi on the regime's
+//! margin safeguarded by bisection
+//! ([`hysid_numerics::event_location`]), the state taken just past the
+//! event, and the rest of the step integrated in the
 //! new regime (at most [`MAX_EVENTS_PER_STEP`] events per step):
 //!
 //! - **velocity zero** (`s v <= 0`): `v := 0`; the mass sticks when the net
@@ -37,6 +39,8 @@ use hysid_model::data::Dataset;
 use hysid_model::simulate::{SimError, Simulation, SimulationOptions};
 pub use hysid_model::simulate::{estimate_velocity, substeps};
 use hysid_numerics::affine_rk4::ClosedStep;
+pub use hysid_numerics::event_location::LOCATE_RESOLUTION;
+use hysid_numerics::event_location::{Bracket, LOCATE_TRIALS};
 
 /// Bound on the events processed within one internal step (a Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
@@ -270,6 +274,33 @@ impl ResolvedMechanics {
         self.engaged_at(y, v) != engaged
     }
 
+    /// The margin of the sliding regime `(dir, engaged)` at `(y, v)`: not
+    /// negative where [`ResolvedMechanics::left_slip`] finds it left (the
+    /// largest of the velocity against `dir`, the distances past the stops
+    /// ahead, and each contact's distance from changing its engagement).
+    fn slip_margin(&self, y: f64, v: f64, dir: f64, engaged: u32) -> f64 {
+        let mut m = -dir * v;
+        for s in &self.stops {
+            if s.sign * dir > 0.0 {
+                m = m.max(s.sign * (y - s.position));
+            }
+        }
+        for (i, c) in self.contacts.iter().enumerate() {
+            let p = c.sign * (y - c.position);
+            let engage = if c.unilateral {
+                p.min(c.stiffness * p + c.damping * c.sign * v)
+            } else {
+                p
+            };
+            m = m.max(if engaged & (1 << i) != 0 {
+                -engage
+            } else {
+                engage
+            });
+        }
+        m
+    }
+
     /// The state just after leaving a sliding regime at `(y, v)`.
     fn handle_event(&self, y: f64, v: f64, u: &[f64], dir: f64) -> MechanicalState {
         // A stop crossed in the direction of motion takes precedence.
@@ -324,7 +355,8 @@ impl ResolvedMechanics {
 /// The sub-steps of a run: RK4 over the model's internal step, a full
 /// sub-step of a sliding regime in closed form
 /// ([`ResolvedMechanics::affine_flows`], [`ClosedStep`], formed when the
-/// regime is first met), events located by bisection on the step length.
+/// regime is first met), events located on the step length
+/// ([`Bracket`]).
 #[derive(Debug, Clone)]
 pub struct Integrator<'a> {
     mech: &'a ResolvedMechanics,
@@ -405,23 +437,23 @@ impl<'a> Integrator<'a> {
                     st.v = v1;
                     break;
                 }
-                // Locate the first exit in (0, left] by bisection.
-                let (mut lo, mut hi) = (0.0, left);
+                // Locate the first exit in (0, left].
+                let margin = |y, v| Some(mech.slip_margin(y, v, d, engaged));
+                let mut b = Bracket::new(left, margin(st.y, st.v), margin(y1, v1));
                 let (mut yh, mut vh) = (y1, v1);
-                for _ in 0..60 {
-                    let mid = 0.5 * (lo + hi);
-                    if mid <= lo || mid >= hi {
+                for _ in 0..LOCATE_TRIALS {
+                    let Some(t) = b.trial() else {
                         break;
-                    }
-                    let (ym, vm) = mech.rk4(st.y, st.v, u, d, engaged, mid);
-                    if mech.left_slip(ym, vm, d, engaged) {
-                        hi = mid;
+                    };
+                    let (ym, vm) = mech.rk4(st.y, st.v, u, d, engaged, t);
+                    let left_it = mech.left_slip(ym, vm, d, engaged);
+                    b.update(t, left_it, margin(ym, vm));
+                    if left_it {
                         yh = ym;
                         vh = vm;
-                    } else {
-                        lo = mid;
                     }
                 }
+                let hi = b.hi;
                 events += 1;
                 n_ev += 1;
                 left -= hi;
@@ -881,6 +913,22 @@ mod tests {
             let want = r.slip_accel(y, v, &[u], dir, engaged);
             prop_assert_eq!(dy, v);
             prop_assert!((dv - want).abs() <= 1e-9 * (1.0 + want.abs() + a[2].abs() * y), "{dv} vs {want}");
+        }
+
+        /// The sliding regime's margin marks what `left_slip` tests: not
+        /// negative exactly where the state has left the regime (away from
+        /// the margin's zero, where the two may round apart), so the event
+        /// location's regula falsi is never turned to bisection by it.
+        #[test]
+        fn the_margin_agrees_with_the_regime_test(
+            z in unit(), y in -2.0f64..30.0, v in -500.0f64..500.0,
+            dir in prop_oneof![Just(1.0), Just(-1.0)], engaged in 0u32..4,
+        ) {
+            let r = head_at(&z).resolve();
+            let engaged = engaged & ((1 << r.contacts.len()) - 1);
+            let margin = r.slip_margin(y, v, dir, engaged);
+            prop_assume!(margin.abs() > 1e-9);
+            prop_assert_eq!(margin >= 0.0, r.left_slip(y, v, dir, engaged), "margin {}", margin);
         }
 
         /// Full sub-steps in closed form simulate the head as RK4's four

@@ -232,14 +232,14 @@ pub(super) mod tests {
     }
 
     /// A run of `m` on `data` from its initial rule, the machine set by
-    /// `set` first: the run with its steps, events and Zeno steps, and the
-    /// steps the quiet lane took.
+    /// `set` first: the run with its steps, events and Zeno steps, the
+    /// steps the quiet lane took and the trials of the events' location.
     pub(in crate::simulate) fn run_with(
         m: &CompiledModel,
         values: &[f64],
         data: &Dataset,
         set: impl FnOnce(&mut Machine),
-    ) -> (GrayBoxRun, usize) {
+    ) -> (GrayBoxRun, usize, usize) {
         let bound = m.bind(values);
         let schedule = Schedule::new(&bound, data.ts.unwrap());
         let mut machine = Machine::new(&bound, values);
@@ -258,7 +258,7 @@ pub(super) mod tests {
         out.steps = machine.steps;
         out.events = machine.events;
         out.zeno_steps = machine.zeno_steps;
-        (out, machine.quiet_steps)
+        (out, machine.quiet_steps, machine.locate_trials)
     }
 
     /// The outputs of a run of `m`, every full sub-step in closed form or

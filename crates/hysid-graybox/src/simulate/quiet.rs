@@ -95,7 +95,7 @@ impl Machine<'_> {
     /// [`Machine::first_event`] finds there, decided from the watched
     /// states and the guards' affine forms against the step's start, the
     /// slots loaded only for a crossed guard's `when` condition. The
-    /// event's bisection asks it at every halving.
+    /// event's location asks it at every trial.
     pub(super) fn ends_lane(&mut self, x: &[f64], u: &[f64], mode: usize) -> bool {
         if watched_event(&self.watch, x) {
             return true;
@@ -237,8 +237,8 @@ mod tests {
                 for seed in 1..=3 {
                     let u = ex.generate(seed).remove(0);
                     let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
-                    let (with, _) = run_with(&m, &g.values(), &data, |_| ());
-                    let (without, _) =
+                    let (with, ..) = run_with(&m, &g.values(), &data, |_| ());
+                    let (without, ..) =
                         run_with(&m, &g.values(), &data, |machine| machine.shortcuts = false);
                     assert!(
                         same_bits(&with, &without),
@@ -264,18 +264,22 @@ mod tests {
         /// The mounting head, anywhere in its parameters' bounds, through
         /// impacts, sticking and stops: the lane takes most sub-steps, and
         /// the shortcuts change no bit of the run (outputs, states, modes,
-        /// coverage, steps and events).
+        /// coverage, steps and events); the events are located in regula
+        /// falsi's few trials.
         #[test]
         fn the_quiet_lane_changes_no_bit(z in prop::collection::vec(0.0f64..1.0, 12), seed in 0u64..1000) {
             let g = head(&z);
             let m = CompiledModel::new(&g).unwrap();
             let ex = Excitation { n: 1500, hold: 40, low: -0.3, high: 0.05, ts: Some(0.0025), inputs: 1 };
             let data = Dataset::siso(ex.generate(seed).remove(0), vec![3.0; 1500], Some(0.0025)).unwrap();
-            let (with, quiet) = run_with(&m, &g.values(), &data, |_| ());
-            let (without, none) = run_with(&m, &g.values(), &data, |machine| machine.shortcuts = false);
+            let (with, quiet, trials) = run_with(&m, &g.values(), &data, |_| ());
+            let (without, none, _) = run_with(&m, &g.values(), &data, |machine| machine.shortcuts = false);
             prop_assert_eq!(none, 0);
             prop_assert!(2 * quiet > with.steps, "{quiet} of {} steps in the lane", with.steps);
             prop_assert!(with.events > 0);
+            // The events' margins agree with their tests: the location
+            // takes regula falsi's few trials, not a bisection's 40.
+            prop_assert!(trials <= 12 * with.events, "{trials} trials for {} events", with.events);
             prop_assert!(same_bits(&with, &without));
         }
     }
