@@ -400,6 +400,31 @@ impl<'a> Integrator<'a> {
         &self.closed[at].2
     }
 
+    /// Takes up to `n` full sub-steps of the current sliding regime in
+    /// closed form, back to back while none leaves it, and returns how
+    /// many it took; the sub-step that leaves it is left to
+    /// [`Integrator::advance`], which takes it again from the same state.
+    fn quiet_substeps(&mut self, st: &mut MechanicalState, u: &[f64], n: usize) -> usize {
+        let Regime::Slip { dir, engaged } = st.regime else {
+            return 0;
+        };
+        if !self.closed_form {
+            return 0;
+        }
+        let mech = self.mech;
+        let step = self.closed(dir, engaged, u.len());
+        let mut x1 = [0.0; 2];
+        for taken in 0..n {
+            step.apply(&[st.y, st.v], u, &mut x1);
+            if mech.left_slip(x1[0], x1[1], dir as f64, engaged) {
+                return taken;
+            }
+            st.y = x1[0];
+            st.v = x1[1];
+        }
+        n
+    }
+
     /// Advances the state by one sample with input `u` held. Returns
     /// (internal steps, events).
     pub fn advance(&mut self, st: &mut MechanicalState, u: &[f64]) -> (usize, usize) {
@@ -413,7 +438,15 @@ impl<'a> Integrator<'a> {
                 return (0, 0);
             }
         }
-        for _ in 0..n_sub {
+        let mut sub = 0;
+        while sub < n_sub {
+            let quiet = self.quiet_substeps(st, u, n_sub - sub);
+            steps += quiet;
+            sub += quiet;
+            if sub == n_sub {
+                break;
+            }
+            sub += 1;
             let mut left = h;
             let mut n_ev = 0;
             while left > 0.0 {
