@@ -344,6 +344,16 @@ fn malformed_csv_files() {
             &["blank-lines.csv", "row 3", "line 6", "column 'y'", "'oops'"],
         ),
         (
+            "missing-sample.csv",
+            "t,u,y\n0,1,2\n0.5,3,4\n1.0,5,6\n2.0,7,8\n",
+            &[
+                "missing-sample.csv",
+                "column 't', row 4",
+                "time step 1",
+                "first step 0.5",
+            ],
+        ),
+        (
             "huge.csv",
             "u,y\n1,2\n3,1e400\n",
             &["huge.csv", "row 2", "column 'y'", "non-finite", "1e400"],

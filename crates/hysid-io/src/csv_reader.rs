@@ -404,6 +404,30 @@ mod tests {
         assert_eq!(d.ts, Some(0.5));
     }
 
+    /// A time column's steps must all be the first one's (within 1 %): a
+    /// missing sample is named by the row its step ends on, after
+    /// decimation too; jitter within the tolerance passes.
+    #[test]
+    fn a_time_column_with_an_uneven_step_is_refused() {
+        let e = err("t,u,y\n0,1,2\n0.5,3,4\n1.0,5,6\n2.0,7,8\n2.5,9,0\n");
+        assert!(
+            e.contains("column 't', row 4") && e.contains("time step 1 is not the first step 0.5"),
+            "{e}"
+        );
+        let f = csv("t,u,y\n0,1,2\n1,3,4\n2,5,6\n3,7,8\n5,9,0\n6,1,1\n");
+        let sel = DataSelection {
+            decimate: 2,
+            ..DataSelection::default()
+        };
+        let e = load(f.path(), &sel).unwrap_err().to_string();
+        assert!(e.contains("column 't', row 5"), "{e}");
+        let f = csv("t,u,y\n0,1,2\n0.5,3,4\n1.004,5,6\n1.5,7,8\n");
+        assert_eq!(
+            load(f.path(), &DataSelection::default()).unwrap().ts,
+            Some(0.5)
+        );
+    }
+
     #[test]
     fn errors_name_row_and_column() {
         let e = err("u,y\n1,2\n3,NaN\n");

@@ -79,6 +79,16 @@ pub(crate) fn wanted_names(sel: &DataSelection) -> Vec<&str> {
         .collect()
 }
 
+/// How far a time step may differ from the first, relative to it (clock
+/// jitter and rounding pass; a missing or repeated sample does not).
+const STEP_TOLERANCE: f64 = 0.01;
+
+/// The first sample `k` whose step `t[k] - t[k - 1]` differs from `dt` by
+/// more than [`STEP_TOLERANCE`] of it.
+fn uneven_step(t: &[f64], dt: f64) -> Option<usize> {
+    (2..t.len()).find(|&k| !((t[k] - t[k - 1] - dt).abs() <= STEP_TOLERANCE * dt))
+}
+
 pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
     let pick = |v: &[f64]| -> Vec<f64> { v.iter().step_by(sel.decimate).copied().collect() };
     let output = Signal {
@@ -107,6 +117,18 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
                     path: table.path.clone(),
                     location: format!("{} '{time}': ", table.what),
                     message: "time does not increase".into(),
+                });
+            }
+            if let Some(k) = uneven_step(&t, dt) {
+                return Err(DataError::Parse {
+                    path: table.path.clone(),
+                    location: format!("{} '{time}', row {}: ", table.what, k * sel.decimate + 1),
+                    message: format!(
+                        "the time step {} is not the first step {dt} (the samples must be \
+                         equally spaced, within {} % of the step)",
+                        t[k] - t[k - 1],
+                        STEP_TOLERANCE * 100.0
+                    ),
                 });
             }
             Some(dt)
