@@ -1025,6 +1025,50 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
     assert!(!report.contains("-sweep.svg"), "{report}");
 }
 
+/// Rows beyond the record are named by the flag or key that gave them:
+/// `sweep`'s own flags, an experiment's `identification` and `validation`.
+#[test]
+fn rows_beyond_the_record_name_their_flag_or_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = arx_record(dir.path());
+    for (rows, needle) in [
+        (
+            ["--identify-rows", "0..100000", "--select-rows", "0..100"],
+            "--identify-rows 0..100000 ends beyond the",
+        ),
+        (
+            [
+                "--identify-rows",
+                "0..300",
+                "--select-rows",
+                "90000..100000",
+            ],
+            "--select-rows 90000..100000 ends beyond the",
+        ),
+    ] {
+        let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", "na=1,2"];
+        args.extend(rows);
+        let err = one_line_error(&hysid(&args), 2).unwrap();
+        assert!(err.contains(needle) && err.contains("data.csv"), "{err}");
+        assert!(!err.contains("--rows") && !err.contains("[data]"), "{err}");
+    }
+    let exp = dir.path().join("exp.toml");
+    std::fs::write(
+        &exp,
+        format!(
+            "title = \"t\"\n[data]\nfile = {:?}\nidentification = \"0..300\"\nvalidation = \"300..100000\"\n[[run]]\nname = \"a\"\nmethod = \"arx\"\n",
+            s(&data)
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let err = one_line_error(&hysid(&["compare", s(&exp), "-o", s(&out)]), 2).unwrap();
+    assert!(
+        err.contains("validation 300..100000 ends beyond the"),
+        "{err}"
+    );
+}
+
 /// An output file that is one of the command's inputs is refused before
 /// anything runs, and the input is left as it was; a data file given where
 /// the model file goes is named as such.

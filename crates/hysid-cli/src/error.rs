@@ -51,8 +51,9 @@ impl CliError {
 }
 
 impl From<DataError> for CliError {
+    /// Rows are named by the flag that gives them (`--rows`).
     fn from(e: DataError) -> Self {
-        Self::input(e.to_string())
+        Self::input(e.rows_named("--rows").unwrap_or_else(|| e.to_string()))
     }
 }
 

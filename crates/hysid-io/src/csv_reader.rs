@@ -490,7 +490,10 @@ mod tests {
             rows: "9..".parse().unwrap(),
             ..Default::default()
         };
-        assert!(matches!(load(f.path(), &sel), Err(DataError::Selection(_))));
+        assert!(matches!(
+            load(f.path(), &sel),
+            Err(DataError::Rows { beyond: false, .. })
+        ));
     }
 
     /// The whole message, for inputs whose wording depends on how cells are

@@ -84,9 +84,10 @@ pub(crate) fn wanted_names(sel: &DataSelection) -> Vec<&str> {
 const STEP_TOLERANCE: f64 = 0.01;
 
 /// The first sample `k` whose step `t[k] - t[k - 1]` differs from `dt` by
-/// more than [`STEP_TOLERANCE`] of it.
+/// more than [`STEP_TOLERANCE`] of it (the readers refuse non-finite
+/// values, so every step compares).
 fn uneven_step(t: &[f64], dt: f64) -> Option<usize> {
-    (2..t.len()).find(|&k| !((t[k] - t[k - 1] - dt).abs() <= STEP_TOLERANCE * dt))
+    (2..t.len()).find(|&k| (t[k] - t[k - 1] - dt).abs() > STEP_TOLERANCE * dt)
 }
 
 pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
@@ -140,24 +141,17 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
     };
     let ds = Dataset::new(inputs, output, ts)?;
     let n = ds.len();
+    let rows_error = |beyond| DataError::Rows {
+        path: table.path.clone(),
+        rows: sel.rows,
+        available: n,
+        decimate: sel.decimate,
+        beyond,
+    };
     if sel.rows.end.is_some_and(|end| end > n) {
-        return Err(DataError::Selection(format!(
-            "{}: --rows {} ends beyond the {} rows left after decimation by {}",
-            table.path.display(),
-            sel.rows,
-            n,
-            sel.decimate
-        )));
+        return Err(rows_error(true));
     }
-    let (a, b) = sel.rows.resolve(n).map_err(|_| {
-        DataError::Selection(format!(
-            "{}: --rows {} selects no sample of the {} rows left after decimation by {}",
-            table.path.display(),
-            sel.rows,
-            n,
-            sel.decimate
-        ))
-    })?;
+    let (a, b) = sel.rows.resolve(n).map_err(|_| rows_error(false))?;
     ds.slice(RowRange {
         start: Some(a),
         end: Some(b),

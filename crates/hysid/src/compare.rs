@@ -9,8 +9,8 @@ pub mod report;
 pub mod truth;
 
 pub use experiment::{
-    DataSpec, Experiment, ExperimentError, Provenance, RecordSpec, RunSpec, ScoredRows, SweepSpec,
-    value_text,
+    DataPart, DataSpec, Experiment, ExperimentError, Provenance, RecordSpec, RunSpec, ScoredRows,
+    SweepSpec, value_text,
 };
 pub use hysid_plot::FigureFormat;
 pub use report::write_report;
@@ -22,7 +22,7 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::{ValidationReport, validate};
 use hysid_io::load_records;
-use hysid_model::data::{Dataset, RowRange};
+use hysid_model::data::{DataError, Dataset, RowRange};
 use hysid_model::simulate::Simulation;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -344,10 +344,16 @@ impl Experiment {
                 valid.push((r.file.as_path(), data.record_selection(r, rows)));
             }
         }
-        let read = |records: &[(&std::path::Path, _)]| {
-            load_records(records).map_err(|source| ExperimentError::Data { source })
+        let read = |records: &[(&std::path::Path, _)], part| {
+            load_records(records).map_err(|source| match source {
+                DataError::Rows { .. } => ExperimentError::Rows { part, source },
+                source => ExperimentError::Data { source },
+            })
         };
-        Ok((read(&ident)?, read(&valid)?))
+        Ok((
+            read(&ident, DataPart::Identification)?,
+            read(&valid, DataPart::Scored)?,
+        ))
     }
 
     /// What the report says of the data: the file, its rows and the other

@@ -9,7 +9,9 @@ use crate::error::CliError;
 use crate::error::Result;
 use crate::progress::TerminalProgress;
 use crate::selection::SignalArgs;
-use hysid::compare::{DataSpec, Experiment, Origin, RunSpec, ScoredRows, SweepSpec};
+use hysid::compare::{
+    DataPart, DataSpec, Experiment, ExperimentError, Origin, RunSpec, ScoredRows, SweepSpec,
+};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::{SearchSpace, Setup};
@@ -159,9 +161,18 @@ pub fn run(args: Args) -> Result<()> {
     };
     exp.check().map_err(|e| CliError::input(e.to_string()))?;
     let progress = TerminalProgress::new();
-    let mut comparison = exp
-        .run(&progress)
-        .map_err(|e| CliError::input(e.to_string()))?;
+    let mut comparison = exp.run(&progress).map_err(|e| {
+        CliError::input(match &e {
+            ExperimentError::Rows { part, source } => {
+                let flag = match part {
+                    DataPart::Identification => "--identify-rows",
+                    DataPart::Scored => "--select-rows",
+                };
+                source.rows_named(flag).unwrap_or_else(|| e.to_string())
+            }
+            _ => e.to_string(),
+        })
+    })?;
     if let Some(dir) = &args.out {
         hysid::compare::write_report(&mut comparison, dir)
             .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;

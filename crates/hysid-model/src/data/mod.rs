@@ -398,6 +398,32 @@ impl From<RowRange> for String {
     }
 }
 
+impl DataError {
+    /// A [`DataError::Rows`] worded with `name`, the flag or key that gave
+    /// the rows (`--rows`, `--identify-rows`, `[data] identification`).
+    pub fn rows_named(&self, name: &str) -> Option<String> {
+        let DataError::Rows {
+            path,
+            rows,
+            available,
+            decimate,
+            beyond,
+        } = self
+        else {
+            return None;
+        };
+        let what = if *beyond {
+            "ends beyond"
+        } else {
+            "selects no sample of"
+        };
+        Some(format!(
+            "{}: {name} {rows} {what} the {available} rows left after decimation by {decimate}",
+            path.display()
+        ))
+    }
+}
+
 /// Errors from reading or selecting data. Every message names the file and,
 /// where it applies, the row and column.
 #[derive(Debug, thiserror::Error)]
@@ -441,6 +467,22 @@ pub enum DataError {
     /// Bad decimation or row selection.
     #[error("{0}")]
     Selection(String),
+    /// Rows that the record, after decimation, does not hold: they end
+    /// beyond it (`beyond`) or select none of it. Front ends word it with
+    /// the flag or key that gave the rows ([`DataError::rows_named`]).
+    #[error("{}", self.rows_named("rows").unwrap_or_default())]
+    Rows {
+        /// File concerned.
+        path: PathBuf,
+        /// The rows asked for.
+        rows: RowRange,
+        /// Rows the record holds after decimation.
+        available: usize,
+        /// The decimation.
+        decimate: usize,
+        /// The rows end beyond the record (else they select none of it).
+        beyond: bool,
+    },
     /// A record that cannot be joined to the first ([`Dataset::join`]).
     #[error("record {record}: {reason}")]
     Join {

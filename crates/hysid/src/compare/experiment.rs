@@ -350,6 +350,25 @@ impl ScoredRows {
     }
 }
 
+/// The identification or the scored rows of an experiment's records.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DataPart {
+    /// The rows identified on (`identification`).
+    Identification,
+    /// The rows scored (`validation`).
+    Scored,
+}
+
+impl DataPart {
+    /// The key that gives these rows in an experiment file.
+    pub fn key(self) -> &'static str {
+        match self {
+            DataPart::Identification => "identification",
+            DataPart::Scored => "validation",
+        }
+    }
+}
+
 fn two() -> usize {
     2
 }
@@ -371,6 +390,16 @@ pub enum ExperimentError {
     #[error("[data] file: {source}")]
     Data {
         /// Cause.
+        source: hysid_model::data::DataError,
+    },
+    /// Rows of a record that it does not hold, worded with their key
+    /// (`identification` or `validation`, in `[data]` or a
+    /// `[[data.records]]` entry).
+    #[error("{}", source.rows_named(part.key()).unwrap_or_default())]
+    Rows {
+        /// Which rows.
+        part: DataPart,
+        /// Cause ([`hysid_model::data::DataError::Rows`]).
         source: hysid_model::data::DataError,
     },
     /// The true modes could not be read (the message names the file again).
