@@ -89,10 +89,18 @@ impl Bracket {
             return None;
         }
         let mid = 0.5 * (lo + hi);
+        let edge = 0.5 * self.resolution;
+        // The edges kept off the ends; they may cross by rounding when the
+        // bracket is barely wider than the resolution.
+        let (low, high) = (lo + edge, hi - edge);
         let t = match self.margins {
-            Some((a, b)) if self.trials < FALSE_POSITION_TRIALS => {
-                let edge = 0.5 * self.resolution;
-                (lo + width * (a / (a - b))).clamp(lo + edge, hi - edge)
+            Some((a, b)) if self.trials < FALSE_POSITION_TRIALS && low <= high => {
+                let estimate = lo + width * (a / (a - b));
+                if estimate.is_finite() {
+                    estimate.clamp(low, high)
+                } else {
+                    mid
+                }
             }
             _ => mid,
         };
