@@ -646,13 +646,11 @@ impl<'a> Machine<'a> {
     /// from the last one's.
     fn form_closed_step(&mut self, hs: &HybridState) {
         let h = self.full_step;
-        let cached = matches!(&self.closed, Some((mode, regimes, length, _))
-            if *mode == hs.mode && *length == h && *regimes == hs.regimes);
-        if !cached {
+        let key = |(mode, regimes, length, _): &ClosedEntry| {
+            *mode == hs.mode && *length == h && *regimes == hs.regimes
+        };
+        if !self.closed.as_ref().is_some_and(key) {
             self.prepare(hs);
-            let key = |(mode, regimes, length, _): &ClosedEntry| {
-                *mode == hs.mode && *length == h && *regimes == hs.regimes
-            };
             if let Some(at) = self.formed.iter().position(key) {
                 let entry = self.formed.remove(at);
                 self.keep_formed(entry);
