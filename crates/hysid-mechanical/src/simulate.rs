@@ -902,6 +902,20 @@ mod tests {
         assert!(r.events > 0);
     }
 
+    /// The head's test record of 1500 samples: a random input held over 40
+    /// samples between -0.3 and 0.05 (from `seed`).
+    fn head_record(seed: u64) -> Dataset {
+        let ex = Excitation {
+            n: 1500,
+            hold: 40,
+            low: -0.3,
+            high: 0.05,
+            ts: Some(TS),
+            inputs: 1,
+        };
+        Dataset::siso(ex.generate(seed).remove(0), vec![0.0; 1500], Some(TS)).unwrap()
+    }
+
     fn unit() -> impl Strategy<Value = Vec<f64>> {
         proptest::collection::vec(0.0f64..=1.0, 12)
     }
@@ -975,8 +989,7 @@ mod tests {
         fn the_quiet_substeps_change_no_bit(z in unit(), seed in any::<u64>()) {
             let mut m = head_at(&z);
             given(&mut m, 0.0, 0.0);
-            let ex = Excitation { n: 1500, hold: 40, low: -0.3, high: 0.05, ts: Some(TS), inputs: 1 };
-            let data = Dataset::siso(ex.generate(seed).remove(0), vec![0.0; 1500], Some(TS)).unwrap();
+            let data = head_record(seed);
             let quiet = run(&m, &m.values(), &data).unwrap();
             let each = run_with(&m, &m.values(), &data, |i| i.quiet = false).unwrap();
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
@@ -994,8 +1007,7 @@ mod tests {
         fn the_closed_form_runs_as_the_stages(z in unit(), seed in any::<u64>()) {
             let mut m = head_at(&z);
             given(&mut m, 0.0, 0.0);
-            let ex = Excitation { n: 1500, hold: 40, low: -0.3, high: 0.05, ts: Some(TS), inputs: 1 };
-            let data = Dataset::siso(ex.generate(seed).remove(0), vec![0.0; 1500], Some(TS)).unwrap();
+            let data = head_record(seed);
             let closed = run(&m, &m.values(), &data).unwrap();
             let staged = run_with(&m, &m.values(), &data, |i| i.closed_form = false).unwrap();
             let range = staged.y.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1.0);

@@ -231,6 +231,20 @@ pub(super) mod tests {
         g
     }
 
+    /// The head's test record of 1500 samples: a random input held over 40
+    /// samples between -0.3 and 0.05 (from `seed`), the output at 3 mm.
+    pub(in crate::simulate) fn head_record(seed: u64) -> Dataset {
+        let ex = Excitation {
+            n: 1500,
+            hold: 40,
+            low: -0.3,
+            high: 0.05,
+            ts: Some(0.0025),
+            inputs: 1,
+        };
+        Dataset::siso(ex.generate(seed).remove(0), vec![3.0; 1500], Some(0.0025)).unwrap()
+    }
+
     /// A run of `m` on `data` from its initial rule, the machine set by
     /// `set` first: the run with its steps, events and Zeno steps, the
     /// steps the quiet lane took and the trials of the events' location.
@@ -280,8 +294,7 @@ pub(super) mod tests {
             let g = head(&z);
             let m = CompiledModel::new(&g).unwrap();
             prop_assert!(m.bind(&g.values()).modes.iter().all(|q| AffineFlows::of(q, 2, 1).is_some()));
-            let ex = Excitation { n: 1500, hold: 40, low: -0.3, high: 0.05, ts: Some(0.0025), inputs: 1 };
-            let data = Dataset::siso(ex.generate(seed).remove(0), vec![3.0; 1500], Some(0.0025)).unwrap();
+            let data = head_record(seed);
             let closed = outputs(&m, &g.values(), &data, true);
             let staged = outputs(&m, &g.values(), &data, false);
             let range = staged.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1.0);

@@ -130,7 +130,7 @@ fn watched_event(watch: &[(usize, f64, f64)], x: &[f64]) -> bool {
 
 #[cfg(test)]
 mod tests {
-    use crate::simulate::linear::tests::{head, run_with};
+    use crate::simulate::linear::tests::{head, head_record, run_with};
     use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, Surfaces, span};
     use crate::{CompiledModel, GrayBoxModel, extends};
     use hysid_model::data::Dataset;
@@ -270,8 +270,7 @@ mod tests {
         fn the_quiet_lane_changes_no_bit(z in prop::collection::vec(0.0f64..1.0, 12), seed in 0u64..1000) {
             let g = head(&z);
             let m = CompiledModel::new(&g).unwrap();
-            let ex = Excitation { n: 1500, hold: 40, low: -0.3, high: 0.05, ts: Some(0.0025), inputs: 1 };
-            let data = Dataset::siso(ex.generate(seed).remove(0), vec![3.0; 1500], Some(0.0025)).unwrap();
+            let data = head_record(seed);
             let (with, quiet, trials) = run_with(&m, &g.values(), &data, |_| ());
             let (without, none, _) = run_with(&m, &g.values(), &data, |machine| machine.shortcuts = false);
             prop_assert_eq!(none, 0);
