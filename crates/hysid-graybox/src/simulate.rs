@@ -298,7 +298,7 @@ pub struct Machine<'a> {
     /// Guard surfaces at the start of the step and at its trial end.
     g: Surfaces,
     /// The quiet lane's tests of the regime it steps in ([`quiet`]).
-    watch: Vec<(usize, f64, f64)>,
+    watch: Vec<StateEnd>,
     /// Per mode, whether a guard surface reads an input.
     input_guards: Vec<bool>,
     /// The elements' effects in the regime of the step being integrated,
@@ -743,14 +743,28 @@ impl<'a> Machine<'a> {
     /// while away, a sliding velocity come to zero or reversed. A held
     /// element's release depends on the forces ([`Machine::first_event`]).
     fn ended_by_state(&self, i: usize, regime: ElementRegime, x: &[f64]) -> bool {
+        self.state_end(i, regime)
+            .is_some_and(|end| end.margin(x) >= 0.0)
+    }
+
+    /// The state test that ends element `i`'s `regime` (a stop reached or
+    /// passed while away, a sliding velocity come to zero or reversed);
+    /// `None` for a held element, whose release the forces decide.
+    fn state_end(&self, i: usize, regime: ElementRegime) -> Option<StateEnd> {
         match (&self.m.elements[i], regime) {
-            (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away) => {
-                sign * (x[*position] - self.fixed[i].0) >= 0.0
-            }
+            (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away) => Some(StateEnd {
+                state: *position,
+                sign: *sign,
+                level: self.fixed[i].0,
+            }),
             (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
-                dir * x[*velocity] <= 0.0
+                Some(StateEnd {
+                    state: *velocity,
+                    sign: -dir,
+                    level: 0.0,
+                })
             }
-            _ => false,
+            _ => None,
         }
     }
 
@@ -1272,6 +1286,23 @@ impl<'a> Machine<'a> {
             }
         }
         hs
+    }
+}
+
+/// A regime's end read from one state: it ends where `sign * (x[state] -
+/// level) >= 0`.
+#[derive(Debug, Clone, Copy)]
+struct StateEnd {
+    state: usize,
+    sign: f64,
+    level: f64,
+}
+
+impl StateEnd {
+    /// How far past its end the state `x` is (negative before it).
+    #[inline]
+    fn margin(&self, x: &[f64]) -> f64 {
+        self.sign * (x[self.state] - self.level)
     }
 }
 

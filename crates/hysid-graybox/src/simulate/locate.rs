@@ -1,7 +1,7 @@
 //! Locating an event inside a sub-step ([`Bracket`]) on the margin of
 //! the event that ended it.
 
-use super::{CompiledElement, ElementRegime, Event, HybridState, Machine};
+use super::{Event, HybridState, Machine};
 use crate::expr::Crossing;
 use hysid_numerics::event_location::{Bracket, LOCATE_TRIALS};
 
@@ -71,15 +71,7 @@ impl Machine<'_> {
         g0: &[f64],
     ) -> Option<f64> {
         match event {
-            Event::Element(i) => match (&self.m.elements[i], hs.regimes[i]) {
-                (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away) => {
-                    Some(sign * (x[*position] - self.fixed[i].0))
-                }
-                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
-                    Some(-dir * x[*velocity])
-                }
-                _ => None,
-            },
+            Event::Element(i) => self.state_end(i, hs.regimes[i]).map(|end| end.margin(x)),
             Event::Transition(j) => {
                 let (crossing, row) = self.guards[hs.mode].as_ref()?.get(j)?;
                 let g = row.eval(x, u);

@@ -13,7 +13,7 @@
 //! the surfaces carried are the general loop's, bit for bit: the lane
 //! only skips its bookkeeping. Runs carrying sensitivities do not take it.
 
-use super::{CompiledElement, ElementRegime, HybridState, Machine, crossed, load};
+use super::{ElementRegime, HybridState, Machine, StateEnd, crossed, load};
 
 impl Machine<'_> {
     /// Takes the full sub-steps `0..n_sub` of length `self.full_step` from
@@ -74,16 +74,12 @@ impl Machine<'_> {
             return false;
         }
         self.watch.clear();
-        for (i, (e, &regime)) in self.m.elements.iter().zip(&hs.regimes).enumerate() {
-            match (e, regime) {
-                (CompiledElement::Stop { position, sign, .. }, ElementRegime::Away) => {
-                    self.watch.push((*position, *sign, self.fixed[i].0));
-                }
-                (CompiledElement::DryFriction { velocity, .. }, ElementRegime::Slip(dir)) => {
-                    self.watch.push((*velocity, -dir, 0.0));
-                }
-                (_, ElementRegime::Stuck | ElementRegime::Resting) => return false,
-                _ => {}
+        for (i, &regime) in hs.regimes.iter().enumerate() {
+            if matches!(regime, ElementRegime::Stuck | ElementRegime::Resting) {
+                return false;
+            }
+            if let Some(end) = self.state_end(i, regime) {
+                self.watch.push(end);
             }
         }
         self.form_closed_step(hs);
@@ -119,13 +115,11 @@ impl Machine<'_> {
     }
 }
 
-/// Whether `x` meets one of the `watch` list's events: `sign * (x[s] -
-/// level) >= 0` (a stop reached, a sliding velocity at zero or reversed).
+/// Whether `x` meets one of the `watch` list's ends (a stop reached, a
+/// sliding velocity at zero or reversed).
 #[inline]
-fn watched_event(watch: &[(usize, f64, f64)], x: &[f64]) -> bool {
-    watch
-        .iter()
-        .any(|&(s, sign, level)| sign * (x[s] - level) >= 0.0)
+fn watched_event(watch: &[StateEnd], x: &[f64]) -> bool {
+    watch.iter().any(|end| end.margin(x) >= 0.0)
 }
 
 #[cfg(test)]
