@@ -1423,3 +1423,50 @@ fn inputs_found_by_the_fuzzer_are_clean_errors() {
     assert!(seen > 0, "no regression input in {folder}");
     report();
 }
+
+/// `convert` reads a mechanical model whose labels a gray-box model can
+/// give, and nothing else; it never writes over its input.
+#[test]
+fn models_convert_cannot_write_as_gray_box() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.toml");
+    let head = repository_text("models/pick-and-place/head.toml");
+    // One slip mode for sliding free and in contact.
+    let shared = head
+        .replace("kind = \"slip\"\ncontacts = []", "kind = \"slip\"")
+        .replace(
+            "[[modes]]\nname = \"impact\"\nkind = \"slip\"\ncontacts = [\"board\"]",
+            "[[modes]]\nname = \"impact\"\nkind = \"stick\"\ncontacts = [\"board\"]",
+        );
+    let shared = write(d, "shared.toml", shared);
+    bad(
+        &["convert", s(&shared), "-o", s(&out)],
+        &[
+            "shared.toml",
+            "mode 'free'",
+            "more than one set of engaged contacts",
+        ],
+        &out,
+    );
+    let gray = write(
+        d,
+        "gray.toml",
+        repository_text("models/pick-and-place/head-graybox.toml"),
+    );
+    bad(
+        &["convert", s(&gray), "-o", s(&out)],
+        &[
+            "gray.toml",
+            "a 'gray_box' model",
+            "reads a 'mechanical' one",
+        ],
+        &out,
+    );
+    let mechanical = write(d, "head.toml", head);
+    let o = hysid(&["convert", s(&mechanical), "-o", s(&mechanical)]);
+    if let Err(e) = one_line_error(&o, 2) {
+        fail("convert -o onto its input", e);
+    }
+    report();
+}

@@ -1292,3 +1292,103 @@ fn mat_files_from_scipy_are_read() {
         &never,
     );
 }
+
+/// The columns `y` and `mode` of a `simulate` CSV.
+fn simulated(csv: &Path) -> (Vec<f64>, Vec<String>) {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (y, mode) = (column("y"), column("mode"));
+    lines
+        .map(|l| {
+            let cells: Vec<&str> = l.split(',').collect();
+            (cells[y].parse::<f64>().unwrap(), cells[mode].to_string())
+        })
+        .unzip()
+}
+
+/// `convert` writes the head as a gray-box model (TOML or JSON, as named)
+/// that simulates as the mechanical file does: the same outputs and the
+/// same mode names at every sample of a record that visits them all.
+#[test]
+fn convert_writes_the_gray_box_form_of_a_mechanical_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/head.toml"
+    );
+    let excite = "n=3000,hold=120,low=-0.3,high=0.05,ts=0.0025";
+    let run = |model: &str, name: &str| {
+        let out = dir.path().join(name);
+        ok(&[
+            "simulate",
+            model,
+            "--excite",
+            excite,
+            "--seed",
+            "1",
+            "-o",
+            s(&out),
+        ]);
+        simulated(&out)
+    };
+    let (y, modes) = run(head, "mechanical.csv");
+    for distinct in [
+        "free",
+        "impact",
+        "stick",
+        "upper_saturation",
+        "lower_saturation",
+    ] {
+        assert!(
+            modes.iter().any(|m| m == distinct),
+            "no sample in {distinct}"
+        );
+    }
+    for name in ["gray.toml", "gray.json"] {
+        let gray = dir.path().join(name);
+        ok(&["convert", head, "-o", s(&gray)]);
+        let text = std::fs::read_to_string(&gray).unwrap();
+        assert!(text.contains("gray_box"), "{name}: {}", &text[..80]);
+        let (y2, modes2) = run(s(&gray), &format!("{name}.csv"));
+        assert_eq!(modes, modes2, "{name}");
+        let worst = y
+            .iter()
+            .zip(&y2)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-9, "{name}: max |y difference| {worst}");
+    }
+}
+
+/// A model written to a `.toml` name is TOML that reads back as the same
+/// model (a fitted model's missing diagnostics left out).
+#[test]
+fn a_model_written_as_toml_reads_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 400);
+    let score = |model: &Path| -> serde_json::Value {
+        serde_json::from_str(&ok(&["validate", s(model), s(&data), "--json"])).unwrap()
+    };
+    let mut scores = Vec::new();
+    for name in ["m.json", "m.toml"] {
+        let model = dir.path().join(name);
+        ok(&[
+            "identify",
+            s(&data),
+            "-m",
+            "cluster",
+            "--modes",
+            "2",
+            "--seed",
+            "1",
+            "-o",
+            s(&model),
+        ]);
+        scores.push(score(&model));
+    }
+    let text = std::fs::read_to_string(dir.path().join("m.toml")).unwrap();
+    assert!(text.starts_with("kind = \"pwarx\""), "{}", &text[..40]);
+    assert_eq!(scores[0], scores[1]);
+}

@@ -97,7 +97,7 @@ fn flags_of(sub: &str) -> BTreeSet<String> {
 #[test]
 fn every_hysid_command_shown_uses_existing_subcommands_and_flags() {
     let subs = [
-        "methods", "identify", "validate", "simulate", "compare", "sweep",
+        "methods", "identify", "validate", "simulate", "compare", "sweep", "convert",
     ];
     let mut wrong = Vec::new();
     let mut checked = 0;
@@ -250,6 +250,11 @@ const RUN: &[(&str, &str, Quote)] = &[
         ]),
     ),
     (
+        "performance-physical.md",
+        "hysid convert models/pick-and-place/head.toml -o head-gray.toml",
+        Quote::Stderr(&["the gray-box form of"]),
+    ),
+    (
         "cluster.md",
         "hysid identify models/pick-and-place/headdata_1v6.mat -m cluster --modes 20 --set discard=0 --decimate 10 --rows 0..3000 --time-budget 3 -o m.json",
         Quote::Stderr(&["time budget reached during the mrlp region estimation"]),
@@ -259,6 +264,10 @@ const RUN: &[(&str, &str, Quote)] = &[
 /// Concrete commands the docs show that this test does not run, by prefix,
 /// with the reason.
 const NOT_RUN: &[(&str, &str)] = &[
+    (
+        "hysid identify models/pick-and-place/headdata_1v6.mat --decimate 10 --rows 0..5000 -m physical --set model=MODEL --seed S",
+        "twelve timed fits in release (two models, three seeds, two rounds); their figures are the table beside them",
+    ),
     (
         "hysid identify models/pick-and-place/headdata_1v6.mat --decimate 10 --rows 0..5000 -m physical --set model=models/pick-and-place/head.toml --seed 1 --set restarts=0",
         "one of five timed fits in release; its figures are the table beside it",

@@ -36,6 +36,8 @@ enum Command {
     Compare(commands::compare::Args),
     /// Sweep one back-end over a grid of option values, scored by simulation FIT on the selection rows.
     Sweep(commands::sweep::Args),
+    /// Write a mechanical model as the gray-box model of the same physics.
+    Convert(commands::convert::Args),
 }
 
 fn main() {
@@ -92,6 +94,7 @@ fn dispatch(command: Command) -> Result<()> {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Compare(a) => commands::compare::run(a),
         Command::Sweep(a) => commands::sweep::run(a),
+        Command::Convert(a) => commands::convert::run(a),
     }
 }
 

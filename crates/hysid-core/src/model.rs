@@ -25,6 +25,9 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 mod located;
+mod translate;
+
+pub use translate::{Untranslatable, to_gray_box};
 
 /// Any model hysid can simulate and validate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -333,6 +336,27 @@ impl Model {
         let mut s = serde_json::to_string_pretty(self).expect("models serialise");
         s.push('\n');
         s
+    }
+
+    /// TOML (deterministic), the format of hand-written model files;
+    /// `None` for a model TOML cannot hold (a missing value in a list).
+    /// TOML has no null: an entry whose value is missing (an unset option,
+    /// a diagnostic not computed) is left out, as its reader takes it.
+    pub fn to_toml(&self) -> Option<String> {
+        fn drop_nulls(value: &mut serde_json::Value) {
+            match value {
+                serde_json::Value::Object(map) => {
+                    map.retain(|_, v| !v.is_null());
+                    map.values_mut().for_each(drop_nulls);
+                }
+                serde_json::Value::Array(items) => items.iter_mut().for_each(drop_nulls),
+                _ => {}
+            }
+        }
+        let mut value = serde_json::to_value(self).ok()?;
+        drop_nulls(&mut value);
+        let model = Model::deserialize(&value).ok()?;
+        toml::to_string(&model).ok()
     }
 }
 

@@ -19,9 +19,24 @@ use hysid_model::data::{DataError, DataSelection, Dataset};
 use std::path::Path;
 use table::{select, wanted_names};
 
-/// Writes `model` as JSON, atomically (temporary file then rename).
+/// Writes `model` atomically (temporary file then rename): TOML to a
+/// `.toml` path, as [`Model::load`] reads it back, JSON to any other.
 pub fn save_model(model: &Model, path: &Path) -> Result<(), ModelError> {
-    atomic::write(path, model.to_json().as_bytes()).map_err(|source| ModelError::Io {
+    let toml = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    let text = if toml {
+        model.to_toml().ok_or_else(|| ModelError::Format {
+            path: path.display().to_string(),
+            message: format!(
+                "a '{}' model that TOML cannot hold; write .json",
+                model.kind()
+            ),
+        })?
+    } else {
+        model.to_json()
+    };
+    atomic::write(path, text.as_bytes()).map_err(|source| ModelError::Io {
         path: path.display().to_string(),
         source,
     })

@@ -5,6 +5,7 @@ use hysid_core::model::Model;
 use std::path::Path;
 
 pub mod compare;
+pub mod convert;
 pub mod identify;
 pub mod methods;
 pub mod simulate;

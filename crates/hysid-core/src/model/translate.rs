@@ -1,0 +1,732 @@
+//! A mechanical model written as a gray-box model: the same physics in the
+//! general language, so that one simulator can run both
+//! (`docs/mechanical-models.md`, "As a gray-box model").
+//!
+//! The states are the position `y` and velocity `v` (`y' = v`); the smooth
+//! forces add up to the definition `F`; every set of engaged contacts is a
+//! mode, whose flow subtracts the engaged contacts' forces and whose
+//! definitions add their friction to both levels; a contact engages and
+//! releases by guard transitions; the friction and the stops are the
+//! gray-box elements of the same names. Mode labels are the mechanical
+//! ones: a set of contacts takes its slip mode's name, the friction's stick
+//! label is the stick mode's and a stop's rest label its stop mode's.
+
+use hysid_graybox::{
+    Element, GrayBoxInitialState, GrayBoxMode, GrayBoxModel, GrayBoxTransition, InvalidGrayBox,
+    OutputMap, StopSide,
+};
+use hysid_mechanical::{
+    Direction, ForceElement, InvalidMechanical, MechanicalInitialState, MechanicalModel, Quantity,
+};
+use std::collections::{BTreeMap, HashSet};
+
+/// Why a mechanical model has no gray-box form.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Untranslatable {
+    /// The mechanical model itself is invalid.
+    #[error(transparent)]
+    Mechanical(#[from] InvalidMechanical),
+    /// Two sets of engaged contacts share one slip mode: a gray-box mode is
+    /// one set of contacts, named once.
+    #[error(
+        "mode '{0}' labels sliding with more than one set of engaged contacts; \
+         as a gray-box model each set needs a slip mode of its own"
+    )]
+    SharedSlipMode(String),
+    /// Stuck samples labelled by their engaged contacts: the gray-box
+    /// friction has one stick label.
+    #[error(
+        "sticking is labelled '{0}' and '{1}' by the engaged contacts; \
+         as a gray-box model sticking has one label"
+    )]
+    StickByContacts(String, String),
+    /// The written model does not check (e.g. a parameter whose name is
+    /// not an expression's symbol).
+    #[error("as a gray-box model: {0}")]
+    GrayBox(#[from] InvalidGrayBox),
+}
+
+/// The gray-box form of `model`, checked: the same parameters, inputs,
+/// internal step, initial state rule, regimes and mode labels.
+pub fn to_gray_box(model: &MechanicalModel) -> Result<GrayBoxModel, Untranslatable> {
+    model.validate()?;
+    let symbols = Symbols::new(model);
+    let labels = mode_labels(model)?;
+    let gray = GrayBoxModel {
+        format: hysid_graybox::FORMAT_VERSION,
+        name: model.name.clone(),
+        internal_step: model.internal_step,
+        states: vec![symbols.y.clone(), symbols.v.clone()],
+        inputs: model.inputs.clone(),
+        delays: BTreeMap::new(),
+        outputs: vec![OutputMap {
+            name: symbols.y.clone(),
+            value: symbols.y.clone(),
+        }],
+        parameters: model.parameters.clone(),
+        definitions: model_definitions(model, &symbols),
+        modes: contact_modes(model, &symbols, &labels),
+        transitions: contact_transitions(model, &symbols, &labels.slip),
+        elements: elements(model, &symbols, &labels),
+        energy: None,
+        initial_state: initial_state(&model.initial_state, &symbols),
+        info: model.info.clone(),
+    };
+    gray.validate()?;
+    Ok(gray)
+}
+
+/// The names the written model gives its states and definitions, each
+/// kept apart from the parameters' and inputs' names.
+struct Symbols {
+    y: String,
+    v: String,
+    force: String,
+    kinetic: String,
+    static_level: String,
+    /// The friction element's name (apart from the stops' names).
+    friction: String,
+    /// Per contact: its penetration `p` and contact force `lambda`.
+    contacts: Vec<(String, String)>,
+}
+
+impl Symbols {
+    fn new(model: &MechanicalModel) -> Self {
+        let mut taken: HashSet<String> = model
+            .parameters
+            .iter()
+            .map(|p| p.name.clone())
+            .chain(model.inputs.iter().cloned())
+            .collect();
+        let mut fresh = |base: &str| {
+            let mut name = base.to_string();
+            while !taken.insert(name.clone()) {
+                name.push('_');
+            }
+            name
+        };
+        let mut friction = "friction".to_string();
+        while model.stops.iter().any(|s| s.name == friction) {
+            friction.push('_');
+        }
+        Symbols {
+            friction,
+            y: fresh("y"),
+            v: fresh("v"),
+            force: fresh("F"),
+            kinetic: fresh("kinetic"),
+            static_level: fresh("static"),
+            contacts: model
+                .contacts
+                .iter()
+                .enumerate()
+                .map(|(i, c)| {
+                    // Named after the contact where its name is a symbol.
+                    let symbol = c
+                        .name
+                        .chars()
+                        .next()
+                        .is_some_and(|h| h.is_ascii_alphabetic())
+                        && c.name
+                            .chars()
+                            .all(|h| h.is_ascii_alphanumeric() || h == '_');
+                    let tag = if symbol {
+                        c.name.clone()
+                    } else {
+                        (i + 1).to_string()
+                    };
+                    (fresh(&format!("p_{tag}")), fresh(&format!("lambda_{tag}")))
+                })
+                .collect(),
+        }
+    }
+}
+
+/// A quantity as an expression: a parameter's name or the number, exactly
+/// (in parentheses when negative).
+fn quantity(q: &Quantity) -> String {
+    match q {
+        Quantity::Param(name) => name.clone(),
+        Quantity::Value(x) if x.is_sign_negative() => format!("({x:?})"),
+        Quantity::Value(x) => format!("{x:?}"),
+    }
+}
+
+/// A sum of terms, each added (`true`) or subtracted: `a - b + c`.
+fn sum(terms: &[(bool, String)]) -> String {
+    let mut out = String::new();
+    for (i, (added, term)) in terms.iter().enumerate() {
+        out.push_str(match (i, added) {
+            (0, true) => "",
+            (0, false) => "-",
+            (_, true) => " + ",
+            (_, false) => " - ",
+        });
+        out.push_str(term);
+    }
+    if out.is_empty() { "0".to_string() } else { out }
+}
+
+/// The labels of the regimes: a slip mode per set of engaged contacts (by
+/// bit mask), the stick label, a rest label per stop.
+struct Labels {
+    slip: Vec<String>,
+    stick: String,
+    stops: Vec<String>,
+}
+
+fn mode_labels(model: &MechanicalModel) -> Result<Labels, Untranslatable> {
+    let name = |i: Option<usize>| {
+        // `validate` proved that every regime has a mode.
+        i.map(|i| model.modes[i].name.clone()).unwrap_or_default()
+    };
+    let masks = 0..(1u32 << model.contacts.len());
+    let slip: Vec<String> = masks
+        .clone()
+        .map(|m| name(model.mode_of(None, false, m)))
+        .collect();
+    let mut seen = HashSet::new();
+    if let Some(shared) = slip.iter().find(|n| !seen.insert(n.as_str())) {
+        return Err(Untranslatable::SharedSlipMode(shared.clone()));
+    }
+    let stick = name(model.mode_of(None, true, 0));
+    if let Some(other) = masks
+        .map(|m| name(model.mode_of(None, true, m)))
+        .find(|n| *n != stick)
+    {
+        return Err(Untranslatable::StickByContacts(stick, other));
+    }
+    let stops = (0..model.stops.len())
+        .map(|i| name(model.mode_of(Some(i), false, 0)))
+        .collect();
+    Ok(Labels { slip, stick, stops })
+}
+
+/// `F`, the friction levels with no contact engaged, and each contact's
+/// penetration `p = s (y - position)` and force `lambda = k p + d s v`.
+fn model_definitions(model: &MechanicalModel, s: &Symbols) -> BTreeMap<String, String> {
+    let terms: Vec<(bool, String)> = model
+        .forces
+        .iter()
+        .map(|f| match f {
+            ForceElement::Input { input, gain } => (true, format!("{}*{input}", quantity(gain))),
+            ForceElement::Constant { value } => (true, quantity(value)),
+            ForceElement::Spring { stiffness, rest } => {
+                let stretch = match rest {
+                    Quantity::Value(x) if *x == 0.0 => s.y.clone(),
+                    rest => format!("({} - {})", s.y, quantity(rest)),
+                };
+                (false, format!("{}*{stretch}", quantity(stiffness)))
+            }
+            ForceElement::Damper { coefficient } => {
+                (false, format!("{}*{}", quantity(coefficient), s.v))
+            }
+        })
+        .collect();
+    let mut out = BTreeMap::new();
+    out.insert(s.force.clone(), sum(&terms));
+    out.insert(s.kinetic.clone(), quantity(&model.friction.kinetic));
+    out.insert(
+        s.static_level.clone(),
+        quantity(&model.friction.static_level),
+    );
+    for (c, (p, lambda)) in model.contacts.iter().zip(&s.contacts) {
+        let position = quantity(&c.position);
+        let positive = c.direction == Direction::Positive;
+        out.insert(
+            p.clone(),
+            if positive {
+                format!("{} - {position}", s.y)
+            } else {
+                format!("{position} - {}", s.y)
+            },
+        );
+        out.insert(
+            lambda.clone(),
+            sum(&[
+                (true, format!("{}*{p}", quantity(&c.stiffness))),
+                (positive, format!("{}*{}", quantity(&c.damping), s.v)),
+            ]),
+        );
+    }
+    out
+}
+
+/// One mode per set of engaged contacts (bit `i` of the mask: contact `i`):
+/// `y' = v`, `v' = F` less the engaged contacts' forces, their friction
+/// added to both levels (definitions of the mode), and the invariant of
+/// that set.
+fn contact_modes(model: &MechanicalModel, s: &Symbols, labels: &Labels) -> Vec<GrayBoxMode> {
+    (0..(1u32 << model.contacts.len()))
+        .map(|mask| {
+            let engaged = |i: usize| mask & (1 << i) != 0;
+            let mut force = vec![(true, s.force.clone())];
+            let mut definitions = BTreeMap::new();
+            if mask != 0 {
+                let mut kinetic = vec![(true, quantity(&model.friction.kinetic))];
+                let mut static_level = vec![(true, quantity(&model.friction.static_level))];
+                for (i, c) in model
+                    .contacts
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| engaged(*i))
+                {
+                    // The contact pushes against its side: `-s lambda`.
+                    let lambda = &s.contacts[i].1;
+                    force.push((c.direction == Direction::Negative, lambda.clone()));
+                    kinetic.push((true, quantity(&c.friction)));
+                    static_level.push((true, quantity(&c.friction)));
+                }
+                definitions.insert(s.kinetic.clone(), sum(&kinetic));
+                definitions.insert(s.static_level.clone(), sum(&static_level));
+            }
+            let invariant = model
+                .contacts
+                .iter()
+                .zip(&s.contacts)
+                .enumerate()
+                .flat_map(|(i, (c, (p, lambda)))| match (engaged(i), c.unilateral) {
+                    (true, true) => vec![format!("{p} >= 0"), format!("{lambda} >= 0")],
+                    (true, false) => vec![format!("{p} >= 0")],
+                    (false, true) => vec![format!("min({p}, {lambda}) <= 0")],
+                    (false, false) => vec![format!("{p} <= 0")],
+                })
+                .collect();
+            let doc = model
+                .modes
+                .iter()
+                .find(|m| m.name == labels.slip[mask as usize])
+                .map(|m| m.doc.clone())
+                .unwrap_or_default();
+            GrayBoxMode {
+                name: labels.slip[mask as usize].clone(),
+                flow: [(s.y.clone(), s.v.clone()), (s.v.clone(), sum(&force))].into(),
+                invariant,
+                definitions,
+                doc,
+            }
+        })
+        .collect()
+}
+
+/// Each contact engages (penetration past zero and, when unilateral, a
+/// pushing force) and releases (a unilateral contact when its force would
+/// pull, or the penetration back to zero) from every set of the others.
+fn contact_transitions(
+    model: &MechanicalModel,
+    s: &Symbols,
+    slip: &[String],
+) -> Vec<GrayBoxTransition> {
+    let mut out = Vec::new();
+    let mut add = |from: u32, to: u32, guard: String, when: Option<String>| {
+        out.push(GrayBoxTransition {
+            from: slip[from as usize].clone(),
+            to: slip[to as usize].clone(),
+            guard,
+            when,
+            reset: BTreeMap::new(),
+            doc: String::new(),
+        })
+    };
+    for mask in 0..(1u32 << model.contacts.len()) {
+        for (i, (c, (p, lambda))) in model.contacts.iter().zip(&s.contacts).enumerate() {
+            let bit = 1u32 << i;
+            if mask & bit == 0 {
+                if c.unilateral {
+                    add(
+                        mask,
+                        mask | bit,
+                        format!("{p} >= 0"),
+                        Some(format!("{lambda} >= 0")),
+                    );
+                    add(
+                        mask,
+                        mask | bit,
+                        format!("{lambda} >= 0"),
+                        Some(format!("{p} >= 0")),
+                    );
+                } else {
+                    add(mask, mask | bit, format!("{p} >= 0"), None);
+                }
+            } else {
+                if c.unilateral {
+                    add(mask, mask & !bit, format!("{lambda} <= 0"), None);
+                }
+                add(mask, mask & !bit, format!("{p} <= 0"), None);
+            }
+        }
+    }
+    out
+}
+
+/// The stops, then the friction (the gray-box simulator takes stops before
+/// frictions in any order).
+fn elements(model: &MechanicalModel, s: &Symbols, labels: &Labels) -> Vec<Element> {
+    model
+        .stops
+        .iter()
+        .zip(&labels.stops)
+        .map(|(stop, label)| Element::Stop {
+            name: stop.name.clone(),
+            position: s.y.clone(),
+            velocity: s.v.clone(),
+            at: quantity(&stop.position),
+            side: match stop.direction {
+                Direction::Positive => StopSide::Max,
+                Direction::Negative => StopSide::Min,
+            },
+            restitution: format!("{:?}", stop.restitution),
+            rest_speed: 0.0,
+            mode: label.clone(),
+        })
+        .chain(std::iter::once(Element::DryFriction {
+            name: s.friction.clone(),
+            velocity: s.v.clone(),
+            kinetic: s.kinetic.clone(),
+            static_level: s.static_level.clone(),
+            mode: labels.stick.clone(),
+        }))
+        .collect()
+}
+
+fn initial_state(rule: &MechanicalInitialState, s: &Symbols) -> GrayBoxInitialState {
+    match *rule {
+        MechanicalInitialState::Measured {
+            samples,
+            velocity_tol,
+        } => GrayBoxInitialState::Measured {
+            samples,
+            position: s.y.clone(),
+            velocity: Some(s.v.clone()),
+            velocity_tol,
+            values: BTreeMap::new(),
+            mode: None,
+            estimate: BTreeMap::new(),
+        },
+        MechanicalInitialState::Given { position, velocity } => GrayBoxInitialState::Given {
+            values: [(s.y.clone(), position), (s.v.clone(), velocity)].into(),
+            mode: None,
+            estimate: BTreeMap::new(),
+            samples: None,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hysid_graybox::CompiledModel;
+    use hysid_model::data::Dataset;
+    use hysid_model::excitation::Excitation;
+    use proptest::prelude::*;
+
+    /// The repository's mounting head (`models/pick-and-place/head.toml`)
+    /// with its free parameters at `z` (0: the lower bound, 1: the upper).
+    fn head(z: &[f64]) -> MechanicalModel {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../models/pick-and-place/head.toml"
+        );
+        let Ok(crate::model::Model::Mechanical(mut m)) =
+            crate::model::Model::load(std::path::Path::new(path))
+        else {
+            panic!("head.toml is a mechanical model")
+        };
+        for (p, zi) in m.parameters.iter_mut().zip(z) {
+            if !p.fixed {
+                p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
+            }
+        }
+        m
+    }
+
+    /// An input of held random levels in `[low, high]`, and an output
+    /// whose first samples set a measured initial state at `y0`.
+    fn record(seed: u64, n: usize, low: f64, high: f64, y0: f64) -> Dataset {
+        let ex = Excitation {
+            n,
+            hold: 40,
+            low,
+            high,
+            ts: Some(0.0025),
+            inputs: 1,
+        };
+        Dataset::siso(ex.generate(seed).remove(0), vec![y0; n], Some(0.0025)).unwrap()
+    }
+
+    /// The largest output difference of the two simulators on `data`, the
+    /// first sample whose mode labels differ, and the gray-box run's events
+    /// and Zeno steps.
+    fn compare(m: &MechanicalModel, data: &Dataset) -> (f64, Option<usize>, usize, usize) {
+        let g = to_gray_box(m).unwrap();
+        let c = CompiledModel::new(&g).unwrap();
+        let a = hysid_graybox::simulate::run(&c, &g.values(), data).unwrap();
+        let b = hysid_mechanical::simulate::run(m, &m.values(), data).unwrap();
+        let names = g.mode_names();
+        let worst =
+            a.y.iter()
+                .zip(&b.y)
+                .map(|(p, q)| (p - q).abs())
+                .fold(0.0, f64::max);
+        let label = (0..data.len()).find(|&k| {
+            a.modes[k].map(|i| names[i].as_str()) != b.modes[k].map(|i| m.modes[i].name.as_str())
+        });
+        assert!(
+            a.covered.iter().all(|c| *c),
+            "a sample outside its mode's invariant"
+        );
+        (worst, label, a.events, a.zeno_steps)
+    }
+
+    #[test]
+    fn the_head_runs_alike() {
+        let m = head(&[0.5; 12]);
+        for seed in 0..5 {
+            let data = record(seed, 1200, -0.3, 0.05, 3.0);
+            let (worst, label, events, _) = compare(&m, &data);
+            assert!(
+                worst < 1e-9 && label.is_none() && events > 0,
+                "seed {seed}: {worst} {label:?} {events}"
+            );
+        }
+    }
+
+    /// A contact: position, side, stiffness, damping, friction, unilateral.
+    type ContactDraw = (f64, bool, f64, f64, f64, bool);
+
+    /// A mechanical model of random structure: an input gain, a constant,
+    /// a spring and a damper (given as parameters or numbers), friction,
+    /// up to two contacts of either side and kind, a stop on either side
+    /// (inelastic or bouncing), and a given or measured initial state.
+    fn drawn(
+        forces: [f64; 5],
+        friction: [f64; 2],
+        contacts: &[ContactDraw],
+        restitution: [f64; 2],
+        given: Option<(f64, f64)>,
+    ) -> MechanicalModel {
+        let [gain, constant, stiffness, rest, damping] = forces;
+        let param = |name: &str, value: f64| hysid_mechanical::PhysicalParameter {
+            name: name.to_string(),
+            unit: String::new(),
+            value,
+            bounds: [value - 1.0, value + 1.0],
+            fixed: false,
+            doc: String::new(),
+        };
+        let q = Quantity::Value;
+        let names: Vec<String> = (0..contacts.len()).map(|i| format!("c{i}")).collect();
+        let mut modes: Vec<hysid_mechanical::MechanicalMode> = (0..1u32 << contacts.len())
+            .map(|mask| hysid_mechanical::MechanicalMode {
+                name: format!("slip{mask}"),
+                kind: hysid_mechanical::MechanicalModeKind::Slip,
+                stop: None,
+                contacts: Some(
+                    (0..contacts.len())
+                        .filter(|i| mask & (1 << i) != 0)
+                        .map(|i| names[i].clone())
+                        .collect(),
+                ),
+                doc: String::new(),
+            })
+            .collect();
+        for (kind, stop) in [
+            (hysid_mechanical::MechanicalModeKind::Stick, None),
+            (hysid_mechanical::MechanicalModeKind::Stop, Some("low")),
+            (hysid_mechanical::MechanicalModeKind::Stop, Some("high")),
+        ] {
+            modes.push(hysid_mechanical::MechanicalMode {
+                name: stop.unwrap_or("stick").to_string(),
+                kind,
+                stop: stop.map(str::to_string),
+                contacts: None,
+                doc: String::new(),
+            });
+        }
+        let m = MechanicalModel {
+            name: "drawn".to_string(),
+            position_unit: String::new(),
+            internal_step: 0.0025 / 4.0,
+            inputs: vec!["u".to_string()],
+            parameters: vec![param("gain", gain), param("k", stiffness)],
+            forces: vec![
+                ForceElement::Input {
+                    input: "u".to_string(),
+                    gain: Quantity::Param("gain".to_string()),
+                },
+                ForceElement::Constant { value: q(constant) },
+                ForceElement::Spring {
+                    stiffness: Quantity::Param("k".to_string()),
+                    rest: q(rest),
+                },
+                ForceElement::Damper {
+                    coefficient: q(damping),
+                },
+            ],
+            friction: hysid_mechanical::Friction {
+                kinetic: q(friction[0]),
+                static_level: q(friction[1]),
+            },
+            contacts: contacts
+                .iter()
+                .zip(&names)
+                .map(
+                    |(&(at, positive, k, d, f, unilateral), name)| hysid_mechanical::Contact {
+                        name: name.clone(),
+                        position: q(at),
+                        direction: if positive {
+                            Direction::Positive
+                        } else {
+                            Direction::Negative
+                        },
+                        stiffness: q(k),
+                        damping: q(d),
+                        friction: q(f),
+                        unilateral,
+                    },
+                )
+                .collect(),
+            stops: [
+                ("low", -4.0, Direction::Negative),
+                ("high", 4.0, Direction::Positive),
+            ]
+            .into_iter()
+            .zip(restitution)
+            .map(|((name, at, direction), e)| hysid_mechanical::Stop {
+                name: name.to_string(),
+                position: q(at),
+                direction,
+                restitution: e,
+            })
+            .collect(),
+            modes,
+            initial_state: match given {
+                Some((position, velocity)) => MechanicalInitialState::Given { position, velocity },
+                None => MechanicalInitialState::Measured {
+                    samples: 10,
+                    velocity_tol: 0.0,
+                },
+            },
+            info: Default::default(),
+        };
+        m.validate().unwrap();
+        m
+    }
+
+    fn contact() -> impl Strategy<Value = ContactDraw> {
+        (
+            -3.0f64..3.0,
+            any::<bool>(),
+            0.0f64..2000.0,
+            0.0f64..40.0,
+            0.0f64..50.0,
+            any::<bool>(),
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+
+        /// The gray-box form of the head runs as the mechanical simulator
+        /// runs the head, for parameters anywhere in their bounds.
+        #[test]
+        fn the_head_runs_alike_anywhere(
+            z in proptest::collection::vec(0.0f64..=1.0, 12),
+            seed in any::<u64>(),
+            low in -0.3f64..-0.1,
+        ) {
+            let (worst, label, _, _) = compare(&head(&z), &record(seed, 600, low, 0.05, 3.0));
+            prop_assert!(worst < 1e-9, "max |y difference| {}", worst);
+            prop_assert_eq!(label, None);
+        }
+
+        /// Any mechanical structure: the same outputs (to 1e-6 of the stops'
+        /// distance) and the same mode labels at every sample, on runs
+        /// within the Zeno bound.
+        #[test]
+        fn any_structure_runs_alike(
+            forces in (200.0f64..2000.0, -100.0f64..100.0, 0.0f64..400.0, -1.0f64..1.0, 0.0f64..10.0),
+            friction in (0.0f64..150.0, 0.0f64..200.0),
+            contacts in proptest::collection::vec(contact(), 0..=2),
+            restitution in (prop_oneof![Just(0.0), 0.0f64..0.6], prop_oneof![Just(0.0), 0.0f64..0.6]),
+            given in proptest::option::of((-3.9f64..3.9, -20.0f64..20.0)),
+            seed in any::<u64>(),
+        ) {
+            let (a, b, c, d, e) = forces;
+            let m = drawn(
+                [a, b, c, d, e],
+                [friction.0, friction.1],
+                &contacts,
+                [restitution.0, restitution.1],
+                given,
+            );
+            let (worst, label, _, zeno) = compare(&m, &record(seed, 400, -1.0, 1.0, 0.5));
+            // Past the Zeno bound the two differ by design: the mechanical
+            // mass comes to rest, the gray-box stops hold their position.
+            prop_assume!(zeno == 0);
+            prop_assert!(worst < 1e-9, "max |y difference| {}", worst);
+            prop_assert_eq!(label, None);
+        }
+    }
+
+    #[test]
+    fn names_of_the_model_are_kept_apart() {
+        let contact = (1.0, true, 800.0, 10.0, 20.0, true);
+        let mut m = drawn(
+            [900.0, 10.0, 100.0, 0.0, 2.0],
+            [30.0, 40.0],
+            &[contact],
+            [0.0; 2],
+            None,
+        );
+        for name in ["y", "v", "F", "p_c0", "lambda_c0"] {
+            let mut p = m.parameters[0].clone();
+            p.name = name.to_string();
+            m.parameters.push(p);
+        }
+        let g = to_gray_box(&m).unwrap();
+        assert_eq!(g.states, ["y_", "v_"]);
+        assert!(g.definitions.contains_key("F_") && g.definitions.contains_key("lambda_c0_"));
+        let (worst, label, events, _) = compare(&m, &record(3, 400, -1.0, 1.0, 0.5));
+        assert!(
+            worst < 1e-9 && label.is_none() && events > 0,
+            "{worst} {label:?} {events}"
+        );
+    }
+
+    #[test]
+    fn labels_the_gray_box_language_cannot_give_are_refused() {
+        use hysid_mechanical::{MechanicalMode, MechanicalModeKind};
+        // One slip mode for sliding free and in contact with the board.
+        let mut m = head(&[0.5; 12]);
+        m.modes.retain(|q| q.name != "impact");
+        m.modes
+            .iter_mut()
+            .find(|q| q.name == "free")
+            .unwrap()
+            .contacts = None;
+        assert_eq!(
+            to_gray_box(&m),
+            Err(Untranslatable::SharedSlipMode("free".to_string()))
+        );
+        // Stuck in contact labelled apart from stuck free.
+        let mut m = head(&[0.5; 12]);
+        m.modes.insert(
+            0,
+            MechanicalMode {
+                name: "stuck_on_board".to_string(),
+                kind: MechanicalModeKind::Stick,
+                stop: None,
+                contacts: Some(vec!["board".to_string()]),
+                doc: String::new(),
+            },
+        );
+        assert_eq!(
+            to_gray_box(&m),
+            Err(Untranslatable::StickByContacts(
+                "stick".to_string(),
+                "stuck_on_board".to_string()
+            ))
+        );
+    }
+}
