@@ -55,10 +55,15 @@ pub fn fit_model<M: Target>(
     let t0 = Instant::now();
     let ts = check_inputs(model, data)?;
     let tols = velocity_tolerances(data.y(), ts);
-    let model = if options.init_samples > 0 {
-        model.with_measured_start(options.init_samples, tols.backward)
-    } else {
-        model.clone()
+    // The file's rule, unless `init_samples` asks for another warm-up; a
+    // measured start takes the record's velocity tolerance.
+    let samples = match options.init_samples {
+        0 => model.measured_samples(),
+        n => Some(n),
+    };
+    let model = match samples {
+        Some(n) => model.with_measured_start(n, tols.backward),
+        None => model.clone(),
     };
     let map = ParameterMap::new(&model, priors, data.record_count())
         .map_err(PhysicalError::Parameters)?;

@@ -120,8 +120,9 @@ hysid_core::backend_options! {
         /// Initial simplex size, as a fraction of each parameter's range.
         simplex: f64 = 0.05,
         /// Samples used to estimate the initial state (position and velocity) of the
-        /// simulation; the cost is scored after them. 0: the model file's rule.
-        init_samples: usize = 10,
+        /// simulation from the measured outputs; the cost is scored after them. 0: the
+        /// model file's rule (its `samples`, or its given state).
+        init_samples: usize = 0,
         /// Step (fraction of each range) of the central finite-difference Jacobians of
         /// the Levenberg-Marquardt stages and of the sensitivity and confidence estimate,
         /// where they are not exact (`exact_jacobian`).

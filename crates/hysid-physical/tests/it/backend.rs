@@ -630,3 +630,47 @@ fn the_swarm_is_skipped_where_the_nominal_values_fit_to_the_noise() {
         assert_eq!(cost(&never).to_bits(), cost(&full).to_bits());
     }
 }
+
+/// The fit keeps the model file's initial-state rule (its warm-up, or its
+/// given state) and writes it back; `init_samples` sets another warm-up.
+#[test]
+fn the_file_s_initial_state_rule_is_kept_unless_init_samples_is_set() {
+    let dir = std::env::temp_dir().join(format!("hysid-physical-initial-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let d = data(300, 6);
+    let measured = "initial_state = { from = \"measured\", samples = 10 }";
+    // The warm-up written back (`None`: the given state); a measured
+    // start's velocity tolerance follows the record's noise.
+    let cases: [(&str, &[&str], Option<usize>); 3] = [
+        (
+            "initial_state = { from = \"measured\", samples = 20 }",
+            &[],
+            Some(20),
+        ),
+        (
+            "initial_state = { from = \"given\", position = 0.0, velocity = 0.0 }",
+            &[],
+            None,
+        ),
+        (
+            "initial_state = { from = \"measured\", samples = 20 }",
+            &["init_samples=5"],
+            Some(5),
+        ),
+    ];
+    for (i, (rule, extra, want)) in cases.into_iter().enumerate() {
+        assert!(HEAD_MODEL_TOML.contains(measured));
+        let path = dir.join(format!("head-{i}.toml"));
+        std::fs::write(&path, HEAD_MODEL_TOML.replace(measured, rule)).unwrap();
+        let set = format!("model={}", path.display());
+        let mut settings = vec![set.as_str(), "particles=0", "local_iters=0", "lm_iters=0"];
+        settings.extend_from_slice(extra);
+        let m = run(&d, &Priors::default(), &settings, 1).unwrap();
+        let written = match mech(&m).initial_state {
+            MechanicalInitialState::Measured { samples, .. } => Some(samples),
+            MechanicalInitialState::Given { .. } => None,
+        };
+        assert_eq!(written, want, "{rule} {extra:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
