@@ -1470,3 +1470,62 @@ fn models_convert_cannot_write_as_gray_box() {
     }
     report();
 }
+
+/// A relation where a value is expected, and a stop's restitution that
+/// leaves `[0, 1)` within its parameters' bounds, are refused on reading,
+/// naming where.
+#[test]
+fn relations_as_values_and_restitutions_beyond_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let head = repository_text("models/pick-and-place/head-graybox.toml");
+    let lower = "at = \"y_low\"\nside = \"max\"";
+    assert!(head.contains(lower));
+    let cases: Vec<(&str, String, Vec<&str>)> = vec![
+        (
+            "flow.toml",
+            head.replacen("v = \"F\" }", "v = \"F > 0\" }", 1),
+            vec!["mode 'free', flow of 'v'", "'F > 0' is a relation"],
+        ),
+        (
+            "output.toml",
+            head.replace("value = \"y\" }", "value = \"y >= yc\" }"),
+            vec!["output 'y'", "is a relation"],
+        ),
+        (
+            "level.toml",
+            head.replace("kinetic = \"f1\"", "kinetic = \"!f1\""),
+            vec!["element 'friction', kinetic", "'kinetic' is a relation"],
+        ),
+        (
+            "restitution.toml",
+            head.replace(lower, &format!("{lower}\nrestitution = \"c1\"")),
+            vec![
+                "element 'lower', restitution",
+                "ranges over [400, 900]",
+                "must lie in [0, 1)",
+            ],
+        ),
+        (
+            "restitution-sum.toml",
+            head.replace(lower, &format!("{lower}\nrestitution = \"0.5 + y_up\"")),
+            vec!["ranges over [0, 1]"],
+        ),
+    ];
+    for (name, text, needles) in cases {
+        let m = write(d, name, text);
+        let args = [
+            "simulate",
+            s(&m),
+            "--excite",
+            "n=100,hold=20,low=-0.2,high=0,ts=0.0025",
+            "-o",
+            s(&out),
+        ];
+        let mut needles = needles;
+        needles.push(name);
+        bad(&args, &needles, &out);
+    }
+    report();
+}

@@ -99,6 +99,26 @@ pub enum Problem {
     /// A definition that reaches itself.
     #[error("definition '{0}' depends on itself")]
     Cycle(String),
+    /// A relation where a value is expected.
+    #[error(
+        "'{0}' is a relation (1 where it holds, 0 elsewhere) where a value is expected; \
+         write if(relation, value, other value)"
+    )]
+    NotValue(String),
+    /// A stop's restitution outside `[0, 1)` somewhere in the parameters'
+    /// bounds.
+    #[error(
+        "restitution '{text}' ranges over [{low}, {high}] within the parameters' bounds; \
+         it must lie in [0, 1)"
+    )]
+    Restitution {
+        /// The expression.
+        text: String,
+        /// Its least value.
+        low: f64,
+        /// Its largest value.
+        high: f64,
+    },
     /// An element's quantity that reads more than the parameters.
     #[error("'{0}' may only use parameters and numbers")]
     NotParametric(String),
@@ -183,6 +203,20 @@ impl InvalidGrayBox {
     pub fn line_in(&self, source: &str) -> Option<usize> {
         let text = self.text.as_deref().filter(|t| !t.is_empty())?;
         crate::source::line_of(source, text)
+    }
+}
+
+/// `e`, compiled from `text` at `place`, where a value is expected: not a
+/// relation (a flow, an output, a reset, a level, a stop's position).
+fn value(place: &str, text: &str, e: Expression) -> Result<Expression, InvalidGrayBox> {
+    if e.is_relation() {
+        Err(InvalidGrayBox::new(
+            place,
+            Some(text),
+            Problem::NotValue(text.into()),
+        ))
+    } else {
+        Ok(e)
     }
 }
 
@@ -359,9 +393,13 @@ impl CompiledModel {
         let names = definition_names(m);
         check_sizes(m, names.len())?;
         let mut c = Compiler::new(m, names)?;
-        let elements = compile_elements(m, &c.mode_index, &|p, n| c.state_of(p, n), &|p, n| {
-            c.parametric(p, n)
-        })?;
+        let elements = compile_elements(
+            m,
+            &c.mode_index,
+            &|p, n| c.state_of(p, n),
+            &|p, n| c.parametric(p, n),
+            &|p, n| c.restitution(p, n),
+        )?;
         let modes = c.compile_modes()?;
         let delays = c.compile_delays()?;
         let energy = c.compile_energy()?;
@@ -700,7 +738,7 @@ impl<'m> Compiler<'m> {
 
     /// An expression of the parameters only.
     fn parametric(&self, place: &str, text: &str) -> Result<Expression, InvalidGrayBox> {
-        let e = self.expr(place, text)?;
+        let e = value(place, text, self.expr(place, text)?)?;
         let params = self.parameter_slots();
         if e.slots().all(|s| params.contains(&s)) {
             Ok(e)
@@ -709,6 +747,46 @@ impl<'m> Compiler<'m> {
                 place,
                 Some(text),
                 Problem::NotParametric(text.into()),
+            ))
+        }
+    }
+
+    /// A stop's restitution: parameters only, within `[0, 1)` over the
+    /// parameters' bounds where it is affine in them (a number, a
+    /// parameter, a scaled sum), at their values otherwise.
+    fn restitution(&self, place: &str, text: &str) -> Result<Expression, InvalidGrayBox> {
+        let e = self.parametric(place, text)?;
+        let first = self.parameter_slots().start;
+        let parameter = |slot: u32| &self.m.parameters[(slot - first) as usize];
+        let (low, high) = match e.affine() {
+            Some((constant, terms)) => {
+                terms
+                    .iter()
+                    .fold((constant, constant), |(low, high), &(slot, k)| {
+                        let [a, b] = parameter(slot).bounds.map(|x| k * x);
+                        (low + a.min(b), high + a.max(b))
+                    })
+            }
+            None => {
+                let mut slots = vec![0.0; self.first_def];
+                for slot in self.parameter_slots() {
+                    slots[slot as usize] = parameter(slot).value;
+                }
+                let v = e.eval(&slots);
+                (v, v)
+            }
+        };
+        if low >= 0.0 && high < 1.0 {
+            Ok(e)
+        } else {
+            Err(InvalidGrayBox::new(
+                place,
+                Some(text),
+                Problem::Restitution {
+                    text: text.into(),
+                    low,
+                    high,
+                },
             ))
         }
     }
@@ -800,8 +878,19 @@ impl<'m> Compiler<'m> {
         Ok(e)
     }
 
-    /// The text `text` compiled in a mode whose definitions are `defs`.
+    /// The value `text` compiled in a mode whose definitions are `defs`.
     fn direct(
+        &mut self,
+        defs: &mut Definitions,
+        place: &str,
+        text: &str,
+    ) -> Result<Expression, InvalidGrayBox> {
+        let e = self.condition(defs, place, text)?;
+        value(place, text, e)
+    }
+
+    /// [`Compiler::direct`] for a condition, which may be a relation.
+    fn condition(
         &mut self,
         defs: &mut Definitions,
         place: &str,
@@ -934,7 +1023,7 @@ impl<'m> Compiler<'m> {
         let when = t
             .when
             .as_deref()
-            .map(|w| self.direct(defs, &format!("{place}, when"), w))
+            .map(|w| self.condition(defs, &format!("{place}, when"), w))
             .transpose()?;
         let mut reset = Vec::with_capacity(t.reset.len());
         for (s, text) in &t.reset {
@@ -972,7 +1061,7 @@ impl<'m> Compiler<'m> {
             .energy
             .as_deref()
             .map(|text| {
-                let e = self.expr("energy", text)?;
+                let e = value("energy", text, self.expr("energy", text)?)?;
                 if e.slots()
                     .all(|s| (s as usize) < self.nx || params.contains(&s))
                 {
@@ -1068,6 +1157,7 @@ fn compile_elements(
     mode_index: &BTreeMap<&str, usize>,
     state_of: &dyn Fn(&str, &str) -> Result<usize, InvalidGrayBox>,
     parametric: &dyn Fn(&str, &str) -> Result<Expression, InvalidGrayBox>,
+    restitution_of: &dyn Fn(&str, &str) -> Result<Expression, InvalidGrayBox>,
 ) -> Result<Vec<CompiledElement>, InvalidGrayBox> {
     let labels = m.mode_names();
     let label_index: HashMap<&str, usize> = labels
@@ -1124,7 +1214,7 @@ fn compile_elements(
                 velocity: state_of(&place, velocity)?,
                 at: parametric(&format!("{place}, at"), at)?,
                 sign: side.sign(),
-                restitution: parametric(&format!("{place}, restitution"), restitution)?,
+                restitution: restitution_of(&format!("{place}, restitution"), restitution)?,
                 rest_speed: rest_speed.max(0.0),
                 label: label_of(mode),
             },

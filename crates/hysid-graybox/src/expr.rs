@@ -330,6 +330,16 @@ impl Expression {
         self.ops.len()
     }
 
+    /// Whether its value is a truth value, 1 where it holds and 0
+    /// elsewhere: a comparison, `&&`, `||` or `!` at its top.
+    pub fn is_relation(&self) -> bool {
+        match self.ops.last() {
+            Some(Op::Not) => true,
+            Some(Op::Binary(b)) => b.compares() || matches!(b, Binary::And | Binary::Or),
+            _ => false,
+        }
+    }
+
     /// The tape's deepest stack.
     fn depth(&self) -> usize {
         let (mut depth, mut deepest) = (0usize, 0usize);
@@ -1410,6 +1420,29 @@ mod tests {
             let (v, w) = (e.eval(&[x, y, z]), d.eval(&[x, y, z]));
             let close = (v - w).abs() <= 1e-12 * v.abs().max(1.0);
             prop_assert!(v == w || close || (v.is_nan() && w.is_nan()), "{text}: {v} against {w}");
+        }
+    }
+
+    #[test]
+    fn a_truth_value_at_the_top_is_a_relation() {
+        for text in ["x > 0", "(x <= y)", "x == 1 && y != 2", "x || y", "!x"] {
+            assert!(
+                Expression::compile(text, &names).unwrap().is_relation(),
+                "{text}"
+            );
+        }
+        for text in [
+            "x",
+            "1",
+            "x*(x > 0)",
+            "if(x > 0, 1, 2)",
+            "-(x > 0)",
+            "min(x, y)",
+        ] {
+            assert!(
+                !Expression::compile(text, &names).unwrap().is_relation(),
+                "{text}"
+            );
         }
     }
 
