@@ -3,7 +3,7 @@
 
 use crate::error::Failure;
 use crate::record::{self, dataset, input_columns, output};
-use hysid_core::model::Model as AnyModel;
+use hysid_core::model::{Model as AnyModel, to_gray_box};
 use hysid_core::simulate;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::StopBound;
@@ -97,9 +97,24 @@ impl Model {
         self.inner.to_json()
     }
 
-    /// Writes the model file (JSON), atomically.
+    /// Writes the model file atomically: TOML to a `.toml` path, JSON to
+    /// any other.
     fn save(&self, path: PathBuf) -> PyResult<()> {
         Ok(hysid_io::save_model(&self.inner, &path).map_err(Failure::from)?)
+    }
+
+    /// A mechanical model written as the gray-box model of the same
+    /// physics (`hysid convert`).
+    fn to_gray_box(&self) -> PyResult<Self> {
+        let AnyModel::Mechanical(m) = &self.inner else {
+            return Err(Failure::input(format!(
+                "a '{}' model; to_gray_box reads a 'mechanical' one",
+                self.inner.kind()
+            ))
+            .into());
+        };
+        let gray = to_gray_box(m).map_err(|e| Failure::input(e.to_string()))?;
+        Ok(Self::new(AnyModel::GrayBox(gray)))
     }
 
     /// `"pwarx"`, `"hybrid_automaton"`, `"mechanical"` or `"gray_box"`.

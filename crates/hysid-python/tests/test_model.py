@@ -112,3 +112,25 @@ def test_a_file_that_extends_another_reads_as_its_base_with_the_changes():
     y0, _ = base.simulate(u, ts=0.0025)
     y1, _ = free_f1.simulate(u, ts=0.0025)
     assert np.isfinite(y0).all() and np.array_equal(y0, y1)
+
+
+def test_a_mechanical_model_as_a_gray_box_simulates_alike(tmp_path):
+    import pathlib
+
+    head = pathlib.Path(__file__).resolve().parents[3] / "models" / "pick-and-place" / "head.toml"
+    mechanical = hysid.Model.load(head)
+    gray = mechanical.to_gray_box()
+    assert gray.kind == "gray_box"
+    assert sorted(gray.mode_names) == sorted(mechanical.mode_names)
+    gray.save(tmp_path / "head-gray.toml")
+    again = hysid.Model.load(tmp_path / "head-gray.toml")
+    u = np.repeat(np.random.default_rng(3).uniform(-0.3, 0.05, 30), 120)
+    runs = [m.simulate(u, ts=0.0025) for m in (mechanical, gray, again)]
+    names = [[m.mode_names[q] if q >= 0 else None for q in modes]
+             for m, (_, modes) in zip((mechanical, gray, again), runs)]
+    assert names[0] == names[1] == names[2]
+    assert len(set(names[0]) - {None}) == 5
+    assert np.abs(runs[0][0] - runs[1][0]).max() < 1e-9
+    assert np.array_equal(runs[1][0], runs[2][0])
+    with pytest.raises(hysid.InputError, match="to_gray_box reads a 'mechanical' one"):
+        gray.to_gray_box()
