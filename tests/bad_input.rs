@@ -1090,6 +1090,16 @@ fn malformed_prior_files() {
             "modes = \n",
             &["syntax.toml", "TOML parse error at line 1, column 9"],
         ),
+        (
+            "past-stop.toml",
+            "[[saturation]]\nlevel = -1000.0\nbound = \"max\"\n",
+            &[
+                "past-stop.toml",
+                "[[saturation]] #1 (level -1000, bound \"max\")",
+                "samples lie past it",
+                "check its bound and level",
+            ],
+        ),
     ];
     for (name, text, needles) in cases {
         let p = write(d, name, text);

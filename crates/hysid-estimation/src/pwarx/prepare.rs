@@ -7,6 +7,7 @@
 
 use hysid_core::backend::{IdentifyError, Problem};
 use hysid_core::priors::Priors;
+use hysid_model::model::StopBound;
 use hysid_model::regressors::{RegressorSpec, Regressors};
 
 /// How many ordinary (non-saturation) modes the priors ask for.
@@ -162,6 +163,74 @@ pub fn check_names(priors: &Priors, spec: &RegressorSpec) -> Result<(), UnknownN
     Ok(())
 }
 
+/// The share of the output's range that a sample may lie past a known stop
+/// (beyond the stop's tolerance) before the prior is taken to contradict
+/// the record: noise past a stop counts as at the stop, a level inside the
+/// record's range or a stop on the wrong side does not.
+pub const PAST_STOP_SHARE: f64 = 0.05;
+
+/// A record that lies far past a known stop: the prior contradicts the data
+/// (a `max` stop given for a `min` one, or a level inside the record's
+/// range).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "[[saturation]] #{entry} (level {level}, bound \"{bound}\"): {past} of {samples} output \
+     samples lie past it by more than {limit:.4} (its tol, or 5 % of the record's range), the \
+     farthest by {farthest:.4}; a \"{bound}\" stop is never passed: check its bound and level"
+)]
+pub struct PastStop {
+    /// The entry, counted from 1.
+    pub entry: usize,
+    /// Its level.
+    pub level: f64,
+    /// Its bound, as written (`max`, `min`).
+    pub bound: &'static str,
+    /// The distance allowed past it: its tolerance, or
+    /// [`PAST_STOP_SHARE`] of the record's range if larger.
+    pub limit: f64,
+    /// Samples past it by more than `limit`.
+    pub past: usize,
+    /// Samples checked.
+    pub samples: usize,
+    /// The largest distance past the level.
+    pub farthest: f64,
+}
+
+/// Checks the regression targets against every known stop: none may lie
+/// past it by more than its tolerance or [`PAST_STOP_SHARE`] of the
+/// targets' range, whichever is larger ([`PastStop`]).
+pub fn check_stops(priors: &Priors, targets: &[f64]) -> Result<(), PastStop> {
+    let (low, high) = targets
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &y| {
+            (l.min(y), h.max(y))
+        });
+    let range = (high - low).max(0.0);
+    for (i, stop) in priors.saturation.iter().enumerate() {
+        let limit = stop.tolerance().max(PAST_STOP_SHARE * range);
+        let past: Vec<f64> = targets
+            .iter()
+            .map(|&y| stop.beyond(y))
+            .filter(|&d| d > limit)
+            .collect();
+        if !past.is_empty() {
+            return Err(PastStop {
+                entry: i + 1,
+                level: stop.level,
+                bound: match stop.bound {
+                    StopBound::Max => "max",
+                    StopBound::Min => "min",
+                },
+                limit,
+                past: past.len(),
+                samples: targets.len(),
+                farthest: past.iter().copied().fold(0.0, f64::max),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// The known stop the output value `y` sits at ([`Stop::holds`]), if any.
 ///
 /// [`Stop::holds`]: hysid_model::model::Stop::holds
@@ -191,6 +260,8 @@ pub fn prepare<'a>(problem: &Problem<'a>, method: &str) -> Result<PwarxData<'a>,
     {
         return Err(IdentifyError::NonFinite { value });
     }
+    check_stops(priors, regressors.y.as_slice())
+        .map_err(|e| IdentifyError::prior_mismatch(problem.priors_origin, e))?;
     let stop_of = saturated_samples(priors, regressors.y.as_slice());
     let ordinary: Vec<usize> = (0..regressors.len())
         .filter(|&k| stop_of[k].is_none())
@@ -275,6 +346,29 @@ mod tests {
                 .starts_with("[[equality]] #1 coefficients: unknown name 'a2'"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_record_far_past_a_stop_contradicts_it() {
+        let stop = |level: f64, bound: &str| {
+            Priors::from_toml(
+                &format!("[[saturation]]\nlevel = {level}\nbound = \"{bound}\"\n"),
+                "p",
+            )
+            .unwrap()
+        };
+        // A record on [0, 25] resting at both ends, with noise of 0.1 past
+        // them: 5 % of its range is 1.26.
+        let record = [0.0, -0.1, 3.0, 12.0, 24.0, 25.0, 25.1];
+        assert_eq!(check_stops(&stop(25.0, "max"), &record), Ok(()));
+        assert_eq!(check_stops(&stop(0.0, "min"), &record), Ok(()));
+        let wrong_side = check_stops(&stop(0.0, "max"), &record).unwrap_err();
+        assert_eq!((wrong_side.past, wrong_side.farthest), (5, 25.1));
+        let inside = check_stops(&stop(12.0, "max"), &record).unwrap_err();
+        assert_eq!((inside.entry, inside.past, inside.bound), (1, 3, "max"));
+        // Just within 5 % of the range past a stop, and just beyond.
+        assert_eq!(check_stops(&stop(23.9, "max"), &record), Ok(()));
+        assert!(check_stops(&stop(23.8, "max"), &record).is_err());
     }
 
     #[test]

@@ -40,6 +40,15 @@ impl Stop {
             .unwrap_or(Self::DEFAULT_TOL * (1.0 + self.level.abs()))
     }
 
+    /// How far the output value `y` lies past the level on the side the
+    /// stop forbids (negative on the allowed side).
+    pub fn beyond(&self, y: f64) -> f64 {
+        match self.bound {
+            StopBound::Max => y - self.level,
+            StopBound::Min => self.level - y,
+        }
+    }
+
     /// Whether the output value `y` sits at the stop: within the tolerance
     /// of the level or beyond it on the stop's side (a `max` stop at `L`
     /// holds `y >= L - tol`).
