@@ -40,7 +40,9 @@ class Model:
     def to_json(self) -> str:
         """The model file's JSON text."""
     def save(self, path: PathLike) -> None:
-        """Writes the model file (JSON), atomically."""
+        """Writes the model file atomically: TOML to a `.toml` path, JSON to any other."""
+    def to_gray_box(self) -> Model:
+        """A mechanical model written as the gray-box model of the same physics (`hysid convert`)."""
     @property
     def kind(self) -> str:
         """`"pwarx"`, `"hybrid_automaton"`, `"mechanical"` or `"gray_box"`."""
