@@ -335,9 +335,10 @@ impl RowRange {
         let a = self.start.unwrap_or(0);
         let b = self.end.unwrap_or(n).min(n);
         if a >= b {
-            return Err(DataError::Selection(format!(
-                "rows {self} select no sample of a record with {n} rows"
-            )));
+            return Err(DataError::NoRows {
+                rows: *self,
+                available: n,
+            });
         }
         Ok((a, b))
     }
@@ -483,6 +484,14 @@ pub enum DataError {
         /// The rows end beyond the record (else they select none of it).
         beyond: bool,
     },
+    /// Rows that select no sample of a record ([`RowRange::resolve`]).
+    #[error("rows {rows} select no sample of a record with {available} rows")]
+    NoRows {
+        /// The rows asked for.
+        rows: RowRange,
+        /// Rows the record holds.
+        available: usize,
+    },
     /// A record that cannot be joined to the first ([`Dataset::join`]).
     #[error("record {record}: {reason}")]
     Join {
@@ -504,6 +513,18 @@ pub enum DataError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rows_that_select_nothing_are_named_with_the_record_s_length() {
+        let rows: RowRange = "120..".parse().unwrap();
+        assert_eq!(rows.resolve(200).unwrap(), (120, 200));
+        let e = rows.resolve(100).unwrap_err();
+        assert!(matches!(e, DataError::NoRows { rows: r, available: 100 } if r == rows));
+        assert_eq!(
+            e.to_string(),
+            "rows 120.. select no sample of a record with 100 rows"
+        );
+    }
 
     #[test]
     fn row_range_parses_open_bounds() {
