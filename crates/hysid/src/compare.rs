@@ -201,6 +201,21 @@ pub struct Comparison {
     pub output_label: String,
     /// Axis label of the inputs in figures.
     pub input_label: String,
+    /// The figures [`write_report`] drew (none before it runs): what the
+    /// report links.
+    #[serde(skip)]
+    pub drawn: Drawn,
+}
+
+/// The figures of a report, as [`write_report`] drew them.
+#[derive(Debug, Clone, Default)]
+pub struct Drawn {
+    /// The figure of every run together.
+    all: bool,
+    /// The runs drawn, each with whether its regions were.
+    runs: Vec<(String, bool)>,
+    /// The sweeps with a figure.
+    sweeps: Vec<String>,
 }
 
 fn merge(shared: &Priors, run: &RunSpec) -> Priors {
@@ -447,6 +462,7 @@ impl Experiment {
                 .input_label
                 .clone()
                 .unwrap_or_else(|| format!("input {}", self.data.input.join(", "))),
+            drawn: Drawn::default(),
         })
     }
 }

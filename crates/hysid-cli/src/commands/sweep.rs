@@ -181,13 +181,7 @@ pub fn run(args: Args) -> Result<()> {
             dir.join("report.md").display()
         );
     }
-    print!(
-        "{}",
-        match &args.out {
-            Some(_) => hysid::compare::report::markdown(&comparison),
-            None => hysid::compare::report::markdown_without_figures(&comparison),
-        }
-    );
+    print!("{}", hysid::compare::report::markdown(&comparison));
     if let Some(first) = comparison
         .results
         .iter()

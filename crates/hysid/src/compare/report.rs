@@ -1,7 +1,7 @@
 //! Writing a comparison: `report.md`, `report.json`, `models/*.json` and
 //! the figures under `plots/` (SVG, `hysid-plot`).
 
-use crate::compare::{Comparison, RunResult};
+use crate::compare::{Comparison, Drawn, RunResult};
 use hysid_core::model::Model;
 use hysid_model::data::Dataset;
 use hysid_model::geometry::Polyhedron;
@@ -43,7 +43,9 @@ pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::
             r.model_file = Some(rel);
         }
     }
-    written.extend(figures(c, dir)?);
+    let (files, drawn) = figures(c, dir)?;
+    written.extend(files);
+    c.drawn = drawn;
     let json = serde_json::to_string_pretty(&*c).expect("report serialises") + "\n";
     let p = dir.join("report.json");
     hysid_io::write(&p, json.as_bytes())?;
@@ -60,10 +62,12 @@ fn plot_err(e: hysid_plot::PlotError) -> std::io::Error {
 
 /// Figures: measured vs simulated output and the mode sequence of every
 /// `[[run]]` (and all runs together), and one figure per sweep (fit_sim and
-/// mode count against the first varied key).
-fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf>> {
+/// mode count against the first varied key). Returns the files and what
+/// they show.
+fn figures(c: &Comparison, dir: &Path) -> std::io::Result<(Vec<std::path::PathBuf>, Drawn)> {
+    let mut drawn = Drawn::default();
     let Some(valid) = &c.validation else {
-        return Ok(vec![]);
+        return Ok((vec![], drawn));
     };
     std::fs::create_dir_all(dir.join("plots"))?;
     let mut written = Vec::new();
@@ -115,16 +119,19 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
         all = all.with_simulation(format!("{}{fit}", r.name), sim);
         // Classified validation regressors with the region boundaries (the
         // founding paper's Figs. 6 and 11), in the plane y(k-1), u(k-1).
-        if let Some(fig) = region_figure(c, r, valid) {
+        let regions = region_figure(c, r, valid);
+        if let Some(fig) = &regions {
             let p = dir.join(format!("plots/{slug}-regions.{ext}"));
-            hysid_plot::regions_plot(&p, &fig).map_err(plot_err)?;
+            hysid_plot::regions_plot(&p, fig).map_err(plot_err)?;
             written.push(p);
         }
+        drawn.runs.push((r.name.clone(), regions.is_some()));
     }
     if !all.simulated.is_empty() {
         let p = dir.join(format!("plots/runs-simulation.{ext}"));
         hysid_plot::simulation_plot(&p, &all).map_err(plot_err)?;
         written.push(p);
+        drawn.all = true;
     }
     let mut sweeps: Vec<&str> = Vec::new();
     for r in &c.results {
@@ -141,8 +148,9 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf
         let p = dir.join(format!("plots/{}-sweep.{ext}", slug(name)));
         hysid_plot::sweep_plot(&p, &fig).map_err(plot_err)?;
         written.push(p);
+        drawn.sweeps.push(name.to_string());
     }
-    Ok(written)
+    Ok((written, drawn))
 }
 
 /// The unit in the last `[...]` of an axis label (`"head position y [mm]"`
@@ -428,16 +436,8 @@ fn order_text(model: Option<&Model>, order: usize) -> String {
 }
 
 /// The report as Markdown, with the links to the figures
-/// [`write_report`] draws.
+/// [`write_report`] drew (none before it runs).
 pub fn markdown(c: &Comparison) -> String {
-    let mut s = markdown_without_figures(c);
-    figure_links(&mut s, c);
-    s
-}
-
-/// The report as Markdown without the figures' links: for a report whose
-/// figures are not written.
-pub fn markdown_without_figures(c: &Comparison) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# {}\n", c.title);
     if !c.description.trim().is_empty() {
@@ -503,47 +503,30 @@ pub fn markdown_without_figures(c: &Comparison) -> String {
     }
     records_table(&mut s, c);
     mode_recovery_table(&mut s, c);
+    figure_links(&mut s, c);
     s
 }
 
-/// The list of the figures [`write_report`] draws, as links, into `s`.
+/// The list of the figures [`write_report`] drew, as links, into `s`.
 fn figure_links(s: &mut String, c: &Comparison) {
     let ext = c.figures.extension();
     let mut figs: Vec<String> = Vec::new();
-    if c.results
-        .iter()
-        .any(|r| r.simulation.is_some() && r.sweep.is_none())
-    {
+    if c.drawn.all {
         figs.push(format!(
             "- all runs: [plots/runs-simulation.{ext}](plots/runs-simulation.{ext})"
         ));
     }
-    let mut seen: Vec<&str> = Vec::new();
-    for r in &c.results {
-        if let Some(sw) = &r.sweep
-            && !seen.contains(&sw.sweep.as_str())
-        {
-            seen.push(&sw.sweep);
-            if sweep_figure(c, &sw.sweep, &sweep_points(c, &sw.sweep)).is_some() {
-                let f = format!("plots/{}-sweep.{ext}", slug(&sw.sweep));
-                figs.push(format!("- sweep {}: [{f}]({f})", sw.sweep));
-            }
-        }
+    for sweep in &c.drawn.sweeps {
+        let f = format!("plots/{}-sweep.{ext}", slug(sweep));
+        figs.push(format!("- sweep {sweep}: [{f}]({f})"));
     }
     let mut with_regions = 0;
-    for r in c
-        .results
-        .iter()
-        .filter(|r| r.simulation.is_some() && r.sweep.is_none())
-    {
-        let f = format!("plots/{}-simulation.{ext}", slug(&r.name));
-        let m = format!("plots/{}-modes.{ext}", slug(&r.name));
-        let mut line = format!("- {}: [{f}]({f}), [{m}]({m})", r.name);
-        if c.validation
-            .as_ref()
-            .is_some_and(|v| region_figure(c, r, v).is_some())
-        {
-            let g = format!("plots/{}-regions.{ext}", slug(&r.name));
+    for (name, regions) in &c.drawn.runs {
+        let f = format!("plots/{}-simulation.{ext}", slug(name));
+        let m = format!("plots/{}-modes.{ext}", slug(name));
+        let mut line = format!("- {name}: [{f}]({f}), [{m}]({m})");
+        if *regions {
+            let g = format!("plots/{}-regions.{ext}", slug(name));
             let _ = write!(line, ", [{g}]({g})");
             with_regions += 1;
         }
@@ -551,11 +534,7 @@ fn figure_links(s: &mut String, c: &Comparison) {
     }
     if !figs.is_empty() {
         let runs = c.results.iter().filter(|r| r.sweep.is_none()).count();
-        let drawn = c
-            .results
-            .iter()
-            .filter(|r| r.simulation.is_some() && r.sweep.is_none())
-            .count();
+        let drawn = c.drawn.runs.len();
         let points = c.results.len() - runs;
         let mut what = format!(
             "\nFigures (under plots/): the simulation and the mode sequence of each of the {drawn} of {runs} `[[run]]` entries that produced a validation simulation"
