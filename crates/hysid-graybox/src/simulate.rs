@@ -855,6 +855,11 @@ impl<'a> Machine<'a> {
         }
     }
 
+    /// Whether `ev` is a stop's (its reset moves the state by a jump).
+    fn stop_event(&self, ev: Event) -> bool {
+        matches!(ev, Event::Element(i) if matches!(self.m.elements[i], CompiledElement::Stop { .. }))
+    }
+
     /// Applies an event at the located state `hs.x`.
     fn apply(
         &mut self,
@@ -1067,7 +1072,21 @@ impl<'a> Machine<'a> {
                 }
                 hs.x.copy_from_slice(&x1);
                 fresh = false;
+                // A stop's reset jumps the state: the guards it jumps
+                // across fire as across an input's jump.
+                let before_jump = self.stop_event(ev).then(|| {
+                    let mut g = Vec::new();
+                    self.load(&hs.x, u);
+                    surfaces(&self.m.modes[hs.mode], &self.slots, &mut g);
+                    g
+                });
                 if let Err(e) = self.apply(hs, u, ev, sample) {
+                    result = Err(e);
+                    break 'steps;
+                }
+                if let Some(g) = before_jump
+                    && let Err(e) = self.fire_at_sample(hs, u, &g, sample)
+                {
                     result = Err(e);
                     break 'steps;
                 }

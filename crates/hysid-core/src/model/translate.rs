@@ -729,4 +729,28 @@ mod tests {
             ))
         );
     }
+
+    /// A damping-only contact whose force changes sign with the velocity,
+    /// at the stop where the mass rests or rebounds: it lets go the instant
+    /// the mass leaves the stop or rebounds from it, where the stop's reset
+    /// jumps the contact force across zero (the release guard fires across
+    /// the jump). Found by the property test above.
+    #[test]
+    fn a_contact_lets_go_as_the_mass_leaves_or_rebounds_from_a_stop() {
+        let contact = (0.0, false, 0.0, 12.017605113916371, 0.0, true);
+        for (restitution, seed) in [(0.0, 665_781_310_308), (0.35939584250215173, 19317)] {
+            let m = drawn(
+                [1929.4643903193862, 0.0, 0.0, 0.0, 0.0],
+                [0.0; 2],
+                &[contact],
+                [restitution, 0.0],
+                None,
+            );
+            let (worst, label, _, zeno) = compare(&m, &record(seed, 400, -1.0, 1.0, 0.5));
+            assert!(
+                worst < 1e-9 && label.is_none() && (restitution > 0.0 || zeno == 0),
+                "e = {restitution}: {worst} {label:?} {zeno}"
+            );
+        }
+    }
 }
