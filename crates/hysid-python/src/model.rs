@@ -6,7 +6,6 @@ use crate::record::{self, dataset, input_columns, output};
 use hysid_core::model::{Model as AnyModel, to_gray_box};
 use hysid_core::simulate;
 use hysid_model::geometry::Polyhedron;
-use hysid_model::model::StopBound;
 use hysid_model::simulate::{Simulation, SimulationOptions};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
@@ -218,13 +217,7 @@ impl Model {
         self.inner
             .stops()
             .iter()
-            .map(|s| {
-                let side = match s.bound {
-                    StopBound::Max => "max",
-                    StopBound::Min => "min",
-                };
-                (s.level, side)
-            })
+            .map(|s| (s.level, s.bound.name()))
             .collect()
     }
 

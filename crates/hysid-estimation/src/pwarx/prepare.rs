@@ -7,7 +7,6 @@
 
 use hysid_core::backend::{IdentifyError, Problem};
 use hysid_core::priors::Priors;
-use hysid_model::model::StopBound;
 use hysid_model::regressors::{RegressorSpec, Regressors};
 
 /// How many ordinary (non-saturation) modes the priors ask for.
@@ -208,23 +207,20 @@ pub fn check_stops(priors: &Priors, targets: &[f64]) -> Result<(), PastStop> {
     let range = (high - low).max(0.0);
     for (i, stop) in priors.saturation.iter().enumerate() {
         let limit = stop.tolerance().max(PAST_STOP_SHARE * range);
-        let past: Vec<f64> = targets
+        let (past, farthest) = targets
             .iter()
             .map(|&y| stop.beyond(y))
             .filter(|&d| d > limit)
-            .collect();
-        if !past.is_empty() {
+            .fold((0, 0.0), |(n, far), d| (n + 1, f64::max(far, d)));
+        if past > 0 {
             return Err(PastStop {
                 entry: i + 1,
                 level: stop.level,
-                bound: match stop.bound {
-                    StopBound::Max => "max",
-                    StopBound::Min => "min",
-                },
+                bound: stop.bound.name(),
                 limit,
-                past: past.len(),
+                past,
                 samples: targets.len(),
-                farthest: past.iter().copied().fold(0.0, f64::max),
+                farthest,
             });
         }
     }

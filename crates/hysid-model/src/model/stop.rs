@@ -12,6 +12,16 @@ pub enum StopBound {
     Min,
 }
 
+impl StopBound {
+    /// Its name in files: `"max"` or `"min"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            StopBound::Max => "max",
+            StopBound::Min => "min",
+        }
+    }
+}
+
 /// A known saturation: the output's value at a mechanical stop. In a prior
 /// file it is a `[[saturation]]` entry; in a hybrid automaton it becomes a
 /// mode on the guard set `y = level`.
