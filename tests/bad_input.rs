@@ -1518,6 +1518,11 @@ fn relations_as_values_and_restitutions_beyond_one() {
             ],
         ),
         (
+            "restitution-product.toml",
+            head.replace(lower, &format!("{lower}\nrestitution = \"c1*d1/1000\"")),
+            vec!["ranges over [3.2, 3.2]"],
+        ),
+        (
             "restitution-sum.toml",
             head.replace(lower, &format!("{lower}\nrestitution = \"0.5 + y_up\"")),
             vec!["ranges over [0, 1]"],

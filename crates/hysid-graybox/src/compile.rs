@@ -768,11 +768,7 @@ impl<'m> Compiler<'m> {
                     })
             }
             None => {
-                let mut slots = vec![0.0; self.first_def];
-                for slot in self.parameter_slots() {
-                    slots[slot as usize] = parameter(slot).value;
-                }
-                let v = e.eval(&slots);
+                let v = e.bind(first, &self.m.values()).eval(&[]);
                 (v, v)
             }
         };

@@ -694,7 +694,7 @@ impl<'a> Machine<'a> {
     }
 
     /// The guard surfaces at the end of a sample (state `hs`, input `u`)
-    /// into `out`, for [`Machine::fire_at_sample`] to compare across the
+    /// into `out`, for [`Machine::fire_across_jump`] to compare across the
     /// next input's jump; nothing where no guard surface of the mode reads
     /// an input (the jump cannot move them).
     fn surfaces_at_end(&mut self, hs: &HybridState, u: &[f64], out: &mut Vec<f64>) {
@@ -944,10 +944,10 @@ impl<'a> Machine<'a> {
         Ok(())
     }
 
-    /// Fires the transitions whose guards the input's jump crossed at a
-    /// sample instant (`g_before`: the surfaces with the previous input);
-    /// whether one fired.
-    fn fire_at_sample(
+    /// Fires the transitions whose guards a jump crossed (`g_before`: the
+    /// surfaces before it): the input's at a sample instant, a stop's
+    /// reset; whether one fired.
+    fn fire_across_jump(
         &mut self,
         hs: &mut HybridState,
         u: &[f64],
@@ -1085,7 +1085,7 @@ impl<'a> Machine<'a> {
                     break 'steps;
                 }
                 if let Some(g) = before_jump
-                    && let Err(e) = self.fire_at_sample(hs, u, &g, sample)
+                    && let Err(e) = self.fire_across_jump(hs, u, &g, sample)
                 {
                     result = Err(e);
                     break 'steps;
@@ -1735,7 +1735,7 @@ fn span(
                 if k > start || j > 0 {
                     moving &= !machine.resettle(&mut hs, u);
                     let g_before = std::mem::take(&mut g_end);
-                    moving &= !machine.fire_at_sample(&mut hs, u, &g_before, k)?;
+                    moving &= !machine.fire_across_jump(&mut hs, u, &g_before, k)?;
                 }
                 machine.advance(&mut hs, u, (*duration, *n_sub), k, moving)?;
                 machine.surfaces_at_end(&hs, u, &mut g_end);
@@ -1913,7 +1913,7 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
             if j > 0 {
                 machine.resettle(&mut hs, u);
                 let g_before = std::mem::take(&mut g_end);
-                machine.fire_at_sample(&mut hs, u, &g_before, k)?;
+                machine.fire_across_jump(&mut hs, u, &g_before, k)?;
             }
             machine.advance(&mut hs, u, (*duration, *n_sub), k, false)?;
             machine.surfaces_at_end(&hs, u, &mut g_end);
