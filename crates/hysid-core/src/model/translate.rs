@@ -121,15 +121,12 @@ impl Symbols {
                 .iter()
                 .enumerate()
                 .map(|(i, c)| {
-                    // Named after the contact where its name is a symbol.
+                    // Named after the contact where its name can follow
+                    // `p_` in a symbol.
                     let symbol = c
                         .name
                         .chars()
-                        .next()
-                        .is_some_and(|h| h.is_ascii_alphabetic())
-                        && c.name
-                            .chars()
-                            .all(|h| h.is_ascii_alphanumeric() || h == '_');
+                        .all(|h| h.is_ascii_alphanumeric() || h == '_');
                     let tag = if symbol {
                         c.name.clone()
                     } else {
