@@ -60,12 +60,14 @@ use linear::{AffineFlows, AffineRow, ClosedStep, affine_guards};
 use nalgebra::DMatrix;
 use sensitivity::Tangent;
 pub use sensitivity::{Sensitivities, differentiable};
+pub use shooting::{segmented, segmented_with_sensitivities};
 use std::rc::Rc;
 
 mod linear;
 mod locate;
 mod quiet;
 mod sensitivity;
+mod shooting;
 
 /// Bound on the events handled within one sub-step (the Zeno guard).
 pub const MAX_EVENTS_PER_STEP: usize = 16;
@@ -1652,7 +1654,7 @@ fn free_run(
     let mut out = GrayBoxRun::empty(data, m.states, 0, kept);
     if differentiate {
         machine.differentiate(m);
-        out.sensitivities = machine.sensitivities_for(n);
+        out.sensitivities = machine.sensitivities_for(0..n);
     }
     let (first, hs) = initial(&bound, &mut machine, data, &schedule, estimates)?;
     span(&mut machine, hs, data, first..n, &schedule, &mut out)?;
@@ -1744,116 +1746,6 @@ fn span(
         held.copy_from_slice(&pieces[pieces.len() - 1].1);
     }
     Ok(())
-}
-
-/// Multiple shooting: the record cut into segments of `segment` samples,
-/// each simulated from the measured rule's state at its first sample `s`
-/// (the position from the output, the velocity from the output's slope
-/// `slope_at(s)`, the estimated states from the free run from
-/// `estimates`; the mode: the first whose invariant holds). Returns the
-/// outputs of every sample: the first sample's is its initial state's,
-/// every other is the one its segment simulated (a boundary sample: the
-/// earlier segment's). A model without the measured rule gives its free
-/// run from `estimates`.
-pub fn segmented(
-    m: &CompiledModel,
-    values: &[f64],
-    estimates: &[f64],
-    data: &Dataset,
-    segment: usize,
-    slope_at: &dyn Fn(usize) -> f64,
-) -> Result<Vec<f64>, SimError> {
-    shoot(m, values, estimates, data, (segment, slope_at), false).map(|r| r.y)
-}
-
-/// [`segmented`]'s outputs and their derivatives in the parameters and
-/// the estimated states (as [`run_with_sensitivities`]; a segment's start
-/// depends on the parameters through the output map, its estimated states
-/// through the free run's).
-pub fn segmented_with_sensitivities(
-    m: &CompiledModel,
-    values: &[f64],
-    estimates: &[f64],
-    data: &Dataset,
-    segment: usize,
-    slope_at: &dyn Fn(usize) -> f64,
-) -> Result<(Vec<f64>, Sensitivities), SimError> {
-    let run = shoot(m, values, estimates, data, (segment, slope_at), true)?;
-    let sensitivities = run
-        .sensitivities
-        .ok_or_else(|| SimError::InvalidModel("no sensitivities were carried".into()))?;
-    Ok((run.y, sensitivities))
-}
-
-/// [`segmented`], with the sensitivities when `differentiate`.
-fn shoot(
-    m: &CompiledModel,
-    values: &[f64],
-    estimates: &[f64],
-    data: &Dataset,
-    (segment, slope_at): (usize, &dyn Fn(usize) -> f64),
-    differentiate: bool,
-) -> Result<GrayBoxRun, SimError> {
-    if !matches!(m.initial, CompiledInitial::Measured { .. }) {
-        return free_run(m, values, estimates, data, differentiate, Kept::Output);
-    }
-    let free = if m.estimates.is_empty() {
-        None
-    } else {
-        Some(free_run(
-            m,
-            values,
-            estimates,
-            data,
-            differentiate,
-            Kept::Everything,
-        )?)
-    };
-    let ts = timing(m, data)?;
-    let n = data.len();
-    let bound = m.bind(values);
-    let schedule = Schedule::new(&bound, ts);
-    let mut machine = Machine::new(&bound, values);
-    machine.strict_resets = false;
-    let mut out = GrayBoxRun::empty(data, m.states, 0, Kept::Output);
-    if differentiate {
-        machine.differentiate(m);
-        out.sensitivities = machine.sensitivities_for(n);
-    }
-    let mut u = vec![0.0; m.inputs];
-    let mut s = 0;
-    while s + 1 < n {
-        schedule.inputs(data, s, 0.0, &mut u);
-        let at_s = free.as_ref().map(|r| carried(m, r, s)).unwrap_or_default();
-        let rows = free
-            .as_ref()
-            .and_then(|r| r.sensitivities.as_ref())
-            .map(|d| d.estimated_rows(m, s));
-        machine.tangent_start(rows.as_deref());
-        let x = measured_state(
-            &bound,
-            &mut machine,
-            (data, &schedule),
-            s,
-            &at_s,
-            slope_at(s),
-            0.0,
-        )?;
-        let hs = machine.state_at(x, &u, None);
-        let end = (s + segment.max(1) + 1).min(n);
-        // The previous segment's last output stays: this one starts there.
-        let last = out.y[s];
-        let last_row = out.sensitivities.as_ref().map(|d| d.dy_row(s).to_vec());
-        span(&mut machine, hs, data, s..end, &schedule, &mut out)?;
-        if s > 0 {
-            out.y[s] = last;
-            if let (Some(d), Some(row)) = (out.sensitivities.as_mut(), last_row) {
-                d.dy_row_mut(s).copy_from_slice(&row);
-            }
-        }
-        s = end - 1;
-    }
-    Ok(out)
 }
 
 /// One-step prediction: at each sample the state is read again from the

@@ -9,13 +9,9 @@ use hysid_mechanical::simulate as mechanical;
 use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
 use hysid_model::model::{ModelInfo, PhysicalParameter};
-use hysid_model::simulate::{SimError, substeps};
+use hysid_model::simulate::{SEGMENTS_PER_TASK, SimError, substeps};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
-
-/// Segments of the segmented cost per parallel task: enough work (8 x 100
-/// samples by default) to outweigh the task's cost.
-const SEGMENTS_PER_TASK: usize = 8;
 
 /// What the objective needs of a model: its simulations.
 pub trait Simulator: Sync {

@@ -145,10 +145,11 @@ impl AffineFlows {
 pub(super) mod tests {
     use super::*;
     use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, initial, span};
-    use crate::{CompiledModel, GrayBoxModel};
+    use crate::{CompiledModel, GrayBoxModel, extends};
     use hysid_model::data::Dataset;
     use hysid_model::excitation::Excitation;
     use proptest::prelude::*;
+    use std::path::{Path, PathBuf};
 
     fn vector(len: usize, scale: f64) -> impl Strategy<Value = Vec<f64>> {
         prop::collection::vec(-scale..scale, len)
@@ -229,6 +230,40 @@ pub(super) mod tests {
             }
         }
         g
+    }
+
+    /// Every gray-box file under `models/examples` and
+    /// `models/pick-and-place` (the structure study's included), with the
+    /// input of its "Try:" line, which drives it through its guards, stops
+    /// and sticking (guards that an input's jump crosses among them: the
+    /// ball's table, the tanks' overflows).
+    pub(in crate::simulate) fn model_files() -> Vec<(PathBuf, GrayBoxModel, Excitation)> {
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../models"));
+        let mut files = Vec::new();
+        for dir in ["examples", "pick-and-place", "pick-and-place/structures"] {
+            for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+                let path = entry.unwrap().path();
+                if path.extension().is_none_or(|e| e != "toml") {
+                    continue;
+                }
+                let resolved = extends::read(&path).unwrap();
+                let mut value = resolved.value;
+                let kind = value.as_object_mut().and_then(|o| o.remove("kind"));
+                if kind.as_ref().and_then(|k| k.as_str()) != Some("gray_box") {
+                    continue;
+                }
+                let g: GrayBoxModel = serde_json::from_value(value).unwrap();
+                let ex: Excitation = resolved.sources[0]
+                    .text
+                    .lines()
+                    .find_map(|l| l.split("--excite ").nth(1)?.split_whitespace().next())
+                    .unwrap_or_else(|| panic!("{}: no Try: line", path.display()))
+                    .parse()
+                    .unwrap();
+                files.push((path, g, ex));
+            }
+        }
+        files
     }
 
     /// The head's test record of 1500 samples: a random input held over 40

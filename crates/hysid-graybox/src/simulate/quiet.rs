@@ -124,13 +124,11 @@ fn watched_event(watch: &[StateEnd], x: &[f64]) -> bool {
 
 #[cfg(test)]
 mod tests {
-    use crate::simulate::linear::tests::{head, head_record, run_with};
+    use crate::CompiledModel;
+    use crate::simulate::linear::tests::{head, head_record, model_files, run_with};
     use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, Surfaces, span};
-    use crate::{CompiledModel, GrayBoxModel, extends};
     use hysid_model::data::Dataset;
-    use hysid_model::excitation::Excitation;
     use proptest::prelude::*;
-    use std::path::Path;
 
     /// Whether two runs are the same to the bit.
     fn same_bits(a: &GrayBoxRun, b: &GrayBoxRun) -> bool {
@@ -196,60 +194,34 @@ mod tests {
         out
     }
 
-    /// Every gray-box file under `models/examples` and
-    /// `models/pick-and-place` (the structure study's included), under the
-    /// inputs of its "Try:" line and the seeds 1 to 3, which drive the
-    /// files through their guards, stops and sticking (guards that an
-    /// input's jump crosses among them: the ball's table, the tanks'
-    /// overflows): the same bits with the shortcuts on and off, in a free
-    /// run and in segments.
+    /// Every model file ([`model_files`]) under the seeds 1 to 3 of its
+    /// input: the same bits with the shortcuts on and off, in a free run
+    /// and in segments.
     #[test]
     fn every_model_file_runs_the_same_without_the_shortcuts() {
-        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../models"));
-        let mut checked = 0;
-        for dir in ["examples", "pick-and-place", "pick-and-place/structures"] {
-            for entry in std::fs::read_dir(root.join(dir)).unwrap() {
-                let path = entry.unwrap().path();
-                if path.extension().is_none_or(|e| e != "toml") {
-                    continue;
-                }
-                let resolved = extends::read(&path).unwrap();
-                let mut value = resolved.value;
-                let kind = value.as_object_mut().and_then(|o| o.remove("kind"));
-                if kind.as_ref().and_then(|k| k.as_str()) != Some("gray_box") {
-                    continue;
-                }
-                let g: GrayBoxModel = serde_json::from_value(value).unwrap();
-                let m = CompiledModel::new(&g).unwrap();
-                let ex: Excitation = resolved.sources[0]
-                    .text
-                    .lines()
-                    .find_map(|l| l.split("--excite ").nth(1)?.split_whitespace().next())
-                    .unwrap_or_else(|| panic!("{}: no Try: line", path.display()))
-                    .parse()
-                    .unwrap();
-                for seed in 1..=3 {
-                    let u = ex.generate(seed).remove(0);
-                    let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
-                    let (with, ..) = run_with(&m, &g.values(), &data, |_| ());
-                    let (without, ..) =
-                        run_with(&m, &g.values(), &data, |machine| machine.shortcuts = false);
-                    assert!(
-                        same_bits(&with, &without),
-                        "{}, seed {seed}",
-                        path.display()
-                    );
-                    let cut = segments(&m, &g.values(), &data, &with, |_| ());
-                    let plain = segments(&m, &g.values(), &data, &with, |machine| {
-                        machine.shortcuts = false;
-                    });
-                    let file = path.display();
-                    assert!(same_bits(&cut, &plain), "{file}, seed {seed}, segments");
-                }
-                checked += 1;
+        let files = model_files();
+        for (path, g, ex) in &files {
+            let m = CompiledModel::new(g).unwrap();
+            for seed in 1..=3 {
+                let u = ex.generate(seed).remove(0);
+                let data = Dataset::siso(u, vec![0.0; ex.n], ex.ts).unwrap();
+                let (with, ..) = run_with(&m, &g.values(), &data, |_| ());
+                let (without, ..) =
+                    run_with(&m, &g.values(), &data, |machine| machine.shortcuts = false);
+                assert!(
+                    same_bits(&with, &without),
+                    "{}, seed {seed}",
+                    path.display()
+                );
+                let cut = segments(&m, &g.values(), &data, &with, |_| ());
+                let plain = segments(&m, &g.values(), &data, &with, |machine| {
+                    machine.shortcuts = false;
+                });
+                let file = path.display();
+                assert!(same_bits(&cut, &plain), "{file}, seed {seed}, segments");
             }
         }
-        assert!(checked >= 30, "{checked} files");
+        assert!(files.len() >= 30, "{} files", files.len());
     }
 
     proptest! {

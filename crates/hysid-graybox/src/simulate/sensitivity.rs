@@ -61,33 +61,72 @@ pub struct Sensitivities {
     pub dy: Vec<f64>,
     /// `dx(k)/dθ`, row-major (samples x states x columns).
     pub dx: Vec<f64>,
+    /// The sample of the first row: 0 but in a group of segments of a
+    /// segmented run, which holds the rows of its own samples only.
+    first: usize,
+    /// The model's states.
+    states: usize,
 }
 
 impl Sensitivities {
-    /// Zeros for `samples` samples of a model with `states` states.
-    pub(super) fn zeros(samples: usize, states: usize, columns: usize) -> Self {
+    /// Zeros for the samples `rows` of a model with `states` states.
+    pub(super) fn zeros(rows: std::ops::Range<usize>, states: usize, columns: usize) -> Self {
+        let samples = rows.len();
         Sensitivities {
             columns,
             dy: vec![0.0; samples * columns],
             dx: vec![0.0; samples * states * columns],
+            first: rows.start,
+            states,
         }
     }
 
     /// The row of `dy` at sample `k`.
     pub fn dy_row(&self, k: usize) -> &[f64] {
-        &self.dy[k * self.columns..(k + 1) * self.columns]
+        let c = self.columns;
+        &self.dy[(k - self.first) * c..(k - self.first + 1) * c]
     }
 
     /// The row of `dy` at sample `k`, to write.
     pub(super) fn dy_row_mut(&mut self, k: usize) -> &mut [f64] {
-        &mut self.dy[k * self.columns..(k + 1) * self.columns]
+        let c = self.columns;
+        &mut self.dy[(k - self.first) * c..(k - self.first + 1) * c]
+    }
+
+    /// The block of `dx` at sample `k` (states x columns, row-major).
+    pub(super) fn dx_block(&self, k: usize) -> &[f64] {
+        let block = self.states * self.columns;
+        &self.dx[(k - self.first) * block..(k - self.first + 1) * block]
+    }
+
+    /// The block of `dx` at sample `k`, to write.
+    pub(super) fn dx_block_mut(&mut self, k: usize) -> &mut [f64] {
+        let block = self.states * self.columns;
+        &mut self.dx[(k - self.first) * block..(k - self.first + 1) * block]
+    }
+
+    /// The row of sample `k` alone.
+    pub(super) fn row(&self, k: usize) -> Sensitivities {
+        let mut one = Sensitivities::zeros(k..k + 1, self.states, self.columns);
+        one.copy_rows(self, k..k + 1);
+        one
+    }
+
+    /// Copies the rows of the samples `rows` from `other`, which holds them.
+    pub(super) fn copy_rows(&mut self, other: &Sensitivities, rows: std::ops::Range<usize>) {
+        let (c, block) = (self.columns, self.states * self.columns);
+        let (at, from) = (rows.start - self.first, rows.start - other.first);
+        let count = rows.len();
+        self.dy[at * c..(at + count) * c].copy_from_slice(&other.dy[from * c..(from + count) * c]);
+        self.dx[at * block..(at + count) * block]
+            .copy_from_slice(&other.dx[from * block..(from + count) * block]);
     }
 
     /// The rows of `dx` at sample `k` of the states `m` estimates (in
     /// [`CompiledModel::estimates`]' order), row-major.
     pub(super) fn estimated_rows(&self, m: &CompiledModel, k: usize) -> Vec<f64> {
         let c = self.columns;
-        let block = &self.dx[k * m.states * c..(k + 1) * m.states * c];
+        let block = self.dx_block(k);
         m.estimates
             .iter()
             .flat_map(|e| block[e.state * c..(e.state + 1) * c].iter().copied())
@@ -524,11 +563,11 @@ impl<'a> Machine<'a> {
         self.current = None;
     }
 
-    /// Zero sensitivities for a run of `samples` samples (`None` when the
-    /// machine carries none).
-    pub(super) fn sensitivities_for(&self, samples: usize) -> Option<Sensitivities> {
+    /// Zero sensitivities for a run over the samples `rows` (`None` when
+    /// the machine carries none).
+    pub(super) fn sensitivities_for(&self, rows: std::ops::Range<usize>) -> Option<Sensitivities> {
         let t = self.tangent.as_ref()?;
-        Some(Sensitivities::zeros(samples, t.d.states, t.d.columns))
+        Some(Sensitivities::zeros(rows, t.d.states, t.d.columns))
     }
 
     /// Whether this machine carries sensitivities.
@@ -984,10 +1023,12 @@ impl<'a> Machine<'a> {
         let Some(t) = self.tangent.as_mut() else {
             return;
         };
-        let c = t.d.columns;
-        let row = &mut out.dy[k * c..(k + 1) * c];
-        t.d.total(&t.model.modes[hs.mode].output, &self.slots, &t.s, row);
-        let block = t.s.len();
-        out.dx[k * block..(k + 1) * block].copy_from_slice(&t.s);
+        t.d.total(
+            &t.model.modes[hs.mode].output,
+            &self.slots,
+            &t.s,
+            out.dy_row_mut(k),
+        );
+        out.dx_block_mut(k).copy_from_slice(&t.s);
     }
 }

@@ -16,6 +16,12 @@ pub mod pwarx;
 
 use crate::data::Dataset;
 
+/// Segments of a segmented (multiple-shooting) run given to one parallel
+/// task: enough work (8 segments of 100 samples by default) to outweigh
+/// the task's cost. Groups of segments are joined in order, so the run is
+/// the same for any number of threads.
+pub const SEGMENTS_PER_TASK: usize = 8;
+
 /// Options of a simulation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimulationOptions {
