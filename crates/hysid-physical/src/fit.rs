@@ -297,7 +297,7 @@ fn one_search(
         &swarm.extra_starts,
         free_run_only,
         &mut log,
-    )?;
+    );
     let values = run.objective.map.values(&local.best_z);
     let cost = simulation_mse(run.objective.model, &values, run.objective.records);
     Ok(SearchRun {

@@ -24,8 +24,10 @@
 //!    free-run one: Levenberg-Marquardt (Marquardt 1963,
 //!    [`hysid_numerics::least_squares`], central differences in the unit
 //!    box) from each start (the swarm's best, the
-//!    nominal values, the next best particles), then argmin's Nelder-Mead
-//!    (Nelder and Mead 1965) from the best point, restarted with a fresh
+//!    nominal values, the next best particles), then Nelder-Mead (Nelder
+//!    and Mead 1965, [`hysid_numerics::nelder_mead`]: argmin's iterates,
+//!    each step's second point guessed and evaluated beside the first on
+//!    the free-run cost) from the best point, restarted with a fresh
 //!    simplex a few times (bounded iterations each) until a run lowers
 //!    nothing.
 //!

@@ -3,13 +3,11 @@
 //! on the segmented simulation error (when enabled), then on the free-run
 //! one.
 
-use crate::stages::{Search, SearchFailure, Stage, StageLog, Termination};
-use argmin::core::{Executor, State};
-use argmin::solver::neldermead::NelderMead;
-use hysid_core::backend::IdentifyError;
+use crate::stages::{Search, Stage, StageLog, Termination};
 use hysid_numerics::least_squares::{
     CentralDifferences, Damping, Exact, LmSettings, ResidualJacobian, Residuals, Stop, descend,
 };
+use hysid_numerics::nelder_mead;
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 
@@ -107,7 +105,7 @@ pub fn local_stages(
     extra_starts: &[Vec<f64>],
     free_run_only: bool,
     log: &mut StageLog,
-) -> Result<LocalResult, IdentifyError> {
+) -> LocalResult {
     let options = search.options;
     let mut result = LocalResult {
         best_z,
@@ -116,7 +114,7 @@ pub fn local_stages(
     let d = search.objective.map.dim();
     let nelder_mead = options.local_iters > 0 && options.restarts > 0;
     if !(d > 0 && (options.lm_iters > 0 || nelder_mead)) {
-        return Ok(result);
+        return result;
     }
     // The segmented cost (when enabled), then the free run.
     let stages: Vec<usize> = if options.segment > 0 && !free_run_only {
@@ -138,14 +136,14 @@ pub fn local_stages(
         } else {
             vec![from.clone()]
         };
-        let best = local_stage(search, segment, from, starts, log)?;
+        let best = local_stage(search, segment, from, starts, log);
         result.best_z = best.z;
         if segment > 0 {
             result.segmented_cost = Some(best.cost);
         }
     }
     search.ctx.progress.finish();
-    Ok(result)
+    result
 }
 
 /// The best point of a stage so far.
@@ -177,7 +175,7 @@ fn local_stage(
     from: &[f64],
     starts: Vec<Vec<f64>>,
     log: &mut StageLog,
-) -> Result<Best, IdentifyError> {
+) -> Best {
     let options = search.options;
     let objective = search.objective.with_segment(segment);
     let mut best = Best {
@@ -219,41 +217,47 @@ fn local_stage(
         if search.past_deadline(log, Stage::NelderMead) {
             break;
         }
-        let (stop, z) = nelder_mead(search, segment, &best.z)?;
+        let (stop, z) = nelder_mead(search, segment, &best.z);
         search.past_deadline(log, Stage::NelderMead);
         log.nelder_mead.push(stop);
-        let Some(z) = z else { break };
         let c = objective.mse(&z);
         if !best.offer(z, c) {
             break;
         }
     }
-    Ok(best)
+    best
 }
 
 /// One Nelder-Mead run of at most `local_iters` iterations from a fresh
-/// simplex at `z`: why it stopped and its best point, clamped into the box.
-fn nelder_mead(
-    search: &Search<'_>,
-    segment: usize,
-    z: &[f64],
-) -> Result<(Termination, Option<Vec<f64>>), IdentifyError> {
-    let nm: NelderMead<Vec<f64>, f64> = NelderMead::new(simplex(z, search.options.simplex))
-        .with_sd_tolerance(1e-12)
-        .map_err(|e| SearchFailure::solver(Stage::NelderMead, e))?;
-    let mut ex = Executor::new(search.problem(segment), nm)
-        .configure(|s| s.max_iters(search.options.local_iters as u64));
-    if let Some(t) = search.timeout() {
-        ex = ex.timeout(t);
-    }
-    let res = ex
-        .run()
-        .map_err(|e| SearchFailure::solver(Stage::NelderMead, e))?;
-    let st = res.state();
-    let best = st
-        .get_best_param()
-        .map(|p| p.iter().map(|x| x.clamp(0.0, 1.0)).collect());
-    Ok((Termination::of_argmin(st.get_termination_reason()), best))
+/// simplex at `z`, none begun after the deadline: why it stopped and its
+/// best point, clamped into the box. Where the cost's evaluation runs on
+/// one core (the free run of one record), the run guesses each step's
+/// second point and evaluates it beside the first
+/// ([`hysid_numerics::nelder_mead`]); the iterates, and the evaluations
+/// counted, are the same.
+fn nelder_mead(search: &Search<'_>, segment: usize, z: &[f64]) -> (Termination, Vec<f64>) {
+    let objective = search.objective.with_segment(segment);
+    let progress = search.ctx.progress;
+    let cost = |z: &[f64]| {
+        progress.advance(1);
+        objective.penalised(z)
+    };
+    let settings = nelder_mead::Settings {
+        max_iterations: search.options.local_iters,
+        sd_tolerance: 1e-12,
+        speculate: segment == 0 && objective.records.len() == 1,
+    };
+    let simplex = simplex(z, search.options.simplex);
+    let found = nelder_mead::minimise(&cost, simplex, &settings, &search.ctx.deadline);
+    search
+        .evals
+        .fetch_add(found.evaluations as u64, Ordering::Relaxed);
+    let stop = match found.stop {
+        nelder_mead::Stop::Converged => Termination::Converged,
+        nelder_mead::Stop::IterationLimit => Termination::MaxIterations,
+        nelder_mead::Stop::TimeBudget => Termination::TimeBudget,
+    };
+    (stop, found.x.iter().map(|x| x.clamp(0.0, 1.0)).collect())
 }
 
 /// The initial simplex at `z`: `z` and, per coordinate, `z` moved by

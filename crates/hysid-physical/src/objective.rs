@@ -290,6 +290,14 @@ impl Objective<'_> {
         mse(self.residuals(z))
     }
 
+    /// [`Objective::mse`] for the unconstrained searches: outside the box
+    /// `[0, 1]^d`, the cost at `z` (the simulation clamps the coordinates)
+    /// raised by a penalty that points back inside.
+    pub fn penalised(&self, z: &[f64]) -> f64 {
+        let out: f64 = z.iter().map(|x| (x - x.clamp(0.0, 1.0)).powi(2)).sum();
+        self.mse(z) * (1.0 + 10.0 * out) + out
+    }
+
     /// The exact Jacobian of [`Objective::residuals`] in the coordinates
     /// `z` ([`residual_jacobian`] through [`ParameterMap::in_coordinates`]);
     /// `None` where there is none.
@@ -332,11 +340,7 @@ impl CostFunction for SimulationCost<'_> {
         }
         self.evals.fetch_add(1, Ordering::Relaxed);
         self.progress.advance(1);
-        // Outside the box: the clamped point's cost plus a penalty that
-        // points back inside (Nelder-Mead is unconstrained).
-        let out: f64 = z.iter().map(|x| (x - x.clamp(0.0, 1.0)).powi(2)).sum();
-        let c = self.objective.mse(z);
-        Ok(c * (1.0 + 10.0 * out) + out)
+        Ok(self.objective.penalised(z))
     }
 }
 
