@@ -36,7 +36,7 @@ pub fn segmented(
 }
 
 /// [`segmented`]'s outputs and their derivatives in the parameters and
-/// the estimated states (as [`run_with_sensitivities`]; a segment's start
+/// the estimated states (as [`run_with_sensitivities`](super::run_with_sensitivities); a segment's start
 /// depends on the parameters through the output map, its estimated states
 /// through the free run's).
 pub fn segmented_with_sensitivities(
