@@ -128,9 +128,10 @@ fn toward(x0: &[f64], x: &[f64], coefficient: f64) -> Vec<f64> {
     add(x0, &scale(&sub(x, x0), coefficient))
 }
 
-/// Minimises `cost` from the vertices `simplex` (at least two, of one
-/// length), at most `settings.max_iterations` iterations, none begun after
-/// `deadline`. A cost that is NaN counts as `+inf`.
+/// Minimises `cost` from the vertices `simplex` (of one length), at most
+/// `settings.max_iterations` iterations, none begun after `deadline`. A
+/// cost that is NaN counts as `+inf`. Fewer than two vertices move
+/// nothing: the one given (or an empty point of cost `+inf`) is returned.
 pub fn minimise(
     cost: &(dyn Fn(&[f64]) -> f64 + Sync),
     simplex: Vec<Vec<f64>>,
@@ -153,6 +154,18 @@ pub fn minimise(
     let mut evaluations = s.vertices.len();
     let mut unused_guesses = 0;
     s.sort();
+    if s.vertices.len() < 2 {
+        // No simplex to move: its one vertex (or none) is the answer.
+        let (x, cost) = s.vertices.pop().unwrap_or((Vec::new(), f64::INFINITY));
+        return Minimum {
+            x,
+            cost,
+            stop: Stop::Converged,
+            iterations: 0,
+            evaluations,
+            unused_guesses,
+        };
+    }
     let mut budget = Budget::new(settings.max_iterations, deadline);
     let mut guess = Second::InsideContraction;
     let stop = loop {
@@ -413,6 +426,24 @@ mod tests {
             counted.push(m.evaluations);
         }
         assert_eq!(counted[0], counted[1]);
+    }
+
+    /// A single vertex is returned as it is; no vertex, as an empty point.
+    #[test]
+    fn fewer_than_two_vertices_move_nothing() {
+        let settings = Settings {
+            max_iterations: 10,
+            sd_tolerance: 0.0,
+            speculate: true,
+        };
+        let f = |x: &[f64]| x.iter().sum::<f64>();
+        let one = minimise(&f, vec![vec![2.0]], &settings, &Deadline::none());
+        assert_eq!((one.x, one.cost, one.evaluations), (vec![2.0], 2.0, 1));
+        let none = minimise(&f, vec![], &settings, &Deadline::none());
+        assert_eq!(
+            (none.x.len(), none.cost, none.stop),
+            (0, f64::INFINITY, Stop::Converged)
+        );
     }
 
     /// A passed deadline ends the search before its first iteration, with
