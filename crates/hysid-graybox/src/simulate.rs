@@ -356,8 +356,9 @@ pub struct Machine<'a> {
     /// The trial steps of the events' location.
     pub(crate) locate_trials: usize,
     pub(crate) zeno_steps: usize,
-    /// The sensitivities carried beside the state, when asked for.
-    tangent: Option<Tangent<'a>>,
+    /// The sensitivities carried beside the state, when asked for (boxed:
+    /// each step takes them out of the machine and puts them back).
+    tangent: Option<Box<Tangent<'a>>>,
 }
 
 impl<'a> Machine<'a> {

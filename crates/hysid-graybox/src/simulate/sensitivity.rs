@@ -556,7 +556,7 @@ impl<'a> Machine<'a> {
     /// Carries sensitivities in the parameters and estimated states of
     /// `unbound` (the machine's model before its parameters were bound).
     pub(super) fn differentiate(&mut self, unbound: &'a CompiledModel) {
-        self.tangent = Some(Tangent::new(unbound));
+        self.tangent = Some(Box::new(Tangent::new(unbound)));
         self.unbound = Some(unbound);
         self.sliding.clear();
         self.directions.clear();
