@@ -1469,7 +1469,7 @@ fn models_convert_cannot_write_as_gray_box() {
         &[
             "gray.toml",
             "a 'gray_box' model",
-            "reads a 'mechanical' one",
+            "only a 'mechanical' model has a gray-box form",
         ],
         &out,
     );

@@ -104,6 +104,15 @@ impl Model {
         }
     }
 
+    /// The gray-box form of a mechanical model ([`to_gray_box`]); a model
+    /// of another kind has none.
+    pub fn to_gray_box(&self) -> Result<GrayBoxModel, Untranslatable> {
+        match self {
+            Model::Mechanical(m) => to_gray_box(m),
+            other => Err(Untranslatable::NotMechanical(other.kind())),
+        }
+    }
+
     /// Provenance of the model.
     pub fn info(&self) -> &ModelInfo {
         match self {

@@ -3,7 +3,7 @@
 
 use crate::error::Failure;
 use crate::record::{self, dataset, input_columns, output};
-use hysid_core::model::{Model as AnyModel, to_gray_box};
+use hysid_core::model::Model as AnyModel;
 use hysid_core::simulate;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::simulate::{Simulation, SimulationOptions};
@@ -105,14 +105,10 @@ impl Model {
     /// A mechanical model written as the gray-box model of the same
     /// physics (`hysid convert`).
     fn to_gray_box(&self) -> PyResult<Self> {
-        let AnyModel::Mechanical(m) = &self.inner else {
-            return Err(Failure::input(format!(
-                "a '{}' model; to_gray_box reads a 'mechanical' one",
-                self.inner.kind()
-            ))
-            .into());
-        };
-        let gray = to_gray_box(m).map_err(|e| Failure::input(e.to_string()))?;
+        let gray = self
+            .inner
+            .to_gray_box()
+            .map_err(|e| Failure::input(e.to_string()))?;
         Ok(Self::new(AnyModel::GrayBox(gray)))
     }
 

@@ -132,5 +132,5 @@ def test_a_mechanical_model_as_a_gray_box_simulates_alike(tmp_path):
     assert len(set(names[0]) - {None}) == 5
     assert np.abs(runs[0][0] - runs[1][0]).max() < 1e-9
     assert np.array_equal(runs[1][0], runs[2][0])
-    with pytest.raises(hysid.InputError, match="to_gray_box reads a 'mechanical' one"):
+    with pytest.raises(hysid.InputError, match="only a 'mechanical' model has a gray-box form"):
         gray.to_gray_box()

@@ -2,7 +2,7 @@
 //! the same physics ([`hysid_core::model::to_gray_box`]).
 
 use crate::error::{CliError, Result};
-use hysid_core::model::{Model, to_gray_box};
+use hysid_core::model::Model;
 use std::path::PathBuf;
 
 /// Arguments of `hysid convert`.
@@ -18,17 +18,8 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     super::not_an_input("-o", &args.out, [args.model.as_path()])?;
-    let mechanical = match super::load_model(&args.model)? {
-        Model::Mechanical(m) => m,
-        other => {
-            return Err(CliError::input(format!(
-                "{}: a '{}' model; convert reads a 'mechanical' one",
-                args.model.display(),
-                other.kind()
-            )));
-        }
-    };
-    let gray = to_gray_box(&mechanical)
+    let gray = super::load_model(&args.model)?
+        .to_gray_box()
         .map_err(|e| CliError::input(format!("{}: {e}", args.model.display())))?;
     hysid_io::save_model(&Model::GrayBox(gray), &args.out)?;
     eprintln!(

@@ -23,6 +23,9 @@ use std::collections::{BTreeMap, HashSet};
 /// Why a mechanical model has no gray-box form.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Untranslatable {
+    /// The model is not a mechanical one (its kind).
+    #[error("a '{0}' model; only a 'mechanical' model has a gray-box form")]
+    NotMechanical(&'static str),
     /// The mechanical model itself is invalid.
     #[error(transparent)]
     Mechanical(#[from] InvalidMechanical),
