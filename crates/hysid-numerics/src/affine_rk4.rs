@@ -64,8 +64,10 @@ impl ClosedStep {
         }
     }
 
-    /// `out = x + D x + G u + g`.
-    #[inline]
+    /// `out = x + D x + G u + g`. Inlined at every call: left to the
+    /// compiler, the mechanical simulator's sub-step loop called it, and
+    /// the head's record took 0.43 ms against 0.24 ms.
+    #[inline(always)]
     pub fn apply(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
         match (x.len(), u.len()) {
             (1, 1) => self.apply_sized(x, u, out, 1, 1),
