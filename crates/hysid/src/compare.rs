@@ -207,15 +207,26 @@ pub struct Comparison {
     pub drawn: Drawn,
 }
 
-/// The figures of a report, as [`write_report`] drew them.
+/// The figures of a report, as [`write_report`] drew them: each a path
+/// relative to the report's directory.
 #[derive(Debug, Clone, Default)]
 pub struct Drawn {
     /// The figure of every run together.
-    all: bool,
-    /// The runs drawn, each with whether its regions were.
-    runs: Vec<(String, bool)>,
-    /// The sweeps with a figure.
-    sweeps: Vec<String>,
+    all: Option<String>,
+    /// The runs drawn.
+    runs: Vec<DrawnRun>,
+    /// The sweeps with a figure: the sweep's name and its figure.
+    sweeps: Vec<(String, String)>,
+}
+
+/// The figures of one run.
+#[derive(Debug, Clone)]
+struct DrawnRun {
+    name: String,
+    simulation: String,
+    modes: String,
+    /// Its regions, where it has a partition to draw.
+    regions: Option<String>,
 }
 
 fn merge(shared: &Priors, run: &RunSpec) -> Priors {

@@ -1,7 +1,7 @@
 //! Writing a comparison: `report.md`, `report.json`, `models/*.json` and
 //! the figures under `plots/` (SVG, `hysid-plot`).
 
-use crate::compare::{Comparison, Drawn, RunResult};
+use crate::compare::{Comparison, Drawn, DrawnRun, RunResult};
 use hysid_core::model::Model;
 use hysid_model::data::Dataset;
 use hysid_model::geometry::Polyhedron;
@@ -72,6 +72,12 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<(Vec<std::path::PathBu
     std::fs::create_dir_all(dir.join("plots"))?;
     let mut written = Vec::new();
     let ext = c.figures.extension();
+    // A figure's path under the report's directory, and the file.
+    let file = |name: String| {
+        let rel = format!("plots/{name}.{ext}");
+        let p = dir.join(&rel);
+        (rel, p)
+    };
     let y_label = c.output_label.clone();
     let u_label = c.input_label.clone();
     let base = |title: String| {
@@ -96,7 +102,7 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<(Vec<std::path::PathBu
             .as_ref()
             .map_or(String::new(), |v| format!(" (fit_sim {:.1} %)", v.fit_sim));
         let slug = slug(&r.name);
-        let p = dir.join(format!("plots/{slug}-simulation.{ext}"));
+        let (simulation, p) = file(format!("{slug}-simulation"));
         hysid_plot::simulation_plot(
             &p,
             &base(format!("{}{fit}", r.name)).with_simulation(&r.name, sim),
@@ -113,25 +119,31 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<(Vec<std::path::PathBu
             mode_names: r.model.as_ref().map(display_mode_names).unwrap_or_default(),
             mark_mismatch: false,
         };
-        let p = dir.join(format!("plots/{slug}-modes.{ext}"));
+        let (modes_file, p) = file(format!("{slug}-modes"));
         hysid_plot::mode_sequence_plot(&p, &modes).map_err(plot_err)?;
         written.push(p);
         all = all.with_simulation(format!("{}{fit}", r.name), sim);
         // Classified validation regressors with the region boundaries (the
         // founding paper's Figs. 6 and 11), in the plane y(k-1), u(k-1).
-        let regions = region_figure(c, r, valid);
-        if let Some(fig) = &regions {
-            let p = dir.join(format!("plots/{slug}-regions.{ext}"));
-            hysid_plot::regions_plot(&p, fig).map_err(plot_err)?;
+        let mut regions = None;
+        if let Some(fig) = region_figure(c, r, valid) {
+            let (rel, p) = file(format!("{slug}-regions"));
+            hysid_plot::regions_plot(&p, &fig).map_err(plot_err)?;
             written.push(p);
+            regions = Some(rel);
         }
-        drawn.runs.push((r.name.clone(), regions.is_some()));
+        drawn.runs.push(DrawnRun {
+            name: r.name.clone(),
+            simulation,
+            modes: modes_file,
+            regions,
+        });
     }
     if !all.simulated.is_empty() {
-        let p = dir.join(format!("plots/runs-simulation.{ext}"));
+        let (rel, p) = file("runs-simulation".into());
         hysid_plot::simulation_plot(&p, &all).map_err(plot_err)?;
         written.push(p);
-        drawn.all = true;
+        drawn.all = Some(rel);
     }
     let mut sweeps: Vec<&str> = Vec::new();
     for r in &c.results {
@@ -145,10 +157,10 @@ fn figures(c: &Comparison, dir: &Path) -> std::io::Result<(Vec<std::path::PathBu
         let Some(fig) = sweep_figure(c, name, &sweep_points(c, name)) else {
             continue;
         };
-        let p = dir.join(format!("plots/{}-sweep.{ext}", slug(name)));
+        let (rel, p) = file(format!("{}-sweep", slug(name)));
         hysid_plot::sweep_plot(&p, &fig).map_err(plot_err)?;
         written.push(p);
-        drawn.sweeps.push(name.to_string());
+        drawn.sweeps.push((name.to_string(), rel));
     }
     Ok((written, drawn))
 }
@@ -509,24 +521,18 @@ pub fn markdown(c: &Comparison) -> String {
 
 /// The list of the figures [`write_report`] drew, as links, into `s`.
 fn figure_links(s: &mut String, c: &Comparison) {
-    let ext = c.figures.extension();
     let mut figs: Vec<String> = Vec::new();
-    if c.drawn.all {
-        figs.push(format!(
-            "- all runs: [plots/runs-simulation.{ext}](plots/runs-simulation.{ext})"
-        ));
+    if let Some(f) = &c.drawn.all {
+        figs.push(format!("- all runs: [{f}]({f})"));
     }
-    for sweep in &c.drawn.sweeps {
-        let f = format!("plots/{}-sweep.{ext}", slug(sweep));
+    for (sweep, f) in &c.drawn.sweeps {
         figs.push(format!("- sweep {sweep}: [{f}]({f})"));
     }
     let mut with_regions = 0;
-    for (name, regions) in &c.drawn.runs {
-        let f = format!("plots/{}-simulation.{ext}", slug(name));
-        let m = format!("plots/{}-modes.{ext}", slug(name));
-        let mut line = format!("- {name}: [{f}]({f}), [{m}]({m})");
-        if *regions {
-            let g = format!("plots/{}-regions.{ext}", slug(name));
+    for run in &c.drawn.runs {
+        let (f, m) = (&run.simulation, &run.modes);
+        let mut line = format!("- {}: [{f}]({f}), [{m}]({m})", run.name);
+        if let Some(g) = &run.regions {
             let _ = write!(line, ", [{g}]({g})");
             with_regions += 1;
         }
