@@ -414,6 +414,12 @@ impl Linear {
     }
 }
 
+/// The columns of `m`'s sensitivities: its parameters, then the states its
+/// initial-state rule estimates ([`Sensitivities::columns`]).
+pub(super) fn columns(m: &CompiledModel) -> usize {
+    m.parameters + m.estimates.len()
+}
+
 /// Relative agreement asked of a regime's derivatives at a check point
 /// before they are taken as affine.
 const AFFINE_CHECK: f64 = 1e-9;
@@ -423,7 +429,7 @@ impl<'a> Tangent<'a> {
     /// (not bound: its parameters are slots), at zero.
     pub(super) fn new(model: &'a CompiledModel) -> Self {
         let (n, p) = (model.states, model.parameters);
-        let columns = p + model.estimates.len();
+        let columns = columns(model);
         let p0 = model.parameter_slot() as u32;
         let wrt = (0..n as u32).chain(p0..p0 + p as u32).collect();
         let matrix = || vec![0.0; n * columns];

@@ -4,6 +4,7 @@
 //! of its own, and are joined in segment order, so the run is the same
 //! for any number of threads and any grouping.
 
+use super::sensitivity::columns;
 use super::{
     CompiledInitial, GrayBoxRun, Kept, Machine, Schedule, Sensitivities, carried, free_run,
     measured_state, span, timing,
@@ -94,12 +95,11 @@ fn shoot(
         schedule: Schedule::new(&bound, ts),
         data,
         free: free.as_ref(),
-        length: segments.length,
-        slope_at: segments.slope_at,
+        segments,
         differentiate,
     };
     let starts: Vec<usize> = (0..data.len().saturating_sub(1))
-        .step_by(shooting.length)
+        .step_by(segments.length)
         .collect();
     let per_task = segments.per_task.unwrap_or_else(|| {
         // A machine forms its closed-form steps and sliding models as it
@@ -148,9 +148,7 @@ struct Shooting<'a> {
     data: &'a Dataset,
     /// The free run the estimated states are carried from.
     free: Option<&'a GrayBoxRun>,
-    /// Samples per segment.
-    length: usize,
-    slope_at: &'a SlopeAt<'a>,
+    segments: Segments<'a>,
     differentiate: bool,
 }
 
@@ -164,7 +162,7 @@ impl Shooting<'_> {
         let first = starts.first().copied().unwrap_or(0);
         let last = starts
             .last()
-            .map_or(first, |&s| (s + self.length).min(n - 1));
+            .map_or(first, |&s| (s + self.segments.length).min(n - 1));
         let rows = first..last + 1;
         let mut machine = Machine::new(self.bound, self.values);
         machine.strict_resets = false;
@@ -188,11 +186,11 @@ impl Shooting<'_> {
                 (data, &self.schedule),
                 s,
                 &at_s,
-                (self.slope_at)(s),
+                (self.segments.slope_at)(s),
                 0.0,
             )?;
             let hs = machine.state_at(x, &u, None);
-            let end = (s + self.length + 1).min(n);
+            let end = (s + self.segments.length + 1).min(n);
             // The previous segment's last sample stays: this one starts there.
             let kept =
                 (s > first).then(|| (out.y[s], out.sensitivities.as_ref().map(|d| d.row(s))));
@@ -213,8 +211,7 @@ impl Shooting<'_> {
         let (m, n) = (self.m, self.data.len());
         let mut out = GrayBoxRun::empty(self.data, m.states, 0, Kept::Output);
         if self.differentiate {
-            let columns = m.parameters + m.estimates.len();
-            out.sensitivities = Some(Sensitivities::zeros(0..n, m.states, columns));
+            out.sensitivities = Some(Sensitivities::zeros(0..n, m.states, columns(m)));
         }
         for (rows, group) in groups {
             let rows = if rows.start == 0 {
