@@ -5,7 +5,8 @@
 //! collinear regressors give the minimum-norm solution instead of garbage
 //! or a crash.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, DVectorView};
+use std::borrow::Cow;
 
 /// A least-squares solution.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,11 +37,28 @@ pub enum LinalgError {
     InconsistentConstraints(f64),
 }
 
+/// A thin SVD `A = U diag(s) V'` with its numerical rank. `U` stays in
+/// faer's storage (it is as tall as `A`); `V` is small.
 struct ThinSvd {
-    u: DMatrix<f64>,
+    svd: Option<faer::linalg::solvers::Svd<f64>>,
     s: Vec<f64>,
     v: DMatrix<f64>,
     rank: usize,
+}
+
+impl ThinSvd {
+    /// Left singular vector `i`: borrowed from faer's column-major `U`,
+    /// copied only if its column were strided.
+    fn u_column(&self, i: usize) -> Cow<'_, [f64]> {
+        let Some(svd) = &self.svd else {
+            return Cow::Owned(Vec::new());
+        };
+        let column = svd.U().col(i);
+        match column.try_as_col_major() {
+            Some(contiguous) => Cow::Borrowed(contiguous.as_slice()),
+            None => Cow::Owned(column.iter().copied().collect()),
+        }
+    }
 }
 
 fn thin_svd(a: &DMatrix<f64>) -> Result<ThinSvd, LinalgError> {
@@ -50,7 +68,7 @@ fn thin_svd(a: &DMatrix<f64>) -> Result<ThinSvd, LinalgError> {
     let (m, n) = a.shape();
     if m == 0 || n == 0 {
         return Ok(ThinSvd {
-            u: DMatrix::zeros(m, 0),
+            svd: None,
             s: vec![],
             v: DMatrix::zeros(n, 0),
             rank: 0,
@@ -59,15 +77,18 @@ fn thin_svd(a: &DMatrix<f64>) -> Result<ThinSvd, LinalgError> {
     // nalgebra stores a DMatrix column-major and contiguous, as faer reads it.
     let fa = faer::MatRef::from_column_major_slice(a.as_slice(), m, n);
     let svd = fa.thin_svd().map_err(|_| LinalgError::NoConvergence)?;
-    let to_nalgebra =
-        |x: faer::MatRef<'_, f64>| DMatrix::from_fn(x.nrows(), x.ncols(), |i, j| x[(i, j)]);
-    let u = to_nalgebra(svd.U());
-    let v = to_nalgebra(svd.V());
+    let v = svd.V();
+    let v = DMatrix::from_fn(v.nrows(), v.ncols(), |i, j| v[(i, j)]);
     let s: Vec<f64> = svd.S().column_vector().iter().copied().collect();
     let smax = s.iter().fold(0.0f64, |x, &y| x.max(y));
     let tol = (m.max(n) as f64) * f64::EPSILON * smax;
     let rank = s.iter().filter(|&&x| x > tol && x > 0.0).count();
-    Ok(ThinSvd { u, s, v, rank })
+    Ok(ThinSvd {
+        svd: Some(svd),
+        s,
+        v,
+        rank,
+    })
 }
 
 /// Solves `min |Phi theta - y|`.
@@ -85,7 +106,8 @@ pub fn lstsq(phi: &DMatrix<f64>, y: &DVector<f64>) -> Result<LeastSquares, Linal
     let svd = thin_svd(phi)?;
     let mut theta = DVector::zeros(phi.ncols());
     for i in 0..svd.rank {
-        let coef = svd.u.column(i).dot(y) / svd.s[i];
+        let u = svd.u_column(i);
+        let coef = DVectorView::from_slice(&u, u.len()).dot(y) / svd.s[i];
         theta.axpy(coef, &svd.v.column(i), 1.0);
     }
     let rss = (phi * &theta - y).norm_squared();
@@ -126,7 +148,8 @@ pub fn pinv(a: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
     let svd = thin_svd(a)?;
     let mut p = DMatrix::zeros(a.ncols(), a.nrows());
     for i in 0..svd.rank {
-        p += (svd.v.column(i) * svd.u.column(i).transpose()) / svd.s[i];
+        let u = svd.u_column(i);
+        p += (svd.v.column(i) * DVectorView::from_slice(&u, u.len()).transpose()) / svd.s[i];
     }
     Ok(p)
 }

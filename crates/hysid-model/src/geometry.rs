@@ -26,6 +26,13 @@ pub struct Polyhedron {
     pub b_eq: Vec<f64>,
 }
 
+/// The violation up to which `z` belongs to a set
+/// ([`Polyhedron::contains`]): [`MEMBERSHIP_TOL`] times `1 + max |z_i|`.
+pub fn membership_tolerance(z: &[f64]) -> f64 {
+    let scale = 1.0 + z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    MEMBERSHIP_TOL * scale
+}
+
 fn dot(a: &[f64], z: &[f64]) -> f64 {
     a.iter().zip(z).map(|(p, q)| p * q).sum()
 }
@@ -128,8 +135,7 @@ impl Polyhedron {
 
     /// Membership with tolerance [`MEMBERSHIP_TOL`] (relative to |z|).
     pub fn contains(&self, z: &[f64]) -> bool {
-        let scale = 1.0 + z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        self.violation(z) <= MEMBERSHIP_TOL * scale
+        self.violation(z) <= membership_tolerance(z)
     }
 
     /// The first point of the segment `z0 -> z1` that lies in the set, as the

@@ -278,12 +278,23 @@ impl<'a> Simplex<'a> {
     }
 
     /// Margins `a_t . u` of the terms of row `r`, into `self.f` as scores.
+    /// The pricing's inner loop: for the usual few regressor columns the
+    /// sums are unrolled at compile time, in the same order.
     fn scores(&mut self, r: usize) {
-        let b = self.prep.p + 1;
         let z = self.prep.row(r);
-        for i in 0..self.modes - 1 {
-            let v = &self.u[i * b..(i + 1) * b];
-            self.f[i] = z.iter().zip(v).map(|(a, c)| a * c).sum::<f64>() - v[b - 1];
+        let f = &mut self.f[..self.modes - 1];
+        match z.len() {
+            1 => mode_scores::<1>(z, &self.u, f),
+            2 => mode_scores::<2>(z, &self.u, f),
+            3 => mode_scores::<3>(z, &self.u, f),
+            4 => mode_scores::<4>(z, &self.u, f),
+            5 => mode_scores::<5>(z, &self.u, f),
+            6 => mode_scores::<6>(z, &self.u, f),
+            _ => {
+                for (fi, v) in f.iter_mut().zip(self.u.chunks_exact(z.len() + 1)) {
+                    *fi = score(z, v);
+                }
+            }
         }
         self.f[self.modes - 1] = 0.0;
     }
@@ -503,5 +514,18 @@ impl<'a> Simplex<'a> {
             }
         }
         self.upper_sum = sum;
+    }
+}
+
+/// `w . z - g` for the scores `v = [w; g]`.
+fn score(z: &[f64], v: &[f64]) -> f64 {
+    z.iter().zip(v).map(|(a, c)| a * c).sum::<f64>() - v[z.len()]
+}
+
+/// [`score`] of every block of `u` into `f`, for `P` columns.
+fn mode_scores<const P: usize>(z: &[f64], u: &[f64], f: &mut [f64]) {
+    let z = &z[..P];
+    for (fi, v) in f.iter_mut().zip(u.chunks_exact(P + 1)) {
+        *fi = score(z, &v[..P + 1]);
     }
 }

@@ -3,7 +3,7 @@
 
 use super::{InvalidModel, ModelInfo};
 use crate::data::Standardization;
-use crate::geometry::Polyhedron;
+use crate::geometry::{Polyhedron, membership_tolerance};
 use crate::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
 
@@ -78,15 +78,16 @@ pub struct RegionChoice {
 /// (smallest Euclidean distance to its half-spaces, the lowest index on a
 /// tie), reported as not covered. Mode 0 when `regions` is empty.
 pub fn region_of<'a>(regions: impl IntoIterator<Item = &'a Polyhedron>, x: &[f64]) -> RegionChoice {
+    let tolerance = membership_tolerance(x);
     let mut best = (f64::INFINITY, 0);
     for (i, region) in regions.into_iter().enumerate() {
-        if region.contains(x) {
+        let v = region.violation(x);
+        if v <= tolerance {
             return RegionChoice {
                 mode: i,
                 covered: true,
             };
         }
-        let v = region.violation(x);
         if v < best.0 {
             best = (v, i);
         }
