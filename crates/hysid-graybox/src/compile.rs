@@ -9,7 +9,7 @@
 //! a register of that expression's tape: [`Expression::inline`]).
 
 use crate::expr::{
-    DefinitionError, Definitions, ExprError, Expression, Function, InlineError, Relation,
+    DefinitionError, Definitions, ExprError, Expression, Function, InlineError, Relation, Shared,
 };
 use crate::model::{
     DEFAULT_SAMPLES, Element, Estimates, FORMAT_VERSION, GrayBoxInitialState, GrayBoxMode,
@@ -242,6 +242,8 @@ pub struct CompiledTransition {
 pub struct CompiledMode {
     /// The flow of every state, in state order.
     pub flow: Vec<Expression>,
+    /// The flows evaluated together, their common operations once.
+    pub joint_flow: Shared,
     /// The invariant's relations.
     pub invariant: Vec<Relation>,
     /// Transitions leaving the mode, in file order.
@@ -487,22 +489,26 @@ impl CompiledModel {
             modes: self
                 .modes
                 .iter()
-                .map(|q| CompiledMode {
-                    flow: q.flow.iter().map(b).collect(),
-                    invariant: q.invariant.iter().map(relation).collect(),
-                    transitions: q
-                        .transitions
-                        .iter()
-                        .map(|t| CompiledTransition {
-                            label: t.label.clone(),
-                            to: t.to,
-                            guard: relation(&t.guard),
-                            when: t.when.as_ref().map(b),
-                            reset: t.reset.iter().map(|(s, e)| (*s, b(e))).collect(),
-                        })
-                        .collect(),
-                    friction: q.friction.iter().map(|(k, s)| (b(k), b(s))).collect(),
-                    output: b(&q.output),
+                .map(|q| {
+                    let flow: Vec<Expression> = q.flow.iter().map(b).collect();
+                    CompiledMode {
+                        joint_flow: Shared::of(&flow),
+                        flow,
+                        invariant: q.invariant.iter().map(relation).collect(),
+                        transitions: q
+                            .transitions
+                            .iter()
+                            .map(|t| CompiledTransition {
+                                label: t.label.clone(),
+                                to: t.to,
+                                guard: relation(&t.guard),
+                                when: t.when.as_ref().map(b),
+                                reset: t.reset.iter().map(|(s, e)| (*s, b(e))).collect(),
+                            })
+                            .collect(),
+                        friction: q.friction.iter().map(|(k, s)| (b(k), b(s))).collect(),
+                        output: b(&q.output),
+                    }
                 })
                 .collect(),
             elements: self
@@ -999,6 +1005,7 @@ impl<'m> Compiler<'m> {
         let output = &m.outputs[0];
         let output = self.direct(defs, &format!("output '{}'", output.name), &output.value)?;
         Ok(CompiledMode {
+            joint_flow: Shared::of(&flow),
             flow,
             invariant,
             transitions: Vec::new(),

@@ -15,7 +15,7 @@ mod derivative;
 mod tape;
 
 pub use derivative::Adjoints;
-use tape::{Binary, Op, Program};
+use tape::{Binary, Joint, Op, Program};
 pub use tape::{Function, MAX_DEPTH, REGISTERS};
 
 /// Longest expression text, in bytes (checked before parsing). evalexpr's
@@ -394,6 +394,51 @@ impl Expression {
             return Err(InlineError::TooDeep);
         }
         Ok(e)
+    }
+}
+
+/// Expressions evaluated together, as a mode's flows are: those on a tape
+/// run as one program in which an operation two of them share (a
+/// definition both read) is done once, each value the same bits as its
+/// own [`Expression::eval`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shared {
+    joint: Option<Joint>,
+}
+
+impl Shared {
+    /// The joint program of `expressions` (none where fewer than two are
+    /// tapes, or their operations do not fit one workspace).
+    pub fn of(expressions: &[Expression]) -> Shared {
+        let tapes: Vec<(usize, &[Op])> = expressions
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| matches!(e.form, Form::Tape(_)))
+            .map(|(i, e)| (i, e.ops.as_slice()))
+            .collect();
+        Shared {
+            joint: (tapes.len() > 1).then(|| Joint::of(&tapes)).flatten(),
+        }
+    }
+
+    /// `out[i] = expressions[i].eval(slots)` for the `expressions` this
+    /// was made of.
+    pub fn eval(&self, expressions: &[Expression], slots: &[f64], out: &mut [f64]) {
+        match &self.joint {
+            None => {
+                for (o, e) in out.iter_mut().zip(expressions) {
+                    *o = e.eval(slots);
+                }
+            }
+            Some(joint) => {
+                for (o, e) in out.iter_mut().zip(expressions) {
+                    if !matches!(e.form, Form::Tape(_)) {
+                        *o = e.eval(slots);
+                    }
+                }
+                joint.run(slots, out);
+            }
+        }
     }
 }
 
@@ -1758,6 +1803,62 @@ mod tests {
                     "{}: program {} stack {}", text, program, stack);
             }
         }
+    }
+
+    proptest! {
+        /// Expressions reading the same random definitions (kept in
+        /// registers, and written out), evaluated together: each value the
+        /// bits of its own evaluation.
+        #[test]
+        fn shared_evaluation_gives_each_expressions_bits(
+            ta in tree(), tb in tree(), te in tree(), tf in tree(),
+            s in proptest::collection::vec(-5.0f64..5.0, 3),
+        ) {
+            let (_, kept, plain) = with_recurring_definitions(&ta, &tb, &te);
+            let (_, other, _) = with_recurring_definitions(&ta, &tb, &tf);
+            let expressions: Vec<Expression> = kept.into_iter().chain(other).chain([plain]).collect();
+            let mut out = vec![0.0; expressions.len()];
+            Shared::of(&expressions).eval(&expressions, &s, &mut out);
+            for (e, value) in expressions.iter().zip(&out) {
+                prop_assert_eq!(e.eval(&s).to_bits(), value.to_bits());
+            }
+        }
+    }
+
+    #[test]
+    fn an_operation_two_expressions_share_is_run_once() {
+        let (a, b) = ("sin(x) * y + z", "0");
+        let defs = |texts: &[&str]| -> Vec<Expression> {
+            let mut d = definitions(&[a, b]);
+            texts
+                .iter()
+                .map(|t| {
+                    Expression::compile(t, &with_definitions)
+                        .unwrap()
+                        .inline(&mut d, usize::MAX)
+                        .unwrap()
+                })
+                .collect()
+        };
+        // sin(x), * y, + z once; + x and * y of `a`; `- b` with b = 0 is no
+        // operation.
+        let flows = defs(&["a + x - b", "a * y - b"]);
+        let shared = Shared::of(&flows);
+        assert_eq!(shared.joint.as_ref().map(|j| j.operations()), Some(5));
+        let mut out = [0.0; 2];
+        shared.eval(&flows, &[0.3, -1.2, 2.5], &mut out);
+        let own: Vec<u64> = flows
+            .iter()
+            .map(|f| f.eval(&[0.3, -1.2, 2.5]).to_bits())
+            .collect();
+        assert_eq!(out.map(f64::to_bits).to_vec(), own);
+        // `x - (-0)` is `x + 0`, not `x`: at x = -0 it is +0.
+        let signed = defs(&["sin(x) - (-0)", "sin(x) * y"]);
+        let mut out = [0.0; 2];
+        Shared::of(&signed).eval(&signed, &[-0.0, 1.0, 0.0], &mut out);
+        assert_eq!(out[0].to_bits(), 0.0f64.to_bits());
+        // One tape alone is run as it is.
+        assert!(Shared::of(&defs(&["a + x", "x + y"])).joint.is_none());
     }
 
     #[test]

@@ -577,17 +577,27 @@ impl<'a> Machine<'a> {
     #[inline]
     fn flows(&self, mode: usize, out: &mut [f64]) {
         let q = &self.bound().modes[mode];
-        for (s, o) in out.iter_mut().enumerate().take(q.flow.len()) {
-            *o = self.derivative_of(q, s);
+        let out = &mut out[..q.flow.len()];
+        q.joint_flow.eval(&q.flow, &self.slots, out);
+        if !self.effects.is_empty() {
+            for (s, o) in out.iter_mut().enumerate() {
+                *o = self.with_effects(q, s, *o);
+            }
         }
     }
 
-    /// The derivative of state `s` in mode `q` at the loaded slots: its
-    /// flow, less the level of a friction sliding on it in its direction,
-    /// zero where the [`Machine::prepare`]d effects hold it.
+    /// The derivative of state `s` in mode `q` at the loaded slots
+    /// ([`Machine::with_effects`] on its flow).
     #[inline]
     fn derivative_of(&self, q: &CompiledMode, s: usize) -> f64 {
-        let mut d = q.flow[s].eval(&self.slots);
+        self.with_effects(q, s, q.flow[s].eval(&self.slots))
+    }
+
+    /// The derivative of state `s` in mode `q` whose flow is `d` at the
+    /// loaded slots: less the level of a friction sliding on it in its
+    /// direction, zero where the [`Machine::prepare`]d effects hold it.
+    #[inline]
+    fn with_effects(&self, q: &CompiledMode, s: usize, mut d: f64) -> f64 {
         for effect in &self.effects {
             match *effect {
                 Effect::Friction(v, i, dir) if v == s => {

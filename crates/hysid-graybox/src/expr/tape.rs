@@ -111,7 +111,7 @@ impl Function {
         Function::ALL.into_iter().find(|f| f.name() == name)
     }
 
-    #[inline]
+    #[inline(always)]
     pub(super) fn apply(self, a: &[f64]) -> f64 {
         match self {
             Function::Abs => a[0].abs(),
@@ -175,7 +175,7 @@ impl Binary {
         )
     }
 
-    #[inline]
+    #[inline(always)]
     pub(super) fn apply(self, a: f64, b: f64) -> f64 {
         let truth = |c: bool| if c { 1.0 } else { 0.0 };
         match self {
@@ -335,27 +335,181 @@ impl Program {
     #[inline(never)]
     pub(super) fn run(&self, slots: &[f64]) -> f64 {
         let mut cells = [0.0f64; CELLS];
-        let read = |o: Operand, cells: &[f64; CELLS]| match o {
-            Operand::Slot(s) => slots[s as usize],
-            Operand::Const(v) => v,
-            Operand::Cell(c) => cells[c as usize],
-        };
-        for instruction in &self.code {
-            match *instruction {
-                Instruction::Keep { to, a } => cells[to as usize] = read(a, &cells),
-                Instruction::Neg { to, a } => cells[to as usize] = -read(a, &cells),
-                Instruction::Not { to, a } => {
-                    cells[to as usize] = if read(a, &cells) == 0.0 { 1.0 } else { 0.0 }
-                }
-                Instruction::Binary { op, to, a, b } => {
-                    cells[to as usize] = op.apply(read(a, &cells), read(b, &cells));
-                }
-                Instruction::Call { f, to, args } => {
-                    let values = args.map(|o| read(o, &cells));
-                    cells[to as usize] = f.apply(&values[..f.arity()]);
+        execute(&self.code, slots, &mut cells);
+        read(self.result, slots, &cells)
+    }
+}
+
+/// The value of operand `o`.
+#[inline(always)]
+fn read(o: Operand, slots: &[f64], cells: &[f64; CELLS]) -> f64 {
+    match o {
+        Operand::Slot(s) => slots[s as usize],
+        Operand::Const(v) => v,
+        Operand::Cell(c) => cells[c as usize],
+    }
+}
+
+/// Runs `code` at `slots` in the workspace `cells`.
+#[inline(always)]
+fn execute(code: &[Instruction], slots: &[f64], cells: &mut [f64; CELLS]) {
+    for instruction in code {
+        match *instruction {
+            Instruction::Keep { to, a } => cells[to as usize] = read(a, slots, cells),
+            Instruction::Neg { to, a } => cells[to as usize] = -read(a, slots, cells),
+            Instruction::Not { to, a } => {
+                cells[to as usize] = if read(a, slots, cells) == 0.0 {
+                    1.0
+                } else {
+                    0.0
                 }
             }
+            Instruction::Binary { op, to, a, b } => {
+                cells[to as usize] = op.apply(read(a, slots, cells), read(b, slots, cells));
+            }
+            Instruction::Call { f, to, args } => {
+                let values = args.map(|o| read(o, slots, cells));
+                cells[to as usize] = f.apply(&values[..f.arity()]);
+            }
         }
-        read(self.result, &cells)
+    }
+}
+
+/// Several tapes run as one program, each operation that two of them (or
+/// one twice) apply to the same operands done once, as value numbering
+/// does it: the flows of a mode, which read the same definitions. A pure
+/// operation on the same operands gives the same bits, and `x - 0` (the
+/// number `+0`) is `x` bit for bit, so each result is its own tape's value
+/// bit for bit. Every value has a cell of its own, its instruction's
+/// index.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Joint {
+    code: Vec<Instruction>,
+    /// Per tape: where its value goes in the output, and where it lies.
+    results: Vec<(usize, Operand)>,
+}
+
+impl Joint {
+    /// The program of well-formed `tapes`, each with the output position
+    /// of its value; `None` when their distinct operations need more than
+    /// the workspace's cells.
+    pub(super) fn of(tapes: &[(usize, &[Op])]) -> Option<Joint> {
+        let mut code = Vec::new();
+        let mut results = Vec::with_capacity(tapes.len());
+        for &(at, ops) in tapes {
+            let mut stack: Vec<Operand> = Vec::with_capacity(MAX_DEPTH);
+            let mut registers = [Operand::Const(0.0); REGISTERS];
+            for op in ops {
+                let operand = match *op {
+                    Op::Const(v) => Operand::Const(v),
+                    Op::Load(s) => Operand::Slot(s),
+                    Op::Recall(r) => *registers.get(r as usize)?,
+                    Op::Keep(r) => {
+                        *registers.get_mut(r as usize)? = *stack.last()?;
+                        continue;
+                    }
+                    Op::Neg => {
+                        let a = stack.pop()?;
+                        value_of(&mut code, Instruction::Neg { to: 0, a })?
+                    }
+                    Op::Not => {
+                        let a = stack.pop()?;
+                        value_of(&mut code, Instruction::Not { to: 0, a })?
+                    }
+                    Op::Binary(op) => {
+                        let b = stack.pop()?;
+                        let a = stack.pop()?;
+                        if op == Binary::Sub && is_positive_zero(b) {
+                            a
+                        } else {
+                            value_of(&mut code, Instruction::Binary { op, to: 0, a, b })?
+                        }
+                    }
+                    Op::Call(f) => {
+                        let k = f.arity();
+                        let mut args = [Operand::Const(0.0); 3];
+                        let from = stack.len().checked_sub(k)?;
+                        args[..k].copy_from_slice(&stack[from..]);
+                        stack.truncate(from);
+                        value_of(&mut code, Instruction::Call { f, to: 0, args })?
+                    }
+                };
+                stack.push(operand);
+            }
+            results.push((at, stack.pop()?));
+        }
+        Some(Joint { code, results })
+    }
+
+    /// Number of operations run.
+    #[cfg(test)]
+    pub(super) fn operations(&self) -> usize {
+        self.code.len()
+    }
+
+    /// Writes each tape's value at `slots` into its position of `out`.
+    #[inline(never)]
+    pub(super) fn run(&self, slots: &[f64], out: &mut [f64]) {
+        let mut cells = [0.0f64; CELLS];
+        execute(&self.code, slots, &mut cells);
+        for &(at, result) in &self.results {
+            out[at] = read(result, slots, &cells);
+        }
+    }
+}
+
+fn is_positive_zero(o: Operand) -> bool {
+    matches!(o, Operand::Const(v) if v.to_bits() == 0.0f64.to_bits())
+}
+
+/// The cell holding the value of `instruction` (its `to` not read): the
+/// cell of the same operation on the same operands in `code`, else a new
+/// cell, written by `instruction` appended; `None` past the workspace.
+fn value_of(code: &mut Vec<Instruction>, instruction: Instruction) -> Option<Operand> {
+    if let Some(done) = code.iter().position(|c| same_operation(c, &instruction)) {
+        return Some(Operand::Cell(done as u8));
+    }
+    let to = code.len();
+    if to >= CELLS {
+        return None;
+    }
+    let to = to as u8;
+    code.push(match instruction {
+        Instruction::Keep { a, .. } => Instruction::Keep { to, a },
+        Instruction::Neg { a, .. } => Instruction::Neg { to, a },
+        Instruction::Not { a, .. } => Instruction::Not { to, a },
+        Instruction::Binary { op, a, b, .. } => Instruction::Binary { op, to, a, b },
+        Instruction::Call { f, args, .. } => Instruction::Call { f, to, args },
+    });
+    Some(Operand::Cell(to))
+}
+
+/// Whether `x` and `y` apply the same operation to the same operands
+/// (numbers compared by their bits), wherever they write.
+fn same_operation(x: &Instruction, y: &Instruction) -> bool {
+    let same = |a: &Operand, b: &Operand| match (a, b) {
+        (Operand::Const(u), Operand::Const(v)) => u.to_bits() == v.to_bits(),
+        (a, b) => a == b,
+    };
+    match (x, y) {
+        (Instruction::Keep { a, .. }, Instruction::Keep { a: b, .. })
+        | (Instruction::Neg { a, .. }, Instruction::Neg { a: b, .. })
+        | (Instruction::Not { a, .. }, Instruction::Not { a: b, .. }) => same(a, b),
+        (
+            Instruction::Binary { op, a, b, .. },
+            Instruction::Binary {
+                op: op2,
+                a: a2,
+                b: b2,
+                ..
+            },
+        ) => op == op2 && same(a, a2) && same(b, b2),
+        (
+            Instruction::Call { f, args, .. },
+            Instruction::Call {
+                f: f2, args: args2, ..
+            },
+        ) => f == f2 && args.iter().zip(args2).all(|(a, b)| same(a, b)),
+        _ => false,
     }
 }
