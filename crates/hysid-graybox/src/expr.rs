@@ -1857,6 +1857,16 @@ mod tests {
         let mut out = [0.0; 2];
         Shared::of(&signed).eval(&signed, &[-0.0, 1.0, 0.0], &mut out);
         assert_eq!(out[0].to_bits(), 0.0f64.to_bits());
+        // `+ 0` and `+ (-0)` are two operations: at x = -0 they give +0
+        // and -0.
+        let zeros = defs(&["sin(x) + 0", "sin(x) + (-0)"]);
+        let shared = Shared::of(&zeros);
+        assert_eq!(shared.joint.as_ref().map(|j| j.operations()), Some(3));
+        shared.eval(&zeros, &[-0.0, 1.0, 0.0], &mut out);
+        assert_eq!(
+            out.map(f64::to_bits),
+            [0.0f64.to_bits(), (-0.0f64).to_bits()]
+        );
         // One tape alone is run as it is.
         assert!(Shared::of(&defs(&["a + x", "x + y"])).joint.is_none());
     }
