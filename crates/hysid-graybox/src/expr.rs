@@ -410,11 +410,13 @@ impl Shared {
     /// The joint program of `expressions` (none where fewer than two are
     /// tapes, or their operations do not fit one workspace).
     pub fn of(expressions: &[Expression]) -> Shared {
-        let tapes: Vec<(usize, &[Op])> = expressions
+        let tapes: Vec<(usize, &Program)> = expressions
             .iter()
             .enumerate()
-            .filter(|(_, e)| matches!(e.form, Form::Tape(_)))
-            .map(|(i, e)| (i, e.ops.as_slice()))
+            .filter_map(|(i, e)| match &e.form {
+                Form::Tape(program) => Some((i, program)),
+                _ => None,
+            })
             .collect();
         Shared {
             joint: (tapes.len() > 1).then(|| Joint::of(&tapes)).flatten(),

@@ -390,53 +390,56 @@ pub(super) struct Joint {
 }
 
 impl Joint {
-    /// The program of well-formed `tapes`, each with the output position
-    /// of its value; `None` when their distinct operations need more than
-    /// the workspace's cells.
-    pub(super) fn of(tapes: &[(usize, &[Op])]) -> Option<Joint> {
+    /// The joint program of `programs`, each with the output position of
+    /// its value: each program's cells renamed to the values they hold
+    /// when read; `None` when their distinct operations need more than the
+    /// workspace's cells.
+    pub(super) fn of(programs: &[(usize, &Program)]) -> Option<Joint> {
         let mut code = Vec::new();
-        let mut results = Vec::with_capacity(tapes.len());
-        for &(at, ops) in tapes {
-            let mut stack: Vec<Operand> = Vec::with_capacity(MAX_DEPTH);
-            let mut registers = [Operand::Const(0.0); REGISTERS];
-            for op in ops {
-                let operand = match *op {
-                    Op::Const(v) => Operand::Const(v),
-                    Op::Load(s) => Operand::Slot(s),
-                    Op::Recall(r) => *registers.get(r as usize)?,
-                    Op::Keep(r) => {
-                        *registers.get_mut(r as usize)? = *stack.last()?;
+        let mut results = Vec::with_capacity(programs.len());
+        for &(at, program) in programs {
+            // The value each of the program's cells holds.
+            let mut held = [Operand::Const(0.0); CELLS];
+            let value = |o: Operand, held: &[Operand; CELLS]| match o {
+                Operand::Cell(c) => held[c as usize],
+                o => o,
+            };
+            for instruction in &program.code {
+                let (to, renamed) = match *instruction {
+                    Instruction::Keep { to, a } => {
+                        held[to as usize] = value(a, &held);
                         continue;
                     }
-                    Op::Neg => {
-                        let a = stack.pop()?;
-                        value_of(&mut code, Instruction::Neg { to: 0, a })?
-                    }
-                    Op::Not => {
-                        let a = stack.pop()?;
-                        value_of(&mut code, Instruction::Not { to: 0, a })?
-                    }
-                    Op::Binary(op) => {
-                        let b = stack.pop()?;
-                        let a = stack.pop()?;
+                    Instruction::Binary { op, to, a, b } => {
+                        let (a, b) = (value(a, &held), value(b, &held));
                         if op == Binary::Sub && is_positive_zero(b) {
-                            a
-                        } else {
-                            value_of(&mut code, Instruction::Binary { op, to: 0, a, b })?
+                            held[to as usize] = a;
+                            continue;
                         }
+                        (to, Instruction::Binary { op, to: 0, a, b })
                     }
-                    Op::Call(f) => {
-                        let k = f.arity();
-                        let mut args = [Operand::Const(0.0); 3];
-                        let from = stack.len().checked_sub(k)?;
-                        args[..k].copy_from_slice(&stack[from..]);
-                        stack.truncate(from);
-                        value_of(&mut code, Instruction::Call { f, to: 0, args })?
+                    Instruction::Neg { to, a } => (
+                        to,
+                        Instruction::Neg {
+                            to: 0,
+                            a: value(a, &held),
+                        },
+                    ),
+                    Instruction::Not { to, a } => (
+                        to,
+                        Instruction::Not {
+                            to: 0,
+                            a: value(a, &held),
+                        },
+                    ),
+                    Instruction::Call { f, to, args } => {
+                        let args = args.map(|o| value(o, &held));
+                        (to, Instruction::Call { f, to: 0, args })
                     }
                 };
-                stack.push(operand);
+                held[to as usize] = value_of(&mut code, renamed)?;
             }
-            results.push((at, stack.pop()?));
+            results.push((at, value(program.result, &held)));
         }
         Some(Joint { code, results })
     }
