@@ -20,7 +20,12 @@
 //! decreases; a point whose cost is not finite is never accepted. The
 //! Jacobian is asked for at the start and at accepted points only: a
 //! problem whose Jacobian costs many evaluations (finite differences) pays
-//! nothing for a rejected step beyond its errors.
+//! nothing for a rejected step beyond its errors. At each accepted point a
+//! Jacobian of more than twice as many rows as columns is factored once,
+//! `J = Q R`, and every step there is solved on the `2 n` rows of `R` and
+//! the damping instead of the `m + n` of `J` and the damping: the same
+//! minimiser (MINPACK's `lmpar`, Moré 1978), at the cost of one small
+//! system per trial.
 //!
 //! The descent ends by the convergence tests of MINPACK's `lmder` (Moré,
 //! Garbow & Hillstrom, *User guide for MINPACK-1*, 1980, section 2.3),
@@ -203,10 +208,47 @@ pub struct Descent {
 }
 
 /// A point of the descent with its Jacobian.
+#[derive(Clone)]
 struct Linearisation {
     errors: DVector<f64>,
     jacobian: DMatrix<f64>,
     cost: f64,
+    /// `J = Q R` ([`Reduced::of`]), when `J` has more rows than twice its
+    /// columns.
+    reduced: Option<Reduced>,
+}
+
+/// The linearisation reduced to the columns' dimension: `J = Q R` (Q with
+/// orthonormal columns, `R` square upper triangular) and `Q^T e`. Every
+/// damped step at the point minimises `|J v' - (e + J v)|^2 + |D (v' -
+/// v)|^2`, which differs from `|R v' - (Q^T e + R v)|^2 + |D (v' - v)|^2`
+/// by a constant (`|e|^2 - |Q^T e|^2`), so both have the same minimiser
+/// under any constraints on `v'`: the steps are solved on `2 n` rows
+/// instead of `m + n`, the factorisation paid once per accepted point
+/// (MINPACK's `lmder` with `lmpar`, Moré 1978).
+#[derive(Clone)]
+struct Reduced {
+    r: DMatrix<f64>,
+    qt_errors: DVector<f64>,
+}
+
+impl Reduced {
+    /// The reduction of `jacobian` and `errors`, when `jacobian` has more
+    /// than twice as many rows as columns and is finite.
+    fn of(jacobian: &DMatrix<f64>, errors: &DVector<f64>) -> Option<Self> {
+        let n = jacobian.ncols();
+        if n == 0 || jacobian.nrows() <= 2 * n || jacobian.iter().any(|x| !x.is_finite()) {
+            return None;
+        }
+        let qr = jacobian.clone().qr();
+        let mut qt_errors = errors.clone();
+        qr.q_tr_mul(&mut qt_errors);
+        qt_errors.resize_vertically_mut(n, 0.0);
+        Some(Self {
+            r: qr.r(),
+            qt_errors,
+        })
+    }
 }
 
 /// `at` with its Jacobian, asked of `problem` when `at` came without one,
@@ -226,6 +268,7 @@ fn linearised<P: LeastSquares + ?Sized>(
         jacobian = jacobian.resize(at.errors.len(), columns, 0.0);
     }
     Ok(Linearisation {
+        reduced: Reduced::of(&jacobian, &at.errors),
         errors: at.errors,
         jacobian,
         cost: at.cost,
@@ -363,12 +406,16 @@ fn damped_system(
     mu: f64,
     damping: Damping,
 ) -> (DMatrix<f64>, DVector<f64>) {
-    let (rows, n) = (at.jacobian.nrows(), v.len());
+    let n = v.len();
     let vv = DVector::from_column_slice(v);
-    let target = &at.errors + &at.jacobian * &vv;
+    let (top, target) = match &at.reduced {
+        Some(reduced) => (&reduced.r, &reduced.qt_errors + &reduced.r * &vv),
+        None => (&at.jacobian, &at.errors + &at.jacobian * &vv),
+    };
+    let rows = top.nrows();
     let sm = mu.sqrt();
     let mut design = DMatrix::zeros(rows + n, n);
-    design.rows_mut(0, rows).copy_from(&at.jacobian);
+    design.rows_mut(0, rows).copy_from(top);
     let mut rhs = DVector::zeros(rows + n);
     rhs.rows_mut(0, rows).copy_from(&target);
     for c in 0..n {
@@ -505,6 +552,7 @@ fn project_into(bounds: Option<&[[f64; 2]]>, x: &mut [f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::strategy::{Just, Strategy};
 
     fn none() -> Deadline {
         Deadline::none()
@@ -740,6 +788,40 @@ mod tests {
             for (p, q) in a.v.unwrap().iter().zip(b.v.unwrap()) {
                 proptest::prop_assert!((p - q).abs() <= 1e-6 * (1.0 + p.abs()), "{} {}", p, q);
             }
+        }
+
+        /// The damped step solved on the reduced rows (`R`, `Q^T e`) is the
+        /// step solved on all of them, unconstrained and in a box that cuts
+        /// it, for both dampings.
+        #[test]
+        fn the_reduced_step_is_the_full_step(
+            (rows, columns, entries) in (1usize..6).prop_flat_map(|n| {
+                ((2 * n + 1)..40usize).prop_flat_map(move |m| {
+                    (Just(m), Just(n), proptest::collection::vec(-1.0f64..1.0, m * n + m + n))
+                })
+            }),
+            mu in 1e-8f64..10.0,
+            marquardt in proptest::bool::ANY,
+        ) {
+            let jacobian = DMatrix::from_column_slice(rows, columns, &entries[..rows * columns]);
+            let errors = DVector::from_column_slice(&entries[rows * columns..rows * columns + rows]);
+            let v = entries[rows * columns + rows..].to_vec();
+            let reduced = Reduced::of(&jacobian, &errors);
+            proptest::prop_assert!(reduced.is_some());
+            let full = Linearisation { errors, jacobian, cost: 0.0, reduced: None };
+            let small = Linearisation { reduced, ..full.clone() };
+            let damping = if marquardt { Damping::Marquardt } else { Damping::Identity };
+            let (a, b) = (damped_system(&full, &v, mu, damping), damped_system(&small, &v, mu, damping));
+            proptest::prop_assert_eq!(b.0.nrows(), 2 * columns);
+            let close = |p: &[f64], q: &[f64]| p.iter().zip(q).all(|(p, q)| (p - q).abs() <= 1e-8 * (1.0 + p.abs()));
+            let (p, q) = (unconstrained(&a.0, &a.1).unwrap(), unconstrained(&b.0, &b.1).unwrap());
+            proptest::prop_assert!(close(&p, &q), "{:?} {:?}", p, q);
+            // A box around v of half the free step's largest move.
+            let half = 0.5 * p.iter().zip(&v).map(|(p, v)| (p - v).abs()).fold(0.0, f64::max);
+            let bounds: Vec<[f64; 2]> = v.iter().map(|v| [v - half, v + half]).collect();
+            let p = box_least_squares::in_box(&a.0, &a.1, &bounds).unwrap();
+            let q = box_least_squares::in_box(&b.0, &b.1, &bounds).unwrap();
+            proptest::prop_assert!(close(&p, &q), "{:?} {:?}", p, q);
         }
     }
 }

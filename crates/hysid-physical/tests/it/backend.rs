@@ -439,7 +439,7 @@ fn the_termination_of_every_stage_is_recorded_and_an_iteration_limit_reported() 
         "{status}"
     );
     // Enough iterations: the last run converges and no status is written.
-    let m = run(&d, &Priors::default(), &["local_iters=3000"], 1).unwrap();
+    let m = run(&d, &Priors::default(), &["local_iters=4000"], 1).unwrap();
     let g = diag(&m);
     assert_eq!(g["termination"]["last_local_run"], "converged", "{g:?}");
     assert!(!g.contains_key("status"), "{g:?}");

@@ -208,6 +208,22 @@ fn score(g: &[f64], x: &[f64]) -> f64 {
     g[..d].iter().zip(x).map(|(a, b)| a * b).sum::<f64>() + g[d]
 }
 
+/// Below this `libm::exp` returns `0.0` (its underflow test).
+const EXP_UNDERFLOW: f64 = -745.133_219_101_941_1;
+
+/// `libm::exp(x)` for `x <= 0`, the difference of a score from the
+/// largest, bit for bit: the largest score's own `exp(0) = 1` and the
+/// underflow to zero are answered without evaluating the exponential.
+fn gate_weight(x: f64) -> f64 {
+    if x == 0.0 {
+        1.0
+    } else if x < EXP_UNDERFLOW {
+        0.0
+    } else {
+        libm::exp(x)
+    }
+}
+
 /// The mode of largest score at `x` (the first on a tie).
 fn argmax(scores: &[Vec<f64>], x: &[f64]) -> usize {
     let mut best = 0;
@@ -417,7 +433,7 @@ impl<'s, 'a> RelaxedGate<'s, 'a> {
             let top = f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             let mut total = 0.0;
             for i in 0..s {
-                p[i] = libm::exp(f[i] - top);
+                p[i] = gate_weight(f[i] - top);
                 total += p[i];
                 e[i] = self.thetas[i].iter().zip(&w).map(|(a, b)| a * b).sum();
             }
@@ -550,6 +566,44 @@ mod tests {
     use hysid_model::data::Dataset;
     use hysid_model::geometry::Polyhedron;
     use hysid_model::model::{ModelInfo, PwarxModel};
+    use proptest::prelude::*;
+
+    /// The bits of `libm::exp(x)` and of [`gate_weight`] at `x`.
+    fn both(x: f64) -> (u64, u64) {
+        (libm::exp(x).to_bits(), gate_weight(x).to_bits())
+    }
+
+    #[test]
+    fn gate_weights_are_the_exponentials_bits_at_its_edges() {
+        let edge = [
+            0.0,
+            -0.0,
+            -745.0,
+            -745.133,
+            EXP_UNDERFLOW,
+            EXP_UNDERFLOW.next_up(),
+            EXP_UNDERFLOW.next_down(),
+            -708.5,
+            -800.0,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            -f64::MIN_POSITIVE,
+        ];
+        for x in edge {
+            let (exp, weight) = both(x);
+            assert_eq!(exp, weight, "at {x:e}");
+        }
+        // The window where the exponential is subnormal, not zero.
+        assert_ne!(libm::exp(EXP_UNDERFLOW.next_up()), 0.0);
+    }
+
+    proptest! {
+        #[test]
+        fn gate_weights_are_the_exponentials_bits(x in -760.0f64..0.0) {
+            let (exp, weight) = both(x);
+            prop_assert_eq!(exp, weight);
+        }
+    }
 
     /// `y(k) = a y(k-1) + b u(k-1) + c`, mode 0 where `y(k-1) <= 0`, mode 1
     /// where `y(k-1) >= 0`: continuous across the boundary, so a boundary
