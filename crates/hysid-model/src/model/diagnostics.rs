@@ -105,6 +105,13 @@ pub struct RegionRefinement {
     /// Levenberg-Marquardt iterations of the relaxed gate, over all
     /// sharpness levels.
     pub gate_iterations: usize,
+    /// Descents of the relaxed gate (one per sharpness level and round).
+    #[serde(default)]
+    pub gate_descents: usize,
+    /// Of [`Self::gate_descents`], those that ended at their iteration
+    /// bound (`refine_iterations`) before a convergence test held.
+    #[serde(default)]
+    pub gate_descents_at_bound: usize,
     /// Levenberg-Marquardt iterations of the mode parameters under the
     /// hardened regions.
     pub parameter_iterations: usize,
@@ -129,6 +136,8 @@ impl RegionRefinement {
         Self {
             status,
             gate_iterations: 0,
+            gate_descents: 0,
+            gate_descents_at_bound: 0,
             parameter_iterations: 0,
             sharpness: None,
             cost_before: None,

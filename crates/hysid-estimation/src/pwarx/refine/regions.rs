@@ -58,7 +58,7 @@ use hysid_model::geometry::{argmax_regions, argmax_scores};
 use hysid_model::model::{PwarxMode, RegionRefinement, RegionRefinementStatus};
 use hysid_model::simulate::pwarx as pwarx_sim;
 use hysid_model::statistics::upper_median;
-use hysid_numerics::least_squares::{self, LeastSquares, LmSettings, levenberg_marquardt};
+use hysid_numerics::least_squares::{self, LeastSquares, LmSettings, Stop, levenberg_marquardt};
 use nalgebra::{DMatrix, DVector};
 
 /// Bound on the rounds of relaxed gate and mode parameters in turn.
@@ -102,8 +102,7 @@ pub(super) fn move_regions<D>(
     for _ in 0..ROUNDS {
         let thetas: Vec<Vec<f64>> = modes.iter().map(|m| m.theta.clone()).collect();
         let mut gate = RelaxedGate::new(&shooting, &thetas, &scores, columns.clone());
-        let (hardened, iterations) = sharpen(&mut gate, &modes, settings, deadline)?;
-        outcome.gate_iterations += iterations;
+        let hardened = sharpen(&mut gate, &modes, settings, deadline, &mut outcome)?;
         let Some(hardened) = hardened else { break };
         let mut next = with_regions(&modes, &hardened.scores);
         outcome.parameter_iterations +=
@@ -141,17 +140,17 @@ struct Hardened {
 /// The continuation over [`SHARPNESS`]: at each level the relaxed gate's
 /// Levenberg-Marquardt from the last level's gate, then its hardening into
 /// regions for `modes` (the parameters the gate was relaxed with). The
-/// hardened gate of least hard cost (`None` when every one diverges) and
-/// the iterations taken.
+/// hardened gate of least hard cost (`None` when every one diverges); the
+/// descents' iterations and ends added to `outcome`.
 fn sharpen(
     gate: &mut RelaxedGate<'_, '_>,
     modes: &[PwarxMode],
     settings: &Stages,
     deadline: &Deadline,
-) -> Result<(Option<Hardened>, usize), IdentifyError> {
+    outcome: &mut RegionRefinement,
+) -> Result<Option<Hardened>, IdentifyError> {
     let mut v = gate.unknowns_of(&gate.base);
     let mut best: Option<Hardened> = None;
-    let mut iterations = 0;
     for sharpness in SHARPNESS {
         gate.sharpness = sharpness;
         let descent = levenberg_marquardt(
@@ -160,7 +159,11 @@ fn sharpen(
             &LmSettings::new(settings.refine_iterations),
             deadline,
         )?;
-        iterations += descent.iterations;
+        outcome.gate_iterations += descent.iterations;
+        outcome.gate_descents += 1;
+        if descent.stop == Stop::IterationLimit {
+            outcome.gate_descents_at_bound += 1;
+        }
         if let Some(next) = descent.v {
             v = next;
         }
@@ -174,7 +177,7 @@ fn sharpen(
             });
         }
     }
-    Ok((best, iterations))
+    Ok(best)
 }
 
 /// `scores` divided by the median, over the rows of `x`, of the gap
@@ -691,6 +694,35 @@ mod tests {
             )
             .is_some()
         );
+        // One descent per sharpness level and round, and the record says
+        // which of them ended at their bound.
+        assert_eq!(g.gate_descents % SHARPNESS.len(), 0, "{g:?}");
+        assert!(g.gate_descents >= SHARPNESS.len(), "{g:?}");
+        assert!(g.gate_descents_at_bound < g.gate_descents, "{g:?}");
+    }
+
+    /// With one iteration allowed, every descent of the gate that is not
+    /// stationary at its start ends at the bound, and the record counts it.
+    #[test]
+    fn gate_descents_at_their_bound_are_counted() {
+        let data = record(800);
+        let priors = Priors::default();
+        let prepared = pwarx::prepare(&problem(&data, &priors), "test").unwrap();
+        let one = Stages {
+            refine_iterations: 1,
+            ..settings(Refine::SimRegions)
+        };
+        let moved = refine(
+            &prepared,
+            PwarxFit::complete(modes(0.4), ()),
+            &one,
+            &Deadline::none(),
+        )
+        .unwrap();
+        let g = moved.refinement.unwrap().regions.unwrap();
+        assert!(g.gate_descents >= SHARPNESS.len(), "{g:?}");
+        assert_eq!(g.gate_descents_at_bound, g.gate_descents, "{g:?}");
+        assert_eq!(g.gate_iterations, g.gate_descents, "{g:?}");
     }
 
     /// The relaxed model's sensitivities match central finite differences
