@@ -214,7 +214,7 @@ struct Linearisation {
     jacobian: DMatrix<f64>,
     cost: f64,
     /// `J = Q R` ([`Reduced::of`]), when `J` has more rows than twice its
-    /// columns.
+    /// columns and is finite.
     reduced: Option<Reduced>,
 }
 

@@ -263,6 +263,51 @@ enum Instruction {
     },
 }
 
+impl Instruction {
+    /// The cell it writes.
+    fn target(self) -> u8 {
+        match self {
+            Instruction::Keep { to, .. }
+            | Instruction::Neg { to, .. }
+            | Instruction::Not { to, .. }
+            | Instruction::Binary { to, .. }
+            | Instruction::Call { to, .. } => to,
+        }
+    }
+
+    /// The same operation writing cell `to`.
+    fn writing(self, to: u8) -> Instruction {
+        match self {
+            Instruction::Keep { a, .. } => Instruction::Keep { to, a },
+            Instruction::Neg { a, .. } => Instruction::Neg { to, a },
+            Instruction::Not { a, .. } => Instruction::Not { to, a },
+            Instruction::Binary { op, a, b, .. } => Instruction::Binary { op, to, a, b },
+            Instruction::Call { f, args, .. } => Instruction::Call { f, to, args },
+        }
+    }
+
+    /// The same operation on the operands `rename` gives for its own (a
+    /// call's padding included).
+    fn reading(self, rename: impl Fn(Operand) -> Operand) -> Instruction {
+        match self {
+            Instruction::Keep { to, a } => Instruction::Keep { to, a: rename(a) },
+            Instruction::Neg { to, a } => Instruction::Neg { to, a: rename(a) },
+            Instruction::Not { to, a } => Instruction::Not { to, a: rename(a) },
+            Instruction::Binary { op, to, a, b } => Instruction::Binary {
+                op,
+                to,
+                a: rename(a),
+                b: rename(b),
+            },
+            Instruction::Call { f, to, args } => Instruction::Call {
+                f,
+                to,
+                args: args.map(rename),
+            },
+        }
+    }
+}
+
 /// Cells of the workspace: the stack's, then one per register.
 const CELLS: usize = MAX_DEPTH + REGISTERS;
 
@@ -405,39 +450,17 @@ impl Joint {
                 o => o,
             };
             for instruction in &program.code {
-                let (to, renamed) = match *instruction {
-                    Instruction::Keep { to, a } => {
-                        held[to as usize] = value(a, &held);
-                        continue;
-                    }
-                    Instruction::Binary { op, to, a, b } => {
-                        let (a, b) = (value(a, &held), value(b, &held));
-                        if op == Binary::Sub && is_positive_zero(b) {
-                            held[to as usize] = a;
-                            continue;
-                        }
-                        (to, Instruction::Binary { op, to: 0, a, b })
-                    }
-                    Instruction::Neg { to, a } => (
-                        to,
-                        Instruction::Neg {
-                            to: 0,
-                            a: value(a, &held),
-                        },
-                    ),
-                    Instruction::Not { to, a } => (
-                        to,
-                        Instruction::Not {
-                            to: 0,
-                            a: value(a, &held),
-                        },
-                    ),
-                    Instruction::Call { f, to, args } => {
-                        let args = args.map(|o| value(o, &held));
-                        (to, Instruction::Call { f, to: 0, args })
-                    }
+                let renamed = instruction.reading(|o| value(o, &held));
+                held[renamed.target() as usize] = match renamed {
+                    Instruction::Keep { a, .. } => a,
+                    Instruction::Binary {
+                        op: Binary::Sub,
+                        a,
+                        b,
+                        ..
+                    } if is_positive_zero(b) => a,
+                    _ => value_of(&mut code, renamed)?,
                 };
-                held[to as usize] = value_of(&mut code, renamed)?;
             }
             results.push((at, value(program.result, &held)));
         }
@@ -476,15 +499,8 @@ fn value_of(code: &mut Vec<Instruction>, instruction: Instruction) -> Option<Ope
     if to >= CELLS {
         return None;
     }
-    let to = to as u8;
-    code.push(match instruction {
-        Instruction::Keep { a, .. } => Instruction::Keep { to, a },
-        Instruction::Neg { a, .. } => Instruction::Neg { to, a },
-        Instruction::Not { a, .. } => Instruction::Not { to, a },
-        Instruction::Binary { op, a, b, .. } => Instruction::Binary { op, to, a, b },
-        Instruction::Call { f, args, .. } => Instruction::Call { f, to, args },
-    });
-    Some(Operand::Cell(to))
+    code.push(instruction.writing(to as u8));
+    Some(Operand::Cell(to as u8))
 }
 
 /// Whether `x` and `y` apply the same operation to the same operands
