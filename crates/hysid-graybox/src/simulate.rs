@@ -207,12 +207,22 @@ impl Surfaces {
         &mut self.both[1 - self.start]
     }
 
-    /// The start, and the trial end resized to `len` surfaces.
-    fn start_and_end(&mut self, len: usize) -> (&[f64], &mut [f64]) {
+    /// The start and the trial end resized to `len` surfaces, both
+    /// writable: a caller that swaps their roles itself tells how many
+    /// times by [`Surfaces::stepped`].
+    fn start_and_end_mut(&mut self, len: usize) -> (&mut [f64], &mut [f64]) {
         let [a, b] = &mut self.both;
         let (start, end) = if self.start == 0 { (a, b) } else { (b, a) };
         end.resize(len, 0.0);
         (start, end)
+    }
+
+    /// `steps` times [`Surfaces::step`].
+    fn stepped(&mut self, steps: usize) {
+        if steps > 0 {
+            self.kept = None;
+            self.start ^= steps & 1;
+        }
     }
 
     /// Records that the start holds the surfaces of `mode` at `x`.
@@ -299,8 +309,10 @@ pub struct Machine<'a> {
     xm: Vec<f64>,
     /// Guard surfaces at the start of the step and at its trial end.
     g: Surfaces,
-    /// The quiet lane's tests of the regime it steps in ([`quiet`]).
-    watch: Vec<StateEnd>,
+    /// The quiet lane's tests of the regime it steps in ([`quiet`]): the
+    /// elements' regimes they were listed for, and `None` where an element
+    /// is held (the lane closed).
+    watch: (Vec<ElementRegime>, Option<Vec<StateEnd>>),
     /// Per mode, whether a guard surface reads an input.
     input_guards: Vec<bool>,
     /// The elements' effects in the regime of the step being integrated,
@@ -412,7 +424,7 @@ impl<'a> Machine<'a> {
             x1: vec![0.0; n],
             xm: vec![0.0; n],
             g: Surfaces::default(),
-            watch: Vec::with_capacity(m.elements.len()),
+            watch: (Vec::new(), None),
             input_guards: m
                 .modes
                 .iter()
@@ -1334,7 +1346,13 @@ impl StateEnd {
     /// How far past its end the state `x` is (negative before it).
     #[inline]
     fn margin(&self, x: &[f64]) -> f64 {
-        self.sign * (x[self.state] - self.level)
+        self.margin_by(|s| x[s])
+    }
+
+    /// [`StateEnd::margin`] with the state read by `x`.
+    #[inline(always)]
+    fn margin_by(&self, x: impl Fn(usize) -> f64) -> f64 {
+        self.sign * (x(self.state) - self.level)
     }
 }
 
@@ -1737,9 +1755,10 @@ fn span(
         // At rest (every derivative exactly zero) under an unchanged input,
         // a sample repeats the one before. With sensitivities a sample at
         // rest is integrated all the same: the state stays, its
-        // sensitivities may move.
+        // sensitivities may move. A sample that repeated leaves the state
+        // and the input as they were: the test's answer stands.
         let tested = k + 1 < end && !changed && !machine.differentiates();
-        repeat = tested && machine.at_rest(&hs, u);
+        repeat = tested && (repeat || machine.at_rest(&hs, u));
         if k + 1 < end && !repeat {
             for (j, (duration, u, n_sub)) in pieces.iter().enumerate() {
                 // Found moving by the rest test, unless a held element is
@@ -1754,7 +1773,9 @@ fn span(
                 machine.surfaces_at_end(&hs, u, &mut g_end);
             }
         }
-        held.copy_from_slice(&pieces[pieces.len() - 1].1);
+        // The last piece's input is held into the next sample; its buffer
+        // is written whole by the next sample's schedule.
+        std::mem::swap(&mut held, &mut buffer[count - 1].1);
     }
     Ok(())
 }

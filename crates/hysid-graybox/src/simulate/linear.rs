@@ -43,10 +43,15 @@ impl AffineRow {
     /// The value at `(x, u)`, summed in the expression's own order.
     #[inline]
     pub(super) fn eval(&self, x: &[f64], u: &[f64]) -> f64 {
-        let n = x.len();
+        self.eval_by(x.len(), |s| x[s], u)
+    }
+
+    /// [`AffineRow::eval`] with the `n` states read by `x`.
+    #[inline(always)]
+    pub(super) fn eval_by(&self, n: usize, x: impl Fn(usize) -> f64, u: &[f64]) -> f64 {
         let mut acc = self.constant;
         for &(s, c) in &self.terms {
-            acc += c * if s < n { x[s] } else { u[s - n] };
+            acc += c * if s < n { x(s) } else { u[s - n] };
         }
         acc
     }

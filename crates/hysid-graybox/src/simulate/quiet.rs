@@ -13,7 +13,9 @@
 //! the surfaces carried are the general loop's, bit for bit: the lane
 //! only skips its bookkeeping. Runs carrying sensitivities do not take it.
 
+use super::linear::{AffineRow, ClosedStep};
 use super::{ElementRegime, HybridState, Machine, StateEnd, crossed, load};
+use crate::expr::Crossing;
 
 impl Machine<'_> {
     /// Takes the full sub-steps `0..n_sub` of length `self.full_step` from
@@ -38,33 +40,46 @@ impl Machine<'_> {
             self.g.step();
             *fresh = true;
         }
-        let (Some((.., Some(step))), Some(guards)) = (&self.closed, &self.guards[hs.mode]) else {
+        let (Some(watch), Some((.., Some(step))), Some(guards)) =
+            (&self.watch.1, &self.closed, &self.guards[hs.mode])
+        else {
             return 0;
         };
-        let watch = &self.watch;
-        for taken in 0..n_sub {
-            step.apply(&hs.x, u, x1);
-            if watched_event(watch, x1) {
-                return taken;
+        let lane = Lane {
+            step,
+            watch,
+            guards,
+            u,
+        };
+        let surfaces = self.g.start_and_end_mut(guards.len());
+        // The common small models' states and inputs as arrays: their
+        // steps unroll and the state stays out of memory between them.
+        let fixed = match (hs.x.len(), u.len()) {
+            (1, 1) => lane.on_arrays::<1, 1>(&mut hs.x, n_sub, surfaces),
+            (2, 1) => lane.on_arrays::<2, 1>(&mut hs.x, n_sub, surfaces),
+            (2, 2) => lane.on_arrays::<2, 2>(&mut hs.x, n_sub, surfaces),
+            (3, 1) => lane.on_arrays::<3, 1>(&mut hs.x, n_sub, surfaces),
+            (4, 1) => lane.on_arrays::<4, 1>(&mut hs.x, n_sub, surfaces),
+            (4, 2) => lane.on_arrays::<4, 2>(&mut hs.x, n_sub, surfaces),
+            _ => Err(surfaces),
+        };
+        let taken = match fixed {
+            Ok(taken) => taken,
+            Err(surfaces) => {
+                let apply = |x: &Vec<f64>, out: &mut Vec<f64>| step.apply(x, u, out);
+                lane.run(apply, &mut hs.x, x1, n_sub, surfaces)
             }
-            let (start, end) = self.g.start_and_end(guards.len());
-            for (((c, row), g0), g1) in guards.iter().zip(start).zip(end.iter_mut()) {
-                *g1 = row.eval(x1, u);
-                if crossed(*c, *g0, *g1) {
-                    return taken;
-                }
-            }
-            self.steps += 1;
-            self.quiet_steps += 1;
-            std::mem::swap(&mut hs.x, x1);
-            self.g.step();
-        }
-        n_sub
+        };
+        self.g.stepped(taken);
+        self.steps += taken;
+        self.quiet_steps += taken;
+        taken
     }
 
     /// Whether the regime of `hs` takes the quiet lane: no sensitivities,
     /// a closed-form step (formed here), affine guards and no element
-    /// held; lists the regime's tests into `watch` when it does.
+    /// held; lists the regime's tests into `watch` when the elements'
+    /// regimes differ from those they were listed for.
     pub(super) fn quiet_lane_open(&mut self, hs: &HybridState) -> bool {
         if !self.shortcuts
             || self.differentiates()
@@ -73,14 +88,18 @@ impl Machine<'_> {
         {
             return false;
         }
-        self.watch.clear();
-        for (i, &regime) in hs.regimes.iter().enumerate() {
-            if matches!(regime, ElementRegime::Stuck | ElementRegime::Resting) {
-                return false;
-            }
-            if let Some(end) = self.state_end(i, regime) {
-                self.watch.push(end);
-            }
+        if self.watch.0.is_empty() || self.watch.0 != hs.regimes {
+            let held = (hs.regimes.iter())
+                .any(|r| matches!(r, ElementRegime::Stuck | ElementRegime::Resting));
+            let tests = (!held).then(|| {
+                (hs.regimes.iter().enumerate())
+                    .filter_map(|(i, &regime)| self.state_end(i, regime))
+                    .collect()
+            });
+            self.watch = (hs.regimes.clone(), tests);
+        }
+        if self.watch.1.is_none() {
+            return false;
         }
         self.form_closed_step(hs);
         matches!(&self.closed, Some((.., Some(_))))
@@ -93,7 +112,7 @@ impl Machine<'_> {
     /// slots loaded only for a crossed guard's `when` condition. The
     /// event's location asks it at every trial.
     pub(super) fn ends_lane(&mut self, x: &[f64], u: &[f64], mode: usize) -> bool {
-        if watched_event(&self.watch, x) {
+        if self.watch.1.as_deref().is_some_and(|w| watched_event(w, x)) {
             return true;
         }
         let m = self.m;
@@ -112,6 +131,101 @@ impl Machine<'_> {
             }
         }
         false
+    }
+}
+
+/// One regime's quiet lane: its closed-form step, the ends it watches and
+/// its guards' affine forms, under the input `u`.
+struct Lane<'l> {
+    step: &'l ClosedStep,
+    watch: &'l [StateEnd],
+    guards: &'l [(Crossing, AffineRow)],
+    u: &'l [f64],
+}
+
+/// The two guard-surface buffers of a step, its start's and its trial
+/// end's ([`super::Surfaces`]).
+type SurfacePair<'s> = (&'s mut [f64], &'s mut [f64]);
+
+impl Lane<'_> {
+    /// [`Lane::run`] on `N` states and `M` inputs held in arrays
+    /// ([`hysid_numerics::affine_rk4::FixedStep`]); the surfaces back when the step has other sizes.
+    fn on_arrays<'s, const N: usize, const M: usize>(
+        &self,
+        x: &mut [f64],
+        n_sub: usize,
+        surfaces: SurfacePair<'s>,
+    ) -> Result<usize, SurfacePair<'s>> {
+        let (Some(step), Ok(u)) = (self.step.fixed::<N, M>(), <[f64; M]>::try_from(self.u)) else {
+            return Err(surfaces);
+        };
+        let mut at = [0.0; N];
+        at.copy_from_slice(x);
+        let apply = |x: &[f64; N], out: &mut [f64; N]| *out = step.apply(x, &u);
+        let taken = self.run(apply, &mut at, &mut [0.0; N], n_sub, surfaces);
+        x.copy_from_slice(&at);
+        Ok(taken)
+    }
+
+    /// Takes up to `n_sub` full sub-steps (`apply`) from `x` while each
+    /// ends without an event, and returns how many it took; `x1` is the
+    /// trial state. The guard surfaces at `x` are the first of `surfaces`,
+    /// the second the trial end's; after the steps taken they have swapped
+    /// roles as many times ([`super::Surfaces::stepped`]).
+    fn run<X: LaneState>(
+        &self,
+        apply: impl Fn(&X, &mut X),
+        x: &mut X,
+        x1: &mut X,
+        n_sub: usize,
+        (mut start, mut end): SurfacePair<'_>,
+    ) -> usize {
+        let n = x.as_ref().len();
+        for taken in 0..n_sub {
+            apply(x, x1);
+            let at = |s| x1.at(s);
+            if self.watch.iter().any(|e| e.margin_by(at) >= 0.0) {
+                return taken;
+            }
+            for (((c, row), g0), g1) in self.guards.iter().zip(&*start).zip(end.iter_mut()) {
+                *g1 = row.eval_by(n, at, self.u);
+                if crossed(*c, *g0, *g1) {
+                    return taken;
+                }
+            }
+            std::mem::swap(x, x1);
+            std::mem::swap(&mut start, &mut end);
+        }
+        n_sub
+    }
+}
+
+/// A state the lane steps: a vector, or an array of a small model's
+/// states, read by [`LaneState::at`] without indexing memory so that it
+/// can stay in registers from one step to the next.
+trait LaneState: AsRef<[f64]> + AsMut<[f64]> {
+    /// State `s`.
+    fn at(&self, s: usize) -> f64;
+}
+
+impl LaneState for Vec<f64> {
+    #[inline(always)]
+    fn at(&self, s: usize) -> f64 {
+        self[s]
+    }
+}
+
+impl<const N: usize> LaneState for [f64; N] {
+    /// A selection among the `N` constant positions (`s < N`).
+    #[inline(always)]
+    fn at(&self, s: usize) -> f64 {
+        let mut value = self[0];
+        for (j, v) in self.iter().enumerate().skip(1) {
+            if j == s {
+                value = *v;
+            }
+        }
+        value
     }
 }
 
