@@ -149,7 +149,8 @@ type SurfacePair<'s> = (&'s mut [f64], &'s mut [f64]);
 
 impl Lane<'_> {
     /// [`Lane::run`] on `N` states and `M` inputs held in arrays
-    /// ([`hysid_numerics::affine_rk4::FixedStep`]); the surfaces back when the step has other sizes.
+    /// ([`hysid_numerics::affine_rk4::FixedStep`]); the surfaces back
+    /// when the step has other sizes.
     fn on_arrays<'s, const N: usize, const M: usize>(
         &self,
         x: &mut [f64],
