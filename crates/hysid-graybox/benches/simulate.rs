@@ -81,10 +81,9 @@ fn positioning_axis_segmented(bencher: divan::Bencher) {
 /// values) on 1 024 samples at 4 s of its own response to its "Try:"
 /// excitation, the size of the benchmark's records: Torricelli outflows
 /// and overflow guards, no closed form, every stage on the expression
-/// tapes. The free run as a fit reads it (the upper level given).
-#[divan::bench(sample_count = 100)]
-fn cascaded_tanks(bencher: divan::Bencher) {
-    let (c, values, data) = own_response(
+/// tapes.
+fn tanks() -> (CompiledModel, Vec<f64>, Dataset) {
+    own_response(
         "models/examples/cascaded-tanks.toml",
         Excitation {
             n: 1024,
@@ -94,6 +93,23 @@ fn cascaded_tanks(bencher: divan::Bencher) {
             ts: Some(4.0),
             inputs: 1,
         },
-    );
+    )
+}
+
+/// The tanks' free run as a fit reads it (the upper level given).
+#[divan::bench(sample_count = 100)]
+fn cascaded_tanks(bencher: divan::Bencher) {
+    let (c, values, data) = tanks();
     bencher.bench(|| hysid_graybox::simulate::outputs_from(&c, &values, &[5.0], &data).unwrap());
+}
+
+/// The same run with the forward sensitivities in the parameters and the
+/// upper level (the exact Jacobian of one Levenberg-Marquardt step): every
+/// stage's partial derivatives read from the tapes in reverse mode.
+#[divan::bench(sample_count = 50)]
+fn cascaded_tanks_sensitivities(bencher: divan::Bencher) {
+    let (c, values, data) = tanks();
+    bencher.bench(|| {
+        hysid_graybox::simulate::run_with_sensitivities(&c, &values, &[5.0], &data).unwrap()
+    });
 }

@@ -256,6 +256,9 @@ pub struct CompiledMode {
 }
 
 /// A built-in element with compiled expressions.
+// A model has a few elements: a stop's two expressions beside a
+// friction's two indices cost no memory worth a box.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum CompiledElement {
     /// Dry friction on velocity state `velocity` (its levels are per mode:

@@ -10,11 +10,13 @@
 use evalexpr::{DefaultNumericTypes, Node, Operator, Value};
 use std::collections::HashMap;
 use std::rc::Rc;
+use std::sync::OnceLock;
 
 mod derivative;
 mod tape;
 
 pub use derivative::Adjoints;
+use derivative::Sweep;
 use tape::{Binary, Joint, Op, Program};
 pub use tape::{Function, MAX_DEPTH, REGISTERS};
 
@@ -81,11 +83,22 @@ pub enum ExprError {
 /// A compiled expression: a postfix tape over the slots of a
 /// [`crate::compile::CompiledModel`] (states, inputs, parameters,
 /// definitions).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Expression {
     ops: Vec<Op>,
     /// How it is evaluated.
     form: Form,
+    /// A tape's graph for its derivatives, laid out at the first
+    /// [`Expression::gradient`].
+    sweep: OnceLock<Sweep>,
+}
+
+/// Two expressions are equal when their tapes are (the rest is made from
+/// the tape).
+impl PartialEq for Expression {
+    fn eq(&self, other: &Self) -> bool {
+        self.ops == other.ops
+    }
 }
 
 /// The cheapest evaluation of an expression's tape.
@@ -206,7 +219,11 @@ impl Expression {
             [Op::Load(s)] => Form::Slot(*s),
             _ => Affine::of(&ops).map_or_else(|| Form::Tape(Program::of(&ops)), Form::Affine),
         };
-        Expression { ops, form }
+        Expression {
+            ops,
+            form,
+            sweep: OnceLock::new(),
+        }
     }
 
     /// Parses `text` and compiles it; `resolve` maps a name to its slot.

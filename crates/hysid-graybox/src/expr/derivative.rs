@@ -52,142 +52,230 @@ impl Expression {
                 }
                 a.eval(slots)
             }
-            Form::Tape(_) => tape_gradient(&self.ops, slots, wrt, gradient, scratch),
+            Form::Tape(_) => self
+                .sweep
+                .get_or_init(|| Sweep::of(&self.ops))
+                .gradient(slots, wrt, gradient, scratch),
         }
     }
 }
 
-/// The workspace of [`Expression::gradient_with`]: the nodes of the
-/// expression's graph and their adjoints, kept between calls.
+/// The workspace of [`Expression::gradient_with`]: the values of the
+/// nodes of an expression's graph, their partial derivatives, whether
+/// they read a slot asked for, and their adjoints, kept between calls.
 #[derive(Debug, Default, Clone)]
 pub struct Adjoints {
-    nodes: Vec<Node>,
+    values: Vec<f64>,
+    partials: Vec<[f64; 3]>,
+    reads: Vec<bool>,
     adjoints: Vec<f64>,
+    /// The slots asked for at the last call ([`Asked`]).
+    asked: Asked,
 }
 
-/// A value of the forward sweep: the slot it loads (`u32::MAX`: none),
-/// whether it reads a slot asked for, and its operands with the partial
-/// derivatives in them.
-#[derive(Debug, Clone, Copy)]
-struct Node {
-    slot: u32,
-    reads: bool,
-    operands: [(u32, f64); 3],
-    count: u8,
+/// Where each slot stands among the slots asked for, listed when they
+/// change: its position, [`NOT_ASKED`] where it is not asked for; `None`
+/// where one is asked for twice (then the list is searched).
+#[derive(Debug, Default, Clone)]
+struct Asked {
+    wrt: Vec<u32>,
+    position: Option<Vec<u32>>,
 }
 
-impl Node {
-    fn leaf(slot: u32, reads: bool) -> Self {
-        Node {
-            slot,
+/// A slot's position in [`Asked`] where it is not asked for.
+const NOT_ASKED: u32 = u32::MAX;
+
+impl Asked {
+    /// The positions of the slots of `wrt`, listed again when `wrt`
+    /// differs from the last call's.
+    fn of(&mut self, wrt: &[u32]) -> Option<&[u32]> {
+        if self.wrt != wrt {
+            self.wrt.clear();
+            self.wrt.extend_from_slice(wrt);
+            let size = wrt.iter().map(|&w| w as usize + 1).max().unwrap_or(0);
+            let mut position = vec![NOT_ASKED; size];
+            let mut repeats = false;
+            for (i, &w) in wrt.iter().enumerate() {
+                repeats |= position[w as usize] != NOT_ASKED;
+                position[w as usize] = i as u32;
+            }
+            self.position = (!repeats).then_some(position);
+        }
+        self.position.as_deref()
+    }
+}
+
+/// A postfix tape's graph for reverse-mode differentiation (Griewank and
+/// Walther 2008, section 3.2), laid out once: one node per value the tape
+/// computes, in tape order, with the operation that makes it and the
+/// nodes it reads (a kept value read again is the same node). A gradient
+/// then takes a forward sweep of values and partial derivatives over the
+/// nodes and a reverse sweep of adjoints.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Sweep {
+    nodes: Vec<SweepNode>,
+    /// The node of the expression's value.
+    result: u32,
+}
+
+/// One value of a [`Sweep`]: its operation and the nodes of its operands
+/// (the first [`SweepNode::count`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SweepNode {
+    op: NodeOp,
+    operands: [u32; 3],
+}
+
+/// The operation that makes a node's value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum NodeOp {
+    Const(f64),
+    Load(u32),
+    Neg,
+    /// Logical not: a value without derivative edges.
+    Not,
+    Binary(Binary),
+    Call(Function),
+}
+
+impl SweepNode {
+    /// Operands with a partial derivative (a logical not's is none).
+    fn count(&self) -> usize {
+        match self.op {
+            NodeOp::Const(_) | NodeOp::Load(_) | NodeOp::Not => 0,
+            NodeOp::Neg => 1,
+            NodeOp::Binary(_) => 2,
+            NodeOp::Call(f) => f.arity(),
+        }
+    }
+}
+
+impl Sweep {
+    /// The graph of a well-formed tape.
+    pub(super) fn of(ops: &[Op]) -> Sweep {
+        let mut nodes: Vec<SweepNode> = Vec::with_capacity(ops.len());
+        let mut stack: Vec<u32> = Vec::with_capacity(MAX_DEPTH);
+        let mut registers = [0u32; REGISTERS];
+        for op in ops {
+            let (op, popped) = match *op {
+                Op::Keep(r) => {
+                    registers[r as usize] = stack[stack.len() - 1];
+                    continue;
+                }
+                Op::Recall(r) => {
+                    stack.push(registers[r as usize]);
+                    continue;
+                }
+                Op::Const(v) => (NodeOp::Const(v), 0),
+                Op::Load(s) => (NodeOp::Load(s), 0),
+                Op::Neg => (NodeOp::Neg, 1),
+                Op::Not => (NodeOp::Not, 1),
+                Op::Binary(b) => (NodeOp::Binary(b), 2),
+                Op::Call(f) => (NodeOp::Call(f), f.arity()),
+            };
+            let from = stack.len() - popped;
+            let mut operands = [0u32; 3];
+            operands[..popped].copy_from_slice(&stack[from..]);
+            stack.truncate(from);
+            stack.push(nodes.len() as u32);
+            nodes.push(SweepNode { op, operands });
+        }
+        Sweep {
+            nodes,
+            result: stack[0],
+        }
+    }
+
+    /// [`Expression::gradient`] by a forward sweep (each node's value and
+    /// its partial derivatives in its operands, and whether it reads a
+    /// slot of `wrt`) and a reverse sweep (the adjoints, seeded with 1 at
+    /// the value); a term whose partial derivative is zero, or whose
+    /// operand reads no slot asked for, is left out.
+    fn gradient(
+        &self,
+        slots: &[f64],
+        wrt: &[u32],
+        gradient: &mut [f64],
+        work: &mut Adjoints,
+    ) -> f64 {
+        let n = self.nodes.len();
+        let Adjoints {
+            values,
+            partials,
             reads,
-            operands: [(0, 0.0); 3],
-            count: 0,
+            adjoints,
+            asked,
+        } = work;
+        let position = asked.of(wrt);
+        // Where slot `s` stands among the slots asked for.
+        let at = |s: u32| position.map(|p| p.get(s as usize).copied().unwrap_or(NOT_ASKED));
+        values.resize(n, 0.0);
+        partials.resize(n, [0.0; 3]);
+        reads.resize(n, false);
+        for (i, node) in self.nodes.iter().enumerate() {
+            let [a, b, c] = node.operands.map(|o| o as usize);
+            let (value, read) = match node.op {
+                NodeOp::Const(v) => (v, false),
+                NodeOp::Load(s) => {
+                    let asked = at(s).map_or_else(|| wrt.contains(&s), |p| p != NOT_ASKED);
+                    (slots[s as usize], asked)
+                }
+                NodeOp::Neg => {
+                    partials[i][0] = -1.0;
+                    (-values[a], reads[a])
+                }
+                NodeOp::Not => (if values[a] == 0.0 { 1.0 } else { 0.0 }, false),
+                NodeOp::Binary(op) => {
+                    let (x, y) = (values[a], values[b]);
+                    let value = op.apply(x, y);
+                    let [px, py] = op.partials(x, y, value);
+                    partials[i][..2].copy_from_slice(&[px, py]);
+                    (value, reads[a] || reads[b])
+                }
+                NodeOp::Call(f) => {
+                    let k = f.arity();
+                    let args = [values[a], values[b], values[c]];
+                    let value = f.apply(&args[..k]);
+                    partials[i] = f.partials(&args[..k], value);
+                    let read = [a, b, c][..k].iter().any(|&o| reads[o]);
+                    (value, read)
+                }
+            };
+            values[i] = value;
+            reads[i] = read;
         }
-    }
-}
-
-/// [`Expression::gradient`] of a postfix tape in reverse mode (Griewank
-/// and Walther 2008, section 3.2): a forward sweep evaluates the tape and
-/// records each value's operands and partial derivatives, a reverse sweep
-/// accumulates the adjoints, so every slot's derivative costs one sweep.
-/// A term whose partial derivative is zero, or whose operand reads no
-/// slot asked for, is left out.
-fn tape_gradient(
-    ops: &[Op],
-    slots: &[f64],
-    wrt: &[u32],
-    gradient: &mut [f64],
-    work: &mut Adjoints,
-) -> f64 {
-    let nodes = &mut work.nodes;
-    nodes.clear();
-    let mut values = [0.0f64; MAX_DEPTH];
-    let mut stack = [0u32; MAX_DEPTH];
-    let mut registers = [(0u32, 0.0f64); REGISTERS];
-    let mut sp = 0usize;
-    let push = |nodes: &mut Vec<Node>, node: Node| -> u32 {
-        nodes.push(node);
-        (nodes.len() - 1) as u32
-    };
-    let inner = |nodes: &[Node], operands: &[u32], partials: &[f64]| {
-        let mut node = Node::leaf(u32::MAX, false);
-        for (i, (&o, &p)) in operands.iter().zip(partials).enumerate() {
-            node.operands[i] = (o, p);
-            node.reads |= nodes[o as usize].reads;
-        }
-        node.count = operands.len() as u8;
-        node
-    };
-    for op in ops {
-        match *op {
-            Op::Const(v) => {
-                values[sp] = v;
-                stack[sp] = push(nodes, Node::leaf(u32::MAX, false));
-                sp += 1;
+        adjoints.clear();
+        adjoints.resize(n, 0.0);
+        adjoints[self.result as usize] = 1.0;
+        for (i, node) in self.nodes.iter().enumerate().rev() {
+            let a = adjoints[i];
+            if a == 0.0 || !reads[i] {
+                continue;
             }
-            Op::Load(s) => {
-                values[sp] = slots[s as usize];
-                stack[sp] = push(nodes, Node::leaf(s, wrt.contains(&s)));
-                sp += 1;
+            if let NodeOp::Load(slot) = node.op {
+                match at(slot) {
+                    Some(p) => {
+                        if let Some(g) = gradient.get_mut(p as usize) {
+                            *g += a;
+                        }
+                    }
+                    None => {
+                        for (g, &w) in gradient.iter_mut().zip(wrt) {
+                            if w == slot {
+                                *g += a;
+                            }
+                        }
+                    }
+                }
             }
-            Op::Neg => {
-                values[sp - 1] = -values[sp - 1];
-                let node = inner(nodes, &stack[sp - 1..sp], &[-1.0]);
-                stack[sp - 1] = push(nodes, node);
-            }
-            Op::Not => {
-                values[sp - 1] = if values[sp - 1] == 0.0 { 1.0 } else { 0.0 };
-                stack[sp - 1] = push(nodes, Node::leaf(u32::MAX, false));
-            }
-            Op::Binary(b) => {
-                sp -= 1;
-                let (x, y) = (values[sp - 1], values[sp]);
-                let value = b.apply(x, y);
-                let node = inner(nodes, &stack[sp - 1..=sp], &b.partials(x, y, value));
-                values[sp - 1] = value;
-                stack[sp - 1] = push(nodes, node);
-            }
-            Op::Call(f) => {
-                let k = f.arity();
-                sp -= k;
-                let args = &values[sp..sp + k];
-                let value = f.apply(args);
-                let node = inner(nodes, &stack[sp..sp + k], &f.partials(args, value)[..k]);
-                values[sp] = value;
-                stack[sp] = push(nodes, node);
-                sp += 1;
-            }
-            Op::Keep(r) => registers[r as usize] = (stack[sp - 1], values[sp - 1]),
-            Op::Recall(r) => {
-                (stack[sp], values[sp]) = registers[r as usize];
-                sp += 1;
-            }
-        }
-    }
-    let adjoints = &mut work.adjoints;
-    adjoints.clear();
-    adjoints.resize(nodes.len(), 0.0);
-    adjoints[stack[0] as usize] = 1.0;
-    for (i, node) in nodes.iter().enumerate().rev() {
-        let a = adjoints[i];
-        if a == 0.0 || !node.reads {
-            continue;
-        }
-        if node.slot != u32::MAX {
-            for (g, &w) in gradient.iter_mut().zip(wrt) {
-                if w == node.slot {
-                    *g += a;
+            for (&o, &p) in node.operands[..node.count()].iter().zip(&partials[i]) {
+                if p != 0.0 && reads[o as usize] {
+                    adjoints[o as usize] += p * a;
                 }
             }
         }
-        for &(o, p) in &node.operands[..node.count as usize] {
-            if p != 0.0 && nodes[o as usize].reads {
-                adjoints[o as usize] += p * a;
-            }
-        }
+        values[self.result as usize]
     }
-    values[0]
 }
 
 impl Binary {
@@ -324,6 +412,35 @@ mod tests {
         a == b
             || (a.is_nan() && b.is_nan())
             || (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0)
+    }
+
+    /// One workspace across calls that ask for other slots (some twice,
+    /// some unread, beyond the slots read) gives each call the bits a
+    /// fresh workspace gives it: the positions of the slots asked for are
+    /// listed again when they change.
+    #[test]
+    fn a_workspace_serves_calls_that_ask_for_other_slots() {
+        let e = Expression::compile("x * y + sin(x) / (1 + z*z)", &names).unwrap();
+        let slots = [0.5, 2.0, -1.5];
+        let asks: [&[u32]; 5] = [&[0, 1, 2], &[2, 0], &[1, 1, 0], &[7, 0, 3], &[0, 1, 2]];
+        let mut shared = Adjoints::default();
+        for wrt in asks.iter().cycle().take(10) {
+            let (mut g, mut fresh) = ([0.0; 3], [0.0; 3]);
+            let v = e.gradient_with(&slots, wrt, &mut g, &mut shared);
+            let w = e.gradient(&slots, wrt, &mut fresh);
+            assert_eq!(v.to_bits(), w.to_bits(), "{wrt:?}");
+            assert_eq!(g.map(f64::to_bits), fresh.map(f64::to_bits), "{wrt:?}");
+            // Every entry of the gradient is the derivative in its slot.
+            for (gi, &slot) in g.iter().zip(wrt.iter()) {
+                let want = match slot {
+                    0 => 2.0 + 0.5f64.cos() / (1.0 + 2.25),
+                    1 => 0.5,
+                    2 => -(0.5f64.sin()) * 2.0 * -1.5 / (1.0 + 2.25f64).powi(2),
+                    _ => 0.0,
+                };
+                assert!((gi - want).abs() <= 1e-12, "{wrt:?}: {gi} against {want}");
+            }
+        }
     }
 
     #[test]
