@@ -73,35 +73,34 @@ pub struct Adjoints {
     asked: Asked,
 }
 
-/// Where each slot stands among the slots asked for, listed when they
-/// change: its position, [`NOT_ASKED`] where it is not asked for; `None`
-/// where one is asked for twice (then the list is searched).
+/// Where each slot stands among the slots asked for (its positions in
+/// them: none where it is not asked for, several where it is asked for
+/// more than once), listed again when they change.
 #[derive(Debug, Default, Clone)]
 struct Asked {
     wrt: Vec<u32>,
-    position: Option<Vec<u32>>,
+    positions: Vec<Vec<u32>>,
 }
 
-/// A slot's position in [`Asked`] where it is not asked for.
-const NOT_ASKED: u32 = u32::MAX;
-
 impl Asked {
-    /// The positions of the slots of `wrt`, listed again when `wrt`
-    /// differs from the last call's.
-    fn of(&mut self, wrt: &[u32]) -> Option<&[u32]> {
+    /// The positions of slot `slot` among the slots of the last
+    /// [`Asked::list`].
+    fn of(&self, slot: u32) -> &[u32] {
+        self.positions.get(slot as usize).map_or(&[], Vec::as_slice)
+    }
+
+    /// Lists the positions of the slots of `wrt`, when `wrt` differs from
+    /// the last call's.
+    fn list(&mut self, wrt: &[u32]) {
         if self.wrt != wrt {
             self.wrt.clear();
             self.wrt.extend_from_slice(wrt);
             let size = wrt.iter().map(|&w| w as usize + 1).max().unwrap_or(0);
-            let mut position = vec![NOT_ASKED; size];
-            let mut repeats = false;
+            self.positions = vec![Vec::new(); size];
             for (i, &w) in wrt.iter().enumerate() {
-                repeats |= position[w as usize] != NOT_ASKED;
-                position[w as usize] = i as u32;
+                self.positions[w as usize].push(i as u32);
             }
-            self.position = (!repeats).then_some(position);
         }
-        self.position.as_deref()
     }
 }
 
@@ -157,7 +156,7 @@ impl Sweep {
         let mut stack: Vec<u32> = Vec::with_capacity(MAX_DEPTH);
         let mut registers = [0u32; REGISTERS];
         for op in ops {
-            let (op, popped) = match *op {
+            let node = match *op {
                 Op::Keep(r) => {
                     registers[r as usize] = stack[stack.len() - 1];
                     continue;
@@ -166,19 +165,20 @@ impl Sweep {
                     stack.push(registers[r as usize]);
                     continue;
                 }
-                Op::Const(v) => (NodeOp::Const(v), 0),
-                Op::Load(s) => (NodeOp::Load(s), 0),
-                Op::Neg => (NodeOp::Neg, 1),
-                Op::Not => (NodeOp::Not, 1),
-                Op::Binary(b) => (NodeOp::Binary(b), 2),
-                Op::Call(f) => (NodeOp::Call(f), f.arity()),
+                Op::Const(v) => NodeOp::Const(v),
+                Op::Load(s) => NodeOp::Load(s),
+                Op::Neg => NodeOp::Neg,
+                Op::Not => NodeOp::Not,
+                Op::Binary(b) => NodeOp::Binary(b),
+                Op::Call(f) => NodeOp::Call(f),
             };
+            let popped = op.operands();
             let from = stack.len() - popped;
             let mut operands = [0u32; 3];
             operands[..popped].copy_from_slice(&stack[from..]);
             stack.truncate(from);
             stack.push(nodes.len() as u32);
-            nodes.push(SweepNode { op, operands });
+            nodes.push(SweepNode { op: node, operands });
         }
         Sweep {
             nodes,
@@ -206,9 +206,7 @@ impl Sweep {
             adjoints,
             asked,
         } = work;
-        let position = asked.of(wrt);
-        // Where slot `s` stands among the slots asked for.
-        let at = |s: u32| position.map(|p| p.get(s as usize).copied().unwrap_or(NOT_ASKED));
+        asked.list(wrt);
         values.resize(n, 0.0);
         partials.resize(n, [0.0; 3]);
         reads.resize(n, false);
@@ -216,10 +214,7 @@ impl Sweep {
             let [a, b, c] = node.operands.map(|o| o as usize);
             let (value, read) = match node.op {
                 NodeOp::Const(v) => (v, false),
-                NodeOp::Load(s) => {
-                    let asked = at(s).map_or_else(|| wrt.contains(&s), |p| p != NOT_ASKED);
-                    (slots[s as usize], asked)
-                }
+                NodeOp::Load(s) => (slots[s as usize], !asked.of(s).is_empty()),
                 NodeOp::Neg => {
                     partials[i][0] = -1.0;
                     (-values[a], reads[a])
@@ -253,18 +248,9 @@ impl Sweep {
                 continue;
             }
             if let NodeOp::Load(slot) = node.op {
-                match at(slot) {
-                    Some(p) => {
-                        if let Some(g) = gradient.get_mut(p as usize) {
-                            *g += a;
-                        }
-                    }
-                    None => {
-                        for (g, &w) in gradient.iter_mut().zip(wrt) {
-                            if w == slot {
-                                *g += a;
-                            }
-                        }
+                for &p in asked.of(slot) {
+                    if let Some(g) = gradient.get_mut(p as usize) {
+                        *g += a;
                     }
                 }
             }
