@@ -241,7 +241,7 @@ fn watched_event(watch: &[StateEnd], x: &[f64]) -> bool {
 mod tests {
     use crate::CompiledModel;
     use crate::simulate::linear::tests::{head, head_record, model_files, run_with};
-    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, Surfaces, span};
+    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, span};
     use hysid_model::data::Dataset;
     use proptest::prelude::*;
 
@@ -253,25 +253,6 @@ mod tests {
             && a.modes == b.modes
             && a.covered == b.covered
             && (a.steps, a.events, a.zeno_steps) == (b.steps, b.events, b.zeno_steps)
-    }
-
-    /// Surfaces kept for a mode and a state serve that mode at the same
-    /// bits only, and are forgotten when the start changes.
-    #[test]
-    fn kept_surfaces_serve_the_same_mode_and_bits_only() {
-        let mut g = Surfaces::default();
-        assert!(!g.kept_at(0, &[1.0, 2.0]));
-        g.keep(0, &[1.0, 0.0]);
-        assert!(g.kept_at(0, &[1.0, 0.0]));
-        assert!(!g.kept_at(1, &[1.0, 0.0]));
-        assert!(!g.kept_at(0, &[1.0, -0.0]));
-        assert!(!g.kept_at(0, &[1.0, 1e-300]));
-        assert!(!g.kept_at(0, &[1.0]));
-        g.step();
-        assert!(!g.kept_at(0, &[1.0, 0.0]));
-        g.keep(0, &[1.0, 0.0]);
-        g.start_mut();
-        assert!(!g.kept_at(0, &[1.0, 0.0]));
     }
 
     /// `data` cut into segments of 40 samples, each started from the state
