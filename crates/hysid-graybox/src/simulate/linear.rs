@@ -149,7 +149,8 @@ impl AffineFlows {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, initial, span};
+    use crate::simulate::initial::initial;
+    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, span};
     use crate::{CompiledModel, GrayBoxModel, extends};
     use hysid_model::data::Dataset;
     use hysid_model::excitation::Excitation;
