@@ -182,7 +182,7 @@ pub(super) fn state_solve(iterations: usize) -> LmSettings {
 /// invariant. Returns the state and its mode; an error when no mode has
 /// one (the solve does not reach [`STEADY_TOLERANCE`], or its rest state
 /// leaves the invariant).
-pub(crate) fn steady(
+fn steady(
     machine: &mut Machine,
     guess: &[f64],
     u: &[f64],

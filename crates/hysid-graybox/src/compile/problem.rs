@@ -1,0 +1,191 @@
+//! What is wrong with a gray-box model, and where: the one error every
+//! check of the compiler returns.
+
+use super::{MAX_MODE_DEFINITIONS, MAX_OPERATIONS};
+use crate::expr::{ExprError, Expression};
+use crate::model::FORMAT_VERSION;
+
+/// What is wrong with a gray-box model: where, and the source text that a
+/// reader can look for in the file ([`InvalidGrayBox::line_in`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{place}: {problem}")]
+pub struct InvalidGrayBox {
+    /// Where in the model (`mode 'free', flow of 'v'`).
+    pub place: String,
+    /// The offending text as written in the file (an expression or a name).
+    pub text: Option<String>,
+    /// What is wrong.
+    pub problem: Problem,
+}
+
+/// The kinds of [`InvalidGrayBox`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Problem {
+    /// An expression that does not compile.
+    #[error(transparent)]
+    Expression(#[from] ExprError),
+    /// A format version this build does not read.
+    #[error("format {0} is not supported (this build reads format {FORMAT_VERSION})")]
+    Version(u32),
+    /// A non-positive or non-finite internal step.
+    #[error("internal_step must be a positive number of seconds")]
+    InternalStep,
+    /// A name that is not an identifier, or is a function's.
+    #[error(
+        "'{0}' is not a valid name (letters, digits and '_', not starting with a digit, not a function)"
+    )]
+    BadName(String),
+    /// A name declared twice (states, inputs, parameters, definitions,
+    /// modes and elements share one namespace each).
+    #[error("'{0}' is declared twice")]
+    Duplicate(String),
+    /// A parameter with non-finite numbers, low above high, or its value
+    /// outside its bounds.
+    #[error("parameter '{0}': need finite value and bounds with low <= value <= high")]
+    Parameter(String),
+    /// Not exactly one output.
+    #[error("need exactly one output (the records hysid reads have one), found {0}")]
+    Outputs(usize),
+    /// No mode.
+    #[error("a model needs at least one mode")]
+    NoMode,
+    /// A mode without the flow of a state.
+    #[error("no flow for state '{0}'")]
+    MissingFlow(String),
+    /// A name that is no state.
+    #[error("'{0}' is not a state")]
+    UnknownState(String),
+    /// A name that is no input.
+    #[error("'{0}' is not an input")]
+    UnknownInput(String),
+    /// A name that is no mode.
+    #[error("'{0}' is not a mode")]
+    UnknownMode(String),
+    /// A definition that reaches itself.
+    #[error("definition '{0}' depends on itself")]
+    Cycle(String),
+    /// A relation where a value is expected.
+    #[error(
+        "'{0}' is a relation (1 where it holds, 0 elsewhere) where a value is expected; \
+         write if(relation, value, other value)"
+    )]
+    NotValue(String),
+    /// A stop's restitution outside `[0, 1)` somewhere in the parameters'
+    /// bounds.
+    #[error(
+        "restitution '{text}' ranges over [{low}, {high}] within the parameters' bounds; \
+         it must lie in [0, 1)"
+    )]
+    Restitution {
+        /// The expression.
+        text: String,
+        /// Its least value.
+        low: f64,
+        /// Its largest value.
+        high: f64,
+    },
+    /// An element's quantity that reads more than the parameters.
+    #[error("'{0}' may only use parameters and numbers")]
+    NotParametric(String),
+    /// An energy that reads more than the states and parameters.
+    #[error("'{0}' may only use states, parameters and numbers")]
+    NotStateFunction(String),
+    /// An element label equal to a declared mode.
+    #[error("the label '{0}' is a declared mode; an element's label must be its own")]
+    LabelIsMode(String),
+    /// A definition that neither the model nor the mode gives.
+    #[error("definition '{0}' has no value in this mode")]
+    Undefined(String),
+    /// A given number that is not finite.
+    #[error("the value of '{0}' is not finite")]
+    NotFinite(String),
+    /// Two friction elements on one velocity.
+    #[error("state '{0}' has two friction elements")]
+    TwoFrictions(String),
+    /// More of something than a model may have.
+    #[error("{count} {what}; a model may have at most {limit}")]
+    TooMany {
+        /// What (`definitions`, `modes`, `elements`).
+        what: &'static str,
+        /// How many the model has.
+        count: usize,
+        /// The limit ([`MAX_DEFINITIONS`](super::MAX_DEFINITIONS),
+        /// [`MAX_MODES`](super::MAX_MODES), [`MAX_ELEMENTS`](super::MAX_ELEMENTS)).
+        limit: usize,
+    },
+    /// More modes with definitions of their own, times the definitions,
+    /// than [`MAX_MODE_DEFINITIONS`].
+    #[error(
+        "{modes} modes give definitions of their own and the model has {definitions} \
+         definitions: each such mode checks them all, at most {MAX_MODE_DEFINITIONS} in all"
+    )]
+    ModeDefinitions {
+        /// Modes with definitions of their own.
+        modes: usize,
+        /// Definitions of the model.
+        definitions: usize,
+    },
+    /// An estimated state's bounds that are not finite with low <= high.
+    #[error("estimate of '{0}': need finite bounds [low, high] with low <= high")]
+    EstimateBounds(String),
+    /// A state both measured (the rule's position or velocity) and estimated.
+    #[error("'{0}' is measured by the rule; it cannot also be estimated")]
+    MeasuredAndEstimated(String),
+    /// An output map not affine in the state the measured rule reads it into.
+    #[error(
+        "output '{output}' = '{value}' is not affine in '{state}', the state the measured rule \
+         reads it into: write the output as a sensor map such as 'c*{state} + off'"
+    )]
+    NotAffine {
+        /// The output's name.
+        output: String,
+        /// Its expression.
+        value: String,
+        /// The rule's position state.
+        state: String,
+    },
+    /// The compiled expressions would hold more than [`MAX_OPERATIONS`].
+    #[error(
+        "the model's expressions, with their definitions written out, hold more than \
+         {MAX_OPERATIONS} operations (the limit)"
+    )]
+    TooLarge,
+}
+
+impl InvalidGrayBox {
+    pub(super) fn new(
+        place: impl Into<String>,
+        text: Option<&str>,
+        problem: impl Into<Problem>,
+    ) -> Self {
+        InvalidGrayBox {
+            place: place.into(),
+            text: text.map(str::to_string),
+            problem: problem.into(),
+        }
+    }
+
+    /// The 1-based line of `source` (the model file's text, TOML or JSON)
+    /// where the offending text is written: the first line holding it as
+    /// a whole string, or a name as a key; an expression also inside a
+    /// longer string. Never a comment or part of another word: `None`
+    /// when it is written nowhere else.
+    pub fn line_in(&self, source: &str) -> Option<usize> {
+        let text = self.text.as_deref().filter(|t| !t.is_empty())?;
+        crate::source::line_of(source, text)
+    }
+}
+
+/// `e`, compiled from `text` at `place`, where a value is expected: not a
+/// relation (a flow, an output, a reset, a level, a stop's position).
+pub(super) fn value(place: &str, text: &str, e: Expression) -> Result<Expression, InvalidGrayBox> {
+    if e.is_relation() {
+        Err(InvalidGrayBox::new(
+            place,
+            Some(text),
+            Problem::NotValue(text.into()),
+        ))
+    } else {
+        Ok(e)
+    }
+}
