@@ -25,18 +25,29 @@
 //! the founding experiment judges its models by their simulated responses
 //! (Juloski, Heemels, Ferrari-Trecate 2003, section 4), and one-step
 //! prediction hardly tells good partitions from bad ones.
+//!
+//! The fit and selection rows are cut in `split`, the refined candidates
+//! made in `refinement`, and a model is held against the affine one in
+//! `affine`.
 
 use hysid_estimation::parsimony;
 
+pub use affine::{AgainstAffine, against_affine};
 use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{OptionError, Settings};
 use hysid_core::search::{Candidate, CandidateError, SearchSpace, Setup};
 use hysid_core::simulate::{HoldoutError, holdout, validate};
-use hysid_core::stages::{Refine, Stages};
-use hysid_model::data::{DataError, Dataset, RowRange};
-use hysid_model::model::{RefinementChoice, RefitStart, ScoredCandidate, Selection, SplitRows};
+use hysid_model::data::{Dataset, RowRange};
+use hysid_model::model::{RefitStart, ScoredCandidate, Selection, SplitRows};
 use rayon::prelude::*;
+pub use refinement::REFINEMENTS;
+use refinement::{add_refined, refinement_record};
+pub use split::{SHORT_SELECTION, Split, both_ends, folds, record_split, split, splits};
+
+mod affine;
+mod refinement;
+mod split;
 
 /// Which identification rows score the candidates, and how the choice is
 /// refitted on all of them.
@@ -179,139 +190,6 @@ pub enum SelectError {
     /// The back-end refused the problem or the final fit failed.
     #[error(transparent)]
     Identify(#[from] IdentifyError),
-}
-
-/// Fit rows and selection rows, as half-open ranges of the identification
-/// record.
-pub type Split = ((usize, usize), (usize, usize));
-
-/// The splits of an identification record of `n` rows that `plan` asks
-/// for: one ([`split`]), the two ends of a short record ([`both_ends`]),
-/// or the rolling-origin folds ([`folds`]).
-pub fn splits(data: &Dataset, plan: &Plan) -> Result<Vec<Split>, SelectError> {
-    let n = data.len();
-    if let Some(k) = plan.select_records {
-        return Ok(vec![record_split(data, k, plan)?]);
-    }
-    match plan.folds {
-        Some(k) => folds(n, k, plan.warmup),
-        None if plan.select.is_none() => Ok(both_ends(n, split(n, plan)?)),
-        None => Ok(vec![split(n, plan)?]),
-    }
-}
-
-/// The fit rows and selection rows when the last `k` records of `data`
-/// are held out for selection.
-pub fn record_split(data: &Dataset, k: usize, plan: &Plan) -> Result<Split, SelectError> {
-    let bad = |reason: String| SelectError::Records { records: k, reason };
-    if plan.select.is_some() || plan.folds.is_some() {
-        return Err(bad(
-            "selection rows and folds are not taken beside it".into()
-        ));
-    }
-    let ranges = data.record_ranges();
-    let count = ranges.len();
-    if k == 0 || k >= count {
-        return Err(bad(format!(
-            "must be between 1 and the number of records less one ({})",
-            count - 1
-        )));
-    }
-    let a = ranges[count - k].start;
-    Ok(((0, a), (a, data.len())))
-}
-
-/// Default selection blocks shorter than this are joined by the block of
-/// the same length at the record's start: two blocks of the
-/// one-standard-error rule ([`parsimony::BLOCK`]), below which that rule
-/// cannot act and a score rests on a few samples.
-pub const SHORT_SELECTION: usize = 2 * parsimony::BLOCK;
-
-/// The default split `last` (the selection block at the end), and, when
-/// that block is shorter than [`SHORT_SELECTION`], first the split with a
-/// block of the same length at the start of the record (fitted on the rows
-/// after it): on a record of tens of rows the candidates are then scored
-/// on twice the rows, and both fit-row sets are contiguous records.
-pub fn both_ends(n: usize, last: Split) -> Vec<Split> {
-    let (_, (a, b)) = last;
-    let len = b - a;
-    if len >= SHORT_SELECTION {
-        return vec![last];
-    }
-    vec![((len, n), (0, len)), last]
-}
-
-/// `k` contiguous blocks of an `n`-row record: fold `j` (1 to `k - 1`)
-/// fits on the blocks before block `j` and is scored on block `j` (a
-/// rolling origin, as time series are cross-validated: the fit rows always
-/// precede the rows they are scored on).
-pub fn folds(n: usize, k: usize, warmup: usize) -> Result<Vec<Split>, SelectError> {
-    let bad = |reason: String| SelectError::Folds { folds: k, reason };
-    if k < 2 {
-        return Err(bad("at least 2 folds are needed".into()));
-    }
-    let edge = |j: usize| j * n / k;
-    if edge(1) <= warmup {
-        return Err(bad(format!(
-            "blocks of {} rows leave nothing to score after a warm-up of {warmup}",
-            edge(1)
-        )));
-    }
-    Ok((1..k)
-        .map(|j| ((0, edge(j)), (edge(j), edge(j + 1))))
-        .collect())
-}
-
-/// The fit rows and the selection rows of an identification record of `n`
-/// rows, as half-open ranges of the record. `plan.select` counts rows of
-/// the file (the record starts at `plan.first_row`); the selection rows
-/// must start or end the record, so that the fit rows are one contiguous
-/// record.
-pub fn split(n: usize, plan: &Plan) -> Result<Split, SelectError> {
-    let first = plan.first_row;
-    let given = plan.select.unwrap_or(RowRange {
-        start: Some(first + n - n * DEFAULT_SELECTION_PERCENT / 100),
-        end: None,
-    });
-    let bad = |reason: String| SelectError::Rows {
-        rows: given.to_string(),
-        reason,
-    };
-    let in_record = |v: Option<usize>| {
-        v.map(|v| {
-            v.checked_sub(first)
-                .ok_or_else(|| bad(format!("before the first identification row {first}")))
-        })
-        .transpose()
-    };
-    let rows = RowRange {
-        start: in_record(given.start)?,
-        end: in_record(given.end)?,
-    };
-    if rows.end.is_some_and(|e| e > n) {
-        return Err(bad(format!(
-            "end beyond the last identification row {}",
-            first + n - 1
-        )));
-    }
-    let (a, b) = rows.resolve(n).map_err(|e: DataError| bad(e.to_string()))?;
-    let fit = match (a, b) {
-        (0, b) if b < n => (b, n),
-        (a, b) if b == n && a > 0 => (0, a),
-        _ => {
-            return Err(bad(format!(
-                "must start or end the {n} identification rows and leave some of them to fit on"
-            )));
-        }
-    };
-    if b - a <= plan.warmup {
-        return Err(bad(format!(
-            "{} rows leave nothing to score after a warm-up of {}",
-            b - a,
-            plan.warmup
-        )));
-    }
-    Ok((fit, (a, b)))
 }
 
 /// One candidate: a back-end and its set-up.
@@ -815,174 +693,9 @@ fn fit_on(model: &Model, data: &Dataset, warmup: usize) -> Option<f64> {
         .filter(|f| f.is_finite())
 }
 
-/// The refinements tried, in order: the mode parameters on simulation
-/// error, then also the region boundaries (for two or more modes).
-pub const REFINEMENTS: [Refine; 2] = [Refine::Sim, Refine::SimRegions];
-
-/// `trial` with the refinement `refine`, starting from `fits`, its models
-/// on the fit rows, when its back-end runs the stages after a PWARX fit
-/// and the user did not set the refinement.
-fn refined<'a>(trial: &Trial<'a>, fits: &[Model], refine: Refine) -> Option<Trial<'a>> {
-    let settings = &trial.setup.settings;
-    if !trial.backend.has_stages() || Stages::refine_given(settings).is_some() {
-        return None;
-    }
-    let mut values = trial.values.clone();
-    values.push((Stages::REFINE.into(), refine.as_str().into()));
-    Some(Trial {
-        backend: trial.backend,
-        values,
-        setup: Setup {
-            settings: Stages::with_refine(settings, refine),
-            ..trial.setup.clone()
-        },
-        start: fits.to_vec(),
-    })
-}
-
-/// The refinements worth scoring: for every mode count, the back-end's
-/// candidate of best selection FIT with each of [`REFINEMENTS`]
-/// (the region stage only for two or more modes and no known stops, where
-/// it can run). Every choice the one-standard-error rule can make among
-/// the unrefined candidates is the best of its mode count, so each can be
-/// compared refined. Each starts from the candidate's own fits.
-fn refinement_trials<'a>(
-    request: &Request<'a>,
-    trials: &[Trial<'a>],
-    scored: &[Scored],
-) -> Vec<Trial<'a>> {
-    let own = affine_index(request, trials.len()).unwrap_or(trials.len());
-    let mut counts = std::collections::BTreeSet::new();
-    let mut out = Vec::new();
-    let candidates = scored.iter().map(|s| &s.candidate);
-    for i in ranking(candidates).into_iter().filter(|&i| i < own) {
-        let Some(modes) = scored[i].candidate.modes.filter(|&m| counts.insert(m)) else {
-            continue;
-        };
-        let regions_can_move = modes > 1 && request.setup.priors.saturation.is_empty();
-        let tried = &REFINEMENTS[..if regions_can_move { 2 } else { 1 }];
-        out.extend(
-            tried
-                .iter()
-                .filter_map(|&r| refined(&trials[i], &scored[i].fits, r)),
-        );
-    }
-    out
-}
-
-/// `scored`, the scored `trials`, with the [`refinement_trials`] scored
-/// and added to both, as candidates of their own, after the back-end's
-/// candidates and before the affine reference, which stays last.
-fn add_refined<'a>(
-    request: &Request<'a>,
-    trials: &mut Vec<Trial<'a>>,
-    mut scored: Vec<Scored>,
-    parts: &[Part],
-    ctx: &RunContext<'_>,
-) -> Vec<Scored> {
-    let extra = refinement_trials(request, trials, &scored);
-    if extra.is_empty() {
-        return scored;
-    }
-    let extra_scored = score_all(request, &extra, parts, ctx, "refining");
-    let at = affine_index(request, trials.len()).unwrap_or(trials.len());
-    trials.splice(at..at, extra);
-    scored.splice(at..at, extra_scored);
-    scored
-}
-
-/// The refined candidates made from the chosen one's unrefined options,
-/// with the one chosen marked `kept` (none when the unrefined candidate,
-/// or another, was chosen).
-fn refinement_record(scored: &[ScoredCandidate], chosen: usize) -> Vec<RefinementChoice> {
-    let unrefined = |c: &ScoredCandidate| -> Vec<(String, String)> {
-        c.values
-            .iter()
-            .filter(|(k, _)| k != Stages::REFINE)
-            .cloned()
-            .collect()
-    };
-    let origin = unrefined(&scored[chosen]);
-    scored
-        .iter()
-        .enumerate()
-        .filter(|(_, c)| c.method == scored[chosen].method && unrefined(c) == origin)
-        .filter_map(|(i, c)| {
-            let (_, value) = c.values.iter().find(|(k, _)| k == Stages::REFINE)?;
-            Some(RefinementChoice {
-                refine: value.clone(),
-                fit_sim: c.fit_sim,
-                kept: i == chosen,
-            })
-        })
-        .collect()
-}
-
-/// A model's free-run FIT on a record beside the affine ARX model's.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AgainstAffine {
-    /// The model's free-run simulation FIT, percent.
-    pub model: f64,
-    /// The free-run FIT of the affine ARX model of the same orders (and the
-    /// same priors, without a mode count) fitted on the same record.
-    pub affine: f64,
-    /// The orders `(na, nb)` of both.
-    pub orders: (usize, usize),
-}
-
-impl AgainstAffine {
-    /// True when the model simulates the record worse than the affine one.
-    pub fn below(&self) -> bool {
-        self.model < self.affine
-    }
-
-    /// The warning every front end gives when [`AgainstAffine::below`];
-    /// `rows` names the rows ("its identification rows", "these rows"). The
-    /// baseline is fitted on the rows it is scored on: what a user who has
-    /// only these rows could have had with one linear model.
-    pub fn warning(&self, rows: &str) -> String {
-        let (na, nb) = self.orders;
-        format!(
-            "the model's free-run FIT on {rows} ({:.2} %) is below that of an affine ARX({na},{nb}) fitted on these same rows ({:.2} %)",
-            self.model, self.affine
-        )
-    }
-}
-
-/// Scores `model` and the affine model `affine` fits on `data` with
-/// `orders` and `priors` by free-run simulation of `data` (first `warmup`
-/// samples left out). `None` when the affine model cannot be fitted or
-/// either simulation cannot be scored: the comparison is a courtesy, never
-/// a reason to fail.
-pub fn against_affine(
-    model: &Model,
-    affine: &dyn Backend,
-    data: &Dataset,
-    orders: hysid_model::regressors::RegressorSpec,
-    priors: &hysid_core::priors::Priors,
-    warmup: usize,
-) -> Option<AgainstAffine> {
-    let mut priors = priors.clone();
-    priors.modes = None;
-    priors.max_modes = None;
-    let problem = Problem {
-        data,
-        orders,
-        priors: &priors,
-        priors_origin: None,
-    };
-    let reference = affine
-        .run(&problem, &Default::default(), &RunContext::quiet(0))
-        .ok()?;
-    Some(AgainstAffine {
-        model: fit_on(model, data, warmup)?,
-        affine: fit_on(&reference, data, warmup)?,
-        orders: (orders.na, orders.nb),
-    })
-}
-
 #[cfg(test)]
 mod tests {
+    use super::refinement::refinement_trials;
     use super::*;
 
     fn plan(rows: &str) -> Plan {
