@@ -2,8 +2,7 @@
 //! compiled into tapes with the definitions inlined.
 
 use super::names::{mode_index, symbol_table};
-use super::problem::value;
-use super::problem::{InvalidGrayBox, Problem};
+use super::problem::{InvalidGrayBox, Problem, value};
 use super::{CompiledMode, CompiledTransition, MAX_OPERATIONS};
 use crate::expr::{
     DefinitionError, Definitions, ExprError, Expression, InlineError, Relation, Shared,

@@ -1,6 +1,7 @@
-//! Initial states: the model's rule (given, the rest state, or read from
-//! the measured output through the sensor's inverse) and the states it
-//! leaves unknown, estimated from the record's warm-up outputs.
+//! Initial states by the model's rule: given, the rest state under the
+//! first input, or read from the measured output through the sensor's
+//! inverse; the states the rule leaves unknown at given values (`warmup`
+//! estimates them).
 
 use super::schedule::Schedule;
 use super::{GrayBoxRun, HybridState, Machine};
