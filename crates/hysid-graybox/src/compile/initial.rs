@@ -111,8 +111,8 @@ pub(super) fn initial_rule(
 }
 
 /// With the measured rule, the output map of every mode must be affine in
-/// the position state ([`crate::expr::Expression::affine_in`]): the state is read from
-/// the output through its inverse.
+/// the position state ([`crate::expr::Expression::affine_in`]): the
+/// state is read from the output through its inverse.
 pub(super) fn check_sensor(
     m: &GrayBoxModel,
     initial: &CompiledInitial,

@@ -34,8 +34,8 @@ pub fn outputs_from(
 /// [`run_from`] with the derivatives of its outputs and states in the
 /// parameters and the estimated states ([`GrayBoxRun::sensitivities`]:
 /// forward sensitivities, exact but for fitted delays, see
-/// [`differentiable`](super::differentiable)). The outputs and states are [`run_from`]'s, bit
-/// for bit.
+/// [`differentiable`](super::differentiable)). The outputs and states
+/// are [`run_from`]'s, bit for bit.
 pub fn run_with_sensitivities(
     m: &CompiledModel,
     values: &[f64],
