@@ -248,9 +248,9 @@ pub struct Machine<'a> {
     /// Guard surfaces at the start of the step and at its trial end.
     g: Surfaces,
     /// The quiet lane's tests of the regime it steps in ([`quiet`]): the
-    /// elements' regimes they were listed for, and `None` where an element
-    /// is held (the lane closed).
-    watch: (Vec<ElementRegime>, Option<Vec<StateEnd>>),
+    /// elements' regimes they were listed for (`None`: not listed yet),
+    /// and `None` where an element is held (the lane closed).
+    watch: (Option<Vec<ElementRegime>>, Option<Vec<StateEnd>>),
     /// Per mode, whether a guard surface reads an input.
     input_guards: Vec<bool>,
     /// The elements' effects in the regime of the step being integrated,
@@ -362,7 +362,7 @@ impl<'a> Machine<'a> {
             x1: vec![0.0; n],
             xm: vec![0.0; n],
             g: Surfaces::default(),
-            watch: (Vec::new(), None),
+            watch: (None, None),
             input_guards: m
                 .modes
                 .iter()

@@ -87,8 +87,7 @@ impl Surfaces {
 
     /// The trial end becomes the start (by index: no vector moves).
     pub(super) fn step(&mut self) {
-        self.kept = None;
-        self.start = 1 - self.start;
+        self.stepped(1);
     }
 }
 

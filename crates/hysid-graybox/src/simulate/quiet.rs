@@ -88,7 +88,7 @@ impl Machine<'_> {
         {
             return false;
         }
-        if self.watch.0.is_empty() || self.watch.0 != hs.regimes {
+        if self.watch.0.as_deref() != Some(&hs.regimes[..]) {
             let held = (hs.regimes.iter())
                 .any(|r| matches!(r, ElementRegime::Stuck | ElementRegime::Resting));
             let tests = (!held).then(|| {
@@ -96,7 +96,7 @@ impl Machine<'_> {
                     .filter_map(|(i, &regime)| self.state_end(i, regime))
                     .collect()
             });
-            self.watch = (hs.regimes.clone(), tests);
+            self.watch = (Some(hs.regimes.clone()), tests);
         }
         if self.watch.1.is_none() {
             return false;
@@ -112,7 +112,12 @@ impl Machine<'_> {
     /// slots loaded only for a crossed guard's `when` condition. The
     /// event's location asks it at every trial.
     pub(super) fn ends_lane(&mut self, x: &[f64], u: &[f64], mode: usize) -> bool {
-        if self.watch.1.as_deref().is_some_and(|w| watched_event(w, x)) {
+        if self
+            .watch
+            .1
+            .as_deref()
+            .is_some_and(|w| watched_event(w, |s| x[s]))
+        {
             return true;
         }
         let m = self.m;
@@ -185,7 +190,7 @@ impl Lane<'_> {
         for taken in 0..n_sub {
             apply(x, x1);
             let at = |s| x1.at(s);
-            if self.watch.iter().any(|e| e.margin_by(at) >= 0.0) {
+            if watched_event(self.watch, at) {
                 return taken;
             }
             for (((c, row), g0), g1) in self.guards.iter().zip(&*start).zip(end.iter_mut()) {
@@ -230,11 +235,11 @@ impl<const N: usize> LaneState for [f64; N] {
     }
 }
 
-/// Whether `x` meets one of the `watch` list's ends (a stop reached, a
-/// sliding velocity at zero or reversed).
-#[inline]
-fn watched_event(watch: &[StateEnd], x: &[f64]) -> bool {
-    watch.iter().any(|end| end.margin(x) >= 0.0)
+/// Whether the state read by `x` meets one of the `watch` list's ends (a
+/// stop reached, a sliding velocity at zero or reversed).
+#[inline(always)]
+fn watched_event(watch: &[StateEnd], x: impl Fn(usize) -> f64 + Copy) -> bool {
+    watch.iter().any(|end| end.margin_by(x) >= 0.0)
 }
 
 #[cfg(test)]
