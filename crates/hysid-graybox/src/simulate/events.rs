@@ -96,6 +96,7 @@ impl Machine<'_> {
     /// into `out`, for [`Machine::fire_across_jump`] to compare across the
     /// next input's jump; nothing where no guard surface of the mode reads
     /// an input (the jump cannot move them).
+    #[inline]
     pub(super) fn surfaces_at_end(&mut self, hs: &HybridState, u: &[f64], out: &mut Vec<f64>) {
         if self.shortcuts && !self.input_guards[hs.mode] {
             out.clear();
@@ -346,6 +347,7 @@ impl Machine<'_> {
     /// Fires the transitions whose guards a jump crossed (`g_before`: the
     /// surfaces before it): the input's at a sample instant, a stop's
     /// reset; whether one fired.
+    #[inline]
     pub(super) fn fire_across_jump(
         &mut self,
         hs: &mut HybridState,
@@ -384,6 +386,7 @@ impl Machine<'_> {
     /// Re-settles the held velocities under a new input: a stuck friction
     /// or a resting stop whose force now exceeds its level lets go.
     /// Whether any element was held.
+    #[inline]
     pub(super) fn resettle(&mut self, hs: &mut HybridState, u: &[f64]) -> bool {
         let m = self.m;
         let mut held = false;

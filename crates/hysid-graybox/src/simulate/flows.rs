@@ -113,6 +113,7 @@ impl Machine<'_> {
 
     /// Lists what the elements do to the flows in the regimes of `hs`, and
     /// selects the model of its sliding regime.
+    #[inline]
     pub(super) fn prepare(&mut self, hs: &HybridState) {
         self.select(hs, None);
         if self.effects_of == hs.regimes {
@@ -278,6 +279,7 @@ impl Machine<'_> {
 
     /// Every derivative of the state is exactly zero under the input `u`
     /// (read state by state up to the first that is not).
+    #[inline]
     pub(super) fn at_rest(&mut self, hs: &HybridState, u: &[f64]) -> bool {
         self.load(&hs.x, u);
         self.prepare(hs);
@@ -286,6 +288,7 @@ impl Machine<'_> {
     }
 
     /// The output of the state under the sample's input `u`.
+    #[inline]
     pub(super) fn output(&mut self, hs: &HybridState, u: &[f64]) -> f64 {
         self.load(&hs.x, u);
         self.m.modes[hs.mode].output.eval(&self.slots)
@@ -294,6 +297,7 @@ impl Machine<'_> {
     /// The output of the state under the sample's input `u`, its mode label,
     /// and whether it satisfies its mode's invariant under `held`, the input
     /// that brought it there (the regime reached, before the new input acts).
+    #[inline]
     pub fn observe(&mut self, hs: &HybridState, u: &[f64], held: &[f64]) -> (f64, usize, bool) {
         let m = self.m;
         let invariant = &m.modes[hs.mode].invariant;

@@ -55,6 +55,7 @@ impl Schedule {
     }
 
     /// The input of sample `k` in effect from `t` seconds into it.
+    #[inline]
     pub(super) fn inputs(&self, data: &Dataset, k: usize, t: f64, u: &mut [f64]) {
         for (i, (x, (q, r))) in u.iter_mut().zip(&self.lags).enumerate() {
             let back = q + usize::from(t < *r);
@@ -65,6 +66,7 @@ impl Schedule {
     /// Writes the pieces of sample `k` into `pieces` (reusing its buffers)
     /// in time order, consecutive pieces of equal inputs merged, and
     /// returns how many there are (one without delays).
+    #[inline]
     pub(super) fn fill(
         &self,
         data: &Dataset,
