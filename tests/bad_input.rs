@@ -545,6 +545,42 @@ fn bad_selections_and_orders() {
         &["regressors cannot identify 18446744073709551615 modes"],
         &out,
     );
+    // Orders past the record's length are refused before anything is
+    // sized by them (the parameter names of a huge order took all memory).
+    for (na, nb) in [(huge, "1"), ("1000000000", "1"), ("1", "1000000000")] {
+        bad(
+            &identify_orders(data, o, &["--na", na, "--nb", nb]),
+            &["the record has 200 samples", "orders need more than"],
+            &out,
+        );
+    }
+    // Counts held in memory or drawn up front are bounded.
+    let count = "100000000000";
+    for (method, option) in [
+        ("cluster", "restarts"),
+        ("klinreg", "restarts"),
+        ("bounded", "restarts"),
+        ("bayes", "particles"),
+    ] {
+        let set = format!("{option}={count}");
+        bad(
+            &identify_with(data, o, method, &["--modes", "2", "--set", &set]),
+            &[&format!("--set {set}"), "must be in"],
+            &out,
+        );
+    }
+    bad(
+        &identify_with(data, o, "cluster", &["--auto", "--refit-starts", count]),
+        &["--refit-starts 100000000000", "must be in 1..=100000"],
+        &out,
+    );
+    // A grid without the mode count its back-end needs: every candidate
+    // refused, an error rather than the affine reference written.
+    bad(
+        &identify_with(data, o, "cluster", &["--auto", "--grid", "c=4,8"]),
+        &["--grid", "needs the number of modes", "add modes="],
+        &out,
+    );
     report();
 }
 
@@ -623,6 +659,11 @@ fn malformed_model_files() {
             &["theta.json", "mode 0", "theta has 2 entries", "need 3"],
         ),
         (
+            "orders.json",
+            r#"{"kind":"pwarx","na":18446744073709551615,"nb":1,"inputs":1,"modes":[{"theta":[0.5]}]}"#,
+            &["orders.json", "more parameters than a model can hold"],
+        ),
+        (
             "nan.json",
             r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,"NaN",0.0]}]}"#,
             &["nan.json", "invalid type: string \"NaN\""],
@@ -679,11 +720,12 @@ fn malformed_model_files() {
     report();
 }
 
-/// A misspelt field of a PWARX model or hybrid automaton is refused, in
-/// one line naming the file and the field: the ball of a misspelt reset
-/// does not fall through the floor.
+/// A misspelt field of a PWARX model or hybrid automaton, or a number of
+/// an automaton that is not finite, is refused, in one line naming the
+/// file and the field: the ball of a misspelt reset does not fall through
+/// the floor.
 #[test]
-fn misspelt_fields_of_pwarx_models_and_automata() {
+fn misspelt_fields_and_numbers_not_finite_in_model_files() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let data = good_csv(d);
@@ -705,6 +747,26 @@ fn misspelt_fields_of_pwarx_models_and_automata() {
             "step.toml",
             ball.replace("internal_step = ", "internal_stp = "),
             &["unknown field `internal_stp`"],
+        ),
+        // TOML writes NaN and infinities: the numbers of an automaton are
+        // checked finite as its matrices are.
+        (
+            "nan-state.toml",
+            ball.replace("state = [2.0, 0.0]", "state = [nan, 0.0]"),
+            &["initial_state.state has a non-finite entry"],
+        ),
+        (
+            "inf-output.toml",
+            ball.replace("c = [1.0, 0.0]", "c = [1.0, 0.0]\ne = inf"),
+            &["output.e has a non-finite entry"],
+        ),
+        (
+            "nan-reset.toml",
+            ball.replace(
+                "reset = { r = [[1.0, 0.0], [0.0, -0.75]] }",
+                "reset = { r = [[1.0, 0.0], [0.0, -0.75]], c = [0.0, nan] }",
+            ),
+            &["reset.c has a non-finite entry"],
         ),
         (
             "region.json",
@@ -1091,6 +1153,11 @@ fn malformed_prior_files() {
             &["syntax.toml", "TOML parse error at line 1, column 9"],
         ),
         (
+            "unreachable.toml",
+            "[bounds]\na1 = [0.0, 1.0]\n[[equality]]\ncoefficients = { a1 = 1.0 }\nvalue = 5.0\n",
+            &["unreachable.toml", "[[equality]]", "inside [bounds]"],
+        ),
+        (
             "past-stop.toml",
             "[[saturation]]\nlevel = -1000.0\nbound = \"max\"\n",
             &[
@@ -1148,6 +1215,26 @@ fn malformed_experiment_files() {
             "method.toml",
             format!("title = \"x\"\n{data}{}", run.replace("arx", "nosuch")),
             vec!["method.toml", "'nosuch'"],
+        ),
+        // Refused before any run starts, not reported as every run failing.
+        (
+            "model-file.toml",
+            format!(
+                "title = \"x\"\n{data}{}set = {{ model = \"nope.toml\" }}\n",
+                run.replace("arx", "physical")
+            ),
+            vec![
+                "model-file.toml",
+                "'a'",
+                "set.model",
+                "nope.toml",
+                "no such file",
+            ],
+        ),
+        (
+            "warmup.toml",
+            format!("title = \"x\"\n{}warmup = 1000\n{run}", data),
+            vec!["[data] warmup = 1000", "50 samples", "none scored"],
         ),
         (
             "sweep.toml",
@@ -1250,6 +1337,11 @@ fn malformed_simulation_options() {
         &out,
     );
     bad(&excite("n=0,hold=2,low=0,high=1"), &["--excite", "n"], &out);
+    bad(
+        &excite("n=20,hold=2,low=-1e308,high=1e308"),
+        &["--excite", "high - low finite"],
+        &out,
+    );
     bad(
         &excite("n=20,hold=0,low=0,high=1"),
         &["--excite", "hold"],

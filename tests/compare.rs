@@ -355,7 +355,7 @@ fn auto_runs_choose_on_folds() {
     std::fs::write(&exp, none).unwrap();
     let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
     assert_eq!(code, 2);
-    assert!(err.contains("refit_starts must be at least 1"), "{err}");
+    assert!(err.contains("refit_starts must be in 1..=100000"), "{err}");
     assert!(!out.exists());
 }
 

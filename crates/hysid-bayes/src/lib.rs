@@ -35,7 +35,7 @@ pub use particles::{MAX_REDRAWS, ParticleCloud, log_sum_exp, systematic};
 pub use prior::{ModePrior, black_box_priors, sqrt_psd};
 
 use hysid_core::backend::{Deadline, IdentifyError, RunContext};
-use hysid_core::options::{CheckOptions, OptionError, check_float};
+use hysid_core::options::{CheckOptions, OptionError, check_count, check_float};
 use hysid_core::priors::{PriorKind, Priors};
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::noise::{local_noise_sigma, noise_floor};
@@ -109,6 +109,7 @@ impl CheckOptions for BayesOptions {
                 "must be at least 2",
             ));
         }
+        check_count("particles", self.particles, 2)?;
         check_float(
             "noise_std",
             self.noise_std,

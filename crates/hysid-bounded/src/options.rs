@@ -1,6 +1,6 @@
 //! The options of the `bounded` back-end, and their checks.
 
-use hysid_core::options::{CheckOptions, OptionError, OptionType, check_float};
+use hysid_core::options::{CheckOptions, OptionError, OptionType, check_count, check_float};
 use hysid_estimation::regions::RegionMethod;
 use serde::{Deserialize, Serialize};
 
@@ -100,6 +100,7 @@ impl CheckOptions for BoundedOptions {
                 "must be in 1..=100000",
             ));
         }
+        check_count("restarts", self.restarts, 0)?;
         check_float("t0", self.t0, |t| t > 0.0, "must be a finite number > 0")?;
         check_float(
             "alpha",

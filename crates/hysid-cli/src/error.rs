@@ -126,6 +126,13 @@ impl From<hysid::select::SelectError> for CliError {
         use hysid::select::SelectError;
         match e {
             SelectError::Identify(e) => e.into(),
+            SelectError::EveryCandidateRefused(e) => match *e {
+                IdentifyError::NeedsModeCount { method, .. } => Self::input(format!(
+                    "--grid: every candidate of '{method}' needs the number of modes: add \
+                     modes=S1,S2,... to the grid, or give --modes S"
+                )),
+                e => e.into(),
+            },
             SelectError::Folds { folds, reason } => {
                 Self::input(format!("--folds {folds}: {reason}"))
             }

@@ -321,8 +321,14 @@ pub fn weighted_kmeans_until(
     deadline: &Deadline,
 ) -> Clusters {
     let av = weighted_features(f);
+    // Drawn in restart order, none after the deadline: a restart's draws
+    // do not depend on whether later ones are drawn.
     let starts: Vec<Vec<f64>> = (0..restarts.max(1))
-        .map(|_| initial_centres(f, &av, s, init, rng))
+        .map_while(|r| {
+            deadline
+                .admits(r)
+                .then(|| initial_centres(f, &av, s, init, rng))
+        })
         .collect();
     let runs: Vec<Option<Clusters>> = starts
         .into_par_iter()

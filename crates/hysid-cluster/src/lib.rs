@@ -47,7 +47,7 @@ pub use error::ClusterError;
 pub use fit::{ClusterDiagnostics, default_c, fit};
 
 use hysid_core::backend::{IdentifyError, Problem, RunContext};
-use hysid_core::options::{CheckOptions, OptionError, check_float};
+use hysid_core::options::{CheckOptions, OptionError, check_count, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_core::stages::{AUTO_TRIM, Stages};
@@ -118,8 +118,9 @@ hysid_core::backend_options! {
         /// Single linkage: merge distance threshold; none: cut into `modes` clusters.
         sl_distance: Option<f64> = None,
         /// Region estimation: mrlp (one LP, complete partition), msvm (soft-margin
-        /// multicategory SVM, complete partition) or psvc (pairwise proximal SVM, HIT's
-        /// default, may leave holes).
+        /// multicategory SVM, complete partition), psvc (pairwise proximal SVM, HIT's
+        /// default, may leave holes) or softmax (multinomial logistic regression,
+        /// complete partition).
         regions: hysid_estimation::regions::RegionMethod = hysid_estimation::regions::RegionMethod::Mrlp,
         /// Soft-margin weight of msvm (and penalty of mrlp misclassifications where used).
         svm_c: f64 = 1.0,
@@ -167,6 +168,7 @@ impl CheckOptions for ClusterOptions {
                 "need at least one K-means run",
             ));
         }
+        check_count("restarts", self.restarts, 1)?;
         if self.max_iter == 0 {
             return Err(OptionError::invalid(
                 "max_iter",

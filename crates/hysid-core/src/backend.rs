@@ -293,6 +293,22 @@ impl IdentifyError {
     pub fn is_bad_input(&self) -> bool {
         !matches!(self, IdentifyError::Failed { .. })
     }
+
+    /// True when the request itself is refused, whatever rows it is run
+    /// on: an unknown method, an option or a prior refused, a mode count
+    /// missing or contradictory.
+    pub fn is_refused_request(&self) -> bool {
+        matches!(
+            self,
+            IdentifyError::UnknownMethod { .. }
+                | IdentifyError::Options(_)
+                | IdentifyError::Prior(_)
+                | IdentifyError::NoOrdinaryMode { .. }
+                | IdentifyError::NeedsModeCount { .. }
+                | IdentifyError::ModesExceedMax { .. }
+                | IdentifyError::PriorMismatch { .. }
+        )
+    }
 }
 
 /// What a back-end implements.

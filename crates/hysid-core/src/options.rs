@@ -253,6 +253,23 @@ impl<T> std::ops::Deref for Checked<T> {
     }
 }
 
+/// The largest count a count option (restarts, particles, starts) takes:
+/// each of them is held in memory or drawn up front.
+pub const MAX_COUNT: usize = 100_000;
+
+/// Checks that a count option lies in `least..=MAX_COUNT`.
+pub fn check_count(key: &'static str, value: usize, least: usize) -> Result<(), OptionError> {
+    if (least..=MAX_COUNT).contains(&value) {
+        Ok(())
+    } else {
+        Err(OptionError::invalid(
+            key,
+            value,
+            format!("must be in {least}..={MAX_COUNT}"),
+        ))
+    }
+}
+
 /// Checks that a float option is finite and satisfies `ok`.
 pub fn check_float(
     key: &'static str,

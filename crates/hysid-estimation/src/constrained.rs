@@ -108,12 +108,12 @@ pub enum PriorConflict {
     /// The equalities of all modes together have no solution.
     #[error("[[equality]] entries: no parameter vector of all modes satisfies them")]
     InconsistentEqualities,
-    /// The equalities leave no parameter free, and the values they give
-    /// lie outside the bounds.
+    /// No parameter vector that satisfies the equalities lies inside the
+    /// bounds.
     #[error(
-        "[[equality]] entries: together with the [fixed] values and [[tie]]s they determine every parameter, at values outside [bounds]"
+        "[[equality]] entries: no parameter vector that satisfies them with the [fixed] values and [[tie]]s lies inside [bounds]"
     )]
-    DeterminedOutsideBounds,
+    OutsideBounds,
     /// The null-space computation failed.
     #[error(transparent)]
     Linalg(#[from] LinalgError),
@@ -264,10 +264,45 @@ impl Parametrisation {
         let z0 = Self::solve_consistent(&e, &f)?.ok_or(PriorConflict::InconsistentEqualities)?;
         let basis = linalg::null_space(&e)?;
         let z0: Vec<f64> = z0.iter().copied().collect();
-        if basis.ncols() == 0 && !self.inside(&z0) {
-            return Err(PriorConflict::DeterminedOutsideBounds);
+        if !self.reaches_bounds(&z0, &basis) {
+            return Err(PriorConflict::OutsideBounds);
         }
         Ok(Reduction { z0, basis })
+    }
+
+    /// Whether some `w` puts `z0 + basis w` inside the bounds: a linear
+    /// program without objective when `z0` lies outside them. Only a
+    /// certificate of infeasibility says no; a solve that ends otherwise
+    /// leaves the question to the fit.
+    fn reaches_bounds(&self, z0: &[f64], basis: &DMatrix<f64>) -> bool {
+        if self.inside(z0) {
+            return true;
+        }
+        if basis.ncols() == 0 {
+            return false;
+        }
+        let mut program = Program {
+            q: vec![0.0; basis.ncols()],
+            ..Program::default()
+        };
+        // `N_r w <= hi - z0_r` and `-N_r w <= z0_r - lo`.
+        let limits = z0.iter().zip(&self.lower).zip(&self.upper);
+        for (r, ((&z, &lo), &hi)) in limits.enumerate() {
+            for (sign, room) in [(1.0, hi - z), (-1.0, z - lo)] {
+                if room.is_finite() {
+                    let row = program.b.len();
+                    for (c, &n) in basis.row(r).iter().enumerate() {
+                        program.a.push(row, c, sign * n);
+                    }
+                    program.b.push(room);
+                }
+            }
+        }
+        program.cones = vec![Cone::Nonnegative(program.b.len())];
+        !matches!(
+            conic::solve(program, &Settings::default()),
+            Err(SolveError::Infeasible { .. })
+        )
     }
 
     /// Whether `[[equality]]` entries reduce the free variables
@@ -790,12 +825,32 @@ mod tests {
         let text = "[fixed]\nc = 0.0\n[[equality]]\ncoefficients = { b1 = 1.0, c = 1.0 }\nvalue = 0.9\n[bounds]\nb1 = [0.0, 0.05]\n";
         let e = Parametrisation::from_priors(&priors(text), &RegressorSpec::new(0, 1, 1), 2)
             .unwrap_err();
-        assert_eq!(e, PriorConflict::DeterminedOutsideBounds);
+        assert_eq!(e, PriorConflict::OutsideBounds);
         // Inside the bounds, the same entries parametrise the modes.
         let inside = text.replace("value = 0.9", "value = 0.01");
         assert!(
             Parametrisation::from_priors(&priors(&inside), &RegressorSpec::new(0, 1, 1), 2).is_ok()
         );
+    }
+
+    /// Equalities whose solutions all lie outside the bounds, with
+    /// parameters left free, are refused too; where some solution lies
+    /// inside them (though the minimum-norm one does not), they are not.
+    #[test]
+    fn equalities_with_no_solution_inside_the_bounds_are_an_error() {
+        let spec = RegressorSpec::new(1, 1, 1);
+        let refused =
+            "[bounds]\na1 = [0.0, 1.0]\n[[equality]]\ncoefficients = { a1 = 1.0 }\nvalue = 5.0\n";
+        let e = Parametrisation::from_priors(&priors(refused), &spec, 2).unwrap_err();
+        assert_eq!(e, PriorConflict::OutsideBounds);
+        // a1 + b1 = 5 has the minimum-norm solution a1 = b1 = 2.5, outside
+        // a1's bounds, and a1 = 1, b1 = 4 inside them.
+        let reachable = "[bounds]\na1 = [0.0, 1.0]\n[[equality]]\ncoefficients = { a1 = 1.0, b1 = 1.0 }\nvalue = 5.0\n";
+        assert!(Parametrisation::from_priors(&priors(reachable), &spec, 2).is_ok());
+        // With b1 bounded too, no solution is left.
+        let squeezed = reachable.replace("a1 = [0.0, 1.0]", "a1 = [0.0, 1.0]\nb1 = [0.0, 3.0]");
+        let e = Parametrisation::from_priors(&priors(&squeezed), &spec, 2).unwrap_err();
+        assert_eq!(e, PriorConflict::OutsideBounds);
     }
 
     #[test]

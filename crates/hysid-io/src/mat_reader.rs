@@ -164,8 +164,9 @@ const MAX_DEPTH: usize = 16;
 /// Largest ratio of inflated to deflated size (RFC 1951: a 258-byte match
 /// in 2 bits at best, about 1032 to 1).
 const MAX_DEFLATE_RATIO: usize = 1032;
-/// Largest inflated miCOMPRESSED element accepted (4 GiB).
-const MAX_INFLATED: u64 = 1 << 32;
+/// Largest inflated content of a file's miCOMPRESSED elements, all of them
+/// together (1 GiB: 134 million doubles).
+const MAX_INFLATED: u64 = 1 << 30;
 
 /// The 32-bit word at byte `at` of `buf` in the file's byte order; `None`
 /// past the end.
@@ -195,12 +196,18 @@ struct Element {
     next: usize,
 }
 
-/// The elements of `buf` one after the other, each checked to fit inside
-/// `buf` (see [`check_elements`]).
-fn elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<Vec<Element>, String> {
+/// Visits the elements of `buf` one after the other, each checked to fit
+/// inside `buf` (see [`check_elements`]), without holding them: an
+/// inflated element may hold a hundred million tags.
+fn each_element(
+    buf: &[u8],
+    base: usize,
+    le: bool,
+    depth: usize,
+    mut visit: impl FnMut(Element) -> Result<(), String>,
+) -> Result<(), String> {
     // Every tag read below lies inside `buf` (checked before it is read).
     let word = |at: usize| u32_at(buf, at, le).unwrap_or(0);
-    let mut out = Vec::new();
     let mut pos = 0;
     while pos < buf.len() {
         let rest = buf.len() - pos;
@@ -220,13 +227,13 @@ fn elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<Vec<Eleme
         let kind = ty & 0xff;
         if ty >> 16 != 0 && kind != MI_MATRIX && kind != MI_COMPRESSED {
             // Small data element: type and size in 4 bytes, data in the next 4.
-            out.push(Element {
+            visit(Element {
                 pos,
                 kind,
                 start: pos + 4,
                 end: pos + 8,
                 next: pos + 8,
-            });
+            })?;
             pos += 8;
             continue;
         }
@@ -245,39 +252,54 @@ fn elements(buf: &[u8], base: usize, le: bool, depth: usize) -> Result<Vec<Eleme
         } else {
             end.next_multiple_of(8).min(buf.len())
         };
-        out.push(Element {
+        visit(Element {
             pos,
             kind,
             start,
             end,
             next,
-        });
+        })?;
         pos = next;
     }
-    Ok(out)
+    Ok(())
+}
+
+/// What the miCOMPRESSED element `body` may inflate to: the size its
+/// content's tag declares, plus the tag, padded to 8 bytes, but never more
+/// than deflate's largest expansion of `body` (about 1032 to 1); `None`
+/// when the tag does not inflate.
+fn inflated_bound(body: &[u8], le: bool) -> Option<u64> {
+    use std::io::Read;
+    let mut tag = Vec::with_capacity(8);
+    (flate2::read::ZlibDecoder::new(body).take(8))
+        .read_to_end(&mut tag)
+        .ok()?;
+    let most = (body.len() as u64).saturating_mul(MAX_DEFLATE_RATIO as u64);
+    Some(
+        (u64::from(u32_at(&tag, 4, le)?) + 8)
+            .next_multiple_of(8)
+            .min(most),
+    )
 }
 
 /// The inflated content of the miCOMPRESSED element `body` at file byte
-/// `at`, at most [`MAX_INFLATED`] bytes.
-///
-/// The content is one element whose tag declares its size: the buffer is
-/// reserved from it once instead of growing by copies, but never beyond
-/// what `body` can inflate to (deflate expands at most 1032 times), so a
-/// forged size reserves nothing a real stream would not fill.
-fn inflate(body: &[u8], at: usize, le: bool) -> Result<Vec<u8>, String> {
+/// `at`, at most `bound` bytes ([`inflated_bound`]): the buffer is
+/// reserved once, and a stream that inflates past its tag is an error.
+fn inflate(body: &[u8], at: usize, bound: Option<u64>) -> Result<Vec<u8>, String> {
     use std::io::Read;
     let fail =
         |e: std::io::Error| format!("the compressed element at byte {at} does not inflate: {e}");
-    let mut stream = flate2::read::ZlibDecoder::new(body).take(MAX_INFLATED);
-    let mut inflated = Vec::new();
-    (&mut stream)
-        .take(8)
+    // Without a bound the tag itself does not inflate: the read says why.
+    let limit = bound.unwrap_or(8);
+    let mut inflated = Vec::with_capacity(limit as usize);
+    (flate2::read::ZlibDecoder::new(body).take(limit + 1))
         .read_to_end(&mut inflated)
         .map_err(fail)?;
-    if let Some(n) = u32_at(&inflated, 4, le) {
-        inflated.reserve((n as usize).min(body.len().saturating_mul(MAX_DEFLATE_RATIO)));
+    if inflated.len() as u64 > limit {
+        return Err(format!(
+            "the compressed element at byte {at} inflates past the {limit} bytes its tag declares"
+        ));
     }
-    stream.read_to_end(&mut inflated).map_err(fail)?;
     Ok(inflated)
 }
 
@@ -297,18 +319,36 @@ fn check_elements(
     depth: usize,
     mut out: Option<&mut Vec<u8>>,
 ) -> Result<bool, String> {
-    let list = elements(buf, base, le, depth)?;
-    // Only the file's own compressed elements are inflated (and only there
-    // is it worth a parallel pass).
-    let inflated: Vec<Option<Result<Vec<u8>, String>>> = if depth == 0 {
-        list.par_iter()
-            .map(|e| {
-                (e.kind == MI_COMPRESSED).then(|| inflate(&buf[e.start..e.end], base + e.pos, le))
-            })
-            .collect()
-    } else {
-        list.iter().map(|_| None).collect()
-    };
+    if depth > 0 {
+        // Nested elements are checked as they come; only the file's own
+        // are listed, for their compressed ones to be inflated in parallel.
+        each_element(buf, base, le, depth, |e| {
+            check_matrix(buf, base, le, depth, &e)
+        })?;
+        return Ok(false);
+    }
+    let mut list = Vec::new();
+    each_element(buf, base, le, depth, |e| {
+        list.push(e);
+        Ok(())
+    })?;
+    let bounds: Vec<Option<u64>> = (list.iter())
+        .map(|e| match e.kind {
+            MI_COMPRESSED => inflated_bound(&buf[e.start..e.end], le),
+            _ => None,
+        })
+        .collect();
+    let declared: u64 = bounds.iter().flatten().sum();
+    if declared > MAX_INFLATED {
+        return Err(format!(
+            "its compressed variables declare {declared} bytes in all, more than the {MAX_INFLATED} read"
+        ));
+    }
+    let inflated: Vec<Option<Result<Vec<u8>, String>>> = (list.par_iter().zip(&bounds))
+        .map(|(e, &bound)| {
+            (e.kind == MI_COMPRESSED).then(|| inflate(&buf[e.start..e.end], base + e.pos, bound))
+        })
+        .collect();
     if let Some(out) = out.as_deref_mut() {
         let size = |(e, inflated): (&Element, &Option<Result<Vec<u8>, String>>)| match inflated {
             Some(Ok(v)) => v.len() + 8,
@@ -331,21 +371,32 @@ fn check_elements(
                 }
                 continue;
             }
-            (MI_MATRIX, None) if depth < MAX_DEPTH => {
-                // matrw reads an array's sub-elements one after the other
-                // without bounding them by the array's own size: check the
-                // first five (flags, dimensions, name, data) against all
-                // that follows, too.
-                check_sequence(&buf[e.start..], base + e.start, le, 5)?;
-                check_elements(&buf[e.start..e.end], base + e.start, le, depth + 1, None)?;
-            }
-            _ => {}
+            _ => check_matrix(buf, base, le, depth, e)?,
         }
         if let Some(out) = out.as_deref_mut() {
             out.extend_from_slice(&buf[e.pos..e.next]);
         }
     }
     Ok(compressed)
+}
+
+/// Checks the sub-elements of `e`, an element of `buf`, when it is an
+/// miMATRIX element within [`MAX_DEPTH`].
+fn check_matrix(
+    buf: &[u8],
+    base: usize,
+    le: bool,
+    depth: usize,
+    e: &Element,
+) -> Result<(), String> {
+    if e.kind == MI_MATRIX && depth < MAX_DEPTH {
+        // matrw reads an array's sub-elements one after the other without
+        // bounding them by the array's own size: check the first five
+        // (flags, dimensions, name, data) against all that follows, too.
+        check_sequence(&buf[e.start..], base + e.start, le, 5)?;
+        check_elements(&buf[e.start..e.end], base + e.start, le, depth + 1, None)?;
+    }
+    Ok(())
 }
 
 /// The first `count` element tags of `buf`, each checked to fit in what
@@ -799,6 +850,54 @@ mod tests {
             super::check_elements(&b[128..], 128, true, 0, None).unwrap();
             super::check_matrw_reads(&b[128..], 128, true, 0).unwrap();
         }
+    }
+
+    /// A compressed element inflates to at most what its tag declares,
+    /// and the file's compressed elements to at most 1 GiB together: a
+    /// kilobyte of zeros declaring more, and a megabyte declaring 2 GiB,
+    /// are refused without inflating them whole.
+    #[test]
+    fn inflation_is_bounded_by_the_tags_and_in_all() {
+        use std::io::Write;
+        let deflated = |content: &[u8], junk: usize| {
+            let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+            z.write_all(content).unwrap();
+            let mut body = z.finish().unwrap();
+            body.extend(std::iter::repeat_n(0x5a, junk));
+            body
+        };
+        let file = |body: &[u8]| {
+            let mut b = vec![b' '; 116];
+            b.extend([0; 8]);
+            b.extend(0x0100u16.to_le_bytes());
+            b.extend(b"IM");
+            b.extend(15u32.to_le_bytes());
+            b.extend((body.len() as u32).to_le_bytes());
+            b.extend(body);
+            b
+        };
+        // A tag declaring 16 bytes, then 1024 zeros.
+        let mut past = 14u32.to_le_bytes().to_vec();
+        past.extend(16u32.to_le_bytes());
+        past.extend([0; 1024]);
+        let e = super::check_elements(&file(&deflated(&past, 0))[128..], 128, true, 0, None);
+        assert_eq!(
+            e.unwrap_err(),
+            "the compressed element at byte 128 inflates past the 24 bytes its tag declares"
+        );
+        // A tag declaring 2 GiB, in a body that could inflate to that much.
+        let mut huge = 14u32.to_le_bytes().to_vec();
+        huge.extend((1u32 << 31).to_le_bytes());
+        let body = deflated(&huge, 1 << 20);
+        let e = super::check_elements(&file(&body)[128..], 128, true, 0, None).unwrap_err();
+        // Deflate's largest expansion of the body bounds the tag's 2 GiB.
+        let bound = body.len() * super::MAX_DEFLATE_RATIO;
+        assert_eq!(
+            e,
+            format!(
+                "its compressed variables declare {bound} bytes in all, more than the 1073741824 read"
+            )
+        );
     }
 
     #[test]

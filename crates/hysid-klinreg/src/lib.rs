@@ -31,7 +31,7 @@ pub use restarts::{
 };
 
 use hysid_core::backend::{IdentifyError, RunContext};
-use hysid_core::options::{CheckOptions, OptionError, check_float};
+use hysid_core::options::{CheckOptions, OptionError, check_count, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_estimation::constrained::{Parametrisation, fit_modes_on, normal_equations};
 use hysid_estimation::pwarx::{PwarxData, PwarxFit, PwarxMethod};
@@ -80,7 +80,7 @@ impl CheckOptions for KLinRegOptions {
         if self.max_iter == 0 {
             return Err(OptionError::invalid("max_iter", 0, "must be at least 1"));
         }
-        Ok(())
+        check_count("restarts", self.restarts, 0)
     }
 }
 

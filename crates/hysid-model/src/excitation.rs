@@ -111,8 +111,9 @@ pub enum ExcitationError {
         /// Inputs.
         inputs: usize,
     },
-    /// Levels not finite, or low above high.
-    #[error("--excite: need finite low <= high, got {low} and {high}")]
+    /// Levels not finite, low above high, or a range `high - low` past
+    /// the largest number.
+    #[error("--excite: need finite low <= high, with high - low finite, got {low:?} and {high:?}")]
     Levels {
         /// Lower level.
         low: f64,
@@ -142,7 +143,7 @@ impl Excitation {
                 inputs: self.inputs,
             });
         }
-        if !(self.low.is_finite() && self.high.is_finite() && self.low <= self.high) {
+        if !((self.high - self.low).is_finite() && self.low <= self.high) {
             return Err(ExcitationError::Levels {
                 low: self.low,
                 high: self.high,
@@ -195,6 +196,14 @@ mod tests {
         assert_ne!(u, e.generate(8));
         assert!("n=10,hold=0,low=0,high=1".parse::<Excitation>().is_err());
         assert!("n=10,hold=2,low=2,high=1".parse::<Excitation>().is_err());
+        // Finite levels whose range is not: refused, not drawn from.
+        let spread = "n=10,hold=2,low=-1e308,high=1e308".parse::<Excitation>();
+        assert_eq!(
+            spread.unwrap_err().to_string(),
+            "--excite: need finite low <= high, with high - low finite, got -1e308 and 1e308"
+        );
+        let wide = "n=10,hold=2,low=-1e307,high=1e307".parse::<Excitation>();
+        assert!(wide.unwrap().generate(1)[0].iter().all(|v| v.is_finite()));
         assert!(
             "n=10000000,hold=2,low=0,high=1"
                 .parse::<Excitation>()

@@ -142,7 +142,9 @@ impl RegressorSpec {
         }
         let lag = self.lag();
         let ranges = data.record_ranges();
-        let samples: Vec<usize> = ranges.iter().flat_map(|r| r.start + lag..r.end).collect();
+        let samples: Vec<usize> = (ranges.iter())
+            .flat_map(|r| r.start.saturating_add(lag)..r.end)
+            .collect();
         if samples.is_empty() {
             return Err(RegressorError::TooShort {
                 samples: ranges.iter().map(|r| r.len()).max().unwrap_or(0),

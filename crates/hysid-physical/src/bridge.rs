@@ -1,8 +1,8 @@
 //! Bridge to the data-driven world: the per-mode discrete-time affine form
 //! of a [`MechanicalModel`], as a PWARX model with `na = nb = 2`, so that a
 //! physical fit can be compared mode by mode with what PWARX back-ends
-//! identify (`shared/docs/mounting-head.md`, section 2.2, "Discrete-time
-//! view").
+//! identify (the head of Juloski, Heemels, Ferrari-Trecate 2003, section 2
+//! and figure 3; section 4 fits PWARX models with `na = 2`, `nb = 1` or 2).
 //!
 //! In each sliding regime (direction of motion `s`, engaged contacts) the
 //! dynamics are `d/dt [y; v] = A [y; v] + B u + f` with the friction

@@ -60,7 +60,7 @@ pub use target::{GrayBoxTarget, Simulator, Target};
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
-use hysid_core::options::{CheckOptions, Checked, OptionError};
+use hysid_core::options::{CheckOptions, Checked, OptionError, check_count};
 use hysid_core::priors::PriorKind;
 use hysid_mechanical::MechanicalModel;
 use std::path::Path;
@@ -152,6 +152,9 @@ impl CheckOptions for PhysicalOptions {
                 format!("must be in 1..={MAX_SWARMS}"),
             ));
         }
+        check_count("particles", self.particles, 0)?;
+        check_count("starts", self.starts, 0)?;
+        check_count("restarts", self.restarts, 0)?;
         if !(self.swarm_skip.is_finite() && self.swarm_skip >= 0.0) {
             return Err(OptionError::invalid(
                 "swarm_skip",

@@ -236,6 +236,13 @@ impl From<SelectError> for Failure {
     fn from(e: SelectError) -> Self {
         match e {
             SelectError::Identify(e) => e.into(),
+            SelectError::EveryCandidateRefused(e) => {
+                let Failure { message, kind } = (*e).into();
+                Failure {
+                    message: format!("grid: every candidate was refused: {message}"),
+                    kind,
+                }
+            }
             SelectError::Folds { folds, reason } => Self::input(format!("folds={folds}: {reason}")),
             SelectError::Rows { rows, reason } => {
                 Self::input(format!("select_rows={rows}: {reason}"))

@@ -412,6 +412,14 @@ impl Experiment {
     /// Loads the data once, then runs every job in parallel and scores it.
     pub fn run(&self, progress: &dyn Progress) -> Result<Comparison, ExperimentError> {
         let (ident, valid) = self.records()?;
+        let shortest = (valid.record_ranges().iter()).map(|r| r.len()).min();
+        if let Some(samples) = shortest.filter(|&n| n <= self.data.warmup) {
+            return Err(ExperimentError::Warmup {
+                warmup: self.data.warmup,
+                samples,
+                word: self.scored_rows.word(),
+            });
+        }
         let true_modes = match &self.data.truth {
             None => None,
             Some(column) => Some(

@@ -8,7 +8,7 @@ use hysid_core::backend::{
     Backend, Deadline, IdentifyError, NoProgress, Problem, Progress, Registry, RunContext,
 };
 use hysid_core::model::Model;
-use hysid_core::options::Settings;
+use hysid_core::options::{MAX_COUNT, Settings};
 use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx::run_standardized;
@@ -318,11 +318,13 @@ impl<'a> Identify<'a> {
         problem: &Problem<'p>,
         auto: &Auto,
     ) -> Result<Request<'p>, Error> {
-        if auto.refit_starts == 0 {
+        // The message below names the bound.
+        const _: () = assert!(MAX_COUNT == 100_000);
+        if !(1..=MAX_COUNT).contains(&auto.refit_starts) {
             return Err(Error::Field {
                 field: Field::RefitStarts,
-                value: "0".into(),
-                what: "must be at least 1",
+                value: auto.refit_starts.to_string(),
+                what: "must be in 1..=100000",
             });
         }
         // Three ways of choosing the selection rows: one at a time.

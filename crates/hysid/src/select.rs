@@ -187,6 +187,10 @@ pub enum SelectError {
         /// The first candidate's error.
         first: String,
     },
+    /// Every candidate of the back-end was refused as a request (the
+    /// first refusal is given).
+    #[error("every candidate was refused: {0}")]
+    EveryCandidateRefused(Box<IdentifyError>),
     /// The back-end refused the problem or the final fit failed.
     #[error(transparent)]
     Identify(#[from] IdentifyError),
@@ -232,6 +236,8 @@ struct Scored {
     /// The models fitted on the fit rows of every split (none when a split
     /// failed).
     fits: Vec<Model>,
+    /// Why the fit on the fit rows of a split failed, when it did.
+    failure: Option<IdentifyError>,
 }
 
 /// The fit rows and the selection rows of one split, as records.
@@ -247,7 +253,10 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
     let rows = splits(request.data, &request.plan)?;
     let parts = cut(request.data, &rows)?;
     let mut trials = trials(request)?;
-    let first = score_all(request, &trials, &parts, ctx, "selecting");
+    let mut first = score_all(request, &trials, &parts, ctx, "selecting");
+    if let Some(e) = refused_request(request, &mut first) {
+        return Err(SelectError::EveryCandidateRefused(Box::new(e)));
+    }
     let (mut scored, errors): (Vec<_>, Vec<_>) =
         add_refined(request, &mut trials, first, &parts, ctx)
             .into_iter()
@@ -431,9 +440,10 @@ fn score(request: &Request<'_>, trial: &Trial<'_>, parts: &[Part], ctx: &RunCont
     let mut errors = Vec::new();
     let mut fits = Vec::with_capacity(parts.len());
     for (i, part) in parts.iter().enumerate() {
-        let scored = fit(request, trial, &part.fit, trial.start.get(i), ctx)
-            .map_err(|e| e.to_string())
-            .and_then(|model| Ok((score_part(request, &model, part)?, model)));
+        let (scored, failure) = match fit(request, trial, &part.fit, trial.start.get(i), ctx) {
+            Ok(model) => (score_part(request, &model, part).map(|s| (s, model)), None),
+            Err(e) => (Err(e.to_string()), Some(e)),
+        };
         match scored {
             Ok(((fit_sim, e), model)) => {
                 total += fit_sim;
@@ -448,6 +458,7 @@ fn score(request: &Request<'_>, trial: &Trial<'_>, parts: &[Part], ctx: &RunCont
                     candidate: out,
                     errors: Vec::new(),
                     fits: Vec::new(),
+                    failure,
                 };
             }
         }
@@ -457,7 +468,25 @@ fn score(request: &Request<'_>, trial: &Trial<'_>, parts: &[Part], ctx: &RunCont
         candidate: out,
         errors,
         fits,
+        failure: None,
     }
+}
+
+/// The first candidate's failure when every candidate of the back-end (the
+/// affine reference aside) was refused as a request
+/// ([`IdentifyError::is_refused_request`]: a grid without a mode count, an
+/// option every candidate refuses): the request, not a candidate, is at
+/// fault, and writing the affine reference would hide it.
+fn refused_request(request: &Request<'_>, scored: &mut [Scored]) -> Option<IdentifyError> {
+    let own = match affine_index(request, scored.len()) {
+        Some(a) => &mut scored[..a],
+        None => scored,
+    };
+    let refused = |s: &Scored| (s.failure.as_ref()).is_some_and(IdentifyError::is_refused_request);
+    if own.is_empty() || !own.iter().all(refused) {
+        return None;
+    }
+    own[0].failure.take()
 }
 
 /// The selection-row FIT and the scored simulation errors of `model` on
@@ -932,6 +961,20 @@ mod tests {
         assert!(c.affine > 99.999, "{c:?}");
     }
 
+    /// FITs that the warning prints alike do not warn.
+    #[test]
+    fn fits_printed_alike_are_not_below() {
+        let at = |model: f64| AgainstAffine {
+            model,
+            affine: 100.0,
+            orders: (1, 1),
+        };
+        assert!(!at(99.999_999).below());
+        assert!(!at(99.996).below());
+        assert!(at(99.99).below());
+        assert!(at(50.0).warning("these rows").contains("(50.00 %)"));
+    }
+
     /// A request to choose `backend`'s options for first-order models of
     /// `data`, the affine `arx` model a candidate, over its defaults.
     fn first_order_request<'a>(backend: &'a dyn Backend, data: &'a Dataset) -> Request<'a> {
@@ -1002,6 +1045,7 @@ mod tests {
             candidate,
             errors: Vec::new(),
             fits: Vec::new(),
+            failure: None,
         });
         let refined: Vec<Vec<(String, String)>> = refinement_trials(&request, &trials, &scored)
             .into_iter()

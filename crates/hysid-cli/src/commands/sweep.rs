@@ -170,6 +170,11 @@ pub fn run(args: Args) -> Result<()> {
                 };
                 source.rows_named(flag).unwrap_or_else(|| e.to_string())
             }
+            ExperimentError::Warmup {
+                warmup, samples, ..
+            } => format!(
+                "--warmup {warmup}: the selection rows hold {samples} samples, none scored after the warm-up"
+            ),
             _ => e.to_string(),
         })
     })?;

@@ -245,9 +245,10 @@ pub fn saturated_samples(priors: &Priors, targets: &[f64]) -> Vec<Option<usize>>
 pub fn prepare<'a>(problem: &Problem<'a>, method: &str) -> Result<PwarxData<'a>, IdentifyError> {
     let spec = problem.orders;
     let priors = problem.priors;
+    // The record's length first: the orders size the names checked next.
+    let regressors = spec.build(problem.data)?;
     check_names(priors, &spec)
         .map_err(|e| IdentifyError::prior_mismatch(problem.priors_origin, e))?;
-    let regressors = spec.build(problem.data)?;
     if let Some(&value) = regressors
         .x
         .iter()

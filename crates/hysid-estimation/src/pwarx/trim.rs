@@ -374,8 +374,8 @@ mod tests {
             let prepared = prepared(&data, &priors);
             let par = match Parametrisation::from_priors(&priors, &prepared.spec, 2) {
                 Ok(par) => par,
-                // The equality and fixed c determine b1 outside its bounds.
-                Err(PriorConflict::DeterminedOutsideBounds) => return Ok(()),
+                // No b1 inside its bounds satisfies the equality and fixed c.
+                Err(PriorConflict::OutsideBounds) => return Ok(()),
                 Err(e) => return Err(TestCaseError::fail(e.to_string())),
             };
             let start = match par.project(&truth()) {

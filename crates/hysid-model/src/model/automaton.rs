@@ -231,6 +231,18 @@ fn check_rows(
     Ok(())
 }
 
+/// An error naming `what` when one of `values` is NaN or infinite.
+fn check_finite<'v>(
+    what: impl Fn() -> String,
+    values: impl IntoIterator<Item = &'v f64>,
+) -> Result<(), InvalidModel> {
+    if values.into_iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(InvalidModel::NonFinite { what: what() })
+    }
+}
+
 /// A structurally inconsistent PWARX model or hybrid automaton
 /// ([`PwarxModel::validate`], [`HybridAutomaton::validate`]).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -258,6 +270,24 @@ pub enum InvalidModel {
         inputs: usize,
         /// Entries needed.
         need: usize,
+    },
+    /// Orders whose parameter count is past any size a model can hold.
+    #[error(
+        "na = {na}, nb = {nb} and {inputs} input(s) need more parameters than a model can hold"
+    )]
+    OrdersTooLarge {
+        /// Output order.
+        na: usize,
+        /// Input order.
+        nb: usize,
+        /// Inputs.
+        inputs: usize,
+    },
+    /// A vector or number of an automaton with NaN or an infinity.
+    #[error("{what} has a non-finite entry")]
+    NonFinite {
+        /// Which vector or number.
+        what: String,
     },
     /// A parameter vector with NaN or an infinity.
     #[error("mode {mode}: theta has a non-finite entry")]
@@ -394,6 +424,11 @@ impl HybridAutomaton {
                 inputs: m,
             });
         }
+        check_finite(
+            || "output".into(),
+            (self.output.c.iter()).chain(&self.output.d),
+        )?;
+        check_finite(|| "output.e".into(), [&self.output.e])?;
         let mut names = std::collections::HashSet::with_capacity(self.modes.len());
         for q in &self.modes {
             let mode = || q.name.clone();
@@ -408,6 +443,7 @@ impl HybridAutomaton {
             if !(q.flow.f.is_empty() || q.flow.f.len() == n) {
                 return Err(E::FlowOffset { mode: mode() });
             }
+            check_finite(|| w("flow.f"), &q.flow.f)?;
             q.invariant
                 .validate(n + m)
                 .map_err(|problem| E::Invariant {
@@ -445,6 +481,10 @@ impl HybridAutomaton {
                     to: to(),
                 });
             }
+            check_finite(
+                || format!("transition {} -> {}: reset.c", t.from, t.to),
+                &t.reset.c,
+            )?;
         }
         if let Some(q) = &self.initial_mode
             && !names.contains(q.as_str())
@@ -456,6 +496,7 @@ impl HybridAutomaton {
                 len: state.len(),
                 states: n,
             }),
+            InitialState::Given { state } => check_finite(|| "initial_state.state".into(), state),
             InitialState::ArxHistory { na, nb } if na.max(&1) + nb.saturating_sub(1) * m != n => {
                 Err(E::ArxHistory)
             }

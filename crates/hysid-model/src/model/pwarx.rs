@@ -113,15 +113,23 @@ impl PwarxModel {
             return Err(InvalidModel::NbWithoutInput);
         }
         let spec = self.spec();
+        let need = (self.nb.checked_mul(self.inputs))
+            .and_then(|b| b.checked_add(self.na))
+            .and_then(|d| d.checked_add(1))
+            .ok_or(InvalidModel::OrdersTooLarge {
+                na: self.na,
+                nb: self.nb,
+                inputs: self.inputs,
+            })?;
         for (mode, m) in self.modes.iter().enumerate() {
-            if m.theta.len() != spec.n_params() {
+            if m.theta.len() != need {
                 return Err(InvalidModel::ThetaLength {
                     mode,
                     len: m.theta.len(),
                     na: self.na,
                     nb: self.nb,
                     inputs: self.inputs,
-                    need: spec.n_params(),
+                    need,
                 });
             }
             if m.theta.iter().any(|v| !v.is_finite()) {

@@ -422,6 +422,18 @@ pub enum ExperimentError {
     /// not split the identification rows (the message names the key).
     #[error("{0}")]
     Selection(String),
+    /// A scored record no longer than the warm-up: nothing of it is scored.
+    #[error(
+        "[data] warmup = {warmup}: a record of the {word} rows holds {samples} samples, none scored after the warm-up"
+    )]
+    Warmup {
+        /// The warm-up.
+        warmup: usize,
+        /// The shortest scored record's samples.
+        samples: usize,
+        /// What the scored rows are called ([`ScoredRows::word`]).
+        word: &'static str,
+    },
     /// Malformed, or a sweep value that does not fit its option.
     #[error("{path}: {message}")]
     Invalid {
@@ -516,8 +528,11 @@ pub enum InconsistentExperiment {
     /// `decimate = 0`.
     #[error("[data] decimate must be at least 1")]
     Decimate,
-    /// `refit_starts = 0`.
-    #[error("[data] refit_starts must be at least 1")]
+    /// `refit_starts` outside `1..=MAX_COUNT`.
+    #[error(
+        "[data] refit_starts must be in 1..={}",
+        hysid_core::options::MAX_COUNT
+    )]
     RefitStarts,
     /// Both selection rows and folds.
     #[error("[data] selection and folds are two ways of choosing: give one")]
@@ -591,10 +606,21 @@ impl Experiment {
             .iter_mut()
             .chain(e.sweeps.iter_mut().map(|s| &mut s.run));
         for run in runs {
-            if let Some(toml::Value::String(file)) = run.set.get_mut(MODEL_FILE_OPTION)
-                && Path::new(file.as_str()).is_relative()
-            {
+            let Some(toml::Value::String(file)) = run.set.get_mut(MODEL_FILE_OPTION) else {
+                continue;
+            };
+            if Path::new(file.as_str()).is_relative() {
                 *file = lexically_joined(folder, file).display().to_string();
+            }
+            // Refused before any run starts, as every other entry is.
+            if !Path::new(file.as_str()).is_file() {
+                return Err(ExperimentError::Invalid {
+                    path: origin,
+                    message: format!(
+                        "'{}': set.{MODEL_FILE_OPTION} = {file}: no such file",
+                        run.name
+                    ),
+                });
             }
         }
         Ok(e)
@@ -682,7 +708,7 @@ impl Experiment {
         if self.data.decimate == 0 {
             return Err(E::Decimate);
         }
-        if self.data.refit_starts == 0 {
+        if !(1..=hysid_core::options::MAX_COUNT).contains(&self.data.refit_starts) {
             return Err(E::RefitStarts);
         }
         if self.data.selection.is_some() && self.data.folds.is_some() {

@@ -19,10 +19,16 @@ pub struct AgainstAffine {
 }
 
 impl AgainstAffine {
-    /// True when the model simulates the record worse than the affine one.
+    /// True when the model simulates the record worse than the affine one
+    /// by at least [`AgainstAffine::RESOLUTION`]: FITs the warning prints
+    /// alike are alike.
     pub fn below(&self) -> bool {
-        self.model < self.affine
+        self.affine - self.model >= Self::RESOLUTION
     }
+
+    /// The smallest FIT difference, in points, [`AgainstAffine::warning`]
+    /// tells apart (it prints two decimals).
+    pub const RESOLUTION: f64 = 0.005;
 
     /// The warning every front end gives when [`AgainstAffine::below`];
     /// `rows` names the rows ("its identification rows", "these rows"). The
