@@ -391,6 +391,20 @@ fn malformed_csv_files() {
     // Invalid UTF-8 in a numeric cell.
     let p = write(d, "latin1.csv", b"u,y\n1,2\n3,\xe94\n");
     bad(&identify(s(&p), o, &[]), &["latin1.csv", "row 2"], &out);
+    // A time column that does not increase names its row; one named as
+    // the time and as a signal is refused, not left unread.
+    let p = write(d, "time.csv", "t,u,y\n0,1,2\n0,3,4\n0.2,5,6\n");
+    bad(
+        &identify(s(&p), o, &[]),
+        &["time.csv", "column 't', row 2", "time does not increase"],
+        &out,
+    );
+    let p = good_csv(d);
+    bad(
+        &identify(s(&p), o, &["--time", "u"]),
+        &["column 'u'", "the time and as a signal"],
+        &out,
+    );
     // A data file with an unknown extension.
     let p = write(d, "data.xlsx", "u,y\n1,2\n");
     bad(

@@ -70,13 +70,8 @@ impl SearchSpace {
                 .split_once('=')
                 .ok_or_else(|| OptionError::Syntax(it.to_string()))?;
             let key = k.trim().to_string();
-            let values: Vec<String> = v
-                .split(',')
-                .map(str::trim)
-                .filter(|x| !x.is_empty())
-                .map(str::to_string)
-                .collect();
-            if key.is_empty() || values.is_empty() {
+            let values: Vec<String> = v.split(',').map(|x| x.trim().to_string()).collect();
+            if key.is_empty() || values.iter().any(String::is_empty) {
                 return Err(OptionError::Syntax(it.to_string()));
             }
             if axes.iter().any(|a| a.key == key) {
@@ -227,6 +222,11 @@ mod tests {
         ));
         assert!(matches!(
             SearchSpace::parse_grid(&["c="]),
+            Err(OptionError::Syntax(_))
+        ));
+        // An empty value between commas is a slip, not a value.
+        assert!(matches!(
+            SearchSpace::parse_grid(&["c=4,,8"]),
             Err(OptionError::Syntax(_))
         ));
         assert!(matches!(

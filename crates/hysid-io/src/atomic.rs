@@ -42,10 +42,19 @@ pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
             "it is a folder; give a file name",
         ));
     }
+    // The temporary's own name means nothing to the user: the error names
+    // the folder.
     let mut tmp = tempfile::Builder::new()
         .prefix(".hysid-")
         .suffix(".tmp")
-        .tempfile_in(dir)?;
+        .tempfile_in(dir)
+        .map_err(|e| {
+            let kind = e.kind();
+            std::io::Error::new(
+                kind,
+                format!("the folder {} cannot be written: {kind}", dir.display()),
+            )
+        })?;
     tmp.write_all(bytes)?;
     // tempfile creates files private (0600); output files are ordinary ones.
     #[cfg(unix)]

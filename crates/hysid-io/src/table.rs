@@ -106,8 +106,16 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
     let time = sel.time.as_str();
     if time != DEFAULT_TIME {
         // A time column named by the user must exist (the error lists the
-        // file's names).
+        // file's names) and be neither an input nor the output.
         table.take(time)?;
+        if sel.inputs.iter().any(|n| n == time) || sel.output == time {
+            return Err(DataError::Parse {
+                path: table.path.clone(),
+                location: format!("{} '{time}': ", table.what),
+                message: "named as the time and as a signal; the time must be another column"
+                    .into(),
+            });
+        }
     }
     let ts = if table.has(time) && !sel.inputs.iter().any(|n| n == time) && sel.output != time {
         let t = pick(table.take(time)?);
@@ -116,7 +124,7 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
             if !(dt.is_finite() && dt > 0.0) {
                 return Err(DataError::Parse {
                     path: table.path.clone(),
-                    location: format!("{} '{time}': ", table.what),
+                    location: format!("{} '{time}', row {}: ", table.what, sel.decimate + 1),
                     message: "time does not increase".into(),
                 });
             }

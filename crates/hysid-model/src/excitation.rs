@@ -57,7 +57,9 @@ impl std::str::FromStr for Excitation {
                     key: k.to_string(),
                     value: v.to_string(),
                 })?;
-            t.insert(k.trim().to_string(), val);
+            if t.insert(k.trim().to_string(), val).is_some() {
+                return Err(ExcitationError::Repeated(k.trim().to_string()));
+            }
         }
         // Integers are accepted where floats are expected.
         for k in ["low", "high", "ts"] {
@@ -83,6 +85,9 @@ pub enum ExcitationError {
     /// An item without `=`.
     #[error("--excite: '{0}' is not key=value")]
     NotKeyValue(String),
+    /// A key given twice.
+    #[error("--excite {0}: given twice")]
+    Repeated(String),
     /// A value that is not a number.
     #[error("--excite {key}: '{value}' is not a number")]
     NotANumber {
@@ -196,6 +201,8 @@ mod tests {
         assert_ne!(u, e.generate(8));
         assert!("n=10,hold=0,low=0,high=1".parse::<Excitation>().is_err());
         assert!("n=10,hold=2,low=2,high=1".parse::<Excitation>().is_err());
+        let twice = "n=10,hold=2,low=0,high=1,n=20".parse::<Excitation>();
+        assert_eq!(twice.unwrap_err(), ExcitationError::Repeated("n".into()));
         // Finite levels whose range is not: refused, not drawn from.
         let spread = "n=10,hold=2,low=-1e308,high=1e308".parse::<Excitation>();
         assert_eq!(
