@@ -416,13 +416,18 @@ fn malformed_csv_files() {
 }
 
 #[test]
-fn a_byte_order_mark_is_not_part_of_the_first_column_name() {
+fn a_byte_order_mark_is_not_part_of_the_text() {
     // Spreadsheets export UTF-8 CSV with a BOM; the first column is still 'u'.
     let dir = tempfile::tempdir().unwrap();
     let csv = std::fs::read_to_string(good_csv(dir.path())).unwrap();
     let p = write(dir.path(), "bom.csv", format!("\u{feff}{csv}"));
     let out = dir.path().join("m.json");
     let o = hysid(&identify(s(&p), s(&out), &[]));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // A model file saved with one reads as without it.
+    let model = std::fs::read_to_string(&out).unwrap();
+    let bom = write(dir.path(), "bom.json", format!("\u{feff}{model}"));
+    let o = hysid(&["validate", s(&bom), s(&p)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
@@ -671,6 +676,14 @@ fn malformed_model_files() {
             "theta.json",
             r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0]}]}"#,
             &["theta.json", "mode 0", "theta has 2 entries", "need 3"],
+        ),
+        (
+            "ts.json",
+            r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0]}],"info":{"ts":-1.0}}"#,
+            &[
+                "ts.json",
+                "info.ts must be a finite number of seconds > 0, got -1",
+            ],
         ),
         (
             "orders.json",
@@ -1311,6 +1324,16 @@ fn malformed_experiment_files() {
         let out = d.join(format!("out-{name}"));
         bad(&["compare", s(&p), "-o", s(&out)], needles, &out);
     }
+    // A report folder that is a file is refused before any run, the file
+    // left as it was.
+    let p = write(d, "fine.toml", format!("title = \"x\"\n{data}{run}"));
+    let file = write(d, "a-file", "kept");
+    let err = one_line_error(&hysid(&["compare", s(&p), "-o", s(&file)]), 2).unwrap();
+    assert!(
+        err.contains("is a file; the report goes into a folder"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "kept");
     // The missing data file is named once, as resolved against the
     // experiment's folder, after the key that names it.
     let out = d.join("out-missing-file.toml");

@@ -79,6 +79,9 @@ pub enum StructureError {
     /// A gray-box model.
     #[error(transparent)]
     GrayBox(#[from] InvalidGrayBox),
+    /// A sampling time in `info` that is not a positive number.
+    #[error("info.ts must be a finite number of seconds > 0, got {0}")]
+    SamplingTime(f64),
 }
 
 /// A [`located::ReadError`] of the file `origin`: `origin, line N:` and
@@ -209,6 +212,11 @@ impl Model {
 
     /// Structural checks: dimensions agree, numbers are finite, names resolve.
     pub fn validate(&self) -> Result<(), ModelError> {
+        if let Some(ts) = self.info().ts
+            && !(ts.is_finite() && ts > 0.0)
+        {
+            return Err(ModelError::Invalid(StructureError::SamplingTime(ts)));
+        }
         match self {
             Model::Pwarx(m) => m.validate().map_err(StructureError::from),
             Model::HybridAutomaton(m) => m.validate().map_err(StructureError::from),

@@ -118,6 +118,11 @@ fn resolve(path: &Path, sources: &mut Vec<Source>) -> Result<Value, ExtendsError
             source,
         },
     })?;
+    // Editors on Windows may save UTF-8 with a byte-order mark: not text.
+    let text = match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    };
     let here = std::fs::canonicalize(path).ok();
     if here.is_some()
         && sources

@@ -41,6 +41,7 @@ pub fn run(args: Args) -> Result<()> {
             .unwrap_or_default();
         PathBuf::from("out").join(stem)
     });
+    super::a_folder(&dir)?;
     let progress = TerminalProgress::new();
     let mut comparison = exp
         .run(&progress)

@@ -22,6 +22,18 @@ pub(crate) fn states_text(states: &std::collections::BTreeMap<String, f64>) -> S
         .join(", ")
 }
 
+/// Refuses a report folder `-o` that is an existing file, before anything
+/// runs (the report would fail to be written after every run).
+pub(crate) fn a_folder(out: &Path) -> Result<()> {
+    if out.exists() && !out.is_dir() {
+        return Err(CliError::input(format!(
+            "-o {}: is a file; the report goes into a folder",
+            out.display()
+        )));
+    }
+    Ok(())
+}
+
 /// Refuses an output file that is one of the command's input files (the
 /// same file by its resolved path), before anything runs: writing it would
 /// replace the record or model it reads.

@@ -90,6 +90,9 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
+    if let Some(dir) = &args.out {
+        super::a_folder(dir)?;
+    }
     let mut priors = match &args.prior {
         Some(p) => Priors::load(p)?,
         None => Priors::default(),
