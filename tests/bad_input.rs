@@ -941,6 +941,17 @@ fn malformed_gray_box_files() {
             ],
         ),
         (
+            "delay.toml",
+            good.replace(
+                "internal_step = 0.001",
+                "internal_step = 0.001\ndelays = { u = \"0/0\" }",
+            ),
+            vec![
+                "delays, input 'u'".into(),
+                "the value of 'delays.u' is not finite".into(),
+            ],
+        ),
+        (
             "target.toml",
             good.replace("to = \"carried\"", "to = \"landed\""),
             vec![line_of("to = \"carried\""), "'landed' is not a mode".into()],
@@ -1374,6 +1385,20 @@ fn malformed_simulation_options() {
         &out,
     );
     bad(&excite("n=0,hold=2,low=0,high=1"), &["--excite", "n"], &out);
+    bad(
+        &[
+            "simulate",
+            m,
+            "--excite",
+            "n=20,hold=2,low=0,high=1",
+            "--y0",
+            "nan",
+            "-o",
+            o,
+        ],
+        &["--y0 NaN: must be a finite number"],
+        &out,
+    );
     bad(
         &excite("n=20,hold=2,low=-1e308,high=1e308"),
         &["--excite", "high - low finite"],

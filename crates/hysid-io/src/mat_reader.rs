@@ -111,6 +111,18 @@ pub(crate) fn read_bytes(
                 format!("not a readable level-5 MAT-file: {}", plain(&e.to_string())),
             )
         })?;
+    // matrw keeps the last of two variables of one name: refuse the file
+    // instead of reading either.
+    let names = variable_names(&bytes[128..], little_endian);
+    if let Some(twice) = wanted
+        .iter()
+        .find(|w| names.iter().filter(|n| n == *w).count() > 1)
+    {
+        return Err(perr(
+            format!("variable '{twice}': "),
+            "appears twice in the file".into(),
+        ));
+    }
     let mut columns = Vec::new();
     let available: Vec<String> = parsed.iter().map(|(k, _)| k.clone()).collect();
     for (name, var) in parsed.iter() {
@@ -262,6 +274,31 @@ fn each_element(
         pos = next;
     }
     Ok(())
+}
+
+/// The names of the variables of `buf` (a file's elements after its
+/// header, compressed ones inflated), in order: the array name, the third
+/// sub-element of each top-level miMATRIX element ("MAT-File Format",
+/// ch. 1), without the padding of a small element. Elements that do not
+/// walk give no name; [`check_elements`] has refused them already.
+fn variable_names(buf: &[u8], le: bool) -> Vec<String> {
+    let mut names = Vec::new();
+    let _ = each_element(buf, 128, le, 0, |e| {
+        if e.kind == MI_MATRIX {
+            let content = &buf[e.start..e.end];
+            let mut index = 0;
+            let _ = each_element(content, e.start, le, 1, |sub| {
+                if index == 2 {
+                    let name = String::from_utf8_lossy(&content[sub.start..sub.end]);
+                    names.push(name.trim_end_matches('\0').to_string());
+                }
+                index += 1;
+                Ok(())
+            });
+        }
+        Ok(())
+    });
+    names
 }
 
 /// What the miCOMPRESSED element `body` may inflate to: the size its
@@ -754,6 +791,28 @@ mod tests {
             assert_eq!(d.y(), &[4.0, 5.0, 6.0]);
             assert_eq!(d.u(0), &[1.0, 2.0, 3.0]);
             assert_eq!(d.ts, None);
+        }
+    }
+
+    /// A file holding two variables of one name is refused (matrw would
+    /// keep one of them), compressed or not.
+    #[test]
+    fn a_variable_named_twice_is_refused() {
+        for compress in [false, true] {
+            let p = write(compress, vec![4.0, 5.0, 6.0]);
+            let bytes = std::fs::read(&p).unwrap();
+            let mut twice = bytes.clone();
+            twice.extend_from_slice(&bytes[128..]);
+            let e = crate::load_bytes(
+                &twice,
+                crate::DataFormat::Mat,
+                std::path::Path::new("twice.mat"),
+                &DataSelection::default(),
+            )
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("twice.mat: variable '"), "{e}");
+            assert!(e.contains("appears twice in the file"), "{e}");
         }
     }
 

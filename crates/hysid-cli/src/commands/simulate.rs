@@ -52,6 +52,12 @@ pub fn run(args: Args) -> Result<()> {
             args.noise
         )));
     }
+    if !args.y0.is_finite() {
+        return Err(CliError::input(format!(
+            "--y0 {}: must be a finite number",
+            args.y0
+        )));
+    }
     let inputs = std::iter::once(&args.model).chain(&args.data);
     super::not_an_input("-o", &args.out, inputs.map(PathBuf::as_path))?;
     let model = super::load_model(&args.model)?;

@@ -421,7 +421,13 @@ impl<'m> Compiler<'m> {
             let i = m.inputs.iter().position(|n| n == input).ok_or_else(|| {
                 InvalidGrayBox::new("delays", Some(input), Problem::UnknownInput(input.clone()))
             })?;
-            delays[i] = self.parametric(&format!("delays, input '{input}'"), text)?;
+            let place = format!("delays, input '{input}'");
+            let delay = self.parametric(&place, text)?;
+            if delay.as_constant().is_some_and(|d| !d.is_finite()) {
+                let problem = Problem::NotFinite(format!("delays.{input}"));
+                return Err(InvalidGrayBox::new(&place, Some(text), problem));
+            }
+            delays[i] = delay;
         }
         Ok(delays)
     }
