@@ -401,6 +401,15 @@ fn malformed_csv_files() {
     );
     let p = good_csv(d);
     bad(
+        &identify(s(&p), o, &["--ts", "0.5"]),
+        &[
+            "column 't'",
+            "--ts 0.5 differs",
+            "files without a time column",
+        ],
+        &out,
+    );
+    bad(
         &identify(s(&p), o, &["--time", "u"]),
         &["column 'u'", "the time and as a signal"],
         &out,

@@ -140,6 +140,19 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
                     ),
                 });
             }
+            if let Some(given) = sel.ts
+                && (given - dt).abs() > STEP_TOLERANCE * dt
+            {
+                return Err(DataError::Parse {
+                    path: table.path.clone(),
+                    location: format!("{} '{time}': ", table.what),
+                    message: format!(
+                        "its step {dt} (after decimation by {}) is the sampling time, and \
+                         --ts {given} differs; --ts is for files without a time column",
+                        sel.decimate
+                    ),
+                });
+            }
             Some(dt)
         } else {
             sel.ts
