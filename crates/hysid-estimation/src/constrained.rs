@@ -959,12 +959,14 @@ mod tests {
 
     proptest! {
         /// Ties hold to 1e-9 (here: exactly), fixed values come back
-        /// unchanged, bounds are respected, and with a consistent truth the
-        /// fit is exact.
+        /// unchanged, bounds are respected, with a consistent truth the
+        /// fit is exact, and no other parameters the priors admit (the
+        /// estimate moved by `step`, `b1` kept in its box) fit better.
         #[test]
         fn priors_hold_in_the_estimate(
             a in -0.9f64..0.9, b1 in -2.0f64..2.0, b2 in -2.0f64..2.0,
-            c in -1.0f64..1.0, noise in 0.0f64..0.5, lo in -3.0f64..0.0,
+            c in -1.0f64..1.0, noise in prop_oneof![Just(0.0), 0.0f64..0.5],
+            lo in -3.0f64..0.0, step in prop::collection::vec(-0.1f64..0.1, 3),
         ) {
             let mut d = two_modes([[a, b1, c], [a, b2, c]], 25);
             for (k, y) in d[1].1.iter_mut().enumerate() {
@@ -985,6 +987,30 @@ mod tests {
             }
             if noise == 0.0 && b1 >= lo && b1 <= 0.5 && b2 >= lo && b2 <= 0.5 {
                 prop_assert!((t[0][1] - b1).abs() < 1e-8 && (t[1][1] - b2).abs() < 1e-8);
+            }
+            let cost = |t: &[Vec<f64>]| -> f64 {
+                (d.iter().zip(t))
+                    .map(|((phi, y), m)| {
+                        (0..y.len())
+                            .map(|k| (y[k] - m[0] * phi[(k, 0)] - m[1] * phi[(k, 1)] - m[2]).powi(2))
+                            .sum::<f64>()
+                    })
+                    .sum()
+            };
+            let moved: Vec<Vec<f64>> = (t.iter())
+                .map(|m| {
+                    let b = (m[1] + step[1]).clamp(lo, 0.5);
+                    vec![m[0] + step[0], b, m[2]]
+                })
+                .collect();
+            let mut other = moved.clone();
+            other[1][1] = t[1][1] + step[2];
+            other[1][1] = other[1][1].clamp(lo, 0.5);
+            for admitted in [moved, other] {
+                prop_assert!(
+                    cost(&t) <= cost(&admitted) * (1.0 + 1e-9) + 1e-12,
+                    "{} > {} at {:?}", cost(&t), cost(&admitted), admitted
+                );
             }
         }
     }

@@ -322,7 +322,10 @@ mod tests {
             let (m, d) = ([m0, -m0], [d0, 1.0 / d0]);
             let q = p.affine_preimage(&m, &d);
             let z = [m[0] + d[0] * w0, m[1] + d[1] * w1];
-            prop_assert!((p.violation(&z) > 1e-9) == (q.violation(&[w0, w1]) > 1e-9) || p.violation(&z) < 1e-6);
+            // Inside and outside alike; only points within rounding of the
+            // threshold may fall on either side of it.
+            let v = p.violation(&z);
+            prop_assert!((v > 1e-9) == (q.violation(&[w0, w1]) > 1e-9) || (1e-10..1e-8).contains(&v));
         }
     }
 }

@@ -961,6 +961,56 @@ mod tests {
         assert!(c.affine > 99.999, "{c:?}");
     }
 
+    proptest::proptest! {
+        /// `preference` orders every scored candidate once and no other,
+        /// puts first a candidate that simulates the selection rows at
+        /// least as well as the affine reference (the last candidate), and
+        /// the rest by score. The errors are drawn apart from the scores,
+        /// so the one-standard-error rule may pick a candidate of one mode
+        /// that scores below the affine reference: it must not come first.
+        #[test]
+        fn the_first_preference_never_scores_below_the_affine_reference(
+            scores in proptest::collection::vec(
+                proptest::option::of(-50.0f64..100.0),
+                1..8,
+            ),
+            modes in proptest::collection::vec(1usize..4, 8),
+            floor in 0.0f64..90.0,
+            noise in proptest::collection::vec(
+                proptest::collection::vec(-1.0f64..1.0, 120),
+                9,
+            ),
+            serial: bool,
+        ) {
+            let mut scored: Vec<ScoredCandidate> = (scores.iter().zip(&modes))
+                .map(|(&fit_sim, &m)| ScoredCandidate {
+                    fit_sim,
+                    modes: fit_sim.map(|_| m),
+                    ..candidate(&[], 0.0, m)
+                })
+                .collect();
+            scored.push(candidate(&[], floor, 1));
+            let errors: Vec<Vec<f64>> = (scored.iter().zip(&noise))
+                .map(|(c, e)| if c.fit_sim.is_some() { e.clone() } else { Vec::new() })
+                .collect();
+            let dependence = if serial {
+                parsimony::Dependence::Serial
+            } else {
+                parsimony::Dependence::Independent
+            };
+            let order = preference(&scored, &errors, Some(floor), dependence);
+            let ranked = ranking(&scored);
+            let (mut once, mut all) = (order.clone(), ranked.clone());
+            once.sort_unstable();
+            all.sort_unstable();
+            proptest::prop_assert_eq!(once, all);
+            let first = scored[order[0]].fit_sim.unwrap();
+            proptest::prop_assert!(first >= floor, "{first} first, below {floor}");
+            let rest: Vec<usize> = ranked.into_iter().filter(|&i| i != order[0]).collect();
+            proptest::prop_assert_eq!(&order[1..], &rest[..]);
+        }
+    }
+
     /// FITs that the warning prints alike do not warn.
     #[test]
     fn fits_printed_alike_are_not_below() {
