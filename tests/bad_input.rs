@@ -404,7 +404,7 @@ fn malformed_csv_files() {
         &identify(s(&p), o, &["--ts", "0.5"]),
         &[
             "column 't'",
-            "--ts 0.5 differs",
+            "the ts given (0.5) differs",
             "files without a time column",
         ],
         &out,

@@ -178,6 +178,9 @@ pub enum PriorError {
     },
 }
 
+/// The largest `max_modes`: the counts up to it are fitted one by one.
+pub const MAX_MODES_BOUND: usize = 1000;
+
 /// An inconsistency among the entries of a prior file, found by
 /// [`Priors::check`]; `entry` counts the `[[...]]` tables from 1.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -185,6 +188,9 @@ pub enum InconsistentPrior {
     /// `modes = 0` or `max_modes = 0`.
     #[error("modes and max_modes must be at least 1")]
     NoMode,
+    /// `max_modes` above [`MAX_MODES_BOUND`].
+    #[error("max_modes = {0}: at most {MAX_MODES_BOUND} (every count up to it is a candidate fit)")]
+    MaxModesTooLarge(usize),
     /// `modes` above `max_modes`.
     #[error("modes = {modes} exceeds max_modes = {max}")]
     ModesExceedMax {
@@ -339,6 +345,9 @@ impl Priors {
         use InconsistentPrior as E;
         if self.modes == Some(0) || self.max_modes == Some(0) {
             return Err(E::NoMode);
+        }
+        if let Some(max) = self.max_modes.filter(|&m| m > MAX_MODES_BOUND) {
+            return Err(E::MaxModesTooLarge(max));
         }
         if let (Some(modes), Some(max)) = (self.modes, self.max_modes)
             && modes > max

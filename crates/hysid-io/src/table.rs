@@ -140,15 +140,16 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
                     ),
                 });
             }
+            let off = sel.ts.map(|given| (given - dt).abs());
             if let Some(given) = sel.ts
-                && (given - dt).abs() > STEP_TOLERANCE * dt
+                && off.is_some_and(|off| off.is_nan() || off > STEP_TOLERANCE * dt)
             {
                 return Err(DataError::Parse {
                     path: table.path.clone(),
                     location: format!("{} '{time}': ", table.what),
                     message: format!(
-                        "its step {dt} (after decimation by {}) is the sampling time, and \
-                         --ts {given} differs; --ts is for files without a time column",
+                        "its step {dt} (after decimation by {}) is the sampling time, and the \
+                         ts given ({given}) differs; ts is given for files without a time column",
                         sel.decimate
                     ),
                 });

@@ -140,6 +140,9 @@ impl RegressorSpec {
                 found: data.inputs.len(),
             });
         }
+        if self.inputs == 0 && self.nb > 0 {
+            return Err(RegressorError::LagsWithoutInput { nb: self.nb });
+        }
         let lag = self.lag();
         let ranges = data.record_ranges();
         let samples: Vec<usize> = (ranges.iter())
@@ -183,6 +186,12 @@ pub enum RegressorError {
         samples: usize,
         /// `max(na, nb)`.
         lag: usize,
+    },
+    /// Input lags of a record without inputs.
+    #[error("nb = {nb} input lags, but the record has no input: nb must be 0")]
+    LagsWithoutInput {
+        /// The input order.
+        nb: usize,
     },
     /// The number of inputs differs from the model's.
     #[error("the model has {expected} input(s), the data {found}")]

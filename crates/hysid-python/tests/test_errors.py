@@ -173,6 +173,28 @@ def test_priors_that_contradict_each_other_are_refused():
     assert message.startswith("priors: ")
 
 
+def test_a_mode_bound_past_any_candidate_fit_is_refused():
+    # Every count up to the bound is a candidate fit: 10**11 asked for a
+    # list of them all and aborted the interpreter.
+    for bound in ({"max_modes": 10**11}, {"priors": {"max_modes": 10**11}}):
+        message = raised(hysid.identify, U, Y, method="cluster", **bound)
+        assert "max_modes = 100000000000: at most 1000" in message
+
+
+def test_one_grid_value_and_one_input_name_are_not_split_into_characters():
+    # na = "12" is one value, not na = 1 and na = 2.
+    model = hysid.identify(U, Y, method="arx", auto=True, grid={"na": "12", "nb": 1})
+    tried = [dict(c["values"]) for c in model.info["selection"]["candidates"]]
+    assert {"na": "12", "nb": "1"} in tried and {"na": "1", "nb": "1"} not in tried
+    assert hysid.identify(U, Y, method="arx", input_names="force").input_names == ["force"]
+
+
+def test_input_lags_without_an_input_are_refused():
+    # The model would have been one the package cannot load back.
+    message = raised(hysid.identify, np.zeros((300, 0)), Y, method="arx")
+    assert "nb = 2 input lags, but the record has no input" in message
+
+
 def test_klinreg_without_a_mode_count_says_how_to_give_one():
     message = raised(hysid.identify, U, Y, method="klinreg")
     assert "modes=S" in message and "max_modes=S" in message and "auto=True" in message

@@ -45,6 +45,9 @@ def test_a_dataframe_gives_a_record_with_its_names_and_sampling_time(frame, head
     stamped = frame.assign(time=pd.Timestamp("2026-01-01") + pd.to_timedelta(frame["time"], unit="s"))
     again = hysid.Record.from_dataframe(stamped, inputs="force", output="position", time="time")
     assert again.ts == pytest.approx(ts)
+    # With a time zone too (their instants, not nanoseconds).
+    zoned = frame.assign(time=stamped["time"].dt.tz_localize("Europe/Amsterdam"))
+    assert hysid.Record.from_dataframe(zoned, inputs="force", output="position", time="time").ts == pytest.approx(ts)
 
 
 def test_dataframe_mistakes_are_named(frame):
@@ -57,6 +60,13 @@ def test_dataframe_mistakes_are_named(frame):
         hysid.Record.from_dataframe(frame.assign(label="a"), inputs=["force"], output="label")
     with pytest.raises(hysid.InputError, match="input_names: input 'position' is also the output"):
         hysid.Record.from_dataframe(frame, inputs=["position"], output="position")
+    # The time column is read as the program reads one: equally spaced,
+    # and not a signal.
+    uneven = frame.assign(time=np.where(np.arange(6001) == 3, frame["time"] + 0.1, frame["time"]))
+    with pytest.raises(hysid.InputError, match=r"time: column 'time', row 4: the time step .* is not the first step"):
+        hysid.Record.from_dataframe(uneven, inputs="force", output="position", time="time")
+    with pytest.raises(hysid.InputError, match="time: column 'force' is also a signal"):
+        hysid.Record.from_dataframe(frame, inputs="force", output="position", time="force")
 
 
 def test_the_estimator_on_a_dataframe_scores_as_the_program_validates(frame, head, arx, program, tmp_path):

@@ -33,7 +33,7 @@ import numpy.typing as npt
 
 from . import _hysid
 from ._hysid import HysidError, InputError, MethodError, Model
-from ._record import Record, Rows, _rows
+from ._record import Record, Rows, _names, _rows
 from ._estimator import Estimator
 
 __all__ = [
@@ -198,7 +198,12 @@ def identify(
     )
     grid_items = None
     if grid is not None:
-        grid_items = [f"{k}={','.join(str(v) for v in values)}" for k, values in grid.items()]
+        # One value (a number, a text) is a list of one, not of its characters.
+        one = (str, bytes, numbers.Number)
+        grid_items = [
+            f"{k}={','.join(str(v) for v in ([values] if isinstance(values, one) else values))}"
+            for k, values in grid.items()
+        ]
     if priors is not None and not isinstance(priors, dict):
         priors = os.fspath(priors)
     return _hysid.identify(
@@ -222,7 +227,7 @@ def identify(
         warmup=warmup,
         standardize=standardize,
         time_budget=time_budget,
-        input_names=None if input_names is None else list(input_names),
+        input_names=_names("input_names", input_names),
         output_name=output_name,
     )
 
