@@ -602,6 +602,13 @@ fn bad_selections_and_orders() {
         &["--refit-starts 100000000000", "must be in 1..=100000"],
         &out,
     );
+    // A number past what a float holds is a number the option refuses, not
+    // a text of the wrong type.
+    bad(
+        &identify(data, o, &["--set", "ridge=1e400"]),
+        &["--set ridge=inf", "must be a finite number >= 0"],
+        &out,
+    );
     // A grid without the mode count its back-end needs: every candidate
     // refused, an error rather than the affine reference written.
     bad(

@@ -427,7 +427,12 @@ fn scalar(v: &str) -> toml::Value {
             Some(x @ toml::Value::String(_)) => x,
             _ => toml::Value::String(v.to_string()),
         },
-        Err(_) => toml::Value::String(v.to_string()),
+        // A number TOML does not write (`1e400`, `.5`) is still a number: a
+        // float option's own check then says what it needs.
+        Err(_) => match v.trim().parse::<f64>() {
+            Ok(x) => toml::Value::Float(x),
+            Err(_) => toml::Value::String(v.to_string()),
+        },
     }
 }
 
