@@ -1,9 +1,10 @@
 //! Known stops on a record of the mechanical simulator, as a sensor gives
 //! it: Gaussian noise of 0.005 mm on every sample (at the stops too) and
 //! positions rounded to 0.01 mm. The prior names each stop with
-//! `tol = 0.02` mm (four noise standard deviations, two quanta); every
-//! PWARX back-end then finds the samples at the stops, never simulates
-//! past them, and simulates the test rows better than without the prior.
+//! `tol = 0.02` mm (four noise standard deviations, two quanta); the
+//! published procedures of `cluster` and `bounded` (`preset=paper`) then
+//! find the samples at the stops, never simulate past them, and simulate
+//! the test rows better than without the prior.
 
 use hysid_core::backend::{Problem, RunContext};
 use hysid_core::model::Model;
