@@ -1604,6 +1604,38 @@ fn inputs_found_by_the_fuzzer_are_clean_errors() {
     report();
 }
 
+/// A mechanical model whose stops leave no position between them at the
+/// file's values is refused when read, naming both stops.
+#[test]
+fn crossed_stops_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let head = repository_text("models/pick-and-place/head.toml");
+    let crossed = head.replace(
+        "value = 25.0\nbounds = [24.0, 26.0]",
+        "value = -5.0\nbounds = [-6.0, 26.0]",
+    );
+    assert_ne!(crossed, head);
+    let crossed = write(d, "crossed.toml", crossed);
+    bad(
+        &[
+            "simulate",
+            s(&crossed),
+            "--excite",
+            "n=20,hold=2,low=0,high=1,ts=0.0025",
+            "-o",
+            s(&out),
+        ],
+        &[
+            "crossed.toml",
+            "stops 'lower' (y <= -5) and 'upper' (y >= 0) leave no position between them",
+        ],
+        &out,
+    );
+    report();
+}
+
 /// `convert` reads a mechanical model whose labels a gray-box model can
 /// give, and nothing else; it never writes over its input.
 #[test]

@@ -363,6 +363,20 @@ pub enum InvalidMechanical {
     /// A restitution outside `[0, 1)`.
     #[error("stop '{0}': restitution must be in [0, 1)")]
     Restitution(String),
+    /// An upper and a lower stop with no position between them.
+    #[error(
+        "stops '{upper}' (y <= {at_most}) and '{lower}' (y >= {at_least}) leave no position between them"
+    )]
+    CrossedStops {
+        /// The stop that bounds the position from above.
+        upper: String,
+        /// Its position.
+        at_most: f64,
+        /// The stop that bounds it from below.
+        lower: String,
+        /// Its position.
+        at_least: f64,
+    },
     /// Two modes of one name.
     #[error("mode '{0}' appears twice")]
     DuplicateMode(String),
@@ -648,6 +662,22 @@ impl MechanicalModel {
                             .filter(|(i, _)| mask & (1 << i) != 0)
                             .map(|(_, c)| c.name.clone())
                             .collect(),
+                    });
+                }
+            }
+        }
+        // At the file's values, every upper stop lies above every lower one.
+        let resolved = self.resolve();
+        let at = |i: usize| (&self.stops[i].name, resolved.stops[i].position);
+        for (i, upper) in resolved.stops.iter().enumerate() {
+            for (j, lower) in resolved.stops.iter().enumerate() {
+                if upper.sign > 0.0 && lower.sign < 0.0 && lower.position >= upper.position {
+                    let ((upper, at_most), (lower, at_least)) = (at(i), at(j));
+                    return Err(E::CrossedStops {
+                        upper: upper.clone(),
+                        at_most,
+                        lower: lower.clone(),
+                        at_least,
                     });
                 }
             }
