@@ -666,14 +666,25 @@ impl MechanicalModel {
                 }
             }
         }
-        // At the file's values, every upper stop lies above every lower one.
+        self.check_stop_positions()?;
+        if let MechanicalInitialState::Given { position, velocity } = self.initial_state
+            && !(position.is_finite() && velocity.is_finite())
+        {
+            return Err(E::InitialState);
+        }
+        Ok(())
+    }
+
+    /// At the file's values, every upper stop lies above every lower one:
+    /// the stops leave positions between them.
+    fn check_stop_positions(&self) -> Result<(), InvalidMechanical> {
         let resolved = self.resolve();
         let at = |i: usize| (&self.stops[i].name, resolved.stops[i].position);
         for (i, upper) in resolved.stops.iter().enumerate() {
             for (j, lower) in resolved.stops.iter().enumerate() {
                 if upper.sign > 0.0 && lower.sign < 0.0 && lower.position >= upper.position {
                     let ((upper, at_most), (lower, at_least)) = (at(i), at(j));
-                    return Err(E::CrossedStops {
+                    return Err(InvalidMechanical::CrossedStops {
                         upper: upper.clone(),
                         at_most,
                         lower: lower.clone(),
@@ -681,11 +692,6 @@ impl MechanicalModel {
                     });
                 }
             }
-        }
-        if let MechanicalInitialState::Given { position, velocity } = self.initial_state
-            && !(position.is_finite() && velocity.is_finite())
-        {
-            return Err(E::InitialState);
         }
         Ok(())
     }
