@@ -252,16 +252,22 @@ impl IdentifyError {
         }
     }
 
-    /// True for the errors of the run's set-up rather than of its data:
-    /// an unknown method, a bad option, a prior file that is inconsistent
-    /// or not honoured. A sweep over a setting stops at these; it records
-    /// the others per point.
+    /// True for the errors of the run's set-up rather than of its data,
+    /// which refuse the request whatever rows it is run on: an unknown
+    /// method, a bad option, a prior file that is inconsistent, not
+    /// honoured or not fitting the structure, a mode count missing or
+    /// contradictory. Automatic selection reports one when every
+    /// candidate is refused so.
     pub fn is_setup_error(&self) -> bool {
         matches!(
             self,
             IdentifyError::UnknownMethod { .. }
                 | IdentifyError::Options(_)
                 | IdentifyError::Prior(_)
+                | IdentifyError::NoOrdinaryMode { .. }
+                | IdentifyError::NeedsModeCount { .. }
+                | IdentifyError::ModesExceedMax { .. }
+                | IdentifyError::PriorMismatch { .. }
         )
     }
 
@@ -292,22 +298,6 @@ impl IdentifyError {
     /// model-level failure (exit code 1).
     pub fn is_bad_input(&self) -> bool {
         !matches!(self, IdentifyError::Failed { .. })
-    }
-
-    /// True when the request itself is refused, whatever rows it is run
-    /// on: an unknown method, an option or a prior refused, a mode count
-    /// missing or contradictory.
-    pub fn is_refused_request(&self) -> bool {
-        matches!(
-            self,
-            IdentifyError::UnknownMethod { .. }
-                | IdentifyError::Options(_)
-                | IdentifyError::Prior(_)
-                | IdentifyError::NoOrdinaryMode { .. }
-                | IdentifyError::NeedsModeCount { .. }
-                | IdentifyError::ModesExceedMax { .. }
-                | IdentifyError::PriorMismatch { .. }
-        )
     }
 }
 
@@ -691,7 +681,8 @@ mod tests {
             "prior modes = 2: method 'cluster' needs at least 3 (the count includes the 2 \
              saturation mode(s) of the priors, and one ordinary mode)"
         );
-        assert!(!e.is_setup_error());
+        // A mode count the priors contradict refuses the request on any rows.
+        assert!(e.is_setup_error());
         let e = IdentifyError::input(Unknown);
         assert_eq!(e.to_string(), "[fixed]: unknown name 'a9'");
         let e = IdentifyError::failed(Unknown).of_method("arx");

@@ -127,7 +127,7 @@ pub enum Error {
         /// Its value, as given.
         value: String,
         /// What a valid value is.
-        what: &'static str,
+        what: String,
     },
     /// The mode counts given contradict each other or the priors.
     #[error("{problem}")]
@@ -200,7 +200,7 @@ impl<'a> Identify<'a> {
                     return Err(Error::Field {
                         field,
                         value: s.to_string(),
-                        what: "must be at least 1",
+                        what: "must be at least 1".into(),
                     });
                 }
                 *prior = Some(s);
@@ -222,7 +222,7 @@ impl<'a> Identify<'a> {
             Some(t) => Deadline::after_seconds(t).ok_or(Error::Field {
                 field: Field::TimeBudget,
                 value: t.to_string(),
-                what: "must be a positive number of seconds",
+                what: "must be a positive number of seconds".into(),
             })?,
             None => Deadline::none(),
         };
@@ -318,13 +318,11 @@ impl<'a> Identify<'a> {
         problem: &Problem<'p>,
         auto: &Auto,
     ) -> Result<Request<'p>, Error> {
-        // The message below names the bound.
-        const _: () = assert!(MAX_COUNT == 100_000);
         if !(1..=MAX_COUNT).contains(&auto.refit_starts) {
             return Err(Error::Field {
                 field: Field::RefitStarts,
                 value: auto.refit_starts.to_string(),
-                what: "must be in 1..=100000",
+                what: format!("must be in 1..={MAX_COUNT}"),
             });
         }
         // Three ways of choosing the selection rows: one at a time.

@@ -474,7 +474,7 @@ fn score(request: &Request<'_>, trial: &Trial<'_>, parts: &[Part], ctx: &RunCont
 
 /// The first candidate's failure when every candidate of the back-end (the
 /// affine reference aside) was refused as a request
-/// ([`IdentifyError::is_refused_request`]: a grid without a mode count, an
+/// ([`IdentifyError::is_setup_error`]: a grid without a mode count, an
 /// option every candidate refuses): the request, not a candidate, is at
 /// fault, and writing the affine reference would hide it.
 fn refused_request(request: &Request<'_>, scored: &mut [Scored]) -> Option<IdentifyError> {
@@ -482,7 +482,7 @@ fn refused_request(request: &Request<'_>, scored: &mut [Scored]) -> Option<Ident
         Some(a) => &mut scored[..a],
         None => scored,
     };
-    let refused = |s: &Scored| (s.failure.as_ref()).is_some_and(IdentifyError::is_refused_request);
+    let refused = |s: &Scored| (s.failure.as_ref()).is_some_and(IdentifyError::is_setup_error);
     if own.is_empty() || !own.iter().all(refused) {
         return None;
     }
