@@ -42,6 +42,17 @@ impl Triplets {
         }
     }
 
+    /// The nonzero entries of the dense matrix `m`, row by row.
+    pub fn dense(m: &nalgebra::DMatrix<f64>) -> Self {
+        let mut t = Self::default();
+        for i in 0..m.nrows() {
+            for j in 0..m.ncols() {
+                t.push(i, j, m[(i, j)]);
+            }
+        }
+        t
+    }
+
     /// Number of stored entries.
     pub fn len(&self) -> usize {
         self.vals.len()

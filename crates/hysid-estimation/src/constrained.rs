@@ -281,28 +281,39 @@ impl Parametrisation {
         if basis.ncols() == 0 {
             return false;
         }
-        let mut program = Program {
+        let (a, b) = self.bounds_in_w(z0, basis);
+        let program = Program {
             q: vec![0.0; basis.ncols()],
+            a: Triplets::dense(&a),
+            cones: vec![Cone::Nonnegative(b.len())],
+            b,
             ..Program::default()
         };
-        // `N_r w <= hi - z0_r` and `-N_r w <= z0_r - lo`.
-        let limits = z0.iter().zip(&self.lower).zip(&self.upper);
-        for (r, ((&z, &lo), &hi)) in limits.enumerate() {
-            for (sign, room) in [(1.0, hi - z), (-1.0, z - lo)] {
-                if room.is_finite() {
-                    let row = program.b.len();
-                    for (c, &n) in basis.row(r).iter().enumerate() {
-                        program.a.push(row, c, sign * n);
-                    }
-                    program.b.push(room);
-                }
-            }
-        }
-        program.cones = vec![Cone::Nonnegative(program.b.len())];
         !matches!(
             conic::solve(program, &Settings::default()),
             Err(SolveError::Infeasible { .. })
         )
+    }
+
+    /// The bounds on `z = z0 + N w` as inequalities `A w <= b` in `w`: the
+    /// rows `N_v w <= hi_v - z0_v` and `-N_v w <= z0_v - lo_v` of the
+    /// bounded free variables, in that order.
+    fn bounds_in_w(&self, z0: &[f64], basis: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+        let mut rows = Vec::new();
+        let mut b = Vec::new();
+        let limits = z0.iter().zip(&self.lower).zip(&self.upper);
+        for (v, ((&z, &lo), &hi)) in limits.enumerate() {
+            if hi.is_finite() {
+                rows.push(basis.row(v).iter().copied().collect::<Vec<f64>>());
+                b.push(hi - z);
+            }
+            if lo.is_finite() {
+                rows.push(basis.row(v).iter().map(|x| -x).collect());
+                b.push(z - lo);
+            }
+        }
+        let a = DMatrix::from_fn(rows.len(), basis.ncols(), |i, j| rows[i][j]);
+        (a, b)
     }
 
     /// Whether `[[equality]]` entries reduce the free variables
@@ -586,21 +597,7 @@ pub fn solve_in_z(
     if par.inside(&z) || design.ncols() == 0 {
         return Ok(z);
     }
-    // Bounds on z: lo_v - z0_v <= N_v w <= hi_v - z0_v.
-    let nw = design.ncols();
-    let mut rows = Vec::new();
-    let mut b = Vec::new();
-    for v in 0..par.n_free() {
-        if par.upper[v].is_finite() {
-            rows.push(red.basis.row(v).iter().copied().collect::<Vec<f64>>());
-            b.push(par.upper[v] - red.z0[v]);
-        }
-        if par.lower[v].is_finite() {
-            rows.push(red.basis.row(v).iter().map(|x| -x).collect());
-            b.push(red.z0[v] - par.lower[v]);
-        }
-    }
-    let a = DMatrix::from_fn(rows.len(), nw, |i, j| rows[i][j]);
+    let (a, b) = par.bounds_in_w(&red.z0, &red.basis);
     let w = qp_lstsq(&design, &rhs, &a, &b)?;
     Ok(z_of(&DVector::from_vec(w)))
 }
@@ -614,18 +611,12 @@ fn qp_lstsq(
     a_in: &DMatrix<f64>,
     b: &[f64],
 ) -> Result<Vec<f64>, EstimationError> {
-    let nx = design.ncols();
     let (d, p, q) = scaled_objective(design, r);
     let mut a_s = a_in.clone();
     for (v, dv) in d.iter().enumerate() {
         a_s.column_mut(v).scale_mut(*dv);
     }
-    let mut a = Triplets::default();
-    for i in 0..a_s.nrows() {
-        for j in 0..nx {
-            a.push(i, j, a_s[(i, j)]);
-        }
-    }
+    let a = Triplets::dense(&a_s);
     let m = b.len();
     let settings = Settings {
         max_iter: 200,
