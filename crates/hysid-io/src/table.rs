@@ -83,11 +83,65 @@ pub(crate) fn wanted_names(sel: &DataSelection) -> Vec<&str> {
 /// jitter and rounding pass; a missing or repeated sample does not).
 const STEP_TOLERANCE: f64 = 0.01;
 
-/// The first sample `k` whose step `t[k] - t[k - 1]` differs from `dt` by
-/// more than [`STEP_TOLERANCE`] of it (the readers refuse non-finite
-/// values, so every step compares).
-fn uneven_step(t: &[f64], dt: f64) -> Option<usize> {
-    (2..t.len()).find(|&k| (t[k] - t[k - 1] - dt).abs() > STEP_TOLERANCE * dt)
+/// Why a time column gives no sampling time; [`TimeStepError::sample`] is
+/// the index of the sample whose step is wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TimeStepError {
+    /// Fewer than two times: no step.
+    #[error("{0} sample(s); its first step is the sampling time")]
+    TooShort(usize),
+    /// The first step is not a positive number.
+    #[error("time does not increase")]
+    NotIncreasing,
+    /// A later step differs from the first by more than [`STEP_TOLERANCE`]
+    /// of it.
+    #[error(
+        "the time step {step} is not the first step {first} (the samples must be equally \
+         spaced, within {} % of the step)",
+        STEP_TOLERANCE * 100.0
+    )]
+    Uneven {
+        /// The sample the step leads to.
+        sample: usize,
+        /// That step.
+        step: f64,
+        /// The first step.
+        first: f64,
+    },
+}
+
+impl TimeStepError {
+    /// The index of the sample whose step is wrong.
+    pub fn sample(&self) -> usize {
+        match self {
+            TimeStepError::TooShort(_) => 0,
+            TimeStepError::NotIncreasing => 1,
+            TimeStepError::Uneven { sample, .. } => *sample,
+        }
+    }
+}
+
+/// The sampling time of the times `t`: their first step, positive, every
+/// other step within [`STEP_TOLERANCE`] of it (a step that is not a number
+/// is not within it). The readers' time columns and Python's take it from
+/// here.
+pub fn sampling_time(t: &[f64]) -> Result<f64, TimeStepError> {
+    let [t0, t1, ..] = t[..] else {
+        return Err(TimeStepError::TooShort(t.len()));
+    };
+    let dt = t1 - t0;
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(TimeStepError::NotIncreasing);
+    }
+    let off = |k: usize| (t[k] - t[k - 1] - dt).abs();
+    match (2..t.len()).find(|&k| off(k).is_nan() || off(k) > STEP_TOLERANCE * dt) {
+        Some(k) => Err(TimeStepError::Uneven {
+            sample: k,
+            step: t[k] - t[k - 1],
+            first: dt,
+        }),
+        None => Ok(dt),
+    }
 }
 
 pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, DataError> {
@@ -120,30 +174,20 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
     let ts = if table.has(time) && !sel.inputs.iter().any(|n| n == time) && sel.output != time {
         let t = pick(table.take(time)?);
         if t.len() >= 2 {
-            let dt = t[1] - t[0];
-            if !(dt.is_finite() && dt > 0.0) {
-                return Err(DataError::Parse {
-                    path: table.path.clone(),
-                    location: format!("{} '{time}', row {}: ", table.what, sel.decimate + 1),
-                    message: "time does not increase".into(),
-                });
-            }
-            if let Some(k) = uneven_step(&t, dt) {
-                return Err(DataError::Parse {
-                    path: table.path.clone(),
-                    location: format!("{} '{time}', row {}: ", table.what, k * sel.decimate + 1),
-                    message: format!(
-                        "the time step {} is not the first step {dt} (the samples must be \
-                         equally spaced, within {} % of the step)",
-                        t[k] - t[k - 1],
-                        STEP_TOLERANCE * 100.0
-                    ),
-                });
-            }
-            let off = sel.ts.map(|given| (given - dt).abs());
-            if let Some(given) = sel.ts
-                && off.is_some_and(|off| off.is_nan() || off > STEP_TOLERANCE * dt)
-            {
+            let dt = sampling_time(&t).map_err(|e| DataError::Parse {
+                path: table.path.clone(),
+                location: format!(
+                    "{} '{time}', row {}: ",
+                    table.what,
+                    e.sample() * sel.decimate + 1
+                ),
+                message: e.to_string(),
+            })?;
+            let differs = |given: &f64| {
+                let off = (given - dt).abs();
+                off.is_nan() || off > STEP_TOLERANCE * dt
+            };
+            if let Some(given) = sel.ts.filter(differs) {
                 return Err(DataError::Parse {
                     path: table.path.clone(),
                     location: format!("{} '{time}': ", table.what),
@@ -178,4 +222,30 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
         start: Some(a),
         end: Some(b),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{TimeStepError, sampling_time};
+
+    #[test]
+    fn the_sampling_time_is_the_first_step_of_equally_spaced_times() {
+        assert_eq!(sampling_time(&[0.0, 0.5, 1.004, 1.5]), Ok(0.5));
+        assert_eq!(sampling_time(&[1.0]), Err(TimeStepError::TooShort(1)));
+        assert_eq!(
+            sampling_time(&[1.0, 1.0]),
+            Err(TimeStepError::NotIncreasing)
+        );
+        let uneven = sampling_time(&[0.0, 0.5, 1.0, 2.0]).unwrap_err();
+        assert_eq!(uneven.sample(), 3);
+        assert_eq!(
+            uneven.to_string(),
+            "the time step 1 is not the first step 0.5 (the samples must be equally spaced, within 1 % of the step)"
+        );
+        // A time that is not a number is not within the tolerance.
+        assert_eq!(
+            sampling_time(&[0.0, 0.5, f64::NAN]).unwrap_err().sample(),
+            2
+        );
+    }
 }

@@ -679,16 +679,15 @@ impl MechanicalModel {
     /// the stops leave positions between them.
     fn check_stop_positions(&self) -> Result<(), InvalidMechanical> {
         let resolved = self.resolve();
-        let at = |i: usize| (&self.stops[i].name, resolved.stops[i].position);
-        for (i, upper) in resolved.stops.iter().enumerate() {
-            for (j, lower) in resolved.stops.iter().enumerate() {
-                if upper.sign > 0.0 && lower.sign < 0.0 && lower.position >= upper.position {
-                    let ((upper, at_most), (lower, at_least)) = (at(i), at(j));
+        let stops = || self.stops.iter().zip(&resolved.stops);
+        for (upper, at_most) in stops().filter(|(_, r)| r.sign > 0.0) {
+            for (lower, at_least) in stops().filter(|(_, r)| r.sign < 0.0) {
+                if at_least.position >= at_most.position {
                     return Err(InvalidMechanical::CrossedStops {
-                        upper: upper.clone(),
-                        at_most,
-                        lower: lower.clone(),
-                        at_least,
+                        upper: upper.name.clone(),
+                        at_most: at_most.position,
+                        lower: lower.name.clone(),
+                        at_least: at_least.position,
                     });
                 }
             }

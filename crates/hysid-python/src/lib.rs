@@ -122,6 +122,19 @@ type CheckedRecord<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>, Vec<String>, St
 /// values, the sampling time, the names); returns `(u, y, input_names,
 /// output_name)` with `u` of shape `(N, m)`, `y` of shape `(N,)` and the
 /// default names filled in. `hysid.Record` is made through it.
+/// The sampling time of the times `t` of the column `name`, as the
+/// program takes it from a file's time column ([`hysid_io::sampling_time`]).
+#[pyfunction]
+fn sampling_time(name: &str, t: Vec<f64>) -> PyResult<f64> {
+    hysid_io::sampling_time(&t).map_err(|e| {
+        let place = match e {
+            hysid_io::TimeStepError::TooShort(_) => format!("time: column '{name}' has "),
+            _ => format!("time: column '{name}', row {}: ", e.sample() + 1),
+        };
+        Failure::input(format!("{place}{e}")).into()
+    })
+}
+
 #[pyfunction]
 #[pyo3(signature = (u, y, ts=None, input_names=None, output_name=None))]
 fn check_record<'py>(
@@ -354,6 +367,7 @@ fn _hysid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(methods, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(check_record, m)?)?;
+    m.add_function(wrap_pyfunction!(sampling_time, m)?)?;
     m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
     Ok(())

@@ -126,6 +126,11 @@ def load(
     """Reads a CSV or MAT record with the program's selection rules; returns
     `(u, y, ts)` with `u` of shape `(N, m)`."""
 
+def sampling_time(name: str, t: List[float]) -> float:
+    """The sampling time of the times `t` of the column `name`: their first
+    step, every other step within 1 % of it, as the program reads a time
+    column; an InputError naming the column and the row otherwise."""
+
 def check_record(
     u: ArrayLike,
     y: ArrayLike,

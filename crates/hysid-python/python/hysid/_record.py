@@ -165,25 +165,12 @@ class Record:
             if getattr(accessor, "tz", None) is not None:
                 series = accessor.tz_convert(None)
             t = np.asarray(series)
-            if len(t) < 2:
-                raise InputError(f"time: column '{time}' has {len(t)} sample(s); its first step is the sampling time")
-            if t.dtype.kind in "mM":
+            if t.dtype.kind in "mM" and len(t):
                 # Timestamps or durations: seconds from the first.
                 seconds = (t - t[0]) / np.timedelta64(1, "s")
             else:
                 seconds = column("time", time)
-            steps = np.diff(seconds)
-            ts = float(steps[0])
-            if not (np.isfinite(ts) and ts > 0):
-                raise InputError(f"time: column '{time}' does not increase from its first to its second sample")
-            # Equally spaced within the program's tolerance (1 % of the step).
-            uneven = np.flatnonzero(~(np.abs(steps - ts) <= 0.01 * ts))
-            if uneven.size:
-                k = int(uneven[0]) + 1
-                raise InputError(
-                    f"time: column '{time}', row {k + 1}: the time step {float(steps[k - 1])} is not the "
-                    f"first step {ts} (the samples must be equally spaced, within 1 % of the step)"
-                )
+            ts = _hysid.sampling_time(time, np.asarray(seconds, dtype=np.float64).tolist())
         return cls(u, y, ts=ts, input_names=names, output_name=output)
 
     @classmethod
