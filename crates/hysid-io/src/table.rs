@@ -81,7 +81,7 @@ pub(crate) fn wanted_names(sel: &DataSelection) -> Vec<&str> {
 
 /// How far a time step may differ from the first, relative to it (clock
 /// jitter and rounding pass; a missing or repeated sample does not).
-const STEP_TOLERANCE: f64 = 0.01;
+pub const STEP_TOLERANCE: f64 = 0.01;
 
 /// Why a time column gives no sampling time; [`TimeStepError::sample`] is
 /// the index of the sample whose step is wrong.
