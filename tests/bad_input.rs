@@ -602,6 +602,19 @@ fn bad_selections_and_orders() {
         &["--refit-starts 100000000000", "must be in 1..=100000"],
         &out,
     );
+    // A clustering sample too small for the procedure is the option's
+    // fault, not the record's.
+    for (points, needs) in [
+        ("1", "local datasets of c = 4"),
+        ("5", "2 modes of 3 parameters"),
+    ] {
+        let set = format!("cluster_points={points}");
+        bad(
+            &identify_with(data, o, "cluster", &["--modes", "2", "--set", &set]),
+            &[&format!("--set {set}"), needs, "raise it, or 0"],
+            &out,
+        );
+    }
     // A number past what a float holds is a number the option refuses, not
     // a text of the wrong type.
     bad(
@@ -877,6 +890,13 @@ fn gray_box_fields_of_the_wrong_name_type_or_variant() {
             "invalid type: string \"640\", expected f64",
         ),
         case(
+            "bounds.toml",
+            "bounds = [8.0, 17.0]",
+            "bounds = [8.0, 17.0, 3.0]",
+            "parameters.bounds: ",
+            "invalid length 3, expected bounds [low, high]: 2 numbers",
+        ),
+        case(
             "type.toml",
             "type = \"dry_friction\"",
             "type = \"dry_fricton\"",
@@ -928,6 +948,17 @@ fn an_unknown_estimated_state_gives_the_line_of_its_key() {
         &[
             &format!("estimate.toml, line {at}: "),
             "initial_state, estimate: 'w' is not a state",
+        ],
+        &out,
+    );
+    // Bounds of three numbers are refused, not read as their first two.
+    let three = text.replace("w = [0, 1]", "v = [0, 1, 2]");
+    let m = write(d, "three.toml", &three);
+    bad(
+        &["simulate", s(&m), "--excite", HEAD_EXCITE, "-o", s(&out)],
+        &[
+            &format!("three.toml, line {at}: initial_state"),
+            "invalid length 3, expected bounds [low, high]: 2 numbers",
         ],
         &out,
     );
@@ -1185,6 +1216,17 @@ fn malformed_prior_files() {
             "bounds.toml",
             "[bounds]\na1 = [1.0, -1.0]\n",
             &["bounds.toml", "a1", "[1, -1]"],
+        ),
+        (
+            "three.toml",
+            "[bounds]\na1 = [-1.0, 1.0, 5.0]\n",
+            &[
+                "three.toml",
+                "line 2",
+                "a1",
+                "invalid length 3",
+                "[low, high]",
+            ],
         ),
         (
             "scalar.toml",
@@ -1683,9 +1725,9 @@ fn models_convert_cannot_write_as_gray_box() {
     report();
 }
 
-/// A relation where a value is expected, and a stop's restitution that
-/// leaves `[0, 1)` within its parameters' bounds, are refused on reading,
-/// naming where.
+/// A relation where a value is expected, a stop's restitution that
+/// leaves `[0, 1)` within its parameters' bounds, and stops that leave no
+/// position between them, are refused on reading, naming where.
 #[test]
 fn relations_as_values_and_restitutions_beyond_one() {
     let dir = tempfile::tempdir().unwrap();
@@ -1728,6 +1770,21 @@ fn relations_as_values_and_restitutions_beyond_one() {
             "restitution-sum.toml",
             head.replace(lower, &format!("{lower}\nrestitution = \"0.5 + y_up\"")),
             vec!["ranges over [0, 1]"],
+        ),
+        (
+            "crossed.toml",
+            head.replace("at = \"y_low\"", "at = \"y_up - 1\""),
+            vec![
+                "line",
+                "element 'lower'",
+                "stop 'upper' keeps the position at or above 0 and stop 'lower' at or below -1",
+                "no position lies between them",
+            ],
+        ),
+        (
+            "touching.toml",
+            head.replace("at = \"y_low\"", "at = \"y_up\""),
+            vec!["at or above 0 and stop 'lower' at or below 0:"],
         ),
     ];
     for (name, text, needles) in cases {

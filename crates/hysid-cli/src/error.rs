@@ -78,16 +78,13 @@ impl From<SimError> for CliError {
 }
 
 impl CliError {
-    /// A simulation set-up error of the model in `model_file`: a problem of
-    /// the model itself (its `internal_step`, a reset that leaves its target's
-    /// invariant) names the file.
+    /// A simulation set-up error of the model in `model_file` on a record:
+    /// a problem of the model itself or of the record for this model (its
+    /// `internal_step`, a reset that leaves its target's invariant, a
+    /// record shorter than its initial-state rule reads, inputs it does
+    /// not have), naming the file.
     pub fn simulation(model_file: &std::path::Path, e: SimError) -> Self {
-        match e {
-            SimError::TooManySubsteps { .. }
-            | SimError::ResetOutsideInvariant { .. }
-            | SimError::InitialState(_) => Self::input(format!("{}: {e}", model_file.display())),
-            e => e.into(),
-        }
+        Self::input(format!("{}: {e}", model_file.display()))
     }
 }
 

@@ -117,8 +117,16 @@ pub fn fit(
     let work = working_data(o, data)?;
     let sample = clustering_sample(o, &work);
     let seen = sample.as_ref().unwrap_or(&work);
-    let c = choose_c(o, data, seen, modes)?;
+    let c = choose_c(o, data, seen, sample.is_some(), modes)?;
     check_sample_count(&work, modes)?;
+    if sample.is_some() && check_sample_count(seen, modes).is_err() {
+        let need = format!(
+            "{modes} modes of {} parameters ({} samples)",
+            work.n + 1,
+            modes * (work.n + 1)
+        );
+        return Err(sample_too_small(o, seen.y.len(), need));
+    }
     let prior_fit = prior_fit(data, seen, modes)?;
     ctx.progress.start(3, "cluster: clustering, regions, refit");
     let mut clustered = cluster_features(o, seen, c, modes, seed, deadline, prior_fit.as_ref())?;
@@ -339,11 +347,13 @@ fn extend_to_all(
 
 /// The local dataset size: the option, or [`default_c`]; between `n+2`
 /// (the local noise variance is divided by `c-n-1`) and the number of
-/// ordinary samples.
+/// ordinary samples (of the clustering sample, when `sampled`: then a
+/// sample smaller than the local datasets is `cluster_points`' fault).
 fn choose_c(
     o: &ClusterOptions,
     data: &PwarxData<'_>,
     work: &Working,
+    sampled: bool,
     modes: usize,
 ) -> Result<usize, IdentifyError> {
     let (n, big_n) = (work.n, work.y.len());
@@ -359,6 +369,13 @@ fn choose_c(
             ),
         )
         .into());
+    }
+    if c > big_n && sampled {
+        return Err(sample_too_small(
+            o,
+            big_n,
+            format!("local datasets of c = {c} samples"),
+        ));
     }
     if c > big_n && o.c.is_none() {
         return Err(ClusterError::TooFewForLocalDatasets {
@@ -382,6 +399,20 @@ fn choose_c(
         .into());
     }
     Ok(c)
+}
+
+/// A clustering sample of `samples` samples too small for `what`:
+/// `cluster_points`' fault.
+fn sample_too_small(o: &ClusterOptions, samples: usize, what: String) -> IdentifyError {
+    OptionError::invalid(
+        "cluster_points",
+        o.cluster_points,
+        format!(
+            "its clustering sample of {samples} samples is too small for {what}; raise it, or 0 \
+             clusters every sample"
+        ),
+    )
+    .into()
 }
 
 /// At least `n+1` samples per mode.

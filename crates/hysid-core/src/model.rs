@@ -543,6 +543,12 @@ mod tests {
                 "unknown variant `measurd`",
             ),
             (
+                "bounds = [8.0, 17.0]",
+                "bounds = [8.0, 17.0, 3.0]",
+                "parameters.bounds",
+                "invalid length 3, expected bounds [low, high]: 2 numbers",
+            ),
+            (
                 "internal_step =",
                 "internal_stp =",
                 "",

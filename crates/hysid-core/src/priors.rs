@@ -126,7 +126,10 @@ pub struct Priors {
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub fixed: BTreeMap<String, f64>,
     /// Box constraints `[low, high]`.
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    #[serde(
+        skip_serializing_if = "BTreeMap::is_empty",
+        deserialize_with = "hysid_model::model::exact_bounds_by_name"
+    )]
     pub bounds: BTreeMap<String, [f64; 2]>,
     /// Regressors the regions may depend on.
     #[serde(skip_serializing_if = "Vec::is_empty")]

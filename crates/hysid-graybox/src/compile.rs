@@ -18,7 +18,7 @@
 use crate::expr::{Expression, Relation, Shared};
 use crate::model::GrayBoxModel;
 use compiler::Compiler;
-use elements::compile_elements;
+use elements::{check_stops, compile_elements};
 use initial::{check_sensor, initial_rule};
 use names::{check_header, check_sizes, definition_names};
 pub use problem::{InvalidGrayBox, Problem};
@@ -226,6 +226,7 @@ impl CompiledModel {
             &|p, n| c.parametric(p, n),
             &|p, n| c.restitution(p, n),
         )?;
+        check_stops(m, &elements, &|e| c.at_values(e))?;
         let modes = c.compile_modes()?;
         let delays = c.compile_delays()?;
         let energy = c.compile_energy()?;

@@ -186,7 +186,11 @@ pub enum GrayBoxInitialState {
         mode: Option<String>,
         /// States estimated within `[low, high]` (a listed value is the
         /// starting guess; absent: the middle of the bounds).
-        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        #[serde(
+            default,
+            skip_serializing_if = "BTreeMap::is_empty",
+            deserialize_with = "hysid_model::model::exact_bounds_by_name"
+        )]
         estimate: Estimates,
         /// The warm-up with an estimate: its outputs estimate the states
         /// (absent: [`DEFAULT_SAMPLES`]).
@@ -220,7 +224,11 @@ pub enum GrayBoxInitialState {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         mode: Option<String>,
         /// States estimated within `[low, high]`, as for `given`.
-        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        #[serde(
+            default,
+            skip_serializing_if = "BTreeMap::is_empty",
+            deserialize_with = "hysid_model::model::exact_bounds_by_name"
+        )]
         estimate: Estimates,
     },
     /// At rest under the first input sample: the states where every flow

@@ -10,8 +10,27 @@ use pyo3::prelude::*;
 use pyo3::types::{PyList, PyTuple};
 
 /// `obj` as an array of floats (anything `numpy.asarray` takes); `name`
-/// names the argument in the error.
+/// names the argument in the error. Complex numbers (numpy would drop their
+/// imaginary parts) and masked samples (numpy would read the values under
+/// the mask) are refused.
 pub fn floats(name: &str, obj: &Bound<'_, PyAny>) -> Result<ArrayD<f64>, Failure> {
+    let not_numbers = |e: PyErr| Failure::input(format!("{name}: not an array of numbers ({e})"));
+    let numpy = obj.py().import("numpy").map_err(not_numbers)?;
+    let masked = numpy
+        .getattr("ma")
+        .and_then(|ma| ma.call_method1("is_masked", (obj,)));
+    if masked.and_then(|m| m.is_truthy()).map_err(not_numbers)? {
+        return Err(Failure::input(format!(
+            "{name}: masked samples; fill them or leave them out first"
+        )));
+    }
+    let kind = (numpy.call_method1("asarray", (obj,)))
+        .and_then(|a| a.getattr("dtype")?.getattr("kind")?.extract::<String>());
+    if kind.map_err(not_numbers)? == "c" {
+        return Err(Failure::input(format!(
+            "{name}: complex numbers; give real ones"
+        )));
+    }
     let a = obj
         .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
         .map_err(|e| Failure::input(format!("{name}: not an array of numbers ({e})")))?;

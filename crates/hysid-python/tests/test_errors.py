@@ -222,3 +222,30 @@ def test_a_method_that_fails_raises_a_method_error_with_the_program_message(prog
     # The program's exit code 1: a failure of the computation, not of the input.
     assert r.returncode == 1, r.stderr
     assert r.stderr.strip() == f"hysid: error: {ours}"
+
+
+@pytest.mark.parametrize("rows", [(0.5, 100), (0, 100.7), ("0", 100), (True, 100)])
+def test_row_bounds_that_are_not_whole_numbers_are_named(rows):
+    message = raised(hysid.identify, U, Y, method="arx", auto=True, select_rows=rows)
+    assert message.startswith("select_rows: row bounds must be whole numbers"), message
+
+
+def test_complex_and_masked_samples_are_refused_not_cast():
+    message = raised(hysid.identify, U + 1j, Y, method="arx")
+    assert message.startswith("u: complex numbers"), message
+    masked = np.ma.masked_array(Y, mask=np.arange(300) == 7)
+    message = raised(hysid.identify, U, masked, method="arx")
+    assert message.startswith("y: masked samples"), message
+    # A masked array without a masked sample is its values.
+    whole = np.ma.masked_array(Y, mask=np.zeros(300, bool))
+    assert hysid.identify(U, whole, method="arx").to_json() == hysid.identify(U, Y, method="arx").to_json()
+
+
+def test_plot_regressors_checks_the_record_against_the_model():
+    import hysid.plot
+
+    model = hysid.identify(U, Y, method="arx")
+    assert hysid.plot.regressors(model, U, Y).shape == (298, 4)
+    assert raised(hysid.plot.regressors, model, np.stack([U, U], axis=1), Y).startswith("u: expected shape (N, 1)")
+    assert raised(hysid.plot.regressors, model, U, Y[:200]).startswith("y: 200 samples, u has 300")
+    assert raised(hysid.plot.regressors, model, U, np.stack([Y, Y], axis=1)).startswith("y: expected shape (N,)")

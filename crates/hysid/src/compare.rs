@@ -9,8 +9,8 @@ pub mod report;
 pub mod truth;
 
 pub use experiment::{
-    DataPart, DataSpec, Experiment, ExperimentError, Provenance, RecordSpec, RunSpec, ScoredRows,
-    SweepSpec, value_text,
+    DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Provenance, RecordSpec,
+    RunSpec, ScoredRows, SweepSpec, value_text,
 };
 pub use hysid_plot::FigureFormat;
 pub use report::write_report;

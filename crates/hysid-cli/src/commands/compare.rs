@@ -42,6 +42,9 @@ pub fn run(args: Args) -> Result<()> {
         PathBuf::from("out").join(stem)
     });
     super::a_folder(&dir)?;
+    for w in exp.warnings() {
+        eprintln!("hysid: warning: {}: {w}", args.experiment.display());
+    }
     let progress = TerminalProgress::new();
     let mut comparison = exp
         .run(&progress)

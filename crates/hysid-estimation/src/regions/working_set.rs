@@ -780,8 +780,9 @@ mod tests {
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
         /// The simplex working-set MRLP reaches the objective of clarabel on
-        /// the full LP: random modes, dimensions, label noise (non-separable
-        /// data) and duplicated points (degenerate vertices).
+        /// the full LP, and so does the region step's `solve`: random modes,
+        /// dimensions, label noise (non-separable data) and duplicated
+        /// points (degenerate vertices).
         #[test]
         fn simplex_matches_the_full_lp(
             modes in 2usize..5,
@@ -827,31 +828,34 @@ mod tests {
             let weight: Vec<f64> = prep.counts.iter().map(|&c| 1.0 / c as f64).collect();
             let mut stats = SolveStats::default();
             let set = scaled_softmax_set(&prep, &labels, modes, &weight, false, &mut stats).unwrap();
-            // The optimum the simplex reaches, unique or not.
-            let mut sx = Simplex::new(&prep, &labels, &weight, modes);
-            let mut set = set;
-            let mut in_set = vec![false; n];
-            for &r in &set {
-                in_set[r] = true;
-            }
-            loop {
-                sx.optimise(&set, 1_000_000).expect("the simplex finishes on small problems");
-                let new = violators(&prep, &labels, modes, &sx.blocks(), &in_set);
-                if new.is_empty() {
-                    break;
+            // The optimum the simplex's working-set rounds reach, unique or
+            // not: where it is not, on the final working set, which holds
+            // every point with a non-zero loss.
+            let none = hysid_core::backend::Deadline::none();
+            let blocks = match solve_simplex(&prep, &labels, modes, &weight, set, &none, &mut stats) {
+                SimplexOutcome::Kept(blocks) => blocks,
+                SimplexOutcome::Degenerate { set } => {
+                    let mut sx = Simplex::new(&prep, &labels, &weight, modes);
+                    sx.optimise(&set, 1_000_000).expect("the simplex finishes on its final set");
+                    sx.blocks()
                 }
-                for &r in &new {
-                    in_set[r] = true;
+                SimplexOutcome::GaveUp => {
+                    return Err(proptest::test_runner::TestCaseError::fail("the simplex gave up"));
                 }
-                set.extend_from_slice(&new);
-                set.sort_unstable();
-            }
-            let blocks = sx.blocks();
+            };
             let a = objective(&prep, &labels, &weight, false, &blocks);
             let b = clarabel_full(&prep, &labels, modes, &weight);
             proptest::prop_assert!(
                 (a - b).abs() <= 1e-6 * (1.0 + b.abs()),
                 "simplex {} vs clarabel {}", a, b
+            );
+            // The region step's own path (the simplex, or clarabel where
+            // the simplex's optimum is not unique) reaches it too.
+            let (scores, _) = solve(&prep, &labels, modes, &opts).unwrap();
+            let c = objective(&prep, &labels, &weight, false, &scores);
+            proptest::prop_assert!(
+                (c - b).abs() <= 1e-6 * (1.0 + b.abs()),
+                "solve {} vs clarabel {}", c, b
             );
         }
     }

@@ -122,6 +122,13 @@ impl<'m> Compiler<'m> {
         }
     }
 
+    /// The value of an expression of the parameters only at the file's
+    /// values.
+    pub(super) fn at_values(&self, e: &Expression) -> f64 {
+        e.bind(self.parameter_slots().start, &self.m.values())
+            .eval(&[])
+    }
+
     /// A stop's restitution: parameters only, within `[0, 1)` over the
     /// parameters' bounds where it is affine in them (a number, a
     /// parameter, a scaled sum), at their values otherwise.
@@ -143,7 +150,7 @@ impl<'m> Compiler<'m> {
                     })
             }
             None => {
-                let v = e.bind(first, &self.m.values()).eval(&[]);
+                let v = self.at_values(&e);
                 (v, v)
             }
         };

@@ -78,3 +78,42 @@ pub(super) fn compile_elements(
     }
     Ok(elements)
 }
+
+/// Checks that no two stops on one position leave no position between
+/// them at the file's values (`value_of`: an expression of the parameters
+/// at their values): a `side = "min"` stop must lie below every
+/// `side = "max"` stop on the same state.
+pub(super) fn check_stops(
+    m: &GrayBoxModel,
+    elements: &[CompiledElement],
+    value_of: &dyn Fn(&Expression) -> f64,
+) -> Result<(), InvalidGrayBox> {
+    // (element, position state, sign, position) of every stop.
+    let stops: Vec<(&Element, usize, f64, f64)> = (m.elements.iter().zip(elements))
+        .filter_map(|(e, c)| match c {
+            CompiledElement::Stop {
+                position, at, sign, ..
+            } => Some((e, *position, *sign, value_of(at))),
+            CompiledElement::DryFriction { .. } => None,
+        })
+        .collect();
+    for &(below, state, _, at_least) in stops.iter().filter(|s| s.2 < 0.0) {
+        for &(above, _, _, at_most) in stops.iter().filter(|s| s.2 > 0.0 && s.1 == state) {
+            if let Element::Stop { at, .. } = above
+                && at_least >= at_most
+            {
+                return Err(InvalidGrayBox::new(
+                    format!("element '{}'", above.name()),
+                    Some(at),
+                    Problem::CrossedStops {
+                        below: below.name().into(),
+                        at_least,
+                        above: above.name().into(),
+                        at_most,
+                    },
+                ));
+            }
+        }
+    }
+    Ok(())
+}

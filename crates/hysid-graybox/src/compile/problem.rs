@@ -84,6 +84,22 @@ pub enum Problem {
         /// Its largest value.
         high: f64,
     },
+    /// A stop that bounds a position from below at or above one that
+    /// bounds it from above, at the parameters' values.
+    #[error(
+        "stop '{below}' keeps the position at or above {at_least} and stop '{above}' at or \
+         below {at_most}: no position lies between them at the parameters' values"
+    )]
+    CrossedStops {
+        /// The stop that bounds it from below (`side = "min"`).
+        below: String,
+        /// Its position.
+        at_least: f64,
+        /// The stop that bounds it from above (`side = "max"`).
+        above: String,
+        /// Its position.
+        at_most: f64,
+    },
     /// An element's quantity that reads more than the parameters.
     #[error("'{0}' may only use parameters and numbers")]
     NotParametric(String),

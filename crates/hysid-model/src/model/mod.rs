@@ -28,7 +28,7 @@ pub use diagnostics::{
     Diagnostics, Refinement, RefinementStatus, RegionRefinement, RegionRefinementStatus, RunStatus,
     Trimming, TrimmingStatus,
 };
-pub use parameter::PhysicalParameter;
+pub use parameter::{PhysicalParameter, exact_bounds, exact_bounds_by_name};
 pub use pwarx::{PwarxMode, PwarxModel, RegionChoice, mode_name, region_of};
 pub use selection::{RefinementChoice, RefitStart, ScoredCandidate, Selection, SplitRows};
 pub use stop::{Stop, StopBound};

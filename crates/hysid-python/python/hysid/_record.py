@@ -3,6 +3,7 @@ from numpy arrays, a pandas DataFrame or a record file."""
 
 from __future__ import annotations
 
+import numbers
 import os
 from typing import Any, List, Optional, Sequence, Tuple, Union
 
@@ -27,6 +28,9 @@ def _rows(name: str, rows: Rows) -> Optional[str]:
         start, stop = rows
     else:
         raise InputError(f"{name}: expected 'A..B', (A, B), range(A, B) or slice(A, B), got {rows!r}")
+    for bound in (start, stop):
+        if bound is not None and (isinstance(bound, bool) or not isinstance(bound, numbers.Integral)):
+            raise InputError(f"{name}: row bounds must be whole numbers, got {bound!r}")
     a = "" if start is None else str(int(start))
     b = "" if stop is None else str(int(stop))
     return f"{a}..{b}"

@@ -32,6 +32,19 @@ def _output(y: npt.ArrayLike) -> npt.NDArray[np.float64]:
     return y.ravel() if y.ndim == 2 and y.shape[1] == 1 else y
 
 
+def _record(model: Model, u: npt.ArrayLike, y: npt.ArrayLike) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """``u`` as ``(N, m)`` and ``y`` as ``(N,)``, checked against each other
+    and the model's inputs."""
+    u, y = _inputs(u), _output(y)
+    if u.ndim != 2 or u.shape[1] != model.inputs:
+        raise InputError(f"u: expected shape (N, {model.inputs}) for the model's inputs, got {u.shape}")
+    if y.ndim != 1:
+        raise InputError(f"y: expected shape (N,) or (N, 1), got {y.shape}")
+    if len(y) != len(u):
+        raise InputError(f"y: {len(y)} samples, u has {len(u)}")
+    return u, y
+
+
 def _mode_colours(n: int) -> Any:
     """A colour per mode: the first ``n`` of a qualitative map, or a
     continuous one beyond 20 modes."""
@@ -51,7 +64,7 @@ def regressors(model: Model, u: npt.ArrayLike, y: npt.ArrayLike) -> npt.NDArray[
     if model.orders is None:
         raise InputError(f"a {model.kind} model has no ARX regressor")
     na, nb = model.orders
-    u, y = _inputs(u), _output(y)
+    u, y = _record(model, u, y)
     start = max(na, nb)
     rows = range(start, len(y))
     cols = [y[[k - j for k in rows]] for j in range(1, na + 1)]
@@ -83,10 +96,7 @@ def simulation(
     ``u`` (started from the measured outputs), with the active mode below.
     Returns the figure."""
     plt = _pyplot()
-    y = _output(y)
-    n = len(_inputs(u))
-    if len(y) != n:
-        raise InputError(f"y: {len(y)} samples, u has {n}")
+    u, y = _record(model, u, y)
     sim, mode = model.simulate(u, y0=y, ts=ts)
     step = ts or model.ts or 1.0
     t = np.arange(len(y)) * step

@@ -7,6 +7,7 @@ use hysid_core::search::{Axis, SearchSpace};
 use hysid_model::data::{DataSelection, RowRange};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashSet};
+use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// Most jobs an experiment may expand into ([`Experiment::jobs`]): each
@@ -745,6 +746,84 @@ impl Experiment {
     }
 }
 
+/// What an experiment file asks for that runs, but that a reader of its
+/// report should be told.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ExperimentWarning {
+    /// Scored rows that are also identification rows of the same file:
+    /// their scores are not on rows the fits did not see.
+    ValidationOverlaps {
+        /// The `[[data.records]]` entry (counted from 1); `None` for the
+        /// `[data]` table's own file.
+        record: Option<usize>,
+        /// The identification rows.
+        identification: RowRange,
+        /// The validation rows.
+        validation: RowRange,
+    },
+}
+
+impl fmt::Display for ExperimentWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ExperimentWarning::ValidationOverlaps {
+                record,
+                identification,
+                validation,
+            } => {
+                let table = match record {
+                    Some(r) => format!("[[data.records]] #{r}"),
+                    None => "[data]".into(),
+                };
+                write!(
+                    f,
+                    "{table}: the validation rows {validation} overlap the identification rows \
+                     {identification}: their scores are not on rows the fits did not see"
+                )
+            }
+        }
+    }
+}
+
+/// Whether two row ranges share a row (an open end reaches every row).
+fn overlap(a: &RowRange, b: &RowRange) -> bool {
+    let start = a.start.unwrap_or(0).max(b.start.unwrap_or(0));
+    let end = a.end.unwrap_or(usize::MAX).min(b.end.unwrap_or(usize::MAX));
+    start < end
+}
+
+impl Experiment {
+    /// What the file asks for that its report's reader should be told
+    /// ([`ExperimentWarning`]), in the order of the file.
+    pub fn warnings(&self) -> Vec<ExperimentWarning> {
+        let own = (
+            None,
+            Some(&self.data.identification),
+            Some(&self.data.validation),
+        );
+        let records = (self.data.records.iter().enumerate()).map(|(i, r)| {
+            (
+                Some(i + 1),
+                r.identification.as_ref(),
+                r.validation.as_ref(),
+            )
+        });
+        std::iter::once(own)
+            .chain(records)
+            .filter_map(|(record, id, val)| match (id, val) {
+                (Some(id), Some(val)) if overlap(id, val) => {
+                    Some(ExperimentWarning::ValidationOverlaps {
+                        record,
+                        identification: *id,
+                        validation: *val,
+                    })
+                }
+                _ => None,
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -797,6 +876,48 @@ mod tests {
         // 64 axes of two values: 2^64 points, counted without overflow.
         let e = Experiment::from_toml(&text(&axes(64, 2)), "x.toml").unwrap_err();
         assert!(e.to_string().contains("more than 10000 jobs"), "{e}");
+    }
+
+    /// Validation rows that share a row with the identification rows of
+    /// the same file are warned of, open ends included; disjoint ones and
+    /// rows of different files are not.
+    #[test]
+    fn overlapping_validation_rows_are_warned_of() {
+        let warned = |id: &str, val: &str, records: &str| {
+            let text = format!(
+                "title = \"t\"\n[data]\nfile = \"d.csv\"\nidentification = \"{id}\"\n\
+                 validation = \"{val}\"\n{records}[[run]]\nname = \"a\"\nmethod = \"arx\"\n"
+            );
+            let e = Experiment::from_toml(&text, "x.toml").unwrap();
+            e.warnings()
+                .iter()
+                .map(|w| w.to_string())
+                .collect::<Vec<_>>()
+        };
+        assert!(warned("0..100", "100..", "").is_empty());
+        assert!(warned("100..", "0..100", "").is_empty());
+        let w = warned("0..100", "99..", "");
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].starts_with(
+                "[data]: the validation rows 99.. overlap the identification rows 0..100"
+            ),
+            "{}",
+            w[0]
+        );
+        assert_eq!(warned("..", "5..6", "").len(), 1);
+        assert_eq!(warned("50..", "0..51", "").len(), 1);
+        let record = |id: &str, val: &str| {
+            format!(
+                "[[data.records]]\nfile = \"e.csv\"\nidentification = \"{id}\"\n\
+                 validation = \"{val}\"\n"
+            )
+        };
+        // A record's rows against its own identification rows only.
+        assert!(warned("0..100", "100..", &record("100..", "0..100")).is_empty());
+        let w = warned("0..100", "100..", &record("0..10", "5.."));
+        assert_eq!(w.len(), 1);
+        assert!(w[0].starts_with("[[data.records]] #1: "), "{}", w[0]);
     }
 
     #[test]
