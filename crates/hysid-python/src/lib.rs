@@ -9,6 +9,7 @@
 //! Identification runs without the GIL and stops cleanly on Ctrl-C (module
 //! `interrupt`).
 
+mod args;
 mod error;
 mod interrupt;
 mod model;

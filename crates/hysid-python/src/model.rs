@@ -1,6 +1,7 @@
 //! `hysid.Model`: any model hysid identifies, loads or writes, with its
 //! simulation, prediction and validation on numpy arrays.
 
+use crate::args;
 use crate::error::Failure;
 use crate::record::{self, dataset, input_columns, output};
 use hysid_core::model::Model as AnyModel;
@@ -235,8 +236,9 @@ impl Model {
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
         y0: Option<&Bound<'py, PyAny>>,
-        ts: Option<f64>,
+        ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Outputs<'py>> {
+        let ts = args::seconds("ts", ts)?;
         let n = input_columns(u)?.first().map_or(0, Vec::len);
         let mut y = vec![0.0; n];
         if let Some(y0) = y0 {
@@ -270,9 +272,9 @@ impl Model {
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
-        ts: Option<f64>,
+        ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Outputs<'py>> {
-        let data = self.record(u, output(y)?, ts)?;
+        let data = self.record(u, output(y)?, args::seconds("ts", ts)?)?;
         let opts = SimulationOptions::for_data(&data);
         let pred = py
             .detach(|| simulate::predict(&self.inner, &data, opts))
@@ -286,17 +288,17 @@ impl Model {
     /// Scores the model on a record, leaving out the first `warmup`
     /// samples: the dictionary of `hysid validate --json` (`fit_sim`,
     /// `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...).
-    #[pyo3(signature = (u, y, warmup=10, ts=None))]
+    #[pyo3(signature = (u, y, warmup=None, ts=None), text_signature = "(self, u, y, warmup=10, ts=None)")]
     fn validate<'py>(
         &self,
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
-        warmup: i64,
-        ts: Option<f64>,
+        warmup: Option<&Bound<'py, PyAny>>,
+        ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let warmup = usize::try_from(warmup)
-            .map_err(|_| Failure::input(format!("warmup={warmup}: must be a whole number >= 0")))?;
+        let warmup = warmup.map_or(Ok(10), |w| args::count("warmup", w))?;
+        let ts = args::seconds("ts", ts)?;
         let data = record::one_or_joined(u, y, |u, y| self.record(u, output(y)?, ts))?;
         for (i, range) in data.record_ranges().into_iter().enumerate() {
             if warmup >= range.len() {

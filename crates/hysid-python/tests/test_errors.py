@@ -249,3 +249,21 @@ def test_plot_regressors_checks_the_record_against_the_model():
     assert raised(hysid.plot.regressors, model, np.stack([U, U], axis=1), Y).startswith("u: expected shape (N, 1)")
     assert raised(hysid.plot.regressors, model, U, Y[:200]).startswith("y: 200 samples, u has 300")
     assert raised(hysid.plot.regressors, model, U, np.stack([Y, Y], axis=1)).startswith("y: expected shape (N,)")
+
+
+@pytest.mark.parametrize("given", [{"seed": 2**70}, {"na": 2**64}, {"warmup": 2**64}, {"modes": -1}])
+def test_counts_past_the_program_s_range_are_named(given):
+    (name, value), = given.items()
+    message = raised(hysid.identify, U, Y, **{"method": "arx", **given})
+    assert message.startswith(f"{name}={value}: must be a whole number >= 0"), message
+
+
+def test_the_model_s_methods_name_their_arguments():
+    model = hysid.identify(U, Y, method="arx")
+    for warmup in (2**70, -1, 2.5, True, "10"):
+        assert raised(model.validate, U, Y, warmup=warmup).startswith(f"warmup={warmup!r}: must be a whole number")
+    assert model.validate(U, Y, warmup=np.int64(10)) == model.validate(U, Y)
+    for call in (lambda ts: model.simulate(U, ts=ts), lambda ts: model.predict(U, Y, ts=ts),
+                 lambda ts: model.validate(U, Y, ts=ts)):
+        assert raised(call, "x").startswith("ts='x': must be a number of seconds")
+    assert raised(model.simulate, U, ts=-1.0).startswith("sampling time must be")

@@ -71,8 +71,8 @@ def _counts(**given: Any) -> None:
     argument."""
     _types(**{name: (value, numbers.Integral, "a whole number") for name, value in given.items()})
     for name, value in given.items():
-        if value is not None and value < 0:
-            raise InputError(f"{name}={value}: must be a whole number >= 0")
+        if value is not None and not 0 <= value < 2**64:
+            raise InputError(f"{name}={value}: must be a whole number >= 0 and < 2**64")
 
 
 def _types(**given: Any) -> None:

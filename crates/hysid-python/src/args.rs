@@ -1,0 +1,48 @@
+//! Arguments of the model's methods read as the program reads its flags:
+//! a value of the wrong type or out of range is a `hysid.InputError` that
+//! names the argument, never a `TypeError` or `OverflowError` from the
+//! conversion. (The package's functions check theirs in Python first.)
+
+use crate::error::Failure;
+use pyo3::prelude::*;
+use pyo3::types::PyBool;
+
+/// `repr(obj)`, for a message.
+fn shown(obj: &Bound<'_, PyAny>) -> String {
+    obj.repr().map(|r| r.to_string()).unwrap_or_default()
+}
+
+/// Argument `name` as a count: a whole number from 0 to `usize::MAX` (a
+/// Python or numpy integer, not a bool).
+pub fn count(name: &str, obj: &Bound<'_, PyAny>) -> Result<usize, Failure> {
+    let refused = || {
+        Failure::input(format!(
+            "{name}={}: must be a whole number >= 0",
+            shown(obj)
+        ))
+    };
+    if obj.is_instance_of::<PyBool>() {
+        return Err(refused());
+    }
+    obj.extract::<usize>().map_err(|_| refused())
+}
+
+/// Argument `name`, when given, as a number of seconds (positivity and
+/// finiteness are the record's checks).
+pub fn seconds(name: &str, obj: Option<&Bound<'_, PyAny>>) -> Result<Option<f64>, Failure> {
+    let Some(obj) = obj else {
+        return Ok(None);
+    };
+    if obj.is_instance_of::<PyBool>() {
+        return Err(Failure::input(format!(
+            "{name}={}: must be a number of seconds",
+            shown(obj)
+        )));
+    }
+    obj.extract::<f64>().map(Some).map_err(|_| {
+        Failure::input(format!(
+            "{name}={}: must be a number of seconds",
+            shown(obj)
+        ))
+    })
+}
