@@ -42,22 +42,49 @@ fn identify(
         .unwrap_or_else(|e| panic!("{method}: {e}"))
 }
 
+/// The samples truly held at the upper and the lower stop among the
+/// regression targets of a record whose true modes are `truth` (samples
+/// 2.., na = nb = 2).
+fn held_at_stops(truth: &[Option<String>]) -> [usize; 2] {
+    let count = |name: &str| {
+        (truth[2..].iter())
+            .filter(|m| m.as_deref() == Some(name))
+            .count()
+    };
+    [count("upper_saturation"), count("lower_saturation")]
+}
+
+/// Asserts that `model` found the samples at the stops to within 3 % of
+/// `held`, and never simulates `test` past a stop.
+fn assert_stops_found_and_held(
+    method: &str,
+    model: &Model,
+    held: [usize; 2],
+    test: &hysid_model::data::Dataset,
+) {
+    let found = model.info().diagnostics.saturated_per_stop.clone().unwrap();
+    for (stop, (&f, &t)) in found.iter().zip(&held).enumerate() {
+        let off = (f as f64 - t as f64).abs() / t as f64;
+        assert!(
+            off <= 0.03,
+            "{method}: stop {stop}: {f} samples found, {t} true"
+        );
+    }
+    let sim = simulate(model, test, SimulationOptions::for_data(test)).unwrap();
+    for &y in &sim.y[sim.start..] {
+        assert!(
+            (0.0..=25.0).contains(&y),
+            "{method}: simulated {y} past a stop"
+        );
+    }
+}
+
 #[test]
 fn stops_are_found_held_and_help_on_a_noisy_quantised_record() {
     let record = SimulatedHead::read("both-saturations.csv", 0.01);
     let (ident, truth) = record.rows(0..4000);
     let (test, _) = record.rows(4000..6000);
-    // Regression targets are samples 2.. (na = nb = 2).
-    let true_count = |name: &str| {
-        truth[2..]
-            .iter()
-            .filter(|m| m.as_deref() == Some(name))
-            .count()
-    };
-    let true_at_stops = [
-        true_count("upper_saturation"),
-        true_count("lower_saturation"),
-    ];
+    let true_at_stops = held_at_stops(&truth);
     // The published procedures, as the simulated-head experiments run
     // them (models/pick-and-place/simulated/both.toml). With cluster's
     // default alternation the model without the stops scores 93.3 % here,
@@ -75,21 +102,8 @@ fn stops_are_found_held_and_help_on_a_noisy_quantised_record() {
         let with = Priors::from_toml(&format!("{count}{STOPS}"), "p.toml").unwrap();
         let without = Priors::from_toml(&count, "p.toml").unwrap();
         let model = identify(method, &ident, &with, set);
+        assert_stops_found_and_held(method, &model, true_at_stops, &test);
         let found = model.info().diagnostics.saturated_per_stop.clone().unwrap();
-        for (stop, (&f, &t)) in found.iter().zip(&true_at_stops).enumerate() {
-            let off = (f as f64 - t as f64).abs() / t as f64;
-            assert!(
-                off <= 0.03,
-                "{method}: stop {stop}: {f} samples found, {t} true"
-            );
-        }
-        let sim = simulate(&model, &test, SimulationOptions::for_data(&test)).unwrap();
-        for &y in &sim.y[sim.start..] {
-            assert!(
-                (0.0..=25.0).contains(&y),
-                "{method}: simulated {y} past a stop"
-            );
-        }
         let score = |m: &Model| validate(m, &test, 10).unwrap().0.fit_sim;
         let (fit_with, fit_without) = (
             score(&model),
@@ -130,34 +144,9 @@ fn every_back_end_declaring_stops_finds_and_holds_them() {
     );
     for method in declaring {
         let (ident, truth) = record.rows(if method == "milp" { 100..160 } else { 0..4000 });
-        // Regression targets are samples 2.. (na = nb = 2).
-        let true_count = |name: &str| {
-            truth[2..]
-                .iter()
-                .filter(|m| m.as_deref() == Some(name))
-                .count()
-        };
-        let true_at_stops = [
-            true_count("upper_saturation"),
-            true_count("lower_saturation"),
-        ];
         let modes = if method == "arx" { 3 } else { 4 };
         let with = Priors::from_toml(&format!("modes = {modes}\n{STOPS}"), "p.toml").unwrap();
         let model = identify(method, &ident, &with, &[]);
-        let found = model.info().diagnostics.saturated_per_stop.clone().unwrap();
-        for (stop, (&f, &t)) in found.iter().zip(&true_at_stops).enumerate() {
-            let off = (f as f64 - t as f64).abs() / t as f64;
-            assert!(
-                off <= 0.03,
-                "{method}: stop {stop}: {f} samples found, {t} true"
-            );
-        }
-        let sim = simulate(&model, &test, SimulationOptions::for_data(&test)).unwrap();
-        for &y in &sim.y[sim.start..] {
-            assert!(
-                (0.0..=25.0).contains(&y),
-                "{method}: simulated {y} past a stop"
-            );
-        }
+        assert_stops_found_and_held(method, &model, held_at_stops(&truth), &test);
     }
 }
