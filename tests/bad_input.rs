@@ -1803,3 +1803,103 @@ fn relations_as_values_and_restitutions_beyond_one() {
     }
     report();
 }
+
+/// A warm-up of no sample, a starting guess outside its bounds, a
+/// parameter outside its bounds (with the numbers), `init_samples` on a
+/// rule that reads no warm-up, and a warm-up longer than the record are
+/// refused before any search, naming where.
+#[test]
+fn warm_ups_starting_guesses_and_bounds_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let data = s(&data);
+    let out = d.join("never.json");
+    let head = repository_text("models/pick-and-place/head-graybox.toml");
+    let measured =
+        "initial_state = { from = \"measured\", samples = 10, position = \"y\", velocity = \"v\" }";
+    assert!(head.contains(measured));
+    let rule = |r: &str| head.replace(measured, &format!("initial_state = {r}"));
+    let cases: Vec<(&str, String, Vec<&str>, Vec<&str>)> = vec![
+        (
+            "zero.toml",
+            head.replace("samples = 10", "samples = 0"),
+            vec![],
+            vec![
+                "zero.toml, line",
+                "initial_state",
+                "samples must be at least 1",
+            ],
+        ),
+        (
+            "guess.toml",
+            rule("{ from = \"given\", values = { y = 30.0 }, estimate = { y = [0, 25] } }"),
+            vec![],
+            vec![
+                "guess.toml, line",
+                "estimate of 'y': the starting guess 30 lies outside the bounds [0, 25]",
+            ],
+        ),
+        (
+            "value.toml",
+            head.replace("value = 640.0", "value = 1000.0"),
+            vec![],
+            vec!["parameter 'c1': value 1000 and bounds [400, 900]"],
+        ),
+        (
+            "given.toml",
+            rule("{ from = \"given\", values = { y = 1.0 } }"),
+            vec!["init_samples=5"],
+            vec!["--set init_samples=5", "reads no warm-up to set"],
+        ),
+        (
+            "long.toml",
+            rule(
+                "{ from = \"given\", samples = 4000, estimate = { y = [0, 25], v = [-100, 100] } }",
+            ),
+            vec![],
+            vec!["200 samples", "need at least 40"],
+        ),
+    ];
+    for (name, text, set, needles) in &cases {
+        let m = write(d, name, text);
+        let model = format!("model={}", s(&m));
+        let mut args = vec!["identify", data, "-m", "physical", "--set", &model];
+        for x in set {
+            args.extend_from_slice(&["--set", x]);
+        }
+        args.extend_from_slice(&["-o", s(&out)]);
+        bad(&args, needles, &out);
+    }
+    report();
+}
+
+/// One file given twice with the same rows is one record counted twice:
+/// refused, with where records of one file under other names go.
+#[test]
+fn a_file_given_twice_with_the_same_rows_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let data = s(&data);
+    let out = d.join("never.json");
+    let model = d.join("m.json");
+    common::ok(&["identify", data, "-m", "arx", "-o", s(&model)]);
+    let needles = [
+        "data.csv: given twice with the same rows",
+        "[[data.records]]",
+    ];
+    bad(
+        &["identify", data, data, "-m", "arx", "-o", s(&out)],
+        &needles,
+        &out,
+    );
+    bad(&["validate", s(&model), data, data], &needles, &out);
+    // Other rows of the same file are two records.
+    let rows = ["--rows", "0..100", "--rows", "100..200"];
+    let mut args = vec!["identify", data, data, "-m", "arx", "-o", s(&out)];
+    args.extend_from_slice(&rows);
+    let r = hysid(&args);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    report();
+}

@@ -97,6 +97,22 @@ impl DataArgs {
                 ))
             })
             .collect::<Result<Vec<_>, CliError>>()?;
+        // The same rows of the same file twice would be one record counted
+        // twice; the records of one file under other signal names need an
+        // experiment file's [[data.records]].
+        for (i, (file, selection)) in records.iter().enumerate() {
+            if records[..i]
+                .iter()
+                .any(|(f, s)| f == file && s == selection)
+            {
+                return Err(CliError::input(format!(
+                    "{}: given twice with the same rows: give each record's --rows, or, for records \
+                     of one file under other signal names, an experiment file's [[data.records]] \
+                     (docs/compare.md)",
+                    file.display()
+                )));
+            }
+        }
         Ok(hysid_io::load_records(&records)?)
     }
 

@@ -71,7 +71,9 @@ pub fn predict(
 pub struct ValidationReport {
     /// Samples scored.
     pub n: usize,
-    /// Samples left out at the start.
+    /// Samples left out at the start, as asked (`--warmup`); a model
+    /// whose initial state reads a warm-up leaves out at least that warm-up
+    /// (`n` counts the samples scored).
     pub warmup: usize,
     /// FIT of free-run simulation, percent.
     pub fit_sim: f64,

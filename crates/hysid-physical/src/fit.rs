@@ -17,6 +17,7 @@ use crate::swarm::{SwarmResult, global_stage, noise_floor, nominal_suffices};
 use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
 use hysid_core::backend::{IdentifyError, NoProgress, Progress, RunContext};
+use hysid_core::options::OptionError;
 use hysid_core::priors::Priors;
 use hysid_model::data::Dataset;
 use rayon::prelude::*;
@@ -58,11 +59,18 @@ pub fn fit_model<M: Target>(
     // The file's rule, unless `init_samples` asks for another warm-up; a
     // measured start takes the record's velocity tolerance.
     let samples = match options.init_samples {
-        0 => model.measured_samples(),
+        0 => model.warmup_samples(),
         n => Some(n),
     };
     let model = match samples {
-        Some(n) => model.with_measured_start(n, tols.backward),
+        Some(n) => model.with_warmup(n, tols.backward).ok_or_else(|| {
+            OptionError::invalid(
+                "init_samples",
+                n,
+                "the model's initial state is given or at rest and estimates no state: it \
+                 reads no warm-up to set",
+            )
+        })?,
         None => model.clone(),
     };
     let map = ParameterMap::new(&model, priors, data.record_count())
@@ -338,7 +346,7 @@ fn check_length(
     data: &Dataset,
 ) -> Result<(), IdentifyError> {
     let d = map.dim();
-    let initial = model.measured_samples().unwrap_or(0);
+    let initial = model.warmup_samples().unwrap_or(0);
     if data.record_count() > 1
         && let Some((i, r)) = data
             .record_ranges()

@@ -74,12 +74,14 @@ pub trait Target: Simulator + Clone {
     fn check(&self) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
     /// Sub-steps per sample at the sampling time `ts`.
     fn substeps(&self, ts: f64) -> Result<usize, SimError>;
-    /// Samples the initial state reads (`None`: a given initial state).
-    fn measured_samples(&self) -> Option<usize>;
-    /// The model with its initial state read on the first `samples`
-    /// samples, velocities below `velocity_tol` taken as zero (at least
-    /// the model's own tolerance).
-    fn with_measured_start(&self, samples: usize, velocity_tol: f64) -> Self;
+    /// Samples of the warm-up the initial state reads: a measured state,
+    /// or the outputs that estimate the states it leaves unknown (`None`:
+    /// a given or rest state that estimates nothing).
+    fn warmup_samples(&self) -> Option<usize>;
+    /// The model with a warm-up of the first `samples` samples, velocities
+    /// below `velocity_tol` taken as zero (at least the model's own
+    /// tolerance); `None` for a rule that reads no warm-up.
+    fn with_warmup(&self, samples: usize, velocity_tol: f64) -> Option<Self>;
     /// The states of the initial state that the model leaves unknown:
     /// `(name, [low, high], starting guess)`. They are fitted with the
     /// parameters, as nuisance parameters of the record: their values
@@ -114,14 +116,16 @@ impl Target for MechanicalModel {
         substeps(ts, self.internal_step)
     }
 
-    fn measured_samples(&self) -> Option<usize> {
+    fn warmup_samples(&self) -> Option<usize> {
         match self.initial_state {
             MechanicalInitialState::Measured { samples, .. } => Some(samples),
             MechanicalInitialState::Given { .. } => None,
         }
     }
 
-    fn with_measured_start(&self, samples: usize, velocity_tol: f64) -> Self {
+    /// A given state becomes a measured one: the state of a mechanical
+    /// model is its output and the output's slope.
+    fn with_warmup(&self, samples: usize, velocity_tol: f64) -> Option<Self> {
         let mut m = self.clone();
         let own = match m.initial_state {
             MechanicalInitialState::Measured { velocity_tol, .. } => velocity_tol,
@@ -131,7 +135,7 @@ impl Target for MechanicalModel {
             samples,
             velocity_tol: own.max(velocity_tol),
         };
-        m
+        Some(m)
     }
 }
 
@@ -225,10 +229,13 @@ impl Target for GrayBoxTarget {
         substeps(ts, self.model.internal_step)
     }
 
-    fn measured_samples(&self) -> Option<usize> {
-        match self.model.initial_state {
-            GrayBoxInitialState::Measured { samples, .. } => Some(samples),
-            GrayBoxInitialState::Given { .. } | GrayBoxInitialState::Steady { .. } => None,
+    fn warmup_samples(&self) -> Option<usize> {
+        match self.compiled.initial {
+            CompiledInitial::Given { samples, .. } if !self.compiled.estimates.is_empty() => {
+                Some(samples)
+            }
+            CompiledInitial::Measured { samples, .. } => Some(samples),
+            CompiledInitial::Given { .. } | CompiledInitial::Steady { .. } => None,
         }
     }
 
@@ -240,29 +247,36 @@ impl Target for GrayBoxTarget {
             .collect()
     }
 
-    /// A model with a given initial state keeps it: which state the
-    /// output measures is the model's to say.
-    fn with_measured_start(&self, samples: usize, velocity_tol: f64) -> Self {
+    /// A given state keeps its values (which state the output measures
+    /// is the model's to say); its warm-up, where it estimates states,
+    /// takes `samples`.
+    fn with_warmup(&self, samples: usize, velocity_tol: f64) -> Option<Self> {
+        self.warmup_samples()?;
         let mut t = self.clone();
-        if let GrayBoxInitialState::Measured {
-            samples: s,
-            velocity_tol: tol,
-            ..
-        } = &mut t.model.initial_state
-        {
-            *s = samples;
-            *tol = tol.max(velocity_tol);
-            if let CompiledInitial::Measured {
-                samples: cs,
-                velocity_tol: ctol,
-                ..
-            } = &mut t.compiled.initial
-            {
-                *cs = *s;
+        match (&mut t.model.initial_state, &mut t.compiled.initial) {
+            (
+                GrayBoxInitialState::Measured {
+                    samples: s,
+                    velocity_tol: tol,
+                    ..
+                },
+                CompiledInitial::Measured {
+                    samples: cs,
+                    velocity_tol: ctol,
+                    ..
+                },
+            ) => {
+                (*s, *cs) = (samples, samples);
+                *tol = tol.max(velocity_tol);
                 *ctol = *tol;
             }
+            (
+                GrayBoxInitialState::Given { samples: s, .. },
+                CompiledInitial::Given { samples: cs, .. },
+            ) => (*s, *cs) = (Some(samples), samples),
+            _ => return None,
         }
-        t
+        Some(t)
     }
 }
 

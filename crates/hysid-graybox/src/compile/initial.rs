@@ -30,6 +30,14 @@ pub(super) fn initial_rule(
         Ok(x)
     };
     let mode = |q: &Option<String>| q.as_deref().map(|q| mode_of(place, q)).transpose();
+    let warmup = |samples: usize| match samples {
+        0 => Err(InvalidGrayBox::new(
+            place,
+            Some("samples"),
+            Problem::NoWarmup,
+        )),
+        n => Ok(n),
+    };
     let no_estimate = Estimates::new();
     let (rule, estimate, given, measured) = match &m.initial_state {
         GrayBoxInitialState::Given {
@@ -41,7 +49,7 @@ pub(super) fn initial_rule(
             CompiledInitial::Given {
                 x: values(v)?,
                 mode: mode(q)?,
-                samples: samples.unwrap_or(DEFAULT_SAMPLES).max(1),
+                samples: warmup(samples.unwrap_or(DEFAULT_SAMPLES))?,
             },
             estimate,
             v,
@@ -57,7 +65,7 @@ pub(super) fn initial_rule(
             estimate,
         } => (
             CompiledInitial::Measured {
-                samples: (*samples).max(1),
+                samples: warmup(*samples)?,
                 position: state_of(place, position)?,
                 velocity: velocity
                     .as_deref()
@@ -99,7 +107,22 @@ pub(super) fn initial_rule(
                 Problem::MeasuredAndEstimated(name.clone()),
             ));
         }
-        let start = given.get(name).map_or(0.5 * (lo + hi), |v| v.clamp(lo, hi));
+        let start = match given.get(name) {
+            Some(&value) if !(lo..=hi).contains(&value) => {
+                return Err(InvalidGrayBox::new(
+                    place,
+                    Some(name),
+                    Problem::EstimateStart {
+                        name: name.clone(),
+                        value,
+                        low: lo,
+                        high: hi,
+                    },
+                ));
+            }
+            Some(&value) => value,
+            None => 0.5 * (lo + hi),
+        };
         estimates.push(EstimatedState {
             state,
             name: name.clone(),

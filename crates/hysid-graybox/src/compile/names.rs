@@ -153,7 +153,12 @@ pub(super) fn symbol_table<'m>(
             return Err(InvalidGrayBox::new(
                 "parameters",
                 Some(&p.name),
-                Problem::Parameter(p.name.clone()),
+                Problem::Parameter {
+                    name: p.name.clone(),
+                    value: p.value,
+                    low: lo,
+                    high: hi,
+                },
             ));
         }
     }

@@ -41,8 +41,20 @@ pub enum Problem {
     Duplicate(String),
     /// A parameter with non-finite numbers, low above high, or its value
     /// outside its bounds.
-    #[error("parameter '{0}': need finite value and bounds with low <= value <= high")]
-    Parameter(String),
+    #[error(
+        "parameter '{name}': value {value} and bounds [{low}, {high}]: need finite numbers \
+         with low <= value <= high"
+    )]
+    Parameter {
+        /// The parameter.
+        name: String,
+        /// Its value.
+        value: f64,
+        /// Its lower bound.
+        low: f64,
+        /// Its upper bound.
+        high: f64,
+    },
     /// Not exactly one output.
     #[error("need exactly one output (the records hysid reads have one), found {0}")]
     Outputs(usize),
@@ -144,6 +156,23 @@ pub enum Problem {
     /// An estimated state's bounds that are not finite with low <= high.
     #[error("estimate of '{0}': need finite bounds [low, high] with low <= high")]
     EstimateBounds(String),
+    /// An estimated state's starting guess outside its bounds.
+    #[error(
+        "estimate of '{name}': the starting guess {value} lies outside the bounds [{low}, {high}]"
+    )]
+    EstimateStart {
+        /// The state.
+        name: String,
+        /// Its starting guess (`values`).
+        value: f64,
+        /// Its lower bound.
+        low: f64,
+        /// Its upper bound.
+        high: f64,
+    },
+    /// A warm-up of no sample.
+    #[error("samples must be at least 1 (the warm-up's samples)")]
+    NoWarmup,
     /// A state both measured (the rule's position or velocity) and estimated.
     #[error("'{0}' is measured by the rule; it cannot also be estimated")]
     MeasuredAndEstimated(String),
