@@ -1414,6 +1414,18 @@ fn malformed_experiment_files() {
     let resolved = format!("[data] file: {}", d.join("gone.csv").display());
     assert!(err.contains(&resolved), "{err}");
     assert_eq!(err.matches("gone.csv").count(), 1, "{err}");
+    // A signal missing from a [[data.records]] entry of the same file is
+    // that entry's, after the experiment file.
+    let record = "[[data.records]]\nfile = \"data.csv\"\noutput = \"z9\"\nvalidation = \"0..50\"\n";
+    let p = write(
+        d,
+        "records.toml",
+        format!("title = \"x\"\n{data}{record}{run}"),
+    );
+    let out = d.join("out-records");
+    let err = one_line_error(&hysid(&["compare", s(&p), "-o", s(&out)]), 2).unwrap();
+    let entry = format!("{}: [[data.records]] #1 file: ", s(&p));
+    assert!(err.contains(&entry) && err.contains("'z9'"), "{err}");
     report();
 }
 

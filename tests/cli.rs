@@ -854,6 +854,40 @@ fn auto_refits_from_one_start_where_the_seed_is_not_used() {
     assert_eq!(starts(&["--set", "order=random"]), 3);
 }
 
+/// Where every candidate of the back-end failed, `--auto` writes the
+/// affine model and says why: milp's exact program refuses records above
+/// its sample limit.
+#[test]
+fn auto_says_why_the_affine_model_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let out = dir.path().join("m.json");
+    let o = hysid(&[
+        "identify",
+        s(&data),
+        "-m",
+        "milp",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--auto",
+        "-o",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("every milp candidate failed (")
+            && err.contains("exceed option max_samples = 40")
+            && err.contains("the affine arx model is written"),
+        "{err}"
+    );
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(m["info"]["method"], "arx");
+}
+
 #[test]
 fn auto_chooses_inside_the_identification_rows_only() {
     // Rows after the identification rows are test rows: deleting them from
@@ -1033,8 +1067,8 @@ fn rows_beyond_the_record_name_their_flag_or_key() {
     let data = arx_record(dir.path());
     for (rows, needle) in [
         (
-            ["--identify-rows", "0..100000", "--select-rows", "0..100"],
-            "--identify-rows 0..100000 ends beyond the",
+            ["--identify-rows", "300..100000", "--select-rows", "0..100"],
+            "--identify-rows 300..100000 ends beyond the",
         ),
         (
             [
@@ -1052,6 +1086,25 @@ fn rows_beyond_the_record_name_their_flag_or_key() {
         assert!(err.contains(needle) && err.contains("data.csv"), "{err}");
         assert!(!err.contains("--rows") && !err.contains("[data]"), "{err}");
     }
+    // Selection rows that overlap the fit rows would score the points on
+    // rows they were fitted on.
+    let args = [
+        "sweep",
+        s(&data),
+        "-m",
+        "arx",
+        "--grid",
+        "na=1,2",
+        "--identify-rows",
+        "0..300",
+        "--select-rows",
+        "250..400",
+    ];
+    let err = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(
+        err.contains("--select-rows 250..400 overlap --identify-rows 0..300"),
+        "{err}"
+    );
     let exp = dir.path().join("exp.toml");
     std::fs::write(
         &exp,
@@ -1391,4 +1444,46 @@ fn a_model_written_as_toml_reads_back() {
     let text = std::fs::read_to_string(dir.path().join("m.toml")).unwrap();
     assert!(text.starts_with("kind = \"pwarx\""), "{}", &text[..40]);
     assert_eq!(scores[0], scores[1]);
+}
+
+/// `validate` and `simulate --data` warn where a discrete-time model meets
+/// a record of another sampling time (a `--decimate` left out), and say
+/// nothing on the model's own.
+#[test]
+fn another_sampling_time_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let model = dir.path().join("m.json");
+    ok(&[
+        "identify",
+        s(&data),
+        "--decimate",
+        "2",
+        "-m",
+        "arx",
+        "-o",
+        s(&model),
+    ]);
+    let warned = |args: &[&str]| {
+        let o = hysid(args);
+        assert!(o.status.success());
+        String::from_utf8_lossy(&o.stderr).contains("differs from the")
+    };
+    let csv = dir.path().join("sim.csv");
+    assert!(warned(&["validate", s(&model), s(&data)]));
+    assert!(warned(&[
+        "simulate",
+        s(&model),
+        "--data",
+        s(&data),
+        "-o",
+        s(&csv)
+    ]));
+    assert!(!warned(&[
+        "validate",
+        s(&model),
+        s(&data),
+        "--decimate",
+        "2"
+    ]));
 }

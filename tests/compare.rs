@@ -329,7 +329,7 @@ fn auto_runs_choose_on_folds() {
     let dir = tempfile::tempdir().unwrap();
     let (exp, head) = small_experiment_head(dir.path());
     let folded = head.replace("warmup = 5\n", "warmup = 5\nfolds = 4\n")
-        + "[[run]]\nname = \"auto\"\nmethod = \"arx\"\nauto = true\n";
+        + "[[run]]\nname = \"auto\"\nmethod = \"arx\"\nauto = true\nna = 4\nnb = 4\n";
     std::fs::write(&exp, &folded).unwrap();
     let out = dir.path().join("out");
     let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
@@ -340,6 +340,11 @@ fn auto_runs_choose_on_folds() {
         serde_json::from_str(&std::fs::read_to_string(out.join(file)).unwrap()).unwrap();
     let splits = model["info"]["selection"]["splits"].as_array().unwrap();
     assert_eq!(splits.len(), 3, "{splits:?}");
+    // The report's orders are the model's: auto chose them below the
+    // run's na = nb = 4.
+    let row = &report["results"][0];
+    assert_eq!((&row["na"], &row["nb"]), (&model["na"], &model["nb"]));
+    assert_ne!((row["na"].as_u64(), row["nb"].as_u64()), (Some(4), Some(4)));
     assert_eq!(splits[0]["fit_rows"], "0..100");
     assert_eq!(splits[2]["select_rows"], "300..400");
 

@@ -118,6 +118,20 @@ pub fn initial_states(model: &Model, data: &Dataset) -> Result<BTreeMap<String, 
     }
 }
 
+/// The record's and the model's sampling times, where `model` is a
+/// discrete-time model (PWARX, hybrid automaton: its lags are samples)
+/// identified at another sampling time than `data`'s (by more than 1e-6
+/// of it): its lags then mean other times, the usual sign of a
+/// `--decimate` or `--ts` left out. `None` otherwise, and for models of
+/// continuous time, which simulate at any sampling time.
+pub fn sampling_time_mismatch(model: &Model, data: &Dataset) -> Option<(f64, f64)> {
+    if !matches!(model, Model::Pwarx(_) | Model::HybridAutomaton(_)) {
+        return None;
+    }
+    let (record, own) = (data.ts?, model.info().ts?);
+    ((record - own).abs() > 1e-6 * own).then_some((record, own))
+}
+
 /// Scores `model` on `data`, leaving out the first `warmup` samples (and
 /// any before the simulation can start). Data that join several records
 /// are scored record by record, each with its own warm-up and initial

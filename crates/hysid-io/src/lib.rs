@@ -48,16 +48,25 @@ pub fn save_model(model: &Model, path: &Path) -> Result<(), ModelError> {
 /// the first is [`DataError::NotJoined`], naming its file. One record
 /// goes through the same checks (it holds a sample).
 pub fn load_records(records: &[(&Path, DataSelection)]) -> Result<Dataset, DataError> {
-    let read = records
-        .iter()
-        .map(|(path, sel)| load(path, sel))
+    load_each(records).map_err(|(_, e)| e)
+}
+
+/// [`load_records`], its error with the index of the record at fault
+/// (from 0), for a caller that names records otherwise than by their file
+/// (several records of one file).
+pub fn load_each(records: &[(&Path, DataSelection)]) -> Result<Dataset, (usize, DataError)> {
+    let read = (records.iter().enumerate())
+        .map(|(i, (path, sel))| load(path, sel).map_err(|e| (i, e)))
         .collect::<Result<Vec<_>, _>>()?;
     Dataset::join(&read).map_err(|e| match e {
-        DataError::Join { record, reason } => DataError::NotJoined {
-            path: records[record - 1].0.to_path_buf(),
-            reason,
-        },
-        e => e,
+        DataError::Join { record, reason } => (
+            record - 1,
+            DataError::NotJoined {
+                path: records[record - 1].0.to_path_buf(),
+                reason,
+            },
+        ),
+        e => (0, e),
     })
 }
 

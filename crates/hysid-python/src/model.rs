@@ -314,6 +314,15 @@ impl Model {
                 .into());
             }
         }
+        if let Some((record, own)) = simulate::sampling_time_mismatch(&self.inner, &data) {
+            crate::warn(
+                py,
+                &format!(
+                    "the record's sampling time {record} s differs from the {own} s the model was \
+                     identified at: its lags mean other times (decimate or ts left out?)"
+                ),
+            )?;
+        }
         let (report, sim, _) = py
             .detach(|| simulate::validate(&self.inner, &data, warmup))
             .map_err(Failure::from)?;

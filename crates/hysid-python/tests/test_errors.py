@@ -267,3 +267,9 @@ def test_the_model_s_methods_name_their_arguments():
                  lambda ts: model.validate(U, Y, ts=ts)):
         assert raised(call, "x").startswith("ts='x': must be a number of seconds")
     assert raised(model.simulate, U, ts=-1.0).startswith("sampling time must be")
+
+
+def test_validate_warns_of_another_sampling_time():
+    model = hysid.identify(U, Y, method="arx", ts=0.01)
+    with pytest.warns(UserWarning, match="sampling time 0.001 s differs from the 0.01 s"):
+        model.validate(U, Y, ts=0.001)

@@ -9,8 +9,8 @@ pub mod report;
 pub mod truth;
 
 pub use experiment::{
-    DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Provenance, RecordSpec,
-    RunSpec, ScoredRows, SweepSpec, value_text,
+    DataEntry, DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Provenance,
+    RecordSpec, RunSpec, ScoredRows, SweepSpec, value_text,
 };
 pub use hysid_plot::FigureFormat;
 pub use report::write_report;
@@ -21,11 +21,12 @@ use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::simulate::{ValidationReport, validate};
-use hysid_io::load_records;
-use hysid_model::data::{DataError, Dataset, RowRange};
+use hysid_io::load_each;
+use hysid_model::data::{DataError, DataSelection, Dataset, RowRange};
 use hysid_model::simulate::Simulation;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::path::Path;
 use std::time::Instant;
 
 /// One run after expansion of sweeps.
@@ -144,9 +145,11 @@ pub struct RunResult {
     pub origin: Origin,
     /// Seed of the run.
     pub seed: u64,
-    /// Orders used.
+    /// Output lags of the model written (of the run, where it failed or
+    /// its model has no regressor).
     pub na: usize,
-    /// Orders used.
+    /// Input lags of the model written (of the run, where it failed or
+    /// its model has no regressor).
     pub nb: usize,
     /// Options given (`--set`).
     pub options: Vec<(String, String)>,
@@ -360,20 +363,31 @@ impl Experiment {
     /// file`, joined by those of every `[[data.records]]` that has them.
     fn records(&self) -> Result<(Dataset, Dataset), ExperimentError> {
         let data = &self.data;
-        let mut ident = vec![(data.file.as_path(), data.selection(data.identification))];
-        let mut valid = vec![(data.file.as_path(), data.selection(data.validation))];
-        for r in &data.records {
+        let main = |rows| (DataEntry::Main, data.file.as_path(), data.selection(rows));
+        let mut ident = vec![main(data.identification)];
+        let mut valid = vec![main(data.validation)];
+        for (k, r) in data.records.iter().enumerate() {
+            let entry = DataEntry::Record(k + 1);
             if let Some(rows) = r.identification {
-                ident.push((r.file.as_path(), data.record_selection(r, rows)));
+                ident.push((entry, r.file.as_path(), data.record_selection(r, rows)));
             }
             if let Some(rows) = r.validation {
-                valid.push((r.file.as_path(), data.record_selection(r, rows)));
+                valid.push((entry, r.file.as_path(), data.record_selection(r, rows)));
             }
         }
-        let read = |records: &[(&std::path::Path, _)], part| {
-            load_records(records).map_err(|source| match source {
-                DataError::Rows { .. } => ExperimentError::Rows { part, source },
-                source => ExperimentError::Data { source },
+        let read = |records: &[(DataEntry, &Path, DataSelection)], part| {
+            let files: Vec<(&Path, DataSelection)> =
+                records.iter().map(|(_, p, s)| (*p, s.clone())).collect();
+            load_each(&files).map_err(|(at, source)| {
+                let entry = records[at].0;
+                match source {
+                    DataError::Rows { .. } => ExperimentError::Rows {
+                        entry,
+                        part,
+                        source,
+                    },
+                    source => ExperimentError::Data { entry, source },
+                }
             })
         };
         Ok((
@@ -650,6 +664,10 @@ fn run_job(
         Err(e) => out.error = Some(e),
         Ok(m) => {
             out.modes = Some(m.mode_count());
+            // An auto run may choose other orders than it was given.
+            if let Some(orders) = m.orders() {
+                (out.na, out.nb) = (orders.na, orders.nb);
+            }
             match validate(&m, valid, warmup) {
                 Ok((report, sim, _)) => {
                     out.report = Some(report);

@@ -48,7 +48,7 @@ pub fn run(args: Args) -> Result<()> {
     let progress = TerminalProgress::new();
     let mut comparison = exp
         .run(&progress)
-        .map_err(|e| CliError::input(e.to_string()))?;
+        .map_err(|e| CliError::input(format!("{}: {e}", args.experiment.display())))?;
     comparison.figures = args.format;
     hysid::compare::write_report(&mut comparison, &dir)
         .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;

@@ -11,7 +11,7 @@ use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
 use hysid_model::data::RowRange;
-use hysid_model::model::Selection;
+use hysid_model::model::{ScoredCandidate, Selection};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -332,8 +332,37 @@ fn report_selection(method: &str, s: &Selection) {
     }
     if chosen.method != method {
         eprintln!(
-            "hysid: --auto: no {method} candidate simulated the selection rows better than the affine {} model; that model is written",
+            "hysid: --auto: {}; the affine {} model is written",
+            why_affine(s, method, chosen.fit_sim),
             chosen.method
         );
+    }
+}
+
+/// Why no candidate of `method` was written, the affine reference scoring
+/// `affine` on the selection rows: every one failed, the better ones were
+/// refused at the refit on all the rows, or none simulated those rows
+/// better.
+fn why_affine(s: &Selection, method: &str, affine: Option<f64>) -> String {
+    let own: Vec<&ScoredCandidate> = s.candidates.iter().filter(|c| c.method == method).collect();
+    let affine = affine.unwrap_or(f64::NEG_INFINITY);
+    if own.iter().all(|c| c.fit_sim.is_none()) {
+        let first = own.iter().find_map(|c| c.error.as_deref());
+        return format!(
+            "every {method} candidate failed ({})",
+            first.unwrap_or("no candidate")
+        );
+    }
+    let refused =
+        |c: &&&ScoredCandidate| c.error.is_some() && c.fit_sim.is_some_and(|f| f > affine);
+    match own.iter().find(refused) {
+        Some(c) => format!(
+            "the {method} candidates that simulated the selection rows better were refused at the \
+             refit on all the rows (the first: {})",
+            c.error.as_deref().unwrap_or_default()
+        ),
+        None => format!(
+            "no {method} candidate simulated the selection rows better than the affine model"
+        ),
     }
 }

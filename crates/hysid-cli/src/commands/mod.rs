@@ -2,6 +2,7 @@
 
 use crate::error::{CliError, Result};
 use hysid_core::model::Model;
+use hysid_model::data::Dataset;
 use std::path::Path;
 
 pub mod compare;
@@ -70,4 +71,17 @@ pub(crate) fn load_model(path: &Path) -> Result<Model> {
         )));
     }
     Ok(Model::load(path)?)
+}
+
+/// A warning when the discrete-time model of `file` was identified at
+/// another sampling time than the record's
+/// ([`hysid_core::simulate::sampling_time_mismatch`]).
+pub fn warn_sampling_time(file: &Path, model: &Model, data: &Dataset) {
+    if let Some((record, own)) = hysid_core::simulate::sampling_time_mismatch(model, data) {
+        eprintln!(
+            "hysid: warning: the record's sampling time {record} s differs from the {own} s {} \
+             was identified at: its lags mean other times (a --decimate or --ts left out?)",
+            file.display()
+        );
+    }
 }

@@ -97,6 +97,9 @@ pub fn run(args: Args) -> Result<()> {
             ));
         }
     };
+    if args.data.is_some() {
+        super::warn_sampling_time(&args.model, &model, &data);
+    }
     let sim = simulate(&model, &data, SimulationOptions::default())
         .map_err(|e| CliError::simulation(&args.model, e))?;
     if args.data.is_some() {

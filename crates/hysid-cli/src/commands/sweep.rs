@@ -163,10 +163,19 @@ pub fn run(args: Args) -> Result<()> {
         }],
     };
     exp.check().map_err(|e| CliError::input(e.to_string()))?;
+    // The points are scored on the selection rows: rows they were fitted
+    // on would score them on what they have seen.
+    if !exp.warnings().is_empty() {
+        return Err(CliError::input(format!(
+            "--select-rows {} overlap --identify-rows {}: the points would be scored on rows \
+             they were fitted on",
+            args.select_rows, args.identify_rows
+        )));
+    }
     let progress = TerminalProgress::new();
     let mut comparison = exp.run(&progress).map_err(|e| {
         CliError::input(match &e {
-            ExperimentError::Rows { part, source } => {
+            ExperimentError::Rows { part, source, .. } => {
                 let flag = match part {
                     DataPart::Identification => "--identify-rows",
                     DataPart::Scored => "--select-rows",

@@ -57,6 +57,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.plot {
         FigureFormat::of_path(path).map_err(|e| CliError::input(format!("--plot: {e}")))?;
     }
+    super::warn_sampling_time(&args.model, &model, &data);
     let (report, sim, _) =
         validate(&model, &data, args.warmup).map_err(|e| CliError::simulation(&args.model, e))?;
     if let Some(path) = &args.plot {

@@ -370,6 +370,25 @@ impl DataPart {
     }
 }
 
+/// The entry of an experiment file that gives a record: the `[data]`
+/// table's own file, or a `[[data.records]]` entry (counted from 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DataEntry {
+    /// `[data] file`.
+    Main,
+    /// `[[data.records]]` entry `k`, counted from 1.
+    Record(usize),
+}
+
+impl fmt::Display for DataEntry {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DataEntry::Main => write!(f, "[data]"),
+            DataEntry::Record(k) => write!(f, "[[data.records]] #{k}"),
+        }
+    }
+}
+
 fn two() -> usize {
     2
 }
@@ -388,16 +407,19 @@ pub enum ExperimentError {
     /// A record of the data (`[data] file` or a `[[data.records]]` file)
     /// could not be read as selected, or joined to the first (the cause
     /// names the file, as resolved, where it concerns one).
-    #[error("[data] file: {source}")]
+    #[error("{entry} file: {source}")]
     Data {
+        /// The entry that gives the record.
+        entry: DataEntry,
         /// Cause.
         source: hysid_model::data::DataError,
     },
-    /// Rows of a record that it does not hold, worded with their key
-    /// (`identification` or `validation`, in `[data]` or a
-    /// `[[data.records]]` entry).
-    #[error("{}", source.rows_named(part.key()).unwrap_or_default())]
+    /// Rows of a record that it does not hold, worded with their entry and
+    /// key (`identification` or `validation`).
+    #[error("{entry}: {}", source.rows_named(part.key()).unwrap_or_default())]
     Rows {
+        /// The entry that gives the rows.
+        entry: DataEntry,
         /// Which rows.
         part: DataPart,
         /// Cause ([`hysid_model::data::DataError::Rows`]).
