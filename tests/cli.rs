@@ -1487,3 +1487,44 @@ fn another_sampling_time_is_warned_of() {
         "2"
     ]));
 }
+
+/// A time budget that runs out during `--auto` is said on stderr and
+/// recorded in the model's selection; a search that ends within its
+/// budget records nothing.
+#[test]
+fn auto_says_when_the_time_budget_cut_the_search() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let out = dir.path().join("m.json");
+    let cut = |budget: &str| {
+        let args = [
+            "identify",
+            s(&data),
+            "-m",
+            "cluster",
+            "--na",
+            "1",
+            "--nb",
+            "1",
+            "--auto",
+            "--time-budget",
+            budget,
+            "-o",
+            s(&out),
+        ];
+        let o = hysid(&args);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(o.status.success(), "{err}");
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        let recorded = m["info"]["selection"]["cut_short"] == true;
+        assert_eq!(
+            recorded,
+            err.contains("the time budget ran out before the selection ended"),
+            "{err}"
+        );
+        recorded
+    };
+    assert!(cut("0.000001"));
+    assert!(!cut("1000"));
+}

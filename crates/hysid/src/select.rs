@@ -286,6 +286,7 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
         best: best.unwrap_or(chosen),
         refinement,
         refit,
+        cut_short: ctx.deadline.passed(),
     });
     Ok(model)
 }

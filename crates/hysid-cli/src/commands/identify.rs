@@ -330,6 +330,12 @@ fn report_selection(method: &str, s: &Selection) {
             );
         }
     }
+    if s.cut_short {
+        eprintln!(
+            "hysid: --auto: the time budget ran out before the selection ended: the candidates \
+             and refits after it were cut short or not run (a longer --time-budget searches more)"
+        );
+    }
     if chosen.method != method {
         eprintln!(
             "hysid: --auto: {}; the affine {} model is written",

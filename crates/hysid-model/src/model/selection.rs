@@ -44,6 +44,11 @@ pub struct Selection {
     /// change (one refit).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub refit: Vec<RefitStart>,
+    /// The time budget ran out before the selection ended: the candidates
+    /// and refits after it were cut short or not run, so the choice is
+    /// among what the budget reached.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cut_short: bool,
 }
 
 impl Selection {
@@ -175,6 +180,7 @@ mod tests {
                 })
                 .collect(),
             refit: Vec::new(),
+            cut_short: false,
         }
     }
 
