@@ -11,7 +11,7 @@
 use crate::model::Model;
 use hysid_mechanical::simulate as mechanical;
 use hysid_model::data::Dataset;
-use hysid_model::metrics::{fit, rmse};
+use hysid_model::metrics::{fit, pooled_fit, rmse};
 use hysid_model::model::InitialState;
 use hysid_model::simulate::{
     SimError, Simulation, SimulationOptions, automaton, per_record, pwarx,
@@ -160,15 +160,17 @@ pub fn validate(
     }
     let sim = Simulation::join(sims, &ranges);
     let pred = Simulation::join(preds, &ranges);
-    let scored: Vec<usize> = ranges
-        .iter()
-        .zip(&parts)
-        .flat_map(|(r, p)| r.end - p.n..r.end)
-        .collect();
-    let pick = |v: &[f64]| scored.iter().map(|&k| v[k]).collect::<Vec<_>>();
-    let y = pick(data.y());
-    let (ys, yp) = (pick(&sim.y), pick(&pred.y));
-    let n = scored.len();
+    let y = scored_parts(data.y(), &ranges, &parts);
+    let (ys, yp) = (
+        scored_parts(&sim.y, &ranges, &parts),
+        scored_parts(&pred.y, &ranges, &parts),
+    );
+    let paired = |yhat: &[&'_ [f64]]| {
+        let pairs: Vec<(&[f64], &[f64])> = y.iter().copied().zip(yhat.iter().copied()).collect();
+        (pooled_fit(&pairs), rmse(&y.concat(), &yhat.concat()))
+    };
+    let ((fit_sim, rmse_sim), (fit_pred, rmse_pred)) = (paired(&ys), paired(&yp));
+    let n = parts.iter().map(|p| p.n).sum();
     let weighted = |f: fn(&ValidationReport) -> f64| {
         parts.iter().map(|p| f(p) * p.n as f64).sum::<f64>() / n as f64
     };
@@ -181,10 +183,10 @@ pub fn validate(
     let report = ValidationReport {
         n,
         warmup,
-        fit_sim: fit(&y, &ys),
-        rmse_sim: rmse(&y, &ys),
-        fit_pred: fit(&y, &yp),
-        rmse_pred: rmse(&y, &yp),
+        fit_sim,
+        rmse_sim,
+        fit_pred,
+        rmse_pred,
         coverage: weighted(|p| p.coverage),
         coverage_sim: weighted(|p| p.coverage_sim),
         diverged_at: sim.diverged_at,
@@ -193,6 +195,18 @@ pub fn validate(
         records: parts,
     };
     Ok((report, sim, pred))
+}
+
+/// Each record's scored samples of `v` (a signal of the joined records):
+/// the last `n` of its range, `n` from its report.
+fn scored_parts<'v>(
+    v: &'v [f64],
+    ranges: &[std::ops::Range<usize>],
+    parts: &[ValidationReport],
+) -> Vec<&'v [f64]> {
+    (ranges.iter().zip(parts))
+        .map(|(r, p)| &v[r.end - p.n..r.end])
+        .collect()
 }
 
 /// A record's report, free-run simulation and prediction.
@@ -288,7 +302,8 @@ pub enum HoldoutError {
 /// samples from a record's boundary) is left out, unless every one is.
 pub fn holdout(model: &Model, data: &Dataset, warmup: usize) -> Result<Holdout, HoldoutError> {
     let several = data.record_count() > 1;
-    let (mut y, mut simulated) = (Vec::new(), Vec::new());
+    // Each scored record's measured and simulated outputs.
+    let mut parts: Vec<(&[f64], Vec<f64>)> = Vec::new();
     let mut short = None;
     for (range, scored) in scores(model, data, warmup) {
         let (report, sim, _) = match scored {
@@ -298,21 +313,24 @@ pub fn holdout(model: &Model, data: &Dataset, warmup: usize) -> Result<Holdout, 
             }
             scored => scored?,
         };
-        y.extend_from_slice(&data.y()[range.end - report.n..range.end]);
-        simulated.extend_from_slice(&sim.y[sim.y.len() - report.n..]);
+        let simulated = sim.y[sim.y.len() - report.n..].to_vec();
+        parts.push((&data.y()[range.end - report.n..range.end], simulated));
     }
-    if y.is_empty()
+    if parts.is_empty()
         && let Some(e) = short
     {
         return Err(e.into());
     }
-    let fit_sim = fit(&y, &simulated);
+    let pairs: Vec<(&[f64], &[f64])> = parts.iter().map(|(y, s)| (*y, s.as_slice())).collect();
+    let fit_sim = pooled_fit(&pairs);
     if !fit_sim.is_finite() {
         return Err(HoldoutError::NotFinite);
     }
     Ok(Holdout {
         fit_sim,
-        errors: y.iter().zip(&simulated).map(|(a, b)| a - b).collect(),
+        errors: (pairs.iter())
+            .flat_map(|(y, s)| y.iter().zip(*s).map(|(a, b)| a - b))
+            .collect(),
     })
 }
 

@@ -9,15 +9,27 @@ use serde::{Deserialize, Serialize};
 /// constant the ratio is undefined: FIT is 100 for an exact match and 0
 /// otherwise.
 pub fn fit(y: &[f64], yhat: &[f64]) -> f64 {
-    let n = y.len().max(1) as f64;
-    let mean = y.iter().sum::<f64>() / n;
-    let err: f64 = y
-        .iter()
-        .zip(yhat)
-        .map(|(a, b)| (a - b).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    let den: f64 = y.iter().map(|a| (a - mean).powi(2)).sum::<f64>().sqrt();
+    pooled_fit(&[(y, yhat)])
+}
+
+/// The FIT of several records `(y, yhat)` together: the error over every
+/// sample against the spread of each record about its own mean,
+/// `100 (1 - sqrt(sum_r |y_r - yhat_r|^2) / sqrt(sum_r |y_r - mean(y_r)|^2))`.
+/// It lies between the records' own FITs; one mean for all would count
+/// the differences between the records' levels as spread a model explains
+/// and put it above every one of them. One record: [`fit`].
+pub fn pooled_fit(records: &[(&[f64], &[f64])]) -> f64 {
+    let (mut err, mut den) = (0.0, 0.0);
+    for (y, yhat) in records {
+        let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
+        err += y
+            .iter()
+            .zip(*yhat)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>();
+        den += y.iter().map(|a| (a - mean).powi(2)).sum::<f64>();
+    }
+    let (err, den) = (err.sqrt(), den.sqrt());
     if den <= f64::MIN_POSITIVE {
         return if err == 0.0 { 100.0 } else { 0.0 };
     }
@@ -180,6 +192,31 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        /// The pooled FIT of records lies between the records' own FITs,
+        /// whatever their levels (offset by up to 1e3 from each other: one
+        /// mean for all would put it above them), and is [`fit`] for one.
+        #[test]
+        fn the_pooled_fit_lies_between_the_records_fits(
+            records in proptest::collection::vec(
+                (proptest::collection::vec((-1.0f64..1.0, -1.0f64..1.0), 3..40), -1e3f64..1e3),
+                1..5,
+            ),
+        ) {
+            let signals: Vec<(Vec<f64>, Vec<f64>)> = records
+                .iter()
+                .map(|(pairs, level)| pairs.iter().map(|&(y, e)| (y + level, y + level + 0.5 * e)).unzip())
+                .collect();
+            let pairs: Vec<(&[f64], &[f64])> =
+                signals.iter().map(|(y, yhat)| (y.as_slice(), yhat.as_slice())).collect();
+            let own: Vec<f64> = pairs.iter().map(|(y, yhat)| fit(y, yhat)).collect();
+            let pooled = pooled_fit(&pairs);
+            let (low, high) = own.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &f| (l.min(f), h.max(f)));
+            prop_assert!(pooled >= low - 1e-9 && pooled <= high + 1e-9, "{} not in [{}, {}]", pooled, low, high);
+            if pairs.len() == 1 {
+                prop_assert_eq!(pooled.to_bits(), own[0].to_bits());
+            }
+        }
+
         /// FIT of a perfect prediction is 100; RMSE is 0.
         #[test]
         fn perfect_prediction_scores_100(y in proptest::collection::vec(-1e3f64..1e3, 2..50)) {
