@@ -1748,6 +1748,13 @@ fn relations_as_values_and_restitutions_beyond_one() {
     let head = repository_text("models/pick-and-place/head-graybox.toml");
     let lower = "at = \"y_low\"\nside = \"max\"";
     assert!(head.contains(lower));
+    // A guard written as a bare name is found at the guard, not at the
+    // parameter's name above it.
+    let bare_guard = head.replace("guard = \"lambda <= 0\"", "guard = \"yc\"");
+    let guard_line = format!(
+        "line {}: invalid model: transition impact -> free, guard",
+        line_holding(&bare_guard, "guard = \"yc\"", 0)
+    );
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
         (
             "flow.toml",
@@ -1782,6 +1789,11 @@ fn relations_as_values_and_restitutions_beyond_one() {
             "restitution-sum.toml",
             head.replace(lower, &format!("{lower}\nrestitution = \"0.5 + y_up\"")),
             vec!["ranges over [0, 1]"],
+        ),
+        (
+            "bare-guard.toml",
+            bare_guard.clone(),
+            vec![&guard_line, "'yc' is not a relation"],
         ),
         (
             "crossed.toml",

@@ -140,6 +140,16 @@ pub(crate) fn line_of(source: &str, text: &str) -> Option<usize> {
     line.map(|l| l + 1)
 }
 
+/// [`line_of`], preferring a line where `key` writes `text` as a whole
+/// string (`guard = "p"` before `states = ["p"]` for the guard's `p`).
+pub(crate) fn line_of_field(source: &str, key: &str, text: &str) -> Option<usize> {
+    let lexed = Lexed::of(source);
+    let in_field = (lexed.strings.iter())
+        .find(|(line, s)| s == text && writes_key(&lexed.code[*line], key))
+        .map(|&(line, _)| line + 1);
+    in_field.or_else(|| line_of(source, text))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -164,6 +174,17 @@ mod tests {
             line_of("{\n  \"estimate\": {\"w\": [0, 1]}\n}\n", "w"),
             Some(2)
         );
+    }
+
+    #[test]
+    fn a_name_is_found_where_its_field_writes_it() {
+        let toml = "states = [\"w\", \"p\"]\n\
+                    [[transitions]]\n\
+                    guard = \"p\"\n";
+        assert_eq!(line_of(toml, "p"), Some(1));
+        assert_eq!(line_of_field(toml, "guard", "p"), Some(3));
+        // No such field: the first line that writes it.
+        assert_eq!(line_of_field(toml, "when", "p"), Some(1));
     }
 
     #[test]

@@ -211,13 +211,27 @@ impl InvalidGrayBox {
     }
 
     /// The 1-based line of `source` (the model file's text, TOML or JSON)
-    /// where the offending text is written: the first line holding it as
-    /// a whole string, or a name as a key; an expression also inside a
-    /// longer string. Never a comment or part of another word: `None`
-    /// when it is written nowhere else.
+    /// where the offending text is written: the first line where the
+    /// place's own key writes it as a whole string, else the first line
+    /// holding it as a whole string, or a name as a key; an expression also
+    /// inside a longer string. Never a comment or part of another word:
+    /// `None` when it is written nowhere else.
     pub fn line_in(&self, source: &str) -> Option<usize> {
         let text = self.text.as_deref().filter(|t| !t.is_empty())?;
-        crate::source::line_of(source, text)
+        match self.field() {
+            Some(key) => crate::source::line_of_field(source, key, text),
+            None => crate::source::line_of(source, text),
+        }
+    }
+
+    /// The key that writes the text, where the place ends in one: `guard`
+    /// of `transition a -> b, guard`, `v` of `mode 'm', flow of 'v'`.
+    fn field(&self) -> Option<&str> {
+        let last = self.place.rsplit(", ").next()?;
+        match last.split_once(" of '") {
+            Some((_, name)) => name.strip_suffix('\''),
+            None => (!last.contains(' ')).then_some(last),
+        }
     }
 }
 
