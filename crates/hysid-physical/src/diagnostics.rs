@@ -43,8 +43,9 @@ pub struct PhysicalDiagnostics {
     pub cost_definition: String,
     /// `sqrt(cost)`.
     pub rmse_fit: f64,
-    /// Cost of the nominal values.
-    pub nominal_cost: f64,
+    /// Cost of the nominal values; `None` where they could not be
+    /// simulated on the record.
+    pub nominal_cost: Option<f64>,
     /// Best cost of the particle swarm (on its own, segmented, cost), when it ran.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub swarm_cost: Option<f64>,
@@ -326,7 +327,7 @@ mod tests {
             cost: 0.25,
             cost_definition: COST_DEFINITION.into(),
             rmse_fit: 0.5,
-            nominal_cost: 1.0,
+            nominal_cost: Some(1.0),
             swarm_cost: None,
             swarm_skipped: None,
             segmented_cost: None,

@@ -117,7 +117,7 @@ pub fn fit_model<M: Target>(
         cost,
         cost_definition: COST_DEFINITION.into(),
         rmse_fit: cost.sqrt(),
-        nominal_cost,
+        nominal_cost: (nominal_cost < FAILED).then_some(nominal_cost),
         swarm_cost: kept.swarm_cost,
         swarm_skipped: nominal.skip.as_ref().map(|(why, _)| *why),
         segmented_cost: local.segmented_cost,
