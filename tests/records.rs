@@ -199,6 +199,10 @@ fn bad_combinations_of_records_are_one_line_errors() {
             vec![s(&a), s(&b), "--auto", "--select-records", "2"],
             "--select-records 2: must be between 1 and the number of records less one (1)".into(),
         ),
+        (
+            vec![s(&a), "--auto", "--select-records", "1"],
+            "--select-records 1: holding out records needs two or more".into(),
+        ),
     ];
     let physical = format!("model={}", common::HEAD_MODEL);
     let cases = cases.into_iter().chain([(

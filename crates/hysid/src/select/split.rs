@@ -36,6 +36,11 @@ pub fn record_split(data: &Dataset, k: usize, plan: &Plan) -> Result<Split, Sele
     }
     let ranges = data.record_ranges();
     let count = ranges.len();
+    if count < 2 {
+        return Err(bad(
+            "holding out records needs two or more (several data files)".into(),
+        ));
+    }
     if k == 0 || k >= count {
         return Err(bad(format!(
             "must be between 1 and the number of records less one ({})",
