@@ -542,21 +542,25 @@ fn figure_links(s: &mut String, c: &Comparison) {
         let runs = c.results.iter().filter(|r| r.sweep.is_none()).count();
         let drawn = c.drawn.runs.len();
         let points = c.results.len() - runs;
-        let mut what = format!(
-            "\nFigures (under plots/): the simulation and the mode sequence of each of the {drawn} of {runs} `[[run]]` entries that produced a validation simulation"
-        );
-        if with_regions > 0 {
-            let _ = write!(
-                what,
-                ", and the regions of the {with_regions} with a region partition to draw (PWARX with two or more modes, automata with stops)"
+        let mut parts = Vec::new();
+        if runs > 0 {
+            let mut part = format!(
+                "the simulation and the mode sequence of each of the {drawn} of {runs} `[[run]]` entries that produced a validation simulation"
             );
+            if with_regions > 0 {
+                let _ = write!(
+                    part,
+                    ", and the regions of the {with_regions} with a region partition to draw (PWARX with two or more modes, automata with stops)"
+                );
+            }
+            parts.push(part);
         }
         if points > 0 {
-            let _ = write!(
-                what,
-                "; the {points} sweep points have no figures of their own, only one FIT and mode-count figure per sweep"
-            );
+            parts.push(format!(
+                "the {points} sweep points have no figures of their own, only one FIT and mode-count figure per sweep"
+            ));
         }
+        let what = format!("\nFigures (under plots/): {}", parts.join("; "));
         let _ = writeln!(s, "{what}:\n");
         for f in figs {
             let _ = writeln!(s, "{f}");
