@@ -271,8 +271,18 @@ impl Model {
                 .find_map(|(origin, text)| Some(format!("{origin}, line {}", g.line_in(text)?))),
             _ => None,
         };
+        // Found in no file: a model merged from several is named with the
+        // files it extends, where the merge may have made the fault.
+        let merged = || match files {
+            [(origin, _)] => origin.to_string(),
+            [(origin, _), bases @ ..] => {
+                let bases: Vec<&str> = bases.iter().map(|(b, _)| *b).collect();
+                format!("{origin} (merged with {})", bases.join(", "))
+            }
+            [] => String::new(),
+        };
         Err(ModelError::Format {
-            path: located.unwrap_or_else(|| files[0].0.to_string()),
+            path: located.unwrap_or_else(merged),
             message: e.to_string(),
         })
     }
@@ -434,6 +444,16 @@ mod tests {
             "{e}"
         );
         assert!(!e.contains('\n'), "{e}");
+
+        // A fault the merge made, written in no file as such: the file is
+        // named with the files it extends.
+        let second = write(
+            "second.toml",
+            "outputs = [{ name = \"z\", value = \"y\" }]\n",
+        );
+        let e = Model::load(&second).unwrap_err().to_string();
+        let merged = format!("second.toml (merged with {head}): ");
+        assert!(e.contains(&merged) && e.contains("found 2"), "{e}");
 
         let gone = write("gone.toml", "remove = [\"parameters.nosuch\"]\n");
         let e = Model::load(&gone).unwrap_err().to_string();
