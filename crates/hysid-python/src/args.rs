@@ -12,12 +12,13 @@ fn shown(obj: &Bound<'_, PyAny>) -> String {
     obj.repr().map(|r| r.to_string()).unwrap_or_default()
 }
 
-/// Argument `name` as a count: a whole number from 0 to `usize::MAX` (a
-/// Python or numpy integer, not a bool).
+/// Argument `name` as a count: a whole number from 0 to 2**64 - 1 (a
+/// Python or numpy integer, not a bool), as the package's functions check
+/// theirs.
 pub fn count(name: &str, obj: &Bound<'_, PyAny>) -> Result<usize, Failure> {
     let refused = || {
         Failure::input(format!(
-            "{name}={}: must be a whole number >= 0",
+            "{name}={}: must be a whole number >= 0 and < 2**64",
             shown(obj)
         ))
     };
@@ -33,16 +34,14 @@ pub fn seconds(name: &str, obj: Option<&Bound<'_, PyAny>>) -> Result<Option<f64>
     let Some(obj) = obj else {
         return Ok(None);
     };
-    if obj.is_instance_of::<PyBool>() {
-        return Err(Failure::input(format!(
-            "{name}={}: must be a number of seconds",
-            shown(obj)
-        )));
-    }
-    obj.extract::<f64>().map(Some).map_err(|_| {
+    let refused = || {
         Failure::input(format!(
             "{name}={}: must be a number of seconds",
             shown(obj)
         ))
-    })
+    };
+    if obj.is_instance_of::<PyBool>() {
+        return Err(refused());
+    }
+    obj.extract::<f64>().map(Some).map_err(|_| refused())
 }

@@ -106,7 +106,11 @@ fn load<'py>(
 
 /// The signal names of `selection` checked as the program checks them;
 /// `inputs` and `output` name the arguments that gave them.
-fn check_names(selection: &DataSelection, inputs: &str, output: &str) -> Result<(), Failure> {
+pub(crate) fn check_names(
+    selection: &DataSelection,
+    inputs: &str,
+    output: &str,
+) -> Result<(), Failure> {
     selection.check_names().map_err(|e| match e {
         SignalNameError::Empty => {
             Failure::input(format!("{inputs}/{output}: an empty signal name"))
@@ -115,14 +119,6 @@ fn check_names(selection: &DataSelection, inputs: &str, output: &str) -> Result<
     })
 }
 
-/// A checked record as Python receives it: `(u, y, input_names,
-/// output_name)`.
-type CheckedRecord<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>, Vec<String>, String);
-
-/// Checks a record as `identify` checks it (shapes, lengths, finite
-/// values, the sampling time, the names); returns `(u, y, input_names,
-/// output_name)` with `u` of shape `(N, m)`, `y` of shape `(N,)` and the
-/// default names filled in. `hysid.Record` is made through it.
 /// The sampling time of the times `t` of the column `name`, as the
 /// program takes it from a file's time column ([`hysid_io::sampling_time`]).
 #[pyfunction]
@@ -136,6 +132,14 @@ fn sampling_time(name: &str, t: Vec<f64>) -> PyResult<f64> {
     })
 }
 
+/// A checked record as Python receives it: `(u, y, input_names,
+/// output_name)`.
+type CheckedRecord<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>, Vec<String>, String);
+
+/// Checks a record as `identify` checks it (shapes, lengths, finite
+/// values, the sampling time, the names); returns `(u, y, input_names,
+/// output_name)` with `u` of shape `(N, m)`, `y` of shape `(N,)` and the
+/// default names filled in. `hysid.Record` is made through it.
 #[pyfunction]
 #[pyo3(signature = (u, y, ts=None, input_names=None, output_name=None))]
 fn check_record<'py>(
@@ -150,17 +154,11 @@ fn check_record<'py>(
     if data.is_empty() {
         return Err(Failure::input("u, y: a record needs at least one sample").into());
     }
-    let selection = DataSelection {
-        inputs: data.input_names(),
-        output: data.output.name.clone(),
-        ..DataSelection::default()
-    };
-    check_names(&selection, "input_names", "output_name")?;
     Ok((
         record::inputs_array(py, &data).into_any(),
         record::vector(py, data.y().to_vec()).into_any(),
-        selection.inputs,
-        selection.output,
+        data.input_names(),
+        data.output.name.clone(),
     ))
 }
 

@@ -288,7 +288,7 @@ impl Model {
     /// Scores the model on a record, leaving out the first `warmup`
     /// samples: the dictionary of `hysid validate --json` (`fit_sim`,
     /// `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...).
-    #[pyo3(signature = (u, y, warmup=None, ts=None), text_signature = "(self, u, y, warmup=10, ts=None)")]
+    #[pyo3(signature = (u, y, warmup=None, ts=None), text_signature = "($self, u, y, warmup=10, ts=None)")]
     fn validate<'py>(
         &self,
         py: Python<'py>,

@@ -3,7 +3,7 @@
 //! and back.
 
 use crate::error::Failure;
-use hysid_model::data::{Dataset, Signal};
+use hysid_model::data::{DataSelection, Dataset, Signal};
 use numpy::ndarray::{Array2, ArrayD};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn, PyUntypedArray};
 use pyo3::prelude::*;
@@ -98,8 +98,9 @@ fn input_names(m: usize, given: Option<Vec<String>>) -> Result<Vec<String>, Fail
     }
 }
 
-/// A record from the inputs' columns and the outputs; lengths and finite
-/// values are checked by [`Dataset::new`].
+/// A record from the inputs' columns and the outputs; the names checked
+/// as the program checks them, lengths and finite values by
+/// [`Dataset::new`].
 pub fn dataset(
     columns: Vec<Vec<f64>>,
     y: Vec<f64>,
@@ -108,6 +109,12 @@ pub fn dataset(
     output_name: Option<String>,
 ) -> Result<Dataset, Failure> {
     let names = input_names(columns.len(), names)?;
+    let selection = DataSelection {
+        inputs: names.clone(),
+        output: output_name.clone().unwrap_or_else(|| "y".into()),
+        ..DataSelection::default()
+    };
+    crate::check_names(&selection, "input_names", "output_name")?;
     let inputs = names
         .into_iter()
         .zip(columns)

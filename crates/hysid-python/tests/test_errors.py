@@ -273,3 +273,43 @@ def test_validate_warns_of_another_sampling_time():
     model = hysid.identify(U, Y, method="arx", ts=0.01)
     with pytest.warns(UserWarning, match="sampling time 0.001 s differs from the 0.01 s"):
         model.validate(U, Y, ts=0.001)
+
+
+@pytest.mark.parametrize(
+    "given, words",
+    [
+        ({"seed": None}, "seed=None: must be a whole number"),
+        ({"na": None}, "na=None: must be a whole number"),
+        ({"warmup": None}, "warmup=None: must be a whole number"),
+        ({"method": None}, "method=None: must be a method name"),
+        ({"auto": 1}, "auto=1: must be True or False"),
+        ({"standardize": "yes"}, "standardize='yes': must be True or False"),
+        ({"output_name": 5}, "output_name=5: must be a name"),
+        ({"input_names": ["a", "a"]}, "input_names: input 'a' is named twice"),
+        ({"input_names": ["y"]}, "input_names: input 'y' is also the output"),
+    ],
+)
+def test_arguments_that_may_not_be_left_out_or_are_switches_are_named(given, words):
+    message = raised(hysid.identify, np.c_[U, U + 1] if given.get("input_names") == ["a", "a"] else U, Y,
+                     **{"method": "arx", **given})
+    assert message.startswith(words), message
+
+
+def test_load_record_and_compare_name_their_arguments(tmp_path):
+    assert raised(hysid.load, PICK_AND_PLACE, ts="0.02").startswith("ts='0.02': must be a number of seconds")
+    assert raised(hysid.load, PICK_AND_PLACE, output=["y"]).startswith("output=['y']: must be a name")
+    assert raised(hysid.Record, U, Y, ts="0.01").startswith("ts='0.01': must be a number of seconds")
+    assert raised(hysid.Record, U, Y, ts=True).startswith("ts=True: must be a number of seconds")
+    report = tmp_path / "a-file"
+    report.write_text("kept")
+    message = raised(hysid.compare, tmp_path / "never-read.toml", report)
+    assert "is a file; the report goes into a folder" in message and report.read_text() == "kept"
+
+
+def test_a_dataframe_s_labels_are_used_as_given():
+    pd = pytest.importorskip("pandas")
+    frame = pd.DataFrame({0: U, 1: Y})
+    record = hysid.Record.from_dataframe(frame, inputs=[0], output=1)
+    assert record.input_names == ["0"] and record.output_name == "1" and np.array_equal(record.y, Y)
+    assert raised(hysid.Record.from_dataframe, frame, inputs=["0"], output=1).startswith(
+        "inputs: no column '0' in the DataFrame (columns: 0, 1)")

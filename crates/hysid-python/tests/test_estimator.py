@@ -130,6 +130,25 @@ def test_clone_copies_the_parameters_not_the_fit(arx):
                           "select_rows=(0, 100), grid={'c': [40, 80]})")
 
 
+def test_scikit_learn_s_model_selection_runs_the_estimator(head):
+    """cross_val_score and GridSearchCV on contiguous folds (TimeSeriesSplit:
+    shuffled rows are no record), and is_regressor, through the tags
+    scikit-learn asks for."""
+    model_selection = pytest.importorskip("sklearn.model_selection")
+    base = pytest.importorskip("sklearn.base")
+    est = hysid.Estimator(method="arx", max_modes=None)
+    assert base.is_regressor(est)
+    u, y = head.u[:3000], head.y[:3000]
+    split = model_selection.TimeSeriesSplit(3)
+    scores = model_selection.cross_val_score(est, u, y, cv=split)
+    # Each fold's score is the FIT validate gives the model fitted on the rows before it.
+    for score, (fit_rows, test_rows) in zip(scores, split.split(u)):
+        model = hysid.identify(u[fit_rows], y[fit_rows], method="arx", max_modes=None)
+        assert score == pytest.approx(model.validate(u[test_rows], y[test_rows])["fit_sim"], abs=1e-9)
+    search = model_selection.GridSearchCV(est, {"na": [1, 2, 3]}, cv=split).fit(u, y)
+    assert search.best_params_["na"] in (1, 2, 3) and search.best_estimator_.model_ is not None
+
+
 def test_the_constructor_stores_and_fit_checks():
     est = hysid.Estimator(method="nope", na=-1)
     assert est.get_params()["na"] == -1
@@ -218,7 +237,7 @@ def test_a_column_name_with_a_comma_is_one_column_and_ts_is_a_number():
     df = pd.DataFrame({"force, N": np.arange(20.0), "pos": np.arange(20.0) ** 0.5})
     record = hysid.Record.from_dataframe(df, inputs="force, N", output="pos", ts=0.01)
     assert record.input_names == ["force, N"] and record.ts == 0.01
-    with pytest.raises(hysid.InputError, match="ts: expected a number of seconds, got 'fast'"):
+    with pytest.raises(hysid.InputError, match="ts='fast': must be a number of seconds"):
         hysid.Record(np.zeros(5), np.zeros(5), ts="fast")
     with pytest.raises(hysid.InputError, match="sampling time must be a finite number of seconds > 0, got -1"):
         hysid.Record(np.zeros(5), np.zeros(5), ts=-1)

@@ -65,23 +65,33 @@ def _model_from_json(text: str) -> Model:
 copyreg.pickle(Model, lambda model: (_model_from_json, (model.to_json(),)))
 
 
-def _counts(**given: Any) -> None:
+def _counts(*, optional: bool = False, **given: Any) -> None:
     """Refuses a count (orders, modes, seeds, folds, ...) that is not a
-    whole number, or is negative, with an :class:`InputError` naming the
-    argument."""
-    _types(**{name: (value, numbers.Integral, "a whole number") for name, value in given.items()})
+    whole number from 0 to 2**64 - 1 (``None`` too, unless ``optional``),
+    with an :class:`InputError` naming the argument."""
+    what = "a whole number >= 0 and < 2**64"
+    _types(optional=optional, **{name: (value, numbers.Integral, what) for name, value in given.items()})
     for name, value in given.items():
         if value is not None and not 0 <= value < 2**64:
-            raise InputError(f"{name}={value}: must be a whole number >= 0 and < 2**64")
+            raise InputError(f"{name}={value}: must be {what}")
 
 
-def _types(**given: Any) -> None:
+def _types(*, optional: bool = True, **given: Any) -> None:
     """Refuses an argument of the wrong type with an :class:`InputError`
-    naming it: ``(value, allowed types, what they are)`` by name, ``None``
-    always allowed."""
+    naming it: ``(value, allowed types, what they are)`` by name; ``None``
+    allowed where ``optional``."""
     for name, (value, allowed, what) in given.items():
-        if value is not None and (isinstance(value, bool) or not isinstance(value, allowed)):
+        if value is None and optional:
+            continue
+        if isinstance(value, bool) or not isinstance(value, allowed):
             raise InputError(f"{name}={value!r}: must be {what}")
+
+
+def _flags(**given: Any) -> None:
+    """Refuses a switch that is not ``True`` or ``False`` (numpy's too)."""
+    for name, value in given.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise InputError(f"{name}={value!r}: must be True or False")
 
 
 def methods() -> List[Dict[str, Any]]:
@@ -112,6 +122,11 @@ def load(
     returns the same as a :class:`Record`, with the names.
     """
     _counts(decimate=decimate)
+    _types(
+        output=(output, str, "a name"),
+        ts=(ts, numbers.Real, "a number of seconds"),
+        time=(time, str, "a name"),
+    )
     if isinstance(inputs, str):
         inputs = [s for s in inputs.split(",")]
     return _hysid.load(
@@ -186,10 +201,13 @@ def identify(
     raises :class:`MethodError`. :class:`Estimator` is the same in
     scikit-learn's manner.
     """
-    _counts(na=na, nb=nb, modes=modes, max_modes=max_modes, seed=seed, folds=folds,
-            select_records=select_records, refit_starts=refit_starts, warmup=warmup)
+    _counts(na=na, nb=nb, seed=seed, warmup=warmup)
+    _counts(optional=True, modes=modes, max_modes=max_modes, folds=folds,
+            select_records=select_records, refit_starts=refit_starts)
+    _types(optional=False, method=(method, str, "a method name"))
+    _flags(auto=auto, standardize=standardize)
     _types(
-        method=(method, str, "a method name"),
+        output_name=(output_name, str, "a name"),
         ts=(ts, numbers.Real, "a number of seconds"),
         time_budget=(time_budget, numbers.Real, "a number of seconds"),
         options=(options, dict, "a dictionary of options by name"),
@@ -236,4 +254,6 @@ def compare(experiment: Union[str, os.PathLike], out_dir: Union[str, os.PathLike
     """Runs an experiment file (TOML, as ``hysid compare``), writes
     ``report.md``, ``report.json``, the figures and the models into
     ``out_dir``, and returns the report as a dictionary."""
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise InputError(f"out_dir={os.fspath(out_dir)!r}: is a file; the report goes into a folder")
     return _hysid.compare(os.fspath(experiment), os.fspath(out_dir))

@@ -268,6 +268,21 @@ class Estimator:
             raise InputError(f"{call}: y is missing (give a hysid.Record, or u and y)")
         return [Record(data, y, ts=ts, input_names=input_names, output_name=output_name)]
 
+    #: scikit-learn before 1.6 reads the kind of estimator from here.
+    _estimator_type = "regressor"
+
+    def __sklearn_tags__(self) -> Any:
+        """scikit-learn's tags (1.6 and later ask every estimator for them):
+        a regressor whose ``fit`` needs ``y``. Asked for by scikit-learn
+        alone, so scikit-learn is imported only then."""
+        from sklearn.utils import RegressorTags, Tags, TargetTags
+
+        return Tags(
+            estimator_type="regressor",
+            target_tags=TargetTags(required=True),
+            regressor_tags=RegressorTags(),
+        )
+
     def __repr__(self) -> str:
         """The parameters that differ from their defaults, as scikit-learn
         shows an estimator."""

@@ -83,10 +83,11 @@ class Record:
     ) -> None:
         """Checks and stores the record; see :meth:`from_numpy`."""
         if ts is not None:
-            try:
-                ts = float(ts)
-            except (TypeError, ValueError):
-                raise InputError(f"ts: expected a number of seconds, got {ts!r}") from None
+            if isinstance(ts, bool) or not isinstance(ts, numbers.Real):
+                raise InputError(f"ts={ts!r}: must be a number of seconds")
+            ts = float(ts)
+        if output_name is not None and not isinstance(output_name, str):
+            raise InputError(f"output_name={output_name!r}: must be a name")
         u, y, names, output = _hysid.check_record(
             u,
             y,
@@ -135,33 +136,36 @@ class Record:
         if columns is None:
             raise InputError(f"df: expected a pandas DataFrame, got {type(df).__name__}")
         # One text is one column name (a DataFrame's names may hold commas).
-        names = [inputs] if isinstance(inputs, str) else _names("inputs", inputs)
-        if not names:
+        # One label is one column (a DataFrame's names may hold commas, or
+        # be numbers); the record's names are the labels as text.
+        one = (str, numbers.Number)
+        labels = [inputs] if isinstance(inputs, one) else list(inputs)
+        if not labels:
             raise InputError("inputs: no input column named")
-        if not isinstance(output, str):
-            raise InputError(f"output: expected one column name, got {output!r}")
-        known = [str(c) for c in columns]
+        if not isinstance(output, one):
+            raise InputError(f"output: expected one column label, got {output!r}")
+        known = list(columns)
 
-        def present(argument: str, name: str) -> None:
+        def present(argument: str, name: Any) -> None:
             if name not in known:
-                raise InputError(
-                    f"{argument}: no column '{name}' in the DataFrame (columns: {', '.join(known)})"
-                )
+                shown = ", ".join(str(c) for c in known)
+                raise InputError(f"{argument}: no column {name!r} in the DataFrame (columns: {shown})")
 
-        def column(argument: str, name: str) -> npt.NDArray[np.float64]:
+        def column(argument: str, name: Any) -> npt.NDArray[np.float64]:
             present(argument, name)
             try:
                 return np.asarray(df[name], dtype=np.float64)
             except (TypeError, ValueError) as e:
-                raise InputError(f"{argument}: column '{name}' is not numeric ({e})") from None
+                raise InputError(f"{argument}: column {name!r} is not numeric ({e})") from None
 
-        u = np.column_stack([column("inputs", n) for n in names])
+        u = np.column_stack([column("inputs", n) for n in labels])
         y = column("output", output)
+        names = [str(n) for n in labels]
         if time is not None:
             if ts is not None:
                 raise InputError(f"time='{time}' and ts={ts}: give the sampling time one way")
             present("time", time)
-            if time in names or time == output:
+            if time in labels or time == output:
                 raise InputError(f"time: column '{time}' is also a signal; the time must be another column")
             series = df[time]
             # Timestamps with a time zone: their instants, in UTC.
@@ -175,7 +179,7 @@ class Record:
             else:
                 seconds = column("time", time)
             ts = _hysid.sampling_time(time, np.asarray(seconds, dtype=np.float64).tolist())
-        return cls(u, y, ts=ts, input_names=names, output_name=output)
+        return cls(u, y, ts=ts, input_names=names, output_name=str(output))
 
     @classmethod
     def load(
