@@ -1383,7 +1383,7 @@ fn malformed_experiment_files() {
         (
             "select-records.toml",
             format!(
-                "title = \"x\"\n{data}select_records = 2\n[[data.records]]\nfile = \"data.csv\"\nidentification = \"0..150\"\n{run}auto = true\n"
+                "title = \"x\"\n{data}select_records = 2\n[[data.records]]\nfile = \"data.csv\"\nidentification = \"0..120\"\n{run}auto = true\n"
             ),
             vec!["[data] select_records = 2"],
         ),
@@ -1426,6 +1426,20 @@ fn malformed_experiment_files() {
     let err = one_line_error(&hysid(&["compare", s(&p), "-o", s(&out)]), 2).unwrap();
     let entry = format!("{}: [[data.records]] #1 file: ", s(&p));
     assert!(err.contains(&entry) && err.contains("'z9'"), "{err}");
+    // A [[data.records]] entry that repeats [data]'s rows of its file is
+    // one record counted twice.
+    let again = "[[data.records]]\nfile = \"data.csv\"\nidentification = \"0..150\"\n";
+    let p = write(
+        d,
+        "again.toml",
+        format!("title = \"x\"\n{data}{again}{run}"),
+    );
+    let err = one_line_error(&hysid(&["compare", s(&p), "-o", s(&out)]), 2).unwrap();
+    assert!(
+        err.contains("[[data.records]] #1 file: ")
+            && err.contains("given twice with the same rows"),
+        "{err}"
+    );
     report();
 }
 

@@ -1528,3 +1528,32 @@ fn auto_says_when_the_time_budget_cut_the_search() {
     assert!(cut("0.000001"));
     assert!(!cut("1000"));
 }
+
+/// A sweep's report lists its figures without a `[[run]]` it has none of.
+#[test]
+fn a_sweep_report_names_only_its_own_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let out = dir.path().join("sweep");
+    let args = [
+        "sweep",
+        s(&data),
+        "-m",
+        "arx",
+        "--grid",
+        "na=1,2",
+        "--identify-rows",
+        "0..200",
+        "--select-rows",
+        "200..300",
+        "-o",
+        s(&out),
+    ];
+    ok(&args);
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains("Figures (under plots/): the 2 sweep points have no figures of their own"),
+        "{report}"
+    );
+    assert!(!report.contains("[[run]]` entries"), "{report}");
+}

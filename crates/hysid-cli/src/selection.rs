@@ -2,7 +2,7 @@
 //! selection").
 
 use crate::error::CliError;
-use hysid_model::data::{DataSelection, Dataset, RowRange, SignalNameError};
+use hysid_model::data::{DataError, DataSelection, Dataset, RowRange, SignalNameError};
 use std::path::PathBuf;
 
 /// Which signals and samples of a data file to use.
@@ -97,23 +97,15 @@ impl DataArgs {
                 ))
             })
             .collect::<Result<Vec<_>, CliError>>()?;
-        // The same rows of the same file twice would be one record counted
-        // twice; the records of one file under other signal names need an
-        // experiment file's [[data.records]].
-        for (i, (file, selection)) in records.iter().enumerate() {
-            if records[..i]
-                .iter()
-                .any(|(f, s)| f == file && s == selection)
-            {
-                return Err(CliError::input(format!(
-                    "{}: given twice with the same rows: give each record's --rows, or, for records \
-                     of one file under other signal names, an experiment file's [[data.records]] \
-                     (docs/compare.md)",
-                    file.display()
-                )));
-            }
-        }
-        Ok(hysid_io::load_records(&records)?)
+        hysid_io::load_records(&records).map_err(|e| match e {
+            // The records of one file under other signal names need an
+            // experiment file.
+            DataError::RecordTwice { .. } => CliError::input(format!(
+                "{e}: give each record its --rows, or, for records of one file under other signal \
+                 names, an experiment file's [[data.records]] (docs/compare.md)"
+            )),
+            e => e.into(),
+        })
     }
 
     /// Row of the file where the (first) record starts.

@@ -117,15 +117,17 @@ pub fn fit(
     let work = working_data(o, data)?;
     let sample = clustering_sample(o, &work);
     let seen = sample.as_ref().unwrap_or(&work);
-    let c = choose_c(o, data, seen, sample.is_some(), modes)?;
+    let c = choose_c(o, data, seen, work.y.len(), modes)?;
     check_sample_count(&work, modes)?;
-    if sample.is_some() && check_sample_count(seen, modes).is_err() {
-        let need = format!(
-            "{modes} modes of {} parameters ({} samples)",
-            work.n + 1,
-            modes * (work.n + 1)
-        );
-        return Err(sample_too_small(o, seen.y.len(), need));
+    if sample.is_some()
+        && let Err(IdentifyError::TooFewRegressors {
+            rows,
+            modes,
+            params,
+        }) = check_sample_count(seen, modes)
+    {
+        let need = format!("{modes} modes of {params} parameters");
+        return Err(sample_too_small(o, rows, need));
     }
     let prior_fit = prior_fit(data, seen, modes)?;
     ctx.progress.start(3, "cluster: clustering, regions, refit");
@@ -345,15 +347,16 @@ fn extend_to_all(
     Ok(())
 }
 
-/// The local dataset size: the option, or [`default_c`]; between `n+2`
-/// (the local noise variance is divided by `c-n-1`) and the number of
-/// ordinary samples (of the clustering sample, when `sampled`: then a
-/// sample smaller than the local datasets is `cluster_points`' fault).
+/// The local dataset size: the option, or [`default_c`] on the samples
+/// `work` (the clustering sample, or every ordinary sample); between `n+2`
+/// (the local noise variance is divided by `c-n-1`) and the `whole`
+/// number of ordinary samples. A clustering sample smaller than the local
+/// datasets that every sample would hold is `cluster_points`' fault.
 fn choose_c(
     o: &ClusterOptions,
     data: &PwarxData<'_>,
     work: &Working,
-    sampled: bool,
+    whole: usize,
     modes: usize,
 ) -> Result<usize, IdentifyError> {
     let (n, big_n) = (work.n, work.y.len());
@@ -370,22 +373,15 @@ fn choose_c(
         )
         .into());
     }
-    if c > big_n && sampled {
-        return Err(sample_too_small(
-            o,
-            big_n,
-            format!("local datasets of c = {c} samples"),
-        ));
-    }
-    if c > big_n && o.c.is_none() {
+    if c > whole && o.c.is_none() {
         return Err(ClusterError::TooFewForLocalDatasets {
-            samples: big_n,
+            samples: whole,
             n,
             c,
         }
         .into());
     }
-    if c > big_n {
+    if c > whole {
         let outside = if data.stops() > 0 {
             " outside the stops"
         } else {
@@ -394,9 +390,16 @@ fn choose_c(
         return Err(OptionError::invalid(
             "c",
             c,
-            format!("larger than the {big_n} regressors of the data{outside}"),
+            format!("larger than the {whole} regressors of the data{outside}"),
         )
         .into());
+    }
+    if c > big_n {
+        return Err(sample_too_small(
+            o,
+            big_n,
+            format!("local datasets of c = {c} samples"),
+        ));
     }
     Ok(c)
 }

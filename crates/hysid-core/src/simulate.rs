@@ -11,6 +11,7 @@
 use crate::model::Model;
 use hysid_mechanical::simulate as mechanical;
 use hysid_model::data::Dataset;
+use hysid_model::data::same_sampling;
 use hysid_model::metrics::{fit, pooled_fit, rmse};
 use hysid_model::model::InitialState;
 use hysid_model::simulate::{
@@ -71,9 +72,9 @@ pub fn predict(
 pub struct ValidationReport {
     /// Samples scored.
     pub n: usize,
-    /// Samples left out at the start, as asked (`--warmup`); a model
-    /// whose initial state reads a warm-up leaves out at least that warm-up
-    /// (`n` counts the samples scored).
+    /// Samples left out at the start, as asked; a model whose initial
+    /// state reads a warm-up leaves it out too (a gray-box `given` rule
+    /// all but its last sample; `n` counts the samples scored).
     pub warmup: usize,
     /// FIT of free-run simulation, percent.
     pub fit_sim: f64,
@@ -120,16 +121,17 @@ pub fn initial_states(model: &Model, data: &Dataset) -> Result<BTreeMap<String, 
 
 /// The record's and the model's sampling times, where `model` is a
 /// discrete-time model (PWARX, hybrid automaton: its lags are samples)
-/// identified at another sampling time than `data`'s (by more than 1e-6
-/// of it): its lags then mean other times, the usual sign of a
-/// `--decimate` or `--ts` left out. `None` otherwise, and for models of
-/// continuous time, which simulate at any sampling time.
+/// identified at another sampling time than `data`'s
+/// ([`hysid_model::data::same_sampling`]): its lags then mean other times,
+/// the usual sign of a decimation or sampling time left out. `None`
+/// otherwise, and for models of continuous time, which simulate at any
+/// sampling time.
 pub fn sampling_time_mismatch(model: &Model, data: &Dataset) -> Option<(f64, f64)> {
     if !matches!(model, Model::Pwarx(_) | Model::HybridAutomaton(_)) {
         return None;
     }
     let (record, own) = (data.ts?, model.info().ts?);
-    ((record - own).abs() > 1e-6 * own).then_some((record, own))
+    (!same_sampling(Some(record), Some(own))).then_some((record, own))
 }
 
 /// Scores `model` on `data`, leaving out the first `warmup` samples (and

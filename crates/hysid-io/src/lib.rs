@@ -48,25 +48,59 @@ pub fn save_model(model: &Model, path: &Path) -> Result<(), ModelError> {
 /// the first is [`DataError::NotJoined`], naming its file. One record
 /// goes through the same checks (it holds a sample).
 pub fn load_records(records: &[(&Path, DataSelection)]) -> Result<Dataset, DataError> {
-    load_each(records).map_err(|(_, e)| e)
+    load_each(records).map_err(|e| e.source)
 }
 
-/// [`load_records`], its error with the index of the record at fault
-/// (from 0), for a caller that names records otherwise than by their file
-/// (several records of one file).
-pub fn load_each(records: &[(&Path, DataSelection)]) -> Result<Dataset, (usize, DataError)> {
+/// Why [`load_each`] could not read or join its records.
+#[derive(Debug, thiserror::Error)]
+#[error("{source}")]
+pub struct RecordError {
+    /// The record at fault (from 0), where one is.
+    pub record: Option<usize>,
+    /// What is wrong.
+    pub source: DataError,
+}
+
+/// [`load_records`], its error with the record at fault, for a caller
+/// that names records otherwise than by their file (several records of
+/// one file).
+pub fn load_each(records: &[(&Path, DataSelection)]) -> Result<Dataset, RecordError> {
+    // The same file (by its canonical path, where it exists) with the same
+    // selection is one record counted twice.
+    let file = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    for (i, (path, sel)) in records.iter().enumerate() {
+        let same = |(p, s): &(&Path, DataSelection)| s == sel && file(p) == file(path);
+        if let Some(first) = records[..i].iter().position(same) {
+            return Err(RecordError {
+                record: Some(i),
+                source: DataError::RecordTwice {
+                    path: path.to_path_buf(),
+                    first: first + 1,
+                    second: i + 1,
+                },
+            });
+        }
+    }
     let read = (records.iter().enumerate())
-        .map(|(i, (path, sel))| load(path, sel).map_err(|e| (i, e)))
+        .map(|(i, (path, sel))| {
+            load(path, sel).map_err(|source| RecordError {
+                record: Some(i),
+                source,
+            })
+        })
         .collect::<Result<Vec<_>, _>>()?;
     Dataset::join(&read).map_err(|e| match e {
-        DataError::Join { record, reason } => (
-            record - 1,
-            DataError::NotJoined {
+        DataError::Join { record, reason } => RecordError {
+            record: Some(record - 1),
+            source: DataError::NotJoined {
                 path: records[record - 1].0.to_path_buf(),
                 reason,
             },
-        ),
-        e => (0, e),
+        },
+        source => RecordError {
+            record: None,
+            source,
+        },
     })
 }
 

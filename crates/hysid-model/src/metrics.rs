@@ -15,7 +15,8 @@ pub fn fit(y: &[f64], yhat: &[f64]) -> f64 {
 /// The FIT of several records `(y, yhat)` together: the error over every
 /// sample against the spread of each record about its own mean,
 /// `100 (1 - sqrt(sum_r |y_r - yhat_r|^2) / sqrt(sum_r |y_r - mean(y_r)|^2))`.
-/// It lies between the records' own FITs; one mean for all would count
+/// It lies between the FITs of the records (of those with any spread);
+/// one mean for all would count
 /// the differences between the records' levels as spread a model explains
 /// and put it above every one of them. One record: [`fit`].
 pub fn pooled_fit(records: &[(&[f64], &[f64])]) -> f64 {

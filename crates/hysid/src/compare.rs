@@ -378,10 +378,10 @@ impl Experiment {
         let read = |records: &[(DataEntry, &Path, DataSelection)], part| {
             let files: Vec<(&Path, DataSelection)> =
                 records.iter().map(|(_, p, s)| (*p, s.clone())).collect();
-            load_each(&files).map_err(|(at, source)| {
-                let entry = records[at].0;
-                match source {
-                    DataError::Rows { .. } => ExperimentError::Rows {
+            load_each(&files).map_err(|e| {
+                let entry = e.record.map_or(DataEntry::Main, |at| records[at].0);
+                match e.source {
+                    source @ DataError::Rows { .. } => ExperimentError::Rows {
                         entry,
                         part,
                         source,

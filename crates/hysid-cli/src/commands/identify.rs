@@ -332,8 +332,9 @@ fn report_selection(method: &str, s: &Selection) {
     }
     if s.cut_short {
         eprintln!(
-            "hysid: --auto: the time budget ran out before the selection ended: the candidates \
-             and refits after it were cut short or not run (a longer --time-budget searches more)"
+            "hysid: --auto: the time budget ran out before the selection ended: the fits after it \
+             stopped at their first check and refit starts were left out (a longer --time-budget \
+             searches more)"
         );
     }
     if chosen.method != method {
@@ -347,8 +348,9 @@ fn report_selection(method: &str, s: &Selection) {
 
 /// Why no candidate of `method` was written, the affine reference scoring
 /// `affine` on the selection rows: every one failed, the better ones were
-/// refused at the refit on all the rows, or none simulated those rows
-/// better.
+/// refused at the refit on all the rows, the better ones are within one
+/// standard error of the affine model (the rule prefers fewer modes), or
+/// none simulated those rows better.
 fn why_affine(s: &Selection, method: &str, affine: Option<f64>) -> String {
     let own: Vec<&ScoredCandidate> = s.candidates.iter().filter(|c| c.method == method).collect();
     let affine = affine.unwrap_or(f64::NEG_INFINITY);
@@ -359,16 +361,19 @@ fn why_affine(s: &Selection, method: &str, affine: Option<f64>) -> String {
             first.unwrap_or("no candidate")
         );
     }
-    let refused =
-        |c: &&&ScoredCandidate| c.error.is_some() && c.fit_sim.is_some_and(|f| f > affine);
-    match own.iter().find(refused) {
-        Some(c) => format!(
+    let better = |c: &ScoredCandidate| c.fit_sim.is_some_and(|f| f > affine);
+    if let Some(c) = own.iter().find(|c| better(c) && c.error.is_some()) {
+        format!(
             "the {method} candidates that simulated the selection rows better were refused at the \
              refit on all the rows (the first: {})",
             c.error.as_deref().unwrap_or_default()
-        ),
-        None => format!(
-            "no {method} candidate simulated the selection rows better than the affine model"
-        ),
+        )
+    } else if own.iter().any(|c| better(c)) {
+        format!(
+            "the {method} candidates that simulated the selection rows better are within one \
+             standard error of the affine model, which has fewer modes"
+        )
+    } else {
+        format!("no {method} candidate simulated the selection rows better than the affine model")
     }
 }

@@ -10,7 +10,8 @@ use crate::error::Result;
 use crate::progress::TerminalProgress;
 use crate::selection::SignalArgs;
 use hysid::compare::{
-    DataPart, DataSpec, Experiment, ExperimentError, Origin, RunSpec, ScoredRows, SweepSpec,
+    DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Origin, RunSpec,
+    ScoredRows, SweepSpec,
 };
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
@@ -34,8 +35,8 @@ pub struct Args {
     #[arg(long = "identify-rows", allow_hyphen_values = true)]
     pub identify_rows: RowRange,
     /// Rows every point is scored on (after decimation): selection rows
-    /// when the sweep chooses options (keep them inside the identification
-    /// data, away from the test rows); `--validate-rows` is the same flag.
+    /// when the sweep chooses options (outside --identify-rows and away
+    /// from the test rows); `--validate-rows` is the same flag.
     #[arg(
         long = "select-rows",
         alias = "validate-rows",
@@ -165,7 +166,7 @@ pub fn run(args: Args) -> Result<()> {
     exp.check().map_err(|e| CliError::input(e.to_string()))?;
     // The points are scored on the selection rows: rows they were fitted
     // on would score them on what they have seen.
-    if !exp.warnings().is_empty() {
+    if (exp.warnings().iter()).any(|w| matches!(w, ExperimentWarning::ValidationOverlaps { .. })) {
         return Err(CliError::input(format!(
             "--select-rows {} overlap --identify-rows {}: the points would be scored on rows \
              they were fitted on",

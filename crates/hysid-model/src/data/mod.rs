@@ -233,8 +233,9 @@ impl Dataset {
 /// same ([`Dataset::join`]).
 pub const TS_TOLERANCE: f64 = 1e-6;
 
-/// Both unknown, or both known and equal to [`TS_TOLERANCE`] of the larger.
-fn same_sampling(a: Option<f64>, b: Option<f64>) -> bool {
+/// Whether two sampling times are the same: both unknown, or both known
+/// and equal to [`TS_TOLERANCE`] of the larger.
+pub fn same_sampling(a: Option<f64>, b: Option<f64>) -> bool {
     match (a, b) {
         (None, None) => true,
         (Some(a), Some(b)) => (a - b).abs() <= TS_TOLERANCE * a.abs().max(b.abs()),
@@ -330,6 +331,13 @@ pub struct RowRange {
 }
 
 impl RowRange {
+    /// Whether the two ranges share a row (an open end reaches every row).
+    pub fn overlaps(&self, other: &RowRange) -> bool {
+        let start = self.start.unwrap_or(0).max(other.start.unwrap_or(0));
+        let end = (self.end.unwrap_or(usize::MAX)).min(other.end.unwrap_or(usize::MAX));
+        start < end
+    }
+
     /// Resolves the bounds against a record of `n` rows.
     pub fn resolve(&self, n: usize) -> Result<(usize, usize), DataError> {
         let a = self.start.unwrap_or(0);
@@ -507,6 +515,17 @@ pub enum DataError {
         path: PathBuf,
         /// What is wrong.
         reason: String,
+    },
+    /// The same rows and signals of one file given as two records: one
+    /// record counted twice.
+    #[error("{path}: given twice with the same rows and signals (records {first} and {second})", path = path.display())]
+    RecordTwice {
+        /// The file.
+        path: PathBuf,
+        /// The first record (from 1).
+        first: usize,
+        /// The record that repeats it (from 1).
+        second: usize,
     },
 }
 

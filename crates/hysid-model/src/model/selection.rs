@@ -44,9 +44,10 @@ pub struct Selection {
     /// change (one refit).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub refit: Vec<RefitStart>,
-    /// The time budget ran out before the selection ended: the candidates
-    /// and refits after it were cut short or not run, so the choice is
-    /// among what the budget reached.
+    /// The time budget had run out when the selection ended: the fits
+    /// after it stopped at their first check of it and refit starts after
+    /// the first were left out, so the choice is among what the budget
+    /// reached.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub cut_short: bool,
 }

@@ -523,3 +523,34 @@ fn coupled_drives_are_recovered_from_three_records_of_three_amplitudes() {
     let insensitive = &alone.info.diagnostics.method["zero_sensitivity"];
     assert_eq!(insensitive, &serde_json::json!(["pw"]), "{insensitive}");
 }
+
+/// Nominal values that cannot be simulated on the record (an output gain
+/// of zero, which the measured rule cannot invert) leave `nominal_cost`
+/// null, and the search fits from elsewhere in the bounds.
+#[test]
+fn nominal_values_that_cannot_run_leave_the_nominal_cost_null() {
+    let truth = load("positioning-axis.toml");
+    let mut u = drive(300, 30, -2.0, 2.0).generate(6).remove(0);
+    u[..30].fill(0.0);
+    let data = noise_free(&truth, &[], u, TS);
+    let text = std::fs::read_to_string(example("positioning-axis.toml"))
+        .unwrap()
+        .replace(
+            "outputs = [{ name = \"q\", value = \"q\" }]",
+            "outputs = [{ name = \"q\", value = \"c*q\" }]",
+        )
+        + "\n[[parameters]]\nname = \"c\"\nvalue = 0.0\nbounds = [0.0, 1.5]\n";
+    let file = std::env::temp_dir().join(format!("hysid-gain-{}.toml", std::process::id()));
+    std::fs::write(&file, text).unwrap();
+    let fitted = fit(
+        &data,
+        &Priors::default(),
+        file.to_str().unwrap(),
+        &SMALL_SEARCH,
+        1,
+    );
+    std::fs::remove_file(&file).unwrap();
+    let d = &fitted.info.diagnostics.method;
+    assert!(d["nominal_cost"].is_null(), "{d:?}");
+    assert!(d["cost"].as_f64().unwrap().is_finite(), "{d:?}");
+}

@@ -768,16 +768,15 @@ impl Experiment {
     }
 }
 
-/// What an experiment file asks for that runs, but that a reader of its
-/// report should be told.
+/// What an experiment file asks for that runs, but that its user should be
+/// told (`hysid compare` says it on standard error).
 #[derive(Debug, Clone, PartialEq)]
 pub enum ExperimentWarning {
     /// Scored rows that are also identification rows of the same file:
     /// their scores are not on rows the fits did not see.
     ValidationOverlaps {
-        /// The `[[data.records]]` entry (counted from 1); `None` for the
-        /// `[data]` table's own file.
-        record: Option<usize>,
+        /// The entry that gives both.
+        entry: DataEntry,
         /// The identification rows.
         identification: RowRange,
         /// The validation rows.
@@ -789,53 +788,37 @@ impl fmt::Display for ExperimentWarning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             ExperimentWarning::ValidationOverlaps {
-                record,
+                entry,
                 identification,
                 validation,
-            } => {
-                let table = match record {
-                    Some(r) => format!("[[data.records]] #{r}"),
-                    None => "[data]".into(),
-                };
-                write!(
-                    f,
-                    "{table}: the validation rows {validation} overlap the identification rows \
-                     {identification}: their scores are not on rows the fits did not see"
-                )
-            }
+            } => write!(
+                f,
+                "{entry}: the validation rows {validation} overlap the identification rows \
+                 {identification}: their scores are not on rows the fits did not see"
+            ),
         }
     }
 }
 
-/// Whether two row ranges share a row (an open end reaches every row).
-fn overlap(a: &RowRange, b: &RowRange) -> bool {
-    let start = a.start.unwrap_or(0).max(b.start.unwrap_or(0));
-    let end = a.end.unwrap_or(usize::MAX).min(b.end.unwrap_or(usize::MAX));
-    start < end
-}
-
 impl Experiment {
-    /// What the file asks for that its report's reader should be told
+    /// What the file asks for that its user should be told
     /// ([`ExperimentWarning`]), in the order of the file.
     pub fn warnings(&self) -> Vec<ExperimentWarning> {
         let own = (
-            None,
+            DataEntry::Main,
             Some(&self.data.identification),
             Some(&self.data.validation),
         );
         let records = (self.data.records.iter().enumerate()).map(|(i, r)| {
-            (
-                Some(i + 1),
-                r.identification.as_ref(),
-                r.validation.as_ref(),
-            )
+            let entry = DataEntry::Record(i + 1);
+            (entry, r.identification.as_ref(), r.validation.as_ref())
         });
         std::iter::once(own)
             .chain(records)
-            .filter_map(|(record, id, val)| match (id, val) {
-                (Some(id), Some(val)) if overlap(id, val) => {
+            .filter_map(|(entry, id, val)| match (id, val) {
+                (Some(id), Some(val)) if id.overlaps(val) => {
                     Some(ExperimentWarning::ValidationOverlaps {
-                        record,
+                        entry,
                         identification: *id,
                         validation: *val,
                     })

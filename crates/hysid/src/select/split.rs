@@ -37,9 +37,7 @@ pub fn record_split(data: &Dataset, k: usize, plan: &Plan) -> Result<Split, Sele
     let ranges = data.record_ranges();
     let count = ranges.len();
     if count < 2 {
-        return Err(bad(
-            "holding out records needs two or more (several data files)".into(),
-        ));
+        return Err(bad("holding out records needs two or more records".into()));
     }
     if k == 0 || k >= count {
         return Err(bad(format!(
