@@ -20,7 +20,7 @@ use hysid::identify::{Auto, Identify, Mode};
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
-use hysid_model::data::{DEFAULT_TIME, DataSelection, Dataset, RowRange, SignalNameError};
+use hysid_model::data::{DEFAULT_TIME, DataSelection, Dataset, RowRange};
 use model::Model;
 use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
@@ -93,7 +93,7 @@ fn load<'py>(
         ts,
         time: time.unwrap_or_else(|| DEFAULT_TIME.into()),
     };
-    check_names(&selection, "inputs", "output")?;
+    record::check_names(&selection, "inputs", "output")?;
     let data = py
         .detach(|| hysid_io::load(&path, &selection))
         .map_err(Failure::from)?;
@@ -102,21 +102,6 @@ fn load<'py>(
         record::vector(py, data.y().to_vec()).into_any(),
         data.ts,
     ))
-}
-
-/// The signal names of `selection` checked as the program checks them;
-/// `inputs` and `output` name the arguments that gave them.
-pub(crate) fn check_names(
-    selection: &DataSelection,
-    inputs: &str,
-    output: &str,
-) -> Result<(), Failure> {
-    selection.check_names().map_err(|e| match e {
-        SignalNameError::Empty => {
-            Failure::input(format!("{inputs}/{output}: an empty signal name"))
-        }
-        e => Failure::input(format!("{inputs}: {e}")),
-    })
 }
 
 /// The sampling time of the times `t` of the column `name`, as the

@@ -3,7 +3,7 @@
 //! and back.
 
 use crate::error::Failure;
-use hysid_model::data::{DataSelection, Dataset, Signal};
+use hysid_model::data::{DataSelection, Dataset, Signal, SignalNameError};
 use numpy::ndarray::{Array2, ArrayD};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn, PyUntypedArray};
 use pyo3::prelude::*;
@@ -98,6 +98,17 @@ fn input_names(m: usize, given: Option<Vec<String>>) -> Result<Vec<String>, Fail
     }
 }
 
+/// The signal names of `selection` checked as the program checks them;
+/// `inputs` and `output` name the arguments that gave them.
+pub fn check_names(selection: &DataSelection, inputs: &str, output: &str) -> Result<(), Failure> {
+    selection.check_names().map_err(|e| match e {
+        SignalNameError::Empty => {
+            Failure::input(format!("{inputs}/{output}: an empty signal name"))
+        }
+        e => Failure::input(format!("{inputs}: {e}")),
+    })
+}
+
 /// A record from the inputs' columns and the outputs; the names checked
 /// as the program checks them, lengths and finite values by
 /// [`Dataset::new`].
@@ -114,7 +125,7 @@ pub fn dataset(
         output: output_name.clone().unwrap_or_else(|| "y".into()),
         ..DataSelection::default()
     };
-    crate::check_names(&selection, "input_names", "output_name")?;
+    check_names(&selection, "input_names", "output_name")?;
     let inputs = names
         .into_iter()
         .zip(columns)
