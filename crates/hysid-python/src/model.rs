@@ -251,6 +251,9 @@ impl Model {
                 ))
                 .into());
             }
+            if let Some(k) = given.iter().position(|v| !v.is_finite()) {
+                return Err(Failure::input(format!("y0: a non-finite value at sample {k}")).into());
+            }
             y[..given.len()].copy_from_slice(&given.iter().copied().collect::<Vec<_>>());
         }
         let data = self.record(u, y, ts)?;
@@ -287,7 +290,9 @@ impl Model {
 
     /// Scores the model on a record, leaving out the first `warmup`
     /// samples: the dictionary of `hysid validate --json` (`fit_sim`,
-    /// `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...).
+    /// `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...). Lists of
+    /// records (`u` and `y` lists of as many arrays) are scored each, in
+    /// `records`, and together.
     #[pyo3(signature = (u, y, warmup=None, ts=None), text_signature = "($self, u, y, warmup=10, ts=None)")]
     fn validate<'py>(
         &self,

@@ -313,3 +313,25 @@ def test_a_dataframe_s_labels_are_used_as_given():
     assert record.input_names == ["0"] and record.output_name == "1" and np.array_equal(record.y, Y)
     assert raised(hysid.Record.from_dataframe, frame, inputs=["0"], output=1).startswith(
         "inputs: no column '0' in the DataFrame (columns: 0, 1)")
+
+
+def test_more_arguments_are_named():
+    model = hysid.identify(U, Y, method="arx")
+    assert raised(model.simulate, U, y0=[np.nan, 1.0]).startswith("y0: a non-finite value at sample 0")
+    assert raised(hysid.identify, U, Y, method="arx", ts=-1).startswith("ts=-1: must be a positive number")
+    assert raised(hysid.Record, U, Y, ts=0).startswith("ts=0: must be a positive number")
+    assert raised(hysid.identify, U, Y, method="arx", auto=True, grid={"ridge": []}).startswith(
+        "grid ridge: no values")
+    est = hysid.Estimator(method="physical", options={"model": HEAD_MODEL})
+    assert raised(est.fit, U, Y, ts=0.0025).startswith(
+        "max_modes=3 (the Estimator's default): method 'physical' takes no mode count; give max_modes=None")
+
+
+def test_plot_regions_names_its_arguments():
+    pytest.importorskip("matplotlib")
+    import hysid.plot
+
+    model = hysid.identify(U, Y, method="cluster", na=1, nb=1, modes=2)
+    assert raised(hysid.plot.regions, model, dims=(0,)).startswith("dims=(0,): two coordinates")
+    assert raised(hysid.plot.regions, model, resolution=0).startswith("resolution=0: must be a whole number >= 2")
+    assert raised(hysid.plot.regions, model, data=(U[:1], Y[:1])).startswith("data: no regressor")

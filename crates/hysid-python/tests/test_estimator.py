@@ -239,7 +239,7 @@ def test_a_column_name_with_a_comma_is_one_column_and_ts_is_a_number():
     assert record.input_names == ["force, N"] and record.ts == 0.01
     with pytest.raises(hysid.InputError, match="ts='fast': must be a number of seconds"):
         hysid.Record(np.zeros(5), np.zeros(5), ts="fast")
-    with pytest.raises(hysid.InputError, match="sampling time must be a finite number of seconds > 0, got -1"):
+    with pytest.raises(hysid.InputError, match="ts=-1: must be a positive number of seconds"):
         hysid.Record(np.zeros(5), np.zeros(5), ts=-1)
     with pytest.raises(hysid.InputError, match="time: no column 'clock'"):
         hysid.Record.from_dataframe(df, inputs="force, N", output="pos", time="clock")

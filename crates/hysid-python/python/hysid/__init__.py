@@ -24,6 +24,7 @@ matplotlib).
 from __future__ import annotations
 
 import copyreg
+import math
 import numbers
 import os
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
@@ -118,8 +119,9 @@ def load(
     after decimation; ``time`` (default ``"t"``) names the column or
     variable of the time in seconds, whose first step is the sampling time;
     ``ts`` is the sampling time when the file has none. Returns
-    ``(u, y, ts)`` with ``u`` of shape ``(N, m)``; :meth:`Record.load`
-    returns the same as a :class:`Record`, with the names.
+    ``(u, y, ts)`` with ``u`` of shape ``(N, m)``, without the signals'
+    names; :meth:`Record.load` returns the same as a :class:`Record`,
+    with the names (which :class:`Estimator` keeps in its model).
     """
     _counts(decimate=decimate)
     _types(
@@ -214,14 +216,17 @@ def identify(
         priors=(priors, (dict, str, os.PathLike), "a dictionary or the path of a prior file"),
         grid=(grid, dict, "a dictionary of values by option"),
     )
+    if ts is not None and not (math.isfinite(ts) and ts > 0):
+        raise InputError(f"ts={ts!r}: must be a positive number of seconds")
     grid_items = None
     if grid is not None:
         # One value (a number, a text) is a list of one, not of its characters.
         one = (str, bytes, numbers.Number)
-        grid_items = [
-            f"{k}={','.join(str(v) for v in ([values] if isinstance(values, one) else values))}"
-            for k, values in grid.items()
-        ]
+        listed = {k: [values] if isinstance(values, one) else list(values) for k, values in grid.items()}
+        for k, values in listed.items():
+            if not values:
+                raise InputError(f"grid {k}: no values")
+        grid_items = [f"{k}={','.join(str(v) for v in values)}" for k, values in listed.items()]
     if priors is not None and not isinstance(priors, dict):
         priors = os.fspath(priors)
     return _hysid.identify(

@@ -132,8 +132,14 @@ class Estimator:
         record's names are kept in the model (``model_.input_names``,
         ``model_.output_name``).
         """
-        from . import identify
+        from . import identify, methods
 
+        takes = {m["name"]: m["priors"] for m in methods()}
+        if self.max_modes == DEFAULT_MAX_MODES and "max_modes" not in takes.get(self.method, ["max_modes"]):
+            raise InputError(
+                f"max_modes={DEFAULT_MAX_MODES} (the Estimator's default): method '{self.method}' takes no "
+                "mode count; give max_modes=None"
+            )
         found = self._records(data, y, ts, input_names, output_name, "fit")
         record = found[0]
         several = len(found) > 1

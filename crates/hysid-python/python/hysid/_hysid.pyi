@@ -112,7 +112,8 @@ class Model:
 
 def methods() -> List[Dict[str, Any]]:
     """The back-ends as a list of dictionaries: name, summary, options (key,
-    type, default, doc), priors honoured and what `auto` tries."""
+    ty, default, doc), priors honoured, what `auto` tries, and whether and
+    how the seed is used (seeded, seed_use)."""
 
 def load(
     path: PathLike,

@@ -3,6 +3,7 @@ from numpy arrays, a pandas DataFrame or a record file."""
 
 from __future__ import annotations
 
+import math
 import numbers
 import os
 from typing import Any, List, Optional, Sequence, Tuple, Union
@@ -85,6 +86,8 @@ class Record:
         if ts is not None:
             if isinstance(ts, bool) or not isinstance(ts, numbers.Real):
                 raise InputError(f"ts={ts!r}: must be a number of seconds")
+            if not (math.isfinite(ts) and ts > 0):
+                raise InputError(f"ts={ts!r}: must be a positive number of seconds")
             ts = float(ts)
         if output_name is not None and not isinstance(output_name, str):
             raise InputError(f"output_name={output_name!r}: must be a name")

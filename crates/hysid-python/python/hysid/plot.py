@@ -135,10 +135,16 @@ def regions(
         raise InputError(f"regions are drawn for PWARX models; this one is {model.kind}")
     names = regressor_names(model)
     d = len(names)
+    if len(dims) != 2:
+        raise InputError(f"dims={dims}: two coordinates")
+    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 2:
+        raise InputError(f"resolution={resolution!r}: must be a whole number >= 2")
     i, j = dims
     if not (0 <= i < d and 0 <= j < d and i != j):
         raise InputError(f"dims={dims}: two different coordinates in 0..{d - 1} ({', '.join(names)})")
     x = regressors(model, *data) if data is not None else None
+    if x is not None and len(x) == 0:
+        raise InputError("data: no regressor (the record is shorter than the model's lags)")
     centre = np.asarray(at, dtype=float) if at is not None else (x.mean(axis=0) if x is not None else np.zeros(d))
     if centre.shape != (d,):
         raise InputError(f"at: expected {d} values ({', '.join(names)}), got shape {centre.shape}")
