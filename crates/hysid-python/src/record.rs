@@ -153,16 +153,18 @@ pub fn from_arrays(
 /// The inputs and the outputs of one record, as Python gave them.
 type ArrayPair<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
 
-/// Several records: `y` is a list or tuple of numpy arrays, and `u` a list
-/// or tuple of as many. Anything else is one record (a list of numbers, or
-/// of lists, is one array, as numpy reads it).
+/// Several records: `y` is a list or tuple of arrays (numpy's, or objects
+/// numpy converts through `__array__`, such as pandas Series), and `u` a
+/// list or tuple of as many. Anything else is one record (a list of
+/// numbers, or of lists, is one array, as numpy reads it).
 fn record_lists<'py>(
     u: &Bound<'py, PyAny>,
     y: &Bound<'py, PyAny>,
 ) -> Result<Option<Vec<ArrayPair<'py>>>, Failure> {
-    let Some(ys) = items(y)
-        .filter(|ys| !ys.is_empty() && ys.iter().all(|x| x.is_instance_of::<PyUntypedArray>()))
-    else {
+    let array = |x: &Bound<'py, PyAny>| {
+        x.is_instance_of::<PyUntypedArray>() || x.hasattr("__array__").unwrap_or(false)
+    };
+    let Some(ys) = items(y).filter(|ys| !ys.is_empty() && ys.iter().all(array)) else {
         return Ok(None);
     };
     let us = items(u).ok_or_else(|| {

@@ -335,3 +335,11 @@ def test_plot_regions_names_its_arguments():
     assert raised(hysid.plot.regions, model, dims=(0,)).startswith("dims=(0,): two coordinates")
     assert raised(hysid.plot.regions, model, resolution=0).startswith("resolution=0: must be a whole number >= 2")
     assert raised(hysid.plot.regions, model, data=(U[:1], Y[:1])).startswith("data: no regressor")
+
+
+def test_records_given_as_pandas_series_are_records():
+    pd = pytest.importorskip("pandas")
+    us, ys = [U[:150], U[150:]], [Y[:150], Y[150:]]
+    from_arrays = hysid.identify(us, ys, method="arx")
+    from_series = hysid.identify([pd.Series(u) for u in us], [pd.Series(y) for y in ys], method="arx")
+    assert from_series.to_json() == from_arrays.to_json()
