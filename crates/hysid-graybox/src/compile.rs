@@ -247,6 +247,17 @@ impl CompiledModel {
         })
     }
 
+    /// The warm-up samples the initial state reads from the record: a
+    /// measured rule's, or those of a given rule that estimates states;
+    /// `None` for a state given whole, or at rest.
+    pub fn warmup_read(&self) -> Option<usize> {
+        match self.initial {
+            CompiledInitial::Measured { samples, .. } => Some(samples),
+            CompiledInitial::Given { samples, .. } if !self.estimates.is_empty() => Some(samples),
+            CompiledInitial::Given { .. } | CompiledInitial::Steady { .. } => None,
+        }
+    }
+
     /// Whether the direction of a sliding friction decides any comparison
     /// in the model's flows and friction levels ([`CompiledModel::sliding`]
     /// changes something).

@@ -115,7 +115,11 @@ fn writes_key(code: &str, key: &str) -> bool {
 /// that holds it (a string over several lines, or with escapes). Comments
 /// and words that merely contain it do not count.
 pub(crate) fn line_of(source: &str, text: &str) -> Option<usize> {
-    let lexed = Lexed::of(source);
+    first_line(&Lexed::of(source), text)
+}
+
+/// [`line_of`] in a lexed source.
+fn first_line(lexed: &Lexed, text: &str) -> Option<usize> {
     let as_string = lexed
         .strings
         .iter()
@@ -147,7 +151,7 @@ pub(crate) fn line_of_field(source: &str, key: &str, text: &str) -> Option<usize
     let in_field = (lexed.strings.iter())
         .find(|(line, s)| s == text && writes_key(&lexed.code[*line], key))
         .map(|&(line, _)| line + 1);
-    in_field.or_else(|| line_of(source, text))
+    in_field.or_else(|| first_line(&lexed, text))
 }
 
 #[cfg(test)]

@@ -67,10 +67,12 @@ pub struct RecordError {
 pub fn load_each(records: &[(&Path, DataSelection)]) -> Result<Dataset, RecordError> {
     // The same file (by its canonical path, where it exists) with the same
     // selection is one record counted twice.
-    let file = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let files: Vec<_> = (records.iter())
+        .map(|(p, _)| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()))
+        .collect();
     for (i, (path, sel)) in records.iter().enumerate() {
-        let same = |(p, s): &(&Path, DataSelection)| s == sel && file(p) == file(path);
-        if let Some(first) = records[..i].iter().position(same) {
+        let same = |j: &usize| records[*j].1 == *sel && files[*j] == files[i];
+        if let Some(first) = (0..i).find(same) {
             return Err(RecordError {
                 record: Some(i),
                 source: DataError::RecordTwice {

@@ -230,13 +230,7 @@ impl Target for GrayBoxTarget {
     }
 
     fn warmup_samples(&self) -> Option<usize> {
-        match self.compiled.initial {
-            CompiledInitial::Given { samples, .. } if !self.compiled.estimates.is_empty() => {
-                Some(samples)
-            }
-            CompiledInitial::Measured { samples, .. } => Some(samples),
-            CompiledInitial::Given { .. } | CompiledInitial::Steady { .. } => None,
-        }
+        self.compiled.warmup_read()
     }
 
     fn estimated_states(&self) -> Vec<(String, [f64; 2], f64)> {

@@ -24,16 +24,19 @@ pub fn floats(name: &str, obj: &Bound<'_, PyAny>) -> Result<ArrayD<f64>, Failure
             "{name}: masked samples; fill them or leave them out first"
         )));
     }
-    let kind = (numpy.call_method1("asarray", (obj,)))
-        .and_then(|a| a.getattr("dtype")?.getattr("kind")?.extract::<String>());
-    if kind.map_err(not_numbers)? == "c" {
+    // Converted once: the dtype is read and the floats taken from it.
+    let array = numpy.call_method1("asarray", (obj,)).map_err(not_numbers)?;
+    let kind = (array.getattr("dtype"))
+        .and_then(|d| d.getattr("kind")?.extract::<String>())
+        .map_err(not_numbers)?;
+    if kind == "c" {
         return Err(Failure::input(format!(
             "{name}: complex numbers; give real ones"
         )));
     }
-    let a = obj
+    let a = array
         .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
-        .map_err(|e| Failure::input(format!("{name}: not an array of numbers ({e})")))?;
+        .map_err(not_numbers)?;
     Ok(a.as_array().to_owned())
 }
 

@@ -76,11 +76,7 @@ pub(super) fn initial(
 /// The first sample a run scores: after the measured rule's warm-up, or
 /// after the warm-up that estimates unknown states; 0 otherwise.
 pub(super) fn scored_from(m: &CompiledModel) -> usize {
-    match m.initial {
-        CompiledInitial::Measured { samples, .. } => samples - 1,
-        CompiledInitial::Given { samples, .. } if !m.estimates.is_empty() => samples - 1,
-        _ => 0,
-    }
+    m.warmup_read().map_or(0, |samples| samples - 1)
 }
 
 /// `x` with the estimated states at `estimates` (a missing value: the
