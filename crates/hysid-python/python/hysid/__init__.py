@@ -24,7 +24,6 @@ matplotlib).
 from __future__ import annotations
 
 import copyreg
-import math
 import numbers
 import os
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
@@ -34,7 +33,7 @@ import numpy.typing as npt
 
 from . import _hysid
 from ._hysid import HysidError, InputError, MethodError, Model
-from ._record import Record, Rows, _names, _rows
+from ._record import Record, Rows, _names, _rows, _seconds
 from ._estimator import Estimator
 
 __all__ = [
@@ -124,11 +123,8 @@ def load(
     with the names (which :class:`Estimator` keeps in its model).
     """
     _counts(decimate=decimate)
-    _types(
-        output=(output, str, "a name"),
-        ts=(ts, numbers.Real, "a number of seconds"),
-        time=(time, str, "a name"),
-    )
+    _types(output=(output, str, "a name"), time=(time, str, "a name"))
+    ts = _seconds("ts", ts)
     if isinstance(inputs, str):
         inputs = [s for s in inputs.split(",")]
     return _hysid.load(
@@ -210,14 +206,12 @@ def identify(
     _flags(auto=auto, standardize=standardize)
     _types(
         output_name=(output_name, str, "a name"),
-        ts=(ts, numbers.Real, "a number of seconds"),
         time_budget=(time_budget, numbers.Real, "a number of seconds"),
         options=(options, dict, "a dictionary of options by name"),
         priors=(priors, (dict, str, os.PathLike), "a dictionary or the path of a prior file"),
         grid=(grid, dict, "a dictionary of values by option"),
     )
-    if ts is not None and not (math.isfinite(ts) and ts > 0):
-        raise InputError(f"ts={ts!r}: must be a positive number of seconds")
+    ts = _seconds("ts", ts)
     grid_items = None
     if grid is not None:
         # One value (a number, a text) is a list of one, not of its characters.

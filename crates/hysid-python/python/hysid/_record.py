@@ -37,6 +37,19 @@ def _rows(name: str, rows: Rows) -> Optional[str]:
     return f"{a}..{b}"
 
 
+def _seconds(name: str, given: Any) -> Optional[float]:
+    """A sampling time given as argument ``name``: ``None``, or a positive
+    finite number of seconds (not a bool); an :class:`InputError` naming
+    the argument otherwise."""
+    if given is None:
+        return None
+    if isinstance(given, bool) or not isinstance(given, numbers.Real):
+        raise InputError(f"{name}={given!r}: must be a number of seconds")
+    if not (math.isfinite(given) and given > 0):
+        raise InputError(f"{name}={given!r}: must be a positive number of seconds")
+    return float(given)
+
+
 def _names(name: str, given: Union[str, Sequence[str], None]) -> Optional[List[str]]:
     """Signal names given as one name, a comma-separated list or a sequence."""
     if given is None:
@@ -83,12 +96,7 @@ class Record:
         output_name: Optional[str] = None,
     ) -> None:
         """Checks and stores the record; see :meth:`from_numpy`."""
-        if ts is not None:
-            if isinstance(ts, bool) or not isinstance(ts, numbers.Real):
-                raise InputError(f"ts={ts!r}: must be a number of seconds")
-            if not (math.isfinite(ts) and ts > 0):
-                raise InputError(f"ts={ts!r}: must be a positive number of seconds")
-            ts = float(ts)
+        ts = _seconds("ts", ts)
         if output_name is not None and not isinstance(output_name, str):
             raise InputError(f"output_name={output_name!r}: must be a name")
         u, y, names, output = _hysid.check_record(
