@@ -333,9 +333,13 @@ fn compare<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let exp =
         hysid::compare::Experiment::load(&experiment).map_err(|e| Failure::input(e.to_string()))?;
+    // As the program says them: the warnings, and the file with a run's error.
+    for w in exp.warnings() {
+        warn(py, &format!("{}: {w}", experiment.display()))?;
+    }
     let mut comparison = py
         .detach(|| exp.run(&hysid_core::backend::NoProgress))
-        .map_err(|e| Failure::input(e.to_string()))?;
+        .map_err(|e| Failure::input(format!("{}: {e}", experiment.display())))?;
     // As the program's exit code 1: the report could not be written.
     hysid::compare::write_report(&mut comparison, &out_dir)
         .map_err(|e| Failure::method(format!("{}: {e}", out_dir.display())))?;

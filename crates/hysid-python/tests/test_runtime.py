@@ -87,6 +87,10 @@ nb = 3
     assert (tmp_path / "out" / "report.md").exists() and (tmp_path / "out" / "report.json").exists()
     model = hysid.Model.load(tmp_path / "out" / "models" / "arx_2_2.json")
     assert model.orders == (2, 2)
+    # Validation rows that overlap the identification rows: run, with the program's warning.
+    experiment.write_text(experiment.read_text().replace('validation = "5000..6001"', 'validation = "4000..6001"'))
+    with pytest.warns(UserWarning, match="the validation rows 4000..6001 overlap the identification rows 0..5000"):
+        hysid.compare(experiment, tmp_path / "again")
 
 
 def test_figures_draw(record, tmp_path):
