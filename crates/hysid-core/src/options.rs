@@ -335,6 +335,13 @@ impl Settings {
         }
     }
 
+    /// A copy with `key` set to `value` (replacing its value, if given).
+    pub fn with(&self, key: &str, value: &str) -> Self {
+        let mut pairs = self.without(key).pairs;
+        pairs.push((key.to_string(), value.to_string()));
+        Self { pairs }
+    }
+
     /// The settings with the preset ([`PRESET`]) written out: with
     /// `preset=paper`, the pairs of `paper` whose keys are not given, then
     /// the given pairs; without a preset or with `preset=default`, the
@@ -597,6 +604,17 @@ mod tests {
         assert!(e.contains("features"), "{e}");
         assert!(Settings::parse(&["novalue"]).is_err());
         assert!(Settings::parse(&["c=1", "c=2"]).is_err());
+    }
+
+    #[test]
+    fn with_sets_one_key_once_and_keeps_the_others() {
+        let given = Settings::parse(&["c=40", "features=lpv"]).unwrap();
+        let changed = given.with("c", "10").with("delta", "0.1");
+        assert_eq!(changed.get("c"), Some("10"));
+        assert_eq!(changed.get("features"), Some("lpv"));
+        assert_eq!(changed.get("delta"), Some("0.1"));
+        assert_eq!(changed.pairs().len(), 3);
+        assert_eq!(given.get("c"), Some("40"));
     }
 
     #[test]

@@ -136,9 +136,7 @@ impl Stages {
     /// `settings` with the refinement set to `refine` (the other values
     /// unchanged).
     pub fn with_refine(settings: &Settings, refine: Refine) -> Settings {
-        let mut pairs = settings.without(Self::REFINE).pairs().to_vec();
-        pairs.push((Self::REFINE.to_string(), refine.as_str().to_string()));
-        Settings::from_pairs(pairs)
+        settings.with(Self::REFINE, refine.as_str())
     }
 }
 

@@ -57,10 +57,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let joined = Dataset::join(&records)?;
     let registry = hysid::registry();
     let fit = |data: &Dataset| -> Result<Model, Box<dyn std::error::Error>> {
-        let mut request = Identify::new("physical", data);
-        request.options =
-            hysid_core::options::Settings::parse(&[&format!("model={}", file.display())])?;
-        request.seed = 1;
+        let request = Identify::new("physical", data)
+            .set("model", &file.display().to_string())
+            .seed(1);
         Ok(request.run(&registry)?.model)
     };
     for (what, data) in [

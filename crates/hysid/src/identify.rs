@@ -183,9 +183,50 @@ impl<'a> Identify<'a> {
         }
     }
 
+    /// With at most `max_modes` modes.
+    pub fn max_modes(self, max_modes: usize) -> Self {
+        Self {
+            max_modes: Some(max_modes),
+            ..self
+        }
+    }
+
     /// With seed `seed`.
     pub fn seed(self, seed: u64) -> Self {
         Self { seed, ..self }
+    }
+
+    /// With the prior knowledge `priors` (a prior file:
+    /// [`Priors::load`]).
+    pub fn priors(self, priors: Priors) -> Self {
+        Self { priors, ..self }
+    }
+
+    /// With the back-end's option `key` set to `value`, as `--set
+    /// key=value` sets it (replacing a value given before); checked by
+    /// [`Identify::run`] against the back-end's options.
+    pub fn set(self, key: &str, value: &str) -> Self {
+        Self {
+            options: self.options.with(key, value),
+            ..self
+        }
+    }
+
+    /// With the options chosen on selection rows ([`Mode::Auto`], as
+    /// `hysid identify --auto` with its defaults).
+    pub fn auto(self) -> Self {
+        Self {
+            mode: Mode::Auto(Auto::default()),
+            ..self
+        }
+    }
+
+    /// Ending by `seconds` ([`Field::TimeBudget`]: a positive number).
+    pub fn time_budget(self, seconds: f64) -> Self {
+        Self {
+            time_budget: Some(seconds),
+            ..self
+        }
     }
 
     /// The priors with the mode counts given, checked.

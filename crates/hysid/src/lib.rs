@@ -20,6 +20,32 @@
 //! assert_eq!(model.mode_count(), 3);
 //! # Ok::<(), hysid::identify::Error>(())
 //! ```
+//!
+//! The other requests read the same way: prior knowledge
+//! ([`hysid_core::priors::Priors`], as a prior file gives it), a
+//! back-end's options as `--set` names them, options chosen on selection
+//! rows ([`Identify::auto`]); the model is then scored by its free-run
+//! simulation on rows the fit did not see.
+//!
+//! ```
+//! use hysid_core::priors::Priors;
+//! use hysid_testkit::{Noise, b1};
+//!
+//! let record = b1(600, 4.0, Noise::Uniform(0.05), 1).data;
+//! let (fit_rows, test_rows) = (record.slice("0..450".parse()?)?, record.slice("450..".parse()?)?);
+//! let priors = Priors::from_toml("max_modes = 3", "example")?;
+//! let model = hysid::Identify::new("cluster", &fit_rows)
+//!     .orders(1, 1)
+//!     .priors(priors)
+//!     .set("refine", "none")
+//!     .auto()
+//!     .seed(1)
+//!     .run(&hysid::registry())?
+//!     .model;
+//! let (report, ..) = hysid_core::simulate::validate(&model, &test_rows, 10)?;
+//! assert!(model.mode_count() <= 3 && report.fit_sim > 30.0);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 pub mod backends;
 pub mod compare;
