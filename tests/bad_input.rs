@@ -704,7 +704,7 @@ fn malformed_model_files() {
         (
             "theta.json",
             r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0]}]}"#,
-            &["theta.json", "mode 0", "theta has 2 entries", "need 3"],
+            &["theta.json", "mode 1: theta has 2 entries", "need 3"],
         ),
         (
             "ts.json",
@@ -729,14 +729,16 @@ fn malformed_model_files() {
             r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0],"region":{"a":[[1.0,0.0,0.0]],"b":[0.0]}}]}"#,
             &[
                 "width.json",
-                "mode 0",
-                "region row 1 has 3 entries, expected 2",
+                "mode 1: region: row 1 has 3 entries, expected 2",
             ],
         ),
         (
             "rows.json",
             r#"{"kind":"pwarx","na":1,"nb":1,"inputs":1,"modes":[{"theta":[0.5,1.0,0.0],"region":{"a":[[1.0,0.0]],"b":[0.0,1.0]}}]}"#,
-            &["rows.json", "mode 0", "region", "rows of a and b differ"],
+            &[
+                "rows.json",
+                "mode 1: region: a and b have different numbers of rows",
+            ],
         ),
         (
             "no-modes.json",

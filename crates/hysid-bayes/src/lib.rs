@@ -609,10 +609,11 @@ fn argmax(scores: &[f64]) -> usize {
 pub enum BayesError {
     /// The final classification left a mode without samples.
     #[error(
-        "mode {mode} of {modes} explains no sample after the final classification: fewer modes, or a wider prior_std"
+        "mode {} of {modes} explains no sample after the final classification: fewer modes, or a wider prior_std",
+        .mode + 1
     )]
     EmptyMode {
-        /// The empty mode, from 0.
+        /// The empty mode (from 0; shown from 1).
         mode: usize,
         /// Modes asked for.
         modes: usize,

@@ -3,6 +3,7 @@
 
 use crate::error::CliError;
 use hysid_model::data::{DataError, DataSelection, Dataset, RowRange, SignalNameError};
+use hysid_model::model::ModelInfo;
 use std::path::PathBuf;
 
 /// Which signals and samples of a data file to use.
@@ -77,8 +78,9 @@ impl DataArgs {
     }
 
     /// The records of `files`, each with its `--rows`, joined into one
-    /// dataset ([`hysid_io::load_records`]).
-    pub fn load(&self, files: &[PathBuf]) -> Result<Dataset, CliError> {
+    /// dataset ([`hysid_io::load_records`]), for the model of `model` when
+    /// one is scored on them ([`SignalArgs::data_error`]).
+    pub fn load(&self, files: &[PathBuf], model: Option<&ModelInfo>) -> Result<Dataset, CliError> {
         if self.rows.len() > 1 && self.rows.len() != files.len() {
             return Err(CliError::input(format!(
                 "--rows: given {} times for {} data files; give it once for every file or once per file",
@@ -104,7 +106,7 @@ impl DataArgs {
                 "{e}: give each record its --rows, or, for records of one file under other signal \
                  names, an experiment file's [[data.records]] (docs/compare.md)"
             )),
-            e => e.into(),
+            e => self.signals.data_error(e, model),
         })
     }
 
@@ -115,6 +117,24 @@ impl DataArgs {
 }
 
 impl SignalArgs {
+    /// `e` as the program words it; a signal the record lacks also names
+    /// the flags that read the signals `model` was identified on, where
+    /// they are not the ones asked for.
+    pub fn data_error(&self, e: DataError, model: Option<&ModelInfo>) -> CliError {
+        let own = model.filter(|info| {
+            !info.output_name.is_empty()
+                && (info.input_names != self.input || info.output_name != self.output)
+        });
+        match (&e, own) {
+            (DataError::Missing { .. }, Some(info)) => CliError::input(format!(
+                "{e}; the model was identified on --input {} --output {}",
+                info.input_names.join(","),
+                info.output_name
+            )),
+            _ => e.into(),
+        }
+    }
+
     /// The selection of `rows` for `hysid_io::load`. A signal named twice
     /// (twice among the inputs, or as an input and the output) is refused:
     /// the regressors would be collinear copies of each other.

@@ -321,7 +321,7 @@ impl Model {
             // wrong field gets the parser's line (and, in TOML, its entry).
             Err(_) if resolved.sources.len() == 1 => {
                 let text = &resolved.sources[0].text;
-                return match Syntax::of(&origin) {
+                return match Syntax::of(path, text) {
                     Syntax::Toml => Self::from_toml(text, &origin),
                     Syntax::Json => Self::from_json(text, &origin),
                 };
@@ -334,7 +334,7 @@ impl Model {
                 let found = kind.and_then(|kind| {
                     resolved.sources.iter().find_map(|s| {
                         let name = s.path.display().to_string();
-                        let syntax = Syntax::of(&name);
+                        let syntax = Syntax::of(&s.path, &s.text);
                         let e = located::chain_error(kind, &s.text, syntax, &message)?;
                         Some(located_error(&name, &e))
                     })

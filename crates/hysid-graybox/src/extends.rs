@@ -174,13 +174,38 @@ pub fn extend(mut base: Value, mut own: Value) -> Result<Value, String> {
     Ok(base)
 }
 
-/// The document of one file: JSON for `.json`, TOML otherwise.
+/// The syntax of a model file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Syntax {
+    /// TOML.
+    Toml,
+    /// JSON.
+    Json,
+}
+
+impl Syntax {
+    /// The syntax of the file `path` of text `text`: by its extension,
+    /// `.json` or `.toml` in any case; for any other name, JSON when the
+    /// text starts with `{` (which no TOML document does), TOML otherwise.
+    /// Files written under any name but `.toml` are JSON, so every model
+    /// file the program writes reads back.
+    pub fn of(path: &Path, text: &str) -> Self {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("json") => Syntax::Json,
+            Some(e) if e.eq_ignore_ascii_case("toml") => Syntax::Toml,
+            _ if text.trim_start().starts_with('{') => Syntax::Json,
+            _ => Syntax::Toml,
+        }
+    }
+}
+
+/// The document of one file ([`Syntax::of`]).
 fn parse(path: &Path, text: &str) -> Result<Value, ExtendsError> {
     let syntax = |message: String| ExtendsError::Syntax {
         path: path.to_path_buf(),
         message: message.trim().replace('\n', " "),
     };
-    if path.extension().is_some_and(|e| e == "json") {
+    if Syntax::of(path, text) == Syntax::Json {
         serde_json::from_str(text).map_err(|e| syntax(e.to_string()))
     } else {
         // Read straight into the JSON document, as a `toml::Table` would

@@ -152,3 +152,31 @@ pub fn load_bytes(
     };
     select(&table, sel)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::save_model;
+    use hysid_core::model::Model;
+
+    /// A model saved under any name reads back as the same model: TOML
+    /// under `.toml` in any case, JSON under every other name (`.JSON`,
+    /// `.txt`, none).
+    #[test]
+    fn a_model_saved_under_any_name_reads_back() {
+        let text = r#"{"kind": "pwarx", "na": 1, "nb": 1, "inputs": 1,
+            "modes": [{"theta": [0.5, 1.0, 0.0]}]}"#;
+        let model = Model::from_json(text, "m.json").unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        for name in [
+            "m.json", "m.JSON", "m.Json", "m.toml", "m.TOML", "m.txt", "m",
+        ] {
+            let path = dir.path().join(name);
+            save_model(&model, &path).unwrap();
+            let written = std::fs::read_to_string(&path).unwrap();
+            let toml = name.to_lowercase().ends_with(".toml");
+            assert_eq!(written.starts_with('{'), !toml, "{name}");
+            let back = Model::load(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(back.to_json(), model.to_json(), "{name}");
+        }
+    }
+}

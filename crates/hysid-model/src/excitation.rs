@@ -42,8 +42,17 @@ pub const MAX_VALUES: usize = 10_000_000;
 impl std::str::FromStr for Excitation {
     type Err = ExcitationError;
 
-    /// Parses `n=6000,hold=120,low=-0.13,high=-0.03[,ts=0.0025][,inputs=1]`.
+    /// Parses `n=6000,hold=120,low=-0.13,high=-0.03[,ts=0.0025][,inputs=1]`
+    /// (one input unless `inputs` is given).
     fn from_str(s: &str) -> Result<Self, ExcitationError> {
+        Self::parse_for(s, 1)
+    }
+}
+
+impl Excitation {
+    /// Parses `s` as [`str::parse`] does, with `inputs` inputs unless it
+    /// gives their number (a model's input count).
+    pub fn parse_for(s: &str, inputs: usize) -> Result<Self, ExcitationError> {
         let mut t = toml::Table::new();
         for item in s.split(',').map(str::trim).filter(|x| !x.is_empty()) {
             let (k, v) = item
@@ -60,6 +69,10 @@ impl std::str::FromStr for Excitation {
             if t.insert(k.trim().to_string(), val).is_some() {
                 return Err(ExcitationError::Repeated(k.trim().to_string()));
             }
+        }
+        if !t.contains_key("inputs") {
+            let count = i64::try_from(inputs).unwrap_or(i64::MAX);
+            t.insert("inputs".into(), toml::Value::Integer(count));
         }
         // Integers are accepted where floats are expected.
         for k in ["low", "high", "ts"] {

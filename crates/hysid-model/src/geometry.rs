@@ -50,7 +50,7 @@ fn norm(a: &[f64]) -> f64 {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum PolyhedronError {
     /// `a` and `b` (or `a_eq` and `b_eq`) of different lengths.
-    #[error("the number of rows of a and b differ")]
+    #[error("a and b have different numbers of rows")]
     RowCount,
     /// A row of the wrong length.
     #[error("row {row} has {len} entries, expected {dim}")]

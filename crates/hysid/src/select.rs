@@ -1019,11 +1019,25 @@ mod tests {
             model,
             affine: 100.0,
             orders: (1, 1),
+            with_priors: false,
         };
         assert!(!at(99.999_999).below());
         assert!(!at(99.996).below());
         assert!(at(99.99).below());
-        assert!(at(50.0).warning("these rows").contains("(50.00 %)"));
+        assert!(
+            at(50.0)
+                .warning("these rows")
+                .contains("ARX(1,1) fitted on these same rows (100.00 %)")
+        );
+        let primed = AgainstAffine {
+            with_priors: true,
+            ..at(50.0)
+        };
+        assert!(
+            primed
+                .warning("these rows")
+                .contains("ARX(1,1) with the same priors fitted")
+        );
     }
 
     /// A request to choose `backend`'s options for first-order models of

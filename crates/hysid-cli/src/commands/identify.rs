@@ -156,7 +156,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let inputs = args.data.iter().chain(&args.prior).map(PathBuf::as_path);
     super::not_an_input("-o", &args.out, inputs)?;
-    let data = args.select.load(&args.data)?;
+    let data = args.select.load(&args.data, None)?;
     let mode = if args.auto {
         let grid = (!args.grid.is_empty())
             .then(|| SearchSpace::parse_grid(&args.grid))

@@ -73,14 +73,41 @@ pub(crate) fn load_model(path: &Path) -> Result<Model> {
     Ok(Model::load(path)?)
 }
 
-/// A warning when the discrete-time model of `file` was identified at
-/// another sampling time than the record's
-/// ([`hysid_core::simulate::sampling_time_mismatch`]).
-pub fn warn_sampling_time(file: &Path, model: &Model, data: &Dataset) {
-    if let Some((record, own)) = hysid_core::simulate::sampling_time_mismatch(model, data) {
+/// A warning when the record's inputs are the model's in another order:
+/// inputs are read in the order given, so a swap is a different input.
+pub fn warn_input_order(file: &Path, model: &Model, data: &Dataset) {
+    let own = &model.info().input_names;
+    let given = data.input_names();
+    let mut sorted = (own.clone(), given.clone());
+    sorted.0.sort();
+    sorted.1.sort();
+    if own.len() > 1 && *own != given && sorted.0 == sorted.1 {
         eprintln!(
-            "hysid: warning: the record's sampling time {record} s differs from the {own} s {} \
-             was identified at: its lags mean other times (a --decimate or --ts left out?)",
+            "hysid: warning: the inputs are read in the order given ({}); {} was identified on \
+             them in the order {}",
+            given.join(", "),
+            file.display(),
+            own.join(", ")
+        );
+    }
+}
+
+/// A warning when the discrete-time model of `file` was identified at
+/// another sampling time than the record's, or the excitation's when
+/// `excited` ([`hysid_core::simulate::sampling_time_mismatch`]).
+pub fn warn_sampling_time(file: &Path, model: &Model, data: &Dataset, excited: bool) {
+    if let Some((record, own)) = hysid_core::simulate::sampling_time_mismatch(model, data) {
+        let (what, hint) = if excited {
+            (format!("the excitation's sampling time {record} s"), "")
+        } else {
+            (
+                format!("the record's sampling time {record} s"),
+                " (a --decimate or --ts left out?)",
+            )
+        };
+        eprintln!(
+            "hysid: warning: {what} differs from the {own} s {} was identified at: its lags mean \
+             other times{hint}",
             file.display()
         );
     }

@@ -28,7 +28,7 @@ pub struct Args {
     /// levels uniform on [A, B] held for H samples (the founding paper's input).
     #[arg(long)]
     pub excite: Option<String>,
-    /// Initial output value(s) before the first simulated sample (with --excite).
+    /// Initial output value before the first simulated sample (with --excite).
     #[arg(long, default_value_t = 0.0)]
     pub y0: f64,
     /// Standard deviation of white Gaussian noise added to the written output.
@@ -62,10 +62,10 @@ pub fn run(args: Args) -> Result<()> {
     super::not_an_input("-o", &args.out, inputs.map(PathBuf::as_path))?;
     let model = super::load_model(&args.model)?;
     let data = match (&args.data, &args.excite) {
-        (Some(path), None) => hysid_io::load(path, &args.select.selection()?)?,
+        (Some(path), None) => hysid_io::load(path, &args.select.selection()?)
+            .map_err(|e| args.select.signals.data_error(e, Some(model.info())))?,
         (None, Some(spec)) => {
-            let e: Excitation = spec
-                .parse()
+            let e = Excitation::parse_for(spec, model.inputs())
                 .map_err(|e: ExcitationError| CliError::input(e.to_string()))?;
             if e.inputs != model.inputs() {
                 return Err(CliError::input(format!(
@@ -97,20 +97,30 @@ pub fn run(args: Args) -> Result<()> {
             ));
         }
     };
-    if args.data.is_some() {
-        super::warn_sampling_time(&args.model, &model, &data);
-    }
+    super::warn_sampling_time(&args.model, &model, &data, args.excite.is_some());
+    super::warn_input_order(&args.model, &model, &data);
     let sim = simulate(&model, &data, SimulationOptions::default())
         .map_err(|e| CliError::simulation(&args.model, e))?;
-    if args.data.is_some() {
-        let states = hysid_core::simulate::initial_states(&model, &data)
-            .map_err(|e| CliError::simulation(&args.model, e))?;
-        if !states.is_empty() {
-            eprintln!(
-                "hysid: initial state estimated from the warm-up: {}",
-                super::states_text(&states)
-            );
-        }
+    let states = hysid_core::simulate::initial_states(&model, &data)
+        .map_err(|e| CliError::simulation(&args.model, e))?;
+    if !states.is_empty() {
+        let warmup = if args.data.is_some() {
+            "the warm-up".to_string()
+        } else {
+            format!("the warm-up, its output held at --y0 {}", args.y0)
+        };
+        eprintln!(
+            "hysid: initial state estimated from {warmup}: {}",
+            super::states_text(&states)
+        );
+    }
+    let simulated = sim.covered.len().saturating_sub(sim.start);
+    let outside = sim.covered.iter().skip(sim.start).filter(|c| !**c).count();
+    if outside > 0 {
+        eprintln!(
+            "hysid: warning: {outside} of {simulated} simulated samples lie outside every region \
+             (or invariant); each took the mode of least violation"
+        );
     }
     if let Some(k) = sim.diverged_at {
         eprintln!(

@@ -42,7 +42,7 @@ pub fn run(args: Args) -> Result<()> {
         super::not_an_input("--plot", plot, inputs.map(PathBuf::as_path))?;
     }
     let model = super::load_model(&args.model)?;
-    let data = args.select.load(&args.data)?;
+    let data = args.select.load(&args.data, Some(model.info()))?;
     for (file, range) in args.data.iter().zip(data.record_ranges()) {
         if args.warmup >= range.len() {
             return Err(CliError::input(format!(
@@ -57,7 +57,8 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.plot {
         FigureFormat::of_path(path).map_err(|e| CliError::input(format!("--plot: {e}")))?;
     }
-    super::warn_sampling_time(&args.model, &model, &data);
+    super::warn_sampling_time(&args.model, &model, &data, false);
+    super::warn_input_order(&args.model, &model, &data);
     let (report, sim, _) =
         validate(&model, &data, args.warmup).map_err(|e| CliError::simulation(&args.model, e))?;
     if let Some(path) = &args.plot {

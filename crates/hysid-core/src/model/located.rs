@@ -9,6 +9,7 @@
 //! then raises the same error with its position.
 
 use hysid_graybox::GrayBoxModel;
+pub(super) use hysid_graybox::extends::Syntax;
 use hysid_mechanical::MechanicalModel;
 use hysid_model::model::{HybridAutomaton, PwarxModel};
 use serde::Deserialize;
@@ -17,27 +18,6 @@ use std::fmt;
 use std::ops::Range;
 use toml::Spanned;
 use toml::de::DeValue;
-
-/// The syntax of a model file: JSON for `.json`, TOML otherwise (as
-/// [`hysid_graybox::extends::read`] parses it).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Syntax {
-    /// A `.toml` file, or any file not named `.json`.
-    Toml,
-    /// A `.json` file.
-    Json,
-}
-
-impl Syntax {
-    /// The syntax of the file named `path`.
-    pub(super) fn of(path: &str) -> Self {
-        if path.ends_with(".json") {
-            Syntax::Json
-        } else {
-            Syntax::Toml
-        }
-    }
-}
 
 /// Why a model file's text does not deserialize.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -182,9 +182,12 @@ pub enum RegionError {
     #[error("region estimation needs at least one mode")]
     NoModes,
     /// A mode in `0..modes` has no points.
-    #[error("mode {mode} has no points: cannot estimate its region (drop the mode or relabel)")]
+    #[error(
+        "mode {} has no points: cannot estimate its region (drop the mode or relabel)",
+        .mode + 1
+    )]
     EmptyMode {
-        /// The empty mode.
+        /// The empty mode (from 0; shown from 1).
         mode: usize,
     },
     /// A label is not below `modes`.

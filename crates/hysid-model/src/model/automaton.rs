@@ -255,10 +255,11 @@ pub enum InvalidModel {
     NbWithoutInput,
     /// A parameter vector of the wrong length.
     #[error(
-        "mode {mode}: theta has {len} entries, na = {na}, nb = {nb}, {inputs} input(s) need {need}"
+        "mode {}: theta has {len} entries, na = {na}, nb = {nb}, {inputs} input(s) need {need}",
+        .mode + 1
     )]
     ThetaLength {
-        /// Mode index.
+        /// Mode index (from 0; shown from 1, as modes are named).
         mode: usize,
         /// Its entries.
         len: usize,
@@ -290,13 +291,13 @@ pub enum InvalidModel {
         what: String,
     },
     /// A parameter vector with NaN or an infinity.
-    #[error("mode {mode}: theta has a non-finite entry")]
+    #[error("mode {}: theta has a non-finite entry", .mode + 1)]
     NonFiniteTheta {
         /// Mode index.
         mode: usize,
     },
     /// A malformed region.
-    #[error("mode {mode}: region {problem}")]
+    #[error("mode {}: region: {problem}", .mode + 1)]
     Region {
         /// Mode index.
         mode: usize,
@@ -317,9 +318,16 @@ pub enum InvalidModel {
         /// Inputs.
         inputs: usize,
     },
-    /// Two modes of one name.
+    /// Two modes of one name (as shown: a PWARX mode without a name is
+    /// `mode k`, [`super::pwarx::mode_name`]).
     #[error("mode name '{0}' appears twice")]
     DuplicateMode(String),
+    /// A mode name that is empty or blank.
+    #[error("mode {}: an empty name (leave the name out to call it 'mode {}')", .mode + 1, .mode + 1)]
+    EmptyModeName {
+        /// Mode index (from 0; shown from 1).
+        mode: usize,
+    },
     /// A matrix with the wrong number of rows.
     #[error("{matrix} has {rows} rows, expected {expected}")]
     RowCount {
@@ -430,8 +438,11 @@ impl HybridAutomaton {
         )?;
         check_finite(|| "output.e".into(), [&self.output.e])?;
         let mut names = std::collections::HashSet::with_capacity(self.modes.len());
-        for q in &self.modes {
+        for (k, q) in self.modes.iter().enumerate() {
             let mode = || q.name.clone();
+            if q.name.trim().is_empty() {
+                return Err(E::EmptyModeName { mode: k });
+            }
             if !names.insert(q.name.as_str()) {
                 return Err(E::DuplicateMode(mode()));
             }

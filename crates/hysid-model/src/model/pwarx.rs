@@ -139,6 +139,23 @@ impl PwarxModel {
                 .validate(spec.dim())
                 .map_err(|problem| InvalidModel::Region { mode, problem })?;
         }
+        self.check_names()
+    }
+
+    /// Every mode's name as shown ([`mode_name`]) differs from the others',
+    /// and none given is blank: a simulated CSV's `mode` column names one
+    /// mode by one label.
+    fn check_names(&self) -> Result<(), InvalidModel> {
+        let mut shown = std::collections::HashSet::with_capacity(self.modes.len());
+        for (mode, m) in self.modes.iter().enumerate() {
+            if m.name.as_deref().is_some_and(|n| n.trim().is_empty()) {
+                return Err(InvalidModel::EmptyModeName { mode });
+            }
+            let name = mode_name(m.name.as_deref(), mode);
+            if !shown.insert(name.clone()) {
+                return Err(InvalidModel::DuplicateMode(name));
+            }
+        }
         Ok(())
     }
 
@@ -244,6 +261,34 @@ mod tests {
             ],
             info: ModelInfo::default(),
         }
+    }
+
+    #[test]
+    fn the_names_shown_are_unique_and_none_given_is_blank() {
+        let named = |names: [Option<&str>; 2]| {
+            let mut m = two_mode();
+            for (mode, name) in m.modes.iter_mut().zip(names) {
+                mode.name = name.map(str::to_string);
+            }
+            m.validate()
+        };
+        assert_eq!(named([None, None]), Ok(()));
+        assert_eq!(named([Some("free"), Some("mode 1")]), Ok(()));
+        assert_eq!(named([None, Some("mode 2")]), Ok(()));
+        assert_eq!(
+            named([None, Some("mode 1")]),
+            Err(InvalidModel::DuplicateMode("mode 1".into()))
+        );
+        assert_eq!(
+            named([Some("x"), Some("x")]),
+            Err(InvalidModel::DuplicateMode("x".into()))
+        );
+        let blank = named([None, Some(" ")]).unwrap_err();
+        assert_eq!(blank, InvalidModel::EmptyModeName { mode: 1 });
+        assert!(
+            blank.to_string().starts_with("mode 2: an empty name"),
+            "{blank}"
+        );
     }
 
     #[test]

@@ -16,6 +16,8 @@ pub struct AgainstAffine {
     pub affine: f64,
     /// The orders `(na, nb)` of both.
     pub orders: (usize, usize),
+    /// Whether the affine model carries priors (other than a mode count).
+    pub with_priors: bool,
 }
 
 impl AgainstAffine {
@@ -36,8 +38,13 @@ impl AgainstAffine {
     /// only these rows could have had with one linear model.
     pub fn warning(&self, rows: &str) -> String {
         let (na, nb) = self.orders;
+        let priors = if self.with_priors {
+            " with the same priors"
+        } else {
+            ""
+        };
         format!(
-            "the model's free-run FIT on {rows} ({:.2} %) is below that of an affine ARX({na},{nb}) fitted on these same rows ({:.2} %)",
+            "the model's free-run FIT on {rows} ({:.2} %) is below that of an affine ARX({na},{nb}){priors} fitted on these same rows ({:.2} %)",
             self.model, self.affine
         )
     }
@@ -72,5 +79,6 @@ pub fn against_affine(
         model: fit_on(model, data, warmup)?,
         affine: fit_on(&reference, data, warmup)?,
         orders: (orders.na, orders.nb),
+        with_priors: !priors.kinds().is_empty(),
     })
 }
