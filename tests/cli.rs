@@ -1530,6 +1530,11 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
         ],
         &csv,
     );
+    bad(
+        &["validate", s(&model), s(&model), s(&data)],
+        &["m.json: a model file where a data file (.csv or .mat) is expected"],
+        &csv,
+    );
     let stderr = |args: &[&str]| {
         let o = hysid(args);
         assert!(o.status.success(), "{args:?}");

@@ -119,13 +119,25 @@ impl DataArgs {
 impl SignalArgs {
     /// `e` as the program words it; a signal the record lacks also names
     /// the flags that read the signals `model` was identified on, where
-    /// they are not the ones asked for.
+    /// they are not the ones asked for, and a model file given as data is
+    /// named as such.
     pub fn data_error(&self, e: DataError, model: Option<&ModelInfo>) -> CliError {
         let own = model.filter(|info| {
             !info.output_name.is_empty()
                 && (info.input_names != self.input || info.output_name != self.output)
         });
+        let model_file = |p: &std::path::Path| {
+            (p.extension().and_then(|x| x.to_str()))
+                .is_some_and(|x| x.eq_ignore_ascii_case("json") || x.eq_ignore_ascii_case("toml"))
+        };
         match (&e, own) {
+            (DataError::UnsupportedFormat(path), _) if model_file(path) => {
+                CliError::input(format!(
+                    "{}: a model file where a data file (.csv or .mat) is expected; one model, then \
+                 the data",
+                    path.display()
+                ))
+            }
             (DataError::Missing { .. }, Some(info)) => CliError::input(format!(
                 "{e}; the model was identified on --input {} --output {}",
                 info.input_names.join(","),
