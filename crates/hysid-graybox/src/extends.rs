@@ -206,11 +206,34 @@ fn parse(path: &Path, text: &str) -> Result<Value, ExtendsError> {
         message: message.trim().replace('\n', " "),
     };
     if Syntax::of(path, text) == Syntax::Json {
-        serde_json::from_str(text).map_err(|e| syntax(e.to_string()))
+        serde_json::from_str(text).map_err(|e| syntax(json_message(&e, text)))
     } else {
         // Read straight into the JSON document, as a `toml::Table` would
         // serialise into it (datetimes as their private tables).
         toml::from_str(text).map_err(|e: toml::de::Error| syntax(e.to_string()))
+    }
+}
+
+/// serde_json's message for `e` in `text`, with the reason when it
+/// stopped at a `NaN` or an infinity, which JSON has no words for.
+fn json_message(e: &serde_json::Error, text: &str) -> String {
+    let line = text.lines().nth(e.line().saturating_sub(1)).unwrap_or("");
+    let at = line
+        .char_indices()
+        .nth(e.column().saturating_sub(1))
+        .map_or(line.len(), |(i, _)| i);
+    // The word the parser stopped in: `nan` stops it after its `n`.
+    let start = line[..at].trim_end_matches(|c: char| c.is_ascii_alphabetic() || c == '-');
+    let word: String = line[start.len()..]
+        .trim_start_matches('-')
+        .chars()
+        .take_while(char::is_ascii_alphabetic)
+        .collect();
+    let non_finite = ["nan", "inf", "infinity"].contains(&word.to_lowercase().as_str());
+    if non_finite {
+        format!("{e} (JSON has no NaN or infinity: a model's numbers are finite)")
+    } else {
+        e.to_string()
     }
 }
 
@@ -421,6 +444,31 @@ mod tests {
         let p = dir.join(name);
         std::fs::write(&p, text).unwrap();
         p
+    }
+
+    /// A model's syntax by its name, any case, or else by its text; a
+    /// JSON `NaN` or infinity is named as what JSON lacks.
+    #[test]
+    fn the_syntax_of_a_file_and_json_without_non_finite_numbers() {
+        let of = |name: &str, text: &str| Syntax::of(Path::new(name), text);
+        assert_eq!(of("m.JSON", "kind = 1"), Syntax::Json);
+        assert_eq!(of("m.Toml", "{}"), Syntax::Toml);
+        assert_eq!(of("m", " {\"kind\": 1}"), Syntax::Json);
+        assert_eq!(of("m.txt", "kind = 1"), Syntax::Toml);
+        let message =
+            |value: &str| match parse(Path::new("m.json"), &format!("{{\"a\": [1, {value}]}}")) {
+                Err(ExtendsError::Syntax { message, .. }) => message,
+                other => panic!("{value}: {other:?}"),
+            };
+        for value in ["NaN", "nan", "Infinity", "-Infinity", "inf"] {
+            assert!(
+                message(value).contains("JSON has no NaN or infinity"),
+                "{value}"
+            );
+        }
+        for value in ["1.5x", "true x", "nul"] {
+            assert!(!message(value).contains("NaN"), "{value}");
+        }
     }
 
     const BASE: &str = r#"
