@@ -1039,12 +1039,40 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
     for (grid, needle) in [
         ("ridge=0,x", "--grid ridge=x"),
         ("na=1,-2", "--grid na=-2: not a count"),
+        ("ridge=0,0", "--grid ridge=0: given twice"),
     ] {
         let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", grid];
         args.extend(rows);
         let err = one_line_error(&hysid(&args), 2).unwrap();
         assert!(err.contains(needle), "{grid}: {err}");
     }
+    // A prior the back-end cannot take at some point, named by its file.
+    let prior = common::write(dir.path(), "p.toml", "[[tie]]\nparams = [\"a2\"]\n");
+    let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", "na=1,2"];
+    args.extend(rows);
+    args.extend(["--prior", s(&prior)]);
+    let err = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(
+        err.contains("p.toml: [[tie]] params: unknown name 'a2'"),
+        "{err}"
+    );
+    // The figure is drawn against the first --grid key.
+    let out = dir.path().join("drawn");
+    let mut args = vec![
+        "sweep",
+        s(&data),
+        "-m",
+        "arx",
+        "--grid",
+        "nb=1,2",
+        "--grid",
+        "na=1,2",
+    ];
+    args.extend(rows);
+    args.extend(["-o", s(&out)]);
+    assert!(hysid(&args).status.success());
+    let figure = std::fs::read_to_string(out.join("plots/arx-sweep.svg")).unwrap();
+    assert!(figure.contains("against nb"), "{}", &figure[..400]);
     // cluster without a mode count fails at every point: exit code 1, the
     // report written with -o (with no sweep figure: nothing to draw).
     let out = dir.path().join("failed");
@@ -1204,7 +1232,7 @@ fn too_few_samples_name_their_rows() {
     // The back-ends' own shortages are named the same way.
     for (method, modes, rows, want) in [
         ("arx", None, "0..5", "free parameters"),
-        ("cluster", Some("2"), "0..4", "local datasets"),
+        ("cluster", Some("1"), "0..7", "local datasets"),
     ] {
         let mut args = vec![
             "identify",

@@ -435,3 +435,104 @@ fn png_figures_need_the_png_feature() {
     );
     assert!(!out.exists());
 }
+
+/// What an experiment names or lists that cannot work is refused before
+/// anything runs, naming the entry: two names that give one file name, a
+/// name without a letter or digit, a seed or a sweep value listed twice,
+/// an empty `seeds`, a prior name the orders lack, a prior kind the
+/// back-end does not honour.
+#[test]
+fn entries_that_cannot_work_are_refused_before_anything_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (exp, head) = small_experiment_head(dir.path());
+    let out = dir.path().join("out");
+    let arx = |name: &str, extra: &str| {
+        format!("[[run]]\nname = \"{name}\"\nmethod = \"arx\"\n{extra}\n")
+    };
+    for (runs, needle) in [
+        (
+            arx("m 1", "") + &arx("m/1", ""),
+            "'m/1' and 'm 1' would write their results to one file name, 'm_1'",
+        ),
+        (arx("()", ""), "name '()': needs a letter or a digit"),
+        (
+            arx("a", "seeds = [1, 2, 1]"),
+            "[[run]] 'a': seeds lists 1 twice",
+        ),
+        (arx("a", "seeds = []"), "an empty list: give the seeds"),
+        (
+            "[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"na\"\nvalues = [1, 2, 1]\n"
+                .to_string(),
+            "[[sweep]] 's': na lists 1 twice",
+        ),
+        (
+            arx("s [na=1]", "")
+                + "[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"na\"\nvalues = [1, 2]\n",
+            "would write their results to one file name, 's__na_1'",
+        ),
+        (
+            arx("a", "priors = { tie = [{ params = [\"a3\"] }] }"),
+            "[[run]] 'a': prior [[tie]] params: unknown name 'a3'",
+        ),
+        (
+            "[[run]]\nname = \"b\"\nmethod = \"bayes\"\nmodes = 2\npriors = { tie = [{ params = [\"b1\"] }] }\n"
+                .to_string(),
+            "[[run]] 'b': method 'bayes' does not honour the prior [[tie]]",
+        ),
+    ] {
+        std::fs::write(&exp, format!("{head}{runs}")).unwrap();
+        let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
+        assert_eq!(code, 2, "{runs}: {err}");
+        assert!(
+            err.contains("exp.toml") && err.contains(needle),
+            "{runs}: {err}"
+        );
+        assert!(!out.exists(), "{runs}");
+    }
+}
+
+/// Scored rows that an entry of the same file and signals identifies on:
+/// the warning is in the report, and an `auto` run there is labelled an
+/// oracle; a second report into the folder removes the first one's models
+/// and figures that it does not write.
+#[test]
+fn overlapping_rows_are_reported_and_a_folder_holds_one_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let (exp, head) = small_experiment_head(dir.path());
+    let out = dir.path().join("out");
+    let records = "[[data.records]]\nfile = \"data.csv\"\nidentification = \"420..480\"\n";
+    let runs = "[[run]]\nname = \"auto\"\nmethod = \"arx\"\nauto = true\n\
+                [[run]]\nname = \"later gone\"\nmethod = \"arx\"\n";
+    std::fs::write(&exp, format!("{head}{records}{runs}")).unwrap();
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
+    assert_eq!(code, 0, "{err}");
+    let warning = "the validation rows 400.. overlap the identification rows 420..480 of \
+                   [[data.records]] #1 (the same file and signals)";
+    assert!(err.contains(warning), "{err}");
+    let report = report_json(&out);
+    assert!(report["warnings"][0].as_str().unwrap().contains(warning));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains("| auto | oracle (chosen on these test rows) |"),
+        "{md}"
+    );
+    assert!(out.join("models/later_gone.json").exists());
+    // Without the overlap and the second run: no warning, the label of a
+    // choice on selection rows, and the second run's files gone.
+    let runs = "[[run]]\nname = \"auto\"\nmethod = \"arx\"\nauto = true\n";
+    std::fs::write(&exp, format!("{head}{runs}")).unwrap();
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    assert!(report_json(&out).get("warnings").is_none());
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("| auto | chosen on selection rows |"), "{md}");
+    let left: Vec<_> = std::fs::read_dir(out.join("models")).unwrap().collect();
+    assert_eq!(left.len(), 1);
+    let plots = std::fs::read_dir(out.join("plots")).unwrap();
+    assert!(
+        plots
+            .into_iter()
+            .all(|p| !p.unwrap().file_name().to_string_lossy().contains("later"))
+    );
+}

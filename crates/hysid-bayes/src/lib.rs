@@ -221,7 +221,10 @@ pub fn fit(
     let par = Parametrisation::from_priors(data.priors(), &data.spec, modes)
         .map_err(|e| data.prior_error(e))?;
     let sigma = noise_level(options, &reg);
-    let priors = mode_priors(options, &reg, &par)?;
+    let priors = mode_priors(options, &reg, &par).map_err(|e| match e {
+        BayesError::BoundsNeedParticles => data.prior_error(e),
+        e => e.into(),
+    })?;
     let mut rng = ChaCha8Rng::seed_from_u64(ctx.seed);
     let representation = representation(options.posterior, &priors);
     let mut pdfs = initial_pdfs(representation, options.particles, &priors, &mut rng);
@@ -293,11 +296,11 @@ pub fn mode_priors(
     options: &BayesOptions,
     reg: &Regressors,
     par: &Parametrisation,
-) -> Result<Vec<ModePrior>, IdentifyError> {
+) -> Result<Vec<ModePrior>, BayesError> {
     let priors =
         black_box_priors(reg, par, options.prior_std).ok_or(BayesError::AffineFitFailed)?;
     if options.posterior == Posterior::Gaussian && priors.iter().any(ModePrior::is_truncated) {
-        return Err(BayesError::BoundsNeedParticles.into());
+        return Err(BayesError::BoundsNeedParticles);
     }
     Ok(priors)
 }

@@ -116,7 +116,7 @@ impl ModeConstraints {
                 Parametrisation::from_priors(&relaxed, &spec, 1)
             })
             .expect("the priors were checked by ModeConstraints::new");
-        let bounds = free_bounds(&pri, &spec, &par);
+        let bounds = free_bounds(&par);
         ModeSpace {
             p,
             par: Some(par),
@@ -130,7 +130,7 @@ impl ModeConstraints {
         let spec = self.spec?;
         let par = Parametrisation::from_priors(&self.priors, &spec, modes)
             .expect("fixed values within bounds were checked in ModeConstraints::new");
-        let bounds = free_bounds(&self.priors, &spec, &par);
+        let bounds = free_bounds(&par);
         Some((par, bounds))
     }
 
@@ -147,19 +147,8 @@ impl ModeConstraints {
 
 /// Bounds of each free variable of `par` (a tied variable has the bounds
 /// of its parameter, the same in every mode).
-fn free_bounds(pri: &Priors, spec: &RegressorSpec, par: &Parametrisation) -> Vec<(f64, f64)> {
-    let names = spec.param_names();
-    let mut b = vec![(f64::NEG_INFINITY, f64::INFINITY); par.n_free()];
-    for i in 0..par.modes() {
-        for (j, name) in names.iter().enumerate() {
-            if let Slot::Free(v) = par.slot(i, j)
-                && let Some([lo, hi]) = pri.bounds.get(name)
-            {
-                b[v] = (*lo, *hi);
-            }
-        }
-    }
-    b
+fn free_bounds(par: &Parametrisation) -> Vec<(f64, f64)> {
+    (0..par.n_free()).map(|v| par.free_bounds(v)).collect()
 }
 
 /// The parameter set of one mode: every parameter free or fixed, free

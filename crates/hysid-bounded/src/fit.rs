@@ -280,17 +280,6 @@ fn mode_counts(
         (a, b) => a.or(b),
     };
     let exact = data.modes.exact();
-    let rows = data.regressors.len();
-    let p = data.spec.n_params();
-    if let Some(s) = exact
-        && s.checked_mul(p).is_none_or(|need| need > rows)
-    {
-        return Err(IdentifyError::TooFewRegressors {
-            rows,
-            modes: s.saturating_add(stops),
-            params: p,
-        });
-    }
     if let (Some(s), Some(m)) = (exact, max_modes)
         && s > m
     {
@@ -341,11 +330,13 @@ fn how_it_ended(c: &Classification, delta: f64) -> (RunStatus, Vec<String>) {
         && e > delta
     {
         // The greedy extraction ran with the ties relaxed; imposing them
-        // afterwards did not keep the greedy modes within delta.
+        // afterwards did not keep the greedy modes within delta. The
+        // ratio reads the same in any units (standardised data too).
         status.push(format!(
             "warning: the [[tie]] priors, imposed after the greedy extraction (which relaxes them), \
-             fit the greedy modes with a largest error of {e:.4} > delta = {delta}; the refinement \
-             re-classified the samples under the ties (docs/bounded.md, \"Priors\")"
+             fit the greedy modes with a largest error of {:.2} times delta (tie_projection_error); \
+             the refinement re-classified the samples under the ties (docs/bounded.md, \"Priors\")",
+            e / delta
         ));
     }
     (run_status, status)

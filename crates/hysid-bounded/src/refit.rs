@@ -367,13 +367,7 @@ fn chebyshev_joint_lp(
     let mut z: Vec<f64> = (0..nf)
         .map(|v| z0[v] + (0..nx).map(|u| basis[(v, u)] * x[u]).sum::<f64>())
         .collect();
-    if !par.has_equalities() {
-        // Clamping a box keeps every other constraint (with equalities it
-        // would not: the interior point is within its tolerance instead).
-        for (v, &(lo, hi)) in z.iter_mut().zip(bounds) {
-            *v = v.clamp(lo, hi);
-        }
-    }
+    par.clamp_to_bounds(&mut z);
     let thetas = par.thetas(&z);
     let mut max_residual: f64 = 0.0;
     for &(i, k) in work {

@@ -356,6 +356,21 @@ pub trait Identifier: Send + Sync {
         Ok(SearchSpace::default())
     }
 
+    /// Checks `priors` against the model structure of `orders` as
+    /// `identify` would, without any data (the names of parameters and
+    /// regressors, entries that cannot hold together), so that a front end
+    /// refuses a run before anything runs; errors name `origin`, the
+    /// priors' file. The default checks nothing: a back-end whose
+    /// structure comes from elsewhere (a model file) checks in `identify`.
+    fn check_priors(
+        &self,
+        _priors: &Priors,
+        _orders: RegressorSpec,
+        _origin: Option<&str>,
+    ) -> Result<(), IdentifyError> {
+        Ok(())
+    }
+
     /// Identifies a model. Provenance (method, options, seed, names) is
     /// filled in by the caller.
     fn identify(
@@ -413,6 +428,17 @@ pub trait Backend: Send + Sync {
     fn has_stages(&self) -> bool;
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
+    /// Checks `priors` against the structure of `orders` without any data
+    /// ([`Identifier::check_priors`]). The default accepts every prior: a
+    /// back-end that checks in `run`.
+    fn check_priors(
+        &self,
+        _priors: &Priors,
+        _orders: RegressorSpec,
+        _origin: Option<&str>,
+    ) -> Result<(), IdentifyError> {
+        Ok(())
+    }
     /// Checks `settings` as [`Backend::run`] would (keys, values, the
     /// preset and the checks across options) without touching any data.
     /// The default accepts every setting: a back-end that checks in `run`.
@@ -467,6 +493,14 @@ impl<T: Identifier> Backend for T {
     }
     fn seed_use(&self) -> &'static str {
         T::SEED_USE
+    }
+    fn check_priors(
+        &self,
+        priors: &Priors,
+        orders: RegressorSpec,
+        origin: Option<&str>,
+    ) -> Result<(), IdentifyError> {
+        Identifier::check_priors(self, priors, orders, origin)
     }
     fn seeded_with(
         &self,

@@ -510,6 +510,15 @@ macro_rules! option_enum {
     };
 }
 
+/// The first item of `items` that an earlier one repeats (a grid's value,
+/// a run's seed, a name in a prior's list): each is one choice, listed
+/// once.
+pub fn first_repeated<T: PartialEq>(items: &[T]) -> Option<&T> {
+    (items.iter().enumerate())
+        .find(|(i, x)| items[..*i].contains(x))
+        .map(|(_, x)| x)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

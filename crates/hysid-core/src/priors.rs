@@ -4,6 +4,7 @@
 //! Each back-end declares the [`PriorKind`]s it honours; a prior it cannot
 //! honour is refused with an error naming the entry, never dropped.
 
+use crate::options::first_repeated;
 use hysid_model::model::{Stop, StopBound};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -106,6 +107,18 @@ impl Equality {
     }
 }
 
+/// A list of names that is not empty: an empty `switching` would leave
+/// the regions nothing to depend on.
+fn named<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<String>, D::Error> {
+    let names = Vec::<String>::deserialize(d)?;
+    if names.is_empty() {
+        return Err(serde::de::Error::custom(
+            "an empty list: name the regressors the regions depend on, or leave switching out",
+        ));
+    }
+    Ok(names)
+}
+
 /// All priors of a run.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -131,8 +144,8 @@ pub struct Priors {
         deserialize_with = "hysid_model::model::exact_bounds_by_name"
     )]
     pub bounds: BTreeMap<String, [f64; 2]>,
-    /// Regressors the regions may depend on.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    /// Regressors the regions may depend on (given, at least one).
+    #[serde(skip_serializing_if = "Vec::is_empty", deserialize_with = "named")]
     pub switching: Vec<String>,
     /// Linear equalities among a mode's parameters, in every ordinary mode.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -248,6 +261,14 @@ pub enum InconsistentPrior {
         upper: usize,
         /// Its level.
         high: f64,
+    },
+    /// A name listed twice in one entry.
+    #[error("{entry}: '{name}' is listed twice")]
+    Repeated {
+        /// The entry (`switching`, `[[tie]] #2`).
+        entry: String,
+        /// The name.
+        name: String,
     },
     /// A tie of no parameter.
     #[error("[[tie]] #{entry}: params is empty")]
@@ -406,6 +427,18 @@ impl Priors {
             if t.params.is_empty() {
                 return Err(E::EmptyTie { entry: i + 1 });
             }
+            if let Some(name) = first_repeated(&t.params).cloned() {
+                return Err(E::Repeated {
+                    entry: format!("[[tie]] #{}", i + 1),
+                    name,
+                });
+            }
+        }
+        if let Some(name) = first_repeated(&self.switching).cloned() {
+            return Err(E::Repeated {
+                entry: "switching".into(),
+                name,
+            });
         }
         for (i, e) in self.equality.iter().enumerate() {
             let entry = i + 1;
@@ -612,6 +645,14 @@ b1 = [0.0, 1.0e3]
         assert!(Priors::from_toml("modes = 5\nmax_modes = 3", "p").is_err());
         assert!(Priors::from_toml("[bounds]\nb1 = [2.0, 1.0]", "p").is_err());
         assert!(Priors::from_toml("[[saturation]]\nlevel = 1.0\nbound = \"up\"", "p").is_err());
+        let refused = |text: &str| Priors::from_toml(text, "p.toml").unwrap_err().to_string();
+        let e = refused("switching = []");
+        assert!(e.contains("p.toml") && e.contains("an empty list"), "{e}");
+        let e = refused("switching = [\"y1\", \"u1\", \"y1\"]");
+        assert!(e.ends_with("switching: 'y1' is listed twice"), "{e}");
+        let e = refused("[[tie]]\nparams = [\"a1\"]\n[[tie]]\nparams = [\"b1\", \"b1\"]");
+        assert!(e.ends_with("[[tie]] #2: 'b1' is listed twice"), "{e}");
+        assert!(Priors::from_toml("switching = [\"y1\", \"u1\"]", "p").is_ok());
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //! scores best on the selection rows. `--grid key=v1,v2,...` replaces the
 //! declared space with the user's, in the syntax of `hysid sweep`.
 
-use crate::options::{OptionError, Settings};
+use crate::options::{OptionError, Settings, first_repeated};
 use crate::priors::Priors;
 use hysid_model::regressors::RegressorSpec;
 use serde::Serialize;
@@ -76,6 +76,9 @@ impl SearchSpace {
             }
             if axes.iter().any(|a| a.key == key) {
                 return Err(OptionError::Duplicate(key));
+            }
+            if let Some(value) = first_repeated(&values) {
+                return Err(OptionError::Duplicate(format!("{key}={value}")));
             }
             axes.push(Axis { key, values });
         }

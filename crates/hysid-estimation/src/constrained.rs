@@ -61,6 +61,8 @@ pub struct Parametrisation {
 struct Reduction {
     z0: Vec<f64>,
     basis: DMatrix<f64>,
+    /// Per free variable: whether an equality involves it.
+    coupled: Vec<bool>,
 }
 
 /// Failures of the constrained estimation.
@@ -267,7 +269,10 @@ impl Parametrisation {
         if !self.reaches_bounds(&z0, &basis) {
             return Err(PriorConflict::OutsideBounds);
         }
-        Ok(Reduction { z0, basis })
+        let coupled = (0..e.ncols())
+            .map(|v| e.column(v).iter().any(|c| *c != 0.0))
+            .collect();
+        Ok(Reduction { z0, basis, coupled })
     }
 
     /// Whether some `w` puts `z0 + basis w` inside the bounds: a linear
@@ -345,6 +350,19 @@ impl Parametrisation {
     /// The bounds `(lo, hi)` of the free variable `z[v]`.
     pub fn free_bounds(&self, v: usize) -> (f64, f64) {
         (self.lower[v], self.upper[v])
+    }
+
+    /// Moves every free variable of `z` that no equality involves into
+    /// its bounds: an interior-point solution may end a rounding error
+    /// outside them, and clamping such a variable changes no other
+    /// constraint.
+    pub fn clamp_to_bounds(&self, z: &mut [f64]) {
+        for (v, zv) in z.iter_mut().enumerate() {
+            let coupled = self.reduction.as_ref().is_some_and(|r| r.coupled[v]);
+            if !coupled {
+                *zv = zv.clamp(self.lower[v], self.upper[v]);
+            }
+        }
     }
 
     /// Projects free variables `z` onto the equalities (orthogonally, in

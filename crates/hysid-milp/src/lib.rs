@@ -133,6 +133,7 @@ pub fn fit(
 ) -> Result<PwarxFit<MilpDiagnostics>, IdentifyError> {
     let reg = data.ordinary_regressors();
     check_sample_count(options, &reg)?;
+    check_box(options.theta_max, data)?;
     let limits = Limits {
         theta_max: options.theta_max,
         node_limit: options.node_limit as u64,
@@ -148,6 +149,13 @@ pub fn fit(
     };
     let mut best = least_l1(data, &reg, modes, options.delta, &limits)?;
     let dropped = drop_empty_modes(&mut best);
+    if dropped > 0 && data.modes.exact().is_some() {
+        return Err(IdentifyError::failed(MilpError::ModeCount {
+            asked: modes + data.stops(),
+            found: best.thetas.len() + data.stops(),
+            proven: best.proven_optimal,
+        }));
+    }
     let partition = hysid_estimation::regions::for_pwarx(
         options.regions,
         data,
@@ -224,6 +232,23 @@ fn status_lines(proven: bool, dropped: usize, modes: usize) -> Vec<String> {
     lines
 }
 
+/// Every `[bounds]` prior meets the box `[-theta_max, theta_max]` the
+/// program bounds the free parameters by (fixed values are not variables
+/// of the program, and need not).
+fn check_box(theta_max: f64, data: &PwarxData<'_>) -> Result<(), IdentifyError> {
+    let outside = (data.priors().bounds.iter())
+        .find(|(_, [low, high])| *low > theta_max || *high < -theta_max);
+    match outside {
+        Some((param, &[low, high])) => Err(data.prior_error(MilpError::BoundOutsideBox {
+            param: param.clone(),
+            low,
+            high,
+            theta_max,
+        })),
+        None => Ok(()),
+    }
+}
+
 /// The record must be small: the program has a binary per sample and
 /// mode.
 fn check_sample_count(options: &MilpOptions, reg: &Regressors) -> Result<(), IdentifyError> {
@@ -290,5 +315,33 @@ pub enum MilpError {
         samples: usize,
         /// The option.
         max_samples: usize,
+    },
+    /// A `[bounds]` prior outside the parameters' box.
+    #[error(
+        "[bounds] {param} = [{low}, {high}] lies outside [-theta_max, theta_max] = [-{theta_max}, {theta_max}]: raise option theta_max"
+    )]
+    BoundOutsideBox {
+        /// The parameter.
+        param: String,
+        /// Its lower bound.
+        low: f64,
+        /// Its upper bound.
+        high: f64,
+        /// The option.
+        theta_max: f64,
+    },
+    /// Modes left empty under an exact mode count.
+    #[error(
+        "exactly {asked} modes were asked for, but {} explains every sample with {found}: give max_modes = {asked} and a delta to allow fewer{}",
+        if *.proven { "the optimum" } else { "the best solution found" },
+        if *.proven { "" } else { ", or raise node_limit or the time budget" }
+    )]
+    ModeCount {
+        /// Modes asked for (stops included).
+        asked: usize,
+        /// Modes that explain samples (stops included).
+        found: usize,
+        /// Whether the solution is proven optimal.
+        proven: bool,
     },
 }

@@ -95,7 +95,7 @@ pub enum ProgramError {
     NoSolutionWithinLimits,
     /// A prior bound lies outside `[-theta_max, theta_max]`.
     #[error(
-        "a [bounds] or [fixed] prior lies outside [-theta_max, theta_max] = [-{theta_max}, {theta_max}]: raise option theta_max"
+        "a [bounds] prior lies outside [-theta_max, theta_max] = [-{theta_max}, {theta_max}]: raise option theta_max"
     )]
     OutsideBox {
         /// The box.

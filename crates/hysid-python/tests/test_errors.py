@@ -86,7 +86,7 @@ def test_the_ways_of_choosing_selection_rows_are_one_at_a_time():
 
 def test_standardize_is_named_as_the_argument():
     message = raised(hysid.identify, U, Y, method="arx", standardize=True, priors={"fixed": {"c": 0.0}})
-    assert message.startswith("standardize=True cannot be combined with priors in data units"), message
+    assert message.startswith("standardize=True cannot be combined with [fixed] c of priors, a prior in data units"), message
 
 
 def test_a_record_without_samples_is_refused():

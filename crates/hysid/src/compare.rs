@@ -23,6 +23,7 @@ use hysid_core::priors::Priors;
 use hysid_core::simulate::{ValidationReport, validate};
 use hysid_io::load_each;
 use hysid_model::data::{DataError, DataSelection, Dataset, RowRange};
+use hysid_model::regressors::RegressorSpec;
 use hysid_model::simulate::Simulation;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -185,6 +186,10 @@ pub struct Comparison {
     pub description: String,
     /// Data file and split, as text.
     pub data: String,
+    /// What the experiment asks for that its readers should be told
+    /// ([`Experiment::warnings`]), as text.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     /// Validation warm-up.
     pub warmup: usize,
     /// What the scored rows are (validation or selection rows).
@@ -295,10 +300,11 @@ impl Experiment {
             seed: r.seed.unwrap_or(self.seed),
         };
         let registry = crate::registry();
+        let inputs = self.data.input.len();
         let mut jobs: Vec<Job> = Vec::new();
         for r in &self.runs {
             let run = job(r, r.name.clone(), None);
-            check_job(&registry, &run, "run", |_| "set")?;
+            check_job(&registry, &run, inputs, "run", |_| "set")?;
             for &seed in &r.seeds {
                 jobs.push(Job {
                     name: format!("{} [seed={seed}]", r.name),
@@ -344,7 +350,7 @@ impl Experiment {
                     values: shown,
                 };
                 let point = job(&r, format!("{} [{label}]", s.run.name), Some(point));
-                check_job(&registry, &point, "sweep", |key| {
+                check_job(&registry, &point, inputs, "sweep", |key| {
                     if s.vary.as_deref() == Some(key) {
                         "vary"
                     } else if s.grid.contains_key(key) {
@@ -354,6 +360,20 @@ impl Experiment {
                     }
                 })?;
                 jobs.push(point);
+            }
+        }
+        // A run and a sweep's point may still meet in one file name.
+        let mut files = std::collections::HashMap::new();
+        for j in &jobs {
+            if let Some(other) = files.insert(experiment::slug(&j.name), &j.name) {
+                return Err(ExperimentError::Invalid {
+                    path: "experiment".into(),
+                    message: format!(
+                        "'{other}' and '{}' would write their results to one file name, '{}': rename one",
+                        j.name,
+                        experiment::slug(&j.name)
+                    ),
+                });
             }
         }
         Ok(jobs)
@@ -456,7 +476,16 @@ impl Experiment {
                 .check_selection()
                 .map_err(|e| ExperimentError::Selection(self.data.selection_error(e)))?;
         }
-        let jobs = once_where_seed_free(jobs, &registry, &ident, &self.data);
+        let warnings = self.warnings();
+        // Scored rows that are identification rows may be selection rows:
+        // an automatic choice there is labelled as one on the test rows.
+        let jobs = jobs.into_iter().map(|mut job| {
+            if job.origin == Origin::SelectionRows && !warnings.is_empty() {
+                job.origin = Origin::Oracle;
+            }
+            job
+        });
+        let jobs = once_where_seed_free(jobs.collect(), &registry, &ident, &self.data);
         progress.start(jobs.len() as u64, "identifying");
         let results: Vec<RunResult> = jobs
             .par_iter()
@@ -479,6 +508,7 @@ impl Experiment {
             title: self.title.clone(),
             description: self.description.clone(),
             data: self.data_text(),
+            warnings: warnings.iter().map(ToString::to_string).collect(),
             scored_rows: self.scored_rows,
             warmup: self.data.warmup,
             results,
@@ -501,7 +531,9 @@ impl Experiment {
 }
 
 /// `job`'s priors and options as its back-end checks them before it fits
-/// (a `modes` of 0, an option it does not take, a value it refuses), so
+/// (a `modes` of 0, an option it does not take, a value it refuses, a
+/// prior kind it does not honour, a name the model structure of `inputs`
+/// inputs lacks, entries that cannot hold together), so
 /// that a malformed entry is refused before anything runs. `what` is
 /// `run` or `sweep`; `source` names where an option's value comes from
 /// (`set`, or a sweep's `vary` or `grid`). An unknown method is left to
@@ -509,6 +541,7 @@ impl Experiment {
 fn check_job(
     registry: &Registry,
     job: &Job,
+    inputs: usize,
     what: &str,
     source: impl Fn(&str) -> &'static str,
 ) -> Result<(), ExperimentError> {
@@ -524,6 +557,12 @@ fn check_job(
         backend
             .check_settings(&job.settings)
             .map_err(|e| invalid(e.render(e.key().map_or("set", &source))))?;
+        // The entry is named already: the priors need no origin.
+        (job.priors)
+            .ensure_honoured(backend.name(), backend.honours(), None)
+            .map_err(|e| invalid(e.to_string()))?;
+        let orders = RegressorSpec::new(job.na, job.nb, inputs);
+        (backend.check_priors(&job.priors, orders, None)).map_err(|e| invalid(e.to_string()))?;
     }
     Ok(())
 }

@@ -389,7 +389,8 @@ impl<'a> Identify<'a> {
             None => backend.search_space(problem)?.without_given(&self.options),
         };
         let plan = self.plan(auto);
-        let affine = crate::affine_reference(registry, backend.name());
+        let affine = crate::affine_reference(registry, backend.name())
+            .filter(|_| affine_is_candidate(problem.priors));
         Ok(Request::from_problem(
             backend,
             affine,
@@ -405,12 +406,61 @@ impl Identified {
     /// The model's free-run FIT on the identification record beside the
     /// affine ARX model's of the same orders and priors fitted on it;
     /// `None` when the model has no ARX orders, is that reference itself,
-    /// or was chosen by automatic selection (which compared it already).
+    /// or was chosen by automatic selection among candidates that held the
+    /// affine model (which compared it already).
     pub fn against_affine(&self, request: &Identify<'_>) -> Option<AgainstAffine> {
-        if self.model.info().selection.is_some() {
+        let priors = request.resolved_priors().ok()?;
+        if self.model.info().selection.is_some() && affine_is_candidate(&priors) {
             return None;
         }
-        let priors = request.resolved_priors().ok()?;
         crate::against_affine(&self.model, request.data, &priors, request.warmup)
+    }
+}
+
+/// Whether automatic selection holds the affine model (one ordinary mode)
+/// among its candidates under `priors`: not when they fix another mode
+/// count, which is the user's knowledge.
+fn affine_is_candidate(priors: &Priors) -> bool {
+    priors
+        .modes
+        .is_none_or(|s| s == priors.saturation.len() + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hysid_testkit::{Noise, b1};
+
+    /// Under an exact mode count the affine model is not a candidate of
+    /// automatic selection, the model written has that count, and the
+    /// comparison with the affine model is left to the front end; without
+    /// one the affine model is a candidate and was compared already.
+    #[test]
+    fn an_exact_mode_count_keeps_the_affine_model_out_of_the_candidates() {
+        let record = b1(300, 4.0, Noise::Uniform(0.05), 1).data;
+        let registry = crate::registry();
+        let request = |modes: Option<usize>| Identify {
+            modes,
+            max_modes: modes.is_none().then_some(3),
+            ..Identify::new("cluster", &record)
+                .orders(1, 1)
+                .set("refine", "none")
+                .auto()
+                .seed(1)
+        };
+        for modes in [Some(3), None] {
+            let request = request(modes);
+            let identified = request.run(&registry).unwrap();
+            let selection = identified.model.info().selection.clone().unwrap();
+            let affine = selection.candidates.iter().any(|c| c.method == "arx");
+            assert_eq!(affine, modes.is_none(), "{modes:?}");
+            assert_eq!(
+                identified.against_affine(&request).is_some(),
+                modes.is_some()
+            );
+            if let Some(s) = modes {
+                assert_eq!(identified.model.mode_count(), s);
+            }
+        }
     }
 }

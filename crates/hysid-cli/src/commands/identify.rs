@@ -244,18 +244,20 @@ pub fn run(args: Args) -> Result<()> {
     if d.run_status.cut_short() || !d.status.is_empty() {
         eprintln!("hysid: {}: {}", args.method, d.status.join("; "));
     }
-    match &model.info().selection {
-        Some(selection) => report_selection(&args.method, selection),
-        None => {
-            if let Some(c) = identified.against_affine(&request)
-                && c.below()
-            {
-                eprintln!(
-                    "hysid: warning: {}; try --auto",
-                    c.warning("its identification rows")
-                );
-            }
-        }
+    if let Some(selection) = &model.info().selection {
+        report_selection(&args.method, selection);
+    }
+    if let Some(c) = identified.against_affine(&request)
+        && c.below()
+    {
+        let hint = match model.info().selection {
+            Some(_) => "; the mode count is the prior's, so the affine model was not a candidate",
+            None => "; try --auto",
+        };
+        eprintln!(
+            "hysid: warning: {}{hint}",
+            c.warning("its identification rows")
+        );
     }
     Ok(())
 }

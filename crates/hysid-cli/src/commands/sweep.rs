@@ -73,7 +73,8 @@ pub struct Args {
 
 /// Refuses, before anything runs, a grid point the back-end would refuse:
 /// a key that is neither one of its options nor `modes`, `na` or `nb`, a
-/// value it does not take ([`hysid::select::candidate_setups`]). An unknown
+/// value it does not take ([`hysid::select::candidate_setups`]), and the
+/// priors as the back-end checks them without data. An unknown
 /// method is left to the experiment's own check, which names the known ones.
 fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
     let registry = hysid::registry();
@@ -85,7 +86,15 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
         priors: priors.clone(),
         settings: Settings::parse(&args.set)?,
     };
-    hysid::select::candidate_setups(backend, &setup, space)?;
+    // The priors as the back-end checks them at every point (whose
+    // orders may be swept), named by their file.
+    let origin = args.prior.as_ref().map(|p| p.display().to_string());
+    let origin = origin.as_deref();
+    (priors.ensure_honoured(backend.name(), backend.honours(), origin))?;
+    for (_, point) in hysid::select::candidate_setups(backend, &setup, space)? {
+        (backend.check_priors(&point.priors, point.orders, origin))
+            .map_err(|e| CliError::input(e.to_string()))?;
+    }
     Ok(())
 }
 
@@ -110,8 +119,12 @@ pub fn run(args: Args) -> Result<()> {
     let space =
         SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
     check_grid(&args, &priors, &space)?;
-    let grid = space
-        .axes
+    // The first --grid key is the sweep's `vary`, the one its figure is
+    // drawn against; the others' order does not matter.
+    let Some((first, others)) = space.axes.split_first() else {
+        return Err(CliError::input("--grid: give at least one axis"));
+    };
+    let grid = others
         .iter()
         .map(|a| (a.key.clone(), a.values.iter().map(|v| text(v)).collect()))
         .collect();
@@ -158,8 +171,8 @@ pub fn run(args: Args) -> Result<()> {
                 auto: false,
                 provenance: None,
             },
-            vary: None,
-            values: vec![],
+            vary: Some(first.key.clone()),
+            values: first.values.iter().map(|v| text(v)).collect(),
             grid,
         }],
     };

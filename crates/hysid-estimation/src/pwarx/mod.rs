@@ -47,6 +47,7 @@ use hysid_core::options::{BackendOptions, CheckOptions, Checked, OptionError, Op
 use hysid_core::priors::{PriorKind, Priors};
 use hysid_core::search::SearchSpace;
 use hysid_core::stages::{AUTO_TRIM, Stages};
+use hysid_model::regressors::RegressorSpec;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
 
@@ -194,6 +195,15 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
 
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         self.0.search_space(problem)
+    }
+
+    fn check_priors(
+        &self,
+        priors: &Priors,
+        orders: RegressorSpec,
+        origin: Option<&str>,
+    ) -> Result<(), IdentifyError> {
+        prepare::check_priors(priors, &orders, origin)
     }
 
     fn identify(

@@ -5,6 +5,7 @@
 //! saturation modes live on lower-dimensional guard sets and are not
 //! identified), and resolves the switching regressors and the mode count.
 
+use crate::constrained::Parametrisation;
 use hysid_core::backend::{IdentifyError, Problem};
 use hysid_core::priors::Priors;
 use hysid_model::regressors::{RegressorSpec, Regressors};
@@ -122,6 +123,21 @@ pub struct UnknownName {
     pub name: String,
     /// The names of that kind the structure has.
     pub known: Vec<String>,
+}
+
+/// The checks of `priors` that need no data: their names against the
+/// structure of `spec` ([`check_names`]), and fixed values, bounds and
+/// equalities that can hold together ([`Parametrisation::from_priors`]);
+/// errors name `origin`, the priors' file.
+pub fn check_priors(
+    priors: &Priors,
+    spec: &RegressorSpec,
+    origin: Option<&str>,
+) -> Result<(), IdentifyError> {
+    check_names(priors, spec).map_err(|e| IdentifyError::prior_mismatch(origin, e))?;
+    Parametrisation::from_priors(priors, spec, 1)
+        .map_err(|e| IdentifyError::prior_mismatch(origin, e))?;
+    Ok(())
 }
 
 /// Checks the parameter names of `[[tie]]`, `[[equality]]`, `[fixed]` and
@@ -268,15 +284,43 @@ pub fn prepare<'a>(problem: &Problem<'a>, method: &str) -> Result<PwarxData<'a>,
             samples: stop_of.len(),
         });
     }
+    let modes = mode_count(priors, method)?;
+    check_identifiable(
+        modes,
+        ordinary.len(),
+        spec.n_params(),
+        priors.saturation.len(),
+    )?;
     Ok(PwarxData {
         problem: *problem,
         spec,
-        modes: mode_count(priors, method)?,
+        modes,
         switching: switching_columns(priors, &spec),
         regressors,
         stop_of,
         ordinary,
     })
+}
+
+/// An exact count of ordinary modes whose parameters (`params` each) the
+/// `ordinary` samples cannot all determine is the user's input, refused
+/// before any back-end runs.
+fn check_identifiable(
+    modes: ModeCount,
+    ordinary: usize,
+    params: usize,
+    stops: usize,
+) -> Result<(), IdentifyError> {
+    match modes.exact() {
+        Some(s) if s.checked_mul(params).is_none_or(|need| need > ordinary) => {
+            Err(IdentifyError::TooFewRegressors {
+                rows: ordinary,
+                modes: s.saturating_add(stops),
+                params,
+            })
+        }
+        _ => Ok(()),
+    }
 }
 
 /// `modes` and `max_modes` count every mode, the stops included; the

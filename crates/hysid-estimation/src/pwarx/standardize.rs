@@ -18,12 +18,16 @@ pub fn run_standardized(
     ctx: &RunContext<'_>,
 ) -> Result<Model, IdentifyError> {
     let p = problem.priors;
-    if !p.saturation.is_empty()
-        || !p.fixed.is_empty()
-        || !p.bounds.is_empty()
-        || !p.equality.is_empty()
-    {
-        return Err(IdentifyError::input(StandardizeError::PriorsInDataUnits));
+    let in_data_units = (!p.saturation.is_empty())
+        .then(|| "[[saturation]] #1".to_string())
+        .or_else(|| p.fixed.keys().next().map(|k| format!("[fixed] {k}")))
+        .or_else(|| p.bounds.keys().next().map(|k| format!("[bounds] {k}")))
+        .or_else(|| (!p.equality.is_empty()).then(|| "[[equality]] #1".to_string()));
+    if let Some(entry) = in_data_units {
+        return Err(IdentifyError::input(StandardizeError::PriorsInDataUnits {
+            entry,
+            origin: problem.priors_origin.map(str::to_string),
+        }));
     }
     // Scaling multiplies a tied a_i or b_i by one factor in every mode, so
     // such ties survive; the offset c maps to a combination of all the
@@ -97,8 +101,11 @@ impl StandardizeError {
     /// run (`--standardize` on the command line).
     pub fn render(&self, asked: &str) -> String {
         match self {
-            Self::PriorsInDataUnits => format!(
-                "{asked} cannot be combined with priors in data units ([[saturation]], [fixed], [bounds], [[equality]])"
+            Self::PriorsInDataUnits { entry, origin } => format!(
+                "{asked} cannot be combined with {entry}{}, a prior in data units ([[saturation]], [fixed], [bounds] and [[equality]] are)",
+                origin
+                    .as_ref()
+                    .map_or(String::new(), |o| format!(" of {o}"))
             ),
             Self::TieOnOffset => format!(
                 "{asked} cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)"
@@ -115,7 +122,12 @@ impl StandardizeError {
 pub enum StandardizeError {
     /// Priors holding values in data units.
     #[error("{}", self.render("standardization"))]
-    PriorsInDataUnits,
+    PriorsInDataUnits {
+        /// The first such entry (`[fixed] c`).
+        entry: String,
+        /// The prior file, when the priors came from one.
+        origin: Option<String>,
+    },
     /// A `[[tie]]` on the offset `c`.
     #[error("{}", self.render("standardization"))]
     TieOnOffset,

@@ -2,11 +2,12 @@
 //! (`docs/compare.md`).
 
 use crate::select::SelectError;
+use hysid_core::options::first_repeated;
 use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::{Axis, SearchSpace};
 use hysid_model::data::{DataSelection, RowRange};
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt;
 use std::path::{Path, PathBuf};
 
@@ -198,7 +199,7 @@ pub struct RunSpec {
     pub seed: Option<u64>,
     /// Run once per seed (instead of `seed`); the report gives the median
     /// and the range of the scores over them.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "listed")]
     pub seeds: Vec<u64>,
     /// Choose the options on the selection rows (`hysid identify --auto`,
     /// docs/selection.md); `set` and `modes` fix what is not searched.
@@ -489,6 +490,40 @@ pub enum InconsistentExperiment {
         /// The name.
         name: String,
     },
+    /// An entry whose name gives no file name.
+    #[error("[[{what}]] name '{name}': needs a letter or a digit (it names the entry's files)")]
+    NoFileName {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// The name.
+        name: String,
+    },
+    /// Two entries whose names give one file name.
+    #[error(
+        "[[{what}]] '{name}' and '{other}' would write their results to one file name, '{file}': rename one"
+    )]
+    SameFileName {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// The later entry.
+        name: String,
+        /// The earlier one.
+        other: String,
+        /// The file name both give.
+        file: String,
+    },
+    /// A seed or a sweep value listed twice.
+    #[error("[[{what}]] '{name}': {key} lists {value} twice")]
+    Repeated {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// Entry name.
+        name: String,
+        /// `seeds`, or the swept key.
+        key: String,
+        /// The value.
+        value: String,
+    },
     /// An entry naming an unknown method.
     #[error("[[{what}]] '{name}': unknown method '{method}' (methods: {known})")]
     UnknownMethod {
@@ -649,6 +684,38 @@ impl Experiment {
         Ok(e)
     }
 
+    /// Every entry's name once, and a file name of its own: a run's name
+    /// gives the files of its results, a sweep's its figure.
+    fn check_names(&self) -> Result<(), InconsistentExperiment> {
+        use InconsistentExperiment as E;
+        let mut names = HashSet::new();
+        let mut files: HashMap<(&str, String), &str> = HashMap::new();
+        let all = self
+            .runs
+            .iter()
+            .map(|r| (r, "run"))
+            .chain(self.sweeps.iter().map(|s| (&s.run, "sweep")));
+        for (r, what) in all {
+            let name = || r.name.clone();
+            if !names.insert(r.name.as_str()) {
+                return Err(E::DuplicateName { what, name: name() });
+            }
+            let file = slug(&r.name);
+            if file.is_empty() {
+                return Err(E::NoFileName { what, name: name() });
+            }
+            if let Some(other) = files.insert((what, file.clone()), &r.name) {
+                return Err(E::SameFileName {
+                    what,
+                    name: name(),
+                    other: other.to_string(),
+                    file,
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// Consistency checks (also for experiments built in code).
     pub fn check(&self) -> Result<(), InconsistentExperiment> {
         use InconsistentExperiment as E;
@@ -656,18 +723,20 @@ impl Experiment {
             return Err(E::NothingToRun);
         }
         self.priors.check().map_err(E::Priors)?;
+        self.check_names()?;
         let registry = crate::registry();
-        let mut names = HashSet::new();
         let all = self
             .runs
             .iter()
             .map(|r| (r, "run"))
             .chain(self.sweeps.iter().map(|s| (&s.run, "sweep")));
         for (r, what) in all {
-            if !names.insert(r.name.as_str()) {
-                return Err(E::DuplicateName {
+            if let Some(seed) = first_repeated(&r.seeds) {
+                return Err(E::Repeated {
                     what,
                     name: r.name.clone(),
+                    key: "seeds".into(),
+                    value: seed.to_string(),
                 });
             }
             if registry.get(&r.method).is_none() {
@@ -715,6 +784,16 @@ impl Experiment {
                     name: name(),
                     key: axis.key.clone(),
                 });
+            }
+            for axis in &space.axes {
+                if let Some(value) = first_repeated(&axis.values) {
+                    return Err(E::Repeated {
+                        what: "sweep",
+                        name: name(),
+                        key: axis.key.clone(),
+                        value: value.clone(),
+                    });
+                }
             }
         }
         // Counted before any is made: a sweep's points are the product of
@@ -775,8 +854,11 @@ pub enum ExperimentWarning {
     /// Scored rows that are also identification rows of the same file:
     /// their scores are not on rows the fits did not see.
     ValidationOverlaps {
-        /// The entry that gives both.
+        /// The entry that gives the validation rows.
         entry: DataEntry,
+        /// The entry that gives the identification rows (`entry`, or
+        /// another of the same file and signals).
+        identified_in: DataEntry,
         /// The identification rows.
         identification: RowRange,
         /// The validation rows.
@@ -789,13 +871,21 @@ impl fmt::Display for ExperimentWarning {
         match self {
             ExperimentWarning::ValidationOverlaps {
                 entry,
+                identified_in,
                 identification,
                 validation,
-            } => write!(
-                f,
-                "{entry}: the validation rows {validation} overlap the identification rows \
-                 {identification}: their scores are not on rows the fits did not see"
-            ),
+            } => {
+                let of = if identified_in == entry {
+                    String::new()
+                } else {
+                    format!(" of {identified_in} (the same file and signals)")
+                };
+                write!(
+                    f,
+                    "{entry}: the validation rows {validation} overlap the identification rows \
+                     {identification}{of}: their scores are not on rows the fits did not see"
+                )
+            }
         }
     }
 }
@@ -804,29 +894,67 @@ impl Experiment {
     /// What the file asks for that its user should be told
     /// ([`ExperimentWarning`]), in the order of the file.
     pub fn warnings(&self) -> Vec<ExperimentWarning> {
-        let own = (
-            DataEntry::Main,
-            Some(&self.data.identification),
-            Some(&self.data.validation),
-        );
-        let records = (self.data.records.iter().enumerate()).map(|(i, r)| {
-            let entry = DataEntry::Record(i + 1);
-            (entry, r.identification.as_ref(), r.validation.as_ref())
-        });
-        std::iter::once(own)
-            .chain(records)
-            .filter_map(|(entry, id, val)| match (id, val) {
-                (Some(id), Some(val)) if id.overlaps(val) => {
-                    Some(ExperimentWarning::ValidationOverlaps {
-                        entry,
-                        identification: *id,
-                        validation: *val,
-                    })
+        let d = &self.data;
+        // Each entry: its file, its signals and its rows.
+        let own = (DataEntry::Main, &d.file, d.selection(RowRange::default()));
+        let entries: Vec<_> = std::iter::once((own, Some(d.identification), Some(d.validation)))
+            .chain(d.records.iter().enumerate().map(|(i, r)| {
+                let at = (
+                    DataEntry::Record(i + 1),
+                    &r.file,
+                    d.record_selection(r, RowRange::default()),
+                );
+                (at, r.identification, r.validation)
+            }))
+            .collect();
+        let mut warnings = Vec::new();
+        for ((entry, file, signals), _, validation) in &entries {
+            let Some(validation) = validation else {
+                continue;
+            };
+            for ((identified_in, other, theirs), identification, _) in &entries {
+                let same = file == other
+                    && (&signals.inputs, &signals.output) == (&theirs.inputs, &theirs.output);
+                if let (true, Some(identification)) = (same, identification)
+                    && identification.overlaps(validation)
+                {
+                    warnings.push(ExperimentWarning::ValidationOverlaps {
+                        entry: *entry,
+                        identified_in: *identified_in,
+                        identification: *identification,
+                        validation: *validation,
+                    });
                 }
-                _ => None,
-            })
-            .collect()
+            }
+        }
+        warnings
     }
+}
+
+/// A file name made from a run label.
+pub fn slug(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '.' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    s.trim_matches('_').to_string()
+}
+
+/// A list that is not empty: `seeds = []` runs nothing it names.
+fn listed<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<u64>, D::Error> {
+    let seeds = Vec::<u64>::deserialize(d)?;
+    if seeds.is_empty() {
+        return Err(serde::de::Error::custom(
+            "an empty list: give the seeds, or leave seeds out",
+        ));
+    }
+    Ok(seeds)
 }
 
 #[cfg(test)]

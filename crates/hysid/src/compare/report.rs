@@ -1,6 +1,7 @@
 //! Writing a comparison: `report.md`, `report.json`, `models/*.json` and
 //! the figures under `plots/` (SVG, `hysid-plot`).
 
+use crate::compare::experiment::slug;
 use crate::compare::{Comparison, Drawn, DrawnRun, RunResult};
 use hysid_core::model::Model;
 use hysid_model::data::Dataset;
@@ -13,21 +14,6 @@ use hysid_plot::{
 };
 use std::fmt::Write as _;
 use std::path::Path;
-
-/// A file name made from a run label.
-fn slug(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '.' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    s.trim_matches('_').to_string()
-}
 
 /// Writes the report and the models into `dir` (created if needed); every
 /// file is written atomically. Returns the paths written.
@@ -53,7 +39,29 @@ pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::
     let p = dir.join("report.md");
     hysid_io::write(&p, markdown(c).as_bytes())?;
     written.push(p);
+    remove_stale(dir, &written)?;
     Ok(written)
+}
+
+/// Removes the models and figures of an earlier report in `dir` that this
+/// one did not write (`written`): a report folder holds one report, so no
+/// model sits beside a report that does not list it. Only files of the
+/// kinds a report writes, in `models/` and `plots/`, are touched.
+fn remove_stale(dir: &Path, written: &[std::path::PathBuf]) -> std::io::Result<()> {
+    for (folder, kinds) in [("models", &["json"][..]), ("plots", &["svg", "png"][..])] {
+        let Ok(entries) = std::fs::read_dir(dir.join(folder)) else {
+            continue;
+        };
+        for entry in entries {
+            let path = entry?.path();
+            let ours =
+                (path.extension().and_then(|e| e.to_str())).is_some_and(|e| kinds.contains(&e));
+            if ours && path.is_file() && !written.contains(&path) {
+                std::fs::remove_file(&path)?;
+            }
+        }
+    }
+    Ok(())
 }
 
 fn plot_err(e: hysid_plot::PlotError) -> std::io::Error {
@@ -462,6 +470,9 @@ pub fn markdown(c: &Comparison) -> String {
         capitalised(c.scored_rows.word()),
         c.warmup
     );
+    for w in &c.warnings {
+        let _ = writeln!(s, "**Warning:** {w}.\n");
+    }
     seeds_table(&mut s, c);
     let _ = writeln!(
         s,
