@@ -1405,6 +1405,16 @@ fn malformed_experiment_files() {
         "{err}"
     );
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "kept");
+    // So is one whose plots (or models) would go where a file is.
+    let folder = d.join("blocked");
+    std::fs::create_dir_all(&folder).unwrap();
+    write(&folder, "plots", "kept");
+    let err = one_line_error(&hysid(&["compare", s(&p), "-o", s(&folder)]), 2).unwrap();
+    assert!(
+        err.contains("plots is a file; the report writes into a folder of that name"),
+        "{err}"
+    );
+    assert!(!folder.join("models").exists() && !folder.join("report.md").exists());
     // The missing data file is named once, as resolved against the
     // experiment's folder, after the key that names it.
     let out = d.join("out-missing-file.toml");

@@ -405,6 +405,16 @@ fn bad_options_and_files_are_usage_errors() {
         &["unknown method 'nosuch'", "arx"],
         &out,
     );
+    // A mistyped flag or command names the one meant.
+    bad(
+        &["identify", d, "-m", "arx", "--priors", "p.toml", "-o", o],
+        &[
+            "unexpected argument '--priors'",
+            "a similar one exists: '--prior'",
+        ],
+        &out,
+    );
+    bad(&["identfy", d], &["a similar one exists: 'identify'"], &out);
     bad(
         &["identify", d, "-m", "arx", "--set", "rigde=1", "-o", o],
         &["rigde", "ridge"],

@@ -67,7 +67,7 @@ fn main() {
             } else {
                 message
             };
-            eprintln!("hysid: error: {message} (see --help)");
+            eprintln!("hysid: error: {message}{} (see --help)", suggestion(&e));
             std::process::exit(2);
         }
     };
@@ -79,6 +79,23 @@ fn main() {
         eprintln!("hysid: error: {}", e.one_line());
         std::process::exit(e.exit_code());
     }
+}
+
+/// Clap's suggestion for a mistyped argument, subcommand or value
+/// (`--priors`: `--prior`), which its message gives on a later line.
+fn suggestion(e: &clap::Error) -> String {
+    use clap::error::{ContextKind, ContextValue};
+    let kinds = [
+        ContextKind::SuggestedArg,
+        ContextKind::SuggestedSubcommand,
+        ContextKind::SuggestedValue,
+    ];
+    let found = kinds.iter().find_map(|&k| match e.get(k)? {
+        ContextValue::String(s) => Some(s.clone()),
+        ContextValue::Strings(v) => v.first().cloned(),
+        _ => None,
+    });
+    found.map_or(String::new(), |s| format!("; a similar one exists: '{s}'"))
 }
 
 fn dispatch(command: Command) -> Result<()> {

@@ -13,7 +13,7 @@ pub use experiment::{
     RecordSpec, RunSpec, ScoredRows, SweepSpec, value_text,
 };
 pub use hysid_plot::FigureFormat;
-pub use report::write_report;
+pub use report::{ReportFolderError, check_report_folder, write_report};
 
 use crate::identify::{Auto, Identify, Mode};
 use hysid_core::backend::{Progress, Registry};
@@ -431,7 +431,12 @@ impl Experiment {
         for r in &d.records {
             let rows =
                 |what: &str, rows: Option<RowRange>| rows.map(|rows| format!("{what} rows {rows}"));
+            // A record of other signals (of the same file, often) says which.
+            let own = d.record_selection(r, RowRange::default());
+            let signals = (own.inputs != d.input || own.output != d.output)
+                .then(|| format!("{} -> {}", own.inputs.join(", "), own.output));
             let parts: Vec<String> = [
+                signals,
                 rows("identification", r.identification),
                 rows(self.scored_rows.word(), r.validation),
             ]

@@ -23,16 +23,11 @@ pub(crate) fn states_text(states: &std::collections::BTreeMap<String, f64>) -> S
         .join(", ")
 }
 
-/// Refuses a report folder `-o` that is an existing file, before anything
-/// runs (the report would fail to be written after every run).
+/// Refuses a report folder `-o` that cannot take the report
+/// ([`hysid::compare::check_report_folder`]), before anything runs.
 pub(crate) fn a_folder(out: &Path) -> Result<()> {
-    if out.exists() && !out.is_dir() {
-        return Err(CliError::input(format!(
-            "-o {}: is a file; the report goes into a folder",
-            out.display()
-        )));
-    }
-    Ok(())
+    hysid::compare::check_report_folder(out)
+        .map_err(|e| CliError::input(format!("-o {}: {e}", out.display())))
 }
 
 /// Refuses an output file that is one of the command's input files (the

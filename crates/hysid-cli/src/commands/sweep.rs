@@ -196,6 +196,8 @@ pub fn run(args: Args) -> Result<()> {
                 };
                 source.rows_named(flag).unwrap_or_else(|| e.to_string())
             }
+            // The record is the command line's: no `[data]` to name.
+            ExperimentError::Data { source, .. } => source.to_string(),
             ExperimentError::Warmup {
                 warmup, samples, ..
             } => format!(

@@ -108,14 +108,17 @@ impl Dataset {
                 ));
             }
             if !same_sampling(r.ts, first.ts) {
-                return Err(join_error(
-                    i,
-                    format!(
-                        "sampling time {} differs from record 1's {}",
-                        show_ts(r.ts),
-                        show_ts(first.ts)
+                let none = "no sampling time (no time signal, no --ts)";
+                let why = match (r.ts, first.ts) {
+                    (None, Some(t)) => format!("{none}, record 1 {t} s"),
+                    (Some(t), None) => format!("sampling time {t} s, record 1 {none}"),
+                    (t, t1) => format!(
+                        "sampling time {} s differs from record 1's {} s",
+                        t.unwrap_or(f64::NAN),
+                        t1.unwrap_or(f64::NAN)
                     ),
-                ));
+                };
+                return Err(join_error(i, why));
             }
             if i == 0 {
                 continue;
@@ -241,10 +244,6 @@ pub fn same_sampling(a: Option<f64>, b: Option<f64>) -> bool {
         (Some(a), Some(b)) => (a - b).abs() <= TS_TOLERANCE * a.abs().max(b.abs()),
         _ => false,
     }
-}
-
-fn show_ts(ts: Option<f64>) -> String {
-    ts.map_or_else(|| "unknown".into(), |t| format!("{t} s"))
 }
 
 /// Which signals to read and which samples to keep.
@@ -602,6 +601,11 @@ mod tests {
         assert_eq!(
             e.to_string(),
             "record 2: sampling time 0.2 s differs from record 1's 0.1 s"
+        );
+        let e = Dataset::join(&[ramp(0, 3, Some(0.1)), ramp(0, 3, None)]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "record 2: no sampling time (no time signal, no --ts), record 1 0.1 s"
         );
         // A step read from a text time column (50.01 - 50.0) is the same.
         let rounded = Dataset::join(&[ramp(0, 3, Some(0.01)), ramp(0, 3, Some(50.01 - 50.0))]);

@@ -253,6 +253,4 @@ def compare(experiment: Union[str, os.PathLike], out_dir: Union[str, os.PathLike
     """Runs an experiment file (TOML, as ``hysid compare``), writes
     ``report.md``, ``report.json``, the figures and the models into
     ``out_dir``, and returns the report as a dictionary."""
-    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
-        raise InputError(f"out_dir={os.fspath(out_dir)!r}: is a file; the report goes into a folder")
     return _hysid.compare(os.fspath(experiment), os.fspath(out_dir))

@@ -15,6 +15,35 @@ use hysid_plot::{
 use std::fmt::Write as _;
 use std::path::Path;
 
+/// Why a folder cannot take a report ([`check_report_folder`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ReportFolderError {
+    /// The folder is a file.
+    #[error("is a file; the report goes into a folder")]
+    IsAFile,
+    /// Its `models` or `plots` is a file.
+    #[error("{} is a file; the report writes into a folder of that name", .0.display())]
+    InnerIsAFile(std::path::PathBuf),
+}
+
+/// Whether `dir` can take a report: it, its `models` and its `plots` are
+/// folders or not there yet. Checked before anything runs, since writing
+/// comes after every fit.
+pub fn check_report_folder(dir: &Path) -> Result<(), ReportFolderError> {
+    let a_file = |p: &Path| p.exists() && !p.is_dir();
+    if a_file(dir) {
+        return Err(ReportFolderError::IsAFile);
+    }
+    match ["models", "plots"]
+        .map(|f| dir.join(f))
+        .into_iter()
+        .find(|p| a_file(p))
+    {
+        Some(inner) => Err(ReportFolderError::InnerIsAFile(inner)),
+        None => Ok(()),
+    }
+}
+
 /// Writes the report and the models into `dir` (created if needed); every
 /// file is written atomically. Returns the paths written.
 pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf>> {
