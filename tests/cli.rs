@@ -1056,6 +1056,23 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
         let err = one_line_error(&hysid(&args), 2).unwrap();
         assert!(err.contains(needle), "{grid}: {err}");
     }
+    // A swept option that a flag fixes too.
+    let mut args = vec![
+        "sweep",
+        s(&data),
+        "-m",
+        "arx",
+        "--grid",
+        "ridge=0,1",
+        "--set",
+        "ridge=2",
+    ];
+    args.extend(rows);
+    let err = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(
+        err.contains("--grid ridge: also fixed by --set ridge=2"),
+        "{err}"
+    );
     // A prior the back-end cannot take at some point, named by its file.
     let prior = common::write(dir.path(), "p.toml", "[[tie]]\nparams = [\"a2\"]\n");
     let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", "na=1,2"];

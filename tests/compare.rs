@@ -471,6 +471,11 @@ fn entries_that_cannot_work_are_refused_before_anything_runs() {
             "would write their results to one file name, 's__na_1'",
         ),
         (
+            "[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"ridge\"\nvalues = [0, 1]\nset = { ridge = 2 }\n"
+                .to_string(),
+            "[[sweep]] 's': ridge is swept and also fixed (set = { ridge = ... })",
+        ),
+        (
             arx("a", "priors = { tie = [{ params = [\"a3\"] }] }"),
             "[[run]] 'a': prior [[tie]] params: unknown name 'a3'",
         ),

@@ -118,6 +118,16 @@ pub fn run(args: Args) -> Result<()> {
         .collect();
     let space =
         SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
+    let given = Settings::parse(&args.set)?;
+    let fixed = |key: &str| match key {
+        "modes" => args.modes.map(|m| format!("--modes {m}")),
+        key => given.get(key).map(|v| format!("--set {key}={v}")),
+    };
+    if let Some((key, flag)) = (space.axes.iter()).find_map(|a| Some((&a.key, fixed(&a.key)?))) {
+        return Err(CliError::input(format!(
+            "--grid {key}: also fixed by {flag}; give it in one place"
+        )));
+    }
     check_grid(&args, &priors, &space)?;
     // The first --grid key is the sweep's `vary`, the one its figure is
     // drawn against; the others' order does not matter.

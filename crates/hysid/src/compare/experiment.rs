@@ -572,6 +572,24 @@ pub enum InconsistentExperiment {
     /// A sweep with nothing to vary.
     #[error("[[sweep]] '{0}': give vary and values, or grid")]
     NoAxis(String),
+    /// A key both `vary` and in `grid`.
+    #[error("[[sweep]] '{name}': {key} is both vary and a grid key")]
+    SweptTwice {
+        /// Entry name.
+        name: String,
+        /// The key.
+        key: String,
+    },
+    /// A swept key also given a fixed value by the sweep's run.
+    #[error("[[sweep]] '{name}': {key} is swept and also fixed ({given}): give it in one place")]
+    SweptAndFixed {
+        /// Entry name.
+        name: String,
+        /// The key.
+        key: String,
+        /// Where it is fixed.
+        given: String,
+    },
     /// A sweep with values but no `vary`.
     #[error("[[sweep]] '{0}': values without vary")]
     ValuesWithoutVary(String),
@@ -783,6 +801,32 @@ impl Experiment {
                 return Err(E::NoValues {
                     name: name(),
                     key: axis.key.clone(),
+                });
+            }
+            let keys: Vec<&str> = space.axes.iter().map(|a| a.key.as_str()).collect();
+            if let Some(key) = first_repeated(&keys) {
+                return Err(E::SweptTwice {
+                    name: name(),
+                    key: key.to_string(),
+                });
+            }
+            let r = &s.run;
+            let fixed = |key: &str| match key {
+                "na" => r.na.is_some(),
+                "nb" => r.nb.is_some(),
+                "modes" => r.modes.is_some(),
+                key => r.set.contains_key(key),
+            };
+            if let Some(key) = keys.iter().find(|k| fixed(k)) {
+                let given = if r.set.contains_key(*key) {
+                    format!("set = {{ {key} = ... }}")
+                } else {
+                    format!("{key} = ...")
+                };
+                return Err(E::SweptAndFixed {
+                    name: name(),
+                    key: key.to_string(),
+                    given,
                 });
             }
             for axis in &space.axes {
