@@ -510,6 +510,20 @@ macro_rules! option_enum {
     };
 }
 
+/// A list read from a file that is not empty; an empty one is refused
+/// with `remedy` (`seeds = []`: "give the seeds, or leave seeds out").
+pub fn non_empty<'de, D, T>(d: D, remedy: &str) -> Result<Vec<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: serde::Deserialize<'de>,
+{
+    let items = <Vec<T> as serde::Deserialize>::deserialize(d)?;
+    if items.is_empty() {
+        return Err(serde::de::Error::custom(format!("an empty list: {remedy}")));
+    }
+    Ok(items)
+}
+
 /// The first item of `items` that an earlier one repeats (a grid's value,
 /// a run's seed, a name in a prior's list): each is one choice, listed
 /// once.

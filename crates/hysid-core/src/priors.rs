@@ -4,7 +4,7 @@
 //! Each back-end declares the [`PriorKind`]s it honours; a prior it cannot
 //! honour is refused with an error naming the entry, never dropped.
 
-use crate::options::first_repeated;
+use crate::options::{first_repeated, non_empty};
 use hysid_model::model::{Stop, StopBound};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -107,16 +107,13 @@ impl Equality {
     }
 }
 
-/// A list of names that is not empty: an empty `switching` would leave
-/// the regions nothing to depend on.
+/// `switching`, not empty: an empty one would leave the regions nothing
+/// to depend on.
 fn named<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<String>, D::Error> {
-    let names = Vec::<String>::deserialize(d)?;
-    if names.is_empty() {
-        return Err(serde::de::Error::custom(
-            "an empty list: name the regressors the regions depend on, or leave switching out",
-        ));
-    }
-    Ok(names)
+    non_empty(
+        d,
+        "name the regressors the regions depend on, or leave switching out",
+    )
 }
 
 /// All priors of a run.

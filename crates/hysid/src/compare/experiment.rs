@@ -2,7 +2,7 @@
 //! (`docs/compare.md`).
 
 use crate::select::SelectError;
-use hysid_core::options::first_repeated;
+use hysid_core::options::{first_repeated, non_empty};
 use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::{Axis, SearchSpace};
 use hysid_model::data::{DataSelection, RowRange};
@@ -702,18 +702,18 @@ impl Experiment {
         Ok(e)
     }
 
+    /// Every `[[run]]` and `[[sweep]]`'s run, with `run` or `sweep`.
+    fn entries(&self) -> impl Iterator<Item = (&RunSpec, &'static str)> {
+        (self.runs.iter().map(|r| (r, "run"))).chain(self.sweeps.iter().map(|s| (&s.run, "sweep")))
+    }
+
     /// Every entry's name once, and a file name of its own: a run's name
     /// gives the files of its results, a sweep's its figure.
     fn check_names(&self) -> Result<(), InconsistentExperiment> {
         use InconsistentExperiment as E;
         let mut names = HashSet::new();
         let mut files: HashMap<(&str, String), &str> = HashMap::new();
-        let all = self
-            .runs
-            .iter()
-            .map(|r| (r, "run"))
-            .chain(self.sweeps.iter().map(|s| (&s.run, "sweep")));
-        for (r, what) in all {
+        for (r, what) in self.entries() {
             let name = || r.name.clone();
             if !names.insert(r.name.as_str()) {
                 return Err(E::DuplicateName { what, name: name() });
@@ -743,12 +743,7 @@ impl Experiment {
         self.priors.check().map_err(E::Priors)?;
         self.check_names()?;
         let registry = crate::registry();
-        let all = self
-            .runs
-            .iter()
-            .map(|r| (r, "run"))
-            .chain(self.sweeps.iter().map(|s| (&s.run, "sweep")));
-        for (r, what) in all {
+        for (r, what) in self.entries() {
             if let Some(seed) = first_repeated(&r.seeds) {
                 return Err(E::Repeated {
                     what,
@@ -990,15 +985,9 @@ pub fn slug(name: &str) -> String {
     s.trim_matches('_').to_string()
 }
 
-/// A list that is not empty: `seeds = []` runs nothing it names.
+/// `seeds`, not empty: `seeds = []` runs nothing it names.
 fn listed<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<u64>, D::Error> {
-    let seeds = Vec::<u64>::deserialize(d)?;
-    if seeds.is_empty() {
-        return Err(serde::de::Error::custom(
-            "an empty list: give the seeds, or leave seeds out",
-        ));
-    }
-    Ok(seeds)
+    non_empty(d, "give the seeds, or leave seeds out")
 }
 
 #[cfg(test)]
