@@ -1056,6 +1056,23 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
         let err = one_line_error(&hysid(&args), 2).unwrap();
         assert!(err.contains(needle), "{grid}: {err}");
     }
+    // A signal the record lacks is named by the file (a sweep has no [data]).
+    let mut args = vec![
+        "sweep",
+        s(&data),
+        "-m",
+        "arx",
+        "--grid",
+        "na=1,2",
+        "--output",
+        "yy",
+    ];
+    args.extend(rows);
+    let err = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(
+        err.contains("data.csv: no column 'yy'") && !err.contains("[data]"),
+        "{err}"
+    );
     // A swept option that a flag fixes too.
     let mut args = vec![
         "sweep",

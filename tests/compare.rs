@@ -452,7 +452,15 @@ fn entries_that_cannot_work_are_refused_before_anything_runs() {
     for (runs, needle) in [
         (
             arx("m 1", "") + &arx("m/1", ""),
-            "'m/1' and 'm 1' would write their results to one file name, 'm_1'",
+            "'m 1' and 'm/1' would write their results to one file name, 'm_1'",
+        ),
+        (
+            arx("A", "") + &arx("a", ""),
+            "'A' and 'a' would write their results to one file name, 'a'",
+        ),
+        (
+            arx("Runs", ""),
+            "'the figure of all runs' and 'Runs' would write their results to one file name",
         ),
         (arx("()", ""), "name '()': needs a letter or a digit"),
         (
@@ -474,6 +482,11 @@ fn entries_that_cannot_work_are_refused_before_anything_runs() {
             "[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"ridge\"\nvalues = [0, 1]\nset = { ridge = 2 }\n"
                 .to_string(),
             "[[sweep]] 's': ridge is swept and also fixed (set = { ridge = ... })",
+        ),
+        (
+            "[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"na\"\nvalues = [1, 2]\ngrid = { na = [3] }\n"
+                .to_string(),
+            "[[sweep]] 's': na is both vary and a grid key",
         ),
         (
             arx("a", "priors = { tie = [{ params = [\"a3\"] }] }"),

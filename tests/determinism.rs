@@ -52,14 +52,13 @@ fn compare_writes_the_same_models_with_one_or_two_threads() {
                 .is_some_and(|p| p.iter().any(|k| k == "modes"));
         // bounded with an error bound of 3 noise std (0.01 here); milp
         // refuses a record this long unless allowed, and its branch and
-        // bound is cut at a node limit (deterministic, unlike a time limit)
-        // past its first solution that uses both modes.
+        // bound is cut at a node limit (deterministic, unlike a time limit).
         exp.push_str(&format!(
             "\n[[run]]\nname = \"{name}\"\nmethod = \"{name}\"\n{}{}",
             if modes { "modes = 2\n" } else { "" },
             match name {
                 "bounded" => "set = { delta = 0.03 }\n".to_string(),
-                "milp" => "set = { max_samples = 300, node_limit = 1000 }\n".to_string(),
+                "milp" => "set = { max_samples = 300, node_limit = 200 }\n".to_string(),
                 // Every parallel part of the fit (two searches, the
                 // swarm's evaluations, the local stages' starts, the
                 // Jacobians' columns), each kept short.

@@ -133,8 +133,7 @@ impl SignalArgs {
         match (&e, own) {
             (DataError::UnsupportedFormat(path), _) if model_file(path) => {
                 CliError::input(format!(
-                    "{}: a model file where a data file (.csv or .mat) is expected; one model, then \
-                 the data",
+                    "{}: a model file where a data file (.csv or .mat) is expected",
                     path.display()
                 ))
             }

@@ -14,13 +14,13 @@
 //! - [`GrayBoxModel`] (`"gray_box"`): a hybrid automaton written by its
 //!   physics, with expressions, guards, resets and built-in elements.
 
+use hysid_graybox::extends::Syntax;
 use hysid_graybox::{GrayBoxModel, InvalidGrayBox, extends};
 use hysid_mechanical::{InvalidMechanical, MechanicalModel};
 use hysid_model::model::{
     HybridAutomaton, InitialState, InvalidModel, ModelInfo, PwarxModel, Stop, StopBound,
 };
 use hysid_model::regressors::RegressorSpec;
-use located::Syntax;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -230,6 +230,12 @@ impl Model {
     pub fn from_json(text: &str, origin: &str) -> Result<Self, ModelError> {
         match serde_json::from_str::<Model>(text) {
             Ok(m) => m.checked(text, origin),
+            // A NaN or an infinity, which JSON has no words for, is said
+            // so beside the parser's position.
+            Err(e) if extends::json_message(&e, text) != e.to_string() => Err(ModelError::Format {
+                path: origin.to_string(),
+                message: extends::json_message(&e, text),
+            }),
             Err(e) => Err(Self::unreadable(text, origin, Syntax::Json, e.to_string())),
         }
     }
@@ -406,6 +412,10 @@ mod tests {
         let bad = text.replace("[0.9, -0.2, 0.1, 0.05, 1.3]", "[0.9]");
         let e = Model::from_json(&bad, "x.json").unwrap_err().to_string();
         assert!(e.contains("x.json") && e.contains("theta"), "{e}");
+        // Text given as such (Python's Model.from_json) gets the reason too.
+        let nan = text.replace("0.05", "NaN");
+        let e = Model::from_json(&nan, "x.json").unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("JSON has no NaN"), "{e}");
     }
 
     #[test]

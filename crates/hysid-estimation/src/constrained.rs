@@ -817,6 +817,29 @@ mod tests {
         }
     }
 
+    /// A variable no equality involves is moved into its bounds; one an
+    /// equality involves is left for the equality to hold.
+    #[test]
+    fn clamping_keeps_the_equalities() {
+        let text = "[bounds]\na1 = [1.9, 1.94]\nb1 = [0.0, 1.0]\n[[equality]]\ncoefficients = { b1 = 1.0, c = 1.0 }\nvalue = 2.0\n";
+        let par =
+            Parametrisation::from_priors(&priors(text), &RegressorSpec::new(1, 1, 1), 1).unwrap();
+        // Free variables in the order a1, b1, c: a1 just past its bound,
+        // b1 past its own but on the equality with c.
+        let mut z = vec![1.940_000_000_3, 1.1, 0.9];
+        par.clamp_to_bounds(&mut z);
+        assert_eq!(z, [1.94, 1.1, 0.9]);
+        let free = Parametrisation::from_priors(
+            &priors("[bounds]\nb1 = [0.0, 1.0]\n"),
+            &RegressorSpec::new(1, 1, 1),
+            1,
+        )
+        .unwrap();
+        let mut z = vec![0.3, 1.1, -2.0];
+        free.clamp_to_bounds(&mut z);
+        assert_eq!(z, [0.3, 1.0, -2.0]);
+    }
+
     #[test]
     fn fixed_outside_bounds_is_an_error() {
         let p = priors("[fixed]\nb1 = 5.0\n[bounds]\nb1 = [0.0, 1.0]\n");

@@ -216,12 +216,13 @@ fn parse(path: &Path, text: &str) -> Result<Value, ExtendsError> {
 
 /// serde_json's message for `e` in `text`, with the reason when it
 /// stopped at a `NaN` or an infinity, which JSON has no words for.
-fn json_message(e: &serde_json::Error, text: &str) -> String {
+pub fn json_message(e: &serde_json::Error, text: &str) -> String {
     let line = text.lines().nth(e.line().saturating_sub(1)).unwrap_or("");
-    let at = line
-        .char_indices()
-        .nth(e.column().saturating_sub(1))
-        .map_or(line.len(), |(i, _)| i);
+    // serde_json counts the column in bytes.
+    let mut at = e.column().saturating_sub(1).min(line.len());
+    while !line.is_char_boundary(at) {
+        at -= 1;
+    }
     // The word the parser stopped in: `nan` stops it after its `n`.
     let start = line[..at].trim_end_matches(|c: char| c.is_ascii_alphabetic() || c == '-');
     let word: String = line[start.len()..]
@@ -460,7 +461,14 @@ mod tests {
                 Err(ExtendsError::Syntax { message, .. }) => message,
                 other => panic!("{value}: {other:?}"),
             };
-        for value in ["NaN", "nan", "Infinity", "-Infinity", "inf"] {
+        for value in [
+            "NaN",
+            "nan",
+            "Infinity",
+            "-Infinity",
+            "inf",
+            "\"Rückfahrt\", NaN",
+        ] {
             assert!(
                 message(value).contains("JSON has no NaN or infinity"),
                 "{value}"

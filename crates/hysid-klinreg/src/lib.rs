@@ -153,7 +153,6 @@ pub fn fit(
     let reg = data.ordinary_regressors();
     let par = Parametrisation::from_priors(data.priors(), &data.spec, modes)
         .map_err(|e| data.prior_error(e))?;
-    check_sample_count(&reg, modes, par.n_params())?;
     let planned = match options.restarts {
         0 => restart_count(reg.x.nrows(), modes, par.n_params()).max(DEFAULT_MIN_RESTARTS),
         r => r,
@@ -208,20 +207,6 @@ pub fn fit(
         trimming: None,
         diagnostics,
     })
-}
-
-/// At least as many samples as parameters in every mode must be possible.
-fn check_sample_count(reg: &Regressors, modes: usize, params: usize) -> Result<(), IdentifyError> {
-    let n = reg.x.nrows();
-    if n < modes * params {
-        return Err(KLinRegError::TooFewSamples {
-            samples: n,
-            needed: modes * params,
-            modes,
-        }
-        .into());
-    }
-    Ok(())
 }
 
 /// Step 3: least squares per mode on its samples, under the priors
@@ -300,25 +285,10 @@ pub enum KLinRegError {
         /// Modes asked for.
         modes: usize,
     },
-    /// Too few samples for the modes' parameters.
-    #[error(
-        "{samples} ordinary samples cannot give {modes} modes their parameters: need at least {needed}"
-    )]
-    TooFewSamples {
-        /// Ordinary samples.
-        samples: usize,
-        /// Samples needed.
-        needed: usize,
-        /// Modes asked for.
-        modes: usize,
-    },
 }
 
 impl From<KLinRegError> for IdentifyError {
     fn from(e: KLinRegError) -> Self {
-        match e {
-            KLinRegError::TooFewSamples { .. } => IdentifyError::too_few_samples(e),
-            e => IdentifyError::failed(e),
-        }
+        IdentifyError::failed(e)
     }
 }

@@ -149,13 +149,6 @@ pub fn fit(
     };
     let mut best = least_l1(data, &reg, modes, options.delta, &limits)?;
     let dropped = drop_empty_modes(&mut best);
-    if dropped > 0 && data.modes.exact().is_some() {
-        return Err(IdentifyError::failed(MilpError::ModeCount {
-            asked: modes + data.stops(),
-            found: best.thetas.len() + data.stops(),
-            proven: best.proven_optimal,
-        }));
-    }
     let partition = hysid_estimation::regions::for_pwarx(
         options.regions,
         data,
@@ -232,11 +225,13 @@ fn status_lines(proven: bool, dropped: usize, modes: usize) -> Vec<String> {
     lines
 }
 
-/// Every `[bounds]` prior meets the box `[-theta_max, theta_max]` the
-/// program bounds the free parameters by (fixed values are not variables
-/// of the program, and need not).
+/// Every `[bounds]` prior of a parameter that is not fixed meets the box
+/// `[-theta_max, theta_max]` the program bounds the free parameters by
+/// (fixed values are not variables of the program, and need not).
 fn check_box(theta_max: f64, data: &PwarxData<'_>) -> Result<(), IdentifyError> {
-    let outside = (data.priors().bounds.iter())
+    let priors = data.priors();
+    let outside = (priors.bounds.iter())
+        .filter(|(param, _)| !priors.fixed.contains_key(*param))
         .find(|(_, [low, high])| *low > theta_max || *high < -theta_max);
     match outside {
         Some((param, &[low, high])) => Err(data.prior_error(MilpError::BoundOutsideBox {
@@ -297,10 +292,7 @@ fn parametrisation(data: &PwarxData<'_>, modes: usize) -> Result<Parametrisation
 }
 
 fn program_error(e: ProgramError) -> IdentifyError {
-    match e {
-        ProgramError::OutsideBox { .. } => IdentifyError::input(e),
-        e => IdentifyError::failed(e),
-    }
+    IdentifyError::failed(e)
 }
 
 /// Why a `milp` run cannot start.
@@ -329,19 +321,5 @@ pub enum MilpError {
         high: f64,
         /// The option.
         theta_max: f64,
-    },
-    /// Modes left empty under an exact mode count.
-    #[error(
-        "exactly {asked} modes were asked for, but {} explains every sample with {found}: give max_modes = {asked} and a delta to allow fewer{}",
-        if *.proven { "the optimum" } else { "the best solution found" },
-        if *.proven { "" } else { ", or raise node_limit or the time budget" }
-    )]
-    ModeCount {
-        /// Modes asked for (stops included).
-        asked: usize,
-        /// Modes that explain samples (stops included).
-        found: usize,
-        /// Whether the solution is proven optimal.
-        proven: bool,
     },
 }

@@ -93,14 +93,6 @@ pub enum ProgramError {
     /// The limits ended the search before any assignment was found.
     #[error("the node limit or the time budget ended branch and bound before a first solution")]
     NoSolutionWithinLimits,
-    /// A prior bound lies outside `[-theta_max, theta_max]`.
-    #[error(
-        "a [bounds] prior lies outside [-theta_max, theta_max] = [-{theta_max}, {theta_max}]: raise option theta_max"
-    )]
-    OutsideBox {
-        /// The box.
-        theta_max: f64,
-    },
     /// The solver failed.
     #[error("the MILP solver failed: {0}")]
     Solver(String),
@@ -254,10 +246,8 @@ fn parameter_variables(
     let mut z = Vec::with_capacity(par.n_free());
     for v in 0..par.n_free() {
         let (lo, hi) = par.free_bounds(v);
+        // A bound outside the box is refused before the program is built.
         let (lo, hi) = (lo.max(-theta_max), hi.min(theta_max));
-        if lo > hi {
-            return Err(ProgramError::OutsideBox { theta_max });
-        }
         z.push(p.add_var(0.0, (lo, hi)));
     }
     if par.has_equalities() {

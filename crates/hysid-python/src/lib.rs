@@ -314,10 +314,8 @@ fn identify<'py>(
         .run(&registry)
         .map_err(Failure::from)
     })??;
-    if let Some(c) = identified.against_affine(&request)
-        && c.below()
-    {
-        warn(py, &c.warning("its identification rows"))?;
+    if let Some(warning) = identified.affine_warning(&request) {
+        warn(py, &warning)?;
     }
     Ok(Model::new(identified.model))
 }

@@ -276,12 +276,16 @@ fn merge(shared: &Priors, run: &RunSpec) -> Priors {
 impl Experiment {
     /// Runs and sweep points, in file order.
     pub fn jobs(&self) -> Result<Vec<Job>, ExperimentError> {
+        // Scored rows that are identification rows may be selection rows:
+        // an automatic choice there is labelled as one on the test rows.
+        let overlapping = (self.warnings().iter())
+            .any(|w| matches!(w, ExperimentWarning::ValidationOverlaps { .. }));
         let job = |r: &RunSpec, name: String, sweep: Option<SweepPoint>| Job {
             name,
-            origin: if sweep.is_some() {
-                Origin::SweepPoint
-            } else {
-                Origin::of_run(r)
+            origin: match Origin::of_run(r) {
+                _ if sweep.is_some() => Origin::SweepPoint,
+                Origin::SelectionRows if overlapping => Origin::Oracle,
+                origin => origin,
             },
             sweep,
             seed_group: None,
@@ -362,16 +366,18 @@ impl Experiment {
                 jobs.push(point);
             }
         }
-        // A run and a sweep's point may still meet in one file name.
-        let mut files = std::collections::HashMap::new();
+        // Each job's files have a name of their own (case aside), and none
+        // is the figure of all runs together (`runs-simulation`).
+        let mut files =
+            std::collections::HashMap::from([("runs".to_string(), "the figure of all runs")]);
         for j in &jobs {
-            if let Some(other) = files.insert(experiment::slug(&j.name), &j.name) {
+            let file = experiment::file_name(&j.name);
+            if let Some(other) = files.insert(file.clone(), &j.name) {
                 return Err(ExperimentError::Invalid {
                     path: "experiment".into(),
                     message: format!(
-                        "'{other}' and '{}' would write their results to one file name, '{}': rename one",
-                        j.name,
-                        experiment::slug(&j.name)
+                        "'{other}' and '{}' would write their results to one file name, '{file}': rename one",
+                        j.name
                     ),
                 });
             }
@@ -482,15 +488,7 @@ impl Experiment {
                 .map_err(|e| ExperimentError::Selection(self.data.selection_error(e)))?;
         }
         let warnings = self.warnings();
-        // Scored rows that are identification rows may be selection rows:
-        // an automatic choice there is labelled as one on the test rows.
-        let jobs = jobs.into_iter().map(|mut job| {
-            if job.origin == Origin::SelectionRows && !warnings.is_empty() {
-                job.origin = Origin::Oracle;
-            }
-            job
-        });
-        let jobs = once_where_seed_free(jobs.collect(), &registry, &ident, &self.data);
+        let jobs = once_where_seed_free(jobs, &registry, &ident, &self.data);
         progress.start(jobs.len() as u64, "identifying");
         let results: Vec<RunResult> = jobs
             .par_iter()

@@ -415,6 +415,21 @@ impl Identified {
         }
         crate::against_affine(&self.model, request.data, &priors, request.warmup)
     }
+
+    /// The warning every front end gives when the model simulates its
+    /// identification rows below the affine model ([`Self::against_affine`]),
+    /// saying so when automatic selection could not hold the affine model
+    /// among its candidates; `None` otherwise.
+    pub fn affine_warning(&self, request: &Identify<'_>) -> Option<String> {
+        let c = self.against_affine(request).filter(AgainstAffine::below)?;
+        let warning = c.warning("its identification rows");
+        Some(match self.model.info().selection {
+            Some(_) => format!(
+                "{warning}; the mode count is the prior's, so the affine model was not a candidate"
+            ),
+            None => warning,
+        })
+    }
 }
 
 /// Whether automatic selection holds the affine model (one ordinary mode)

@@ -247,17 +247,13 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(selection) = &model.info().selection {
         report_selection(&args.method, selection);
     }
-    if let Some(c) = identified.against_affine(&request)
-        && c.below()
-    {
-        let hint = match model.info().selection {
-            Some(_) => "; the mode count is the prior's, so the affine model was not a candidate",
-            None => "; try --auto",
+    if let Some(warning) = identified.affine_warning(&request) {
+        let hint = if model.info().selection.is_none() {
+            "; try --auto"
+        } else {
+            ""
         };
-        eprintln!(
-            "hysid: warning: {}{hint}",
-            c.warning("its identification rows")
-        );
+        eprintln!("hysid: warning: {warning}{hint}");
     }
     Ok(())
 }

@@ -70,7 +70,7 @@ pub(crate) fn load_model(path: &Path) -> Result<Model> {
 
 /// A warning when the record's inputs are the model's in another order:
 /// inputs are read in the order given, so a swap is a different input.
-pub fn warn_input_order(file: &Path, model: &Model, data: &Dataset) {
+pub(crate) fn warn_input_order(file: &Path, model: &Model, data: &Dataset) {
     let own = &model.info().input_names;
     let given = data.input_names();
     let mut sorted = (own.clone(), given.clone());
@@ -90,7 +90,7 @@ pub fn warn_input_order(file: &Path, model: &Model, data: &Dataset) {
 /// A warning when the discrete-time model of `file` was identified at
 /// another sampling time than the record's, or the excitation's when
 /// `excited` ([`hysid_core::simulate::sampling_time_mismatch`]).
-pub fn warn_sampling_time(file: &Path, model: &Model, data: &Dataset, excited: bool) {
+pub(crate) fn warn_sampling_time(file: &Path, model: &Model, data: &Dataset, excited: bool) {
     if let Some((record, own)) = hysid_core::simulate::sampling_time_mismatch(model, data) {
         let (what, hint) = if excited {
             (format!("the excitation's sampling time {record} s"), "")

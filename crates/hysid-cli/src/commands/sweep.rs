@@ -72,11 +72,22 @@ pub struct Args {
 }
 
 /// Refuses, before anything runs, a grid point the back-end would refuse:
-/// a key that is neither one of its options nor `modes`, `na` or `nb`, a
-/// value it does not take ([`hysid::select::candidate_setups`]), and the
-/// priors as the back-end checks them without data. An unknown
+/// a key that `--set` or `--modes` also fixes, a key that is neither one
+/// of its options nor `modes`, `na` or `nb`, a value it does not take
+/// ([`hysid::select::candidate_setups`]), and the priors as the back-end
+/// checks them without data. An unknown
 /// method is left to the experiment's own check, which names the known ones.
 fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
+    let given = Settings::parse(&args.set)?;
+    let fixed = |key: &str| match key {
+        "modes" => args.modes.map(|m| format!("--modes {m}")),
+        key => given.get(key).map(|v| format!("--set {key}={v}")),
+    };
+    if let Some((key, flag)) = (space.axes.iter()).find_map(|a| Some((&a.key, fixed(&a.key)?))) {
+        return Err(CliError::input(format!(
+            "--grid {key}: also fixed by {flag}; give it in one place"
+        )));
+    }
     let registry = hysid::registry();
     let Some(backend) = registry.get(&args.method) else {
         return Ok(());
@@ -118,16 +129,6 @@ pub fn run(args: Args) -> Result<()> {
         .collect();
     let space =
         SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
-    let given = Settings::parse(&args.set)?;
-    let fixed = |key: &str| match key {
-        "modes" => args.modes.map(|m| format!("--modes {m}")),
-        key => given.get(key).map(|v| format!("--set {key}={v}")),
-    };
-    if let Some((key, flag)) = (space.axes.iter()).find_map(|a| Some((&a.key, fixed(&a.key)?))) {
-        return Err(CliError::input(format!(
-            "--grid {key}: also fixed by {flag}; give it in one place"
-        )));
-    }
     check_grid(&args, &priors, &space)?;
     // The first --grid key is the sweep's `vary`, the one its figure is
     // drawn against; the others' order does not matter.

@@ -9,7 +9,7 @@
 //! then raises the same error with its position.
 
 use hysid_graybox::GrayBoxModel;
-pub(super) use hysid_graybox::extends::Syntax;
+use hysid_graybox::extends::Syntax;
 use hysid_mechanical::MechanicalModel;
 use hysid_model::model::{HybridAutomaton, PwarxModel};
 use serde::Deserialize;

@@ -108,7 +108,7 @@ impl Dataset {
                 ));
             }
             if !same_sampling(r.ts, first.ts) {
-                let none = "no sampling time (no time signal, no --ts)";
+                let none = "no sampling time (no time signal, none given)";
                 let why = match (r.ts, first.ts) {
                     (None, Some(t)) => format!("{none}, record 1 {t} s"),
                     (Some(t), None) => format!("sampling time {t} s, record 1 {none}"),
@@ -605,7 +605,7 @@ mod tests {
         let e = Dataset::join(&[ramp(0, 3, Some(0.1)), ramp(0, 3, None)]).unwrap_err();
         assert_eq!(
             e.to_string(),
-            "record 2: no sampling time (no time signal, no --ts), record 1 0.1 s"
+            "record 2: no sampling time (no time signal, none given), record 1 0.1 s"
         );
         // A step read from a text time column (50.01 - 50.0) is the same.
         let rounded = Dataset::join(&[ramp(0, 3, Some(0.01)), ramp(0, 3, Some(50.01 - 50.0))]);

@@ -323,7 +323,7 @@ pub enum InvalidModel {
     #[error("mode name '{0}' appears twice")]
     DuplicateMode(String),
     /// A mode name that is empty or blank.
-    #[error("mode {}: an empty name (leave the name out to call it 'mode {}')", .mode + 1, .mode + 1)]
+    #[error("mode {}: an empty name (give it one; a PWARX mode may leave it out)", .mode + 1)]
     EmptyModeName {
         /// Mode index (from 0; shown from 1).
         mode: usize,
@@ -892,6 +892,12 @@ mod tests {
             ..q
         });
         assert_eq!(a.validate(), Err(InvalidModel::DuplicateMode("m7".into())));
+        let last = a.modes.len() - 1;
+        a.modes[last].name = " ".into();
+        assert_eq!(
+            a.validate(),
+            Err(InvalidModel::EmptyModeName { mode: last })
+        );
     }
 
     #[test]

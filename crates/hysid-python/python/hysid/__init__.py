@@ -252,5 +252,7 @@ def identify(
 def compare(experiment: Union[str, os.PathLike], out_dir: Union[str, os.PathLike]) -> Dict[str, Any]:
     """Runs an experiment file (TOML, as ``hysid compare``), writes
     ``report.md``, ``report.json``, the figures and the models into
-    ``out_dir``, and returns the report as a dictionary."""
+    ``out_dir``, and returns the report as a dictionary. In a folder that
+    holds an earlier report, that report's models and figures the new one
+    does not write are removed."""
     return _hysid.compare(os.fspath(experiment), os.fspath(out_dir))

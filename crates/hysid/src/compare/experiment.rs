@@ -707,22 +707,25 @@ impl Experiment {
         (self.runs.iter().map(|r| (r, "run"))).chain(self.sweeps.iter().map(|s| (&s.run, "sweep")))
     }
 
-    /// Every entry's name once, and a file name of its own: a run's name
-    /// gives the files of its results, a sweep's its figure.
+    /// Every entry's name once, with a letter or a digit, and every
+    /// sweep's figure a file name of its own (case aside); the runs' files
+    /// are checked with their seeds and sweep points ([`Experiment::jobs`]).
     fn check_names(&self) -> Result<(), InconsistentExperiment> {
         use InconsistentExperiment as E;
         let mut names = HashSet::new();
-        let mut files: HashMap<(&str, String), &str> = HashMap::new();
+        let mut figures: HashMap<String, &str> = HashMap::new();
         for (r, what) in self.entries() {
             let name = || r.name.clone();
             if !names.insert(r.name.as_str()) {
                 return Err(E::DuplicateName { what, name: name() });
             }
-            let file = slug(&r.name);
-            if file.is_empty() {
+            if !r.name.chars().any(|c| c.is_ascii_alphanumeric()) {
                 return Err(E::NoFileName { what, name: name() });
             }
-            if let Some(other) = files.insert((what, file.clone()), &r.name) {
+            let file = file_name(&r.name);
+            if what == "sweep"
+                && let Some(other) = figures.insert(file.clone(), &r.name)
+            {
                 return Err(E::SameFileName {
                     what,
                     name: name(),
@@ -781,59 +784,7 @@ impl Experiment {
             }
         }
         for s in &self.sweeps {
-            let name = || s.run.name.clone();
-            if s.run.auto || !s.run.seeds.is_empty() {
-                return Err(E::SweepOfRuns(name()));
-            }
-            let space = s.space();
-            if space.axes.is_empty() {
-                return Err(E::NoAxis(name()));
-            }
-            if s.vary.is_none() && !s.values.is_empty() {
-                return Err(E::ValuesWithoutVary(name()));
-            }
-            if let Some(axis) = space.axes.iter().find(|a| a.values.is_empty()) {
-                return Err(E::NoValues {
-                    name: name(),
-                    key: axis.key.clone(),
-                });
-            }
-            let keys: Vec<&str> = space.axes.iter().map(|a| a.key.as_str()).collect();
-            if let Some(key) = first_repeated(&keys) {
-                return Err(E::SweptTwice {
-                    name: name(),
-                    key: key.to_string(),
-                });
-            }
-            let r = &s.run;
-            let fixed = |key: &str| match key {
-                "na" => r.na.is_some(),
-                "nb" => r.nb.is_some(),
-                "modes" => r.modes.is_some(),
-                key => r.set.contains_key(key),
-            };
-            if let Some(key) = keys.iter().find(|k| fixed(k)) {
-                let given = if r.set.contains_key(*key) {
-                    format!("set = {{ {key} = ... }}")
-                } else {
-                    format!("{key} = ...")
-                };
-                return Err(E::SweptAndFixed {
-                    name: name(),
-                    key: key.to_string(),
-                    given,
-                });
-            }
-            for axis in &space.axes {
-                if let Some(value) = first_repeated(&axis.values) {
-                    return Err(E::Repeated {
-                        what: "sweep",
-                        name: name(),
-                        key: axis.key.clone(),
-                        value: value.clone(),
-                    });
-                }
-            }
+            check_sweep(s)?;
         }
         // Counted before any is made: a sweep's points are the product of
         // its axes' lengths.
@@ -983,6 +934,75 @@ pub fn slug(name: &str) -> String {
         })
         .collect();
     s.trim_matches('_').to_string()
+}
+
+/// A sweep's own consistency: what it varies, each key once and not also
+/// fixed by its run, each value once; no `auto` or `seeds`.
+fn check_sweep(s: &SweepSpec) -> Result<(), InconsistentExperiment> {
+    use InconsistentExperiment as E;
+    let name = || s.run.name.clone();
+    if s.run.auto || !s.run.seeds.is_empty() {
+        return Err(E::SweepOfRuns(name()));
+    }
+    let space = s.space();
+    if space.axes.is_empty() {
+        return Err(E::NoAxis(name()));
+    }
+    if s.vary.is_none() && !s.values.is_empty() {
+        return Err(E::ValuesWithoutVary(name()));
+    }
+    if let Some(axis) = space.axes.iter().find(|a| a.values.is_empty()) {
+        return Err(E::NoValues {
+            name: name(),
+            key: axis.key.clone(),
+        });
+    }
+    let keys: Vec<&str> = space.axes.iter().map(|a| a.key.as_str()).collect();
+    if let Some(key) = first_repeated(&keys) {
+        return Err(E::SweptTwice {
+            name: name(),
+            key: key.to_string(),
+        });
+    }
+    let r = &s.run;
+    let fixed = |key: &str| match key {
+        "na" => r.na.is_some(),
+        "nb" => r.nb.is_some(),
+        "modes" => r
+            .modes
+            .or(r.priors.as_ref().and_then(|p| p.modes))
+            .is_some(),
+        key => r.set.contains_key(key),
+    };
+    if let Some(key) = keys.iter().find(|k| fixed(k)) {
+        let given = if r.set.contains_key(*key) {
+            format!("set = {{ {key} = ... }}")
+        } else {
+            format!("{key} = ...")
+        };
+        return Err(E::SweptAndFixed {
+            name: name(),
+            key: key.to_string(),
+            given,
+        });
+    }
+    for axis in &space.axes {
+        if let Some(value) = first_repeated(&axis.values) {
+            return Err(E::Repeated {
+                what: "sweep",
+                name: name(),
+                key: axis.key.clone(),
+                value: value.clone(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The file name of `name`'s results as two names compare on any file
+/// system: [`slug`], case aside.
+pub fn file_name(name: &str) -> String {
+    slug(name).to_lowercase()
 }
 
 /// `seeds`, not empty: `seeds = []` runs nothing it names.

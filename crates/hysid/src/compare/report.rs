@@ -45,8 +45,11 @@ pub fn check_report_folder(dir: &Path) -> Result<(), ReportFolderError> {
 }
 
 /// Writes the report and the models into `dir` (created if needed); every
-/// file is written atomically. Returns the paths written.
+/// file is written atomically, and in a folder that held an earlier
+/// report, its models and figures that this one does not write are
+/// removed. Returns the paths written.
 pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::path::PathBuf>> {
+    let earlier = dir.join("report.json").is_file();
     std::fs::create_dir_all(dir.join("models"))?;
     let mut written = Vec::new();
     for r in &mut c.results {
@@ -68,14 +71,17 @@ pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::
     let p = dir.join("report.md");
     hysid_io::write(&p, markdown(c).as_bytes())?;
     written.push(p);
-    remove_stale(dir, &written)?;
+    if earlier {
+        remove_stale(dir, &written)?;
+    }
     Ok(written)
 }
 
-/// Removes the models and figures of an earlier report in `dir` that this
-/// one did not write (`written`): a report folder holds one report, so no
-/// model sits beside a report that does not list it. Only files of the
-/// kinds a report writes, in `models/` and `plots/`, are touched.
+/// Removes the models and figures of an earlier report in `dir` (a folder
+/// that held a `report.json`) that this one did not write (`written`): a
+/// report folder holds one report, so no model sits beside a report that
+/// does not list it. Only files of the kinds a report writes, in `models/`
+/// and `plots/`, are touched.
 fn remove_stale(dir: &Path, written: &[std::path::PathBuf]) -> std::io::Result<()> {
     for (folder, kinds) in [("models", &["json"][..]), ("plots", &["svg", "png"][..])] {
         let Ok(entries) = std::fs::read_dir(dir.join(folder)) else {
