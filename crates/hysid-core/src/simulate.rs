@@ -119,6 +119,38 @@ pub fn initial_states(model: &Model, data: &Dataset) -> Result<BTreeMap<String, 
     }
 }
 
+/// Simulated samples whose regressor (or state) lay outside every region
+/// (or invariant) of the model, which then took the mode of least
+/// violation ([`Simulation::covered`]): the sign of a model with holes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OutsideRegions {
+    /// Samples outside.
+    pub outside: usize,
+    /// Samples simulated.
+    pub simulated: usize,
+}
+
+impl OutsideRegions {
+    /// The samples of `sim` outside every region; `None` when there are
+    /// none.
+    pub fn of(sim: &Simulation) -> Option<Self> {
+        let simulated = sim.covered.len().saturating_sub(sim.start);
+        let outside = sim.covered.iter().skip(sim.start).filter(|c| !**c).count();
+        (outside > 0).then_some(Self { outside, simulated })
+    }
+}
+
+impl std::fmt::Display for OutsideRegions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} of {} simulated samples lie outside every region (or invariant); each took the \
+             mode of least violation",
+            self.outside, self.simulated
+        )
+    }
+}
+
 /// The record's and the model's sampling times, where `model` is a
 /// discrete-time model (PWARX, hybrid automaton: its lags are samples)
 /// identified at another sampling time than `data`'s

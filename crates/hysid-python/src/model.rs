@@ -65,6 +65,25 @@ fn inequalities<'py>(py: Python<'py>, p: &Polyhedron, dim: usize) -> Inequalitie
     (a.into_pyarray(py), PyArray1::from_vec(py, b))
 }
 
+/// A Python warning when the discrete-time `model` meets a record of
+/// another sampling time ([`simulate::sampling_time_mismatch`]).
+fn warn_sampling_time(
+    py: Python<'_>,
+    model: &AnyModel,
+    data: &hysid_model::data::Dataset,
+) -> PyResult<()> {
+    match simulate::sampling_time_mismatch(model, data) {
+        Some((record, own)) => crate::warn(
+            py,
+            &format!(
+                "the record's sampling time {record} s differs from the {own} s the model was \
+                 identified at: its lags mean other times (decimate or ts left out?)"
+            ),
+        ),
+        None => Ok(()),
+    }
+}
+
 /// A `RuntimeWarning` when the simulation diverged.
 fn warn_divergence(py: Python<'_>, sim: &Simulation) -> PyResult<()> {
     if let Some(k) = sim.diverged_at {
@@ -257,10 +276,14 @@ impl Model {
             y[..given.len()].copy_from_slice(&given.iter().copied().collect::<Vec<_>>());
         }
         let data = self.record(u, y, ts)?;
+        warn_sampling_time(py, &self.inner, &data)?;
         let sim = py
             .detach(|| simulate::simulate(&self.inner, &data, SimulationOptions::default()))
             .map_err(Failure::from)?;
         warn_divergence(py, &sim)?;
+        if let Some(outside) = simulate::OutsideRegions::of(&sim) {
+            crate::warn(py, &outside.to_string())?;
+        }
         Ok((
             record::vector(py, sim.y.clone()),
             record::modes(py, &sim.modes),
@@ -319,15 +342,7 @@ impl Model {
                 .into());
             }
         }
-        if let Some((record, own)) = simulate::sampling_time_mismatch(&self.inner, &data) {
-            crate::warn(
-                py,
-                &format!(
-                    "the record's sampling time {record} s differs from the {own} s the model was \
-                     identified at: its lags mean other times (decimate or ts left out?)"
-                ),
-            )?;
-        }
+        warn_sampling_time(py, &self.inner, &data)?;
         let (report, sim, _) = py
             .detach(|| simulate::validate(&self.inner, &data, warmup))
             .map_err(Failure::from)?;

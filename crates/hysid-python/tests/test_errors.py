@@ -269,10 +269,25 @@ def test_the_model_s_methods_name_their_arguments():
     assert raised(model.simulate, U, ts=-1.0).startswith("sampling time must be")
 
 
-def test_validate_warns_of_another_sampling_time():
+def test_validate_and_simulate_warn_of_another_sampling_time():
     model = hysid.identify(U, Y, method="arx", ts=0.01)
     with pytest.warns(UserWarning, match="sampling time 0.001 s differs from the 0.01 s"):
         model.validate(U, Y, ts=0.001)
+    with pytest.warns(UserWarning, match="sampling time 0.001 s differs from the 0.01 s"):
+        model.simulate(U, ts=0.001)
+
+
+def test_simulate_counts_the_samples_outside_every_region():
+    holed = hysid.Model.from_json("""{
+      "kind": "pwarx", "na": 1, "nb": 1, "inputs": 1,
+      "modes": [
+        {"theta": [0.5, 1.0, 0.0], "region": {"a": [[1.0, 0.0]], "b": [0.0]}},
+        {"theta": [0.5, 1.0, 0.0], "region": {"a": [[-1.0, 0.0]], "b": [-1.0]}}
+      ]
+    }""")
+    u = np.sin(np.arange(200) / 5.0)
+    with pytest.warns(UserWarning, match=r"\d+ of 199 simulated samples lie outside every region"):
+        holed.simulate(u)
 
 
 @pytest.mark.parametrize(

@@ -114,13 +114,8 @@ pub fn run(args: Args) -> Result<()> {
             super::states_text(&states)
         );
     }
-    let simulated = sim.covered.len().saturating_sub(sim.start);
-    let outside = sim.covered.iter().skip(sim.start).filter(|c| !**c).count();
-    if outside > 0 {
-        eprintln!(
-            "hysid: warning: {outside} of {simulated} simulated samples lie outside every region \
-             (or invariant); each took the mode of least violation"
-        );
+    if let Some(outside) = hysid_core::simulate::OutsideRegions::of(&sim) {
+        eprintln!("hysid: warning: {outside}");
     }
     if let Some(k) = sim.diverged_at {
         eprintln!(
