@@ -111,7 +111,7 @@ pub fn solve(
         Objective::FewestModes { max_modes, .. } => max_modes,
     };
     let mut p = Problem::new(OptimizationDirection::Minimize);
-    let z = parameter_variables(&mut p, par, limits.theta_max)?;
+    let z = parameter_variables(&mut p, par, limits.theta_max);
     let magnitude = parameter_magnitudes(par, modes, limits.theta_max);
     let used: Vec<Variable> = match objective {
         Objective::FewestModes { .. } => (0..modes).map(|_| p.add_binary_var(1.0)).collect(),
@@ -242,11 +242,12 @@ fn parameter_variables(
     p: &mut Problem,
     par: &Parametrisation,
     theta_max: f64,
-) -> Result<Vec<Variable>, ProgramError> {
+) -> Vec<Variable> {
     let mut z = Vec::with_capacity(par.n_free());
     for v in 0..par.n_free() {
         let (lo, hi) = par.free_bounds(v);
-        // A bound outside the box is refused before the program is built.
+        // `fit` refuses a bound outside the box first; here it would leave
+        // the variable an empty range, which microlp answers as infeasible.
         let (lo, hi) = (lo.max(-theta_max), hi.min(theta_max));
         z.push(p.add_var(0.0, (lo, hi)));
     }
@@ -261,7 +262,7 @@ fn parameter_variables(
             p.add_constraint(row, ComparisonOp::Eq, z0[v]);
         }
     }
-    Ok(z)
+    z
 }
 
 /// `|theta_ij|` at most, per mode and parameter: the fixed value, or the
