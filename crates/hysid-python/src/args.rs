@@ -12,36 +12,30 @@ fn shown(obj: &Bound<'_, PyAny>) -> String {
     obj.repr().map(|r| r.to_string()).unwrap_or_default()
 }
 
+/// Argument `name` as a `T`, refused unless Python gives one (a bool is
+/// refused: Python would read it as 0 or 1) with "must be `what`".
+fn extracted<'py, T: for<'a> FromPyObject<'a, 'py>>(
+    name: &str,
+    obj: &Bound<'py, PyAny>,
+    what: &str,
+) -> Result<T, Failure> {
+    let refused = || Failure::input(format!("{name}={}: must be {what}", shown(obj)));
+    if obj.is_instance_of::<PyBool>() {
+        return Err(refused());
+    }
+    obj.extract::<T>().map_err(|_| refused())
+}
+
 /// Argument `name` as a count: a whole number from 0 to 2**64 - 1 (a
 /// Python or numpy integer, not a bool), as the package's functions check
 /// theirs.
 pub fn count(name: &str, obj: &Bound<'_, PyAny>) -> Result<usize, Failure> {
-    let refused = || {
-        Failure::input(format!(
-            "{name}={}: must be a whole number >= 0 and < 2**64",
-            shown(obj)
-        ))
-    };
-    if obj.is_instance_of::<PyBool>() {
-        return Err(refused());
-    }
-    obj.extract::<usize>().map_err(|_| refused())
+    extracted(name, obj, "a whole number >= 0 and < 2**64")
 }
 
 /// Argument `name`, when given, as a number of seconds (positivity and
 /// finiteness are the record's checks).
 pub fn seconds(name: &str, obj: Option<&Bound<'_, PyAny>>) -> Result<Option<f64>, Failure> {
-    let Some(obj) = obj else {
-        return Ok(None);
-    };
-    let refused = || {
-        Failure::input(format!(
-            "{name}={}: must be a number of seconds",
-            shown(obj)
-        ))
-    };
-    if obj.is_instance_of::<PyBool>() {
-        return Err(refused());
-    }
-    obj.extract::<f64>().map(Some).map_err(|_| refused())
+    obj.map(|obj| extracted(name, obj, "a number of seconds"))
+        .transpose()
 }
