@@ -1036,68 +1036,44 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
     let dir = tempfile::tempdir().unwrap();
     let data = arx_record(dir.path());
     let rows = ["--identify-rows", "0..300", "--select-rows", "300.."];
-    let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", "bogus=1,2"];
-    args.extend(rows);
-    let err = one_line_error(&hysid(&args), 2).unwrap();
+    // `sweep DATA -m arx` over the rows with `extra`, refused: its message.
+    let refused = |extra: &[&str]| {
+        let mut args = vec!["sweep", s(&data), "-m", "arx"];
+        args.extend(extra);
+        args.extend(rows);
+        one_line_error(&hysid(&args), 2).unwrap()
+    };
+    let err = refused(&["--grid", "bogus=1,2"]);
     assert!(
         err.contains("--grid bogus: method 'arx' has no such option (options: ridge"),
         "{err}"
     );
     assert!(err.contains("preset; or modes, na, nb)"), "{err}");
-    // A value the back-end refuses, or a count that is not one, is refused
-    // before any point runs, naming the flag.
-    for (grid, needle) in [
-        ("ridge=0,x", "--grid ridge=x"),
-        ("na=1,-2", "--grid na=-2: not a count"),
-        ("ridge=0,0", "--grid ridge=0: given twice"),
+    let prior = common::write(dir.path(), "p.toml", "[[tie]]\nparams = [\"a2\"]\n");
+    for (extra, needle) in [
+        // A value the back-end refuses, or a count that is not one, is
+        // refused before any point runs, naming the flag.
+        (&["--grid", "ridge=0,x"][..], "--grid ridge=x"),
+        (&["--grid", "na=1,-2"], "--grid na=-2: not a count"),
+        (&["--grid", "ridge=0,0"], "--grid ridge=0: given twice"),
+        // A swept option that a flag fixes too.
+        (
+            &["--grid", "ridge=0,1", "--set", "ridge=2"],
+            "--grid ridge: also fixed by --set ridge=2",
+        ),
+        // A prior the back-end cannot take at some point, named by its file.
+        (
+            &["--grid", "na=1,2", "--prior", s(&prior)],
+            "p.toml: [[tie]] params: unknown name 'a2'",
+        ),
     ] {
-        let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", grid];
-        args.extend(rows);
-        let err = one_line_error(&hysid(&args), 2).unwrap();
-        assert!(err.contains(needle), "{grid}: {err}");
+        let err = refused(extra);
+        assert!(err.contains(needle), "{extra:?}: {err}");
     }
     // A signal the record lacks is named by the file (a sweep has no [data]).
-    let mut args = vec![
-        "sweep",
-        s(&data),
-        "-m",
-        "arx",
-        "--grid",
-        "na=1,2",
-        "--output",
-        "yy",
-    ];
-    args.extend(rows);
-    let err = one_line_error(&hysid(&args), 2).unwrap();
+    let err = refused(&["--grid", "na=1,2", "--output", "yy"]);
     assert!(
         err.contains("data.csv: no column 'yy'") && !err.contains("[data]"),
-        "{err}"
-    );
-    // A swept option that a flag fixes too.
-    let mut args = vec![
-        "sweep",
-        s(&data),
-        "-m",
-        "arx",
-        "--grid",
-        "ridge=0,1",
-        "--set",
-        "ridge=2",
-    ];
-    args.extend(rows);
-    let err = one_line_error(&hysid(&args), 2).unwrap();
-    assert!(
-        err.contains("--grid ridge: also fixed by --set ridge=2"),
-        "{err}"
-    );
-    // A prior the back-end cannot take at some point, named by its file.
-    let prior = common::write(dir.path(), "p.toml", "[[tie]]\nparams = [\"a2\"]\n");
-    let mut args = vec!["sweep", s(&data), "-m", "arx", "--grid", "na=1,2"];
-    args.extend(rows);
-    args.extend(["--prior", s(&prior)]);
-    let err = one_line_error(&hysid(&args), 2).unwrap();
-    assert!(
-        err.contains("p.toml: [[tie]] params: unknown name 'a2'"),
         "{err}"
     );
     // The figure is drawn against the first --grid key.
