@@ -238,11 +238,7 @@ fn start_residual(reg: &Regressors, k: usize, theta: &[f64]) -> f64 {
 
 /// The free parameters `z`, boxed by their prior bounds and `theta_max`,
 /// tied to `z0 + N w` when there are equalities.
-fn parameter_variables(
-    p: &mut Problem,
-    par: &Parametrisation,
-    theta_max: f64,
-) -> Vec<Variable> {
+fn parameter_variables(p: &mut Problem, par: &Parametrisation, theta_max: f64) -> Vec<Variable> {
     let mut z = Vec::with_capacity(par.n_free());
     for v in 0..par.n_free() {
         let (lo, hi) = par.free_bounds(v);
