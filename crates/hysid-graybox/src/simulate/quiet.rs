@@ -67,7 +67,8 @@ impl Machine<'_> {
             Ok(taken) => taken,
             Err(surfaces) => {
                 let apply = |x: &Vec<f64>, out: &mut Vec<f64>| step.apply(x, u, out);
-                lane.run(apply, &mut hs.x, x1, n_sub, surfaces)
+                let ended = |x: &Vec<f64>| watched_event(watch, |s| x[s]);
+                lane.run(apply, ended, &mut hs.x, x1, n_sub, surfaces)
             }
         };
         self.g.stepped(taken);
@@ -154,21 +155,26 @@ type SurfacePair<'s> = (&'s mut [f64], &'s mut [f64]);
 
 impl Lane<'_> {
     /// [`Lane::run`] on `N` states and `M` inputs held in arrays
-    /// ([`hysid_numerics::affine_rk4::FixedStep`]); the surfaces back
-    /// when the step has other sizes.
+    /// ([`hysid_numerics::affine_rk4::FixedStep`]), the watched ends as
+    /// [`Levels`]; the surfaces back when the step or the ends do not fit.
     fn on_arrays<'s, const N: usize, const M: usize>(
         &self,
         x: &mut [f64],
         n_sub: usize,
         surfaces: SurfacePair<'s>,
     ) -> Result<usize, SurfacePair<'s>> {
-        let (Some(step), Ok(u)) = (self.step.fixed::<N, M>(), <[f64; M]>::try_from(self.u)) else {
+        let (Some(step), Ok(u), Some(levels)) = (
+            self.step.fixed::<N, M>(),
+            <[f64; M]>::try_from(self.u),
+            Levels::<N>::of(self.watch),
+        ) else {
             return Err(surfaces);
         };
         let mut at = [0.0; N];
         at.copy_from_slice(x);
         let apply = |x: &[f64; N], out: &mut [f64; N]| *out = step.apply(x, &u);
-        let taken = self.run(apply, &mut at, &mut [0.0; N], n_sub, surfaces);
+        let ended = |x: &[f64; N]| levels.reached(x);
+        let taken = self.run(apply, ended, &mut at, &mut [0.0; N], n_sub, surfaces);
         x.copy_from_slice(&at);
         Ok(taken)
     }
@@ -181,6 +187,7 @@ impl Lane<'_> {
     fn run<X: LaneState>(
         &self,
         apply: impl Fn(&X, &mut X),
+        ended: impl Fn(&X) -> bool,
         x: &mut X,
         x1: &mut X,
         n_sub: usize,
@@ -189,10 +196,10 @@ impl Lane<'_> {
         let n = x.as_ref().len();
         for taken in 0..n_sub {
             apply(x, x1);
-            let at = |s| x1.at(s);
-            if watched_event(self.watch, at) {
+            if ended(x1) {
                 return taken;
             }
+            let at = |s| x1.at(s);
             for (((c, row), g0), g1) in self.guards.iter().zip(&*start).zip(end.iter_mut()) {
                 *g1 = row.eval_by(n, at, self.u);
                 if crossed(*c, *g0, *g1) {
@@ -203,6 +210,52 @@ impl Lane<'_> {
             std::mem::swap(&mut start, &mut end);
         }
         n_sub
+    }
+}
+
+/// A regime's watched ends on `N` states held in an array, as levels per
+/// state: it ends where `x[s] >= above[s]` or `x[s] <= below[s]` (NaN: no
+/// such end). The same test as [`watched_event`] on the list: with a sign
+/// of one, `sign * (x - level) >= 0` is `x >= level` (a difference of
+/// finite numbers is zero only where they are equal), and two ends on one
+/// side of one state are the nearer level's.
+struct Levels<const N: usize> {
+    above: [f64; N],
+    below: [f64; N],
+}
+
+impl<const N: usize> Levels<N> {
+    /// The levels of `watch`, or `None` where an end's sign is not one,
+    /// its level not finite or its state not among the `N`.
+    fn of(watch: &[StateEnd]) -> Option<Self> {
+        let mut levels = Levels {
+            above: [f64::NAN; N],
+            below: [f64::NAN; N],
+        };
+        for end in watch {
+            if !end.level.is_finite() || end.state >= N {
+                return None;
+            }
+            // `min` and `max` take the level over a NaN.
+            if end.sign == 1.0 {
+                levels.above[end.state] = levels.above[end.state].min(end.level);
+            } else if end.sign == -1.0 {
+                levels.below[end.state] = levels.below[end.state].max(end.level);
+            } else {
+                return None;
+            }
+        }
+        Some(levels)
+    }
+
+    /// Whether `x` meets one of the ends.
+    #[inline(always)]
+    fn reached(&self, x: &[f64; N]) -> bool {
+        let mut hit = false;
+        for ((v, above), below) in x.iter().zip(&self.above).zip(&self.below) {
+            hit |= (*v >= *above) | (*v <= *below);
+        }
+        hit
     }
 }
 
@@ -246,7 +299,8 @@ fn watched_event(watch: &[StateEnd], x: impl Fn(usize) -> f64 + Copy) -> bool {
 mod tests {
     use crate::CompiledModel;
     use crate::simulate::linear::tests::{head, head_record, model_files, run_with};
-    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, span};
+    use crate::simulate::quiet::{Levels, watched_event};
+    use crate::simulate::{GrayBoxRun, Kept, Machine, Schedule, StateEnd, span};
     use hysid_model::data::Dataset;
     use proptest::prelude::*;
 
@@ -323,6 +377,36 @@ mod tests {
             }
         }
         assert!(files.len() >= 30, "{} files", files.len());
+    }
+
+    /// A value drawn near the levels of [`ends`], often exactly on one.
+    fn near_levels() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            prop::sample::select(vec![-1.0, 0.0, -0.0, 0.5, 1.0]),
+            -2.0f64..2.0,
+        ]
+    }
+
+    /// Up to four ends on two states, either sign, at levels [`near_levels`].
+    fn ends() -> impl Strategy<Value = Vec<StateEnd>> {
+        let end =
+            (0usize..2, prop::bool::ANY, near_levels()).prop_map(|(state, up, level)| StateEnd {
+                state,
+                sign: if up { 1.0 } else { -1.0 },
+                level,
+            });
+        prop::collection::vec(end, 0..5)
+    }
+
+    proptest! {
+        /// The levels per state meet an end exactly where the list does,
+        /// on a level and between two levels of one side alike.
+        #[test]
+        fn the_levels_are_the_watch_list(watch in ends(), x0 in near_levels(), x1 in near_levels()) {
+            let levels = Levels::<2>::of(&watch).unwrap();
+            let x = [x0, x1];
+            prop_assert_eq!(levels.reached(&x), watched_event(&watch, |s| x[s]));
+        }
     }
 
     proptest! {
