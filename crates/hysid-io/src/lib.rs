@@ -17,7 +17,7 @@ pub use table::{STEP_TOLERANCE, TimeStepError, sampling_time};
 
 use hysid_core::model::{Model, ModelError};
 use hysid_model::data::{DataError, DataSelection, Dataset};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use table::{select, wanted_names};
 
 /// Writes `model` atomically (temporary file then rename): TOML to a
@@ -61,15 +61,19 @@ pub struct RecordError {
     pub source: DataError,
 }
 
+/// What names the file at `path` whichever way it is written: its
+/// canonical path where it exists (`data.csv`, `./data.csv` and
+/// `dir/../data.csv` alike), else the path as given.
+pub fn file_identity(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
 /// [`load_records`], its error with the record at fault, for a caller
 /// that names records otherwise than by their file (several records of
 /// one file).
 pub fn load_each(records: &[(&Path, DataSelection)]) -> Result<Dataset, RecordError> {
-    // The same file (by its canonical path, where it exists) with the same
-    // selection is one record counted twice.
-    let files: Vec<_> = (records.iter())
-        .map(|(p, _)| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()))
-        .collect();
+    // The same file with the same selection is one record counted twice.
+    let files: Vec<_> = records.iter().map(|(p, _)| file_identity(p)).collect();
     for (i, (path, sel)) in records.iter().enumerate() {
         let same = |j: &usize| records[*j].1 == *sel && files[*j] == files[i];
         if let Some(first) = (0..i).find(same) {

@@ -886,12 +886,16 @@ impl Experiment {
     pub fn warnings(&self) -> Vec<ExperimentWarning> {
         let d = &self.data;
         // Each entry: its file, its signals and its rows.
-        let own = (DataEntry::Main, &d.file, d.selection(RowRange::default()));
+        let own = (
+            DataEntry::Main,
+            hysid_io::file_identity(&d.file),
+            d.selection(RowRange::default()),
+        );
         let entries: Vec<_> = std::iter::once((own, Some(d.identification), Some(d.validation)))
             .chain(d.records.iter().enumerate().map(|(i, r)| {
                 let at = (
                     DataEntry::Record(i + 1),
-                    &r.file,
+                    hysid_io::file_identity(&r.file),
                     d.record_selection(r, RowRange::default()),
                 );
                 (at, r.identification, r.validation)
@@ -1104,6 +1108,31 @@ mod tests {
         let w = warned("0..100", "100..", &record("0..10", "5.."));
         assert_eq!(w.len(), 1);
         assert!(w[0].starts_with("[[data.records]] #1: "), "{}", w[0]);
+    }
+
+    /// A record that names the main file by another path (`./d.csv`,
+    /// `sub/../d.csv`) is the same file: its identification rows overlap
+    /// the main entry's validation rows; another file's do not.
+    #[test]
+    fn one_file_written_two_ways_is_one_file() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
+        for name in ["d.csv", "e.csv"] {
+            std::fs::write(dir.path().join(name), "t,u,y\n0,0,0\n").unwrap();
+        }
+        let warnings = |file: &str| {
+            let text = format!(
+                "title = \"t\"\n[data]\nfile = \"d.csv\"\nidentification = \"0..100\"\n\
+                 validation = \"100..\"\n[[data.records]]\nfile = \"{file}\"\n\
+                 identification = \"100..200\"\n[[run]]\nname = \"a\"\nmethod = \"arx\"\n"
+            );
+            let path = dir.path().join("x.toml");
+            std::fs::write(&path, text).unwrap();
+            Experiment::load(&path).unwrap().warnings().len()
+        };
+        assert_eq!(warnings("./d.csv"), 1);
+        assert_eq!(warnings("sub/../d.csv"), 1);
+        assert_eq!(warnings("e.csv"), 0);
     }
 
     #[test]
