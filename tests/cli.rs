@@ -94,6 +94,23 @@ fn methods_lists_arx_with_its_options() {
     );
     let json: serde_json::Value = serde_json::from_str(&ok(&["methods", "--json"])).unwrap();
     assert_eq!(json[0]["name"], "arx");
+    // With a name, that back-end's object; an unknown one is refused.
+    let one: serde_json::Value =
+        serde_json::from_str(&ok(&["methods", "cluster", "--json"])).unwrap();
+    assert_eq!(one["name"], "cluster");
+    assert_eq!(one, json[1]);
+    assert_eq!(
+        hysid(&["methods", "nosuch", "--json"]).status.code(),
+        Some(2)
+    );
+    // No command: the help with the list of commands, a usage error.
+    let none = hysid(&[]);
+    let err = String::from_utf8_lossy(&none.stderr);
+    assert_eq!(none.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("Commands:") && err.contains("identify"),
+        "{err}"
+    );
     assert!(
         json[1]["search"]
             .as_str()

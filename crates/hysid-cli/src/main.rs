@@ -49,6 +49,12 @@ fn main() {
             let _ = e.print();
             std::process::exit(0);
         }
+        Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            // No command: the help, with its list of commands, on standard
+            // error; a usage error all the same.
+            let _ = e.print();
+            std::process::exit(2);
+        }
         Err(e) => {
             // Usage errors: one line, exit code 2. Clap's first paragraph
             // (up to the blank line before its usage text) is the message;

@@ -15,7 +15,8 @@ use hysid_model::data::same_sampling;
 use hysid_model::metrics::{fit, pooled_fit, rmse};
 use hysid_model::model::InitialState;
 use hysid_model::simulate::{
-    SimError, Simulation, SimulationOptions, automaton, per_record, pwarx,
+    SimError, Simulation, SimulationOptions, SimulationWarning, ZenoSteps, automaton, per_record,
+    pwarx,
 };
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -90,6 +91,9 @@ pub struct ValidationReport {
     pub coverage_sim: f64,
     /// Sample where the simulation diverged, if it did.
     pub diverged_at: Option<usize>,
+    /// The simulation's sub-steps that reached the Zeno bound, if any did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zeno: Option<ZenoSteps>,
     /// Scored samples per mode in the simulation (by mode index).
     pub mode_counts: Vec<usize>,
     /// The initial states the model leaves unknown, by name, as estimated
@@ -103,6 +107,14 @@ pub struct ValidationReport {
     /// Absent for one record.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub records: Vec<ValidationReport>,
+}
+
+impl ValidationReport {
+    /// What the user of this validation should be told about its
+    /// simulation ([`SimulationWarning`]).
+    pub fn warnings(&self) -> Vec<SimulationWarning> {
+        SimulationWarning::of(self.diverged_at, self.zeno)
+    }
 }
 
 /// The initial states `model` leaves unknown, by name, as its simulation
@@ -119,35 +131,53 @@ pub fn initial_states(model: &Model, data: &Dataset) -> Result<BTreeMap<String, 
     }
 }
 
-/// Simulated samples whose regressor (or state) lay outside every region
-/// (or invariant) of the model, which then took the mode of least
-/// violation ([`Simulation::covered`]): the sign of a model with holes.
+/// Simulated samples whose regressor (or state) lay outside the model's
+/// regions or invariants ([`Simulation::covered`]): the sign of a PWARX
+/// model or an automaton with holes (each such sample took the mode of
+/// least violation), or of a physical model whose guards let the state
+/// leave its mode's invariant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct OutsideRegions {
     /// Samples outside.
     pub outside: usize,
     /// Samples simulated.
     pub simulated: usize,
+    /// Whether the model's modes are chosen by regions or invariants
+    /// (PWARX, hybrid automaton), rather than followed by its transitions.
+    pub chosen: bool,
 }
 
 impl OutsideRegions {
-    /// The samples of `sim` outside every region; `None` when there are
-    /// none.
-    pub fn of(sim: &Simulation) -> Option<Self> {
+    /// The samples of `sim`, a run of `model`, outside; `None` when there
+    /// are none.
+    pub fn of(model: &Model, sim: &Simulation) -> Option<Self> {
         let simulated = sim.covered.len().saturating_sub(sim.start);
         let outside = sim.covered.iter().skip(sim.start).filter(|c| !**c).count();
-        (outside > 0).then_some(Self { outside, simulated })
+        let chosen = matches!(model, Model::Pwarx(_) | Model::HybridAutomaton(_));
+        (outside > 0).then_some(Self {
+            outside,
+            simulated,
+            chosen,
+        })
     }
 }
 
 impl std::fmt::Display for OutsideRegions {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "{} of {} simulated samples lie outside every region (or invariant); each took the \
-             mode of least violation",
-            self.outside, self.simulated
-        )
+        let (outside, simulated) = (self.outside, self.simulated);
+        if self.chosen {
+            write!(
+                f,
+                "{outside} of {simulated} simulated samples lie outside every region (or \
+                 invariant); each took the mode of least violation"
+            )
+        } else {
+            write!(
+                f,
+                "{outside} of {simulated} simulated samples lie outside their mode's invariant: \
+                 a guard that should have led out of the mode was not crossed"
+            )
+        }
     }
 }
 
@@ -224,6 +254,7 @@ pub fn validate(
         coverage: weighted(|p| p.coverage),
         coverage_sim: weighted(|p| p.coverage_sim),
         diverged_at: sim.diverged_at,
+        zeno: sim.zeno,
         mode_counts,
         initial_states: BTreeMap::new(),
         records: parts,
@@ -301,6 +332,7 @@ fn validate_record(
         coverage: frac(&pred),
         coverage_sim: frac(&sim),
         diverged_at: sim.diverged_at,
+        zeno: sim.zeno,
         mode_counts,
         initial_states: initial_states(model, data)?,
         records: Vec::new(),

@@ -71,6 +71,7 @@ fn to_simulation(r: simulate::GrayBoxRun, opts: SimulationOptions) -> Simulation
         start: r.start,
         covered: r.covered,
         diverged_at: None,
+        zeno: r.zeno,
     };
     for k in r.start..n {
         if !sim.push_checked(k, r.y[k], opts.bound) {

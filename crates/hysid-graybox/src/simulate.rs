@@ -34,7 +34,7 @@
 //! **Zeno bound**: at most [`MAX_EVENTS_PER_STEP`] events per sub-step.
 //! Beyond it, every stop that has been reached holds its position (the
 //! accumulation point of a bouncing contact), and the rest of the sub-step
-//! is integrated without events; [`GrayBoxRun::zeno_steps`] counts these.
+//! is integrated without events; [`GrayBoxRun::zeno`] counts these.
 //!
 //! A sample whose every state derivative is exactly zero (resting at a stop,
 //! stuck, at an equilibrium) is skipped: with the input held, nothing in it
@@ -63,7 +63,7 @@ use crate::compile::{CompiledElement, CompiledInitial, CompiledModel};
 use crate::expr::Crossing;
 use events::Surfaces;
 use hysid_model::data::Dataset;
-use hysid_model::simulate::{SimError, estimate_velocity};
+use hysid_model::simulate::{SimError, ZenoSteps, estimate_velocity};
 pub use hysid_numerics::event_location::LOCATE_RESOLUTION;
 pub use initial::{STEADY_ITERATIONS, STEADY_TOLERANCE};
 use initial::{carried, measured_state};
@@ -140,8 +140,8 @@ pub struct GrayBoxRun {
     pub steps: usize,
     /// Events handled.
     pub events: usize,
-    /// Sub-steps that reached [`MAX_EVENTS_PER_STEP`].
-    pub zeno_steps: usize,
+    /// The sub-steps that reached [`MAX_EVENTS_PER_STEP`], if any did.
+    pub zeno: Option<ZenoSteps>,
     /// The derivatives of the outputs and states in the parameters and the
     /// estimated initial states, when asked for
     /// ([`run_with_sensitivities`]).
@@ -174,7 +174,7 @@ impl GrayBoxRun {
             start,
             steps: 0,
             events: 0,
-            zeno_steps: 0,
+            zeno: None,
             sensitivities: None,
         }
     }
@@ -293,7 +293,7 @@ pub struct Machine<'a> {
     /// step and surface by the general loop, with the same results).
     pub(crate) shortcuts: bool,
     /// Whether a reset that leaves its target mode's invariant is an error
-    /// ([`SimError::ResetOutsideInvariant`]): a fault of the model in a run
+    /// ([`SimError::OutsideTargetInvariant`]): a fault of the model in a run
     /// from its own initial state. Off where every segment or sample
     /// restarts from measured states ([`segmented`], [`predict`]), which
     /// may lie outside every invariant: the transition is followed (and
@@ -305,7 +305,7 @@ pub struct Machine<'a> {
     pub(crate) events: usize,
     /// The trial steps of the events' location.
     pub(crate) locate_trials: usize,
-    pub(crate) zeno_steps: usize,
+    pub(crate) zeno: Option<ZenoSteps>,
     /// The sensitivities carried beside the state, when asked for (boxed:
     /// each step takes them out of the machine and puts them back).
     tangent: Option<Box<Tangent<'a>>>,
@@ -379,7 +379,7 @@ impl<'a> Machine<'a> {
             quiet_steps: 0,
             locate_trials: 0,
             events: 0,
-            zeno_steps: 0,
+            zeno: None,
             tangent: None,
         }
     }
@@ -511,7 +511,8 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
             if j > 0 {
                 machine.resettle(&mut hs, u);
                 let g_before = std::mem::take(&mut g_end);
-                machine.fire_across_jump(&mut hs, u, &g_before, k)?;
+                let before = (None, &pieces[j - 1].1[..]);
+                machine.fire_across_jump(&mut hs, u, &g_before, before, k)?;
             }
             machine.advance(&mut hs, u, (*duration, *n_sub), k, false)?;
             machine.surfaces_at_end(&hs, u, &mut g_end);
@@ -526,6 +527,6 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
     }
     out.steps = machine.steps;
     out.events = machine.events;
-    out.zeno_steps = machine.zeno_steps;
+    out.zeno = machine.zeno;
     Ok(out)
 }

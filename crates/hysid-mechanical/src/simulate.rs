@@ -617,6 +617,7 @@ pub fn simulate(
         start: r.start,
         covered: vec![true; n],
         diverged_at: None,
+        zeno: None,
     };
     for k in r.start..n {
         if !sim.push_checked(k, r.y[k], opts.bound) {
@@ -654,6 +655,7 @@ pub fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation, SimErr
         start: first + 1,
         covered: vec![true; n],
         diverged_at: None,
+        zeno: None,
     };
     let mut u = vec![0.0; m.inputs.len()];
     let mut integrator = Integrator::new(&r, ts, n_sub);

@@ -20,6 +20,7 @@ use hysid_core::backend::{IdentifyError, NoProgress, Progress, RunContext};
 use hysid_core::options::OptionError;
 use hysid_core::priors::Priors;
 use hysid_model::data::Dataset;
+use hysid_model::simulate::SimError;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -99,9 +100,13 @@ pub fn fit_model<M: Target>(
     let cost = kept.cost;
     let evaluations = evals.load(Ordering::Relaxed);
     if cost >= FAILED {
-        return Err(IdentifyError::failed(SearchFailure::EveryCandidateFailed {
-            evaluations,
-        }));
+        return Err(match nominal_failure(&model, &map, &records[0]) {
+            Some(source) => IdentifyError::input(PhysicalError::ModelFails {
+                file: options.model.clone(),
+                source,
+            }),
+            None => IdentifyError::failed(SearchFailure::EveryCandidateFailed { evaluations }),
+        });
     }
     let sens = sensitivity(
         &model,
@@ -158,6 +163,22 @@ pub fn fit_model<M: Target>(
 /// and, for the initial states it estimates, their starting guesses or,
 /// where lower in cost, the states each record's warm-up outputs give at
 /// those values ([`crate::target::Simulator::warmup_states`]).
+/// The fault of the model that fails its free run of `record` at the
+/// file's values ([`ParameterMap::base`]), if it does: an error of the
+/// model (a transition that leaves its target's invariant, an initial rule
+/// it cannot meet), not a run that merely diverges.
+fn nominal_failure<M: Target>(model: &M, map: &ParameterMap, record: &Dataset) -> Option<SimError> {
+    let own = map.base.get(..map.parameters + model.estimated_count())?;
+    match model.free_run(own, record) {
+        Err(
+            e @ (SimError::OutsideTargetInvariant { .. }
+            | SimError::InitialState(_)
+            | SimError::InvalidModel(_)),
+        ) => Some(e),
+        _ => None,
+    }
+}
+
 fn nominal_start(search: &Search<'_>) -> (Vec<f64>, f64) {
     let (map, records) = (search.objective.map, search.objective.records);
     let guesses = map.coords(&map.base);

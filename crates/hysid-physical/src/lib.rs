@@ -252,9 +252,23 @@ pub enum PhysicalError {
     },
     /// A record without sampling time.
     #[error(
-        "the physical method needs the sampling time: give a 't' signal, or the sampling time (--ts; in Python, ts=)"
+        "the physical method needs the sampling time: name the record's time column (--time NAME; \
+         't' when left out) or give the sampling time (--ts SECONDS; in Python, ts=)"
     )]
     NoSamplingTime,
+    /// No simulation of the search ran, and the model's own values fail on
+    /// the first record with a fault of the model (a transition into a
+    /// mode whose invariant it leaves, a rule it cannot meet).
+    #[error(
+        "{}the model fails on this record at its own values: {source}",
+        if file.is_empty() { String::new() } else { format!("{file}: ") }
+    )]
+    ModelFails {
+        /// The model file (`model`; empty for the built-in head).
+        file: String,
+        /// The fault.
+        source: hysid_model::simulate::SimError,
+    },
     /// Fewer samples than the free parameters and the initial state need.
     #[error(
         "{samples} samples for {params} free parameters and the initial state: need at least {needed}"

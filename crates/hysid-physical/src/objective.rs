@@ -26,7 +26,7 @@ pub fn free_run_residuals(
     records: &[Dataset],
 ) -> Option<Vec<f64>> {
     per_record(model, values, records, |values, data| {
-        let (start, y) = model.free_run(values, data)?;
+        let (start, y) = model.free_run(values, data).ok()?;
         Some(
             data.y()[start + 1..]
                 .iter()

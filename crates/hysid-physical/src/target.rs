@@ -16,8 +16,8 @@ use rayon::prelude::*;
 /// What the objective needs of a model: its simulations.
 pub trait Simulator: Sync {
     /// Free-run output with parameter values `values` and the first
-    /// simulated sample (`None` when the run fails).
-    fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)>;
+    /// simulated sample, or why the run failed.
+    fn free_run(&self, values: &[f64], data: &Dataset) -> Result<(usize, Vec<f64>), SimError>;
     /// Residuals `y(k+1) - yhat(k+1)` of the multiple-shooting run: segments
     /// of `segment` samples, each from the position measured at its start
     /// and the velocity [`segment_velocity`] with rest threshold
@@ -140,9 +140,9 @@ impl Target for MechanicalModel {
 }
 
 impl Simulator for MechanicalModel {
-    fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)> {
-        let r = mechanical::run(self, values, data).ok()?;
-        Some((r.start, r.y))
+    fn free_run(&self, values: &[f64], data: &Dataset) -> Result<(usize, Vec<f64>), SimError> {
+        let r = mechanical::run(self, values, data)?;
+        Ok((r.start, r.y))
     }
 
     fn segmented_residuals(
@@ -294,11 +294,10 @@ impl Simulator for GrayBoxTarget {
         hysid_graybox::simulate::estimate(&self.compiled, parameters, record).ok()
     }
 
-    fn free_run(&self, values: &[f64], data: &Dataset) -> Option<(usize, Vec<f64>)> {
+    fn free_run(&self, values: &[f64], data: &Dataset) -> Result<(usize, Vec<f64>), SimError> {
         let (values, initial) = self.split(values);
-        let r =
-            hysid_graybox::simulate::outputs_from(&self.compiled, values, initial, data).ok()?;
-        Some((r.start, r.y))
+        let r = hysid_graybox::simulate::outputs_from(&self.compiled, values, initial, data)?;
+        Ok((r.start, r.y))
     }
 
     fn exact_jacobian(&self) -> bool {

@@ -84,12 +84,11 @@ fn warn_sampling_time(
     }
 }
 
-/// A `RuntimeWarning` when the simulation diverged.
+/// A `RuntimeWarning` for each of the simulation's warnings (it diverged,
+/// it reached the Zeno bound).
 fn warn_divergence(py: Python<'_>, sim: &Simulation) -> PyResult<()> {
-    if let Some(k) = sim.diverged_at {
-        let text =
-            format!("the simulation diverged at sample {k}; the output is held from there on");
-        let text = CString::new(text).unwrap_or_default();
+    for warning in sim.warnings() {
+        let text = CString::new(warning.to_string()).unwrap_or_default();
         PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &text, 1)?;
     }
     Ok(())
@@ -281,7 +280,7 @@ impl Model {
             .detach(|| simulate::simulate(&self.inner, &data, SimulationOptions::default()))
             .map_err(Failure::from)?;
         warn_divergence(py, &sim)?;
-        if let Some(outside) = simulate::OutsideRegions::of(&sim) {
+        if let Some(outside) = simulate::OutsideRegions::of(&self.inner, &sim) {
             crate::warn(py, &outside.to_string())?;
         }
         Ok((

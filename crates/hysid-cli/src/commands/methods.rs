@@ -4,7 +4,7 @@
 //! the seed does. Lines are wrapped at [`WIDTH`] characters.
 
 use crate::error::{CliError, Result};
-use hysid_core::backend::Backend;
+use hysid_core::backend::{Backend, MethodDescription};
 
 /// The longest line printed.
 const WIDTH: usize = 120;
@@ -15,8 +15,9 @@ pub struct Args {
     /// One back-end in full: its options with their types, defaults and
     /// meanings, what --auto tries, what the seed does.
     pub name: Option<String>,
-    /// Print the list as JSON (name, summary, options, priors honoured,
-    /// what --auto tries, whether the seed can change the model).
+    /// Print as JSON (name, summary, options, priors honoured, what --auto
+    /// tries, whether the seed can change the model): the list, or NAME's
+    /// object.
     #[arg(long)]
     pub json: bool,
 }
@@ -24,18 +25,24 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let registry = hysid::registry();
-    if args.json {
-        let list = registry.describe();
-        println!("{}", serde_json::to_string_pretty(&list).expect("json"));
-        return Ok(());
-    }
-    if let Some(name) = &args.name {
-        let b = registry.get(name).ok_or_else(|| {
+    let one = match &args.name {
+        Some(name) => Some(registry.get(name).ok_or_else(|| {
             CliError::input(format!(
                 "methods {name}: unknown method (methods: {})",
                 registry.names().join(", ")
             ))
-        })?;
+        })?),
+        None => None,
+    };
+    if args.json {
+        let text = match one {
+            Some(b) => serde_json::to_string_pretty(&MethodDescription::of(b)),
+            None => serde_json::to_string_pretty(&registry.describe()),
+        };
+        println!("{}", text.expect("json"));
+        return Ok(());
+    }
+    if let Some(b) = one {
         print!("{}", in_full(b));
         return Ok(());
     }

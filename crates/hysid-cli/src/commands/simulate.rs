@@ -114,13 +114,11 @@ pub fn run(args: Args) -> Result<()> {
             super::states_text(&states)
         );
     }
-    if let Some(outside) = hysid_core::simulate::OutsideRegions::of(&sim) {
+    if let Some(outside) = hysid_core::simulate::OutsideRegions::of(&model, &sim) {
         eprintln!("hysid: warning: {outside}");
     }
-    if let Some(k) = sim.diverged_at {
-        eprintln!(
-            "hysid: warning: the simulation diverged at sample {k}; the output is held from there on"
-        );
+    for warning in sim.warnings() {
+        eprintln!("hysid: warning: {warning}");
     }
     let mut y = sim.y.clone();
     if args.noise > 0.0 {

@@ -75,10 +75,8 @@ pub fn run(args: Args) -> Result<()> {
         hysid::plot::simulation_plot(path, &figure)
             .map_err(|e| CliError::input(format!("--plot: {e}")))?;
     }
-    if let Some(k) = report.diverged_at {
-        eprintln!(
-            "hysid: warning: the simulation diverged at sample {k}; the output is held from there on"
-        );
+    for warning in report.warnings() {
+        eprintln!("hysid: warning: {warning}");
     }
     crate::affine::warn_if_below(
         &model,

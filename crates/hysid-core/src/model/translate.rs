@@ -475,7 +475,7 @@ mod tests {
             a.covered.iter().all(|c| *c),
             "a sample outside its mode's invariant"
         );
-        (worst, label, a.events, a.zeno_steps)
+        (worst, label, a.events, a.zeno.map_or(0, |z| z.steps))
     }
 
     #[test]

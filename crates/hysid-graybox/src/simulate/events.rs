@@ -8,7 +8,7 @@ use super::{
     crossed,
 };
 use crate::compile::{CompiledElement, CompiledMode};
-use hysid_model::simulate::SimError;
+use hysid_model::simulate::{SimError, ZenoSteps};
 
 /// The guard surfaces of `mode`'s transitions at `slots` into `out`.
 fn surfaces(mode: &CompiledMode, slots: &[f64], out: &mut Vec<f64>) {
@@ -315,7 +315,8 @@ impl Machine<'_> {
                 }
             },
             Event::Transition(j) => {
-                let t = &m.modes[hs.mode].transitions[j];
+                let from = hs.mode;
+                let t = &m.modes[from].transitions[j];
                 self.load(&hs.x, u);
                 let values: Vec<(usize, f64)> = t
                     .reset
@@ -327,17 +328,8 @@ impl Machine<'_> {
                     hs.x[s] = v;
                 }
                 hs.mode = t.to;
-                self.load(&hs.x, u);
-                if self.strict_resets
-                    && m.modes[hs.mode]
-                        .invariant
-                        .iter()
-                        .any(|r| r.margin(&self.slots) < -INVARIANT_TOLERANCE)
-                {
-                    return Err(SimError::ResetOutsideInvariant {
-                        transition: t.label.clone(),
-                        sample,
-                    });
+                if self.strict_resets {
+                    self.check_target(hs, u, (from, j), sample)?;
                 }
             }
         }
@@ -345,14 +337,20 @@ impl Machine<'_> {
     }
 
     /// Fires the transitions whose guards a jump crossed (`g_before`: the
-    /// surfaces before it): the input's at a sample instant, a stop's
-    /// reset; whether one fired.
+    /// surfaces before it): the input's at a sample instant (from the
+    /// input `before.1`), a stop's reset (from the state `before.0`; `None`:
+    /// the state as it is); whether one fired. A transition fired leads on
+    /// to the next whose guard in its target mode the same jump crossed
+    /// (from the point before it to the state reached), up to
+    /// [`MAX_EVENTS_PER_STEP`]: an input that jumps across two thresholds
+    /// passes both, whatever the order of the transitions.
     #[inline]
     pub(super) fn fire_across_jump(
         &mut self,
         hs: &mut HybridState,
         u: &[f64],
         g_before: &[f64],
+        before: (Option<&[f64]>, &[f64]),
         sample: usize,
     ) -> Result<bool, SimError> {
         if g_before.is_empty() {
@@ -362,11 +360,57 @@ impl Machine<'_> {
         start.clear();
         start.extend_from_slice(g_before);
         self.surfaces_at(&hs.x, u, hs.mode);
-        if let Some(Event::Transition(j)) = self.first_transition(hs) {
-            self.apply(hs, u, Event::Transition(j), sample)?;
-            return Ok(true);
+        // The modes passed through need not hold the state; the one reached
+        // must.
+        let strict = std::mem::replace(&mut self.strict_resets, false);
+        let mut x_before = Vec::new();
+        let mut last = None;
+        let mut result = Ok(());
+        for _ in 0..MAX_EVENTS_PER_STEP {
+            let Some(Event::Transition(j)) = self.first_transition(hs) else {
+                break;
+            };
+            if last.is_none() {
+                x_before.extend_from_slice(before.0.unwrap_or(&hs.x));
+            }
+            last = Some((hs.mode, j));
+            result = self.apply(hs, u, Event::Transition(j), sample);
+            if result.is_err() {
+                break;
+            }
+            self.load(&x_before, before.1);
+            surfaces(&self.m.modes[hs.mode], &self.slots, self.g.start_mut());
+            self.surfaces_at(&hs.x, u, hs.mode);
         }
-        Ok(false)
+        self.strict_resets = strict;
+        result?;
+        match last {
+            Some(fired) if strict => self.check_target(hs, u, fired, sample).map(|()| true),
+            fired => Ok(fired.is_some()),
+        }
+    }
+
+    /// That the state `hs` under `u` meets the invariant of its mode,
+    /// reached by transition `j` of mode `from`.
+    fn check_target(
+        &mut self,
+        hs: &HybridState,
+        u: &[f64],
+        (from, j): (usize, usize),
+        sample: usize,
+    ) -> Result<(), SimError> {
+        self.load(&hs.x, u);
+        let outside = (self.m.modes[hs.mode].invariant.iter())
+            .any(|r| r.margin(&self.slots) < -INVARIANT_TOLERANCE);
+        if outside {
+            let t = &self.m.modes[from].transitions[j];
+            return Err(SimError::OutsideTargetInvariant {
+                transition: t.label.clone(),
+                reset: !t.reset.is_empty(),
+                sample,
+            });
+        }
+        Ok(())
     }
 
     /// The first transition whose guard was crossed from the step's start
@@ -480,14 +524,14 @@ impl Machine<'_> {
                     let mut g = Vec::new();
                     self.load(&hs.x, u);
                     surfaces(&self.m.modes[hs.mode], &self.slots, &mut g);
-                    g
+                    (g, hs.x.clone())
                 });
                 if let Err(e) = self.apply(hs, u, ev, sample) {
                     result = Err(e);
                     break 'steps;
                 }
-                if let Some(g) = before_jump
-                    && let Err(e) = self.fire_across_jump(hs, u, &g, sample)
+                if let Some((g, x)) = before_jump
+                    && let Err(e) = self.fire_across_jump(hs, u, &g, (Some(&x), u), sample)
                 {
                     result = Err(e);
                     break 'steps;
@@ -495,7 +539,7 @@ impl Machine<'_> {
                 left -= hi;
                 events += 1;
                 if events >= MAX_EVENTS_PER_STEP {
-                    self.zeno_steps += 1;
+                    ZenoSteps::add(&mut self.zeno, sample);
                     self.hold_reached_stops(hs, u);
                 }
                 if self.at_rest(hs, u) {

@@ -312,7 +312,7 @@ pub(super) mod tests {
         .unwrap();
         out.steps = machine.steps;
         out.events = machine.events;
-        out.zeno_steps = machine.zeno_steps;
+        out.zeno = machine.zeno;
         (out, machine.quiet_steps, machine.locate_trials)
     }
 

@@ -311,7 +311,7 @@ mod tests {
             && bits(&a.x) == bits(&b.x)
             && a.modes == b.modes
             && a.covered == b.covered
-            && (a.steps, a.events, a.zeno_steps) == (b.steps, b.events, b.zeno_steps)
+            && (a.steps, a.events, a.zeno) == (b.steps, b.events, b.zeno)
     }
 
     /// `data` cut into segments of 40 samples, each started from the state
@@ -345,7 +345,7 @@ mod tests {
         }
         out.steps = machine.steps;
         out.events = machine.events;
-        out.zeno_steps = machine.zeno_steps;
+        out.zeno = machine.zeno;
         out
     }
 

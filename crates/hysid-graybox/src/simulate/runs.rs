@@ -70,7 +70,7 @@ pub(super) fn free_run(
     out.start = scored_from(m);
     out.steps = machine.steps;
     out.events = machine.events;
-    out.zeno_steps = machine.zeno_steps;
+    out.zeno = machine.zeno;
     Ok(out)
 }
 
@@ -147,7 +147,9 @@ pub(super) fn span(
                 if k > start || j > 0 {
                     moving &= !machine.resettle(&mut hs, u);
                     let g_before = std::mem::take(&mut g_end);
-                    moving &= !machine.fire_across_jump(&mut hs, u, &g_before, k)?;
+                    let u_before = if j > 0 { &pieces[j - 1].1 } else { &held };
+                    let before = (None, &u_before[..]);
+                    moving &= !machine.fire_across_jump(&mut hs, u, &g_before, before, k)?;
                 }
                 machine.advance(&mut hs, u, (*duration, *n_sub), k, moving)?;
                 machine.surfaces_at_end(&hs, u, &mut g_end);

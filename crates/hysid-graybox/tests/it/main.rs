@@ -8,6 +8,7 @@ mod initial;
 mod limits;
 mod real_systems;
 mod sensitivities;
+mod transitions;
 
 use serde::de::DeserializeOwned;
 

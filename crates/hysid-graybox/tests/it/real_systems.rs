@@ -437,7 +437,7 @@ fn only_a_free_run_stops_at_a_reset_outside_the_invariant() {
     }
     let error = run_down_from_above_the_lower_top(&m).unwrap_err();
     assert!(
-        matches!(error, SimError::ResetOutsideInvariant { .. }),
+        matches!(error, SimError::OutsideTargetInvariant { reset: false, .. }),
         "{error}"
     );
 

@@ -27,7 +27,7 @@
 //! rest of the step integrated in the new mode. At most
 //! [`MAX_EVENTS_PER_STEP`] events per internal step (a Zeno guard).
 
-use super::{SimError, Simulation, SimulationOptions};
+use super::{SimError, Simulation, SimulationOptions, ZenoSteps};
 use crate::data::Dataset;
 use crate::geometry::{MEMBERSHIP_TOL, Polyhedron};
 use crate::model::{HybridAutomaton, InitialState, TimeDomain};
@@ -358,6 +358,7 @@ fn simulate_with(
         start: k0 + 1,
         covered: vec![true; data.len()],
         diverged_at: None,
+        zeno: None,
     };
     let mut q = m.initial_mode.as_deref().and_then(|n| m.mode_index(n));
     let u0 = inputs_at(data, k0);
@@ -418,7 +419,10 @@ fn simulate_with(
                                 left -= hi;
                                 events += 1;
                             }
-                            _ => {
+                            crossing => {
+                                if crossing.is_some() {
+                                    ZenoSteps::add(&mut sim.zeno, k);
+                                }
                                 x = x1;
                                 left = 0.0;
                             }
@@ -452,6 +456,7 @@ pub fn predict(m: &HybridAutomaton, data: &Dataset) -> Result<Simulation, SimErr
         start: k0 + 1,
         covered: vec![true; data.len()],
         diverged_at: None,
+        zeno: None,
     };
     for k in k0..data.len() - 1 {
         let x = arx_state(na, nb, data.y(), data, k);

@@ -70,9 +70,95 @@ pub struct Simulation {
     pub covered: Vec<bool>,
     /// Sample at which the output diverged, if it did.
     pub diverged_at: Option<usize>,
+    /// The integration sub-steps that reached the Zeno bound, if any did.
+    pub zeno: Option<ZenoSteps>,
+}
+
+/// Integration sub-steps of a hybrid model's run that reached the bound of
+/// events per sub-step (a Zeno point: a transition firing again and
+/// again): the rest of each ran without events, so a guard may have been
+/// passed through.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct ZenoSteps {
+    /// The first sample in which one did.
+    pub first: usize,
+    /// How many did.
+    pub steps: usize,
+}
+
+impl ZenoSteps {
+    /// One more such sub-step in sample `k` of `zeno` (`None`: none yet).
+    pub fn add(zeno: &mut Option<ZenoSteps>, k: usize) {
+        let z = zeno.get_or_insert(ZenoSteps { first: k, steps: 0 });
+        z.steps += 1;
+    }
+
+    /// The two counts of consecutive parts, `later`'s samples from `at`.
+    fn joined(earlier: Option<Self>, later: Option<Self>, at: usize) -> Option<Self> {
+        match (earlier, later) {
+            (Some(a), Some(b)) => Some(ZenoSteps {
+                first: a.first,
+                steps: a.steps + b.steps,
+            }),
+            (a, b) => a.or(b.map(|b| ZenoSteps {
+                first: b.first + at,
+                ..b
+            })),
+        }
+    }
+}
+
+impl std::fmt::Display for ZenoSteps {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} integration sub-step(s), the first in sample {}, reached the bound of events \
+             per sub-step (a Zeno point: a transition firing again and again); the rest of each ran without \
+             events, so a guard may have been passed through (a contact that comes to rest is a \
+             `stop` element, or a resting mode)",
+            self.steps, self.first
+        )
+    }
+}
+
+/// What the user of a run should be told about it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SimulationWarning {
+    /// The output diverged at this sample and is held from there on.
+    Diverged(usize),
+    /// Sub-steps reached the Zeno bound.
+    Zeno(ZenoSteps),
+}
+
+impl SimulationWarning {
+    /// The warnings of a run that diverged at `diverged_at` and reached the
+    /// Zeno bound in `zeno`.
+    pub fn of(diverged_at: Option<usize>, zeno: Option<ZenoSteps>) -> Vec<Self> {
+        let zeno = zeno.map(SimulationWarning::Zeno);
+        (diverged_at.map(SimulationWarning::Diverged).into_iter())
+            .chain(zeno)
+            .collect()
+    }
+}
+
+impl std::fmt::Display for SimulationWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SimulationWarning::Diverged(k) => write!(
+                f,
+                "the simulation diverged at sample {k}; the output is held from there on"
+            ),
+            SimulationWarning::Zeno(z) => z.fmt(f),
+        }
+    }
 }
 
 impl Simulation {
+    /// What the user of this run should be told ([`SimulationWarning`]).
+    pub fn warnings(&self) -> Vec<SimulationWarning> {
+        SimulationWarning::of(self.diverged_at, self.zeno)
+    }
+
     /// Records a new output sample, detecting divergence. Returns false when
     /// the simulation must stop.
     pub fn push_checked(&mut self, k: usize, v: f64, bound: f64) -> bool {
@@ -130,6 +216,7 @@ impl Simulation {
             start: 0,
             covered: Vec::new(),
             diverged_at: None,
+            zeno: None,
         });
         for (part, at) in parts.zip(ranges.iter().skip(1).map(|r| r.start)) {
             joined.modes.extend(
@@ -143,6 +230,7 @@ impl Simulation {
             if joined.diverged_at.is_none() {
                 joined.diverged_at = part.diverged_at.map(|k| k + at);
             }
+            joined.zeno = ZenoSteps::joined(joined.zeno, part.zeno, at);
         }
         joined
     }
@@ -188,14 +276,18 @@ pub enum SimError {
     /// rest state, a sensor map of zero gain).
     #[error("initial state: {0}")]
     InitialState(String),
-    /// A transition's reset map put the state outside its target mode's
-    /// invariant (a modelling error: the reset and the invariant disagree).
+    /// A transition put the state outside its target mode's invariant (a
+    /// modelling error: its reset, or its guard where it has none, and the
+    /// invariant disagree).
     #[error(
-        "the reset of transition {transition} leaves the invariant of its target mode (sample {sample})"
+        "transition {transition} {how} outside the invariant of its target mode (sample {sample})",
+        how = if *reset { "resets the state to a point" } else { "fires at a state (it has no reset)" }
     )]
-    ResetOutsideInvariant {
+    OutsideTargetInvariant {
         /// `from -> to`.
         transition: String,
+        /// Whether the transition has a reset map.
+        reset: bool,
         /// The sample in which it happened.
         sample: usize,
     },

@@ -487,6 +487,59 @@ fn a_record_no_candidate_can_simulate_is_a_method_failure() {
     );
 }
 
+/// A model file whose own values fail on the record with a fault of the
+/// model (a transition into a mode whose invariant the state does not
+/// meet) is bad input naming the file and the fault, not a failure of the
+/// search.
+#[test]
+fn a_model_that_fails_at_its_own_values_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("lag.toml");
+    std::fs::write(
+        &path,
+        r#"
+kind = "gray_box"
+format = 1
+internal_step = 0.0025
+states = ["x"]
+inputs = ["u"]
+outputs = [{ name = "y", value = "x" }]
+initial_state = { from = "given", values = { x = 0 }, mode = "low" }
+
+[[parameters]]
+name = "th"
+value = -0.01
+bounds = [-0.02, 0.0]
+
+[[modes]]
+name = "low"
+flow = { x = "u - x" }
+
+[[modes]]
+name = "high"
+flow = { x = "u - x" }
+invariant = ["x >= 1"]
+
+[[transitions]]
+from = "low"
+to = "high"
+guard = "x <= th"
+"#,
+    )
+    .unwrap();
+    let set = format!("model={}", path.display());
+    let e = run(&data(300, 6), &Priors::default(), &[set.as_str()], 1).unwrap_err();
+    assert!(e.is_bad_input(), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.starts_with(&format!(
+            "{}: the model fails on this record",
+            path.display()
+        )) && text.contains("transition low -> high fires at a state (it has no reset)"),
+        "{text}"
+    );
+}
+
 #[test]
 fn a_spent_time_budget_is_reported_as_the_status() {
     let d = data(400, 3);
