@@ -622,6 +622,13 @@ fn bad_selections_and_orders() {
         &["--set ridge=inf", "must be a finite number >= 0"],
         &out,
     );
+    // A half-width whose double overflows: refused, not a panic of the
+    // draw.
+    bad(
+        &identify_with(data, o, "klinreg", &["--modes", "2", "--set", "w_max=1e308"]),
+        &["--set w_max=1e308", "at most 1e300"],
+        &out,
+    );
     // A grid without the mode count its back-end needs: every candidate
     // refused, an error rather than the affine reference written.
     bad(

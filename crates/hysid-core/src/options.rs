@@ -280,7 +280,18 @@ pub fn check_float(
     if value.is_finite() && ok(value) {
         Ok(())
     } else {
-        Err(OptionError::invalid(key, value, requirement))
+        Err(OptionError::invalid(key, short(value), requirement))
+    }
+}
+
+/// `value` as written (`-1`, `0.25`), or with an exponent (`1e308`) where
+/// that would take more than 16 characters.
+fn short(value: f64) -> String {
+    let plain = value.to_string();
+    if plain.len() > 16 {
+        format!("{value:e}")
+    } else {
+        plain
     }
 }
 

@@ -74,8 +74,9 @@ impl CheckOptions for KLinRegOptions {
         check_float(
             "w_max",
             self.w_max,
-            |w| w > 0.0,
-            "must be a finite number > 0",
+            // The draw's width, 2 w_max, must be finite too.
+            |w| w > 0.0 && w <= 1e300,
+            "must be a number > 0 and at most 1e300",
         )?;
         if self.max_iter == 0 {
             return Err(OptionError::invalid("max_iter", 0, "must be at least 1"));
