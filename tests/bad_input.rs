@@ -625,7 +625,12 @@ fn bad_selections_and_orders() {
     // A half-width whose double overflows: refused, not a panic of the
     // draw.
     bad(
-        &identify_with(data, o, "klinreg", &["--modes", "2", "--set", "w_max=1e308"]),
+        &identify_with(
+            data,
+            o,
+            "klinreg",
+            &["--modes", "2", "--set", "w_max=1e308"],
+        ),
         &["--set w_max=1e308", "at most 1e300"],
         &out,
     );
@@ -1068,7 +1073,8 @@ fn malformed_gray_box_files() {
             ),
             vec![
                 "reset.toml".into(),
-                "the reset of transition fly -> carried leaves the invariant".into(),
+                "transition fly -> carried resets the state to a point outside the invariant"
+                    .into(),
             ],
         ),
         (

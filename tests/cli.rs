@@ -1645,6 +1645,31 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
         s(&csv),
     ];
     assert!(stderr(&hole).contains("simulated samples lie outside every region"));
+    // A physical model's internal step longer than the sampling time (a
+    // step written in milliseconds) is said, the file named.
+    let text = common::repository_text("models/examples/ball-on-table.toml");
+    let step = text
+        .lines()
+        .find(|l| l.starts_with("internal_step"))
+        .unwrap();
+    let coarse = common::write(
+        dir.path(),
+        "coarse.toml",
+        text.replace(step, "internal_step = 1"),
+    );
+    let run = [
+        "simulate",
+        s(&coarse),
+        "--excite",
+        "n=50,hold=5,low=0,high=1,ts=0.01",
+        "-o",
+        s(&csv),
+    ];
+    let said = stderr(&run);
+    assert!(
+        said.contains("coarse.toml: internal_step = 1 s is longer than the sampling time 0.01 s"),
+        "{said}"
+    );
 }
 
 /// A time budget that runs out during `--auto` is said on stderr and

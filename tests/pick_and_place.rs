@@ -225,3 +225,59 @@ fn a_hybrid_model_below_the_affine_one_is_flagged() {
     ]);
     assert!(!err.contains("warning"), "{err}");
 }
+
+/// The prior file of docs/priors.md, as printed there, on the record:
+/// `cluster` and `bounded` run it (an equality, a fixed offset and a bound
+/// together, which once left clarabel without progress) and every
+/// ordinary mode honours it: `b1 = b2`, `c = 0`, `b1` in `[0, 1e3]`.
+#[test]
+fn the_prior_file_of_the_reference_runs_on_the_record() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/priors.md"))
+            .unwrap();
+    let example = text
+        .split("```toml\n")
+        .nth(1)
+        .and_then(|t| t.split("```").next())
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let priors = dir.path().join("priors.toml");
+    std::fs::write(&priors, example).unwrap();
+    for method in ["cluster", "bounded"] {
+        let out = dir.path().join(format!("{method}.json"));
+        let (p, o) = (priors.to_str().unwrap(), out.to_str().unwrap());
+        hysid_stderr(&[
+            "identify",
+            DATA,
+            "--decimate",
+            "10",
+            "--rows",
+            "0..5000",
+            "-m",
+            method,
+            "--prior",
+            p,
+            "-o",
+            o,
+        ]);
+        let model: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        let modes = model["modes"].as_array().unwrap();
+        assert_eq!(modes.len(), 4, "{method}");
+        // The ordinary modes (the two stops' are `sat_max_25`, `sat_min_0`).
+        let ordinary = modes
+            .iter()
+            .filter(|m| !m["name"].as_str().unwrap().starts_with("sat_"));
+        assert_eq!(ordinary.clone().count(), 2, "{method}");
+        for mode in ordinary {
+            let flow = &mode["flow"];
+            let (b1, b2) = (
+                flow["b"][0][0].as_f64().unwrap(),
+                flow["a"][0][2].as_f64().unwrap(),
+            );
+            let c = flow["f"][0].as_f64().unwrap();
+            assert!((b1 - b2).abs() <= 1e-12, "{method}: {b1} {b2}");
+            assert!((0.0..=1e3).contains(&b1) && c == 0.0, "{method}: {b1} {c}");
+        }
+    }
+}

@@ -162,8 +162,8 @@ fn auto_holds_out_whole_records() {
     ok(&args);
     let m = json(&std::fs::read_to_string(&model).unwrap());
     let split = &m["info"]["selection"]["splits"][0];
-    assert_eq!(split["fit_rows"], "0..240", "{split}");
-    assert_eq!(split["select_rows"], "240..360", "{split}");
+    assert_eq!(split["fit_rows"], "record 1 and record 2", "{split}");
+    assert_eq!(split["select_rows"], "record 3", "{split}");
     assert_eq!(m["modes"].as_array().unwrap().len(), 2);
 }
 

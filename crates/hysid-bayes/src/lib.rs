@@ -156,7 +156,7 @@ impl PwarxMethod for Bayes {
         PriorKind::Switching,
     ];
     const OUTPUT_UNITS: &'static [&'static str] = &["noise_std"];
-    const SEARCH: &'static str = "the mode count from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
+    const SEARCH: &'static str = "the mode count from 1 to 5 (at most --max-modes; saturation modes added), unless --modes is given; every candidate with trim = 3";
     const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
     const SEED_USE: &'static str = "with posterior = particles (or auto with [bounds]) or order = random, not with the defaults";
 

@@ -196,6 +196,43 @@ pub fn sampling_time_mismatch(model: &Model, data: &Dataset) -> Option<(f64, f64
     (!same_sampling(Some(record), Some(own))).then_some((record, own))
 }
 
+/// A physical model's `internal_step` longer than the record's sampling
+/// time: each sample is then one integration step of the sampling time,
+/// coarser than the file asks for; the usual sign of a step written in
+/// other units than seconds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoarseStep {
+    /// The model's internal step, seconds.
+    pub internal_step: f64,
+    /// The record's sampling time, seconds.
+    pub ts: f64,
+}
+
+impl CoarseStep {
+    /// The coarse step of `model` on `data`; `None` where the internal
+    /// step is at most the sampling time, or the model has none.
+    pub fn of(model: &Model, data: &Dataset) -> Option<Self> {
+        let internal_step = match model {
+            Model::GrayBox(m) => m.internal_step,
+            Model::Mechanical(m) => m.internal_step,
+            _ => return None,
+        };
+        let ts = data.ts?;
+        (internal_step > ts).then_some(Self { internal_step, ts })
+    }
+}
+
+impl std::fmt::Display for CoarseStep {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "internal_step = {} s is longer than the sampling time {} s: each sample is one \
+             integration step of {} s (internal_step is in seconds)",
+            self.internal_step, self.ts, self.ts
+        )
+    }
+}
+
 /// Scores `model` on `data`, leaving out the first `warmup` samples (and
 /// any before the simulation can start). Data that join several records
 /// are scored record by record, each with its own warm-up and initial

@@ -650,7 +650,19 @@ fn qp_lstsq(
         b: b.to_vec(),
         cones: vec![Cone::Nonnegative(m)],
     };
-    let sol = conic::solve(program, &settings)?;
+    // Where the strict tolerances make no progress (an active bound that an
+    // equality pins, the minimiser on the box's face), clarabel's own
+    // tolerances end the solve.
+    let sol = match conic::solve(program.clone(), &settings) {
+        Err(conic::SolveError::InsufficientProgress { .. }) => {
+            let settings = Settings {
+                max_iter: 200,
+                ..Settings::default()
+            };
+            conic::solve(program, &settings)?
+        }
+        solved => solved?,
+    };
     Ok(sol.x.iter().zip(&d).map(|(x, dv)| x * dv).collect())
 }
 

@@ -104,7 +104,7 @@ impl PwarxMethod for KLinReg {
         PriorKind::Equality,
         PriorKind::Switching,
     ];
-    const SEARCH: &'static str = "the mode count from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
+    const SEARCH: &'static str = "the mode count from 1 to 5 (at most --max-modes; saturation modes added), unless --modes is given; every candidate with trim = 3";
     const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
     fn fit(

@@ -93,7 +93,7 @@ impl PwarxMethod for Milp {
     const SUMMARY: &'static str = "exact mixed-integer switched regression (l1 with a mode count, or the fewest modes within delta) for records of tens of samples; then regions";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
     const OUTPUT_UNITS: &'static [&'static str] = &["delta", "theta_max", "l1_error"];
-    const SEARCH: &'static str = "the mode count from 1 to 4 (saturation modes added), unless --modes is given; every candidate with trim = 3";
+    const SEARCH: &'static str = "the mode count from 1 to 4 (at most --max-modes; saturation modes added), unless --modes is given; every candidate with trim = 3";
     const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
     fn fit(

@@ -118,7 +118,7 @@ impl PwarxMethod for Parc {
     const NAME: &'static str = "parc";
     const SUMMARY: &'static str = "PARC (Bemporad 2023): local models and a softmax partition learned together by block-coordinate descent";
     const HONOURS: &'static [PriorKind] = PriorKind::ALL;
-    const SEARCH: &'static str = "the number of clusters from 1 to 5 (saturation modes added), unless --modes is given; every candidate with trim = 3";
+    const SEARCH: &'static str = "the number of clusters from 1 to 5 (at most --max-modes; saturation modes added), unless --modes is given; every candidate with trim = 3";
     const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
     fn fit(

@@ -186,7 +186,8 @@ fn priors(py: Python<'_>, given: Option<&Bound<'_, PyAny>>) -> PyResult<(Priors,
 }
 
 /// Back-end options `{key: value}` as the program's `--set key=value`:
-/// booleans as `true`/`false`, numbers and text as written.
+/// booleans as `true`/`false`, `None` as `none`, numbers and text as
+/// written.
 fn settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
     let mut pairs = Vec::new();
     for (k, v) in options.into_iter().flat_map(|d| d.iter()) {
@@ -195,6 +196,8 @@ fn settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
             .map_err(|_| Failure::input(format!("options: the key {k} is not text")))?;
         let value = if let Ok(b) = v.extract::<bool>() {
             b.to_string()
+        } else if v.is_none() {
+            "none".to_string()
         } else if v.is_instance_of::<PyString>() {
             v.extract::<String>()?
         } else if v.extract::<f64>().is_ok() {

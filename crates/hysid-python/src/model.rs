@@ -66,12 +66,17 @@ fn inequalities<'py>(py: Python<'py>, p: &Polyhedron, dim: usize) -> Inequalitie
 }
 
 /// A Python warning when the discrete-time `model` meets a record of
-/// another sampling time ([`simulate::sampling_time_mismatch`]).
+/// another sampling time ([`simulate::sampling_time_mismatch`]), or a
+/// physical model's internal step is longer than it
+/// ([`simulate::CoarseStep`]).
 fn warn_sampling_time(
     py: Python<'_>,
     model: &AnyModel,
     data: &hysid_model::data::Dataset,
 ) -> PyResult<()> {
+    if let Some(coarse) = simulate::CoarseStep::of(model, data) {
+        crate::warn(py, &coarse.to_string())?;
+    }
     match simulate::sampling_time_mismatch(model, data) {
         Some((record, own)) => crate::warn(
             py,

@@ -164,8 +164,12 @@ fn record_lists<'py>(
     u: &Bound<'py, PyAny>,
     y: &Bound<'py, PyAny>,
 ) -> Result<Option<Vec<ArrayPair<'py>>>, Failure> {
+    // An array of at least one dimension: a numpy scalar (`list(y)` of an
+    // array holds them) has `__array__` too, but is a number.
     let array = |x: &Bound<'py, PyAny>| {
-        x.is_instance_of::<PyUntypedArray>() || x.hasattr("__array__").unwrap_or(false)
+        let like = x.is_instance_of::<PyUntypedArray>() || x.hasattr("__array__").unwrap_or(false);
+        let ndim = x.getattr("ndim").and_then(|n| n.extract::<usize>());
+        like && ndim.map_or(true, |n| n >= 1)
     };
     let Some(ys) = items(y).filter(|ys| !ys.is_empty() && ys.iter().all(array)) else {
         return Ok(None);

@@ -13,7 +13,6 @@ def test_the_tutorial_runs(tmp_path, monkeypatch):
     blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
     assert len(blocks) >= 6
     (tmp_path / "models").symlink_to(REPO / "models")
-    (tmp_path / "out").mkdir()
     monkeypatch.chdir(tmp_path)
     os.environ.setdefault("MPLBACKEND", "Agg")
     namespace = {}

@@ -105,6 +105,19 @@ def test_a_grid_is_checked_before_any_candidate_is_fitted():
     assert message.startswith("grid ridge=x"), message
 
 
+def test_a_grid_takes_the_values_options_take():
+    # True and None as options= takes them (true, none); a comma cannot
+    # hide a second value.
+    grid = {"scale": [True, False], "c": [None, 40], "modes": 2}
+    model = hysid.identify(U, Y, method="cluster", auto=True, seed=1, grid=grid)
+    tried = [dict(c["values"]) for c in model.info["selection"]["candidates"]]
+    assert {"c": "none", "modes": "2", "scale": "true"} in tried, tried
+    message = raised(hysid.identify, U, Y, method="cluster", auto=True, grid={"init": ["a,b"]})
+    assert message == "grid init='a,b': a value cannot hold a comma", message
+    model = hysid.identify(U, Y, method="cluster", modes=2, seed=1, options={"c": None})
+    assert model.info["options"]["c"] is None
+
+
 def test_option_value_is_checked_as_set_checks_it():
     message = raised(hysid.identify, U, Y, method="cluster", modes=2, options={"c": -3})
     assert message.startswith("option c=")

@@ -167,6 +167,18 @@ def test_the_default_estimator_runs(head):
     assert np.isfinite(est.score(head[1500:2500]))
 
 
+@pytest.mark.filterwarnings("ignore:the model's free-run FIT")
+def test_the_default_mode_bound_gives_way_to_every_other_count(head):
+    rows = head[:1500]
+    # An exact count above the default bound, by argument or by prior.
+    assert hysid.Estimator(modes=4, seed=1).fit(rows).model_.mode_count == 4
+    assert hysid.Estimator(priors={"modes": 4}, seed=1).fit(rows).model_.mode_count == 4
+    # A bound of the priors: the counts tried are the prior's.
+    est = hysid.Estimator(priors={"max_modes": 4}, seed=1).fit(rows)
+    tried = [count for count, _ in est.model_.info["diagnostics"]["mode_choice"]]
+    assert tried == [1, 2, 3, 4], tried
+
+
 def test_y_as_a_column_is_one_output(record, head):
     u, y, ts = record
     column = y[:3000, None]
@@ -249,6 +261,11 @@ def test_arrays_and_lists_of_numbers_are_inputs_not_records(arx, head):
     rows = head[5000:5100]
     assert np.array_equal(arx.simulate(rows), arx.simulate(rows.u))
     assert np.array_equal(arx.simulate(rows.u[:, 0].tolist()), arx.simulate(rows))
+    # A list or tuple of an array's numbers (numpy scalars) is one signal.
+    one = hysid.identify(rows.u, rows.y, method="arx", ts=rows.ts)
+    for pack in (list, tuple):
+        again = hysid.identify(pack(rows.u[:, 0]), pack(rows.y), method="arx", ts=rows.ts)
+        assert again.to_json() == one.to_json()
     predicted = arx.predict_one_step(rows)
     # Before the regressor is complete the prediction is the measurement.
     assert predicted[:2].tolist() == rows.y[:2].tolist()

@@ -268,10 +268,8 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
     let order = preference(&scored, &errors, floor, dependence);
     let (chosen, mut model, refit) = choose(request, &trials, &mut scored, &order, ctx)?;
     let refinement = refinement_record(&scored, chosen);
-    let in_file = |(a, b): (usize, usize)| {
-        let first = request.plan.first_row;
-        range_text((a + first, b + first))
-    };
+    let ranges = request.data.record_ranges();
+    let in_file = |rows: (usize, usize)| rows_text(&ranges, request.plan.first_row, rows);
     model.info_mut().selection = Some(Selection {
         splits: rows
             .iter()
@@ -304,18 +302,52 @@ pub fn seeded(request: &Request<'_>) -> Result<bool, SelectError> {
     Ok(false)
 }
 
-fn range_text((a, b): (usize, usize)) -> String {
-    format!("{a}..{b}")
+/// Two FITs in percent, with two decimals or as many more (up to 12) as
+/// tell them apart.
+fn apart(a: f64, b: f64) -> (String, String) {
+    let at = |d: usize| (format!("{a:.d$} %"), format!("{b:.d$} %"));
+    (2..=12)
+        .map(at)
+        .find(|(x, y)| x != y)
+        .unwrap_or_else(|| at(12))
+}
+
+/// The rows `a..b` of the data whose records span `ranges`, as their user
+/// knows them: of one record, the rows of its file (`first`: the file's
+/// row of the data's first); of several joined, each record's share
+/// (`record 2`, whole; `record 1 samples 0..8000`, of the record as read).
+fn rows_text(ranges: &[std::ops::Range<usize>], first: usize, (a, b): (usize, usize)) -> String {
+    if ranges.len() <= 1 {
+        return format!("{}..{}", a + first, b + first);
+    }
+    let parts: Vec<String> = (ranges.iter().enumerate())
+        .filter(|(_, r)| r.start < b && a < r.end)
+        .map(|(i, r)| {
+            let (lo, hi) = (a.max(r.start), b.min(r.end));
+            if (lo, hi) == (r.start, r.end) {
+                format!("record {}", i + 1)
+            } else {
+                format!(
+                    "record {} samples {}..{}",
+                    i + 1,
+                    lo - r.start,
+                    hi - r.start
+                )
+            }
+        })
+        .collect();
+    parts.join(" and ")
 }
 
 fn cut(data: &Dataset, rows: &[Split]) -> Result<Vec<Part>, SelectError> {
+    let ranges = data.record_ranges();
     let slice = |(a, b): (usize, usize)| {
         data.slice(RowRange {
             start: Some(a),
             end: Some(b),
         })
         .map_err(|e| SelectError::Rows {
-            rows: range_text((a, b)),
+            rows: rows_text(&ranges, 0, (a, b)),
             reason: e.to_string(),
         })
     };
@@ -611,9 +643,12 @@ fn choose(
         let own = starts.iter().find(|s| s.kept).and_then(|s| s.fit_sim);
         match floor {
             Some(floor) if own.is_none_or(|own| own < floor) => {
-                let own = own.map_or_else(|| "no finite FIT".into(), |v| format!("{v:.2} %"));
+                let (own, floor) = match own {
+                    Some(own) => apart(own, floor),
+                    None => ("no finite FIT".into(), format!("{floor:.2} %")),
+                };
                 scored[i].error = Some(format!(
-                    "refit on all the identification rows: it simulates them at {own}, below the affine model's {floor:.2} %"
+                    "refit on all the identification rows: it simulates them at {own}, below the affine model's {floor}"
                 ));
             }
             _ => return Ok((i, model, starts)),
@@ -1416,5 +1451,29 @@ mod tests {
         assert!(s.refit[0].fit_sim.unwrap() < 99.0);
         let (v, _, _) = validate(&model, &data, 10).unwrap();
         assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
+    }
+
+    /// Rows of one record are its file's; of several joined, each
+    /// record's share, never a row number of the join.
+    #[test]
+    fn rows_are_named_as_their_records_know_them() {
+        assert_eq!(
+            rows_text(std::slice::from_ref(&(0..100)), 20, (0, 80)),
+            "20..100"
+        );
+        let two = [0..10_000, 10_000..13_000];
+        assert_eq!(rows_text(&two, 0, (10_000, 13_000)), "record 2");
+        assert_eq!(rows_text(&two, 0, (0, 8000)), "record 1 samples 0..8000");
+        assert_eq!(
+            rows_text(&two, 0, (8000, 11_000)),
+            "record 1 samples 8000..10000 and record 2 samples 0..1000"
+        );
+    }
+
+    #[test]
+    fn fits_are_written_apart() {
+        assert_eq!(apart(73.3112, 80.0), ("73.31 %".into(), "80.00 %".into()));
+        let (a, b) = apart(73.310_000_01, 73.310_000_02);
+        assert_eq!((a.as_str(), b.as_str()), ("73.31000001 %", "73.31000002 %"));
     }
 }

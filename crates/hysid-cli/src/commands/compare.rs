@@ -11,7 +11,7 @@ use std::path::PathBuf;
 pub struct Args {
     /// Experiment file (TOML), see docs/compare.md.
     pub experiment: PathBuf,
-    /// Output folder for report.md, report.json and models/ (default: `out/<experiment name>`).
+    /// Output folder for report.md, report.json and models/ (default: `out/<experiment file name without .toml>`).
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
     /// File format of the figures: svg (default) or png (to paste; text in

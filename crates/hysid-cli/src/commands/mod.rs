@@ -13,12 +13,13 @@ pub mod simulate;
 pub mod sweep;
 pub mod validate;
 
-/// Estimated initial states as `x1 = 2.5, x2 = -0.1` (shortest round-trip
-/// form of each value).
+/// Estimated initial states as `x1 = 2.5, x2 = -0.1, x3 = 2.9e-16`
+/// (shortest round-trip form of each value, with an exponent where it is
+/// tiny or huge).
 pub(crate) fn states_text(states: &std::collections::BTreeMap<String, f64>) -> String {
     states
         .iter()
-        .map(|(name, v)| format!("{name} = {v}"))
+        .map(|(name, v)| format!("{name} = {v:?}"))
         .collect::<Vec<_>>()
         .join(", ")
 }
@@ -91,6 +92,9 @@ pub(crate) fn warn_input_order(file: &Path, model: &Model, data: &Dataset) {
 /// another sampling time than the record's, or the excitation's when
 /// `excited` ([`hysid_core::simulate::sampling_time_mismatch`]).
 pub(crate) fn warn_sampling_time(file: &Path, model: &Model, data: &Dataset, excited: bool) {
+    if let Some(coarse) = hysid_core::simulate::CoarseStep::of(model, data) {
+        eprintln!("hysid: warning: {}: {coarse}", file.display());
+    }
     if let Some((record, own)) = hysid_core::simulate::sampling_time_mismatch(model, data) {
         let (what, hint) = if excited {
             (format!("the excitation's sampling time {record} s"), "")

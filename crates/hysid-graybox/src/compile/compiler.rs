@@ -399,6 +399,15 @@ impl<'m> Compiler<'m> {
     ) -> Result<CompiledTransition, InvalidGrayBox> {
         let place = format!("transition {} -> {}", t.from, t.to);
         let guard = self.direct_relation(defs, &format!("{place}, guard"), &t.guard)?;
+        let signals = (self.nx + self.m.inputs.len()) as u32;
+        if guard.surface.slots().all(|s| s >= signals) {
+            let problem = Problem::FixedGuard(t.guard.clone());
+            return Err(InvalidGrayBox::new(
+                format!("{place}, guard"),
+                Some(&t.guard),
+                problem,
+            ));
+        }
         let when = t
             .when
             .as_deref()

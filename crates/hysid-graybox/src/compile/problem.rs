@@ -115,6 +115,10 @@ pub enum Problem {
     /// An element's quantity that reads more than the parameters.
     #[error("'{0}' may only use parameters and numbers")]
     NotParametric(String),
+    /// A guard whose surface reads neither a state nor an input: it never
+    /// moves, so it is never crossed.
+    #[error("'{0}' reads neither a state nor an input: the guard can never be crossed")]
+    FixedGuard(String),
     /// An energy that reads more than the states and parameters.
     #[error("'{0}' may only use states, parameters and numbers")]
     NotStateFunction(String),

@@ -113,3 +113,19 @@ proptest! {
         }
     }
 }
+
+/// A guard that reads neither a state nor an input (parameters and
+/// numbers only) never moves: the file is refused where it says so.
+#[test]
+fn a_guard_on_parameters_alone_is_refused() {
+    let text = toml::to_string(&dead_zone(true))
+        .unwrap()
+        .replace("guard = \"u >= dz\"", "guard = \"dz >= 0.1\"");
+    let m: GrayBoxModel = crate::from_toml(&text, None);
+    let e = m.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("transition dead -> pos, guard")
+            && e.contains("'dz >= 0.1' reads neither a state nor an input"),
+        "{e}"
+    );
+}

@@ -55,6 +55,17 @@ Record.__module__ = "hysid"
 Estimator.__module__ = "hysid"
 
 
+def _option_text(value: Any) -> str:
+    """An option's value as the program's `--set` reads it, as `options=`
+    takes it: `True` as `true`, `None` as `none`, numbers and text as
+    written."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if value is None:
+        return "none"
+    return str(value)
+
+
 def _model_from_json(text: str) -> Model:
     """A model from its file's JSON text (how a pickled model is restored)."""
     return Model.from_json(text)
@@ -220,7 +231,12 @@ def identify(
         for k, values in listed.items():
             if not values:
                 raise InputError(f"grid {k}: no values")
-        grid_items = [f"{k}={','.join(str(v) for v in values)}" for k, values in listed.items()]
+        texts = {k: [_option_text(v) for v in values] for k, values in listed.items()}
+        for k, values in texts.items():
+            for v in values:
+                if "," in v:
+                    raise InputError(f"grid {k}={v!r}: a value cannot hold a comma")
+        grid_items = [f"{k}={','.join(values)}" for k, values in texts.items()]
     if priors is not None and not isinstance(priors, dict):
         priors = os.fspath(priors)
     return _hysid.identify(

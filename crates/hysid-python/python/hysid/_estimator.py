@@ -36,9 +36,12 @@ class Estimator:
     One default differs from :func:`hysid.identify`'s: ``max_modes=3``, so
     that the default back-end, ``cluster``, which needs a mode count, runs
     as ``Estimator().fit(record)``: it fits 1 to 3 modes and keeps the count
-    whose model simulates held-out rows best. For an exact count give
-    ``modes=S`` with ``max_modes=None`` (or ``max_modes >= S``); for a
-    back-end without discrete modes to choose (``physical``) give
+    whose model simulates held-out rows best. That default gives way to
+    any other source of the count: ``modes``, the priors' ``modes`` or
+    ``max_modes``, and ``auto`` (which searches its own range); it still
+    bounds ``bounded``'s count unless ``max_modes=None`` (a ``max_modes=3``
+    given is taken as this default). For a back-end
+    without discrete modes to choose (``physical``) give
     ``max_modes=None``.
 
     After :meth:`fit`, ``model_`` is the fitted :class:`hysid.Model`.
@@ -135,7 +138,11 @@ class Estimator:
         from . import identify, methods
 
         takes = {m["name"]: m["priors"] for m in methods()}
-        if self.max_modes == DEFAULT_MAX_MODES and "max_modes" not in takes.get(self.method, ["max_modes"]):
+        max_modes = self.max_modes
+        given = isinstance(self.priors, dict) and ("modes" in self.priors or "max_modes" in self.priors)
+        if max_modes == DEFAULT_MAX_MODES and (self.modes is not None or self.auto or given):
+            max_modes = None
+        if max_modes == DEFAULT_MAX_MODES and "max_modes" not in takes.get(self.method, ["max_modes"]):
             raise InputError(
                 f"max_modes={DEFAULT_MAX_MODES} (the Estimator's default): method '{self.method}' takes no "
                 "mode count; give max_modes=None"
@@ -150,7 +157,7 @@ class Estimator:
             na=self.na,
             nb=self.nb,
             modes=self.modes,
-            max_modes=self.max_modes,
+            max_modes=max_modes,
             priors=self.priors,
             options=self.options,
             seed=self.seed,
