@@ -315,6 +315,29 @@ fn standardized_identification_is_reported_in_original_units() {
         assert!((a - b).abs() < 1e-9, "{theta:?}");
     }
     assert!(m["info"]["scaling"]["output"]["std"].as_f64().unwrap() > 0.0);
+    // A tie on the offset is refused naming the tie and its file.
+    let priors = common::write(
+        dir.path(),
+        "tied.toml",
+        "modes = 2\n[[tie]]\nparams = [\"a1\"]\n[[tie]]\nparams = [\"c\"]\n",
+    );
+    let refused = hysid(&[
+        "identify",
+        s(&data),
+        "-m",
+        "cluster",
+        "--prior",
+        s(&priors),
+        "--standardize",
+        "-o",
+        s(&model),
+    ]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("[[tie]] #2 of ") && err.contains("tied.toml"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -1670,6 +1693,24 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
         said.contains("coarse.toml: internal_step = 1 s is longer than the sampling time 0.01 s"),
         "{said}"
     );
+    // A physical model's warm-up rows under --excite hold --y0: said, with
+    // the row the run starts at (the head's measured rule reads 10 samples).
+    let head = common::repository_text("models/pick-and-place/head.toml");
+    let head = common::write(dir.path(), "head.toml", head);
+    let excited = [
+        "simulate",
+        s(&head),
+        "--excite",
+        "n=40,hold=10,low=-0.1,high=-0.05,ts=0.0025",
+        "-o",
+        s(&csv),
+    ];
+    let said = stderr(&excited);
+    assert!(
+        said.contains("the run starts at row 9: the rows before it hold --y0 0"),
+        "{said}"
+    );
+    assert!(!stderr(&excite).contains("the run starts"));
 }
 
 /// A time budget that runs out during `--auto` is said on stderr and

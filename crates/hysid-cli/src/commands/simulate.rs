@@ -114,6 +114,17 @@ pub fn run(args: Args) -> Result<()> {
             super::states_text(&states)
         );
     }
+    let physical = matches!(model, Model::GrayBox(_) | Model::Mechanical(_));
+    if args.excite.is_some() && physical && sim.start > 0 {
+        // The rows before the run's start are the warm-up a physical
+        // model's initial state reads, not a response to the input beside
+        // them (a record to fit with an estimated state starts after them).
+        eprintln!(
+            "hysid: the run starts at row {}: the rows before it hold --y0 {} (what the model's \
+             initial state reads), not a response to their input",
+            sim.start, args.y0
+        );
+    }
     if let Some(outside) = hysid_core::simulate::OutsideRegions::of(&model, &sim) {
         eprintln!("hysid: warning: {outside}");
     }

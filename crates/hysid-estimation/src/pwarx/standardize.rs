@@ -32,8 +32,11 @@ pub fn run_standardized(
     // Scaling multiplies a tied a_i or b_i by one factor in every mode, so
     // such ties survive; the offset c maps to a combination of all the
     // parameters of its mode, so a tie on c would not.
-    if p.tie.iter().any(|t| t.params.iter().any(|n| n == "c")) {
-        return Err(IdentifyError::input(StandardizeError::TieOnOffset));
+    if let Some(i) = p.tie.iter().position(|t| t.params.iter().any(|n| n == "c")) {
+        return Err(IdentifyError::input(StandardizeError::TieOnOffset {
+            tie: i + 1,
+            origin: problem.priors_origin.map(str::to_string),
+        }));
     }
     let scale = Standardization::of(problem.data);
     let scaled = scale.apply(problem.data);
@@ -107,8 +110,11 @@ impl StandardizeError {
                     .as_ref()
                     .map_or(String::new(), |o| format!(" of {o}"))
             ),
-            Self::TieOnOffset => format!(
-                "{asked} cannot be combined with a [[tie]] on the offset c (it does not survive the back-transform)"
+            Self::TieOnOffset { tie, origin } => format!(
+                "{asked} cannot be combined with [[tie]] #{tie}{}, a tie on the offset c (it does not survive the back-transform)",
+                origin
+                    .as_ref()
+                    .map_or(String::new(), |o| format!(" of {o}"))
             ),
             Self::ModelKind { method, kind } => format!(
                 "{asked}: method '{method}' returns a {kind} model, which cannot be mapped back to original units"
@@ -130,7 +136,12 @@ pub enum StandardizeError {
     },
     /// A `[[tie]]` on the offset `c`.
     #[error("{}", self.render("standardization"))]
-    TieOnOffset,
+    TieOnOffset {
+        /// The tie, counted from 1.
+        tie: usize,
+        /// The prior file, when the priors came from one.
+        origin: Option<String>,
+    },
     /// A back-end whose model has no original-units form.
     #[error("{}", self.render("standardization"))]
     ModelKind {
