@@ -1295,7 +1295,8 @@ fn malformed_prior_files() {
 fn malformed_experiment_files() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    good_csv(d);
+    let first = good_csv(d);
+    std::fs::copy(&first, d.join("other.csv")).unwrap();
     let data = "[data]\nfile = \"data.csv\"\nidentification = \"0..150\"\nvalidation = \"150..\"\n";
     let run = "[[run]]\nname = \"a\"\nmethod = \"arx\"\n";
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
@@ -1398,7 +1399,7 @@ fn malformed_experiment_files() {
         (
             "select-records.toml",
             format!(
-                "title = \"x\"\n{data}select_records = 2\n[[data.records]]\nfile = \"data.csv\"\nidentification = \"0..120\"\n{run}auto = true\n"
+                "title = \"x\"\n{data}select_records = 2\n[[data.records]]\nfile = \"other.csv\"\nidentification = \"0..120\"\n{run}auto = true\n"
             ),
             vec!["[data] select_records = 2"],
         ),
@@ -1462,7 +1463,7 @@ fn malformed_experiment_files() {
     let err = one_line_error(&hysid(&["compare", s(&p), "-o", s(&out)]), 2).unwrap();
     assert!(
         err.contains("[[data.records]] #1 file: ")
-            && err.contains("given twice with the same rows"),
+            && err.contains("given twice with the same signals over rows that overlap"),
         "{err}"
     );
     report();
@@ -1937,8 +1938,9 @@ fn warm_ups_starting_guesses_and_bounds_are_checked() {
     report();
 }
 
-/// One file given twice with the same rows is one record counted twice:
-/// refused, with where records of one file under other names go.
+/// One file given twice with the same rows (or rows that overlap) counts
+/// rows twice: refused, with where records of one file under other names
+/// go.
 #[test]
 fn a_file_given_twice_with_the_same_rows_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -1949,7 +1951,7 @@ fn a_file_given_twice_with_the_same_rows_is_refused() {
     let model = d.join("m.json");
     common::ok(&["identify", data, "-m", "arx", "-o", s(&model)]);
     let needles = [
-        "data.csv: given twice with the same rows",
+        "data.csv: given twice with the same signals over rows that overlap",
         "[[data.records]]",
     ];
     bad(
@@ -1958,6 +1960,10 @@ fn a_file_given_twice_with_the_same_rows_is_refused() {
         &out,
     );
     bad(&["validate", s(&model), data, data], &needles, &out);
+    // Rows that overlap count twice: refused too.
+    let mut args = vec!["identify", data, data, "-m", "arx", "-o", s(&out)];
+    args.extend_from_slice(&["--rows", "0..100", "--rows", "50.."]);
+    bad(&args, &needles, &out);
     // Other rows of the same file are two records.
     let rows = ["--rows", "0..100", "--rows", "100..200"];
     let mut args = vec!["identify", data, data, "-m", "arx", "-o", s(&out)];

@@ -16,7 +16,7 @@ pub use mat_reader::inside_guarded_parser;
 pub use table::{STEP_TOLERANCE, TimeStepError, sampling_time};
 
 use hysid_core::model::{Model, ModelError};
-use hysid_model::data::{DataError, DataSelection, Dataset};
+use hysid_model::data::{DataError, DataSelection, Dataset, RowRange};
 use std::path::{Path, PathBuf};
 use table::{select, wanted_names};
 
@@ -72,10 +72,19 @@ pub fn file_identity(path: &Path) -> PathBuf {
 /// that names records otherwise than by their file (several records of
 /// one file).
 pub fn load_each(records: &[(&Path, DataSelection)]) -> Result<Dataset, RecordError> {
-    // The same file with the same selection is one record counted twice.
+    // The same file read again with the same signals over rows that overlap
+    // counts those rows twice.
     let files: Vec<_> = records.iter().map(|(p, _)| file_identity(p)).collect();
+    let rows_apart = |a: &DataSelection, b: &DataSelection| {
+        let (a_rows, b_rows) = (a.rows, b.rows);
+        let signals = |s: &DataSelection| DataSelection {
+            rows: RowRange::default(),
+            ..s.clone()
+        };
+        signals(a) != signals(b) || !a_rows.overlaps(&b_rows)
+    };
     for (i, (path, sel)) in records.iter().enumerate() {
-        let same = |j: &usize| records[*j].1 == *sel && files[*j] == files[i];
+        let same = |j: &usize| files[*j] == files[i] && !rows_apart(&records[*j].1, sel);
         if let Some(first) = (0..i).find(same) {
             return Err(RecordError {
                 record: Some(i),

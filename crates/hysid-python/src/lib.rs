@@ -317,6 +317,12 @@ fn identify<'py>(
         .run(&registry)
         .map_err(Failure::from)
     })??;
+    // As the program: a run cut short (a time budget, an iteration bound),
+    // or one with warnings, says so.
+    let d = &identified.model.info().diagnostics;
+    if d.run_status.cut_short() || !d.status.is_empty() {
+        warn(py, &format!("{method}: {}", d.status.join("; ")))?;
+    }
     if let Some(warning) = identified.affine_warning(&request) {
         warn(py, &warning)?;
     }

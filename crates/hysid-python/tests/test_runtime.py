@@ -112,3 +112,12 @@ def test_figures_draw(record, tmp_path):
     assert fig.axes[-1].get_ylim() == (0.5, 3.5)
     with pytest.raises(hysid.InputError, match="y: 1000 samples, u has 1001"):
         hysid.plot.simulation(model, u[5000:6001], y[5000:6000])
+
+
+def test_a_run_cut_short_by_its_time_budget_warns(record):
+    u, y, ts = record
+    # Many restarts and a budget far below them: the best so far, said.
+    with pytest.warns(UserWarning, match=r"^klinreg: time budget reached after \d+ of 100000 restarts"):
+        model = hysid.identify(u[:3000], y[:3000], method="klinreg", modes=2, seed=1, ts=ts,
+                               options={"restarts": 100000}, time_budget=0.5)
+    assert model.info["diagnostics"]["run_status"] == "time_budget"

@@ -515,9 +515,9 @@ pub enum DataError {
         /// What is wrong.
         reason: String,
     },
-    /// The same rows and signals of one file given as two records: one
-    /// record counted twice.
-    #[error("{path}: given twice with the same rows and signals (records {first} and {second})", path = path.display())]
+    /// One file given as two records with the same signals over rows that
+    /// overlap: those rows counted twice.
+    #[error("{path}: given twice with the same signals over rows that overlap (records {first} and {second}): those rows would count twice", path = path.display())]
     RecordTwice {
         /// The file.
         path: PathBuf,
