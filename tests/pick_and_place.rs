@@ -228,7 +228,7 @@ fn a_hybrid_model_below_the_affine_one_is_flagged() {
 
 /// The prior file of docs/priors.md, as printed there, on the record:
 /// `cluster` and `bounded` run it (an equality, a fixed offset and a bound
-/// together, which once left clarabel without progress) and every
+/// together, where clarabel at strict tolerances makes no progress) and every
 /// ordinary mode honours it: `b1 = b2`, `c = 0`, `b1` in `[0, 1e3]`.
 #[test]
 fn the_prior_file_of_the_reference_runs_on_the_record() {
