@@ -99,6 +99,40 @@ fn warn_divergence(py: Python<'_>, sim: &Simulation) -> PyResult<()> {
     Ok(())
 }
 
+/// A `hysid.Record` given in place of the inputs `u`: its inputs, its
+/// outputs (in place of `y`, which must then be left out) and its sampling
+/// time (in place of `ts`, likewise); the arguments as given otherwise.
+type Given<'py> = (
+    Bound<'py, PyAny>,
+    Option<Bound<'py, PyAny>>,
+    Option<Bound<'py, PyAny>>,
+);
+
+fn unpacked<'py>(
+    py: Python<'py>,
+    u: &Bound<'py, PyAny>,
+    (y_name, y): (&str, Option<&Bound<'py, PyAny>>),
+    ts: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Given<'py>> {
+    let record = py.import("hysid._record")?.getattr("Record")?;
+    if !u.is_instance(&record)? {
+        return Ok((u.clone(), y.cloned(), ts.cloned()));
+    }
+    let given: Vec<&str> = [(y_name, y.is_some()), ("ts", ts.is_some())]
+        .into_iter()
+        .filter_map(|(name, given)| given.then_some(name))
+        .collect();
+    if !given.is_empty() {
+        return Err(Failure::input(format!(
+            "{} given with a record, which has its own",
+            given.join(", ")
+        ))
+        .into());
+    }
+    let ts = Some(u.getattr("ts")?).filter(|t| !t.is_none());
+    Ok((u.getattr("u")?, Some(u.getattr("y")?), ts))
+}
+
 #[pymethods]
 impl Model {
     /// Reads a model file (`.json`, or `.toml` for hand-written models).
@@ -252,7 +286,9 @@ impl Model {
 
     /// Free-run simulation driven by `u`; `y0` (shape `(k,)` or `(k, 1)`)
     /// gives the outputs of the first samples (the initial condition; zeros
-    /// when left out). Returns `(y, mode)`.
+    /// when left out). A `hysid.Record` in place of `u` gives the inputs
+    /// and `ts` (its outputs are not read, as `Estimator.simulate`).
+    /// Returns `(y, mode)`.
     #[pyo3(signature = (u, y0=None, ts=None))]
     fn simulate<'py>(
         &self,
@@ -261,7 +297,10 @@ impl Model {
         y0: Option<&Bound<'py, PyAny>>,
         ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Outputs<'py>> {
-        let ts = args::seconds("ts", ts)?;
+        // A record's inputs drive the run; its outputs are not read.
+        let (u, _, ts) = unpacked(py, u, ("y", None), ts)?;
+        let u = &u;
+        let ts = args::seconds("ts", ts.as_ref())?;
         let n = input_columns(u)?.first().map_or(0, Vec::len);
         let mut y = vec![0.0; n];
         if let Some(y0) = y0 {
@@ -295,16 +334,20 @@ impl Model {
     }
 
     /// One-step-ahead prediction from the measured `u` and `y` (`y` of
-    /// shape `(N,)` or `(N, 1)`). Returns `(y_pred, mode)`.
-    #[pyo3(signature = (u, y, ts=None))]
+    /// shape `(N,)` or `(N, 1)`; or a `hysid.Record` in place of `u`,
+    /// `y` and `ts`). Returns `(y_pred, mode)`.
+    #[pyo3(signature = (u, y=None, ts=None), text_signature = "($self, u, y=None, ts=None)")]
     fn predict<'py>(
         &self,
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
-        y: &Bound<'py, PyAny>,
+        y: Option<&Bound<'py, PyAny>>,
         ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Outputs<'py>> {
-        let data = self.record(u, output(y)?, args::seconds("ts", ts)?)?;
+        let (u, y, ts) = unpacked(py, u, ("y", y), ts)?;
+        let y =
+            y.ok_or_else(|| Failure::input("y is missing (give a hysid.Record, or u and y)"))?;
+        let data = self.record(&u, output(&y)?, args::seconds("ts", ts.as_ref())?)?;
         let opts = SimulationOptions::for_data(&data);
         let pred = py
             .detach(|| simulate::predict(&self.inner, &data, opts))
@@ -319,19 +362,23 @@ impl Model {
     /// samples: the dictionary of `hysid validate --json` (`fit_sim`,
     /// `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...). Lists of
     /// records (`u` and `y` lists of as many arrays) are scored each, in
-    /// `records`, and together.
-    #[pyo3(signature = (u, y, warmup=None, ts=None), text_signature = "($self, u, y, warmup=10, ts=None)")]
+    /// `records`, and together. A `hysid.Record` in place of `u` gives `u`,
+    /// `y` and `ts`.
+    #[pyo3(signature = (u, y=None, warmup=None, ts=None), text_signature = "($self, u, y=None, warmup=10, ts=None)")]
     fn validate<'py>(
         &self,
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
-        y: &Bound<'py, PyAny>,
+        y: Option<&Bound<'py, PyAny>>,
         warmup: Option<&Bound<'py, PyAny>>,
         ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let warmup = warmup.map_or(Ok(10), |w| args::count("warmup", w))?;
-        let ts = args::seconds("ts", ts)?;
-        let data = record::one_or_joined(u, y, |u, y| self.record(u, output(y)?, ts))?;
+        let (u, y, ts) = unpacked(py, u, ("y", y), ts)?;
+        let y =
+            y.ok_or_else(|| Failure::input("y is missing (give a hysid.Record, or u and y)"))?;
+        let ts = args::seconds("ts", ts.as_ref())?;
+        let data = record::one_or_joined(&u, &y, |u, y| self.record(u, output(y)?, ts))?;
         for (i, range) in data.record_ranges().into_iter().enumerate() {
             if warmup >= range.len() {
                 let which = if data.record_count() > 1 {

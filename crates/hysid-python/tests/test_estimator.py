@@ -167,6 +167,28 @@ def test_the_default_estimator_runs(head):
     assert np.isfinite(est.score(head[1500:2500]))
 
 
+def test_a_record_stands_for_its_arrays(arx, head):
+    rows, model = head[5000:5300], arx.model_
+    y0 = rows.y[:2]
+    assert np.array_equal(model.simulate(rows, y0=y0)[0], model.simulate(rows.u, y0=y0, ts=rows.ts)[0])
+    assert np.array_equal(model.simulate(rows)[0], arx.simulate(rows))
+    assert np.array_equal(model.predict(rows)[0], model.predict(rows.u, rows.y, ts=rows.ts)[0])
+    assert model.validate(rows) == model.validate(rows.u, rows.y, ts=rows.ts)
+    one = hysid.identify(head[:3000], method="arx")
+    again = hysid.identify(head.u[:3000], head.y[:3000], method="arx", ts=head.ts,
+                           input_names=head.input_names, output_name=head.output_name)
+    assert one.to_json() == again.to_json()
+    parts = [head[:2000], head[2000:3000]]
+    two = hysid.identify(parts, method="arx")
+    arrays = hysid.identify([p.u for p in parts], [p.y for p in parts], method="arx", ts=head.ts,
+                            input_names=head.input_names, output_name=head.output_name)
+    assert two.to_json() == arrays.to_json()
+    with pytest.raises(hysid.InputError, match="y given with a record, which has its own"):
+        model.validate(rows, rows.y)
+    with pytest.raises(hysid.InputError, match="y is missing"):
+        hysid.identify(rows.u, method="arx")
+
+
 @pytest.mark.filterwarnings("ignore:the model's free-run FIT")
 def test_the_default_mode_bound_gives_way_to_every_other_count(head):
     rows = head[:1500]

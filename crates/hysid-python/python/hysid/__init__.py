@@ -34,7 +34,7 @@ import numpy.typing as npt
 from . import _hysid
 from ._hysid import HysidError, InputError, MethodError, Model
 from ._record import Record, Rows, _names, _rows, _seconds
-from ._estimator import Estimator
+from ._estimator import Estimator, _records_given
 
 __all__ = [
     "Estimator",
@@ -150,8 +150,8 @@ def load(
 
 
 def identify(
-    u: Union[npt.ArrayLike, Sequence[npt.ArrayLike]],
-    y: Union[npt.ArrayLike, Sequence[npt.ArrayLike]],
+    u: Union[npt.ArrayLike, Sequence[npt.ArrayLike], Record, Sequence[Record]],
+    y: Union[npt.ArrayLike, Sequence[npt.ArrayLike], None] = None,
     method: str = "cluster",
     na: int = 2,
     nb: int = 2,
@@ -177,7 +177,9 @@ def identify(
     """Identifies a model with back-end ``method`` (see :func:`methods`).
 
     ``u``: inputs, shape ``(N,)`` or ``(N, m)``; ``y``: outputs, ``(N,)``
-    or ``(N, 1)``. Several records of one system: ``y`` a list of numpy
+    or ``(N, 1)``; or a :class:`Record` (or a list of records) in place of
+    ``u``, giving ``y``, ``ts`` and the names. Several records of one
+    system: ``y`` a list of numpy
     arrays and ``u`` a list of as many (``identify([u1, u2], [y1, y2])``);
     one model is fitted on all, nothing spans two records, each starts from
     its own initial state, and ``select_records=K`` (with ``auto``) holds
@@ -210,6 +212,13 @@ def identify(
     raises :class:`MethodError`. :class:`Estimator` is the same in
     scikit-learn's manner.
     """
+    if _records_given(u):
+        found = Estimator._records(u, y, ts, input_names, output_name, "identify")
+        first = found[0]
+        u, y = ([r.u for r in found], [r.y for r in found]) if len(found) > 1 else (first.u, first.y)
+        ts, input_names, output_name = first.ts, first.input_names, first.output_name
+    elif y is None:
+        raise InputError("identify: y is missing (give a hysid.Record, or u and y)")
     _counts(na=na, nb=nb, seed=seed, warmup=warmup)
     _counts(optional=True, modes=modes, max_modes=max_modes, folds=folds,
             select_records=select_records, refit_starts=refit_starts)

@@ -92,23 +92,28 @@ class Model:
         """Provenance as a dictionary: method, options, seed, diagnostics and,
         under automatic selection, the candidates and the choice."""
     def simulate(
-        self, u: ArrayLike, y0: Optional[ArrayLike] = None, ts: Optional[float] = None
+        self, u: Any, y0: Optional[ArrayLike] = None, ts: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
         """Free-run simulation driven by `u`; `y0` (shape `(k,)` or `(k, 1)`)
         gives the outputs of the first samples (the initial condition; zeros
-        when left out). Returns `(y, mode)`."""
+        when left out); `ts`: the sampling time in seconds (a
+        continuous-time model needs it). A `hysid.Record` in place of `u`
+        gives the inputs and `ts` (its outputs are not read, as
+        `Estimator.simulate`). Returns `(y, mode)`."""
     def predict(
-        self, u: ArrayLike, y: ArrayLike, ts: Optional[float] = None
+        self, u: Any, y: Optional[ArrayLike] = None, ts: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
         """One-step-ahead prediction from the measured `u` and `y` (`y` of
-        shape `(N,)` or `(N, 1)`). Returns `(y_pred, mode)`."""
+        shape `(N,)` or `(N, 1)`; or a `hysid.Record` in place of `u`, `y`
+        and `ts`). Returns `(y_pred, mode)`."""
     def validate(
-        self, u: ArrayLike, y: ArrayLike, warmup: int = 10, ts: Optional[float] = None
+        self, u: Any, y: Optional[ArrayLike] = None, warmup: int = 10, ts: Optional[float] = None
     ) -> Dict[str, Any]:
         """Scores the model on a record (or on lists of records: each in
         `records`, and all together), leaving out the first `warmup`
         samples: the dictionary of `hysid validate --json` (`fit_sim`,
-        `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...)."""
+        `rmse_sim`, `fit_pred`, `rmse_pred`, `coverage`, ...). A
+        `hysid.Record` in place of `u` gives `u`, `y` and `ts`."""
 
 def methods() -> List[Dict[str, Any]]:
     """The back-ends as a list of dictionaries: name, summary, options (key,
