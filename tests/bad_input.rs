@@ -1013,6 +1013,11 @@ fn malformed_gray_box_files() {
             ],
         ),
         (
+            "taken.toml",
+            good.replace("[definitions]\n", "[definitions]\nz = \"1\"\n"),
+            vec!["'z' is already a state".into()],
+        ),
+        (
             "target.toml",
             good.replace("to = \"carried\"", "to = \"landed\""),
             vec![line_of("to = \"carried\""), "'landed' is not a mode".into()],

@@ -125,12 +125,19 @@ pub(super) fn symbol_table<'m>(
                 Problem::BadName(name.into()),
             ));
         }
-        if table.insert(name, slot).is_some() {
-            return Err(InvalidGrayBox::new(
-                what,
-                Some(name),
-                Problem::Duplicate(name.into()),
-            ));
+        if let Some(first) = table.insert(name, slot) {
+            let (nx, ni) = (m.states.len(), m.inputs.len());
+            let kind = match first {
+                s if s < nx => "a state",
+                s if s < nx + ni => "an input",
+                s if s < nx + ni + m.parameters.len() => "a parameter",
+                _ => "a definition",
+            };
+            let problem = Problem::Taken {
+                name: name.into(),
+                kind,
+            };
+            return Err(InvalidGrayBox::new(what, Some(name), problem));
         }
         slot += 1;
         Ok(())

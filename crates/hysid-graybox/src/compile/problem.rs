@@ -39,6 +39,16 @@ pub enum Problem {
     /// modes and elements share one namespace each).
     #[error("'{0}' is declared twice")]
     Duplicate(String),
+    /// A state, input, parameter or definition whose name another of them
+    /// has (they share one namespace).
+    #[error("'{name}' is already {kind}")]
+    Taken {
+        /// The name.
+        name: String,
+        /// What has it first: `a state`, `an input`, `a parameter`, `a
+        /// definition`.
+        kind: &'static str,
+    },
     /// A parameter with non-finite numbers, low above high, or its value
     /// outside its bounds.
     #[error(
