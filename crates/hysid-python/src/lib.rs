@@ -319,9 +319,8 @@ fn identify<'py>(
     })??;
     // As the program: a run cut short (a time budget, an iteration bound),
     // or one with warnings, says so.
-    let d = &identified.model.info().diagnostics;
-    if d.run_status.cut_short() || !d.status.is_empty() {
-        warn(py, &format!("{method}: {}", d.status.join("; ")))?;
+    if let Some(note) = identified.model.info().diagnostics.note() {
+        warn(py, &format!("{method}: {note}"))?;
     }
     if let Some(warning) = identified.affine_warning(&request) {
         warn(py, &warning)?;

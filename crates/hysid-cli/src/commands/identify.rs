@@ -240,9 +240,8 @@ pub fn run(args: Args) -> Result<()> {
     );
     // A run cut short (by --time-budget or an iteration bound), or one with
     // warnings, says so.
-    let d = &model.info().diagnostics;
-    if d.run_status.cut_short() || !d.status.is_empty() {
-        eprintln!("hysid: {}: {}", args.method, d.status.join("; "));
+    if let Some(note) = model.info().diagnostics.note() {
+        eprintln!("hysid: {}: {note}", args.method);
     }
     if let Some(selection) = &model.info().selection {
         report_selection(&args.method, selection);

@@ -217,6 +217,12 @@ impl Diagnostics {
         *self == Diagnostics::default()
     }
 
+    /// What every front end says of the run: its status messages joined
+    /// by "; ", when it was cut short or has any; `None` otherwise.
+    pub fn note(&self) -> Option<String> {
+        (self.run_status.cut_short() || !self.status.is_empty()).then(|| self.status.join("; "))
+    }
+
     /// Adds the fields of a back-end's typed diagnostics (a struct that
     /// serialises to a JSON object); a field named like a common one is an
     /// error of the back-end, caught by its tests.

@@ -646,8 +646,7 @@ fn selection_note(m: &Model) -> Option<String> {
 }
 
 fn status_note(m: &Model) -> Option<String> {
-    let d = &m.info().diagnostics;
-    (d.run_status.cut_short() || !d.status.is_empty()).then(|| d.status.join("; "))
+    m.info().diagnostics.note()
 }
 
 /// "regions leave holes" when the back-end reported an incomplete partition
