@@ -95,7 +95,7 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
     let setup = Setup {
         orders: RegressorSpec::new(args.na, args.nb, args.signals.input.len()),
         priors: priors.clone(),
-        settings: Settings::parse(&args.set)?,
+        settings: given,
     };
     // The priors as the back-end checks them at every point (whose
     // orders may be swept), named by their file.
