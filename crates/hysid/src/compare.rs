@@ -276,10 +276,15 @@ fn merge(shared: &Priors, run: &RunSpec) -> Priors {
 impl Experiment {
     /// Runs and sweep points, in file order.
     pub fn jobs(&self) -> Result<Vec<Job>, ExperimentError> {
+        self.jobs_under(&self.warnings())
+    }
+
+    /// [`Experiment::jobs`] with the file's `warnings` known.
+    fn jobs_under(&self, warnings: &[ExperimentWarning]) -> Result<Vec<Job>, ExperimentError> {
         // Scored rows that are identification rows may be selection rows:
         // an automatic choice there is labelled as one on the test rows.
-        let overlapping = (self.warnings().iter())
-            .any(|w| matches!(w, ExperimentWarning::ValidationOverlaps { .. }));
+        let overlapping =
+            (warnings.iter()).any(|w| matches!(w, ExperimentWarning::ValidationOverlaps { .. }));
         let job = |r: &RunSpec, name: String, sweep: Option<SweepPoint>| Job {
             name,
             origin: match Origin::of_run(r) {
@@ -481,13 +486,13 @@ impl Experiment {
             ),
         };
         let registry = crate::registry();
-        let jobs = self.jobs()?;
+        let warnings = self.warnings();
+        let jobs = self.jobs_under(&warnings)?;
         if let Some(job) = jobs.iter().find(|j| j.auto) {
             request(job, &ident, &self.data)
                 .check_selection()
                 .map_err(|e| ExperimentError::Selection(self.data.selection_error(e)))?;
         }
-        let warnings = self.warnings();
         let jobs = once_where_seed_free(jobs, &registry, &ident, &self.data);
         progress.start(jobs.len() as u64, "identifying");
         let results: Vec<RunResult> = jobs
