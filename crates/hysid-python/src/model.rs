@@ -111,14 +111,14 @@ type Given<'py> = (
 fn unpacked<'py>(
     py: Python<'py>,
     u: &Bound<'py, PyAny>,
-    (y_name, y): (&str, Option<&Bound<'py, PyAny>>),
+    y: Option<&Bound<'py, PyAny>>,
     ts: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Given<'py>> {
     let record = py.import("hysid._record")?.getattr("Record")?;
     if !u.is_instance(&record)? {
         return Ok((u.clone(), y.cloned(), ts.cloned()));
     }
-    let given: Vec<&str> = [(y_name, y.is_some()), ("ts", ts.is_some())]
+    let given: Vec<&str> = [("y", y.is_some()), ("ts", ts.is_some())]
         .into_iter()
         .filter_map(|(name, given)| given.then_some(name))
         .collect();
@@ -131,6 +131,25 @@ fn unpacked<'py>(
     }
     let ts = Some(u.getattr("ts")?).filter(|t| !t.is_none());
     Ok((u.getattr("u")?, Some(u.getattr("y")?), ts))
+}
+
+/// [`unpacked`] for a method that reads measured outputs: `y` (given, or
+/// the record's) is required.
+type Measured<'py> = (
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Option<Bound<'py, PyAny>>,
+);
+
+fn measured<'py>(
+    py: Python<'py>,
+    u: &Bound<'py, PyAny>,
+    y: Option<&Bound<'py, PyAny>>,
+    ts: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Measured<'py>> {
+    let (u, y, ts) = unpacked(py, u, y, ts)?;
+    let y = y.ok_or_else(|| Failure::input("y is missing (give a hysid.Record, or u and y)"))?;
+    Ok((u, y, ts))
 }
 
 #[pymethods]
@@ -298,7 +317,7 @@ impl Model {
         ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Outputs<'py>> {
         // A record's inputs drive the run; its outputs are not read.
-        let (u, _, ts) = unpacked(py, u, ("y", None), ts)?;
+        let (u, _, ts) = unpacked(py, u, None, ts)?;
         let u = &u;
         let ts = args::seconds("ts", ts.as_ref())?;
         let n = input_columns(u)?.first().map_or(0, Vec::len);
@@ -344,9 +363,7 @@ impl Model {
         y: Option<&Bound<'py, PyAny>>,
         ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Outputs<'py>> {
-        let (u, y, ts) = unpacked(py, u, ("y", y), ts)?;
-        let y =
-            y.ok_or_else(|| Failure::input("y is missing (give a hysid.Record, or u and y)"))?;
+        let (u, y, ts) = measured(py, u, y, ts)?;
         let data = self.record(&u, output(&y)?, args::seconds("ts", ts.as_ref())?)?;
         let opts = SimulationOptions::for_data(&data);
         let pred = py
@@ -374,9 +391,7 @@ impl Model {
         ts: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let warmup = warmup.map_or(Ok(10), |w| args::count("warmup", w))?;
-        let (u, y, ts) = unpacked(py, u, ("y", y), ts)?;
-        let y =
-            y.ok_or_else(|| Failure::input("y is missing (give a hysid.Record, or u and y)"))?;
+        let (u, y, ts) = measured(py, u, y, ts)?;
         let ts = args::seconds("ts", ts.as_ref())?;
         let data = record::one_or_joined(&u, &y, |u, y| self.record(u, output(y)?, ts))?;
         for (i, range) in data.record_ranges().into_iter().enumerate() {

@@ -212,13 +212,12 @@ def identify(
     raises :class:`MethodError`. :class:`Estimator` is the same in
     scikit-learn's manner.
     """
-    if _records_given(u):
+    if _records_given(u) or y is None:
+        # Records, or arrays without y (refused, saying what is missing).
         found = Estimator._records(u, y, ts, input_names, output_name, "identify")
         first = found[0]
         u, y = ([r.u for r in found], [r.y for r in found]) if len(found) > 1 else (first.u, first.y)
         ts, input_names, output_name = first.ts, first.input_names, first.output_name
-    elif y is None:
-        raise InputError("identify: y is missing (give a hysid.Record, or u and y)")
     _counts(na=na, nb=nb, seed=seed, warmup=warmup)
     _counts(optional=True, modes=modes, max_modes=max_modes, folds=folds,
             select_records=select_records, refit_starts=refit_starts)
