@@ -1018,6 +1018,30 @@ fn malformed_gray_box_files() {
             vec!["'z' is already a state".into()],
         ),
         (
+            "label.toml",
+            good.replace("name = \"fly\"\n", "name = \"fly\"\nlabel = \"airborne\"\n")
+                .replace(
+                    "name = \"carried\"\n",
+                    "name = \"carried\"\nlabel = \"fly\"\n",
+                ),
+            vec![
+                "mode 'carried'".into(),
+                "the label 'fly' is the name of a mode whose samples are labelled 'airborne'"
+                    .into(),
+            ],
+        ),
+        (
+            "element_modes.toml",
+            good.replace(
+                "name = \"carried\"\n",
+                "name = \"carried\"\nelement_modes = { table = \"held\" }\n",
+            ),
+            vec![
+                "mode 'carried', element_modes".into(),
+                "no element is named 'table'".into(),
+            ],
+        ),
+        (
             "target.toml",
             good.replace("to = \"carried\"", "to = \"landed\""),
             vec![line_of("to = \"carried\""), "'landed' is not a mode".into()],
@@ -1735,31 +1759,14 @@ fn crossed_stops_are_refused() {
     report();
 }
 
-/// `convert` reads a mechanical model whose labels a gray-box model can
-/// give, and nothing else; it never writes over its input.
+/// `convert` reads a mechanical model and nothing else; it never writes
+/// over its input.
 #[test]
-fn models_convert_cannot_write_as_gray_box() {
+fn convert_reads_only_mechanical_models() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let out = d.join("never.toml");
     let head = repository_text("models/pick-and-place/head.toml");
-    // One slip mode for sliding free and in contact.
-    let shared = head
-        .replace("kind = \"slip\"\ncontacts = []", "kind = \"slip\"")
-        .replace(
-            "[[modes]]\nname = \"impact\"\nkind = \"slip\"\ncontacts = [\"board\"]",
-            "[[modes]]\nname = \"impact\"\nkind = \"stick\"\ncontacts = [\"board\"]",
-        );
-    let shared = write(d, "shared.toml", shared);
-    bad(
-        &["convert", s(&shared), "-o", s(&out)],
-        &[
-            "shared.toml",
-            "mode 'free'",
-            "more than one set of engaged contacts",
-        ],
-        &out,
-    );
     let gray = write(
         d,
         "gray.toml",

@@ -1451,20 +1451,30 @@ fn simulated(csv: &Path) -> (Vec<f64>, Vec<String>) {
 
 /// `convert` writes the head as a gray-box model (TOML or JSON, as named)
 /// that simulates as the mechanical file does: the same outputs and the
-/// same mode names at every sample of a record that visits them all.
+/// same mode names at every sample of a record that visits them all; so
+/// does a head whose slip mode is shared by the sets of contacts and
+/// whose sticking is labelled by them.
 #[test]
 fn convert_writes_the_gray_box_form_of_a_mechanical_model() {
     let dir = tempfile::tempdir().unwrap();
-    let head = concat!(
+    let head_text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../models/pick-and-place/head.toml"
-    );
+    ))
+    .unwrap();
+    let relabelled = head_text
+        .replace("kind = \"slip\"\ncontacts = []", "kind = \"slip\"")
+        .replace(
+            "[[modes]]\nname = \"impact\"\nkind = \"slip\"\ncontacts = [\"board\"]",
+            "[[modes]]\nname = \"stuck on board\"\nkind = \"stick\"\ncontacts = [\"board\"]",
+        );
+    assert_ne!(relabelled, head_text);
     let excite = "n=3000,hold=120,low=-0.3,high=0.05,ts=0.0025";
-    let run = |model: &str, name: &str| {
+    let run = |model: &std::path::Path, name: &str| {
         let out = dir.path().join(name);
         ok(&[
             "simulate",
-            model,
+            s(model),
             "--excite",
             excite,
             "--seed",
@@ -1474,32 +1484,39 @@ fn convert_writes_the_gray_box_form_of_a_mechanical_model() {
         ]);
         simulated(&out)
     };
-    let (y, modes) = run(head, "mechanical.csv");
-    for distinct in [
-        "free",
-        "impact",
-        "stick",
-        "upper_saturation",
-        "lower_saturation",
+    for (file, text, distinct) in [
+        ("head", &head_text, "impact"),
+        ("relabelled", &relabelled, "stuck on board"),
     ] {
-        assert!(
-            modes.iter().any(|m| m == distinct),
-            "no sample in {distinct}"
-        );
-    }
-    for name in ["gray.toml", "gray.json"] {
-        let gray = dir.path().join(name);
-        ok(&["convert", head, "-o", s(&gray)]);
-        let text = std::fs::read_to_string(&gray).unwrap();
-        assert!(text.contains("gray_box"), "{name}: {}", &text[..80]);
-        let (y2, modes2) = run(s(&gray), &format!("{name}.csv"));
-        assert_eq!(modes, modes2, "{name}");
-        let worst = y
-            .iter()
-            .zip(&y2)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        assert!(worst < 1e-9, "{name}: max |y difference| {worst}");
+        let mechanical = dir.path().join(format!("{file}.toml"));
+        std::fs::write(&mechanical, text).unwrap();
+        let (y, modes) = run(&mechanical, &format!("{file}.csv"));
+        for distinct in [
+            "free",
+            distinct,
+            "stick",
+            "upper_saturation",
+            "lower_saturation",
+        ] {
+            assert!(
+                modes.iter().any(|m| m == distinct),
+                "{file}: no sample in {distinct}"
+            );
+        }
+        for name in ["gray.toml", "gray.json"] {
+            let gray = dir.path().join(format!("{file}-{name}"));
+            ok(&["convert", s(&mechanical), "-o", s(&gray)]);
+            let text = std::fs::read_to_string(&gray).unwrap();
+            assert!(text.contains("gray_box"), "{name}: {}", &text[..80]);
+            let (y2, modes2) = run(&gray, &format!("{file}-{name}.csv"));
+            assert_eq!(modes, modes2, "{file}, {name}");
+            let worst = y
+                .iter()
+                .zip(&y2)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-9, "{file}, {name}: max |y difference| {worst}");
+        }
     }
 }
 

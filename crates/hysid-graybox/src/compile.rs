@@ -18,8 +18,9 @@
 use crate::expr::{Expression, Relation, Shared};
 use crate::model::GrayBoxModel;
 use compiler::Compiler;
-use elements::{check_stops, compile_elements};
+use elements::{check_stops, compile_elements, mode_labels};
 use initial::{check_sensor, initial_rule};
+pub use names::is_identifier;
 use names::{check_header, check_sizes, definition_names};
 pub use problem::{InvalidGrayBox, Problem};
 
@@ -119,6 +120,17 @@ pub enum CompiledElement {
     },
 }
 
+/// The mode labels of a run's samples, as indices into
+/// [`GrayBoxModel::mode_names`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeLabels {
+    /// Per mode, the label of its samples.
+    pub mode: Vec<usize>,
+    /// Per mode and element, the label of the samples the element holds
+    /// in that mode.
+    pub held: Vec<Vec<usize>>,
+}
+
 /// The initial-state rule with indices.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CompiledInitial {
@@ -196,6 +208,8 @@ pub struct CompiledModel {
     pub modes: Vec<CompiledMode>,
     /// Elements.
     pub elements: Vec<CompiledElement>,
+    /// The mode labels of the samples.
+    pub labels: ModeLabels,
     /// Per input, its delay in seconds (parameters only; a constant 0
     /// without one).
     pub delays: Vec<Expression>,
@@ -219,9 +233,9 @@ impl CompiledModel {
         let names = definition_names(m);
         check_sizes(m, names.len())?;
         let mut c = Compiler::new(m, names)?;
+        let labels = mode_labels(m, &c.mode_index)?;
         let elements = compile_elements(
             m,
-            &c.mode_index,
             &|p, n| c.state_of(p, n),
             &|p, n| c.parametric(p, n),
             &|p, n| c.restitution(p, n),
@@ -242,6 +256,7 @@ impl CompiledModel {
             parameters: m.parameters.len(),
             modes,
             elements,
+            labels,
             initial,
             internal_step: m.internal_step,
         })
@@ -371,6 +386,7 @@ impl CompiledModel {
                     friction => friction.clone(),
                 })
                 .collect(),
+            labels: self.labels.clone(),
             delays: self.delays.iter().map(b).collect(),
             energy: self.energy.as_ref().map(b),
             initial: self.initial.clone(),

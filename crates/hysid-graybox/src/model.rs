@@ -40,9 +40,26 @@ pub struct GrayBoxMode {
     /// Definitions that take the place of the model's in this mode.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub definitions: BTreeMap<String, String>,
+    /// The mode label of its samples, where it is not the name: modes
+    /// with one label are one mode of a run's mode sequence (one physical
+    /// regime written as several modes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub label: Option<String>,
+    /// `element = "label"`: the mode label of the samples an element holds
+    /// while in this mode, in place of the element's own `mode` (sticking
+    /// in contact labelled apart from sticking in free motion).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub element_modes: BTreeMap<String, String>,
     /// What it is.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub doc: String,
+}
+
+impl GrayBoxMode {
+    /// The mode label of its samples: its `label`, else its name.
+    pub fn label(&self) -> &str {
+        self.label.as_deref().unwrap_or(&self.name)
+    }
 }
 
 /// A transition between modes: the guard surface crossed in a direction,
@@ -311,17 +328,22 @@ impl GrayBoxModel {
         self.parameters.iter().position(|p| p.name == name)
     }
 
-    /// The mode labels of a run: the declared modes, then the labels of the
-    /// elements (a stop's rest, a friction's stick), each name once.
+    /// The mode labels of a run: the declared modes' labels, then those of
+    /// the elements (a stop's rest, a friction's stick: each element's
+    /// `mode`, then the modes' `element_modes`), each label once.
     pub fn mode_names(&self) -> Vec<String> {
-        let mut names: Vec<String> = self.modes.iter().map(|m| m.name.clone()).collect();
-        let mut seen: std::collections::HashSet<&str> =
-            self.modes.iter().map(|m| m.name.as_str()).collect();
-        for e in &self.elements {
-            if seen.insert(e.mode()) {
-                names.push(e.mode().to_string());
-            }
-        }
-        names
+        let mut seen = std::collections::HashSet::new();
+        self.modes
+            .iter()
+            .map(GrayBoxMode::label)
+            .chain(self.elements.iter().map(Element::mode))
+            .chain(
+                self.modes
+                    .iter()
+                    .flat_map(|q| q.element_modes.values().map(String::as_str)),
+            )
+            .filter(|label| seen.insert(*label))
+            .map(str::to_string)
+            .collect()
     }
 }

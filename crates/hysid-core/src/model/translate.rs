@@ -11,6 +11,7 @@
 //! ones: a set of contacts takes its slip mode's name, the friction's stick
 //! label is the stick mode's and a stop's rest label its stop mode's.
 
+use hysid_graybox::compile::is_identifier;
 use hysid_graybox::{
     Element, GrayBoxInitialState, GrayBoxMode, GrayBoxModel, GrayBoxTransition, InvalidGrayBox,
     OutputMap, StopSide,
@@ -29,20 +30,6 @@ pub enum Untranslatable {
     /// The mechanical model itself is invalid.
     #[error(transparent)]
     Mechanical(#[from] InvalidMechanical),
-    /// Two sets of engaged contacts share one slip mode: a gray-box mode is
-    /// one set of contacts, named once.
-    #[error(
-        "mode '{0}' labels sliding with more than one set of engaged contacts; \
-         as a gray-box model each set needs a slip mode of its own"
-    )]
-    SharedSlipMode(String),
-    /// Stuck samples labelled by their engaged contacts: the gray-box
-    /// friction has one stick label.
-    #[error(
-        "sticking is labelled '{0}' and '{1}' by the engaged contacts; \
-         as a gray-box model sticking has one label"
-    )]
-    StickByContacts(String, String),
     /// The written model does not check (e.g. a parameter whose name is
     /// not an expression's symbol).
     #[error("as a gray-box model: {0}")]
@@ -54,7 +41,7 @@ pub enum Untranslatable {
 pub fn to_gray_box(model: &MechanicalModel) -> Result<GrayBoxModel, Untranslatable> {
     model.validate()?;
     let symbols = Symbols::new(model);
-    let labels = mode_labels(model)?;
+    let labels = mode_labels(model);
     let gray = GrayBoxModel {
         format: hysid_graybox::FORMAT_VERSION,
         name: model.name.clone(),
@@ -69,7 +56,7 @@ pub fn to_gray_box(model: &MechanicalModel) -> Result<GrayBoxModel, Untranslatab
         parameters: model.parameters.clone(),
         definitions: model_definitions(model, &symbols),
         modes: contact_modes(model, &symbols, &labels),
-        transitions: contact_transitions(model, &symbols, &labels.slip),
+        transitions: contact_transitions(model, &symbols, &labels.names),
         elements: elements(model, &symbols, &labels),
         energy: None,
         initial_state: initial_state(&model.initial_state, &symbols),
@@ -167,15 +154,35 @@ fn sum(terms: &[(bool, String)]) -> String {
     if out.is_empty() { "0".to_string() } else { out }
 }
 
-/// The labels of the regimes: a slip mode per set of engaged contacts (by
-/// bit mask), the stick label, a rest label per stop.
+/// The labels of the regimes and the names of the gray-box modes: per set
+/// of engaged contacts (by bit mask) its slip label, its mode's name and
+/// its stick label; a rest label per stop.
 struct Labels {
     slip: Vec<String>,
-    stick: String,
+    names: Vec<String>,
+    stick: Vec<String>,
     stops: Vec<String>,
 }
 
-fn mode_labels(model: &MechanicalModel) -> Result<Labels, Untranslatable> {
+impl Labels {
+    /// The `label` of the mode of contacts `mask`, where it is not its
+    /// name.
+    fn label(&self, mask: usize) -> Option<String> {
+        (self.names[mask] != self.slip[mask]).then(|| self.slip[mask].clone())
+    }
+
+    /// The friction's stick label in the mode of contacts `mask`, where it
+    /// is not the friction's own (that of no contact engaged).
+    fn stick_in(&self, mask: usize) -> Option<&String> {
+        (self.stick[mask] != self.stick[0]).then_some(&self.stick[mask])
+    }
+}
+
+/// Every regime's label is its first matching declared mode's name
+/// (`MechanicalModel::mode_of`). A mode is named by its slip label where
+/// that is an identifier no earlier set of contacts took; else
+/// `contacts_<mask>` (made unique), labelled by the slip label.
+fn mode_labels(model: &MechanicalModel) -> Labels {
     let name = |i: Option<usize>| {
         // `validate` proved that every regime has a mode.
         i.map(|i| model.modes[i].name.clone()).unwrap_or_default()
@@ -185,21 +192,32 @@ fn mode_labels(model: &MechanicalModel) -> Result<Labels, Untranslatable> {
         .clone()
         .map(|m| name(model.mode_of(None, false, m)))
         .collect();
-    let mut seen = HashSet::new();
-    if let Some(shared) = slip.iter().find(|n| !seen.insert(n.as_str())) {
-        return Err(Untranslatable::SharedSlipMode(shared.clone()));
-    }
-    let stick = name(model.mode_of(None, true, 0));
-    if let Some(other) = masks
-        .map(|m| name(model.mode_of(None, true, m)))
-        .find(|n| *n != stick)
-    {
-        return Err(Untranslatable::StickByContacts(stick, other));
-    }
+    let stick = masks.map(|m| name(model.mode_of(None, true, m))).collect();
     let stops = (0..model.stops.len())
         .map(|i| name(model.mode_of(Some(i), false, 0)))
         .collect();
-    Ok(Labels { slip, stick, stops })
+    let mut taken: HashSet<String> = model.modes.iter().map(|q| q.name.clone()).collect();
+    let mut named = HashSet::new();
+    let names = slip
+        .iter()
+        .enumerate()
+        .map(|(mask, label)| {
+            if is_identifier(label) && named.insert(label.clone()) {
+                return label.clone();
+            }
+            let mut name = format!("contacts_{mask}");
+            while !taken.insert(name.clone()) {
+                name.push('_');
+            }
+            name
+        })
+        .collect();
+    Labels {
+        slip,
+        names,
+        stick,
+        stops,
+    }
 }
 
 /// `F`, the friction levels with no contact engaged, and each contact's
@@ -292,14 +310,21 @@ fn contact_modes(model: &MechanicalModel, s: &Symbols, labels: &Labels) -> Vec<G
                     (false, false) => vec![format!("{p} <= 0")],
                 })
                 .collect();
+            let mask = mask as usize;
             let doc = model
                 .modes
                 .iter()
-                .find(|m| m.name == labels.slip[mask as usize])
+                .find(|m| m.name == labels.slip[mask])
                 .map(|m| m.doc.clone())
                 .unwrap_or_default();
             GrayBoxMode {
-                name: labels.slip[mask as usize].clone(),
+                name: labels.names[mask].clone(),
+                label: labels.label(mask),
+                element_modes: labels
+                    .stick_in(mask)
+                    .map(|stick| (s.friction.clone(), stick.clone()))
+                    .into_iter()
+                    .collect(),
                 flow: [(s.y.clone(), s.v.clone()), (s.v.clone(), sum(&force))].into(),
                 invariant,
                 definitions,
@@ -315,13 +340,13 @@ fn contact_modes(model: &MechanicalModel, s: &Symbols, labels: &Labels) -> Vec<G
 fn contact_transitions(
     model: &MechanicalModel,
     s: &Symbols,
-    slip: &[String],
+    names: &[String],
 ) -> Vec<GrayBoxTransition> {
     let mut out = Vec::new();
     let mut add = |from: u32, to: u32, guard: String, when: Option<String>| {
         out.push(GrayBoxTransition {
-            from: slip[from as usize].clone(),
-            to: slip[to as usize].clone(),
+            from: names[from as usize].clone(),
+            to: names[to as usize].clone(),
             guard,
             when,
             reset: BTreeMap::new(),
@@ -384,7 +409,7 @@ fn elements(model: &MechanicalModel, s: &Symbols, labels: &Labels) -> Vec<Elemen
             velocity: s.v.clone(),
             kinetic: s.kinetic.clone(),
             static_level: s.static_level.clone(),
-            mode: labels.stick.clone(),
+            mode: labels.stick[0].clone(),
         }))
         .collect()
 }
@@ -498,12 +523,16 @@ mod tests {
     /// a spring and a damper (given as parameters or numbers), friction,
     /// up to two contacts of either side and kind, a stop on either side
     /// (inelastic or bouncing), and a given or measured initial state.
+    /// Its regimes are labelled by their contacts, or (`shared`) sliding
+    /// and sticking without contact apart from one label each for every
+    /// set of engaged contacts.
     fn drawn(
         forces: [f64; 5],
         friction: [f64; 2],
         contacts: &[ContactDraw],
         restitution: [f64; 2],
         given: Option<(f64, f64)>,
+        shared: bool,
     ) -> MechanicalModel {
         let [gain, constant, stiffness, rest, damping] = forces;
         let param = |name: &str, value: f64| hysid_mechanical::PhysicalParameter {
@@ -516,31 +545,37 @@ mod tests {
         };
         let q = Quantity::Value;
         let names: Vec<String> = (0..contacts.len()).map(|i| format!("c{i}")).collect();
-        let mut modes: Vec<hysid_mechanical::MechanicalMode> = (0..1u32 << contacts.len())
-            .map(|mask| hysid_mechanical::MechanicalMode {
-                name: format!("slip{mask}"),
-                kind: hysid_mechanical::MechanicalModeKind::Slip,
-                stop: None,
-                contacts: Some(
-                    (0..contacts.len())
+        use hysid_mechanical::{MechanicalMode, MechanicalModeKind};
+        let mode = |name: &str, kind, contacts| MechanicalMode {
+            name: name.to_string(),
+            kind,
+            stop: None,
+            contacts,
+            doc: String::new(),
+        };
+        let slip = MechanicalModeKind::Slip;
+        let mut modes: Vec<MechanicalMode> = if shared {
+            vec![
+                mode("slip0", slip, Some(Vec::new())),
+                mode("moving", slip, None),
+                mode("stick0", MechanicalModeKind::Stick, Some(Vec::new())),
+            ]
+        } else {
+            (0..1u32 << contacts.len())
+                .map(|mask| {
+                    let engaged = (0..contacts.len())
                         .filter(|i| mask & (1 << i) != 0)
                         .map(|i| names[i].clone())
-                        .collect(),
-                ),
-                doc: String::new(),
-            })
-            .collect();
-        for (kind, stop) in [
-            (hysid_mechanical::MechanicalModeKind::Stick, None),
-            (hysid_mechanical::MechanicalModeKind::Stop, Some("low")),
-            (hysid_mechanical::MechanicalModeKind::Stop, Some("high")),
-        ] {
-            modes.push(hysid_mechanical::MechanicalMode {
-                name: stop.unwrap_or("stick").to_string(),
-                kind,
-                stop: stop.map(str::to_string),
-                contacts: None,
-                doc: String::new(),
+                        .collect();
+                    mode(&format!("slip{mask}"), slip, Some(engaged))
+                })
+                .collect()
+        };
+        modes.push(mode("stick", MechanicalModeKind::Stick, None));
+        for stop in ["low", "high"] {
+            modes.push(MechanicalMode {
+                stop: Some(stop.to_string()),
+                ..mode(stop, MechanicalModeKind::Stop, None)
             });
         }
         let m = MechanicalModel {
@@ -650,6 +685,7 @@ mod tests {
             contacts in proptest::collection::vec(contact(), 0..=2),
             restitution in (prop_oneof![Just(0.0), 0.0f64..0.6], prop_oneof![Just(0.0), 0.0f64..0.6]),
             given in proptest::option::of((-3.9f64..3.9, -20.0f64..20.0)),
+            shared in any::<bool>(),
             seed in any::<u64>(),
         ) {
             let (a, b, c, d, e) = forces;
@@ -659,6 +695,7 @@ mod tests {
                 &contacts,
                 [restitution.0, restitution.1],
                 given,
+                shared,
             );
             let (worst, label, _, zeno) = compare(&m, &record(seed, 400, -1.0, 1.0, 0.5));
             // Past the Zeno bound the two differ by design: the mechanical
@@ -678,6 +715,7 @@ mod tests {
             &[contact],
             [0.0; 2],
             None,
+            false,
         );
         for name in ["y", "v", "F", "p_c0", "lambda_c0"] {
             let mut p = m.parameters[0].clone();
@@ -694,40 +732,60 @@ mod tests {
         );
     }
 
+    /// Regimes labelled alike, and stuck regimes labelled by their
+    /// contacts, keep the mechanical labels in the gray-box form (the
+    /// `label` and `element_modes` of its modes).
     #[test]
-    fn labels_the_gray_box_language_cannot_give_are_refused() {
+    fn shared_and_contact_labels_run_alike() {
         use hysid_mechanical::{MechanicalMode, MechanicalModeKind};
         // One slip mode for sliding free and in contact with the board.
-        let mut m = head(&[0.5; 12]);
-        m.modes.retain(|q| q.name != "impact");
-        m.modes
-            .iter_mut()
-            .find(|q| q.name == "free")
-            .unwrap()
-            .contacts = None;
-        assert_eq!(
-            to_gray_box(&m),
-            Err(Untranslatable::SharedSlipMode("free".to_string()))
-        );
-        // Stuck in contact labelled apart from stuck free.
-        let mut m = head(&[0.5; 12]);
-        m.modes.insert(
+        let mut shared = head(&[0.5; 12]);
+        shared.modes.retain(|q| q.name != "impact");
+        let free = shared.modes.iter_mut().find(|q| q.name == "free").unwrap();
+        free.contacts = None;
+        // Stuck in contact labelled apart from stuck free, by a mode
+        // whose name is no gray-box name.
+        let mut by_contacts = head(&[0.5; 12]);
+        by_contacts.modes.insert(
             0,
             MechanicalMode {
-                name: "stuck_on_board".to_string(),
+                name: "stuck on board".to_string(),
                 kind: MechanicalModeKind::Stick,
                 stop: None,
                 contacts: Some(vec!["board".to_string()]),
                 doc: String::new(),
             },
         );
-        assert_eq!(
-            to_gray_box(&m),
-            Err(Untranslatable::StickByContacts(
-                "stick".to_string(),
-                "stuck_on_board".to_string()
-            ))
-        );
+        for (m, labels) in [
+            (&shared, ["free", "free", "stick"]),
+            (&by_contacts, ["free", "impact", "stick"]),
+        ] {
+            let g = to_gray_box(m).unwrap();
+            let free_then_contact: Vec<&str> = g.modes.iter().map(|q| q.label()).collect();
+            assert_eq!(free_then_contact, labels[..2]);
+            assert_eq!(g.elements.last().unwrap().mode(), labels[2]);
+            let mut seen = 0;
+            for seed in 0..5 {
+                let data = record(seed, 1200, -0.3, 0.05, 3.0);
+                let (worst, label, events, _) = compare(m, &data);
+                assert!(
+                    worst < 1e-9 && label.is_none() && events > 0,
+                    "seed {seed}: {worst} {label:?} {events}"
+                );
+                let c = CompiledModel::new(&g).unwrap();
+                let run = hysid_graybox::simulate::run(&c, &g.values(), &data).unwrap();
+                seen |= run.modes.iter().flatten().fold(0u32, |a, &i| a | 1 << i);
+            }
+            // Every label of the form was reached at least once.
+            assert_eq!(
+                seen,
+                (1 << g.mode_names().len()) - 1,
+                "{:?}",
+                g.mode_names()
+            );
+        }
+        let g = to_gray_box(&by_contacts).unwrap();
+        assert_eq!(g.modes[1].element_modes["friction"], "stuck on board");
     }
 
     /// A damping-only contact whose force changes sign with the velocity,
@@ -745,6 +803,7 @@ mod tests {
                 &[contact],
                 [restitution, 0.0],
                 None,
+                false,
             );
             let (worst, label, _, zeno) = compare(&m, &record(seed, 400, -1.0, 1.0, 0.5));
             assert!(

@@ -1,7 +1,7 @@
 //! The elements (dry frictions, stops), checked and compiled.
 
-use super::CompiledElement;
 use super::problem::{InvalidGrayBox, Problem};
+use super::{CompiledElement, ModeLabels};
 use crate::expr::Expression;
 use crate::model::{Element, GrayBoxModel};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -10,7 +10,6 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 /// stop quantities of parameters only.
 pub(super) fn compile_elements(
     m: &GrayBoxModel,
-    mode_index: &BTreeMap<&str, usize>,
     state_of: &dyn Fn(&str, &str) -> Result<usize, InvalidGrayBox>,
     parametric: &dyn Fn(&str, &str) -> Result<Expression, InvalidGrayBox>,
     restitution_of: &dyn Fn(&str, &str) -> Result<Expression, InvalidGrayBox>,
@@ -32,13 +31,6 @@ pub(super) fn compile_elements(
                 "elements",
                 Some(e.name()),
                 Problem::Duplicate(e.name().into()),
-            ));
-        }
-        if mode_index.contains_key(e.mode()) {
-            return Err(InvalidGrayBox::new(
-                &place,
-                Some(e.mode()),
-                Problem::LabelIsMode(e.mode().into()),
             ));
         }
         elements.push(match e {
@@ -77,6 +69,72 @@ pub(super) fn compile_elements(
         });
     }
     Ok(elements)
+}
+
+/// The mode labels of a run's samples, checked: an element's label (its
+/// own `mode` or a mode's `element_modes`) is no mode's name or label, an
+/// `element_modes` entry names an element, and a mode's label that is
+/// another mode's name is that mode's label too.
+pub(super) fn mode_labels(
+    m: &GrayBoxModel,
+    mode_index: &BTreeMap<&str, usize>,
+) -> Result<ModeLabels, InvalidGrayBox> {
+    let labels = m.mode_names();
+    let label_of = |l: &str| labels.iter().position(|n| n == l);
+    let is_mode = |l: &str| mode_index.contains_key(l) || m.modes.iter().any(|q| q.label() == l);
+    let own_label = |place: String, label: &str| {
+        if is_mode(label) {
+            return Err(InvalidGrayBox::new(
+                place,
+                Some(label),
+                Problem::LabelIsMode(label.into()),
+            ));
+        }
+        Ok(())
+    };
+    for e in &m.elements {
+        own_label(format!("element '{}'", e.name()), e.mode())?;
+    }
+    for q in &m.modes {
+        if let Some(&other) = mode_index.get(q.label())
+            && m.modes[other].label() != q.label()
+        {
+            return Err(InvalidGrayBox::new(
+                format!("mode '{}'", q.name),
+                Some(q.label()),
+                Problem::LabelOfOtherMode {
+                    label: q.label().into(),
+                    labelled: m.modes[other].label().into(),
+                },
+            ));
+        }
+        for (element, label) in &q.element_modes {
+            let place = format!("mode '{}', element_modes", q.name);
+            if !m.elements.iter().any(|e| e.name() == element) {
+                return Err(InvalidGrayBox::new(
+                    place,
+                    Some(element),
+                    Problem::UnknownElement(element.clone()),
+                ));
+            }
+            own_label(place, label)?;
+        }
+    }
+    // Every label is among the names: `mode_names` lists them all.
+    let index = |l: &str| label_of(l).unwrap_or_default();
+    Ok(ModeLabels {
+        mode: m.modes.iter().map(|q| index(q.label())).collect(),
+        held: m
+            .modes
+            .iter()
+            .map(|q| {
+                m.elements
+                    .iter()
+                    .map(|e| index(q.element_modes.get(e.name()).map_or(e.mode(), |l| l)))
+                    .collect()
+            })
+            .collect(),
+    })
 }
 
 /// Checks that no two stops on one position leave no position between

@@ -178,7 +178,7 @@ pub(super) fn symbol_table<'m>(
 /// Whether `name` can name a state, an input, a parameter, a definition or
 /// a mode: a letter or `_`, then letters, digits or `_`, and not the name
 /// of a function or a boolean.
-fn is_identifier(name: &str) -> bool {
+pub fn is_identifier(name: &str) -> bool {
     let mut chars = name.chars();
     chars
         .next()

@@ -132,9 +132,20 @@ pub enum Problem {
     /// An energy that reads more than the states and parameters.
     #[error("'{0}' may only use states, parameters and numbers")]
     NotStateFunction(String),
-    /// An element label equal to a declared mode.
+    /// An element label equal to a declared mode's name or label.
     #[error("the label '{0}' is a declared mode; an element's label must be its own")]
     LabelIsMode(String),
+    /// A mode's label that is the name of another mode labelled otherwise.
+    #[error("the label '{label}' is the name of a mode whose samples are labelled '{labelled}'")]
+    LabelOfOtherMode {
+        /// The label.
+        label: String,
+        /// The label of the mode of that name.
+        labelled: String,
+    },
+    /// An `element_modes` entry naming no element.
+    #[error("no element is named '{0}'")]
+    UnknownElement(String),
     /// A definition that neither the model nor the mode gives.
     #[error("definition '{0}' has no value in this mode")]
     Undefined(String),

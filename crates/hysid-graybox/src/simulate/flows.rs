@@ -309,20 +309,21 @@ impl Machine<'_> {
         };
         let y = self.output(hs, u);
         // A stop's label where one holds the state, else a stuck
-        // friction's, else the mode's.
+        // friction's, else the mode's; each as labelled in this mode.
+        let held = &m.labels.held[hs.mode];
         let mut stuck = None;
-        for (e, r) in m.elements.iter().zip(&hs.regimes) {
+        for ((e, r), &label) in m.elements.iter().zip(&hs.regimes).zip(held) {
             match (e, r) {
-                (CompiledElement::Stop { label, .. }, ElementRegime::Resting) => {
-                    return (y, *label, covered);
+                (CompiledElement::Stop { .. }, ElementRegime::Resting) => {
+                    return (y, label, covered);
                 }
-                (CompiledElement::DryFriction { label, .. }, ElementRegime::Stuck) => {
-                    stuck = stuck.or(Some(*label));
+                (CompiledElement::DryFriction { .. }, ElementRegime::Stuck) => {
+                    stuck = stuck.or(Some(label));
                 }
                 _ => {}
             }
         }
-        (y, stuck.unwrap_or(hs.mode), covered)
+        (y, stuck.unwrap_or(m.labels.mode[hs.mode]), covered)
     }
 
     /// Sets the state `position` of `x` to the inverse of `mode`'s output
