@@ -27,7 +27,7 @@ use std::path::Path;
 mod located;
 mod translate;
 
-pub use translate::{Untranslatable, to_gray_box};
+pub use translate::{Untranslatable, mechanical_labels, to_gray_box};
 
 /// Any model hysid can simulate and validate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

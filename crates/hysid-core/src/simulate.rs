@@ -1,15 +1,17 @@
 //! Free-run simulation and one-step prediction of any [`Model`], and its
 //! validation against a record.
 //!
-//! Each kind has its own simulator (`hysid_model::simulate::pwarx`,
-//! `hysid_model::simulate::automaton`, `hysid_mechanical::simulate`,
-//! `hysid_graybox::simulate`); the
-//! policies they share (least violation outside every region, divergence,
-//! initial conditions) are documented in `hysid_model::simulate` and
-//! `docs/simulation.md`.
+//! PWARX models and hybrid automata have their simulators
+//! (`hysid_model::simulate::pwarx`, `hysid_model::simulate::automaton`);
+//! physical models one, `hysid_graybox::simulate`, which runs a
+//! mechanical model as its gray-box form ([`crate::model::to_gray_box`]).
+//! The policies they share (least violation outside every region,
+//! divergence, initial conditions) are documented in
+//! `hysid_model::simulate` and `docs/simulation.md`.
 
-use crate::model::Model;
-use hysid_mechanical::simulate as mechanical;
+use crate::model::{Model, mechanical_labels, to_gray_box};
+use hysid_graybox::GrayBoxModel;
+use hysid_mechanical::MechanicalModel;
 use hysid_model::data::Dataset;
 use hysid_model::data::same_sampling;
 use hysid_model::metrics::{fit, pooled_fit, rmse};
@@ -43,9 +45,24 @@ pub fn simulate(
     per_record(data, |data| match model {
         Model::Pwarx(m) => pwarx::simulate(m, data, opts),
         Model::HybridAutomaton(m) => automaton::simulate(m, data, opts),
-        Model::Mechanical(m) => mechanical::simulate(m, data, opts),
+        Model::Mechanical(m) => as_gray_box(m, |g| hysid_graybox::simulate(g, data, opts)),
         Model::GrayBox(m) => hysid_graybox::simulate(m, data, opts),
     })
+}
+
+/// The run of a mechanical model: `run` of its gray-box form, each sample
+/// labelled by the mechanical mode of its label.
+fn as_gray_box(
+    m: &MechanicalModel,
+    run: impl FnOnce(&GrayBoxModel) -> Result<Simulation, SimError>,
+) -> Result<Simulation, SimError> {
+    let gray = to_gray_box(m).map_err(|e| SimError::InvalidModel(e.to_string()))?;
+    let labels = mechanical_labels(m, &gray);
+    let mut sim = run(&gray)?;
+    for q in sim.modes.iter_mut().flatten() {
+        *q = labels[*q];
+    }
+    Ok(sim)
 }
 
 /// One-step-ahead prediction: every step starts from the measured state.
@@ -63,7 +80,7 @@ pub fn predict(
             InitialState::ArxHistory { .. } => automaton::predict(m, data),
             InitialState::Given { .. } => automaton::simulate(m, data, opts),
         },
-        Model::Mechanical(m) => mechanical::predict(m, data),
+        Model::Mechanical(m) => as_gray_box(m, |g| hysid_graybox::predict(g, data)),
         Model::GrayBox(m) => hysid_graybox::predict(m, data),
     })
 }

@@ -1,8 +1,8 @@
 //! Simulation throughput of the positioning axis and cascaded tanks
 //! examples, on records of their own response. Run with
 //! `cargo bench -p hysid-graybox --bench simulate`. The mounting head
-//! against the mechanical simulator: `cargo bench -p hysid-physical
-//! --bench simulators`.
+//! against the hand-written reference simulator: `cargo bench -p
+//! hysid-physical --bench simulators`.
 
 use hysid_graybox::{CompiledModel, GrayBoxModel};
 use hysid_model::data::Dataset;

@@ -2,9 +2,11 @@
 //!
 //! Mass-spring-friction hybrid automata declared by their physical
 //! parameters, contacts and stops (the mounting head of Juloski, Heemels,
-//! Ferrari-Trecate 2003, section 2 and figure 3), and their event-aware
-//! simulator. The `physical` back-end fits such models; the model file
-//! format is documented in `docs/mechanical-models.md`.
+//! Ferrari-Trecate 2003, section 2 and figure 3); the model file format is
+//! documented in `docs/mechanical-models.md`. hysid runs such a model as
+//! its gray-box form (`hysid_core::model::to_gray_box`); [`simulate`] is a
+//! second, hand-written simulator of the same semantics, the reference
+//! that form is tested against.
 
 mod model;
 pub mod simulate;

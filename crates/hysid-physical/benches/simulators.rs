@@ -1,6 +1,6 @@
-//! The two simulators the `physical` back-end fits with, on the same
-//! model: the mounting head written as a gray-box model against the
-//! hand-written mechanical simulator, in the same run. Run with
+//! The simulator the `physical` back-end fits with, on the mounting head
+//! written as a gray-box model, against the hand-written mechanical
+//! simulator the gray-box form is tested against, in the same run. Run with
 //! `cargo bench -p hysid-physical --bench simulators`; the gray-box head
 //! also with its forward sensitivities.
 //!

@@ -2,16 +2,17 @@
 //!
 //! The `physical` back-end: white-box identification of a hybrid model
 //! declared by its physics, a mass-spring-friction automaton
-//! ([`MechanicalModel`], `"kind": "mechanical"`) or any gray-box model
-//! (`"kind": "gray_box"`, [`target`]), the question the founding paper
+//! ([`MechanicalModel`], `"kind": "mechanical"`, fitted as its gray-box
+//! form: [`mechanical`]) or any gray-box model (`"kind": "gray_box"`,
+//! [`target`]), the question the founding paper
 //! leaves open (Juloski, Heemels, Ferrari-Trecate, IFAC ADHS 2003:
 //! "structural models ... and their parameters (white box modelling)").
 //!
 //! The physical parameters are fitted by minimising the **simulation
 //! (output) error** `J = mean_k (y(k) - yhat(k))^2` over the record, where
 //! `yhat` is the model's event-aware free-run simulation
-//! ([`hysid_mechanical::simulate`], [`mod@hysid_graybox::simulate`]) from the
-//! state estimated on the first samples. The search runs in box-normalised coordinates
+//! ([`mod@hysid_graybox::simulate`]) from the state estimated on the first
+//! samples. The search runs in box-normalised coordinates
 //! ([`parameters`]):
 //!
 //! 1. a global stage ([`swarm`]): argmin's particle swarm (Kennedy and
@@ -22,8 +23,9 @@
 //!    ([`swarm::nominal_suffices`]);
 //! 2. local stages ([`local`]), on the segmented error and then on the
 //!    free-run one: Levenberg-Marquardt (Marquardt 1963,
-//!    [`hysid_numerics::least_squares`], central differences in the unit
-//!    box) from each start (the swarm's best, the
+//!    [`hysid_numerics::least_squares`], on the exact Jacobian of the runs'
+//!    forward sensitivities, or central differences in the unit box) from
+//!    each start (the swarm's best, the
 //!    nominal values, the next best particles), then Nelder-Mead (Nelder
 //!    and Mead 1965, [`hysid_numerics::nelder_mead`]: argmin's iterates,
 //!    each step's second point guessed and evaluated beside the first on
@@ -32,8 +34,8 @@
 //!    nothing.
 //!
 //! The fitted model carries the parameters (with their bounds), the final
-//! cost, and a local sensitivity / confidence estimate from a central
-//! finite-difference Jacobian of the residuals (Gauss-Newton covariance
+//! cost, and a local sensitivity / confidence estimate from the same
+//! Jacobian of the residuals (Gauss-Newton covariance
 //! `s^2 (J^T J)^-1`, [`sensitivity`]), in `info.diagnostics`
 //! ([`PhysicalDiagnostics`]).
 //!
@@ -46,6 +48,7 @@ pub mod diagnostics;
 pub mod fit;
 pub mod identifiability;
 pub mod local;
+pub mod mechanical;
 pub mod objective;
 pub mod parameters;
 pub mod sensitivity;
@@ -59,7 +62,7 @@ pub use parameters::ParameterMap;
 pub use target::{GrayBoxTarget, Simulator, Target};
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::Model;
+use hysid_core::model::{Model, to_gray_box};
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_count};
 use hysid_core::priors::PriorKind;
 use hysid_mechanical::MechanicalModel;
@@ -116,7 +119,7 @@ hysid_core::backend_options! {
         lm_iters: usize = 30,
         /// Levenberg-Marquardt and the confidence estimate use the exact Jacobian of the
         /// residuals, from the runs' forward sensitivities, where the model gives one (a
-        /// gray-box model without a fitted delay); false, or a model without one: central
+        /// model without a fitted delay); false, or a model without one: central
         /// differences of `fd_step`.
         exact_jacobian: bool = true,
         /// Initial simplex size, as a fraction of each parameter's range.
@@ -213,9 +216,16 @@ impl Identifier for Physical {
             };
         let (data, priors) = (problem.data, problem.priors);
         match model {
-            Model::Mechanical(m) => fit_model(&m, data, priors, options, ctx)
-                .map(|(fitted, _)| Model::Mechanical(fitted))
-                .map_err(in_file),
+            Model::Mechanical(m) => {
+                let m = mechanical::with_warmup(m, options.init_samples);
+                let gray =
+                    to_gray_box(&m).map_err(|e| in_file(PhysicalError::Model(e.into()).into()))?;
+                let target = GrayBoxTarget::new(gray)
+                    .map_err(|e| in_file(PhysicalError::Model(e.into()).into()))?;
+                fit_model(&target, data, priors, options, ctx)
+                    .map(|(fitted, _)| Model::Mechanical(mechanical::fitted(m, fitted.model)))
+                    .map_err(in_file)
+            }
             Model::GrayBox(m) => {
                 let target = GrayBoxTarget::new(m)
                     .map_err(|e| in_file(PhysicalError::Model(e.into()).into()))?;

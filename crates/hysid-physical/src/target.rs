@@ -1,17 +1,14 @@
 //! The models the `physical` back-end fits: named parameters and an
-//! event-aware simulator. Two kinds are fitted through the same stages:
-//! the mass-spring-friction [`MechanicalModel`] and any [`GrayBoxModel`]
-//! (with its compiled form, [`GrayBoxTarget`]).
+//! event-aware simulator ([`Target`], [`Simulator`]): any [`GrayBoxModel`]
+//! with its compiled form ([`GrayBoxTarget`]), a mechanical model as its
+//! gray-box form ([`crate::mechanical`]).
 
 use hysid_graybox::compile::CompiledInitial;
 use hysid_graybox::{CompiledModel, GrayBoxInitialState, GrayBoxModel, InvalidGrayBox};
-use hysid_mechanical::simulate as mechanical;
-use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
 use hysid_model::model::{ModelInfo, PhysicalParameter};
-use hysid_model::simulate::{SEGMENTS_PER_TASK, SimError, substeps};
+use hysid_model::simulate::{SimError, substeps};
 use nalgebra::DMatrix;
-use rayon::prelude::*;
 
 /// What the objective needs of a model: its simulations.
 pub trait Simulator: Sync {
@@ -88,103 +85,6 @@ pub trait Target: Simulator + Clone {
     /// follow the parameters' in the values a [`Simulator`] takes.
     fn estimated_states(&self) -> Vec<(String, [f64; 2], f64)> {
         Vec::new()
-    }
-}
-
-impl Target for MechanicalModel {
-    fn parameters(&self) -> &[PhysicalParameter] {
-        &self.parameters
-    }
-
-    fn parameters_mut(&mut self) -> &mut [PhysicalParameter] {
-        &mut self.parameters
-    }
-
-    fn info_mut(&mut self) -> &mut ModelInfo {
-        &mut self.info
-    }
-
-    fn inputs(&self) -> usize {
-        self.inputs.len()
-    }
-
-    fn check(&self) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        self.validate().map_err(Into::into)
-    }
-
-    fn substeps(&self, ts: f64) -> Result<usize, SimError> {
-        substeps(ts, self.internal_step)
-    }
-
-    fn warmup_samples(&self) -> Option<usize> {
-        match self.initial_state {
-            MechanicalInitialState::Measured { samples, .. } => Some(samples),
-            MechanicalInitialState::Given { .. } => None,
-        }
-    }
-
-    /// A given state becomes a measured one: the state of a mechanical
-    /// model is its output and the output's slope.
-    fn with_warmup(&self, samples: usize, velocity_tol: f64) -> Option<Self> {
-        let mut m = self.clone();
-        let own = match m.initial_state {
-            MechanicalInitialState::Measured { velocity_tol, .. } => velocity_tol,
-            MechanicalInitialState::Given { .. } => 0.0,
-        };
-        m.initial_state = MechanicalInitialState::Measured {
-            samples,
-            velocity_tol: own.max(velocity_tol),
-        };
-        Some(m)
-    }
-}
-
-impl Simulator for MechanicalModel {
-    fn free_run(&self, values: &[f64], data: &Dataset) -> Result<(usize, Vec<f64>), SimError> {
-        let r = mechanical::run(self, values, data)?;
-        Ok((r.start, r.y))
-    }
-
-    fn segmented_residuals(
-        &self,
-        values: &[f64],
-        data: &Dataset,
-        segment: usize,
-        velocity_tol: f64,
-    ) -> Option<Vec<f64>> {
-        let ts = data.ts?;
-        let r = self.resolve_with(values);
-        let n_sub = mechanical::substeps(ts, self.internal_step).ok()?;
-        let y = data.y();
-        let n = y.len();
-        let segment = segment.max(1);
-        let starts: Vec<usize> = (0..n.saturating_sub(1)).step_by(segment).collect();
-        // Segments are independent: groups of them run in parallel, their
-        // errors concatenated in segment order.
-        let errors: Vec<Vec<f64>> = starts
-            .par_chunks(SEGMENTS_PER_TASK)
-            .map(|group| {
-                let mut u = vec![0.0; data.inputs.len()];
-                let mut integrator = mechanical::Integrator::new(&r, ts, n_sub);
-                let mut e = Vec::with_capacity(group.len() * segment);
-                for &s in group {
-                    for (i, x) in u.iter_mut().enumerate() {
-                        *x = data.inputs[i].values[s];
-                    }
-                    let v = segment_velocity(y, s, ts, velocity_tol);
-                    let mut st = r.state_at(y[s], v, &u);
-                    for k in s..(s + segment).min(n - 1) {
-                        for (i, x) in u.iter_mut().enumerate() {
-                            *x = data.inputs[i].values[k];
-                        }
-                        integrator.advance(&mut st, &u);
-                        e.push(y[k + 1] - st.y);
-                    }
-                }
-                e
-            })
-            .collect();
-        Some(errors.concat())
     }
 }
 

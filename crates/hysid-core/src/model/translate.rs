@@ -66,6 +66,20 @@ pub fn to_gray_box(model: &MechanicalModel) -> Result<GrayBoxModel, Untranslatab
     Ok(gray)
 }
 
+/// Per mode label of `gray`, the gray-box form of `model`
+/// ([`GrayBoxModel::mode_names`]), the index of the mechanical mode of that
+/// name: the form's labels are the mechanical modes' names.
+pub fn mechanical_labels(model: &MechanicalModel, gray: &GrayBoxModel) -> Vec<usize> {
+    gray.mode_names()
+        .iter()
+        .map(|label| {
+            let declared = model.modes.iter().position(|q| q.name == *label);
+            // `to_gray_box` labels every regime by a declared mode's name.
+            declared.unwrap_or_default()
+        })
+        .collect()
+}
+
 /// The names the written model gives its states and definitions, each
 /// kept apart from the parameters' and inputs' names.
 struct Symbols {

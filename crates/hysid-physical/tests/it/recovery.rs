@@ -113,7 +113,8 @@ fn recovers_parameters_and_validates() {
     eprintln!(
         "cost at truth {:.6}, fitted {:.6}, evals {}",
         hysid_physical::objective::simulation_mse(
-            &truth,
+            &hysid_physical::GrayBoxTarget::new(hysid_core::model::to_gray_box(&truth).unwrap())
+                .unwrap(),
             &truth.values(),
             std::slice::from_ref(&ident)
         ),
