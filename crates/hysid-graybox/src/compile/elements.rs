@@ -80,10 +80,16 @@ pub(super) fn mode_labels(
     mode_index: &BTreeMap<&str, usize>,
 ) -> Result<ModeLabels, InvalidGrayBox> {
     let labels = m.mode_names();
-    let label_of = |l: &str| labels.iter().position(|n| n == l);
-    let is_mode = |l: &str| mode_index.contains_key(l) || m.modes.iter().any(|q| q.label() == l);
+    let label_of: HashMap<&str, usize> = labels
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (l.as_str(), i))
+        .collect();
+    let modes: BTreeSet<&str> = (m.modes.iter())
+        .flat_map(|q| [q.name.as_str(), q.label()])
+        .collect();
     let own_label = |place: String, label: &str| {
-        if is_mode(label) {
+        if modes.contains(label) {
             return Err(InvalidGrayBox::new(
                 place,
                 Some(label),
@@ -121,7 +127,7 @@ pub(super) fn mode_labels(
         }
     }
     // Every label is among the names: `mode_names` lists them all.
-    let index = |l: &str| label_of(l).unwrap_or_default();
+    let index = |l: &str| label_of.get(l).copied().unwrap_or_default();
     Ok(ModeLabels {
         mode: m.modes.iter().map(|q| index(q.label())).collect(),
         held: m
