@@ -1,7 +1,7 @@
 //! Gray-box model files built from a structure: states, inputs,
 //! parameters, definitions (a chain of them up to 20 000 long, past the
-//! limit), modes with their own definitions (the last one copied up to
-//! past the mode limit), transitions, elements, written as TOML with
+//! limit), modes with their own definitions and labels (the last one
+//! copied up to past the mode limit), transitions, elements, written as TOML with
 //! expressions from shapes that reach the length and nesting limits. The
 //! text goes through the model reader (`Model::from_toml`): a file that
 //! reads writes JSON that reads back to the same model, and simulates
@@ -45,6 +45,11 @@ struct Mode {
     invariant: Vec<(Shape, u8, Shape)>,
     /// Its own values of definitions, by index.
     definitions: Vec<(u8, Shape)>,
+    /// Its label: another mode's name (`true`) or a label of its own.
+    label: Option<(bool, u8)>,
+    /// `element_modes`: an element (by index, past the last: one that is
+    /// not there) and a label of its own or another mode's name.
+    element_modes: Vec<(u8, bool, u8)>,
 }
 
 #[derive(Arbitrary, Debug)]
@@ -187,6 +192,27 @@ fn text(file: &File) -> Option<String> {
                 strings(q.invariant.iter().map(|r| relation(r, &names))),
             ),
         ];
+        let label = |other: bool, k: u8| {
+            if other {
+                format!("m{}", usize::from(k) % file.modes.len())
+            } else {
+                format!("l{}", k % 4)
+            }
+        };
+        if let Some((other, k)) = q.label {
+            entries.push(("label".into(), label(other, k).into()));
+        }
+        if !q.element_modes.is_empty() {
+            let held: Table = q
+                .element_modes
+                .iter()
+                .map(|&(e, other, k)| {
+                    let element = format!("e{}", usize::from(e) % (file.elements.len() + 1));
+                    (element, label(other, k).into())
+                })
+                .collect();
+            entries.push(("element_modes".into(), Value::Table(held)));
+        }
         if !q.definitions.is_empty() && !definitions.is_empty() {
             let own: Table = q
                 .definitions
