@@ -1781,6 +1781,13 @@ fn convert_reads_only_mechanical_models() {
         ],
         &out,
     );
+    // A parameter's name the gray-box language has no word for.
+    let dashed = write(d, "dashed.toml", head.replace("\"c1\"", "\"c-1\""));
+    bad(
+        &["convert", s(&dashed), "-o", s(&out)],
+        &["dashed.toml", "'c-1' is not a valid name"],
+        &out,
+    );
     let mechanical = write(d, "head.toml", head);
     let o = hysid(&["convert", s(&mechanical), "-o", s(&mechanical)]);
     if let Err(e) = one_line_error(&o, 2) {

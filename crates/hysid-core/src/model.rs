@@ -76,6 +76,10 @@ pub enum StructureError {
     /// A mechanical model.
     #[error(transparent)]
     Mechanical(#[from] InvalidMechanical),
+    /// A mechanical model whose gray-box form, the form it runs as, does
+    /// not check (a parameter's name that is no gray-box name).
+    #[error("as a gray-box model: {0}")]
+    MechanicalForm(Box<InvalidGrayBox>),
     /// A gray-box model.
     #[error(transparent)]
     GrayBox(#[from] InvalidGrayBox),
@@ -210,7 +214,8 @@ impl Model {
         }
     }
 
-    /// Structural checks: dimensions agree, numbers are finite, names resolve.
+    /// Structural checks: dimensions agree, numbers are finite, names
+    /// resolve; a mechanical model has a gray-box form.
     pub fn validate(&self) -> Result<(), ModelError> {
         if let Some(ts) = self.info().ts
             && !(ts.is_finite() && ts > 0.0)
@@ -220,7 +225,11 @@ impl Model {
         match self {
             Model::Pwarx(m) => m.validate().map_err(StructureError::from),
             Model::HybridAutomaton(m) => m.validate().map_err(StructureError::from),
-            Model::Mechanical(m) => m.validate().map_err(StructureError::from),
+            Model::Mechanical(m) => match to_gray_box(m) {
+                Ok(_) | Err(Untranslatable::NotMechanical(_)) => Ok(()),
+                Err(Untranslatable::Mechanical(e)) => Err(StructureError::from(e)),
+                Err(Untranslatable::GrayBox(e)) => Err(StructureError::MechanicalForm(Box::new(e))),
+            },
             Model::GrayBox(m) => m.validate().map_err(StructureError::from),
         }
         .map_err(ModelError::Invalid)

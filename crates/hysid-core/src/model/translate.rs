@@ -47,7 +47,7 @@ pub fn to_gray_box(model: &MechanicalModel) -> Result<GrayBoxModel, Untranslatab
         name: model.name.clone(),
         internal_step: model.internal_step,
         states: vec![symbols.y.clone(), symbols.v.clone()],
-        inputs: model.inputs.clone(),
+        inputs: symbols.inputs.clone(),
         delays: BTreeMap::new(),
         outputs: vec![OutputMap {
             name: symbols.y.clone(),
@@ -83,6 +83,8 @@ pub fn mechanical_labels(model: &MechanicalModel, gray: &GrayBoxModel) -> Vec<us
 /// The names the written model gives its states and definitions, each
 /// kept apart from the parameters' and inputs' names.
 struct Symbols {
+    /// The inputs' names, in order.
+    inputs: Vec<String>,
     y: String,
     v: String,
     force: String,
@@ -113,8 +115,17 @@ impl Symbols {
         while model.stops.iter().any(|s| s.name == friction) {
             friction.push('_');
         }
+        // Inputs are read by position: one whose name is no gray-box name
+        // takes a fresh one.
+        let inputs = (model.inputs.iter().enumerate())
+            .map(|(i, name)| match is_identifier(name) {
+                true => name.clone(),
+                false => fresh(&format!("u{}", i + 1)),
+            })
+            .collect();
         Symbols {
             friction,
+            inputs,
             y: fresh("y"),
             v: fresh("v"),
             force: fresh("F"),
@@ -241,7 +252,12 @@ fn model_definitions(model: &MechanicalModel, s: &Symbols) -> BTreeMap<String, S
         .forces
         .iter()
         .map(|f| match f {
-            ForceElement::Input { input, gain } => (true, format!("{}*{input}", quantity(gain))),
+            ForceElement::Input { input, gain } => {
+                // `validate` proved that every input force names an input.
+                let i = model.inputs.iter().position(|n| n == input);
+                let input = i.map_or(input, |i| &s.inputs[i]);
+                (true, format!("{}*{input}", quantity(gain)))
+            }
             ForceElement::Constant { value } => (true, quantity(value)),
             ForceElement::Spring { stiffness, rest } => {
                 let stretch = match rest {
@@ -744,6 +760,35 @@ mod tests {
             worst < 1e-9 && label.is_none() && events > 0,
             "{worst} {label:?} {events}"
         );
+    }
+
+    /// An input whose name is no gray-box name takes a fresh one (inputs
+    /// are read by position); a parameter's name is the priors' and the
+    /// diagnostics' key, so one that is no gray-box name is refused.
+    #[test]
+    fn input_names_are_made_names_parameter_names_must_be() {
+        let mut m = head(&[0.5; 12]);
+        m.inputs = vec!["motor u [V]".to_string()];
+        for f in &mut m.forces {
+            if let ForceElement::Input { input, .. } = f {
+                *input = "motor u [V]".to_string();
+            }
+        }
+        let g = to_gray_box(&m).unwrap();
+        assert_eq!(g.inputs, ["u1"]);
+        let (worst, label, events, _) = compare(&m, &record(1, 1200, -0.3, 0.05, 3.0));
+        assert!(worst < 1e-9 && label.is_none() && events > 0);
+        let mut m = head(&[0.5; 12]);
+        m.parameters[0].name = "k-u".to_string();
+        for f in &mut m.forces {
+            if let ForceElement::Input { gain, .. } = f {
+                *gain = Quantity::Param("k-u".to_string());
+            }
+        }
+        let Err(Untranslatable::GrayBox(e)) = to_gray_box(&m) else {
+            panic!("a parameter named 'k-u' translated")
+        };
+        assert!(e.to_string().contains("'k-u' is not a valid name"), "{e}");
     }
 
     /// Regimes labelled alike, and stuck regimes labelled by their
