@@ -1031,6 +1031,11 @@ fn malformed_gray_box_files() {
             ],
         ),
         (
+            "empty_label.toml",
+            good.replace("name = \"fly\"\n", "name = \"fly\"\nlabel = \"\"\n"),
+            vec!["mode 'fly'".into(), "a mode label must not be empty".into()],
+        ),
+        (
             "element_modes.toml",
             good.replace(
                 "name = \"carried\"\n",

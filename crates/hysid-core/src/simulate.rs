@@ -11,7 +11,7 @@
 
 use crate::model::{Model, mechanical_labels, to_gray_box};
 use hysid_graybox::GrayBoxModel;
-use hysid_mechanical::MechanicalModel;
+use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
 use hysid_model::data::same_sampling;
 use hysid_model::metrics::{fit, pooled_fit, rmse};
@@ -65,6 +65,23 @@ fn as_gray_box(
     Ok(sim)
 }
 
+/// `m` as its one-step prediction reads it: every step from the state the
+/// measured outputs give (the position and its slope), a given initial
+/// state included.
+fn measured_each_step(m: &MechanicalModel) -> std::borrow::Cow<'_, MechanicalModel> {
+    match m.initial_state {
+        MechanicalInitialState::Measured { .. } => std::borrow::Cow::Borrowed(m),
+        MechanicalInitialState::Given { .. } => {
+            let mut m = m.clone();
+            m.initial_state = MechanicalInitialState::Measured {
+                samples: 1,
+                velocity_tol: 0.0,
+            };
+            std::borrow::Cow::Owned(m)
+        }
+    }
+}
+
 /// One-step-ahead prediction: every step starts from the measured state.
 /// For automata whose state cannot be read from data (a fixed initial
 /// state), this is the free-run simulation.
@@ -80,7 +97,9 @@ pub fn predict(
             InitialState::ArxHistory { .. } => automaton::predict(m, data),
             InitialState::Given { .. } => automaton::simulate(m, data, opts),
         },
-        Model::Mechanical(m) => as_gray_box(m, |g| hysid_graybox::predict(g, data)),
+        Model::Mechanical(m) => {
+            as_gray_box(&measured_each_step(m), |g| hysid_graybox::predict(g, data))
+        }
         Model::GrayBox(m) => hysid_graybox::predict(m, data),
     })
 }

@@ -450,7 +450,8 @@ fn initial_state(rule: &MechanicalInitialState, s: &Symbols) -> GrayBoxInitialSt
             samples,
             velocity_tol,
         } => GrayBoxInitialState::Measured {
-            samples,
+            // A mechanical warm-up of 0 samples reads the first one.
+            samples: samples.max(1),
             position: s.y.clone(),
             velocity: Some(s.v.clone()),
             velocity_tol,
@@ -760,6 +761,105 @@ mod tests {
             worst < 1e-9 && label.is_none() && events > 0,
             "{worst} {label:?} {events}"
         );
+    }
+
+    /// The wall of docs/mechanical-models.md ("Writing another system"),
+    /// bouncing with restitution 0.5.
+    fn wall() -> MechanicalModel {
+        let text = r#"
+kind = "mechanical"
+internal_step = 0.0005
+inputs = ["force"]
+initial_state = { from = "measured", samples = 5 }
+parameters = [
+  { name = "k", value = 100.0, bounds = [10.0, 1000.0] },
+  { name = "mu", value = 2.0, bounds = [0.0, 10.0] },
+]
+forces = [
+  { type = "input", input = "force", gain = 1.0 },
+  { type = "spring", stiffness = "k" },
+]
+friction = { kinetic = "mu", static = "mu" }
+stops = [{ name = "wall", position = -0.1, direction = "negative", restitution = 0.5 }]
+modes = [
+  { name = "at_wall", kind = "stop", stop = "wall" },
+  { name = "moving", kind = "slip" },
+  { name = "stuck", kind = "stick" },
+]
+"#;
+        match crate::model::Model::from_toml(text, "wall.toml") {
+            Ok(crate::model::Model::Mechanical(m)) => m,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// Starts the reference takes too: a state given on a stop and moving
+    /// away leaves it, a measured warm-up of 0 samples reads one, and a
+    /// stop pressed by a bouncing mass holds it past the Zeno bound (the
+    /// wall pushed with -30, where every sub-step of a sample meets it).
+    #[test]
+    fn starts_on_stops_and_the_zeno_bound_run_alike() {
+        let mut away = wall();
+        away.initial_state = MechanicalInitialState::Given {
+            position: -0.1,
+            velocity: 1.0,
+        };
+        let mut none = wall();
+        none.initial_state = MechanicalInitialState::Measured {
+            samples: 0,
+            velocity_tol: 0.0,
+        };
+        for (m, low, zeno_expected) in [
+            (away, -1.0, false),
+            (none, -1.0, false),
+            (wall(), -30.0, true),
+        ] {
+            let data = record(1, 800, low, 10.0, 0.0);
+            let (worst, label, _, zeno) = compare(&m, &data);
+            assert!(worst < 1e-9 && label.is_none(), "{worst} {label:?}");
+            assert_eq!(zeno > 0, zeno_expected, "{zeno} Zeno steps");
+        }
+    }
+
+    /// One-step prediction reads every state from the measured outputs,
+    /// as the reference's does, whatever the initial-state rule.
+    #[test]
+    fn predictions_run_alike() {
+        let run = hysid_mechanical::simulate::run(
+            &wall(),
+            &wall().values(),
+            &record(2, 600, -5.0, 5.0, 0.0),
+        )
+        .unwrap();
+        let data = Dataset::siso(
+            record(2, 600, -5.0, 5.0, 0.0).u(0).to_vec(),
+            run.y,
+            Some(0.0025),
+        )
+        .unwrap();
+        let mut given = wall();
+        given.initial_state = MechanicalInitialState::Given {
+            position: 0.0,
+            velocity: 0.0,
+        };
+        for m in [wall(), given] {
+            let a = crate::simulate::predict(
+                &crate::model::Model::Mechanical(m.clone()),
+                &data,
+                Default::default(),
+            )
+            .unwrap();
+            let b = hysid_mechanical::simulate::predict(&m, &data).unwrap();
+            let worst =
+                a.y.iter()
+                    .zip(&b.y)
+                    .map(|(p, q)| (p - q).abs())
+                    .fold(0.0, f64::max);
+            assert!(
+                worst < 1e-9 && a.modes == b.modes && a.start == b.start,
+                "{worst}"
+            );
+        }
     }
 
     /// An input whose name is no gray-box name takes a fresh one (inputs

@@ -89,6 +89,9 @@ pub(super) fn mode_labels(
         .flat_map(|q| [q.name.as_str(), q.label()])
         .collect();
     let own_label = |place: String, label: &str| {
+        if label.is_empty() {
+            return Err(InvalidGrayBox::new(place, None, Problem::EmptyLabel));
+        }
         if modes.contains(label) {
             return Err(InvalidGrayBox::new(
                 place,
@@ -102,6 +105,10 @@ pub(super) fn mode_labels(
         own_label(format!("element '{}'", e.name()), e.mode())?;
     }
     for q in &m.modes {
+        if q.label().is_empty() {
+            let place = format!("mode '{}'", q.name);
+            return Err(InvalidGrayBox::new(place, None, Problem::EmptyLabel));
+        }
         if let Some(&other) = mode_index.get(q.label())
             && m.modes[other].label() != q.label()
         {

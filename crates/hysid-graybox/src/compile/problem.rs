@@ -133,8 +133,11 @@ pub enum Problem {
     #[error("'{0}' may only use states, parameters and numbers")]
     NotStateFunction(String),
     /// An element label equal to a declared mode's name or label.
-    #[error("the label '{0}' is a declared mode; an element's label must be its own")]
+    #[error("the label '{0}' is a mode's name or label; an element's label must be its own")]
     LabelIsMode(String),
+    /// An empty mode label.
+    #[error("a mode label must not be empty")]
+    EmptyLabel,
     /// A mode's label that is the name of another mode labelled otherwise.
     #[error("the label '{label}' is the name of a mode whose samples are labelled '{labelled}'")]
     LabelOfOtherMode {

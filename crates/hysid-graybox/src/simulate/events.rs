@@ -493,6 +493,8 @@ impl Machine<'_> {
                 if events >= MAX_EVENTS_PER_STEP {
                     self.tangent_step(hs, u, left, true);
                     hs.x.copy_from_slice(&x1);
+                    // No stop is passed, events or none.
+                    self.hold_reached_stops(hs, u, None);
                     fresh = false;
                     break;
                 }
@@ -540,7 +542,7 @@ impl Machine<'_> {
                 events += 1;
                 if events >= MAX_EVENTS_PER_STEP {
                     ZenoSteps::add(&mut self.zeno, sample);
-                    self.hold_reached_stops(hs, u);
+                    self.hold_reached_stops(hs, u, Some(ev));
                 }
                 if self.at_rest(hs, u) {
                     // Come to rest: the rest of the sample changes nothing
@@ -560,9 +562,16 @@ impl Machine<'_> {
         result
     }
 
-    /// The Zeno bound's action: every stop that has been reached holds.
-    fn hold_reached_stops(&mut self, hs: &mut HybridState, u: &[f64]) {
-        for (i, position, velocity, at, _) in self.reached_stops(&hs.x) {
+    /// The Zeno bound's action: every stop that has been reached holds,
+    /// the one of the last event `last` too (its rebound starts on it).
+    fn hold_reached_stops(&mut self, hs: &mut HybridState, u: &[f64], last: Option<Event>) {
+        let held: Vec<_> = self
+            .stops_with_velocity()
+            .filter(|&(i, position, _, at, sign)| {
+                sign * (hs.x[position] - at) >= 0.0 || last == Some(Event::Element(i))
+            })
+            .collect();
+        for (i, position, velocity, at, _) in held {
             hs.x[position] = at;
             self.tangent_onto_stop(i);
             self.settle(hs, u, velocity);
@@ -599,7 +608,8 @@ impl Machine<'_> {
 
     /// The hybrid state at `(x, u)`: positions clamped to their stops, the
     /// mode `mode` or the first whose invariant holds, every velocity at
-    /// zero settled.
+    /// zero, and every stop reached by a state not moving away from it,
+    /// settled.
     pub fn state_at(&mut self, mut x: Vec<f64>, u: &[f64], mode: Option<usize>) -> HybridState {
         let m = self.m;
         for (i, position, velocity, at, sign) in self.reached_stops(&x) {
@@ -637,7 +647,9 @@ impl Machine<'_> {
                 CompiledElement::DryFriction { velocity, .. }
                 | CompiledElement::Stop { velocity, .. } => *velocity,
             };
-            let at_stop = matches!(e, CompiledElement::Stop { position, .. } if hs.x[*position] == self.fixed[i].0);
+            // On a stop and not moving away from it.
+            let at_stop = matches!(e, CompiledElement::Stop { position, sign, .. }
+                if hs.x[*position] == self.fixed[i].0 && sign * hs.x[v] >= 0.0);
             if hs.x[v] == 0.0 || at_stop {
                 self.settle(&mut hs, u, v);
             }
