@@ -18,7 +18,7 @@
 use crate::expr::{Expression, Relation, Shared};
 use crate::model::GrayBoxModel;
 use compiler::Compiler;
-use elements::{check_stops, compile_elements, mode_labels};
+use elements::{LabelIndex, check_stops, compile_elements, mode_labels};
 use initial::{check_sensor, initial_rule};
 pub use names::is_identifier;
 use names::{check_header, check_sizes, definition_names};
@@ -233,9 +233,11 @@ impl CompiledModel {
         let names = definition_names(m);
         check_sizes(m, names.len())?;
         let mut c = Compiler::new(m, names)?;
-        let labels = mode_labels(m, &c.mode_index)?;
+        let label_index = LabelIndex::of_model(m);
+        let labels = mode_labels(m, &c.mode_index, &label_index)?;
         let elements = compile_elements(
             m,
+            &label_index,
             &|p, n| c.state_of(p, n),
             &|p, n| c.parametric(p, n),
             &|p, n| c.restitution(p, n),

@@ -10,17 +10,11 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 /// stop quantities of parameters only.
 pub(super) fn compile_elements(
     m: &GrayBoxModel,
+    labels: &LabelIndex,
     state_of: &dyn Fn(&str, &str) -> Result<usize, InvalidGrayBox>,
     parametric: &dyn Fn(&str, &str) -> Result<Expression, InvalidGrayBox>,
     restitution_of: &dyn Fn(&str, &str) -> Result<Expression, InvalidGrayBox>,
 ) -> Result<Vec<CompiledElement>, InvalidGrayBox> {
-    let labels = m.mode_names();
-    let label_index: HashMap<&str, usize> = labels
-        .iter()
-        .enumerate()
-        .map(|(i, n)| (n.as_str(), i))
-        .collect();
-    let label_of = |l: &str| label_index[l];
     let mut elements = Vec::with_capacity(m.elements.len());
     let mut names = BTreeSet::new();
     let mut friction_on = BTreeSet::new();
@@ -45,7 +39,7 @@ pub(super) fn compile_elements(
                 }
                 CompiledElement::DryFriction {
                     velocity: v,
-                    label: label_of(mode),
+                    label: labels.of(mode),
                 }
             }
             Element::Stop {
@@ -64,11 +58,30 @@ pub(super) fn compile_elements(
                 sign: side.sign(),
                 restitution: restitution_of(&format!("{place}, restitution"), restitution)?,
                 rest_speed: rest_speed.max(0.0),
-                label: label_of(mode),
+                label: labels.of(mode),
             },
         });
     }
     Ok(elements)
+}
+
+/// Every mode label of a run ([`GrayBoxModel::mode_names`]) by its index.
+pub(super) struct LabelIndex(HashMap<String, usize>);
+
+impl LabelIndex {
+    pub(super) fn of_model(m: &GrayBoxModel) -> Self {
+        LabelIndex(
+            (m.mode_names().into_iter().enumerate())
+                .map(|(i, l)| (l, i))
+                .collect(),
+        )
+    }
+
+    /// The index of `label`, one of the model's (`mode_names` lists them
+    /// all; 0 for another).
+    fn of(&self, label: &str) -> usize {
+        self.0.get(label).copied().unwrap_or_default()
+    }
 }
 
 /// The mode labels of a run's samples, checked: an element's label (its
@@ -78,13 +91,8 @@ pub(super) fn compile_elements(
 pub(super) fn mode_labels(
     m: &GrayBoxModel,
     mode_index: &BTreeMap<&str, usize>,
+    labels: &LabelIndex,
 ) -> Result<ModeLabels, InvalidGrayBox> {
-    let labels = m.mode_names();
-    let label_of: HashMap<&str, usize> = labels
-        .iter()
-        .enumerate()
-        .map(|(i, l)| (l.as_str(), i))
-        .collect();
     let modes: BTreeSet<&str> = (m.modes.iter())
         .flat_map(|q| [q.name.as_str(), q.label()])
         .collect();
@@ -133,17 +141,15 @@ pub(super) fn mode_labels(
             own_label(place, label)?;
         }
     }
-    // Every label is among the names: `mode_names` lists them all.
-    let index = |l: &str| label_of.get(l).copied().unwrap_or_default();
     Ok(ModeLabels {
-        mode: m.modes.iter().map(|q| index(q.label())).collect(),
+        mode: m.modes.iter().map(|q| labels.of(q.label())).collect(),
         held: m
             .modes
             .iter()
             .map(|q| {
                 m.elements
                     .iter()
-                    .map(|e| index(q.element_modes.get(e.name()).map_or(e.mode(), |l| l)))
+                    .map(|e| labels.of(q.element_modes.get(e.name()).map_or(e.mode(), |l| l)))
                     .collect()
             })
             .collect(),

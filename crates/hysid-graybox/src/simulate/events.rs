@@ -562,27 +562,28 @@ impl Machine<'_> {
         result
     }
 
-    /// The Zeno bound's action: every stop that has been reached holds,
-    /// the one of the last event `last` too (its rebound starts on it).
+    /// The Zeno bound's action: every stop reached holds
+    /// ([`Machine::reached_stops`]).
     fn hold_reached_stops(&mut self, hs: &mut HybridState, u: &[f64], last: Option<Event>) {
-        let held: Vec<_> = self
-            .stops_with_velocity()
-            .filter(|&(i, position, _, at, sign)| {
-                sign * (hs.x[position] - at) >= 0.0 || last == Some(Event::Element(i))
-            })
-            .collect();
-        for (i, position, velocity, at, _) in held {
+        for (i, position, velocity, at, _) in self.reached_stops(&hs.x, last) {
             hs.x[position] = at;
             self.tangent_onto_stop(i);
             self.settle(hs, u, velocity);
         }
     }
 
-    /// The stops that `x` has reached or passed: `(element, position
-    /// state, velocity state, level, sign)`.
-    fn reached_stops(&self, x: &[f64]) -> Vec<(usize, usize, usize, f64, f64)> {
+    /// The stops that `x` has reached or passed, and that of the event
+    /// `last` (its rebound starts on it): `(element, position state,
+    /// velocity state, level, sign)`.
+    fn reached_stops(
+        &self,
+        x: &[f64],
+        last: Option<Event>,
+    ) -> Vec<(usize, usize, usize, f64, f64)> {
         self.stops_with_velocity()
-            .filter(|(_, position, _, at, sign)| sign * (x[*position] - at) >= 0.0)
+            .filter(|&(i, position, _, at, sign)| {
+                sign * (x[position] - at) >= 0.0 || last == Some(Event::Element(i))
+            })
             .collect()
     }
 
@@ -612,7 +613,7 @@ impl Machine<'_> {
     /// settled.
     pub fn state_at(&mut self, mut x: Vec<f64>, u: &[f64], mode: Option<usize>) -> HybridState {
         let m = self.m;
-        for (i, position, velocity, at, sign) in self.reached_stops(&x) {
+        for (i, position, velocity, at, sign) in self.reached_stops(&x, None) {
             x[position] = at;
             self.tangent_onto_stop(i);
             if sign * x[velocity] > 0.0 {
