@@ -27,6 +27,7 @@ use std::path::Path;
 mod located;
 mod translate;
 
+pub(crate) use translate::written;
 pub use translate::{Untranslatable, mechanical_labels, to_gray_box};
 
 /// Any model hysid can simulate and validate.

@@ -9,7 +9,7 @@
 //! divergence, initial conditions) are documented in
 //! `hysid_model::simulate` and `docs/simulation.md`.
 
-use crate::model::{Model, mechanical_labels, to_gray_box};
+use crate::model::{Model, mechanical_labels, written};
 use hysid_graybox::GrayBoxModel;
 use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
@@ -50,13 +50,14 @@ pub fn simulate(
     })
 }
 
-/// The run of a mechanical model: `run` of its gray-box form, each sample
-/// labelled by the mechanical mode of its label.
+/// The run of a mechanical model: `run` of its gray-box form (which
+/// compiles, so checks, the form), each sample labelled by the mechanical
+/// mode of its label.
 fn as_gray_box(
     m: &MechanicalModel,
     run: impl FnOnce(&GrayBoxModel) -> Result<Simulation, SimError>,
 ) -> Result<Simulation, SimError> {
-    let gray = to_gray_box(m).map_err(|e| SimError::InvalidModel(e.to_string()))?;
+    let gray = written(m).map_err(|e| SimError::InvalidModel(e.to_string()))?;
     let labels = mechanical_labels(m, &gray);
     let mut sim = run(&gray)?;
     for q in sim.modes.iter_mut().flatten() {

@@ -159,10 +159,6 @@ pub fn fit_model<M: Target>(
     Ok((fitted, report))
 }
 
-/// The nominal point and its free-run cost: the model's parameter values
-/// and, for the initial states it estimates, their starting guesses or,
-/// where lower in cost, the states each record's warm-up outputs give at
-/// those values ([`crate::target::Simulator::warmup_states`]).
 /// The fault of the model that fails its free run of `record` at the
 /// file's values ([`ParameterMap::base`]), if it does: an error of the
 /// model (a transition that leaves its target's invariant, an initial rule
@@ -179,6 +175,10 @@ fn nominal_failure<M: Target>(model: &M, map: &ParameterMap, record: &Dataset) -
     }
 }
 
+/// The nominal point and its free-run cost: the model's parameter values
+/// and, for the initial states it estimates, their starting guesses or,
+/// where lower in cost, the states each record's warm-up outputs give at
+/// those values ([`crate::target::Simulator::warmup_states`]).
 fn nominal_start(search: &Search<'_>) -> (Vec<f64>, f64) {
     let (map, records) = (search.objective.map, search.objective.records);
     let guesses = map.coords(&map.base);

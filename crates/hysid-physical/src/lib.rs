@@ -214,34 +214,34 @@ impl Identifier for Physical {
                 }
                 _ => e,
             };
-        let (data, priors) = (problem.data, problem.priors);
-        match model {
+        let model_error =
+            |e: Box<dyn std::error::Error + Send + Sync>| in_file(PhysicalError::Model(e).into());
+        // A mechanical model is fitted as its gray-box form and written
+        // back (`mechanical`).
+        let (gray, back_into) = match model {
             Model::Mechanical(m) => {
                 let m = mechanical::with_warmup(m, options.init_samples);
-                let gray =
-                    to_gray_box(&m).map_err(|e| in_file(PhysicalError::Model(e.into()).into()))?;
-                let target = GrayBoxTarget::new(gray)
-                    .map_err(|e| in_file(PhysicalError::Model(e.into()).into()))?;
-                fit_model(&target, data, priors, options, ctx)
-                    .map(|(fitted, _)| Model::Mechanical(mechanical::fitted(m, fitted.model)))
-                    .map_err(in_file)
+                (to_gray_box(&m).map_err(|e| model_error(e.into()))?, Some(m))
             }
-            Model::GrayBox(m) => {
-                let target = GrayBoxTarget::new(m)
-                    .map_err(|e| in_file(PhysicalError::Model(e.into()).into()))?;
-                fit_model(&target, data, priors, options, ctx)
-                    .map(|(fitted, _)| Model::GrayBox(fitted.model))
-                    .map_err(in_file)
+            Model::GrayBox(g) => (g, None),
+            other => {
+                return Err(IdentifyError::Options(OptionError::invalid(
+                    "model",
+                    &options.model,
+                    format!(
+                        "a '{}' model; the physical method fits a 'mechanical' or a 'gray_box' one",
+                        other.kind()
+                    ),
+                )));
             }
-            other => Err(IdentifyError::Options(OptionError::invalid(
-                "model",
-                &options.model,
-                format!(
-                    "a '{}' model; the physical method fits a 'mechanical' or a 'gray_box' one",
-                    other.kind()
-                ),
-            ))),
-        }
+        };
+        let target = GrayBoxTarget::new(gray).map_err(|e| model_error(e.into()))?;
+        let (fitted, _) =
+            fit_model(&target, problem.data, problem.priors, options, ctx).map_err(in_file)?;
+        Ok(match back_into {
+            Some(m) => Model::Mechanical(mechanical::fitted(m, fitted.model)),
+            None => Model::GrayBox(fitted.model),
+        })
     }
 }
 

@@ -28,33 +28,25 @@ pub trait Simulator: Sync {
     ) -> Option<Vec<f64>>;
     /// Number of initial states estimated per record: the values a
     /// simulation takes are the parameters, then these.
-    fn estimated_count(&self) -> usize {
-        0
-    }
+    fn estimated_count(&self) -> usize;
     /// The states of [`Target::estimated_states`] as the warm-up outputs of
     /// `record` give them at the parameter values `parameters` (what
     /// `validate` does on a record of its own); `None` where the model
     /// estimates none or the estimate fails.
-    fn warmup_states(&self, _parameters: &[f64], _record: &Dataset) -> Option<Vec<f64>> {
-        None
-    }
+    fn warmup_states(&self, parameters: &[f64], record: &Dataset) -> Option<Vec<f64>>;
     /// Whether [`Simulator::residual_jacobian`] gives the exact Jacobian.
-    fn exact_jacobian(&self) -> bool {
-        false
-    }
+    fn exact_jacobian(&self) -> bool;
     /// The residuals of [`Simulator::free_run`] (`segment` 0) or of
     /// [`Simulator::segmented_residuals`], with their exact Jacobian in
     /// `values` (a column per value); `None` where the model gives none or
     /// the run fails.
     fn residual_jacobian(
         &self,
-        _values: &[f64],
-        _data: &Dataset,
-        _segment: usize,
-        _velocity_tol: f64,
-    ) -> Option<(Vec<f64>, DMatrix<f64>)> {
-        None
-    }
+        values: &[f64],
+        data: &Dataset,
+        segment: usize,
+        velocity_tol: f64,
+    ) -> Option<(Vec<f64>, DMatrix<f64>)>;
 }
 
 /// What the fit needs of a model declared by its physics.
@@ -83,9 +75,7 @@ pub trait Target: Simulator + Clone {
     /// `(name, [low, high], starting guess)`. They are fitted with the
     /// parameters, as nuisance parameters of the record: their values
     /// follow the parameters' in the values a [`Simulator`] takes.
-    fn estimated_states(&self) -> Vec<(String, [f64; 2], f64)> {
-        Vec::new()
-    }
+    fn estimated_states(&self) -> Vec<(String, [f64; 2], f64)>;
 }
 
 /// A gray-box model with its compiled form (compiled once per fit).

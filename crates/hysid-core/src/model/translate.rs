@@ -39,6 +39,14 @@ pub enum Untranslatable {
 /// The gray-box form of `model`, checked: the same parameters, inputs,
 /// internal step, initial state rule, regimes and mode labels.
 pub fn to_gray_box(model: &MechanicalModel) -> Result<GrayBoxModel, Untranslatable> {
+    let gray = written(model)?;
+    gray.validate()?;
+    Ok(gray)
+}
+
+/// The gray-box form of `model`, the mechanical model checked, the form
+/// not: for a run, whose compilation checks it.
+pub(crate) fn written(model: &MechanicalModel) -> Result<GrayBoxModel, InvalidMechanical> {
     model.validate()?;
     let symbols = Symbols::new(model);
     let labels = mode_labels(model);
@@ -62,7 +70,6 @@ pub fn to_gray_box(model: &MechanicalModel) -> Result<GrayBoxModel, Untranslatab
         initial_state: initial_state(&model.initial_state, &symbols),
         info: model.info.clone(),
     };
-    gray.validate()?;
     Ok(gray)
 }
 
