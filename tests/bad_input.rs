@@ -965,6 +965,26 @@ fn an_unknown_estimated_state_gives_the_line_of_its_key() {
         ],
         &out,
     );
+    // A state's estimate refused for its bounds, or because the rule
+    // measures it, is found at the estimate too, not where the states are
+    // listed.
+    for (estimate, says) in [
+        (
+            "y = [2, 1]",
+            "estimate of 'y': need finite bounds [low, high] with low <= high",
+        ),
+        (
+            "v = [0, 1]",
+            "'v' is measured by the rule; it cannot also be estimated",
+        ),
+    ] {
+        let m = write(d, "state.toml", &text.replace("w = [0, 1]", estimate));
+        bad(
+            &["simulate", s(&m), "--excite", HEAD_EXCITE, "-o", s(&out)],
+            &[&format!("state.toml, line {at}: "), says],
+            &out,
+        );
+    }
     // Bounds of three numbers are refused, not read as their first two.
     let three = text.replace("w = [0, 1]", "v = [0, 1, 2]");
     let m = write(d, "three.toml", &three);
@@ -1078,7 +1098,22 @@ fn malformed_gray_box_files() {
                 "table_acc = \"u - 2*zeta*wn*w - wn^2*z\"",
                 "table_acc = \"u - 2*zeta*wn*w - wn^2*z + table_acc\"",
             ),
-            vec!["definition 'table_acc' depends on itself".into()],
+            vec!["definitions: definition 'table_acc' depends on itself".into()],
+        ),
+        (
+            // A ring of the model's definitions is the model's, not the
+            // first mode's; the definition that only reaches it is not
+            // named.
+            "ring.toml",
+            good.replace(
+                "[definitions]\n",
+                "[definitions]\nreach = \"ring_b\"\nring_a = \"2*ring_b\"\nring_b = \"ring_a + 1\"\n",
+            ),
+            vec![
+                format!("ring.toml, line {}", line_holding(&good, "[definitions]", 0) + 2),
+                "definitions: definition 'ring_a' depends on itself: ring_a -> ring_b -> ring_a"
+                    .into(),
+            ],
         ),
         (
             "energy.toml",

@@ -827,10 +827,20 @@ mod tests {
                 .map(|d| Rc::new(Expression::compile(d, &with_definitions).unwrap()))
                 .collect()
         };
-        // `a` reads `b`, which reads itself: the first in index order.
+        // `a` reads `b`, which reads itself: the ring is `b` alone, not
+        // `a`, which only reaches it.
         assert_eq!(
             Definitions::new(3, written(&["b + 1", "b * x"])).unwrap_err(),
-            DefinitionError::Cycle(0)
+            DefinitionError::Cycle(vec![1])
+        );
+        // `a` reads `b`, which reads `a`: the ring in the order read.
+        assert_eq!(
+            Definitions::new(3, written(&["b + 1", "a * x"])).unwrap_err(),
+            DefinitionError::Cycle(vec![0, 1])
+        );
+        assert_eq!(
+            Definitions::new(3, written(&["x + 1", "b * x"])).unwrap_err(),
+            DefinitionError::Cycle(vec![1])
         );
         // Each definition nests 20 pending operands inside the other's:
         // `a` fits, `b` with `a` written in does not.

@@ -16,13 +16,74 @@ use std::collections::BTreeMap;
 pub const FORMAT_VERSION: u32 = 1;
 
 /// An output: a name and the expression of the states (and inputs) it reads.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// Written `{ name, value }`, or as a bare name that is also its
+/// expression (`"x"` for `{ name = "x", value = "x" }`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OutputMap {
     /// Output name.
     pub name: String,
     /// Its expression.
     pub value: String,
+}
+
+impl<'de> Deserialize<'de> for OutputMap {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Written {
+            name: String,
+            value: String,
+        }
+        struct Entry;
+        impl<'de> serde::de::Visitor<'de> for Entry {
+            type Value = OutputMap;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("an output { name = \"y\", value = \"expression\" } or a state's name")
+            }
+            fn visit_str<E: serde::de::Error>(self, name: &str) -> Result<OutputMap, E> {
+                Ok(OutputMap {
+                    name: name.to_string(),
+                    value: name.to_string(),
+                })
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<OutputMap, A::Error> {
+                let w = Written::deserialize(serde::de::value::MapAccessDeserializer::new(map))?;
+                Ok(OutputMap {
+                    name: w.name,
+                    value: w.value,
+                })
+            }
+        }
+        d.deserialize_any(Entry)
+    }
+}
+
+/// `state = value` entries of an initial-state rule, read with a message
+/// that says so where something else is written (`values = [0.5]`).
+fn values_by_name<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> Result<BTreeMap<String, f64>, D::Error> {
+    struct Values;
+    impl<'de> serde::de::Visitor<'de> for Values {
+        type Value = BTreeMap<String, f64>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("values by state name, such as values = { x = 0.5 }")
+        }
+        fn visit_map<A: serde::de::MapAccess<'de>>(
+            self,
+            mut map: A,
+        ) -> Result<Self::Value, A::Error> {
+            let mut values = BTreeMap::new();
+            while let Some((name, value)) = map.next_entry::<String, f64>()? {
+                values.insert(name, value);
+            }
+            Ok(values)
+        }
+    }
+    d.deserialize_map(Values)
 }
 
 /// A discrete mode: the flow of every state, an invariant, and definitions
@@ -196,7 +257,7 @@ pub enum GrayBoxInitialState {
     /// Given values at sample 0 (states not listed start at zero).
     Given {
         /// `state = value`.
-        #[serde(default)]
+        #[serde(default, deserialize_with = "values_by_name")]
         values: BTreeMap<String, f64>,
         /// The starting mode; absent: the first mode whose invariant holds.
         #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -235,7 +296,11 @@ pub enum GrayBoxInitialState {
         #[serde(default)]
         velocity_tol: f64,
         /// Values of the other states (absent: zero).
-        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        #[serde(
+            default,
+            skip_serializing_if = "BTreeMap::is_empty",
+            deserialize_with = "values_by_name"
+        )]
         values: BTreeMap<String, f64>,
         /// The starting mode; absent: the first mode whose invariant holds.
         #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -254,7 +319,11 @@ pub enum GrayBoxInitialState {
     /// a rest state satisfies the invariant.
     Steady {
         /// The starting guess (absent: zero).
-        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        #[serde(
+            default,
+            skip_serializing_if = "BTreeMap::is_empty",
+            deserialize_with = "values_by_name"
+        )]
         values: BTreeMap<String, f64>,
         /// The mode; absent: the first mode with a rest state in its invariant.
         #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -345,5 +414,75 @@ impl GrayBoxModel {
             .filter(|label| seen.insert(*label))
             .map(str::to_string)
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Deserialize)]
+    struct Part {
+        outputs: Vec<OutputMap>,
+        initial_state: GrayBoxInitialState,
+    }
+
+    /// An output written as a bare name is that state; written as a
+    /// table, it keeps its checks; either way it is written back as a
+    /// table.
+    #[test]
+    fn an_output_is_a_table_or_a_state_name() {
+        let rule = "initial_state = { from = \"given\", values = { x = 0.5 } }";
+        let read = |outputs: &str| toml::from_str::<Part>(&format!("outputs = {outputs}\n{rule}"));
+        let bare = read("[\"x\"]").unwrap();
+        let table = read("[{ name = \"x\", value = \"x\" }]").unwrap();
+        assert_eq!(bare.outputs, table.outputs);
+        assert_eq!(
+            serde_json::to_value(&bare.outputs).unwrap(),
+            serde_json::json!([{"name": "x", "value": "x"}])
+        );
+        let json: Vec<OutputMap> = serde_json::from_str(r#"["x"]"#).unwrap();
+        assert_eq!(json, table.outputs);
+        for (outputs, says) in [
+            (
+                "[3]",
+                "expected an output { name = \"y\", value = \"expression\" } or a state's name",
+            ),
+            ("[{ name = \"x\" }]", "missing field `value`"),
+            (
+                "[{ name = \"x\", value = \"x\", unit = \"m\" }]",
+                "unknown field `unit`",
+            ),
+        ] {
+            let e = read(outputs).unwrap_err().to_string();
+            assert!(e.contains(says), "{outputs}: {e}");
+        }
+    }
+
+    /// Values of an initial-state rule are by name: a list says so, in
+    /// every rule that takes values.
+    #[test]
+    fn initial_values_are_by_name() {
+        for from in ["given", "measured\", position = \"x", "steady"] {
+            let text = |values: &str| {
+                format!(
+                    "outputs = [\"x\"]\ninitial_state = {{ from = \"{from}\", values = {values} }}"
+                )
+            };
+            let part: Part = toml::from_str(&text("{ x = 0.5 }")).unwrap();
+            let values = match part.initial_state {
+                GrayBoxInitialState::Given { values, .. }
+                | GrayBoxInitialState::Measured { values, .. }
+                | GrayBoxInitialState::Steady { values, .. } => values,
+            };
+            assert_eq!(values, BTreeMap::from([("x".to_string(), 0.5)]));
+            let e = toml::from_str::<Part>(&text("[0.5]"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("invalid type: sequence, expected values by state name, such as values = { x = 0.5 }"),
+                "{from}: {e}"
+            );
+        }
     }
 }

@@ -145,13 +145,24 @@ fn first_line(lexed: &Lexed, text: &str) -> Option<usize> {
 }
 
 /// [`line_of`], preferring a line where `key` writes `text` as a whole
-/// string (`guard = "p"` before `states = ["p"]` for the guard's `p`).
+/// string (`guard = "p"` before `states = ["p"]` for the guard's `p`),
+/// then one where `key` and `text` are both written as keys.
 pub(crate) fn line_of_field(source: &str, key: &str, text: &str) -> Option<usize> {
     let lexed = Lexed::of(source);
     let in_field = (lexed.strings.iter())
         .find(|(line, s)| s == text && writes_key(&lexed.code[*line], key))
         .map(|&(line, _)| line + 1);
-    in_field.or_else(|| first_line(&lexed, text))
+    // A name as a key of the field's table on its line
+    // (`estimate = { x = [0, 1] }` for the estimate of `x`).
+    let keyed = || {
+        is_bare_key(text)
+            .then(|| {
+                (lexed.code.iter()).position(|code| writes_key(code, key) && writes_key(code, text))
+            })
+            .flatten()
+            .map(|line| line + 1)
+    };
+    in_field.or_else(keyed).or_else(|| first_line(&lexed, text))
 }
 
 #[cfg(test)]
@@ -189,6 +200,12 @@ mod tests {
         assert_eq!(line_of_field(toml, "guard", "p"), Some(3));
         // No such field: the first line that writes it.
         assert_eq!(line_of_field(toml, "when", "p"), Some(1));
+        // A name that is a key of the field's table on the field's line.
+        let toml = "states = [\"x\"]\n\
+                    # estimate = { x = [0, 1] }\n\
+                    initial_state = { from = \"given\", estimate = { x = [2, 1] } }\n";
+        assert_eq!(line_of_field(toml, "estimate", "x"), Some(3));
+        assert_eq!(line_of_field(toml, "values", "x"), Some(1));
     }
 
     #[test]

@@ -217,11 +217,22 @@ impl<'m> Compiler<'m> {
             written.push(e);
         }
         Definitions::new(self.first_def as u32, written).map_err(|e| match e {
-            DefinitionError::Cycle(i) => InvalidGrayBox::new(
-                &place,
-                Some(self.names[i]),
-                Problem::Cycle(self.names[i].to_string()),
-            ),
+            DefinitionError::Cycle(ring) => {
+                // A ring of the model's own definitions is the model's
+                // fault, whichever mode met it first.
+                let in_mode = ring
+                    .iter()
+                    .any(|i| own.binary_search_by_key(i, |&(j, _)| j).is_ok());
+                InvalidGrayBox::new(
+                    if in_mode {
+                        place.as_str()
+                    } else {
+                        "definitions"
+                    },
+                    Some(self.names[ring[0]]),
+                    Problem::Cycle(ring.iter().map(|&i| self.names[i].to_string()).collect()),
+                )
+            }
             DefinitionError::TooDeep(i) => {
                 let text = text_of(i).map_or("", String::as_str);
                 InvalidGrayBox::new(

@@ -96,14 +96,14 @@ pub(super) fn initial_rule(
         if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
             return Err(InvalidGrayBox::new(
                 place,
-                None,
+                Some(name),
                 Problem::EstimateBounds(name.clone()),
             ));
         }
         if measured.contains(&name) {
             return Err(InvalidGrayBox::new(
                 place,
-                None,
+                Some(name),
                 Problem::MeasuredAndEstimated(name.clone()),
             ));
         }

@@ -83,9 +83,10 @@ pub enum Problem {
     /// A name that is no mode.
     #[error("'{0}' is not a mode")]
     UnknownMode(String),
-    /// A definition that reaches itself.
-    #[error("definition '{0}' depends on itself")]
-    Cycle(String),
+    /// Definitions that read each other in a ring (the first named again
+    /// at the end).
+    #[error("definition '{}' depends on itself{}", .0[0], ring(.0))]
+    Cycle(Vec<String>),
     /// A relation where a value is expected.
     #[error(
         "'{0}' is a relation (1 where it holds, 0 elsewhere) where a value is expected; \
@@ -223,6 +224,22 @@ pub enum Problem {
          {MAX_OPERATIONS} operations (the limit)"
     )]
     TooLarge,
+}
+
+/// `: a -> b -> a` for a ring of several definitions, nothing for one.
+fn ring(names: &[String]) -> String {
+    if names.len() < 2 {
+        return String::new();
+    }
+    let mut out = String::from(":");
+    for name in names.iter().chain(&names[..1]) {
+        if out.len() > 1 {
+            out.push_str(" ->");
+        }
+        out.push(' ');
+        out.push_str(name);
+    }
+    out
 }
 
 impl InvalidGrayBox {

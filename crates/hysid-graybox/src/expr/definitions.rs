@@ -66,11 +66,13 @@ pub enum InlineError {
 }
 
 /// Why a mode's definitions cannot be written into its expressions
-/// ([`Definitions::new`]); the index is the definition's.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// ([`Definitions::new`]); indices are the definitions'.
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum DefinitionError {
-    /// The definition reaches itself, or a definition that does.
-    Cycle(usize),
+    /// Definitions that read each other in a ring, from the one of least
+    /// index: each reads the next, the last reads the first (one entry: a
+    /// definition that reads itself).
+    Cycle(Vec<usize>),
     /// Written out, the definition needs more than [`MAX_DEPTH`] pending
     /// operands.
     TooDeep(usize),
@@ -188,9 +190,10 @@ enum Walk {
 
 impl Definitions {
     /// The definitions `written[i]` of the slots `first + i`. Walks them
-    /// in dependency order, without recursion, once each: a definition
-    /// that reaches itself (or one that does) is refused, the first in
-    /// index order ([`DefinitionError::Cycle`]); then each is summarised
+    /// in dependency order, without recursion, once each: the first ring
+    /// of definitions that read each other the walk meets, from the
+    /// definitions in index order, is refused ([`DefinitionError::Cycle`]);
+    /// then each is summarised
     /// after those it reads, and the first found whose expansion needs
     /// more than [`MAX_DEPTH`] pending operands (its own definitions
     /// within it) is refused ([`DefinitionError::TooDeep`]).
@@ -200,6 +203,7 @@ impl Definitions {
         let mut order = Vec::with_capacity(n);
         // (definition, next operation to look at, reaches a cycle)
         let mut open: Vec<(usize, usize, bool)> = Vec::new();
+        let mut ring: Option<Vec<usize>> = None;
         for root in 0..n {
             if walk[root] != Walk::New {
                 continue;
@@ -209,6 +213,9 @@ impl Definitions {
             while let Some((i, pos, cyclic)) = open.last_mut() {
                 let ops = &written[*i].ops;
                 let mut next = None;
+                // The first open definition this one reads: the open path
+                // from it to this one is a ring.
+                let mut closes = None;
                 while *pos < ops.len() {
                     let op = ops[*pos];
                     *pos += 1;
@@ -220,10 +227,25 @@ impl Definitions {
                                 next = Some(j);
                                 break;
                             }
-                            Walk::Open | Walk::Cyclic => *cyclic = true,
+                            Walk::Open => {
+                                *cyclic = true;
+                                closes = closes.or(Some(j));
+                            }
+                            Walk::Cyclic => *cyclic = true,
                             Walk::Done => {}
                         }
                     }
+                }
+                if let Some(j) = closes
+                    && ring.is_none()
+                    && let Some(from) = open.iter().position(|&(d, _, _)| d == j)
+                {
+                    let mut members: Vec<usize> = open[from..].iter().map(|&(d, _, _)| d).collect();
+                    // Named from its first definition in index order.
+                    if let Some(least) = (0..members.len()).min_by_key(|&k| members[k]) {
+                        members.rotate_left(least);
+                    }
+                    ring = Some(members);
                 }
                 if let Some(j) = next {
                     walk[j] = Walk::Open;
@@ -239,8 +261,8 @@ impl Definitions {
                 order.push(i);
             }
         }
-        if let Some(i) = walk.iter().position(|w| *w == Walk::Cyclic) {
-            return Err(DefinitionError::Cycle(i));
+        if let Some(ring) = ring {
+            return Err(DefinitionError::Cycle(ring));
         }
         let mut summary = vec![Summary::slot(); n];
         let mut stack = Vec::new();
