@@ -33,10 +33,53 @@ pub(crate) fn json<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAn
     py.import("json")?.call_method1("loads", (text,))
 }
 
-/// A `UserWarning` with `text`.
+/// A `UserWarning` with `text`, attributed to the user's code.
 pub(crate) fn warn(py: Python<'_>, text: &str) -> PyResult<()> {
+    warn_as::<PyUserWarning>(py, text)
+}
+
+/// A warning of category `W` with `text`, attributed to the first caller
+/// outside the `hysid` package ([`callers_in_package`]): the line of the
+/// user's code that asked for the work, not the package's wrapper.
+pub(crate) fn warn_as<W: pyo3::PyTypeInfo>(py: Python<'_>, text: &str) -> PyResult<()> {
     let text = CString::new(text).unwrap_or_default();
-    PyErr::warn(py, &py.get_type::<PyUserWarning>(), &text, 1)
+    let level = 1 + callers_in_package(py).unwrap_or(0);
+    PyErr::warn(py, &py.get_type::<W>(), &text, level)
+}
+
+/// How many of the innermost Python frames run the `hysid` package's own
+/// files (its wrappers around this extension), found from the package's
+/// folder; `None` when the stack or the package cannot be read.
+fn callers_in_package(py: Python<'_>) -> Option<i32> {
+    let file: PathBuf = py
+        .import("hysid")
+        .ok()?
+        .getattr("__file__")
+        .ok()?
+        .extract()
+        .ok()?;
+    let folder = file.parent()?.to_path_buf();
+    let mut frame = py
+        .import("sys")
+        .ok()?
+        .call_method1("_getframe", (0,))
+        .ok()?;
+    let mut count = 0;
+    while !frame.is_none() {
+        let name: PathBuf = frame
+            .getattr("f_code")
+            .ok()?
+            .getattr("co_filename")
+            .ok()?
+            .extract()
+            .ok()?;
+        if !name.starts_with(&folder) {
+            break;
+        }
+        count += 1;
+        frame = frame.getattr("f_back").ok()?;
+    }
+    Some(count)
 }
 
 /// A `UserWarning` when `model` simulates `data` worse than the affine ARX

@@ -12,7 +12,6 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
-use std::ffi::CString;
 use std::path::PathBuf;
 
 /// A hysid model: a PWARX model, a hybrid automaton, a mechanical or a
@@ -93,8 +92,7 @@ fn warn_sampling_time(
 /// it reached the Zeno bound).
 fn warn_divergence(py: Python<'_>, sim: &Simulation) -> PyResult<()> {
     for warning in sim.warnings() {
-        let text = CString::new(warning.to_string()).unwrap_or_default();
-        PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &text, 1)?;
+        crate::warn_as::<PyRuntimeWarning>(py, &warning.to_string())?;
     }
     Ok(())
 }

@@ -117,7 +117,14 @@ def test_figures_draw(record, tmp_path):
 def test_a_run_cut_short_by_its_time_budget_warns(record):
     u, y, ts = record
     # Many restarts and a budget far below them: the best so far, said.
-    with pytest.warns(UserWarning, match=r"^klinreg: time budget reached after \d+ of 100000 restarts"):
+    with pytest.warns(UserWarning, match=r"^klinreg: time budget reached after \d+ of 100000 restarts") as said:
         model = hysid.identify(u[:3000], y[:3000], method="klinreg", modes=2, seed=1, ts=ts,
                                options={"restarts": 100000}, time_budget=0.5)
     assert model.info["diagnostics"]["run_status"] == "time_budget"
+    # The warning points at the line that asked for the fit, not at the
+    # package's wrapper; through the Estimator too.
+    assert {w.filename for w in said} == {__file__}
+    with pytest.warns(UserWarning, match=r"^klinreg: time budget reached") as said:
+        hysid.Estimator(method="klinreg", modes=2, seed=1, options={"restarts": 100000},
+                        time_budget=0.5).fit(hysid.Record(u[:3000], y[:3000], ts=ts))
+    assert {w.filename for w in said} == {__file__}
