@@ -978,7 +978,7 @@ fn an_unknown_estimated_state_gives_the_line_of_its_key() {
             "'v' is measured by the rule; it cannot also be estimated",
         ),
     ] {
-        let m = write(d, "state.toml", &text.replace("w = [0, 1]", estimate));
+        let m = write(d, "state.toml", text.replace("w = [0, 1]", estimate));
         bad(
             &["simulate", s(&m), "--excite", HEAD_EXCITE, "-o", s(&out)],
             &[&format!("state.toml, line {at}: "), says],

@@ -94,6 +94,45 @@ fn validate_and_simulate_report_the_estimated_initial_state() {
     );
 }
 
+/// A state the warm-up does not show (it reaches the output only past a
+/// dead zone it never leaves) is reported as its starting guess, in the
+/// text and the JSON; a state it shows is not.
+#[test]
+fn a_state_the_warm_up_does_not_show_is_named_as_its_guess() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let seen = cascade("c*x2 + off", ESTIMATE);
+    let hidden = seen.replace("b*(x1 - x2)", "b*(max(x1 - 6, 0) - x2)");
+    assert_ne!(seen, hidden);
+    let record = d.join("record.csv");
+    let truth = write(d, "truth.toml", &seen);
+    ok(&[
+        "simulate",
+        s(&truth),
+        "--excite",
+        "n=200,hold=10,low=-1,high=1,ts=0.05",
+        "--seed",
+        "1",
+        "-o",
+        s(&record),
+    ]);
+    let report = |text: &str| -> (String, serde_json::Value) {
+        let model = write(d, "m.toml", text);
+        let args = ["validate", s(&model), s(&record), "--warmup", "10"];
+        let json = ok(&[&args[..], &["--json"]].concat());
+        (ok(&args), serde_json::from_str(&json).unwrap())
+    };
+    let (text, json) = report(&hidden);
+    assert!(
+        text.contains("x1 = 0.0 (its starting guess: the warm-up does not show it)"),
+        "{text}"
+    );
+    assert_eq!(json["unseen_initial_states"], serde_json::json!(["x1"]));
+    let (text, json) = report(&seen);
+    assert!(!text.contains("starting guess"), "{text}");
+    assert!(json.get("unseen_initial_states").is_none(), "{json}");
+}
+
 /// An estimate of an unknown state, bounds with low above high, an output
 /// map not affine in the measured state, and a `steady` rule without a rest
 /// state: each a one-line error naming the file, exit code 2.

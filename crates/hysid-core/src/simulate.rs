@@ -139,6 +139,11 @@ pub struct ValidationReport {
     /// are in its own report).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub initial_states: BTreeMap<String, f64>,
+    /// Those of [`Self::initial_states`] the warm-up does not show: each
+    /// is its rule's starting guess, not an estimate
+    /// ([`InitialStates::unseen`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unseen_initial_states: Vec<String>,
     /// For data that join several records: each record scored on its own,
     /// with its own warm-up; the figures above pool their scored samples.
     /// Absent for one record.
@@ -154,18 +159,35 @@ impl ValidationReport {
     }
 }
 
-/// The initial states `model` leaves unknown, by name, as its simulation
-/// of `data` estimates them from the warm-up outputs (a gray-box model's
+/// The initial states a model leaves unknown, as its simulation of a
+/// record estimates them from the warm-up outputs.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct InitialStates {
+    /// Every such state by name, with its value.
+    pub values: BTreeMap<String, f64>,
+    /// Those the warm-up's outputs do not show (moving one changes none of
+    /// them): each keeps its rule's starting guess
+    /// (`hysid_graybox::simulate::unseen`).
+    pub unseen: Vec<String>,
+}
+
+/// The initial states `model` leaves unknown, as its simulation of `data`
+/// estimates them from the warm-up outputs (a gray-box model's
 /// `estimate`, `hysid_graybox::initial_states`); empty for every other
 /// model.
-pub fn initial_states(model: &Model, data: &Dataset) -> Result<BTreeMap<String, f64>, SimError> {
+pub fn initial_states(model: &Model, data: &Dataset) -> Result<InitialStates, SimError> {
     check_inputs(model, data)?;
-    match model {
-        Model::GrayBox(m) => Ok(hysid_graybox::initial_states(m, data)?
-            .into_iter()
-            .collect()),
-        _ => Ok(BTreeMap::new()),
-    }
+    let Model::GrayBox(m) = model else {
+        return Ok(InitialStates::default());
+    };
+    let estimated = hysid_graybox::initial_states(m, data)?;
+    Ok(InitialStates {
+        unseen: (estimated.iter())
+            .filter(|e| !e.seen)
+            .map(|e| e.name.clone())
+            .collect(),
+        values: estimated.into_iter().map(|e| (e.name, e.value)).collect(),
+    })
 }
 
 /// Simulated samples whose regressor (or state) lay outside the model's
@@ -331,6 +353,7 @@ pub fn validate(
         zeno: sim.zeno,
         mode_counts,
         initial_states: BTreeMap::new(),
+        unseen_initial_states: Vec::new(),
         records: parts,
     };
     Ok((report, sim, pred))
@@ -378,6 +401,7 @@ fn validate_record(
 ) -> Result<Scored, SimError> {
     let sim = simulate(model, data, opts)?;
     let pred = predict(model, data, opts)?;
+    let states = initial_states(model, data)?;
     let first = warmup.max(sim.start).max(pred.start);
     let n_all = data.len();
     if first >= n_all {
@@ -408,7 +432,8 @@ fn validate_record(
         diverged_at: sim.diverged_at,
         zeno: sim.zeno,
         mode_counts,
-        initial_states: initial_states(model, data)?,
+        initial_states: states.values,
+        unseen_initial_states: states.unseen,
         records: Vec::new(),
     };
     Ok((report, sim, pred))

@@ -95,16 +95,35 @@ pub fn simulate(
     simulate::run(&c, &m.values(), data).map(|r| to_simulation(r, opts))
 }
 
-/// The states the initial-state rule leaves unknown (`estimate`), by
-/// name, as estimated from the warm-up outputs of `data` at the model's
-/// parameter values ([`simulate::estimate`]); empty when it estimates none.
-pub fn initial_states(m: &GrayBoxModel, data: &Dataset) -> Result<Vec<(String, f64)>, SimError> {
+/// An initial state the rule leaves unknown, as the warm-up estimated it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimatedState {
+    /// The state's name.
+    pub name: String,
+    /// Its value.
+    pub value: f64,
+    /// Whether the warm-up's outputs show it ([`simulate::unseen`]); where
+    /// they do not, `value` is the rule's starting guess.
+    pub seen: bool,
+}
+
+/// The states the initial-state rule leaves unknown (`estimate`), in the
+/// rule's order, as estimated from the warm-up outputs of `data` at the
+/// model's parameter values ([`simulate::estimate`]); empty when it
+/// estimates none.
+pub fn initial_states(m: &GrayBoxModel, data: &Dataset) -> Result<Vec<EstimatedState>, SimError> {
     let c = compiled(m)?;
     let values = simulate::estimate(&c, &m.values(), data)?;
+    let unseen = simulate::unseen(&c, &m.values(), data, &values)?;
     Ok(c.estimates
         .iter()
-        .map(|e| e.name.clone())
         .zip(values)
+        .zip(unseen)
+        .map(|((e, value), unseen)| EstimatedState {
+            name: e.name.clone(),
+            value,
+            seen: !unseen,
+        })
         .collect())
 }
 

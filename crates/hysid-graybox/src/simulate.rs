@@ -75,7 +75,7 @@ use sensitivity::Tangent;
 pub use sensitivity::{Sensitivities, differentiable};
 pub use shooting::{segmented, segmented_with_sensitivities};
 use std::rc::Rc;
-pub use warmup::{ESTIMATE_ITERATIONS, estimate};
+pub use warmup::{ESTIMATE_ITERATIONS, estimate, unseen};
 
 mod events;
 mod flows;

@@ -16,10 +16,19 @@ pub mod validate;
 /// Estimated initial states as `x1 = 2.5, x2 = -0.1, x3 = 2.9e-16`
 /// (shortest round-trip form of each value, with an exponent where it is
 /// tiny or huge).
-pub(crate) fn states_text(states: &std::collections::BTreeMap<String, f64>) -> String {
+pub(crate) fn states_text(
+    states: &std::collections::BTreeMap<String, f64>,
+    unseen: &[String],
+) -> String {
     states
         .iter()
-        .map(|(name, v)| format!("{name} = {v:?}"))
+        .map(|(name, v)| {
+            if unseen.contains(name) {
+                format!("{name} = {v:?} (its starting guess: the warm-up does not show it)")
+            } else {
+                format!("{name} = {v:?}")
+            }
+        })
         .collect::<Vec<_>>()
         .join(", ")
 }

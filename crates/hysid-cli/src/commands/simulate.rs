@@ -103,7 +103,7 @@ pub fn run(args: Args) -> Result<()> {
         .map_err(|e| CliError::simulation(&args.model, e))?;
     let states = hysid_core::simulate::initial_states(&model, &data)
         .map_err(|e| CliError::simulation(&args.model, e))?;
-    if !states.is_empty() {
+    if !states.values.is_empty() {
         let warmup = if args.data.is_some() {
             "the warm-up".to_string()
         } else {
@@ -111,7 +111,7 @@ pub fn run(args: Args) -> Result<()> {
         };
         eprintln!(
             "hysid: initial state estimated from {warmup}: {}",
-            super::states_text(&states)
+            super::states_text(&states.values, &states.unseen)
         );
     }
     let physical = matches!(model, Model::GrayBox(_) | Model::Mechanical(_));

@@ -117,7 +117,7 @@ pub fn run(args: Args) -> Result<()> {
         if !report.initial_states.is_empty() {
             println!(
                 "initial   {} (estimated from the warm-up)",
-                super::states_text(&report.initial_states)
+                super::states_text(&report.initial_states, &report.unseen_initial_states)
             );
         }
         for (file, r) in args.data.iter().zip(&report.records) {
@@ -130,7 +130,10 @@ pub fn run(args: Args) -> Result<()> {
                 r.n
             );
             if !r.initial_states.is_empty() {
-                print!("  initial {}", super::states_text(&r.initial_states));
+                print!(
+                    "  initial {}",
+                    super::states_text(&r.initial_states, &r.unseen_initial_states)
+                );
             }
             println!();
         }

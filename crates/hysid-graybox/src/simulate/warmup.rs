@@ -100,6 +100,42 @@ pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec
     Ok(to_values(&z))
 }
 
+/// Which of the estimated states (`estimated`, as [`estimate`] gave
+/// them) the warm-up does not show: moving one by the estimate's finite
+/// difference either way, within its bounds, leaves every simulated
+/// output of the warm-up as it was (a state a held friction or a dead
+/// zone hides there). Such a state keeps its starting guess; it is not
+/// estimated from the record.
+pub fn unseen(
+    m: &CompiledModel,
+    values: &[f64],
+    data: &Dataset,
+    estimated: &[f64],
+) -> Result<Vec<bool>, SimError> {
+    let w = m.initial.warmup().unwrap_or(1).min(data.len());
+    let window = data
+        .slice(RowRange {
+            start: Some(0),
+            end: Some(w),
+        })
+        .map_err(|e| SimError::InitialState(e.to_string()))?;
+    let outputs = |states: &[f64]| run_from(m, values, states, &window).ok().map(|r| r.y);
+    let at = outputs(estimated);
+    Ok(m.estimates
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let step = STATE_DIFFERENCE * (e.bounds[1] - e.bounds[0]);
+            let moved = |delta: f64| {
+                let mut states = estimated.to_vec();
+                states[i] = (states[i] + delta).clamp(e.bounds[0], e.bounds[1]);
+                outputs(&states)
+            };
+            at.is_some() && step > 0.0 && moved(step) == at && moved(-step) == at
+        })
+        .collect())
+}
+
 /// Where [`estimate`] starts again, in box-normalised coordinates, when
 /// the guess is a flat spot of the warm-up's cost.
 const FLAT_SPOT_STARTS: [f64; 2] = [0.25, 0.75];

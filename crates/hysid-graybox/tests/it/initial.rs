@@ -127,11 +127,11 @@ fn an_estimated_state_is_recovered_from_the_warm_up() {
             ));
             let states = initial_states(&m, &data).unwrap();
             assert_eq!(states.len(), 1);
-            assert_eq!(states[0].0, "x1");
+            assert_eq!((states[0].name.as_str(), states[0].seen), ("x1", true));
             assert!(
-                close(states[0].1, x1, 1e-6),
+                close(states[0].value, x1, 1e-6),
                 "{output}: {} against {x1}",
-                states[0].1
+                states[0].value
             );
             let c = CompiledModel::new(&m).unwrap();
             let r = run(&c, &m.values(), &data).unwrap();
@@ -163,7 +163,9 @@ fn an_estimate_leaves_a_flat_spot_of_its_guess() {
         r#"{ from = "measured", samples = 10, position = "x2", estimate = { x1 = [-5.0, 5.0] } }"#,
     ));
     let states = initial_states(&m, &data).unwrap();
-    assert!(close(states[0].1, 3.0, 1e-6), "x1 = {}", states[0].1);
+    assert!(close(states[0].value, 3.0, 1e-6), "x1 = {}", states[0].value);
+    // Out of the dead zone, the warm-up shows it.
+    assert!(states[0].seen);
 }
 
 /// A `given` rule may estimate some states: the others keep their values.
@@ -175,7 +177,7 @@ fn a_given_rule_estimates_the_listed_states_only() {
         r#"{ from = "given", values = { x2 = 0.3, x1 = 1.0 }, estimate = { x1 = [0.0, 4.0] }, samples = 12 }"#,
     ));
     let states = initial_states(&m, &data).unwrap();
-    assert!(close(states[0].1, 1.7, 1e-6), "{states:?}");
+    assert!(close(states[0].value, 1.7, 1e-6), "{states:?}");
     let c = CompiledModel::new(&m).unwrap();
     let r = run(&c, &m.values(), &data).unwrap();
     assert_eq!(r.start, 11);
