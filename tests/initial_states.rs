@@ -92,6 +92,29 @@ fn validate_and_simulate_report_the_estimated_initial_state() {
         err.contains("initial state estimated from the warm-up: x1 = 2.2"),
         "{err}"
     );
+
+    // Driven by an excitation, a run that estimates its state starts at
+    // sample 0: no row holds --y0, and none is said to.
+    let o = hysid(&[
+        "simulate",
+        s(&model),
+        "--excite",
+        "n=50,hold=10,low=1,high=2,ts=0.05",
+        "--y0",
+        "0.7",
+        "-o",
+        s(&out),
+    ]);
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("the rows before it hold"), "{err}");
+    let csv = std::fs::read_to_string(&out).unwrap();
+    let ys: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
+    assert!(ys[..10].windows(2).all(|w| w[0] != w[1]), "{ys:?}");
 }
 
 /// A state the warm-up does not show (it reaches the output only past a

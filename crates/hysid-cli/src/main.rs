@@ -135,7 +135,7 @@ fn guarded(f: impl FnOnce() -> Result<()>) -> Result<()> {
         } else {
             "a panic without a message".to_string()
         };
-        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+        if is_broken_pipe(&message) {
             return Ok(());
         }
         let at = LAST_PANIC_LOCATION
@@ -160,7 +160,9 @@ fn quiet_guarded_panics() {
     let default = std::panic::take_hook();
     let verbose = std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0");
     std::panic::set_hook(Box::new(move |info| {
-        if hysid_io::inside_guarded_parser() {
+        let message = (info.payload().downcast_ref::<String>().map(String::as_str))
+            .or_else(|| info.payload().downcast_ref::<&str>().copied());
+        if hysid_io::inside_guarded_parser() || message.is_some_and(is_broken_pipe) {
             return;
         }
         if let Some(l) = info.location() {
@@ -173,6 +175,12 @@ fn quiet_guarded_panics() {
             default(info);
         }
     }));
+}
+
+/// Whether a panic's message is `println!`'s when the reader of standard
+/// output has gone: not a bug, the end of the command ([`guarded`]).
+fn is_broken_pipe(message: &str) -> bool {
+    message.starts_with("failed printing to stdout") && message.contains("Broken pipe")
 }
 
 /// The location of the last unguarded panic on any thread (a rayon worker's

@@ -86,6 +86,47 @@ pub enum ExprError {
     /// A relation was expected (`a >= b`, `a <= b`, `a == b`, ...).
     #[error("'{0}' is not a relation such as 'a >= b', 'a <= b' or 'a == b'")]
     NotRelation(String),
+    /// A function called with another number of arguments than it takes.
+    #[error("'{name}' takes {takes} argument(s), not {given}")]
+    Arity {
+        /// Its name.
+        name: String,
+        /// Arguments it takes.
+        takes: usize,
+        /// Arguments given.
+        given: usize,
+    },
+    /// An operator of another language (`and`, `or`, `not`, `**`), which
+    /// the parser read as something else: what is written and what is
+    /// meant.
+    #[error("'{text}': write '{written}' as '{meant}'")]
+    OtherLanguage {
+        /// The expression.
+        text: String,
+        /// The operator as written.
+        written: &'static str,
+        /// hysid's operator.
+        meant: &'static str,
+    },
+    /// Comparisons chained (`a <= x <= b`), which would compare the truth
+    /// of the first.
+    #[error("'{0}' chains comparisons; write each on its own, joined by '&&' ('a <= x && x <= b')")]
+    ChainedComparison(String),
+}
+
+/// The first operator of another language that `text` writes outside
+/// its names, with hysid's own: `and`, `or` and `not` as words, `**`.
+fn other_language(text: &str) -> Option<(&'static str, &'static str)> {
+    if text.contains("**") {
+        return Some(("**", "^"));
+    }
+    let words = text.split(|c: char| !(c.is_alphanumeric() || c == '_'));
+    words.into_iter().find_map(|w| match w {
+        "and" => Some(("and", "&&")),
+        "or" => Some(("or", "||")),
+        "not" => Some(("not", "!")),
+        _ => None,
+    })
 }
 
 /// A compiled expression: a postfix tape over the slots of a
@@ -236,10 +277,25 @@ impl Expression {
 
     /// Parses `text` and compiles it; `resolve` maps a name to its slot.
     pub fn compile(text: &str, resolve: &dyn Fn(&str) -> Option<u32>) -> Result<Self, ExprError> {
-        let root = parse(text)?;
-        let mut b = Builder::new(text, resolve);
-        b.node(&root.0)?;
-        b.finish()
+        let compiled = parse(text).and_then(|root| {
+            let mut b = Builder::new(text, resolve);
+            b.node(&root.0)?;
+            b.finish()
+        });
+        compiled.map_err(|e| match e {
+            ExprError::UnknownFunction { .. }
+            | ExprError::UnknownSymbol(_)
+            | ExprError::NotNumeric(_)
+            | ExprError::Syntax { .. }
+            | ExprError::ChainedComparison(_) => {
+                other_language(text).map_or(e, |(written, meant)| ExprError::OtherLanguage {
+                    text: text.to_string(),
+                    written,
+                    meant,
+                })
+            }
+            e => e,
+        })
     }
 
     /// A constant.
@@ -509,7 +565,39 @@ mod tests {
         let err = |t: &str| Expression::compile(t, &names).unwrap_err();
         assert_eq!(err("x + w"), ExprError::UnknownSymbol("w".into()));
         assert!(matches!(err("foo(x)"), ExprError::UnknownFunction { .. }));
-        assert!(matches!(err("min(x)"), ExprError::UnknownFunction { .. }));
+        assert_eq!(
+            err("min(x)"),
+            ExprError::Arity {
+                name: "min".into(),
+                takes: 2,
+                given: 1
+            }
+        );
+        assert_eq!(
+            err("if(x > y, x)"),
+            ExprError::Arity {
+                name: "if".into(),
+                takes: 3,
+                given: 2
+            }
+        );
+        // Operators of other languages are named with hysid's.
+        for (text, written, meant) in [
+            ("x >= y and y >= -1", "and", "&&"),
+            ("x > 1 or y > 1", "or", "||"),
+            ("x and y", "and", "&&"),
+            ("not x", "not", "!"),
+            ("x * (y - z)**2", "**", "^"),
+        ] {
+            assert_eq!(
+                err(text),
+                ExprError::OtherLanguage {
+                    text: text.into(),
+                    written,
+                    meant
+                }
+            );
+        }
         assert!(matches!(err("x = 1"), ExprError::NotNumeric(_)));
         assert!(matches!(err("x; y"), ExprError::NotNumeric(_)));
         assert!(matches!(err("\"s\""), ExprError::NotNumeric(_)));
@@ -638,6 +726,31 @@ mod tests {
                 !Expression::compile(text, &names).unwrap().is_relation(),
                 "{text}"
             );
+        }
+    }
+
+    /// `a <= x <= b` is refused as a chain, with or without parentheses;
+    /// a comparison of a value that merely holds a relation is not.
+    #[test]
+    fn chained_comparisons_are_refused() {
+        for text in [
+            "-1 <= x <= y",
+            "(x < y) > z",
+            "x >= (y >= z)",
+            "1 < x < 2 < y",
+        ] {
+            assert_eq!(
+                Expression::compile(text, &names).unwrap_err(),
+                ExprError::ChainedComparison(text.into()),
+                "{text}"
+            );
+        }
+        for text in [
+            "-1 <= x && x <= y",
+            "if(x <= y, 1, 0) <= z",
+            "(x == y) <= z",
+        ] {
+            assert!(Expression::compile(text, &names).is_ok(), "{text}");
         }
     }
 

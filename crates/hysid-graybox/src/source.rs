@@ -79,7 +79,10 @@ fn string_end(body: &str, close: &str, escapes: bool, one_line: bool) -> usize {
         if one_line && bytes[i] == b'\n' {
             return i;
         }
-        if body[i..].starts_with(close) {
+        // Bytes, not characters: `close` and the newline are ASCII, which
+        // no byte inside a longer character equals, so a match is always
+        // at a character's start.
+        if bytes[i..].starts_with(close.as_bytes()) {
             return i;
         }
         i += 1;
@@ -189,6 +192,23 @@ mod tests {
             line_of("{\n  \"estimate\": {\"w\": [0, 1]}\n}\n", "w"),
             Some(2)
         );
+    }
+
+    /// Characters of several bytes in strings, escaped or not, and in
+    /// comments: the lines are found and nothing is cut inside one.
+    #[test]
+    fn strings_of_any_characters_are_read() {
+        let toml = concat!(
+            "unit = \"°C\" # für µ\n",
+            "doc = \"Ω \\µ \\\"q\\\" '\"\n",
+            "name = \"tau\"\n",
+            "note = '''Raum\n20 °C'''\n",
+            "value = \"q\"\n",
+        );
+        assert_eq!(line_of(toml, "tau"), Some(3));
+        assert_eq!(line_of(toml, "°C"), Some(1));
+        assert_eq!(line_of(toml, "q"), Some(6));
+        assert_eq!(line_of(toml, "20 °C"), Some(5));
     }
 
     #[test]

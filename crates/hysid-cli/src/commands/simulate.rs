@@ -115,10 +115,12 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     let physical = matches!(model, Model::GrayBox(_) | Model::Mechanical(_));
-    if args.excite.is_some() && physical && sim.start > 0 {
+    if args.excite.is_some() && physical && sim.start > 0 && states.values.is_empty() {
         // The rows before the run's start are the warm-up a physical
         // model's initial state reads, not a response to the input beside
         // them (a record to fit with an estimated state starts after them).
+        // A rule that estimates states runs from sample 0: every row is
+        // simulated.
         eprintln!(
             "hysid: the run starts at row {}: the rows before it hold --y0 {} (what the model's \
              initial state reads), not a response to their input",

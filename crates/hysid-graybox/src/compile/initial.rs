@@ -93,7 +93,7 @@ pub(super) fn initial_rule(
     for (name, &[lo, hi]) in estimate {
         let place = "initial_state, estimate";
         let state = state_of(place, name)?;
-        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+        if !(lo <= hi && (hi - lo).is_finite()) {
             return Err(InvalidGrayBox::new(
                 place,
                 Some(name),

@@ -183,7 +183,9 @@ pub enum Problem {
         definitions: usize,
     },
     /// An estimated state's bounds that are not finite with low <= high.
-    #[error("estimate of '{0}': need finite bounds [low, high] with low <= high")]
+    #[error(
+        "estimate of '{0}': need finite bounds [low, high] with low <= high (and high - low finite)"
+    )]
     EstimateBounds(String),
     /// An estimated state's starting guess outside its bounds.
     #[error(

@@ -169,6 +169,14 @@ pub(super) fn strip_root(mut n: &Node<DefaultNumericTypes>) -> &Node<DefaultNume
     n
 }
 
+/// Whether `n` is an ordering comparison (`<`, `<=`, `>`, `>=`).
+fn is_ordering(n: &Node<DefaultNumericTypes>) -> bool {
+    matches!(
+        n.operator(),
+        Operator::Lt | Operator::Leq | Operator::Gt | Operator::Geq
+    )
+}
+
 /// Emits the tape of a tree, folding constant operands.
 pub(super) struct Builder<'a> {
     text: &'a str,
@@ -258,12 +266,22 @@ impl<'a> Builder<'a> {
                         }
                         _ => return Err(self.not_numeric()),
                     };
-                    let f = Function::by_name(identifier)
-                        .filter(|f| f.arity() == args.len())
-                        .ok_or_else(|| ExprError::UnknownFunction {
-                            name: identifier.clone(),
-                            args: args.len(),
-                        })?;
+                    let f = match Function::by_name(identifier) {
+                        Some(f) if f.arity() == args.len() => f,
+                        Some(f) => {
+                            return Err(ExprError::Arity {
+                                name: identifier.clone(),
+                                takes: f.arity(),
+                                given: args.len(),
+                            });
+                        }
+                        None => {
+                            return Err(ExprError::UnknownFunction {
+                                name: identifier.clone(),
+                                args: args.len(),
+                            });
+                        }
+                    };
                     steps.push(Step::Emit(Op::Call(f)));
                     steps.extend(args.into_iter().rev().map(Step::Visit));
                     continue;
@@ -289,6 +307,11 @@ impl<'a> Builder<'a> {
             .ok_or_else(|| self.not_numeric())?;
             if children.len() != op.operands() {
                 return Err(self.not_numeric());
+            }
+            // `a <= x <= b` reads as `(a <= x) <= b`, the truth of one
+            // comparison compared again: never what is meant.
+            if is_ordering(node) && children.iter().any(|c| is_ordering(strip_root(c))) {
+                return Err(ExprError::ChainedComparison(self.text.to_string()));
             }
             steps.push(Step::Emit(op));
             steps.extend(children.iter().rev().map(Step::Visit));

@@ -163,7 +163,11 @@ fn an_estimate_leaves_a_flat_spot_of_its_guess() {
         r#"{ from = "measured", samples = 10, position = "x2", estimate = { x1 = [-5.0, 5.0] } }"#,
     ));
     let states = initial_states(&m, &data).unwrap();
-    assert!(close(states[0].value, 3.0, 1e-6), "x1 = {}", states[0].value);
+    assert!(
+        close(states[0].value, 3.0, 1e-6),
+        "x1 = {}",
+        states[0].value
+    );
     // Out of the dead zone, the warm-up shows it.
     assert!(states[0].seen);
 }
@@ -394,6 +398,15 @@ fn bad_rules_are_refused_when_read() {
                 r#"{ from = "given", estimate = { x1 = [2.0, 1.0] } }"#,
             ),
             "estimate of 'x1': need finite bounds [low, high] with low <= high",
+        ),
+        (
+            // Each bound finite, their distance not: the box-normalised
+            // search would read NaN.
+            cascade(
+                "x2",
+                r#"{ from = "given", estimate = { x1 = [-1e308, 1e308] } }"#,
+            ),
+            "estimate of 'x1': need finite bounds [low, high] with low <= high (and high - low finite)",
         ),
         (
             cascade(

@@ -354,3 +354,24 @@ fn the_two_tanks_example_is_recovered() {
     eprintln!("h1: true 0.6, fitted {h1}");
     assert!(relative(h1, 0.6) <= 0.02, "h1: {h1}");
 }
+
+/// A model without parameters (the physics known, only the initial state
+/// not): the fit is that of its unknown initial state alone, which it
+/// recovers.
+#[test]
+fn a_model_without_parameters_fits_its_initial_state() {
+    let full = cascade(true, "x2", ESTIMATE);
+    let start = full.find("parameters = [").unwrap();
+    let end = start + full[start..].find("]\n").unwrap() + 2;
+    let text = format!("{}{}", &full[..start], &full[end..])
+        .replace("-a*x1 + u", "-x1 + u")
+        .replace("b*(x1 - x2)", "2*(x1 - x2)");
+    let truth = parse(&text);
+    assert!(truth.parameters.is_empty());
+    let data = record(&truth, &[("x1", 1.3), ("x2", 0.2)], 120, 2, 0.0);
+    let fitted = fit(&text, "none", &data, 2);
+    let d = &fitted.info.diagnostics.method;
+    assert_eq!(d["free_parameters"], 0);
+    let got = d["initial_states"]["x1"].as_f64().unwrap();
+    assert!(relative(got, 1.3) <= 1e-4, "x1: {got}");
+}

@@ -92,6 +92,9 @@ pub(super) fn add_affine(
 /// `out[.., ..p] += m` for `n x p` `m` and `n x c` `out` (a parameter
 /// term into the sensitivities' columns, the estimated states' left).
 pub(super) fn add_parameter_columns(m: &[f64], out: &mut [f64], p: usize, c: usize) {
+    if p == 0 {
+        return;
+    }
     for (row, m) in out.chunks_mut(c).zip(m.chunks(p)) {
         for (o, v) in row[..p].iter_mut().zip(m) {
             *o += v;
