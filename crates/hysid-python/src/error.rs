@@ -182,6 +182,7 @@ impl From<hysid::identify::Error> for Failure {
             }
             Error::Identify(e) => e.into(),
             Error::Select(e) => e.into(),
+            e @ Error::ShortRecord { .. } => Self::input(format!("{e} (warmup=)")),
         }
     }
 }

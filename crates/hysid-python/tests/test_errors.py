@@ -371,3 +371,12 @@ def test_records_given_as_pandas_series_are_records():
     from_arrays = hysid.identify(us, ys, method="arx")
     from_series = hysid.identify([pd.Series(u) for u in us], [pd.Series(y) for y in ys], method="arx")
     assert from_series.to_json() == from_arrays.to_json()
+
+
+def test_a_record_too_short_to_score_is_named():
+    # No free-run score could read past its warm-up: refused before any fit.
+    with pytest.raises(hysid.InputError, match=r"^record 2 has 8 sample\(s\), no more than the warm-up of 10 .*\(warmup=\)$"):
+        hysid.identify([U[:150], U[150:158]], [Y[:150], Y[150:158]], method="arx")
+    with pytest.raises(hysid.InputError, match="record 2 has 8 sample"):
+        hysid.identify([U[:150], U[150:158]], [Y[:150], Y[150:158]], method="arx", warmup=8)
+    hysid.identify([U[:150], U[150:158]], [Y[:150], Y[150:158]], method="arx", warmup=7)

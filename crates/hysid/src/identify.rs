@@ -145,6 +145,20 @@ pub enum Error {
     /// Automatic selection could not choose.
     #[error(transparent)]
     Select(#[from] SelectError),
+    /// A record of several no longer than the warm-up every free-run
+    /// score leaves out (the affine comparison, `--auto`'s scores and
+    /// refit): it could never be scored.
+    #[error(
+        "record {record} has {samples} sample(s), no more than the warm-up of {warmup} that every free-run score leaves out: give more rows or a shorter warm-up"
+    )]
+    ShortRecord {
+        /// The record, from 1.
+        record: usize,
+        /// Its samples.
+        samples: usize,
+        /// The warm-up.
+        warmup: usize,
+    },
 }
 
 impl<'a> Identify<'a> {
@@ -286,6 +300,7 @@ impl<'a> Identify<'a> {
     ) -> Result<Identified, Error> {
         let backend = registry.require(&self.method)?;
         let priors = self.resolved_priors()?;
+        self.check_records()?;
         let ctx = RunContext {
             seed: self.seed,
             progress,
@@ -316,6 +331,23 @@ impl<'a> Identify<'a> {
                 select::seeded(&self.selection(registry, backend, &problem, auto)?)?
             }
         })
+    }
+
+    /// Refuses, when the data join several records, one that no free-run
+    /// score could read past the warm-up ([`Error::ShortRecord`]).
+    fn check_records(&self) -> Result<(), Error> {
+        let ranges = self.data.record_ranges();
+        if ranges.len() < 2 {
+            return Ok(());
+        }
+        match ranges.iter().position(|r| r.len() <= self.warmup) {
+            Some(i) => Err(Error::ShortRecord {
+                record: i + 1,
+                samples: ranges[i].len(),
+                warmup: self.warmup,
+            }),
+            None => Ok(()),
+        }
     }
 
     /// How `auto` splits the identification rows.

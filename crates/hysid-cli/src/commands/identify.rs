@@ -210,6 +210,27 @@ pub fn run(args: Args) -> Result<()> {
             }
             // Too few samples for the orders and modes: named by the
             // records and rows they were selected from.
+            // A record too short to score: named by its file and rows.
+            hysid::identify::Error::ShortRecord {
+                record,
+                samples,
+                warmup,
+            } => {
+                let i = record - 1;
+                let file = args.data.get(i).map_or_else(
+                    || format!("record {record}"),
+                    |p| p.display().to_string(),
+                );
+                // `--rows` once for all files, or once per file.
+                let rows = match &args.select.rows[..] {
+                    [one] => Some(one),
+                    all => all.get(i),
+                };
+                let rows = rows.map(|r| format!(" --rows {r}")).unwrap_or_default();
+                CliError::input(format!(
+                    "{file}{rows}: {samples} sample(s), no more than the warm-up of {warmup} that every free-run score leaves out: give more rows or a shorter --warmup"
+                ))
+            }
             hysid::identify::Error::Identify(e) if e.is_sample_shortage() => {
                 let files: Vec<String> = args.data.iter().map(|p| p.display().to_string()).collect();
                 let rows: Vec<String> = args.select.rows.iter().map(|r| format!(" --rows {r}")).collect();
