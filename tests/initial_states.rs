@@ -219,3 +219,81 @@ fn bad_initial_state_rules_name_the_file() {
     .unwrap();
     assert!(err.contains("affine.toml, line 6"), "{err}");
 }
+
+/// A physical fit says what its diagnostics hold about the values: a
+/// parameter and an estimated initial state that ended at a bound, and a
+/// parameter the rows do not determine, each one warning line; a fit with
+/// none says nothing more.
+#[test]
+fn identify_warns_of_values_at_a_bound_and_parameters_without_effect() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let truth = write(
+        d,
+        "truth.toml",
+        cascade(
+            "c*x2 + off",
+            r#"{ from = "given", values = { x1 = 2.25, x2 = 0.5 } }"#,
+        ),
+    );
+    let record = d.join("record.csv");
+    ok(&[
+        "simulate",
+        s(&truth),
+        "--excite",
+        "n=200,hold=10,low=-1,high=1,ts=0.05",
+        "--seed",
+        "1",
+        "-o",
+        s(&record),
+    ]);
+    let fit = |text: String, prior: &str| -> String {
+        let model = write(d, "m.toml", text);
+        let prior = write(d, "p.toml", prior);
+        let out = d.join("fit.json");
+        let o = hysid(&[
+            "identify",
+            s(&record),
+            "-m",
+            "physical",
+            "--set",
+            &format!("model={}", s(&model)),
+            "--prior",
+            s(&prior),
+            "--seed",
+            "1",
+            "-o",
+            s(&out),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    // Everything free and within its bounds: no warning.
+    let free = "[fixed]\nc = 1.5\noff = -0.3\n";
+    let said = fit(cascade("c*x2 + off", ESTIMATE), free);
+    assert!(!said.contains("warning"), "{said}");
+    // `a` held above its value, and `c` free in a model whose output does
+    // not read it.
+    let said = fit(
+        cascade("1.5*x2 + off", ESTIMATE),
+        "[fixed]\noff = -0.3\n[bounds]\na = [1.5, 4.0]\n",
+    );
+    assert!(
+        said.contains("hysid: warning: physical: a = 1.5 ended at a bound"),
+        "{said}"
+    );
+    assert!(
+        said.contains("hysid: warning: physical: c: no effect on the identification rows"),
+        "{said}"
+    );
+    // `x1` estimated above its own value.
+    let narrow = ESTIMATE.replace("[-5.0, 5.0]", "[3.0, 5.0]");
+    let said = fit(
+        cascade("c*x2 + off", &narrow),
+        "[fixed]\na = 0.8\nc = 1.5\noff = -0.3\n",
+    );
+    assert!(
+        said.contains("the estimated initial state x1 = 3 ended at a bound of its estimate"),
+        "{said}"
+    );
+}

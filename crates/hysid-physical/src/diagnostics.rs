@@ -88,6 +88,72 @@ pub struct PhysicalDiagnostics {
     /// Parameters at a bound ([`ParameterMap::at_bound`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub at_bound: Vec<String>,
+    /// Estimated initial states at a bound of their estimate
+    /// ([`ParameterMap::initial_states_at_bound`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub initial_states_at_bound: Vec<String>,
+}
+
+impl PhysicalDiagnostics {
+    /// The diagnostics of a `physical` fit as its model file holds them
+    /// (the method's fields of `d`); `None` for another back-end's.
+    pub fn of(d: &hysid_model::model::Diagnostics) -> Option<Self> {
+        let fields = serde_json::Map::from_iter(d.method.clone());
+        serde_json::from_value(serde_json::Value::Object(fields)).ok()
+    }
+
+    /// What a user should be told about the fit beside its model, one
+    /// line each: parameters and estimated initial states that ended at a
+    /// bound (the record may ask for values outside them), parameters the
+    /// identification rows do not determine, and parameters without a
+    /// standard error.
+    pub fn warnings(&self) -> Vec<String> {
+        let with = |names: &[String]| {
+            let values: Vec<String> = names
+                .iter()
+                .map(|n| {
+                    let value = (self.parameters.get(n).map(|p| p.value))
+                        .or_else(|| self.initial_states.get(n).copied());
+                    value.map_or_else(|| n.clone(), |v| format!("{n} = {v}"))
+                })
+                .collect();
+            values.join(", ")
+        };
+        let named = |kind: Identifiability| -> Vec<String> {
+            (self.parameters.iter())
+                .filter(|(_, p)| p.identifiability == Some(kind))
+                .map(|(n, _)| n.clone())
+                .collect()
+        };
+        let mut out = Vec::new();
+        if !self.at_bound.is_empty() {
+            out.push(format!(
+                "{} ended at a bound: the record may ask for a value outside the bounds (widen them, or check the model and its units)",
+                with(&self.at_bound)
+            ));
+        }
+        if !self.initial_states_at_bound.is_empty() {
+            out.push(format!(
+                "the estimated initial state {} ended at a bound of its estimate (widen it)",
+                with(&self.initial_states_at_bound)
+            ));
+        }
+        let unseen = named(Identifiability::NotIdentifiable);
+        if !unseen.is_empty() {
+            out.push(format!(
+                "{}: no effect on the identification rows; kept at the file's values",
+                unseen.join(", ")
+            ));
+        }
+        let no_error = named(Identifiability::NoStandardError);
+        if !no_error.is_empty() {
+            out.push(format!(
+                "{}: no standard error (a singular Jacobian: parameters that act only together, such as a product, or a failed perturbed run)",
+                no_error.join(", ")
+            ));
+        }
+        out
+    }
 }
 
 /// The swarm was skipped: Levenberg-Marquardt from the nominal values
@@ -358,6 +424,7 @@ mod tests {
             jacobian_condition: None,
             zero_sensitivity: vec![],
             at_bound: vec!["b".into()],
+            initial_states_at_bound: vec![],
             swarm_kept: None,
         };
         let map = d.clone().into_map();
@@ -391,5 +458,19 @@ mod tests {
         let back: PhysicalDiagnostics =
             serde_json::from_value(serde_json::Value::Object(map.into_iter().collect())).unwrap();
         assert_eq!(back, d);
+        // Read back from a model's diagnostics, and told as warnings.
+        let common = hysid_model::model::Diagnostics::default().with_method(&d);
+        assert_eq!(PhysicalDiagnostics::of(&common), Some(d.clone()));
+        assert_eq!(
+            d.warnings(),
+            [
+                "b = 0 ended at a bound: the record may ask for a value outside the bounds (widen them, or check the model and its units)",
+                "b: no standard error (a singular Jacobian: parameters that act only together, such as a product, or a failed perturbed run)",
+            ]
+        );
+        assert_eq!(
+            PhysicalDiagnostics::of(&hysid_model::model::Diagnostics::default()),
+            None
+        );
     }
 }

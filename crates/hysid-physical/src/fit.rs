@@ -138,6 +138,7 @@ pub fn fit_model<M: Target>(
         jacobian_condition: Some(sens.condition).filter(|c| c.is_finite()),
         zero_sensitivity: sens.insensitive(&map),
         at_bound: map.at_bound(&values),
+        initial_states_at_bound: map.initial_states_at_bound(&values),
         swarm_kept: (options.swarms > 1 && nominal.skip.is_none()).then_some(kept.index),
     };
     let mut fitted = map.apply(&model, &values);

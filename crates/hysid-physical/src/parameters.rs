@@ -242,9 +242,22 @@ impl ParameterMap {
     /// Names of the parameters whose free coordinate lies within `1e-6` of
     /// its range from either bound, in coordinate order.
     pub fn at_bound(&self, values: &[f64]) -> Vec<String> {
+        self.at_bound_of(values, false)
+    }
+
+    /// The estimated initial states at a bound of their estimate, as
+    /// [`Self::at_bound`] tells parameters.
+    pub fn initial_states_at_bound(&self, values: &[f64]) -> Vec<String> {
+        self.at_bound_of(values, true)
+    }
+
+    /// The names, at `values`, within `1e-6` of the range of a bound of
+    /// their coordinate: those of initial states when `states`, else the
+    /// parameters'.
+    fn at_bound_of(&self, values: &[f64], states: bool) -> Vec<String> {
         let mut at_bound = Vec::new();
         for (gi, (g, [lo, hi])) in self.groups.iter().zip(&self.bounds).enumerate() {
-            if self.is_initial_state(gi) {
+            if self.is_initial_state(gi) != states {
                 continue;
             }
             let v = values[g[0]];

@@ -365,6 +365,9 @@ fn identify<'py>(
     if let Some(note) = identified.model.info().diagnostics.note() {
         warn(py, &format!("{method}: {note}"))?;
     }
+    for warning in identified.fit_warnings() {
+        warn(py, &format!("{method}: {warning}"))?;
+    }
     if let Some(warning) = identified.affine_warning(&request) {
         warn(py, &warning)?;
     }

@@ -14,6 +14,7 @@ use hysid_core::search::SearchSpace;
 use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
+use hysid_physical::diagnostics::PhysicalDiagnostics;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
@@ -446,6 +447,19 @@ impl Identified {
             return None;
         }
         crate::against_affine(&self.model, request.data, &priors, request.warmup)
+    }
+
+    /// What every front end tells about a `physical` fit beside its model
+    /// (`hysid_physical::diagnostics::PhysicalDiagnostics::warnings`: values at a bound,
+    /// parameters the rows do not determine or without a standard error);
+    /// empty for the other back-ends.
+    pub fn fit_warnings(&self) -> Vec<String> {
+        if !matches!(self.model, Model::GrayBox(_) | Model::Mechanical(_)) {
+            return Vec::new();
+        }
+        PhysicalDiagnostics::of(&self.model.info().diagnostics)
+            .map(|d| d.warnings())
+            .unwrap_or_default()
     }
 
     /// The warning every front end gives when the model simulates its

@@ -264,6 +264,9 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(note) = model.info().diagnostics.note() {
         eprintln!("hysid: {}: {note}", args.method);
     }
+    for warning in identified.fit_warnings() {
+        eprintln!("hysid: warning: {}: {warning}", args.method);
+    }
     if let Some(selection) = &model.info().selection {
         report_selection(&args.method, selection);
     }
