@@ -204,6 +204,20 @@ fn bad_initial_state_rules_name_the_file() {
             cascade("x2", r#"{ from = "steady" }"#).replace("-a*x1 + u", "1 + x1^2"),
             "initial state: no rest state under the first input",
         ),
+        (
+            // A reset outside its target's invariant is an error; so is a
+            // given state outside the mode the rule names.
+            "outside.toml",
+            cascade(
+                "x2",
+                r#"{ from = "given", values = { x1 = 2.0 }, mode = "only" }"#,
+            )
+            .replace(
+                "name = \"only\"\n",
+                "name = \"only\"\ninvariant = [\"x1 <= 1\"]\n",
+            ),
+            "initial state: the state it gives lies outside the invariant of the mode it names",
+        ),
     ];
     for (name, text, needle) in cases {
         let model = write(d, name, text);

@@ -607,6 +607,16 @@ impl Machine<'_> {
             })
     }
 
+    /// Whether mode `q`'s invariant holds at `x` under the inputs `u`
+    /// (within [`INVARIANT_TOLERANCE`]).
+    pub fn holds_invariant(&mut self, q: usize, x: &[f64], u: &[f64]) -> bool {
+        self.load(x, u);
+        self.m.modes[q]
+            .invariant
+            .iter()
+            .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE)
+    }
+
     /// The hybrid state at `(x, u)`: positions clamped to their stops, the
     /// mode `mode` or the first whose invariant holds, every velocity at
     /// zero, and every stop reached by a state not moving away from it,
@@ -623,13 +633,7 @@ impl Machine<'_> {
         }
         let mode = mode.unwrap_or_else(|| {
             (0..m.modes.len())
-                .find(|&q| {
-                    self.load(&x, u);
-                    m.modes[q]
-                        .invariant
-                        .iter()
-                        .all(|r| r.margin(&self.slots) >= -INVARIANT_TOLERANCE)
-                })
+                .find(|&q| self.holds_invariant(q, &x, u))
                 .unwrap_or(0)
         });
         let regimes = m

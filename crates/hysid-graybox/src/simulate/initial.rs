@@ -40,7 +40,15 @@ pub(super) fn initial(
     match &m.initial {
         CompiledInitial::Given { x, mode, .. } => {
             let x = with_estimates(m, x.clone(), estimates);
-            Ok((0, machine.state_at(x, &u, *mode)))
+            let hs = machine.state_at(x, &u, *mode);
+            // A mode the rule names must hold the state it gives, as a
+            // reset's target must hold the state it sets.
+            if mode.is_some() && !machine.holds_invariant(hs.mode, &hs.x, &u) {
+                return Err(SimError::InitialState(
+                    "the state it gives lies outside the invariant of the mode it names".into(),
+                ));
+            }
+            Ok((0, hs))
         }
         CompiledInitial::Steady { x, mode } => {
             let (x, mode) = steady(machine, x, &u, *mode)?;
