@@ -1802,3 +1802,70 @@ fn a_sweep_report_names_only_its_own_figures() {
     );
     assert!(!report.contains("[[run]]` entries"), "{report}");
 }
+
+/// A transition that fires again and again at one point (a Zeno point):
+/// `simulate`, `validate` and `identify` each say so on stderr.
+#[test]
+fn a_zeno_point_is_reported_by_every_command_that_runs_the_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = d.join("zeno.toml");
+    std::fs::write(
+        &model,
+        r#"kind = "gray_box"
+format = 1
+internal_step = 0.001
+states = ["T"]
+inputs = ["u"]
+outputs = ["T"]
+initial_state = { from = "given", values = { T = 0.0 }, mode = "off" }
+parameters = [{ name = "P", value = 2.0, bounds = [0.5, 5.0] }]
+[[modes]]
+name = "off"
+flow = { T = "-T - 1 + u" }
+[[modes]]
+name = "on"
+flow = { T = "-T + P + u" }
+[[transitions]]
+from = "off"
+to = "on"
+guard = "T <= 0"
+[[transitions]]
+from = "on"
+to = "off"
+guard = "T >= 0"
+"#,
+    )
+    .unwrap();
+    let record = d.join("z.csv");
+    let zeno = "reached the bound of events per sub-step (a Zeno point";
+    let said = |args: &[&str]| {
+        let o = hysid(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let excite = "n=100,hold=5,low=0,high=0.5,ts=0.1";
+    let (m, r) = (s(&model), s(&record));
+    let fitted = d.join("fit.json");
+    for args in [
+        vec!["simulate", m, "--excite", excite, "--seed", "1", "-o", r],
+        vec!["validate", m, r],
+        vec![
+            "identify",
+            r,
+            "-m",
+            "physical",
+            "--set",
+            &format!("model={m}"),
+            "-o",
+            s(&fitted),
+        ],
+    ] {
+        let err = said(&args);
+        assert!(err.contains(zeno), "{args:?}: {err}");
+    }
+}

@@ -365,7 +365,7 @@ fn identify<'py>(
     if let Some(note) = identified.model.info().diagnostics.note() {
         warn(py, &format!("{method}: {note}"))?;
     }
-    for warning in identified.fit_warnings() {
+    for warning in identified.fit_warnings(&request) {
         warn(py, &format!("{method}: {warning}"))?;
     }
     if let Some(warning) = identified.affine_warning(&request) {

@@ -11,6 +11,7 @@ use hysid_core::model::Model;
 use hysid_core::options::{MAX_COUNT, Settings};
 use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::SearchSpace;
+use hysid_core::simulate::{OutsideRegions, validate};
 use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
@@ -449,17 +450,26 @@ impl Identified {
         crate::against_affine(&self.model, request.data, &priors, request.warmup)
     }
 
-    /// What every front end tells about a `physical` fit beside its model
-    /// (`hysid_physical::diagnostics::PhysicalDiagnostics::warnings`: values at a bound,
-    /// parameters the rows do not determine or without a standard error);
-    /// empty for the other back-ends.
-    pub fn fit_warnings(&self) -> Vec<String> {
+    /// What every front end tells about a `physical` fit beside its model:
+    /// its diagnostics' warnings
+    /// (`hysid_physical::diagnostics::PhysicalDiagnostics::warnings`: values
+    /// at a bound, parameters the rows do not determine or without a
+    /// standard error), then those of the fitted model's run on the
+    /// identification rows of `request` (a divergence, the Zeno bound,
+    /// samples outside their mode's invariant); empty for the other
+    /// back-ends.
+    pub fn fit_warnings(&self, request: &Identify<'_>) -> Vec<String> {
         if !matches!(self.model, Model::GrayBox(_) | Model::Mechanical(_)) {
             return Vec::new();
         }
-        PhysicalDiagnostics::of(&self.model.info().diagnostics)
+        let mut warnings = PhysicalDiagnostics::of(&self.model.info().diagnostics)
             .map(|d| d.warnings())
-            .unwrap_or_default()
+            .unwrap_or_default();
+        if let Ok((report, sim, _)) = validate(&self.model, request.data, request.warmup) {
+            warnings.extend(OutsideRegions::of(&self.model, &sim).map(|o| o.to_string()));
+            warnings.extend(report.warnings().iter().map(ToString::to_string));
+        }
+        warnings
     }
 
     /// The warning every front end gives when the model simulates its

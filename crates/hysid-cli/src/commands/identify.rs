@@ -264,7 +264,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(note) = model.info().diagnostics.note() {
         eprintln!("hysid: {}: {note}", args.method);
     }
-    for warning in identified.fit_warnings() {
+    for warning in identified.fit_warnings(&request) {
         eprintln!("hysid: warning: {}: {warning}", args.method);
     }
     if let Some(selection) = &model.info().selection {
