@@ -13,7 +13,7 @@ mod table;
 
 pub use atomic::write;
 pub use mat_reader::inside_guarded_parser;
-pub use table::{STEP_TOLERANCE, TimeStepError, sampling_time};
+pub use table::{TimeStepError, sampling_time};
 
 use hysid_core::model::{Model, ModelError};
 use hysid_model::data::{DataError, DataSelection, Dataset, RowRange};

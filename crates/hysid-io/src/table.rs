@@ -2,7 +2,9 @@
 //! them into a [`Dataset`]: columns by name, decimation, the time base,
 //! the rows.
 
-use hysid_model::data::{DEFAULT_TIME, DataError, DataSelection, Dataset, RowRange, Signal};
+use hysid_model::data::{
+    DEFAULT_TIME, DataError, DataSelection, Dataset, RowRange, Signal, TS_TOLERANCE,
+};
 use std::path::PathBuf;
 
 /// How many of a file's names an error about a missing one lists.
@@ -79,10 +81,6 @@ pub(crate) fn wanted_names(sel: &DataSelection) -> Vec<&str> {
         .collect()
 }
 
-/// How far a time step may differ from the first, relative to it (clock
-/// jitter and rounding pass; a missing or repeated sample does not).
-pub const STEP_TOLERANCE: f64 = 0.01;
-
 /// Why a time column gives no sampling time; [`TimeStepError::sample`] is
 /// the index of the sample whose step is wrong.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -93,12 +91,12 @@ pub enum TimeStepError {
     /// The first step is not a positive number.
     #[error("time does not increase")]
     NotIncreasing,
-    /// A later step differs from the first by more than [`STEP_TOLERANCE`]
+    /// A later step differs from the first by more than [`TS_TOLERANCE`]
     /// of it.
     #[error(
         "the time step {step} is not the first step {first} (the samples must be equally \
          spaced, within {} % of the step)",
-        STEP_TOLERANCE * 100.0
+        TS_TOLERANCE * 100.0
     )]
     Uneven {
         /// The sample the step leads to.
@@ -122,7 +120,7 @@ impl TimeStepError {
 }
 
 /// The sampling time of the times `t`: their first step, positive, every
-/// other step within [`STEP_TOLERANCE`] of it (a step that is not a number
+/// other step within [`TS_TOLERANCE`] of it (a step that is not a number
 /// is not within it). The readers' time columns and Python's take it from
 /// here.
 pub fn sampling_time(t: &[f64]) -> Result<f64, TimeStepError> {
@@ -134,7 +132,7 @@ pub fn sampling_time(t: &[f64]) -> Result<f64, TimeStepError> {
         return Err(TimeStepError::NotIncreasing);
     }
     let off = |k: usize| (t[k] - t[k - 1] - dt).abs();
-    match (2..t.len()).find(|&k| off(k).is_nan() || off(k) > STEP_TOLERANCE * dt) {
+    match (2..t.len()).find(|&k| off(k).is_nan() || off(k) > TS_TOLERANCE * dt) {
         Some(k) => Err(TimeStepError::Uneven {
             sample: k,
             step: t[k] - t[k - 1],
@@ -185,7 +183,7 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
             })?;
             let differs = |given: &f64| {
                 let off = (given - dt).abs();
-                off.is_nan() || off > STEP_TOLERANCE * dt
+                off.is_nan() || off > TS_TOLERANCE * dt
             };
             if let Some(given) = sel.ts.filter(differs) {
                 return Err(DataError::Parse {
