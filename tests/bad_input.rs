@@ -1090,7 +1090,31 @@ fn malformed_gray_box_files() {
                 "flow = { y = \"w\", v = \"table_acc\", z = \"w\", w = \"table_acc\" }",
                 "flow = { y = \"w\", z = \"w\", w = \"table_acc\" }",
             ),
-            vec!["mode 'carried'".into(), "no flow for state 'v'".into()],
+            // The line of the mode's flow, not the first string naming the
+            // mode.
+            vec![
+                line_of("flow = { y = \"w\", v = \"table_acc\", z = \"w\", w = \"table_acc\" }"),
+                "mode 'carried': no flow for state 'v'".into(),
+            ],
+        ),
+        (
+            // A misspelt state is named, not the state it leaves without a
+            // flow.
+            "misspelt.toml",
+            good.replace(
+                "flow = { y = \"w\", v = \"table_acc\", z = \"w\", w = \"table_acc\" }",
+                "flow = { y = \"w\", V = \"table_acc\", z = \"w\", w = \"table_acc\" }",
+            ),
+            vec!["mode 'carried', flow: 'V' is not a state".into()],
+        ),
+        (
+            // A mode declared twice: the line of the second declaration.
+            "twice.toml",
+            good.replace("name = \"carried\"\n", "name = \"fly\"\n"),
+            vec![
+                line_of("name = \"carried\""),
+                "modes: 'fly' is declared twice".into(),
+            ],
         ),
         (
             "cycle.toml",

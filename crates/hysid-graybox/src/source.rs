@@ -168,6 +168,26 @@ pub(crate) fn line_of_field(source: &str, key: &str, text: &str) -> Option<usize
     in_field.or_else(keyed).or_else(|| first_line(&lexed, text))
 }
 
+/// The 1-based line of the `nth` (from 0) entry of `source` whose `name`
+/// key writes `name` (`name = "free"` of a `[[modes]]` table, or of an
+/// inline table): that line, or with `key` the first line of the entry
+/// from there that writes `key` (up to the next table header). `None`
+/// when no such entry or key is written.
+pub(crate) fn entry_line(source: &str, name: &str, key: Option<&str>, nth: usize) -> Option<usize> {
+    let lexed = Lexed::of(source);
+    let at = (lexed.strings.iter())
+        .filter(|(line, s)| s == name && writes_key(&lexed.code[*line], "name"))
+        .map(|&(line, _)| line)
+        .nth(nth)?;
+    let Some(key) = key else {
+        return Some(at + 1);
+    };
+    (lexed.code.iter().enumerate().skip(at))
+        .take_while(|(line, code)| *line == at || !code.trim_start().starts_with('['))
+        .find(|(_, code)| writes_key(code, key))
+        .map(|(line, _)| line + 1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -209,6 +229,29 @@ mod tests {
         assert_eq!(line_of(toml, "°C"), Some(1));
         assert_eq!(line_of(toml, "q"), Some(6));
         assert_eq!(line_of(toml, "20 °C"), Some(5));
+    }
+
+    #[test]
+    fn an_entry_is_found_by_its_name() {
+        let toml = concat!(
+            "initial_state = { from = \"given\", mode = \"free\" }\n",
+            "[[modes]]\n",
+            "name = \"free\"\n",
+            "invariant = [\"x <= 1\"]\n",
+            "flow = { x = \"v\" }\n",
+            "[[modes]]\n",
+            "name = \"wall\"\n",
+            "[[modes]]\n",
+            "name = \"free\"\n",
+            "flow = { x = \"0\" }\n",
+        );
+        assert_eq!(entry_line(toml, "free", None, 0), Some(3));
+        assert_eq!(entry_line(toml, "free", Some("flow"), 0), Some(5));
+        assert_eq!(entry_line(toml, "free", Some("flow"), 1), Some(10));
+        assert_eq!(entry_line(toml, "free", None, 1), Some(9));
+        // The key is looked for in the entry only.
+        assert_eq!(entry_line(toml, "wall", Some("flow"), 0), None);
+        assert_eq!(entry_line(toml, "none", None, 0), None);
     }
 
     #[test]

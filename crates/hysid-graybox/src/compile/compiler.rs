@@ -357,15 +357,17 @@ impl<'m> Compiler<'m> {
     ) -> Result<CompiledMode, InvalidGrayBox> {
         let m = self.m;
         let place = format!("mode '{}'", q.name);
+        // A key that is no state first: a misspelt state (`V` for `v`)
+        // also leaves the state it meant without a flow.
+        for s in q.flow.keys() {
+            self.state_of(&format!("{place}, flow"), s)?;
+        }
         let mut flow = Vec::with_capacity(self.nx);
         for s in &m.states {
             let text = q.flow.get(s).ok_or_else(|| {
                 InvalidGrayBox::new(&place, Some(&q.name), Problem::MissingFlow(s.clone()))
             })?;
             flow.push(self.direct(defs, &format!("{place}, flow of '{s}'"), text)?);
-        }
-        for s in q.flow.keys() {
-            self.state_of(&format!("{place}, flow"), s)?;
         }
         let invariant = q
             .invariant

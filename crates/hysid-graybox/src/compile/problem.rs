@@ -265,10 +265,30 @@ impl InvalidGrayBox {
     /// `None` when it is written nowhere else.
     pub fn line_in(&self, source: &str) -> Option<usize> {
         let text = self.text.as_deref().filter(|t| !t.is_empty())?;
+        if let Some(line) = self.entry_line(source, text) {
+            return Some(line);
+        }
         match self.field() {
             Some(key) => crate::source::line_of_field(source, key, text),
             None => crate::source::line_of(source, text),
         }
+    }
+
+    /// Where the offending text is an entry's name (the place is the
+    /// entry, `mode 'free'` or `element 'f1'`, or a list that declares a
+    /// name twice): the line of that entry's `name`, for a missing flow
+    /// the line of its `flow`, for a name declared twice its second
+    /// declaration ([`crate::source::entry_line`]).
+    fn entry_line(&self, source: &str, text: &str) -> Option<usize> {
+        if let Problem::Duplicate(name) = &self.problem {
+            return crate::source::entry_line(source, name, None, 1);
+        }
+        let entry = (self.place.strip_prefix("mode '"))
+            .or_else(|| self.place.strip_prefix("element '"))
+            .and_then(|rest| rest.strip_suffix('\''))
+            .filter(|name| *name == text)?;
+        let key = matches!(self.problem, Problem::MissingFlow(_)).then_some("flow");
+        crate::source::entry_line(source, entry, key, 0)
     }
 
     /// The key that writes the text, where the place ends in one: `guard`
