@@ -205,6 +205,14 @@ fn bad_initial_state_rules_name_the_file() {
             "initial state: no rest state under the first input",
         ),
         (
+            "warmup.toml",
+            cascade(
+                "x2",
+                r#"{ from = "given", values = { x1 = 0.5 }, samples = 10 }"#,
+            ),
+            "samples: a given rule reads a warm-up only to estimate states",
+        ),
+        (
             // A reset outside its target's invariant is an error; so is a
             // given state outside the mode the rule names.
             "outside.toml",

@@ -46,10 +46,19 @@ pub(super) fn initial_rule(
             estimate,
             samples,
         } => (
-            CompiledInitial::Given {
-                x: values(v)?,
-                mode: mode(q)?,
-                samples: warmup(samples.unwrap_or(DEFAULT_SAMPLES))?,
+            // A warm-up without an estimate would be read by nothing.
+            if samples.is_some() && estimate.is_empty() {
+                return Err(InvalidGrayBox::new(
+                    place,
+                    Some("samples"),
+                    Problem::WarmupWithoutEstimate,
+                ));
+            } else {
+                CompiledInitial::Given {
+                    x: values(v)?,
+                    mode: mode(q)?,
+                    samples: warmup(samples.unwrap_or(DEFAULT_SAMPLES))?,
+                }
             },
             estimate,
             v,

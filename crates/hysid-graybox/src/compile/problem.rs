@@ -201,6 +201,11 @@ pub enum Problem {
         /// Its upper bound.
         high: f64,
     },
+    /// A `given` rule's `samples` without an `estimate`: no warm-up is read.
+    #[error(
+        "samples: a given rule reads a warm-up only to estimate states; give an estimate or leave samples out"
+    )]
+    WarmupWithoutEstimate,
     /// A warm-up of no sample.
     #[error("samples must be at least 1 (the warm-up's samples)")]
     NoWarmup,
