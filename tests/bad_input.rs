@@ -901,7 +901,7 @@ fn gray_box_fields_of_the_wrong_name_type_or_variant() {
             "value = 640.0",
             "value = \"640\"",
             "parameters.value: ",
-            "invalid type: string \"640\", expected f64",
+            "invalid type: string \"640\", expected a number",
         ),
         case(
             "bounds.toml",

@@ -568,7 +568,7 @@ mod tests {
                 "value = 640.0",
                 "value = \"640\"",
                 "parameters.value",
-                "invalid type: string \"640\", expected f64",
+                "invalid type: string \"640\", expected a number",
             ),
             (
                 "type = \"dry_friction\"",
@@ -649,7 +649,7 @@ mod tests {
         let at = line(&json, "      \"value\": \"640\"", 0);
         assert!(
             e.starts_with(&format!(
-                "g.json, line {at}: invalid type: string \"640\", expected f64"
+                "g.json, line {at}: invalid type: string \"640\", expected a number"
             )),
             "{e}"
         );
@@ -674,7 +674,7 @@ mod tests {
                 "value = 0.005",
                 "value = \"0.005\"",
                 "parameters.value",
-                "invalid type: string \"0.005\", expected f64",
+                "invalid type: string \"0.005\", expected a number",
             ),
             (
                 "flow = { ul",

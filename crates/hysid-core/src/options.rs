@@ -286,7 +286,7 @@ pub fn check_float(
 
 /// `value` as written (`-1`, `0.25`), or with an exponent (`1e308`) where
 /// that would take more than 16 characters.
-fn short(value: f64) -> String {
+pub(crate) fn short(value: f64) -> String {
     let plain = value.to_string();
     if plain.len() > 16 {
         format!("{value:e}")

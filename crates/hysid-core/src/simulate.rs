@@ -10,6 +10,7 @@
 //! `hysid_model::simulate` and `docs/simulation.md`.
 
 use crate::model::{Model, mechanical_labels, written};
+use crate::options::short;
 use hysid_graybox::GrayBoxModel;
 use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
@@ -287,7 +288,9 @@ impl std::fmt::Display for CoarseStep {
             f,
             "internal_step = {} s is longer than the sampling time {} s: each sample is one \
              integration step of {} s (internal_step is in seconds)",
-            self.internal_step, self.ts, self.ts
+            short(self.internal_step),
+            short(self.ts),
+            short(self.ts)
         )
     }
 }

@@ -36,11 +36,34 @@ impl ReadError {
     /// The message with its entry first (`parameters.value: invalid type:
     /// ...`).
     pub fn describe(&self) -> String {
+        let message = plain(&self.message);
         match &self.entry {
-            Some(entry) => format!("{entry}: {}", self.message),
-            None => self.message.clone(),
+            Some(entry) => format!("{entry}: {message}"),
+            None => message,
         }
     }
+}
+
+/// A parser's message in a model author's words: Rust's type names and
+/// serde's `sequence` and `map` as numbers, lists and tables.
+fn plain(message: &str) -> String {
+    const WORDS: [(&str, &str); 12] = [
+        ("expected f64", "expected a number"),
+        ("expected f32", "expected a number"),
+        ("expected u64", "expected a whole number >= 0"),
+        ("expected u32", "expected a whole number >= 0"),
+        ("expected usize", "expected a whole number >= 0"),
+        ("expected u16", "expected a whole number >= 0"),
+        ("expected u8", "expected a whole number >= 0"),
+        ("expected i64", "expected a whole number"),
+        ("expected a sequence", "expected a list"),
+        ("expected a map", "expected a table"),
+        ("invalid type: sequence", "invalid type: list"),
+        ("invalid type: map", "invalid type: table"),
+    ];
+    WORDS.iter().fold(message.to_string(), |m, (rust, plain)| {
+        m.replace(rust, plain)
+    })
 }
 
 /// The first error of reading a file's `text` as a model of kind `kind`
@@ -474,6 +497,37 @@ impl<'de, K: DeserializeSeed<'de>> Visitor<'de> for KeySeed<K> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rust's and serde's words become a model author's; a message
+    /// without them is kept.
+    #[test]
+    fn messages_name_numbers_lists_and_tables() {
+        let e = |message: &str, entry: Option<&str>| ReadError {
+            message: message.into(),
+            entry: entry.map(str::to_string),
+            line: None,
+        };
+        assert_eq!(
+            e(
+                "invalid type: string \"25.0\", expected f64",
+                Some("parameters.value")
+            )
+            .describe(),
+            "parameters.value: invalid type: string \"25.0\", expected a number"
+        );
+        assert_eq!(
+            e("invalid value: integer `-1`, expected u32", Some("format")).describe(),
+            "format: invalid value: integer `-1`, expected a whole number >= 0"
+        );
+        assert_eq!(
+            e("invalid type: map, expected a sequence", None).describe(),
+            "invalid type: table, expected a list"
+        );
+        assert_eq!(
+            e("missing field `value`", None).describe(),
+            "missing field `value`"
+        );
+    }
 
     #[test]
     fn the_tag_is_hidden_and_everything_else_read() {

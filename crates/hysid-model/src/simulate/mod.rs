@@ -265,7 +265,7 @@ pub enum SimError {
     },
     /// A continuous-time model needs the sampling time.
     #[error(
-        "a continuous-time model needs the sampling time: give a 't' signal, or the sampling time (--ts; in Python, ts=)"
+        "a continuous-time model needs the sampling time: give a 't' signal, or the sampling time (the program's --ts, or ts= in its --excite; Python's ts=)"
     )]
     NoSamplingTime,
     /// A model that does not pass its own checks (one built in code
