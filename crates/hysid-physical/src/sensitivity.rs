@@ -165,6 +165,9 @@ fn output_jacobian(
 /// condition of `J^T J`, over the columns of `jac` with an effect on the
 /// output. Columns with none (e.g. a stop never reached) are not
 /// identifiable from this record: left out, their error undefined (NaN).
+/// Where `J^T J` is singular (parameters that act only together, as a
+/// product), the columns with a part in its null space have no error
+/// (NaN), and every other column keeps its own ([`singular_errors`]).
 fn gauss_newton_errors(jac: &DMatrix<f64>, s2: f64) -> (Vec<f64>, f64) {
     let (n, d) = jac.shape();
     let norms: Vec<f64> = (0..d).map(|j| jac.column(j).norm()).collect();
@@ -185,12 +188,89 @@ fn gauss_newton_errors(jac: &DMatrix<f64>, s2: f64) -> (Vec<f64>, f64) {
     } else {
         f64::INFINITY
     };
-    if let Ok(inv) = hysid_estimation::linalg::pinv(&jtj)
-        && smin > 1e-14 * smax
-    {
-        for (c, &j) in keep.iter().enumerate() {
-            std_errors[j] = (s2 * inv[(c, c)]).max(0.0).sqrt();
+    if smin > SINGULAR * smax {
+        if let Ok(inv) = hysid_estimation::linalg::pinv(&jtj) {
+            for (c, &j) in keep.iter().enumerate() {
+                std_errors[j] = (s2 * inv[(c, c)]).max(0.0).sqrt();
+            }
+        }
+    } else {
+        for (c, variance) in singular_errors(jtj).into_iter().enumerate() {
+            if variance.is_finite() {
+                std_errors[keep[c]] = (s2 * variance).max(0.0).sqrt();
+            }
         }
     }
     (std_errors, condition)
+}
+
+/// Eigenvalues of `J^T J` at most this times the largest are zero: its
+/// null space (the rounding of `J^T J` alone reaches `1e-14` of it; a
+/// condition of `J` above `1e6` leaves no error worth quoting).
+const SINGULAR: f64 = 1e-12;
+
+/// A part of a unit vector in the null space above this: the column acts
+/// with others.
+const IN_NULL_SPACE: f64 = 1e-6;
+
+/// For a singular `jtj = J^T J`, per column: `diag((J^T J)^+)` where the
+/// column has no part in the null space (the variance of a combination the
+/// data determine: the column is orthogonal to every direction they do
+/// not), NaN where it has one.
+fn singular_errors(jtj: DMatrix<f64>) -> Vec<f64> {
+    let k = jtj.ncols();
+    let eig = jtj.symmetric_eigen();
+    let top = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+    let null = |i: usize| eig.eigenvalues[i] <= SINGULAR * top;
+    (0..k)
+        .map(|c| {
+            let in_null = (0..k)
+                .filter(|&i| null(i))
+                .map(|i| eig.eigenvectors[(c, i)].powi(2))
+                .sum::<f64>()
+                .sqrt();
+            if in_null > IN_NULL_SPACE {
+                return f64::NAN;
+            }
+            (0..k)
+                .filter(|&i| !null(i))
+                .map(|i| eig.eigenvectors[(c, i)].powi(2) / eig.eigenvalues[i])
+                .sum()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two columns that act only together (the second twice the first)
+    /// have no error; a column orthogonal to them keeps its own, the error
+    /// of a fit without them; a regular Jacobian gives every column one.
+    #[test]
+    fn only_the_columns_that_act_together_lose_their_errors() {
+        let n = 8;
+        let a = |k: usize| if k % 2 == 0 { 1.0 } else { -1.0 };
+        let b = |k: usize| (k / 2) as f64 + 1.0;
+        // `a` sums to zero against `b`'s pairs: the columns are orthogonal.
+        let jac = DMatrix::from_fn(n, 3, |k, c| match c {
+            0 => a(k),
+            1 => b(k),
+            _ => 2.0 * b(k),
+        });
+        let (errors, condition) = gauss_newton_errors(&jac, 4.0);
+        assert!(condition.is_infinite() || condition > 1e6, "{condition}");
+        assert!(
+            (errors[0] - 2.0 / (n as f64).sqrt()).abs() < 1e-12,
+            "{errors:?}"
+        );
+        assert!(errors[1].is_nan() && errors[2].is_nan(), "{errors:?}");
+        let regular = DMatrix::from_fn(n, 2, |k, c| if c == 0 { a(k) } else { b(k) });
+        let (errors, _) = gauss_newton_errors(&regular, 4.0);
+        assert!(errors.iter().all(|e| e.is_finite()), "{errors:?}");
+        assert!(
+            (errors[0] - 2.0 / (n as f64).sqrt()).abs() < 1e-12,
+            "{errors:?}"
+        );
+    }
 }
