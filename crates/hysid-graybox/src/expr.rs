@@ -110,8 +110,31 @@ pub enum ExprError {
     },
     /// Comparisons chained (`a <= x <= b`), which would compare the truth
     /// of the first.
-    #[error("'{0}' chains comparisons; write each on its own, joined by '&&' ('a <= x && x <= b')")]
+    #[error(
+        "'{0}' chains comparisons, which compares the truth of the first: write each comparison on its own (an invariant lists them; a value joins them with '&&')"
+    )]
     ChainedComparison(String),
+}
+
+/// The error `e` of compiling `text`, named by the operator of another
+/// language that `text` writes ([`other_language`]) where the parser read
+/// it as something else.
+fn in_other_words(text: &str, e: ExprError) -> ExprError {
+    match e {
+        ExprError::UnknownFunction { .. }
+        | ExprError::UnknownSymbol(_)
+        | ExprError::NotNumeric(_)
+        | ExprError::NotRelation(_)
+        | ExprError::Syntax { .. }
+        | ExprError::ChainedComparison(_) => {
+            other_language(text).map_or(e, |(written, meant)| ExprError::OtherLanguage {
+                text: text.to_string(),
+                written,
+                meant,
+            })
+        }
+        e => e,
+    }
 }
 
 /// The first operator of another language that `text` writes outside
@@ -282,20 +305,7 @@ impl Expression {
             b.node(&root.0)?;
             b.finish()
         });
-        compiled.map_err(|e| match e {
-            ExprError::UnknownFunction { .. }
-            | ExprError::UnknownSymbol(_)
-            | ExprError::NotNumeric(_)
-            | ExprError::Syntax { .. }
-            | ExprError::ChainedComparison(_) => {
-                other_language(text).map_or(e, |(written, meant)| ExprError::OtherLanguage {
-                    text: text.to_string(),
-                    written,
-                    meant,
-                })
-            }
-            e => e,
-        })
+        compiled.map_err(|e| in_other_words(text, e))
     }
 
     /// A constant.
@@ -752,6 +762,24 @@ mod tests {
         ] {
             assert!(Expression::compile(text, &names).is_ok(), "{text}");
         }
+        // So in a guard or an invariant, where they are most often written,
+        // and `and` there is named too.
+        for text in ["0 <= x <= 0.1", "x >= (y >= z)"] {
+            assert_eq!(
+                Relation::compile(text, &names).unwrap_err(),
+                ExprError::ChainedComparison(text.into()),
+                "{text}"
+            );
+        }
+        assert_eq!(
+            Relation::compile("x >= 2 and y > 0", &names).unwrap_err(),
+            ExprError::OtherLanguage {
+                text: "x >= 2 and y > 0".into(),
+                written: "and",
+                meant: "&&"
+            }
+        );
+        assert!(Relation::compile("if(x <= y, 1, 0) <= z", &names).is_ok());
     }
 
     #[test]

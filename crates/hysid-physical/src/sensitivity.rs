@@ -250,7 +250,7 @@ mod tests {
     #[test]
     fn only_the_columns_that_act_together_lose_their_errors() {
         let n = 8;
-        let a = |k: usize| if k % 2 == 0 { 1.0 } else { -1.0 };
+        let a = |k: usize| if k.is_multiple_of(2) { 1.0 } else { -1.0 };
         let b = |k: usize| (k / 2) as f64 + 1.0;
         // `a` sums to zero against `b`'s pairs: the columns are orthogonal.
         let jac = DMatrix::from_fn(n, 3, |k, c| match c {

@@ -170,7 +170,7 @@ pub(super) fn strip_root(mut n: &Node<DefaultNumericTypes>) -> &Node<DefaultNume
 }
 
 /// Whether `n` is an ordering comparison (`<`, `<=`, `>`, `>=`).
-fn is_ordering(n: &Node<DefaultNumericTypes>) -> bool {
+pub(super) fn is_ordering(n: &Node<DefaultNumericTypes>) -> bool {
     matches!(
         n.operator(),
         Operator::Lt | Operator::Leq | Operator::Gt | Operator::Geq

@@ -1,7 +1,7 @@
 //! Relations (`a >= b`, `a < b`, ...): guards and invariants, read as the
 //! signed margin of their surface.
 
-use super::parse::{Builder, parse, strip_root};
+use super::parse::{Builder, is_ordering, parse, strip_root};
 use super::tape::{Binary, Op};
 use super::{ExprError, Expression};
 use evalexpr::Operator;
@@ -30,6 +30,11 @@ pub struct Relation {
 impl Relation {
     /// Parses `a >= b` (also `>`, `<=`, `<`, `==`) and compiles `a - b`.
     pub fn compile(text: &str, resolve: &dyn Fn(&str) -> Option<u32>) -> Result<Self, ExprError> {
+        Self::compiled(text, resolve).map_err(|e| super::in_other_words(text, e))
+    }
+
+    /// [`Relation::compile`] before an error is put in other words.
+    fn compiled(text: &str, resolve: &dyn Fn(&str) -> Option<u32>) -> Result<Self, ExprError> {
         let root = parse(text)?;
         let node = strip_root(&root.0);
         let crossing = match node.operator() {
@@ -41,6 +46,9 @@ impl Relation {
         let [lhs, rhs] = node.children() else {
             return Err(ExprError::NotNumeric(text.to_string()));
         };
+        if [lhs, rhs].iter().any(|side| is_ordering(strip_root(side))) {
+            return Err(ExprError::ChainedComparison(text.to_string()));
+        }
         let mut b = Builder::new(text, resolve);
         b.node(lhs)?;
         b.node(rhs)?;
