@@ -81,15 +81,10 @@ pub(super) fn initial(
     }
 }
 
-/// The first sample a run scores: the measured rule's start, the last
-/// sample of its warm-up (its one-step prediction scores from the sample
-/// after); after the warm-up of a given rule that estimates states (every
-/// sample of which the estimate read); 0 otherwise.
+/// The first sample a run scores: after the measured rule's warm-up, or
+/// after the warm-up that estimates unknown states; 0 otherwise.
 pub(super) fn scored_from(m: &CompiledModel) -> usize {
-    match m.initial {
-        CompiledInitial::Given { samples, .. } if !m.estimates.is_empty() => samples,
-        _ => m.warmup_read().map_or(0, |samples| samples - 1),
-    }
+    m.warmup_read().map_or(0, |samples| samples - 1)
 }
 
 /// `x` with the estimated states at `estimates` (a missing value: the
