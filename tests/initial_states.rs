@@ -154,7 +154,7 @@ fn a_state_the_warm_up_does_not_show_is_named_as_its_guess() {
     };
     let (text, json) = report(&hidden);
     assert!(
-        text.contains("x1 = 0.0 (its starting guess: the warm-up does not show it)"),
+        text.contains("x1 = 0.0 (not determined: moving it changes none of the warm-up's outputs)"),
         "{text}"
     );
     assert_eq!(json["unseen_initial_states"], serde_json::json!(["x1"]));

@@ -140,9 +140,8 @@ pub struct ValidationReport {
     /// are in its own report).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub initial_states: BTreeMap<String, f64>,
-    /// Those of [`Self::initial_states`] the warm-up does not show: each
-    /// is its rule's starting guess, not an estimate
-    /// ([`InitialStates::unseen`]).
+    /// Those of [`Self::initial_states`] the warm-up does not show: the
+    /// record does not determine them ([`InitialStates::unseen`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub unseen_initial_states: Vec<String>,
     /// For data that join several records: each record scored on its own,
@@ -167,7 +166,7 @@ pub struct InitialStates {
     /// Every such state by name, with its value.
     pub values: BTreeMap<String, f64>,
     /// Those the warm-up's outputs do not show (moving one changes none of
-    /// them): each keeps its rule's starting guess
+    /// them): the record does not determine them
     /// (`hysid_graybox::simulate::unseen`).
     pub unseen: Vec<String>,
 }

@@ -103,7 +103,7 @@ pub struct EstimatedState {
     /// Its value.
     pub value: f64,
     /// Whether the warm-up's outputs show it ([`simulate::unseen`]); where
-    /// they do not, `value` is the rule's starting guess.
+    /// they do not, the record does not determine `value`.
     pub seen: bool,
 }
 

@@ -24,7 +24,7 @@ pub(crate) fn states_text(
         .iter()
         .map(|(name, v)| {
             if unseen.contains(name) {
-                format!("{name} = {v:?} (its starting guess: the warm-up does not show it)")
+                format!("{name} = {v:?} (not determined: moving it changes none of the warm-up's outputs)")
             } else {
                 format!("{name} = {v:?}")
             }

@@ -104,8 +104,9 @@ pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec
 /// them) the warm-up does not show: moving one by the estimate's finite
 /// difference either way, within its bounds, leaves every simulated
 /// output of the warm-up as it was (a state a held friction or a dead
-/// zone hides there). Such a state keeps its starting guess; it is not
-/// estimated from the record.
+/// zone hides there). The record does not determine such a state: its
+/// value is where the estimate stopped (the guess, or a point of a flat
+/// stretch).
 pub fn unseen(
     m: &CompiledModel,
     values: &[f64],
