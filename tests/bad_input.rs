@@ -1131,7 +1131,7 @@ fn malformed_gray_box_files() {
             "ring.toml",
             good.replace(
                 "[definitions]\n",
-                "[definitions]\nreach = \"ring_b\"\nring_a = \"2*ring_b\"\nring_b = \"ring_a + 1\"\n",
+                "[definitions]\nreach = \"ring_a\"\nring_a = \"2*ring_b\"\nring_b = \"ring_a + 1\"\n",
             ),
             vec![
                 format!("ring.toml, line {}", line_holding(&good, "[definitions]", 0) + 2),

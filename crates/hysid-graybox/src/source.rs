@@ -168,24 +168,63 @@ pub(crate) fn line_of_field(source: &str, key: &str, text: &str) -> Option<usize
     in_field.or_else(keyed).or_else(|| first_line(&lexed, text))
 }
 
+impl Lexed {
+    /// Whether line `line` writes `key` as a key: TOML's `key =`, or a
+    /// JSON line whose first string is `key` followed by `:`.
+    fn keys(&self, line: usize, key: &str) -> bool {
+        let code = &self.code[line];
+        let json = || {
+            let first = self.strings.iter().find(|(l, _)| *l == line);
+            first.is_some_and(|(_, s)| s == key) && code.trim_start().starts_with(':')
+        };
+        writes_key(code, key) || json()
+    }
+
+    /// Whether line `line` ends an entry of a list of tables: a TOML
+    /// table header, or a line that opens a JSON object.
+    fn opens_entry(&self, line: usize) -> bool {
+        let code = self.code[line].trim_start();
+        code.starts_with('[') || code.starts_with('{')
+    }
+}
+
 /// The 1-based line of the `nth` (from 0) entry of `source` whose `name`
-/// key writes `name` (`name = "free"` of a `[[modes]]` table, or of an
-/// inline table): that line, or with `key` the first line of the entry
-/// from there that writes `key` (up to the next table header). `None`
-/// when no such entry or key is written.
+/// key writes `name` (`name = "free"` of a `[[modes]]` table or an inline
+/// table, `"name": "free"` of a JSON object): that line, or with `key` the
+/// line of the entry that writes `key` (after the name, up to the next
+/// entry, else before it, back to the entry's start), the name's line
+/// when the entry writes no such key. `None` when no such entry is
+/// written.
 pub(crate) fn entry_line(source: &str, name: &str, key: Option<&str>, nth: usize) -> Option<usize> {
     let lexed = Lexed::of(source);
     let at = (lexed.strings.iter())
-        .filter(|(line, s)| s == name && writes_key(&lexed.code[*line], "name"))
+        .filter(|(line, s)| s == name && lexed.keys(*line, "name"))
         .map(|&(line, _)| line)
         .nth(nth)?;
     let Some(key) = key else {
         return Some(at + 1);
     };
-    (lexed.code.iter().enumerate().skip(at))
-        .take_while(|(line, code)| *line == at || !code.trim_start().starts_with('['))
-        .find(|(_, code)| writes_key(code, key))
-        .map(|(line, _)| line + 1)
+    let lines = lexed.code.len();
+    let after = (at..lines)
+        .take_while(|&l| l == at || !(lexed.opens_entry(l) || lexed.keys(l, "name")))
+        .find(|&l| lexed.keys(l, key));
+    let before = || {
+        (0..at)
+            .rev()
+            .take_while(|&l| !lexed.keys(l, "name"))
+            .take_while(|&l| l + 1 == at || !lexed.opens_entry(l + 1))
+            .find(|&l| lexed.keys(l, key))
+    };
+    Some(after.or_else(before).unwrap_or(at) + 1)
+}
+
+/// The 1-based line of `source` that first writes `key` as a key (TOML or
+/// JSON): where a definition is written, not where it is read.
+pub(crate) fn key_line(source: &str, key: &str) -> Option<usize> {
+    let lexed = Lexed::of(source);
+    (0..lexed.code.len())
+        .find(|&l| lexed.keys(l, key))
+        .map(|l| l + 1)
 }
 
 #[cfg(test)]
@@ -249,9 +288,39 @@ mod tests {
         assert_eq!(entry_line(toml, "free", Some("flow"), 0), Some(5));
         assert_eq!(entry_line(toml, "free", Some("flow"), 1), Some(10));
         assert_eq!(entry_line(toml, "free", None, 1), Some(9));
-        // The key is looked for in the entry only.
-        assert_eq!(entry_line(toml, "wall", Some("flow"), 0), None);
+        // The key is looked for in the entry only; an entry without it
+        // gives its name's line.
+        assert_eq!(entry_line(toml, "wall", Some("flow"), 0), Some(7));
         assert_eq!(entry_line(toml, "none", None, 0), None);
+        // The key written before the name.
+        let first = "[[modes]]\nflow = { x = \"v\" }\nname = \"free\"\n[[modes]]\nflow = {}\nname = \"wall\"\n";
+        assert_eq!(entry_line(first, "free", Some("flow"), 0), Some(2));
+        assert_eq!(entry_line(first, "wall", Some("flow"), 0), Some(5));
+        // JSON, one key to a line.
+        let json = concat!(
+            "{\n",
+            "  \"initial_state\": {\"from\": \"given\", \"mode\": \"free\"},\n",
+            "  \"modes\": [\n",
+            "    {\n",
+            "      \"name\": \"free\",\n",
+            "      \"flow\": {\"x\": \"v\"}\n",
+            "    },\n",
+            "    {\n",
+            "      \"flow\": {\"x\": \"0\"},\n",
+            "      \"name\": \"free\"\n",
+            "    }\n",
+            "  ],\n",
+            "  \"definitions\": {\"reach\": \"ra\", \"ra\": \"rb\"}\n",
+            "}\n",
+        );
+        assert_eq!(entry_line(json, "free", None, 0), Some(5));
+        assert_eq!(entry_line(json, "free", Some("flow"), 0), Some(6));
+        assert_eq!(entry_line(json, "free", None, 1), Some(10));
+        assert_eq!(entry_line(json, "free", Some("flow"), 1), Some(9));
+        // A definition's key, not a string that reads it.
+        let toml = "[definitions]\nreach = \"ra\"\nra = \"2*rb\"\n";
+        assert_eq!(key_line(toml, "ra"), Some(3));
+        assert_eq!(line_of(toml, "ra"), Some(2));
     }
 
     #[test]

@@ -283,10 +283,16 @@ impl InvalidGrayBox {
     /// entry, `mode 'free'` or `element 'f1'`, or a list that declares a
     /// name twice): the line of that entry's `name`, for a missing flow
     /// the line of its `flow`, for a name declared twice its second
-    /// declaration ([`crate::source::entry_line`]).
+    /// declaration ([`crate::source::entry_line`]); for a ring of
+    /// definitions, where its first is written as a key.
     fn entry_line(&self, source: &str, text: &str) -> Option<usize> {
-        if let Problem::Duplicate(name) = &self.problem {
-            return crate::source::entry_line(source, name, None, 1);
+        match &self.problem {
+            Problem::Duplicate(name) => return crate::source::entry_line(source, name, None, 1),
+            // A ring of definitions: where its first is written.
+            Problem::Cycle(ring) if ring.first().is_some_and(|d| d == text) => {
+                return crate::source::key_line(source, text);
+            }
+            _ => {}
         }
         let entry = (self.place.strip_prefix("mode '"))
             .or_else(|| self.place.strip_prefix("element '"))
