@@ -1994,6 +1994,14 @@ fn warm_ups_starting_guesses_and_bounds_are_checked() {
             vec!["parameter 'c1': value 1000 and bounds [400, 900]"],
         ),
         (
+            // Each bound finite, the width not: the fit's coordinates
+            // would overflow ("every candidate simulation failed").
+            "width.toml",
+            head.replace("bounds = [400.0, 900.0]", "bounds = [-1e308, 1e308]"),
+            vec![],
+            vec!["parameter 'c1'", "(and high - low finite)"],
+        ),
+        (
             "given.toml",
             rule("{ from = \"given\", values = { y = 1.0 } }"),
             vec!["init_samples=5"],

@@ -320,7 +320,7 @@ pub enum InvalidMechanical {
     #[error("parameter '{0}' appears twice")]
     DuplicateParameter(String),
     /// A parameter with a non-finite value or bounds, or low above high.
-    #[error("parameter '{0}': need finite value and bounds low <= high")]
+    #[error("parameter '{0}': need finite value and bounds low <= high (and high - low finite)")]
     ParameterBounds(String),
     /// A parameter value outside its bounds.
     #[error("parameter '{name}': value {value} outside its bounds [{low}, {high}]")]
@@ -541,7 +541,7 @@ impl MechanicalModel {
                 return Err(E::DuplicateParameter(p.name.clone()));
             }
             let [lo, hi] = p.bounds;
-            if !(p.value.is_finite() && lo.is_finite() && hi.is_finite() && lo <= hi) {
+            if !(p.value.is_finite() && lo <= hi && (hi - lo).is_finite()) {
                 return Err(E::ParameterBounds(p.name.clone()));
             }
             if p.value < lo || p.value > hi {

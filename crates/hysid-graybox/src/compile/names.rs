@@ -151,12 +151,8 @@ pub(super) fn symbol_table<'m>(
     for p in &m.parameters {
         add("parameters", &p.name)?;
         let [lo, hi] = p.bounds;
-        if !(p.value.is_finite()
-            && lo.is_finite()
-            && hi.is_finite()
-            && lo <= p.value
-            && p.value <= hi)
-        {
+        // A finite width too: the fit's coordinates run over `hi - lo`.
+        if !(p.value.is_finite() && lo <= p.value && p.value <= hi && (hi - lo).is_finite()) {
             return Err(InvalidGrayBox::new(
                 "parameters",
                 Some(&p.name),

@@ -53,7 +53,7 @@ pub enum Problem {
     /// outside its bounds.
     #[error(
         "parameter '{name}': value {value} and bounds [{low}, {high}]: need finite numbers \
-         with low <= value <= high"
+         with low <= value <= high (and high - low finite)"
     )]
     Parameter {
         /// The parameter.
