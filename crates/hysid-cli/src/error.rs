@@ -176,7 +176,7 @@ impl From<hysid::identify::Error> for CliError {
             }
             Error::Identify(e) => e.into(),
             Error::Select(e) => e.into(),
-            e @ Error::ShortRecord { .. } => Self::input(format!("{e} (--warmup)")),
+            e @ Error::ShortRecord(_) => Self::input(format!("{e} (--warmup)")),
         }
     }
 }

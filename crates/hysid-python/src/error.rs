@@ -182,7 +182,7 @@ impl From<hysid::identify::Error> for Failure {
             }
             Error::Identify(e) => e.into(),
             Error::Select(e) => e.into(),
-            e @ Error::ShortRecord { .. } => Self::input(format!("{e} (warmup=)")),
+            e @ Error::ShortRecord(_) => Self::input(format!("{e} (warmup=)")),
         }
     }
 }

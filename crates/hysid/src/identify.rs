@@ -147,20 +147,26 @@ pub enum Error {
     /// Automatic selection could not choose.
     #[error(transparent)]
     Select(#[from] SelectError),
-    /// A record of several no longer than the warm-up every free-run
-    /// score leaves out (the affine comparison, `--auto`'s scores and
-    /// refit): it could never be scored.
-    #[error(
-        "record {record} has {samples} sample(s), no more than the warm-up of {warmup} that every free-run score leaves out: give more rows or a shorter warm-up"
-    )]
-    ShortRecord {
-        /// The record, from 1.
-        record: usize,
-        /// Its samples.
-        samples: usize,
-        /// The warm-up.
-        warmup: usize,
-    },
+    /// A record of several that no free-run score could read.
+    #[error("record {record} has {0}", record = .0.record)]
+    ShortRecord(ShortRecord),
+}
+
+/// A record of several no longer than the warm-up every free-run score
+/// leaves out (the affine comparison, `--auto`'s scores and refit): it
+/// could never be scored. Shown without the record, which each front end
+/// names its own way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{samples} sample(s), no more than the warm-up of {warmup} that every free-run score leaves out: give more rows or a shorter warm-up"
+)]
+pub struct ShortRecord {
+    /// The record, from 1.
+    pub record: usize,
+    /// Its samples.
+    pub samples: usize,
+    /// The warm-up.
+    pub warmup: usize,
 }
 
 impl<'a> Identify<'a> {
@@ -343,11 +349,11 @@ impl<'a> Identify<'a> {
             return Ok(());
         }
         match ranges.iter().position(|r| r.len() <= self.warmup) {
-            Some(i) => Err(Error::ShortRecord {
+            Some(i) => Err(Error::ShortRecord(ShortRecord {
                 record: i + 1,
                 samples: ranges[i].len(),
                 warmup: self.warmup,
-            }),
+            })),
             None => Ok(()),
         }
     }

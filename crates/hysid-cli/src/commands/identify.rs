@@ -208,15 +208,9 @@ pub fn run(args: Args) -> Result<()> {
                     hysid::select::DEFAULT_SELECTION_PERCENT
                 ))
             }
-            // Too few samples for the orders and modes: named by the
-            // records and rows they were selected from.
             // A record too short to score: named by its file and rows.
-            hysid::identify::Error::ShortRecord {
-                record,
-                samples,
-                warmup,
-            } => {
-                let i = record - 1;
+            hysid::identify::Error::ShortRecord(short) => {
+                let (record, i) = (short.record, short.record - 1);
                 let file = args.data.get(i).map_or_else(
                     || format!("record {record}"),
                     |p| p.display().to_string(),
@@ -227,10 +221,10 @@ pub fn run(args: Args) -> Result<()> {
                     all => all.get(i),
                 };
                 let rows = rows.map(|r| format!(" --rows {r}")).unwrap_or_default();
-                CliError::input(format!(
-                    "{file}{rows}: {samples} sample(s), no more than the warm-up of {warmup} that every free-run score leaves out: give more rows or a shorter --warmup"
-                ))
+                CliError::input(format!("{file}{rows}: {short} (--warmup)"))
             }
+            // Too few samples for the orders and modes: named by the
+            // records and rows they were selected from.
             hysid::identify::Error::Identify(e) if e.is_sample_shortage() => {
                 let files: Vec<String> = args.data.iter().map(|p| p.display().to_string()).collect();
                 let rows: Vec<String> = args.select.rows.iter().map(|r| format!(" --rows {r}")).collect();
