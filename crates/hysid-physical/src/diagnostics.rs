@@ -126,15 +126,24 @@ impl PhysicalDiagnostics {
                 .collect()
         };
         let mut out = Vec::new();
-        if !self.at_bound.is_empty() {
+        // A parameter without effect is kept at its file value, which may
+        // be a bound: it is named once, as without effect.
+        let at_bound: Vec<String> = (self.at_bound.iter())
+            .filter(|n| {
+                let p = self.parameters.get(*n);
+                p.is_none_or(|p| p.identifiability != Some(Identifiability::NotIdentifiable))
+            })
+            .cloned()
+            .collect();
+        if !at_bound.is_empty() {
             out.push(format!(
                 "{} ended at a bound: the record may ask for a value outside the bounds (widen them, or check the model and its units)",
-                with(&self.at_bound)
+                with(&at_bound)
             ));
         }
         if !self.initial_states_at_bound.is_empty() {
             out.push(format!(
-                "the estimated initial state {} ended at a bound of its estimate (widen it)",
+                "the estimated initial state {} ended at a bound of its estimate: the record may ask for a value outside it",
                 with(&self.initial_states_at_bound)
             ));
         }

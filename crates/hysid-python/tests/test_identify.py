@@ -2,6 +2,7 @@
 program, priors, options and automatic selection."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -170,3 +171,34 @@ def test_several_records_fit_one_model_and_validate_each(record, program, tmp_pa
         hysid.identify(us + [u[:10]], ys, method="arx")
     with pytest.raises(hysid.InputError, match="select_records=2: must be between 1"):
         hysid.identify(us, ys, method="arx", auto=True, select_records=2)
+
+
+LAG = """kind = "gray_box"
+format = 1
+internal_step = 0.025
+states = ["x"]
+inputs = ["u"]
+outputs = ["x"]
+initial_state = {{ from = "given", values = {{ x = 0.0 }} }}
+parameters = [{{ name = "a", value = {a}, bounds = [{low}, 4.0] }}]
+
+[[modes]]
+name = "only"
+flow = {{ x = "-a*x + u" }}
+"""
+
+
+def test_a_physical_fit_warns_of_a_parameter_at_a_bound(tmp_path):
+    truth = tmp_path / "truth.toml"
+    truth.write_text(LAG.format(a=0.8, low=0.2))
+    u = np.repeat(np.random.default_rng(1).uniform(-1, 1, 20), 10)
+    y, _ = hysid.Model.load(truth).simulate(u, ts=0.05)
+    held = tmp_path / "held.toml"
+    held.write_text(LAG.format(a=2.0, low=1.5))
+    # The record asks for a = 0.8; the file's bounds stop the fit at 1.5.
+    with pytest.warns(UserWarning, match=r"^physical: a = 1\.5 ended at a bound") as said:
+        hysid.identify(u, y, method="physical", ts=0.05, options={"model": str(held)})
+    assert {w.filename for w in said} == {__file__}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        hysid.identify(u, y, method="physical", ts=0.05, options={"model": str(truth)})
