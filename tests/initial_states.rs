@@ -5,6 +5,7 @@
 use crate::common;
 
 use common::{hysid, ok, one_line_error, s, write};
+use std::path::{Path, PathBuf};
 
 /// Two first-order lags in cascade with the output `output` and the
 /// initial state `initial`.
@@ -31,6 +32,27 @@ flow = {{ x1 = "-a*x1 + u", x2 = "b*(x1 - x2)" }}
     )
 }
 
+/// The cascade's true initial state.
+const TRUTH: &str = r#"{ from = "given", values = { x1 = 2.25, x2 = 0.5 } }"#;
+
+/// `record.csv` in `d`: the model `truth` driven by held random levels,
+/// 200 samples of 50 ms, seed 1.
+fn record_of(d: &Path, truth: &str) -> PathBuf {
+    let file = write(d, "truth.toml", truth);
+    let record = d.join("record.csv");
+    ok(&[
+        "simulate",
+        s(&file),
+        "--excite",
+        "n=200,hold=10,low=-1,high=1,ts=0.05",
+        "--seed",
+        "1",
+        "-o",
+        s(&record),
+    ]);
+    record
+}
+
 const ESTIMATE: &str =
     r#"{ from = "measured", samples = 10, position = "x2", estimate = { x1 = [-5.0, 5.0] } }"#;
 
@@ -41,25 +63,7 @@ const ESTIMATE: &str =
 fn validate_and_simulate_report_the_estimated_initial_state() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let truth = write(
-        d,
-        "truth.toml",
-        cascade(
-            "c*x2 + off",
-            r#"{ from = "given", values = { x1 = 2.25, x2 = 0.5 } }"#,
-        ),
-    );
-    let record = d.join("record.csv");
-    ok(&[
-        "simulate",
-        s(&truth),
-        "--excite",
-        "n=200,hold=10,low=-1,high=1,ts=0.05",
-        "--seed",
-        "1",
-        "-o",
-        s(&record),
-    ]);
+    let record = record_of(d, &cascade("c*x2 + off", TRUTH));
     let model = write(d, "estimate.toml", cascade("c*x2 + off", ESTIMATE));
     let text = ok(&["validate", s(&model), s(&record), "--warmup", "10"]);
     assert!(text.contains("initial   x1 = 2.2"), "{text}");
@@ -134,18 +138,7 @@ fn a_state_the_warm_up_does_not_show_is_named_as_its_guess() {
     let seen = cascade("c*x2 + off", ESTIMATE);
     let hidden = seen.replace("b*(x1 - x2)", "b*(max(x1 - 6, 0) - x2)");
     assert_ne!(seen, hidden);
-    let record = d.join("record.csv");
-    let truth = write(d, "truth.toml", &seen);
-    ok(&[
-        "simulate",
-        s(&truth),
-        "--excite",
-        "n=200,hold=10,low=-1,high=1,ts=0.05",
-        "--seed",
-        "1",
-        "-o",
-        s(&record),
-    ]);
+    let record = record_of(d, &seen);
     let report = |text: &str| -> (String, serde_json::Value) {
         let model = write(d, "m.toml", text);
         let args = ["validate", s(&model), s(&record), "--warmup", "10"];
@@ -257,25 +250,7 @@ fn bad_initial_state_rules_name_the_file() {
 fn identify_warns_of_values_at_a_bound_and_parameters_without_effect() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let truth = write(
-        d,
-        "truth.toml",
-        cascade(
-            "c*x2 + off",
-            r#"{ from = "given", values = { x1 = 2.25, x2 = 0.5 } }"#,
-        ),
-    );
-    let record = d.join("record.csv");
-    ok(&[
-        "simulate",
-        s(&truth),
-        "--excite",
-        "n=200,hold=10,low=-1,high=1,ts=0.05",
-        "--seed",
-        "1",
-        "-o",
-        s(&record),
-    ]);
+    let record = record_of(d, &cascade("c*x2 + off", TRUTH));
     let fit = |text: String, prior: &str| -> String {
         let model = write(d, "m.toml", text);
         let prior = write(d, "p.toml", prior);
