@@ -87,7 +87,21 @@ pub fn run(args: Args) -> Result<()> {
         "",
     );
     if args.json {
-        println!("{}", serde_json::to_string(&report).expect("json"));
+        // Each record's report names its file and rows, as the text does.
+        let mut json = serde_json::to_value(&report).expect("json");
+        if let Some(records) = json.get_mut("records").and_then(|r| r.as_array_mut()) {
+            for (i, (r, file)) in records.iter_mut().zip(&args.data).enumerate() {
+                r["file"] = file.display().to_string().into();
+                let rows = match &args.select.rows[..] {
+                    [one] => Some(one),
+                    all => all.get(i),
+                };
+                if let Some(rows) = rows {
+                    r["rows"] = rows.to_string().into();
+                }
+            }
+        }
+        println!("{json}");
     } else {
         println!(
             "model     {} ({} mode(s), {})",
