@@ -1869,3 +1869,37 @@ guard = "T >= 0"
         assert!(err.contains(zeno), "{args:?}: {err}");
     }
 }
+
+/// A hand-written gray-box file's inputs are named where the record lacks
+/// the signal asked for (the default `u`).
+#[test]
+fn a_record_without_the_input_names_the_inputs_a_gray_box_file_declares() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = d.join("lag.toml");
+    std::fs::write(
+        &model,
+        r#"kind = "gray_box"
+format = 1
+internal_step = 0.01
+states = ["x"]
+inputs = ["F"]
+outputs = ["x"]
+initial_state = { from = "given", values = { x = 0.0 } }
+parameters = [{ name = "a", value = 1.0, bounds = [0.1, 10.0] }]
+[[modes]]
+name = "only"
+flow = { x = "F - a*x" }
+"#,
+    )
+    .unwrap();
+    let record = d.join("r.csv");
+    let excite = "n=20,hold=5,low=0,high=1,ts=0.1";
+    ok(&["simulate", s(&model), "--excite", excite, "-o", s(&record)]);
+    let err = one_line_error(&hysid(&["validate", s(&model), s(&record)]), 2).unwrap();
+    assert!(
+        err.ends_with("no column 'u' (available: t, F, y, mode); the model's inputs are --input F"),
+        "{err}"
+    );
+    ok(&["validate", s(&model), s(&record), "--input", "F"]);
+}

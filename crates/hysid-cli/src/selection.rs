@@ -2,8 +2,8 @@
 //! selection").
 
 use crate::error::CliError;
+use hysid_core::model::Model;
 use hysid_model::data::{DataError, DataSelection, Dataset, RowRange, SignalNameError};
-use hysid_model::model::ModelInfo;
 use std::path::PathBuf;
 
 /// Which signals and samples of a data file to use.
@@ -78,9 +78,9 @@ impl DataArgs {
     }
 
     /// The records of `files`, each with its `--rows`, joined into one
-    /// dataset ([`hysid_io::load_records`]), for the model of `model` when
-    /// one is scored on them ([`SignalArgs::data_error`]).
-    pub fn load(&self, files: &[PathBuf], model: Option<&ModelInfo>) -> Result<Dataset, CliError> {
+    /// dataset ([`hysid_io::load_records`]), for `model` when one is
+    /// scored on them ([`SignalArgs::data_error`]).
+    pub fn load(&self, files: &[PathBuf], model: Option<&Model>) -> Result<Dataset, CliError> {
         if self.rows.len() > 1 && self.rows.len() != files.len() {
             return Err(CliError::input(format!(
                 "--rows: given {} times for {} data files; give it once for every file or once per file",
@@ -118,14 +118,21 @@ impl DataArgs {
 
 impl SignalArgs {
     /// `e` as the program words it; a signal the record lacks also names
-    /// the flags that read the signals `model` was identified on, where
-    /// they are not the ones asked for, and a model file given as data is
-    /// named as such.
-    pub fn data_error(&self, e: DataError, model: Option<&ModelInfo>) -> CliError {
-        let own = model.filter(|info| {
+    /// the flags that read the signals `model` was identified on (for a
+    /// hand-written gray-box file, the inputs it declares), where they are
+    /// not the ones asked for, and a model file given as data is named as
+    /// such.
+    pub fn data_error(&self, e: DataError, model: Option<&Model>) -> CliError {
+        let own = model.map(Model::info).filter(|info| {
             !info.output_name.is_empty()
                 && (info.input_names != self.input || info.output_name != self.output)
         });
+        // A hand-written gray-box file names its inputs, not its record's
+        // output.
+        let declared = match model {
+            Some(Model::GrayBox(m)) if own.is_none() && m.inputs != self.input => Some(&m.inputs),
+            _ => None,
+        };
         let model_file = |p: &std::path::Path| {
             (p.extension().and_then(|x| x.to_str()))
                 .is_some_and(|x| x.eq_ignore_ascii_case("json") || x.eq_ignore_ascii_case("toml"))
@@ -141,6 +148,10 @@ impl SignalArgs {
                 "{e}; the model was identified on --input {} --output {}",
                 info.input_names.join(","),
                 info.output_name
+            )),
+            (DataError::Missing { .. }, None) if declared.is_some() => CliError::input(format!(
+                "{e}; the model's inputs are --input {}",
+                declared.map(|d| d.join(",")).unwrap_or_default()
             )),
             _ => e.into(),
         }

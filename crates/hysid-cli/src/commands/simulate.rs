@@ -63,7 +63,7 @@ pub fn run(args: Args) -> Result<()> {
     let model = super::load_model(&args.model)?;
     let data = match (&args.data, &args.excite) {
         (Some(path), None) => hysid_io::load(path, &args.select.selection()?)
-            .map_err(|e| args.select.signals.data_error(e, Some(model.info())))?,
+            .map_err(|e| args.select.signals.data_error(e, Some(&model)))?,
         (None, Some(spec)) => {
             let e = Excitation::parse_for(spec, model.inputs())
                 .map_err(|e: ExcitationError| CliError::input(e.to_string()))?;

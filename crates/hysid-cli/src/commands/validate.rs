@@ -42,7 +42,7 @@ pub fn run(args: Args) -> Result<()> {
         super::not_an_input("--plot", plot, inputs.map(PathBuf::as_path))?;
     }
     let model = super::load_model(&args.model)?;
-    let data = args.select.load(&args.data, Some(model.info()))?;
+    let data = args.select.load(&args.data, Some(&model))?;
     for (file, range) in args.data.iter().zip(data.record_ranges()) {
         if args.warmup >= range.len() {
             return Err(CliError::input(format!(
