@@ -1108,6 +1108,14 @@ fn malformed_gray_box_files() {
             vec!["mode 'carried', flow: 'V' is not a state".into()],
         ),
         (
+            "inputs.toml",
+            good.replace("inputs = [\"u\"]", "inputs = []"),
+            vec![
+                line_of("inputs = [\"u\"]"),
+                "inputs: need at least one input".into(),
+            ],
+        ),
+        (
             // A mode declared twice: the line of the second declaration.
             "twice.toml",
             good.replace("name = \"carried\"\n", "name = \"fly\"\n"),

@@ -58,9 +58,16 @@ pub(super) fn check_sizes(m: &GrayBoxModel, definitions: usize) -> Result<(), In
     Ok(())
 }
 
-/// The modes by name, checked: one output, at least one mode, modes
-/// named by identifiers, none twice.
+/// The modes by name, checked: at least one input, one output, at least
+/// one mode, modes named by identifiers, none twice.
 pub(super) fn mode_index(m: &GrayBoxModel) -> Result<BTreeMap<&str, usize>, InvalidGrayBox> {
+    if m.inputs.is_empty() {
+        return Err(InvalidGrayBox::new(
+            "inputs",
+            Some("inputs"),
+            Problem::NoInput,
+        ));
+    }
     if m.outputs.len() != 1 {
         return Err(InvalidGrayBox::new(
             "outputs",

@@ -65,6 +65,11 @@ pub enum Problem {
         /// Its upper bound.
         high: f64,
     },
+    /// No input: every record and excitation drives one.
+    #[error(
+        "need at least one input (records and excitations drive one): give an autonomous system one it does not read, held at 0"
+    )]
+    NoInput,
     /// Not exactly one output.
     #[error("need exactly one output (the records hysid reads have one), found {0}")]
     Outputs(usize),
