@@ -349,17 +349,18 @@ fn first_by_name(items: &[Value]) -> HashMap<String, usize> {
 }
 
 /// The entries `remove` deletes, as a tree of their keys and names: a
-/// node marked `removed` goes with everything under it.
+/// node marked `removed` (by the path of `remove` that names it) goes with
+/// everything under it.
 #[derive(Default)]
 struct Removals<'p> {
-    removed: bool,
+    removed: Option<&'p str>,
     under: HashMap<&'p str, Removals<'p>>,
 }
 
 /// Deletes the entries `paths` (keys and names joined by dots) from
 /// `base`, as if one after the other: an entry the base does not have, or
-/// that an earlier one deleted (itself or with what holds it), is an error
-/// naming it. Each path is looked up once, by name, and each table or
+/// that an earlier one deleted (itself, listed twice, or with what holds
+/// it), is an error naming it. Each path is looked up once, by name, and each table or
 /// array is rewritten once, however many entries it loses. A path is
 /// looked up in the base before it is followed, so the walks go no deeper
 /// than the base (whose parser limits its nesting).
@@ -383,17 +384,26 @@ fn remove(base: &mut Value, paths: &[String]) -> Result<(), String> {
             }
             .ok_or_else(missing)?;
         }
+        // Deleted already: by this path listed before, or with an entry
+        // that holds it.
+        let gone = |by: &str| {
+            if by == path {
+                format!("remove: `{path}` is listed twice")
+            } else {
+                format!("remove: `{path}` is already removed, with `{by}`")
+            }
+        };
         let mut node = &mut removals;
         for part in &parts {
-            if node.removed {
-                return Err(missing());
+            if let Some(by) = node.removed {
+                return Err(gone(by));
             }
             node = node.under.entry(part).or_default();
         }
-        if node.removed {
-            return Err(missing());
+        if let Some(by) = node.removed {
+            return Err(gone(by));
         }
-        node.removed = true;
+        node.removed = Some(path);
     }
     delete(base, &removals);
     Ok(())
@@ -404,7 +414,7 @@ fn delete(value: &mut Value, removals: &Removals) {
     match value {
         Value::Object(table) => {
             for (key, node) in &removals.under {
-                if node.removed {
+                if node.removed.is_some() {
                     table.remove(*key);
                 } else if let Some(v) = table.get_mut(*key) {
                     delete(v, node);
@@ -415,7 +425,7 @@ fn delete(value: &mut Value, removals: &Removals) {
             let first = first_by_name(items);
             let mut gone = HashSet::new();
             for (name, node) in &removals.under {
-                if node.removed {
+                if node.removed.is_some() {
                     gone.insert(*name);
                 } else if let Some(&i) = first.get(*name) {
                     delete(&mut items[i], node);
@@ -572,19 +582,26 @@ name = "friction"
             removing(&["modes.m.definitions.F", "parameters.a", "modes.m"]).unwrap(),
             json!({"parameters": [{"name": "b", "v": 2}], "modes": []})
         );
-        // An entry already deleted, itself or with what holds it, is not there.
-        for (paths, missing) in [
-            (&["parameters.b", "parameters.b"][..], "parameters.b"),
+        // An entry already deleted, itself or with what holds it, is named
+        // so.
+        for (paths, said) in [
+            (
+                &["parameters.b", "parameters.b"][..],
+                "remove: `parameters.b` is listed twice",
+            ),
             (
                 &["modes.m", "modes.m.definitions.G"][..],
-                "modes.m.definitions.G",
+                "remove: `modes.m.definitions.G` is already removed, with `modes.m`",
             ),
-            (&["parameters.b.v", "parameters.b.v"][..], "parameters.b.v"),
+            (
+                &["parameters.b.v", "parameters.b.v"][..],
+                "remove: `parameters.b.v` is listed twice",
+            ),
             (&["modes.m.definitions"][..], ""),
         ] {
             match removing(paths) {
-                Ok(_) => assert!(missing.is_empty(), "{paths:?}"),
-                Err(e) => assert_eq!(e, format!("remove: the base has no entry `{missing}`")),
+                Ok(_) => assert!(said.is_empty(), "{paths:?}"),
+                Err(e) => assert_eq!(e, said),
             }
         }
         // A path is followed through the first entry of a name.
