@@ -404,13 +404,7 @@ fn validate_record(
     let sim = simulate(model, data, opts)?;
     let pred = predict(model, data, opts)?;
     let states = initial_states(model, data)?;
-    // No sample the initial state read is scored (a given rule with an
-    // estimate starts its run at the warm-up's last sample).
-    let read = match model {
-        Model::GrayBox(m) => hysid_graybox::samples_read(m)?,
-        _ => 0,
-    };
-    let first = warmup.max(sim.start).max(pred.start).max(read);
+    let first = warmup.max(sim.start).max(pred.start);
     let n_all = data.len();
     if first >= n_all {
         return Err(SimError::TooShort {

@@ -127,13 +127,6 @@ pub fn initial_states(m: &GrayBoxModel, data: &Dataset) -> Result<Vec<EstimatedS
         .collect())
 }
 
-/// The samples at the start of a record that the model's initial state
-/// reads ([`CompiledModel::warmup_read`]; 0 when it reads none): no score
-/// of the model on a record may count them.
-pub fn samples_read(m: &GrayBoxModel) -> Result<usize, SimError> {
-    Ok(compiled(m)?.warmup_read().unwrap_or(0))
-}
-
 /// One-step prediction of a gray-box model ([`simulate::predict`]).
 pub fn predict(m: &GrayBoxModel, data: &Dataset) -> Result<Simulation, SimError> {
     let c = compiled(m)?;

@@ -458,7 +458,9 @@ pub fn run(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxR
 /// measured outputs up to it (the model's `measured` rule; the states it
 /// leaves unknown are taken from the free run) and advanced by one
 /// sample. A model with a given or a rest initial state has no such
-/// reading: its prediction is its free run.
+/// reading: its prediction is its free run, which starts, as a measured
+/// rule's prediction does, after every sample its initial state reads (a
+/// given rule's warm-up that estimates states).
 pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<GrayBoxRun, SimError> {
     let CompiledInitial::Measured {
         samples,
@@ -467,7 +469,9 @@ pub fn predict(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Gray
         ..
     } = m.initial
     else {
-        return run(m, values, data);
+        let mut free = run(m, values, data)?;
+        free.start = free.start.max(m.warmup_read().unwrap_or(0));
+        return Ok(free);
     };
     let free = if m.estimates.is_empty() {
         None
