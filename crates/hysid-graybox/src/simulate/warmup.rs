@@ -29,19 +29,7 @@ pub fn estimate(m: &CompiledModel, values: &[f64], data: &Dataset) -> Result<Vec
     if m.estimates.is_empty() {
         return Ok(Vec::new());
     }
-    let w = m.initial.warmup().unwrap_or(1);
-    if data.len() < w {
-        return Err(SimError::TooShort {
-            samples: data.len(),
-            needed: w,
-        });
-    }
-    let window = data
-        .slice(RowRange {
-            start: Some(0),
-            end: Some(w),
-        })
-        .map_err(|e| SimError::InitialState(e.to_string()))?;
+    let window = warmup_window(m, data)?;
     let to_values = |z: &[f64]| -> Vec<f64> {
         m.estimates
             .iter()
@@ -113,13 +101,7 @@ pub fn unseen(
     data: &Dataset,
     estimated: &[f64],
 ) -> Result<Vec<bool>, SimError> {
-    let w = m.initial.warmup().unwrap_or(1).min(data.len());
-    let window = data
-        .slice(RowRange {
-            start: Some(0),
-            end: Some(w),
-        })
-        .map_err(|e| SimError::InitialState(e.to_string()))?;
+    let window = warmup_window(m, data)?;
     let outputs = |states: &[f64]| run_from(m, values, states, &window).ok().map(|r| r.y);
     let at = outputs(estimated);
     Ok(m.estimates
@@ -135,6 +117,24 @@ pub fn unseen(
             at.is_some() && step > 0.0 && moved(step) == at && moved(-step) == at
         })
         .collect())
+}
+
+/// The warm-up of `data` whose outputs estimate the unknown states: its
+/// first [`crate::compile::CompiledInitial::warmup`] samples (an error
+/// where the record is shorter).
+fn warmup_window(m: &CompiledModel, data: &Dataset) -> Result<Dataset, SimError> {
+    let w = m.initial.warmup().unwrap_or(1);
+    if data.len() < w {
+        return Err(SimError::TooShort {
+            samples: data.len(),
+            needed: w,
+        });
+    }
+    data.slice(RowRange {
+        start: Some(0),
+        end: Some(w),
+    })
+    .map_err(|e| SimError::InitialState(e.to_string()))
 }
 
 /// Where [`estimate`] starts again, in box-normalised coordinates, when
