@@ -11,10 +11,11 @@ use hysid_core::model::Model;
 use hysid_core::options::{MAX_COUNT, Settings};
 use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::SearchSpace;
-use hysid_core::simulate::{OutsideRegions, validate};
+use hysid_core::simulate::{OutsideRegions, simulate};
 use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
+use hysid_model::simulate::SimulationOptions;
 use hysid_physical::diagnostics::PhysicalDiagnostics;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -471,9 +472,9 @@ impl Identified {
         let mut warnings = PhysicalDiagnostics::of(&self.model.info().diagnostics)
             .map(|d| d.warnings())
             .unwrap_or_default();
-        if let Ok((report, sim, _)) = validate(&self.model, request.data, request.warmup) {
+        if let Ok(sim) = simulate(&self.model, request.data, SimulationOptions::default()) {
             warnings.extend(OutsideRegions::of(&self.model, &sim).map(|o| o.to_string()));
-            warnings.extend(report.warnings().iter().map(ToString::to_string));
+            warnings.extend(sim.warnings().iter().map(ToString::to_string));
         }
         warnings
     }
