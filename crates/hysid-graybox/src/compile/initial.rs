@@ -38,6 +38,20 @@ pub(super) fn initial_rule(
         )),
         n => Ok(n),
     };
+    // A given rule's warm-up without an estimate would be read by nothing.
+    if let GrayBoxInitialState::Given {
+        samples: Some(_),
+        estimate,
+        ..
+    } = &m.initial_state
+        && estimate.is_empty()
+    {
+        return Err(InvalidGrayBox::new(
+            place,
+            Some("samples"),
+            Problem::WarmupWithoutEstimate,
+        ));
+    }
     let no_estimate = Estimates::new();
     let (rule, estimate, given, measured) = match &m.initial_state {
         GrayBoxInitialState::Given {
@@ -46,19 +60,10 @@ pub(super) fn initial_rule(
             estimate,
             samples,
         } => (
-            // A warm-up without an estimate would be read by nothing.
-            if samples.is_some() && estimate.is_empty() {
-                return Err(InvalidGrayBox::new(
-                    place,
-                    Some("samples"),
-                    Problem::WarmupWithoutEstimate,
-                ));
-            } else {
-                CompiledInitial::Given {
-                    x: values(v)?,
-                    mode: mode(q)?,
-                    samples: warmup(samples.unwrap_or(DEFAULT_SAMPLES))?,
-                }
+            CompiledInitial::Given {
+                x: values(v)?,
+                mode: mode(q)?,
+                samples: warmup(samples.unwrap_or(DEFAULT_SAMPLES))?,
             },
             estimate,
             v,

@@ -243,15 +243,12 @@ fn ring(names: &[String]) -> String {
     if names.len() < 2 {
         return String::new();
     }
-    let mut out = String::from(":");
-    for name in names.iter().chain(&names[..1]) {
-        if out.len() > 1 {
-            out.push_str(" ->");
-        }
-        out.push(' ');
-        out.push_str(name);
-    }
-    out
+    let path: Vec<&str> = names
+        .iter()
+        .chain(&names[..1])
+        .map(String::as_str)
+        .collect();
+    format!(": {}", path.join(" -> "))
 }
 
 impl InvalidGrayBox {
