@@ -92,10 +92,10 @@ impl DataArgs {
             .iter()
             .enumerate()
             .map(|(i, file)| {
-                let rows = self.rows.get(i).or(self.rows.first()).copied();
                 Ok((
                     file.as_path(),
-                    self.signals.selection(rows.unwrap_or_default())?,
+                    self.signals
+                        .selection(self.rows_of(i).unwrap_or_default())?,
                 ))
             })
             .collect::<Result<Vec<_>, CliError>>()?;
@@ -108,6 +108,12 @@ impl DataArgs {
             )),
             e => self.signals.data_error(e, model),
         })
+    }
+
+    /// The `--rows` of the `i`-th data file (from 0): given once for all
+    /// files, or once per file.
+    pub fn rows_of(&self, i: usize) -> Option<RowRange> {
+        self.rows.get(i).or(self.rows.first()).copied()
     }
 
     /// Row of the file where the (first) record starts.

@@ -215,12 +215,9 @@ pub fn run(args: Args) -> Result<()> {
                     || format!("record {record}"),
                     |p| p.display().to_string(),
                 );
-                // `--rows` once for all files, or once per file.
-                let rows = match &args.select.rows[..] {
-                    [one] => Some(one),
-                    all => all.get(i),
-                };
-                let rows = rows.map(|r| format!(" --rows {r}")).unwrap_or_default();
+                let rows = (args.select.rows_of(i))
+                    .map(|r| format!(" --rows {r}"))
+                    .unwrap_or_default();
                 CliError::input(format!("{file}{rows}: {short} (--warmup)"))
             }
             // Too few samples for the orders and modes: named by the

@@ -92,11 +92,7 @@ pub fn run(args: Args) -> Result<()> {
         if let Some(records) = json.get_mut("records").and_then(|r| r.as_array_mut()) {
             for (i, (r, file)) in records.iter_mut().zip(&args.data).enumerate() {
                 r["file"] = file.display().to_string().into();
-                let rows = match &args.select.rows[..] {
-                    [one] => Some(one),
-                    all => all.get(i),
-                };
-                if let Some(rows) = rows {
+                if let Some(rows) = args.select.rows_of(i) {
                     r["rows"] = rows.to_string().into();
                 }
             }
