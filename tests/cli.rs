@@ -1630,14 +1630,48 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
     identify.extend(named);
     ok(&identify);
     let csv = dir.path().join("sim.csv");
+    // The model reads the signals it was identified on by default.
+    ok(&["validate", s(&model), s(&data)]);
+    let renamed = common::write(
+        dir.path(),
+        "renamed.csv",
+        std::fs::read_to_string(&data)
+            .unwrap()
+            .replacen("a,b,pos", "u1,u2,y", 1),
+    );
     bad(
-        &["validate", s(&model), s(&data)],
+        &["validate", s(&model), s(&renamed)],
         &[
-            "no column",
-            "the model was identified on --input a,b --output pos",
+            "no column 'pos'",
+            "the model was identified on --input a,b --output pos: name this record's signals",
         ],
         &csv,
     );
+    bad(
+        &[
+            "validate",
+            s(&model),
+            s(&renamed),
+            "--input",
+            "u1,u2",
+            "--output",
+            "z",
+        ],
+        &[
+            "no column 'z'",
+            "; the model was identified on --input a,b --output pos",
+        ],
+        &csv,
+    );
+    ok(&[
+        "validate",
+        s(&model),
+        s(&renamed),
+        "--input",
+        "u1,u2",
+        "--output",
+        "y",
+    ]);
     bad(
         &["validate", s(&model), s(&model), s(&data)],
         &["m.json: a model file where a data file (.csv or .mat) is expected"],
@@ -1870,10 +1904,11 @@ guard = "T >= 0"
     }
 }
 
-/// A hand-written gray-box file's inputs are named where the record lacks
-/// the signal asked for (the default `u`).
+/// A hand-written gray-box file's inputs are read by default (by
+/// `validate`, and by `identify -m physical` fitting the file), and named
+/// where the record lacks them.
 #[test]
-fn a_record_without_the_input_names_the_inputs_a_gray_box_file_declares() {
+fn a_gray_box_file_s_declared_inputs_are_read_by_default() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let model = d.join("lag.toml");
@@ -1896,10 +1931,43 @@ flow = { x = "F - a*x" }
     let record = d.join("r.csv");
     let excite = "n=20,hold=5,low=0,high=1,ts=0.1";
     ok(&["simulate", s(&model), "--excite", excite, "-o", s(&record)]);
-    let err = one_line_error(&hysid(&["validate", s(&model), s(&record)]), 2).unwrap();
+    ok(&["validate", s(&model), s(&record)]);
+    let fitted = d.join("m.json");
+    let set = format!("model={}", model.display());
+    let identify = [
+        "identify",
+        s(&record),
+        "-m",
+        "physical",
+        "--set",
+        &set,
+        "--seed",
+        "1",
+    ];
+    ok(&[&identify[..], &["-o", s(&fitted)]].concat());
+    ok(&["validate", s(&fitted), s(&record)]);
+    let renamed = d.join("u.csv");
+    let text = std::fs::read_to_string(&record).unwrap();
+    std::fs::write(&renamed, text.replacen("t,F,y", "t,u,y", 1)).unwrap();
+    let err = one_line_error(&hysid(&["validate", s(&model), s(&renamed)]), 2).unwrap();
     assert!(
-        err.ends_with("no column 'u' (available: t, F, y, mode); the model's inputs are --input F"),
+        err.ends_with(
+            "no column 'F' (available: t, u, y, mode); the model file declares --input F: \
+             name this record's signals with --input and --output"
+        ),
         "{err}"
     );
-    ok(&["validate", s(&model), s(&record), "--input", "F"]);
+    let err = one_line_error(
+        &hysid(&["validate", s(&model), s(&renamed), "--input", "v"]),
+        2,
+    );
+    assert!(
+        err.unwrap()
+            .ends_with("; the model file declares --input F")
+    );
+    ok(&["validate", s(&model), s(&renamed), "--input", "u"]);
+    let renamed_record = [s(&renamed), "--input", "u"];
+    let mut fit = identify.to_vec();
+    fit.splice(1..2, renamed_record);
+    ok(&[&fit[..], &["-o", s(&fitted)]].concat());
 }

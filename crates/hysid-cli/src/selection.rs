@@ -24,11 +24,16 @@ pub struct DataArgs {
 #[derive(clap::Args, Debug, Clone)]
 pub struct SignalArgs {
     /// Input column/variable name(s), comma separated.
-    #[arg(long, value_delimiter = ',', default_value = "u")]
-    pub input: Vec<String>,
+    ///
+    /// Default: the model's inputs (those it was identified on, or those
+    /// its file declares), else u.
+    #[arg(long, value_delimiter = ',')]
+    pub input: Option<Vec<String>>,
     /// Output column/variable name.
-    #[arg(long, default_value = "y")]
-    pub output: String,
+    ///
+    /// Default: the output the model was identified on, else y.
+    #[arg(long)]
+    pub output: Option<String>,
     /// Keep every K-th sample (0, K, 2K, ...; no filter).
     #[arg(long, default_value_t = 1, value_parser = parse_at_least_one)]
     pub decimate: usize,
@@ -40,6 +45,55 @@ pub struct SignalArgs {
     /// Its first step (after decimation) is the sampling time.
     #[arg(long, default_value = hysid_model::data::DEFAULT_TIME)]
     pub time: String,
+    /// The names read where `--input`/`--output` are not given.
+    #[arg(skip)]
+    pub defaults: SignalDefaults,
+}
+
+/// The signal names a command reads where the user names none: a model's
+/// ([`Model::signal_names`]), or the inputs a model file declares; else
+/// `u` and `y`.
+#[derive(Debug, Clone, Default)]
+pub struct SignalDefaults {
+    inputs: Option<Vec<String>>,
+    output: Option<String>,
+    /// Whose names they are, as a message says it.
+    whose: &'static str,
+}
+
+impl SignalDefaults {
+    /// The names `model` reads its record under ([`Model::signal_names`]).
+    pub fn of_model(model: &Model) -> Self {
+        let (inputs, output) = model.signal_names();
+        let whose = if output.is_some() {
+            "the model was identified on"
+        } else {
+            "the model file declares"
+        };
+        SignalDefaults {
+            inputs,
+            output,
+            whose,
+        }
+    }
+
+    /// The inputs a model file declares (`inputs`), for a fit of it.
+    pub fn declared(inputs: Option<Vec<String>>) -> Self {
+        SignalDefaults {
+            inputs: inputs.filter(|names| !names.is_empty()),
+            output: None,
+            whose: "the model file declares",
+        }
+    }
+
+    /// `--input A,B --output Y` for the names these defaults give.
+    fn flags(&self) -> Option<String> {
+        let inputs = self.inputs.as_ref()?;
+        let output = (self.output.as_ref())
+            .map(|o| format!(" --output {o}"))
+            .unwrap_or_default();
+        Some(format!("--input {}{output}", inputs.join(",")))
+    }
 }
 
 /// A whole number of at least 1 (`--decimate`, `--refit-starts`).
@@ -77,10 +131,17 @@ impl DataArgs {
         }
     }
 
+    /// These flags reading, where they name no signal, `defaults`.
+    pub fn reading(self, defaults: SignalDefaults) -> Self {
+        DataArgs {
+            signals: self.signals.reading(defaults),
+            ..self
+        }
+    }
+
     /// The records of `files`, each with its `--rows`, joined into one
-    /// dataset ([`hysid_io::load_records`]), for `model` when one is
-    /// scored on them ([`SignalArgs::data_error`]).
-    pub fn load(&self, files: &[PathBuf], model: Option<&Model>) -> Result<Dataset, CliError> {
+    /// dataset ([`hysid_io::load_records`]).
+    pub fn load(&self, files: &[PathBuf]) -> Result<Dataset, CliError> {
         if self.rows.len() > 1 && self.rows.len() != files.len() {
             return Err(CliError::input(format!(
                 "--rows: given {} times for {} data files; give it once for every file or once per file",
@@ -106,7 +167,7 @@ impl DataArgs {
                 "{e}: give each record its --rows, or, for records of one file under other signal \
                  names, an experiment file's [[data.records]] (docs/compare.md)"
             )),
-            e => self.signals.data_error(e, model),
+            e => self.signals.data_error(e),
         })
     }
 
@@ -123,42 +184,58 @@ impl DataArgs {
 }
 
 impl SignalArgs {
+    /// The input names read: `--input`, else the defaults' ([`SignalDefaults`]).
+    pub fn inputs(&self) -> Vec<String> {
+        (self.input.clone())
+            .or_else(|| self.defaults.inputs.clone())
+            .unwrap_or_else(|| vec![hysid_model::data::DEFAULT_INPUT.to_string()])
+    }
+
+    /// The output name read: `--output`, else the defaults'.
+    pub fn output(&self) -> String {
+        (self.output.clone())
+            .or_else(|| self.defaults.output.clone())
+            .unwrap_or_else(|| hysid_model::data::DEFAULT_OUTPUT.to_string())
+    }
+
+    /// These flags reading, where they name nothing, `defaults`.
+    pub fn reading(self, defaults: SignalDefaults) -> Self {
+        SignalArgs { defaults, ..self }
+    }
+
     /// `e` as the program words it; a signal the record lacks also names
-    /// the flags that read the signals `model` was identified on (for a
-    /// hand-written gray-box file, the inputs it declares), where they are
-    /// not the ones asked for, and a model file given as data is named as
-    /// such.
-    pub fn data_error(&self, e: DataError, model: Option<&Model>) -> CliError {
-        let own = model.map(Model::info).filter(|info| {
-            !info.output_name.is_empty()
-                && (info.input_names != self.input || info.output_name != self.output)
-        });
-        // A hand-written gray-box file names its inputs, not its record's
-        // output.
-        let declared = match model {
-            Some(Model::GrayBox(m)) if own.is_none() && m.inputs != self.input => Some(&m.inputs),
-            _ => None,
-        };
+    /// the model's signals ([`SignalDefaults`]): those the user named
+    /// instead, or those read because the user named none. A model file
+    /// given as data is named as such.
+    pub fn data_error(&self, e: DataError) -> CliError {
         let model_file = |p: &std::path::Path| {
             (p.extension().and_then(|x| x.to_str()))
                 .is_some_and(|x| x.eq_ignore_ascii_case("json") || x.eq_ignore_ascii_case("toml"))
         };
-        match (&e, own) {
-            (DataError::UnsupportedFormat(path), _) if model_file(path) => {
-                CliError::input(format!(
-                    "{}: a model file where a data file (.csv or .mat) is expected",
-                    path.display()
-                ))
+        match &e {
+            DataError::UnsupportedFormat(path) if model_file(path) => CliError::input(format!(
+                "{}: a model file where a data file (.csv or .mat) is expected",
+                path.display()
+            )),
+            DataError::Missing { .. } => {
+                let Some(flags) = self.defaults.flags() else {
+                    return e.into();
+                };
+                let whose = self.defaults.whose;
+                let taken = (self.input.is_none() && self.defaults.inputs.is_some())
+                    || (self.output.is_none() && self.defaults.output.is_some());
+                let differ = (self.defaults.inputs.as_ref()).is_some_and(|d| *d != self.inputs())
+                    || (self.defaults.output.as_ref()).is_some_and(|d| *d != self.output());
+                if taken {
+                    CliError::input(format!(
+                        "{e}; {whose} {flags}: name this record's signals with --input and --output"
+                    ))
+                } else if differ {
+                    CliError::input(format!("{e}; {whose} {flags}"))
+                } else {
+                    e.into()
+                }
             }
-            (DataError::Missing { .. }, Some(info)) => CliError::input(format!(
-                "{e}; the model was identified on --input {} --output {}",
-                info.input_names.join(","),
-                info.output_name
-            )),
-            (DataError::Missing { .. }, None) if declared.is_some() => CliError::input(format!(
-                "{e}; the model's inputs are --input {}",
-                declared.map(|d| d.join(",")).unwrap_or_default()
-            )),
             _ => e.into(),
         }
     }
@@ -168,8 +245,8 @@ impl SignalArgs {
     /// the regressors would be collinear copies of each other.
     pub fn selection(&self, rows: RowRange) -> Result<DataSelection, CliError> {
         let selection = DataSelection {
-            inputs: self.input.clone(),
-            output: self.output.clone(),
+            inputs: self.inputs(),
+            output: self.output(),
             decimate: self.decimate,
             rows,
             ts: self.ts,

@@ -356,6 +356,15 @@ pub trait Identifier: Send + Sync {
         Ok(SearchSpace::default())
     }
 
+    /// The input signals the model fitted with `options` declares by name
+    /// (a physical model file's `inputs`), which a front end reads from a
+    /// record when the user names none; `None` when the back-end's model
+    /// names no signals, or its file cannot be read (`identify` then says
+    /// why).
+    fn declared_inputs(&self, _options: &Self::Options) -> Option<Vec<String>> {
+        None
+    }
+
     /// Checks `priors` against the model structure of `orders` as
     /// `identify` would, without any data (the names of parameters and
     /// regressors, entries that cannot hold together), so that a front end
@@ -428,6 +437,12 @@ pub trait Backend: Send + Sync {
     fn has_stages(&self) -> bool;
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
+    /// The input signals the model fitted with `settings` declares
+    /// ([`Identifier::declared_inputs`]); `None` also for settings the
+    /// back-end refuses ([`Backend::run`] says why).
+    fn declared_inputs(&self, _settings: &Settings) -> Option<Vec<String>> {
+        None
+    }
     /// Checks `priors` against the structure of `orders` without any data
     /// ([`Identifier::check_priors`]). The default accepts every prior: a
     /// back-end that checks in `run`.
@@ -515,6 +530,10 @@ impl<T: Identifier> Backend for T {
     }
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)
+    }
+    fn declared_inputs(&self, settings: &Settings) -> Option<Vec<String>> {
+        let options = checked_settings::<T>(settings).ok()?;
+        Identifier::declared_inputs(self, &options)
     }
     fn check_settings(&self, settings: &Settings) -> Result<(), OptionError> {
         checked_settings::<T>(settings).map(|_| ())

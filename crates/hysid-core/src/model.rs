@@ -151,6 +151,26 @@ impl Model {
         }
     }
 
+    /// The names under which the model reads its inputs and output from a
+    /// record: those it was identified on, else, for the inputs, the names
+    /// its file declares (a mechanical, gray-box or automaton file's
+    /// `inputs`); `None` where it names none, or not one per input.
+    pub fn signal_names(&self) -> (Option<Vec<String>>, Option<String>) {
+        let info = self.info();
+        let declared = match self {
+            Model::Pwarx(_) => &[][..],
+            Model::HybridAutomaton(m) => &m.inputs[..],
+            Model::Mechanical(m) => &m.inputs[..],
+            Model::GrayBox(m) => &m.inputs[..],
+        };
+        let inputs = [&info.input_names[..], declared]
+            .into_iter()
+            .find(|names| !names.is_empty() && names.len() == self.inputs())
+            .map(<[String]>::to_vec);
+        let output = Some(info.output_name.clone()).filter(|name| !name.is_empty());
+        (inputs, output)
+    }
+
     /// The ARX orders of a model whose state is a window of past outputs
     /// and inputs (PWARX models, automata with an ARX history); `None` for
     /// the others.

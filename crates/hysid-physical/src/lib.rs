@@ -193,6 +193,14 @@ impl Identifier for Physical {
     const SUMMARY: &'static str = "physical parameters of a mechanical or gray-box hybrid model (--set model=FILE) by simulation error: swarm + Levenberg-Marquardt + Nelder-Mead";
     const HONOURS: &'static [PriorKind] = &[PriorKind::Fixed, PriorKind::Bounds, PriorKind::Tie];
 
+    fn declared_inputs(&self, options: &PhysicalOptions) -> Option<Vec<String>> {
+        match Model::load(Path::new(options.model.trim())).ok()? {
+            Model::Mechanical(m) => Some(m.inputs),
+            Model::GrayBox(g) => Some(g.inputs),
+            _ => None,
+        }
+    }
+
     fn identify(
         &self,
         problem: &Problem<'_>,

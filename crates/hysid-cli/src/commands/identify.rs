@@ -4,7 +4,7 @@
 use crate::error::CliError;
 use crate::error::Result;
 use crate::progress::TerminalProgress;
-use crate::selection::DataArgs;
+use crate::selection::{DataArgs, SignalDefaults};
 use hysid::identify::{Auto, Identify, Mode};
 use hysid::select::SelectError;
 use hysid_core::options::Settings;
@@ -156,7 +156,16 @@ pub fn run(args: Args) -> Result<()> {
     }
     let inputs = args.data.iter().chain(&args.prior).map(PathBuf::as_path);
     super::not_an_input("-o", &args.out, inputs)?;
-    let data = args.select.load(&args.data, None)?;
+    let options = Settings::parse(&args.set)?;
+    // A physical model file's declared inputs are read where none are named.
+    let declared = registry
+        .get(&args.method)
+        .and_then(|backend| backend.declared_inputs(&options));
+    let select = args
+        .select
+        .clone()
+        .reading(SignalDefaults::declared(declared));
+    let data = select.load(&args.data)?;
     let mode = if args.auto {
         let grid = (!args.grid.is_empty())
             .then(|| SearchSpace::parse_grid(&args.grid))
@@ -187,7 +196,7 @@ pub fn run(args: Args) -> Result<()> {
         priors_origin: args.prior.as_ref().map(|p| p.display().to_string()),
         modes: args.modes,
         max_modes: args.max_modes,
-        options: Settings::parse(&args.set)?,
+        options,
         seed: args.seed,
         time_budget: args.time_budget,
         stop: None,

@@ -3,7 +3,7 @@
 
 use crate::error::CliError;
 use crate::error::Result;
-use crate::selection::DataArgs;
+use crate::selection::{DataArgs, SignalDefaults};
 use hysid_core::model::Model;
 use hysid_core::simulate::simulate;
 use hysid_model::data::{Dataset, Signal};
@@ -61,9 +61,14 @@ pub fn run(args: Args) -> Result<()> {
     let inputs = std::iter::once(&args.model).chain(&args.data);
     super::not_an_input("-o", &args.out, inputs.map(PathBuf::as_path))?;
     let model = super::load_model(&args.model)?;
+    let select = args
+        .select
+        .clone()
+        .reading(SignalDefaults::of_model(&model));
     let data = match (&args.data, &args.excite) {
-        (Some(path), None) => hysid_io::load(path, &args.select.selection()?)
-            .map_err(|e| args.select.signals.data_error(e, Some(&model)))?,
+        (Some(path), None) => {
+            hysid_io::load(path, &select.selection()?).map_err(|e| select.signals.data_error(e))?
+        }
         (None, Some(spec)) => {
             let e = Excitation::parse_for(spec, model.inputs())
                 .map_err(|e: ExcitationError| CliError::input(e.to_string()))?;
@@ -205,17 +210,9 @@ fn time_text(k: usize, ts: f64) -> String {
 
 fn input_names(model: &Model) -> Vec<String> {
     let m = model.inputs();
-    let given = match model {
-        Model::HybridAutomaton(a) => a.inputs.clone(),
-        Model::Pwarx(p) => p.info.input_names.clone(),
-        Model::Mechanical(p) => p.inputs.clone(),
-        Model::GrayBox(p) => p.inputs.clone(),
-    };
-    if given.len() == m {
-        given
-    } else if m == 1 {
-        vec!["u".into()]
-    } else {
-        (1..=m).map(|i| format!("u{i}")).collect()
+    match model.signal_names().0 {
+        Some(names) => names,
+        None if m == 1 => vec![hysid_model::data::DEFAULT_INPUT.into()],
+        None => (1..=m).map(|i| format!("u{i}")).collect(),
     }
 }

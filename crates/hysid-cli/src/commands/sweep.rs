@@ -93,7 +93,7 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
         return Ok(());
     };
     let setup = Setup {
-        orders: RegressorSpec::new(args.na, args.nb, args.signals.input.len()),
+        orders: RegressorSpec::new(args.na, args.nb, args.signals.inputs().len()),
         priors: priors.clone(),
         settings: given,
     };
@@ -144,8 +144,8 @@ pub fn run(args: Args) -> Result<()> {
         description: String::new(),
         data: DataSpec {
             file: args.data.clone(),
-            input: args.signals.input.clone(),
-            output: args.signals.output.clone(),
+            input: args.signals.inputs(),
+            output: args.signals.output(),
             decimate: args.signals.decimate,
             ts: args.signals.ts,
             time: args.signals.time.clone(),

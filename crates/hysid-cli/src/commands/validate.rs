@@ -3,7 +3,7 @@
 
 use crate::error::CliError;
 use crate::error::Result;
-use crate::selection::DataArgs;
+use crate::selection::{DataArgs, SignalDefaults};
 use hysid::plot::{FigureFormat, SimulationFigure};
 use hysid_core::priors::Priors;
 use hysid_core::simulate::validate;
@@ -36,13 +36,14 @@ pub struct Args {
 }
 
 /// Runs the command.
-pub fn run(args: Args) -> Result<()> {
+pub fn run(mut args: Args) -> Result<()> {
     if let Some(plot) = &args.plot {
         let inputs = std::iter::once(&args.model).chain(&args.data);
         super::not_an_input("--plot", plot, inputs.map(PathBuf::as_path))?;
     }
     let model = super::load_model(&args.model)?;
-    let data = args.select.load(&args.data, Some(&model))?;
+    args.select = args.select.reading(SignalDefaults::of_model(&model));
+    let data = args.select.load(&args.data)?;
     for (file, range) in args.data.iter().zip(data.record_ranges()) {
         if args.warmup >= range.len() {
             return Err(CliError::input(format!(

@@ -271,11 +271,17 @@ pub struct DataSelection {
 /// The default name of the time column/variable.
 pub const DEFAULT_TIME: &str = "t";
 
+/// The default name of the input column/variable.
+pub const DEFAULT_INPUT: &str = "u";
+
+/// The default name of the output column/variable.
+pub const DEFAULT_OUTPUT: &str = "y";
+
 impl Default for DataSelection {
     fn default() -> Self {
         Self {
-            inputs: vec!["u".into()],
-            output: "y".into(),
+            inputs: vec![DEFAULT_INPUT.into()],
+            output: DEFAULT_OUTPUT.into(),
             decimate: 1,
             rows: RowRange::default(),
             ts: None,
