@@ -1466,6 +1466,27 @@ fn malformed_experiment_files() {
         ),
         // What the back-end would refuse is refused before anything runs.
         (
+            "no-modes.toml",
+            format!(
+                "title = \"x\"\n{data}[[sweep]]\nname = \"s\"\nmethod = \"cluster\"\nvary = \"c\"\nvalues = [20, 40]\n"
+            ),
+            vec![
+                "no-modes.toml",
+                "[[sweep]] 's'",
+                "'cluster' needs the number of modes",
+                "(or sweep modes)",
+            ],
+        ),
+        (
+            "run-modes.toml",
+            format!("title = \"x\"\n{data}{}", run.replace("arx", "klinreg")),
+            vec![
+                "[[run]] 'a'",
+                "'klinreg' needs the number of modes",
+                "(or auto = true to choose it)",
+            ],
+        ),
+        (
             "vary.toml",
             format!(
                 "title = \"x\"\n{data}[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"naa\"\nvalues = [1, 2]\n"
@@ -1475,7 +1496,7 @@ fn malformed_experiment_files() {
         (
             "grid.toml",
             format!(
-                "title = \"x\"\n{data}[[sweep]]\nname = \"s\"\nmethod = \"cluster\"\ngrid = {{ c = [20, \"x\"] }}\n"
+                "title = \"x\"\n{data}[[sweep]]\nname = \"s\"\nmethod = \"cluster\"\nmodes = 2\ngrid = {{ c = [20, \"x\"] }}\n"
             ),
             vec!["grid.toml", "[[sweep]] 's'", "grid c=x"],
         ),

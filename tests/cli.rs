@@ -1136,10 +1136,19 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
     assert!(hysid(&args).status.success());
     let figure = std::fs::read_to_string(out.join("plots/arx-sweep.svg")).unwrap();
     assert!(figure.contains("against nb"), "{}", &figure[..400]);
-    // cluster without a mode count fails at every point: exit code 1, the
-    // report written with -o (with no sweep figure: nothing to draw).
-    let out = dir.path().join("failed");
+    // cluster without a mode count is refused before any point runs.
     let mut args = vec!["sweep", s(&data), "-m", "cluster", "--grid", "c=20,40"];
+    args.extend(rows);
+    let err = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(
+        err.contains("'cluster' needs the number of modes: --modes S, --grid modes="),
+        "{err}"
+    );
+    // More modes than the rows identify fail at every point: exit code 1,
+    // the report written with -o (with no sweep figure: nothing to draw).
+    let out = dir.path().join("failed");
+    let mut args = vec!["sweep", s(&data), "-m", "cluster", "--modes", "100"];
+    args.extend(["--grid", "c=20,40"]);
     args.extend(rows);
     args.extend(["-o", s(&out)]);
     let o = hysid(&args);

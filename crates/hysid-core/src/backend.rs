@@ -335,6 +335,11 @@ pub trait Identifier: Send + Sync {
     /// ([`crate::stages::Stages`]): its options include theirs, and
     /// automatic selection may set them.
     const STAGES: bool = false;
+    /// Whether a fit needs the number of modes from its priors (`modes`,
+    /// or `max_modes` to choose it): without either, `identify` refuses
+    /// the run ([`IdentifyError::NeedsModeCount`]); automatic selection
+    /// chooses the count itself.
+    const NEEDS_MODE_COUNT: bool = false;
     /// The options that turn the defaults into the procedure of the
     /// back-end's paper exactly (`--set preset=paper`,
     /// [`crate::options::PRESET`]); empty when the defaults are that
@@ -435,6 +440,11 @@ pub trait Backend: Send + Sync {
     /// Whether the back-end runs the stages after a PWARX fit
     /// ([`Identifier::STAGES`]).
     fn has_stages(&self) -> bool;
+    /// Whether a fit needs the number of modes from its priors
+    /// ([`Identifier::NEEDS_MODE_COUNT`]); the default: it does not.
+    fn needs_mode_count(&self) -> bool {
+        false
+    }
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
     /// The input signals the model fitted with `settings` declares
@@ -527,6 +537,9 @@ impl<T: Identifier> Backend for T {
     }
     fn has_stages(&self) -> bool {
         T::STAGES
+    }
+    fn needs_mode_count(&self) -> bool {
+        T::NEEDS_MODE_COUNT
     }
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)

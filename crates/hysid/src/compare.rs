@@ -541,7 +541,8 @@ impl Experiment {
 /// `job`'s priors and options as its back-end checks them before it fits
 /// (a `modes` of 0, an option it does not take, a value it refuses, a
 /// prior kind it does not honour, a name the model structure of `inputs`
-/// inputs lacks, entries that cannot hold together), so
+/// inputs lacks, entries that cannot hold together, no mode count for a
+/// back-end that needs one), so
 /// that a malformed entry is refused before anything runs. `what` is
 /// `run` or `sweep`; `source` names where an option's value comes from
 /// (`set`, or a sweep's `vary` or `grid`). An unknown method is left to
@@ -571,6 +572,18 @@ fn check_job(
             .map_err(|e| invalid(e.to_string()))?;
         let orders = RegressorSpec::new(job.na, job.nb, inputs);
         (backend.check_priors(&job.priors, orders, None)).map_err(|e| invalid(e.to_string()))?;
+        let counted = job.priors.modes.is_some() || job.priors.max_modes.is_some();
+        if backend.needs_mode_count() && !job.auto && !counted {
+            let choose = match job.sweep {
+                Some(_) => "sweep modes",
+                None => "auto = true to choose it",
+            };
+            return Err(invalid(format!(
+                "method '{}' needs the number of modes: give modes = S or max_modes = S (or \
+                 {choose})",
+                backend.name()
+            )));
+        }
     }
     Ok(())
 }

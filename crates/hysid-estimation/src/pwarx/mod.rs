@@ -187,6 +187,7 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
     const SEEDED: bool = M::SEEDED;
     const SEED_USE: &'static str = M::SEED_USE;
     const STAGES: bool = true;
+    const NEEDS_MODE_COUNT: bool = matches!(M::MODE_RULE, ModeRule::Given);
     const PAPER: &'static [(&'static str, &'static str)] = M::PAPER;
 
     fn seeded_with(&self, problem: &Problem<'_>, options: &Self::Options) -> bool {
