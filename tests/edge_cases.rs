@@ -497,8 +497,46 @@ fn a_diverging_simulation_is_reported() {
         if what == "validate" {
             let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
             assert!(report["diverged_at"].as_u64().is_some(), "{report}");
+            assert_eq!(report["diverged_to"], "bound", "{report}");
         }
     }
+}
+
+/// A flow that takes the square root of a state driven below zero gives an
+/// undefined output: said as such, not as a divergence of magnitude.
+#[test]
+fn an_undefined_simulated_output_is_named_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = write(
+        d,
+        "tank.toml",
+        r#"kind = "gray_box"
+format = 1
+internal_step = 0.01
+states = ["h"]
+inputs = ["u"]
+outputs = ["h"]
+initial_state = { from = "given", values = { h = 1.0 } }
+parameters = [{ name = "a", value = 1.0, bounds = [0.1, 10.0] }]
+[[modes]]
+name = "only"
+flow = { h = "u - a*sqrt(h)" }
+"#,
+    );
+    let data = d.join("drained.csv");
+    let excite = "n=200,hold=20,low=-1,high=0,ts=0.1";
+    let o = hysid(&["simulate", s(&model), "--excite", excite, "-o", s(&data)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("hysid: warning: the simulated output became undefined (NaN) at sample"),
+        "{err}"
+    );
+    let o = hysid(&["validate", s(&model), s(&data), "--json"]);
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(report["diverged_to"], "undefined", "{report}");
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("diverged at"));
 }
 
 #[test]

@@ -18,8 +18,8 @@ use hysid_model::data::same_sampling;
 use hysid_model::metrics::{fit, pooled_fit, rmse};
 use hysid_model::model::InitialState;
 use hysid_model::simulate::{
-    SimError, Simulation, SimulationOptions, SimulationWarning, ZenoSteps, automaton, per_record,
-    pwarx,
+    DivergedTo, SimError, Simulation, SimulationOptions, SimulationWarning, ZenoSteps, automaton,
+    per_record, pwarx,
 };
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -129,6 +129,9 @@ pub struct ValidationReport {
     pub coverage_sim: f64,
     /// Sample where the simulation diverged, if it did.
     pub diverged_at: Option<usize>,
+    /// How it diverged (`bound` or `undefined`), where it did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diverged_to: Option<DivergedTo>,
     /// The simulation's sub-steps that reached the Zeno bound, if any did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub zeno: Option<ZenoSteps>,
@@ -155,7 +158,7 @@ impl ValidationReport {
     /// What the user of this validation should be told about its
     /// simulation ([`SimulationWarning`]).
     pub fn warnings(&self) -> Vec<SimulationWarning> {
-        SimulationWarning::of(self.diverged_at, self.zeno)
+        SimulationWarning::of(self.diverged_at, self.diverged_to, self.zeno)
     }
 }
 
@@ -352,6 +355,7 @@ pub fn validate(
         coverage: weighted(|p| p.coverage),
         coverage_sim: weighted(|p| p.coverage_sim),
         diverged_at: sim.diverged_at,
+        diverged_to: sim.diverged_to,
         zeno: sim.zeno,
         mode_counts,
         initial_states: BTreeMap::new(),
@@ -432,6 +436,7 @@ fn validate_record(
         coverage: frac(&pred),
         coverage_sim: frac(&sim),
         diverged_at: sim.diverged_at,
+        diverged_to: sim.diverged_to,
         zeno: sim.zeno,
         mode_counts,
         initial_states: states.values,

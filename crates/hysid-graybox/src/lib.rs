@@ -71,6 +71,7 @@ fn to_simulation(r: simulate::GrayBoxRun, opts: SimulationOptions) -> Simulation
         start: r.start,
         covered: r.covered,
         diverged_at: None,
+        diverged_to: None,
         zeno: r.zeno,
     };
     for k in r.start..n {

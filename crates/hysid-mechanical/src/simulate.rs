@@ -617,6 +617,7 @@ pub fn simulate(
         start: r.start,
         covered: vec![true; n],
         diverged_at: None,
+        diverged_to: None,
         zeno: None,
     };
     for k in r.start..n {
@@ -655,6 +656,7 @@ pub fn predict(m: &MechanicalModel, data: &Dataset) -> Result<Simulation, SimErr
         start: first + 1,
         covered: vec![true; n],
         diverged_at: None,
+        diverged_to: None,
         zeno: None,
     };
     let mut u = vec![0.0; m.inputs.len()];

@@ -202,6 +202,7 @@ mod tests {
             start: 1,
             covered: vec![true; 4],
             diverged_at: None,
+            diverged_to: None,
             zeno: None,
         };
         let fig = SimulationFigure::from_dataset("t", &data, 100, "y [mm]", "u [-]")

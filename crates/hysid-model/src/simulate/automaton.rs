@@ -358,6 +358,7 @@ fn simulate_with(
         start: k0 + 1,
         covered: vec![true; data.len()],
         diverged_at: None,
+        diverged_to: None,
         zeno: None,
     };
     let mut q = m.initial_mode.as_deref().and_then(|n| m.mode_index(n));
@@ -456,6 +457,7 @@ pub fn predict(m: &HybridAutomaton, data: &Dataset) -> Result<Simulation, SimErr
         start: k0 + 1,
         covered: vec![true; data.len()],
         diverged_at: None,
+        diverged_to: None,
         zeno: None,
     };
     for k in k0..data.len() - 1 {

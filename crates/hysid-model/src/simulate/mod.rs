@@ -7,7 +7,8 @@
 //!   in [`Simulation::covered`].
 //! - **Divergence**: when the output leaves `[-bound, bound]` or is not
 //!   finite, the simulation stops there, the output is held at the clamped
-//!   value and [`Simulation::diverged_at`] reports the sample.
+//!   value (at 0 after an undefined one) and [`Simulation::diverged_at`]
+//!   reports the sample, [`Simulation::diverged_to`] how.
 //! - **Initial conditions**: PWARX models start from the first `max(na, nb)`
 //!   measured outputs; automata from their [`InitialState`](crate::model::InitialState) rule.
 
@@ -70,8 +71,23 @@ pub struct Simulation {
     pub covered: Vec<bool>,
     /// Sample at which the output diverged, if it did.
     pub diverged_at: Option<usize>,
+    /// How it diverged, where it did.
+    pub diverged_to: Option<DivergedTo>,
     /// The integration sub-steps that reached the Zeno bound, if any did.
     pub zeno: Option<ZenoSteps>,
+}
+
+/// How a simulated output diverged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DivergedTo {
+    /// Its magnitude passed the bound ([`SimulationOptions::bound`]), or
+    /// infinity.
+    Bound,
+    /// It became undefined (NaN): a flow, a reset or the output map gave an
+    /// undefined value (the square root or logarithm of a negative number,
+    /// `0/0`, ...).
+    Undefined,
 }
 
 /// Integration sub-steps of a hybrid model's run that reached the bound of
@@ -124,29 +140,43 @@ impl std::fmt::Display for ZenoSteps {
 /// What the user of a run should be told about it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SimulationWarning {
-    /// The output diverged at this sample and is held from there on.
-    Diverged(usize),
+    /// The output diverged at this sample, as said, and is held from there
+    /// on.
+    Diverged(usize, DivergedTo),
     /// Sub-steps reached the Zeno bound.
     Zeno(ZenoSteps),
 }
 
 impl SimulationWarning {
-    /// The warnings of a run that diverged at `diverged_at` and reached the
-    /// Zeno bound in `zeno`.
-    pub fn of(diverged_at: Option<usize>, zeno: Option<ZenoSteps>) -> Vec<Self> {
+    /// The warnings of a run that diverged at `diverged_at` (to
+    /// `diverged_to`) and reached the Zeno bound in `zeno`.
+    pub fn of(
+        diverged_at: Option<usize>,
+        diverged_to: Option<DivergedTo>,
+        zeno: Option<ZenoSteps>,
+    ) -> Vec<Self> {
+        let to = diverged_to.unwrap_or(DivergedTo::Bound);
         let zeno = zeno.map(SimulationWarning::Zeno);
-        (diverged_at.map(SimulationWarning::Diverged).into_iter())
-            .chain(zeno)
-            .collect()
+        (diverged_at
+            .map(|k| SimulationWarning::Diverged(k, to))
+            .into_iter())
+        .chain(zeno)
+        .collect()
     }
 }
 
 impl std::fmt::Display for SimulationWarning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            SimulationWarning::Diverged(k) => write!(
+            SimulationWarning::Diverged(k, DivergedTo::Bound) => write!(
                 f,
                 "the simulation diverged at sample {k}; the output is held from there on"
+            ),
+            SimulationWarning::Diverged(k, DivergedTo::Undefined) => write!(
+                f,
+                "the simulated output became undefined (NaN) at sample {k}: a flow, a reset or \
+                 the output map gave an undefined value (the square root or logarithm of a \
+                 negative number, 0/0, ...); the output is held at 0 from there on"
             ),
             SimulationWarning::Zeno(z) => z.fmt(f),
         }
@@ -156,7 +186,7 @@ impl std::fmt::Display for SimulationWarning {
 impl Simulation {
     /// What the user of this run should be told ([`SimulationWarning`]).
     pub fn warnings(&self) -> Vec<SimulationWarning> {
-        SimulationWarning::of(self.diverged_at, self.zeno)
+        SimulationWarning::of(self.diverged_at, self.diverged_to, self.zeno)
     }
 
     /// Records a new output sample, detecting divergence. Returns false when
@@ -171,7 +201,14 @@ impl Simulation {
             } else {
                 v.clamp(-bound, bound)
             };
-            self.diverged_at.get_or_insert(k);
+            if self.diverged_at.is_none() {
+                self.diverged_at = Some(k);
+                self.diverged_to = Some(if v.is_nan() {
+                    DivergedTo::Undefined
+                } else {
+                    DivergedTo::Bound
+                });
+            }
             for yk in &mut self.y[k..] {
                 *yk = held;
             }
@@ -216,6 +253,7 @@ impl Simulation {
             start: 0,
             covered: Vec::new(),
             diverged_at: None,
+            diverged_to: None,
             zeno: None,
         });
         for (part, at) in parts.zip(ranges.iter().skip(1).map(|r| r.start)) {
@@ -229,6 +267,7 @@ impl Simulation {
             joined.covered.extend(part.covered);
             if joined.diverged_at.is_none() {
                 joined.diverged_at = part.diverged_at.map(|k| k + at);
+                joined.diverged_to = part.diverged_to;
             }
             joined.zeno = ZenoSteps::joined(joined.zeno, part.zeno, at);
         }

@@ -18,6 +18,7 @@ fn empty(m: &PwarxModel, data: &Dataset) -> Result<Simulation, SimError> {
         start: lag,
         covered: vec![true; data.len()],
         diverged_at: None,
+        diverged_to: None,
         zeno: None,
     })
 }

@@ -8,6 +8,7 @@ use hysid_model::data::Dataset;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{HybridAutomaton, InitialState, PwarxMode, PwarxModel, TimeDomain};
 use hysid_model::regressors::RegressorSpec;
+use hysid_model::simulate::DivergedTo;
 use hysid_model::statistics::median;
 use hysid_plot::{
     ModeFigure, ModeSequence, RegionFigure, SimulationFigure, SweepFigure, SweepPanel, SweepSeries,
@@ -525,8 +526,15 @@ pub fn markdown(c: &Comparison) -> String {
             None => ("-".into(), "-".into(), "-".into(), "-".into()),
         };
         let mut note = r.error.clone().unwrap_or_default();
-        if let Some(k) = r.report.as_ref().and_then(|v| v.diverged_at) {
-            note = format!("simulation diverged at sample {k}");
+        if let Some(v) = &r.report
+            && let Some(k) = v.diverged_at
+        {
+            note = match v.diverged_to {
+                Some(DivergedTo::Undefined) => {
+                    format!("simulated output undefined (NaN) at sample {k}")
+                }
+                _ => format!("simulation diverged at sample {k}"),
+            };
         }
         let model_notes = r.model.as_ref().map(|m| {
             [selection_note(m), holes_note(m), status_note(m)]

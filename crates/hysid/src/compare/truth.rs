@@ -221,6 +221,7 @@ mod tests {
             start: 1,
             covered: vec![true; 5],
             diverged_at: None,
+            diverged_to: None,
             zeno: None,
         };
         let r = t.score(&sim, 0).unwrap().unwrap();
