@@ -1852,6 +1852,35 @@ fn crossed_stops_are_refused() {
     report();
 }
 
+/// A mechanical friction level that could be negative (its value, or its
+/// parameter's lower bound) is refused when read: the simulator reads a
+/// negative level as 0, so a fit would search a range that does nothing.
+#[test]
+fn negative_friction_levels_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let head = repository_text("models/pick-and-place/head.toml");
+    let kinetic = "value = 680.0\nbounds = [200.0, 1200.0]";
+    assert!(head.contains(kinetic));
+    for (replacement, needle) in [
+        (
+            "value = 680.0\nbounds = [-200.0, 1200.0]",
+            "friction.kinetic: a friction level is a magnitude, at least 0; the lower bound of 'f1' is -200",
+        ),
+        (
+            "value = -680.0\nbounds = [-1200.0, 1200.0]",
+            "the value of 'f1' is -680",
+        ),
+    ] {
+        let file = write(d, "negative.toml", head.replace(kinetic, replacement));
+        let excite = "n=20,hold=2,low=0,high=1,ts=0.0025";
+        let args = ["simulate", s(&file), "--excite", excite, "-o", s(&out)];
+        bad(&args, &["negative.toml", needle], &out);
+    }
+    report();
+}
+
 /// `convert` reads a mechanical model and nothing else; it never writes
 /// over its input.
 #[test]

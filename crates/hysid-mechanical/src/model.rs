@@ -351,6 +351,17 @@ pub enum InvalidMechanical {
     /// An input force naming an unknown input.
     #[error("input force: no input named '{0}'")]
     UnknownInput(String),
+    /// A friction level that can be negative: its value, or its
+    /// parameter's value or lower bound (the simulator would read it as 0).
+    #[error("{what}: a friction level is a magnitude, at least 0; {given} is {low}")]
+    NegativeFriction {
+        /// Which level (`friction.kinetic`, `contact 'c' friction`).
+        what: String,
+        /// `its value`, or `the value of 'f1'` or `the lower bound of 'f1'`.
+        given: String,
+        /// The negative number.
+        low: f64,
+    },
     /// More contacts than the simulator handles.
     #[error("at most {MAX_CONTACTS} contacts")]
     TooManyContacts,
@@ -582,8 +593,32 @@ impl MechanicalModel {
                 ForceElement::Damper { coefficient } => check(coefficient, "damper coefficient")?,
             }
         }
-        check(&self.friction.kinetic, "friction.kinetic")?;
-        check(&self.friction.static_level, "friction.static")?;
+        // A friction level is a magnitude: where it could be negative the
+        // fit would search a range that does nothing.
+        let magnitude = |q: &Quantity, what: &str| -> Result<(), InvalidMechanical> {
+            check(q, what)?;
+            let (given, low) = match q {
+                Quantity::Value(v) => ("its value".to_string(), *v),
+                Quantity::Param(n) => {
+                    let p = self.parameters.iter().find(|p| &p.name == n);
+                    match p {
+                        Some(p) if p.value < 0.0 => (format!("the value of '{n}'"), p.value),
+                        Some(p) => (format!("the lower bound of '{n}'"), p.bounds[0]),
+                        None => return Ok(()),
+                    }
+                }
+            };
+            if low < 0.0 {
+                return Err(E::NegativeFriction {
+                    what: what.to_string(),
+                    given,
+                    low,
+                });
+            }
+            Ok(())
+        };
+        magnitude(&self.friction.kinetic, "friction.kinetic")?;
+        magnitude(&self.friction.static_level, "friction.static")?;
         if self.contacts.len() > MAX_CONTACTS {
             return Err(E::TooManyContacts);
         }
@@ -596,7 +631,7 @@ impl MechanicalModel {
             check(&c.position, &w("position"))?;
             check(&c.stiffness, &w("stiffness"))?;
             check(&c.damping, &w("damping"))?;
-            check(&c.friction, &w("friction"))?;
+            magnitude(&c.friction, &w("friction"))?;
         }
         let mut stops = HashSet::with_capacity(self.stops.len());
         for s in &self.stops {
