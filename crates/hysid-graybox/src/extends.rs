@@ -170,8 +170,50 @@ pub fn extend(mut base: Value, mut own: Value) -> Result<Value, String> {
     let removals = removals(own.as_object_mut().and_then(|t| t.remove("remove")))?;
     remove(&mut base, &removals)?;
     check_unique_names(&own)?;
+    check_new_entries(&base, &own)?;
     merge(&mut base, own);
     Ok(base)
+}
+
+/// The keys an entry of each array merged by name needs when the base has
+/// no entry of its name: without them the file's entry is most likely a
+/// misspelt change of one of the base's.
+const NEW_ENTRY_KEYS: [(&str, &[&str]); 4] = [
+    ("parameters", &["value"]),
+    ("elements", &["type"]),
+    ("modes", &["flow"]),
+    ("outputs", &["value"]),
+];
+
+/// Refuses an entry of `own` that the base lacks by name and that lacks a
+/// key a new entry needs ([`NEW_ENTRY_KEYS`]), naming the base's entries.
+fn check_new_entries(base: &Value, own: &Value) -> Result<(), String> {
+    for (array, keys) in NEW_ENTRY_KEYS {
+        let Some(Value::Array(over)) = own.get(array) else {
+            continue;
+        };
+        let known: Vec<&str> = match base.get(array) {
+            Some(Value::Array(items)) => items.iter().filter_map(name_of).collect(),
+            _ => Vec::new(),
+        };
+        for entry in over {
+            let Some(name) = name_of(entry).filter(|n| !known.contains(n)) else {
+                continue;
+            };
+            if let Some(key) = keys.iter().find(|k| entry.get(**k).is_none()) {
+                return Err(format!(
+                    "[[{array}]] '{name}': the base has no entry of that name (its {array}: {}), \
+                     and a new one needs `{key}`",
+                    if known.is_empty() {
+                        "none".to_string()
+                    } else {
+                        known.join(", ")
+                    }
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The syntax of a model file.
@@ -610,6 +652,33 @@ name = "friction"
             removing(&["parameters.a.w"]).unwrap_err(),
             "remove: the base has no entry `parameters.a.w`"
         );
+    }
+
+    #[test]
+    fn a_new_entry_without_what_a_new_one_needs_is_named_with_the_base_s() {
+        let base = json!({
+            "parameters": [{"name": "f1", "value": 1.0, "bounds": [0, 2]}],
+            "elements": [{"name": "friction", "type": "dry_friction"}],
+        });
+        let misspelt = |over: Value| extend(base.clone(), over).unwrap_err();
+        assert_eq!(
+            misspelt(json!({"elements": [{"name": "frictio", "kinetic": "2*f1"}]})),
+            "[[elements]] 'frictio': the base has no entry of that name (its elements: \
+             friction), and a new one needs `type`"
+        );
+        let e = misspelt(json!({"parameters": [{"name": "f11", "bounds": [0, 3]}]}));
+        assert!(
+            e.ends_with("(its parameters: f1), and a new one needs `value`"),
+            "{e}"
+        );
+        let e = misspelt(json!({"modes": [{"name": "free"}]}));
+        assert!(e.contains("(its modes: none)"), "{e}");
+        // Changes of the base's entries, and complete new ones, merge.
+        let over = json!({
+            "parameters": [{"name": "f1", "bounds": [0, 3]}, {"name": "f2", "value": 0.0}],
+            "elements": [{"name": "friction", "kinetic": "f1"}],
+        });
+        assert!(extend(base.clone(), over).is_ok());
     }
 
     #[test]
