@@ -343,6 +343,16 @@ method = "arx"
         scored["records"][1]["fit_sim"].as_f64().unwrap()
     );
     assert!(markdown.contains(&per_record), "{markdown}");
+    // The per-record columns are named by the scored records (b.csv fits
+    // only).
+    assert!(
+        markdown.contains("| run | a.csv 150.. | c.csv .. |"),
+        "{markdown}"
+    );
+    assert_eq!(
+        report["scored_records"],
+        serde_json::json!(["a.csv 150..", "c.csv .."])
+    );
     let data = report["data"].as_str().unwrap();
     assert!(data.contains("b.csv (identification rows ..)"), "{data}");
     assert!(data.contains("c.csv (validation rows ..)"), "{data}");

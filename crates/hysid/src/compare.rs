@@ -190,6 +190,11 @@ pub struct Comparison {
     /// ([`Experiment::warnings`]), as text.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// The scored records in order, each as its file's name, rows and
+    /// (where they are not `[data]`'s) signals: the columns of the
+    /// per-record table.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub scored_records: Vec<String>,
     /// Validation warm-up.
     pub warmup: usize,
     /// What the scored rows are (validation or selection rows).
@@ -459,6 +464,35 @@ impl Experiment {
         text
     }
 
+    /// The scored records, as [`Comparison::scored_records`] names them
+    /// (none when the scored rows are one record).
+    fn scored_records(&self) -> Vec<String> {
+        let d = &self.data;
+        let name = |p: &std::path::Path| {
+            p.file_name().map_or_else(
+                || p.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            )
+        };
+        let others: Vec<String> = (d.records.iter())
+            .filter_map(|r| {
+                let rows = r.validation?;
+                let own = d.record_selection(r, RowRange::default());
+                let signals = if own.inputs != d.input || own.output != d.output {
+                    format!(" ({} -> {})", own.inputs.join(", "), own.output)
+                } else {
+                    String::new()
+                };
+                Some(format!("{} {rows}{signals}", name(&r.file)))
+            })
+            .collect();
+        if others.is_empty() {
+            return others;
+        }
+        let first = format!("{} {}", name(&d.file), d.validation);
+        std::iter::once(first).chain(others).collect()
+    }
+
     /// Loads the data once, then runs every job in parallel and scores it.
     pub fn run(&self, progress: &dyn Progress) -> Result<Comparison, ExperimentError> {
         let (ident, valid) = self.records()?;
@@ -516,6 +550,7 @@ impl Experiment {
             title: self.title.clone(),
             description: self.description.clone(),
             data: self.data_text(),
+            scored_records: self.scored_records(),
             warnings: warnings.iter().map(ToString::to_string).collect(),
             scored_rows: self.scored_rows,
             warmup: self.data.warmup,

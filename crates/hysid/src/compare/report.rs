@@ -751,7 +751,12 @@ Per record ({} fit_sim [%], each record from its own initial state and warm-up; 
 ",
         c.scored_rows.word()
     );
-    let heads: Vec<String> = (1..=count).map(|i| format!("record {i}")).collect();
+    let heads: Vec<String> = (0..count)
+        .map(|i| match c.scored_records.get(i) {
+            Some(label) => label.replace('|', "/"),
+            None => format!("record {}", i + 1),
+        })
+        .collect();
     let _ = writeln!(s, "| run | {} |", heads.join(" | "));
     let _ = writeln!(s, "|---|{}", "---|".repeat(count));
     for r in &c.results {
