@@ -368,3 +368,86 @@ method = "arx"
     );
     assert!(line.contains(&want), "{line}");
 }
+
+/// An experiment may fit on some records and score on another alone: its
+/// `[data]` file then gives only validation rows (or only identification
+/// rows), and the scores are those of `validate` on that record.
+#[test]
+fn an_experiment_fits_on_some_records_and_scores_on_another() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    record(d, "a.csv", 200, 61, 0.01);
+    record(d, "b.csv", 150, 62, 0.01);
+    record(d, "c.csv", 120, 63, 0.01);
+    let experiment = write(
+        d,
+        "experiment.toml",
+        r#"title = "fit on a and b, score on c"
+na = 1
+nb = 1
+[data]
+file = "c.csv"
+validation = ".."
+
+[[data.records]]
+file = "a.csv"
+identification = ".."
+
+[[data.records]]
+file = "b.csv"
+identification = ".."
+
+[[run]]
+name = "arx"
+method = "arx"
+"#,
+    );
+    let out = d.join("out");
+    ok(&["compare", s(&experiment), "-o", s(&out)]);
+    let report = json(&std::fs::read_to_string(out.join("report.json")).unwrap());
+    let alone = d.join("alone.json");
+    let (a, b, c) = (d.join("a.csv"), d.join("b.csv"), d.join("c.csv"));
+    let fit = [
+        "identify",
+        s(&a),
+        s(&b),
+        "-m",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+    ];
+    ok(&[&fit[..], &["-o", s(&alone)]].concat());
+    let theta = |p: &Path| json(&std::fs::read_to_string(p).unwrap())["modes"].clone();
+    assert_eq!(theta(&out.join("models/arx.json")), theta(&alone));
+    let scored = json(&ok(&["validate", s(&alone), s(&c), "--json"]));
+    assert_eq!(report["results"][0]["report"]["fit_sim"], scored["fit_sim"]);
+    let data = report["data"].as_str().unwrap();
+    assert!(
+        data.starts_with(&format!("{} (decimate 1, validation rows ..)", c.display())),
+        "{data}"
+    );
+    // Without a part anywhere, the file is refused naming it.
+    for (text, needle) in [
+        (
+            "validation = \"..\"\n",
+            "no validation rows: give them in [data] or in a [[data.records]] entry",
+        ),
+        (
+            "[[data.records]]",
+            "[data]: give identification rows (or list [[data.records]] that have them)",
+        ),
+    ] {
+        let source = std::fs::read_to_string(&experiment).unwrap();
+        let cut = match source.find(text) {
+            Some(at) if text.starts_with("[[") => {
+                source[..at].to_string() + "[[run]]\nname = \"arx\"\nmethod = \"arx\"\n"
+            }
+            _ => source.replacen(text, "", 1),
+        };
+        let bad = write(d, "bad.toml", cut);
+        let line = one_line_error(&hysid(&["compare", s(&bad), "-o", s(&d.join("never"))]), 2);
+        assert!(line.as_ref().unwrap().contains(needle), "{line:?}");
+    }
+}

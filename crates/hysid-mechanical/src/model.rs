@@ -535,6 +535,40 @@ impl MechanicalModel {
         })
     }
 
+    /// Every friction level (kinetic, static, each contact's) that cannot
+    /// be negative ([`Self::magnitude`]).
+    fn check_friction_levels(&self) -> Result<(), InvalidMechanical> {
+        self.magnitude(&self.friction.kinetic, "friction.kinetic")?;
+        self.magnitude(&self.friction.static_level, "friction.static")?;
+        for c in &self.contacts {
+            self.magnitude(&c.friction, &format!("contact '{}' friction", c.name))?;
+        }
+        Ok(())
+    }
+
+    /// A friction level `q` (`what`) that cannot be negative: its value, or
+    /// its parameter's value and lower bound, at least 0. Where it could be
+    /// negative the simulator would read it as 0, and a fit would search a
+    /// range that does nothing.
+    fn magnitude(&self, q: &Quantity, what: &str) -> Result<(), InvalidMechanical> {
+        let (given, low) = match q {
+            Quantity::Value(v) => ("its value".to_string(), *v),
+            Quantity::Param(n) => match self.parameters.iter().find(|p| &p.name == n) {
+                Some(p) if p.value < 0.0 => (format!("the value of '{n}'"), p.value),
+                Some(p) => (format!("the lower bound of '{n}'"), p.bounds[0]),
+                None => return Ok(()),
+            },
+        };
+        if low < 0.0 {
+            return Err(InvalidMechanical::NegativeFriction {
+                what: what.to_string(),
+                given,
+                low,
+            });
+        }
+        Ok(())
+    }
+
     /// Structural checks: names resolve, bounds hold the values, every
     /// regime has a declared mode.
     pub fn validate(&self) -> Result<(), InvalidMechanical> {
@@ -593,32 +627,8 @@ impl MechanicalModel {
                 ForceElement::Damper { coefficient } => check(coefficient, "damper coefficient")?,
             }
         }
-        // A friction level is a magnitude: where it could be negative the
-        // fit would search a range that does nothing.
-        let magnitude = |q: &Quantity, what: &str| -> Result<(), InvalidMechanical> {
-            check(q, what)?;
-            let (given, low) = match q {
-                Quantity::Value(v) => ("its value".to_string(), *v),
-                Quantity::Param(n) => {
-                    let p = self.parameters.iter().find(|p| &p.name == n);
-                    match p {
-                        Some(p) if p.value < 0.0 => (format!("the value of '{n}'"), p.value),
-                        Some(p) => (format!("the lower bound of '{n}'"), p.bounds[0]),
-                        None => return Ok(()),
-                    }
-                }
-            };
-            if low < 0.0 {
-                return Err(E::NegativeFriction {
-                    what: what.to_string(),
-                    given,
-                    low,
-                });
-            }
-            Ok(())
-        };
-        magnitude(&self.friction.kinetic, "friction.kinetic")?;
-        magnitude(&self.friction.static_level, "friction.static")?;
+        check(&self.friction.kinetic, "friction.kinetic")?;
+        check(&self.friction.static_level, "friction.static")?;
         if self.contacts.len() > MAX_CONTACTS {
             return Err(E::TooManyContacts);
         }
@@ -631,7 +641,7 @@ impl MechanicalModel {
             check(&c.position, &w("position"))?;
             check(&c.stiffness, &w("stiffness"))?;
             check(&c.damping, &w("damping"))?;
-            magnitude(&c.friction, &w("friction"))?;
+            check(&c.friction, &w("friction"))?;
         }
         let mut stops = HashSet::with_capacity(self.stops.len());
         for s in &self.stops {
@@ -701,6 +711,7 @@ impl MechanicalModel {
                 }
             }
         }
+        self.check_friction_levels()?;
         self.check_stop_positions()?;
         if let MechanicalInitialState::Given { position, velocity } = self.initial_state
             && !(position.is_finite() && velocity.is_finite())

@@ -399,9 +399,11 @@ impl Experiment {
     /// file`, joined by those of every `[[data.records]]` that has them.
     fn records(&self) -> Result<(Dataset, Dataset), ExperimentError> {
         let data = &self.data;
-        let main = |rows| (DataEntry::Main, data.file.as_path(), data.selection(rows));
-        let mut ident = vec![main(data.identification)];
-        let mut valid = vec![main(data.validation)];
+        let main = |rows: Option<RowRange>| {
+            rows.map(|rows| (DataEntry::Main, data.file.as_path(), data.selection(rows)))
+        };
+        let mut ident: Vec<_> = main(data.identification).into_iter().collect();
+        let mut valid: Vec<_> = main(data.validation).into_iter().collect();
         for (k, r) in data.records.iter().enumerate() {
             let entry = DataEntry::Record(k + 1);
             if let Some(rows) = r.identification {
@@ -436,17 +438,18 @@ impl Experiment {
     /// records'.
     fn data_text(&self) -> String {
         let d = &self.data;
-        let mut text = format!(
-            "{} (decimate {}, identification rows {}, {} rows {})",
-            d.file.display(),
-            d.decimate,
-            d.identification,
-            self.scored_rows.word(),
-            d.validation
-        );
+        let rows =
+            |what: &str, rows: Option<RowRange>| rows.map(|rows| format!("{what} rows {rows}"));
+        let own: Vec<String> = [
+            Some(format!("decimate {}", d.decimate)),
+            rows("identification", d.identification),
+            rows(self.scored_rows.word(), d.validation),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        let mut text = format!("{} ({})", d.file.display(), own.join(", "));
         for r in &d.records {
-            let rows =
-                |what: &str, rows: Option<RowRange>| rows.map(|rows| format!("{what} rows {rows}"));
             // A record of other signals (of the same file, often) says which.
             let own = d.record_selection(r, RowRange::default());
             let signals = (own.inputs != d.input || own.output != d.output)
@@ -486,11 +489,9 @@ impl Experiment {
                 Some(format!("{} {rows}{signals}", name(&r.file)))
             })
             .collect();
-        if others.is_empty() {
-            return others;
-        }
-        let first = format!("{} {}", name(&d.file), d.validation);
-        std::iter::once(first).chain(others).collect()
+        let first = d.validation.map(|rows| format!("{} {rows}", name(&d.file)));
+        let all: Vec<String> = first.into_iter().chain(others).collect();
+        if all.len() > 1 { all } else { Vec::new() }
     }
 
     /// Loads the data once, then runs every job in parallel and scores it.
@@ -511,7 +512,7 @@ impl Experiment {
                     &self.data.file,
                     column,
                     self.data.decimate,
-                    self.data.validation,
+                    self.data.validation.unwrap_or_default(),
                 )
                 .map_err(|e| ExperimentError::Truth {
                     path: self.data.file.display().to_string(),
@@ -557,7 +558,10 @@ impl Experiment {
             results,
             validation: Some(valid),
             figures: FigureFormat::Svg,
-            validation_first_row: self.data.validation.start.unwrap_or(0),
+            validation_first_row: (self.data.validation)
+                .or_else(|| self.data.records.iter().find_map(|r| r.validation))
+                .and_then(|rows| rows.start)
+                .unwrap_or(0),
             output_label: self
                 .data
                 .output_label
@@ -694,7 +698,7 @@ fn request<'a>(job: &'a Job, ident: &'a Dataset, spec: &DataSpec) -> Identify<'a
         Mode::Plain
     };
     Identify {
-        first_row: spec.identification.start.unwrap_or(0),
+        first_row: spec.identification.and_then(|rows| rows.start).unwrap_or(0),
         priors: job.priors.clone(),
         priors_origin: Some("the experiment".into()),
         options: job.settings.clone(),

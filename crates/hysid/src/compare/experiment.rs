@@ -36,10 +36,14 @@ pub struct DataSpec {
     /// The column/variable holding the time in seconds (default `t`).
     #[serde(default = "default_time")]
     pub time: String,
-    /// Rows used for identification (after decimation).
-    pub identification: RowRange,
-    /// Rows used for validation (after decimation).
-    pub validation: RowRange,
+    /// Rows used for identification (after decimation). Only with
+    /// `[[data.records]]` may it be left out (the file then only scored).
+    #[serde(default)]
+    pub identification: Option<RowRange>,
+    /// Rows used for validation (after decimation). Only with
+    /// `[[data.records]]` may it be left out (the file then only fitted on).
+    #[serde(default)]
+    pub validation: Option<RowRange>,
     /// Validation samples not scored (default 10).
     #[serde(default = "ten")]
     pub warmup: usize,
@@ -624,6 +628,13 @@ pub enum InconsistentExperiment {
     /// A record with neither identification nor validation rows.
     #[error("[[data.records]] #{0}: give identification or validation rows")]
     EmptyRecord(usize),
+    /// `[data]` without identification or validation rows, and no
+    /// `[[data.records]]` to give them.
+    #[error("[data]: give {0} rows (or list [[data.records]] that have them)")]
+    MissingRows(&'static str),
+    /// Neither `[data]` nor any record gives rows of this part.
+    #[error("no {0} rows: give them in [data] or in a [[data.records]] entry")]
+    NoRows(&'static str),
     /// A record with another number of inputs.
     #[error("[[data.records]] #{record}: {found} input(s), [data] has {expected}")]
     RecordInputs {
@@ -819,6 +830,25 @@ impl Experiment {
                 return Err(E::RowsWithRecords("truth"));
             }
         }
+        let d = &self.data;
+        for (part, rows, in_records) in [
+            (
+                "identification",
+                d.identification,
+                d.records.iter().any(|r| r.identification.is_some()),
+            ),
+            (
+                "validation",
+                d.validation,
+                d.records.iter().any(|r| r.validation.is_some()),
+            ),
+        ] {
+            match (rows, d.records.is_empty(), in_records) {
+                (None, true, _) => return Err(E::MissingRows(part)),
+                (None, false, false) => return Err(E::NoRows(part)),
+                _ => {}
+            }
+        }
         for (i, r) in self.data.records.iter().enumerate() {
             if r.identification.is_none() && r.validation.is_none() {
                 return Err(E::EmptyRecord(i + 1));
@@ -891,7 +921,7 @@ impl Experiment {
             hysid_io::file_identity(&d.file),
             d.selection(RowRange::default()),
         );
-        let entries: Vec<_> = std::iter::once((own, Some(d.identification), Some(d.validation)))
+        let entries: Vec<_> = std::iter::once((own, d.identification, d.validation))
             .chain(d.records.iter().enumerate().map(|(i, r)| {
                 let at = (
                     DataEntry::Record(i + 1),
