@@ -224,7 +224,7 @@ fn bad_initial_state_rules_name_the_file() {
                 "name = \"only\"\n",
                 "name = \"only\"\ninvariant = [\"x1 <= 1\"]\n",
             ),
-            "initial state: the state it gives lies outside the invariant of the mode it names",
+            "lies outside the invariant of the mode it names, 'only'",
         ),
     ];
     for (name, text, needle) in cases {

@@ -222,6 +222,28 @@ pub struct CompiledModel {
     /// The declared stored energy ([`GrayBoxModel::energy`]): states and
     /// parameters only.
     pub energy: Option<Expression>,
+    /// The names of the states and of the modes, in order, for messages
+    /// (shared by the bound copies of a fit's runs).
+    pub names: std::sync::Arc<Names>,
+}
+
+/// The names of a compiled model's states and modes, in order.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Names {
+    /// State names.
+    pub states: Vec<String>,
+    /// Mode names.
+    pub modes: Vec<String>,
+}
+
+impl Names {
+    /// `x = 5, v = 0`: the states' names with the values of `x`.
+    pub fn states_at(&self, x: &[f64]) -> String {
+        (self.states.iter().zip(x))
+            .map(|(name, value)| format!("{name} = {value}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
 }
 
 impl CompiledModel {
@@ -261,6 +283,10 @@ impl CompiledModel {
             labels,
             initial,
             internal_step: m.internal_step,
+            names: std::sync::Arc::new(Names {
+                states: m.states.clone(),
+                modes: m.modes.iter().map(|mode| mode.name.clone()).collect(),
+            }),
         })
     }
 
@@ -393,6 +419,7 @@ impl CompiledModel {
             energy: self.energy.as_ref().map(b),
             initial: self.initial.clone(),
             estimates: self.estimates.clone(),
+            names: self.names.clone(),
             ..*self
         }
     }

@@ -44,9 +44,11 @@ pub(super) fn initial(
             // A mode the rule names must hold the state it gives, as a
             // reset's target must hold the state it sets.
             if mode.is_some() && !machine.holds_invariant(hs.mode, &hs.x, &u) {
-                return Err(SimError::InitialState(
-                    "the state it gives lies outside the invariant of the mode it names".into(),
-                ));
+                return Err(SimError::InitialState(format!(
+                    "the state it gives ({}) lies outside the invariant of the mode it names, '{}'",
+                    m.names.states_at(&hs.x),
+                    m.names.modes.get(hs.mode).map_or("", String::as_str)
+                )));
             }
             Ok((0, hs))
         }
