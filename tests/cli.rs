@@ -1639,7 +1639,8 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
     identify.extend(named);
     ok(&identify);
     let csv = dir.path().join("sim.csv");
-    // The model reads the signals it was identified on by default.
+    // A record without `u` and `y` is read by the signals the model was
+    // identified on.
     ok(&["validate", s(&model), s(&data)]);
     let renamed = common::write(
         dir.path(),
@@ -1651,7 +1652,7 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
     bad(
         &["validate", s(&model), s(&renamed)],
         &[
-            "no column 'pos'",
+            "no column 'u'",
             "the model was identified on --input a,b --output pos: name this record's signals",
         ],
         &csv,
@@ -1913,9 +1914,9 @@ guard = "T >= 0"
     }
 }
 
-/// A hand-written gray-box file's inputs are read by default (by
-/// `validate`, and by `identify -m physical` fitting the file), and named
-/// where the record lacks them.
+/// A hand-written gray-box file's inputs are read where the record has no
+/// `u` (by `validate`, and by `identify -m physical` fitting the file),
+/// and named where the record has neither.
 #[test]
 fn a_gray_box_file_s_declared_inputs_are_read_by_default() {
     let dir = tempfile::tempdir().unwrap();
@@ -1955,13 +1956,18 @@ flow = { x = "F - a*x" }
     ];
     ok(&[&identify[..], &["-o", s(&fitted)]].concat());
     ok(&["validate", s(&fitted), s(&record)]);
-    let renamed = d.join("u.csv");
+    // A record with `u` reads it, as the contract's default says.
+    let with_u = d.join("u.csv");
     let text = std::fs::read_to_string(&record).unwrap();
-    std::fs::write(&renamed, text.replacen("t,F,y", "t,u,y", 1)).unwrap();
+    std::fs::write(&with_u, text.replacen("t,F,y", "t,u,y", 1)).unwrap();
+    ok(&["validate", s(&model), s(&with_u)]);
+    // A record with neither is refused naming both.
+    let renamed = d.join("g.csv");
+    std::fs::write(&renamed, text.replacen("t,F,y", "t,G,y", 1)).unwrap();
     let err = one_line_error(&hysid(&["validate", s(&model), s(&renamed)]), 2).unwrap();
     assert!(
         err.ends_with(
-            "no column 'F' (available: t, u, y, mode); the model file declares --input F: \
+            "no column 'u' (available: t, G, y, mode); the model file declares --input F: \
              name this record's signals with --input and --output"
         ),
         "{err}"
@@ -1974,8 +1980,8 @@ flow = { x = "F - a*x" }
         err.unwrap()
             .ends_with("; the model file declares --input F")
     );
-    ok(&["validate", s(&model), s(&renamed), "--input", "u"]);
-    let renamed_record = [s(&renamed), "--input", "u"];
+    ok(&["validate", s(&model), s(&renamed), "--input", "G"]);
+    let renamed_record = [s(&renamed), "--input", "G"];
     let mut fit = identify.to_vec();
     fit.splice(1..2, renamed_record);
     ok(&[&fit[..], &["-o", s(&fitted)]].concat());

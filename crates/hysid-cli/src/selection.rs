@@ -25,13 +25,14 @@ pub struct DataArgs {
 pub struct SignalArgs {
     /// Input column/variable name(s), comma separated.
     ///
-    /// Default: the model's inputs (those it was identified on, or those
-    /// its file declares), else u.
+    /// Default: u; where the record has no u, the model's inputs (those it
+    /// was identified on, or those its file declares).
     #[arg(long, value_delimiter = ',')]
     pub input: Option<Vec<String>>,
     /// Output column/variable name.
     ///
-    /// Default: the output the model was identified on, else y.
+    /// Default: y; where the record has no y, the output the model was
+    /// identified on.
     #[arg(long)]
     pub output: Option<String>,
     /// Keep every K-th sample (0, K, 2K, ...; no filter).
@@ -45,14 +46,15 @@ pub struct SignalArgs {
     /// Its first step (after decimation) is the sampling time.
     #[arg(long, default_value = hysid_model::data::DEFAULT_TIME)]
     pub time: String,
-    /// The names read where `--input`/`--output` are not given.
+    /// The names read where `--input`/`--output` are not given and the
+    /// record lacks `u` or `y`.
     #[arg(skip)]
     pub defaults: SignalDefaults,
 }
 
-/// The signal names a command reads where the user names none: a model's
-/// ([`Model::signal_names`]), or the inputs a model file declares; else
-/// `u` and `y`.
+/// The signal names a command reads where the user names none and the
+/// record lacks `u` or `y`: a model's ([`Model::signal_names`]), or the
+/// inputs a model file declares.
 #[derive(Debug, Clone, Default)]
 pub struct SignalDefaults {
     inputs: Option<Vec<String>>,
@@ -140,7 +142,7 @@ impl DataArgs {
     }
 
     /// The records of `files`, each with its `--rows`, joined into one
-    /// dataset ([`hysid_io::load_records`]).
+    /// dataset ([`hysid_io::load_records`]), read as [`Self::read`] says.
     pub fn load(&self, files: &[PathBuf]) -> Result<Dataset, CliError> {
         if self.rows.len() > 1 && self.rows.len() != files.len() {
             return Err(CliError::input(format!(
@@ -149,18 +151,43 @@ impl DataArgs {
                 files.len()
             )));
         }
-        let records = files
-            .iter()
-            .enumerate()
-            .map(|(i, file)| {
-                Ok((
-                    file.as_path(),
-                    self.signals
-                        .selection(self.rows_of(i).unwrap_or_default())?,
-                ))
-            })
-            .collect::<Result<Vec<_>, CliError>>()?;
-        hysid_io::load_records(&records).map_err(|e| match e {
+        self.read(|signals| {
+            let records = (files.iter().enumerate())
+                .map(|(i, file)| {
+                    let rows = self.rows_of(i).unwrap_or_default();
+                    Ok((file.as_path(), signals.selection(rows)?))
+                })
+                .collect::<Result<Vec<_>, CliError>>()?;
+            Ok(hysid_io::load_records(&records))
+        })
+    }
+
+    /// One data file with its `--rows`, read as [`Self::read`] says.
+    pub fn load_one(&self, file: &std::path::Path) -> Result<Dataset, CliError> {
+        let rows = self.selection()?.rows;
+        self.read(|signals| Ok(hysid_io::load(file, &signals.selection(rows)?)))
+    }
+
+    /// What `load` reads: the signals as the flags name them (`u` and `y`
+    /// where they name none), and, where the record lacks those, as the
+    /// model names them ([`SignalArgs::as_the_model_names`]); the first
+    /// reading's error, worded by [`SignalArgs::data_error`], when neither
+    /// reads.
+    fn read(
+        &self,
+        load: impl Fn(&SignalArgs) -> Result<Result<Dataset, DataError>, CliError>,
+    ) -> Result<Dataset, CliError> {
+        let e = match load(&self.signals)? {
+            Ok(data) => return Ok(data),
+            Err(e) => e,
+        };
+        if let DataError::Missing { .. } = e
+            && let Some(named) = self.signals.as_the_model_names()
+            && let Ok(Ok(data)) = load(&named)
+        {
+            return Ok(data);
+        }
+        Err(match e {
             // The records of one file under other signal names need an
             // experiment file.
             DataError::RecordTwice { .. } => CliError::input(format!(
@@ -184,23 +211,31 @@ impl DataArgs {
 }
 
 impl SignalArgs {
-    /// The input names read: `--input`, else the defaults' ([`SignalDefaults`]).
+    /// The input names read: `--input`, else `u`.
     pub fn inputs(&self) -> Vec<String> {
-        (self.input.clone())
-            .or_else(|| self.defaults.inputs.clone())
-            .unwrap_or_else(|| vec![hysid_model::data::DEFAULT_INPUT.to_string()])
+        (self.input.clone()).unwrap_or_else(|| vec![hysid_model::data::DEFAULT_INPUT.to_string()])
     }
 
-    /// The output name read: `--output`, else the defaults'.
+    /// The output name read: `--output`, else `y`.
     pub fn output(&self) -> String {
-        (self.output.clone())
-            .or_else(|| self.defaults.output.clone())
-            .unwrap_or_else(|| hysid_model::data::DEFAULT_OUTPUT.to_string())
+        (self.output.clone()).unwrap_or_else(|| hysid_model::data::DEFAULT_OUTPUT.to_string())
     }
 
-    /// These flags reading, where they name nothing, `defaults`.
+    /// These flags reading, where the record lacks `u` or `y`, `defaults`.
     pub fn reading(self, defaults: SignalDefaults) -> Self {
         SignalArgs { defaults, ..self }
+    }
+
+    /// These flags with the signals they leave unnamed named as the model
+    /// names them ([`SignalDefaults`]): what is read where the record lacks
+    /// `u` or `y`; `None` where that reads nothing else.
+    pub fn as_the_model_names(&self) -> Option<SignalArgs> {
+        let named = SignalArgs {
+            input: (self.input.clone()).or_else(|| self.defaults.inputs.clone()),
+            output: (self.output.clone()).or_else(|| self.defaults.output.clone()),
+            ..self.clone()
+        };
+        (named.inputs() != self.inputs() || named.output() != self.output()).then_some(named)
     }
 
     /// `e` as the program words it; a signal the record lacks also names

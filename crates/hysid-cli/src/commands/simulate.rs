@@ -66,9 +66,7 @@ pub fn run(args: Args) -> Result<()> {
         .clone()
         .reading(SignalDefaults::of_model(&model));
     let data = match (&args.data, &args.excite) {
-        (Some(path), None) => {
-            hysid_io::load(path, &select.selection()?).map_err(|e| select.signals.data_error(e))?
-        }
+        (Some(path), None) => select.load_one(path)?,
         (None, Some(spec)) => {
             let e = Excitation::parse_for(spec, model.inputs())
                 .map_err(|e: ExcitationError| CliError::input(e.to_string()))?;
