@@ -218,8 +218,8 @@ fn your_own_record_identified_validated_and_plotted() {
         serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     assert_eq!(m["info"]["input_names"], serde_json::json!(["force"]));
     assert_eq!(m["info"]["output_name"], "pos");
-    let mut validate = vec!["validate", s(&model), s(&rec)];
-    validate.extend(signals);
+    // The signals the model was identified on are read without naming them.
+    let mut validate = vec!["validate", s(&model), s(&rec), "--time", "time"];
     validate.extend(["--rows", "220..", "--plot", s(&figure)]);
     let printed = ok(&validate);
     let fit = printed
