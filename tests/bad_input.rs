@@ -1878,6 +1878,34 @@ fn negative_friction_levels_are_refused() {
         let args = ["simulate", s(&file), "--excite", excite, "-o", s(&out)];
         bad(&args, &["negative.toml", needle], &out);
     }
+    // Priors that widen a friction level below 0 are refused before the
+    // fit, naming the prior file: the fitted model would not read back.
+    let record = d.join("head.csv");
+    let excite = "n=200,hold=20,low=-0.05,high=0.05,ts=0.0025";
+    let head = write(d, "head.toml", head);
+    common::ok(&["simulate", s(&head), "--excite", excite, "-o", s(&record)]);
+    let prior = write(d, "wide.toml", "[bounds]\nf1 = [-500.0, 1200.0]\n");
+    let set = format!("model={}", head.display());
+    bad(
+        &[
+            "identify",
+            s(&record),
+            "-m",
+            "physical",
+            "--set",
+            &set,
+            "--prior",
+            s(&prior),
+            "-o",
+            s(&out),
+        ],
+        &[
+            "wide.toml",
+            "friction.kinetic",
+            "the lower bound of 'f1' is -500",
+        ],
+        &out,
+    );
     report();
 }
 

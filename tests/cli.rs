@@ -1144,6 +1144,18 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
         err.contains("'cluster' needs the number of modes: --modes S, --grid modes="),
         "{err}"
     );
+    // milp needs it unless it is given an error bound.
+    let mut args = vec![
+        "sweep",
+        s(&data),
+        "-m",
+        "milp",
+        "--grid",
+        "theta_max=10,100",
+    ];
+    args.extend(rows);
+    let err = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(err.contains("'milp' needs the number of modes"), "{err}");
     // More modes than the rows identify fail at every point: exit code 1,
     // the report written with -o (with no sweep figure: nothing to draw).
     let out = dir.path().join("failed");
@@ -1642,6 +1654,12 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
     // A record without `u` and `y` is read by the signals the model was
     // identified on.
     ok(&["validate", s(&model), s(&data)]);
+    // What `simulate --excite` writes (the model's inputs, and `y`) reads
+    // back: each signal the record lacks is swapped on its own.
+    let excited = dir.path().join("excited.csv");
+    let excite = "n=50,hold=5,low=0,high=1,ts=0.1";
+    ok(&["simulate", s(&model), "--excite", excite, "-o", s(&excited)]);
+    ok(&["validate", s(&model), s(&excited)]);
     let renamed = common::write(
         dir.path(),
         "renamed.csv",
@@ -1652,7 +1670,7 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
     bad(
         &["validate", s(&model), s(&renamed)],
         &[
-            "no column 'u'",
+            "no column 'a'",
             "the model was identified on --input a,b --output pos: name this record's signals",
         ],
         &csv,
@@ -1967,7 +1985,7 @@ flow = { x = "F - a*x" }
     let err = one_line_error(&hysid(&["validate", s(&model), s(&renamed)]), 2).unwrap();
     assert!(
         err.ends_with(
-            "no column 'u' (available: t, G, y, mode); the model file declares --input F: \
+            "no column 'F' (available: t, G, y, mode); the model file declares --input F: \
              name this record's signals with --input and --output"
         ),
         "{err}"
@@ -1985,4 +2003,42 @@ flow = { x = "F - a*x" }
     let mut fit = identify.to_vec();
     fit.splice(1..2, renamed_record);
     ok(&[&fit[..], &["-o", s(&fitted)]].concat());
+    // A fitted file is refitted on the signals it was fitted on.
+    let again = d.join("again.json");
+    let set_fitted = format!("model={}", fitted.display());
+    let refit = [
+        "identify",
+        s(&renamed),
+        "-m",
+        "physical",
+        "--set",
+        &set_fitted,
+    ];
+    ok(&[&refit[..], &["--seed", "1", "-o", s(&again)]].concat());
+    // A model file that cannot be read is named before the record is read.
+    let set_missing = format!("model={}", d.join("nope.toml").display());
+    let err = one_line_error(
+        &hysid(&[
+            "identify",
+            s(&renamed),
+            "-m",
+            "physical",
+            "--set",
+            &set_missing,
+            "-o",
+            s(&again),
+        ]),
+        2,
+    )
+    .unwrap();
+    assert!(
+        err.contains("nope.toml") && !err.contains("no column"),
+        "{err}"
+    );
+    // The time column is not a signal: no hint of the model's.
+    let err = one_line_error(
+        &hysid(&["validate", s(&model), s(&record), "--time", "tt"]),
+        2,
+    );
+    assert!(!err.unwrap().contains("the model file declares"));
 }

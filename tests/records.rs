@@ -428,6 +428,35 @@ method = "arx"
         data.starts_with(&format!("{} (decimate 1, validation rows ..)", c.display())),
         "{data}"
     );
+    // An auto run on the rows of one record counts its selection rows in
+    // that record's file, as `identify --rows` does.
+    let one = write(
+        d,
+        "one.toml",
+        "title = \"x\"\nna = 1\nnb = 1\n[data]\nfile = \"c.csv\"\nvalidation = \"..\"\n\
+             [[data.records]]\nfile = \"a.csv\"\nidentification = \"50..\"\n\
+             [[run]]\nname = \"auto\"\nmethod = \"arx\"\nauto = true\n",
+    );
+    let out = d.join("one");
+    ok(&["compare", s(&one), "-o", s(&out)]);
+    let auto = d.join("auto.json");
+    let fit = [
+        "identify",
+        s(&a),
+        "--rows",
+        "50..",
+        "-m",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+    ];
+    ok(&[&fit[..], &["--auto", "-o", s(&auto)]].concat());
+    let splits = |p: &Path| {
+        json(&std::fs::read_to_string(p).unwrap())["info"]["selection"]["splits"].clone()
+    };
+    assert_eq!(splits(&out.join("models/auto.json")), splits(&auto));
     // Without a part anywhere, the file is refused naming it.
     for (text, needle) in [
         (
@@ -450,4 +479,17 @@ method = "arx"
         let line = one_line_error(&hysid(&["compare", s(&bad), "-o", s(&d.join("never"))]), 2);
         assert!(line.as_ref().unwrap().contains(needle), "{line:?}");
     }
+    // A [data] file with neither part would be read for nothing.
+    let source = std::fs::read_to_string(&experiment).unwrap();
+    let neither = source.replacen("validation = \"..\"\n", "", 1).replacen(
+        "identification = \"..\"\n\n[[run]]",
+        "validation = \"..\"\n\n[[run]]",
+        1,
+    );
+    let bad = write(d, "bad.toml", neither);
+    let line = one_line_error(&hysid(&["compare", s(&bad), "-o", s(&d.join("never"))]), 2);
+    assert!(
+        line.unwrap()
+            .contains("[data]: give identification or validation rows")
+    );
 }

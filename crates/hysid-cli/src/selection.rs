@@ -67,7 +67,7 @@ impl SignalDefaults {
     /// The names `model` reads its record under ([`Model::signal_names`]).
     pub fn of_model(model: &Model) -> Self {
         let (inputs, output) = model.signal_names();
-        let whose = if output.is_some() {
+        let whose = if !model.info().input_names.is_empty() {
             "the model was identified on"
         } else {
             "the model file declares"
@@ -169,25 +169,36 @@ impl DataArgs {
     }
 
     /// What `load` reads: the signals as the flags name them (`u` and `y`
-    /// where they name none), and, where the record lacks those, as the
-    /// model names them ([`SignalArgs::as_the_model_names`]); the first
-    /// reading's error, worded by [`SignalArgs::data_error`], when neither
-    /// reads.
+    /// where they name none), and, where the record lacks `u` or `y`, as
+    /// the model names that signal ([`SignalArgs::naming_as_the_model`]);
+    /// the last reading's error, worded by [`SignalArgs::data_error`], when
+    /// none reads.
     fn read(
         &self,
         load: impl Fn(&SignalArgs) -> Result<Result<Dataset, DataError>, CliError>,
     ) -> Result<Dataset, CliError> {
-        let e = match load(&self.signals)? {
-            Ok(data) => return Ok(data),
-            Err(e) => e,
-        };
-        if let DataError::Missing { .. } = e
-            && let Some(named) = self.signals.as_the_model_names()
-            && let Ok(Ok(data)) = load(&named)
-        {
-            return Ok(data);
+        let mut signals = self.signals.clone();
+        // Each signal is swapped at most once: the inputs, then the output.
+        for _ in 0..3 {
+            let e = match load(&signals)? {
+                Ok(data) => return Ok(data),
+                Err(e) => e,
+            };
+            let swapped = match &e {
+                DataError::Missing { name, .. } => signals.naming_as_the_model(name),
+                _ => None,
+            };
+            match swapped {
+                Some(next) => signals = next,
+                None => return Err(self.error(e)),
+            }
         }
-        Err(match e {
+        Err(CliError::input("the signals could not be read"))
+    }
+
+    /// `e`, met reading the records, as the program words it.
+    fn error(&self, e: DataError) -> CliError {
+        match e {
             // The records of one file under other signal names need an
             // experiment file.
             DataError::RecordTwice { .. } => CliError::input(format!(
@@ -195,7 +206,7 @@ impl DataArgs {
                  names, an experiment file's [[data.records]] (docs/compare.md)"
             )),
             e => self.signals.data_error(e),
-        })
+        }
     }
 
     /// The `--rows` of the `i`-th data file (from 0): given once for all
@@ -226,16 +237,31 @@ impl SignalArgs {
         SignalArgs { defaults, ..self }
     }
 
-    /// These flags with the signals they leave unnamed named as the model
-    /// names them ([`SignalDefaults`]): what is read where the record lacks
-    /// `u` or `y`; `None` where that reads nothing else.
-    pub fn as_the_model_names(&self) -> Option<SignalArgs> {
-        let named = SignalArgs {
-            input: (self.input.clone()).or_else(|| self.defaults.inputs.clone()),
-            output: (self.output.clone()).or_else(|| self.defaults.output.clone()),
-            ..self.clone()
-        };
-        (named.inputs() != self.inputs() || named.output() != self.output()).then_some(named)
+    /// These flags with the signal `missing` names (one the record lacks)
+    /// named as the model names it ([`SignalDefaults`]), where the flags
+    /// leave it unnamed and the model names it otherwise: the inputs as a
+    /// whole, or the output; `None` where that reads nothing else.
+    pub fn naming_as_the_model(&self, missing: &str) -> Option<SignalArgs> {
+        let inputs = self.inputs();
+        if self.input.is_none()
+            && inputs.iter().any(|i| i == missing)
+            && let Some(model) = self.defaults.inputs.as_ref().filter(|m| **m != inputs)
+        {
+            return Some(SignalArgs {
+                input: Some(model.clone()),
+                ..self.clone()
+            });
+        }
+        if self.output.is_none()
+            && self.output() == missing
+            && let Some(model) = self.defaults.output.as_ref().filter(|m| **m != missing)
+        {
+            return Some(SignalArgs {
+                output: Some(model.clone()),
+                ..self.clone()
+            });
+        }
+        None
     }
 
     /// `e` as the program words it; a signal the record lacks also names
@@ -252,8 +278,15 @@ impl SignalArgs {
                 "{}: a model file where a data file (.csv or .mat) is expected",
                 path.display()
             )),
-            DataError::Missing { .. } => {
-                let Some(flags) = self.defaults.flags() else {
+            DataError::Missing { name, .. } => {
+                // A signal read, as the flags or the model name it (not
+                // the time, say).
+                let d = &self.defaults;
+                let signal = self.inputs().contains(name)
+                    || self.output() == *name
+                    || d.inputs.as_ref().is_some_and(|i| i.contains(name))
+                    || d.output.as_ref() == Some(name);
+                let Some(flags) = self.defaults.flags().filter(|_| signal) else {
                     return e.into();
                 };
                 let whose = self.defaults.whose;

@@ -335,11 +335,6 @@ pub trait Identifier: Send + Sync {
     /// ([`crate::stages::Stages`]): its options include theirs, and
     /// automatic selection may set them.
     const STAGES: bool = false;
-    /// Whether a fit needs the number of modes from its priors (`modes`,
-    /// or `max_modes` to choose it): without either, `identify` refuses
-    /// the run ([`IdentifyError::NeedsModeCount`]); automatic selection
-    /// chooses the count itself.
-    const NEEDS_MODE_COUNT: bool = false;
     /// The options that turn the defaults into the procedure of the
     /// back-end's paper exactly (`--set preset=paper`,
     /// [`crate::options::PRESET`]); empty when the defaults are that
@@ -355,19 +350,30 @@ pub trait Identifier: Send + Sync {
         Self::SEEDED
     }
 
+    /// Whether a fit with `options` needs the number of modes from its
+    /// priors ([`Priors::counts_modes`]): without it, `identify` refuses
+    /// the run ([`IdentifyError::NeedsModeCount`]); automatic selection
+    /// chooses the count itself. The default: it does not.
+    fn needs_mode_count(&self, _options: &Self::Options) -> bool {
+        false
+    }
+
     /// The candidate settings that automatic selection (`--auto`) tries on
     /// `problem`; the default is the back-end's defaults only.
     fn search_space(&self, _problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Ok(SearchSpace::default())
     }
 
-    /// The input signals the model fitted with `options` declares by name
-    /// (a physical model file's `inputs`), which a front end reads from a
-    /// record when the user names none; `None` when the back-end's model
-    /// names no signals, or its file cannot be read (`identify` then says
-    /// why).
-    fn declared_inputs(&self, _options: &Self::Options) -> Option<Vec<String>> {
-        None
+    /// The input signals the model fitted with `options` names (a physical
+    /// model file's: those it was identified on, else those it declares),
+    /// which a front end reads where the record has no `u`; `None` when the
+    /// back-end's model names no signals. An error where the model file
+    /// cannot be read, so that a front end says so before it reads data.
+    fn declared_inputs(
+        &self,
+        _options: &Self::Options,
+    ) -> Result<Option<Vec<String>>, IdentifyError> {
+        Ok(None)
     }
 
     /// Checks `priors` against the model structure of `orders` as
@@ -440,18 +446,20 @@ pub trait Backend: Send + Sync {
     /// Whether the back-end runs the stages after a PWARX fit
     /// ([`Identifier::STAGES`]).
     fn has_stages(&self) -> bool;
-    /// Whether a fit needs the number of modes from its priors
-    /// ([`Identifier::NEEDS_MODE_COUNT`]); the default: it does not.
-    fn needs_mode_count(&self) -> bool {
+    /// Whether a fit with `settings` needs the number of modes from its
+    /// priors ([`Identifier::needs_mode_count`]; not for settings it
+    /// refuses, which [`Backend::check_settings`] names); the default: it
+    /// does not.
+    fn needs_mode_count(&self, _settings: &Settings) -> bool {
         false
     }
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
-    /// The input signals the model fitted with `settings` declares
-    /// ([`Identifier::declared_inputs`]); `None` also for settings the
-    /// back-end refuses ([`Backend::run`] says why).
-    fn declared_inputs(&self, _settings: &Settings) -> Option<Vec<String>> {
-        None
+    /// The input signals the model fitted with `settings` names
+    /// ([`Identifier::declared_inputs`]); the errors of [`Backend::run`]
+    /// for settings it refuses or a model file it cannot read.
+    fn declared_inputs(&self, _settings: &Settings) -> Result<Option<Vec<String>>, IdentifyError> {
+        Ok(None)
     }
     /// Checks `priors` against the structure of `orders` without any data
     /// ([`Identifier::check_priors`]). The default accepts every prior: a
@@ -538,15 +546,15 @@ impl<T: Identifier> Backend for T {
     fn has_stages(&self) -> bool {
         T::STAGES
     }
-    fn needs_mode_count(&self) -> bool {
-        T::NEEDS_MODE_COUNT
+    fn needs_mode_count(&self, settings: &Settings) -> bool {
+        checked_settings::<T>(settings).is_ok_and(|o| Identifier::needs_mode_count(self, &o))
     }
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)
     }
-    fn declared_inputs(&self, settings: &Settings) -> Option<Vec<String>> {
-        let options = checked_settings::<T>(settings).ok()?;
-        Identifier::declared_inputs(self, &options)
+    fn declared_inputs(&self, settings: &Settings) -> Result<Option<Vec<String>>, IdentifyError> {
+        let options = checked_settings::<T>(settings)?;
+        Identifier::declared_inputs(self, &options).map_err(|e| e.of_method(T::NAME))
     }
     fn check_settings(&self, settings: &Settings) -> Result<(), OptionError> {
         checked_settings::<T>(settings).map(|_| ())

@@ -361,6 +361,12 @@ impl Priors {
         Self::from_toml(&text, &origin)
     }
 
+    /// Whether the priors give the number of modes: `modes`, or
+    /// `max_modes` to choose it under.
+    pub fn counts_modes(&self) -> bool {
+        self.modes.is_some() || self.max_modes.is_some()
+    }
+
     /// Internal consistency (independent of the model structure).
     pub fn check(&self) -> Result<(), InconsistentPrior> {
         use InconsistentPrior as E;

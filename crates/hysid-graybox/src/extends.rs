@@ -179,7 +179,7 @@ pub fn extend(mut base: Value, mut own: Value) -> Result<Value, String> {
 /// no entry of its name: without them the file's entry is most likely a
 /// misspelt change of one of the base's.
 const NEW_ENTRY_KEYS: [(&str, &[&str]); 4] = [
-    ("parameters", &["value"]),
+    ("parameters", &["value", "bounds"]),
     ("elements", &["type"]),
     ("modes", &["flow"]),
     ("outputs", &["value"]),
@@ -577,6 +577,7 @@ bounds = [0.0, 5.0]
 [[parameters]]
 name = "c"
 value = 3.0
+bounds = [0.0, 5.0]
 [definitions]
 G = "c"
 [[modes]]
@@ -598,7 +599,7 @@ name = "friction"
                 "states": ["y", "v", "z"],
                 "parameters": [
                     {"name": "a", "value": 1.0, "bounds": [0.0, 5.0]},
-                    {"name": "c", "value": 3.0}
+                    {"name": "c", "value": 3.0, "bounds": [0.0, 5.0]}
                 ],
                 "definitions": {"F": "a*y", "G": "c"},
                 "modes": [{
@@ -671,11 +672,16 @@ name = "friction"
             e.ends_with("(its parameters: f1), and a new one needs `value`"),
             "{e}"
         );
+        let e = misspelt(json!({"parameters": [{"name": "f11", "value": 2.0}]}));
+        assert!(e.ends_with("and a new one needs `bounds`"), "{e}");
         let e = misspelt(json!({"modes": [{"name": "free"}]}));
         assert!(e.contains("(its modes: none)"), "{e}");
         // Changes of the base's entries, and complete new ones, merge.
         let over = json!({
-            "parameters": [{"name": "f1", "bounds": [0, 3]}, {"name": "f2", "value": 0.0}],
+            "parameters": [
+                {"name": "f1", "bounds": [0, 3]},
+                {"name": "f2", "value": 0.0, "bounds": [0, 1]}
+            ],
             "elements": [{"name": "friction", "kinetic": "f1"}],
         });
         assert!(extend(base.clone(), over).is_ok());
@@ -696,7 +702,9 @@ name = "friction"
         let over: Vec<Value> = (0..n)
             .filter(|i| i % 3 == 0 && i % 2 == 1)
             .map(|i| json!({"name": format!("p{i}"), "bounds": [0, i]}))
-            .chain((n..2 * n).map(|i| json!({"name": format!("p{i}"), "value": i})))
+            .chain(
+                (n..2 * n).map(|i| json!({"name": format!("p{i}"), "value": i, "bounds": [0, i]})),
+            )
             .collect();
         let merged = extend(base, json!({"remove": remove, "parameters": over})).unwrap();
         let params = merged["parameters"].as_array().unwrap();
@@ -706,7 +714,10 @@ name = "friction"
             params[1],
             json!({"name": "p3", "value": 3, "bounds": [0, 3]})
         );
-        assert_eq!(params[n / 2], json!({"name": format!("p{n}"), "value": n}));
+        assert_eq!(
+            params[n / 2],
+            json!({"name": format!("p{n}"), "value": n, "bounds": [0, n]})
+        );
     }
 
     #[test]

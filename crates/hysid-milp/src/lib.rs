@@ -96,6 +96,11 @@ impl PwarxMethod for Milp {
     const SEARCH: &'static str = "the mode count from 1 to 4 (at most --max-modes; saturation modes added), unless --modes is given; every candidate with trim = 3";
     const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
+    /// Without `delta` the least-l1 program needs the mode count.
+    fn needs_mode_count(options: &MilpOptions) -> bool {
+        options.delta.is_none()
+    }
+
     fn fit(
         &self,
         data: &PwarxData<'_>,

@@ -193,12 +193,18 @@ impl Identifier for Physical {
     const SUMMARY: &'static str = "physical parameters of a mechanical or gray-box hybrid model (--set model=FILE) by simulation error: swarm + Levenberg-Marquardt + Nelder-Mead";
     const HONOURS: &'static [PriorKind] = &[PriorKind::Fixed, PriorKind::Bounds, PriorKind::Tie];
 
-    fn declared_inputs(&self, options: &PhysicalOptions) -> Option<Vec<String>> {
-        match Model::load(Path::new(options.model.trim())).ok()? {
-            Model::Mechanical(m) => Some(m.inputs),
-            Model::GrayBox(g) => Some(g.inputs),
-            _ => None,
+    fn declared_inputs(
+        &self,
+        options: &PhysicalOptions,
+    ) -> Result<Option<Vec<String>>, IdentifyError> {
+        let file = options.model.trim();
+        if file.is_empty() {
+            return Ok(None);
         }
+        let model = Model::load(Path::new(file)).map_err(|e| {
+            IdentifyError::Options(OptionError::invalid("model", &options.model, e.to_string()))
+        })?;
+        Ok(model.signal_names().0)
     }
 
     fn identify(
@@ -229,6 +235,8 @@ impl Identifier for Physical {
         let (gray, back_into) = match model {
             Model::Mechanical(m) => {
                 let m = mechanical::with_warmup(m, options.init_samples);
+                mechanical::check_under_priors(&m, problem.priors)
+                    .map_err(|p| IdentifyError::prior_mismatch(problem.priors_origin, p))?;
                 (to_gray_box(&m).map_err(|e| model_error(e.into()))?, Some(m))
             }
             Model::GrayBox(g) => (g, None),

@@ -4,6 +4,8 @@
 //! initial-state rule and the diagnostics go back into the mechanical
 //! model.
 
+use crate::parameters::ParameterError;
+use hysid_core::priors::Priors;
 use hysid_graybox::{GrayBoxInitialState, GrayBoxModel};
 use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 
@@ -40,4 +42,30 @@ pub fn fitted(mut model: MechanicalModel, fitted: GrayBoxModel) -> MechanicalMod
         };
     }
     model
+}
+
+/// Checks `model` with the `[bounds]` and `[fixed]` of `priors` on its
+/// parameters, as the fitted model will be read back: a friction level
+/// the priors let go below 0 is refused before the fit
+/// ([`hysid_mechanical::InvalidMechanical::NegativeFriction`]). Names the
+/// priors do not fit are left to the parameter map.
+pub fn check_under_priors(model: &MechanicalModel, priors: &Priors) -> Result<(), ParameterError> {
+    let mut under = model.clone();
+    for p in &mut under.parameters {
+        if let Some(&[low, high]) = priors.bounds.get(&p.name) {
+            p.bounds = [low, high];
+        }
+        if let Some(&value) = priors.fixed.get(&p.name) {
+            p.value = value;
+        }
+        p.value = p
+            .value
+            .clamp(p.bounds[0].min(p.bounds[1]), p.bounds[1].max(p.bounds[0]));
+    }
+    match under.validate() {
+        Err(e @ hysid_mechanical::InvalidMechanical::NegativeFriction { .. }) => {
+            Err(ParameterError::Refused(e.to_string()))
+        }
+        _ => Ok(()),
+    }
 }

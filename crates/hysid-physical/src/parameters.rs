@@ -45,6 +45,9 @@ pub enum ParameterError {
         /// Its bounds after the priors.
         bounds: [f64; 2],
     },
+    /// Bounds or fixed values the model refuses (a friction level below 0).
+    #[error("[bounds]/[fixed]: {0}")]
+    Refused(String),
 }
 
 /// How the free coordinates `z in [0, 1]^d` map onto the model's parameters:

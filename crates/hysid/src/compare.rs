@@ -450,12 +450,8 @@ impl Experiment {
         .collect();
         let mut text = format!("{} ({})", d.file.display(), own.join(", "));
         for r in &d.records {
-            // A record of other signals (of the same file, often) says which.
-            let own = d.record_selection(r, RowRange::default());
-            let signals = (own.inputs != d.input || own.output != d.output)
-                .then(|| format!("{} -> {}", own.inputs.join(", "), own.output));
             let parts: Vec<String> = [
-                signals,
+                d.other_signals(r),
                 rows("identification", r.identification),
                 rows(self.scored_rows.word(), r.validation),
             ]
@@ -477,20 +473,21 @@ impl Experiment {
                 |n| n.to_string_lossy().into_owned(),
             )
         };
-        let others: Vec<String> = (d.records.iter())
-            .filter_map(|r| {
-                let rows = r.validation?;
-                let own = d.record_selection(r, RowRange::default());
-                let signals = if own.inputs != d.input || own.output != d.output {
-                    format!(" ({} -> {})", own.inputs.join(", "), own.output)
-                } else {
-                    String::new()
-                };
-                Some(format!("{} {rows}{signals}", name(&r.file)))
-            })
-            .collect();
+        let others = (d.records.iter()).filter_map(|r| {
+            let rows = r.validation?;
+            let signals = (d.other_signals(r))
+                .map(|s| format!(" ({s})"))
+                .unwrap_or_default();
+            Some(format!("{} {rows}{signals}", name(&r.file)))
+        });
         let first = d.validation.map(|rows| format!("{} {rows}", name(&d.file)));
-        let all: Vec<String> = first.into_iter().chain(others).collect();
+        let mut all: Vec<String> = first.into_iter().chain(others).collect();
+        // Files of one name in other folders: numbered in order.
+        if (1..all.len()).any(|i| all[..i].contains(&all[i])) {
+            all = (all.iter().enumerate())
+                .map(|(i, label)| format!("{}. {label}", i + 1))
+                .collect();
+        }
         if all.len() > 1 { all } else { Vec::new() }
     }
 
@@ -505,18 +502,16 @@ impl Experiment {
                 word: self.scored_rows.word(),
             });
         }
-        let true_modes = match &self.data.truth {
+        // A truth column is refused beside records, and [data] without them
+        // has its validation rows.
+        let true_modes = match self.data.truth.as_ref().zip(self.data.validation) {
             None => None,
-            Some(column) => Some(
-                truth::load(
-                    &self.data.file,
-                    column,
-                    self.data.decimate,
-                    self.data.validation.unwrap_or_default(),
-                )
-                .map_err(|e| ExperimentError::Truth {
-                    path: self.data.file.display().to_string(),
-                    source: Box::new(e),
+            Some((column, rows)) => Some(
+                truth::load(&self.data.file, column, self.data.decimate, rows).map_err(|e| {
+                    ExperimentError::Truth {
+                        path: self.data.file.display().to_string(),
+                        source: Box::new(e),
+                    }
                 })?,
             ),
         };
@@ -558,10 +553,7 @@ impl Experiment {
             results,
             validation: Some(valid),
             figures: FigureFormat::Svg,
-            validation_first_row: (self.data.validation)
-                .or_else(|| self.data.records.iter().find_map(|r| r.validation))
-                .and_then(|rows| rows.start)
-                .unwrap_or(0),
+            validation_first_row: self.data.first_row(DataPart::Scored),
             output_label: self
                 .data
                 .output_label
@@ -611,8 +603,7 @@ fn check_job(
             .map_err(|e| invalid(e.to_string()))?;
         let orders = RegressorSpec::new(job.na, job.nb, inputs);
         (backend.check_priors(&job.priors, orders, None)).map_err(|e| invalid(e.to_string()))?;
-        let counted = job.priors.modes.is_some() || job.priors.max_modes.is_some();
-        if backend.needs_mode_count() && !job.auto && !counted {
+        if backend.needs_mode_count(&job.settings) && !job.auto && !job.priors.counts_modes() {
             let choose = match job.sweep {
                 Some(_) => "sweep modes",
                 None => "auto = true to choose it",
@@ -698,7 +689,7 @@ fn request<'a>(job: &'a Job, ident: &'a Dataset, spec: &DataSpec) -> Identify<'a
         Mode::Plain
     };
     Identify {
-        first_row: spec.identification.and_then(|rows| rows.start).unwrap_or(0),
+        first_row: spec.first_row(DataPart::Identification),
         priors: job.priors.clone(),
         priors_origin: Some("the experiment".into()),
         options: job.settings.clone(),

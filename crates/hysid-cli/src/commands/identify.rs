@@ -158,9 +158,10 @@ pub fn run(args: Args) -> Result<()> {
     super::not_an_input("-o", &args.out, inputs)?;
     let options = Settings::parse(&args.set)?;
     // A physical model file's declared inputs are read where none are named.
-    let declared = registry
-        .get(&args.method)
-        .and_then(|backend| backend.declared_inputs(&options));
+    let declared = match registry.get(&args.method) {
+        Some(backend) => backend.declared_inputs(&options)?,
+        None => None,
+    };
     let select = args
         .select
         .clone()

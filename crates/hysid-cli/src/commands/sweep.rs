@@ -105,8 +105,7 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
     for (_, point) in hysid::select::candidate_setups(backend, &setup, space)? {
         (backend.check_priors(&point.priors, point.orders, origin))
             .map_err(|e| CliError::input(e.to_string()))?;
-        let counted = point.priors.modes.is_some() || point.priors.max_modes.is_some();
-        if backend.needs_mode_count() && !counted {
+        if backend.needs_mode_count(&point.settings) && !point.priors.counts_modes() {
             return Err(CliError::input(format!(
                 "method '{}' needs the number of modes: --modes S, --grid modes=S1,S2,.., or \
                  modes = S / max_modes = S in the prior file",

@@ -92,6 +92,12 @@ pub trait PwarxMethod: Send + Sync {
     const SEED_USE: &'static str = "";
     /// Who chooses the mode count.
     const MODE_RULE: ModeRule = ModeRule::Given;
+    /// Whether a fit with `options` needs the number of modes from its
+    /// priors ([`Identifier::needs_mode_count`]): by default, where
+    /// [`Self::MODE_RULE`] is [`ModeRule::Given`].
+    fn needs_mode_count(_options: &Self::Options) -> bool {
+        matches!(Self::MODE_RULE, ModeRule::Given)
+    }
     /// The options that make the method its paper's procedure
     /// ([`Identifier::PAPER`]).
     const PAPER: &'static [(&'static str, &'static str)] = &[];
@@ -187,7 +193,6 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
     const SEEDED: bool = M::SEEDED;
     const SEED_USE: &'static str = M::SEED_USE;
     const STAGES: bool = true;
-    const NEEDS_MODE_COUNT: bool = matches!(M::MODE_RULE, ModeRule::Given);
     const PAPER: &'static [(&'static str, &'static str)] = M::PAPER;
 
     fn seeded_with(&self, problem: &Problem<'_>, options: &Self::Options) -> bool {
@@ -205,6 +210,10 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
         origin: Option<&str>,
     ) -> Result<(), IdentifyError> {
         prepare::check_priors(priors, &orders, origin)
+    }
+
+    fn needs_mode_count(&self, options: &Self::Options) -> bool {
+        M::needs_mode_count(&options.method)
     }
 
     fn identify(

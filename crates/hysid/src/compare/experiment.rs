@@ -150,6 +150,20 @@ impl DataSpec {
         }
     }
 
+    /// Row of its file where `part`'s first record starts: `[data]`'s
+    /// rows, else those of the first `[[data.records]]` entry that has
+    /// them.
+    pub fn first_row(&self, part: DataPart) -> usize {
+        let rows = |identification: Option<RowRange>, validation: Option<RowRange>| match part {
+            DataPart::Identification => identification,
+            DataPart::Scored => validation,
+        };
+        rows(self.identification, self.validation)
+            .or_else(|| (self.records.iter()).find_map(|r| rows(r.identification, r.validation)))
+            .and_then(|rows| rows.start)
+            .unwrap_or(0)
+    }
+
     /// Selection of the identification or validation part.
     pub fn selection(&self, rows: RowRange) -> DataSelection {
         DataSelection {
@@ -160,6 +174,14 @@ impl DataSpec {
             ts: self.ts,
             time: self.time.clone(),
         }
+    }
+
+    /// `u2 -> z2`: the signals of `record` where they are not `[data]`'s
+    /// (a record of other signals of the same file, often).
+    pub fn other_signals(&self, record: &RecordSpec) -> Option<String> {
+        let own = self.record_selection(record, RowRange::default());
+        (own.inputs != self.input || own.output != self.output)
+            .then(|| format!("{} -> {}", own.inputs.join(", "), own.output))
     }
 
     /// Selection of rows `rows` of the extra record `record`.
@@ -632,6 +654,11 @@ pub enum InconsistentExperiment {
     /// `[[data.records]]` to give them.
     #[error("[data]: give {0} rows (or list [[data.records]] that have them)")]
     MissingRows(&'static str),
+    /// `[data]` with neither identification nor validation rows.
+    #[error(
+        "[data]: give identification or validation rows (its file is read for nothing otherwise)"
+    )]
+    EmptyData,
     /// Neither `[data]` nor any record gives rows of this part.
     #[error("no {0} rows: give them in [data] or in a [[data.records]] entry")]
     NoRows(&'static str),
@@ -848,6 +875,9 @@ impl Experiment {
                 (None, false, false) => return Err(E::NoRows(part)),
                 _ => {}
             }
+        }
+        if d.identification.is_none() && d.validation.is_none() {
+            return Err(E::EmptyData);
         }
         for (i, r) in self.data.records.iter().enumerate() {
             if r.identification.is_none() && r.validation.is_none() {
