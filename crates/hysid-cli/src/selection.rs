@@ -133,10 +133,14 @@ impl DataArgs {
         }
     }
 
-    /// These flags reading, where they name no signal, `defaults`.
+    /// These flags reading, where they name no signal and the record lacks
+    /// `u` or `y`, `defaults`.
     pub fn reading(self, defaults: SignalDefaults) -> Self {
         DataArgs {
-            signals: self.signals.reading(defaults),
+            signals: SignalArgs {
+                defaults,
+                ..self.signals
+            },
             ..self
         }
     }
@@ -178,22 +182,26 @@ impl DataArgs {
         load: impl Fn(&SignalArgs) -> Result<Result<Dataset, DataError>, CliError>,
     ) -> Result<Dataset, CliError> {
         let mut signals = self.signals.clone();
-        // Each signal is swapped at most once: the inputs, then the output.
-        for _ in 0..3 {
-            let e = match load(&signals)? {
+        let mut failed = match load(&signals)? {
+            Ok(data) => return Ok(data),
+            Err(e) => e,
+        };
+        // Each swap names one more signal (the inputs, the output): at most
+        // two.
+        for _ in 0..2 {
+            let DataError::Missing { name, .. } = &failed else {
+                break;
+            };
+            let Some(next) = signals.naming_as_the_model(name) else {
+                break;
+            };
+            signals = next;
+            failed = match load(&signals)? {
                 Ok(data) => return Ok(data),
                 Err(e) => e,
             };
-            let swapped = match &e {
-                DataError::Missing { name, .. } => signals.naming_as_the_model(name),
-                _ => None,
-            };
-            match swapped {
-                Some(next) => signals = next,
-                None => return Err(self.error(e)),
-            }
         }
-        Err(CliError::input("the signals could not be read"))
+        Err(self.error(failed))
     }
 
     /// `e`, met reading the records, as the program words it.
@@ -230,11 +238,6 @@ impl SignalArgs {
     /// The output name read: `--output`, else `y`.
     pub fn output(&self) -> String {
         (self.output.clone()).unwrap_or_else(|| hysid_model::data::DEFAULT_OUTPUT.to_string())
-    }
-
-    /// These flags reading, where the record lacks `u` or `y`, `defaults`.
-    pub fn reading(self, defaults: SignalDefaults) -> Self {
-        SignalArgs { defaults, ..self }
     }
 
     /// These flags with the signal `missing` names (one the record lacks)
