@@ -7,7 +7,7 @@
 use crate::parameters::ParameterError;
 use hysid_core::priors::Priors;
 use hysid_graybox::{GrayBoxInitialState, GrayBoxModel};
-use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
+use hysid_mechanical::{InvalidMechanical, MechanicalInitialState, MechanicalModel};
 
 /// `model` with its initial state measured over the first `samples`
 /// (`init_samples`; 0 keeps the file's rule): a given state becomes a
@@ -47,7 +47,7 @@ pub fn fitted(mut model: MechanicalModel, fitted: GrayBoxModel) -> MechanicalMod
 /// Checks `model` with the `[bounds]` and `[fixed]` of `priors` on its
 /// parameters, as the fitted model will be read back: a friction level
 /// the priors let go below 0 is refused before the fit
-/// ([`hysid_mechanical::InvalidMechanical::NegativeFriction`]). Names the
+/// ([`InvalidMechanical::NegativeFriction`]). Names the
 /// priors do not fit are left to the parameter map.
 pub fn check_under_priors(model: &MechanicalModel, priors: &Priors) -> Result<(), ParameterError> {
     let mut under = model.clone();
@@ -58,14 +58,12 @@ pub fn check_under_priors(model: &MechanicalModel, priors: &Priors) -> Result<()
         if let Some(&value) = priors.fixed.get(&p.name) {
             p.value = value;
         }
-        p.value = p
-            .value
-            .clamp(p.bounds[0].min(p.bounds[1]), p.bounds[1].max(p.bounds[0]));
+        // Inside the bounds, so that only the friction levels are checked
+        // here (a fixed value outside them is the parameter map's error).
+        p.value = p.value.max(p.bounds[0]).min(p.bounds[1]);
     }
     match under.validate() {
-        Err(e @ hysid_mechanical::InvalidMechanical::NegativeFriction { .. }) => {
-            Err(ParameterError::Refused(e.to_string()))
-        }
+        Err(e @ InvalidMechanical::NegativeFriction { .. }) => Err(ParameterError::Refused(e)),
         _ => Ok(()),
     }
 }

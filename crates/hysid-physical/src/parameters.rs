@@ -47,7 +47,7 @@ pub enum ParameterError {
     },
     /// Bounds or fixed values the model refuses (a friction level below 0).
     #[error("[bounds]/[fixed]: {0}")]
-    Refused(String),
+    Refused(hysid_mechanical::InvalidMechanical),
 }
 
 /// How the free coordinates `z in [0, 1]^d` map onto the model's parameters:
