@@ -1979,6 +1979,24 @@ flow = { x = "F - a*x" }
     let text = std::fs::read_to_string(&record).unwrap();
     std::fs::write(&with_u, text.replacen("t,F,y", "t,u,y", 1)).unwrap();
     ok(&["validate", s(&model), s(&with_u)]);
+    // One with both says which it reads.
+    let both = d.join("both.csv");
+    let lines: Vec<String> = (text.lines().enumerate())
+        .map(|(i, line)| format!("{line},{}", if i == 0 { "u" } else { "0.5" }))
+        .collect();
+    std::fs::write(&both, lines.join("\n") + "\n").unwrap();
+    let o = hysid(&["validate", s(&model), s(&both)]);
+    assert!(o.status.success());
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        said.contains(
+            "warning: the record has u and also F (the model file declares --input F): u is read, \
+             as the default; give --input F to read F"
+        ),
+        "{said}"
+    );
+    let o = hysid(&["validate", s(&model), s(&both), "--input", "F"]);
+    assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("also F"));
     // A record with neither is refused naming both.
     let renamed = d.join("g.csv");
     std::fs::write(&renamed, text.replacen("t,F,y", "t,G,y", 1)).unwrap();

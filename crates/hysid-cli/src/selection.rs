@@ -183,7 +183,10 @@ impl DataArgs {
     ) -> Result<Dataset, CliError> {
         let mut signals = self.signals.clone();
         let mut failed = match load(&signals)? {
-            Ok(data) => return Ok(data),
+            Ok(data) => {
+                self.warn_of_the_model_s(&load);
+                return Ok(data);
+            }
             Err(e) => e,
         };
         // Each swap names one more signal (the inputs, the output): at most
@@ -202,6 +205,56 @@ impl DataArgs {
             };
         }
         Err(self.error(failed))
+    }
+
+    /// Says on standard error where the record read by the defaults (`u`,
+    /// `y`) also has the model's own signal, which is not read: a record
+    /// with an unrelated `u` would otherwise score the model on it without
+    /// a word.
+    fn warn_of_the_model_s(
+        &self,
+        load: &impl Fn(&SignalArgs) -> Result<Result<Dataset, DataError>, CliError>,
+    ) {
+        let (signals, d) = (&self.signals, &self.signals.defaults);
+        let inputs = (signals.input.is_none())
+            .then(|| d.inputs.clone())
+            .flatten()
+            .filter(|model| *model != signals.inputs())
+            .map(|model| {
+                (
+                    "--input",
+                    signals.inputs().join(","),
+                    model.join(","),
+                    SignalArgs {
+                        input: Some(model),
+                        ..signals.clone()
+                    },
+                )
+            });
+        let output = (signals.output.is_none())
+            .then(|| d.output.clone())
+            .flatten()
+            .filter(|model| *model != signals.output())
+            .map(|model| {
+                (
+                    "--output",
+                    signals.output(),
+                    model.clone(),
+                    SignalArgs {
+                        output: Some(model),
+                        ..signals.clone()
+                    },
+                )
+            });
+        for (flag, read, model, named) in inputs.into_iter().chain(output) {
+            if let Ok(Ok(_)) = load(&named) {
+                eprintln!(
+                    "hysid: warning: the record has {read} and also {model} ({} {flag} {model}): \
+                     {read} is read, as the default; give {flag} {model} to read {model}",
+                    d.whose
+                );
+            }
+        }
     }
 
     /// `e`, met reading the records, as the program words it.
