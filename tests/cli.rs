@@ -2060,3 +2060,61 @@ flow = { x = "F - a*x" }
     );
     assert!(!err.unwrap().contains("the model file declares"));
 }
+
+/// A hand-written file's declared inputs given in another order are warned
+/// of, by `validate` and by a physical `identify`, as a fitted model's are.
+#[test]
+fn a_swap_of_a_file_s_declared_inputs_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = d.join("two.toml");
+    std::fs::write(
+        &model,
+        r#"kind = "gray_box"
+format = 1
+internal_step = 0.01
+states = ["x"]
+inputs = ["F1", "F2"]
+outputs = ["x"]
+initial_state = { from = "given", values = { x = 0.0 } }
+parameters = [{ name = "a", value = 1.0, bounds = [0.1, 10.0] }]
+[[modes]]
+name = "only"
+flow = { x = "F1 + 2*F2 - a*x" }
+"#,
+    )
+    .unwrap();
+    let record = d.join("r.csv");
+    let excite = "n=40,hold=5,low=0,high=1,ts=0.1";
+    ok(&["simulate", s(&model), "--excite", excite, "-o", s(&record)]);
+    let said = |args: &[&str]| {
+        let o = hysid(args);
+        assert!(o.status.success(), "{args:?}");
+        String::from_utf8_lossy(&o.stderr).to_string()
+    };
+    let swapped = ["--input", "F2,F1"];
+    let warning = "the inputs are read in the order given (F2, F1)";
+    let validate = said(&[&["validate", s(&model), s(&record)][..], &swapped].concat());
+    assert!(
+        validate.contains(warning) && validate.contains("declares them in the order F1, F2"),
+        "{validate}"
+    );
+    let set = format!("model={}", model.display());
+    let out = d.join("m.json");
+    let fit = [
+        "identify",
+        s(&record),
+        "-m",
+        "physical",
+        "--set",
+        &set,
+        "-o",
+        s(&out),
+    ];
+    let identify = said(&[&fit[..], &swapped].concat());
+    assert!(
+        identify.contains(warning) && identify.contains("the model file names them"),
+        "{identify}"
+    );
+    assert!(!said(&fit).contains("order"));
+}

@@ -162,11 +162,11 @@ pub fn run(args: Args) -> Result<()> {
         Some(backend) => backend.declared_inputs(&options)?,
         None => None,
     };
-    let select = args
-        .select
-        .clone()
-        .reading(SignalDefaults::declared(declared));
+    let select = (args.select.clone()).reading(SignalDefaults::declared(declared.clone()));
     let data = select.load(&args.data)?;
+    if let Some(own) = &declared {
+        super::warn_of_order(own, &data, "the model file names");
+    }
     let mode = if args.auto {
         let grid = (!args.grid.is_empty())
             .then(|| SearchSpace::parse_grid(&args.grid))

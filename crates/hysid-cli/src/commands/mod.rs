@@ -78,20 +78,33 @@ pub(crate) fn load_model(path: &Path) -> Result<Model> {
     Ok(Model::load(path)?)
 }
 
-/// A warning when the record's inputs are the model's in another order:
-/// inputs are read in the order given, so a swap is a different input.
+/// A warning when the record's inputs are the model's in another order
+/// (those it was identified on, or those its file declares): inputs are
+/// read in the order given, so a swap is a different input.
 pub(crate) fn warn_input_order(file: &Path, model: &Model, data: &Dataset) {
-    let own = &model.info().input_names;
+    let Some(own) = model.signal_names().0 else {
+        return;
+    };
+    let how = if model.info().input_names.is_empty() {
+        "declares"
+    } else {
+        "was identified on"
+    };
+    warn_of_order(&own, data, &format!("{} {how}", file.display()));
+}
+
+/// A warning when the record's inputs are `own` in another order, `whose`
+/// saying whose order `own` is.
+pub(crate) fn warn_of_order(own: &[String], data: &Dataset, whose: &str) {
     let given = data.input_names();
-    let mut sorted = (own.clone(), given.clone());
+    let mut sorted = (own.to_vec(), given.clone());
     sorted.0.sort();
     sorted.1.sort();
-    if own.len() > 1 && *own != given && sorted.0 == sorted.1 {
+    if own.len() > 1 && own != given && sorted.0 == sorted.1 {
         eprintln!(
-            "hysid: warning: the inputs are read in the order given ({}); {} was identified on \
-             them in the order {}",
+            "hysid: warning: the inputs are read in the order given ({}); {whose} them in the \
+             order {}",
             given.join(", "),
-            file.display(),
             own.join(", ")
         );
     }
