@@ -1617,6 +1617,24 @@ fn malformed_simulation_options() {
         &out,
     );
     bad(&excite("n=0,hold=2,low=0,high=1"), &["--excite", "n"], &out);
+    // The written file is CSV, whatever its name says.
+    let mat = d.join("never.mat");
+    bad(
+        &[
+            "simulate",
+            m,
+            "--excite",
+            "n=20,hold=2,low=0,high=1",
+            "-o",
+            s(&mat),
+        ],
+        &[
+            "-o",
+            "never.mat",
+            "simulate writes CSV; name the file .csv, not .mat",
+        ],
+        &mat,
+    );
     bad(
         &[
             "simulate",

@@ -60,6 +60,14 @@ pub fn run(args: Args) -> Result<()> {
     }
     let inputs = std::iter::once(&args.model).chain(&args.data);
     super::not_an_input("-o", &args.out, inputs.map(PathBuf::as_path))?;
+    // The file is CSV: a name that says another format would be misread.
+    let extension = (args.out.extension()).map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if let Some(e) = extension.filter(|e| ["mat", "json", "toml"].contains(&e.as_str())) {
+        return Err(CliError::input(format!(
+            "-o {}: simulate writes CSV; name the file .csv, not .{e}",
+            args.out.display()
+        )));
+    }
     let model = super::load_model(&args.model)?;
     let select = args
         .select
