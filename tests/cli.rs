@@ -1156,6 +1156,11 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
     args.extend(rows);
     let err = one_line_error(&hysid(&args), 2).unwrap();
     assert!(err.contains("'milp' needs the number of modes"), "{err}");
+    // A bound on the count is not enough for it.
+    let bound = common::write(dir.path(), "bound.toml", "max_modes = 3\n");
+    args.extend(["--prior", s(&bound)]);
+    let err = one_line_error(&hysid(&args), 2).unwrap();
+    assert!(err.ends_with("or modes = S in the prior file"), "{err}");
     // More modes than the rows identify fail at every point: exit code 1,
     // the report written with -o (with no sweep figure: nothing to draw).
     let out = dir.path().join("failed");

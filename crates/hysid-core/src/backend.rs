@@ -11,7 +11,7 @@ use crate::model::Model;
 use crate::options::{
     BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, PRESET, Settings, preset_spec,
 };
-use crate::priors::{PriorError, PriorKind, Priors};
+use crate::priors::{ModeCountNeed, PriorError, PriorKind, Priors};
 use crate::search::SearchSpace;
 use hysid_model::data::{DataError, Dataset};
 use hysid_model::regressors::{RegressorError, RegressorSpec};
@@ -350,12 +350,12 @@ pub trait Identifier: Send + Sync {
         Self::SEEDED
     }
 
-    /// Whether a fit with `options` needs the number of modes from its
-    /// priors ([`Priors::counts_modes`]): without it, `identify` refuses
-    /// the run ([`IdentifyError::NeedsModeCount`]); automatic selection
-    /// chooses the count itself. The default: it does not.
-    fn needs_mode_count(&self, _options: &Self::Options) -> bool {
-        false
+    /// What a fit with `options` needs of the priors' number of modes:
+    /// without it, `identify` refuses the run
+    /// ([`IdentifyError::NeedsModeCount`]); automatic selection chooses the
+    /// count itself. The default: nothing.
+    fn mode_count_need(&self, _options: &Self::Options) -> ModeCountNeed {
+        ModeCountNeed::Nothing
     }
 
     /// The candidate settings that automatic selection (`--auto`) tries on
@@ -446,12 +446,11 @@ pub trait Backend: Send + Sync {
     /// Whether the back-end runs the stages after a PWARX fit
     /// ([`Identifier::STAGES`]).
     fn has_stages(&self) -> bool;
-    /// Whether a fit with `settings` needs the number of modes from its
-    /// priors ([`Identifier::needs_mode_count`]; not for settings it
-    /// refuses, which [`Backend::check_settings`] names); the default: it
-    /// does not.
-    fn needs_mode_count(&self, _settings: &Settings) -> bool {
-        false
+    /// What a fit with `settings` needs of the priors' number of modes
+    /// ([`Identifier::mode_count_need`]; nothing for settings it refuses,
+    /// which [`Backend::check_settings`] names); the default: nothing.
+    fn mode_count_need(&self, _settings: &Settings) -> ModeCountNeed {
+        ModeCountNeed::Nothing
     }
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
@@ -546,8 +545,10 @@ impl<T: Identifier> Backend for T {
     fn has_stages(&self) -> bool {
         T::STAGES
     }
-    fn needs_mode_count(&self, settings: &Settings) -> bool {
-        checked_settings::<T>(settings).is_ok_and(|o| Identifier::needs_mode_count(self, &o))
+    fn mode_count_need(&self, settings: &Settings) -> ModeCountNeed {
+        checked_settings::<T>(settings).map_or(ModeCountNeed::Nothing, |o| {
+            Identifier::mode_count_need(self, &o)
+        })
     }
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)

@@ -319,6 +319,29 @@ pub enum InconsistentPrior {
     },
 }
 
+/// What a back-end's fit needs of the priors' number of modes
+/// ([`crate::backend::Identifier::mode_count_need`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeCountNeed {
+    /// Nothing: the back-end chooses the count, or has a fixed one.
+    Nothing,
+    /// `modes`, or `max_modes` to choose the count under.
+    CountOrBound,
+    /// `modes` itself.
+    Count,
+}
+
+impl ModeCountNeed {
+    /// Whether `priors` give what is needed.
+    pub fn met_by(self, priors: &Priors) -> bool {
+        match self {
+            ModeCountNeed::Nothing => true,
+            ModeCountNeed::CountOrBound => priors.modes.is_some() || priors.max_modes.is_some(),
+            ModeCountNeed::Count => priors.modes.is_some(),
+        }
+    }
+}
+
 impl Priors {
     /// Parses a prior file's text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, PriorError> {
@@ -359,12 +382,6 @@ impl Priors {
             source,
         })?;
         Self::from_toml(&text, &origin)
-    }
-
-    /// Whether the priors give the number of modes: `modes`, or
-    /// `max_modes` to choose it under.
-    pub fn counts_modes(&self) -> bool {
-        self.modes.is_some() || self.max_modes.is_some()
     }
 
     /// Internal consistency (independent of the model structure).

@@ -27,7 +27,7 @@ pub use program::{Limits, MilpSolution, Objective, ProgramError};
 
 use hysid_core::backend::{IdentifyError, RunContext};
 use hysid_core::options::{CheckOptions, OptionError, check_float};
-use hysid_core::priors::PriorKind;
+use hysid_core::priors::{ModeCountNeed, PriorKind};
 use hysid_estimation::constrained::Parametrisation;
 use hysid_estimation::pwarx::{ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_estimation::regions::RegionMethod;
@@ -96,9 +96,12 @@ impl PwarxMethod for Milp {
     const SEARCH: &'static str = "the mode count from 1 to 4 (at most --max-modes; saturation modes added), unless --modes is given; every candidate with trim = 3";
     const MAX_MODES: Option<usize> = Some(DEFAULT_MAX_MODES);
 
-    /// Without `delta` the least-l1 program needs the mode count.
-    fn needs_mode_count(options: &MilpOptions) -> bool {
-        options.delta.is_none()
+    /// Without `delta` the least-l1 program needs the mode count itself.
+    fn mode_count_need(options: &MilpOptions) -> ModeCountNeed {
+        match options.delta {
+            Some(_) => ModeCountNeed::Nothing,
+            None => ModeCountNeed::Count,
+        }
     }
 
     fn fit(

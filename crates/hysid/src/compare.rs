@@ -19,7 +19,7 @@ use crate::identify::{Auto, Identify, Mode};
 use hysid_core::backend::{Progress, Registry};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
-use hysid_core::priors::Priors;
+use hysid_core::priors::{ModeCountNeed, Priors};
 use hysid_core::simulate::{ValidationReport, validate};
 use hysid_io::load_each;
 use hysid_model::data::{DataError, DataSelection, Dataset, RowRange};
@@ -603,14 +603,18 @@ fn check_job(
             .map_err(|e| invalid(e.to_string()))?;
         let orders = RegressorSpec::new(job.na, job.nb, inputs);
         (backend.check_priors(&job.priors, orders, None)).map_err(|e| invalid(e.to_string()))?;
-        if backend.needs_mode_count(&job.settings) && !job.auto && !job.priors.counts_modes() {
+        let need = backend.mode_count_need(&job.settings);
+        if !job.auto && !need.met_by(&job.priors) {
+            let give = match need {
+                ModeCountNeed::Count => "modes = S",
+                _ => "modes = S or max_modes = S",
+            };
             let choose = match job.sweep {
                 Some(_) => "sweep modes",
                 None => "auto = true to choose it",
             };
             return Err(invalid(format!(
-                "method '{}' needs the number of modes: give modes = S or max_modes = S (or \
-                 {choose})",
+                "method '{}' needs the number of modes: give {give} (or {choose})",
                 backend.name()
             )));
         }

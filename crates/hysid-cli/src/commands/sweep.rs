@@ -14,7 +14,7 @@ use hysid::compare::{
     ScoredRows, SweepSpec,
 };
 use hysid_core::options::Settings;
-use hysid_core::priors::Priors;
+use hysid_core::priors::{ModeCountNeed, Priors};
 use hysid_core::search::{SearchSpace, Setup};
 use hysid_model::data::RowRange;
 use hysid_model::regressors::RegressorSpec;
@@ -105,10 +105,15 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
     for (_, point) in hysid::select::candidate_setups(backend, &setup, space)? {
         (backend.check_priors(&point.priors, point.orders, origin))
             .map_err(|e| CliError::input(e.to_string()))?;
-        if backend.needs_mode_count(&point.settings) && !point.priors.counts_modes() {
+        let need = backend.mode_count_need(&point.settings);
+        if !need.met_by(&point.priors) {
+            let prior = match need {
+                ModeCountNeed::Count => "modes = S",
+                _ => "modes = S / max_modes = S",
+            };
             return Err(CliError::input(format!(
                 "method '{}' needs the number of modes: --modes S, --grid modes=S1,S2,.., or \
-                 modes = S / max_modes = S in the prior file",
+                 {prior} in the prior file",
                 backend.name()
             )));
         }

@@ -44,7 +44,7 @@ pub use standardize::{StandardizeError, run_standardized};
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::Model;
 use hysid_core::options::{BackendOptions, CheckOptions, Checked, OptionError, OptionSpec};
-use hysid_core::priors::{PriorKind, Priors};
+use hysid_core::priors::{ModeCountNeed, PriorKind, Priors};
 use hysid_core::search::SearchSpace;
 use hysid_core::stages::{AUTO_TRIM, Stages};
 use hysid_model::regressors::RegressorSpec;
@@ -92,11 +92,14 @@ pub trait PwarxMethod: Send + Sync {
     const SEED_USE: &'static str = "";
     /// Who chooses the mode count.
     const MODE_RULE: ModeRule = ModeRule::Given;
-    /// Whether a fit with `options` needs the number of modes from its
-    /// priors ([`Identifier::needs_mode_count`]): by default, where
-    /// [`Self::MODE_RULE`] is [`ModeRule::Given`].
-    fn needs_mode_count(_options: &Self::Options) -> bool {
-        matches!(Self::MODE_RULE, ModeRule::Given)
+    /// What a fit with `options` needs of the priors' number of modes
+    /// ([`Identifier::mode_count_need`]): by default, `modes` or
+    /// `max_modes` where [`Self::MODE_RULE`] is [`ModeRule::Given`].
+    fn mode_count_need(_options: &Self::Options) -> ModeCountNeed {
+        match Self::MODE_RULE {
+            ModeRule::Given => ModeCountNeed::CountOrBound,
+            ModeRule::Method => ModeCountNeed::Nothing,
+        }
     }
     /// The options that make the method its paper's procedure
     /// ([`Identifier::PAPER`]).
@@ -212,8 +215,8 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
         prepare::check_priors(priors, &orders, origin)
     }
 
-    fn needs_mode_count(&self, options: &Self::Options) -> bool {
-        M::needs_mode_count(&options.method)
+    fn mode_count_need(&self, options: &Self::Options) -> ModeCountNeed {
+        M::mode_count_need(&options.method)
     }
 
     fn identify(
