@@ -493,3 +493,57 @@ method = "arx"
             .contains("[data]: give identification or validation rows")
     );
 }
+
+/// Records of one file under other signals: every entry of the report says
+/// which signals it reads, `[data]`'s too.
+#[test]
+fn records_of_other_signals_of_one_file_are_named_by_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (a, b) = (
+        record(d, "a.csv", 150, 71, 0.01),
+        record(d, "b.csv", 150, 72, 0.01),
+    );
+    let (a, b) = (
+        std::fs::read_to_string(a).unwrap(),
+        std::fs::read_to_string(b).unwrap(),
+    );
+    // The columns of a beside those of b but its time, renamed u2, y2, ....
+    let joined: Vec<String> = (a.lines().zip(b.lines()).enumerate())
+        .map(|(i, (x, y))| {
+            let rest: Vec<String> = (y.split(',').skip(1))
+                .map(|v| {
+                    if i == 0 {
+                        format!("{v}2")
+                    } else {
+                        v.to_string()
+                    }
+                })
+                .collect();
+            format!("{x},{}", rest.join(","))
+        })
+        .collect();
+    write(d, "both.csv", joined.join("\n") + "\n");
+    let experiment = write(
+        d,
+        "experiment.toml",
+        "title = \"x\"\nna = 1\nnb = 1\n[data]\nfile = \"both.csv\"\nidentification = \"0..100\"\n\
+         validation = \"100..\"\n[[data.records]]\nfile = \"both.csv\"\ninput = [\"u2\"]\n\
+         output = \"y2\"\nvalidation = \"100..\"\n[[run]]\nname = \"arx\"\nmethod = \"arx\"\n",
+    );
+    let out = d.join("out");
+    ok(&["compare", s(&experiment), "-o", s(&out)]);
+    let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        markdown.contains("(u -> y, decimate 1, identification rows 0..100"),
+        "{markdown}"
+    );
+    assert!(
+        markdown.contains("both.csv (u2 -> y2, validation rows 100..)"),
+        "{markdown}"
+    );
+    assert!(
+        markdown.contains("| run | both.csv 100.. (u -> y) | both.csv 100.. (u2 -> y2) |"),
+        "{markdown}"
+    );
+}

@@ -441,6 +441,7 @@ impl Experiment {
         let rows =
             |what: &str, rows: Option<RowRange>| rows.map(|rows| format!("{what} rows {rows}"));
         let own: Vec<String> = [
+            d.own_signals(),
             Some(format!("decimate {}", d.decimate)),
             rows("identification", d.identification),
             rows(self.scored_rows.word(), d.validation),
@@ -480,7 +481,12 @@ impl Experiment {
                 .unwrap_or_default();
             Some(format!("{} {rows}{signals}", name(&r.file)))
         });
-        let first = d.validation.map(|rows| format!("{} {rows}", name(&d.file)));
+        let first = d.validation.map(|rows| {
+            let signals = (d.own_signals())
+                .map(|s| format!(" ({s})"))
+                .unwrap_or_default();
+            format!("{} {rows}{signals}", name(&d.file))
+        });
         let mut all: Vec<String> = first.into_iter().chain(others).collect();
         // Files of one name in other folders: numbered in order.
         if (1..all.len()).any(|i| all[..i].contains(&all[i])) {

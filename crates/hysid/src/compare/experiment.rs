@@ -184,6 +184,14 @@ impl DataSpec {
             .then(|| format!("{} -> {}", own.inputs.join(", "), own.output))
     }
 
+    /// `u1 -> z1`: `[data]`'s signals, where a record reads others (so
+    /// that every entry says which it reads).
+    pub fn own_signals(&self) -> Option<String> {
+        (self.records.iter())
+            .any(|r| self.other_signals(r).is_some())
+            .then(|| format!("{} -> {}", self.input.join(", "), self.output))
+    }
+
     /// Selection of rows `rows` of the extra record `record`.
     pub fn record_selection(&self, record: &RecordSpec, rows: RowRange) -> DataSelection {
         DataSelection {
