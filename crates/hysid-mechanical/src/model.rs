@@ -341,7 +341,7 @@ pub enum InvalidMechanical {
         what: String,
     },
     /// A quantity naming an unknown parameter.
-    #[error("{what}: no parameter named '{name}'")]
+    #[error("{what}: no parameter named '{name}' (a quantity is a parameter's name or a number)")]
     UnknownParameter {
         /// Which quantity.
         what: String,
