@@ -1979,6 +1979,14 @@ flow = { x = "F - a*x" }
     ];
     ok(&[&identify[..], &["-o", s(&fitted)]].concat());
     ok(&["validate", s(&fitted), s(&record)]);
+    // A state the file gives is applied at the first row read: said where
+    // that is not the record's first.
+    let given =
+        "its initial state is given by the file, not read from the record: it is applied at row 5";
+    let later = hysid(&["validate", s(&model), s(&record), "--rows", "5.."]);
+    assert!(String::from_utf8_lossy(&later.stderr).contains(given));
+    let first = hysid(&["validate", s(&model), s(&record)]);
+    assert!(!String::from_utf8_lossy(&first.stderr).contains("initial state is given"));
     // A record with `u` reads it, as the contract's default says.
     let with_u = d.join("u.csv");
     let text = std::fs::read_to_string(&record).unwrap();

@@ -151,6 +151,31 @@ impl Model {
         }
     }
 
+    /// Whether the model's initial state is given whole by its file (not
+    /// read from the record's warm-up, estimated, or at rest): a run that
+    /// starts at a later row of a record starts there from that state.
+    pub fn initial_state_given(&self) -> bool {
+        match self {
+            Model::Pwarx(_) => false,
+            Model::HybridAutomaton(m) => {
+                matches!(
+                    m.initial_state,
+                    hysid_model::model::InitialState::Given { .. }
+                )
+            }
+            Model::Mechanical(m) => {
+                matches!(
+                    m.initial_state,
+                    hysid_mechanical::MechanicalInitialState::Given { .. }
+                )
+            }
+            Model::GrayBox(m) => matches!(
+                &m.initial_state,
+                hysid_graybox::GrayBoxInitialState::Given { estimate, .. } if estimate.is_empty()
+            ),
+        }
+    }
+
     /// The names under which the model reads its inputs and output from a
     /// record: those it was identified on, else, for the inputs, the names
     /// its file declares (a mechanical, gray-box or automaton file's

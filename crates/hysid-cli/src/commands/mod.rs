@@ -2,7 +2,7 @@
 
 use crate::error::{CliError, Result};
 use hysid_core::model::Model;
-use hysid_model::data::Dataset;
+use hysid_model::data::{Dataset, RowRange};
 use std::path::Path;
 
 pub mod compare;
@@ -76,6 +76,21 @@ pub(crate) fn load_model(path: &Path) -> Result<Model> {
         )));
     }
     Ok(Model::load(path)?)
+}
+
+/// A warning when the model of `file` starts from a state its file gives
+/// and the record's rows start later than its first (`rows`): the state is
+/// applied there, where the system may be elsewhere.
+pub(crate) fn warn_given_state(file: &Path, model: &Model, rows: &[RowRange]) {
+    let later = rows.iter().filter_map(|r| r.start).find(|&start| start > 0);
+    if let Some(row) = later.filter(|_| model.initial_state_given()) {
+        eprintln!(
+            "hysid: warning: {}: its initial state is given by the file, not read from the \
+             record: it is applied at row {row}, where the record's state may differ (an \
+             `estimate` or a measured rule reads it from the record)",
+            file.display()
+        );
+    }
 }
 
 /// A warning when the record's inputs are the model's in another order

@@ -60,14 +60,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let inputs = std::iter::once(&args.model).chain(&args.data);
     super::not_an_input("-o", &args.out, inputs.map(PathBuf::as_path))?;
-    // The file is CSV: a name that says another format would be misread.
-    let extension = (args.out.extension()).map(|e| e.to_string_lossy().to_ascii_lowercase());
-    if let Some(e) = extension.filter(|e| ["mat", "json", "toml"].contains(&e.as_str())) {
-        return Err(CliError::input(format!(
-            "-o {}: simulate writes CSV; name the file .csv, not .{e}",
-            args.out.display()
-        )));
-    }
+    csv_name(&args.out)?;
     let model = super::load_model(&args.model)?;
     let select = args
         .select
@@ -110,6 +103,7 @@ pub fn run(args: Args) -> Result<()> {
     };
     super::warn_sampling_time(&args.model, &model, &data, args.excite.is_some());
     super::warn_input_order(&args.model, &model, &data);
+    super::warn_given_state(&args.model, &model, &args.select.rows);
     let sim = simulate(&model, &data, SimulationOptions::default())
         .map_err(|e| CliError::simulation(&args.model, e))?;
     let states = hysid_core::simulate::initial_states(&model, &data)
@@ -220,5 +214,18 @@ fn input_names(model: &Model) -> Vec<String> {
         Some(names) => names,
         None if m == 1 => vec![hysid_model::data::DEFAULT_INPUT.into()],
         None => (1..=m).map(|i| format!("u{i}")).collect(),
+    }
+}
+
+/// Refuses an output name that says another format than the CSV written
+/// (`.mat`, `.json`, `.toml`): it would be misread.
+fn csv_name(out: &std::path::Path) -> Result<()> {
+    let extension = (out.extension()).map(|e| e.to_string_lossy().to_ascii_lowercase());
+    match extension.filter(|e| ["mat", "json", "toml"].contains(&e.as_str())) {
+        Some(e) => Err(CliError::input(format!(
+            "-o {}: simulate writes CSV; name the file .csv, not .{e}",
+            out.display()
+        ))),
+        None => Ok(()),
     }
 }

@@ -60,6 +60,7 @@ pub fn run(mut args: Args) -> Result<()> {
     }
     super::warn_sampling_time(&args.model, &model, &data, false);
     super::warn_input_order(&args.model, &model, &data);
+    super::warn_given_state(&args.model, &model, &args.select.rows);
     let (report, sim, _) =
         validate(&model, &data, args.warmup).map_err(|e| CliError::simulation(&args.model, e))?;
     if let Some(path) = &args.plot {
