@@ -154,12 +154,8 @@ impl DataSpec {
     /// rows, else those of the first `[[data.records]]` entry that has
     /// them.
     pub fn first_row(&self, part: DataPart) -> usize {
-        let rows = |identification: Option<RowRange>, validation: Option<RowRange>| match part {
-            DataPart::Identification => identification,
-            DataPart::Scored => validation,
-        };
-        rows(self.identification, self.validation)
-            .or_else(|| (self.records.iter()).find_map(|r| rows(r.identification, r.validation)))
+        (part.of(self.identification, self.validation))
+            .or_else(|| (self.records.iter()).find_map(|r| part.of(r.identification, r.validation)))
             .and_then(|rows| rows.start)
             .unwrap_or(0)
     }
@@ -396,6 +392,18 @@ pub enum DataPart {
 }
 
 impl DataPart {
+    /// Of an entry's `identification` and `validation` rows, this part's.
+    pub fn of(
+        self,
+        identification: Option<RowRange>,
+        validation: Option<RowRange>,
+    ) -> Option<RowRange> {
+        match self {
+            DataPart::Identification => identification,
+            DataPart::Scored => validation,
+        }
+    }
+
     /// The key that gives these rows in an experiment file.
     pub fn key(self) -> &'static str {
         match self {
@@ -866,21 +874,16 @@ impl Experiment {
             }
         }
         let d = &self.data;
-        for (part, rows, in_records) in [
-            (
-                "identification",
-                d.identification,
-                d.records.iter().any(|r| r.identification.is_some()),
-            ),
-            (
-                "validation",
-                d.validation,
-                d.records.iter().any(|r| r.validation.is_some()),
-            ),
-        ] {
-            match (rows, d.records.is_empty(), in_records) {
-                (None, true, _) => return Err(E::MissingRows(part)),
-                (None, false, false) => return Err(E::NoRows(part)),
+        for part in [DataPart::Identification, DataPart::Scored] {
+            let in_records =
+                (d.records.iter()).any(|r| part.of(r.identification, r.validation).is_some());
+            match (
+                part.of(d.identification, d.validation),
+                d.records.is_empty(),
+                in_records,
+            ) {
+                (None, true, _) => return Err(E::MissingRows(part.key())),
+                (None, false, false) => return Err(E::NoRows(part.key())),
                 _ => {}
             }
         }
