@@ -210,48 +210,33 @@ impl DataArgs {
     /// Says on standard error where the record read by the defaults (`u`,
     /// `y`) also has the model's own signal, which is not read: a record
     /// with an unrelated `u` would otherwise score the model on it without
-    /// a word.
+    /// a word. Each signal is swapped as a missing one would be
+    /// ([`SignalArgs::naming_as_the_model`]).
     fn warn_of_the_model_s(
         &self,
         load: &impl Fn(&SignalArgs) -> Result<Result<Dataset, DataError>, CliError>,
     ) {
-        let (signals, d) = (&self.signals, &self.signals.defaults);
-        let inputs = (signals.input.is_none())
-            .then(|| d.inputs.clone())
-            .flatten()
-            .filter(|model| *model != signals.inputs())
-            .map(|model| {
-                (
-                    "--input",
-                    signals.inputs().join(","),
-                    model.join(","),
-                    SignalArgs {
-                        input: Some(model),
-                        ..signals.clone()
-                    },
-                )
-            });
-        let output = (signals.output.is_none())
-            .then(|| d.output.clone())
-            .flatten()
-            .filter(|model| *model != signals.output())
-            .map(|model| {
-                (
-                    "--output",
-                    signals.output(),
-                    model.clone(),
-                    SignalArgs {
-                        output: Some(model),
-                        ..signals.clone()
-                    },
-                )
-            });
-        for (flag, read, model, named) in inputs.into_iter().chain(output) {
+        let signals = &self.signals;
+        let inputs = signals.inputs();
+        let (read_inputs, read_output) = (inputs.join(","), signals.output());
+        let first = inputs.first().cloned().unwrap_or_default();
+        let swaps = [
+            ("--input", &read_inputs, &first),
+            ("--output", &read_output, &read_output),
+        ];
+        for (flag, read, name) in swaps {
+            let Some(named) = signals.naming_as_the_model(name) else {
+                continue;
+            };
+            let model = match flag {
+                "--input" => named.inputs().join(","),
+                _ => named.output(),
+            };
             if let Ok(Ok(_)) = load(&named) {
                 eprintln!(
                     "hysid: warning: the record has {read} and also {model} ({} {flag} {model}): \
                      {read} is read, as the default; give {flag} {model} to read {model}",
-                    d.whose
+                    signals.defaults.whose
                 );
             }
         }
