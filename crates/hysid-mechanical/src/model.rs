@@ -536,8 +536,8 @@ impl MechanicalModel {
     }
 
     /// Every friction level (kinetic, static, each contact's) that cannot
-    /// be negative ([`Self::magnitude`]).
-    fn check_friction_levels(&self) -> Result<(), InvalidMechanical> {
+    /// be negative ([`Self::magnitude`]); part of [`Self::validate`].
+    pub fn check_friction_levels(&self) -> Result<(), InvalidMechanical> {
         self.magnitude(&self.friction.kinetic, "friction.kinetic")?;
         self.magnitude(&self.friction.static_level, "friction.static")?;
         for c in &self.contacts {

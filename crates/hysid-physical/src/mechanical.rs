@@ -7,7 +7,7 @@
 use crate::parameters::ParameterError;
 use hysid_core::priors::Priors;
 use hysid_graybox::{GrayBoxInitialState, GrayBoxModel};
-use hysid_mechanical::{InvalidMechanical, MechanicalInitialState, MechanicalModel};
+use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 
 /// `model` with its initial state measured over the first `samples`
 /// (`init_samples`; 0 keeps the file's rule): a given state becomes a
@@ -47,8 +47,8 @@ pub fn fitted(mut model: MechanicalModel, fitted: GrayBoxModel) -> MechanicalMod
 /// Checks `model` with the `[bounds]` and `[fixed]` of `priors` on its
 /// parameters, as the fitted model will be read back: a friction level
 /// the priors let go below 0 is refused before the fit
-/// ([`InvalidMechanical::NegativeFriction`]). Names the
-/// priors do not fit are left to the parameter map.
+/// ([`MechanicalModel::check_friction_levels`]). Names the priors do not
+/// fit are left to the parameter map.
 pub fn check_under_priors(model: &MechanicalModel, priors: &Priors) -> Result<(), ParameterError> {
     let mut under = model.clone();
     for p in &mut under.parameters {
@@ -62,8 +62,7 @@ pub fn check_under_priors(model: &MechanicalModel, priors: &Priors) -> Result<()
         // here (a fixed value outside them is the parameter map's error).
         p.value = p.value.max(p.bounds[0]).min(p.bounds[1]);
     }
-    match under.validate() {
-        Err(e @ InvalidMechanical::NegativeFriction { .. }) => Err(ParameterError::Refused(e)),
-        _ => Ok(()),
-    }
+    under
+        .check_friction_levels()
+        .map_err(ParameterError::Refused)
 }
