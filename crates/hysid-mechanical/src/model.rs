@@ -535,8 +535,10 @@ impl MechanicalModel {
         })
     }
 
-    /// Every friction level (kinetic, static, each contact's) that cannot
-    /// be negative ([`Self::magnitude`]); part of [`Self::validate`].
+    /// Every friction level (kinetic, static, each contact's) is a
+    /// magnitude: its value, or its parameter's value and lower bound, at
+    /// least 0 ([`InvalidMechanical::NegativeFriction`]); part of
+    /// [`Self::validate`].
     pub fn check_friction_levels(&self) -> Result<(), InvalidMechanical> {
         self.magnitude(&self.friction.kinetic, "friction.kinetic")?;
         self.magnitude(&self.friction.static_level, "friction.static")?;
