@@ -537,6 +537,42 @@ flow = { h = "u - a*sqrt(h)" }
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(report["diverged_to"], "undefined", "{report}");
     assert!(!String::from_utf8_lossy(&o.stderr).contains("diverged at"));
+    // A fit names the undefined output of the file's own values: a search
+    // where every candidate fails, and bad input where nothing is free.
+    let fixed = write(
+        d,
+        "fixed.toml",
+        &std::fs::read_to_string(&model).unwrap().replace(
+            "bounds = [0.1, 10.0] }",
+            "bounds = [0.1, 10.0], fixed = true }",
+        ),
+    );
+    let undefined = "own values, the simulated output became undefined (NaN) at sample";
+    for (file, code, said) in [
+        (&model, 1, "every candidate simulation failed or diverged"),
+        (&fixed, 2, "nothing in the model is free to fit"),
+    ] {
+        let out = d.join("fitted.json");
+        let set = format!("model={}", s(file));
+        let o = hysid(&[
+            "identify",
+            s(&data),
+            "-m",
+            "physical",
+            "--set",
+            &set,
+            "-o",
+            s(&out),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(code), "{err}");
+        assert!(err.contains(said), "{err}");
+        assert!(
+            err.replace("values the", "values, the").contains(undefined),
+            "{err}"
+        );
+        assert!(!out.exists());
+    }
 }
 
 #[test]

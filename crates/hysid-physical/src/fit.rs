@@ -12,7 +12,7 @@ use crate::local::{Descended, LocalResult, descend_from, local_stages};
 use crate::objective::{FAILED, Objective, simulation_mse, velocity_tolerances};
 use crate::parameters::ParameterMap;
 use crate::sensitivity::sensitivity;
-use crate::stages::{Search, SearchFailure, StageLog};
+use crate::stages::{NominalDivergence, Search, SearchFailure, StageLog};
 use crate::swarm::{SwarmResult, global_stage, noise_floor, nominal_suffices};
 use crate::target::Target;
 use crate::{PhysicalError, PhysicalOptions};
@@ -20,7 +20,7 @@ use hysid_core::backend::{IdentifyError, NoProgress, Progress, RunContext};
 use hysid_core::options::OptionError;
 use hysid_core::priors::Priors;
 use hysid_model::data::Dataset;
-use hysid_model::simulate::SimError;
+use hysid_model::simulate::{DivergedTo, Divergence, SimError};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -105,7 +105,18 @@ pub fn fit_model<M: Target>(
                 file: options.model.clone(),
                 source,
             }),
-            None => IdentifyError::failed(SearchFailure::EveryCandidateFailed { evaluations }),
+            None => match nominal_divergence(&model, &map, &records) {
+                Some(nominal) if map.dim() == 0 => {
+                    IdentifyError::input(PhysicalError::DivergesWithNothingFree {
+                        file: options.model.clone(),
+                        nominal,
+                    })
+                }
+                nominal => IdentifyError::failed(SearchFailure::EveryCandidateFailed {
+                    evaluations,
+                    nominal,
+                }),
+            },
         });
     }
     let sens = sensitivity(
@@ -174,6 +185,28 @@ fn nominal_failure<M: Target>(model: &M, map: &ParameterMap, record: &Dataset) -
         ) => Some(e),
         _ => None,
     }
+}
+
+/// Where the free run at the file's values ([`ParameterMap::base`]) first
+/// gives a scored output that is not finite, if it does.
+fn nominal_divergence<M: Target>(
+    model: &M,
+    map: &ParameterMap,
+    records: &[Dataset],
+) -> Option<NominalDivergence> {
+    let states = model.estimated_count();
+    records.iter().enumerate().find_map(|(i, record)| {
+        let at = map.parameters + i * states;
+        let mut own = map.base.get(..map.parameters)?.to_vec();
+        own.extend_from_slice(map.base.get(at..at + states)?);
+        let (start, y) = model.free_run(&own, record).ok()?;
+        let k = (start..y.len()).find(|&k| !y[k].is_finite())?;
+        let to = DivergedTo::of(y[k]);
+        Some(NominalDivergence {
+            record: (records.len() > 1).then_some(i + 1),
+            divergence: Divergence { at: k, to },
+        })
+    })
 }
 
 /// The nominal point and its free-run cost: the model's parameter values

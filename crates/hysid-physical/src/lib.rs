@@ -295,6 +295,17 @@ pub enum PhysicalError {
         /// The fault.
         source: hysid_model::simulate::SimError,
     },
+    /// Nothing in the model is free to fit, and its free run diverges.
+    #[error(
+        "{}nothing in the model is free to fit, and at its own values {nominal}",
+        if file.is_empty() { String::new() } else { format!("{file}: ") }
+    )]
+    DivergesWithNothingFree {
+        /// The model file (`model`; empty for the built-in head).
+        file: String,
+        /// Where the free run diverges.
+        nominal: crate::stages::NominalDivergence,
+    },
     /// Fewer samples than the free parameters and the initial state need.
     #[error(
         "{samples} samples for {params} free parameters and the initial state: need at least {needed}"

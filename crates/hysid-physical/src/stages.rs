@@ -6,6 +6,7 @@ use crate::PhysicalOptions;
 use crate::objective::{Objective, SimulationCost};
 use argmin::core::TerminationReason;
 use hysid_core::backend::{IdentifyError, RunContext};
+use hysid_model::simulate::Divergence;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicU64;
 use std::time::Duration;
@@ -91,16 +92,44 @@ pub enum SearchFailure {
         cause: Box<dyn std::error::Error + Send + Sync>,
     },
     /// Every simulation of the search failed or diverged.
-    #[error(
-        "every candidate simulation failed or diverged ({evaluations} simulations): the model cannot follow this record"
-    )]
+    #[error("{}", every_candidate_failed(*evaluations, nominal))]
     EveryCandidateFailed {
         /// Simulations run.
         evaluations: u64,
+        /// Where the run at the file's values diverges, if it does.
+        nominal: Option<NominalDivergence>,
     },
     /// No search ran (no swarm asked for).
     #[error("no search ran")]
     NoSearch,
+}
+
+/// Where the free run at a model file's own values diverges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NominalDivergence {
+    /// The record, counted from 1, where the data hold several.
+    pub record: Option<usize>,
+    /// Where and how the output diverged.
+    pub divergence: Divergence,
+}
+
+impl std::fmt::Display for NominalDivergence {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(r) = self.record {
+            write!(f, "on record {r}, ")?;
+        }
+        self.divergence.fmt(f)
+    }
+}
+
+/// [`SearchFailure::EveryCandidateFailed`]'s message, with the run at the
+/// file's values where it diverges.
+fn every_candidate_failed(evaluations: u64, nominal: &Option<NominalDivergence>) -> String {
+    let head = format!("every candidate simulation failed or diverged ({evaluations} simulations)");
+    match nominal {
+        Some(n) => format!("{head}: at the model's own values, {n}"),
+        None => format!("{head}: the model cannot follow this record"),
+    }
 }
 
 impl SearchFailure {

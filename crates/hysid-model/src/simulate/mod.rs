@@ -165,19 +165,56 @@ impl SimulationWarning {
     }
 }
 
-impl std::fmt::Display for SimulationWarning {
+impl DivergedTo {
+    /// How the output value `v`, not finite or past the bound, diverged.
+    pub fn of(v: f64) -> Self {
+        if v.is_nan() {
+            DivergedTo::Undefined
+        } else {
+            DivergedTo::Bound
+        }
+    }
+}
+
+/// Where and how a simulated output diverged, said as its cause (without
+/// what the simulator then does).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Divergence {
+    /// The sample.
+    pub at: usize,
+    /// How.
+    pub to: DivergedTo,
+}
+
+impl std::fmt::Display for Divergence {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            SimulationWarning::Diverged(k, DivergedTo::Bound) => write!(
-                f,
-                "the simulation diverged at sample {k}; the output is held from there on"
-            ),
-            SimulationWarning::Diverged(k, DivergedTo::Undefined) => write!(
+        let k = self.at;
+        match self.to {
+            DivergedTo::Bound => write!(f, "the simulation diverged at sample {k}"),
+            DivergedTo::Undefined => write!(
                 f,
                 "the simulated output became undefined (NaN) at sample {k}: a flow, a reset or \
                  the output map gave an undefined value (the square root or logarithm of a \
-                 negative number, 0/0, ...); the output is held at 0 from there on"
+                 negative number, 0/0, ...)"
             ),
+        }
+    }
+}
+
+impl std::fmt::Display for SimulationWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            SimulationWarning::Diverged(at, to) => {
+                let held = match to {
+                    DivergedTo::Bound => "held",
+                    DivergedTo::Undefined => "held at 0",
+                };
+                write!(
+                    f,
+                    "{}; the output is {held} from there on",
+                    Divergence { at, to }
+                )
+            }
             SimulationWarning::Zeno(z) => z.fmt(f),
         }
     }
@@ -203,11 +240,7 @@ impl Simulation {
             };
             if self.diverged_at.is_none() {
                 self.diverged_at = Some(k);
-                self.diverged_to = Some(if v.is_nan() {
-                    DivergedTo::Undefined
-                } else {
-                    DivergedTo::Bound
-                });
+                self.diverged_to = Some(DivergedTo::of(v));
             }
             for yk in &mut self.y[k..] {
                 *yk = held;
