@@ -101,6 +101,9 @@ fn validate_and_simulate_report_the_estimated_initial_state() {
     let json = ok(&["validate", s(&given), s(&record), "--warmup", "0", "--json"]);
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert_eq!(v["n"], 190, "{v}");
+    let text = ok(&["validate", s(&given), s(&record), "--warmup", "0"]);
+    let said = "190 samples (warm-up 0; 10 samples left out: the model's initial state reads them)";
+    assert!(text.contains(said), "{text}");
 
     let out = d.join("sim.csv");
     let o = hysid(&["simulate", s(&model), "--data", s(&record), "-o", s(&out)]);

@@ -6,7 +6,7 @@ use crate::error::Result;
 use crate::selection::{DataArgs, SignalDefaults};
 use hysid::plot::{FigureFormat, SimulationFigure};
 use hysid_core::priors::Priors;
-use hysid_core::simulate::validate;
+use hysid_core::simulate::{ValidationReport, validate};
 use std::path::PathBuf;
 
 /// Arguments of `hysid validate`.
@@ -107,7 +107,11 @@ pub fn run(mut args: Args) -> Result<()> {
             model.mode_count(),
             model.kind()
         );
-        println!("scored    {} samples (warm-up {})", report.n, report.warmup);
+        println!(
+            "scored    {} samples ({})",
+            report.n,
+            left_out(&report, data.len())
+        );
         println!(
             "fit_sim   {:8.3} %   rmse_sim  {:.6}",
             unsigned_zero(report.fit_sim),
@@ -166,5 +170,22 @@ mod tests {
         assert_eq!(format!("{:.3}", super::unsigned_zero(-1e-13)), "0.000");
         assert_eq!(format!("{:.3}", super::unsigned_zero(-0.0)), "0.000");
         assert_eq!(format!("{:.3}", super::unsigned_zero(-0.002)), "-0.002");
+    }
+}
+
+/// The samples `report` leaves out of a record of `len` samples: the
+/// warm-up asked for, and the samples the model's initial state reads
+/// where it reads more (an ARX history, a gray-box warm-up).
+fn left_out(report: &ValidationReport, len: usize) -> String {
+    let records = report.records.len().max(1);
+    let read = len.saturating_sub(report.n);
+    if read > report.warmup * records {
+        let all = if records > 1 { " in all" } else { "" };
+        format!(
+            "warm-up {}; {read} samples left out{all}: the model's initial state reads them",
+            report.warmup
+        )
+    } else {
+        format!("warm-up {}", report.warmup)
     }
 }
