@@ -1051,6 +1051,18 @@ fn malformed_gray_box_files() {
             ],
         ),
         (
+            "mode_definition.toml",
+            good.replace(
+                "name = \"carried\"\n",
+                "name = \"carried\"\ndefinitions = { lift = \"0\" }\n",
+            ),
+            vec![
+                "mode 'fly'".into(),
+                "definition 'lift' has no value in this mode: mode 'carried' gives it".into(),
+                "[definitions]".into(),
+            ],
+        ),
+        (
             "empty_label.toml",
             good.replace("name = \"fly\"\n", "name = \"fly\"\nlabel = \"\"\n"),
             vec!["mode 'fly'".into(), "a mode label must not be empty".into()],

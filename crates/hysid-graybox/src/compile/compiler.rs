@@ -192,10 +192,14 @@ impl<'m> Compiler<'m> {
         };
         if let Some(&i) = self.mode_only.iter().find(|&&i| text_of(i).is_none()) {
             let d = self.names[i];
+            let given_by = self.m.modes.iter().find(|q| q.definitions.contains_key(d));
             return Err(InvalidGrayBox::new(
                 &place,
                 Some(d),
-                Problem::Undefined(d.to_string()),
+                Problem::Undefined {
+                    name: d.to_string(),
+                    given_by: given_by.map_or_else(String::new, |q| q.name.clone()),
+                },
             ));
         }
         let mut written = Vec::with_capacity(self.names.len());

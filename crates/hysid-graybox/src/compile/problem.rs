@@ -155,9 +155,19 @@ pub enum Problem {
     /// An `element_modes` entry naming no element.
     #[error("no element is named '{0}'")]
     UnknownElement(String),
-    /// A definition that neither the model nor the mode gives.
-    #[error("definition '{0}' has no value in this mode")]
-    Undefined(String),
+    /// A definition that another mode gives, and neither the model nor
+    /// this mode.
+    #[error(
+        "definition '{name}' has no value in this mode: mode '{given_by}' gives it, and a \
+         definition a mode gives needs a value in every mode (its own, or the model's in \
+         [definitions])"
+    )]
+    Undefined {
+        /// The definition.
+        name: String,
+        /// The first mode that gives it.
+        given_by: String,
+    },
     /// A given number that is not finite.
     #[error("the value of '{0}' is not finite")]
     NotFinite(String),
