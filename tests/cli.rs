@@ -2131,3 +2131,56 @@ flow = { x = "F1 + 2*F2 - a*x" }
     );
     assert!(!said(&fit).contains("order"));
 }
+
+/// A definition no expression reads, here an `extends` file's misspelt
+/// change of the base's, is named by every command that runs the model.
+#[test]
+fn a_definition_no_expression_reads_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let base = common::repository_text("models/examples/ball-on-table.toml")
+        .replace("inputs = [\"a\"]", "inputs = [\"u\"]")
+        .replace("a - 2*zeta", "u - 2*zeta");
+    common::write(d, "base.toml", base);
+    let changed = common::write(
+        d,
+        "changed.toml",
+        "extends = \"base.toml\"\n[definitions]\ntable_ac = \"u - 3*zeta*wn*w - wn^2*z\"\n",
+    );
+    let said = "changed.toml: no expression reads the definition(s) table_ac: a misspelt name?";
+    let record = d.join("record.csv");
+    let excite = "n=100,hold=10,low=-1,high=1,ts=0.01";
+    let out = |args: &[&str]| {
+        let o = hysid(args);
+        assert!(o.status.success(), "{args:?}: {o:?}");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let simulate = [
+        "simulate",
+        s(&changed),
+        "--excite",
+        excite,
+        "-o",
+        s(&record),
+    ];
+    assert!(out(&simulate).contains(said));
+    assert!(out(&["validate", s(&changed), s(&record)]).contains(said));
+    let set = format!("model={}", s(&changed));
+    let fitted = d.join("fitted.json");
+    let err = out(&[
+        "identify",
+        s(&record),
+        "-m",
+        "physical",
+        "--set",
+        &set,
+        "-o",
+        s(&fitted),
+    ]);
+    assert!(
+        err.contains("no expression reads the definition(s) table_ac"),
+        "{err}"
+    );
+    let base = d.join("base.toml");
+    assert!(!out(&["validate", s(&base), s(&record)]).contains("no expression reads"));
+}

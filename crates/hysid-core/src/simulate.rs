@@ -297,6 +297,37 @@ impl std::fmt::Display for CoarseStep {
     }
 }
 
+/// The definitions of a gray-box model that no expression reads
+/// (`hysid_graybox::Names::unread_definitions`): harmless to a run, and
+/// the usual sign of a misspelt name, such as an `extends` file's new
+/// definition where it meant to change the base's.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UnreadDefinitions(pub Vec<String>);
+
+impl UnreadDefinitions {
+    /// Those of `model`; `None` where it has none, or is no gray-box
+    /// model that compiles.
+    pub fn of(model: &Model) -> Option<Self> {
+        let Model::GrayBox(m) = model else {
+            return None;
+        };
+        let compiled = hysid_graybox::CompiledModel::new(m).ok()?;
+        let unread = compiled.names.unread_definitions.clone();
+        (!unread.is_empty()).then_some(Self(unread))
+    }
+}
+
+impl std::fmt::Display for UnreadDefinitions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "no expression reads the definition(s) {}: a misspelt name? (in an `extends` file a \
+             new name adds a definition, it does not change the base's)",
+            self.0.join(", ")
+        )
+    }
+}
+
 /// Scores `model` on `data`, leaving out the first `warmup` samples (and
 /// any before the simulation can start). Data that join several records
 /// are scored record by record, each with its own warm-up and initial

@@ -234,6 +234,9 @@ pub struct Names {
     pub states: Vec<String>,
     /// Mode names.
     pub modes: Vec<String>,
+    /// The definitions no expression reads, directly or through other
+    /// definitions, in name order.
+    pub unread_definitions: Vec<String>,
 }
 
 impl Names {
@@ -286,6 +289,7 @@ impl CompiledModel {
             names: std::sync::Arc::new(Names {
                 states: m.states.clone(),
                 modes: m.modes.iter().map(|mode| mode.name.clone()).collect(),
+                unread_definitions: c.unread_definitions(),
             }),
         })
     }

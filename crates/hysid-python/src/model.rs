@@ -88,6 +88,15 @@ fn warn_sampling_time(
     }
 }
 
+/// A Python warning naming the definitions of a gray-box `model` that no
+/// expression reads ([`simulate::UnreadDefinitions`]).
+fn warn_unread_definitions(py: Python<'_>, model: &AnyModel) -> PyResult<()> {
+    match simulate::UnreadDefinitions::of(model) {
+        Some(unread) => crate::warn(py, &unread.to_string()),
+        None => Ok(()),
+    }
+}
+
 /// A `RuntimeWarning` for each of the simulation's warnings (it diverged,
 /// it reached the Zeno bound).
 fn warn_divergence(py: Python<'_>, sim: &Simulation) -> PyResult<()> {
@@ -337,6 +346,7 @@ impl Model {
         }
         let data = self.record(u, y, ts)?;
         warn_sampling_time(py, &self.inner, &data)?;
+        warn_unread_definitions(py, &self.inner)?;
         let sim = py
             .detach(|| simulate::simulate(&self.inner, &data, SimulationOptions::default()))
             .map_err(Failure::from)?;
@@ -407,6 +417,7 @@ impl Model {
             }
         }
         warn_sampling_time(py, &self.inner, &data)?;
+        warn_unread_definitions(py, &self.inner)?;
         let (report, sim, _) = py
             .detach(|| simulate::validate(&self.inner, &data, warmup))
             .map_err(Failure::from)?;

@@ -11,7 +11,7 @@ use hysid_core::model::Model;
 use hysid_core::options::{MAX_COUNT, Settings};
 use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::SearchSpace;
-use hysid_core::simulate::{OutsideRegions, simulate};
+use hysid_core::simulate::{OutsideRegions, UnreadDefinitions, simulate};
 use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
@@ -461,7 +461,8 @@ impl Identified {
     /// its diagnostics' warnings
     /// (`hysid_physical::diagnostics::PhysicalDiagnostics::warnings`: values
     /// at a bound, parameters the rows do not determine or without a
-    /// standard error), then those of the fitted model's run on the
+    /// standard error), the definitions no expression reads
+    /// ([`UnreadDefinitions`]), then those of the fitted model's run on the
     /// identification rows of `request` (a divergence, the Zeno bound,
     /// samples outside their mode's invariant); empty for the other
     /// back-ends.
@@ -472,6 +473,7 @@ impl Identified {
         let mut warnings = PhysicalDiagnostics::of(&self.model.info().diagnostics)
             .map(|d| d.warnings())
             .unwrap_or_default();
+        warnings.extend(UnreadDefinitions::of(&self.model).map(|u| u.to_string()));
         if let Ok(sim) = simulate(&self.model, request.data, SimulationOptions::default()) {
             warnings.extend(OutsideRegions::of(&self.model, &sim).map(|o| o.to_string()));
             warnings.extend(sim.warnings().iter().map(ToString::to_string));

@@ -125,6 +125,14 @@ pub(crate) fn warn_of_order(own: &[String], data: &Dataset, whose: &str) {
     }
 }
 
+/// A warning naming the definitions of the gray-box model of `file` that
+/// no expression reads ([`hysid_core::simulate::UnreadDefinitions`]).
+pub(crate) fn warn_unread_definitions(file: &Path, model: &Model) {
+    if let Some(unread) = hysid_core::simulate::UnreadDefinitions::of(model) {
+        eprintln!("hysid: warning: {}: {unread}", file.display());
+    }
+}
+
 /// A warning when the discrete-time model of `file` was identified at
 /// another sampling time than the record's, or the excitation's when
 /// `excited` ([`hysid_core::simulate::sampling_time_mismatch`]).

@@ -102,6 +102,7 @@ pub fn run(args: Args) -> Result<()> {
         }
     };
     super::warn_sampling_time(&args.model, &model, &data, args.excite.is_some());
+    super::warn_unread_definitions(&args.model, &model);
     super::warn_input_order(&args.model, &model, &data);
     super::warn_given_state(&args.model, &model, &args.select.rows);
     let sim = simulate(&model, &data, SimulationOptions::default())

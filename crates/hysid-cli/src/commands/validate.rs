@@ -59,6 +59,7 @@ pub fn run(mut args: Args) -> Result<()> {
         FigureFormat::of_path(path).map_err(|e| CliError::input(format!("--plot: {e}")))?;
     }
     super::warn_sampling_time(&args.model, &model, &data, false);
+    super::warn_unread_definitions(&args.model, &model);
     super::warn_input_order(&args.model, &model, &data);
     super::warn_given_state(&args.model, &model, &args.select.rows);
     let (report, sim, _) =

@@ -8,7 +8,8 @@ use crate::expr::{
     DefinitionError, Definitions, ExprError, Expression, InlineError, Relation, Shared,
 };
 use crate::model::{Element, GrayBoxMode, GrayBoxModel, GrayBoxTransition};
-use std::collections::{BTreeMap, HashMap};
+use std::cell::RefCell;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::rc::Rc;
 
 /// What compiling one model keeps at hand: the slots of its names, its
@@ -32,6 +33,11 @@ pub(super) struct Compiler<'m> {
     model_definitions: Vec<Option<Rc<Expression>>>,
     /// The definitions only modes give: every mode must give them.
     mode_only: Vec<usize>,
+    /// The slots the expressions other than definitions read, as written.
+    reads: RefCell<BTreeSet<u32>>,
+    /// Per definition name, the slots its texts (the model's, the modes')
+    /// read, as written.
+    definition_reads: Vec<BTreeSet<u32>>,
     operations: usize,
 }
 
@@ -57,6 +63,8 @@ impl<'m> Compiler<'m> {
             model_definitions: vec![None; names.len()],
             model_texts,
             mode_only,
+            reads: RefCell::default(),
+            definition_reads: vec![BTreeSet::new(); names.len()],
             names,
             symbols,
             mode_index,
@@ -94,7 +102,33 @@ impl<'m> Compiler<'m> {
     }
 
     fn expr(&self, place: &str, text: &str) -> Result<Expression, InvalidGrayBox> {
-        self.expr_at(|| place.to_string(), text)
+        let e = self.expr_at(|| place.to_string(), text)?;
+        self.reads.borrow_mut().extend(e.slots());
+        Ok(e)
+    }
+
+    /// The definitions no expression reads, directly or through other
+    /// definitions, in name order: a misspelt name, or an `extends` file's
+    /// new entry where it meant to change the base's.
+    pub(super) fn unread_definitions(&self) -> Vec<String> {
+        let first = self.first_def as u32;
+        let mut read = vec![false; self.names.len()];
+        let mut pending: Vec<u32> = self.reads.borrow().iter().copied().collect();
+        while let Some(slot) = pending.pop() {
+            let Some(i) = slot.checked_sub(first).map(|i| i as usize) else {
+                continue;
+            };
+            if i < read.len() && !read[i] {
+                read[i] = true;
+                pending.extend(&self.definition_reads[i]);
+            }
+        }
+        let mut unread: Vec<String> = (self.names.iter().zip(&read))
+            .filter(|(_, r)| !**r)
+            .map(|(n, _)| n.to_string())
+            .collect();
+        unread.sort();
+        unread
     }
 
     /// [`Compiler::expr`], with the place worded only for an error.
@@ -218,6 +252,7 @@ impl<'m> Compiler<'m> {
                 },
                 (None, None) => unreachable!("every name only modes give is given above"),
             };
+            self.definition_reads[i].extend(e.slots());
             written.push(e);
         }
         Definitions::new(self.first_def as u32, written).map_err(|e| match e {

@@ -71,6 +71,29 @@ fn the_scan_finds_the_head_and_the_example_models() {
     }
 }
 
+/// Every definition of the repository's files is read by some
+/// expression; a misspelt one in a file of this kind (here the head's
+/// `extends` files changing the base's) is named as unread.
+#[test]
+fn every_definition_is_read_and_a_misspelt_one_is_named() {
+    for path in FILES.iter() {
+        let (m, _) = file(path);
+        let unread = CompiledModel::new(&m)
+            .unwrap()
+            .names
+            .unread_definitions
+            .clone();
+        assert!(unread.is_empty(), "{path}: {unread:?}");
+    }
+    let (mut m, _) = file("models/examples/ball-on-table.toml");
+    let text = m.definitions.remove("table_acc").unwrap();
+    m.definitions.insert("table_acc".into(), text.clone());
+    m.definitions.insert("table_ac".into(), text);
+    m.definitions.insert("spare".into(), "table_ac + 1".into());
+    let names = CompiledModel::new(&m).unwrap().names;
+    assert_eq!(names.unread_definitions, ["spare", "table_ac"]);
+}
+
 /// The model, and the excitation of its "Try:" line.
 fn file(path: &str) -> (GrayBoxModel, Excitation) {
     let resolved = extends::read(Path::new(&format!("{ROOT}/{path}"))).unwrap();
