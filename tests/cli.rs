@@ -1055,11 +1055,31 @@ fn auto_selection_rows_are_checked() {
             vec!["--set", "ridgee=1"],
             "--set ridgee: method 'arx' has no such option",
         ),
+        // An axis a given option or the exact mode count also fixes: the
+        // grid would override it.
+        (
+            vec!["--grid", "ridge=0,1", "--set", "ridge=2"],
+            "--grid ridge: also fixed by --set ridge=2; give it in one place",
+        ),
+        (
+            vec!["--grid", "modes=1", "--modes", "1"],
+            "--grid modes: also fixed by --modes 1",
+        ),
     ] {
         let mut args = base.to_vec();
         args.extend(extra);
         bad(&args, &[needle], &out);
     }
+    let prior = common::write(dir.path(), "one.toml", "modes = 1\n");
+    let args = [&base[..], &["--grid", "modes=1", "--prior", s(&prior)]].concat();
+    bad(
+        &args,
+        &[
+            "--grid modes: also fixed by the prior modes = 1 of",
+            "one.toml",
+        ],
+        &out,
+    );
     // Selection rows the user did not give are named by where they come from.
     bad(
         &[base.to_vec(), vec!["--rows", "0..30"]].concat(),

@@ -484,6 +484,11 @@ fn entries_that_cannot_work_are_refused_before_anything_runs() {
             "[[sweep]] 's': ridge is swept and also fixed (set = { ridge = ... })",
         ),
         (
+            "[priors]\nmodes = 2\n[[sweep]]\nname = \"s\"\nmethod = \"cluster\"\nvary = \"modes\"\nvalues = [2, 3]\n"
+                .to_string(),
+            "[[sweep]] 's': modes is swept and also fixed ([priors] modes = ...)",
+        ),
+        (
             "[[sweep]]\nname = \"s\"\nmethod = \"arx\"\nvary = \"na\"\nvalues = [1, 2]\ngrid = { na = [3] }\n"
                 .to_string(),
             "[[sweep]] 's': na is both vary and a grid key",

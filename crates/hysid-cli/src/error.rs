@@ -145,6 +145,17 @@ impl From<hysid::select::SelectError> for CliError {
             SelectError::Option { error, from_grid } => {
                 Self::input(error.render(if from_grid { "--grid" } else { "--set" }))
             }
+            SelectError::GridFixed { key, given } => {
+                use hysid::select::FixedBy;
+                let by = match given {
+                    FixedBy::Option(v) => format!("--set {key}={v}"),
+                    FixedBy::Modes(s) => format!("--modes {s}"),
+                    other => other.to_string(),
+                };
+                Self::input(format!(
+                    "--grid {key}: also fixed by {by}; give it in one place"
+                ))
+            }
             e @ SelectError::NoCandidate { .. } => Self::failure(format!("--auto: {e}")),
         }
     }

@@ -255,6 +255,17 @@ impl From<SelectError> for Failure {
                 Self::input(format!("grid {}={}: {}", c.key, c.value, c.reason))
             }
             e @ SelectError::Option { .. } => Self::input(e.to_string()),
+            SelectError::GridFixed { key, given } => {
+                use hysid::select::FixedBy;
+                let by = match given {
+                    FixedBy::Option(v) => format!("options={{'{key}': {v}}}"),
+                    FixedBy::Modes(s) => format!("modes={s}"),
+                    other => other.to_string(),
+                };
+                Self::input(format!(
+                    "grid {key}: also fixed by {by}; give it in one place"
+                ))
+            }
             e @ SelectError::NoCandidate { .. } => Self::method(format!("auto: {e}")),
         }
     }

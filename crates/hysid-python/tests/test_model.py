@@ -134,3 +134,15 @@ def test_a_mechanical_model_as_a_gray_box_simulates_alike(tmp_path):
     assert np.array_equal(runs[1][0], runs[2][0])
     with pytest.raises(hysid.InputError, match="only a 'mechanical' model has a gray-box form"):
         gray.to_gray_box()
+
+
+def test_a_definition_no_expression_reads_is_warned_of(tmp_path):
+    import pathlib
+
+    base = pathlib.Path(__file__).resolve().parents[3] / "models" / "pick-and-place" / "structures" / "load-bounce.toml"
+    changed = tmp_path / "changed.toml"
+    changed.write_text(f'extends = "{base.as_posix()}"\n[definitions]\nkinetc = "1"\n')
+    model = hysid.Model.load(changed)
+    u = np.full(200, -0.1)
+    with pytest.warns(UserWarning, match=r"no expression reads the definition\(s\) kinetc: a misspelt name\?"):
+        model.simulate(u, ts=0.0025)

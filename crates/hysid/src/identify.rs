@@ -3,7 +3,7 @@
 //! the Python package and experiments are front ends over it; each words
 //! the typed [`Error`] with its own argument names.
 
-use crate::select::{self, AgainstAffine, Plan, Request, SelectError};
+use crate::select::{self, AgainstAffine, FixedBy, Plan, Request, SelectError};
 use hysid_core::backend::{
     Backend, Deadline, IdentifyError, NoProgress, Problem, Progress, Registry, RunContext,
 };
@@ -391,6 +391,31 @@ impl<'a> Identify<'a> {
         }
     }
 
+    /// `grid`, refused where an axis is also fixed: by a given option, or
+    /// (`modes`) by the exact mode count of `priors`, which the grid would
+    /// override.
+    fn grid_alone(&self, grid: &SearchSpace, priors: &Priors) -> Result<SearchSpace, SelectError> {
+        for axis in &grid.axes {
+            let given = match (axis.key.as_str(), self.modes, priors.modes) {
+                ("modes", Some(s), _) => Some(FixedBy::Modes(s)),
+                ("modes", None, Some(s)) => {
+                    Some(FixedBy::PriorModes(s, self.priors_origin.clone()))
+                }
+                (key, ..) => self
+                    .options
+                    .get(key)
+                    .map(|v| FixedBy::Option(v.to_string())),
+            };
+            if let Some(given) = given {
+                return Err(SelectError::GridFixed {
+                    key: axis.key.clone(),
+                    given,
+                });
+            }
+        }
+        Ok(grid.clone())
+    }
+
     /// The automatic selection `auto` asks for on `problem`: the grid
     /// given or the back-end's search space, the split and the refit.
     fn selection<'p>(
@@ -426,7 +451,7 @@ impl<'a> Identify<'a> {
             .into());
         }
         let space = match &auto.grid {
-            Some(grid) => grid.clone(),
+            Some(grid) => self.grid_alone(grid, problem.priors)?,
             None => backend.search_space(problem)?.without_given(&self.options),
         };
         let plan = self.plan(auto);

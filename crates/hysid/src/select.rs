@@ -181,6 +181,15 @@ pub enum SelectError {
         /// Whether the option is an axis of the grid (else a given option).
         from_grid: bool,
     },
+    /// A grid axis that a given option or the exact mode count also
+    /// fixes: the grid would override it.
+    #[error("grid {key}: also fixed by {given}; give it in one place")]
+    GridFixed {
+        /// The axis.
+        key: String,
+        /// What fixes it.
+        given: FixedBy,
+    },
     /// Every candidate failed; the first failure is given.
     #[error("no candidate could be fitted and scored (first failure: {first})")]
     NoCandidate {
@@ -194,6 +203,28 @@ pub enum SelectError {
     /// The back-end refused the problem or the final fit failed.
     #[error(transparent)]
     Identify(#[from] IdentifyError),
+}
+
+/// What fixes a grid axis besides the grid ([`SelectError::GridFixed`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FixedBy {
+    /// A given option, with its value.
+    Option(String),
+    /// The mode count given beside the priors (`--modes`, `modes=`).
+    Modes(usize),
+    /// The priors' exact mode count, and their file where they have one.
+    PriorModes(usize, Option<String>),
+}
+
+impl std::fmt::Display for FixedBy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FixedBy::Option(v) => write!(f, "the option's value {v}"),
+            FixedBy::Modes(s) => write!(f, "the mode count {s}"),
+            FixedBy::PriorModes(s, None) => write!(f, "the prior modes = {s}"),
+            FixedBy::PriorModes(s, Some(file)) => write!(f, "the prior modes = {s} of {file}"),
+        }
+    }
 }
 
 /// One candidate: a back-end and its set-up.

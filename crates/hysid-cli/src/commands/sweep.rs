@@ -79,8 +79,15 @@ pub struct Args {
 /// method is left to the experiment's own check, which names the known ones.
 fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
     let given = Settings::parse(&args.set)?;
+    let file = args.prior.as_ref().map(|p| p.display().to_string());
     let fixed = |key: &str| match key {
-        "modes" => args.modes.map(|m| format!("--modes {m}")),
+        "modes" => (args.modes.map(|m| format!("--modes {m}"))).or_else(|| {
+            Some(format!(
+                "the prior modes = {} of {}",
+                priors.modes?,
+                file.as_ref()?
+            ))
+        }),
         key => given.get(key).map(|v| format!("--set {key}={v}")),
     };
     if let Some((key, flag)) = (space.axes.iter()).find_map(|a| Some((&a.key, fixed(&a.key)?))) {

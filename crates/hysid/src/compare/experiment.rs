@@ -838,7 +838,8 @@ impl Experiment {
             }
         }
         for s in &self.sweeps {
-            check_sweep(s)?;
+            let shared = self.priors.modes.filter(|_| s.run.use_priors);
+            check_sweep(s, shared)?;
         }
         // Counted before any is made: a sweep's points are the product of
         // its axes' lengths.
@@ -1012,8 +1013,9 @@ pub fn slug(name: &str) -> String {
 }
 
 /// A sweep's own consistency: what it varies, each key once and not also
-/// fixed by its run, each value once; no `auto` or `seeds`.
-fn check_sweep(s: &SweepSpec) -> Result<(), InconsistentExperiment> {
+/// fixed by its run or (`modes`) by the experiment's priors it reads
+/// (`shared_modes`), each value once; no `auto` or `seeds`.
+fn check_sweep(s: &SweepSpec, shared_modes: Option<usize>) -> Result<(), InconsistentExperiment> {
     use InconsistentExperiment as E;
     let name = || s.run.name.clone();
     if s.run.auto || !s.run.seeds.is_empty() {
@@ -1049,11 +1051,14 @@ fn check_sweep(s: &SweepSpec) -> Result<(), InconsistentExperiment> {
             .is_some(),
         key => r.set.contains_key(key),
     };
-    if let Some(key) = keys.iter().find(|k| fixed(k)) {
+    let shared = |key: &str| key == "modes" && shared_modes.is_some();
+    if let Some(key) = keys.iter().find(|k| fixed(k) || shared(k)) {
         let given = if r.set.contains_key(*key) {
             format!("set = {{ {key} = ... }}")
-        } else {
+        } else if fixed(key) {
             format!("{key} = ...")
+        } else {
+            format!("[priors] {key} = ...")
         };
         return Err(E::SweptAndFixed {
             name: name(),
