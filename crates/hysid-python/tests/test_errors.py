@@ -103,6 +103,11 @@ def test_a_grid_is_checked_before_any_candidate_is_fitted():
     assert message.startswith("grid cc: method 'arx' has no such option (options: "), message
     message = raised(hysid.identify, U, Y, method="arx", auto=True, grid={"ridge": [1, "x"]})
     assert message.startswith("grid ridge=x"), message
+    # An axis an option or the mode count also fixes: the grid would override it.
+    message = raised(hysid.identify, U, Y, method="arx", auto=True, grid={"ridge": [0, 1]}, options={"ridge": 2})
+    assert message == "grid ridge: also fixed by options={'ridge': 2}; give it in one place", message
+    message = raised(hysid.identify, U, Y, method="cluster", auto=True, grid={"modes": [2, 3]}, modes=2)
+    assert message == "grid modes: also fixed by modes=2; give it in one place", message
 
 
 def test_a_grid_takes_the_values_options_take():
