@@ -1080,6 +1080,12 @@ fn auto_selection_rows_are_checked() {
         ],
         &out,
     );
+    // A mode count the method cannot meet is refused before any candidate
+    // is fitted, as without --auto.
+    let two = common::write(dir.path(), "two.toml", "modes = 2\n");
+    let args = [&base[..], &["--prior", s(&two)]].concat();
+    let said = "two.toml: modes = 2: method 'arx' identifies exactly one ordinary mode";
+    bad(&args, &[said], &out);
     // Selection rows the user did not give are named by where they come from.
     bad(
         &[base.to_vec(), vec!["--rows", "0..30"]].concat(),

@@ -484,6 +484,10 @@ fn entries_that_cannot_work_are_refused_before_anything_runs() {
             "[[sweep]] 's': ridge is swept and also fixed (set = { ridge = ... })",
         ),
         (
+            arx("a", "priors = { modes = 2 }"),
+            "[[run]] 'a': prior modes = 2: method 'arx' identifies exactly one ordinary mode",
+        ),
+        (
             "[priors]\nmodes = 2\n[[sweep]]\nname = \"s\"\nmethod = \"cluster\"\nvary = \"modes\"\nvalues = [2, 3]\n"
                 .to_string(),
             "[[sweep]] 's': modes is swept and also fixed ([priors] modes = ...)",

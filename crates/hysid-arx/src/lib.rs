@@ -22,7 +22,8 @@ use hysid_core::priors::PriorKind;
 use hysid_core::search::SearchSpace;
 use hysid_estimation::constrained::{self, ModeSamples, Parametrisation};
 use hysid_estimation::linalg;
-use hysid_estimation::pwarx::{ModeCount, ModeRule, PwarxData, PwarxFit, PwarxMethod};
+use hysid_estimation::pwarx::prepare::FixedModeCount;
+use hysid_estimation::pwarx::{ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::PwarxMode;
 use hysid_model::regressors::{RegressorSpec, Regressors};
@@ -58,6 +59,7 @@ impl PwarxMethod for Arx {
     type Options = ArxOptions;
     type Diagnostics = ArxDiagnostics;
     const MODE_RULE: ModeRule = ModeRule::Method;
+    const ORDINARY_MODES: Option<usize> = Some(1);
     const NAME: &'static str = "arx";
     const SEEDED: bool = false;
     const SUMMARY: &'static str = "one affine ARX model by least squares: the linear baseline";
@@ -125,17 +127,11 @@ pub fn fit(
 }
 
 /// One ordinary mode: a `modes` prior must count exactly one besides the
-/// stops.
+/// stops ([`FixedModeCount`]).
 fn check_one_mode(data: &PwarxData<'_>) -> Result<(), IdentifyError> {
-    let stops = data.stops();
-    match data.modes {
-        ModeCount::Exact(s) if s != 1 => Err(ArxError::ModeCount {
-            modes: s + stops,
-            stops,
-        }
-        .into()),
-        _ => Ok(()),
-    }
+    let problem = &data.problem;
+    FixedModeCount::check(Arx::NAME, Arx::ORDINARY_MODES, problem.priors)
+        .map_err(|e| IdentifyError::prior_mismatch(problem.priors_origin, e))
 }
 
 fn check_sample_count(
@@ -268,17 +264,6 @@ fn rmse(reg: &Regressors, theta: &[f64]) -> f64 {
 /// at (an [`IdentifyError::Failed`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ArxError {
-    /// A `modes` prior asking for other than one ordinary mode.
-    #[error(
-        "prior modes = {modes}: method 'arx' identifies exactly one ordinary mode{}",
-        if *.stops > 0 { format!(" (modes = {} with the {} saturation mode(s))", 1 + .stops, .stops) } else { String::new() }
-    )]
-    ModeCount {
-        /// `modes`, stops included.
-        modes: usize,
-        /// Known stops.
-        stops: usize,
-    },
     /// Fewer ordinary regressors than free parameters.
     #[error(
         "{rows} regressors{} for {free} free parameters: need at least as many samples as parameters",
@@ -308,7 +293,6 @@ impl From<ArxError> for IdentifyError {
     /// squares', the method's.
     fn from(e: ArxError) -> Self {
         match e {
-            ArxError::ModeCount { .. } => IdentifyError::input(e),
             ArxError::TooFewSamples { .. } => IdentifyError::too_few_samples(e),
             e => IdentifyError::failed(e),
         }

@@ -92,6 +92,11 @@ pub trait PwarxMethod: Send + Sync {
     const SEED_USE: &'static str = "";
     /// Who chooses the mode count.
     const MODE_RULE: ModeRule = ModeRule::Given;
+    /// The number of ordinary modes the method always identifies, where it
+    /// has one (the affine model's one): a `modes` prior asking for
+    /// another is refused before any data are read
+    /// ([`prepare::FixedModeCount`]).
+    const ORDINARY_MODES: Option<usize> = None;
     /// What a fit with `options` needs of the priors' number of modes
     /// ([`Identifier::mode_count_need`]): by default, `modes` or
     /// `max_modes` where [`Self::MODE_RULE`] is [`ModeRule::Given`].
@@ -212,7 +217,9 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
         orders: RegressorSpec,
         origin: Option<&str>,
     ) -> Result<(), IdentifyError> {
-        prepare::check_priors(priors, &orders, origin)
+        prepare::check_priors(priors, &orders, origin)?;
+        prepare::FixedModeCount::check(M::NAME, M::ORDINARY_MODES, priors)
+            .map_err(|e| IdentifyError::prior_mismatch(origin, e))
     }
 
     fn mode_count_need(&self, options: &Self::Options) -> ModeCountNeed {

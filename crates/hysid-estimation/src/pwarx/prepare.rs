@@ -125,6 +125,47 @@ pub struct UnknownName {
     pub known: Vec<String>,
 }
 
+/// A `modes` prior that a method with a fixed number of ordinary modes
+/// ([`super::PwarxMethod::ORDINARY_MODES`]) cannot meet.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "modes = {modes}: method '{method}' identifies exactly {} ordinary mode{}{}",
+    if *.ordinary == 1 { "one".to_string() } else { .ordinary.to_string() },
+    if *.ordinary == 1 { "" } else { "s" },
+    if *.stops > 0 { format!(" (modes = {} with the {} saturation mode(s))", .ordinary + .stops, .stops) } else { String::new() }
+)]
+pub struct FixedModeCount {
+    /// The method.
+    pub method: &'static str,
+    /// The prior's `modes`, stops included.
+    pub modes: usize,
+    /// The ordinary modes the method identifies.
+    pub ordinary: usize,
+    /// The known stops.
+    pub stops: usize,
+}
+
+impl FixedModeCount {
+    /// The prior `modes` of `priors` against `ordinary`, the ordinary modes
+    /// `method` always identifies (`None`: it has no fixed count).
+    pub fn check(
+        method: &'static str,
+        ordinary: Option<usize>,
+        priors: &Priors,
+    ) -> Result<(), Self> {
+        let stops = priors.saturation.len();
+        match (ordinary, priors.modes) {
+            (Some(ordinary), Some(modes)) if modes != ordinary + stops => Err(FixedModeCount {
+                method,
+                modes,
+                ordinary,
+                stops,
+            }),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// The checks of `priors` that need no data: their names against the
 /// structure of `spec` ([`check_names`]), and fixed values, bounds and
 /// equalities that can hold together ([`Parametrisation::from_priors`]);
