@@ -260,7 +260,7 @@ pub enum InconsistentPrior {
         high: f64,
     },
     /// A name listed twice in one entry.
-    #[error("{entry}: '{name}' is listed twice")]
+    #[error("{entry}: '{}' is listed twice", .name.escape_debug())]
     Repeated {
         /// The entry (`switching`, `[[tie]] #2`).
         entry: String,

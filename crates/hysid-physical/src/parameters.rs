@@ -11,7 +11,7 @@ use nalgebra::DMatrix;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ParameterError {
     /// An entry naming a parameter the model does not have.
-    #[error("{entry}: unknown parameter '{name}' (known: {})", .known.join(", "))]
+    #[error("{entry}: unknown parameter '{}' (known: {})", .name.escape_debug(), .known.join(", "))]
     UnknownName {
         /// `[bounds]`, `[fixed]` or `[[tie]]`.
         entry: &'static str,

@@ -115,7 +115,7 @@ impl PwarxData<'_> {
 /// A prior entry naming a parameter or regressor the PWARX structure does
 /// not have.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{entry}: unknown name '{name}' (known: {})", known.join(", "))]
+#[error("{entry}: unknown name '{}' (known: {})", name.escape_debug(), known.join(", "))]
 pub struct UnknownName {
     /// The entry (`[[tie]] params`, `[fixed]`, `switching`, ...).
     pub entry: String,
@@ -426,6 +426,20 @@ mod tests {
         assert!(
             e.to_string()
                 .starts_with("[[equality]] #1 coefficients: unknown name 'a2'"),
+            "{e}"
+        );
+        // A control or invisible character in a name is shown, not sent to
+        // the terminal.
+        let p = Priors::from_toml(
+            "[fixed]\n\"\\u001b[31mc\" = 0.0\n\"a1\\u200b\" = 1.0\n",
+            "p.toml",
+        )
+        .unwrap();
+        let e = check_names(&p, &RegressorSpec::new(1, 1, 1)).unwrap_err();
+        assert!(
+            ["'a1\\u{200b}'", "'\\u{1b}[31mc'"]
+                .iter()
+                .any(|n| e.to_string().contains(n)),
             "{e}"
         );
     }
