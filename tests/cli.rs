@@ -1086,6 +1086,23 @@ fn auto_selection_rows_are_checked() {
     let args = [&base[..], &["--prior", s(&two)]].concat();
     let said = "two.toml: modes = 2: method 'arx' identifies exactly one ordinary mode";
     bad(&args, &[said], &out);
+    // A grid point whose orders lack a name of the priors is refused, as
+    // sweep refuses it; the declared space's such points fail, and are
+    // counted on stderr.
+    let a2 = common::write(dir.path(), "a2.toml", "[fixed]\na2 = -0.5\n");
+    let args = [&base[..], &["--grid", "na=1,2", "--prior", s(&a2)]].concat();
+    bad(&args, &["a2.toml: [fixed]: unknown name 'a2'"], &out);
+    let fitted = dir.path().join("fitted.json");
+    let mut args = [&base[..], &["--prior", s(&a2)]].concat();
+    args[6] = s(&fitted);
+    let o = hysid(&args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let said = "hysid: --auto: 2 of the 5 candidate(s) could not be fitted and scored (the first: ";
+    assert!(
+        err.contains(said) && err.contains("unknown name 'a2'"),
+        "{err}"
+    );
     // Selection rows the user did not give are named by where they come from.
     bad(
         &[base.to_vec(), vec!["--rows", "0..30"]].concat(),

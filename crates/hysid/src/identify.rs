@@ -10,7 +10,7 @@ use hysid_core::backend::{
 use hysid_core::model::Model;
 use hysid_core::options::{MAX_COUNT, Settings};
 use hysid_core::priors::{InconsistentPrior, Priors};
-use hysid_core::search::SearchSpace;
+use hysid_core::search::{SearchSpace, Setup};
 use hysid_core::simulate::{OutsideRegions, UnreadDefinitions, simulate};
 use hysid_estimation::pwarx::run_standardized;
 use hysid_model::data::{Dataset, RowRange};
@@ -391,10 +391,17 @@ impl<'a> Identify<'a> {
         }
     }
 
-    /// `grid`, refused where an axis is also fixed: by a given option, or
-    /// (`modes`) by the exact mode count of `priors`, which the grid would
-    /// override.
-    fn grid_alone(&self, grid: &SearchSpace, priors: &Priors) -> Result<SearchSpace, SelectError> {
+    /// `grid`, the user's, refused where an axis is also fixed (by a given
+    /// option, or `modes` by the exact mode count of the priors: the grid
+    /// would override it) and where a point's orders cannot hold the
+    /// priors' names (as `sweep` refuses them).
+    fn checked_grid(
+        &self,
+        backend: &dyn Backend,
+        grid: &SearchSpace,
+        problem: &Problem<'_>,
+    ) -> Result<SearchSpace, Error> {
+        let priors = problem.priors;
         for axis in &grid.axes {
             let given = match (axis.key.as_str(), self.modes, priors.modes) {
                 ("modes", Some(s), _) => Some(FixedBy::Modes(s)),
@@ -410,8 +417,17 @@ impl<'a> Identify<'a> {
                 return Err(SelectError::GridFixed {
                     key: axis.key.clone(),
                     given,
-                });
+                }
+                .into());
             }
+        }
+        let setup = Setup {
+            orders: problem.orders,
+            priors: priors.clone(),
+            settings: self.options.clone(),
+        };
+        for (_, point) in select::candidate_setups(backend, &setup, grid)? {
+            backend.check_priors(&point.priors, point.orders, problem.priors_origin)?;
         }
         Ok(grid.clone())
     }
@@ -451,7 +467,7 @@ impl<'a> Identify<'a> {
             .into());
         }
         let space = match &auto.grid {
-            Some(grid) => self.grid_alone(grid, problem.priors)?,
+            Some(grid) => self.checked_grid(backend, grid, problem)?,
             None => backend.search_space(problem)?.without_given(&self.options),
         };
         let plan = self.plan(auto);

@@ -317,6 +317,17 @@ fn report_selection(method: &str, s: &Selection) {
         },
         chosen.fit_sim.unwrap_or(f64::NAN),
     );
+    let failed: Vec<&str> = (s.candidates.iter())
+        .filter(|c| c.fit_sim.is_none())
+        .filter_map(|c| c.error.as_deref())
+        .collect();
+    if let Some(first) = failed.first() {
+        eprintln!(
+            "hysid: --auto: {} of the {} candidate(s) could not be fitted and scored (the first: {first})",
+            failed.len(),
+            s.candidates.len()
+        );
+    }
     if s.chosen != s.best {
         let best = &s.candidates[s.best];
         let why = match &best.error {
