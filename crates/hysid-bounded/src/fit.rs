@@ -314,7 +314,8 @@ pub fn estimate_regions(
 }
 
 /// How the run ended: cut short by the time budget or not, and the
-/// warning when the tie projection left the greedy modes beyond delta.
+/// warnings when the tie projection left the greedy modes beyond delta
+/// and when most samples fit no mode.
 fn how_it_ended(c: &Classification, delta: f64) -> (RunStatus, Vec<String>) {
     let mut status = Vec::new();
     let run_status = if c.stopped_by_deadline {
@@ -337,6 +338,15 @@ fn how_it_ended(c: &Classification, delta: f64) -> (RunStatus, Vec<String>) {
              fit the greedy modes with a largest error of {:.2} times delta (tie_projection_error); \
              the refinement re-classified the samples under the ties (docs/bounded.md, \"Priors\")",
             e / delta
+        ));
+    }
+    // A run cut short has the modes found by then: said above.
+    let infeasible = c.count(procedure::SampleClass::Infeasible);
+    if 2 * infeasible > c.labels.len() && !c.stopped_by_deadline {
+        status.push(format!(
+            "warning: {infeasible} of {} samples fit no mode within delta (infeasible): the modes \
+             explain few of the data; raise delta, or check the priors on the modes' parameters",
+            c.labels.len()
         ));
     }
     (run_status, status)

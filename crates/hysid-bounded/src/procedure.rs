@@ -147,7 +147,13 @@ pub enum ProcedureError {
     Setting(String),
     /// Prior `modes = s` cannot be met at this delta.
     #[error(
-        "delta = {delta} explains the data with {found} mode(s), fewer than the prior modes = {wanted}: lower delta"
+        "delta = {delta} explains the data with {found} mode(s), fewer than the prior modes = {wanted}{}: {}",
+        if *.infeasible > 0 { format!(", and leaves {} of {} samples in no mode", .infeasible, .samples) } else { String::new() },
+        if *.constrained && *.infeasible > 0 {
+            "lower delta, or check the priors on the modes' parameters ([fixed], [bounds], [[tie]], [[equality]]): they may exclude the modes of the data"
+        } else {
+            "lower delta"
+        }
     )]
     TooFewModes {
         /// Delta used.
@@ -156,6 +162,12 @@ pub enum ProcedureError {
         found: usize,
         /// Modes wanted.
         wanted: usize,
+        /// Samples that no mode explains within delta.
+        infeasible: usize,
+        /// Samples classified.
+        samples: usize,
+        /// Whether priors constrain the modes' parameters.
+        constrained: bool,
     },
     /// No mode found at all.
     #[error("no mode explains at least {min} samples within delta = {delta}")]
@@ -206,6 +218,11 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
             delta: set.delta,
             found: last.thetas.len(),
             wanted: want,
+            infeasible: (last.classes.iter())
+                .filter(|&&c| c == SampleClass::Infeasible)
+                .count(),
+            samples: last.labels.len(),
+            constrained: !set.constraints.is_free(),
         });
     }
     Ok(Classification {
@@ -738,4 +755,35 @@ fn final_labels(
         labels[k] = Some(pick);
     }
     (labels, classes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Too few modes for an exact count: with samples in no mode under
+    /// priors on the parameters, the priors are named beside delta.
+    #[test]
+    fn too_few_modes_names_the_priors_where_samples_fit_no_mode() {
+        let e = |infeasible, constrained| {
+            ProcedureError::TooFewModes {
+                delta: 0.003,
+                found: 1,
+                wanted: 2,
+                infeasible,
+                samples: 399,
+                constrained,
+            }
+            .to_string()
+        };
+        assert_eq!(
+            e(391, true),
+            "delta = 0.003 explains the data with 1 mode(s), fewer than the prior modes = 2, and \
+             leaves 391 of 399 samples in no mode: lower delta, or check the priors on the \
+             modes' parameters ([fixed], [bounds], [[tie]], [[equality]]): they may exclude \
+             the modes of the data"
+        );
+        assert!(e(391, false).ends_with("samples in no mode: lower delta"));
+        assert!(e(0, true).ends_with("fewer than the prior modes = 2: lower delta"));
+    }
 }

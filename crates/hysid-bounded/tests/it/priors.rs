@@ -265,6 +265,23 @@ fn bad_prior_names_and_counts_are_bad_data() {
     assert!(e.to_string().contains("max_modes=1"), "{e}");
 }
 
+/// A fixed value far from every mode of B1 (a1 = 3; its modes have
+/// -0.4, 0.5 and -0.3) leaves most samples in no mode: the model's status
+/// warns of them, and names the priors.
+#[test]
+fn priors_that_exclude_the_modes_are_named() {
+    let g = hysid_testkit::b1(200, 4.0, hysid_testkit::Noise::Uniform(0.1), 1);
+    let spec = RegressorSpec::new(1, 1, 1);
+    let m = run(&g.data, spec, &priors("[fixed]\na1 = 3.0\n"), 0.1, 1).unwrap();
+    let status = &pwarx(&m).info.diagnostics.status;
+    let said = "samples fit no mode within delta (infeasible): the modes explain few of the \
+                data; raise delta, or check the priors on the modes' parameters";
+    assert!(status.iter().any(|s| s.contains(said)), "{status:?}");
+    let m = run(&g.data, spec, &Priors::default(), 0.1, 1).unwrap();
+    let status = &pwarx(&m).info.diagnostics.status;
+    assert!(!status.iter().any(|s| s.contains("no mode")), "{status:?}");
+}
+
 /// On the stopped head (two ordinary modes, both stops reached and held;
 /// noise std 0.02, delta = 0.08 = 4 sigma), the priors `modes = 4` and the
 /// two stops give a far better model than no prior. Measured
