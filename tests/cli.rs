@@ -510,6 +510,24 @@ fn bad_options_and_files_are_usage_errors() {
         &["--modes 3 --max-modes 2", "exceeds max_modes = 2"],
         &out,
     );
+    let three = dir.path().join("three.toml");
+    std::fs::write(&three, "modes = 3\n").unwrap();
+    bad(
+        &[
+            "identify",
+            d,
+            "-m",
+            "bounded",
+            "--set",
+            "max_modes=2",
+            "--prior",
+            s(&three),
+            "-o",
+            o,
+        ],
+        &["three.toml: modes = 3 exceeds the option max_modes = 2"],
+        &out,
+    );
     bad(
         &["identify", d, "-m", "arx", "--rows", "500..", "-o", o],
         &["--rows 500..", "no sample"],

@@ -283,11 +283,11 @@ fn mode_counts(
     if let (Some(s), Some(m)) = (exact, max_modes)
         && s > m
     {
-        return Err(BoundedError::ModesExceedBound {
+        let e = BoundedError::ModesExceedBound {
             modes: s + stops,
             max: m + stops,
-        }
-        .into());
+        };
+        return Err(IdentifyError::prior_mismatch(data.problem.priors_origin, e));
     }
     Ok((max_modes, exact))
 }
@@ -394,7 +394,7 @@ fn diagnostics(
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum BoundedError {
     /// A `modes` prior above the option `max_modes`.
-    #[error("prior modes = {modes} exceeds the bound max_modes = {max}")]
+    #[error("modes = {modes} exceeds the option max_modes = {max}")]
     ModesExceedBound {
         /// `modes`, stops included.
         modes: usize,
@@ -418,8 +418,7 @@ impl From<BoundedError> for IdentifyError {
             BoundedError::Procedure(ProcedureError::TooFewSamples { .. }) => {
                 IdentifyError::too_few_samples(e)
             }
-            BoundedError::ModesExceedBound { .. }
-            | BoundedError::Procedure(ProcedureError::Setting(_)) => IdentifyError::input(e),
+            BoundedError::Procedure(ProcedureError::Setting(_)) => IdentifyError::input(e),
             e => IdentifyError::failed(e),
         }
     }
