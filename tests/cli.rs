@@ -2245,3 +2245,63 @@ fn a_definition_no_expression_reads_is_warned_of() {
     let base = d.join("base.toml");
     assert!(!out(&["validate", s(&base), s(&record)]).contains("no expression reads"));
 }
+
+/// A prior file whose name ends in `.json` is read as JSON of the same
+/// entries: the same model as the TOML file gives, and a JSON syntax
+/// error names the file and the line.
+#[test]
+fn a_json_prior_file_reads_as_its_toml_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let fit = |prior: &Path, out: &str| -> String {
+        let out = dir.path().join(out);
+        let o = hysid(&[
+            "identify",
+            s(&data),
+            "-m",
+            "arx",
+            "--prior",
+            s(prior),
+            "-o",
+            s(&out),
+        ]);
+        assert!(o.status.success(), "{o:?}");
+        std::fs::read_to_string(out).unwrap()
+    };
+    let toml = common::write(
+        dir.path(),
+        "p.toml",
+        "[fixed]\nc = 0.25\n[bounds]\na1 = [0.0, 0.5]\n",
+    );
+    let json = common::write(
+        dir.path(),
+        "p.json",
+        "{\"fixed\": {\"c\": 0.25}, \"bounds\": {\"a1\": [0.0, 0.5]}}",
+    );
+    let (a, b) = (fit(&toml, "a.json"), fit(&json, "b.json"));
+    let modes =
+        |text: &str| serde_json::from_str::<serde_json::Value>(text).unwrap()["modes"].clone();
+    assert_eq!(modes(&a), modes(&b));
+    assert_eq!(
+        modes(&a)[0]["theta"].as_array().unwrap().last().unwrap(),
+        0.25
+    );
+    let broken = common::write(dir.path(), "broken.json", "{\"fixed\": {\"c\": 0.25,}}");
+    let out = dir.path().join("never.json");
+    let o = hysid(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--prior",
+        s(&broken),
+        "-o",
+        s(&out),
+    ]);
+    let err = one_line_error(&o, 2).unwrap();
+    assert!(
+        err.contains("broken.json") && err.contains("line 1"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

@@ -374,14 +374,22 @@ impl Priors {
         Ok(p)
     }
 
-    /// Reads a prior file.
+    /// Reads a prior file: TOML, or JSON of the same shape where its name
+    /// ends in `.json`.
     pub fn load(path: &Path) -> Result<Self, PriorError> {
         let origin = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|source| PriorError::Io {
             path: origin.clone(),
             source,
         })?;
-        Self::from_toml(&text, &origin)
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+        {
+            Self::from_json(&text, &origin)
+        } else {
+            Self::from_toml(&text, &origin)
+        }
     }
 
     /// Internal consistency (independent of the model structure).
