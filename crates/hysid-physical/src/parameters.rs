@@ -20,6 +20,17 @@ pub enum ParameterError {
         /// The model's parameter names.
         known: Vec<String>,
     },
+    /// A tie of one parameter: in a physical model a tie makes parameters
+    /// equal to each other, so one ties nothing.
+    #[error(
+        "[[tie]] #{entry}: one parameter ('{name}') ties nothing: a physical model's tie makes two or more of its parameters equal"
+    )]
+    LoneTie {
+        /// The entry, counted from 1.
+        entry: usize,
+        /// Its parameter.
+        name: String,
+    },
     /// Two tied parameters fixed to different values.
     #[error("[[tie]]: '{first}' and '{second}' are tied but fixed to different values")]
     TiedFixedDiffer {
@@ -107,6 +118,12 @@ impl ParameterMap {
             let i = idx(n, "[fixed]")?;
             base[i] = *v;
             fixed[i] = true;
+        }
+        if let Some((i, t)) = (priors.tie.iter().enumerate()).find(|(_, t)| t.params.len() == 1) {
+            return Err(ParameterError::LoneTie {
+                entry: i + 1,
+                name: t.params[0].clone(),
+            });
         }
         let ties = priors
             .tie

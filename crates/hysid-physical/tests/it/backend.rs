@@ -269,6 +269,19 @@ fn refuses_what_it_cannot_honour() {
             .to_string()
             .contains("tied")
     );
+    // A tie of one parameter ties nothing here (a PWARX tie of one
+    // parameter ties it across the modes).
+    let mut pri = Priors::default();
+    pri.tie.push(Tie {
+        params: vec!["c1".into()],
+    });
+    let e = run(&d, &pri, &[], 1).unwrap_err();
+    assert!(e.is_bad_input(), "{e}");
+    assert!(
+        e.to_string()
+            .contains("[[tie]] #1: one parameter ('c1') ties nothing"),
+        "{e}"
+    );
     let mut pri = Priors::default();
     pri.bounds.insert("c1".into(), [950.0, 990.0]);
     pri.tie.push(Tie {
