@@ -484,6 +484,11 @@ fn entries_that_cannot_work_are_refused_before_anything_runs() {
             "[[sweep]] 's': ridge is swept and also fixed (set = { ridge = ... })",
         ),
         (
+            "[[run]]\nname = \"c\"\nmethod = \"cluster\"\nmodes = 3\npriors = { modes = 2 }\n"
+                .to_string(),
+            "[[run]] 'c': modes given twice (modes = 3 and priors = { modes = 2 }): give it in one place",
+        ),
+        (
             arx("a", "priors = { modes = 2 }"),
             "[[run]] 'a': prior modes = 2: method 'arx' identifies exactly one ordinary mode",
         ),

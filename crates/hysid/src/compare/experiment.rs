@@ -622,6 +622,20 @@ pub enum InconsistentExperiment {
         /// The key.
         key: String,
     },
+    /// An entry's mode count given as its `modes` and in its `priors`.
+    #[error(
+        "[[{what}]] '{name}': modes given twice (modes = {given} and priors = {{ modes = {prior} }}): give it in one place"
+    )]
+    ModesTwice {
+        /// `run` or `sweep`.
+        what: &'static str,
+        /// Entry name.
+        name: String,
+        /// Its `modes`.
+        given: usize,
+        /// Its priors' `modes`.
+        prior: usize,
+    },
     /// A swept key also given a fixed value by the sweep's run.
     #[error("[[sweep]] '{name}': {key} is swept and also fixed ({given}): give it in one place")]
     SweptAndFixed {
@@ -821,6 +835,14 @@ impl Experiment {
                 return Err(E::SeedAndSeeds {
                     what,
                     name: r.name.clone(),
+                });
+            }
+            if let (Some(given), Some(prior)) = (r.modes, r.priors.as_ref().and_then(|p| p.modes)) {
+                return Err(E::ModesTwice {
+                    what,
+                    name: r.name.clone(),
+                    given,
+                    prior,
                 });
             }
             if let Some(p) = &r.priors {
@@ -1234,8 +1256,8 @@ values = [1, 2]
         assert_eq!(e.sweeps[0].vary.as_deref(), Some("na"));
         assert_eq!(e.sweeps[0].space().count(), 2);
         let grid = text.replace(
-            "vary = \"na\"\nvalues = [1, 2]",
-            "grid = { na = [1, 2], modes = [1, 2, 3] }",
+            "method = \"arx\"\nvary = \"na\"\nvalues = [1, 2]",
+            "method = \"cluster\"\ngrid = { na = [1, 2], modes = [1, 2, 3] }",
         );
         let g = Experiment::from_toml(&grid, "x.toml").unwrap();
         let pts = g.sweeps[0].space().candidates();
