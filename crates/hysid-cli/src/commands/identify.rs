@@ -191,7 +191,7 @@ pub fn run(args: Args) -> Result<()> {
         na: args.na,
         nb: args.nb,
         priors: match &args.prior {
-            Some(p) => Priors::load(p)?,
+            Some(p) => super::load_priors(p)?,
             None => Priors::default(),
         },
         priors_origin: args.prior.as_ref().map(|p| p.display().to_string()),

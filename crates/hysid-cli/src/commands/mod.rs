@@ -125,6 +125,16 @@ pub(crate) fn warn_of_order(own: &[String], data: &Dataset, whose: &str) {
     }
 }
 
+/// The prior file `path`, with a warning where it holds no prior (an
+/// empty or all-comment file: the wrong file, or a cut one).
+pub(crate) fn load_priors(path: &Path) -> crate::error::Result<hysid_core::priors::Priors> {
+    let priors = hysid_core::priors::Priors::load(path)?;
+    if priors == hysid_core::priors::Priors::default() {
+        eprintln!("hysid: warning: {}: no prior in it", path.display());
+    }
+    Ok(priors)
+}
+
 /// A warning naming the definitions of the gray-box model of `file` that
 /// no expression reads ([`hysid_core::simulate::UnreadDefinitions`]).
 pub(crate) fn warn_unread_definitions(file: &Path, model: &Model) {

@@ -134,7 +134,7 @@ pub fn run(args: Args) -> Result<()> {
         super::a_folder(dir)?;
     }
     let mut priors = match &args.prior {
-        Some(p) => Priors::load(p)?,
+        Some(p) => super::load_priors(p)?,
         None => Priors::default(),
     };
     if args.modes.is_some() {
