@@ -2248,7 +2248,7 @@ fn a_definition_no_expression_reads_is_warned_of() {
 
 /// A prior file whose name ends in `.json` is read as JSON of the same
 /// entries: the same model as the TOML file gives, and a JSON syntax
-/// error names the file and the line.
+/// error names the file and the line. An empty prior file is warned of.
 #[test]
 fn a_json_prior_file_reads_as_its_toml_form() {
     let dir = tempfile::tempdir().unwrap();
@@ -2304,4 +2304,21 @@ fn a_json_prior_file_reads_as_its_toml_form() {
         "{err}"
     );
     assert!(!out.exists());
+    // A file that holds no prior is read, and said to hold none.
+    let empty = common::write(dir.path(), "empty.toml", "# to be written\n");
+    let o = hysid(&[
+        "identify",
+        s(&data),
+        "-m",
+        "arx",
+        "--prior",
+        s(&empty),
+        "-o",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && err.contains("empty.toml: no prior in it"),
+        "{err}"
+    );
 }
