@@ -153,8 +153,8 @@ pub fn fit(
     data: &PwarxData<'_>,
     ctx: &RunContext<'_>,
 ) -> Result<PwarxFit<ParcDiagnostics>, IdentifyError> {
-    let (k, exact) = cluster_count(data);
     let reg = data.ordinary_regressors();
+    let (k, exact) = cluster_count(data, reg.len() / steps::min_number(options, &reg));
     let mut clusters = Clusters::new(initial_labels(options, &reg, k, ctx.seed));
     let mut cost = Vec::new();
     let mut cut_short = false;
@@ -204,11 +204,13 @@ pub fn fit(
 }
 
 /// PARC's number of clusters: `modes` exactly, `max_modes` as the bound
-/// (clusters may die), else [`DEFAULT_CLUSTERS`] as the bound.
-fn cluster_count(data: &PwarxData<'_>) -> (usize, Option<usize>) {
+/// (clusters may die), no more than `fit`, the clusters the samples can
+/// fill to `min_number` each (at least one); else [`DEFAULT_CLUSTERS`]
+/// as the bound.
+fn cluster_count(data: &PwarxData<'_>, fit: usize) -> (usize, Option<usize>) {
     match data.modes {
         ModeCount::Exact(s) => (s, Some(s)),
-        ModeCount::AtMost(s) => (s, None),
+        ModeCount::AtMost(s) => (s.min(fit.max(1)), None),
         ModeCount::Free => (DEFAULT_CLUSTERS, None),
     }
 }

@@ -167,3 +167,14 @@ fn b1_beside_cluster() {
         "parc {p_acc} against cluster {c_acc}"
     );
 }
+
+/// A `max_modes` bound larger than the record can fill is cut to the
+/// clusters of `min_number` samples each it can hold: a fit, not a
+/// failure where every cluster ends too small.
+#[test]
+fn a_bound_beyond_the_record_is_cut_to_what_it_can_hold() {
+    let b = hysid_testkit::b1(41, 4.0, Noise::Uniform(0.1), 1);
+    let m = run(&Pwarx(Parc), &b, 1000, true, 1);
+    // 40 regressors of 2 (min_number 3): at most 13 clusters.
+    assert!((1..=13).contains(&m.mode_count()), "{}", m.mode_count());
+}
