@@ -107,7 +107,8 @@ impl From<IdentifyError> for CliError {
                 bounded: false,
             } => format!(
                 "method '{method}' needs the number of modes: --modes S (or --auto to choose \
-                 it on selection rows), or modes = S in the prior file"
+                 it on selection rows), or modes = S in the prior file (a max_modes bound alone \
+                 does not give it)"
             ),
             other => other.to_string(),
         };
