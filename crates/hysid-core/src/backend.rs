@@ -110,7 +110,9 @@ pub enum IdentifyError {
         value: f64,
     },
     /// Every regression target sits at a known stop.
-    #[error("all {samples} samples sit at a known stop: no ordinary sample is left to identify")]
+    #[error(
+        "all {samples} samples sit at a known stop: no ordinary sample is left to identify (check the [[saturation]] entries' level, bound and tol)"
+    )]
     AllAtStops {
         /// Number of regression rows.
         samples: usize,
