@@ -542,7 +542,7 @@ flow = { h = "u - a*sqrt(h)" }
     let fixed = write(
         d,
         "fixed.toml",
-        &std::fs::read_to_string(&model).unwrap().replace(
+        std::fs::read_to_string(&model).unwrap().replace(
             "bounds = [0.1, 10.0] }",
             "bounds = [0.1, 10.0], fixed = true }",
         ),

@@ -687,7 +687,7 @@ fn whitened_qp(
     let rr = qr.r();
     let c = qr.q().transpose() * r;
     let top = rr.diagonal().amax();
-    if !(top > 0.0) || rr.diagonal().iter().any(|v| v.abs() <= 1e-14 * top) {
+    if top.is_nan() || top <= 0.0 || rr.diagonal().iter().any(|v| v.abs() <= 1e-14 * top) {
         return None;
     }
     // G = A R^-1, row by row: R' g = a.

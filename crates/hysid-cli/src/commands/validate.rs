@@ -164,16 +164,6 @@ fn unsigned_zero(v: f64) -> f64 {
     if (v * 1e3).round() == 0.0 { 0.0 } else { v }
 }
 
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn a_fit_that_rounds_to_zero_prints_without_sign() {
-        assert_eq!(format!("{:.3}", super::unsigned_zero(-1e-13)), "0.000");
-        assert_eq!(format!("{:.3}", super::unsigned_zero(-0.0)), "0.000");
-        assert_eq!(format!("{:.3}", super::unsigned_zero(-0.002)), "-0.002");
-    }
-}
-
 /// The samples `report` leaves out of a record of `len` samples: the
 /// warm-up asked for, and the samples the model's initial state reads
 /// where it reads more (an ARX history, a gray-box warm-up).
@@ -188,5 +178,15 @@ fn left_out(report: &ValidationReport, len: usize) -> String {
         )
     } else {
         format!("warm-up {}", report.warmup)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_fit_that_rounds_to_zero_prints_without_sign() {
+        assert_eq!(format!("{:.3}", super::unsigned_zero(-1e-13)), "0.000");
+        assert_eq!(format!("{:.3}", super::unsigned_zero(-0.0)), "0.000");
+        assert_eq!(format!("{:.3}", super::unsigned_zero(-0.002)), "-0.002");
     }
 }
