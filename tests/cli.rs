@@ -525,7 +525,7 @@ fn bad_options_and_files_are_usage_errors() {
             "-o",
             o,
         ],
-        &["three.toml: modes = 3 exceeds the option max_modes = 2"],
+        &["prior modes = 3 exceeds the option max_modes = 2"],
         &out,
     );
     bad(
@@ -1102,7 +1102,7 @@ fn auto_selection_rows_are_checked() {
     // is fitted, as without --auto.
     let two = common::write(dir.path(), "two.toml", "modes = 2\n");
     let args = [&base[..], &["--prior", s(&two)]].concat();
-    let said = "two.toml: modes = 2: method 'arx' identifies exactly one ordinary mode";
+    let said = "prior modes = 2: method 'arx' identifies exactly one ordinary mode";
     bad(&args, &[said], &out);
     // A grid point whose orders lack a name of the priors is refused, as
     // sweep refuses it; the declared space's such points fail, and are

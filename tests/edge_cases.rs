@@ -567,10 +567,7 @@ flow = { h = "u - a*sqrt(h)" }
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(code), "{err}");
         assert!(err.contains(said), "{err}");
-        assert!(
-            err.replace("values the", "values, the").contains(undefined),
-            "{err}"
-        );
+        assert!(err.contains(undefined), "{err}");
         assert!(!out.exists());
     }
 }

@@ -129,9 +129,8 @@ pub fn fit(
 /// One ordinary mode: a `modes` prior must count exactly one besides the
 /// stops ([`FixedModeCount`]).
 fn check_one_mode(data: &PwarxData<'_>) -> Result<(), IdentifyError> {
-    let problem = &data.problem;
-    FixedModeCount::check(Arx::NAME, Arx::ORDINARY_MODES, problem.priors)
-        .map_err(|e| IdentifyError::prior_mismatch(problem.priors_origin, e))
+    FixedModeCount::check(Arx::NAME, Arx::ORDINARY_MODES, data.problem.priors)
+        .map_err(|e| IdentifyError::prior_mismatch(None, e))
 }
 
 fn check_sample_count(

@@ -287,7 +287,8 @@ fn mode_counts(
             modes: s + stops,
             max: m + stops,
         };
-        return Err(IdentifyError::prior_mismatch(data.problem.priors_origin, e));
+        // Not named by the file: `--modes` may have set the count.
+        return Err(IdentifyError::prior_mismatch(None, e));
     }
     Ok((max_modes, exact))
 }

@@ -622,7 +622,8 @@ pub fn solve_in_z(
 
 /// `min |D x - r|^2` subject to `A x <= b`, the QP
 /// `min 1/2 x' (D'D) x - (D'r)' x` on clarabel, in variables scaled by the
-/// column norms of `D`.
+/// column norms of `D`; where clarabel stalls at its strict and at its own
+/// tolerances, [`whitened_qp`].
 fn qp_lstsq(
     design: &DMatrix<f64>,
     r: &DVector<f64>,
@@ -675,7 +676,9 @@ fn qp_lstsq(
 /// factorisation `D = Q R`: `min |v - Q'r|^2` subject to `A R^-1 v <= b`,
 /// whose objective is the identity however nearly collinear the columns
 /// of `D` are (where they nearly are, the interior point stalls on the
-/// Gram matrix `D'D`). `None` when `R` is singular or the solve fails.
+/// Gram matrix `D'D`). `None` when `D` has fewer rows than columns, `R`
+/// is singular, the solve fails, or its point breaks a constraint by more
+/// than the solver's tolerance.
 fn whitened_qp(
     design: &DMatrix<f64>,
     r: &DVector<f64>,
@@ -683,6 +686,9 @@ fn whitened_qp(
     b: &[f64],
 ) -> Option<Vec<f64>> {
     let n = design.ncols();
+    if design.nrows() < n {
+        return None;
+    }
     let qr = design.clone().qr();
     let rr = qr.r();
     let c = qr.q().transpose() * r;
@@ -712,7 +718,11 @@ fn whitened_qp(
     };
     let v = DVector::from_vec(conic::solve(program, &settings).ok()?.x);
     let x = rr.solve_upper_triangular(&v)?;
-    Some(x.iter().copied().collect())
+    let feasible = (a_in * &x)
+        .iter()
+        .zip(b)
+        .all(|(ax, bi)| ax.is_finite() && *ax <= bi + 1e-7 * (1.0 + bi.abs()));
+    feasible.then(|| x.iter().copied().collect())
 }
 
 impl Parametrisation {
@@ -775,7 +785,7 @@ impl Parametrisation {
 
 /// `min |Z z - r|^2` subject to `lo <= z <= hi`, as the QP
 /// `min 1/2 z' (Z'Z) z - (Z'r)' z` on clarabel, in variables scaled by the
-/// column norms of `Z`. The result is clamped to the box (clarabel's
+/// column norms of `Z` ([`whitened_qp`] where clarabel stalls). The result is clamped to the box (clarabel's
 /// interior point stays within its tolerance of it).
 fn bounded_lstsq(
     par: &Parametrisation,
@@ -796,6 +806,7 @@ fn bounded_lstsq(
         tol_gap_rel: 1e-12,
         ..Settings::default()
     };
+    let b_rows = b.clone();
     let program = Program {
         p,
         q,
@@ -806,8 +817,7 @@ fn bounded_lstsq(
     let mut z: Vec<f64> = match conic::solve(program, &settings) {
         Ok(sol) => sol.x.iter().zip(&d).map(|(x, dv)| x * dv).collect(),
         Err(e @ conic::SolveError::InsufficientProgress { .. }) => {
-            let (a, b) = par.box_rows();
-            whitened_qp(z_mat, r, &a, &b).ok_or(e)?
+            whitened_qp(z_mat, r, &box_a, &b_rows).ok_or(e)?
         }
         Err(e) => return Err(e.into()),
     };
@@ -1027,6 +1037,7 @@ mod tests {
             ],
         );
         let b = [1000.0, 0.0, 1000.0, 0.0];
+        let whitened = DVector::from_vec(whitened_qp(&design, &r, &a, &b).unwrap());
         let x = DVector::from_vec(qp_lstsq(&design, &r, &a, &b).unwrap());
         let cost = |x: &DVector<f64>| (&design * x - &r).norm_squared();
         // Every active set: the least squares on it, kept where feasible.
@@ -1053,14 +1064,16 @@ mod tests {
                 best = best.min(cost(&y));
             }
         }
-        assert!((&a * &x).iter().zip(&b).all(|(l, r)| *l <= r + 1e-6), "{x}");
-        // Optimal within the solver's tolerance of the objective's scale.
+        // Both feasible and optimal within the solver's tolerance of the
+        // objective's scale.
         let scale = r.norm_squared();
-        assert!(
-            cost(&x) <= best + 1e-7 * scale,
-            "{} against {best}",
-            cost(&x)
-        );
+        for x in [&x, &whitened] {
+            assert!((&a * x).iter().zip(&b).all(|(l, r)| *l <= r + 1e-6), "{x}");
+            assert!(cost(x) <= best + 1e-7 * scale, "{} against {best}", cost(x));
+        }
+        // Fewer rows than columns: no change of variables, no answer.
+        let short = design.rows(0, 3).into_owned();
+        assert!(whitened_qp(&short, &r.rows(0, 3).into_owned(), &a, &b).is_none());
     }
 
     #[test]

@@ -37,6 +37,7 @@ use hysid_core::options::{CheckOptions, OptionError, check_float};
 use hysid_core::priors::PriorKind;
 use hysid_estimation::pwarx::{ModeCount, ModeRule, PwarxData, PwarxFit, PwarxMethod};
 use hysid_model::model::{PwarxMode, RunStatus};
+use hysid_model::regressors::Regressors;
 use serde::Serialize;
 
 /// PARC's default number of clusters (an upper bound) when no mode count
@@ -103,6 +104,9 @@ impl CheckOptions for ParcOptions {
         if self.max_iter == 0 {
             return Err(OptionError::invalid("max_iter", 0, "must be at least 1"));
         }
+        if self.min_number == Some(0) {
+            return Err(OptionError::invalid("min_number", 0, "must be at least 1"));
+        }
         Ok(())
     }
 }
@@ -146,6 +150,14 @@ pub struct ParcDiagnostics {
     pub outliers: usize,
 }
 
+impl ParcOptions {
+    /// The smallest cluster kept: `min_number`, else one more than the
+    /// regressors.
+    fn smallest_cluster(&self, reg: &Regressors) -> usize {
+        self.min_number.unwrap_or(reg.x.ncols() + 1)
+    }
+}
+
 /// The method's steps: the number of clusters, the initial assignment, the
 /// descent (local models, separator, assignment), the clean-up.
 pub fn fit(
@@ -154,7 +166,7 @@ pub fn fit(
     ctx: &RunContext<'_>,
 ) -> Result<PwarxFit<ParcDiagnostics>, IdentifyError> {
     let reg = data.ordinary_regressors();
-    let (k, exact) = cluster_count(data, reg.len() / steps::min_number(options, &reg));
+    let (k, exact) = cluster_count(data, reg.len() / options.smallest_cluster(&reg));
     let mut clusters = Clusters::new(initial_labels(options, &reg, k, ctx.seed));
     let mut cost = Vec::new();
     let mut cut_short = false;

@@ -298,12 +298,6 @@ pub struct Finished {
     pub outliers: usize,
 }
 
-/// The smallest cluster kept: the option `min_number`, else one more than
-/// the regressors.
-pub(crate) fn min_number(options: &ParcOptions, reg: &Regressors) -> usize {
-    options.min_number.unwrap_or(reg.x.ncols() + 1)
-}
-
 /// The clean-up: clusters under `min_number` samples become outliers, the
 /// separator is refitted on the rest, and with `fit_on_partition` every
 /// other sample goes to the cell of its largest score, cells under
@@ -316,7 +310,7 @@ pub fn finish(
     mut clusters: Clusters,
 ) -> Result<Finished, IdentifyError> {
     let d = reg.x.ncols();
-    let min_number = min_number(options, reg);
+    let min_number = options.smallest_cluster(reg);
     drop_small(&mut clusters, min_number);
     if clusters.live() == 0 {
         return Err(ParcError::EveryClusterTooSmall { min_number }.into());

@@ -261,6 +261,24 @@ impl Identifier for Physical {
     }
 }
 
+/// Where the free run at a model file's own values diverges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NominalDivergence {
+    /// The record, counted from 1, where the data hold several.
+    pub record: Option<usize>,
+    /// Where and how the output diverged.
+    pub divergence: hysid_model::simulate::Divergence,
+}
+
+impl std::fmt::Display for NominalDivergence {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(r) = self.record {
+            write!(f, "on record {r}, ")?;
+        }
+        self.divergence.fmt(f)
+    }
+}
+
 /// Bad input of the `physical` back-end (an [`IdentifyError::Input`]).
 #[derive(Debug, thiserror::Error)]
 pub enum PhysicalError {
@@ -297,14 +315,14 @@ pub enum PhysicalError {
     },
     /// Nothing in the model is free to fit, and its free run diverges.
     #[error(
-        "{}nothing in the model is free to fit, and at its own values {nominal}",
+        "{}nothing in the model is free to fit, and at its own values, {nominal}",
         if file.is_empty() { String::new() } else { format!("{file}: ") }
     )]
     DivergesWithNothingFree {
         /// The model file (`model`; empty for the built-in head).
         file: String,
         /// Where the free run diverges.
-        nominal: crate::stages::NominalDivergence,
+        nominal: NominalDivergence,
     },
     /// Fewer samples than the free parameters and the initial state need.
     #[error(

@@ -23,7 +23,8 @@ pub enum ParameterError {
     /// A tie of one parameter: in a physical model a tie makes parameters
     /// equal to each other, so one ties nothing.
     #[error(
-        "[[tie]] #{entry}: one parameter ('{name}') ties nothing: a physical model's tie makes two or more of its parameters equal"
+        "[[tie]] #{entry}: one parameter ('{}') ties nothing: a physical model's tie makes two or more of its parameters equal",
+        .name.escape_debug()
     )]
     LoneTie {
         /// The entry, counted from 1.
@@ -119,17 +120,17 @@ impl ParameterMap {
             base[i] = *v;
             fixed[i] = true;
         }
+        let ties = priors
+            .tie
+            .iter()
+            .map(|t| t.params.iter().map(|n| idx(n, "[[tie]]")).collect())
+            .collect::<Result<Vec<Vec<usize>>, ParameterError>>()?;
         if let Some((i, t)) = (priors.tie.iter().enumerate()).find(|(_, t)| t.params.len() == 1) {
             return Err(ParameterError::LoneTie {
                 entry: i + 1,
                 name: t.params[0].clone(),
             });
         }
-        let ties = priors
-            .tie
-            .iter()
-            .map(|t| t.params.iter().map(|n| idx(n, "[[tie]]")).collect())
-            .collect::<Result<Vec<Vec<usize>>, ParameterError>>()?;
         let mut free_groups = Vec::new();
         let mut free_bounds = Vec::new();
         for g in tie_groups(names.len(), &ties) {

@@ -2,11 +2,10 @@
 //! options, run context, evaluation counter), the time budget, and why each
 //! run of each stage stopped.
 
-use crate::PhysicalOptions;
 use crate::objective::{Objective, SimulationCost};
+use crate::{NominalDivergence, PhysicalOptions};
 use argmin::core::TerminationReason;
 use hysid_core::backend::{IdentifyError, RunContext};
-use hysid_model::simulate::Divergence;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicU64;
 use std::time::Duration;
@@ -102,24 +101,6 @@ pub enum SearchFailure {
     /// No search ran (no swarm asked for).
     #[error("no search ran")]
     NoSearch,
-}
-
-/// Where the free run at a model file's own values diverges.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NominalDivergence {
-    /// The record, counted from 1, where the data hold several.
-    pub record: Option<usize>,
-    /// Where and how the output diverged.
-    pub divergence: Divergence,
-}
-
-impl std::fmt::Display for NominalDivergence {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        if let Some(r) = self.record {
-            write!(f, "on record {r}, ")?;
-        }
-        self.divergence.fmt(f)
-    }
 }
 
 /// [`SearchFailure::EveryCandidateFailed`]'s message, with the run at the

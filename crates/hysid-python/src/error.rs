@@ -223,7 +223,8 @@ impl From<IdentifyError> for Failure {
                 bounded: false,
             } => format!(
                 "method '{method}' needs the number of modes: modes=S (or auto=True to choose \
-                 it on selection rows), or modes in the priors"
+                 it on selection rows), or modes in the priors (a max_modes bound alone does \
+                 not give it)"
             ),
             other => other.to_string(),
         };

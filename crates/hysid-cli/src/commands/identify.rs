@@ -67,7 +67,7 @@ pub struct Args {
     /// chosen by hold-out simulation FIT, or by the back-end itself.
     #[arg(long, help_heading = "Priors")]
     pub max_modes: Option<usize>,
-    /// Prior file (TOML), see docs/priors.md.
+    /// Prior file (TOML, or JSON named .json), see docs/priors.md.
     #[arg(long, help_heading = "Priors")]
     pub prior: Option<PathBuf>,
     /// Choose the options on selection rows (docs/selection.md).

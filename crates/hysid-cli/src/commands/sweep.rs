@@ -55,7 +55,7 @@ pub struct Args {
     /// Number of modes (the prior `modes`), unless swept.
     #[arg(long)]
     pub modes: Option<usize>,
-    /// Prior file (TOML).
+    /// Prior file (TOML, or JSON named .json).
     #[arg(long)]
     pub prior: Option<PathBuf>,
     /// Fixed back-end option KEY=VALUE (repeatable).
@@ -72,7 +72,7 @@ pub struct Args {
 }
 
 /// Refuses, before anything runs, a grid point the back-end would refuse:
-/// a key that `--set` or `--modes` also fixes, a key that is neither one
+/// a key that `--set`, `--modes` or the prior file's `modes` also fixes, a key that is neither one
 /// of its options nor `modes`, `na` or `nb`, a value it does not take
 /// ([`hysid::select::candidate_setups`]), and the priors as the back-end
 /// checks them without data. An unknown
@@ -120,8 +120,13 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
             };
             return Err(CliError::input(format!(
                 "method '{}' needs the number of modes: --modes S, --grid modes=S1,S2,.., or \
-                 {prior} in the prior file",
-                backend.name()
+                 {prior} in the prior file{}",
+                backend.name(),
+                if need == ModeCountNeed::Count {
+                    " (a max_modes bound alone does not give it)"
+                } else {
+                    ""
+                }
             )));
         }
     }

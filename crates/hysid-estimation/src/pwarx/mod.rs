@@ -218,8 +218,9 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
         origin: Option<&str>,
     ) -> Result<(), IdentifyError> {
         prepare::check_priors(priors, &orders, origin)?;
+        // Not named by the file: `--modes` may have set the count.
         prepare::FixedModeCount::check(M::NAME, M::ORDINARY_MODES, priors)
-            .map_err(|e| IdentifyError::prior_mismatch(origin, e))
+            .map_err(|e| IdentifyError::prior_mismatch(None, e))
     }
 
     fn mode_count_need(&self, options: &Self::Options) -> ModeCountNeed {

@@ -33,7 +33,8 @@ pub(super) struct Compiler<'m> {
     model_definitions: Vec<Option<Rc<Expression>>>,
     /// The definitions only modes give: every mode must give them.
     mode_only: Vec<usize>,
-    /// The slots the expressions other than definitions read, as written.
+    /// The slots the expressions other than definitions read, as written
+    /// (recorded by [`Compiler::expr`] and [`Compiler::inlined`]).
     reads: RefCell<BTreeSet<u32>>,
     /// Per definition name, the slots its texts (the model's, the modes')
     /// read, as written.
@@ -232,6 +233,7 @@ impl<'m> Compiler<'m> {
                 Some(d),
                 Problem::Undefined {
                     name: d.to_string(),
+                    // A definition only modes give has a mode that gives it.
                     given_by: given_by.map_or_else(String::new, |q| q.name.clone()),
                 },
             ));
@@ -292,6 +294,7 @@ impl<'m> Compiler<'m> {
         text: &str,
         e: Expression,
     ) -> Result<Expression, InvalidGrayBox> {
+        self.reads.borrow_mut().extend(e.slots());
         let at = |problem: Problem| InvalidGrayBox::new(place, Some(text), problem);
         let e = e.inline(defs, MAX_OPERATIONS).map_err(|e| {
             at(match e {

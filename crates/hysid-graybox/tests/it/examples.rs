@@ -92,6 +92,20 @@ fn every_definition_is_read_and_a_misspelt_one_is_named() {
     m.definitions.insert("spare".into(), "table_ac + 1".into());
     let names = CompiledModel::new(&m).unwrap().names;
     assert_eq!(names.unread_definitions, ["spare", "table_ac"]);
+    // A definition read only by an invariant or a guard is read.
+    let (mut m, _) = file("models/examples/ball-on-table.toml");
+    m.definitions.insert("floor".into(), "z".into());
+    for q in &mut m.modes {
+        for inv in &mut q.invariant {
+            *inv = inv.replace(">= z", ">= floor");
+        }
+    }
+    let names = CompiledModel::new(&m).unwrap().names;
+    assert!(
+        names.unread_definitions.is_empty(),
+        "{:?}",
+        names.unread_definitions
+    );
 }
 
 /// The model, and the excitation of its "Try:" line.
