@@ -1772,11 +1772,7 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
         &["m.json: a model file where a data file (.csv or .mat) is expected"],
         &csv,
     );
-    let stderr = |args: &[&str]| {
-        let o = hysid(args);
-        assert!(o.status.success(), "{args:?}");
-        String::from_utf8_lossy(&o.stderr).to_string()
-    };
+    let stderr = common::ok_stderr;
     let swapped = [
         "validate",
         s(&model),
@@ -2212,11 +2208,7 @@ fn a_definition_no_expression_reads_is_warned_of() {
     let said = "changed.toml: no expression reads the definition(s) table_ac: a misspelt name?";
     let record = d.join("record.csv");
     let excite = "n=100,hold=10,low=-1,high=1,ts=0.01";
-    let out = |args: &[&str]| {
-        let o = hysid(args);
-        assert!(o.status.success(), "{args:?}: {o:?}");
-        String::from_utf8_lossy(&o.stderr).into_owned()
-    };
+    let out = common::ok_stderr;
     let simulate = [
         "simulate",
         s(&changed),

@@ -37,6 +37,14 @@ pub fn ok_env(args: &[&str], env: &[(&str, &str)]) -> String {
     String::from_utf8(o.stdout).unwrap()
 }
 
+/// Runs `hysid`, asserts it succeeded and returns its standard error (its
+/// warnings and notes).
+pub fn ok_stderr(args: &[&str]) -> String {
+    let o = hysid(args);
+    assert!(o.status.success(), "{args:?}: {o:?}");
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
 /// A path as `&str` (test paths are UTF-8).
 pub fn s(p: &Path) -> &str {
     p.to_str().unwrap()
