@@ -13,6 +13,7 @@ use hysid::compare::{
     DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Origin, RunSpec,
     ScoredRows, SweepSpec,
 };
+use hysid::select::{FixedBy, SelectError};
 use hysid_core::options::Settings;
 use hysid_core::priors::{ModeCountNeed, Priors};
 use hysid_core::search::{SearchSpace, Setup};
@@ -81,19 +82,13 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
     let given = Settings::parse(&args.set)?;
     let file = args.prior.as_ref().map(|p| p.display().to_string());
     let fixed = |key: &str| match key {
-        "modes" => (args.modes.map(|m| format!("--modes {m}"))).or_else(|| {
-            Some(format!(
-                "the prior modes = {} of {}",
-                priors.modes?,
-                file.as_ref()?
-            ))
-        }),
-        key => given.get(key).map(|v| format!("--set {key}={v}")),
+        "modes" => (args.modes.map(FixedBy::Modes))
+            .or_else(|| Some(FixedBy::PriorModes(priors.modes?, file.clone()))),
+        key => given.get(key).map(|v| FixedBy::Option(v.to_string())),
     };
-    if let Some((key, flag)) = (space.axes.iter()).find_map(|a| Some((&a.key, fixed(&a.key)?))) {
-        return Err(CliError::input(format!(
-            "--grid {key}: also fixed by {flag}; give it in one place"
-        )));
+    if let Some((key, given)) = (space.axes.iter()).find_map(|a| Some((&a.key, fixed(&a.key)?))) {
+        let key = key.clone();
+        return Err(SelectError::GridFixed { key, given }.into());
     }
     let registry = hysid::registry();
     let Some(backend) = registry.get(&args.method) else {
