@@ -2158,11 +2158,7 @@ flow = { x = "F1 + 2*F2 - a*x" }
     let record = d.join("r.csv");
     let excite = "n=40,hold=5,low=0,high=1,ts=0.1";
     ok(&["simulate", s(&model), "--excite", excite, "-o", s(&record)]);
-    let said = |args: &[&str]| {
-        let o = hysid(args);
-        assert!(o.status.success(), "{args:?}");
-        String::from_utf8_lossy(&o.stderr).to_string()
-    };
+    let said = common::ok_stderr;
     let swapped = ["--input", "F2,F1"];
     let warning = "the inputs are read in the order given (F2, F1)";
     let validate = said(&[&["validate", s(&model), s(&record)][..], &swapped].concat());

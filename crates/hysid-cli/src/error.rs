@@ -88,6 +88,10 @@ impl CliError {
     }
 }
 
+/// The clause of a mode-count message for a method that needs the count
+/// itself, where a `max_modes` bound does not give it.
+pub(crate) const NO_COUNT_FROM_A_BOUND: &str = " (a max_modes bound alone does not give it)";
+
 impl From<IdentifyError> for CliError {
     fn from(e: IdentifyError) -> Self {
         let bad = e.is_bad_input();
@@ -107,8 +111,7 @@ impl From<IdentifyError> for CliError {
                 bounded: false,
             } => format!(
                 "method '{method}' needs the number of modes: --modes S (or --auto to choose \
-                 it on selection rows), or modes = S in the prior file (a max_modes bound alone \
-                 does not give it)"
+                 it on selection rows), or modes = S in the prior file{NO_COUNT_FROM_A_BOUND}"
             ),
             other => other.to_string(),
         };

@@ -759,9 +759,7 @@ impl Parametrisation {
         }
         solve_in_z(self, &z_mat, &r)
     }
-}
 
-impl Parametrisation {
     /// The finite bounds of the free variables as rows `A z <= b`: per
     /// variable, its upper bound, then its lower one.
     fn box_rows(&self) -> (DMatrix<f64>, Vec<f64>) {
@@ -785,8 +783,9 @@ impl Parametrisation {
 
 /// `min |Z z - r|^2` subject to `lo <= z <= hi`, as the QP
 /// `min 1/2 z' (Z'Z) z - (Z'r)' z` on clarabel, in variables scaled by the
-/// column norms of `Z` ([`whitened_qp`] where clarabel stalls). The result is clamped to the box (clarabel's
-/// interior point stays within its tolerance of it).
+/// column norms of `Z` ([`whitened_qp`] where clarabel stalls). The result
+/// is clamped to the box (clarabel's interior point stays within its
+/// tolerance of it).
 fn bounded_lstsq(
     par: &Parametrisation,
     z_mat: &DMatrix<f64>,
@@ -806,18 +805,17 @@ fn bounded_lstsq(
         tol_gap_rel: 1e-12,
         ..Settings::default()
     };
-    let b_rows = b.clone();
     let program = Program {
         p,
         q,
         a,
-        b,
+        b: b.clone(),
         cones: vec![Cone::Nonnegative(m)],
     };
     let mut z: Vec<f64> = match conic::solve(program, &settings) {
         Ok(sol) => sol.x.iter().zip(&d).map(|(x, dv)| x * dv).collect(),
         Err(e @ conic::SolveError::InsufficientProgress { .. }) => {
-            whitened_qp(z_mat, r, &box_a, &b_rows).ok_or(e)?
+            whitened_qp(z_mat, r, &box_a, &b).ok_or(e)?
         }
         Err(e) => return Err(e.into()),
     };

@@ -73,8 +73,9 @@ pub struct Args {
 }
 
 /// Refuses, before anything runs, a grid point the back-end would refuse:
-/// a key that `--set`, `--modes` or the prior file's `modes` also fixes, a key that is neither one
-/// of its options nor `modes`, `na` or `nb`, a value it does not take
+/// a key that `--set`, `--modes` or the prior file's `modes` also fixes, a
+/// key that is neither one of its options nor `modes`, `na` or `nb`, a
+/// value it does not take
 /// ([`hysid::select::candidate_setups`]), and the priors as the back-end
 /// checks them without data. An unknown
 /// method is left to the experiment's own check, which names the known ones.
@@ -109,19 +110,14 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
             .map_err(|e| CliError::input(e.to_string()))?;
         let need = backend.mode_count_need(&point.settings);
         if !need.met_by(&point.priors) {
-            let prior = match need {
-                ModeCountNeed::Count => "modes = S",
-                _ => "modes = S / max_modes = S",
+            let (prior, bound) = match need {
+                ModeCountNeed::Count => ("modes = S", crate::error::NO_COUNT_FROM_A_BOUND),
+                _ => ("modes = S / max_modes = S", ""),
             };
             return Err(CliError::input(format!(
                 "method '{}' needs the number of modes: --modes S, --grid modes=S1,S2,.., or \
-                 {prior} in the prior file{}",
+                 {prior} in the prior file{bound}",
                 backend.name(),
-                if need == ModeCountNeed::Count {
-                    " (a max_modes bound alone does not give it)"
-                } else {
-                    ""
-                }
             )));
         }
     }
