@@ -2037,6 +2037,66 @@ flow = { x = "F - a*x" }
     ];
     ok(&[&identify[..], &["-o", s(&fitted)]].concat());
     ok(&["validate", s(&fitted), s(&record)]);
+    // `sweep` reads them as `identify` does, and names them where the
+    // record lacks the ones named.
+    let long = d.join("long.csv");
+    let excite_long = "n=40,hold=5,low=0,high=1,ts=0.1";
+    ok(&[
+        "simulate",
+        s(&model),
+        "--excite",
+        excite_long,
+        "-o",
+        s(&long),
+    ]);
+    let sweep = [
+        "sweep",
+        s(&long),
+        "-m",
+        "physical",
+        "--set",
+        &set,
+        "--grid",
+        "segment=5,10",
+        "--identify-rows",
+        "0..20",
+        "--select-rows",
+        "20..40",
+        "--warmup",
+        "0",
+    ];
+    ok(&sweep);
+    let err = one_line_error(&hysid(&[&sweep[..], &["--input", "G"]].concat()), 2).unwrap();
+    assert!(
+        err.ends_with(
+            "no column 'G' (available: t, F, y, mode); the model file declares --input F"
+        ),
+        "{err}"
+    );
+    // An experiment reads `[data] input` (`u` by default); where the record
+    // lacks it, the runs' model files' inputs are named.
+    let experiment = d.join("e.toml");
+    let write = |input: &str| {
+        let text = format!(
+            "title = \"t\"\n[data]\nfile = \"long.csv\"\n{input}identification = \"0..20\"\n\
+             validation = \"20..40\"\n[[run]]\nname = \"lag\"\nmethod = \"physical\"\n\
+             set = {{ model = \"lag.toml\" }}\nprovenance = \"user\"\n"
+        );
+        std::fs::write(&experiment, text).unwrap();
+    };
+    write("");
+    let out = d.join("out");
+    let compare = ["compare", s(&experiment), "-o", s(&out)];
+    let err = one_line_error(&hysid(&compare), 2).unwrap();
+    assert!(
+        err.ends_with(
+            "no column 'u' (available: t, F, y, mode); the model file of 'lag' declares the \
+             inputs F: name the record's in [data] input"
+        ),
+        "{err}"
+    );
+    write("input = [\"F\"]\n");
+    ok(&compare);
     // A state the file gives is applied at the first row read: said where
     // that is not the record's first.
     let given =

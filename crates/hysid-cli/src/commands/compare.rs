@@ -3,7 +3,8 @@
 use crate::error::CliError;
 use crate::error::Result;
 use crate::progress::TerminalProgress;
-use hysid::compare::{Experiment, FigureFormat};
+use hysid::compare::{Experiment, ExperimentError, FigureFormat};
+use hysid_model::data::DataError;
 use std::path::PathBuf;
 
 /// Arguments of `hysid compare`.
@@ -30,6 +31,31 @@ fn parse_format(s: &str) -> std::result::Result<FigureFormat, String> {
     Ok(format)
 }
 
+/// Where a record lacks an input the experiment reads, the inputs a run's
+/// model file declares, for the user to name in `[data] input`.
+fn model_inputs_hint(exp: &Experiment, e: &ExperimentError) -> Option<String> {
+    let ExperimentError::Data {
+        source: DataError::Missing { name, .. },
+        ..
+    } = e
+    else {
+        return None;
+    };
+    let records = exp
+        .data
+        .records
+        .iter()
+        .flat_map(|r| r.input.iter().flatten());
+    let an_input = exp.data.input.iter().chain(records).any(|i| i == name);
+    let (run, inputs) =
+        (exp.declared_inputs()).filter(|(_, own)| an_input && !own.contains(name))?;
+    Some(format!(
+        "; the model file of '{}' declares the inputs {}: name the record's in [data] input",
+        run.name,
+        inputs.join(", ")
+    ))
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let exp = Experiment::load(&args.experiment).map_err(|e| CliError::input(e.to_string()))?;
@@ -46,9 +72,10 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!("hysid: warning: {}: {w}", args.experiment.display());
     }
     let progress = TerminalProgress::new();
-    let mut comparison = exp
-        .run(&progress)
-        .map_err(|e| CliError::input(format!("{}: {e}", args.experiment.display())))?;
+    let mut comparison = exp.run(&progress).map_err(|e| {
+        let hint = model_inputs_hint(&exp, &e).unwrap_or_default();
+        CliError::input(format!("{}: {e}{hint}", args.experiment.display()))
+    })?;
     comparison.figures = args.format;
     hysid::compare::write_report(&mut comparison, &dir)
         .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;

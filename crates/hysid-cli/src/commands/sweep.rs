@@ -8,7 +8,7 @@
 use crate::error::CliError;
 use crate::error::Result;
 use crate::progress::TerminalProgress;
-use crate::selection::SignalArgs;
+use crate::selection::{DataArgs, SignalArgs, SignalDefaults};
 use hysid::compare::{
     DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Origin, RunSpec,
     ScoredRows, SweepSpec,
@@ -79,7 +79,12 @@ pub struct Args {
 /// ([`hysid::select::candidate_setups`]), and the priors as the back-end
 /// checks them without data. An unknown
 /// method is left to the experiment's own check, which names the known ones.
-fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
+fn check_grid(
+    args: &Args,
+    signals: &SignalArgs,
+    priors: &Priors,
+    space: &SearchSpace,
+) -> Result<()> {
     let given = Settings::parse(&args.set)?;
     let file = args.prior.as_ref().map(|p| p.display().to_string());
     let fixed = |key: &str| match key {
@@ -96,7 +101,7 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
         return Ok(());
     };
     let setup = Setup {
-        orders: RegressorSpec::new(args.na, args.nb, args.signals.inputs().len()),
+        orders: RegressorSpec::new(args.na, args.nb, signals.inputs().len()),
         priors: priors.clone(),
         settings: given,
     };
@@ -124,6 +129,29 @@ fn check_grid(args: &Args, priors: &Priors, space: &SearchSpace) -> Result<()> {
     Ok(())
 }
 
+/// The signals the sweep reads, named: the flags' (`u` and `y` where they
+/// name none) or, where the record lacks `u`, the inputs the method's
+/// model file declares, read as `identify` reads them.
+fn signals_read(args: &Args) -> Result<SignalArgs> {
+    let declared = match hysid::registry().get(&args.method) {
+        Some(backend) => backend.declared_inputs(&Settings::parse(&args.set)?)?,
+        None => None,
+    };
+    let record = DataArgs {
+        signals: args.signals.clone(),
+        rows: Vec::new(),
+    };
+    let data = (record.reading(SignalDefaults::declared(declared.clone()))).load_one(&args.data)?;
+    if let Some(own) = &declared {
+        super::warn_of_order(own, &data, "the model file names");
+    }
+    Ok(SignalArgs {
+        input: Some(data.input_names()),
+        output: Some(data.output.name.clone()),
+        ..args.signals.clone()
+    })
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     if let Some(dir) = &args.out {
@@ -144,7 +172,8 @@ pub fn run(args: Args) -> Result<()> {
         .collect();
     let space =
         SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
-    check_grid(&args, &priors, &space)?;
+    let signals = signals_read(&args)?;
+    check_grid(&args, &signals, &priors, &space)?;
     // The first --grid key is the sweep's `vary`, the one its figure is
     // drawn against; the others' order does not matter.
     let Some((first, others)) = space.axes.split_first() else {
@@ -159,8 +188,8 @@ pub fn run(args: Args) -> Result<()> {
         description: String::new(),
         data: DataSpec {
             file: args.data.clone(),
-            input: args.signals.inputs(),
-            output: args.signals.output(),
+            input: signals.inputs(),
+            output: signals.output(),
             decimate: args.signals.decimate,
             ts: args.signals.ts,
             time: args.signals.time.clone(),

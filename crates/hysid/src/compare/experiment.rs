@@ -770,6 +770,26 @@ impl Experiment {
         Ok(e)
     }
 
+    /// The first `[[run]]` or `[[sweep]]` whose model file declares input
+    /// names ([`hysid_core::backend::Backend::declared_inputs`]), with
+    /// them: what a record that lacks the `[data]` inputs may name
+    /// otherwise.
+    pub fn declared_inputs(&self) -> Option<(&RunSpec, Vec<String>)> {
+        let registry = crate::registry();
+        self.entries().find_map(|(run, _)| {
+            let settings = hysid_core::options::Settings::from_pairs(
+                (run.set.iter())
+                    .map(|(k, v)| (k.clone(), value_text(v)))
+                    .collect(),
+            );
+            let inputs = registry
+                .get(&run.method)?
+                .declared_inputs(&settings)
+                .ok()??;
+            Some((run, inputs)).filter(|(_, i)| !i.is_empty())
+        })
+    }
+
     /// Every `[[run]]` and `[[sweep]]`'s run, with `run` or `sweep`.
     fn entries(&self) -> impl Iterator<Item = (&RunSpec, &'static str)> {
         (self.runs.iter().map(|r| (r, "run"))).chain(self.sweeps.iter().map(|s| (&s.run, "sweep")))
