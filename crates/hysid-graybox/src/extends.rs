@@ -196,8 +196,9 @@ fn check_new_entries(base: &Value, own: &Value) -> Result<(), String> {
             Some(Value::Array(items)) => items.iter().filter_map(name_of).collect(),
             _ => Vec::new(),
         };
+        let names: HashSet<&str> = known.iter().copied().collect();
         for entry in over {
-            let Some(name) = name_of(entry).filter(|n| !known.contains(n)) else {
+            let Some(name) = name_of(entry).filter(|n| !names.contains(n)) else {
                 continue;
             };
             if let Some(key) = keys.iter().find(|k| entry.get(**k).is_none()) {
