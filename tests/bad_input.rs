@@ -1456,6 +1456,31 @@ fn malformed_experiment_files() {
                 "no such file",
             ],
         ),
+        // The output read as an input would simulate the record from itself.
+        (
+            "input-is-output.toml",
+            format!(
+                "title = \"x\"\n{}{run}",
+                data.replace("[data]\n", "[data]\ninput = [\"y\"]\n")
+            ),
+            vec!["[data]: input 'y' is also the output"],
+        ),
+        (
+            "input-twice.toml",
+            format!(
+                "title = \"x\"\n{}{run}",
+                data.replace("[data]\n", "[data]\ninput = [\"u\", \"u\"]\n")
+            ),
+            vec!["[data]: input 'u' is named twice"],
+        ),
+        (
+            "record-input-is-output.toml",
+            format!(
+                "title = \"x\"\n{data}[[data.records]]\nfile = \"other.csv\"\ninput = [\"y\"]\n\
+                 identification = \"0..100\"\n{run}"
+            ),
+            vec!["[[data.records]] #1: input 'y' is also the output"],
+        ),
         (
             "warmup.toml",
             format!("title = \"x\"\n{}warmup = 1000\n{run}", data),

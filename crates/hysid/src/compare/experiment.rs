@@ -5,7 +5,7 @@ use crate::select::SelectError;
 use hysid_core::options::{first_repeated, non_empty};
 use hysid_core::priors::{InconsistentPrior, Priors};
 use hysid_core::search::{Axis, SearchSpace};
-use hysid_model::data::{DataSelection, RowRange};
+use hysid_model::data::{DataSelection, RowRange, SignalNameError};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt;
@@ -517,6 +517,15 @@ pub enum InconsistentExperiment {
     /// Neither runs nor sweeps.
     #[error("no [[run]] and no [[sweep]]")]
     NothingToRun,
+    /// Signal names of `[data]` or of a record that cannot be read as a
+    /// record: an input named twice, or also the output.
+    #[error("{entry}: {problem}")]
+    Signals {
+        /// The entry that names them.
+        entry: DataEntry,
+        /// What is wrong.
+        problem: SignalNameError,
+    },
     /// More jobs than [`MAX_JOBS`]: runs, their seeds, and every point of
     /// every sweep.
     #[error("the runs, their seeds and the points of the sweeps make more than {MAX_JOBS} jobs")]
@@ -933,7 +942,17 @@ impl Experiment {
         if d.identification.is_none() && d.validation.is_none() {
             return Err(E::EmptyData);
         }
+        (d.selection(RowRange::default()).check_names()).map_err(|problem| E::Signals {
+            entry: DataEntry::Main,
+            problem,
+        })?;
         for (i, r) in self.data.records.iter().enumerate() {
+            (d.record_selection(r, RowRange::default()).check_names()).map_err(|problem| {
+                E::Signals {
+                    entry: DataEntry::Record(i + 1),
+                    problem,
+                }
+            })?;
             if r.identification.is_none() && r.validation.is_none() {
                 return Err(E::EmptyRecord(i + 1));
             }
