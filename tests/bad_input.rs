@@ -1404,6 +1404,52 @@ fn malformed_prior_files() {
     report();
 }
 
+/// A report folder whose report would replace or remove a file the run
+/// reads (a model fitted into it, refitted into it) is refused before
+/// anything runs, by `compare` and by `sweep`, and the file is kept.
+#[test]
+fn a_report_folder_holding_an_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = good_csv(d);
+    let models = d.join("r").join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    let model = models.join("a.json");
+    let fitted = hysid(&["identify", s(&data), "-m", "arx", "-o", s(&model)]);
+    assert!(fitted.status.success());
+    let before = std::fs::read(&model).unwrap();
+    let experiment = d.join("e.toml");
+    let text = "title = \"x\"\n[data]\nfile = \"data.csv\"\nidentification = \"0..150\"\n\
+                validation = \"150..\"\n[[run]]\nname = \"b\"\nmethod = \"physical\"\n\
+                provenance = \"user\"\nset = { model = \"r/models/a.json\" }\n";
+    std::fs::write(&experiment, text).unwrap();
+    let out = d.join("r");
+    let said = "holds ";
+    let err = one_line_error(&hysid(&["compare", s(&experiment), "-o", s(&out)]), 2).unwrap();
+    assert!(err.contains(said) && err.contains("a.json"), "{err}");
+    let set = format!("model={}", model.display());
+    let sweep = [
+        "sweep",
+        s(&data),
+        "-m",
+        "arx",
+        "--set",
+        &set,
+        "--grid",
+        "na=1,2",
+        "--identify-rows",
+        "0..150",
+        "--select-rows",
+        "150..",
+        "-o",
+        s(&out),
+    ];
+    let err = one_line_error(&hysid(&sweep), 2).unwrap();
+    assert!(err.contains(said) && err.contains("a.json"), "{err}");
+    assert_eq!(std::fs::read(&model).unwrap(), before);
+    assert!(!out.join("report.md").exists());
+}
+
 #[test]
 fn malformed_experiment_files() {
     let dir = tempfile::tempdir().unwrap();

@@ -383,10 +383,10 @@ fn compare<'py>(
     experiment: PathBuf,
     out_dir: PathBuf,
 ) -> PyResult<Bound<'py, PyAny>> {
-    hysid::compare::check_report_folder(&out_dir)
-        .map_err(|e| Failure::input(format!("out_dir='{}': {e}", out_dir.display())))?;
     let exp =
         hysid::compare::Experiment::load(&experiment).map_err(|e| Failure::input(e.to_string()))?;
+    hysid::compare::check_report_folder(&out_dir, &exp.input_files())
+        .map_err(|e| Failure::input(format!("out_dir='{}': {e}", out_dir.display())))?;
     // As the program says them: the warnings, and the file with a run's error.
     for w in exp.warnings() {
         warn(py, &format!("{}: {w}", experiment.display()))?;

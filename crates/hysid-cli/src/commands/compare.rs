@@ -67,7 +67,8 @@ pub fn run(args: Args) -> Result<()> {
             .unwrap_or_default();
         PathBuf::from("out").join(stem)
     });
-    super::a_folder(&dir)?;
+    let inputs = [exp.input_files(), vec![args.experiment.as_path()]].concat();
+    super::a_folder(&dir, &inputs)?;
     for w in exp.warnings() {
         eprintln!("hysid: warning: {}: {w}", args.experiment.display());
     }

@@ -33,10 +33,11 @@ pub(crate) fn states_text(
         .join(", ")
 }
 
-/// Refuses a report folder `-o` that cannot take the report
+/// Refuses a report folder `-o` that cannot take the report, or whose
+/// report would replace or remove one of `inputs`
 /// ([`hysid::compare::check_report_folder`]), before anything runs.
-pub(crate) fn a_folder(out: &Path) -> Result<()> {
-    hysid::compare::check_report_folder(out)
+pub(crate) fn a_folder(out: &Path, inputs: &[&Path]) -> Result<()> {
+    hysid::compare::check_report_folder(out, inputs)
         .map_err(|e| CliError::input(format!("-o {}: {e}", out.display())))
 }
 

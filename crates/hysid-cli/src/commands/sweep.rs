@@ -19,7 +19,7 @@ use hysid_core::priors::{ModeCountNeed, Priors};
 use hysid_core::search::{SearchSpace, Setup};
 use hysid_model::data::RowRange;
 use hysid_model::regressors::RegressorSpec;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `hysid sweep`.
 #[derive(clap::Args, Debug)]
@@ -155,7 +155,15 @@ fn signals_read(args: &Args) -> Result<SignalArgs> {
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     if let Some(dir) = &args.out {
-        super::a_folder(dir)?;
+        let given = Settings::parse(&args.set)?;
+        let model = given
+            .get(hysid::compare::experiment::MODEL_FILE_OPTION)
+            .map(Path::new);
+        let inputs: Vec<&Path> = [Some(args.data.as_path()), args.prior.as_deref(), model]
+            .into_iter()
+            .flatten()
+            .collect();
+        super::a_folder(dir, &inputs)?;
     }
     let mut priors = match &args.prior {
         Some(p) => super::load_priors(p)?,

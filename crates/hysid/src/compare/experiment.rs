@@ -779,6 +779,20 @@ impl Experiment {
         Ok(e)
     }
 
+    /// The files the experiment reads: its data files and its runs' model
+    /// files.
+    pub fn input_files(&self) -> Vec<&Path> {
+        let records = self.data.records.iter().map(|r| r.file.as_path());
+        let models = (self.entries()).filter_map(|(run, _)| match run.set.get(MODEL_FILE_OPTION) {
+            Some(toml::Value::String(file)) => Some(Path::new(file.as_str())),
+            _ => None,
+        });
+        std::iter::once(self.data.file.as_path())
+            .chain(records)
+            .chain(models)
+            .collect()
+    }
+
     /// The first `[[run]]` or `[[sweep]]` whose model file declares input
     /// names ([`hysid_core::backend::Backend::declared_inputs`]), with
     /// them: what a record that lacks the `[data]` inputs may name

@@ -25,24 +25,66 @@ pub enum ReportFolderError {
     /// Its `models` or `plots` is a file.
     #[error("{} is a file; the report writes into a folder of that name", .0.display())]
     InnerIsAFile(std::path::PathBuf),
+    /// A file the run reads is one the report may replace or remove.
+    #[error(
+        "holds {}, which the run reads and its report may replace or remove; give another folder",
+        .0.display()
+    )]
+    HoldsAnInput(std::path::PathBuf),
 }
 
 /// Whether `dir` can take a report: it, its `models` and its `plots` are
-/// folders or not there yet. Checked before anything runs, since writing
-/// comes after every fit.
-pub fn check_report_folder(dir: &Path) -> Result<(), ReportFolderError> {
+/// folders or not there yet, and none of `inputs` (the files the run
+/// reads) is a file the report writes or removes ([`REPORT_FILES`]).
+/// Checked before anything runs, since writing comes after every fit.
+pub fn check_report_folder(dir: &Path, inputs: &[&Path]) -> Result<(), ReportFolderError> {
     let a_file = |p: &Path| p.exists() && !p.is_dir();
     if a_file(dir) {
         return Err(ReportFolderError::IsAFile);
     }
-    match ["models", "plots"]
+    if let Some(inner) = ["models", "plots"]
         .map(|f| dir.join(f))
         .into_iter()
         .find(|p| a_file(p))
     {
-        Some(inner) => Err(ReportFolderError::InnerIsAFile(inner)),
+        return Err(ReportFolderError::InnerIsAFile(inner));
+    }
+    match inputs.iter().find(|p| a_report_file(dir, p)) {
+        Some(input) => Err(ReportFolderError::HoldsAnInput(input.to_path_buf())),
         None => Ok(()),
     }
+}
+
+/// The files of a report folder that writing a report may replace or
+/// remove: in its folder, `report.md` and `report.json`; in `models/` and
+/// `plots/`, files of these extensions.
+pub const REPORT_FILES: [(&str, &[&str]); 3] = [
+    ("", &["report.md", "report.json"]),
+    ("models", &["json"]),
+    ("plots", &["svg", "png"]),
+];
+
+/// Whether `file` is one of the files of [`REPORT_FILES`] in `dir` (both
+/// resolved, so links and `..` name the same file).
+fn a_report_file(dir: &Path, file: &Path) -> bool {
+    let (Ok(dir), Ok(file)) = (std::fs::canonicalize(dir), std::fs::canonicalize(file)) else {
+        return false;
+    };
+    let (Some(folder), Some(name)) = (file.parent(), file.file_name().and_then(|n| n.to_str()))
+    else {
+        return false;
+    };
+    let extension = file.extension().and_then(|x| x.to_str()).unwrap_or("");
+    REPORT_FILES.iter().any(|(inner, kinds)| {
+        folder == dir.join(inner)
+            && kinds.iter().any(|k| {
+                if inner.is_empty() {
+                    name == *k
+                } else {
+                    extension == *k
+                }
+            })
+    })
 }
 
 /// Writes the report and the models into `dir` (created if needed); every
@@ -84,7 +126,7 @@ pub fn write_report(c: &mut Comparison, dir: &Path) -> std::io::Result<Vec<std::
 /// does not list it. Only files of the kinds a report writes, in `models/`
 /// and `plots/`, are touched.
 fn remove_stale(dir: &Path, written: &[std::path::PathBuf]) -> std::io::Result<()> {
-    for (folder, kinds) in [("models", &["json"][..]), ("plots", &["svg", "png"][..])] {
+    for (folder, kinds) in REPORT_FILES.iter().filter(|(inner, _)| !inner.is_empty()) {
         let Ok(entries) = std::fs::read_dir(dir.join(folder)) else {
             continue;
         };
