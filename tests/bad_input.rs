@@ -1405,7 +1405,7 @@ fn malformed_prior_files() {
 }
 
 /// A report folder whose report would replace or remove a file the run
-/// reads (a model fitted into it, refitted into it) is refused before
+/// reads (a model file in its `models/`) is refused before
 /// anything runs, by `compare` and by `sweep`, and the file is kept.
 #[test]
 fn a_report_folder_holding_an_input_is_refused() {
@@ -1415,8 +1415,11 @@ fn a_report_folder_holding_an_input_is_refused() {
     let models = d.join("r").join("models");
     std::fs::create_dir_all(&models).unwrap();
     let model = models.join("a.json");
-    let fitted = hysid(&["identify", s(&data), "-m", "arx", "-o", s(&model)]);
-    assert!(fitted.status.success());
+    let head = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/pick-and-place/head.toml"
+    );
+    assert!(hysid(&["convert", head, "-o", s(&model)]).status.success());
     let before = std::fs::read(&model).unwrap();
     let experiment = d.join("e.toml");
     let text = "title = \"x\"\n[data]\nfile = \"data.csv\"\nidentification = \"0..150\"\n\
@@ -1432,11 +1435,11 @@ fn a_report_folder_holding_an_input_is_refused() {
         "sweep",
         s(&data),
         "-m",
-        "arx",
+        "physical",
         "--set",
         &set,
         "--grid",
-        "na=1,2",
+        "segment=50,100",
         "--identify-rows",
         "0..150",
         "--select-rows",
@@ -1501,6 +1504,21 @@ fn malformed_experiment_files() {
                 "nope.toml",
                 "no such file",
             ],
+        ),
+        // A prior the model file's parameters cannot take, as `identify`
+        // refuses it.
+        (
+            "physical-prior.toml",
+            format!(
+                "title = \"x\"\n{data}[priors.bounds]\nMass = [1.0, 2.0]\n{}\
+                 set = {{ model = \"{}\" }}\nprovenance = \"user\"\n",
+                run.replace("arx", "physical"),
+                concat!(
+                    env!("CARGO_MANIFEST_DIR"),
+                    "/../../models/examples/positioning-axis.toml"
+                )
+            ),
+            vec!["physical-prior.toml", "'a'", "unknown parameter 'Mass'"],
         ),
         // The output read as an input would simulate the record from itself.
         (

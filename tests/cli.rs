@@ -2066,6 +2066,16 @@ flow = { x = "F - a*x" }
         "0",
     ];
     ok(&sweep);
+    // A prior the file's parameters cannot take is refused before any
+    // point runs, named by its file, as `identify` refuses it.
+    let prior = d.join("p.toml");
+    std::fs::write(&prior, "[bounds]\nb = [0.0, 1.0]\n").unwrap();
+    let err = one_line_error(&hysid(&[&sweep[..], &["--prior", s(&prior)]].concat()), 2);
+    let err = err.unwrap();
+    assert!(
+        err.contains("p.toml: [bounds]: unknown parameter 'b' (known: a)"),
+        "{err}"
+    );
     let err = one_line_error(&hysid(&[&sweep[..], &["--input", "G"]].concat()), 2).unwrap();
     assert!(
         err.ends_with(

@@ -378,14 +378,14 @@ pub trait Identifier: Send + Sync {
         Ok(None)
     }
 
-    /// Checks `priors` against the model structure of `orders` as
-    /// `identify` would, without any data (the names of parameters and
-    /// regressors, entries that cannot hold together), so that a front end
-    /// refuses a run before anything runs; errors name `origin`, the
-    /// priors' file. The default checks nothing: a back-end whose
-    /// structure comes from elsewhere (a model file) checks in `identify`.
+    /// Checks `priors` against the model structure of `orders` (or of the
+    /// model file `options` name) as `identify` would, without any data
+    /// (the names of parameters and regressors, entries that cannot hold
+    /// together), so that a front end refuses a run before anything runs;
+    /// errors name `origin`, the priors' file. The default checks nothing.
     fn check_priors(
         &self,
+        _options: &Self::Options,
         _priors: &Priors,
         _orders: RegressorSpec,
         _origin: Option<&str>,
@@ -462,11 +462,13 @@ pub trait Backend: Send + Sync {
     fn declared_inputs(&self, _settings: &Settings) -> Result<Option<Vec<String>>, IdentifyError> {
         Ok(None)
     }
-    /// Checks `priors` against the structure of `orders` without any data
-    /// ([`Identifier::check_priors`]). The default accepts every prior: a
-    /// back-end that checks in `run`.
+    /// Checks `priors` against the structure of `orders`, or of the model
+    /// file `settings` name, without any data
+    /// ([`Identifier::check_priors`]); settings it refuses are an error.
+    /// The default accepts every prior: a back-end that checks in `run`.
     fn check_priors(
         &self,
+        _settings: &Settings,
         _priors: &Priors,
         _orders: RegressorSpec,
         _origin: Option<&str>,
@@ -530,11 +532,14 @@ impl<T: Identifier> Backend for T {
     }
     fn check_priors(
         &self,
+        settings: &Settings,
         priors: &Priors,
         orders: RegressorSpec,
         origin: Option<&str>,
     ) -> Result<(), IdentifyError> {
-        Identifier::check_priors(self, priors, orders, origin)
+        let options = checked_settings::<T>(settings)?;
+        Identifier::check_priors(self, &options, priors, orders, origin)
+            .map_err(|e| e.of_method(T::NAME))
     }
     fn seeded_with(
         &self,

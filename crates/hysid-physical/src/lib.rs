@@ -64,8 +64,9 @@ pub use target::{GrayBoxTarget, Simulator, Target};
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
 use hysid_core::model::{Model, to_gray_box};
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_count};
-use hysid_core::priors::PriorKind;
+use hysid_core::priors::{PriorKind, Priors};
 use hysid_mechanical::MechanicalModel;
+use hysid_model::regressors::RegressorSpec;
 use std::path::Path;
 
 /// The mounting-head model (`models/pick-and-place/head.toml`), for
@@ -207,57 +208,91 @@ impl Identifier for Physical {
         Ok(model.signal_names().0)
     }
 
+    fn check_priors(
+        &self,
+        options: &PhysicalOptions,
+        priors: &Priors,
+        _orders: RegressorSpec,
+        origin: Option<&str>,
+    ) -> Result<(), IdentifyError> {
+        if options.model.trim().is_empty() {
+            return Ok(());
+        }
+        let (target, _) = target_of(options, priors, origin)?;
+        // The priors name parameters, not the records' initial states: one
+        // record checks them as any number would.
+        ParameterMap::new(&target, priors, 1)
+            .map(|_| ())
+            .map_err(|p| IdentifyError::prior_mismatch(origin, p))
+    }
+
     fn identify(
         &self,
         problem: &Problem<'_>,
         options: &Checked<PhysicalOptions>,
         ctx: &RunContext<'_>,
     ) -> Result<Model, IdentifyError> {
-        let model = Model::load(Path::new(options.model.trim())).map_err(|e| {
-            IdentifyError::Options(OptionError::invalid("model", &options.model, e.to_string()))
-        })?;
-        // A model file's structural problems name the file; priors that do
-        // not fit its parameters name the prior file.
-        let in_file =
-            |e: IdentifyError| match e.downcast_ref::<PhysicalError>() {
-                Some(PhysicalError::Model(problem)) => IdentifyError::Options(
-                    OptionError::invalid("model", options.model.trim(), problem.to_string()),
-                ),
-                Some(PhysicalError::Parameters(p)) => {
-                    IdentifyError::prior_mismatch(problem.priors_origin, p.clone())
-                }
-                _ => e,
-            };
-        let model_error =
-            |e: Box<dyn std::error::Error + Send + Sync>| in_file(PhysicalError::Model(e).into());
-        // A mechanical model is fitted as its gray-box form and written
-        // back (`mechanical`).
-        let (gray, back_into) = match model {
-            Model::Mechanical(m) => {
-                let m = mechanical::with_warmup(m, options.init_samples);
-                mechanical::check_under_priors(&m, problem.priors)
-                    .map_err(|p| IdentifyError::prior_mismatch(problem.priors_origin, p))?;
-                (to_gray_box(&m).map_err(|e| model_error(e.into()))?, Some(m))
-            }
-            Model::GrayBox(g) => (g, None),
-            other => {
-                return Err(IdentifyError::Options(OptionError::invalid(
-                    "model",
-                    &options.model,
-                    format!(
-                        "a '{}' model; the physical method fits a 'mechanical' or a 'gray_box' one",
-                        other.kind()
-                    ),
-                )));
-            }
-        };
-        let target = GrayBoxTarget::new(gray).map_err(|e| model_error(e.into()))?;
-        let (fitted, _) =
-            fit_model(&target, problem.data, problem.priors, options, ctx).map_err(in_file)?;
+        let (target, back_into) = target_of(options, problem.priors, problem.priors_origin)?;
+        let (fitted, _) = fit_model(&target, problem.data, problem.priors, options, ctx)
+            .map_err(|e| in_file(e, options, problem.priors_origin))?;
         Ok(match back_into {
             Some(m) => Model::Mechanical(mechanical::fitted(m, fitted.model)),
             None => Model::GrayBox(fitted.model),
         })
+    }
+}
+
+/// The gray-box model the model file of `options` is fitted as, and the
+/// mechanical model to write the fit back into where the file holds one
+/// (checked under `priors`, named by `origin`).
+fn target_of(
+    options: &PhysicalOptions,
+    priors: &Priors,
+    origin: Option<&str>,
+) -> Result<(GrayBoxTarget, Option<MechanicalModel>), IdentifyError> {
+    let model = Model::load(Path::new(options.model.trim())).map_err(|e| {
+        IdentifyError::Options(OptionError::invalid("model", &options.model, e.to_string()))
+    })?;
+    let model_error = |e: Box<dyn std::error::Error + Send + Sync>| {
+        in_file(PhysicalError::Model(e).into(), options, origin)
+    };
+    // A mechanical model is fitted as its gray-box form and written
+    // back (`mechanical`).
+    let (gray, back_into) = match model {
+        Model::Mechanical(m) => {
+            let m = mechanical::with_warmup(m, options.init_samples);
+            mechanical::check_under_priors(&m, priors)
+                .map_err(|p| IdentifyError::prior_mismatch(origin, p))?;
+            (to_gray_box(&m).map_err(|e| model_error(e.into()))?, Some(m))
+        }
+        Model::GrayBox(g) => (g, None),
+        other => {
+            return Err(IdentifyError::Options(OptionError::invalid(
+                "model",
+                &options.model,
+                format!(
+                    "a '{}' model; the physical method fits a 'mechanical' or a 'gray_box' one",
+                    other.kind()
+                ),
+            )));
+        }
+    };
+    let target = GrayBoxTarget::new(gray).map_err(|e| model_error(e.into()))?;
+    Ok((target, back_into))
+}
+
+/// `e` with a model file's structural problems naming the file (the
+/// `model` option) and priors that do not fit its parameters naming the
+/// prior file `origin`.
+fn in_file(e: IdentifyError, options: &PhysicalOptions, origin: Option<&str>) -> IdentifyError {
+    match e.downcast_ref::<PhysicalError>() {
+        Some(PhysicalError::Model(problem)) => IdentifyError::Options(OptionError::invalid(
+            "model",
+            options.model.trim(),
+            problem.to_string(),
+        )),
+        Some(PhysicalError::Parameters(p)) => IdentifyError::prior_mismatch(origin, p.clone()),
+        _ => e,
     }
 }
 

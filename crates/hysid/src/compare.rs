@@ -608,7 +608,8 @@ fn check_job(
             .ensure_honoured(backend.name(), backend.honours(), None)
             .map_err(|e| invalid(e.to_string()))?;
         let orders = RegressorSpec::new(job.na, job.nb, inputs);
-        (backend.check_priors(&job.priors, orders, None)).map_err(|e| invalid(e.to_string()))?;
+        (backend.check_priors(&job.settings, &job.priors, orders, None))
+            .map_err(|e| invalid(e.to_string()))?;
         let need = backend.mode_count_need(&job.settings);
         if !job.auto && !need.met_by(&job.priors) {
             let give = match need {

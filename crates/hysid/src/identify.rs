@@ -427,7 +427,12 @@ impl<'a> Identify<'a> {
             settings: self.options.clone(),
         };
         for (_, point) in select::candidate_setups(backend, &setup, grid)? {
-            backend.check_priors(&point.priors, point.orders, problem.priors_origin)?;
+            backend.check_priors(
+                &point.settings,
+                &point.priors,
+                point.orders,
+                problem.priors_origin,
+            )?;
         }
         Ok(grid.clone())
     }

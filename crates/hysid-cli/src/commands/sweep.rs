@@ -111,7 +111,7 @@ fn check_grid(
     let origin = origin.as_deref();
     (priors.ensure_honoured(backend.name(), backend.honours(), origin))?;
     for (_, point) in hysid::select::candidate_setups(backend, &setup, space)? {
-        (backend.check_priors(&point.priors, point.orders, origin))
+        (backend.check_priors(&point.settings, &point.priors, point.orders, origin))
             .map_err(|e| CliError::input(e.to_string()))?;
         let need = backend.mode_count_need(&point.settings);
         if !need.met_by(&point.priors) {

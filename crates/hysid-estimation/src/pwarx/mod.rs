@@ -213,6 +213,7 @@ impl<M: PwarxMethod> Identifier for Pwarx<M> {
 
     fn check_priors(
         &self,
+        _options: &Self::Options,
         priors: &Priors,
         orders: RegressorSpec,
         origin: Option<&str>,

@@ -716,24 +716,36 @@ pub enum InconsistentExperiment {
 impl Experiment {
     /// Parses experiment text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, ExperimentError> {
-        let e: Experiment = toml::from_str(text).map_err(|e| ExperimentError::Invalid {
+        Self::parse(text, origin)?.checked(origin)
+    }
+
+    /// The experiment of `text`, read as it is written.
+    fn parse(text: &str, origin: &str) -> Result<Self, ExperimentError> {
+        toml::from_str(text).map_err(|e| ExperimentError::Invalid {
             path: origin.into(),
             message: e.to_string().trim().replace('\n', " "),
-        })?;
-        e.check().map_err(|problem| ExperimentError::Inconsistent {
-            path: origin.into(),
-            problem,
-        })?;
+        })
+    }
+
+    /// The experiment, checked ([`Experiment::check`]) and its jobs
+    /// expanded as they will run (each checked as its back-end checks it,
+    /// with the model files it names).
+    fn checked(self, origin: &str) -> Result<Self, ExperimentError> {
+        self.check()
+            .map_err(|problem| ExperimentError::Inconsistent {
+                path: origin.into(),
+                problem,
+            })?;
         // Sweep values that are not counts are found while expanding the
         // jobs; report them against this file, not at run time.
-        e.jobs().map_err(|err| match err {
+        self.jobs().map_err(|err| match err {
             ExperimentError::Invalid { message, .. } => ExperimentError::Invalid {
                 path: origin.into(),
                 message,
             },
             other => other,
         })?;
-        Ok(e)
+        Ok(self)
     }
 
     /// Reads an experiment file; the data path and the runs' model files
@@ -744,7 +756,7 @@ impl Experiment {
             path: origin.clone(),
             source,
         })?;
-        let mut e = Self::from_toml(&text, &origin)?;
+        let mut e = Self::parse(&text, &origin)?;
         let folder = path.parent().unwrap_or(Path::new("."));
         if e.data.file.is_relative() {
             e.data.file = folder.join(&e.data.file);
@@ -776,7 +788,7 @@ impl Experiment {
                 });
             }
         }
-        Ok(e)
+        e.checked(&origin)
     }
 
     /// The files the experiment reads: its data files and its runs' model
