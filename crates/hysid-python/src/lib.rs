@@ -383,10 +383,16 @@ fn compare<'py>(
     experiment: PathBuf,
     out_dir: PathBuf,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let folder = |inputs: &[&std::path::Path]| {
+        hysid::compare::check_report_folder(&out_dir, inputs)
+            .map_err(|e| Failure::input(format!("out_dir='{}': {e}", out_dir.display())))
+    };
+    // The folder first, as the argument before the file is read; then
+    // against the files the experiment reads.
+    folder(&[])?;
     let exp =
         hysid::compare::Experiment::load(&experiment).map_err(|e| Failure::input(e.to_string()))?;
-    hysid::compare::check_report_folder(&out_dir, &exp.input_files())
-        .map_err(|e| Failure::input(format!("out_dir='{}': {e}", out_dir.display())))?;
+    folder(&exp.input_files())?;
     // As the program says them: the warnings, and the file with a run's error.
     for w in exp.warnings() {
         warn(py, &format!("{}: {w}", experiment.display()))?;
