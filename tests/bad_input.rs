@@ -289,6 +289,18 @@ fn malformed_mat_files() {
     // refused, by name, in one line.)
     bad(&identify(s(&p), o, &[]), &["char.mat", "MAT-file"], &out);
 
+    // u holds fewer samples than y (a scalar, say).
+    let p = write(
+        d,
+        "lengths.mat",
+        mat_file(&[column("u", &u[..1]), column("y", &y)]),
+    );
+    bad(
+        &identify(s(&p), o, &[]),
+        &["lengths.mat: signal 'u' has 1 samples, the output 'y' has 200"],
+        &out,
+    );
+
     // y holds an infinity at sample 7.
     let mut yy = y.clone();
     yy[6] = f64::INFINITY;

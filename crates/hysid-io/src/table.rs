@@ -203,7 +203,16 @@ pub(crate) fn select(table: &RawTable, sel: &DataSelection) -> Result<Dataset, D
     } else {
         sel.ts
     };
-    let ds = Dataset::new(inputs, output, ts)?;
+    // Signals of other lengths (a MAT variable of another size) name the
+    // file.
+    let ds = Dataset::new(inputs, output, ts).map_err(|e| match e {
+        DataError::Shape(message) => DataError::Parse {
+            path: table.path.clone(),
+            location: String::new(),
+            message,
+        },
+        other => other,
+    })?;
     let n = ds.len();
     let rows_error = |beyond| DataError::Rows {
         path: table.path.clone(),
