@@ -1165,6 +1165,10 @@ fn sweep_refuses_unknown_keys_and_fails_when_every_point_fails() {
             &["--grid", "ridge=0,1", "--set", "ridge=2"],
             "--grid ridge: also fixed by --set ridge=2",
         ),
+        (
+            &["--grid", "na=1,2", "--na", "3"],
+            "--grid na: also fixed by --na 3",
+        ),
         // A prior the back-end cannot take at some point, named by its file.
         (
             &["--grid", "na=1,2", "--prior", s(&prior)],

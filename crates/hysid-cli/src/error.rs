@@ -154,6 +154,7 @@ impl From<hysid::select::SelectError> for CliError {
                 let by = match given {
                     FixedBy::Option(v) => format!("--set {key}={v}"),
                     FixedBy::Modes(s) => format!("--modes {s}"),
+                    FixedBy::Order(n) => format!("--{key} {n}"),
                     other => other.to_string(),
                 };
                 Self::input(format!(

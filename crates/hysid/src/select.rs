@@ -212,6 +212,8 @@ pub enum FixedBy {
     Option(String),
     /// The mode count given beside the priors (`--modes`, `modes=`).
     Modes(usize),
+    /// The order of the axis's name (`na`, `nb`) given beside the grid.
+    Order(usize),
     /// The priors' exact mode count, and their file where they have one.
     PriorModes(usize, Option<String>),
 }
@@ -221,6 +223,7 @@ impl std::fmt::Display for FixedBy {
         match self {
             FixedBy::Option(v) => write!(f, "the option's value {v}"),
             FixedBy::Modes(s) => write!(f, "the mode count {s}"),
+            FixedBy::Order(n) => write!(f, "the order {n}"),
             FixedBy::PriorModes(s, None) => write!(f, "the prior modes = {s}"),
             FixedBy::PriorModes(s, Some(file)) => write!(f, "the prior modes = {s} of {file}"),
         }

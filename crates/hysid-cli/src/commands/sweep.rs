@@ -47,12 +47,12 @@ pub struct Args {
     /// Scored samples left out at the start.
     #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
     pub warmup: usize,
-    /// Output lags.
-    #[arg(long, default_value_t = 2)]
-    pub na: usize,
-    /// Input lags.
-    #[arg(long, default_value_t = 2)]
-    pub nb: usize,
+    /// Output lags [default: 2], unless swept.
+    #[arg(long)]
+    pub na: Option<usize>,
+    /// Input lags [default: 2], unless swept.
+    #[arg(long)]
+    pub nb: Option<usize>,
     /// Number of modes (the prior `modes`), unless swept.
     #[arg(long)]
     pub modes: Option<usize>,
@@ -72,6 +72,19 @@ pub struct Args {
     pub signals: SignalArgs,
 }
 
+impl Args {
+    /// The orders `na`, `nb` of the points that do not sweep them.
+    fn orders(&self) -> (usize, usize) {
+        (
+            self.na.unwrap_or(DEFAULT_ORDER),
+            self.nb.unwrap_or(DEFAULT_ORDER),
+        )
+    }
+}
+
+/// `--na` and `--nb` where they are not given.
+const DEFAULT_ORDER: usize = 2;
+
 /// Refuses, before anything runs, a grid point the back-end would refuse:
 /// a key that `--set`, `--modes` or the prior file's `modes` also fixes, a
 /// key that is neither one of its options nor `modes`, `na` or `nb`, a
@@ -90,6 +103,8 @@ fn check_grid(
     let fixed = |key: &str| match key {
         "modes" => (args.modes.map(FixedBy::Modes))
             .or_else(|| Some(FixedBy::PriorModes(priors.modes?, file.clone()))),
+        "na" => args.na.map(FixedBy::Order),
+        "nb" => args.nb.map(FixedBy::Order),
         key => given.get(key).map(|v| FixedBy::Option(v.to_string())),
     };
     if let Some((key, given)) = (space.axes.iter()).find_map(|a| Some((&a.key, fixed(&a.key)?))) {
@@ -101,7 +116,7 @@ fn check_grid(
         return Ok(());
     };
     let setup = Setup {
-        orders: RegressorSpec::new(args.na, args.nb, signals.inputs().len()),
+        orders: RegressorSpec::new(args.orders().0, args.orders().1, signals.inputs().len()),
         priors: priors.clone(),
         settings: given,
     };
@@ -213,8 +228,8 @@ pub fn run(args: Args) -> Result<()> {
             input_label: None,
             truth: None,
         },
-        na: args.na,
-        nb: args.nb,
+        na: args.orders().0,
+        nb: args.orders().1,
         seed: args.seed,
         priors,
         runs: vec![],
