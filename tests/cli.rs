@@ -2080,6 +2080,13 @@ flow = { x = "F - a*x" }
         err.contains("p.toml: [bounds]: unknown parameter 'b' (known: a)"),
         "{err}"
     );
+    // So is a swept mode count the method does not take, named by its flag.
+    let modes = [&sweep[..6], &["--grid", "modes=1,2"], &sweep[8..]].concat();
+    let err = one_line_error(&hysid(&modes), 2).unwrap();
+    assert!(
+        err.contains("--grid modes: method 'physical' does not honour the prior modes"),
+        "{err}"
+    );
     let err = one_line_error(&hysid(&[&sweep[..], &["--input", "G"]].concat()), 2).unwrap();
     assert!(
         err.ends_with(

@@ -126,6 +126,11 @@ fn check_grid(
     let origin = origin.as_deref();
     (priors.ensure_honoured(backend.name(), backend.honours(), origin))?;
     for (_, point) in hysid::select::candidate_setups(backend, &setup, space)? {
+        // A swept mode count is a prior of every point.
+        (point
+            .priors
+            .ensure_honoured(backend.name(), backend.honours(), None))
+        .map_err(|e| CliError::input(format!("--grid modes: {e}")))?;
         (backend.check_priors(&point.settings, &point.priors, point.orders, origin))
             .map_err(|e| CliError::input(e.to_string()))?;
         let need = backend.mode_count_need(&point.settings);
