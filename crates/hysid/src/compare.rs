@@ -305,12 +305,7 @@ impl Experiment {
             na: r.na.unwrap_or(self.na),
             nb: r.nb.unwrap_or(self.nb),
             priors: merge(&self.priors, r),
-            settings: Settings::from_pairs(
-                r.set
-                    .iter()
-                    .map(|(k, v)| (k.clone(), value_text(v)))
-                    .collect(),
-            ),
+            settings: r.settings(),
             seed: r.seed.unwrap_or(self.seed),
         };
         let registry = crate::registry();

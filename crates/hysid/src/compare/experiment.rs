@@ -242,6 +242,17 @@ pub struct RunSpec {
     pub provenance: Option<Provenance>,
 }
 
+impl RunSpec {
+    /// Its `set` table as options, values as `--set` writes them.
+    pub fn settings(&self) -> hysid_core::options::Settings {
+        hysid_core::options::Settings::from_pairs(
+            (self.set.iter())
+                .map(|(k, v)| (k.clone(), value_text(v)))
+                .collect(),
+        )
+    }
+}
+
 /// Where a run's fixed options come from, as its experiment file declares
 /// them (`provenance = "paper"`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -812,14 +823,9 @@ impl Experiment {
     pub fn declared_inputs(&self) -> Option<(&RunSpec, Vec<String>)> {
         let registry = crate::registry();
         self.entries().find_map(|(run, _)| {
-            let settings = hysid_core::options::Settings::from_pairs(
-                (run.set.iter())
-                    .map(|(k, v)| (k.clone(), value_text(v)))
-                    .collect(),
-            );
             let inputs = registry
                 .get(&run.method)?
-                .declared_inputs(&settings)
+                .declared_inputs(&run.settings())
                 .ok()??;
             Some((run, inputs)).filter(|(_, i)| !i.is_empty())
         })
