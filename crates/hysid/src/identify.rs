@@ -3,7 +3,7 @@
 //! the Python package and experiments are front ends over it; each words
 //! the typed [`Error`] with its own argument names.
 
-use crate::select::{self, AgainstAffine, FixedBy, Plan, Request, SelectError};
+use crate::select::{self, AgainstAffine, GivenBesideGrid, Plan, Request, SelectError};
 use hysid_core::backend::{
     Backend, Deadline, IdentifyError, NoProgress, Problem, Progress, Registry, RunContext,
 };
@@ -402,25 +402,14 @@ impl<'a> Identify<'a> {
         problem: &Problem<'_>,
     ) -> Result<SearchSpace, Error> {
         let priors = problem.priors;
-        for axis in &grid.axes {
-            let given = match (axis.key.as_str(), self.modes, priors.modes) {
-                ("modes", Some(s), _) => Some(FixedBy::Modes(s)),
-                ("modes", None, Some(s)) => {
-                    Some(FixedBy::PriorModes(s, self.priors_origin.clone()))
-                }
-                (key, ..) => self
-                    .options
-                    .get(key)
-                    .map(|v| FixedBy::Option(v.to_string())),
-            };
-            if let Some(given) = given {
-                return Err(SelectError::GridFixed {
-                    key: axis.key.clone(),
-                    given,
-                }
-                .into());
-            }
-        }
+        let given = GivenBesideGrid {
+            options: &self.options,
+            modes: self.modes,
+            prior_modes: priors.modes,
+            priors_origin: self.priors_origin.as_deref(),
+            orders: [None, None],
+        };
+        given.check(grid)?;
         let setup = Setup {
             orders: problem.orders,
             priors: priors.clone(),

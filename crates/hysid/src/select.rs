@@ -230,6 +230,47 @@ impl std::fmt::Display for FixedBy {
     }
 }
 
+/// What a front end fixes beside a grid: an axis that one of them also
+/// fixes is refused ([`SelectError::GridFixed`]), since the grid would
+/// override it.
+pub struct GivenBesideGrid<'a> {
+    /// The options given.
+    pub options: &'a Settings,
+    /// The mode count given beside the priors (`--modes`, `modes=`).
+    pub modes: Option<usize>,
+    /// The priors' exact mode count.
+    pub prior_modes: Option<usize>,
+    /// The priors' file, where they have one.
+    pub priors_origin: Option<&'a str>,
+    /// `na` and `nb` where given (by a front end whose orders are not
+    /// always given).
+    pub orders: [Option<usize>; 2],
+}
+
+impl GivenBesideGrid<'_> {
+    /// Refuses the first axis of `grid` that these also fix: `modes` by
+    /// the mode count given, else by the priors'; `na`, `nb` by the orders
+    /// given; any other by a given option.
+    pub fn check(&self, grid: &SearchSpace) -> Result<(), SelectError> {
+        for axis in &grid.axes {
+            let given = match axis.key.as_str() {
+                "modes" => (self.modes.map(FixedBy::Modes)).or_else(|| {
+                    let origin = self.priors_origin.map(str::to_string);
+                    Some(FixedBy::PriorModes(self.prior_modes?, origin))
+                }),
+                "na" => self.orders[0].map(FixedBy::Order),
+                "nb" => self.orders[1].map(FixedBy::Order),
+                key => (self.options.get(key)).map(|v| FixedBy::Option(v.to_string())),
+            };
+            if let Some(given) = given {
+                let key = axis.key.clone();
+                return Err(SelectError::GridFixed { key, given });
+            }
+        }
+        Ok(())
+    }
+}
+
 /// One candidate: a back-end and its set-up.
 struct Trial<'a> {
     backend: &'a dyn Backend,
