@@ -13,7 +13,7 @@ use hysid::compare::{
     DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Origin, RunSpec,
     ScoredRows, SweepSpec,
 };
-use hysid::select::{FixedBy, SelectError};
+use hysid::select::GivenBesideGrid;
 use hysid_core::options::Settings;
 use hysid_core::priors::{ModeCountNeed, Priors};
 use hysid_core::search::{SearchSpace, Setup};
@@ -94,23 +94,21 @@ const DEFAULT_ORDER: usize = 2;
 /// method is left to the experiment's own check, which names the known ones.
 fn check_grid(
     args: &Args,
+    given: &Settings,
     signals: &SignalArgs,
     priors: &Priors,
     space: &SearchSpace,
 ) -> Result<()> {
-    let given = Settings::parse(&args.set)?;
-    let file = args.prior.as_ref().map(|p| p.display().to_string());
-    let fixed = |key: &str| match key {
-        "modes" => (args.modes.map(FixedBy::Modes))
-            .or_else(|| Some(FixedBy::PriorModes(priors.modes?, file.clone()))),
-        "na" => args.na.map(FixedBy::Order),
-        "nb" => args.nb.map(FixedBy::Order),
-        key => given.get(key).map(|v| FixedBy::Option(v.to_string())),
+    let origin = args.prior.as_ref().map(|p| p.display().to_string());
+    let origin = origin.as_deref();
+    let beside = GivenBesideGrid {
+        options: given,
+        modes: args.modes,
+        prior_modes: priors.modes,
+        priors_origin: origin,
+        orders: [args.na, args.nb],
     };
-    if let Some((key, given)) = (space.axes.iter()).find_map(|a| Some((&a.key, fixed(&a.key)?))) {
-        let key = key.clone();
-        return Err(SelectError::GridFixed { key, given }.into());
-    }
+    beside.check(space)?;
     let registry = hysid::registry();
     let Some(backend) = registry.get(&args.method) else {
         return Ok(());
@@ -118,12 +116,10 @@ fn check_grid(
     let setup = Setup {
         orders: RegressorSpec::new(args.orders().0, args.orders().1, signals.inputs().len()),
         priors: priors.clone(),
-        settings: given,
+        settings: given.clone(),
     };
     // The priors as the back-end checks them at every point (whose
     // orders may be swept), named by their file.
-    let origin = args.prior.as_ref().map(|p| p.display().to_string());
-    let origin = origin.as_deref();
     (priors.ensure_honoured(backend.name(), backend.honours(), origin))?;
     for (_, point) in hysid::select::candidate_setups(backend, &setup, space)? {
         // A swept mode count is a prior of every point.
@@ -149,22 +145,27 @@ fn check_grid(
     Ok(())
 }
 
-/// The signals the sweep reads, named: the flags' (`u` and `y` where they
-/// name none) or, where the record lacks `u`, the inputs the method's
-/// model file declares, read as `identify` reads them.
-fn signals_read(args: &Args) -> Result<SignalArgs> {
+/// The signals the sweep reads: the flags' (`u` and `y` where they name
+/// none) or, where the method's model file (`given`'s) declares inputs and
+/// the record lacks `u`, those, read as `identify` reads them and named.
+fn signals_read(args: &Args, given: &Settings) -> Result<SignalArgs> {
     let declared = match hysid::registry().get(&args.method) {
-        Some(backend) => backend.declared_inputs(&Settings::parse(&args.set)?)?,
+        Some(backend) => backend.declared_inputs(given)?,
         None => None,
+    };
+    // Without a model file's names the flags' names are checked here and
+    // the record is read once, by the sweep.
+    let Some(own) = declared else {
+        args.signals.selection(RowRange::default())?;
+        return Ok(args.signals.clone());
     };
     let record = DataArgs {
         signals: args.signals.clone(),
         rows: Vec::new(),
     };
-    let data = (record.reading(SignalDefaults::declared(declared.clone()))).load_one(&args.data)?;
-    if let Some(own) = &declared {
-        super::warn_of_order(own, &data, "the model file names");
-    }
+    let data =
+        (record.reading(SignalDefaults::declared(Some(own.clone())))).load_one(&args.data)?;
+    super::warn_of_order(&own, &data, "the model file names");
     Ok(SignalArgs {
         input: Some(data.input_names()),
         output: Some(data.output.name.clone()),
@@ -174,8 +175,8 @@ fn signals_read(args: &Args) -> Result<SignalArgs> {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
+    let given = Settings::parse(&args.set)?;
     if let Some(dir) = &args.out {
-        let given = Settings::parse(&args.set)?;
         let model = given
             .get(hysid::compare::experiment::MODEL_FILE_OPTION)
             .map(Path::new);
@@ -193,15 +194,15 @@ pub fn run(args: Args) -> Result<()> {
         priors.modes = args.modes;
     }
     let text = |v: &str| toml::Value::String(v.to_string());
-    let set = Settings::parse(&args.set)?
+    let set = given
         .pairs()
         .iter()
         .map(|(k, v)| (k.clone(), text(v)))
         .collect();
     let space =
         SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
-    let signals = signals_read(&args)?;
-    check_grid(&args, &signals, &priors, &space)?;
+    let signals = signals_read(&args, &given)?;
+    check_grid(&args, &given, &signals, &priors, &space)?;
     // The first --grid key is the sweep's `vary`, the one its figure is
     // drawn against; the others' order does not matter.
     let Some((first, others)) = space.axes.split_first() else {
@@ -270,8 +271,10 @@ pub fn run(args: Args) -> Result<()> {
         )));
     }
     let progress = TerminalProgress::new();
-    let mut comparison = exp.run(&progress).map_err(|e| {
-        CliError::input(match &e {
+    let mut comparison = exp.run(&progress).map_err(|e| match e {
+        // The record is the command line's: no `[data]` to name.
+        ExperimentError::Data { source, .. } => signals.data_error(source),
+        e => CliError::input(match &e {
             ExperimentError::Rows { part, source, .. } => {
                 let flag = match part {
                     DataPart::Identification => "--identify-rows",
@@ -279,15 +282,13 @@ pub fn run(args: Args) -> Result<()> {
                 };
                 source.rows_named(flag).unwrap_or_else(|| e.to_string())
             }
-            // The record is the command line's: no `[data]` to name.
-            ExperimentError::Data { source, .. } => source.to_string(),
             ExperimentError::Warmup {
                 warmup, samples, ..
             } => format!(
                 "--warmup {warmup}: the selection rows hold {samples} samples, none scored after the warm-up"
             ),
             _ => e.to_string(),
-        })
+        }),
     })?;
     if let Some(dir) = &args.out {
         hysid::compare::write_report(&mut comparison, dir)
