@@ -2323,9 +2323,9 @@ fn a_definition_no_expression_reads_is_warned_of() {
 fn a_json_prior_file_reads_as_its_toml_form() {
     let dir = tempfile::tempdir().unwrap();
     let data = two_mode_record(dir.path(), 300);
-    let fit = |prior: &Path, out: &str| -> String {
-        let out = dir.path().join(out);
-        let o = hysid(&[
+    // `identify -m arx` with the prior file `prior`, writing `out`.
+    let identify = |prior: &Path, out: &Path| {
+        hysid(&[
             "identify",
             s(&data),
             "-m",
@@ -2333,8 +2333,12 @@ fn a_json_prior_file_reads_as_its_toml_form() {
             "--prior",
             s(prior),
             "-o",
-            s(&out),
-        ]);
+            s(out),
+        ])
+    };
+    let fit = |prior: &Path, out: &str| -> String {
+        let out = dir.path().join(out);
+        let o = identify(prior, &out);
         assert!(o.status.success(), "{o:?}");
         std::fs::read_to_string(out).unwrap()
     };
@@ -2358,17 +2362,7 @@ fn a_json_prior_file_reads_as_its_toml_form() {
     );
     let broken = common::write(dir.path(), "broken.json", "{\"fixed\": {\"c\": 0.25,}}");
     let out = dir.path().join("never.json");
-    let o = hysid(&[
-        "identify",
-        s(&data),
-        "-m",
-        "arx",
-        "--prior",
-        s(&broken),
-        "-o",
-        s(&out),
-    ]);
-    let err = one_line_error(&o, 2).unwrap();
+    let err = one_line_error(&identify(&broken, &out), 2).unwrap();
     assert!(
         err.contains("broken.json") && err.contains("line 1"),
         "{err}"
@@ -2376,16 +2370,7 @@ fn a_json_prior_file_reads_as_its_toml_form() {
     assert!(!out.exists());
     // A file that holds no prior is read, and said to hold none.
     let empty = common::write(dir.path(), "empty.toml", "# to be written\n");
-    let o = hysid(&[
-        "identify",
-        s(&data),
-        "-m",
-        "arx",
-        "--prior",
-        s(&empty),
-        "-o",
-        s(&out),
-    ]);
+    let o = identify(&empty, &out);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         o.status.success() && err.contains("empty.toml: no prior in it"),
