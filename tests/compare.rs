@@ -245,6 +245,63 @@ fn report_matches_the_models_it_wrote() {
     assert!(sweep.contains("na [-]") && sweep.contains("modes [-]"));
 }
 
+/// Runs whose simulations start at different samples (here regressors of
+/// 1 and 4 lags, with a warm-up of 1) are all scored from the latest
+/// start, as `hysid validate` scores each with that warm-up, and the
+/// report says why its warm-up is longer than the one asked for.
+#[test]
+fn every_run_is_scored_on_the_same_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    let (exp, head) = small_experiment_head(dir.path());
+    let head = head.replace("warmup = 5", "warmup = 1");
+    let runs = ["short lags", "long lags"];
+    std::fs::write(
+        &exp,
+        format!(
+            "{head}[[run]]\nname = \"{}\"\nmethod = \"arx\"\nna = 1\nnb = 1\n\
+             [[run]]\nname = \"{}\"\nmethod = \"arx\"\nna = 4\nnb = 4\n",
+            runs[0], runs[1]
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let (code, _, err) = hysid(&["compare", s(&exp), "-o", s(&out)]);
+    assert_eq!(code, 0, "{err}");
+    let report = report_json(&out);
+    assert_eq!(report["warmup"], 4);
+    assert_eq!(report["warmup_raised"]["asked"], 1);
+    assert_eq!(report["warmup_raised"]["run"], "long lags");
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains(
+            "leave out the first 4 samples: the warm-up of 1 asked for, lengthened so that every \
+             run is scored on the same samples (the simulation of long lags starts at sample 4)."
+        ),
+        "{md}"
+    );
+    let results = report["results"].as_array().unwrap();
+    for (r, name) in results.iter().zip(runs) {
+        assert_eq!(r["name"], name);
+        assert_eq!(
+            r["report"]["n"], 196,
+            "{name}: 200 validation samples, 4 left out"
+        );
+        let (code, v, err) = hysid(&[
+            "validate",
+            s(&out.join(r["model_file"].as_str().unwrap())),
+            s(&dir.path().join("data.csv")),
+            "--rows",
+            "400..",
+            "--warmup",
+            "4",
+            "--json",
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let v: serde_json::Value = serde_json::from_str(&v).unwrap();
+        assert_eq!(v["fit_sim"], r["report"]["fit_sim"], "{name}");
+    }
+}
+
 #[test]
 fn compare_off_a_terminal_prints_no_progress_bar() {
     let dir = tempfile::tempdir().unwrap();

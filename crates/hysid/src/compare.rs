@@ -195,8 +195,12 @@ pub struct Comparison {
     /// per-record table.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub scored_records: Vec<String>,
-    /// Validation warm-up.
+    /// The samples every run's scores leave out at the start of each
+    /// record: the warm-up asked for, or more ([`RaisedWarmup`]).
     pub warmup: usize,
+    /// Where `warmup` is longer than the warm-up asked for, and why.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub warmup_raised: Option<RaisedWarmup>,
     /// What the scored rows are (validation or selection rows).
     #[serde(skip)]
     pub scored_rows: ScoredRows,
@@ -218,6 +222,18 @@ pub struct Comparison {
     /// report links.
     #[serde(skip)]
     pub drawn: Drawn,
+}
+
+/// A report's warm-up lengthened past the one asked for, so that every
+/// run is scored on the same samples: a run whose simulation starts later
+/// (an initial state read from a longer warm-up, regressors with longer
+/// lags) would otherwise be scored on fewer.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct RaisedWarmup {
+    /// The warm-up asked for (`[data] warmup`, `--warmup`).
+    pub asked: usize,
+    /// The first run, in report order, whose simulation starts latest.
+    pub run: String,
 }
 
 /// The figures of a report, as [`write_report`] drew them: each a path
@@ -529,19 +545,23 @@ impl Experiment {
         let results: Vec<RunResult> = jobs
             .par_iter()
             .map(|job| {
-                let mut r = run_job(&registry, job, &ident, &valid, &self.data);
-                if let (Some(t), Some(sim)) = (&true_modes, &r.simulation) {
-                    match t.score(sim, self.data.warmup) {
-                        Ok(m) => r.mode_recovery = m,
-                        Err(e) => r.error = Some(format!("true modes: {e}")),
-                    }
-                }
+                let r = run_job(&registry, job, &ident, &valid, &self.data);
                 progress.advance(1);
                 r
             })
             .collect();
         progress.finish();
-        let mut results = results;
+        let (mut results, warmup, warmup_raised) = scored_alike(results, &valid, self.data.warmup);
+        if let Some(t) = &true_modes {
+            for r in &mut results {
+                if let Some(sim) = &r.simulation {
+                    match t.score(sim, warmup) {
+                        Ok(m) => r.mode_recovery = m,
+                        Err(e) => r.error = Some(format!("true modes: {e}")),
+                    }
+                }
+            }
+        }
         label_sweep_best(&mut results);
         Ok(Comparison {
             title: self.title.clone(),
@@ -550,7 +570,8 @@ impl Experiment {
             scored_records: self.scored_records(),
             warnings: warnings.iter().map(ToString::to_string).collect(),
             scored_rows: self.scored_rows,
-            warmup: self.data.warmup,
+            warmup,
+            warmup_raised,
             results,
             validation: Some(valid),
             figures: FigureFormat::Svg,
@@ -568,6 +589,58 @@ impl Experiment {
             drawn: Drawn::default(),
         })
     }
+}
+
+/// `results` scored on the same samples: from the latest sample at which
+/// any run's scores start in a record (`warmup`, or later where a
+/// simulation starts later), every run is scored again from there. Returns
+/// the results, the warm-up they share, and why it is longer than `warmup`
+/// where it is.
+fn scored_alike(
+    mut results: Vec<RunResult>,
+    valid: &Dataset,
+    warmup: usize,
+) -> (Vec<RunResult>, usize, Option<RaisedWarmup>) {
+    let starts: Vec<Option<usize>> = (results.iter())
+        .map(|r| r.report.as_ref().map(|v| first_scored(v, valid)))
+        .collect();
+    let latest = starts.iter().flatten().copied().max().unwrap_or(warmup);
+    if latest <= warmup {
+        return (results, warmup, None);
+    }
+    let run = (results.iter().zip(&starts))
+        .find(|(_, s)| **s == Some(latest))
+        .map(|(r, _)| r.name.clone())
+        .unwrap_or_default();
+    results.par_iter_mut().for_each(|r| {
+        let Some(model) = &r.model else {
+            return;
+        };
+        match validate(model, valid, latest) {
+            Ok((report, sim, _)) => {
+                r.report = Some(report);
+                r.simulation = Some(sim);
+            }
+            Err(e) => {
+                (r.report, r.simulation) = (None, None);
+                r.error = Some(format!("validation: {e}"));
+            }
+        }
+    });
+    let raised = RaisedWarmup { asked: warmup, run };
+    (results, latest, Some(raised))
+}
+
+/// The first sample `report` scores of a record of `data`, the latest over
+/// its records.
+fn first_scored(report: &ValidationReport, data: &Dataset) -> usize {
+    if report.records.is_empty() {
+        return data.len().saturating_sub(report.n);
+    }
+    (data.record_ranges().iter().zip(&report.records))
+        .map(|(range, part)| range.len().saturating_sub(part.n))
+        .max()
+        .unwrap_or(0)
 }
 
 /// `job`'s priors and options as its back-end checks them before it fits

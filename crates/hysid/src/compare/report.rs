@@ -541,13 +541,24 @@ pub fn markdown(c: &Comparison) -> String {
     if !c.description.trim().is_empty() {
         let _ = writeln!(s, "{}\n", c.description.trim());
     }
-    let _ = writeln!(
+    let _ = write!(
         s,
-        "Data: {}. {} scores leave out the first {} samples.\n",
+        "Data: {}. {} scores leave out the first {} samples",
         c.data,
         capitalised(c.scored_rows.word()),
         c.warmup
     );
+    match &c.warmup_raised {
+        None => s.push_str(".\n\n"),
+        Some(raised) => {
+            let _ = writeln!(
+                s,
+                ": the warm-up of {} asked for, lengthened so that every run is scored on the \
+                 same samples (the simulation of {} starts at sample {}).\n",
+                raised.asked, raised.run, c.warmup
+            );
+        }
+    }
     for w in &c.warnings {
         let _ = writeln!(s, "**Warning:** {w}.\n");
     }
