@@ -533,6 +533,16 @@ fn order_text(model: Option<&Model>, order: usize) -> String {
     }
 }
 
+/// An error in the output's unit: four decimals, or four significant
+/// digits where four decimals would show none (an axis in metres).
+fn error_text(x: f64) -> String {
+    if x != 0.0 && x.abs() < 1e-3 {
+        format!("{x:.3e}")
+    } else {
+        format!("{x:.4}")
+    }
+}
+
 /// The report as Markdown, with the links to the figures
 /// [`write_report`] drew (none before it runs).
 pub fn markdown(c: &Comparison) -> String {
@@ -572,7 +582,7 @@ pub fn markdown(c: &Comparison) -> String {
         let (fs, rs, fp, cov) = match &r.report {
             Some(v) => (
                 format!("{:.2}", v.fit_sim),
-                format!("{:.4}", v.rmse_sim),
+                error_text(v.rmse_sim),
                 format!("{:.2}", v.fit_pred),
                 format!("{:.3}", v.coverage),
             ),
@@ -876,6 +886,15 @@ fn mode_recovery_table(s: &mut String, c: &Comparison) {
 mod tests {
     use super::*;
     use hysid_model::model::{Stop, StopBound};
+
+    /// Errors too small for four decimals keep four significant digits.
+    #[test]
+    fn small_errors_keep_their_digits() {
+        assert_eq!(error_text(1.54236), "1.5424");
+        assert_eq!(error_text(0.005027), "0.0050");
+        assert_eq!(error_text(3.2549e-5), "3.255e-5");
+        assert_eq!(error_text(0.0), "0.0000");
+    }
 
     /// A run cut short or with warnings gets its status in the report's
     /// note; a completed run without messages gets none.
