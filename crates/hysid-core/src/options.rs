@@ -395,7 +395,14 @@ impl Settings {
             if v == "none" && spec.ty.ends_with("(optional)") {
                 unset.push(k.clone());
             } else {
-                table.insert(k.clone(), scalar(v));
+                let value = scalar(v).map_err(|kind| OptionError::Value {
+                    key: k.clone(),
+                    value: v.clone(),
+                    method: method.to_string(),
+                    ty: spec.ty.clone(),
+                    message: format!("{kind}, where the option takes one value"),
+                })?;
+                table.insert(k.clone(), value);
             }
         }
         // Start from the defaults so that partial settings work.
@@ -436,21 +443,24 @@ impl Settings {
     }
 }
 
-fn scalar(v: &str) -> toml::Value {
+/// The value of an option as text (`--set`, or an experiment's `set`
+/// table written out): a TOML number, boolean or string, else the text as
+/// a string; a TOML list or table (which no option takes) is refused,
+/// named as such.
+fn scalar(v: &str) -> Result<toml::Value, &'static str> {
     match format!("v = {v}").parse::<toml::Table>() {
         Ok(mut t) => match t.remove("v") {
-            Some(
-                x @ (toml::Value::Integer(_) | toml::Value::Float(_) | toml::Value::Boolean(_)),
-            ) => x,
-            Some(x @ toml::Value::String(_)) => x,
-            _ => toml::Value::String(v.to_string()),
+            Some(toml::Value::Array(_)) => Err("a list"),
+            Some(toml::Value::Table(_)) => Err("a table"),
+            Some(toml::Value::Datetime(_)) | None => Ok(toml::Value::String(v.to_string())),
+            Some(x) => Ok(x),
         },
         // A number TOML does not write (`1e400`, `.5`) is still a number: a
         // float option's own check then says what it needs.
-        Err(_) => match v.trim().parse::<f64>() {
+        Err(_) => Ok(match v.trim().parse::<f64>() {
             Ok(x) => toml::Value::Float(x),
             Err(_) => toml::Value::String(v.to_string()),
-        },
+        }),
     }
 }
 
@@ -598,6 +608,25 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("c=none"), "{e}");
+    }
+
+    /// A list or a table, which no option takes, is named as such (it was
+    /// read as the string of its text).
+    #[test]
+    fn a_list_or_a_table_is_named_as_such() {
+        for (given, kind) in [("ridge=[0.1]", "a list"), ("features={ a = 1 }", "a table")] {
+            let e = Settings::parse(&[given])
+                .unwrap()
+                .resolve::<T>("m")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains(&format!(
+                    "{given}: {kind}, where the option takes one value"
+                )),
+                "{e}"
+            );
+        }
     }
 
     #[test]
