@@ -1999,6 +1999,86 @@ guard = "T >= 0"
     }
 }
 
+/// Model files are swept as any option is: `sweep --grid model=A,B` fits
+/// each, and an experiment's `vary = "model"` reads its files from the
+/// experiment's folder; a swept file that does not exist is refused
+/// before anything runs.
+#[test]
+fn model_files_can_be_swept() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let lag = |a: f64| {
+        format!(
+            "kind = \"gray_box\"\nformat = 1\ninternal_step = 0.01\nstates = [\"x\"]\n\
+             inputs = [\"u\"]\noutputs = [\"x\"]\n\
+             initial_state = {{ from = \"given\", values = {{ x = 0.0 }} }}\n\
+             parameters = [{{ name = \"a\", value = {a}, bounds = [0.1, 10.0] }}]\n\
+             [[modes]]\nname = \"only\"\nflow = {{ x = \"u - a*x\" }}\n"
+        )
+    };
+    let (one, two) = (d.join("lag.toml"), d.join("lag2.toml"));
+    std::fs::write(&one, lag(1.0)).unwrap();
+    std::fs::write(&two, lag(3.0)).unwrap();
+    let record = d.join("r.csv");
+    let excite = "n=40,hold=5,low=0,high=1,ts=0.1";
+    ok(&["simulate", s(&one), "--excite", excite, "-o", s(&record)]);
+    let out = d.join("sweep");
+    let grid = format!("model={},{}", one.display(), two.display());
+    ok(&[
+        "sweep",
+        s(&record),
+        "-m",
+        "physical",
+        "--grid",
+        &grid,
+        "--identify-rows",
+        "0..20",
+        "--select-rows",
+        "20..40",
+        "--warmup",
+        "0",
+        "--seed",
+        "1",
+        "-o",
+        s(&out),
+    ]);
+    let names = |out: &Path| -> Vec<String> {
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        (report["results"].as_array().unwrap().iter())
+            .inspect(|r| assert!(r["report"]["fit_sim"].is_number(), "{r}"))
+            .map(|r| r["name"].as_str().unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(
+        names(&out),
+        ["physical [model=lag.toml]", "physical [model=lag2.toml]"]
+    );
+    let experiment = d.join("e.toml");
+    let write = |second: &str| {
+        let text = format!(
+            "title = \"t\"\n[data]\nfile = \"r.csv\"\nidentification = \"0..20\"\n\
+             validation = \"20..40\"\nwarmup = 0\n[[sweep]]\nname = \"lag\"\n\
+             method = \"physical\"\nvary = \"model\"\nvalues = [\"lag.toml\", \"{second}\"]\n"
+        );
+        std::fs::write(&experiment, text).unwrap();
+    };
+    write("lag2.toml");
+    let out = d.join("compare");
+    ok(&["compare", s(&experiment), "-o", s(&out)]);
+    assert_eq!(
+        names(&out),
+        ["lag [model=lag.toml]", "lag [model=lag2.toml]"]
+    );
+    write("lag3.toml");
+    let err = one_line_error(&hysid(&["compare", s(&experiment), "-o", s(&out)]), 2).unwrap();
+    assert!(
+        err.contains("'lag': swept model = ") && err.ends_with("lag3.toml: no such file"),
+        "{err}"
+    );
+}
+
 /// A hand-written gray-box file's inputs are read where the record has no
 /// `u` (by `validate`, and by `identify -m physical` fitting the file),
 /// and named where the record has neither.

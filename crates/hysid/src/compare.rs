@@ -364,7 +364,12 @@ impl Experiment {
                         }
                     }
                 }
-                let shown = point.values;
+                let shown: Vec<(String, String)> = (point.values.into_iter())
+                    .map(|(k, v)| {
+                        let v = s.shown(&k, &v).to_string();
+                        (k, v)
+                    })
+                    .collect();
                 let label = shown
                     .iter()
                     .map(|(k, v)| format!("{k}={v}"))

@@ -9,6 +9,7 @@ use crate::error::CliError;
 use crate::error::Result;
 use crate::progress::TerminalProgress;
 use crate::selection::{DataArgs, SignalArgs, SignalDefaults};
+use hysid::compare::experiment::MODEL_FILE_OPTION;
 use hysid::compare::{
     DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Origin, RunSpec,
     ScoredRows, SweepSpec,
@@ -176,13 +177,22 @@ fn signals_read(args: &Args, given: &Settings) -> Result<SignalArgs> {
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let given = Settings::parse(&args.set)?;
+    let space =
+        SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
+    // The model files: `--set model=FILE`, or those of `--grid model=..`.
+    let swept = (space.axes.iter())
+        .filter(|a| a.key == MODEL_FILE_OPTION)
+        .flat_map(|a| a.values.iter().map(String::as_str));
+    let models: Vec<&str> = given
+        .get(MODEL_FILE_OPTION)
+        .into_iter()
+        .chain(swept)
+        .collect();
     if let Some(dir) = &args.out {
-        let model = given
-            .get(hysid::compare::experiment::MODEL_FILE_OPTION)
-            .map(Path::new);
-        let inputs: Vec<&Path> = [Some(args.data.as_path()), args.prior.as_deref(), model]
+        let inputs: Vec<&Path> = [args.data.as_path()]
             .into_iter()
-            .flatten()
+            .chain(args.prior.as_deref())
+            .chain(models.iter().map(Path::new))
             .collect();
         super::a_folder(dir, &inputs)?;
     }
@@ -199,9 +209,12 @@ pub fn run(args: Args) -> Result<()> {
         .iter()
         .map(|(k, v)| (k.clone(), text(v)))
         .collect();
-    let space =
-        SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
-    let signals = signals_read(&args, &given)?;
+    // The inputs are those the first model file declares.
+    let first_model = match (given.get(MODEL_FILE_OPTION), models.first()) {
+        (None, Some(file)) => given.with(MODEL_FILE_OPTION, file),
+        _ => given.clone(),
+    };
+    let signals = signals_read(&args, &first_model)?;
     check_grid(&args, &given, &signals, &priors, &space)?;
     // The first --grid key is the sweep's `vary`, the one its figure is
     // drawn against; the others' order does not matter.

@@ -288,6 +288,44 @@ pub struct SweepSpec {
 }
 
 impl SweepSpec {
+    /// The values the sweep gives [`MODEL_FILE_OPTION`] (`vary = "model"`,
+    /// a `grid` key `model`): the model files it fits, one a point.
+    fn swept_model_files(&self) -> impl Iterator<Item = &toml::Value> {
+        let varied = (self.vary.as_deref() == Some(MODEL_FILE_OPTION)).then_some(&self.values);
+        (varied.into_iter())
+            .chain(self.grid.get(MODEL_FILE_OPTION))
+            .flatten()
+    }
+
+    /// How a point shows `value` of `key`: a swept model file by its file
+    /// name where the sweep's files have distinct names (they are resolved
+    /// against the experiment's folder), anything else as it is.
+    pub fn shown<'v>(&self, key: &str, value: &'v str) -> &'v str {
+        fn file_name(path: &str) -> Option<&str> {
+            Path::new(path).file_name()?.to_str()
+        }
+        if key != MODEL_FILE_OPTION {
+            return value;
+        }
+        let names: Vec<Option<&str>> = (self.swept_model_files())
+            .map(|v| v.as_str().and_then(file_name))
+            .collect();
+        let distinct =
+            (names.iter().enumerate()).all(|(i, n)| n.is_some() && !names[..i].contains(n));
+        match file_name(value) {
+            Some(name) if distinct => name,
+            _ => value,
+        }
+    }
+
+    /// [`Self::swept_model_files`], to resolve.
+    fn swept_model_files_mut(&mut self) -> impl Iterator<Item = &mut toml::Value> {
+        let varied = (self.vary.as_deref() == Some(MODEL_FILE_OPTION)).then_some(&mut self.values);
+        (varied.into_iter())
+            .chain(self.grid.get_mut(MODEL_FILE_OPTION))
+            .flatten()
+    }
+
     /// The grid: `vary` first, then the `grid` keys in alphabetical order
     /// (the last varying fastest), values as `--set` writes them.
     pub fn space(&self) -> SearchSpace {
@@ -777,26 +815,34 @@ impl Experiment {
                 r.file = folder.join(&r.file);
             }
         }
-        let runs = e
-            .runs
-            .iter_mut()
-            .chain(e.sweeps.iter_mut().map(|s| &mut s.run));
-        for run in runs {
-            let Some(toml::Value::String(file)) = run.set.get_mut(MODEL_FILE_OPTION) else {
-                continue;
+        // A model file as given, resolved; refused before any run starts,
+        // as every other entry is, where there is none.
+        let resolve = |name: &str, key: &str, file: &mut toml::Value| {
+            let toml::Value::String(file) = file else {
+                return Ok(());
             };
             if Path::new(file.as_str()).is_relative() {
                 *file = lexically_joined(folder, file).display().to_string();
             }
-            // Refused before any run starts, as every other entry is.
-            if !Path::new(file.as_str()).is_file() {
-                return Err(ExperimentError::Invalid {
-                    path: origin,
-                    message: format!(
-                        "'{}': set.{MODEL_FILE_OPTION} = {file}: no such file",
-                        run.name
-                    ),
-                });
+            if Path::new(file.as_str()).is_file() {
+                return Ok(());
+            }
+            Err(ExperimentError::Invalid {
+                path: origin.clone(),
+                message: format!("'{name}': {key} = {file}: no such file"),
+            })
+        };
+        let set_key = format!("set.{MODEL_FILE_OPTION}");
+        for run in (e.runs.iter_mut()).chain(e.sweeps.iter_mut().map(|s| &mut s.run)) {
+            if let Some(file) = run.set.get_mut(MODEL_FILE_OPTION) {
+                resolve(&run.name, &set_key, file)?;
+            }
+        }
+        let swept_key = format!("swept {MODEL_FILE_OPTION}");
+        for sweep in &mut e.sweeps {
+            let name = sweep.run.name.clone();
+            for file in sweep.swept_model_files_mut() {
+                resolve(&name, &swept_key, file)?;
             }
         }
         e.checked(&origin)
@@ -806,8 +852,10 @@ impl Experiment {
     /// files.
     pub fn input_files(&self) -> Vec<&Path> {
         let records = self.data.records.iter().map(|r| r.file.as_path());
-        let models = (self.entries()).filter_map(|(run, _)| match run.set.get(MODEL_FILE_OPTION) {
-            Some(toml::Value::String(file)) => Some(Path::new(file.as_str())),
+        let set = (self.entries()).filter_map(|(run, _)| run.set.get(MODEL_FILE_OPTION));
+        let swept = self.sweeps.iter().flat_map(SweepSpec::swept_model_files);
+        let models = set.chain(swept).filter_map(|file| match file {
+            toml::Value::String(file) => Some(Path::new(file.as_str())),
             _ => None,
         });
         std::iter::once(self.data.file.as_path())
