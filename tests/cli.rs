@@ -2199,7 +2199,16 @@ flow = { x = "F - a*x" }
     write("input = [\"F\"]\n");
     ok(&compare);
     // A state the file gives is applied at the first row read: said where
-    // that is not the record's first.
+    // that is not the record's first, in the report (the validation rows
+    // start at row 20) and by `validate`.
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains(
+            "**Warning:** 'lag': its initial state is given by the file, not read from the \
+             record: it is applied at row 20,"
+        ),
+        "{report}"
+    );
     let given =
         "its initial state is given by the file, not read from the record: it is applied at row 5";
     let later = hysid(&["validate", s(&model), s(&record), "--rows", "5.."]);

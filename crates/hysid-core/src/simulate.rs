@@ -328,6 +328,37 @@ impl std::fmt::Display for UnreadDefinitions {
     }
 }
 
+/// A model whose initial state its file gives, run on rows that start
+/// after a record's first: the state is applied at that row, where the
+/// system may be elsewhere.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GivenStateLater {
+    /// The first row after a record's first at which the model starts.
+    pub row: usize,
+}
+
+impl GivenStateLater {
+    /// For `model` started at the first row of each of `starts`: the first
+    /// start after row 0, where the model's initial state is given by its
+    /// file; `None` otherwise.
+    pub fn of(model: &Model, starts: impl IntoIterator<Item = usize>) -> Option<Self> {
+        let row = starts.into_iter().find(|&start| start > 0)?;
+        model.initial_state_given().then_some(Self { row })
+    }
+}
+
+impl std::fmt::Display for GivenStateLater {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "its initial state is given by the file, not read from the record: it is applied at \
+             row {}, where the record's state may differ (an `estimate` or a measured rule reads \
+             it from the record)",
+            self.row
+        )
+    }
+}
+
 /// Scores `model` on `data`, leaving out the first `warmup` samples (and
 /// any before the simulation can start). Data that join several records
 /// are scored record by record, each with its own warm-up and initial

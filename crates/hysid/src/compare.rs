@@ -20,7 +20,7 @@ use hysid_core::backend::{Progress, Registry};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::{ModeCountNeed, Priors};
-use hysid_core::simulate::{ValidationReport, validate};
+use hysid_core::simulate::{GivenStateLater, ValidationReport, validate};
 use hysid_io::load_each;
 use hysid_model::data::{DataError, DataSelection, Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
@@ -568,12 +568,14 @@ impl Experiment {
             }
         }
         label_sweep_best(&mut results);
+        let mut warnings: Vec<String> = warnings.iter().map(ToString::to_string).collect();
+        warnings.extend(given_state_warnings(&results, &self.data));
         Ok(Comparison {
             title: self.title.clone(),
             description: self.description.clone(),
             data: self.data_text(),
             scored_records: self.scored_records(),
-            warnings: warnings.iter().map(ToString::to_string).collect(),
+            warnings,
             scored_rows: self.scored_rows,
             warmup,
             warmup_raised,
@@ -594,6 +596,35 @@ impl Experiment {
             drawn: Drawn::default(),
         })
     }
+}
+
+/// For each run (its seeds and sweep points once) whose model starts from
+/// the state its file gives, where a record's rows of `data` start after
+/// its first row ([`GivenStateLater`]): the run's name and the warning.
+fn given_state_warnings(results: &[RunResult], data: &DataSpec) -> Vec<String> {
+    let parts = [(data.identification, data.validation)].into_iter().chain(
+        data.records
+            .iter()
+            .map(|r| (r.identification, r.validation)),
+    );
+    let starts: Vec<usize> = (parts.flat_map(|(a, b)| [a, b]))
+        .filter_map(|rows| rows?.start)
+        .collect();
+    let mut out: Vec<String> = Vec::new();
+    for r in results {
+        let Some(later) = (r.model.as_ref()).and_then(|m| GivenStateLater::of(m, starts.clone()))
+        else {
+            continue;
+        };
+        let name = (r.sweep.as_ref().map(|s| &s.sweep))
+            .or(r.seed_group.as_ref())
+            .unwrap_or(&r.name);
+        let line = format!("'{name}': {later}");
+        if !out.contains(&line) {
+            out.push(line);
+        }
+    }
+    out
 }
 
 /// `results` scored on the same samples: from the latest sample at which

@@ -83,14 +83,9 @@ pub(crate) fn load_model(path: &Path) -> Result<Model> {
 /// and the record's rows start later than its first (`rows`): the state is
 /// applied there, where the system may be elsewhere.
 pub(crate) fn warn_given_state(file: &Path, model: &Model, rows: &[RowRange]) {
-    let later = rows.iter().filter_map(|r| r.start).find(|&start| start > 0);
-    if let Some(row) = later.filter(|_| model.initial_state_given()) {
-        eprintln!(
-            "hysid: warning: {}: its initial state is given by the file, not read from the \
-             record: it is applied at row {row}, where the record's state may differ (an \
-             `estimate` or a measured rule reads it from the record)",
-            file.display()
-        );
+    let starts = rows.iter().filter_map(|r| r.start);
+    if let Some(later) = hysid_core::simulate::GivenStateLater::of(model, starts) {
+        eprintln!("hysid: warning: {}: {later}", file.display());
     }
 }
 
