@@ -2213,6 +2213,10 @@ flow = { x = "F - a*x" }
         "its initial state is given by the file, not read from the record: it is applied at row 5";
     let later = hysid(&["validate", s(&model), s(&record), "--rows", "5.."]);
     assert!(String::from_utf8_lossy(&later.stderr).contains(given));
+    let rows = ["--rows", "5..", "-o", s(&fitted)];
+    let later = hysid(&[&identify[..], &rows].concat());
+    let said = String::from_utf8_lossy(&later.stderr);
+    assert!(said.contains(&format!("lag.toml: {given}")), "{said}");
     let first = hysid(&["validate", s(&model), s(&record)]);
     assert!(!String::from_utf8_lossy(&first.stderr).contains("initial state is given"));
     // A record with `u` reads it, as the contract's default says.

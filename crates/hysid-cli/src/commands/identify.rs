@@ -5,6 +5,7 @@ use crate::error::CliError;
 use crate::error::Result;
 use crate::progress::TerminalProgress;
 use crate::selection::{DataArgs, SignalDefaults};
+use hysid::compare::experiment::MODEL_FILE_OPTION;
 use hysid::identify::{Auto, Identify, Mode};
 use hysid::select::SelectError;
 use hysid_core::options::Settings;
@@ -12,7 +13,7 @@ use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
 use hysid_model::data::RowRange;
 use hysid_model::model::{ScoredCandidate, Selection};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Arguments of `hysid identify`. `-h` gives each flag's first sentence,
@@ -267,6 +268,10 @@ pub fn run(args: Args) -> Result<()> {
     }
     for warning in identified.fit_warnings(&request) {
         eprintln!("hysid: warning: {}: {warning}", args.method);
+    }
+    // A model file's given initial state was fitted at the first row read.
+    if let Some(file) = request.options.get(MODEL_FILE_OPTION) {
+        super::warn_given_state(Path::new(file), model, &args.select.rows);
     }
     if let Some(selection) = &model.info().selection {
         report_selection(&args.method, selection);
