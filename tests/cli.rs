@@ -2242,6 +2242,29 @@ flow = { x = "F - a*x" }
     );
     let o = hysid(&["validate", s(&model), s(&both), "--input", "F"]);
     assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("also F"));
+    // So does an experiment whose [data] names no inputs; one that names
+    // `u` reads it without a word.
+    let on_both = d.join("both.toml");
+    let compare_both = |input: &str| {
+        let text = format!(
+            "title = \"t\"\n[data]\nfile = \"both.csv\"\n{input}identification = \"0..10\"\n\
+             validation = \"10..20\"\nwarmup = 2\n[[run]]\nname = \"lag\"\n\
+             method = \"physical\"\nset = {{ model = \"lag.toml\" }}\n"
+        );
+        std::fs::write(&on_both, text).unwrap();
+        let o = hysid(&["compare", s(&on_both), "-o", s(&d.join("out-both"))]);
+        assert!(o.status.success());
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let said = compare_both("");
+    assert!(
+        said.contains(
+            "both.toml: the record has u and also F (the model file of 'lag' declares F): u is \
+             read, as the default; name F in [data] input to read it"
+        ),
+        "{said}"
+    );
+    assert!(!compare_both("input = [\"u\"]\n").contains("also F"));
     // A record with neither is refused naming both.
     let renamed = d.join("g.csv");
     std::fs::write(&renamed, text.replacen("t,F,y", "t,G,y", 1)).unwrap();
