@@ -174,48 +174,21 @@ fn signals_read(args: &Args, given: &Settings) -> Result<SignalArgs> {
     })
 }
 
-/// Runs the command.
-pub fn run(args: Args) -> Result<()> {
-    let given = Settings::parse(&args.set)?;
-    let space =
-        SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
-    // The model files: `--set model=FILE`, or those of `--grid model=..`.
-    let swept = (space.axes.iter())
-        .filter(|a| a.key == MODEL_FILE_OPTION)
-        .flat_map(|a| a.values.iter().map(String::as_str));
-    let models: Vec<&str> = given
-        .get(MODEL_FILE_OPTION)
-        .into_iter()
-        .chain(swept)
-        .collect();
-    if let Some(dir) = &args.out {
-        let inputs: Vec<&Path> = [args.data.as_path()]
-            .into_iter()
-            .chain(args.prior.as_deref())
-            .chain(models.iter().map(Path::new))
-            .collect();
-        super::a_folder(dir, &inputs)?;
-    }
-    let mut priors = match &args.prior {
-        Some(p) => super::load_priors(p)?,
-        None => Priors::default(),
-    };
-    if args.modes.is_some() {
-        priors.modes = args.modes;
-    }
+/// The experiment the sweep is: one `[[sweep]]` of the method over
+/// `space` on the command line's record, scored on the selection rows.
+fn experiment(
+    args: &Args,
+    signals: &SignalArgs,
+    priors: Priors,
+    given: &Settings,
+    space: &SearchSpace,
+) -> Result<Experiment> {
     let text = |v: &str| toml::Value::String(v.to_string());
     let set = given
         .pairs()
         .iter()
         .map(|(k, v)| (k.clone(), text(v)))
         .collect();
-    // The inputs are those the first model file declares.
-    let first_model = match (given.get(MODEL_FILE_OPTION), models.first()) {
-        (None, Some(file)) => given.with(MODEL_FILE_OPTION, file),
-        _ => given.clone(),
-    };
-    let signals = signals_read(&args, &first_model)?;
-    check_grid(&args, &given, &signals, &priors, &space)?;
     // The first --grid key is the sweep's `vary`, the one its figure is
     // drawn against; the others' order does not matter.
     let Some((first, others)) = space.axes.split_first() else {
@@ -225,7 +198,7 @@ pub fn run(args: Args) -> Result<()> {
         .iter()
         .map(|a| (a.key.clone(), a.values.iter().map(|v| text(v)).collect()))
         .collect();
-    let exp = Experiment {
+    Ok(Experiment {
         title: format!("{} sweep on {}", args.method, args.data.display()),
         description: String::new(),
         data: DataSpec {
@@ -272,7 +245,46 @@ pub fn run(args: Args) -> Result<()> {
             values: first.values.iter().map(|v| text(v)).collect(),
             grid,
         }],
+    })
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> Result<()> {
+    let given = Settings::parse(&args.set)?;
+    let space =
+        SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
+    // The model files: `--set model=FILE`, or those of `--grid model=..`.
+    let swept = (space.axes.iter())
+        .filter(|a| a.key == MODEL_FILE_OPTION)
+        .flat_map(|a| a.values.iter().map(String::as_str));
+    let models: Vec<&str> = given
+        .get(MODEL_FILE_OPTION)
+        .into_iter()
+        .chain(swept)
+        .collect();
+    if let Some(dir) = &args.out {
+        let inputs: Vec<&Path> = [args.data.as_path()]
+            .into_iter()
+            .chain(args.prior.as_deref())
+            .chain(models.iter().map(Path::new))
+            .collect();
+        super::a_folder(dir, &inputs)?;
+    }
+    let mut priors = match &args.prior {
+        Some(p) => super::load_priors(p)?,
+        None => Priors::default(),
     };
+    if args.modes.is_some() {
+        priors.modes = args.modes;
+    }
+    // The inputs are those the first model file declares.
+    let first_model = match (given.get(MODEL_FILE_OPTION), models.first()) {
+        (None, Some(file)) => given.with(MODEL_FILE_OPTION, file),
+        _ => given.clone(),
+    };
+    let signals = signals_read(&args, &first_model)?;
+    check_grid(&args, &given, &signals, &priors, &space)?;
+    let exp = experiment(&args, &signals, priors, &given, &space)?;
     exp.check().map_err(|e| CliError::input(e.to_string()))?;
     // The points are scored on the selection rows: rows they were fitted
     // on would score them on what they have seen.

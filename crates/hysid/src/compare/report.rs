@@ -524,12 +524,14 @@ fn sweep_figure(c: &Comparison, name: &str, points: &[&RunResult]) -> Option<Swe
     })
 }
 
-/// A regressor order in the results table: `-` for a model declared by its
-/// physics (mechanical or gray-box), which has none.
-fn order_text(model: Option<&Model>, order: usize) -> String {
+/// Whether a run's model has regressor orders: not one declared by its
+/// physics (mechanical or gray-box), nor, where the run failed, the model
+/// of a model file.
+fn has_orders(model: Option<&Model>, options: &[(String, String)]) -> bool {
     match model {
-        Some(Model::Mechanical(_) | Model::GrayBox(_)) => "-".to_string(),
-        _ => order.to_string(),
+        Some(Model::Mechanical(_) | Model::GrayBox(_)) => false,
+        Some(_) => true,
+        None => !(options.iter()).any(|(k, _)| k == super::experiment::MODEL_FILE_OPTION),
     }
 }
 
@@ -612,7 +614,13 @@ pub fn markdown(c: &Comparison) -> String {
                 format!("{note}; {extra}")
             };
         }
-        let order = |v: usize| order_text(r.model.as_ref(), v);
+        let order = |v: usize| {
+            if has_orders(r.model.as_ref(), &r.options) {
+                v.to_string()
+            } else {
+                "-".to_string()
+            }
+        };
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {} |",
@@ -918,12 +926,16 @@ mod tests {
     }
 
     #[test]
-    fn a_mechanical_model_has_no_regressor_orders() {
+    fn a_physical_model_has_no_regressor_orders() {
         let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../models/pick-and-place/head-fitted.json");
         let head = Model::load(&file).unwrap();
-        assert_eq!(order_text(Some(&head), 2), "-");
-        assert_eq!(order_text(None, 2), "2");
+        assert!(!has_orders(Some(&head), &[]));
+        // A run that failed has no model: one of a model file has no
+        // orders either.
+        assert!(has_orders(None, &[]));
+        let file = vec![("model".to_string(), "head.toml".to_string())];
+        assert!(!has_orders(None, &file));
     }
 
     #[test]
