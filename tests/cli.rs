@@ -1334,6 +1334,29 @@ fn an_input_is_never_overwritten() {
     .unwrap();
     assert!(err.contains("is an input"), "{err}");
     assert_eq!(std::fs::read(&model).unwrap(), model_before);
+    // The model file a physical fit reads, and the base it extends, are
+    // inputs too.
+    let base = dir.path().join("base.toml");
+    let ball = common::repository_text("models/examples/ball-on-table.toml");
+    std::fs::write(&base, &ball).unwrap();
+    let derived = dir.path().join("derived.toml");
+    std::fs::write(&derived, "extends = \"base.toml\"\n").unwrap();
+    for out in [&derived, &base] {
+        let set = format!("model={}", derived.display());
+        let args = [
+            "identify",
+            s(&data),
+            "-m",
+            "physical",
+            "--set",
+            &set,
+            "-o",
+            s(out),
+        ];
+        let err = one_line_error(&hysid(&args), 2).unwrap();
+        assert!(err.contains("is an input of this command"), "{err}");
+    }
+    assert_eq!(std::fs::read_to_string(&base).unwrap(), ball);
     let err = one_line_error(&hysid(&["validate", s(&data), s(&data)]), 2).unwrap();
     assert!(
         err.contains("a data file (.csv) where the model file"),

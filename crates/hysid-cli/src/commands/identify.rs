@@ -155,9 +155,10 @@ pub fn run(args: Args) -> Result<()> {
             "--select-rows: not with several data files; hold out whole records with --select-records K",
         ));
     }
-    let inputs = args.data.iter().chain(&args.prior).map(PathBuf::as_path);
-    super::not_an_input("-o", &args.out, inputs)?;
     let options = Settings::parse(&args.set)?;
+    let model_file = options.get(MODEL_FILE_OPTION).map(Path::new);
+    let inputs = (args.data.iter().chain(&args.prior).map(PathBuf::as_path)).chain(model_file);
+    super::not_an_input("-o", &args.out, inputs)?;
     // A physical model file's declared inputs are read where none are named.
     let declared = match registry.get(&args.method) {
         Some(backend) => backend.declared_inputs(&options)?,

@@ -3,7 +3,7 @@
 use crate::error::{CliError, Result};
 use hysid_core::model::Model;
 use hysid_model::data::{Dataset, RowRange};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 pub mod compare;
 pub mod convert;
@@ -52,7 +52,7 @@ pub(crate) fn not_an_input<'a>(
     let Ok(target) = std::fs::canonicalize(out) else {
         return Ok(()); // not there yet: no input can be it
     };
-    for input in inputs {
+    for input in inputs.into_iter().flat_map(with_bases) {
         if std::fs::canonicalize(input).is_ok_and(|p| p == target) {
             return Err(CliError::input(format!(
                 "{flag} {}: is an input of this command; give another file",
@@ -61,6 +61,17 @@ pub(crate) fn not_an_input<'a>(
         }
     }
     Ok(())
+}
+
+/// `input` and, for a model file that extends others, the files of its
+/// chain: a command reads them all.
+fn with_bases(input: &Path) -> Vec<PathBuf> {
+    let model_file = (input.extension().and_then(|e| e.to_str()))
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml") || e.eq_ignore_ascii_case("json"));
+    match model_file.then(|| hysid_graybox::extends::read(input)) {
+        Some(Ok(resolved)) => resolved.sources.into_iter().map(|s| s.path).collect(),
+        _ => vec![input.to_path_buf()],
+    }
 }
 
 /// Reads the model file `path`; a data file given in its place (the
