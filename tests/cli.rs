@@ -448,6 +448,26 @@ fn bad_options_and_files_are_usage_errors() {
         &["unknown method 'nosuch'", "arx"],
         &out,
     );
+    // Named as such before the record is read: one without `u` would
+    // otherwise be refused for the column.
+    let no_u = dir.path().join("no-u.csv");
+    let text = std::fs::read_to_string(&data).unwrap();
+    let header = text.lines().next().unwrap();
+    std::fs::write(&no_u, text.replacen(header, &header.replace('u', "v"), 1)).unwrap();
+    let grid = [
+        "--grid",
+        "na=1,2",
+        "--identify-rows",
+        "0..100",
+        "--select-rows",
+        "100..200",
+    ];
+    for args in [
+        vec!["identify", s(&no_u), "-m", "nosuch", "-o", o],
+        [&["sweep", s(&no_u), "-m", "nosuch"][..], &grid].concat(),
+    ] {
+        bad(&args, &["unknown method 'nosuch'", "arx"], &out);
+    }
     // A mistyped flag or command names the one meant.
     bad(
         &["identify", d, "-m", "arx", "--priors", "p.toml", "-o", o],

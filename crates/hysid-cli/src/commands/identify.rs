@@ -160,10 +160,8 @@ pub fn run(args: Args) -> Result<()> {
     let inputs = (args.data.iter().chain(&args.prior).map(PathBuf::as_path)).chain(model_file);
     super::not_an_input("-o", &args.out, inputs)?;
     // A physical model file's declared inputs are read where none are named.
-    let declared = match registry.get(&args.method) {
-        Some(backend) => backend.declared_inputs(&options)?,
-        None => None,
-    };
+    // An unknown method is named before the record is read by its defaults.
+    let declared = registry.require(&args.method)?.declared_inputs(&options)?;
     let select = (args.select.clone()).reading(SignalDefaults::declared(declared.clone()));
     let data = select.load(&args.data)?;
     if let Some(own) = &declared {

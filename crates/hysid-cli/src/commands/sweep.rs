@@ -150,10 +150,9 @@ fn check_grid(
 /// none) or, where the method's model file (`given`'s) declares inputs and
 /// the record lacks `u`, those, read as `identify` reads them and named.
 fn signals_read(args: &Args, given: &Settings) -> Result<SignalArgs> {
-    let declared = match hysid::registry().get(&args.method) {
-        Some(backend) => backend.declared_inputs(given)?,
-        None => None,
-    };
+    let declared = hysid::registry()
+        .require(&args.method)?
+        .declared_inputs(given)?;
     // Without a model file's names the flags' names are checked here and
     // the record is read once, by the sweep.
     let Some(own) = declared else {
