@@ -55,7 +55,7 @@ pub fn classify(
             if sens.std_errors[gi].is_finite() {
                 return Identifiability::Estimated;
             }
-            if sens.sensitivity[gi] != 0.0 {
+            if sens.effect[gi] {
                 return Identifiability::NoStandardError;
             }
             let g = &map.groups[gi];

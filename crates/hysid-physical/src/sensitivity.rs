@@ -24,6 +24,9 @@ pub struct Sensitivity {
     /// RMS change of the output per relative change of the parameter
     /// (NaN when the Jacobian could not be computed).
     pub sensitivity: Vec<f64>,
+    /// Whether the coordinate changes the output over its range (`true`
+    /// where the Jacobian could not be computed: not known to have none).
+    pub effect: Vec<bool>,
     /// `sqrt` of the condition number of `J^T J` over the columns kept
     /// (infinite when singular, NaN when not computed).
     pub condition: f64,
@@ -48,6 +51,7 @@ impl Sensitivity {
         Sensitivity {
             std_errors: vec![f64::NAN; d],
             sensitivity: vec![f64::NAN; d],
+            effect: vec![true; d],
             condition: f64::NAN,
             jacobian: JacobianKind::CentralDifferences,
         }
@@ -60,8 +64,8 @@ impl Sensitivity {
     pub fn insensitive(&self, map: &ParameterMap) -> Vec<String> {
         map.groups
             .iter()
-            .zip(&self.sensitivity)
-            .filter(|(_, s)| **s == 0.0)
+            .zip(&self.effect)
+            .filter(|(_, effect)| !**effect)
             .flat_map(|(g, _)| g.iter().map(|&i| map.names[i].clone()))
             .collect()
     }
@@ -99,7 +103,14 @@ pub fn sensitivity(
     let n = r0.len();
     let sse: f64 = r0.iter().map(|e| e * e).sum();
     let s2 = sse / (n.saturating_sub(d).max(1)) as f64;
-    let (std_errors, condition) = gauss_newton_errors(&jac, s2);
+    let ranges: Vec<f64> = (map.bounds.iter())
+        .map(|[lo, hi]| {
+            Some(hi - lo)
+                .filter(|w| w.is_finite() && *w > 0.0)
+                .unwrap_or(1.0)
+        })
+        .collect();
+    let (std_errors, condition, effect) = gauss_newton_errors(&jac, &ranges, s2);
     // Scaled sensitivity: RMS change of the output per relative change of the parameter.
     let sensitivity = (0..d)
         .map(|j| {
@@ -110,6 +121,7 @@ pub fn sensitivity(
     Sensitivity {
         std_errors,
         sensitivity,
+        effect,
         condition,
         jacobian: kind,
     }
@@ -163,24 +175,31 @@ fn output_jacobian(
 
 /// Gauss-Newton standard errors `sqrt(s2 diag((J^T J)^-1))` and the
 /// condition of `J^T J`, over the columns of `jac` with an effect on the
-/// output. Columns with none (e.g. a stop never reached) are not
-/// identifiable from this record: left out, their error undefined (NaN).
-/// Where `J^T J` is singular (parameters that act only together, as a
-/// product), the columns with a part in its null space have no error
-/// (NaN), and every other column keeps its own ([`singular_errors`]).
-fn gauss_newton_errors(jac: &DMatrix<f64>, s2: f64) -> (Vec<f64>, f64) {
+/// output: a column whose change of the output over its coordinate's range
+/// (`ranges`, in the coordinate's unit) is below `1e-9` of the largest has
+/// none (e.g. a stop never reached), and is not identifiable from this
+/// record: left out, its error undefined (NaN). Whether `J^T J` is singular
+/// (parameters that act only together, as a product), and its condition,
+/// are judged on the columns scaled to unit norm (`J^T J` of the parameters
+/// in any units alike); the columns with a part in its null space have no
+/// error (NaN), and every other column keeps its own
+/// ([`singular_errors`]).
+fn gauss_newton_errors(jac: &DMatrix<f64>, ranges: &[f64], s2: f64) -> (Vec<f64>, f64, Vec<bool>) {
     let (n, d) = jac.shape();
     let norms: Vec<f64> = (0..d).map(|j| jac.column(j).norm()).collect();
-    let top = norms.iter().copied().fold(0.0, f64::max);
+    let effect: Vec<f64> = (0..d).map(|j| norms[j] * ranges[j]).collect();
+    let top = effect.iter().copied().fold(0.0, f64::max);
     let keep: Vec<usize> = (0..d)
-        .filter(|&j| norms[j] > 1e-9 * top && top > 0.0)
+        .filter(|&j| effect[j] > 1e-9 * top && top > 0.0)
         .collect();
+    let kept = (0..d).map(|j| keep.contains(&j)).collect();
     let mut std_errors = vec![f64::NAN; d];
     if keep.is_empty() {
-        return (std_errors, f64::NAN);
+        return (std_errors, f64::NAN, kept);
     }
-    let jk = DMatrix::from_fn(n, keep.len(), |k, c| jac[(k, keep[c])]);
-    let jtj = jk.transpose() * &jk;
+    // J D^-1 with D the column norms: (J^T J)^-1 = D^-1 (D^-1 J^T J D^-1)^-1 D^-1.
+    let scaled = DMatrix::from_fn(n, keep.len(), |k, c| jac[(k, keep[c])] / norms[keep[c]]);
+    let jtj = scaled.transpose() * &scaled;
     let sv = jtj.clone().svd(false, false).singular_values;
     let (smax, smin) = (sv.max(), sv.min());
     let condition = if smin > 0.0 {
@@ -188,20 +207,21 @@ fn gauss_newton_errors(jac: &DMatrix<f64>, s2: f64) -> (Vec<f64>, f64) {
     } else {
         f64::INFINITY
     };
-    if smin > SINGULAR * smax {
-        if let Ok(inv) = hysid_estimation::linalg::pinv(&jtj) {
-            for (c, &j) in keep.iter().enumerate() {
-                std_errors[j] = (s2 * inv[(c, c)]).max(0.0).sqrt();
-            }
+    let variances: Vec<f64> = if smin > SINGULAR * smax {
+        match hysid_estimation::linalg::pinv(&jtj) {
+            Ok(inv) => (0..keep.len()).map(|c| inv[(c, c)]).collect(),
+            Err(_) => vec![f64::NAN; keep.len()],
         }
     } else {
-        for (c, variance) in singular_errors(jtj).into_iter().enumerate() {
-            if variance.is_finite() {
-                std_errors[keep[c]] = (s2 * variance).max(0.0).sqrt();
-            }
+        singular_errors(jtj)
+    };
+    for (c, variance) in variances.into_iter().enumerate() {
+        if variance.is_finite() {
+            let j = keep[c];
+            std_errors[j] = (s2 * variance).max(0.0).sqrt() / norms[j];
         }
     }
-    (std_errors, condition)
+    (std_errors, condition, kept)
 }
 
 /// Eigenvalues of `J^T J` at most this times the largest are zero: its
@@ -258,7 +278,7 @@ mod tests {
             1 => b(k),
             _ => 2.0 * b(k),
         });
-        let (errors, condition) = gauss_newton_errors(&jac, 4.0);
+        let (errors, condition, _) = gauss_newton_errors(&jac, &[1.0; 3], 4.0);
         assert!(condition.is_infinite() || condition > 1e6, "{condition}");
         assert!(
             (errors[0] - 2.0 / (n as f64).sqrt()).abs() < 1e-12,
@@ -266,11 +286,46 @@ mod tests {
         );
         assert!(errors[1].is_nan() && errors[2].is_nan(), "{errors:?}");
         let regular = DMatrix::from_fn(n, 2, |k, c| if c == 0 { a(k) } else { b(k) });
-        let (errors, _) = gauss_newton_errors(&regular, 4.0);
+        let (errors, _, _) = gauss_newton_errors(&regular, &[1.0; 2], 4.0);
         assert!(errors.iter().all(|e| e.is_finite()), "{errors:?}");
         assert!(
             (errors[0] - 2.0 / (n as f64).sqrt()).abs() < 1e-12,
             "{errors:?}"
         );
+    }
+
+    /// A parameter written in other units (its column 1e-7 times as large,
+    /// its range 1e7 times as wide) gets the same verdict, the same
+    /// condition and its error in its own units: the columns are judged
+    /// together whatever their units. Unscaled, `J^T J` of these columns
+    /// spans 1e-14 and would have been called singular.
+    #[test]
+    fn the_verdict_does_not_depend_on_the_units() {
+        let n = 12;
+        let column = |k: usize, c: usize| match c {
+            0 => (k as f64 * 0.7).sin(),
+            1 => (k as f64 * 0.3).cos(),
+            _ => 1.0 + 0.1 * k as f64,
+        };
+        let jac = DMatrix::from_fn(n, 3, column);
+        let (errors, condition, effect) = gauss_newton_errors(&jac, &[1.0; 3], 4.0);
+        assert!(errors.iter().all(|e| e.is_finite()), "{errors:?}");
+        assert_eq!(effect, [true; 3]);
+        let units = 1e-7;
+        let rescaled =
+            DMatrix::from_fn(n, 3, |k, c| column(k, c) * if c == 0 { units } else { 1.0 });
+        let (other, other_condition, _) =
+            gauss_newton_errors(&rescaled, &[1.0 / units, 1.0, 1.0], 4.0);
+        assert!(
+            (other_condition / condition - 1.0).abs() < 1e-9,
+            "{other_condition} {condition}"
+        );
+        for (c, (e, o)) in errors.iter().zip(&other).enumerate() {
+            let expected = if c == 0 { e / units } else { *e };
+            assert!(
+                (o / expected - 1.0).abs() < 1e-9,
+                "column {c}: {o} against {expected}"
+            );
+        }
     }
 }
