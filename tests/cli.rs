@@ -1885,6 +1885,40 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
         said.contains("coarse.toml: internal_step = 1 s is longer than the sampling time 0.01 s"),
         "{said}"
     );
+    // So is a step more than a thousand times finer (a time column in
+    // milliseconds), by `simulate` and by a physical `identify` before
+    // it fits.
+    let finer = common::write(
+        dir.path(),
+        "finer.toml",
+        text.replace(step, "internal_step = 5e-6"),
+    );
+    let fine_said = "finer.toml: the sampling time 0.01 s is 2000 integration steps of internal_step = 0.000005 s";
+    let run = [&run[..1], &[s(&finer)], &run[2..]].concat();
+    let said = stderr(&run);
+    assert!(said.contains(fine_said), "{said}");
+    let set = format!("model={}", finer.display());
+    let fitted = dir.path().join("finer.json");
+    let fit = [
+        "identify",
+        s(&csv),
+        "-m",
+        "physical",
+        "--set",
+        &set,
+        "--set",
+        "swarm_iters=1",
+        "--set",
+        "particles=2",
+        "--set",
+        "restarts=0",
+        "--set",
+        "lm_iters=1",
+        "-o",
+        s(&fitted),
+    ];
+    let said = stderr(&fit);
+    assert!(said.contains(fine_said), "{said}");
     // A physical model's warm-up rows under --excite hold --y0: said, with
     // the row the run starts at (the head's measured rule reads 10 samples).
     let head = common::repository_text("models/pick-and-place/head.toml");

@@ -258,21 +258,26 @@ pub fn sampling_time_mismatch(model: &Model, data: &Dataset) -> Option<(f64, f64
     (!same_sampling(Some(record), Some(own))).then_some((record, own))
 }
 
-/// A physical model's `internal_step` longer than the record's sampling
-/// time: each sample is then one integration step of the sampling time,
-/// coarser than the file asks for; the usual sign of a step written in
-/// other units than seconds.
+/// A physical model's `internal_step` far from the record's sampling time,
+/// the usual sign of a step or a time column in other units than seconds:
+/// longer than it (each sample is then one integration step of the
+/// sampling time, coarser than the file asks for), or so much shorter
+/// that a sample takes more than [`StepScale::FINE`] steps (a time column
+/// in milliseconds read as seconds: every run that many times slower).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CoarseStep {
+pub struct StepScale {
     /// The model's internal step, seconds.
     pub internal_step: f64,
     /// The record's sampling time, seconds.
     pub ts: f64,
 }
 
-impl CoarseStep {
-    /// The coarse step of `model` on `data`; `None` where the internal
-    /// step is at most the sampling time, or the model has none.
+impl StepScale {
+    /// Integration steps per sample above which a run is warned of.
+    pub const FINE: f64 = 1000.0;
+
+    /// The step of `model` on `data` where it is far from the sampling
+    /// time; `None` where it is not, or the model has none.
     pub fn of(model: &Model, data: &Dataset) -> Option<Self> {
         let internal_step = match model {
             Model::GrayBox(m) => m.internal_step,
@@ -280,20 +285,29 @@ impl CoarseStep {
             _ => return None,
         };
         let ts = data.ts?;
-        (internal_step > ts).then_some(Self { internal_step, ts })
+        let far = internal_step > ts || ts > Self::FINE * internal_step;
+        far.then_some(Self { internal_step, ts })
     }
 }
 
-impl std::fmt::Display for CoarseStep {
+impl std::fmt::Display for StepScale {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "internal_step = {} s is longer than the sampling time {} s: each sample is one \
-             integration step of {} s (internal_step is in seconds)",
-            short(self.internal_step),
-            short(self.ts),
-            short(self.ts)
-        )
+        let (step, ts) = (short(self.internal_step), short(self.ts));
+        if self.internal_step > self.ts {
+            write!(
+                f,
+                "internal_step = {step} s is longer than the sampling time {ts} s: each sample is \
+                 one integration step of {ts} s (internal_step is in seconds)"
+            )
+        } else {
+            write!(
+                f,
+                "the sampling time {ts} s is {:.0} integration steps of internal_step = {step} s: \
+                 every run takes that many per sample (the time column is in seconds: one in \
+                 milliseconds?)",
+                self.ts / self.internal_step
+            )
+        }
     }
 }
 

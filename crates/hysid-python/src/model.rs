@@ -66,14 +66,13 @@ fn inequalities<'py>(py: Python<'py>, p: &Polyhedron, dim: usize) -> Inequalitie
 
 /// A Python warning when the discrete-time `model` meets a record of
 /// another sampling time ([`simulate::sampling_time_mismatch`]), or a
-/// physical model's internal step is longer than it
-/// ([`simulate::CoarseStep`]).
+/// physical model's internal step is far from it ([`simulate::StepScale`]).
 fn warn_sampling_time(
     py: Python<'_>,
     model: &AnyModel,
     data: &hysid_model::data::Dataset,
 ) -> PyResult<()> {
-    if let Some(coarse) = simulate::CoarseStep::of(model, data) {
+    if let Some(coarse) = simulate::StepScale::of(model, data) {
         crate::warn(py, &coarse.to_string())?;
     }
     match simulate::sampling_time_mismatch(model, data) {

@@ -8,6 +8,7 @@ use crate::selection::{DataArgs, SignalDefaults};
 use hysid::compare::experiment::MODEL_FILE_OPTION;
 use hysid::identify::{Auto, Identify, Mode};
 use hysid::select::SelectError;
+use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::Priors;
 use hysid_core::search::SearchSpace;
@@ -166,6 +167,13 @@ pub fn run(args: Args) -> Result<()> {
     let data = select.load(&args.data)?;
     if let Some(own) = &declared {
         super::warn_of_order(own, &data, "the model file names");
+    }
+    // A step far from the record's sampling time is said before the fit,
+    // which it may slow a thousandfold.
+    if let Some(file) = model_file
+        && let Ok(own) = Model::load(file)
+    {
+        super::warn_sampling_time(file, &own, &data, false);
     }
     let mode = if args.auto {
         let grid = (!args.grid.is_empty())

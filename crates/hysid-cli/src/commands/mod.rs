@@ -154,7 +154,7 @@ pub(crate) fn warn_unread_definitions(file: &Path, model: &Model) {
 /// another sampling time than the record's, or the excitation's when
 /// `excited` ([`hysid_core::simulate::sampling_time_mismatch`]).
 pub(crate) fn warn_sampling_time(file: &Path, model: &Model, data: &Dataset, excited: bool) {
-    if let Some(coarse) = hysid_core::simulate::CoarseStep::of(model, data) {
+    if let Some(coarse) = hysid_core::simulate::StepScale::of(model, data) {
         eprintln!("hysid: warning: {}: {coarse}", file.display());
     }
     if let Some((record, own)) = hysid_core::simulate::sampling_time_mismatch(model, data) {
