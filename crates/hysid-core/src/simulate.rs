@@ -18,8 +18,8 @@ use hysid_model::data::same_sampling;
 use hysid_model::metrics::{fit, pooled_fit, rmse};
 use hysid_model::model::InitialState;
 use hysid_model::simulate::{
-    DivergedTo, SimError, Simulation, SimulationOptions, SimulationWarning, ZenoSteps, automaton,
-    per_record, pwarx,
+    DivergedTo, MAX_SUBSTEPS_PER_SAMPLE, SimError, Simulation, SimulationOptions,
+    SimulationWarning, ZenoSteps, automaton, per_record, pwarx,
 };
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -263,7 +263,8 @@ pub fn sampling_time_mismatch(model: &Model, data: &Dataset) -> Option<(f64, f64
 /// longer than it (each sample is then one integration step of the
 /// sampling time, coarser than the file asks for), or so much shorter
 /// that a sample takes more than [`StepScale::FINE`] steps (a time column
-/// in milliseconds read as seconds: every run that many times slower).
+/// in milliseconds read as seconds: every run that many times slower), and
+/// not more than the sub-steps a run is refused beyond.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepScale {
     /// The model's internal step, seconds.
@@ -285,7 +286,10 @@ impl StepScale {
             _ => return None,
         };
         let ts = data.ts?;
-        let far = internal_step > ts || ts > Self::FINE * internal_step;
+        // Beyond the sub-step bound the run is refused, not warned of.
+        let steps = ts / internal_step;
+        let fine = steps > Self::FINE && steps <= MAX_SUBSTEPS_PER_SAMPLE as f64;
+        let far = internal_step > ts || fine;
         far.then_some(Self { internal_step, ts })
     }
 }
