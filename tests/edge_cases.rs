@@ -377,7 +377,8 @@ fn too_few_samples_too_many_modes_and_bad_settings() {
                 2,
                 &[
                     "4 samples for 11 free parameters and the initial state",
-                    "need at least 22",
+                    "need at least 22 (its warm-up reads 10: the model file's rule, or \
+                     init_samples)",
                 ],
             );
         } else {

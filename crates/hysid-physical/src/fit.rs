@@ -421,6 +421,7 @@ fn check_length(
         return Err(PhysicalError::TooFewSamples {
             samples: data.len(),
             params: d,
+            warmup: initial,
             needed,
         }
         .into());

@@ -361,13 +361,21 @@ pub enum PhysicalError {
     },
     /// Fewer samples than the free parameters and the initial state need.
     #[error(
-        "{samples} samples for {params} free parameters and the initial state: need at least {needed}"
+        "{samples} samples for {params} free parameters and the initial state: need at least \
+         {needed}{}",
+        if *warmup > 0 {
+            format!(" (its warm-up reads {warmup}: the model file's rule, or init_samples)")
+        } else {
+            String::new()
+        }
     )]
     TooFewSamples {
         /// Samples of the record.
         samples: usize,
         /// Free parameters.
         params: usize,
+        /// The samples the initial state reads.
+        warmup: usize,
         /// Samples needed.
         needed: usize,
     },
