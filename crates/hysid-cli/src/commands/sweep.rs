@@ -173,23 +173,16 @@ fn signals_read(args: &Args, given: &Settings) -> Result<SignalArgs> {
     })
 }
 
-/// The experiment the sweep is: one `[[sweep]]` of the method over
-/// `space` on the command line's record, scored on the selection rows.
-fn experiment(
-    args: &Args,
-    signals: &SignalArgs,
-    priors: Priors,
-    given: &Settings,
-    space: &SearchSpace,
-) -> Result<Experiment> {
+/// The sweep: the method over `space`, with the options `given`; the
+/// first axis is its `vary`, the one its figure is drawn against (the
+/// others' order does not matter).
+fn sweep_spec(args: &Args, given: &Settings, space: &SearchSpace) -> Result<SweepSpec> {
     let text = |v: &str| toml::Value::String(v.to_string());
     let set = given
         .pairs()
         .iter()
         .map(|(k, v)| (k.clone(), text(v)))
         .collect();
-    // The first --grid key is the sweep's `vary`, the one its figure is
-    // drawn against; the others' order does not matter.
     let Some((first, others)) = space.axes.split_first() else {
         return Err(CliError::input("--grid: give at least one axis"));
     };
@@ -197,7 +190,31 @@ fn experiment(
         .iter()
         .map(|a| (a.key.clone(), a.values.iter().map(|v| text(v)).collect()))
         .collect();
-    Ok(Experiment {
+    Ok(SweepSpec {
+        run: RunSpec {
+            name: args.method.clone(),
+            method: args.method.clone(),
+            na: None,
+            nb: None,
+            modes: None,
+            use_priors: true,
+            priors: None,
+            set,
+            seed: None,
+            seeds: vec![],
+            auto: false,
+            provenance: None,
+        },
+        vary: Some(first.key.clone()),
+        values: first.values.iter().map(|v| text(v)).collect(),
+        grid,
+    })
+}
+
+/// The experiment the sweep is: `sweep` on the command line's record,
+/// scored on the selection rows.
+fn experiment(args: &Args, signals: &SignalArgs, priors: Priors, sweep: SweepSpec) -> Experiment {
+    Experiment {
         title: format!("{} sweep on {}", args.method, args.data.display()),
         description: String::new(),
         data: DataSpec {
@@ -225,26 +242,8 @@ fn experiment(
         priors,
         runs: vec![],
         scored_rows: ScoredRows::Selection,
-        sweeps: vec![SweepSpec {
-            run: RunSpec {
-                name: args.method.clone(),
-                method: args.method.clone(),
-                na: None,
-                nb: None,
-                modes: None,
-                use_priors: true,
-                priors: None,
-                set,
-                seed: None,
-                seeds: vec![],
-                auto: false,
-                provenance: None,
-            },
-            vary: Some(first.key.clone()),
-            values: first.values.iter().map(|v| text(v)).collect(),
-            grid,
-        }],
-    })
+        sweeps: vec![sweep],
+    }
 }
 
 /// Runs the command.
@@ -252,20 +251,14 @@ pub fn run(args: Args) -> Result<()> {
     let given = Settings::parse(&args.set)?;
     let space =
         SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
+    let sweep = sweep_spec(&args, &given, &space)?;
     // The model files: `--set model=FILE`, or those of `--grid model=..`.
-    let swept = (space.axes.iter())
-        .filter(|a| a.key == MODEL_FILE_OPTION)
-        .flat_map(|a| a.values.iter().map(String::as_str));
-    let models: Vec<&str> = given
-        .get(MODEL_FILE_OPTION)
-        .into_iter()
-        .chain(swept)
-        .collect();
+    let models: Vec<&Path> = sweep.model_files().collect();
     if let Some(dir) = &args.out {
         let inputs: Vec<&Path> = [args.data.as_path()]
             .into_iter()
             .chain(args.prior.as_deref())
-            .chain(models.iter().map(Path::new))
+            .chain(models.iter().copied())
             .collect();
         super::a_folder(dir, &inputs)?;
     }
@@ -278,12 +271,12 @@ pub fn run(args: Args) -> Result<()> {
     }
     // The inputs are those the first model file declares.
     let first_model = match (given.get(MODEL_FILE_OPTION), models.first()) {
-        (None, Some(file)) => given.with(MODEL_FILE_OPTION, file),
+        (None, Some(file)) => given.with(MODEL_FILE_OPTION, &file.display().to_string()),
         _ => given.clone(),
     };
     let signals = signals_read(&args, &first_model)?;
     check_grid(&args, &given, &signals, &priors, &space)?;
-    let exp = experiment(&args, &signals, priors, &given, &space)?;
+    let exp = experiment(&args, &signals, priors, sweep);
     exp.check().map_err(|e| CliError::input(e.to_string()))?;
     // The points are scored on the selection rows: rows they were fitted
     // on would score them on what they have seen.

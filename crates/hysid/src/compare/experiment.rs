@@ -297,6 +297,14 @@ impl SweepSpec {
             .flatten()
     }
 
+    /// The model files the sweep's points fit: its run's `set` one, and
+    /// those it sweeps.
+    pub fn model_files(&self) -> impl Iterator<Item = &Path> {
+        (self.run.set.get(MODEL_FILE_OPTION).into_iter())
+            .chain(self.swept_model_files())
+            .filter_map(|file| file.as_str().map(Path::new))
+    }
+
     /// How a point shows `value` of `key`: a swept model file by its file
     /// name where the sweep's files have distinct names (they are resolved
     /// against the experiment's folder), anything else as it is.
@@ -852,15 +860,13 @@ impl Experiment {
     /// files.
     pub fn input_files(&self) -> Vec<&Path> {
         let records = self.data.records.iter().map(|r| r.file.as_path());
-        let set = (self.entries()).filter_map(|(run, _)| run.set.get(MODEL_FILE_OPTION));
-        let swept = self.sweeps.iter().flat_map(SweepSpec::swept_model_files);
-        let models = set.chain(swept).filter_map(|file| match file {
-            toml::Value::String(file) => Some(Path::new(file.as_str())),
-            _ => None,
-        });
+        let runs = (self.runs.iter())
+            .filter_map(|run| run.set.get(MODEL_FILE_OPTION)?.as_str().map(Path::new));
+        let sweeps = self.sweeps.iter().flat_map(SweepSpec::model_files);
         std::iter::once(self.data.file.as_path())
             .chain(records)
-            .chain(models)
+            .chain(runs)
+            .chain(sweeps)
             .collect()
     }
 
