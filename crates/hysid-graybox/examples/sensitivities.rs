@@ -18,14 +18,13 @@ fn main() {
         env!("CARGO_MANIFEST_DIR"),
         "/../../models/examples/positioning-axis.toml"
     );
-    let mut table: toml::Table = std::fs::read_to_string(path)
+    // Read as the library reads a model file: the document resolved by
+    // `extends::read`, then deserialized without its `kind` tag.
+    let mut document = hysid_graybox::extends::read(std::path::Path::new(path))
         .expect("the example model")
-        .parse()
-        .expect("TOML");
-    table.remove("kind");
-    let m: GrayBoxModel = toml::Value::Table(table)
-        .try_into()
-        .expect("a gray-box model");
+        .value;
+    document.as_object_mut().expect("a table").remove("kind");
+    let m: GrayBoxModel = serde_json::from_value(document).expect("a gray-box model");
     let c = CompiledModel::new(&m).expect("a valid model");
     let values = m.values();
     // Random steps of the drive's voltage, and the axis's own output.

@@ -118,10 +118,9 @@ proptest! {
 /// numbers only) never moves: the file is refused where it says so.
 #[test]
 fn a_guard_on_parameters_alone_is_refused() {
-    let text = toml::to_string(&dead_zone(true))
-        .unwrap()
-        .replace("guard = \"u >= dz\"", "guard = \"dz >= 0.1\"");
-    let m: GrayBoxModel = crate::from_toml(&text, None);
+    let mut m = dead_zone(true);
+    let guard = m.transitions.iter_mut().find(|t| t.guard == "u >= dz");
+    guard.unwrap().guard = "dz >= 0.1".into();
     let e = m.validate().unwrap_err().to_string();
     assert!(
         e.contains("transition dead -> pos, guard")
