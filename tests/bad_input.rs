@@ -1045,6 +1045,14 @@ fn malformed_gray_box_files() {
             ],
         ),
         (
+            "step.toml",
+            good.replace("internal_step = 0.001", "internal_step = 0"),
+            vec![
+                line_of("internal_step = 0.001"),
+                "internal_step must be a positive number of seconds".into(),
+            ],
+        ),
+        (
             "taken.toml",
             good.replace("[definitions]\n", "[definitions]\nz = \"1\"\n"),
             vec!["'z' is already a state".into()],
@@ -1760,6 +1768,29 @@ fn malformed_simulation_options() {
             o,
         ],
         &["--y0 NaN: must be a finite number"],
+        &out,
+    );
+    // With a record, its first outputs are the initial condition: a --y0
+    // beside them would not be read.
+    let record = write(d, "r.csv", "u,y\n0,1\n1,2\n0,3\n");
+    bad(
+        &["simulate", m, "--data", s(&record), "--y0", "2", "-o", o],
+        &["--y0 2: only with --excite"],
+        &out,
+    );
+    // Two sampling times, one in the excitation and one beside it.
+    bad(
+        &[
+            "simulate",
+            m,
+            "--excite",
+            "n=20,hold=2,low=0,high=1,ts=0.01",
+            "--ts",
+            "0.02",
+            "-o",
+            o,
+        ],
+        &["--excite ts=0.01 and --ts 0.02: two sampling times; give one"],
         &out,
     );
     bad(

@@ -697,6 +697,78 @@ fn hand_written_automaton_with_lower_dimensional_guard_simulates() {
     );
 }
 
+/// A model whose file gives its initial state does not read `--y0`: the
+/// run says so, and writes what it writes without it; a model whose state
+/// comes from the warm-up reads it.
+#[test]
+fn y0_is_read_where_the_initial_state_comes_from_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+    let run = |model: &str, y0: Option<&str>| {
+        let out = dir.path().join("run.csv");
+        let model = format!("{root}/{model}");
+        let mut args = vec![
+            "simulate",
+            &model,
+            "--excite",
+            "n=40,hold=5,low=-1,high=1,ts=0.02",
+            "--seed",
+            "1",
+            "-o",
+            s(&out),
+        ];
+        if let Some(y0) = y0 {
+            args.extend(["--y0", y0]);
+        }
+        let stderr = common::ok_stderr(&args);
+        (stderr, std::fs::read_to_string(&out).unwrap())
+    };
+    let given = "models/examples/coupled-drives.toml";
+    let (stderr, with) = run(given, Some("3"));
+    assert!(
+        stderr.contains("warning: --y0 3 is not read:")
+            && stderr.contains("coupled-drives.toml gives the initial state"),
+        "{stderr}"
+    );
+    assert_eq!(with, run(given, None).1);
+    // The head's state is read from the warm-up's outputs: no warning,
+    // and another response.
+    let measured = "models/pick-and-place/head.toml";
+    let (stderr, with) = run(measured, Some("0.5"));
+    assert!(!stderr.contains("is not read"), "{stderr}");
+    assert_ne!(with, run(measured, None).1);
+}
+
+/// A record without `y` is read by the output name the gray-box file
+/// declares (`speed`): the model's own simulation, so renamed, scores
+/// 100 %.
+#[test]
+fn a_record_is_read_by_the_declared_output_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/examples/coupled-drives.toml"
+    );
+    let sim = dir.path().join("sim.csv");
+    ok(&[
+        "simulate",
+        model,
+        "--excite",
+        "n=200,hold=5,low=-1.5,high=1.5,ts=0.02",
+        "--seed",
+        "1",
+        "-o",
+        s(&sim),
+    ]);
+    let text = std::fs::read_to_string(&sim).unwrap();
+    let (header, rows) = text.split_once('\n').unwrap();
+    assert_eq!(header, "t,u,y,mode");
+    let renamed = common::write(dir.path(), "speed.csv", format!("t,u,speed,mode\n{rows}"));
+    let json = ok(&["validate", model, s(&renamed), "--json"]);
+    let report: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert!(report["fit_sim"].as_f64().unwrap() > 99.999, "{report}");
+}
+
 /// `hysid methods` prints the priors each back-end honours; a back-end
 /// refuses a prior it cannot honour with one line naming the entry and the
 /// file (exit 2); `[[equality]]` entries are honoured by arx, and a bad
@@ -2348,8 +2420,8 @@ flow = { x = "F - a*x" }
     let err = one_line_error(&hysid(&["validate", s(&model), s(&renamed)]), 2).unwrap();
     assert!(
         err.ends_with(
-            "no column 'F' (available: t, G, y, mode); the model file declares --input F: \
-             name this record's signals with --input and --output"
+            "no column 'F' (available: t, G, y, mode); the model file declares --input F \
+             --output x: name this record's signals with --input and --output"
         ),
         "{err}"
     );
@@ -2359,7 +2431,7 @@ flow = { x = "F - a*x" }
     );
     assert!(
         err.unwrap()
-            .ends_with("; the model file declares --input F")
+            .ends_with("; the model file declares --input F --output x: name this record's signals with --input and --output")
     );
     ok(&["validate", s(&model), s(&renamed), "--input", "G"]);
     let renamed_record = [s(&renamed), "--input", "G"];

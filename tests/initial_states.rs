@@ -159,6 +159,28 @@ fn a_state_the_warm_up_does_not_show_is_named_as_its_guess() {
     assert!(json.get("unseen_initial_states").is_none(), "{json}");
 }
 
+/// A range that leaves out the true state (2.25): the estimate stops on
+/// its bound, and `validate` says so in the text and the JSON.
+#[test]
+fn a_state_estimated_on_its_bound_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let record = record_of(d, &cascade("c*x2 + off", TRUTH));
+    let narrow = ESTIMATE.replace("[-5.0, 5.0]", "[-5.0, 1.0]");
+    let model = write(d, "narrow.toml", cascade("c*x2 + off", &narrow));
+    let args = ["validate", s(&model), s(&record), "--warmup", "10"];
+    let text = ok(&args);
+    assert!(
+        text.contains(
+            "x1 = 1.0 (on a bound of its estimate range: the warm-up may ask for a value outside it)"
+        ),
+        "{text}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(&[&args[..], &["--json"]].concat())).unwrap();
+    assert_eq!(json["initial_states_at_bound"], serde_json::json!(["x1"]));
+}
+
 /// An estimate of an unknown state, bounds with low above high, an output
 /// map not affine in the measured state, and a `steady` rule without a rest
 /// state: each a one-line error naming the file, exit code 2.

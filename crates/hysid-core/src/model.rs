@@ -177,9 +177,10 @@ impl Model {
     }
 
     /// The names under which the model reads its inputs and output from a
-    /// record: those it was identified on, else, for the inputs, the names
-    /// its file declares (a mechanical, gray-box or automaton file's
-    /// `inputs`); `None` where it names none, or not one per input.
+    /// record: those it was identified on, else the names its file
+    /// declares (a mechanical, gray-box or automaton file's `inputs`, a
+    /// gray-box file's output `name`); `None` where it names none, or not
+    /// one per input.
     pub fn signal_names(&self) -> (Option<Vec<String>>, Option<String>) {
         let info = self.info();
         let declared = match self {
@@ -192,7 +193,15 @@ impl Model {
             .into_iter()
             .find(|names| !names.is_empty() && names.len() == self.inputs())
             .map(<[String]>::to_vec);
-        let output = Some(info.output_name.clone()).filter(|name| !name.is_empty());
+        let declared_output = match self {
+            Model::GrayBox(m) => m.outputs.first().map(|o| o.name.as_str()),
+            _ => None,
+        };
+        let output = [Some(info.output_name.as_str()), declared_output]
+            .into_iter()
+            .flatten()
+            .find(|name| !name.is_empty())
+            .map(str::to_string);
         (inputs, output)
     }
 

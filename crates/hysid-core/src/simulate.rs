@@ -147,6 +147,10 @@ pub struct ValidationReport {
     /// record does not determine them ([`InitialStates::unseen`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub unseen_initial_states: Vec<String>,
+    /// Those of [`Self::initial_states`] on a bound of their `estimate`
+    /// range ([`InitialStates::at_bound`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub initial_states_at_bound: Vec<String>,
     /// For data that join several records: each record scored on its own,
     /// with its own warm-up; the figures above pool their scored samples.
     /// Absent for one record.
@@ -155,6 +159,15 @@ pub struct ValidationReport {
 }
 
 impl ValidationReport {
+    /// The estimated initial states of this report's record.
+    pub fn estimated_states(&self) -> InitialStates {
+        InitialStates {
+            values: self.initial_states.clone(),
+            unseen: self.unseen_initial_states.clone(),
+            at_bound: self.initial_states_at_bound.clone(),
+        }
+    }
+
     /// What the user of this validation should be told about its
     /// simulation ([`SimulationWarning`]).
     pub fn warnings(&self) -> Vec<SimulationWarning> {
@@ -172,6 +185,9 @@ pub struct InitialStates {
     /// them): the record does not determine them
     /// (`hysid_graybox::simulate::unseen`).
     pub unseen: Vec<String>,
+    /// Those the warm-up shows whose value lies on a bound of their
+    /// `estimate` range: the record may ask for a value outside it.
+    pub at_bound: Vec<String>,
 }
 
 /// The initial states `model` leaves unknown, as its simulation of `data`
@@ -187,6 +203,10 @@ pub fn initial_states(model: &Model, data: &Dataset) -> Result<InitialStates, Si
     Ok(InitialStates {
         unseen: (estimated.iter())
             .filter(|e| !e.seen)
+            .map(|e| e.name.clone())
+            .collect(),
+        at_bound: (estimated.iter())
+            .filter(|e| e.seen && e.at_bound)
             .map(|e| e.name.clone())
             .collect(),
         values: estimated.into_iter().map(|e| (e.name, e.value)).collect(),
@@ -440,6 +460,7 @@ pub fn validate(
         mode_counts,
         initial_states: BTreeMap::new(),
         unseen_initial_states: Vec::new(),
+        initial_states_at_bound: Vec::new(),
         records: parts,
     };
     Ok((report, sim, pred))
@@ -521,6 +542,7 @@ fn validate_record(
         mode_counts,
         initial_states: states.values,
         unseen_initial_states: states.unseen,
+        initial_states_at_bound: states.at_bound,
         records: Vec::new(),
     };
     Ok((report, sim, pred))

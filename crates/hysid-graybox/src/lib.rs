@@ -106,6 +106,9 @@ pub struct EstimatedState {
     /// Whether the warm-up's outputs show it ([`simulate::unseen`]); where
     /// they do not, the record does not determine `value`.
     pub seen: bool,
+    /// Whether `value` lies on a bound of the rule's `estimate` range: the
+    /// warm-up may ask for a value outside it.
+    pub at_bound: bool,
 }
 
 /// The states the initial-state rule leaves unknown (`estimate`), in the
@@ -124,6 +127,7 @@ pub fn initial_states(m: &GrayBoxModel, data: &Dataset) -> Result<Vec<EstimatedS
             name: e.name.clone(),
             value,
             seen: !unseen,
+            at_bound: value <= e.bounds[0] || value >= e.bounds[1],
         })
         .collect())
 }

@@ -16,15 +16,13 @@ pub mod validate;
 /// Estimated initial states as `x1 = 2.5, x2 = -0.1, x3 = 2.9e-16`
 /// (shortest round-trip form of each value, with an exponent where it is
 /// tiny or huge).
-pub(crate) fn states_text(
-    states: &std::collections::BTreeMap<String, f64>,
-    unseen: &[String],
-) -> String {
-    states
-        .iter()
+pub(crate) fn states_text(states: &hysid_core::simulate::InitialStates) -> String {
+    (states.values.iter())
         .map(|(name, v)| {
-            if unseen.contains(name) {
+            if states.unseen.contains(name) {
                 format!("{name} = {v:?} (not determined: moving it changes none of the warm-up's outputs)")
+            } else if states.at_bound.contains(name) {
+                format!("{name} = {v:?} (on a bound of its estimate range: the warm-up may ask for a value outside it)")
             } else {
                 format!("{name} = {v:?}")
             }

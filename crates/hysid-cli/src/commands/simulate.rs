@@ -28,9 +28,10 @@ pub struct Args {
     /// levels uniform on [A, B] held for H samples (the founding paper's input).
     #[arg(long)]
     pub excite: Option<String>,
-    /// Initial output value before the first simulated sample (with --excite).
-    #[arg(long, default_value_t = 0.0)]
-    pub y0: f64,
+    /// Initial output value before the first simulated sample (with
+    /// --excite; 0 when not given).
+    #[arg(long)]
+    pub y0: Option<f64>,
     /// Standard deviation of white Gaussian noise added to the written output.
     #[arg(long, default_value_t = 0.0)]
     pub noise: f64,
@@ -46,65 +47,24 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    if !(args.noise.is_finite() && args.noise >= 0.0) {
-        return Err(CliError::input(format!(
-            "--noise {}: must be a finite number >= 0",
-            args.noise
-        )));
-    }
-    if !args.y0.is_finite() {
-        return Err(CliError::input(format!(
-            "--y0 {}: must be a finite number",
-            args.y0
-        )));
-    }
+    let y0 = checked_numbers(&args)?;
     let inputs = std::iter::once(&args.model).chain(&args.data);
     super::not_an_input("-o", &args.out, inputs.map(PathBuf::as_path))?;
     csv_name(&args.out)?;
     let model = super::load_model(&args.model)?;
-    let select = args
-        .select
-        .clone()
-        .reading(SignalDefaults::of_model(&model));
-    let data = match (&args.data, &args.excite) {
-        (Some(path), None) => select.load_one(path)?,
-        (None, Some(spec)) => {
-            let e = Excitation::parse_for(spec, model.inputs())
-                .map_err(|e: ExcitationError| CliError::input(e.to_string()))?;
-            if e.inputs != model.inputs() {
-                return Err(CliError::input(format!(
-                    "--excite inputs={}: the model has {} input(s)",
-                    e.inputs,
-                    model.inputs()
-                )));
-            }
-            let names = input_names(&model);
-            let inputs = e
-                .generate(args.seed)
-                .into_iter()
-                .zip(names)
-                .map(|(values, name)| Signal { name, values })
-                .collect();
-            let ts = e.ts.or(args.select.signals.ts).or(model.info().ts);
-            Dataset::new(
-                inputs,
-                Signal {
-                    name: "y".into(),
-                    values: vec![args.y0; e.n],
-                },
-                ts,
-            )?
-        }
-        _ => {
-            return Err(CliError::input(
-                "give exactly one of --data DATA or --excite SPEC",
-            ));
-        }
-    };
+    let data = driving_record(&args, &model, y0)?;
     super::warn_sampling_time(&args.model, &model, &data, args.excite.is_some());
     super::warn_unread_definitions(&args.model, &model);
     super::warn_input_order(&args.model, &model, &data);
     super::warn_given_state(&args.model, &model, &args.select.rows);
+    if let Some(y0) = args.y0
+        && model.initial_state_given()
+    {
+        eprintln!(
+            "hysid: warning: --y0 {y0} is not read: {} gives the initial state",
+            args.model.display()
+        );
+    }
     let sim = simulate(&model, &data, SimulationOptions::default())
         .map_err(|e| CliError::simulation(&args.model, e))?;
     let states = hysid_core::simulate::initial_states(&model, &data)
@@ -113,11 +73,11 @@ pub fn run(args: Args) -> Result<()> {
         let warmup = if args.data.is_some() {
             "the warm-up".to_string()
         } else {
-            format!("the warm-up, its output held at --y0 {}", args.y0)
+            format!("the warm-up, its output held at --y0 {y0}")
         };
         eprintln!(
             "hysid: initial state estimated from {warmup}: {}",
-            super::states_text(&states.values, &states.unseen)
+            super::states_text(&states)
         );
     }
     let physical = matches!(model, Model::GrayBox(_) | Model::Mechanical(_));
@@ -130,7 +90,7 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!(
             "hysid: the run starts at row {}: the rows before it hold --y0 {} (what the model's \
              initial state reads), not a response to their input",
-            sim.start, args.y0
+            sim.start, y0
         );
     }
     if let Some(outside) = hysid_core::simulate::OutsideRegions::of(&model, &sim) {
@@ -190,6 +150,75 @@ pub fn run(args: Args) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// `--noise` and `--y0` checked; the output before the first simulated
+/// sample (`--y0`, 0 when not given).
+fn checked_numbers(args: &Args) -> Result<f64> {
+    if !(args.noise.is_finite() && args.noise >= 0.0) {
+        return Err(CliError::input(format!(
+            "--noise {}: must be a finite number >= 0",
+            args.noise
+        )));
+    }
+    if let Some(y0) = args.y0 {
+        if !y0.is_finite() {
+            return Err(CliError::input(format!(
+                "--y0 {y0}: must be a finite number"
+            )));
+        }
+        if args.data.is_some() {
+            return Err(CliError::input(format!(
+                "--y0 {y0}: only with --excite (with --data the record's first outputs are the \
+                 initial condition)"
+            )));
+        }
+    }
+    Ok(args.y0.unwrap_or(0.0))
+}
+
+/// The record that drives the model: `--data`, read by the model's signal
+/// names where it lacks `u` or `y`, or the `--excite` input with its
+/// output held at `y0`.
+fn driving_record(args: &Args, model: &Model, y0: f64) -> Result<Dataset> {
+    let select = args.select.clone().reading(SignalDefaults::of_model(model));
+    match (&args.data, &args.excite) {
+        (Some(path), None) => select.load_one(path),
+        (None, Some(spec)) => {
+            let e = Excitation::parse_for(spec, model.inputs())
+                .map_err(|e: ExcitationError| CliError::input(e.to_string()))?;
+            if e.inputs != model.inputs() {
+                return Err(CliError::input(format!(
+                    "--excite inputs={}: the model has {} input(s)",
+                    e.inputs,
+                    model.inputs()
+                )));
+            }
+            let names = input_names(model);
+            let inputs = e
+                .generate(args.seed)
+                .into_iter()
+                .zip(names)
+                .map(|(values, name)| Signal { name, values })
+                .collect();
+            if let (Some(a), Some(b)) = (e.ts, args.select.signals.ts)
+                && a != b
+            {
+                return Err(CliError::input(format!(
+                    "--excite ts={a} and --ts {b}: two sampling times; give one"
+                )));
+            }
+            let ts = e.ts.or(args.select.signals.ts).or(model.info().ts);
+            let y = Signal {
+                name: "y".into(),
+                values: vec![y0; e.n],
+            };
+            Ok(Dataset::new(inputs, y, ts)?)
+        }
+        _ => Err(CliError::input(
+            "give exactly one of --data DATA or --excite SPEC",
+        )),
+    }
 }
 
 /// `k ts` with as many decimals as `ts` has (at most 12), without the

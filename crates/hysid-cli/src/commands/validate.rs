@@ -134,7 +134,7 @@ pub fn run(mut args: Args) -> Result<()> {
         if !report.initial_states.is_empty() {
             println!(
                 "initial   {} (estimated from the warm-up)",
-                super::states_text(&report.initial_states, &report.unseen_initial_states)
+                super::states_text(&report.estimated_states())
             );
         }
         for (file, r) in args.data.iter().zip(&report.records) {
@@ -147,10 +147,7 @@ pub fn run(mut args: Args) -> Result<()> {
                 r.n
             );
             if !r.initial_states.is_empty() {
-                print!(
-                    "  initial {}",
-                    super::states_text(&r.initial_states, &r.unseen_initial_states)
-                );
+                print!("  initial {}", super::states_text(&r.estimated_states()));
             }
             println!();
         }

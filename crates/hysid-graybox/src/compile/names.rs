@@ -13,14 +13,14 @@ pub(super) fn check_header(m: &GrayBoxModel) -> Result<(), InvalidGrayBox> {
     if m.format != FORMAT_VERSION {
         return Err(InvalidGrayBox::new(
             "format",
-            None,
+            Some("format"),
             Problem::Version(m.format),
         ));
     }
     if !(m.internal_step > 0.0 && m.internal_step.is_finite()) {
         return Err(InvalidGrayBox::new(
             "internal_step",
-            None,
+            Some("internal_step"),
             Problem::InternalStep,
         ));
     }

@@ -128,6 +128,7 @@ fn an_estimated_state_is_recovered_from_the_warm_up() {
             let states = initial_states(&m, &data).unwrap();
             assert_eq!(states.len(), 1);
             assert_eq!((states[0].name.as_str(), states[0].seen), ("x1", true));
+            assert!(!states[0].at_bound);
             assert!(
                 close(states[0].value, x1, 1e-6),
                 "{output}: {} against {x1}",
@@ -145,6 +146,24 @@ fn an_estimated_state_is_recovered_from_the_warm_up() {
                 assert!((r.y[k] - data.y()[k]).abs() < 1e-6, "{output}: sample {k}");
             }
         }
+    }
+}
+
+/// A range that leaves out the true state: the estimate stops on its
+/// bound, and says so.
+#[test]
+fn an_estimate_on_its_bound_is_flagged() {
+    let data = record("x2", 2.3, 0.7, 120, 1);
+    for (range, bound) in [("[-5.0, 1.0]", 1.0), ("[2.5, 5.0]", 2.5)] {
+        let m = model(&cascade(
+            "x2",
+            &format!(
+                r#"{{ from = "measured", samples = 10, position = "x2", estimate = {{ x1 = {range} }} }}"#
+            ),
+        ));
+        let states = initial_states(&m, &data).unwrap();
+        assert_eq!(states[0].value, bound, "{range}");
+        assert!(states[0].seen && states[0].at_bound, "{range}");
     }
 }
 
