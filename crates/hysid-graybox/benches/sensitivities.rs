@@ -5,7 +5,7 @@
 //! and its distance to central differences, then the time of a run with
 //! and without the sensitivities.
 //!
-//! `cargo run --release -p hysid-graybox --example sensitivities`
+//! `cargo bench -p hysid-graybox --bench sensitivities`
 
 use hysid_graybox::simulate::{run, run_from, run_with_sensitivities};
 use hysid_graybox::{CompiledModel, GrayBoxModel};
