@@ -2270,6 +2270,14 @@ flow = { x = "F - a*x" }
     ];
     ok(&[&identify[..], &["-o", s(&fitted)]].concat());
     ok(&["validate", s(&fitted), s(&record)]);
+    // A record whose output is named as the file names it (`x`, not `y`)
+    // is read so by `identify`, as by `validate`.
+    let named = d.join("x.csv");
+    let text = std::fs::read_to_string(&record).unwrap();
+    std::fs::write(&named, text.replacen("t,F,y", "t,F,x", 1)).unwrap();
+    let on_x = [&["identify", s(&named)], &identify[2..]].concat();
+    ok(&[&on_x[..], &["-o", s(&d.join("x.json"))]].concat());
+    ok(&["validate", s(&model), s(&named)]);
     // `sweep` reads them as `identify` does, and names them where the
     // record lacks the ones named.
     let long = d.join("long.csv");
@@ -2319,7 +2327,8 @@ flow = { x = "F - a*x" }
     let err = one_line_error(&hysid(&[&sweep[..], &["--input", "G"]].concat()), 2).unwrap();
     assert!(
         err.ends_with(
-            "no column 'G' (available: t, F, y, mode); the model file declares --input F"
+            "no column 'G' (available: t, F, y, mode); the model file declares --input F \
+             --output x: name this record's signals with --input and --output"
         ),
         "{err}"
     );

@@ -2,7 +2,7 @@
 //! selection").
 
 use crate::error::CliError;
-use hysid_core::model::Model;
+use hysid_core::model::{Model, SignalNames};
 use hysid_model::data::{DataError, DataSelection, Dataset, RowRange, SignalNameError};
 use std::path::PathBuf;
 
@@ -66,7 +66,7 @@ pub struct SignalDefaults {
 impl SignalDefaults {
     /// The names `model` reads its record under ([`Model::signal_names`]).
     pub fn of_model(model: &Model) -> Self {
-        let (inputs, output) = model.signal_names();
+        let SignalNames { inputs, output } = model.signal_names();
         let whose = if !model.info().input_names.is_empty() {
             "the model was identified on"
         } else {
@@ -79,11 +79,12 @@ impl SignalDefaults {
         }
     }
 
-    /// The inputs a model file declares (`inputs`), for a fit of it.
-    pub fn declared(inputs: Option<Vec<String>>) -> Self {
+    /// The signals a model file declares (or was identified on), for a
+    /// fit of it.
+    pub fn declared(names: SignalNames) -> Self {
         SignalDefaults {
-            inputs: inputs.filter(|names| !names.is_empty()),
-            output: None,
+            inputs: names.inputs.filter(|names| !names.is_empty()),
+            output: names.output,
             whose: "the model file declares",
         }
     }

@@ -7,7 +7,7 @@
 //! model. The CLI and `compare` only see `dyn Backend` through a
 //! [`Registry`].
 
-use crate::model::Model;
+use crate::model::{Model, SignalNames};
 use crate::options::{
     BackendOptions, CheckOptions, Checked, OptionError, OptionSpec, PRESET, Settings, preset_spec,
 };
@@ -366,16 +366,13 @@ pub trait Identifier: Send + Sync {
         Ok(SearchSpace::default())
     }
 
-    /// The input signals the model fitted with `options` names (a physical
-    /// model file's: those it was identified on, else those it declares),
-    /// which a front end reads where the record has no `u`; `None` when the
+    /// The signals the model fitted with `options` names (a physical model
+    /// file's: those it was identified on, else those it declares), which
+    /// a front end reads where the record has no `u` or `y`; none when the
     /// back-end's model names no signals. An error where the model file
     /// cannot be read, so that a front end says so before it reads data.
-    fn declared_inputs(
-        &self,
-        _options: &Self::Options,
-    ) -> Result<Option<Vec<String>>, IdentifyError> {
-        Ok(None)
+    fn declared_signals(&self, _options: &Self::Options) -> Result<SignalNames, IdentifyError> {
+        Ok(SignalNames::default())
     }
 
     /// Checks `priors` against the model structure of `orders` (or of the
@@ -456,11 +453,11 @@ pub trait Backend: Send + Sync {
     }
     /// The candidate settings automatic selection tries on `problem`.
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError>;
-    /// The input signals the model fitted with `settings` names
-    /// ([`Identifier::declared_inputs`]); the errors of [`Backend::run`]
+    /// The signals the model fitted with `settings` names
+    /// ([`Identifier::declared_signals`]); the errors of [`Backend::run`]
     /// for settings it refuses or a model file it cannot read.
-    fn declared_inputs(&self, _settings: &Settings) -> Result<Option<Vec<String>>, IdentifyError> {
-        Ok(None)
+    fn declared_signals(&self, _settings: &Settings) -> Result<SignalNames, IdentifyError> {
+        Ok(SignalNames::default())
     }
     /// Checks `priors` against the structure of `orders`, or of the model
     /// file `settings` name, without any data
@@ -560,9 +557,9 @@ impl<T: Identifier> Backend for T {
     fn search_space(&self, problem: &Problem<'_>) -> Result<SearchSpace, IdentifyError> {
         Identifier::search_space(self, problem)
     }
-    fn declared_inputs(&self, settings: &Settings) -> Result<Option<Vec<String>>, IdentifyError> {
+    fn declared_signals(&self, settings: &Settings) -> Result<SignalNames, IdentifyError> {
         let options = checked_settings::<T>(settings)?;
-        Identifier::declared_inputs(self, &options).map_err(|e| e.of_method(T::NAME))
+        Identifier::declared_signals(self, &options).map_err(|e| e.of_method(T::NAME))
     }
     fn check_settings(&self, settings: &Settings) -> Result<(), OptionError> {
         checked_settings::<T>(settings).map(|_| ())

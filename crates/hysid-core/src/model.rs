@@ -30,6 +30,17 @@ mod translate;
 pub(crate) use translate::written;
 pub use translate::{Untranslatable, mechanical_labels, to_gray_box};
 
+/// The names under which a model reads a record's signals
+/// ([`Model::signal_names`]).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SignalNames {
+    /// One name per input; `None` where the model names none, or not one
+    /// per input.
+    pub inputs: Option<Vec<String>>,
+    /// The output's name; `None` where the model names none.
+    pub output: Option<String>,
+}
+
 /// Any model hysid can simulate and validate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -179,9 +190,8 @@ impl Model {
     /// The names under which the model reads its inputs and output from a
     /// record: those it was identified on, else the names its file
     /// declares (a mechanical, gray-box or automaton file's `inputs`, a
-    /// gray-box file's output `name`); `None` where it names none, or not
-    /// one per input.
-    pub fn signal_names(&self) -> (Option<Vec<String>>, Option<String>) {
+    /// gray-box file's output `name`).
+    pub fn signal_names(&self) -> SignalNames {
         let info = self.info();
         let declared = match self {
             Model::Pwarx(_) => &[][..],
@@ -202,7 +212,7 @@ impl Model {
             .flatten()
             .find(|name| !name.is_empty())
             .map(str::to_string);
-        (inputs, output)
+        SignalNames { inputs, output }
     }
 
     /// The ARX orders of a model whose state is a window of past outputs

@@ -62,7 +62,7 @@ pub use parameters::ParameterMap;
 pub use target::{GrayBoxTarget, Simulator, Target};
 
 use hysid_core::backend::{Identifier, IdentifyError, Problem, RunContext};
-use hysid_core::model::{Model, to_gray_box};
+use hysid_core::model::{Model, SignalNames, to_gray_box};
 use hysid_core::options::{CheckOptions, Checked, OptionError, check_count};
 use hysid_core::priors::{PriorKind, Priors};
 use hysid_mechanical::MechanicalModel;
@@ -194,18 +194,15 @@ impl Identifier for Physical {
     const SUMMARY: &'static str = "physical parameters of a mechanical or gray-box hybrid model (--set model=FILE) by simulation error: swarm + Levenberg-Marquardt + Nelder-Mead";
     const HONOURS: &'static [PriorKind] = &[PriorKind::Fixed, PriorKind::Bounds, PriorKind::Tie];
 
-    fn declared_inputs(
-        &self,
-        options: &PhysicalOptions,
-    ) -> Result<Option<Vec<String>>, IdentifyError> {
+    fn declared_signals(&self, options: &PhysicalOptions) -> Result<SignalNames, IdentifyError> {
         let file = options.model.trim();
         if file.is_empty() {
-            return Ok(None);
+            return Ok(SignalNames::default());
         }
         let model = Model::load(Path::new(file)).map_err(|e| {
             IdentifyError::Options(OptionError::invalid("model", &options.model, e.to_string()))
         })?;
-        Ok(model.signal_names().0)
+        Ok(model.signal_names())
     }
 
     fn check_priors(

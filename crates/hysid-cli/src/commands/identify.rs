@@ -162,10 +162,10 @@ pub fn run(args: Args) -> Result<()> {
     super::not_an_input("-o", &args.out, inputs)?;
     // A physical model file's declared inputs are read where none are named.
     // An unknown method is named before the record is read by its defaults.
-    let declared = registry.require(&args.method)?.declared_inputs(&options)?;
+    let declared = registry.require(&args.method)?.declared_signals(&options)?;
     let select = (args.select.clone()).reading(SignalDefaults::declared(declared.clone()));
     let data = select.load(&args.data)?;
-    if let Some(own) = &declared {
+    if let Some(own) = &declared.inputs {
         super::warn_of_order(own, &data, "the model file names");
     }
     // A step far from the record's sampling time is said before the fit,

@@ -102,7 +102,7 @@ pub(crate) fn warn_given_state(file: &Path, model: &Model, rows: &[RowRange]) {
 /// (those it was identified on, or those its file declares): inputs are
 /// read in the order given, so a swap is a different input.
 pub(crate) fn warn_input_order(file: &Path, model: &Model, data: &Dataset) {
-    let Some(own) = model.signal_names().0 else {
+    let Some(own) = model.signal_names().inputs else {
         return;
     };
     let how = if model.info().input_names.is_empty() {

@@ -240,7 +240,7 @@ fn time_text(k: usize, ts: f64) -> String {
 
 fn input_names(model: &Model) -> Vec<String> {
     let m = model.inputs();
-    match model.signal_names().0 {
+    match model.signal_names().inputs {
         Some(names) => names,
         None if m == 1 => vec![hysid_model::data::DEFAULT_INPUT.into()],
         None => (1..=m).map(|i| format!("u{i}")).collect(),

@@ -15,6 +15,7 @@ use hysid::compare::{
     ScoredRows, SweepSpec,
 };
 use hysid::select::GivenBesideGrid;
+use hysid_core::model::SignalNames;
 use hysid_core::options::Settings;
 use hysid_core::priors::{ModeCountNeed, Priors};
 use hysid_core::search::{SearchSpace, Setup};
@@ -152,20 +153,21 @@ fn check_grid(
 fn signals_read(args: &Args, given: &Settings) -> Result<SignalArgs> {
     let declared = hysid::registry()
         .require(&args.method)?
-        .declared_inputs(given)?;
+        .declared_signals(given)?;
     // Without a model file's names the flags' names are checked here and
     // the record is read once, by the sweep.
-    let Some(own) = declared else {
+    if declared == SignalNames::default() {
         args.signals.selection(RowRange::default())?;
         return Ok(args.signals.clone());
-    };
+    }
     let record = DataArgs {
         signals: args.signals.clone(),
         rows: Vec::new(),
     };
-    let data =
-        (record.reading(SignalDefaults::declared(Some(own.clone())))).load_one(&args.data)?;
-    super::warn_of_order(&own, &data, "the model file names");
+    let data = (record.reading(SignalDefaults::declared(declared.clone()))).load_one(&args.data)?;
+    if let Some(own) = &declared.inputs {
+        super::warn_of_order(own, &data, "the model file names");
+    }
     Ok(SignalArgs {
         input: Some(data.input_names()),
         output: Some(data.output.name.clone()),

@@ -871,7 +871,7 @@ impl Experiment {
     }
 
     /// The first `[[run]]` or `[[sweep]]` whose model file declares input
-    /// names ([`hysid_core::backend::Backend::declared_inputs`]), with
+    /// names ([`hysid_core::backend::Backend::declared_signals`]), with
     /// them: what a record that lacks the `[data]` inputs may name
     /// otherwise.
     pub fn declared_inputs(&self) -> Option<(&RunSpec, Vec<String>)> {
@@ -879,8 +879,9 @@ impl Experiment {
         self.entries().find_map(|(run, _)| {
             let inputs = registry
                 .get(&run.method)?
-                .declared_inputs(&run.settings())
-                .ok()??;
+                .declared_signals(&run.settings())
+                .ok()?
+                .inputs?;
             Some((run, inputs)).filter(|(_, i)| !i.is_empty())
         })
     }
