@@ -427,13 +427,19 @@ mod tests {
         initial_state: GrayBoxInitialState,
     }
 
+    /// `text` read as the library reads a model file: TOML into a
+    /// `serde_json::Value` (`crate::extends`), then the part.
+    fn part(text: &str) -> Result<Part, serde_json::Error> {
+        serde_json::from_value(toml::from_str(text).unwrap())
+    }
+
     /// An output written as a bare name is that state; written as a
     /// table, it keeps its checks; either way it is written back as a
     /// table.
     #[test]
     fn an_output_is_a_table_or_a_state_name() {
         let rule = "initial_state = { from = \"given\", values = { x = 0.5 } }";
-        let read = |outputs: &str| toml::from_str::<Part>(&format!("outputs = {outputs}\n{rule}"));
+        let read = |outputs: &str| part(&format!("outputs = {outputs}\n{rule}"));
         let bare = read("[\"x\"]").unwrap();
         let table = read("[{ name = \"x\", value = \"x\" }]").unwrap();
         assert_eq!(bare.outputs, table.outputs);
@@ -469,16 +475,13 @@ mod tests {
                     "outputs = [\"x\"]\ninitial_state = {{ from = \"{from}\", values = {values} }}"
                 )
             };
-            let part: Part = toml::from_str(&text("{ x = 0.5 }")).unwrap();
-            let values = match part.initial_state {
+            let values = match part(&text("{ x = 0.5 }")).unwrap().initial_state {
                 GrayBoxInitialState::Given { values, .. }
                 | GrayBoxInitialState::Measured { values, .. }
                 | GrayBoxInitialState::Steady { values, .. } => values,
             };
             assert_eq!(values, BTreeMap::from([("x".to_string(), 0.5)]));
-            let e = toml::from_str::<Part>(&text("[0.5]"))
-                .unwrap_err()
-                .to_string();
+            let e = part(&text("[0.5]")).unwrap_err().to_string();
             assert!(
                 e.contains("invalid type: sequence, expected values by state name, such as values = { x = 0.5 }"),
                 "{from}: {e}"

@@ -224,12 +224,14 @@ pub(super) mod tests {
     }
 
     /// The gray-box head with its free parameters at `z` (0..1) of their
-    /// bounds.
+    /// bounds, read as [`model_files`] reads every file.
     pub(in crate::simulate) fn head(z: &[f64]) -> GrayBoxModel {
-        let text = include_str!("../../../../models/pick-and-place/head-graybox.toml");
-        let mut table: toml::Table = text.parse().unwrap();
-        table.remove("kind");
-        let mut g: GrayBoxModel = toml::Value::Table(table).try_into().unwrap();
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../models"));
+        let mut value = extends::read(&root.join("pick-and-place/head-graybox.toml"))
+            .unwrap()
+            .value;
+        value.as_object_mut().unwrap().remove("kind");
+        let mut g: GrayBoxModel = serde_json::from_value(value).unwrap();
         for (p, zi) in g.parameters.iter_mut().zip(z) {
             if !p.fixed {
                 p.value = p.bounds[0] + (p.bounds[1] - p.bounds[0]) * zi;
