@@ -767,6 +767,12 @@ fn a_record_is_read_by_the_declared_output_name() {
     let json = ok(&["validate", model, s(&renamed), "--json"]);
     let report: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert!(report["fit_sim"].as_f64().unwrap() > 99.999, "{report}");
+    // The text names each mode with its count.
+    let text = ok(&["validate", model, s(&renamed)]);
+    assert!(
+        text.contains("modes     driven 190 (scored samples per mode in the simulation)"),
+        "{text}"
+    );
 }
 
 /// `hysid methods` prints the priors each back-end honours; a back-end

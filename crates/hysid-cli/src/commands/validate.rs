@@ -127,9 +127,13 @@ pub fn run(mut args: Args) -> Result<()> {
             "coverage  {:8.4}     coverage_sim {:.4}",
             report.coverage, report.coverage_sim
         );
+        let counts = (model.mode_names().iter())
+            .zip(&report.mode_counts)
+            .map(|(name, count)| format!("{name} {count}"))
+            .collect::<Vec<_>>();
         println!(
-            "modes     {:?} samples per mode in simulation",
-            report.mode_counts
+            "modes     {} (scored samples per mode in the simulation)",
+            counts.join(", ")
         );
         if !report.initial_states.is_empty() {
             println!(
