@@ -137,20 +137,13 @@ pub struct ValidationReport {
     pub zeno: Option<ZenoSteps>,
     /// Scored samples per mode in the simulation (by mode index).
     pub mode_counts: Vec<usize>,
-    /// The initial states the model leaves unknown, by name, as estimated
-    /// from the record's warm-up outputs ([`initial_states`]); absent when
-    /// it estimates none or the data join several records (each record's
-    /// are in its own report).
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub initial_states: BTreeMap<String, f64>,
-    /// Those of [`Self::initial_states`] the warm-up does not show: the
-    /// record does not determine them ([`InitialStates::unseen`]).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub unseen_initial_states: Vec<String>,
-    /// Those of [`Self::initial_states`] on a bound of their `estimate`
-    /// range ([`InitialStates::at_bound`]).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub initial_states_at_bound: Vec<String>,
+    /// The initial states the model leaves unknown, as estimated from the
+    /// record's warm-up outputs ([`initial_states`]): the fields
+    /// `initial_states`, `unseen_initial_states` and
+    /// `initial_states_at_bound`, each absent when empty; empty when the
+    /// data join several records (each record's are in its own report).
+    #[serde(flatten)]
+    pub initial: InitialStates,
     /// For data that join several records: each record scored on its own,
     /// with its own warm-up; the figures above pool their scored samples.
     /// Absent for one record.
@@ -159,15 +152,6 @@ pub struct ValidationReport {
 }
 
 impl ValidationReport {
-    /// The estimated initial states of this report's record.
-    pub fn estimated_states(&self) -> InitialStates {
-        InitialStates {
-            values: self.initial_states.clone(),
-            unseen: self.unseen_initial_states.clone(),
-            at_bound: self.initial_states_at_bound.clone(),
-        }
-    }
-
     /// What the user of this validation should be told about its
     /// simulation ([`SimulationWarning`]).
     pub fn warnings(&self) -> Vec<SimulationWarning> {
@@ -177,16 +161,31 @@ impl ValidationReport {
 
 /// The initial states a model leaves unknown, as its simulation of a
 /// record estimates them from the warm-up outputs.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct InitialStates {
     /// Every such state by name, with its value.
+    #[serde(
+        rename = "initial_states",
+        default,
+        skip_serializing_if = "BTreeMap::is_empty"
+    )]
     pub values: BTreeMap<String, f64>,
     /// Those the warm-up's outputs do not show (moving one changes none of
     /// them): the record does not determine them
     /// (`hysid_graybox::simulate::unseen`).
+    #[serde(
+        rename = "unseen_initial_states",
+        default,
+        skip_serializing_if = "Vec::is_empty"
+    )]
     pub unseen: Vec<String>,
     /// Those the warm-up shows whose value lies on a bound of their
     /// `estimate` range: the record may ask for a value outside it.
+    #[serde(
+        rename = "initial_states_at_bound",
+        default,
+        skip_serializing_if = "Vec::is_empty"
+    )]
     pub at_bound: Vec<String>,
 }
 
@@ -458,9 +457,7 @@ pub fn validate(
         diverged_to: sim.diverged_to,
         zeno: sim.zeno,
         mode_counts,
-        initial_states: BTreeMap::new(),
-        unseen_initial_states: Vec::new(),
-        initial_states_at_bound: Vec::new(),
+        initial: InitialStates::default(),
         records: parts,
     };
     Ok((report, sim, pred))
@@ -540,9 +537,7 @@ fn validate_record(
         diverged_to: sim.diverged_to,
         zeno: sim.zeno,
         mode_counts,
-        initial_states: states.values,
-        unseen_initial_states: states.unseen,
-        initial_states_at_bound: states.at_bound,
+        initial: states,
         records: Vec::new(),
     };
     Ok((report, sim, pred))

@@ -135,10 +135,10 @@ pub fn run(mut args: Args) -> Result<()> {
             "modes     {} (scored samples per mode in the simulation)",
             counts.join(", ")
         );
-        if !report.initial_states.is_empty() {
+        if !report.initial.values.is_empty() {
             println!(
                 "initial   {} (estimated from the warm-up)",
-                super::states_text(&report.estimated_states())
+                super::states_text(&report.initial)
             );
         }
         for (file, r) in args.data.iter().zip(&report.records) {
@@ -150,8 +150,8 @@ pub fn run(mut args: Args) -> Result<()> {
                 unsigned_zero(r.fit_pred),
                 r.n
             );
-            if !r.initial_states.is_empty() {
-                print!("  initial {}", super::states_text(&r.estimated_states()));
+            if !r.initial.values.is_empty() {
+                print!("  initial {}", super::states_text(&r.initial));
             }
             println!();
         }

@@ -185,7 +185,7 @@ fn the_unknown_initial_state_is_fitted_as_a_nuisance_parameter() {
             other => panic!("{other:?}"),
         }
         let (report, _, _) = validate(&Model::GrayBox(fitted), &data, 10).unwrap();
-        let again = report.initial_states["x1"];
+        let again = report.initial.values["x1"];
         assert!(
             relative(again, x1) <= 1e-6,
             "validate's x1: {again} against {x1}"
