@@ -243,6 +243,11 @@ pub struct RunSpec {
 }
 
 impl RunSpec {
+    /// The model file its `set` names ([`MODEL_FILE_OPTION`]), if any.
+    pub fn model_file(&self) -> Option<&Path> {
+        self.set.get(MODEL_FILE_OPTION)?.as_str().map(Path::new)
+    }
+
     /// Its `set` table as options, values as `--set` writes them.
     pub fn settings(&self) -> hysid_core::options::Settings {
         hysid_core::options::Settings::from_pairs(
@@ -300,9 +305,10 @@ impl SweepSpec {
     /// The model files the sweep's points fit: its run's `set` one, and
     /// those it sweeps.
     pub fn model_files(&self) -> impl Iterator<Item = &Path> {
-        (self.run.set.get(MODEL_FILE_OPTION).into_iter())
-            .chain(self.swept_model_files())
-            .filter_map(|file| file.as_str().map(Path::new))
+        (self.run.model_file().into_iter()).chain(
+            self.swept_model_files()
+                .filter_map(|file| file.as_str().map(Path::new)),
+        )
     }
 
     /// How a point shows `value` of `key`: a swept model file by its file
@@ -860,8 +866,7 @@ impl Experiment {
     /// files.
     pub fn input_files(&self) -> Vec<&Path> {
         let records = self.data.records.iter().map(|r| r.file.as_path());
-        let runs = (self.runs.iter())
-            .filter_map(|run| run.set.get(MODEL_FILE_OPTION)?.as_str().map(Path::new));
+        let runs = self.runs.iter().filter_map(RunSpec::model_file);
         let sweeps = self.sweeps.iter().flat_map(SweepSpec::model_files);
         std::iter::once(self.data.file.as_path())
             .chain(records)
