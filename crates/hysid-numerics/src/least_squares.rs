@@ -295,6 +295,12 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
         descent.stop = Stop::Diverged;
         return Ok(descent);
     }
+    // No Jacobian (often the costliest evaluation) for a descent that
+    // could take no step.
+    if settings.iterations > 0 && deadline.passed() {
+        descent.stop = Stop::TimeBudget;
+        return Ok(descent);
+    }
     let mut current = linearised(problem, &v, start)?;
     let n = problem.unknowns();
     let scale = match settings.damping {
@@ -647,6 +653,21 @@ mod tests {
             levenberg_marquardt(&problem, vec![0.0, 0.0], &LmSettings::new(1000), &passed).unwrap();
         assert_eq!((cut.stop, cut.iterations), (Stop::TimeBudget, 0));
         assert!(cut.v.is_none());
+        // Past the deadline, no Jacobian is formed: the start's residuals
+        // are the one evaluation.
+        let calls = std::sync::atomic::AtomicUsize::new(0);
+        let counted = |x: &[f64]| {
+            calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            system(x)
+        };
+        let differences = CentralDifferences { step: 1e-7 };
+        let cut = descend(
+            &Residuals::new(counted, 2, None, differences),
+            vec![1.0, 1.0],
+            &LmSettings::new(100),
+            &passed,
+        );
+        assert_eq!((cut.stop, calls.into_inner()), (Stop::TimeBudget, 1));
     }
 
     /// `x^2 = 2, x y = 3`: `x = sqrt 2`, `y = 3 / sqrt 2`.

@@ -22,11 +22,17 @@ pub const CONFIDENCE_METHOD: &str = "Gauss-Newton s^2 (J^T J)^-1 from a central 
 /// sensitivities.
 pub const CONFIDENCE_METHOD_EXACT: &str = "Gauss-Newton s^2 (J^T J)^-1 from the exact Jacobian of the simulation residuals (forward sensitivities); local, and optimistic since the residuals are correlated";
 
+/// [`PhysicalDiagnostics::confidence_method`] where the time budget ran
+/// out before the Jacobian.
+pub const CONFIDENCE_NOT_COMPUTED: &str =
+    "none: the time budget ran out before the Jacobian of the standard errors";
+
 /// The confidence method of a Jacobian of kind `kind`.
 pub fn confidence_method(kind: JacobianKind) -> &'static str {
     match kind {
         JacobianKind::Exact => CONFIDENCE_METHOD_EXACT,
         JacobianKind::CentralDifferences => CONFIDENCE_METHOD,
+        JacobianKind::NotComputed => CONFIDENCE_NOT_COMPUTED,
     }
 }
 
@@ -156,8 +162,14 @@ impl PhysicalDiagnostics {
         }
         let no_error = named(Identifiability::NoStandardError);
         if !no_error.is_empty() {
+            let why = match self.jacobian {
+                JacobianKind::NotComputed => "the time budget ran out before the Jacobian",
+                _ => {
+                    "a singular Jacobian: parameters that act only together, such as a product, or a failed perturbed run"
+                }
+            };
             out.push(format!(
-                "{}: no standard error (a singular Jacobian: parameters that act only together, such as a product, or a failed perturbed run)",
+                "{}: no standard error ({why})",
                 no_error.join(", ")
             ));
         }

@@ -11,7 +11,7 @@ use crate::identifiability;
 use crate::local::{Descended, LocalResult, descend_from, local_stages};
 use crate::objective::{FAILED, Objective, simulation_mse, velocity_tolerances};
 use crate::parameters::ParameterMap;
-use crate::sensitivity::sensitivity;
+use crate::sensitivity::{Sensitivity, sensitivity};
 use crate::stages::{Search, SearchFailure, StageLog};
 use crate::swarm::{SwarmResult, global_stage, noise_floor, nominal_suffices};
 use crate::target::Target;
@@ -119,13 +119,19 @@ pub fn fit_model<M: Target>(
             },
         });
     }
-    let sens = sensitivity(
-        &model,
-        &map,
-        &values,
-        &records,
-        (options.exact_jacobian, options.fd_step),
-    );
+    // The Jacobian costs one run with sensitivities, or two runs per free
+    // coordinate: not begun after the deadline.
+    let sens = if ctx.deadline.passed() {
+        Sensitivity::not_computed(map.dim())
+    } else {
+        sensitivity(
+            &model,
+            &map,
+            &values,
+            &records,
+            (options.exact_jacobian, options.fd_step),
+        )
+    };
     let identifiability =
         identifiability::classify(&model, &map, &mut values, cost, &records, &sens);
     let status = Status::of(&log, evaluations, options.local_iters);

@@ -183,12 +183,14 @@ fn local_stage(
         cost: objective.mse(from),
     };
     // The starts run in parallel; their outcomes are offered in start
-    // order, so the result is the same for any number of threads.
+    // order, so the result is the same for any number of threads. No
+    // descent begins after the deadline.
+    let deadline = &search.ctx.deadline;
     let outcomes: Vec<_> = starts
         .par_iter()
         .map(|start| {
             let at_start = objective.mse(start);
-            let descent = (options.lm_iters > 0).then(|| {
+            let descent = (options.lm_iters > 0 && !deadline.passed()).then(|| {
                 let d = descend_from(search, segment, start);
                 (d.stop, d.z, d.cost)
             });

@@ -43,6 +43,8 @@ pub enum JacobianKind {
     /// By central differences.
     #[default]
     CentralDifferences,
+    /// Not computed: the time budget ran out before it.
+    NotComputed,
 }
 
 impl Sensitivity {
@@ -54,6 +56,15 @@ impl Sensitivity {
             effect: vec![true; d],
             condition: f64::NAN,
             jacobian: JacobianKind::CentralDifferences,
+        }
+    }
+
+    /// Nothing computed, for `d` free coordinates: the time budget ran
+    /// out before the Jacobian.
+    pub fn not_computed(d: usize) -> Self {
+        Sensitivity {
+            jacobian: JacobianKind::NotComputed,
+            ..Self::undefined(d)
         }
     }
 
