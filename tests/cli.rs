@@ -739,6 +739,74 @@ fn y0_is_read_where_the_initial_state_comes_from_the_output() {
     assert_ne!(with, run(measured, None).1);
 }
 
+/// `simulate --x0` starts a physical model from the state given, in
+/// place of its file's rule (the axis reads its state from the warm-up):
+/// at rest under no input, the axis sticks where it was put; pushed, it
+/// slides on and sticks farther. A mechanical model takes the states of its
+/// gray-box form. Every state must be named, and a PWARX model has none.
+#[test]
+fn x0_starts_a_physical_model_from_the_state_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+    let out = dir.path().join("run.csv");
+    let args = |model: &str, x0: &str| {
+        let model = format!("{root}/{model}");
+        let excite = "n=30,hold=5,low=0,high=0,ts=0.01";
+        [
+            "simulate",
+            &model,
+            "--excite",
+            excite,
+            "--x0",
+            x0,
+            "-o",
+            s(&out),
+        ]
+        .map(str::to_string)
+    };
+    let outputs = |model: &str, x0: &str| {
+        let args = args(model, x0);
+        ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let text = std::fs::read_to_string(&out).unwrap();
+        (text.lines().skip(1))
+            .map(|l| l.split(',').nth(2).unwrap().parse::<f64>().unwrap())
+            .collect::<Vec<f64>>()
+    };
+    let axis = "models/examples/positioning-axis.toml";
+    let still = outputs(axis, "q=0.25,v=0");
+    assert_eq!(still.len(), 30);
+    assert!(still.iter().all(|&y| y == 0.25), "{still:?}");
+    let pushed = outputs(axis, "v=0.05, q=0.25");
+    assert_eq!(pushed[0], 0.25);
+    assert!(pushed[29] > 0.25 && pushed[29] == pushed[28], "{pushed:?}");
+    let head = outputs("models/pick-and-place/head.toml", "y=1.5,v=0");
+    assert_eq!(head[0], 1.5, "{head:?}");
+    std::fs::remove_file(&out).unwrap();
+    for (model, x0, message) in [
+        (
+            axis,
+            "q=0.25",
+            "--x0: no value for the state 'v' (give every state: q, v)",
+        ),
+        (
+            axis,
+            "q=0.25,v=0,w=1",
+            "--x0: 'w' is not a state of the model (its states: q, v)",
+        ),
+        (
+            "docs/pick-and-place/models/arx_2_2.json",
+            "y=1",
+            "--x0: a pwarx model has no state to give",
+        ),
+    ] {
+        let args = args(model, x0);
+        let o = hysid(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let line = one_line_error(&o, 2).unwrap();
+        assert!(line.contains(message), "{line}");
+    }
+    assert!(!out.exists(), "no partial output");
+}
+
 /// A record without `y` is read by the output name the gray-box file
 /// declares (`speed`): the model's own simulation, so renamed, scores
 /// 100 %.

@@ -10,7 +10,7 @@
 
 use crate::common;
 
-use common::{fail, hysid, one_line_error, report, s, write};
+use common::{fail, hysid, ok, one_line_error, report, s, write};
 use std::path::{Path, PathBuf};
 
 /// What a run ended with.
@@ -321,6 +321,46 @@ fn constant_output_and_collinear_regressors() {
         }
     }
     report();
+}
+
+/// FIT over a constant output is undefined: `validate` says so beside the
+/// figure, in its text and its JSON, and not where the output varies.
+#[test]
+fn validate_says_fit_is_undefined_on_a_constant_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let u = input(120, 3);
+    let varying = csv(d, "varying.csv", &u, &pwarx(&u, &[ONE]), 1.0);
+    let flat = csv(d, "flat.csv", &u, &vec![3.0; u.len()], 1.0);
+    let model = d.join("m.json");
+    ok(&[
+        "identify",
+        s(&varying),
+        "-m",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "-o",
+        s(&model),
+    ]);
+    let warning = "the scored output is constant: FIT is undefined there";
+    let on_flat = hysid(&["validate", s(&model), s(&flat), "--json"]);
+    assert!(on_flat.status.success());
+    let stderr = String::from_utf8_lossy(&on_flat.stderr);
+    assert!(
+        stderr.contains(&format!("hysid: warning: {warning}")),
+        "{stderr}"
+    );
+    let report: serde_json::Value = serde_json::from_slice(&on_flat.stdout).unwrap();
+    assert_eq!(report["constant_output"], true, "{report}");
+    assert_eq!(report["fit_sim"], 0.0, "{report}");
+    let on_varying = hysid(&["validate", s(&model), s(&varying), "--json"]);
+    let stderr = String::from_utf8_lossy(&on_varying.stderr);
+    assert!(!stderr.contains(warning), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&on_varying.stdout).unwrap();
+    assert!(report.get("constant_output").is_none(), "{report}");
 }
 
 #[test]

@@ -15,13 +15,14 @@
 //!   physics, with expressions, guards, resets and built-in elements.
 
 use hysid_graybox::extends::Syntax;
-use hysid_graybox::{GrayBoxModel, InvalidGrayBox, extends};
+use hysid_graybox::{GrayBoxInitialState, GrayBoxModel, InvalidGrayBox, extends};
 use hysid_mechanical::{InvalidMechanical, MechanicalModel};
 use hysid_model::model::{
     HybridAutomaton, InitialState, InvalidModel, ModelInfo, PwarxModel, Stop, StopBound,
 };
 use hysid_model::regressors::RegressorSpec;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 mod located;
@@ -39,6 +40,59 @@ pub struct SignalNames {
     pub inputs: Option<Vec<String>>,
     /// The output's name; `None` where the model names none.
     pub output: Option<String>,
+}
+
+/// Why a model cannot start from a given state ([`Model::starting_from`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GivenStateError {
+    /// A PWARX model has no state.
+    #[error("a pwarx model has no state to give: its initial condition is its first outputs")]
+    NoState,
+    /// A name that is not one of the model's states.
+    #[error("'{name}' is not a state of the model (its states: {})", .states.join(", "))]
+    Unknown {
+        /// The name given.
+        name: String,
+        /// The model's states.
+        states: Vec<String>,
+    },
+    /// A state without a value.
+    #[error("no value for the state '{name}' (give every state: {})", .states.join(", "))]
+    Missing {
+        /// The state.
+        name: String,
+        /// The model's states.
+        states: Vec<String>,
+    },
+    /// A mechanical model without a gray-box form.
+    #[error(transparent)]
+    Untranslatable(Untranslatable),
+}
+
+/// The values of `state` in the order of `states`: every name a state,
+/// every state named.
+fn every_state(
+    states: &[String],
+    state: &BTreeMap<String, f64>,
+) -> Result<Vec<f64>, GivenStateError> {
+    if let Some(name) = state.keys().find(|n| !states.contains(n)) {
+        return Err(GivenStateError::Unknown {
+            name: name.clone(),
+            states: states.to_vec(),
+        });
+    }
+    states
+        .iter()
+        .map(|name| {
+            state
+                .get(name)
+                .copied()
+                .ok_or_else(|| GivenStateError::Missing {
+                    name: name.clone(),
+                    states: states.to_vec(),
+                })
+        })
+        .collect()
 }
 
 /// Any model hysid can simulate and validate.
@@ -159,6 +213,46 @@ impl Model {
             Model::HybridAutomaton(m) => m.inputs.len(),
             Model::Mechanical(m) => m.inputs.len(),
             Model::GrayBox(m) => m.inputs.len(),
+        }
+    }
+
+    /// The model started from `state` (a value for every state, by name)
+    /// at sample 0, in place of its file's initial-state rule; a gray-box
+    /// rule's starting mode is kept. A mechanical model becomes its
+    /// gray-box form ([`to_gray_box`]), whose states (`y`, `v`) take the
+    /// values. A PWARX model has no state: its initial condition is its
+    /// first outputs.
+    pub fn starting_from(&self, state: &BTreeMap<String, f64>) -> Result<Model, GivenStateError> {
+        match self {
+            Model::Pwarx(_) => Err(GivenStateError::NoState),
+            Model::HybridAutomaton(m) => {
+                let values = every_state(&m.states, state)?;
+                Ok(Model::HybridAutomaton(HybridAutomaton {
+                    initial_state: InitialState::Given { state: values },
+                    ..m.clone()
+                }))
+            }
+            Model::Mechanical(m) => {
+                let g = to_gray_box(m).map_err(GivenStateError::Untranslatable)?;
+                Model::GrayBox(g).starting_from(state)
+            }
+            Model::GrayBox(m) => {
+                let values = every_state(&m.states, state)?;
+                let mode = match &m.initial_state {
+                    GrayBoxInitialState::Given { mode, .. }
+                    | GrayBoxInitialState::Measured { mode, .. }
+                    | GrayBoxInitialState::Steady { mode, .. } => mode.clone(),
+                };
+                Ok(Model::GrayBox(GrayBoxModel {
+                    initial_state: GrayBoxInitialState::Given {
+                        values: m.states.iter().cloned().zip(values).collect(),
+                        mode,
+                        estimate: Default::default(),
+                        samples: None,
+                    },
+                    ..m.clone()
+                }))
+            }
         }
     }
 

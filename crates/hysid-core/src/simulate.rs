@@ -15,7 +15,7 @@ use hysid_graybox::GrayBoxModel;
 use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
 use hysid_model::data::same_sampling;
-use hysid_model::metrics::{fit, pooled_fit, rmse};
+use hysid_model::metrics::{fit, fit_undefined, pooled_fit, rmse};
 use hysid_model::model::InitialState;
 use hysid_model::simulate::{
     DivergedTo, MAX_SUBSTEPS_PER_SAMPLE, SimError, Simulation, SimulationOptions,
@@ -149,13 +149,46 @@ pub struct ValidationReport {
     /// Absent for one record.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub records: Vec<ValidationReport>,
+    /// The scored output is constant (every record's, for several), so
+    /// FIT is undefined: it says 100 for an exact match and 0 otherwise
+    /// ([`hysid_model::metrics::fit`]). Absent when false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub constant_output: bool,
 }
 
 impl ValidationReport {
-    /// What the user of this validation should be told about its
-    /// simulation ([`SimulationWarning`]).
-    pub fn warnings(&self) -> Vec<SimulationWarning> {
-        SimulationWarning::of(self.diverged_at, self.diverged_to, self.zeno)
+    /// What the user of this validation should be told: about its
+    /// simulation ([`SimulationWarning`]), and that FIT means nothing on
+    /// a constant output.
+    pub fn warnings(&self) -> Vec<ValidationWarning> {
+        let simulation = SimulationWarning::of(self.diverged_at, self.diverged_to, self.zeno);
+        (simulation.into_iter().map(ValidationWarning::Simulation))
+            .chain(
+                self.constant_output
+                    .then_some(ValidationWarning::ConstantOutput),
+            )
+            .collect()
+    }
+}
+
+/// What the user of a validation should be told about it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ValidationWarning {
+    /// About the simulation.
+    Simulation(SimulationWarning),
+    /// The scored output is constant: FIT is undefined.
+    ConstantOutput,
+}
+
+impl std::fmt::Display for ValidationWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ValidationWarning::Simulation(w) => w.fmt(f),
+            ValidationWarning::ConstantOutput => f.write_str(
+                "the scored output is constant: FIT is undefined there (100 % for an exact \
+                 match, 0 % otherwise); judge the model by its RMSE",
+            ),
+        }
     }
 }
 
@@ -458,6 +491,7 @@ pub fn validate(
         zeno: sim.zeno,
         mode_counts,
         initial: InitialStates::default(),
+        constant_output: fit_undefined(&y),
         records: parts,
     };
     Ok((report, sim, pred))
@@ -539,6 +573,7 @@ fn validate_record(
         mode_counts,
         initial: states,
         records: Vec::new(),
+        constant_output: fit_undefined(&[y]),
     };
     Ok((report, sim, pred))
 }

@@ -20,21 +20,37 @@ pub fn fit(y: &[f64], yhat: &[f64]) -> f64 {
 /// the differences between the records' levels as spread a model explains
 /// and put it above every one of them. One record: [`fit`].
 pub fn pooled_fit(records: &[(&[f64], &[f64])]) -> f64 {
-    let (mut err, mut den) = (0.0, 0.0);
+    let mut err = 0.0;
     for (y, yhat) in records {
-        let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
         err += y
             .iter()
             .zip(*yhat)
             .map(|(a, b)| (a - b).powi(2))
             .sum::<f64>();
-        den += y.iter().map(|a| (a - mean).powi(2)).sum::<f64>();
     }
-    let (err, den) = (err.sqrt(), den.sqrt());
+    let err = err.sqrt();
+    let den = spread(records.iter().map(|(y, _)| *y));
     if den <= f64::MIN_POSITIVE {
         return if err == 0.0 { 100.0 } else { 0.0 };
     }
     100.0 * (1.0 - err / den)
+}
+
+/// The denominator of [`pooled_fit`]: the root of the squared deviations
+/// of each record about its own mean, summed over the records.
+fn spread<'a>(records: impl Iterator<Item = &'a [f64]>) -> f64 {
+    let mut den = 0.0;
+    for y in records {
+        let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
+        den += y.iter().map(|a| (a - mean).powi(2)).sum::<f64>();
+    }
+    den.sqrt()
+}
+
+/// Whether FIT is undefined on these records' outputs: none varies about
+/// its mean, so [`pooled_fit`] (and [`fit`]) can only say 100 or 0.
+pub fn fit_undefined(records: &[&[f64]]) -> bool {
+    spread(records.iter().copied()) <= f64::MIN_POSITIVE
 }
 
 /// Root-mean-square error, in the output's units.
@@ -258,6 +274,10 @@ mod tests {
         assert!((fit(&y, &[2.0, 2.0, 2.0])).abs() < 1e-12);
         assert_eq!(fit(&[1.0, 1.0], &[1.0, 1.0]), 100.0);
         assert_eq!(fit(&[1.0, 1.0], &[1.0, 2.0]), 0.0);
+        assert!(fit_undefined(&[&[1.0, 1.0], &[3.0]]));
+        // One record that varies defines the pooled FIT.
+        assert!(!fit_undefined(&[&[1.0, 1.0], &[3.0, 3.5]]));
+        assert!(!fit_undefined(&[&y]));
     }
 
     #[test]

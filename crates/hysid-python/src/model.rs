@@ -12,6 +12,7 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// A hysid model: a PWARX model, a hybrid automaton, a mechanical or a
@@ -311,17 +312,35 @@ impl Model {
 
     /// Free-run simulation driven by `u`; `y0` (shape `(k,)` or `(k, 1)`)
     /// gives the outputs of the first samples (the initial condition; zeros
-    /// when left out). A `hysid.Record` in place of `u` gives the inputs
-    /// and `ts` (its outputs are not read, as `Estimator.simulate`).
-    /// Returns `(y, mode)`.
-    #[pyo3(signature = (u, y0=None, ts=None))]
+    /// when left out), or `x0` (a dictionary with a value for every state)
+    /// the state at the first sample, in place of the model's initial-state
+    /// rule (`hysid simulate --x0`). A `hysid.Record` in place of `u` gives
+    /// the inputs and `ts` (its outputs are not read, as
+    /// `Estimator.simulate`). Returns `(y, mode)`.
+    #[pyo3(signature = (u, y0=None, ts=None, x0=None))]
     fn simulate<'py>(
         &self,
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
         y0: Option<&Bound<'py, PyAny>>,
         ts: Option<&Bound<'py, PyAny>>,
+        x0: Option<BTreeMap<String, f64>>,
     ) -> PyResult<Outputs<'py>> {
+        let started;
+        let model = match x0 {
+            Some(_) if y0.is_some() => {
+                return Err(Failure::input("x0 and y0: give one initial condition").into());
+            }
+            Some(state) => {
+                if let Some((name, v)) = state.iter().find(|(_, v)| !v.is_finite()) {
+                    return Err(Failure::input(format!("x0: {name} = {v} is not finite")).into());
+                }
+                started = (self.inner.starting_from(&state))
+                    .map_err(|e| Failure::input(format!("x0: {e}")))?;
+                &started
+            }
+            None => &self.inner,
+        };
         // A record's inputs drive the run; its outputs are not read.
         let (u, _, ts) = unpacked(py, u, None, ts)?;
         let u = &u;
@@ -344,13 +363,13 @@ impl Model {
             y[..given.len()].copy_from_slice(&given.iter().copied().collect::<Vec<_>>());
         }
         let data = self.record(u, y, ts)?;
-        warn_sampling_time(py, &self.inner, &data)?;
-        warn_unread_definitions(py, &self.inner)?;
+        warn_sampling_time(py, model, &data)?;
+        warn_unread_definitions(py, model)?;
         let sim = py
-            .detach(|| simulate::simulate(&self.inner, &data, SimulationOptions::default()))
+            .detach(|| simulate::simulate(model, &data, SimulationOptions::default()))
             .map_err(Failure::from)?;
         warn_divergence(py, &sim)?;
-        if let Some(outside) = simulate::OutsideRegions::of(&self.inner, &sim) {
+        if let Some(outside) = simulate::OutsideRegions::of(model, &sim) {
             crate::warn(py, &outside.to_string())?;
         }
         Ok((
@@ -417,10 +436,12 @@ impl Model {
         }
         warn_sampling_time(py, &self.inner, &data)?;
         warn_unread_definitions(py, &self.inner)?;
-        let (report, sim, _) = py
+        let (report, _, _) = py
             .detach(|| simulate::validate(&self.inner, &data, warmup))
             .map_err(Failure::from)?;
-        warn_divergence(py, &sim)?;
+        for warning in report.warnings() {
+            crate::warn_as::<PyRuntimeWarning>(py, &warning.to_string())?;
+        }
         crate::warn_if_below_affine(py, &self.inner, &data, warmup, "these rows")?;
         let text = serde_json::to_string(&report).map_err(|e| Failure::method(e.to_string()))?;
         crate::json(py, &text)

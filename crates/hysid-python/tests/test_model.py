@@ -61,6 +61,16 @@ def test_validation_scores_a_perfect_model_at_one_hundred_percent():
     assert report["n"] == 395 and sum(report["mode_counts"]) == 395
 
 
+def test_a_fit_over_a_constant_output_is_said_to_be_undefined():
+    model = two_mode_model()
+    u = np.random.default_rng(3).uniform(-1, 1, 400)
+    with pytest.warns(RuntimeWarning, match="the scored output is constant: FIT is undefined"):
+        report = model.validate(u, np.full(400, 2.0))
+    assert report["constant_output"] is True and report["fit_sim"] == 0.0
+    y, _ = reference(u, -0.2)
+    assert "constant_output" not in model.validate(u, y)
+
+
 def test_structure_is_exposed_as_arrays():
     model = two_mode_model()
     assert model.kind == "pwarx" and model.mode_count == 2 and model.orders == (1, 1)
@@ -89,6 +99,25 @@ def test_a_mechanical_model_simulates_from_its_file():
     u = np.full(2000, -0.1)
     y, modes = model.simulate(u, ts=0.0025)
     assert np.isfinite(y).all() and y.min() >= -1e-9 and y.max() <= 25.0 + 1e-9
+
+
+def test_a_physical_model_starts_from_the_state_given():
+    import pathlib
+
+    axis = pathlib.Path(__file__).resolve().parents[3] / "models" / "examples" / "positioning-axis.toml"
+    model = hysid.Model.load(axis)
+    u = np.zeros(30)
+    # At rest under no input, the axis sticks where it was put.
+    y, _ = model.simulate(u, ts=0.01, x0={"q": 0.25, "v": 0.0})
+    assert (y == 0.25).all()
+    y, _ = model.simulate(u, ts=0.01, x0={"q": 0.25, "v": 0.05})
+    assert y[0] == 0.25 and y[-1] > 0.25
+    with pytest.raises(ValueError, match=r"x0: no value for the state 'v' \(give every state: q, v\)"):
+        model.simulate(u, ts=0.01, x0={"q": 0.25})
+    with pytest.raises(ValueError, match="x0 and y0: give one"):
+        model.simulate(u, ts=0.01, x0={"q": 0.25, "v": 0.0}, y0=[0.0])
+    with pytest.raises(ValueError, match="x0: a pwarx model has no state"):
+        two_mode_model().simulate(u, x0={"y": 1.0})
 
 
 def test_a_file_that_extends_another_reads_as_its_base_with_the_changes():

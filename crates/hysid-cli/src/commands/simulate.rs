@@ -12,6 +12,7 @@ use hysid_model::simulate::SimulationOptions;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Arguments of `hysid simulate`.
@@ -32,6 +33,11 @@ pub struct Args {
     /// --excite; 0 when not given).
     #[arg(long)]
     pub y0: Option<f64>,
+    /// Start from this state at sample 0, in place of the model file's
+    /// initial-state rule: a value for every state, `NAME=V,NAME=V`
+    /// (`--x0 y=0.5,v=0`); state-space and physical models.
+    #[arg(long, value_name = "NAME=V,..", value_parser = parse_state, conflicts_with = "y0")]
+    pub x0: Option<BTreeMap<String, f64>>,
     /// Standard deviation of white Gaussian noise added to the written output.
     #[arg(long, default_value_t = 0.0)]
     pub noise: f64,
@@ -52,11 +58,19 @@ pub fn run(args: Args) -> Result<()> {
     super::not_an_input("-o", &args.out, inputs.map(PathBuf::as_path))?;
     csv_name(&args.out)?;
     let model = super::load_model(&args.model)?;
+    let model = match &args.x0 {
+        Some(state) => {
+            (model.starting_from(state)).map_err(|e| CliError::input(format!("--x0: {e}")))?
+        }
+        None => {
+            super::warn_given_state(&args.model, &model, &args.select.rows);
+            model
+        }
+    };
     let data = driving_record(&args, &model, y0)?;
     super::warn_sampling_time(&args.model, &model, &data, args.excite.is_some());
     super::warn_unread_definitions(&args.model, &model);
     super::warn_input_order(&args.model, &model, &data);
-    super::warn_given_state(&args.model, &model, &args.select.rows);
     if let Some(y0) = args.y0
         && model.initial_state_given()
     {
@@ -150,6 +164,27 @@ pub fn run(args: Args) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// `--x0`'s `NAME=V,NAME=V`: each name once, each value finite.
+fn parse_state(s: &str) -> std::result::Result<BTreeMap<String, f64>, String> {
+    let mut state = BTreeMap::new();
+    for part in s.split(',') {
+        let Some((name, value)) = part.split_once('=') else {
+            return Err(format!("'{part}' is not NAME=VALUE"));
+        };
+        let name = name.trim();
+        let value = (value.trim().parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("'{part}': the value must be a finite number"))?;
+        if name.is_empty() {
+            return Err(format!("'{part}': a state name is missing"));
+        }
+        if state.insert(name.to_string(), value).is_some() {
+            return Err(format!("'{name}' is given twice"));
+        }
+    }
+    Ok(state)
 }
 
 /// `--noise` and `--y0` checked; the output before the first simulated
