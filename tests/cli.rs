@@ -2065,6 +2065,20 @@ fn the_model_s_own_signals_are_named_where_a_record_differs() {
     ];
     let said = stderr(&fit);
     assert!(said.contains(fine_said), "{said}");
+    // A thousand exactly: a model stepping once per sample of a record
+    // whose milliseconds were read as seconds; a hundred is not said.
+    for (internal, said_too) in [("1e-5", true), ("1e-4", false)] {
+        let file = common::write(
+            dir.path(),
+            "finer.toml",
+            text.replace(step, &format!("internal_step = {internal}")),
+        );
+        let run = [&run[..1], &[s(&file)], &run[2..]].concat();
+        let said = stderr(&run);
+        let thousand = "the sampling time 0.01 s is 1000 integration steps";
+        assert_eq!(said.contains("integration steps of"), said_too, "{said}");
+        assert_eq!(said.contains(thousand), said_too, "{said}");
+    }
     // A physical model's warm-up rows under --excite hold --y0: said, with
     // the row the run starts at (the head's measured rule reads 10 samples).
     let head = common::repository_text("models/pick-and-place/head.toml");

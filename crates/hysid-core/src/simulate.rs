@@ -314,9 +314,11 @@ pub fn sampling_time_mismatch(model: &Model, data: &Dataset) -> Option<(f64, f64
 /// the usual sign of a step or a time column in other units than seconds:
 /// longer than it (each sample is then one integration step of the
 /// sampling time, coarser than the file asks for), or so much shorter
-/// that a sample takes more than [`StepScale::FINE`] steps (a time column
-/// in milliseconds read as seconds: every run that many times slower), and
-/// not more than the sub-steps a run is refused beyond.
+/// that a sample takes at least [`StepScale::FINE`] steps (a time column
+/// in milliseconds read as seconds: every run that many times slower; a
+/// model stepping once per sample, as one written for a 1 kHz record with
+/// a 1 ms step, then takes exactly that many), and not more than the
+/// sub-steps a run is refused beyond.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepScale {
     /// The model's internal step, seconds.
@@ -326,7 +328,7 @@ pub struct StepScale {
 }
 
 impl StepScale {
-    /// Integration steps per sample above which a run is warned of.
+    /// Integration steps per sample from which a run is warned of.
     pub const FINE: f64 = 1000.0;
 
     /// The step of `model` on `data` where it is far from the sampling
@@ -340,7 +342,8 @@ impl StepScale {
         let ts = data.ts?;
         // Beyond the sub-step bound the run is refused, not warned of.
         let steps = ts / internal_step;
-        let fine = steps > Self::FINE && steps <= MAX_SUBSTEPS_PER_SAMPLE as f64;
+        // At least FINE to rounding: 1/0.001 need not divide exactly.
+        let fine = steps >= Self::FINE * (1.0 - 1e-9) && steps <= MAX_SUBSTEPS_PER_SAMPLE as f64;
         let far = internal_step > ts || fine;
         far.then_some(Self { internal_step, ts })
     }
