@@ -2739,3 +2739,110 @@ fn a_json_prior_file_reads_as_its_toml_form() {
         "{err}"
     );
 }
+
+/// The terms of a linear form as `hysid show` writes it (`1.5 y(k-1) -
+/// u(k-1) + 0.3`): each regressor's coefficient by name, the constant
+/// under "".
+fn linear_terms(form: &str) -> std::collections::BTreeMap<String, f64> {
+    let mut terms = std::collections::BTreeMap::new();
+    for term in form.replace(" - ", " + -").split(" + ") {
+        let (sign, term) = match term.strip_prefix('-') {
+            Some(rest) => (-1.0, rest),
+            None => (1.0, term),
+        };
+        let (value, name) = match term.split_once(' ') {
+            Some((c, name)) => (c.parse::<f64>().unwrap(), name.to_string()),
+            None => match term.parse::<f64>() {
+                Ok(c) => (c, String::new()),
+                Err(_) => (1.0, term.to_string()),
+            },
+        };
+        terms.insert(name, sign * value);
+    }
+    terms
+}
+
+/// `hysid show` writes each PWARX mode's equation with every coefficient
+/// on the regressor it multiplies (read back, they are the file's theta
+/// to the six digits written) and its region's rows; a fitted physical
+/// model's parameters with their values and what the fit says of each; an
+/// automaton's guard sets (equality rows too) and resets.
+#[test]
+fn show_writes_equations_regions_and_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_mode_record(dir.path(), 300);
+    let model = dir.path().join("m.json");
+    let identify = [
+        "identify",
+        s(&data),
+        "-m",
+        "cluster",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--modes",
+        "2",
+        "-o",
+    ];
+    ok(&[&identify[..], &[s(&model)]].concat());
+    let text = ok(&["show", s(&model)]);
+    assert!(
+        text.starts_with(&format!("{}: pwarx model, 2 mode(s)", s(&model))),
+        "{text}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-5 * b.abs().max(1e-3);
+    for (i, mode) in json["modes"].as_array().unwrap().iter().enumerate() {
+        let lead = format!("mode {}: y(k) = ", i + 1);
+        let line = text.lines().find(|l| l.starts_with(&lead)).unwrap();
+        let terms = linear_terms(&line[lead.len()..]);
+        let theta: Vec<f64> = serde_json::from_value(mode["theta"].clone()).unwrap();
+        for (name, value) in ["y(k-1)", "u(k-1)", ""].iter().zip(&theta) {
+            let written = terms.get(*name).copied().unwrap_or(0.0);
+            assert!(
+                close(written, *value),
+                "{name}: {written} against {value} in {line}"
+            );
+        }
+        let rows = mode["region"]["a"].as_array().unwrap().len();
+        let at = text.find(line).unwrap() + line.len();
+        let region = text[at..]
+            .lines()
+            .skip(1)
+            .take_while(|l| l.starts_with("  "))
+            .count();
+        assert_eq!(region, rows.max(1), "{text}");
+    }
+    let head = "docs/pick-and-place/models/physical_head.toml___seed_1.json";
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+    let text = ok(&["show", &format!("{root}/{head}")]);
+    let json: serde_json::Value = serde_json::from_str(&common::repository_text(head)).unwrap();
+    let fitted = &json["info"]["diagnostics"]["parameters"];
+    for p in json["parameters"].as_array().unwrap() {
+        let name = p["name"].as_str().unwrap();
+        let row = (text.lines())
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap_or_else(|| panic!("no row for {name}: {text}"));
+        let value: f64 = row.split_whitespace().nth(1).unwrap().parse().unwrap();
+        assert!(close(value, p["value"].as_f64().unwrap()), "{row}");
+        let said = match fitted[name]["identifiability"].as_str() {
+            _ if p["fixed"] == true => "fixed".to_string(),
+            Some(kind) => kind.replace('_', " "),
+            None => panic!("{name} has no identifiability"),
+        };
+        assert!(row.ends_with(&said), "{row}");
+    }
+    let ball = format!("{root}/models/examples/bouncing-ball.toml");
+    let text = ok(&["show", &ball]);
+    assert!(
+        text.contains(
+            "transition fly -> fly:\n  guard v <= 0\n        y = 0\n  reset v := -0.75 v\n"
+        ),
+        "{text}"
+    );
+    let missing = dir.path().join("none.json");
+    let err = one_line_error(&hysid(&["show", s(&missing)]), 2).unwrap();
+    assert!(err.contains("none.json"), "{err}");
+}

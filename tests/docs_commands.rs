@@ -97,7 +97,7 @@ fn flags_of(sub: &str) -> BTreeSet<String> {
 #[test]
 fn every_hysid_command_shown_uses_existing_subcommands_and_flags() {
     let subs = [
-        "methods", "identify", "validate", "simulate", "compare", "sweep", "convert",
+        "methods", "identify", "validate", "simulate", "compare", "sweep", "convert", "show",
     ];
     let mut wrong = Vec::new();
     let mut checked = 0;

@@ -38,6 +38,8 @@ enum Command {
     Sweep(commands::sweep::Args),
     /// Write a mechanical model as the gray-box model of the same physics.
     Convert(commands::convert::Args),
+    /// Print a model: its equations, regions or parameters, and how it was identified.
+    Show(commands::show::Args),
 }
 
 fn main() {
@@ -118,6 +120,7 @@ fn dispatch(command: Command) -> Result<()> {
         Command::Compare(a) => commands::compare::run(a),
         Command::Sweep(a) => commands::sweep::run(a),
         Command::Convert(a) => commands::convert::run(a),
+        Command::Show(a) => commands::show::run(a),
     }
 }
 

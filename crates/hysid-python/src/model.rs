@@ -447,6 +447,13 @@ impl Model {
         crate::json(py, &text)
     }
 
+    /// The model in words and equations, as `hysid show` prints it: each
+    /// mode's equation and region, or the parameters with their standard
+    /// errors, and how it was identified.
+    fn describe(&self) -> String {
+        hysid::describe::describe(&self.inner)
+    }
+
     fn __repr__(&self) -> String {
         let orders = self
             .inner

@@ -49,6 +49,7 @@
 
 pub mod backends;
 pub mod compare;
+pub mod describe;
 pub mod identify;
 pub mod select;
 

@@ -9,6 +9,7 @@ pub mod compare;
 pub mod convert;
 pub mod identify;
 pub mod methods;
+pub mod show;
 pub mod simulate;
 pub mod sweep;
 pub mod validate;
