@@ -2,10 +2,12 @@
 draw, and compare returns the report."""
 
 import os
+import re
 import signal
 import threading
 import time
 
+import numpy as np
 import pytest
 
 import hysid
@@ -91,6 +93,31 @@ nb = 3
     experiment.write_text(experiment.read_text().replace('validation = "5000..6001"', 'validation = "4000..6001"'))
     with pytest.warns(UserWarning, match="the validation rows 4000..6001 overlap the identification rows 0..5000"):
         hysid.compare(experiment, tmp_path / "again")
+
+
+def test_compare_says_which_inputs_it_reads_where_the_record_has_both(tmp_path):
+    axis = REPO / "models" / "examples" / "positioning-axis.toml"
+    model = hysid.Model.load(axis)
+    vir = np.repeat(np.random.default_rng(1).uniform(-2, 2, 8), 25)
+    q, _ = model.simulate(vir, ts=0.01, x0={"q": 0.0, "v": 0.0})
+    rows = "\n".join(f"{0.01 * k},{vir[k]},0.5,{q[k]}" for k in range(len(vir)))
+    (tmp_path / "axis.csv").write_text("t,vir,u,y\n" + rows + "\n")
+    experiment = tmp_path / "axis.toml"
+    experiment.write_text(f"""title = "axis"
+[data]
+file = "axis.csv"
+identification = "0..150"
+validation = "150.."
+warmup = 20
+[[run]]
+name = "axis"
+method = "physical"
+set = {{ model = "{axis}", swarm_iters = 2, particles = 4, restarts = 0, lm_iters = 2 }}
+provenance = "user"
+""")
+    said = "the record has u and also vir (the model file of 'axis' declares vir): u is read"
+    with pytest.warns(UserWarning, match=re.escape(said)):
+        hysid.compare(experiment, tmp_path / "out")
 
 
 def test_figures_draw(record, tmp_path):

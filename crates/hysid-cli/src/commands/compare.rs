@@ -4,8 +4,8 @@ use crate::error::CliError;
 use crate::error::Result;
 use crate::progress::TerminalProgress;
 use hysid::compare::{Experiment, ExperimentError, FigureFormat};
-use hysid_model::data::{DataError, DataSelection, RowRange};
-use std::path::{Path, PathBuf};
+use hysid_model::data::DataError;
+use std::path::PathBuf;
 
 /// Arguments of `hysid compare`.
 #[derive(clap::Args, Debug)]
@@ -56,36 +56,6 @@ fn model_inputs_hint(exp: &Experiment, e: &ExperimentError) -> Option<String> {
     ))
 }
 
-/// Says on standard error where `[data]` names no inputs, so that `u` is
-/// read (the record has it), while a run's model file declares others that
-/// the record also has: a record with an unrelated `u` would otherwise fit and score the
-/// model on it without a word (as `identify` and `sweep` say).
-fn warn_of_declared_inputs(path: &Path, exp: &Experiment) {
-    let named = (std::fs::read_to_string(path).ok())
-        .and_then(|text| text.parse::<toml::Table>().ok())
-        .is_none_or(|t| t.get("data").and_then(|d| d.get("input")).is_some());
-    let Some((run, own)) = exp.declared_inputs().filter(|_| !named) else {
-        return;
-    };
-    if own == exp.data.input {
-        return;
-    }
-    let selection = DataSelection {
-        inputs: own.clone(),
-        ..exp.data.selection(RowRange::default())
-    };
-    if hysid_io::load(&exp.data.file, &selection).is_ok() {
-        let (read, declared) = (exp.data.input.join(", "), own.join(", "));
-        eprintln!(
-            "hysid: warning: {}: the record has {read} and also {declared} (the model file of \
-             '{}' declares {declared}): {read} is read, as the default; name {declared} in \
-             [data] input to read it",
-            path.display(),
-            run.name
-        );
-    }
-}
-
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let exp = Experiment::load(&args.experiment).map_err(|e| CliError::input(e.to_string()))?;
@@ -108,7 +78,9 @@ pub fn run(args: Args) -> Result<()> {
         CliError::input(format!("{}: {e}{hint}", args.experiment.display()))
     })?;
     // The record has the inputs read: the run read them.
-    warn_of_declared_inputs(&args.experiment, &exp);
+    if let Some(w) = exp.unread_declared_inputs() {
+        eprintln!("hysid: warning: {}: {w}", args.experiment.display());
+    }
     comparison.figures = args.format;
     hysid::compare::write_report(&mut comparison, &dir)
         .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;

@@ -222,6 +222,7 @@ fn experiment(args: &Args, signals: &SignalArgs, priors: Priors, sweep: SweepSpe
         data: DataSpec {
             file: args.data.clone(),
             input: signals.inputs(),
+            input_named: signals.input.is_some(),
             output: signals.output(),
             decimate: args.signals.decimate,
             ts: args.signals.ts,

@@ -24,6 +24,9 @@ pub struct DataSpec {
     /// Input names (default `["u"]`).
     #[serde(default = "default_inputs")]
     pub input: Vec<String>,
+    /// Whether the file names `input` (else the default `u` is read).
+    #[serde(skip)]
+    pub input_named: bool,
     /// Output name (default `"y"`).
     #[serde(default = "default_output")]
     pub output: String,
@@ -784,10 +787,14 @@ impl Experiment {
 
     /// The experiment of `text`, read as it is written.
     fn parse(text: &str, origin: &str) -> Result<Self, ExperimentError> {
-        toml::from_str(text).map_err(|e| ExperimentError::Invalid {
+        let mut e: Self = toml::from_str(text).map_err(|e| ExperimentError::Invalid {
             path: origin.into(),
             message: e.to_string().trim().replace('\n', " "),
-        })
+        })?;
+        // The file read, so it is a table.
+        let table = text.parse::<toml::Table>().unwrap_or_default();
+        e.data.input_named = table.get("data").and_then(|d| d.get("input")).is_some();
+        Ok(e)
     }
 
     /// The experiment, checked ([`Experiment::check`]) and its jobs
@@ -888,6 +895,31 @@ impl Experiment {
                 .ok()?
                 .inputs?;
             Some((run, inputs)).filter(|(_, i)| !i.is_empty())
+        })
+    }
+
+    /// Where `[data]` names no inputs, so that its default `u` is read,
+    /// while its file also has the inputs a run's model file declares
+    /// ([`Experiment::declared_inputs`]): the warning that says which it
+    /// reads. A record with an unrelated `u` would otherwise fit and score
+    /// the model on it without a word (as `hysid identify` says).
+    pub fn unread_declared_inputs(&self) -> Option<ExperimentWarning> {
+        if self.data.input_named {
+            return None;
+        }
+        let (run, declared) = self.declared_inputs()?;
+        if declared == self.data.input {
+            return None;
+        }
+        let selection = DataSelection {
+            inputs: declared.clone(),
+            ..self.data.selection(RowRange::default())
+        };
+        hysid_io::load(&self.data.file, &selection).ok()?;
+        Some(ExperimentWarning::DeclaredInputsUnread {
+            run: run.name.clone(),
+            read: self.data.input.clone(),
+            declared,
         })
     }
 
@@ -1079,6 +1111,17 @@ pub enum ExperimentWarning {
         /// The validation rows.
         validation: RowRange,
     },
+    /// `[data]` names no inputs and its file has `u`, which is read, and
+    /// also the inputs a run's model file declares
+    /// ([`Experiment::unread_declared_inputs`]).
+    DeclaredInputsUnread {
+        /// The run whose model file declares them.
+        run: String,
+        /// The inputs read (the default).
+        read: Vec<String>,
+        /// The inputs the model file declares.
+        declared: Vec<String>,
+    },
 }
 
 impl fmt::Display for ExperimentWarning {
@@ -1099,6 +1142,19 @@ impl fmt::Display for ExperimentWarning {
                     f,
                     "{entry}: the validation rows {validation} overlap the identification rows \
                      {identification}{of}: their scores are not on rows the fits did not see"
+                )
+            }
+            ExperimentWarning::DeclaredInputsUnread {
+                run,
+                read,
+                declared,
+            } => {
+                let (read, declared) = (read.join(", "), declared.join(", "));
+                write!(
+                    f,
+                    "the record has {read} and also {declared} (the model file of '{run}' \
+                     declares {declared}): {read} is read, as the default; name {declared} in \
+                     [data] input to read it"
                 )
             }
         }
