@@ -247,7 +247,7 @@ fn parameters(s: &mut String, parameters: &[PhysicalParameter], info: &ModelInfo
         "unit".to_string(),
         "std error".to_string(),
         "95 % interval".to_string(),
-        "the rows".to_string(),
+        "identifiability".to_string(),
     ]];
     for p in parameters {
         let diagnosed = fitted.as_ref().and_then(|d| d.parameters.get(&p.name));
