@@ -43,6 +43,10 @@ class Model:
         """Writes the model file atomically: TOML to a `.toml` path, JSON to any other."""
     def to_gray_box(self) -> Model:
         """A mechanical model written as the gray-box model of the same physics (`hysid convert`)."""
+    def describe(self) -> str:
+        """The model in words and equations, as `hysid show` prints it: each
+        mode's equation and region, or the parameters with their standard
+        errors, and how it was identified."""
     @property
     def kind(self) -> str:
         """`"pwarx"`, `"hybrid_automaton"`, `"mechanical"` or `"gray_box"`."""
@@ -92,11 +96,17 @@ class Model:
         """Provenance as a dictionary: method, options, seed, diagnostics and,
         under automatic selection, the candidates and the choice."""
     def simulate(
-        self, u: Any, y0: Optional[ArrayLike] = None, ts: Optional[float] = None
+        self,
+        u: Any,
+        y0: Optional[ArrayLike] = None,
+        ts: Optional[float] = None,
+        x0: Optional[Dict[str, float]] = None,
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
         """Free-run simulation driven by `u`; `y0` (shape `(k,)` or `(k, 1)`)
         gives the outputs of the first samples (the initial condition; zeros
-        when left out); `ts`: the sampling time in seconds (a
+        when left out), or `x0` (a value for every state, by name) the
+        state at the first sample, in place of the model's initial-state
+        rule (`hysid simulate --x0`); `ts`: the sampling time in seconds (a
         continuous-time model needs it). A `hysid.Record` in place of `u`
         gives the inputs and `ts` (its outputs are not read, as
         `Estimator.simulate`). Returns `(y, mode)`."""
