@@ -1528,6 +1528,29 @@ fn an_input_is_never_overwritten() {
         err.contains("a data file (.csv) where the model file"),
         "{err}"
     );
+    // So are an experiment file and a prior file.
+    let experiment = common::write(
+        dir.path(),
+        "e.toml",
+        "title = \"t\"\n[data]\nfile = \"d.csv\"\n[[run]]\nname = \"a\"\nmethod = \"arx\"\n",
+    );
+    let prior = common::write(dir.path(), "p.toml", "modes = 2\n[fixed]\na1 = 0.5\n");
+    for (file, what) in [
+        (&experiment, "an experiment file"),
+        (&prior, "a prior file"),
+    ] {
+        for command in ["validate", "show"] {
+            let mut args = vec![command, s(file)];
+            if command == "validate" {
+                args.push(s(&data));
+            }
+            let err = one_line_error(&hysid(&args), 2).unwrap();
+            assert!(
+                err.contains(what) && err.contains("not a model file (which names its kind"),
+                "{err}"
+            );
+        }
+    }
     // Rows that start with a hyphen are refused as rows, not read as a flag.
     let out = dir.path().join("m.json");
     bad(

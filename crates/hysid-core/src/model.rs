@@ -95,6 +95,29 @@ fn every_state(
         .collect()
 }
 
+/// What a file without a model's `kind` is, where its tables say: an
+/// experiment file (`[data]` and `[[run]]` or `[[sweep]]`), or a prior
+/// file (only the keys of priors).
+fn other_file_kind(value: &serde_json::Value) -> Option<&'static str> {
+    let table = value.as_object().filter(|t| !t.contains_key("kind"))?;
+    let has = |key: &str| table.contains_key(key);
+    if has("data") && (has("run") || has("sweep")) {
+        return Some("an experiment file (its [data] and [[run]] tables)");
+    }
+    let priors = [
+        "modes",
+        "max_modes",
+        "saturation",
+        "fixed",
+        "bounds",
+        "tie",
+        "equality",
+        "switching",
+    ];
+    (!table.is_empty() && table.keys().all(|k| priors.contains(&k.as_str())))
+        .then_some("a prior file")
+}
+
 /// Any model hysid can simulate and validate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -489,6 +512,14 @@ impl Model {
                 message,
             },
         })?;
+        if let Some(other) = other_file_kind(&resolved.value) {
+            return Err(ModelError::Format {
+                path: origin,
+                message: format!(
+                    "{other}, not a model file (which names its kind: kind = \"pwarx\", \"hybrid_automaton\", \"mechanical\" or \"gray_box\")"
+                ),
+            });
+        }
         let m = match Model::deserialize(&resolved.value) {
             Ok(m) => m,
             // A file on its own is parsed again from its text, so that a
