@@ -454,6 +454,11 @@ impl Model {
         hysid::describe::describe(&self.inner)
     }
 
+    /// `print(model)`: [`Self::describe`].
+    fn __str__(&self) -> String {
+        self.describe()
+    }
+
     fn __repr__(&self) -> String {
         let orders = self
             .inner

@@ -73,6 +73,7 @@ def test_a_fit_over_a_constant_output_is_said_to_be_undefined():
 
 def test_a_model_describes_itself_as_hysid_show_does():
     text = two_mode_model().describe()
+    assert str(two_mode_model()) == text
     assert text.startswith("pwarx model, 2 mode(s)")
     assert "mode 1: y(k) = 0.5 y(k-1) + u(k-1) + 0.1\n  where y(k-1) <= 0\n" in text
     assert "mode 2: y(k) = 0.8 y(k-1) - 0.5 u(k-1) - 0.2\n  where -y(k-1) <= 0\n" in text
