@@ -71,7 +71,7 @@ fn the_readme_results_table_quotes_the_main_job_report() {
             .find(|(cell, _)| *cell == row[0])
             .unwrap_or_else(|| panic!("README row {:?}: which report run does it quote?", row[0]));
         let figures = quoted_figures(&row[1]);
-        // Over seeds: | run | provenance | seeds | scored | median | min | max |
+        // Over seeds: | run | provenance | seeds | scored | median | min | max | (rmse_sim's) |
         let reported: Vec<f64> = match seeds.iter().find(|r| r[0] == *run) {
             Some(r) => r[4..7].iter().map(|v| v.parse().unwrap()).collect(),
             None => {
@@ -95,5 +95,31 @@ fn the_readme_results_table_quotes_the_main_job_report() {
         for (quoted, value) in figures.iter().zip(&reported) {
             assert_eq!(*quoted, rounded_as(*value, quoted), "{run}: {}", row[1]);
         }
+    }
+}
+
+/// The report's table over seeds gives each group's median, least and
+/// largest `rmse_sim`, as its runs' rows give them (an odd number of
+/// scored runs: the median is one of them).
+#[test]
+fn the_seeds_table_gives_the_runs_rmse_median_and_range() {
+    let report = std::fs::read_to_string(root().join("docs/pick-and-place/report.md")).unwrap();
+    let seeds = table_after(&report, "Over seeds");
+    let runs = table_after(&report, "| run | provenance | method |");
+    assert!(!seeds.is_empty());
+    for group in &seeds {
+        let prefix = format!("{} [seed=", group[0]);
+        let mut errors: Vec<&str> = (runs.iter())
+            .filter(|r| r[0].starts_with(&prefix))
+            .map(|r| r[7].as_str())
+            .collect();
+        errors.sort_by(|a, b| a.parse::<f64>().unwrap().total_cmp(&b.parse().unwrap()));
+        assert_eq!(errors.len() % 2, 1, "{}: {errors:?}", group[0]);
+        let expected = [
+            errors[errors.len() / 2],
+            errors[0],
+            errors[errors.len() - 1],
+        ];
+        assert_eq!(group[7..10], expected, "{}", group[0]);
     }
 }

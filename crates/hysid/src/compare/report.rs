@@ -4,6 +4,7 @@
 use crate::compare::experiment::slug;
 use crate::compare::{Comparison, Drawn, DrawnRun, RunResult};
 use hysid_core::model::Model;
+use hysid_core::simulate::ValidationReport;
 use hysid_model::data::Dataset;
 use hysid_model::geometry::Polyhedron;
 use hysid_model::model::{HybridAutomaton, InitialState, PwarxMode, PwarxModel, TimeDomain};
@@ -762,7 +763,7 @@ fn seeds_table(s: &mut String, c: &Comparison) {
     }
     let _ = writeln!(
         s,
-        "Over seeds (each `[[run]]` with `seeds`, {} fit_sim [%]):\n\n| run | provenance | seeds | scored | median | min | max |\n|---|---|---|---|---|---|---|",
+        "Over seeds (each `[[run]]` with `seeds`, {} fit_sim [%], and rmse_sim):\n\n| run | provenance | seeds | scored | median | min | max | rmse_sim median | rmse_sim min | rmse_sim max |\n|---|---|---|---|---|---|---|---|---|---|",
         c.scored_rows.word()
     );
     for g in groups {
@@ -771,13 +772,19 @@ fn seeds_table(s: &mut String, c: &Comparison) {
             .iter()
             .filter(|r| r.seed_group.as_deref() == Some(g))
             .collect();
-        let mut fits: Vec<f64> = runs
-            .iter()
-            .filter_map(|r| r.report.as_ref().map(|v| v.fit_sim))
-            .collect();
-        fits.sort_by(f64::total_cmp);
+        let scores = |score: fn(&ValidationReport) -> f64| {
+            let mut v: Vec<f64> = (runs.iter())
+                .filter_map(|r| r.report.as_ref().map(score))
+                .collect();
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let mut fits = scores(|v| v.fit_sim);
+        let mut errors = scores(|v| v.rmse_sim);
         let (lowest, highest) = (fits.first().copied(), fits.last().copied());
+        let (least, most) = (errors.first().copied(), errors.last().copied());
         let show = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
+        let error = |v: Option<f64>| v.map_or("-".into(), error_text);
         let standing: usize = runs.iter().map(|r| r.same_for_seeds.len()).sum();
         let seeds = if standing == 0 {
             runs.len().to_string()
@@ -789,7 +796,7 @@ fn seeds_table(s: &mut String, c: &Comparison) {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             g.replace('|', "/"),
             runs[0].origin.label(c.scored_rows),
             seeds,
@@ -797,6 +804,9 @@ fn seeds_table(s: &mut String, c: &Comparison) {
             show(median(&mut fits)),
             show(lowest),
             show(highest),
+            error(median(&mut errors)),
+            error(least),
+            error(most),
         );
     }
     s.push('\n');
