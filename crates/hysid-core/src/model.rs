@@ -29,7 +29,7 @@ mod located;
 mod translate;
 
 pub(crate) use translate::written;
-pub use translate::{Untranslatable, mechanical_labels, to_gray_box};
+pub use translate::{Untranslatable, mechanical_labels, signed_sum, to_gray_box};
 
 /// The names under which a model reads a record's signals
 /// ([`Model::signal_names`]).

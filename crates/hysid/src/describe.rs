@@ -12,11 +12,13 @@
 //!   (`hysid_physical::diagnostics`); its stops, and a gray-box model's
 //!   flows and transitions as its file writes them.
 
-use hysid_core::model::Model;
+use hysid_core::model::{Model, signed_sum};
 use hysid_graybox::GrayBoxModel;
-use hysid_mechanical::MechanicalModel;
+use hysid_model::data::{DEFAULT_INPUT, DEFAULT_OUTPUT};
 use hysid_model::geometry::Polyhedron;
-use hysid_model::model::{HybridAutomaton, ModelInfo, PhysicalParameter, PwarxModel, TimeDomain};
+use hysid_model::model::{
+    HybridAutomaton, ModelInfo, PhysicalParameter, PwarxModel, StopBound, TimeDomain,
+};
 use hysid_physical::diagnostics::PhysicalDiagnostics;
 use std::fmt::Write;
 
@@ -49,8 +51,14 @@ pub fn describe(model: &Model) -> String {
     match model {
         Model::Pwarx(m) => pwarx(&mut s, m, &names),
         Model::HybridAutomaton(m) => automaton(&mut s, m),
-        Model::Mechanical(m) => mechanical(&mut s, m),
-        Model::GrayBox(m) => gray_box(&mut s, m),
+        Model::Mechanical(m) => {
+            parameters(&mut s, &m.parameters, &m.info);
+            stops(&mut s, model, "position");
+        }
+        Model::GrayBox(m) => {
+            gray_box(&mut s, m);
+            stops(&mut s, model, "output");
+        }
     }
     s
 }
@@ -67,12 +75,12 @@ impl Names {
     fn of(model: &Model) -> Self {
         let own = model.signal_names();
         let inputs = own.inputs.unwrap_or_else(|| match model.inputs() {
-            1 => vec!["u".to_string()],
-            m => (1..=m).map(|i| format!("u{i}")).collect(),
+            1 => vec![DEFAULT_INPUT.to_string()],
+            m => (1..=m).map(|i| format!("{DEFAULT_INPUT}{i}")).collect(),
         });
         Names {
             inputs,
-            output: own.output.unwrap_or_else(|| "y".to_string()),
+            output: own.output.unwrap_or_else(|| DEFAULT_OUTPUT.to_string()),
         }
     }
 }
@@ -93,11 +101,8 @@ fn provenance(s: &mut String, info: &ModelInfo) {
             .map(|(k, v)| format!("{k} = {v}"))
             .collect();
         let rows: Vec<&str> = sel.splits.iter().map(|r| r.select_rows.as_str()).collect();
-        let score = sel.kept_refinement().map_or_else(
-            || sel.candidates.get(sel.chosen).and_then(|c| c.fit_sim),
-            |r| r.fit_sim,
-        );
-        let score = score.map_or_else(String::new, |f| format!(": selection FIT {f:.2} %"));
+        let score = (sel.candidates.get(sel.chosen).and_then(|c| c.fit_sim))
+            .map_or_else(String::new, |f| format!(": selection FIT {f:.2} %"));
         let _ = writeln!(
             s,
             "  options chosen on the selection rows {}: {}{score}",
@@ -182,17 +187,19 @@ fn mode_label(name: &str) -> String {
     }
 }
 
-/// A mechanical model's parameters and stops.
-fn mechanical(s: &mut String, m: &MechanicalModel) {
-    parameters(s, &m.parameters, &m.info);
-    for stop in m.resolve().stops {
-        let side = if stop.sign > 0.0 { "<=" } else { ">=" };
-        let _ = writeln!(s, "stop: position {side} {}", number(stop.position));
+/// A physical model's stops ([`Model::stops`]), each a bound on `what`.
+fn stops(s: &mut String, model: &Model, what: &str) {
+    for stop in model.stops() {
+        let side = match stop.bound {
+            StopBound::Max => "<=",
+            StopBound::Min => ">=",
+        };
+        let _ = writeln!(s, "stop: {what} {side} {}", number(stop.level));
     }
 }
 
-/// A gray-box model's parameters, flows, transitions and output stops, as
-/// its file writes them.
+/// A gray-box model's parameters, flows and transitions, as its file
+/// writes them.
 fn gray_box(s: &mut String, m: &GrayBoxModel) {
     parameters(s, &m.parameters, &m.info);
     for output in &m.outputs {
@@ -228,10 +235,6 @@ fn gray_box(s: &mut String, m: &GrayBoxModel) {
             "transition {} -> {}: {}{when}{reset}",
             t.from, t.to, t.guard
         );
-    }
-    for (level, sign) in m.output_stops() {
-        let side = if sign > 0.0 { "<=" } else { ">=" };
-        let _ = writeln!(s, "stop: output {side} {}", number(level));
     }
 }
 
@@ -325,29 +328,17 @@ fn region(s: &mut String, p: &Polyhedron, x: &[String], lead: &str) {
 }
 
 /// `c1 x1 + c2 x2 ... + c0` with the zero coefficients left out (`0` when
-/// every term is), signs folded into the operators.
+/// every term is), signs folded into the operators ([`signed_sum`]).
 fn linear(coefficients: &[f64], x: &[String], constant: f64) -> String {
-    let terms = (coefficients.iter().zip(x))
+    let terms: Vec<(bool, String)> = (coefficients.iter().zip(x))
         .filter(|(c, _)| **c != 0.0)
-        .map(|(c, x)| (*c, format!(" {x}")))
-        .chain((constant != 0.0).then(|| (constant, String::new())));
-    let mut out = String::new();
-    for (c, x) in terms {
-        let magnitude = if c.abs() == 1.0 && !x.is_empty() {
-            String::new()
-        } else {
-            number(c.abs())
-        };
-        let term = format!("{magnitude}{x}");
-        let term = term.trim_start();
-        match (out.is_empty(), c < 0.0) {
-            (true, false) => out.push_str(term),
-            (true, true) => out.push_str(&format!("-{term}")),
-            (false, false) => out.push_str(&format!(" + {term}")),
-            (false, true) => out.push_str(&format!(" - {term}")),
-        }
-    }
-    if out.is_empty() { "0".to_string() } else { out }
+        .map(|(c, x)| match c.abs() {
+            1.0 => (*c > 0.0, x.clone()),
+            m => (*c > 0.0, format!("{} {x}", number(m))),
+        })
+        .chain((constant != 0.0).then(|| (constant > 0.0, number(constant.abs()))))
+        .collect();
+    signed_sum(&terms)
 }
 
 /// `v` with six significant digits: plain where `1e-4 <= |v| < 1e6`

@@ -171,8 +171,9 @@ fn quantity(q: &Quantity) -> String {
     }
 }
 
-/// A sum of terms, each added (`true`) or subtracted: `a - b + c`.
-fn sum(terms: &[(bool, String)]) -> String {
+/// A sum of terms, each added (`true`) or subtracted: `a - b + c` (`0`
+/// for none).
+pub fn signed_sum(terms: &[(bool, String)]) -> String {
     let mut out = String::new();
     for (i, (added, term)) in terms.iter().enumerate() {
         out.push_str(match (i, added) {
@@ -279,7 +280,7 @@ fn model_definitions(model: &MechanicalModel, s: &Symbols) -> BTreeMap<String, S
         })
         .collect();
     let mut out = BTreeMap::new();
-    out.insert(s.force.clone(), sum(&terms));
+    out.insert(s.force.clone(), signed_sum(&terms));
     out.insert(s.kinetic.clone(), quantity(&model.friction.kinetic));
     out.insert(
         s.static_level.clone(),
@@ -298,7 +299,7 @@ fn model_definitions(model: &MechanicalModel, s: &Symbols) -> BTreeMap<String, S
         );
         out.insert(
             lambda.clone(),
-            sum(&[
+            signed_sum(&[
                 (true, format!("{}*{p}", quantity(&c.stiffness))),
                 (positive, format!("{}*{}", quantity(&c.damping), s.v)),
             ]),
@@ -332,8 +333,8 @@ fn contact_modes(model: &MechanicalModel, s: &Symbols, labels: &Labels) -> Vec<G
                     kinetic.push((true, quantity(&c.friction)));
                     static_level.push((true, quantity(&c.friction)));
                 }
-                definitions.insert(s.kinetic.clone(), sum(&kinetic));
-                definitions.insert(s.static_level.clone(), sum(&static_level));
+                definitions.insert(s.kinetic.clone(), signed_sum(&kinetic));
+                definitions.insert(s.static_level.clone(), signed_sum(&static_level));
             }
             let invariant = model
                 .contacts
@@ -362,7 +363,11 @@ fn contact_modes(model: &MechanicalModel, s: &Symbols, labels: &Labels) -> Vec<G
                     .map(|stick| (s.friction.clone(), stick.clone()))
                     .into_iter()
                     .collect(),
-                flow: [(s.y.clone(), s.v.clone()), (s.v.clone(), sum(&force))].into(),
+                flow: [
+                    (s.y.clone(), s.v.clone()),
+                    (s.v.clone(), signed_sum(&force)),
+                ]
+                .into(),
                 invariant,
                 definitions,
                 doc,
