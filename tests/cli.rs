@@ -793,6 +793,7 @@ fn x0_starts_a_physical_model_from_the_state_given() {
             "q=0.25,v=0,w=1",
             "--x0: 'w' is not a state of the model (its states: q, v)",
         ),
+        (axis, "q=inf,v=0", "--x0: q = inf is not finite"),
         (
             "docs/pick-and-place/models/arx_2_2.json",
             "y=1",

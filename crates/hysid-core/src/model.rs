@@ -56,6 +56,14 @@ pub enum GivenStateError {
         /// The model's states.
         states: Vec<String>,
     },
+    /// A value that is not a finite number.
+    #[error("{name} = {value} is not finite")]
+    NotFinite {
+        /// The state.
+        name: String,
+        /// Its value.
+        value: f64,
+    },
     /// A state without a value.
     #[error("no value for the state '{name}' (give every state: {})", .states.join(", "))]
     Missing {
@@ -70,7 +78,7 @@ pub enum GivenStateError {
 }
 
 /// The values of `state` in the order of `states`: every name a state,
-/// every state named.
+/// every value finite, every state named.
 fn every_state(
     states: &[String],
     state: &BTreeMap<String, f64>,
@@ -79,6 +87,12 @@ fn every_state(
         return Err(GivenStateError::Unknown {
             name: name.clone(),
             states: states.to_vec(),
+        });
+    }
+    if let Some((name, &value)) = state.iter().find(|(_, v)| !v.is_finite()) {
+        return Err(GivenStateError::NotFinite {
+            name: name.clone(),
+            value,
         });
     }
     states

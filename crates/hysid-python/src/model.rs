@@ -332,9 +332,6 @@ impl Model {
                 return Err(Failure::input("x0 and y0: give one initial condition").into());
             }
             Some(state) => {
-                if let Some((name, v)) = state.iter().find(|(_, v)| !v.is_finite()) {
-                    return Err(Failure::input(format!("x0: {name} = {v} is not finite")).into());
-                }
                 started = (self.inner.starting_from(&state))
                     .map_err(|e| Failure::input(format!("x0: {e}")))?;
                 &started

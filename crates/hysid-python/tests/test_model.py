@@ -122,6 +122,8 @@ def test_a_physical_model_starts_from_the_state_given():
     assert y[0] == 0.25 and y[-1] > 0.25
     with pytest.raises(ValueError, match=r"x0: no value for the state 'v' \(give every state: q, v\)"):
         model.simulate(u, ts=0.01, x0={"q": 0.25})
+    with pytest.raises(ValueError, match="x0: q = NaN is not finite"):
+        model.simulate(u, ts=0.01, x0={"q": float("nan"), "v": 0.0})
     with pytest.raises(ValueError, match="x0 and y0: give one"):
         model.simulate(u, ts=0.01, x0={"q": 0.25, "v": 0.0}, y0=[0.0])
     with pytest.raises(ValueError, match="x0: a pwarx model has no state"):

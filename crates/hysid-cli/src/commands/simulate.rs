@@ -166,7 +166,8 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// `--x0`'s `NAME=V,NAME=V`: each name once, each value finite.
+/// `--x0`'s `NAME=V,NAME=V`: each name once, each value a number (the
+/// model checks that it is finite, [`Model::starting_from`]).
 fn parse_state(s: &str) -> std::result::Result<BTreeMap<String, f64>, String> {
     let mut state = BTreeMap::new();
     for part in s.split(',') {
@@ -174,9 +175,8 @@ fn parse_state(s: &str) -> std::result::Result<BTreeMap<String, f64>, String> {
             return Err(format!("'{part}' is not NAME=VALUE"));
         };
         let name = name.trim();
-        let value = (value.trim().parse::<f64>().ok())
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| format!("'{part}': the value must be a finite number"))?;
+        let value = (value.trim().parse::<f64>())
+            .map_err(|_| format!("'{part}': the value must be a number"))?;
         if name.is_empty() {
             return Err(format!("'{part}': a state name is missing"));
         }
