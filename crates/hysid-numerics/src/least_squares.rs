@@ -279,96 +279,183 @@ fn linearised<P: LeastSquares + ?Sized>(
 /// `settings.iterations` solved steps, none begun after `deadline`.
 pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     problem: &P,
-    mut v: Vec<f64>,
+    v: Vec<f64>,
     settings: &LmSettings,
     deadline: &Deadline,
 ) -> Result<Descent, P::Error> {
-    let start = problem.evaluate(&v)?;
-    let mut descent = Descent {
-        v: None,
-        iterations: 0,
-        cost_before: start.cost,
-        cost_after: start.cost,
-        stop: Stop::IterationLimit,
-    };
-    if !start.cost.is_finite() {
-        descent.stop = Stop::Diverged;
-        return Ok(descent);
-    }
-    // No Jacobian (often the costliest evaluation) for a descent that
-    // could take no step.
-    if settings.iterations > 0 && deadline.passed() {
-        descent.stop = Stop::TimeBudget;
-        return Ok(descent);
-    }
-    let mut current = linearised(problem, &v, start)?;
-    let n = problem.unknowns();
-    let scale = match settings.damping {
-        Damping::Identity => largest_gram_diagonal(&current.jacobian).max(f64::MIN_POSITIVE),
-        Damping::Marquardt => 1.0,
-    };
-    let mut mu = 1e-3 * scale;
-    let mut nu = 2.0;
-    let mut accepted = false;
-    let mut converged = stationary(&current);
-    let mut budget = Budget::new(settings.iterations, deadline);
-    loop {
-        if converged || current.cost == 0.0 || n == 0 {
-            descent.stop = Stop::Converged;
-            break;
+    let mut descent = Marquardt::start(problem, v, settings, deadline)?;
+    descent.advance(usize::MAX)?;
+    Ok(descent.finish())
+}
+
+/// A Levenberg-Marquardt descent in progress, advanced a given number of
+/// steps at a time: [`Marquardt::start`], [`Marquardt::advance`] as often
+/// as wanted, [`Marquardt::finish`]. Its iterates are those of one
+/// [`levenberg_marquardt`] call, however its steps are grouped, so a caller
+/// can run several descents side by side and stop some between rounds.
+pub struct Marquardt<'a, P: LeastSquares + ?Sized> {
+    problem: &'a P,
+    settings: LmSettings,
+    budget: Budget<'a>,
+    descent: Descent,
+    /// The current point.
+    v: Vec<f64>,
+    /// Whether a step was accepted.
+    accepted: bool,
+    /// The point's linearisation and the damping, while it runs.
+    running: Option<Running>,
+    /// The damping's scale ([`Damping::Identity`]), or 1.
+    scale: f64,
+}
+
+/// The state of a [`Marquardt`] descent between its steps.
+struct Running {
+    current: Linearisation,
+    mu: f64,
+    nu: f64,
+    converged: bool,
+}
+
+impl<'a, P: LeastSquares + ?Sized> Marquardt<'a, P> {
+    /// The descent from `v`: its errors, and its Jacobian unless it can
+    /// take no step (a start whose cost is not finite, or past the
+    /// deadline).
+    pub fn start(
+        problem: &'a P,
+        v: Vec<f64>,
+        settings: &LmSettings,
+        deadline: &'a Deadline,
+    ) -> Result<Self, P::Error> {
+        let start = problem.evaluate(&v)?;
+        let mut descent = Marquardt {
+            problem,
+            settings: *settings,
+            budget: Budget::new(settings.iterations, deadline),
+            descent: Descent {
+                v: None,
+                iterations: 0,
+                cost_before: start.cost,
+                cost_after: start.cost,
+                stop: Stop::IterationLimit,
+            },
+            v,
+            accepted: false,
+            running: None,
+            scale: 1.0,
+        };
+        if !start.cost.is_finite() {
+            descent.descent.stop = Stop::Diverged;
+            return Ok(descent);
         }
-        if let Err(end) = budget.begin() {
-            descent.stop = end.into();
-            break;
+        // No Jacobian (often the costliest evaluation) for a descent that
+        // could take no step.
+        if settings.iterations > 0 && deadline.passed() {
+            descent.descent.stop = Stop::TimeBudget;
+            return Ok(descent);
         }
-        descent.iterations = budget.taken();
-        let (design, rhs) = damped_system(&current, &v, mu, settings.damping);
+        let current = linearised(problem, &descent.v, start)?;
+        descent.scale = match settings.damping {
+            Damping::Identity => largest_gram_diagonal(&current.jacobian).max(f64::MIN_POSITIVE),
+            Damping::Marquardt => 1.0,
+        };
+        descent.running = Some(Running {
+            converged: stationary(&current),
+            mu: 1e-3 * descent.scale,
+            nu: 2.0,
+            current,
+        });
+        Ok(descent)
+    }
+
+    /// The cost at the current point.
+    pub fn cost(&self) -> f64 {
+        self.descent.cost_after
+    }
+
+    /// Why it ended, once it has.
+    pub fn stopped(&self) -> Option<Stop> {
+        self.running.is_none().then_some(self.descent.stop)
+    }
+
+    /// At most `steps` more solved steps; why the descent ended, if it has.
+    pub fn advance(&mut self, steps: usize) -> Result<Option<Stop>, P::Error> {
+        for _ in 0..steps {
+            let Some(mut at) = self.running.take() else {
+                break;
+            };
+            match self.step(&mut at)? {
+                Some(stop) => self.descent.stop = stop,
+                None => self.running = Some(at),
+            }
+        }
+        Ok(self.stopped())
+    }
+
+    /// One solved step from `at` (or the test that ends the descent
+    /// before it).
+    fn step(&mut self, at: &mut Running) -> Result<Option<Stop>, P::Error> {
+        let n = self.problem.unknowns();
+        if at.converged || at.current.cost == 0.0 || n == 0 {
+            return Ok(Some(Stop::Converged));
+        }
+        if let Err(end) = self.budget.begin() {
+            return Ok(Some(end.into()));
+        }
+        self.descent.iterations = self.budget.taken();
+        let (design, rhs) = damped_system(&at.current, &self.v, at.mu, self.settings.damping);
         // A failed subproblem is a rejected step: more damping.
-        let trial_v = problem.solve(&design, &rhs);
+        let trial_v = self.problem.solve(&design, &rhs);
         let trial = match &trial_v {
             Some(t) => {
-                let vv = DVector::from_column_slice(&v);
-                let step = DVector::from_iterator(n, t.iter().zip(&v).map(|(a, b)| a - b));
+                let vv = DVector::from_column_slice(&self.v);
+                let step = DVector::from_iterator(n, t.iter().zip(&self.v).map(|(a, b)| a - b));
                 if step.norm() <= 1e-14 * (vv.norm() + 1e-14) {
-                    descent.stop = Stop::Converged;
-                    break;
+                    return Ok(Some(Stop::Converged));
                 }
-                let predicted =
-                    current.cost - (&current.errors - &current.jacobian * &step).norm_squared();
-                Some((problem.evaluate(t)?, predicted))
+                let predicted = at.current.cost
+                    - (&at.current.errors - &at.current.jacobian * &step).norm_squared();
+                Some((self.problem.evaluate(t)?, predicted))
             }
             None => None,
         };
         match (trial, trial_v) {
-            (Some((next, predicted)), Some(t)) if next.cost < current.cost => {
-                let decrease = current.cost - next.cost;
+            (Some((next, predicted)), Some(t)) if next.cost < at.current.cost => {
+                let decrease = at.current.cost - next.cost;
                 let rho = if predicted > 0.0 {
                     decrease / predicted
                 } else {
                     0.0
                 };
-                let next = linearised(problem, &t, next)?;
-                let tolerance = settings.cost_tolerance * current.cost;
-                converged = (decrease <= tolerance && predicted <= tolerance) || stationary(&next);
-                v = t;
-                current = next;
-                accepted = true;
-                mu *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
-                nu = 2.0;
+                let next = linearised(self.problem, &t, next)?;
+                let tolerance = self.settings.cost_tolerance * at.current.cost;
+                at.converged =
+                    (decrease <= tolerance && predicted <= tolerance) || stationary(&next);
+                self.descent.cost_after = next.cost;
+                self.accepted = true;
+                self.v = t;
+                at.current = next;
+                at.mu *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
+                at.nu = 2.0;
             }
             _ => {
-                mu *= nu;
-                nu *= 2.0;
-                if !mu.is_finite() || mu > 1e16 * scale {
-                    descent.stop = Stop::NoDescent;
-                    break;
+                at.mu *= at.nu;
+                at.nu *= 2.0;
+                if !at.mu.is_finite() || at.mu > 1e16 * self.scale {
+                    return Ok(Some(Stop::NoDescent));
                 }
             }
         }
+        Ok(None)
     }
-    descent.cost_after = current.cost;
-    descent.v = accepted.then_some(v);
-    Ok(descent)
+
+    /// What the descent found; one still running ends at its iteration
+    /// bound's [`Stop::IterationLimit`] (its steps cut short by the caller).
+    pub fn finish(self) -> Descent {
+        Descent {
+            v: self.accepted.then_some(self.v),
+            ..self.descent
+        }
+    }
 }
 
 /// [`levenberg_marquardt`] on a problem whose evaluations cannot fail
@@ -809,6 +896,39 @@ mod tests {
             for (p, q) in a.v.unwrap().iter().zip(b.v.unwrap()) {
                 proptest::prop_assert!((p - q).abs() <= 1e-6 * (1.0 + p.abs()), "{} {}", p, q);
             }
+        }
+
+        /// A descent advanced a few steps at a time takes the steps of one
+        /// call, to the bit: the same point, cost, count and stop, and after
+        /// each round of `round` steps its cost is the least so far.
+        #[test]
+        fn a_descent_in_rounds_is_the_descent_in_one_call(
+            round in 1usize..7,
+            bound in 0usize..40,
+            start in proptest::collection::vec(-2.0f64..2.0, 2),
+            noise in proptest::collection::vec(-0.1f64..0.1, 9),
+        ) {
+            let t: Vec<f64> = (0..9).map(|k| k as f64 * 0.25).collect();
+            let y = t.iter().zip(&noise).map(|(t, e)| (0.7 * t).exp() - 0.3 + e).collect();
+            let problem = Exponential { t, y, s: 1.0 };
+            let settings = LmSettings::new(bound).with_damping(Damping::Marquardt);
+            let whole = levenberg_marquardt(&problem, start.clone(), &settings, &none()).unwrap();
+            let deadline = none();
+            let mut rounds = Marquardt::start(&problem, start, &settings, &deadline).unwrap();
+            let mut costs = vec![rounds.cost()];
+            for _ in 0..=bound {
+                let stop = rounds.advance(round).unwrap();
+                costs.push(rounds.cost());
+                proptest::prop_assert_eq!(stop, rounds.stopped());
+                if stop.is_some() {
+                    break;
+                }
+            }
+            proptest::prop_assert!(costs.windows(2).all(|c| c[1] <= c[0]), "{:?}", costs);
+            let parts = rounds.finish();
+            proptest::prop_assert_eq!((parts.stop, parts.iterations), (whole.stop, whole.iterations));
+            proptest::prop_assert_eq!(parts.cost_after.to_bits(), whole.cost_after.to_bits());
+            proptest::prop_assert_eq!(parts.v, whole.v);
         }
 
         /// The damped step solved on the reduced rows (`R`, `Q^T e`) is the

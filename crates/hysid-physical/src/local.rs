@@ -4,11 +4,14 @@
 //! one.
 
 use crate::stages::{Search, Stage, StageLog, Termination};
+use hysid_numerics::budget::Deadline;
 use hysid_numerics::least_squares::{
-    CentralDifferences, Damping, Exact, LmSettings, ResidualJacobian, Residuals, Stop, descend,
+    CentralDifferences, Damping, Descent, Exact, LeastSquares, LmSettings, Marquardt,
+    ResidualJacobian, Residuals, Stop,
 };
 use hysid_numerics::nelder_mead;
 use rayon::prelude::*;
+use std::convert::Infallible;
 use std::sync::atomic::Ordering;
 
 /// The cost test of the Levenberg-Marquardt stage: a step that lowers the
@@ -35,6 +38,38 @@ pub struct Descended {
 /// is set (a run with sensitivities counts as one simulation), else on
 /// central differences of `fd_step`.
 pub fn descend_from(search: &Search<'_>, segment: usize, start: &[f64]) -> Descended {
+    // Alone, a descent is never outpaced: its cost is the least.
+    let (stop, z, cost) = descents(search, segment, &[start.to_vec()]).remove(0);
+    Descended {
+        stop: stop.unwrap_or(Stop::IterationLimit),
+        z,
+        cost,
+    }
+}
+
+/// Steps a descent of [`descents`] takes between two comparisons with
+/// the others.
+const ROUND: usize = 5;
+
+/// A descent whose cost is more than this many times the least cost of the
+/// starts' descents after a round, and that did not halve its own cost in
+/// that round, is outpaced ([`Termination::Outpaced`]): far behind and
+/// crawling, in a basin it is not leaving within `lm_iters`.
+const OUTPACED: f64 = 100.0;
+
+/// [`descend_from`] from each of `starts`, side by side: in rounds of
+/// [`ROUND`] steps, the descents of a round in parallel, and after each
+/// round the outpaced ones stopped ([`OUTPACED`]; their stop `None`). The
+/// rounds are the same for any number of threads, and a descent advanced
+/// in rounds takes the steps of one run
+/// ([`hysid_numerics::least_squares::Marquardt`]), so only the outpaced
+/// ones end otherwise than alone. Per start: how it ended, the point it
+/// reached (the start where no step was accepted) and the cost there.
+fn descents(
+    search: &Search<'_>,
+    segment: usize,
+    starts: &[Vec<f64>],
+) -> Vec<(Option<Stop>, Vec<f64>, f64)> {
     let options = search.options;
     let objective = search.objective.with_segment(segment);
     let residuals = |z: &[f64]| {
@@ -44,45 +79,86 @@ pub fn descend_from(search: &Search<'_>, segment: usize, start: &[f64]) -> Desce
     let differences = CentralDifferences {
         step: options.fd_step,
     };
-    let unit = vec![[0.0, 1.0]; start.len()];
-    let descent = if options.exact_jacobian && objective.model.exact_jacobian() {
+    let dim = starts.first().map_or(0, Vec::len);
+    let unit = vec![[0.0, 1.0]; dim];
+    let settings = LmSettings::new(options.lm_iters)
+        .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
+        .with_damping(Damping::Marquardt);
+    let deadline = &search.ctx.deadline;
+    let ends = if options.exact_jacobian && objective.model.exact_jacobian() {
         let jacobian = |z: &[f64]| {
             search.evals.fetch_add(1, Ordering::Relaxed);
             objective
                 .jacobian(z)
                 .unwrap_or_else(|| differences.of(&residuals, z, Some(&unit)))
         };
-        levenberg_marquardt(search, start, &unit, residuals, Exact(jacobian))
+        let problem = Residuals::new(residuals, dim, Some(&unit), Exact(jacobian));
+        side_by_side(&problem, starts, &settings, deadline)
     } else {
-        levenberg_marquardt(search, start, &unit, residuals, differences)
+        let problem = Residuals::new(residuals, dim, Some(&unit), differences);
+        side_by_side(&problem, starts, &settings, deadline)
     };
-    let z = descent.v.unwrap_or_else(|| start.to_vec());
-    let cost = objective.mse(&z);
-    Descended {
-        stop: descent.stop,
-        z,
-        cost,
-    }
+    ends.into_iter()
+        .zip(starts)
+        .map(|((stop, descent), start)| {
+            let z = descent.v.unwrap_or_else(|| start.clone());
+            let cost = objective.mse(&z);
+            (stop, z, cost)
+        })
+        .collect()
 }
 
-/// [`descend`] on `residuals` from `start` in the box `unit`, with the
-/// Jacobian `jacobian`, under the search's settings.
-fn levenberg_marquardt<F, J>(
-    search: &Search<'_>,
-    start: &[f64],
-    unit: &[[f64; 2]],
-    residuals: F,
-    jacobian: J,
-) -> hysid_numerics::least_squares::Descent
+/// The descents of [`descents`] on `problem`: how each ended (`None`:
+/// outpaced) and what it found.
+fn side_by_side<P>(
+    problem: &P,
+    starts: &[Vec<f64>],
+    settings: &LmSettings,
+    deadline: &Deadline,
+) -> Vec<(Option<Stop>, Descent)>
 where
-    F: Fn(&[f64]) -> Option<Vec<f64>>,
-    J: ResidualJacobian<F>,
+    P: LeastSquares<Error = Infallible> + Sync,
 {
-    let problem = Residuals::new(residuals, start.len(), Some(unit), jacobian);
-    let settings = LmSettings::new(search.options.lm_iters)
-        .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
-        .with_damping(Damping::Marquardt);
-    descend(&problem, start.to_vec(), &settings, &search.ctx.deadline)
+    let start = |v: &Vec<f64>| match Marquardt::start(problem, v.clone(), settings, deadline) {
+        Ok(descent) => descent,
+        Err(never) => match never {},
+    };
+    let mut running: Vec<(Marquardt<'_, P>, Option<Stop>, bool)> = starts
+        .par_iter()
+        .map(|v| {
+            let descent = start(v);
+            let stop = descent.stopped();
+            (descent, stop, false)
+        })
+        .collect();
+    while running
+        .iter()
+        .any(|(_, stop, outpaced)| stop.is_none() && !outpaced)
+    {
+        running
+            .par_iter_mut()
+            .filter(|(_, stop, outpaced)| stop.is_none() && !outpaced)
+            .for_each(|(descent, stop, outpaced)| {
+                let before = descent.cost();
+                *stop = match descent.advance(ROUND) {
+                    Ok(stop) => stop,
+                    Err(never) => match never {},
+                };
+                // Stashed in `outpaced` until the round's least cost is known.
+                *outpaced = stop.is_none() && descent.cost() > 0.5 * before;
+            });
+        let least = running
+            .iter()
+            .map(|(descent, ..)| descent.cost())
+            .fold(f64::INFINITY, f64::min);
+        for (descent, _, outpaced) in &mut running {
+            *outpaced = *outpaced && descent.cost() > OUTPACED * least;
+        }
+    }
+    running
+        .into_iter()
+        .map(|(descent, stop, outpaced)| (if outpaced { None } else { stop }, descent.finish()))
+        .collect()
 }
 
 /// What the local stages found.
@@ -182,33 +258,29 @@ fn local_stage(
         z: from.to_vec(),
         cost: objective.mse(from),
     };
-    // The starts run in parallel; their outcomes are offered in start
+    // The starts descend side by side; their outcomes are offered in start
     // order, so the result is the same for any number of threads. No
     // descent begins after the deadline.
-    let deadline = &search.ctx.deadline;
-    let outcomes: Vec<_> = starts
-        .par_iter()
-        .map(|start| {
-            let at_start = objective.mse(start);
-            let descent = (options.lm_iters > 0 && !deadline.passed()).then(|| {
-                let d = descend_from(search, segment, start);
-                (d.stop, d.z, d.cost)
-            });
-            (at_start, descent)
-        })
-        .collect();
+    let at_start: Vec<f64> = starts.par_iter().map(|z| objective.mse(z)).collect();
     let descended = options.lm_iters > 0 && !starts.is_empty();
-    for (start, (at_start, descent)) in starts.into_iter().zip(outcomes) {
-        best.offer(start, at_start);
-        let Some((end, z, cost)) = descent else {
+    let mut outcomes = if descended && !search.ctx.deadline.passed() {
+        descents(search, segment, &starts)
+    } else {
+        Vec::new()
+    }
+    .into_iter();
+    for (start, cost) in starts.into_iter().zip(at_start) {
+        best.offer(start, cost);
+        let Some((stop, z, cost)) = outcomes.next() else {
             continue;
         };
-        log.levenberg_marquardt.push(match end {
-            Stop::Converged => Termination::Converged,
-            Stop::NoDescent => Termination::NoDecrease,
-            Stop::IterationLimit => Termination::MaxIterations,
-            Stop::TimeBudget => Termination::TimeBudget,
-            Stop::Diverged => Termination::Other,
+        log.levenberg_marquardt.push(match stop {
+            Some(Stop::Converged) => Termination::Converged,
+            Some(Stop::NoDescent) => Termination::NoDecrease,
+            Some(Stop::IterationLimit) => Termination::MaxIterations,
+            Some(Stop::TimeBudget) => Termination::TimeBudget,
+            Some(Stop::Diverged) => Termination::Other,
+            None => Termination::Outpaced,
         });
         best.offer(z, cost);
     }
@@ -272,4 +344,81 @@ fn simplex(z: &[f64], size: f64) -> Vec<Vec<f64>> {
         simplex.push(p);
     }
     simplex
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::DMatrix;
+
+    /// Two basins in `(x, y)`: left of `x = 0` residuals linear in a
+    /// minimum of cost 0 at `(-5, 0)`; right of it Rosenbrock's valley
+    /// shifted to `x = 4`, whose floor costs 100 (a constant residual of
+    /// 10), and which a descent follows in many small steps.
+    fn two_basins(v: &[f64]) -> Option<Vec<f64>> {
+        let (x, y) = (v[0], v[1]);
+        Some(if x < 0.0 {
+            vec![x + 5.0, y, 0.0]
+        } else {
+            let u = x - 3.0;
+            vec![10.0 * (y - u * u), 1.0 - u, 10.0]
+        })
+    }
+
+    /// The Jacobian of [`two_basins`].
+    fn jacobian(v: &[f64]) -> DMatrix<f64> {
+        if v[0] < 0.0 {
+            DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, 0.0, 0.0])
+        } else {
+            let u = v[0] - 3.0;
+            DMatrix::from_row_slice(3, 2, &[-20.0 * u, 10.0, -1.0, 0.0, 0.0, 0.0])
+        }
+    }
+
+    /// [`side_by_side`] from `starts` on [`two_basins`], on `threads` threads.
+    fn run(starts: &[Vec<f64>], threads: usize) -> Vec<(Option<Stop>, Descent)> {
+        let problem = Residuals::new(two_basins, 2, None, Exact(jacobian));
+        let settings = LmSettings::new(30)
+            .with_cost_tolerance(LM_RELATIVE_TOLERANCE)
+            .with_damping(Damping::Marquardt);
+        let deadline = Deadline::none();
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| side_by_side(&problem, starts, &settings, &deadline))
+    }
+
+    #[test]
+    fn a_descent_far_behind_and_crawling_is_outpaced_after_a_round() {
+        let (good, valley) = (vec![-1.0, 2.0], vec![1.8, 1.0]);
+        let alone = run(std::slice::from_ref(&valley), 1);
+        // Alone, the valley's descent takes more than a round and is never
+        // outpaced (its own cost is the least).
+        let (stop, descent) = &alone[0];
+        assert!(
+            stop.is_some() && descent.iterations > ROUND,
+            "{stop:?} {descent:?}"
+        );
+        let both = run(&[valley.clone(), good.clone()], 1);
+        let (stop, descent) = &both[0];
+        assert_eq!((*stop, descent.iterations), (None, ROUND), "{descent:?}");
+        assert!(descent.cost_after >= 100.0);
+        // The start that wins descends as it does alone, to the bit.
+        let (stop, descent) = &both[1];
+        let lone = &run(std::slice::from_ref(&good), 1)[0];
+        assert_eq!(*stop, Some(Stop::Converged));
+        assert_eq!(
+            (stop, &descent.v, descent.iterations),
+            (&lone.0, &lone.1.v, lone.1.iterations)
+        );
+        assert!(descent.cost_after < 1e-20);
+        // The rounds, and so the outcomes, do not depend on the threads.
+        for threads in [2, 3] {
+            let again = run(&[valley.clone(), good.clone()], threads);
+            for ((s, d), (t, e)) in both.iter().zip(&again) {
+                assert_eq!((s, &d.v, d.iterations), (t, &e.v, e.iterations));
+            }
+        }
+    }
 }

@@ -27,6 +27,11 @@ pub enum Termination {
     MaxIterations,
     /// `--time-budget` ran out.
     TimeBudget,
+    /// Levenberg-Marquardt: stopped beside the descents of the stage's
+    /// other starts, far behind the best of them and crawling (more than
+    /// 100 times its cost after a round of 5 steps in which its own cost
+    /// did not halve).
+    Outpaced,
     /// Anything else (argmin's other reasons; a start whose simulation failed).
     Other,
 }
@@ -39,6 +44,7 @@ impl Termination {
             Termination::NoDecrease => "no_decrease",
             Termination::MaxIterations => "max_iterations",
             Termination::TimeBudget => "time_budget",
+            Termination::Outpaced => "outpaced",
             Termination::Other => "other",
         }
     }
