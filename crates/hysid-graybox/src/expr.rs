@@ -1173,6 +1173,45 @@ mod tests {
     }
 
     #[test]
+    fn every_operator_and_function_run_jointly_gives_its_own_bits() {
+        let binary = [
+            "+", "-", "*", "/", "%", "^", "<", "<=", ">", ">=", "==", "!=", "&&", "||",
+        ];
+        let texts = binary
+            .iter()
+            .map(|op| format!("sin(x) {op} y"))
+            .chain(["-sin(x)".into(), "!sin(x)".into()])
+            .chain(Function::ALL.iter().map(|f| {
+                let args = ["sin(x)", "y", "z"][..f.arity()].join(", ");
+                format!("{}({args})", f.name())
+            }));
+        for text in texts {
+            let flows = [
+                Expression::compile(&text, &names).unwrap(),
+                Expression::compile("cos(x) * y", &names).unwrap(),
+            ];
+            let shared = Shared::of(&flows);
+            assert!(shared.joint.is_some(), "{text}");
+            for slots in [
+                [0.3, -1.2, 2.5],
+                [-0.0, 0.0, 1.0],
+                [2.0, 3.0, -1.0],
+                [1.5, 0.0, 0.0],
+            ] {
+                let mut out = [0.0; 2];
+                shared.eval(&flows, &slots, &mut out);
+                for (f, value) in flows.iter().zip(out) {
+                    let own = f.eval(&slots);
+                    assert!(
+                        own.to_bits() == value.to_bits() || (own.is_nan() && value.is_nan()),
+                        "{text} at {slots:?}: {value} jointly, {own} alone"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn every_operation_reads_its_operands_in_order() {
         let slots = [3.0, -2.0, 0.5];
         for text in [

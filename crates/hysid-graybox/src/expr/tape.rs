@@ -288,7 +288,7 @@ impl Instruction {
 
     /// The same operation on the operands `rename` gives for its own (a
     /// call's padding included).
-    fn reading(self, rename: impl Fn(Operand) -> Operand) -> Instruction {
+    fn reading(self, mut rename: impl FnMut(Operand) -> Operand) -> Instruction {
         match self {
             Instruction::Keep { to, a } => Instruction::Keep { to, a: rename(a) },
             Instruction::Neg { to, a } => Instruction::Neg { to, a: rename(a) },
@@ -425,20 +425,164 @@ fn execute(code: &[Instruction], slots: &[f64], cells: &mut [f64; CELLS]) {
 /// does it: the flows of a mode, which read the same definitions. A pure
 /// operation on the same operands gives the same bits, and `x - 0` (the
 /// number `+0`) is `x` bit for bit, so each result is its own tape's value
-/// bit for bit. Every value has a cell of its own, its instruction's
-/// index.
+/// bit for bit. Every value has a cell of its own, its operation's index,
+/// and every operand is an entry of one memory (those cells, then the
+/// slots read, then the constants), so an operation reads its operands
+/// without asking what kind they are.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct Joint {
-    code: Vec<Instruction>,
-    /// Per tape: where its value goes in the output, and where it lies.
-    results: Vec<(usize, Operand)>,
+    steps: Vec<Step>,
+    /// The slots read, each with its entry (after the cells).
+    gather: Vec<(u8, u32)>,
+    /// The constants, in their entries after the slots'.
+    constants: Vec<f64>,
+    /// Per tape: where its value goes in the output, and its entry.
+    results: Vec<(usize, u8)>,
+}
+
+/// Entries of a [`Joint`] program's memory, at most.
+const MEMORY: usize = 96;
+
+/// One operation of a [`Joint`] program, on entries of its memory: what
+/// it does, where it writes, and its operands (padded with the first).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Step {
+    code: Code,
+    to: u8,
+    operands: [u8; 3],
+}
+
+/// The operations of a [`Step`], every operator and function its own, so
+/// that running one is a single dispatch; each does what its [`Binary`] or
+/// [`Function`] does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Code {
+    Neg,
+    Not,
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Rem,
+    Pow,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Eq,
+    Ne,
+    And,
+    Or,
+    Abs,
+    Sign,
+    Sqrt,
+    Exp,
+    Ln,
+    Sin,
+    Cos,
+    Tan,
+    Tanh,
+    Atan,
+    Min,
+    Max,
+    Atan2,
+    Clamp,
+    If,
+}
+
+impl Code {
+    fn binary(op: Binary) -> Code {
+        match op {
+            Binary::Add => Code::Add,
+            Binary::Sub => Code::Sub,
+            Binary::Mul => Code::Mul,
+            Binary::Div => Code::Div,
+            Binary::Rem => Code::Rem,
+            Binary::Pow => Code::Pow,
+            Binary::Lt => Code::Lt,
+            Binary::Le => Code::Le,
+            Binary::Gt => Code::Gt,
+            Binary::Ge => Code::Ge,
+            Binary::Eq => Code::Eq,
+            Binary::Ne => Code::Ne,
+            Binary::And => Code::And,
+            Binary::Or => Code::Or,
+        }
+    }
+
+    fn function(f: Function) -> Code {
+        match f {
+            Function::Abs => Code::Abs,
+            Function::Sign => Code::Sign,
+            Function::Sqrt => Code::Sqrt,
+            Function::Exp => Code::Exp,
+            Function::Ln => Code::Ln,
+            Function::Sin => Code::Sin,
+            Function::Cos => Code::Cos,
+            Function::Tan => Code::Tan,
+            Function::Tanh => Code::Tanh,
+            Function::Atan => Code::Atan,
+            Function::Min => Code::Min,
+            Function::Max => Code::Max,
+            Function::Atan2 => Code::Atan2,
+            Function::Clamp => Code::Clamp,
+            Function::If => Code::If,
+        }
+    }
+
+    /// The value on operands `x`.
+    #[inline(always)]
+    fn apply(self, x: [f64; 3]) -> f64 {
+        let binary = |op: Binary| op.apply(x[0], x[1]);
+        let call = |f: Function| f.apply(&x[..f.arity()]);
+        match self {
+            Code::Neg => -x[0],
+            Code::Not => {
+                if x[0] == 0.0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Code::Add => binary(Binary::Add),
+            Code::Sub => binary(Binary::Sub),
+            Code::Mul => binary(Binary::Mul),
+            Code::Div => binary(Binary::Div),
+            Code::Rem => binary(Binary::Rem),
+            Code::Pow => binary(Binary::Pow),
+            Code::Lt => binary(Binary::Lt),
+            Code::Le => binary(Binary::Le),
+            Code::Gt => binary(Binary::Gt),
+            Code::Ge => binary(Binary::Ge),
+            Code::Eq => binary(Binary::Eq),
+            Code::Ne => binary(Binary::Ne),
+            Code::And => binary(Binary::And),
+            Code::Or => binary(Binary::Or),
+            Code::Abs => call(Function::Abs),
+            Code::Sign => call(Function::Sign),
+            Code::Sqrt => call(Function::Sqrt),
+            Code::Exp => call(Function::Exp),
+            Code::Ln => call(Function::Ln),
+            Code::Sin => call(Function::Sin),
+            Code::Cos => call(Function::Cos),
+            Code::Tan => call(Function::Tan),
+            Code::Tanh => call(Function::Tanh),
+            Code::Atan => call(Function::Atan),
+            Code::Min => call(Function::Min),
+            Code::Max => call(Function::Max),
+            Code::Atan2 => call(Function::Atan2),
+            Code::Clamp => call(Function::Clamp),
+            Code::If => call(Function::If),
+        }
+    }
 }
 
 impl Joint {
     /// The joint program of `programs`, each with the output position of
     /// its value: each program's cells renamed to the values they hold
     /// when read; `None` when their distinct operations need more than the
-    /// workspace's cells.
+    /// workspace's cells, or their cells, slots and constants more than
+    /// [`MEMORY`] entries.
     pub(super) fn of(programs: &[(usize, &Program)]) -> Option<Joint> {
         let mut code = Vec::new();
         let mut results = Vec::with_capacity(programs.len());
@@ -464,23 +608,133 @@ impl Joint {
             }
             results.push((at, value(program.result, &held)));
         }
-        Some(Joint { code, results })
+        Layout::program(&code, &results)
     }
 
     /// Number of operations run.
     #[cfg(test)]
     pub(super) fn operations(&self) -> usize {
-        self.code.len()
+        self.steps.len()
     }
 
     /// Writes each tape's value at `slots` into its position of `out`.
     #[inline(never)]
     pub(super) fn run(&self, slots: &[f64], out: &mut [f64]) {
-        let mut cells = [0.0f64; CELLS];
-        execute(&self.code, slots, &mut cells);
-        for &(at, result) in &self.results {
-            out[at] = read(result, slots, &cells);
+        let mut m = [0.0f64; MEMORY];
+        let cells = self.steps.len();
+        for &(entry, slot) in &self.gather {
+            m[entry as usize] = slots[slot as usize];
         }
+        let constants = cells + self.gather.len();
+        m[constants..constants + self.constants.len()].copy_from_slice(&self.constants);
+        for step in &self.steps {
+            let x = step.operands.map(|e| m[e as usize]);
+            m[step.to as usize] = step.code.apply(x);
+        }
+        for &(at, entry) in &self.results {
+            out[at] = m[entry as usize];
+        }
+    }
+}
+
+/// The entries of a [`Joint`] program's memory while it is laid out: its
+/// cells, and the slots and constants it reads in the order first met.
+struct Layout {
+    cells: usize,
+    slots: Vec<u32>,
+    constants: Vec<f64>,
+}
+
+impl Layout {
+    /// The program of `code` (each instruction writing the cell of its
+    /// index, none keeping a value) and `results` on one memory; `None`
+    /// past [`MEMORY`] entries.
+    fn program(code: &[Instruction], results: &[(usize, Operand)]) -> Option<Joint> {
+        let mut memory = Layout {
+            cells: code.len(),
+            slots: Vec::new(),
+            constants: Vec::new(),
+        };
+        // Slots and constants first met, so that their entries can be
+        // numbered once the cells' count is known.
+        for instruction in code {
+            instruction.reading(|o| {
+                memory.note(o);
+                o
+            });
+        }
+        for &(_, o) in results {
+            memory.note(o);
+        }
+        if memory.cells + memory.slots.len() + memory.constants.len() > MEMORY {
+            return None;
+        }
+        let steps = code
+            .iter()
+            .map(|instruction| {
+                let (code, to, operands): (Code, u8, &[Operand]) = match instruction {
+                    Instruction::Keep { .. } => return None,
+                    Instruction::Neg { to, a } => (Code::Neg, *to, std::slice::from_ref(a)),
+                    Instruction::Not { to, a } => (Code::Not, *to, std::slice::from_ref(a)),
+                    Instruction::Binary { op, to, a, b } => (Code::binary(*op), *to, &[*a, *b][..]),
+                    Instruction::Call { f, to, args } => {
+                        (Code::function(*f), *to, &args[..f.arity()])
+                    }
+                };
+                let mut entries = [memory.entry(operands[0]); 3];
+                for (e, &o) in entries.iter_mut().zip(operands) {
+                    *e = memory.entry(o);
+                }
+                Some(Step {
+                    code,
+                    to,
+                    operands: entries,
+                })
+            })
+            .collect::<Option<Vec<Step>>>()?;
+        Some(Joint {
+            steps,
+            gather: memory
+                .slots
+                .iter()
+                .enumerate()
+                .map(|(k, &s)| ((memory.cells + k) as u8, s))
+                .collect(),
+            results: results
+                .iter()
+                .map(|&(at, o)| (at, memory.entry(o)))
+                .collect(),
+            constants: memory.constants,
+        })
+    }
+
+    /// Notes the slot or constant `o` reads.
+    fn note(&mut self, o: Operand) {
+        match o {
+            Operand::Slot(s) if !self.slots.contains(&s) => self.slots.push(s),
+            Operand::Const(v) if !self.constants.iter().any(|c| c.to_bits() == v.to_bits()) => {
+                self.constants.push(v)
+            }
+            _ => {}
+        }
+    }
+
+    /// The entry of operand `o` (a cell, or a slot or constant noted).
+    fn entry(&self, o: Operand) -> u8 {
+        let at = match o {
+            Operand::Cell(c) => c as usize,
+            Operand::Slot(s) => self.cells + self.slots.iter().position(|&t| t == s).unwrap_or(0),
+            Operand::Const(v) => {
+                self.cells
+                    + self.slots.len()
+                    + self
+                        .constants
+                        .iter()
+                        .position(|c| c.to_bits() == v.to_bits())
+                        .unwrap_or(0)
+            }
+        };
+        at as u8
     }
 }
 
