@@ -547,3 +547,142 @@ fn records_of_other_signals_of_one_file_are_named_by_them() {
         "{markdown}"
     );
 }
+
+/// `sweep` on several records is the experiment that lists them as
+/// `[[data.records]]`: the same points, the same pooled and per-record
+/// scores; its row flags are given once for all or once per file, and
+/// rows that overlap are refused naming the record.
+#[test]
+fn a_sweep_on_several_records_is_their_experiment() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (a, b) = (
+        record(d, "a.csv", 200, 61, 0.01),
+        record(d, "b.csv", 160, 62, 0.01),
+    );
+    let experiment = write(
+        d,
+        "experiment.toml",
+        r#"title = "records"
+na = 1
+nb = 1
+seed = 3
+[data]
+file = "a.csv"
+identification = "0..150"
+validation = "150.."
+
+[[data.records]]
+file = "b.csv"
+identification = "0..100"
+validation = "100.."
+
+[priors]
+modes = 2
+
+[[sweep]]
+name = "cluster"
+method = "cluster"
+vary = "c"
+values = [8, 16]
+"#,
+    );
+    let out = d.join("out");
+    ok(&["compare", s(&experiment), "-o", s(&out)]);
+    let listed = json(&std::fs::read_to_string(out.join("report.json")).unwrap());
+    let swept = d.join("swept");
+    let sweep = |more: &[&str]| {
+        let mut args = vec![
+            "sweep",
+            s(&a),
+            s(&b),
+            "-m",
+            "cluster",
+            "--grid",
+            "c=8,16",
+            "--modes",
+            "2",
+            "--na",
+            "1",
+            "--nb",
+            "1",
+            "--seed",
+            "3",
+        ];
+        args.extend_from_slice(more);
+        hysid(&args)
+    };
+    let o = sweep(&[
+        "--identify-rows",
+        "0..150",
+        "--identify-rows",
+        "0..100",
+        "--select-rows",
+        "150..",
+        "--select-rows",
+        "100..",
+        "-o",
+        s(&swept),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = json(&std::fs::read_to_string(swept.join("report.json")).unwrap());
+    let points = |r: &serde_json::Value| -> Vec<(serde_json::Value, serde_json::Value)> {
+        let results = r["results"].as_array().unwrap();
+        (results.iter())
+            .map(|p| {
+                (
+                    p["report"]["fit_sim"].clone(),
+                    p["report"]["records"].clone(),
+                )
+            })
+            .collect()
+    };
+    let scored = points(&report);
+    assert_eq!(scored.len(), 2);
+    assert!(
+        (scored.iter())
+            .all(|(fit, records)| fit.is_f64() && records.as_array().unwrap().len() == 2),
+        "{scored:?}"
+    );
+    assert_eq!(scored, points(&listed));
+    assert_eq!(report["scored_records"], listed["scored_records"]);
+    // Once for every file: the same rows of each.
+    let o = sweep(&["--identify-rows", "0..100", "--select-rows", "100..160"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("| run | a.csv 100..160 | b.csv 100..160 |"),
+        "{text}"
+    );
+    let o = sweep(&[
+        "--identify-rows",
+        "0..100",
+        "--select-rows",
+        "100..",
+        "--select-rows",
+        "100..",
+        "--select-rows",
+        "100..",
+    ]);
+    let line = one_line_error(&o, 2).unwrap();
+    assert!(
+        line.contains("--select-rows: given 3 times for 2 data files"),
+        "{line}"
+    );
+    let o = sweep(&[
+        "--identify-rows",
+        "0..100",
+        "--select-rows",
+        "100..",
+        "--select-rows",
+        "90..",
+    ]);
+    let line = one_line_error(&o, 2).unwrap();
+    assert!(
+        line.contains(&format!(
+            "--select-rows 90.. overlap --identify-rows 0..100 of {}",
+            b.display()
+        )),
+        "{line}"
+    );
+}

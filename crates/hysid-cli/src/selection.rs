@@ -149,13 +149,7 @@ impl DataArgs {
     /// The records of `files`, each with its `--rows`, joined into one
     /// dataset ([`hysid_io::load_records`]), read as [`Self::read`] says.
     pub fn load(&self, files: &[PathBuf]) -> Result<Dataset, CliError> {
-        if self.rows.len() > 1 && self.rows.len() != files.len() {
-            return Err(CliError::input(format!(
-                "--rows: given {} times for {} data files; give it once for every file or once per file",
-                self.rows.len(),
-                files.len()
-            )));
-        }
+        once_or_per_file("--rows", self.rows.len(), files.len())?;
         self.read(|signals| {
             let records = (files.iter().enumerate())
                 .map(|(i, file)| {
@@ -266,6 +260,17 @@ impl DataArgs {
     pub fn first_row(&self) -> usize {
         self.rows.first().and_then(|r| r.start).unwrap_or(0)
     }
+}
+
+/// A flag given `given` times for `files` data files: at most once, or
+/// once per file.
+pub fn once_or_per_file(flag: &str, given: usize, files: usize) -> Result<(), CliError> {
+    if given > 1 && given != files {
+        return Err(CliError::input(format!(
+            "{flag}: given {given} times for {files} data files; give it once for every file or once per file"
+        )));
+    }
+    Ok(())
 }
 
 impl SignalArgs {

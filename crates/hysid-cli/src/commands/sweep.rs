@@ -2,8 +2,9 @@
 //! the local dataset size `c` and the mode count of `cluster`, or `delta`
 //! of `bounded`), each point scored by free-run simulation FIT on the
 //! selection rows. It is an experiment with one `[[sweep]]`, built from the
-//! command line. Its best point is a choice made on those rows: scored on
-//! test rows, it is an oracle figure.
+//! command line; several data files are records of one system, as an
+//! experiment file's `[[data.records]]`. Its best point is a choice made on
+//! those rows: scored on test rows, it is an oracle figure.
 
 use crate::error::CliError;
 use crate::error::Result;
@@ -11,8 +12,8 @@ use crate::progress::TerminalProgress;
 use crate::selection::{DataArgs, SignalArgs, SignalDefaults};
 use hysid::compare::experiment::MODEL_FILE_OPTION;
 use hysid::compare::{
-    DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Origin, RunSpec,
-    ScoredRows, SweepSpec,
+    DataEntry, DataPart, DataSpec, Experiment, ExperimentError, ExperimentWarning, Origin,
+    RecordSpec, RunSpec, ScoredRows, SweepSpec,
 };
 use hysid::select::GivenBesideGrid;
 use hysid_core::model::SignalNames;
@@ -26,26 +27,31 @@ use std::path::{Path, PathBuf};
 /// Arguments of `hysid sweep`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Data file (.csv or .mat).
-    pub data: PathBuf,
+    /// Data file(s) (.csv or .mat): several are records of one system, one
+    /// model fitted on all, every point scored on all.
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
     /// Back-end (see `hysid methods`).
     #[arg(short = 'm', long = "method")]
     pub method: String,
     /// Grid axis KEY=V1,V2,... (repeatable): a back-end option, or modes, na, nb.
     #[arg(long = "grid", value_name = "KEY=V1,V2,..", required = true)]
     pub grid: Vec<String>,
-    /// Rows used for identification (after decimation).
-    #[arg(long = "identify-rows", allow_hyphen_values = true)]
-    pub identify_rows: RowRange,
+    /// Rows used for identification (after decimation); with several data
+    /// files, once for every file or once per file.
+    #[arg(long = "identify-rows", required = true, allow_hyphen_values = true)]
+    pub identify_rows: Vec<RowRange>,
     /// Rows every point is scored on (after decimation): selection rows
     /// when the sweep chooses options (outside --identify-rows and away
-    /// from the test rows); `--validate-rows` is the same flag.
+    /// from the test rows); `--validate-rows` is the same flag. With
+    /// several data files, once for every file or once per file.
     #[arg(
         long = "select-rows",
         alias = "validate-rows",
+        required = true,
         allow_hyphen_values = true
     )]
-    pub select_rows: RowRange,
+    pub select_rows: Vec<RowRange>,
     /// Scored samples left out at the start.
     #[arg(long, default_value_t = 10, value_parser = crate::selection::parse_count)]
     pub warmup: usize,
@@ -75,6 +81,21 @@ pub struct Args {
 }
 
 impl Args {
+    /// The identification and selection rows of data file `i` (from 0).
+    fn rows_of(&self, i: usize) -> (RowRange, RowRange) {
+        let of = |rows: &[RowRange]| rows.get(i).or(rows.first()).copied().unwrap_or_default();
+        (of(&self.identify_rows), of(&self.select_rows))
+    }
+
+    /// The data file of `entry`.
+    fn file_of(&self, entry: DataEntry) -> &Path {
+        let i = match entry {
+            DataEntry::Main => 0,
+            DataEntry::Record(k) => k,
+        };
+        self.data.get(i).unwrap_or(&self.data[0])
+    }
+
     /// The orders `na`, `nb` of the points that do not sweep them.
     fn orders(&self) -> (usize, usize) {
         (
@@ -164,7 +185,8 @@ fn signals_read(args: &Args, given: &Settings) -> Result<SignalArgs> {
         signals: args.signals.clone(),
         rows: Vec::new(),
     };
-    let data = (record.reading(SignalDefaults::declared(declared.clone()))).load_one(&args.data)?;
+    let data =
+        (record.reading(SignalDefaults::declared(declared.clone()))).load_one(&args.data[0])?;
     if let Some(own) = &declared.inputs {
         super::warn_of_order(own, &data, "the model file names");
     }
@@ -213,27 +235,42 @@ fn sweep_spec(args: &Args, given: &Settings, space: &SearchSpace) -> Result<Swee
     })
 }
 
-/// The experiment the sweep is: `sweep` on the command line's record,
-/// scored on the selection rows.
+/// The experiment the sweep is: `sweep` on the command line's records
+/// (the first as `[data]`, the others as `[[data.records]]`), scored on
+/// their selection rows.
 fn experiment(args: &Args, signals: &SignalArgs, priors: Priors, sweep: SweepSpec) -> Experiment {
+    let files: Vec<String> = args.data.iter().map(|f| f.display().to_string()).collect();
+    let (identification, validation) = args.rows_of(0);
+    let records = (args.data.iter().enumerate().skip(1))
+        .map(|(i, file)| {
+            let (identification, validation) = args.rows_of(i);
+            RecordSpec {
+                file: file.clone(),
+                input: None,
+                output: None,
+                identification: Some(identification),
+                validation: Some(validation),
+            }
+        })
+        .collect();
     Experiment {
-        title: format!("{} sweep on {}", args.method, args.data.display()),
+        title: format!("{} sweep on {}", args.method, files.join(", ")),
         description: String::new(),
         data: DataSpec {
-            file: args.data.clone(),
+            file: args.data[0].clone(),
             input: signals.inputs(),
             input_named: signals.input.is_some(),
             output: signals.output(),
             decimate: args.signals.decimate,
             ts: args.signals.ts,
             time: args.signals.time.clone(),
-            identification: Some(args.identify_rows),
-            validation: Some(args.select_rows),
+            identification: Some(identification),
+            validation: Some(validation),
             warmup: args.warmup,
             selection: None,
             folds: None,
             select_records: None,
-            records: Vec::new(),
+            records,
             refit_starts: hysid::select::DEFAULT_REFIT_STARTS,
             output_label: None,
             input_label: None,
@@ -251,6 +288,12 @@ fn experiment(args: &Args, signals: &SignalArgs, priors: Priors, sweep: SweepSpe
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
+    for (flag, rows) in [
+        ("--identify-rows", &args.identify_rows),
+        ("--select-rows", &args.select_rows),
+    ] {
+        crate::selection::once_or_per_file(flag, rows.len(), args.data.len())?;
+    }
     let given = Settings::parse(&args.set)?;
     let space =
         SearchSpace::parse_grid(&args.grid).map_err(|e| CliError::input(e.render("--grid")))?;
@@ -258,8 +301,7 @@ pub fn run(args: Args) -> Result<()> {
     // The model files: `--set model=FILE`, or those of `--grid model=..`.
     let models: Vec<&Path> = sweep.model_files().collect();
     if let Some(dir) = &args.out {
-        let inputs: Vec<&Path> = [args.data.as_path()]
-            .into_iter()
+        let inputs: Vec<&Path> = (args.data.iter().map(PathBuf::as_path))
             .chain(args.prior.as_deref())
             .chain(models.iter().copied())
             .collect();
@@ -283,11 +325,23 @@ pub fn run(args: Args) -> Result<()> {
     exp.check().map_err(|e| CliError::input(e.to_string()))?;
     // The points are scored on the selection rows: rows they were fitted
     // on would score them on what they have seen.
-    if (exp.warnings().iter()).any(|w| matches!(w, ExperimentWarning::ValidationOverlaps { .. })) {
+    let overlap = exp.warnings().into_iter().find_map(|w| match w {
+        ExperimentWarning::ValidationOverlaps {
+            entry,
+            identification,
+            validation,
+            ..
+        } => Some((entry, identification, validation)),
+        _ => None,
+    });
+    if let Some((entry, identification, validation)) = overlap {
+        let of = match args.data.len() {
+            1 => String::new(),
+            _ => format!(" of {}", args.file_of(entry).display()),
+        };
         return Err(CliError::input(format!(
-            "--select-rows {} overlap --identify-rows {}: the points would be scored on rows \
-             they were fitted on",
-            args.select_rows, args.identify_rows
+            "--select-rows {validation} overlap --identify-rows {identification}{of}: the points \
+             would be scored on rows they were fitted on"
         )));
     }
     let progress = TerminalProgress::new();
