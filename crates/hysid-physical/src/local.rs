@@ -131,6 +131,8 @@ where
             (descent, stop, false)
         })
         .collect();
+    // Every round advances each running descent by ROUND steps or ends
+    // it, so at most `lm_iters / ROUND + 1` rounds run.
     while running
         .iter()
         .any(|(_, stop, outpaced)| stop.is_none() && !outpaced)
