@@ -654,35 +654,24 @@ values = [8, 16]
         text.contains("| run | a.csv 100..160 | b.csv 100..160 |"),
         "{text}"
     );
-    let o = sweep(&[
-        "--identify-rows",
-        "0..100",
-        "--select-rows",
-        "100..",
-        "--select-rows",
-        "100..",
-        "--select-rows",
-        "100..",
-    ]);
-    let line = one_line_error(&o, 2).unwrap();
+    // Selection rows after identification rows 0..100 of each: refused in
+    // one line.
+    let refused = |select: &[&str]| {
+        let mut args = vec!["--identify-rows", "0..100"];
+        for rows in select {
+            args.extend(["--select-rows", rows]);
+        }
+        one_line_error(&sweep(&args), 2).unwrap()
+    };
+    let line = refused(&["100..", "100..", "100.."]);
     assert!(
         line.contains("--select-rows: given 3 times for 2 data files"),
         "{line}"
     );
-    let o = sweep(&[
-        "--identify-rows",
-        "0..100",
-        "--select-rows",
-        "100..",
-        "--select-rows",
-        "90..",
-    ]);
-    let line = one_line_error(&o, 2).unwrap();
-    assert!(
-        line.contains(&format!(
-            "--select-rows 90.. overlap --identify-rows 0..100 of {}",
-            b.display()
-        )),
-        "{line}"
+    let line = refused(&["100..", "90.."]);
+    let want = format!(
+        "--select-rows 90.. overlap --identify-rows 0..100 of {}",
+        b.display()
     );
+    assert!(line.contains(&want), "{line}");
 }
