@@ -1215,6 +1215,26 @@ mod tests {
     }
 
     #[test]
+    fn flows_beyond_the_stack_memory_run_jointly_in_an_allocated_one() {
+        // 43 operations (at most 48 fit a joint program), 13 constants and
+        // 2 slots.
+        let terms: Vec<String> = (1..=13).map(|k| format!("sin(x + {k}.5)")).collect();
+        let flows = [
+            Expression::compile(&terms.join(" + "), &names).unwrap(),
+            Expression::compile(&format!("y * ({})", terms[..5].join(" - ")), &names).unwrap(),
+        ];
+        let shared = Shared::of(&flows);
+        let entries = shared.joint.as_ref().map(|j| j.entries());
+        assert!(entries.is_some_and(|e| e > 48), "{entries:?}");
+        let slots = [0.3, -1.2, 2.5];
+        let mut out = [0.0; 2];
+        shared.eval(&flows, &slots, &mut out);
+        for (f, value) in flows.iter().zip(out) {
+            assert_eq!(f.eval(&slots).to_bits(), value.to_bits());
+        }
+    }
+
+    #[test]
     fn every_operation_reads_its_operands_in_order() {
         let slots = [3.0, -2.0, 0.5];
         for text in [

@@ -459,8 +459,15 @@ pub(super) struct Joint {
     results: Vec<(usize, u8)>,
 }
 
-/// Entries of a [`Joint`] program's memory, at most.
-const MEMORY: usize = 96;
+/// Entries of a [`Joint`] program's memory, at most (its entries are
+/// numbered by bytes).
+const MEMORY: usize = 256;
+
+/// Entries of a memory a [`Joint`] program runs in on the stack; a larger
+/// one is allocated at each run. Every mode of every model in `models/`
+/// needs at most 31; a stack memory is cleared at every run, which costs
+/// more the larger it is.
+const STACK_MEMORY: usize = 48;
 
 /// One operation of a [`Joint`] program, on entries of its memory: what
 /// it does, where it writes, and its operands (padded with the first).
@@ -636,15 +643,31 @@ impl Joint {
         self.steps.len()
     }
 
+    /// Entries of its memory.
+    #[cfg(test)]
+    pub(super) fn entries(&self) -> usize {
+        self.steps.len() + self.gather.len() + self.constants.len()
+    }
+
     /// Writes each tape's value at `slots` into its position of `out`.
     #[inline(never)]
     pub(super) fn run(&self, slots: &[f64], out: &mut [f64]) {
-        let mut m = [0.0f64; MEMORY];
-        let cells = self.steps.len();
+        let constants = self.steps.len() + self.gather.len();
+        let entries = constants + self.constants.len();
+        if entries <= STACK_MEMORY {
+            self.run_in(&mut [0.0; STACK_MEMORY], slots, out);
+        } else {
+            self.run_in(&mut vec![0.0; entries], slots, out);
+        }
+    }
+
+    /// [`Joint::run`] in the memory `m`, of at least the program's entries.
+    #[inline(never)]
+    fn run_in(&self, m: &mut [f64], slots: &[f64], out: &mut [f64]) {
         for &(entry, slot) in &self.gather {
             m[entry as usize] = slots[slot as usize];
         }
-        let constants = cells + self.gather.len();
+        let constants = self.steps.len() + self.gather.len();
         m[constants..constants + self.constants.len()].copy_from_slice(&self.constants);
         for step in &self.steps {
             let x = step.operands.map(|e| m[e as usize]);
