@@ -361,6 +361,37 @@ fn validate_says_fit_is_undefined_on_a_constant_output() {
     assert!(!stderr.contains(warning), "{stderr}");
     let report: serde_json::Value = serde_json::from_slice(&on_varying.stdout).unwrap();
     assert!(report.get("constant_output").is_none(), "{report}");
+    // `compare` says it once, in its report and on stderr, where the rows
+    // it scores are constant.
+    for (scored, constant) in [("flat.csv", true), ("varying.csv", false)] {
+        let experiment = d.join("experiment.toml");
+        std::fs::write(
+            &experiment,
+            format!(
+                "title = \"flat\"\nna = 1\nnb = 1\n[data]\nfile = \"varying.csv\"\n\
+                 identification = \"0..80\"\n[[data.records]]\nfile = \"{scored}\"\n\
+                 validation = \"80..\"\n[[run]]\nname = \"arx\"\nmethod = \"arx\"\n"
+            ),
+        )
+        .unwrap();
+        let out = d.join(format!("out-{scored}"));
+        let o = hysid(&["compare", s(&experiment), "-o", s(&out)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr),
+        );
+        assert_eq!(
+            stdout.contains(&format!("**Warning:** {warning}")),
+            constant,
+            "{stdout}"
+        );
+        assert_eq!(
+            stderr.matches(warning).count(),
+            usize::from(constant),
+            "{stderr}"
+        );
+    }
 }
 
 #[test]

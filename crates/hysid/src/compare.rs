@@ -20,7 +20,7 @@ use hysid_core::backend::{Progress, Registry};
 use hysid_core::model::Model;
 use hysid_core::options::Settings;
 use hysid_core::priors::{ModeCountNeed, Priors};
-use hysid_core::simulate::{GivenStateLater, ValidationReport, validate};
+use hysid_core::simulate::{GivenStateLater, ValidationReport, ValidationWarning, validate};
 use hysid_io::load_each;
 use hysid_model::data::{DataError, DataSelection, Dataset, RowRange};
 use hysid_model::regressors::RegressorSpec;
@@ -570,6 +570,11 @@ impl Experiment {
         label_sweep_best(&mut results);
         let mut warnings: Vec<String> = warnings.iter().map(ToString::to_string).collect();
         warnings.extend(given_state_warnings(&results, &self.data));
+        // Every run is scored on the same samples: the output's spread is
+        // the data's.
+        if (results.iter().filter_map(|r| r.report.as_ref())).any(|v| v.constant_output) {
+            warnings.push(ValidationWarning::ConstantOutput.to_string());
+        }
         Ok(Comparison {
             title: self.title.clone(),
             description: self.description.clone(),
