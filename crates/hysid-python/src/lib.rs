@@ -403,6 +403,9 @@ fn compare<'py>(
     if let Some(w) = exp.unread_declared_inputs() {
         warn(py, &format!("{}: {w}", experiment.display()))?;
     }
+    if let Some(w) = hysid::compare::constant_output(&comparison.results) {
+        warn(py, &format!("{}: {w}", experiment.display()))?;
+    }
     // As the program's exit code 1: the report could not be written.
     hysid::compare::write_report(&mut comparison, &out_dir)
         .map_err(|e| Failure::method(format!("{}: {e}", out_dir.display())))?;

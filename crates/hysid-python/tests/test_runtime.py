@@ -120,6 +120,30 @@ provenance = "user"
         hysid.compare(experiment, tmp_path / "out")
 
 
+def test_compare_says_fit_is_undefined_where_the_scored_output_is_constant(tmp_path):
+    u = np.random.default_rng(2).uniform(-1, 1, 200)
+    y = np.zeros(200)
+    for k in range(2, 150):
+        y[k] = 1.2 * y[k - 1] - 0.5 * y[k - 2] + 0.4 * u[k - 1]
+    y[150:] = 3.0
+    rows = "\n".join(f"{0.01 * k},{u[k]},{y[k]}" for k in range(200))
+    (tmp_path / "flat.csv").write_text("t,u,y\n" + rows + "\n")
+    experiment = tmp_path / "flat.toml"
+    experiment.write_text("""title = "flat"
+[data]
+file = "flat.csv"
+identification = "0..150"
+validation = "150.."
+[[run]]
+name = "arx"
+method = "arx"
+""")
+    said = "the scored output is constant: FIT is undefined there"
+    with pytest.warns(UserWarning, match=said):
+        report = hysid.compare(experiment, tmp_path / "out")
+    assert any(said in w for w in report["warnings"])
+
+
 def test_figures_draw(record, tmp_path):
     matplotlib = pytest.importorskip("matplotlib")
     matplotlib.use("Agg")

@@ -570,10 +570,8 @@ impl Experiment {
         label_sweep_best(&mut results);
         let mut warnings: Vec<String> = warnings.iter().map(ToString::to_string).collect();
         warnings.extend(given_state_warnings(&results, &self.data));
-        // Every run is scored on the same samples: the output's spread is
-        // the data's.
-        if (results.iter().filter_map(|r| r.report.as_ref())).any(|v| v.constant_output) {
-            warnings.push(ValidationWarning::ConstantOutput.to_string());
+        if let Some(w) = constant_output(&results) {
+            warnings.push(w.to_string());
         }
         Ok(Comparison {
             title: self.title.clone(),
@@ -601,6 +599,15 @@ impl Experiment {
             drawn: Drawn::default(),
         })
     }
+}
+
+/// [`ValidationWarning::ConstantOutput`] where the scored output of
+/// `results` is constant (every run is scored on the same samples, so it
+/// is the data's).
+pub fn constant_output(results: &[RunResult]) -> Option<ValidationWarning> {
+    (results.iter().filter_map(|r| r.report.as_ref()))
+        .any(|v| v.constant_output)
+        .then_some(ValidationWarning::ConstantOutput)
 }
 
 /// For each run (its seeds and sweep points once) whose model starts from

@@ -81,9 +81,8 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(w) = exp.unread_declared_inputs() {
         eprintln!("hysid: warning: {}: {w}", args.experiment.display());
     }
-    let constant = hysid_core::simulate::ValidationWarning::ConstantOutput.to_string();
-    if comparison.warnings.contains(&constant) {
-        eprintln!("hysid: warning: {}: {constant}", args.experiment.display());
+    if let Some(w) = hysid::compare::constant_output(&comparison.results) {
+        eprintln!("hysid: warning: {}: {w}", args.experiment.display());
     }
     comparison.figures = args.format;
     hysid::compare::write_report(&mut comparison, &dir)
