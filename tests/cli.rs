@@ -1294,6 +1294,30 @@ fn auto_selection_rows_are_checked() {
         &["--auto: the default selection rows", "--select-rows"],
         &out,
     );
+    // Selection rows where the output rests cannot rank the candidates.
+    let text = std::fs::read_to_string(&data).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let y = lines[0].split(',').position(|c| c == "y").unwrap();
+    for line in &mut lines[1 + 300..] {
+        let mut cells: Vec<&str> = line.split(',').collect();
+        cells[y] = "0.5";
+        *line = cells.join(",");
+    }
+    let rests = common::write(dir.path(), "rests.csv", &(lines.join("\n") + "\n"));
+    let mut args = base.to_vec();
+    args[1] = s(&rests);
+    bad(
+        &args,
+        &[
+            "--auto: the default selection rows 320.. (the last 20 % of the identification rows): the output is constant on rows 320..400 after the warm-up, so FIT cannot rank the candidates there; give more rows or --select-rows",
+        ],
+        &out,
+    );
+    let chosen = dir.path().join("chosen.json");
+    let mut moving = [&args[..], &["--select-rows", "0..80"]].concat();
+    moving[6] = s(&chosen);
+    let o = hysid(&moving);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // --grid and --refit-starts without --auto are usage errors.
     for extra in [["--grid", "na=1"], ["--refit-starts", "2"]] {
         let mut args = vec!["identify", s(&data), "-m", "arx", "-o", s(&out)];

@@ -846,8 +846,59 @@ mod tests {
         }
     }
 
+    /// `n` rows whose output moves on every row.
     fn rows_of(n: usize) -> Dataset {
-        Dataset::siso(vec![0.0; n], vec![0.0; n], None).unwrap()
+        let y = (0..n).map(|k| (k % 7) as f64).collect();
+        Dataset::siso(vec![0.0; n], y, None).unwrap()
+    }
+
+    /// `rows_of(n)` with the output held at 1 on `rows`.
+    fn held_on(n: usize, rows: std::ops::Range<usize>) -> Dataset {
+        let data = rows_of(n);
+        let mut y = data.y().to_vec();
+        y[rows].fill(1.0);
+        Dataset::siso(vec![0.0; n], y, None).unwrap()
+    }
+
+    #[test]
+    fn selection_rows_of_a_constant_output_are_refused() {
+        // The last fifth, rows 4000..5000 of the file (first row 1000).
+        let default = Plan {
+            first_row: 1000,
+            warmup: 10,
+            ..Plan::default()
+        };
+        let e = splits(&held_on(5000, 4000..5000), &default).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "selection rows 5000..: the output is constant on rows 5000..6000 after the warm-up, so FIT cannot rank the candidates there"
+        );
+        // Moving within the warm-up only is still constant as scored.
+        assert!(splits(&held_on(5000, 4010..5000), &default).is_err());
+        assert!(splits(&held_on(5000, 4011..5000), &default).is_ok());
+        // A fold, and a held-out record.
+        let folds = Plan {
+            folds: Some(4),
+            ..Plan::default()
+        };
+        let e = splits(&held_on(400, 100..200), &folds).unwrap_err();
+        assert!(matches!(e, SelectError::Folds { folds: 4, .. }), "{e}");
+        assert!(e.to_string().contains("rows 100..200"), "{e}");
+        let joined = Dataset::join(&[rows_of(50), held_on(30, 0..30)]).unwrap();
+        let records = Plan {
+            select_records: Some(1),
+            ..Plan::default()
+        };
+        let e = splits(&joined, &records).unwrap_err();
+        assert!(matches!(e, SelectError::Records { records: 1, .. }), "{e}");
+        // A constant held-out record beside a moving one: their pooled
+        // FIT is defined.
+        let three = Dataset::join(&[rows_of(50), held_on(30, 0..30), rows_of(20)]).unwrap();
+        let two = Plan {
+            select_records: Some(2),
+            ..Plan::default()
+        };
+        assert!(splits(&three, &two).is_ok());
     }
 
     #[test]

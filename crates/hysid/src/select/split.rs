@@ -5,6 +5,7 @@
 use super::{DEFAULT_SELECTION_PERCENT, Plan, SelectError};
 use hysid_estimation::parsimony;
 use hysid_model::data::{DataError, Dataset, RowRange};
+use hysid_model::metrics;
 
 /// Fit rows and selection rows, as half-open ranges of the identification
 /// record.
@@ -13,16 +14,56 @@ pub type Split = ((usize, usize), (usize, usize));
 /// The splits of an identification record of `n` rows that `plan` asks
 /// for: one ([`split`]), the two ends of a short record ([`both_ends`]),
 /// or the rolling-origin folds ([`folds`]).
+///
+/// Splits whose scored selection rows hold a constant output are refused:
+/// every candidate's FIT there is 0 (100 for an exact match), so it cannot
+/// rank them.
 pub fn splits(data: &Dataset, plan: &Plan) -> Result<Vec<Split>, SelectError> {
     let n = data.len();
-    if let Some(k) = plan.select_records {
-        return Ok(vec![record_split(data, k, plan)?]);
+    let out = if let Some(k) = plan.select_records {
+        vec![record_split(data, k, plan)?]
+    } else {
+        match plan.folds {
+            Some(k) => folds(n, k, plan.warmup)?,
+            None if plan.select.is_none() => both_ends(n, split(n, plan)?),
+            None => vec![split(n, plan)?],
+        }
+    };
+    match out
+        .iter()
+        .find(|&&(_, rows)| constant_output(data, rows, plan.warmup))
+    {
+        None => Ok(out),
+        Some(&(_, (a, b))) => {
+            let reason = format!(
+                "the output is constant on rows {}..{} after the warm-up, so FIT cannot rank the candidates there",
+                a + plan.first_row,
+                b + plan.first_row
+            );
+            Err(match (plan.select_records, plan.folds) {
+                (Some(records), _) => SelectError::Records { records, reason },
+                (None, Some(folds)) => SelectError::Folds { folds, reason },
+                (None, None) => SelectError::Rows {
+                    rows: selection_rows(n, plan).to_string(),
+                    reason,
+                },
+            })
+        }
     }
-    match plan.folds {
-        Some(k) => folds(n, k, plan.warmup),
-        None if plan.select.is_none() => Ok(both_ends(n, split(n, plan)?)),
-        None => Ok(vec![split(n, plan)?]),
-    }
+}
+
+/// Whether the output of `data` is constant on the selection rows `a..b`
+/// as they are scored: each record's share without its first `warmup`
+/// samples ([`metrics::fit_undefined`]). Rows that leave nothing to score
+/// are not constant: their shortness is said where they are simulated.
+fn constant_output(data: &Dataset, (a, b): (usize, usize), warmup: usize) -> bool {
+    let y = data.y();
+    let scored: Vec<&[f64]> = (data.record_ranges().iter())
+        .map(|r| (a.max(r.start) + warmup).min(b.min(r.end))..b.min(r.end))
+        .filter(|r| !r.is_empty())
+        .map(|r| &y[r])
+        .collect();
+    !scored.is_empty() && metrics::fit_undefined(&scored)
 }
 
 /// The fit rows and selection rows when the last `k` records of `data`
@@ -90,6 +131,15 @@ pub fn folds(n: usize, k: usize, warmup: usize) -> Result<Vec<Split>, SelectErro
         .collect())
 }
 
+/// The selection rows `plan` gives, in rows of the file: its own, else
+/// the last [`DEFAULT_SELECTION_PERCENT`] % of the `n` identification rows.
+fn selection_rows(n: usize, plan: &Plan) -> RowRange {
+    plan.select.unwrap_or(RowRange {
+        start: Some(plan.first_row + n - n * DEFAULT_SELECTION_PERCENT / 100),
+        end: None,
+    })
+}
+
 /// The fit rows and the selection rows of an identification record of `n`
 /// rows, as half-open ranges of the record. `plan.select` counts rows of
 /// the file (the record starts at `plan.first_row`); the selection rows
@@ -97,10 +147,7 @@ pub fn folds(n: usize, k: usize, warmup: usize) -> Result<Vec<Split>, SelectErro
 /// record.
 pub fn split(n: usize, plan: &Plan) -> Result<Split, SelectError> {
     let first = plan.first_row;
-    let given = plan.select.unwrap_or(RowRange {
-        start: Some(first + n - n * DEFAULT_SELECTION_PERCENT / 100),
-        end: None,
-    });
+    let given = selection_rows(n, plan);
     let bad = |reason: String| SelectError::Rows {
         rows: given.to_string(),
         reason,
