@@ -84,6 +84,13 @@ def test_the_ways_of_choosing_selection_rows_are_one_at_a_time():
     assert message.startswith("folds=2: not with selection rows"), message
 
 
+def test_selection_rows_where_the_output_rests_are_refused():
+    resting = np.where(np.arange(300) < 200, Y, 0.5)
+    message = raised(hysid.identify, U, resting, method="arx", auto=True, select_rows=(240, 300))
+    assert message.endswith("the output is constant on rows 240..300 after the warm-up, so FIT cannot rank the candidates there"), message
+    hysid.identify(U, resting, method="arx", auto=True, select_rows=(0, 60), options={"refine": "none"})
+
+
 def test_standardize_is_named_as_the_argument():
     message = raised(hysid.identify, U, Y, method="arx", standardize=True, priors={"fixed": {"c": 0.0}})
     assert message.startswith("standardize=True cannot be combined with [fixed] c of priors, a prior in data units"), message
