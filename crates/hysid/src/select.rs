@@ -15,8 +15,8 @@
 //! standard error of the best, the one with the fewest modes is chosen
 //! ([`parsimony`]). The choice is then fitted again on all the
 //! identification rows, from several seeds when the seed can change the
-//! back-end's fit and, for a refined choice, from its own fit on the fit
-//! rows, keeping the start that simulates them best (the next
+//! back-end's fit and, for a refined or seeded choice, from its own fit
+//! on the fit rows, keeping the start that simulates them best (the next
 //! candidate when that refit simulates them below the affine reference),
 //! and the model file records every candidate, its score, the choice and
 //! the refit's starts ([`Selection`]).
@@ -332,16 +332,17 @@ pub fn select(request: &Request<'_>, ctx: &RunContext<'_>) -> Result<Model, Sele
     if let Some(e) = refused_request(request, &mut first) {
         return Err(SelectError::EveryCandidateRefused(Box::new(e)));
     }
-    let (mut scored, errors): (Vec<_>, Vec<_>) =
-        add_refined(request, &mut trials, first, &parts, ctx)
-            .into_iter()
-            .map(|s| (s.candidate, s.errors))
-            .unzip();
+    let (mut scored, mut errors, mut fits) = (Vec::new(), Vec::new(), Vec::new());
+    for s in add_refined(request, &mut trials, first, &parts, ctx) {
+        scored.push(s.candidate);
+        errors.push(s.errors);
+        fits.push(s.fits);
+    }
     let best = ranking(&scored).first().copied();
     let floor = affine_index(request, scored.len()).and_then(|a| scored[a].fit_sim);
     let dependence = parsimony::Dependence::of_output_lags(request.setup.orders.na);
     let order = preference(&scored, &errors, floor, dependence);
-    let (chosen, mut model, refit) = choose(request, &trials, &mut scored, &order, ctx)?;
+    let (chosen, mut model, refit) = choose(request, &trials, &fits, &mut scored, &order, ctx)?;
     let refinement = refinement_record(&scored, chosen);
     let ranges = request.data.record_ranges();
     let in_file = |rows: (usize, usize)| rows_text(&ranges, request.plan.first_row, rows);
@@ -681,6 +682,7 @@ fn preference(
 fn choose(
     request: &Request<'_>,
     trials: &[Trial<'_>],
+    fits: &[Vec<Model>],
     scored: &mut [ScoredCandidate],
     order: &[usize],
     ctx: &RunContext<'_>,
@@ -699,7 +701,7 @@ fn choose(
     let mut floor: Option<Option<f64>> = None;
     let mut first_error = None;
     for &i in order {
-        let (model, starts) = match refit(request, &trials[i], ctx) {
+        let (model, starts) = match refit(request, &trials[i], fits[i].last(), ctx) {
             Ok(refitted) => refitted,
             Err(e) => {
                 scored[i].error = Some(format!("refit on all the identification rows: {e}"));
@@ -739,45 +741,57 @@ fn choose(
 /// from one otherwise: the run's seed,
 /// then the next ones ([`RunContext::start_seeds`]), in parallel. A refit is
 /// a new fit on more rows and may end in another local minimum than the
-/// fit that was scored, so a refined candidate has one start more: its
-/// own unrefined fit on the fit rows (of the last split), refined on all
-/// the identification rows, which continues from the model the selection
-/// rows scored. Of the starts, the fit that simulates the identification
-/// rows best is kept (the first among equals), and each start is
-/// recorded. When every start fails, the first start's error. No start
-/// but the first begins after the deadline.
+/// fit that was scored, so the choice has one start more, from its own
+/// fit on the fit rows (of the last split, `scored`), which continues
+/// from the model the selection rows scored: a refined candidate's
+/// unrefined fit, refined on all the identification rows; a seeded
+/// candidate's fit, kept as it was scored. Of the starts, the fit that
+/// simulates the identification rows best is kept (the first among
+/// equals), and each start is recorded. When every start fails, the first
+/// start's error. No start but the first begins after the deadline.
 fn refit(
     request: &Request<'_>,
     trial: &Trial<'_>,
+    scored: Option<&Model>,
     ctx: &RunContext<'_>,
 ) -> Result<(Model, Vec<RefitStart>), IdentifyError> {
-    let seeds = if trial.seeded(request, request.data)? {
+    let seeded = trial.seeded(request, request.data)?;
+    let seeds = if seeded {
         request.plan.refit_starts.max(1)
     } else {
         1
     };
-    let mut starts: Vec<(u64, Option<&Model>)> = ctx
+    let mut starts: Vec<(u64, Start<'_>)> = ctx
         .start_seeds(seeds)
         .into_iter()
-        .map(|seed| (seed, None))
+        .map(|seed| (seed, Start::Afresh))
         .collect();
-    if let Some(candidate) = trial.start.last() {
-        starts.push((ctx.seed, Some(candidate)));
+    match (trial.start.last(), scored) {
+        (Some(unrefined), _) => starts.push((ctx.seed, Start::Refining(unrefined))),
+        (None, Some(scored)) if seeded => starts.push((ctx.seed, Start::AsScored(scored))),
+        _ => {}
     }
     let runs: Vec<_> = starts
         .into_par_iter()
         .enumerate()
         .map(|(k, (seed, from))| {
+            let from_candidate = !matches!(from, Start::Afresh);
             if !ctx.deadline.admits(k) {
-                return (seed, from.is_some(), None);
+                return (seed, from_candidate, None);
             }
             let start = RunContext {
                 seed,
                 progress: &NoProgress,
                 deadline: ctx.deadline.clone(),
             };
-            let run = fit(request, trial, request.data, from, &start);
-            (seed, from.is_some(), Some(run))
+            let run = match from {
+                Start::Afresh => fit(request, trial, request.data, None, &start),
+                Start::Refining(unrefined) => {
+                    fit(request, trial, request.data, Some(unrefined), &start)
+                }
+                Start::AsScored(model) => Ok(model.clone()),
+            };
+            (seed, from_candidate, Some(run))
         })
         .collect();
     let mut record = Vec::with_capacity(runs.len());
@@ -816,6 +830,17 @@ fn refit(
         // The first start always runs, so without a model there is an error.
         None => Err(first_error.unwrap_or_else(|| IdentifyError::failed(NoRefitStart))),
     }
+}
+
+/// Where a start of the refit of a choice begins ([`refit`]).
+enum Start<'m> {
+    /// A fit on all the identification rows from the start's seed.
+    Afresh,
+    /// The refined choice's unrefined fit on the fit rows, refined on all
+    /// the identification rows.
+    Refining(&'m Model),
+    /// The choice's fit on the fit rows, as it was scored.
+    AsScored(&'m Model),
 }
 
 /// The refit of a choice ran no start (the first always runs: a refit
@@ -1536,22 +1561,46 @@ mod tests {
         // The run's own seed lands on the wrong gain; the next starts do
         // not, and the first of them is written.
         assert_eq!(s.candidates[s.chosen].method, "worse_on_more_rows");
+        // The seeded starts, then the candidate's fit as it was scored
+        // (under the run's seed).
         let seeds: Vec<u64> = s.refit.iter().map(|r| r.seed).collect();
+        let mut starts = RunContext::quiet(0).start_seeds(DEFAULT_REFIT_STARTS);
+        starts.push(0);
+        assert_eq!(seeds, starts);
+        let starts: Vec<(bool, bool)> =
+            s.refit.iter().map(|r| (r.from_candidate, r.kept)).collect();
         assert_eq!(
-            seeds,
-            RunContext::quiet(0).start_seeds(DEFAULT_REFIT_STARTS)
+            starts,
+            [(false, false), (false, true), (false, false), (true, false)]
         );
-        let kept: Vec<bool> = s.refit.iter().map(|r| r.kept).collect();
-        assert_eq!(kept, [false, true, false]);
         assert!(s.refit[0].fit_sim.unwrap() < s.refit[1].fit_sim.unwrap());
         let (v, _, _) = validate(&model, &data, 10).unwrap();
         assert_eq!(Some(v.fit_sim), s.refit[1].fit_sim);
         assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
-        // From the run's seed alone the refit is refused, as unseeded.
+        // From the run's seed alone the refit lands on the wrong gain, and
+        // the candidate's fit as scored is written.
         request.plan.refit_starts = 1;
         let model = select(&request, &RunContext::quiet(0)).unwrap();
         let s = model.info().selection.clone().unwrap();
-        assert_eq!(s.refit.len(), 1);
+        let starts: Vec<(bool, bool)> =
+            s.refit.iter().map(|r| (r.from_candidate, r.kept)).collect();
+        assert_eq!(starts, [(false, false), (true, true)]);
+        assert_eq!(s.candidates[s.chosen].method, "worse_on_more_rows");
+        let (v, _, _) = validate(&model, &data, 10).unwrap();
+        assert!(v.fit_sim > 99.999, "{}", v.fit_sim);
+        // An unseeded back-end's refit is its fit on more rows: no start
+        // from the candidate, and a refit below the affine model is
+        // refused ([`a_refit_below_the_affine_model_is_not_written`]).
+        let unseeded = WorseOnMoreRows {
+            seeded: false,
+            refines: false,
+        };
+        let model = select(
+            &first_order_request(&unseeded, &data),
+            &RunContext::quiet(0),
+        )
+        .unwrap();
+        let s = model.info().selection.clone().unwrap();
         assert_eq!(s.candidates[s.chosen].method, "arx");
     }
 

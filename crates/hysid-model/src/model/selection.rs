@@ -136,8 +136,9 @@ pub struct RefinementChoice {
 pub struct RefitStart {
     /// Seed of the start: the run's seed for the first.
     pub seed: u64,
-    /// Whether the start refined the chosen candidate's own fit on the fit
-    /// rows instead of fitting afresh.
+    /// Whether the start is the chosen candidate's own fit on the fit rows
+    /// instead of a fresh fit: refined on all the identification rows when
+    /// the choice is refined, as it was scored otherwise.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub from_candidate: bool,
     /// Free-run simulation FIT of the start's model on all the
