@@ -115,9 +115,9 @@ pub struct Args {
     pub select_records: Option<usize>,
     /// With --auto: seeded starts of the refit of the choice.
     ///
-    /// Used when the back-end's seed can change its fit; a refined choice
-    /// also starts from its own fit on the fit rows. The start that
-    /// simulates the identification rows best is written.
+    /// Used when the back-end's seed can change its fit; the choice also
+    /// starts from its own fit on the fit rows. The start that simulates
+    /// the identification rows best is written.
     #[arg(long, requires = "auto", default_value_t = hysid::select::DEFAULT_REFIT_STARTS, value_parser = crate::selection::parse_at_least_one, help_heading = "Selection")]
     pub refit_starts: usize,
     /// With --auto: a grid axis KEY=V1,V2,.. (repeatable).

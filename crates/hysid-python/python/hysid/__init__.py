@@ -196,9 +196,8 @@ def identify(
     rows (``select_rows``, default the last 20 %; or ``folds``), over the
     back-end's search space or ``grid`` (``{"c": [40, 80], "modes": [2,
     3]}``), then refits on all rows (from ``refit_starts`` seeds, default
-    3, when the seed can change the fit, and for a refined choice from its
-    own fit on the fit rows; the start that simulates those rows best is
-    kept); ``model.info["selection"]`` records the
+    3, when the seed can change the fit, and from the choice's own fit on
+    the fit rows; the start that simulates those rows best is kept); ``model.info["selection"]`` records the
     candidates, the choice and the refit's starts. ``standardize=True`` identifies on
     standardised data. ``time_budget``: seconds after which long back-ends
     return their best model. ``warmup``: samples left out of free-run scores.
