@@ -165,6 +165,24 @@ impl Dataset {
             .collect()
     }
 
+    /// Each record played backwards: its samples in reverse order, the
+    /// records in their order, the same boundaries.
+    pub fn backwards(&self) -> Self {
+        let ranges = self.record_ranges();
+        let turn = |s: &Signal| Signal {
+            name: s.name.clone(),
+            values: (ranges.iter())
+                .flat_map(|r| s.values[r.clone()].iter().rev().copied())
+                .collect(),
+        };
+        Self {
+            inputs: self.inputs.iter().map(turn).collect(),
+            output: turn(&self.output),
+            ts: self.ts,
+            boundaries: self.boundaries.clone(),
+        }
+    }
+
     /// Samples `a..b`, with the boundaries inside them.
     fn cut(&self, a: usize, b: usize) -> Self {
         let cut = |s: &Signal| Signal {
@@ -540,6 +558,26 @@ pub enum DataError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_record_is_played_backwards_in_its_place() {
+        let record =
+            |u: &[f64], y: &[f64]| Dataset::siso(u.to_vec(), y.to_vec(), Some(0.5)).unwrap();
+        let joined = Dataset::join(&[
+            record(&[1.0, 2.0, 3.0], &[10.0, 20.0, 30.0]),
+            record(&[4.0, 5.0], &[40.0, 50.0]),
+        ])
+        .unwrap();
+        let back = joined.backwards();
+        assert_eq!(back.u(0), [3.0, 2.0, 1.0, 5.0, 4.0]);
+        assert_eq!(back.y(), [30.0, 20.0, 10.0, 50.0, 40.0]);
+        assert_eq!(back.boundaries, [3]);
+        assert_eq!(
+            (back.ts, &back.output.name),
+            (Some(0.5), &joined.output.name)
+        );
+        assert_eq!(back.backwards(), joined);
+    }
 
     #[test]
     fn rows_that_select_nothing_are_named_with_the_record_s_length() {

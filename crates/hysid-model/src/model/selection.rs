@@ -145,6 +145,11 @@ pub struct RefitStart {
     /// identification rows, percent; `None` when the fit failed or its
     /// simulation is not finite.
     pub fit_sim: Option<f64>,
+    /// Whether the start's model diverges in a free run of the
+    /// identification inputs played backwards: such a start is kept only
+    /// when every start does.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub diverges_backwards: bool,
     /// Whether this start's model is the one written.
     pub kept: bool,
     /// Why the start has no model, when it failed.
