@@ -750,8 +750,8 @@ fn choose(
 /// simulates the identification rows best is kept (the first among
 /// equals), passing over those that diverge on the record played
 /// backwards when any does not ([`kept_start`]), and each start is
-/// recorded. When every start fails, the first
-/// start's error. No start but the first begins after the deadline.
+/// recorded. When every start fails, the first start's error. No start
+/// but the first begins after the deadline.
 fn refit(
     request: &Request<'_>,
     trial: &Trial<'_>,

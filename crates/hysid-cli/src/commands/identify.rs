@@ -357,7 +357,9 @@ fn report_selection(method: &str, s: &Selection) {
             .refit
             .iter()
             .map(|r| {
-                let fit = (r.fit_sim).map_or_else(|| "failed".into(), |f| format!("{f:.2}"));
+                let fit = r
+                    .fit_sim
+                    .map_or_else(|| "failed".into(), |f| format!("{f:.2}"));
                 if r.diverges_backwards {
                     format!("{fit}, diverging on the rows played backwards")
                 } else {

@@ -197,8 +197,9 @@ def identify(
     back-end's search space or ``grid`` (``{"c": [40, 80], "modes": [2,
     3]}``), then refits on all rows (from ``refit_starts`` seeds, default
     3, when the seed can change the fit, and from the choice's own fit on
-    the fit rows; the start that simulates those rows best is kept); ``model.info["selection"]`` records the
-    candidates, the choice and the refit's starts. ``standardize=True`` identifies on
+    the fit rows; the start that simulates those rows best is kept);
+    ``model.info["selection"]`` records the candidates, the choice and the
+    refit's starts. ``standardize=True`` identifies on
     standardised data. ``time_budget``: seconds after which long back-ends
     return their best model. ``warmup``: samples left out of free-run scores.
 
