@@ -1126,6 +1126,62 @@ fn auto_says_why_the_affine_model_is_written() {
     assert_eq!(m["info"]["method"], "arx");
 }
 
+/// On a noise-free record of two modes every candidate of two or more
+/// modes simulates the selection rows exactly, up to rounding: they tie,
+/// and the one-standard-error rule takes two modes (ranked by their
+/// rounding, `cluster` chose three), which simulate the next rows exactly.
+#[test]
+fn auto_ties_exact_candidates_and_takes_the_fewest_modes() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = common::write(
+        dir.path(),
+        "truth.json",
+        r#"{"kind":"pwarx","na":2,"nb":2,"inputs":1,"modes":[
+            {"theta":[0.5,-0.1,1.0,0.2,0.5],"region":{"a":[[1,0,0,0]],"b":[0]}},
+            {"theta":[0.7,-0.2,-0.6,0.3,-0.4],"region":{"a":[[-1,0,0,0]],"b":[0]}}]}"#,
+    );
+    let data = dir.path().join("data.csv");
+    let excite = "n=2000,hold=5,low=-2,high=2,ts=0.01";
+    ok(&[
+        "simulate",
+        s(&truth),
+        "--excite",
+        excite,
+        "--seed",
+        "1",
+        "-o",
+        s(&data),
+    ]);
+    let out = dir.path().join("m.json");
+    ok(&[
+        "identify",
+        s(&data),
+        "--rows",
+        "0..1600",
+        "-m",
+        "cluster",
+        "--auto",
+        "-o",
+        s(&out),
+    ]);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let selection = &m["info"]["selection"];
+    let exact = |c: &serde_json::Value| c["fit_sim"].as_f64().is_some_and(|f| f > 99.9999);
+    let candidates = selection["candidates"].as_array().unwrap();
+    let modes = |c: &serde_json::Value| c["modes"].as_u64().unwrap();
+    assert!(
+        candidates.iter().any(|c| exact(c) && modes(c) > 2),
+        "{selection}"
+    );
+    let chosen = &candidates[selection["chosen"].as_u64().unwrap() as usize];
+    assert!(exact(chosen) && modes(chosen) == 2, "{chosen}");
+    let o = ok(&["validate", s(&out), s(&data), "--rows", "1600..", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&o).unwrap();
+    let fit = v["fit_sim"].as_f64().unwrap();
+    assert!(fit > 99.99, "{fit}");
+}
+
 #[test]
 fn auto_chooses_inside_the_identification_rows_only() {
     // Rows after the identification rows are test rows: deleting them from

@@ -15,7 +15,7 @@ use hysid_graybox::GrayBoxModel;
 use hysid_mechanical::{MechanicalInitialState, MechanicalModel};
 use hysid_model::data::Dataset;
 use hysid_model::data::same_sampling;
-use hysid_model::metrics::{fit, fit_undefined, pooled_fit, rmse};
+use hysid_model::metrics::{fit, fit_undefined, pooled_fit, rmse, spread};
 use hysid_model::model::InitialState;
 use hysid_model::simulate::{
     DivergedTo, MAX_SUBSTEPS_PER_SAMPLE, SimError, Simulation, SimulationOptions,
@@ -588,8 +588,31 @@ pub struct Holdout {
     /// FIT of the free-run simulation, percent (finite).
     pub fit_sim: f64,
     /// The simulation errors `y - y_sim` of the scored samples, in order:
-    /// what the one-standard-error rule compares.
+    /// what the one-standard-error rule compares. An error within
+    /// [`ERROR_RESOLUTION`] of the output's deviation is zero.
     pub errors: Vec<f64>,
+}
+
+/// The least simulation error a [`Holdout`] tells from zero, as a fraction
+/// of the root-mean-square deviation of the scored output about its mean:
+/// below any measurement's resolution (a 16-bit converter resolves 1.5e-5
+/// of its range), and above the rounding of a simulation in double
+/// precision. Two models exact on noise-free rows then compare as equal in
+/// the one-standard-error rule, which takes the one of fewer modes, instead
+/// of by their rounding errors, whose differences have a standard error
+/// as small.
+pub const ERROR_RESOLUTION: f64 = 1e-6;
+
+/// A FIT as held-out scores are compared: 100 where the error is within
+/// [`ERROR_RESOLUTION`] of the output's deviation (a FIT of at least
+/// `100 (1 - ERROR_RESOLUTION)`), so that models exact on the rows tie
+/// instead of being ranked by their rounding.
+pub fn resolved_fit(fit: f64) -> f64 {
+    if fit >= 100.0 * (1.0 - ERROR_RESOLUTION) {
+        100.0
+    } else {
+        fit
+    }
 }
 
 /// Why a model could not be scored on held-out rows.
@@ -633,10 +656,14 @@ pub fn holdout(model: &Model, data: &Dataset, warmup: usize) -> Result<Holdout, 
     if !fit_sim.is_finite() {
         return Err(HoldoutError::NotFinite);
     }
+    let scored: usize = pairs.iter().map(|(y, _)| y.len()).sum();
+    let resolution =
+        ERROR_RESOLUTION * spread(pairs.iter().map(|(y, _)| *y)) / (scored.max(1) as f64).sqrt();
+    let resolved = |e: f64| if e.abs() <= resolution { 0.0 } else { e };
     Ok(Holdout {
         fit_sim,
         errors: (pairs.iter())
-            .flat_map(|(y, s)| y.iter().zip(*s).map(|(a, b)| a - b))
+            .flat_map(|(y, s)| y.iter().zip(*s).map(|(a, b)| resolved(a - b)))
             .collect(),
     })
 }
@@ -668,6 +695,27 @@ mod tests {
             None,
         )
         .unwrap()
+    }
+
+    /// Errors at the level of rounding are zero, so that two exact models
+    /// compare as equal; an error a millionth of the output's deviation
+    /// (times a few) is kept. FITs within that resolution of 100 tie.
+    #[test]
+    fn held_out_errors_below_the_resolution_are_zero() {
+        let model = first_order();
+        let exact = record(200, 0.0);
+        // The output computed in another order: rounding apart.
+        let y: Vec<f64> = (exact.y().iter())
+            .map(|v| (v * 3.0 + 0.1) / 3.0 - 0.1 / 3.0)
+            .collect();
+        let rounded = Dataset::siso(exact.u(0).to_vec(), y, None).unwrap();
+        let h = holdout(&model, &rounded, 5).unwrap();
+        assert!(h.fit_sim < 100.0, "{}", h.fit_sim);
+        assert!(h.errors.iter().all(|e| *e == 0.0));
+        assert_eq!(resolved_fit(h.fit_sim), 100.0);
+        let off = holdout(&model, &record(200, 1e-5), 5).unwrap();
+        assert!(off.errors.iter().all(|e| *e != 0.0));
+        assert!(resolved_fit(off.fit_sim) < 100.0, "{}", off.fit_sim);
     }
 
     /// Each record of a joined dataset is scored as on its own; the pooled

@@ -38,7 +38,7 @@ pub fn pooled_fit(records: &[(&[f64], &[f64])]) -> f64 {
 
 /// The denominator of [`pooled_fit`]: the root of the squared deviations
 /// of each record about its own mean, summed over the records.
-fn spread<'a>(records: impl Iterator<Item = &'a [f64]>) -> f64 {
+pub fn spread<'a>(records: impl Iterator<Item = &'a [f64]>) -> f64 {
     let mut den = 0.0;
     for y in records {
         let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;

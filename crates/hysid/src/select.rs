@@ -37,7 +37,7 @@ use hysid_core::backend::{Backend, IdentifyError, NoProgress, Problem, RunContex
 use hysid_core::model::Model;
 use hysid_core::options::{OptionError, Settings};
 use hysid_core::search::{Candidate, CandidateError, SearchSpace, Setup};
-use hysid_core::simulate::{HoldoutError, holdout, validate};
+use hysid_core::simulate::{HoldoutError, holdout, resolved_fit, validate};
 use hysid_model::data::{Dataset, RowRange};
 use hysid_model::model::{RefitStart, ScoredCandidate, Selection, SplitRows};
 use rayon::prelude::*;
@@ -641,7 +641,9 @@ fn score_all(
 /// The scored candidates from the highest selection-row FIT down (the
 /// first in grid order among equal scores).
 fn ranking<'c>(scored: impl IntoIterator<Item = &'c ScoredCandidate>) -> Vec<usize> {
-    let scores: Vec<Option<f64>> = scored.into_iter().map(|c| c.fit_sim).collect();
+    let scores: Vec<Option<f64>> = (scored.into_iter())
+        .map(|c| c.fit_sim.map(resolved_fit))
+        .collect();
     let mut order: Vec<usize> = (0..scores.len()).filter(|&i| scores[i].is_some()).collect();
     // A stable sort keeps grid order among equal scores.
     let score = |i: usize| scores[i].unwrap_or(f64::NEG_INFINITY);
@@ -662,7 +664,7 @@ fn preference(
     let mut order = ranking(scored);
     let modes: Vec<Option<usize>> = scored.iter().map(|c| c.modes).collect();
     let above_floor = |i: usize| match (scored[i].fit_sim, floor) {
-        (Some(f), Some(g)) => f >= g,
+        (Some(f), Some(g)) => resolved_fit(f) >= resolved_fit(g),
         _ => true,
     };
     if let Some(simplest) = parsimony::simplest_within_one_se(&order, errors, &modes, dependence)
@@ -722,7 +724,7 @@ fn choose(
         });
         let own = starts.iter().find(|s| s.kept).and_then(|s| s.fit_sim);
         match floor {
-            Some(floor) if own.is_none_or(|own| own < floor) => {
+            Some(floor) if own.is_none_or(|own| resolved_fit(own) < resolved_fit(floor)) => {
                 let (own, floor) = match own {
                     Some(own) => apart(own, floor),
                     None => ("no finite FIT".into(), format!("{floor:.2} %")),

@@ -7,7 +7,7 @@
 use super::{Request, Trial, fit, fit_on};
 use hysid_core::backend::{IdentifyError, NoProgress, RunContext};
 use hysid_core::model::Model;
-use hysid_core::simulate::simulate;
+use hysid_core::simulate::{resolved_fit, simulate};
 use hysid_model::data::Dataset;
 use hysid_model::model::RefitStart;
 use hysid_model::simulate::SimulationOptions;
@@ -124,7 +124,7 @@ fn kept_start(starts: &[RefitStart]) -> Option<usize> {
         if !fitted(s) || (holds && s.diverges_backwards) {
             continue;
         }
-        let score = s.fit_sim.unwrap_or(f64::NEG_INFINITY);
+        let score = s.fit_sim.map_or(f64::NEG_INFINITY, resolved_fit);
         if kept.is_none_or(|(_, best)| score > best) {
             kept = Some((k, score));
         }
