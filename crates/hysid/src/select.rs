@@ -990,11 +990,14 @@ mod tests {
             .map(|p| (p.fit_rows.as_str(), p.select_rows.as_str()))
             .collect();
         assert_eq!(rows, [("60..300", "0..60"), ("0..240", "240..300")]);
-        // Noise-free: every order from (1, 1) up is exact, so the choice is
-        // one of them (which one is decided by rounding), scored near 100 %.
-        let best = s.candidates[s.chosen].fit_sim.unwrap();
-        assert!(best > 99.999, "{best}");
-        assert!(s.candidates.iter().all(|c| c.fit_sim.unwrap() <= best));
+        // Noise-free: every order from (1, 1) up is exact up to rounding, so
+        // they tie and the first in grid order, (1, 1), is the choice.
+        assert!(
+            s.candidates
+                .iter()
+                .all(|c| resolved_fit(c.fit_sim.unwrap()) == 100.0)
+        );
+        assert_eq!(s.chosen, 0);
         // One mode: the parameter refinement is tried, the region stage is
         // not; the record names it for the chosen order.
         let tried: Vec<&str> = s.refinement.iter().map(|r| r.refine.as_str()).collect();
