@@ -13,23 +13,50 @@ use std::path::Path;
 /// the comma); only the version and endian fields that follow it matter.
 const LEVEL5_TEXT: &[u8] = b"MATLAB 5.0 MAT-file, ";
 
-/// Why a file with a MAT-file name is not a level-5 MAT-file, when it is a
-/// format of its own: the HDF5-based MAT-file of `save -v7.3`, or a
-/// level-4 file (no `IM`/`MI` endian indicator at bytes 126..128).
+/// Why a file with a MAT-file name is not a level-5 MAT-file (no `IM`/`MI`
+/// endian indicator at bytes 126..128), when it says: the HDF5-based
+/// MAT-file of `save -v7.3`, a level-4 file ([`level4_header`]), or
+/// neither.
 fn other_format(bytes: &[u8]) -> Option<&'static str> {
     if bytes.starts_with(b"MATLAB 7.3") || bytes.get(512..520) == Some(b"\x89HDF\r\n\x1a\n") {
         Some(
             "an HDF5-based MAT-file (MATLAB save -v7.3), which is not read here: save it as level 5 \
              (MATLAB: save(file, '-v7'); Python: scipy.io.savemat)",
         )
-    } else if !matches!(&bytes[126..128], b"IM" | b"MI") {
+    } else if matches!(&bytes[126..128], b"IM" | b"MI") {
+        None
+    } else if level4_header(bytes) {
         Some(
             "a level-4 MAT-file (MATLAB v4 format), which is not read here: save it as level 5 \
              (MATLAB: save(file, '-v7'); Python: scipy.io.savemat without format='4')",
         )
     } else {
-        None
+        Some("not a MAT-file: neither a level-5 header nor a level-4 matrix header")
     }
+}
+
+/// Whether `bytes` start as a level-4 matrix header in either byte order:
+/// the type `MOPT` (`M` the byte order 0-4, `O` 0, `P` the number type
+/// 0-5, `T` the matrix type 0-2) and the imaginary flag 0 or 1 (MATLAB,
+/// "MAT-File Format", level 4).
+fn level4_header(bytes: &[u8]) -> bool {
+    let word = |at: usize, little: bool| {
+        let b: [u8; 4] = bytes[at..at + 4].try_into().unwrap_or_default();
+        if little {
+            i32::from_le_bytes(b)
+        } else {
+            i32::from_be_bytes(b)
+        }
+    };
+    [true, false].into_iter().any(|little| {
+        let mopt = word(0, little);
+        let digit = |d: i32| (mopt / d) % 10;
+        (0..=4052).contains(&mopt)
+            && digit(100) == 0
+            && digit(10) <= 5
+            && digit(1) <= 2
+            && matches!(word(12, little), 0 | 1)
+    })
 }
 
 /// The 128-byte header of `bytes` with its text starting as matrw expects

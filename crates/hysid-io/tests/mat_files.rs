@@ -1,7 +1,8 @@
 //! MAT-files as users have them: written by `scipy.io.savemat` (compressed
 //! or not, row or column vectors, float64, float32 and int16) and with the
 //! header MATLAB writes, each read to exactly the signals of its CSV twin;
-//! level-4 and HDF5-based (v7.3) files named for what they are. The
+//! level-4 and HDF5-based (v7.3) files named for what they are, and a
+//! file of another format under a MAT-file name as none of them. The
 //! fixtures and their generator are in `tests/data/mat/`.
 
 use hysid_model::data::{DataError, DataSelection};
@@ -48,4 +49,20 @@ fn level4_and_hdf5_files_are_named_for_what_they_are() {
         assert!(text.contains(says) && text.contains(file), "{file}: {text}");
         assert!(text.contains("save it as level 5"), "{text}");
     }
+}
+
+/// A CSV file renamed `.mat` is not taken for a level-4 file.
+#[test]
+fn another_format_under_a_mat_name_is_not_a_mat_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = std::fs::read(fixture("scipy_f64_row.csv")).unwrap();
+    let file = dir.path().join("renamed.mat");
+    std::fs::write(&file, csv).unwrap();
+    let e = hysid_io::load(&file, &DataSelection::default()).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("renamed.mat") && text.contains("not a MAT-file"),
+        "{text}"
+    );
+    assert!(!text.contains("level-4 MAT-file ("), "{text}");
 }

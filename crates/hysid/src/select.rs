@@ -793,6 +793,12 @@ mod tests {
         // Moving within the warm-up only is still constant as scored.
         assert!(splits(&held_on(5000, 4010..5000), &default).is_err());
         assert!(splits(&held_on(5000, 4011..5000), &default).is_ok());
+        // A short record's start block, scored as well, is named as such.
+        let e = splits(&held_on(200, 0..40), &default).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "selection rows 1160..: the output is constant on rows 1000..1040 (the block at the start, scored as well on a record this short) after the warm-up, so FIT cannot rank the candidates there"
+        );
         // A fold, and a held-out record.
         let folds = Plan {
             folds: Some(4),

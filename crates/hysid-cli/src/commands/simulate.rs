@@ -8,7 +8,7 @@ use hysid_core::model::Model;
 use hysid_core::simulate::simulate;
 use hysid_model::data::{Dataset, Signal};
 use hysid_model::excitation::{Excitation, ExcitationError};
-use hysid_model::simulate::SimulationOptions;
+use hysid_model::simulate::{SimError, SimulationOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -79,10 +79,18 @@ pub fn run(args: Args) -> Result<()> {
             args.model.display()
         );
     }
-    let sim = simulate(&model, &data, SimulationOptions::default())
-        .map_err(|e| CliError::simulation(&args.model, e))?;
-    let states = hysid_core::simulate::initial_states(&model, &data)
-        .map_err(|e| CliError::simulation(&args.model, e))?;
+    // A record too short for the model is named by its file and rows.
+    let failed = |e: SimError| match (&e, &args.data) {
+        (SimError::TooShort { .. }, Some(path)) => {
+            let rows = (args.select.rows_of(0))
+                .map(|r| format!(" --rows {r}"))
+                .unwrap_or_default();
+            CliError::input(format!("{}{rows}: {e}", path.display()))
+        }
+        _ => CliError::simulation(&args.model, e),
+    };
+    let sim = simulate(&model, &data, SimulationOptions::default()).map_err(failed)?;
+    let states = hysid_core::simulate::initial_states(&model, &data).map_err(failed)?;
     if !states.values.is_empty() {
         let warmup = if args.data.is_some() {
             "the warm-up".to_string()

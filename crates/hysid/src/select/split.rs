@@ -29,16 +29,22 @@ pub fn splits(data: &Dataset, plan: &Plan) -> Result<Vec<Split>, SelectError> {
             None => vec![split(n, plan)?],
         }
     };
-    match out
-        .iter()
-        .find(|&&(_, rows)| constant_output(data, rows, plan.warmup))
-    {
+    match (out.iter()).position(|&(_, rows)| constant_output(data, rows, plan.warmup)) {
         None => Ok(out),
-        Some(&(_, (a, b))) => {
+        Some(i) => {
+            let (_, (a, b)) = out[i];
+            // Of a short record's two ends, the first is the start block.
+            let start_block =
+                plan.select_records.is_none() && plan.folds.is_none() && i + 1 < out.len();
             let reason = format!(
-                "the output is constant on rows {}..{} after the warm-up, so FIT cannot rank the candidates there",
+                "the output is constant on rows {}..{}{} after the warm-up, so FIT cannot rank the candidates there",
                 a + plan.first_row,
-                b + plan.first_row
+                b + plan.first_row,
+                if start_block {
+                    " (the block at the start, scored as well on a record this short)"
+                } else {
+                    ""
+                }
             );
             Err(match (plan.select_records, plan.folds) {
                 (Some(records), _) => SelectError::Records { records, reason },
