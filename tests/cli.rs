@@ -1701,8 +1701,21 @@ fn too_few_samples_name_their_rows() {
     // A record too short to simulate: the data, not the model.
     let model = dir.path().join("true.json");
     let csv = dir.path().join("x.csv");
-    let args = ["simulate", s(&model), "--data", s(&data), "--rows", "399..", "-o", s(&csv)];
-    bad(&args, &["data.csv --rows 399..: the record has 1 samples"], &csv);
+    let args = [
+        "simulate",
+        s(&model),
+        "--data",
+        s(&data),
+        "--rows",
+        "399..",
+        "-o",
+        s(&csv),
+    ];
+    bad(
+        &args,
+        &["data.csv --rows 399..: the record has 1 samples"],
+        &csv,
+    );
 }
 
 /// `--max-modes` is the prior `max_modes`: cluster chooses the count.

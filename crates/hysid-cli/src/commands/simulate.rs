@@ -265,15 +265,16 @@ fn driving_record(args: &Args, model: &Model, y0: f64) -> Result<Dataset> {
 }
 
 /// `k ts` with as many decimals as `ts` has (at most 12), without the
-/// rounding residue of the product (`14.995`, not `14.995000000000001`).
+/// rounding residue of the product (`14.995`, not `14.995000000000001`);
+/// a `ts` of more decimals in full, so that the times still increase.
 fn time_text(k: usize, ts: f64) -> String {
-    let decimals = (0..=12)
-        .find(|&d| {
-            let scaled = ts * 10f64.powi(d);
-            (scaled - scaled.round()).abs() <= 1e-9 * scaled.abs().max(1.0)
-        })
-        .unwrap_or(12) as usize;
-    let text = format!("{:.*}", decimals, k as f64 * ts);
+    let Some(decimals) = (0..=12).find(|&d| {
+        let scaled = ts * 10f64.powi(d);
+        (scaled - scaled.round()).abs() <= 1e-9 * scaled.abs()
+    }) else {
+        return format!("{}", k as f64 * ts);
+    };
+    let text = format!("{:.*}", decimals as usize, k as f64 * ts);
     if text.contains('.') {
         text.trim_end_matches('0').trim_end_matches('.').to_string()
     } else {
@@ -300,5 +301,23 @@ fn csv_name(out: &std::path::Path) -> Result<()> {
             out.display()
         ))),
         None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::time_text;
+
+    #[test]
+    fn times_have_the_decimals_of_the_sampling_time() {
+        assert_eq!(time_text(2999, 0.005), "14.995");
+        assert_eq!(time_text(3, 0.1), "0.3");
+        assert_eq!(time_text(7, 2.0), "14");
+        assert_eq!(time_text(0, 0.01), "0");
+        // More decimals than 12: in full, still increasing.
+        let times: Vec<f64> = (0..4)
+            .map(|k| time_text(k, 1e-13).parse().unwrap())
+            .collect();
+        assert!(times.windows(2).all(|w| w[0] < w[1]), "{times:?}");
     }
 }
