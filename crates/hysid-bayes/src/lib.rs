@@ -234,10 +234,10 @@ pub fn fit(
     );
     let thetas = point_estimates(&pdfs, &priors);
     let classes = reclassify(&pdfs, &reg, sigma);
-    check_every_mode_has_samples(&classes.labels, modes)?;
+    let cut_short = pass.processed < reg.len();
+    check_every_mode_has_samples(&classes.labels, modes, cut_short.then_some(pass.processed))?;
     let partition =
         hysid_estimation::regions::for_pwarx(options.regions, data, &reg, &classes.labels, modes)?;
-    let cut_short = pass.processed < reg.len();
     let relabelled = order[..pass.processed]
         .iter()
         .filter(|&&k| pass.labels[k] != Some(classes.labels[k]))
@@ -579,15 +579,28 @@ pub fn reclassify(pdfs: &[ModePdf], reg: &Regressors, sigma: f64) -> Reclassific
 }
 
 /// Every mode needs a sample for its region.
-fn check_every_mode_has_samples(labels: &[usize], modes: usize) -> Result<(), IdentifyError> {
+fn check_every_mode_has_samples(
+    labels: &[usize],
+    modes: usize,
+    cut_short_after: Option<usize>,
+) -> Result<(), IdentifyError> {
     let mut counts = vec![0usize; modes];
     for &q in labels {
         counts[q] += 1;
     }
-    match counts.iter().position(|&c| c == 0) {
-        Some(mode) => Err(BayesError::EmptyMode { mode, modes }.into()),
-        None => Ok(()),
+    let Some(mode) = counts.iter().position(|&c| c == 0) else {
+        return Ok(());
+    };
+    Err(match cut_short_after {
+        Some(processed) => BayesError::EmptyModeCutShort {
+            mode,
+            modes,
+            processed,
+            samples: labels.len(),
+        },
+        None => BayesError::EmptyMode { mode, modes },
     }
+    .into())
 }
 
 /// `phi = [x(k); 1]`.
@@ -621,6 +634,22 @@ pub enum BayesError {
         /// Modes asked for.
         modes: usize,
     },
+    /// The time budget ended the sequential pass before every mode had a
+    /// sample of the final classification.
+    #[error(
+        "mode {} of {modes} explains no sample after the final classification: the time budget ended the sequential pass after {processed} of {samples} samples; give it more time",
+        .mode + 1
+    )]
+    EmptyModeCutShort {
+        /// The empty mode (from 0; shown from 1).
+        mode: usize,
+        /// Modes asked for.
+        modes: usize,
+        /// Samples the pass processed.
+        processed: usize,
+        /// Samples of the record.
+        samples: usize,
+    },
     /// `posterior = gaussian` cannot represent a truncated prior.
     #[error(
         "option posterior=gaussian cannot honour [bounds] (a truncated Gaussian is not Gaussian): use posterior=particles"
@@ -638,5 +667,33 @@ impl From<BayesError> for IdentifyError {
             BayesError::BoundsNeedParticles => IdentifyError::input(e),
             e => IdentifyError::failed(e),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A mode left empty is named with the budget when the budget ended
+    /// the sequential pass, and with the options otherwise.
+    #[test]
+    fn an_empty_mode_names_the_time_budget_that_cut_the_pass_short() {
+        let labels = [0, 0, 2, 0];
+        let plain = check_every_mode_has_samples(&labels, 3, None).unwrap_err();
+        assert!(plain.to_string().contains("mode 2 of 3"), "{plain}");
+        assert!(
+            plain
+                .to_string()
+                .ends_with("fewer modes, or a wider prior_std"),
+            "{plain}"
+        );
+        let cut = check_every_mode_has_samples(&labels, 3, Some(2)).unwrap_err();
+        assert!(
+            cut.to_string().ends_with(
+                "the time budget ended the sequential pass after 2 of 4 samples; give it more time"
+            ),
+            "{cut}"
+        );
+        assert!(check_every_mode_has_samples(&[0, 1, 2], 3, Some(2)).is_ok());
     }
 }

@@ -149,7 +149,9 @@ pub enum ProcedureError {
     #[error(
         "delta = {delta} explains the data with {found} mode(s), fewer than the prior modes = {wanted}{}: {}",
         if *.infeasible > 0 { format!(", and leaves {} of {} samples in no mode", .infeasible, .samples) } else { String::new() },
-        if *.constrained && *.infeasible > 0 {
+        if *.stopped_by_deadline {
+            "the time budget ended the mode extraction before more were found; give it more time"
+        } else if *.constrained && *.infeasible > 0 {
             "lower delta, or check the priors on the modes' parameters ([fixed], [bounds], [[tie]], [[equality]]): they may exclude the modes of the data"
         } else {
             "lower delta"
@@ -168,6 +170,8 @@ pub enum ProcedureError {
         samples: usize,
         /// Whether priors constrain the modes' parameters.
         constrained: bool,
+        /// Whether the deadline cut the mode extraction or refinement short.
+        stopped_by_deadline: bool,
     },
     /// No mode found at all.
     #[error("no mode explains at least {min} samples within delta = {delta}")]
@@ -223,6 +227,7 @@ pub fn run(s: &Samples, set: &ProcedureSettings) -> Result<Classification, Proce
                 .count(),
             samples: last.labels.len(),
             constrained: !set.constraints.is_free(),
+            stopped_by_deadline: greedy.stopped || refined.stopped,
         });
     }
     Ok(Classification {
@@ -773,6 +778,7 @@ mod tests {
                 infeasible,
                 samples: 399,
                 constrained,
+                stopped_by_deadline: false,
             }
             .to_string()
         };
@@ -785,5 +791,20 @@ mod tests {
         );
         assert!(e(391, false).ends_with("samples in no mode: lower delta"));
         assert!(e(0, true).ends_with("fewer than the prior modes = 2: lower delta"));
+        // Cut short by the time budget: more time, not another delta.
+        let cut = ProcedureError::TooFewModes {
+            delta: 0.003,
+            found: 1,
+            wanted: 2,
+            infeasible: 0,
+            samples: 399,
+            constrained: false,
+            stopped_by_deadline: true,
+        };
+        assert!(
+            cut.to_string()
+                .ends_with("before more were found; give it more time"),
+            "{cut}"
+        );
     }
 }
