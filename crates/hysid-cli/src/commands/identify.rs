@@ -305,7 +305,7 @@ fn report_selection(method: &str, s: &Selection) {
     let refinement = if s.refinement.is_empty() || s.kept_refinement().is_some() {
         ""
     } else {
-        ", its refinements scored lower"
+        ", its refinements scored no higher"
     };
     let rows: Vec<String> = s
         .splits
